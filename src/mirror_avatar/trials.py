@@ -1,0 +1,286 @@
+"""Trials: one player's position time series, its validation, resampling and velocity.
+
+Follows METHODS section 2: recordings at any rate (possibly with irregular timestamps) are
+interpolated onto a uniform grid before anything else; velocity is the position low-passed by a
+zero-phase Butterworth filter (order 4, 10 Hz cut-off) and differentiated by a 4th-order finite
+difference (central inside, one-sided 5-point formulas at the two ends). Tracking drop-outs (runs of
+identical samples) are kept: they are part of real data.
+
+Units: time in seconds, position in normalised units (playing range [-0.5, 0.5]), velocity in
+units/s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import PchipInterpolator
+from scipy.signal import butter, sosfiltfilt
+
+from mirror_avatar.errors import InputError
+
+PLAYING_RANGE = (-0.5, 0.5)
+"""Normalised positions a player can reach (units); the Bristol set-up maps 60 cm to 1 unit."""
+
+DEFAULT_RATE = 100.0
+"""Analysis sampling rate (Hz); the paper upsamples its 10 Hz recordings to 100 Hz."""
+
+MIN_SAMPLES = 20
+"""Fewest samples a trial may have: shorter ones cannot be filtered or differentiated."""
+
+MIN_RATE, MAX_RATE = 1.0, 10_000.0
+"""Plausible mean sampling rates (Hz); anything outside is a unit error, not a recording."""
+
+MAX_ABS_POSITION = 5.0
+"""Largest plausible |position| (units); larger values mean the file is not normalised."""
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class Trial:
+    """One player's position time series.
+
+    Parameters
+    ----------
+    times
+        Sample times, shape (n,), seconds, strictly increasing.
+    positions
+        Positions, shape (n,), normalised units.
+    label
+        A name for the trial (for instance the file stem).
+    group
+        The player or style the trial belongs to (used to group trials in analyses).
+    metadata
+        Anything else worth keeping (source file, participant, mode, seeds...); JSON-serialisable.
+    """
+
+    times: Array
+    positions: Array
+    label: str = ""
+    group: str = ""
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples."""
+        return int(self.times.size)
+
+    @property
+    def duration(self) -> float:
+        """Time from the first to the last sample (s)."""
+        return float(self.times[-1] - self.times[0])
+
+    @property
+    def rate(self) -> float:
+        """Mean sampling rate (Hz)."""
+        return (self.n_samples - 1) / self.duration
+
+    @property
+    def is_uniform(self) -> bool:
+        """Whether the samples are equally spaced (to 1e-6 of the mean step)."""
+        steps = np.diff(self.times)
+        return bool(np.all(np.abs(steps - steps.mean()) <= 1e-6 * steps.mean()))
+
+    def resampled(
+        self, rate: float = DEFAULT_RATE, method: Literal["pchip", "linear"] = "pchip"
+    ) -> Trial:
+        """Return this trial interpolated onto a uniform grid at ``rate`` Hz (see `resample`)."""
+        return resample(self, rate, method)
+
+    def velocity(self, cutoff: float | None = 10.0) -> Array:
+        """Velocity (units/s), shape (n,); the trial must be uniformly sampled (see `resample`)."""
+        if not self.is_uniform:
+            raise InputError(self.label or None, "velocity needs uniform sampling: resample first")
+        return compute_velocity(self.positions, self.rate, cutoff=cutoff)
+
+
+def make_trial(
+    times: ArrayLike,
+    positions: ArrayLike,
+    *,
+    source: str | None = None,
+    label: str = "",
+    group: str = "",
+    metadata: dict[str, Any] | None = None,
+) -> Trial:
+    """Validate samples and build a `Trial`.
+
+    Parameters
+    ----------
+    times, positions
+        Sample times (s) and positions (units), shape (n,) each.
+    source
+        Where the samples came from (a file path), named in error messages.
+    label, group, metadata
+        As in `Trial`.
+
+    Raises
+    ------
+    InputError
+        One line naming ``source`` and the problem: wrong shape, NaN or infinite values,
+        non-increasing time, too few samples, an absurd sampling rate or positions far outside
+        the normalised range. Flat runs (tracking drop-outs) are valid.
+    """
+    t = _as_float_vector(times, "time", source)
+    x = _as_float_vector(positions, "position", source)
+    if t.size != x.size:
+        raise InputError(source, f"{t.size} times but {x.size} positions")
+    if t.size < MIN_SAMPLES:
+        raise InputError(source, f"only {t.size} samples; at least {MIN_SAMPLES} are needed")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        i = int(np.argmax(steps <= 0))
+        raise InputError(source, f"time does not increase at sample {i + 1} (t = {t[i + 1]:g} s)")
+    rate = (t.size - 1) / (t[-1] - t[0])
+    if not MIN_RATE <= rate <= MAX_RATE:
+        raise InputError(
+            source,
+            f"mean sampling rate {rate:.3g} Hz is outside {MIN_RATE:g}-{MAX_RATE:g} Hz "
+            "(is time in seconds?)",
+        )
+    peak = float(np.max(np.abs(x)))
+    if peak > MAX_ABS_POSITION:
+        raise InputError(
+            source,
+            f"|position| reaches {peak:.3g}; positions must be normalised "
+            f"(playing range {PLAYING_RANGE[0]} to {PLAYING_RANGE[1]})",
+        )
+    meta = dict(metadata or {})
+    if source is not None:
+        meta.setdefault("source", str(source))
+    return Trial(t, x, label=label, group=group, metadata=meta)
+
+
+def _as_float_vector(values: ArrayLike, name: str, source: str | None) -> Array:
+    try:
+        array = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(source, f"{name} column has non-numeric values") from None
+    if array.ndim != 1:
+        raise InputError(source, f"{name} must be one-dimensional, got shape {array.shape}")
+    bad = ~np.isfinite(array)
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        raise InputError(source, f"{name} is {array[i]} at sample {i}; NaN and inf are not allowed")
+    return array
+
+
+def resample(
+    trial: Trial, rate: float = DEFAULT_RATE, method: Literal["pchip", "linear"] = "pchip"
+) -> Trial:
+    """Interpolate a trial onto a uniform grid.
+
+    Parameters
+    ----------
+    trial
+        Any valid trial, regularly or irregularly sampled.
+    rate
+        Target rate (Hz). The grid starts at the first sample and steps by ``1/rate`` up to the
+        last sample.
+    method
+        ``"pchip"`` (default, **choice**: shape-preserving cubic, so no overshoot at drop-outs
+        and a continuous velocity) or ``"linear"``.
+
+    Returns
+    -------
+    Trial
+        A new trial with the same label, group and metadata, plus ``metadata["resampled_from"]``
+        (the original mean rate, Hz).
+    """
+    if not MIN_RATE <= rate <= MAX_RATE:
+        raise InputError("rate", f"{rate:g} Hz is outside {MIN_RATE:g}-{MAX_RATE:g} Hz")
+    n = int(np.floor(trial.duration * rate + 1e-9)) + 1
+    grid = trial.times[0] + np.arange(n) / rate
+    if method == "pchip":
+        positions = PchipInterpolator(trial.times, trial.positions)(grid)
+    elif method == "linear":
+        positions = np.interp(grid, trial.times, trial.positions)
+    else:
+        raise InputError("method", f"unknown interpolation {method!r}; use 'pchip' or 'linear'")
+    metadata = {**trial.metadata, "resampled_from": trial.rate}
+    return replace(trial, times=grid, positions=np.asarray(positions), metadata=metadata)
+
+
+def lowpass(signal: ArrayLike, rate: float, cutoff: float = 10.0, order: int = 4) -> Array:
+    """Zero-phase Butterworth low-pass filter.
+
+    Parameters
+    ----------
+    signal
+        Uniformly sampled signal, shape (n,).
+    rate
+        Sampling rate (Hz).
+    cutoff
+        Cut-off frequency (Hz). When it is at or above the Nyquist frequency the signal is
+        returned unfiltered (there is nothing above it to remove).
+    order
+        Filter order (the forward-backward pass doubles the effective order).
+    """
+    x = np.asarray(signal, dtype=np.float64)
+    if cutoff >= rate / 2:
+        return x.copy()
+    sos = butter(order, cutoff, btype="low", fs=rate, output="sos")
+    padlen = min(3 * (2 * len(sos) + 1), x.size - 1)
+    return np.asarray(sosfiltfilt(sos, x, padlen=padlen))
+
+
+def finite_difference(signal: ArrayLike, step: float) -> Array:
+    """Fourth-order finite-difference derivative.
+
+    Central ``(x[i-2]/12 - 2x[i-1]/3 + 2x[i+1]/3 - x[i+2]/12)/h`` inside; the one-sided
+    5-point formulas of the same order for the first two and the last two samples. Exact on
+    polynomials up to degree 4.
+
+    Parameters
+    ----------
+    signal
+        Uniformly sampled signal, shape (n,), n >= 5.
+    step
+        Sample spacing h (s).
+
+    Returns
+    -------
+    numpy.ndarray
+        Derivative, shape (n,), in signal units per second.
+    """
+    x = np.asarray(signal, dtype=np.float64)
+    if x.size < 5:
+        raise InputError(None, f"finite difference needs at least 5 samples, got {x.size}")
+    d = np.empty_like(x)
+    d[2:-2] = (x[:-4] / 12 - 2 * x[1:-3] / 3 + 2 * x[3:-1] / 3 - x[4:] / 12) / step
+    d[0] = (-25 * x[0] + 48 * x[1] - 36 * x[2] + 16 * x[3] - 3 * x[4]) / (12 * step)
+    d[1] = (-3 * x[0] - 10 * x[1] + 18 * x[2] - 6 * x[3] + x[4]) / (12 * step)
+    d[-1] = (25 * x[-1] - 48 * x[-2] + 36 * x[-3] - 16 * x[-4] + 3 * x[-5]) / (12 * step)
+    d[-2] = (3 * x[-1] + 10 * x[-2] - 18 * x[-3] + 6 * x[-4] - x[-5]) / (12 * step)
+    return d
+
+
+def compute_velocity(
+    positions: ArrayLike, rate: float, cutoff: float | None = 10.0, order: int = 4
+) -> Array:
+    """Velocity of a uniformly sampled position signal (METHODS section 2).
+
+    Parameters
+    ----------
+    positions
+        Positions, shape (n,), units, sampled at ``rate``.
+    rate
+        Sampling rate (Hz).
+    cutoff
+        Low-pass cut-off (Hz) applied before differentiating; ``None`` skips the filter.
+    order
+        Butterworth order.
+
+    Returns
+    -------
+    numpy.ndarray
+        Velocity, shape (n,), units/s.
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    if cutoff is not None:
+        x = lowpass(x, rate, cutoff, order)
+    return finite_difference(x, 1.0 / rate)
