@@ -1,0 +1,970 @@
+"""The cyber player: a Q-learning avatar driving its own HKB end effector (METHODS section 7).
+
+Every control period T the avatar observes the state ``[x, x', x_p, x_p']`` (own position and
+velocity, partner's position and velocity), picks one of a small set of accelerations ``u`` and
+applies it, held constant over T, to its own Haken-Kelso-Bunz end effector
+
+    x'' = -(alpha x² + beta x'² - gamma) x' - omega² x + u,
+
+integrated with a few classical Runge-Kutta (RK4) substeps. During training it is rewarded for
+matching the **target player** ``[x_t, x_t']`` (the person it must imitate, who plays with the
+same partner):
+
+    rho = -(x - x_t)² - 0.1 (x' - x_t')² - eta u²,
+
+and learns by tabular Q-learning, ``Q(s,a) += alpha [r + gamma max_a' Q(s',a') - Q(s,a)]``, with a
+seeded random initial Q-table and epsilon-greedy exploration whose epsilon decreases monotonically
+from session to session. At play time the policy is greedy.
+
+Follows METHODS section 7; the **choice**s it leaves open, all configurable:
+
+- actions: 0, ±0.5, ±1, ±2, ±4 (units/s², the group's later code);
+- omega = 0.1 rad/s for the avatar's own end effector (the paper's follower value; alpha = 1,
+  beta = 2, gamma = -1 as in section 5);
+- state discretisation (`Discretisation`): ``"absolute"`` features ``[x, x', x_p, x_p']`` or
+  ``"relative"`` features ``[x - x_p, x' - x_p', x_p, x_p']`` (the default, measured better on the
+  real-data follower task, see the tests and benchmark), each cut by its own increasing bin edges;
+- position clipped to the playing range [-0.5, 0.5] after each period, and the velocity component
+  pushing further out set to zero (a hand stopped at the edge of the range);
+- a training session starts the avatar at the target's initial state;
+- epsilon schedule (`ExponentialEpsilon`), learning rate, discount and the scale of the random
+  initial Q-table.
+
+The whole Q-learning session is one compiled function (`run_q_session`) taking arrays at the
+control period, so a training loop only streams sessions to it. Models are saved as one ``.npz``
+file holding the Q-table, the bin edges, the action set and a JSON metadata string (format name
+``mirror-avatar/cyber-player``), loaded with ``allow_pickle=False``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import tempfile
+import zipfile
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from numba import njit
+from numpy.typing import ArrayLike, NDArray
+from tqdm.auto import tqdm
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.players import CONTROL_PERIOD
+from mirror_avatar.trials import PLAYING_RANGE
+
+Array = NDArray[np.float64]
+Features = Literal["absolute", "relative"]
+
+DEFAULT_ACTIONS = (-4.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 4.0)
+"""The 9 accelerations (units/s²) the avatar can choose from (**choice**, METHODS section 7)."""
+
+VELOCITY_WEIGHT = 0.1
+"""Weight of the velocity error in the reward (METHODS section 7)."""
+
+FORMAT_NAME = "mirror-avatar/cyber-player"
+FORMAT_VERSION = 1
+N_FEATURES = 4
+_LOW, _HIGH = PLAYING_RANGE
+
+
+# ---------------------------------------------------------------------------------------------
+# Compiled core: HKB step, reward, state index, greedy choice, one Q-learning session.
+
+
+@njit(cache=True)
+def _hkb_acceleration(x: float, v: float, u: float, hkb: Array) -> float:
+    alpha, beta, gamma, omega = hkb[0], hkb[1], hkb[2], hkb[3]
+    return -(alpha * x * x + beta * v * v - gamma) * v - omega * omega * x + u
+
+
+@njit(cache=True)
+def integrate_hkb(
+    x: float, v: float, u: float, hkb: Array, period: float, n_substeps: int
+) -> tuple[float, float]:
+    """Advance the HKB end effector by one control period with u held constant (RK4).
+
+    Parameters
+    ----------
+    x, v
+        Position (units) and velocity (units/s) at the start of the period.
+    u
+        Acceleration input (units/s²), held over the period.
+    hkb
+        ``[alpha, beta, gamma, omega]``, shape (4,).
+    period
+        Control period T (s).
+    n_substeps
+        Number of RK4 steps of length T / n_substeps.
+
+    Returns
+    -------
+    tuple of float
+        Position and velocity at the end of the period; the position is clipped to [-0.5, 0.5]
+        and an outward velocity at the boundary is set to zero.
+    """
+    h = period / n_substeps
+    for _ in range(n_substeps):
+        a1 = _hkb_acceleration(x, v, u, hkb)
+        x2, v2 = x + 0.5 * h * v, v + 0.5 * h * a1
+        a2 = _hkb_acceleration(x2, v2, u, hkb)
+        x3, v3 = x + 0.5 * h * v2, v + 0.5 * h * a2
+        a3 = _hkb_acceleration(x3, v3, u, hkb)
+        x4, v4 = x + h * v3, v + h * a3
+        a4 = _hkb_acceleration(x4, v4, u, hkb)
+        x += h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
+        v += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    if x > _HIGH:
+        x, v = _HIGH, min(v, 0.0)
+    elif x < _LOW:
+        x, v = _LOW, max(v, 0.0)
+    return x, v
+
+
+@njit(cache=True)
+def compute_reward(x: float, v: float, xt: float, vt: float, u: float, eta: float) -> float:
+    """Reward ``-(x - x_t)² - 0.1 (x' - x_t')² - eta u²`` (METHODS section 7).
+
+    Parameters
+    ----------
+    x, v
+        The avatar's position (units) and velocity (units/s).
+    xt, vt
+        The target player's position and velocity at the same time.
+    u
+        The acceleration just applied (units/s²).
+    eta
+        Weight of the control effort (the paper's eta = 1e-4).
+
+    Returns
+    -------
+    float
+        The reward (<= 0).
+    """
+    return -((x - xt) ** 2) - VELOCITY_WEIGHT * (v - vt) ** 2 - eta * u * u
+
+
+@njit(cache=True)
+def _bin(value: float, edges: Array, start: int, stop: int) -> int:
+    return int(np.searchsorted(edges[start:stop], value, side="right"))
+
+
+@njit(cache=True)
+def _state_index(
+    x: float,
+    v: float,
+    xp: float,
+    vp: float,
+    relative: bool,
+    edges: Array,
+    offsets: NDArray[np.int64],
+) -> int:
+    f0, f1 = (x - xp, v - vp) if relative else (x, v)
+    index = 0
+    for d, value in enumerate((f0, f1, xp, vp)):
+        start, stop = offsets[d], offsets[d + 1]
+        index = index * (stop - start + 1) + _bin(value, edges, start, stop)
+    return index
+
+
+@njit(cache=True)
+def choose_action(q: Array, s: int, epsilon: float, rng: np.random.Generator) -> int:
+    """Epsilon-greedy choice in state ``s``: a uniform random action with probability epsilon.
+
+    Draws ``rng.random()`` first, then ``rng.integers(0, n_actions)`` only when exploring.
+    """
+    if rng.random() < epsilon:
+        return int(rng.integers(0, q.shape[1]))
+    return int(np.argmax(q[s]))
+
+
+@njit(cache=True)
+def update_q(
+    q: Array, s: int, a: int, r: float, s_next: int, learning_rate: float, discount: float
+) -> None:
+    """Q-learning update ``Q(s,a) += alpha [r + gamma max_a' Q(s',a') - Q(s,a)]``, in place."""
+    q[s, a] += learning_rate * (r + discount * np.max(q[s_next]) - q[s, a])
+
+
+@njit(cache=True)
+def _greedy_step(
+    q: Array,
+    x: float,
+    v: float,
+    xp: float,
+    vp: float,
+    relative: bool,
+    edges: Array,
+    offsets: NDArray[np.int64],
+    actions: Array,
+    hkb: Array,
+    period: float,
+    n_substeps: int,
+) -> tuple[float, float]:
+    s = _state_index(x, v, xp, vp, relative, edges, offsets)
+    u = actions[np.argmax(q[s])]
+    return integrate_hkb(x, v, u, hkb, period, n_substeps)
+
+
+@njit(cache=True)
+def run_q_session(
+    q: Array,
+    partner_x: Array,
+    partner_v: Array,
+    target_x: Array,
+    target_v: Array,
+    relative: bool,
+    edges: Array,
+    offsets: NDArray[np.int64],
+    actions: Array,
+    hkb: Array,
+    period: float,
+    n_substeps: int,
+    eta: float,
+    learning_rate: float,
+    discount: float,
+    epsilon: float,
+    rng: np.random.Generator,
+) -> tuple[float, float]:
+    """Play one session against a partner and Q-learn from it, updating ``q`` in place.
+
+    The avatar starts at the target's initial state; at each sample k it observes its own state
+    and the partner's, picks an action epsilon-greedily, integrates its HKB over one period and is
+    rewarded against the target at k + 1. With ``learning_rate = 0`` and ``epsilon = 0`` this is a
+    greedy evaluation that leaves ``q`` unchanged.
+
+    Parameters
+    ----------
+    q
+        Q-table, shape (n_states, n_actions), updated in place.
+    partner_x, partner_v, target_x, target_v
+        Partner and target positions (units) and velocities (units/s), shape (n,) each, sampled
+        at the control period.
+    relative, edges, offsets
+        The state discretisation (see `Discretisation`).
+    actions
+        Accelerations (units/s²), shape (n_actions,).
+    hkb, period, n_substeps
+        The end effector (see `integrate_hkb`).
+    eta
+        Control-effort weight of the reward.
+    learning_rate, discount, epsilon
+        Q-learning step size, discount factor and exploration probability.
+    rng
+        Random generator for exploration.
+
+    Returns
+    -------
+    reward_sum : float
+        Sum of the n - 1 rewards.
+    rms : float
+        Root mean square of the avatar's position minus the target's over samples 1..n-1 (units).
+    """
+    x, v = target_x[0], target_v[0]
+    s = _state_index(x, v, partner_x[0], partner_v[0], relative, edges, offsets)
+    reward_sum = 0.0
+    squares = 0.0
+    for k in range(partner_x.size - 1):
+        a = choose_action(q, s, epsilon, rng)
+        u = actions[a]
+        x, v = integrate_hkb(x, v, u, hkb, period, n_substeps)
+        r = compute_reward(x, v, target_x[k + 1], target_v[k + 1], u, eta)
+        s_next = _state_index(x, v, partner_x[k + 1], partner_v[k + 1], relative, edges, offsets)
+        update_q(q, s, a, r, s_next, learning_rate, discount)
+        s = s_next
+        reward_sum += r
+        squares += (x - target_x[k + 1]) ** 2
+    return reward_sum, math.sqrt(squares / max(partner_x.size - 1, 1))
+
+
+# ---------------------------------------------------------------------------------------------
+# State discretisation.
+
+
+@dataclass(frozen=True, eq=False)
+class Discretisation:
+    """How the continuous state is cut into the cells of the Q-table.
+
+    Parameters
+    ----------
+    features
+        ``"absolute"``: features ``[x, x', x_p, x_p']``; ``"relative"``: ``[x - x_p, x' - x_p',
+        x_p, x_p']`` (positions in units, velocities in units/s).
+    edges
+        Four increasing arrays of interior bin edges, one per feature; feature d has
+        ``len(edges[d]) + 1`` bins, the outer two open-ended (values beyond the range fall in
+        the end bins).
+    """
+
+    features: Features
+    edges: tuple[Array, ...]
+
+    def __post_init__(self) -> None:
+        if self.features not in ("absolute", "relative"):
+            raise InputError("features", f"must be 'absolute' or 'relative', not {self.features!r}")
+        edges = tuple(np.asarray(e, dtype=np.float64).ravel() for e in self.edges)
+        if len(edges) != N_FEATURES:
+            raise InputError("edges", f"need {N_FEATURES} arrays of bin edges, got {len(edges)}")
+        for d, e in enumerate(edges):
+            if not np.all(np.isfinite(e)) or np.any(np.diff(e) <= 0):
+                raise InputError("edges", f"edges of feature {d} must be finite and increasing")
+        object.__setattr__(self, "edges", edges)
+
+    @classmethod
+    def uniform(
+        cls,
+        features: Features,
+        ranges: Iterable[tuple[float, float]],
+        n_bins: Iterable[int],
+    ) -> Discretisation:
+        """Equal-width bins: feature d has ``n_bins[d]`` bins over ``ranges[d]`` (plus tails)."""
+        edges = tuple(
+            np.linspace(lo, hi, n + 1)[1:-1] for (lo, hi), n in zip(ranges, n_bins, strict=True)
+        )
+        return cls(features, edges)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Number of bins per feature."""
+        return tuple(e.size + 1 for e in self.edges)
+
+    @property
+    def n_states(self) -> int:
+        """Number of cells (rows of the Q-table)."""
+        return math.prod(self.shape)
+
+    @property
+    def flat_edges(self) -> Array:
+        """All interior edges, concatenated feature after feature."""
+        return np.concatenate(self.edges)
+
+    @property
+    def offsets(self) -> NDArray[np.int64]:
+        """Start of each feature's edges in `flat_edges`, then the total, shape (5,)."""
+        return np.concatenate([[0], np.cumsum([e.size for e in self.edges])]).astype(np.int64)
+
+    def index(self, x: float, v: float, xp: float, vp: float) -> int:
+        """Cell of the state (own position, velocity, partner's position, velocity)."""
+        return int(
+            _state_index(x, v, xp, vp, self.features == "relative", self.flat_edges, self.offsets)
+        )
+
+
+def make_default_discretisation(features: Features = "relative") -> Discretisation:
+    """Make the default discretisation (**choice**), finer near zero for relative features.
+
+    Parameters
+    ----------
+    features
+        ``"relative"`` (default; 10 x 8 x 6 x 7 = 3360 cells) or ``"absolute"``
+        (8 x 8 x 6 x 7 = 2688 cells).
+    """
+    partner = (np.linspace(-0.4, 0.4, 5), np.array([-0.5, -0.2, -0.05, 0.05, 0.2, 0.5]))
+    if features == "relative":
+        own = (
+            np.array([-0.2, -0.1, -0.05, -0.02, 0.0, 0.02, 0.05, 0.1, 0.2]),
+            np.array([-0.5, -0.25, -0.1, 0.0, 0.1, 0.25, 0.5]),
+        )
+    else:
+        own = (np.linspace(-0.45, 0.45, 7), np.array([-0.5, -0.25, -0.1, 0.0, 0.1, 0.25, 0.5]))
+    return Discretisation(features, own + partner)
+
+
+# ---------------------------------------------------------------------------------------------
+# The cyber player.
+
+
+class CyberPlayer:
+    """A Q-learning avatar; implements the `mirror_avatar.players.Player` protocol (greedy).
+
+    Parameters
+    ----------
+    discretisation
+        State discretisation; default `make_default_discretisation()` (relative features).
+    actions
+        Accelerations (units/s²) to choose from, default `DEFAULT_ACTIONS`.
+    alpha, beta, gamma, omega
+        HKB parameters of the avatar's own end effector (METHODS section 5; omega is a
+        **choice**, rad/s).
+    eta
+        Control-effort weight in the reward.
+    period
+        Control period T (s).
+    n_substeps
+        RK4 substeps per period.
+    initial_position
+        Position (units) returned by `reset`; the avatar starts at rest.
+
+    Attributes
+    ----------
+    q_table_ : ndarray, shape (n_states, n_actions)
+        The learned action values; set by `initialise_q` or a trainer, or by `load`.
+    training_ : dict
+        Summary of how the Q-table was trained (seed, sessions, hyper-parameters, last scores).
+    """
+
+    q_table_: Array
+    training_: dict[str, Any]
+
+    def __init__(
+        self,
+        discretisation: Discretisation | None = None,
+        actions: ArrayLike = DEFAULT_ACTIONS,
+        *,
+        alpha: float = 1.0,
+        beta: float = 2.0,
+        gamma: float = -1.0,
+        omega: float = 0.1,
+        eta: float = 1e-4,
+        period: float = CONTROL_PERIOD,
+        n_substeps: int = 3,
+        initial_position: float = 0.0,
+    ) -> None:
+        self.discretisation = discretisation
+        self.actions = actions
+        self.alpha = alpha
+        self.beta = beta
+        self.gamma = gamma
+        self.omega = omega
+        self.eta = eta
+        self.period = period
+        self.n_substeps = n_substeps
+        self.initial_position = initial_position
+
+    @property
+    def discretisation_(self) -> Discretisation:
+        """The discretisation in use (the default one when none was given)."""
+        return self.discretisation or make_default_discretisation()
+
+    @property
+    def actions_(self) -> Array:
+        """The action set as a float array, shape (n_actions,)."""
+        actions = np.asarray(self.actions, dtype=np.float64)
+        if actions.ndim != 1 or actions.size == 0 or not np.all(np.isfinite(actions)):
+            raise InputError("actions", "must be a non-empty list of finite accelerations")
+        return actions
+
+    @property
+    def hkb_(self) -> Array:
+        """``[alpha, beta, gamma, omega]`` of the avatar's end effector."""
+        return np.array([self.alpha, self.beta, self.gamma, self.omega], dtype=np.float64)
+
+    def parameters(self) -> dict[str, float | int]:
+        """Return the dynamics parameters, as saved in a model file."""
+        return {
+            "alpha": float(self.alpha),
+            "beta": float(self.beta),
+            "gamma": float(self.gamma),
+            "omega": float(self.omega),
+            "eta": float(self.eta),
+            "period": float(self.period),
+            "n_substeps": int(self.n_substeps),
+            "initial_position": float(self.initial_position),
+        }
+
+    def initialise_q(self, random_state: int | np.random.Generator | None, scale: float) -> None:
+        """Fill `q_table_` with independent uniform values in [-scale, 0] (seeded)."""
+        rng = np.random.default_rng(random_state)
+        shape = (self.discretisation_.n_states, self.actions_.size)
+        self.q_table_ = -scale * rng.random(shape)
+
+    def session_arguments(self) -> tuple[Any, ...]:
+        """Discretisation and dynamics arguments of `run_q_session`, in order."""
+        disc = self.discretisation_
+        return (
+            disc.features == "relative",
+            disc.flat_edges,
+            disc.offsets,
+            self.actions_,
+            self.hkb_,
+            float(self.period),
+            int(self.n_substeps),
+            float(self.eta),
+        )
+
+    def decide(self, x: float, v: float, xp: float, vp: float) -> int:
+        """Index of the greedy action in the state (own x, x', partner's x, x')."""
+        return int(np.argmax(self.q_table_[self.discretisation_.index(x, v, xp, vp)]))
+
+    def reset(self, seed: int | None = None) -> tuple[float, float]:
+        """Start a trial at rest at `initial_position`.
+
+        The greedy policy is deterministic, so ``seed`` does not change anything; it is accepted
+        for the `Player` protocol.
+        """
+        if not hasattr(self, "q_table_"):
+            raise InputError("cyber player", "has no Q-table: train it or load one first")
+        self._policy = (self.q_table_, *self.session_arguments()[:-1])
+        self._state = (float(self.initial_position), 0.0)
+        return self._state
+
+    def step(self, partner_position: float, partner_velocity: float) -> tuple[float, float]:
+        """Observe the partner, apply the greedy acceleration for one period, return (x, x')."""
+        q, relative, edges, offsets, actions, hkb, period, n_substeps = self._policy
+        x, v = self._state
+        self._state = _greedy_step(
+            q,
+            x,
+            v,
+            float(partner_position),
+            float(partner_velocity),
+            relative,
+            edges,
+            offsets,
+            actions,
+            hkb,
+            period,
+            n_substeps,
+        )
+        return self._state
+
+    def evaluate(self, sessions: Iterable[Any]) -> tuple[Array, Array]:
+        """Play each session greedily (no learning) against its partner.
+
+        Parameters
+        ----------
+        sessions
+            Chunks of sessions as accepted by `iter_sessions`.
+
+        Returns
+        -------
+        mean_reward, rms : ndarray, shape (n_sessions,)
+            Mean reward per step and RMS position error to the target (units) per session.
+        """
+        rng = np.random.default_rng(0)
+        scores = [
+            self.play_session(session, 0.0, 0.0, 0.0, rng) for session in iter_sessions(sessions)
+        ]
+        return np.array([r for r, _ in scores]), np.array([e for _, e in scores])
+
+    def play_session(
+        self,
+        session: tuple[Array, Array, Array, Array],
+        learning_rate: float,
+        discount: float,
+        epsilon: float,
+        rng: np.random.Generator,
+    ) -> tuple[float, float]:
+        """Play one session with `run_q_session`, updating `q_table_` when learning_rate > 0.
+
+        Parameters
+        ----------
+        session
+            ``(partner_x, partner_v, target_x, target_v)``, shape (n,) each, at the control period.
+        learning_rate, discount, epsilon, rng
+            As in `run_q_session`.
+
+        Returns
+        -------
+        mean_reward, rms : float
+            Mean reward per step and RMS position error to the target (units).
+        """
+        total, rms = run_q_session(  # type: ignore[call-arg]
+            self.q_table_,
+            *session,
+            *self.session_arguments(),
+            learning_rate,
+            discount,
+            epsilon,
+            rng,
+        )
+        return total / max(session[0].size - 1, 1), rms
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the model to one ``.npz`` file atomically (see `save_cyber_player`)."""
+        return save_cyber_player(self, path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> CyberPlayer:
+        """Read a model written by `save` (see `load_cyber_player`)."""
+        return load_cyber_player(path)
+
+
+# ---------------------------------------------------------------------------------------------
+# Sessions: chunks of arrays (k, 2, n) of positions and velocities.
+
+
+def iter_sessions(chunks: Iterable[Any]) -> Iterator[tuple[Array, Array, Array, Array]]:
+    """Yield ``(partner_x, partner_v, target_x, target_v)`` for each session in a stream of chunks.
+
+    Parameters
+    ----------
+    chunks
+        Iterable of chunks. A chunk has positions and velocities of shape (k, 2, n) (k sessions,
+        player 0 the partner, player 1 the target, n samples at the control period) or (2, n) for
+        one session, given as an object with ``positions`` and ``velocities`` attributes, a
+        mapping with those keys, or a ``(positions, velocities)`` pair.
+
+    Raises
+    ------
+    InputError
+        If a chunk has another form, shape, or non-finite values.
+    """
+    for chunk in chunks:
+        positions, velocities = _chunk_arrays(chunk)
+        for session_x, session_v in zip(positions, velocities, strict=True):
+            yield session_x[0], session_v[0], session_x[1], session_v[1]
+
+
+def _chunk_arrays(chunk: Any) -> tuple[Array, Array]:
+    if isinstance(chunk, Mapping):
+        pair = (chunk.get("positions"), chunk.get("velocities"))
+    elif hasattr(chunk, "positions") and hasattr(chunk, "velocities"):
+        pair = (chunk.positions, chunk.velocities)
+    elif isinstance(chunk, tuple | list) and len(chunk) == 2:
+        pair = (chunk[0], chunk[1])
+    else:
+        raise InputError("sessions", "a chunk must hold positions and velocities")
+    arrays = [np.asarray(a, dtype=np.float64) for a in pair]
+    arrays = [a[np.newaxis] if a.ndim == 2 else a for a in arrays]
+    positions, velocities = arrays
+    if positions.ndim != 3 or positions.shape[1] != 2 or positions.shape[2] < 2:
+        raise InputError("sessions", f"positions must have shape (k, 2, n), got {positions.shape}")
+    if velocities.shape != positions.shape:
+        raise InputError(
+            "sessions", f"velocities {velocities.shape} do not match positions {positions.shape}"
+        )
+    if not (np.all(np.isfinite(positions)) and np.all(np.isfinite(velocities))):
+        raise InputError("sessions", "positions and velocities must be finite")
+    return positions, velocities
+
+
+# ---------------------------------------------------------------------------------------------
+# Training.
+
+
+@dataclass(frozen=True)
+class ExponentialEpsilon:
+    """Exploration probability decaying from ``start`` towards ``end``: strictly decreasing.
+
+    ``epsilon(i) = end + (start - end) * 0.5 ** (i / half_life)`` for session i = 0, 1, ...
+    (**choice**; any callable from session index to probability can be given to `QLearner`).
+    """
+
+    start: float = 0.5
+    end: float = 0.01
+    half_life: float = 30.0
+
+    def __call__(self, session: int) -> float:
+        """Epsilon for session ``session`` (counted from 0)."""
+        return self.end + (self.start - self.end) * 0.5 ** (session / self.half_life)
+
+
+@dataclass
+class LearningCurve:
+    """Mean reward per step and RMS to the target, averaged over blocks of training sessions.
+
+    Attributes
+    ----------
+    sessions
+        Number of sessions trained at the end of each block.
+    mean_reward
+        Mean reward per step over the block.
+    rms
+        Mean over the block of each session's RMS position error to the target (units).
+    epsilon
+        Exploration probability of the block's last session.
+    """
+
+    sessions: list[int] = field(default_factory=list)
+    mean_reward: list[float] = field(default_factory=list)
+    rms: list[float] = field(default_factory=list)
+    epsilon: list[float] = field(default_factory=list)
+
+    def as_rows(self) -> list[dict[str, float]]:
+        """One dict per block."""
+        columns = ("sessions", "mean_reward", "rms", "epsilon")
+        return [
+            dict(zip(columns, values, strict=True))
+            for values in zip(*self.as_columns(), strict=True)
+        ]
+
+    def as_columns(self) -> tuple[list[Any], ...]:
+        """Return the columns sessions, mean_reward, rms and epsilon."""
+        return (self.sessions, self.mean_reward, self.rms, self.epsilon)
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the curve as CSV (``.csv``) or JSON (any other suffix), atomically."""
+        path = Path(path)
+        if path.suffix.lower() == ".csv":
+            buffer = io.StringIO()
+            writer = csv.DictWriter(
+                buffer, fieldnames=["sessions", "mean_reward", "rms", "epsilon"]
+            )
+            writer.writeheader()
+            writer.writerows(self.as_rows())
+            data = buffer.getvalue().encode()
+        else:
+            data = json.dumps(self.as_rows(), indent=1).encode()
+        _write_atomically(path, data)
+        return path
+
+
+class QLearner:
+    """Tabular Q-learning of a `CyberPlayer` from a stream of sessions.
+
+    Parameters
+    ----------
+    learning_rate
+        Step size alpha of the Q update (**choice**).
+    discount
+        Discount factor gamma (**choice**; 0.95 looks about 20 periods = 0.6 s ahead).
+    epsilon
+        Callable giving the exploration probability of session i; must not increase with i.
+        Default `ExponentialEpsilon()`.
+    q_init_scale
+        Initial Q values are uniform in [-q_init_scale, 0] (**choice**).
+    block_size
+        Sessions per point of the learning curve.
+    checkpoint_every, checkpoint_path
+        Save the player to ``checkpoint_path`` every ``checkpoint_every`` sessions (and at the end).
+    progress
+        Show a tqdm progress bar: True, False, or None (only on a terminal).
+    random_state
+        Seed of the initial Q-table and of exploration; the same seed and sessions give the same
+        Q-table. None draws fresh entropy (recorded in ``player.training_["seed"]``).
+
+    Attributes
+    ----------
+    learning_curve_ : LearningCurve
+        Scores per block of sessions.
+    n_sessions_ : int
+        Sessions trained so far (training continues where it stopped on the next `train` call).
+    seed_ : int
+        The entropy the random generators were seeded from.
+    """
+
+    def __init__(
+        self,
+        learning_rate: float = 0.1,
+        discount: float = 0.95,
+        epsilon: Callable[[int], float] | None = None,
+        q_init_scale: float = 1e-3,
+        block_size: int = 10,
+        checkpoint_every: int | None = None,
+        checkpoint_path: str | os.PathLike[str] | None = None,
+        progress: bool | None = None,
+        random_state: int | None = None,
+    ) -> None:
+        self.learning_rate = learning_rate
+        self.discount = discount
+        self.epsilon = epsilon
+        self.q_init_scale = q_init_scale
+        self.block_size = block_size
+        self.checkpoint_every = checkpoint_every
+        self.checkpoint_path = checkpoint_path
+        self.progress = progress
+        self.random_state = random_state
+
+    def train(
+        self, player: CyberPlayer, sessions: Iterable[Any], total: int | None = None
+    ) -> QLearner:
+        """Q-learn ``player`` from a stream of sessions, one compiled session at a time.
+
+        Parameters
+        ----------
+        player
+            The cyber player; its Q-table is created (seeded) on the first call.
+        sessions
+            Iterable of chunks (see `iter_sessions`), consumed lazily: only one chunk is held.
+        total
+            Expected number of sessions, for the progress bar only.
+
+        Returns
+        -------
+        QLearner
+            ``self``, with `learning_curve_` and `n_sessions_` updated and ``player.training_``
+            summarising the training.
+        """
+        self._validate()
+        if not hasattr(self, "n_sessions_"):
+            self._start(player)
+        schedule = self.epsilon or ExponentialEpsilon()
+        block: list[tuple[float, float]] = []
+        disable = None if self.progress is None else not self.progress
+        with tqdm(total=total, disable=disable, unit="session") as bar:
+            for session in iter_sessions(sessions):
+                eps = float(schedule(self.n_sessions_))
+                block.append(
+                    player.play_session(session, self.learning_rate, self.discount, eps, self.rng_)
+                )
+                self.n_sessions_ += 1
+                if len(block) == self.block_size:
+                    self._close_block(block, eps)
+                self._maybe_checkpoint(player)
+                bar.update()
+        if block:
+            self._close_block(block, float(schedule(self.n_sessions_ - 1)))
+        player.training_ = self.summary()
+        if self.checkpoint_path is not None:
+            player.save(self.checkpoint_path)
+        return self
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-serialisable summary of the training so far (saved with the model)."""
+        curve = self.learning_curve_
+        return {
+            "seed": self.seed_,
+            "n_sessions": self.n_sessions_,
+            "learning_rate": self.learning_rate,
+            "discount": self.discount,
+            "epsilon": repr(self.epsilon or ExponentialEpsilon()),
+            "q_init_scale": self.q_init_scale,
+            "final_mean_reward": curve.mean_reward[-1] if curve.mean_reward else None,
+            "final_rms": curve.rms[-1] if curve.rms else None,
+        }
+
+    def _validate(self) -> None:
+        if not 0.0 < self.learning_rate <= 1.0:
+            raise InputError("learning_rate", f"must be in (0, 1], got {self.learning_rate}")
+        if not 0.0 <= self.discount < 1.0:
+            raise InputError("discount", f"must be in [0, 1), got {self.discount}")
+        if self.block_size < 1:
+            raise InputError("block_size", f"must be at least 1, got {self.block_size}")
+        if self.checkpoint_every is not None and self.checkpoint_path is None:
+            raise InputError("checkpoint_every", "needs a checkpoint_path")
+
+    def _start(self, player: CyberPlayer) -> None:
+        sequence = np.random.SeedSequence(self.random_state)
+        self.seed_ = int(sequence.entropy)  # type: ignore[arg-type]
+        q_seed, explore_seed = sequence.spawn(2)
+        player.initialise_q(np.random.default_rng(q_seed), self.q_init_scale)
+        self.rng_ = np.random.default_rng(explore_seed)
+        self.n_sessions_ = 0
+        self.learning_curve_ = LearningCurve()
+
+    def _close_block(self, block: list[tuple[float, float]], eps: float) -> None:
+        rewards, rms = np.array(block).T
+        curve = self.learning_curve_
+        curve.sessions.append(self.n_sessions_)
+        curve.mean_reward.append(float(rewards.mean()))
+        curve.rms.append(float(rms.mean()))
+        curve.epsilon.append(eps)
+        block.clear()
+
+    def _maybe_checkpoint(self, player: CyberPlayer) -> None:
+        if self.checkpoint_every and self.n_sessions_ % self.checkpoint_every == 0:
+            player.training_ = self.summary()
+            player.save(self.checkpoint_path)  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------------------------------------
+# Persistence: one .npz file, no pickle.
+
+
+def save_cyber_player(player: CyberPlayer, path: str | os.PathLike[str]) -> Path:
+    """Write a trained player to ``path`` (one ``.npz``), atomically.
+
+    The file holds arrays ``q_table`` (n_states, n_actions), ``edges`` (all interior bin edges),
+    ``edge_counts`` (4,), ``actions`` (n_actions,) and ``metadata``, a JSON string with the
+    format name and version, the dynamics parameters, the discretisation, the training summary
+    and its seed.
+    """
+    disc = player.discretisation_
+    metadata = {
+        "format": FORMAT_NAME,
+        "version": FORMAT_VERSION,
+        "parameters": player.parameters(),
+        "discretisation": {"features": disc.features, "shape": list(disc.shape)},
+        "training": getattr(player, "training_", {}),
+        "seed": getattr(player, "training_", {}).get("seed"),
+    }
+    buffer = io.BytesIO()
+    np.savez(
+        buffer,
+        q_table=player.q_table_,
+        edges=disc.flat_edges,
+        edge_counts=np.array([e.size for e in disc.edges], dtype=np.int64),
+        actions=player.actions_,
+        metadata=np.array(json.dumps(metadata)),
+    )
+    path = Path(path)
+    _write_atomically(path, buffer.getvalue())
+    return path
+
+
+def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
+    """Read a player written by `save_cyber_player`.
+
+    Raises
+    ------
+    InputError
+        ``path: problem`` when the file is missing, not a readable ``.npz`` (corrupt or
+        truncated), of another format or version, or internally inconsistent (for instance a
+        Q-table whose shape does not match the discretisation and action set).
+    """
+    try:
+        with open(path, "rb") as file:
+            archive = np.load(file, allow_pickle=False)
+            if not isinstance(archive, np.lib.npyio.NpzFile):
+                raise InputError(path, "not an .npz archive (a single array?)")
+            with archive:
+                arrays = {key: archive[key] for key in archive.files}
+    except FileNotFoundError:
+        raise InputError(path, "no such file") from None
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
+        raise InputError(path, f"not a readable .npz model file ({error})") from None
+    return _player_from_arrays(path, arrays)
+
+
+def _player_from_arrays(
+    path: str | os.PathLike[str], arrays: dict[str, NDArray[Any]]
+) -> CyberPlayer:
+    missing = {"q_table", "edges", "edge_counts", "actions", "metadata"} - arrays.keys()
+    if missing:
+        raise InputError(path, f"not a cyber-player file (missing {', '.join(sorted(missing))})")
+    metadata = _read_metadata(path, arrays["metadata"])
+    counts = arrays["edge_counts"]
+    if counts.shape != (N_FEATURES,) or np.any(counts < 0) or counts.sum() != arrays["edges"].size:
+        raise InputError(path, "bin edge counts do not match the bin edges")
+    edges = np.split(arrays["edges"].astype(np.float64), np.cumsum(counts)[:-1])
+    try:
+        disc = Discretisation(metadata["discretisation"]["features"], tuple(edges))
+        player = CyberPlayer(disc, arrays["actions"], **metadata["parameters"])
+        actions = player.actions_
+    except (InputError, KeyError, TypeError) as error:
+        raise InputError(path, f"invalid model description ({error})") from None
+    q = arrays["q_table"]
+    if q.shape != (disc.n_states, actions.size):
+        raise InputError(
+            path,
+            f"Q-table shape {q.shape} does not match {disc.n_states} states x "
+            f"{actions.size} actions",
+        )
+    if q.dtype.kind != "f" or not np.all(np.isfinite(q)):
+        raise InputError(path, "Q-table must hold finite floating-point values")
+    player.q_table_ = q.astype(np.float64)
+    player.training_ = metadata.get("training", {})
+    return player
+
+
+def _read_metadata(path: str | os.PathLike[str], array: NDArray[Any]) -> dict[str, Any]:
+    try:
+        metadata = json.loads(str(array[()]))
+    except (ValueError, TypeError, IndexError):
+        raise InputError(path, "metadata is not valid JSON") from None
+    if not isinstance(metadata, dict) or metadata.get("format") != FORMAT_NAME:
+        raise InputError(path, f"not a {FORMAT_NAME} file")
+    if metadata.get("version") != FORMAT_VERSION:
+        raise InputError(path, f"unsupported format version {metadata.get('version')!r}")
+    return metadata
+
+
+def _write_atomically(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "wb") as file:
+            file.write(data)
+            file.flush()
+            os.fsync(file.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
