@@ -47,6 +47,7 @@ import tempfile
 import zipfile
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Literal
 
@@ -193,6 +194,20 @@ def update_q(
 
 
 @njit(cache=True)
+def _greedy_action(
+    q: Array,
+    x: float,
+    v: float,
+    xp: float,
+    vp: float,
+    relative: bool,
+    edges: Array,
+    offsets: NDArray[np.int64],
+) -> int:
+    return int(np.argmax(q[_state_index(x, v, xp, vp, relative, edges, offsets)]))
+
+
+@njit(cache=True)
 def _greedy_step(
     q: Array,
     x: float,
@@ -207,8 +222,7 @@ def _greedy_step(
     period: float,
     n_substeps: int,
 ) -> tuple[float, float]:
-    s = _state_index(x, v, xp, vp, relative, edges, offsets)
-    u = actions[np.argmax(q[s])]
+    u = actions[_greedy_action(q, x, v, xp, vp, relative, edges, offsets)]
     return integrate_hkb(x, v, u, hkb, period, n_substeps)
 
 
@@ -339,12 +353,12 @@ class Discretisation:
         """Number of cells (rows of the Q-table)."""
         return math.prod(self.shape)
 
-    @property
+    @cached_property
     def flat_edges(self) -> Array:
         """All interior edges, concatenated feature after feature."""
         return np.concatenate(self.edges)
 
-    @property
+    @cached_property
     def offsets(self) -> NDArray[np.int64]:
         """Start of each feature's edges in `flat_edges`, then the total, shape (5,)."""
         return np.concatenate([[0], np.cumsum([e.size for e in self.edges])]).astype(np.int64)
@@ -437,9 +451,9 @@ class CyberPlayer:
         self.n_substeps = n_substeps
         self.initial_position = initial_position
 
-    @property
+    @cached_property
     def discretisation_(self) -> Discretisation:
-        """The discretisation in use (the default one when none was given)."""
+        """The discretisation in use (the default one when none was given), fixed on first use."""
         return self.discretisation or make_default_discretisation()
 
     @property
@@ -490,7 +504,11 @@ class CyberPlayer:
 
     def decide(self, x: float, v: float, xp: float, vp: float) -> int:
         """Index of the greedy action in the state (own x, x', partner's x, x')."""
-        return int(np.argmax(self.q_table_[self.discretisation_.index(x, v, xp, vp)]))
+        disc = self.discretisation_
+        relative = disc.features == "relative"
+        return int(
+            _greedy_action(self.q_table_, x, v, xp, vp, relative, disc.flat_edges, disc.offsets)
+        )
 
     def reset(self, seed: int | None = None) -> tuple[float, float]:
         """Start a trial at rest at `initial_position`.

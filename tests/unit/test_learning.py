@@ -59,9 +59,9 @@ def repeat(chunk: tuple[np.ndarray, np.ndarray], n_sessions: int):
         yield positions[j], velocities[j]
 
 
-def trained_player(chunk, features="relative", n_sessions=700, seed=1) -> CyberPlayer:
+def trained_player(chunk, features="relative", n_sessions=2000, seed=0) -> CyberPlayer:
     player = CyberPlayer(make_default_discretisation(features))
-    QLearner(random_state=seed, progress=False, block_size=70).train(
+    QLearner(random_state=seed, progress=False, block_size=100).train(
         player, repeat(chunk, n_sessions)
     )
     return player
@@ -267,10 +267,9 @@ def test_learning_beats_random_and_copy_baselines_on_a_real_follower_task(slow_c
         name: p.evaluate([test])[1].mean()
         for name, p in [("untrained", untrained), ("relative", relative), ("absolute", absolute)]
     }
-    assert rms["relative"] < 0.85 * copy_rms.mean()
-    assert rms["relative"] < 0.3 * rms["untrained"]
-    assert rms["absolute"] < 0.5 * rms["untrained"]
-    assert rms["relative"] < rms["absolute"]
+    assert rms["relative"] < 0.7 * copy_rms.mean()
+    assert rms["absolute"] < copy_rms.mean()
+    assert rms["relative"] < rms["absolute"] < 0.3 * rms["untrained"]
 
 
 def test_learning_curve_improves_and_saves(slow_chunks, tmp_path):
@@ -385,7 +384,7 @@ def test_untrained_player_cannot_play():
 
 @pytest.fixture
 def saved(slow_chunks, tmp_path) -> tuple[CyberPlayer, Path]:
-    player = trained_player(slow_chunks[0], "absolute", n_sessions=10)
+    player = trained_player(slow_chunks[0], "absolute", n_sessions=10, seed=5)
     return player, player.save(tmp_path / "player.npz")
 
 
@@ -403,7 +402,7 @@ def test_save_load_round_trip(saved, slow_chunks):
     )
     with np.load(path, allow_pickle=False) as archive:
         metadata = json.loads(str(archive["metadata"]))
-    assert metadata["format"] == "mirror-avatar/cyber-player" and metadata["seed"] == 1
+    assert metadata["format"] == "mirror-avatar/cyber-player" and metadata["seed"] == 5
     assert not list(path.parent.glob("*.tmp"))
 
 
