@@ -68,7 +68,9 @@ class MirrorGameEnv(gym.Env[Any, Any]):
         self.observation = observation
         self._source = sessions
         self._fixed: list[Session] = (
-            [] if callable(sessions) or isinstance(sessions, Iterator) else _sessions(sessions)
+            []
+            if callable(sessions) or isinstance(sessions, Iterator)
+            else _sessions(sessions, self.player.period)
         )
         self._actions = self.player.actions_
         self._hkb = self.player.hkb_
@@ -113,7 +115,7 @@ class MirrorGameEnv(gym.Env[Any, Any]):
         if self._fixed:
             return self._fixed[int(self.np_random.integers(len(self._fixed)))]
         chunk = self._source(self.np_random) if callable(self._source) else next(self._source)
-        sessions = _sessions(chunk)
+        sessions = _sessions(chunk, self.player.period)
         if len(sessions) != 1:
             raise InputError("sessions", f"expected one session per episode, got {len(sessions)}")
         return sessions[0]
@@ -133,5 +135,5 @@ class MirrorGameEnv(gym.Env[Any, Any]):
         return {"target": (float(target_x[self._k]), float(target_v[self._k]))}
 
 
-def _sessions(chunk: Any) -> list[Session]:
-    return list(iter_sessions([chunk]))
+def _sessions(chunk: Any, period: float) -> list[Session]:
+    return list(iter_sessions([chunk], period))

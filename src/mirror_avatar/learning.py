@@ -490,6 +490,8 @@ class CyberPlayer:
 
     def session_arguments(self) -> tuple[Any, ...]:
         """Discretisation and dynamics arguments of `run_q_session`, in order."""
+        if not (self.period > 0 and self.n_substeps >= 1):
+            raise InputError("cyber player", "period must be > 0 s and n_substeps >= 1")
         disc = self.discretisation_
         return (
             disc.features == "relative",
@@ -557,7 +559,8 @@ class CyberPlayer:
         """
         rng = np.random.default_rng(0)
         scores = [
-            self.play_session(session, 0.0, 0.0, 0.0, rng) for session in iter_sessions(sessions)
+            self.play_session(session, 0.0, 0.0, 0.0, rng)
+            for session in iter_sessions(sessions, self.period)
         ]
         return np.array([r for r, _ in scores]), np.array([e for _, e in scores])
 
@@ -608,7 +611,9 @@ class CyberPlayer:
 # Sessions: chunks of arrays (k, 2, n) of positions and velocities.
 
 
-def iter_sessions(chunks: Iterable[Any]) -> Iterator[tuple[Array, Array, Array, Array]]:
+def iter_sessions(
+    chunks: Iterable[Any], period: float | None = None
+) -> Iterator[tuple[Array, Array, Array, Array]]:
     """Yield ``(partner_x, partner_v, target_x, target_v)`` for each session in a stream of chunks.
 
     Parameters
@@ -617,14 +622,21 @@ def iter_sessions(chunks: Iterable[Any]) -> Iterator[tuple[Array, Array, Array, 
         Iterable of chunks. A chunk has positions and velocities of shape (k, 2, n) (k sessions,
         player 0 the partner, player 1 the target, n samples at the control period) or (2, n) for
         one session, given as an object with ``positions`` and ``velocities`` attributes, a
-        mapping with those keys, or a ``(positions, velocities)`` pair.
+        mapping with those keys, or a ``(positions, velocities)`` pair. A chunk may also carry
+        its sampling period (s) as a ``period`` attribute or key.
+    period
+        The control period (s) the sessions must be sampled at, checked against a chunk's own
+        ``period`` when it has one.
 
     Raises
     ------
     InputError
-        If a chunk has another form, shape, or non-finite values.
+        If a chunk has another form, shape, sampling period, or non-finite values.
     """
     for chunk in chunks:
+        own = chunk.get("period") if isinstance(chunk, Mapping) else getattr(chunk, "period", None)
+        if period is not None and own is not None and not math.isclose(own, period):
+            raise InputError("sessions", f"sampled every {own} s, not every {period} s")
         positions, velocities = _chunk_arrays(chunk)
         for session_x, session_v in zip(positions, velocities, strict=True):
             yield session_x[0], session_v[0], session_x[1], session_v[1]
@@ -638,8 +650,13 @@ def _chunk_arrays(chunk: Any) -> tuple[Array, Array]:
     elif isinstance(chunk, tuple | list) and len(chunk) == 2:
         pair = (chunk[0], chunk[1])
     else:
+        pair = (None, None)
+    if pair[0] is None or pair[1] is None:
         raise InputError("sessions", "a chunk must hold positions and velocities")
-    arrays = [np.asarray(a, dtype=np.float64) for a in pair]
+    try:
+        arrays = [np.asarray(a, dtype=np.float64) for a in pair]
+    except (TypeError, ValueError):
+        raise InputError("sessions", "positions and velocities must be numeric arrays") from None
     arrays = [a[np.newaxis] if a.ndim == 2 else a for a in arrays]
     positions, velocities = arrays
     if positions.ndim != 3 or positions.shape[1] != 2 or positions.shape[2] < 2:
@@ -668,6 +685,10 @@ class ExponentialEpsilon:
     start: float = 0.5
     end: float = 0.01
     half_life: float = 30.0
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.end < self.start <= 1.0 and self.half_life > 0):
+            raise InputError("epsilon", "need 0 <= end < start <= 1 and half_life > 0")
 
     def __call__(self, session: int) -> float:
         """Epsilon for session ``session`` (counted from 0)."""
@@ -754,9 +775,17 @@ class QLearner:
         Scores per block of sessions.
     n_sessions_ : int
         Sessions trained so far (training continues where it stopped on the next `train` call).
+    epsilon_ : float
+        Exploration probability of the last session trained (1 before training).
     seed_ : int
         The entropy the random generators were seeded from.
     """
+
+    learning_curve_: LearningCurve
+    n_sessions_: int
+    epsilon_: float
+    seed_: int
+    rng_: np.random.Generator
 
     def __init__(
         self,
@@ -807,18 +836,18 @@ class QLearner:
         block: list[tuple[float, float]] = []
         disable = None if self.progress is None else not self.progress
         with tqdm(total=total, disable=disable, unit="session") as bar:
-            for session in iter_sessions(sessions):
-                eps = float(schedule(self.n_sessions_))
+            for session in iter_sessions(sessions, player.period):
+                eps = self._epsilon(schedule)
                 block.append(
                     player.play_session(session, self.learning_rate, self.discount, eps, self.rng_)
                 )
                 self.n_sessions_ += 1
                 if len(block) == self.block_size:
-                    self._close_block(block, eps)
+                    self._close_block(block)
                 self._maybe_checkpoint(player)
                 bar.update()
         if block:
-            self._close_block(block, float(schedule(self.n_sessions_ - 1)))
+            self._close_block(block)
         player.training_ = self.summary()
         if self.checkpoint_path is not None:
             player.save(self.checkpoint_path)
@@ -838,6 +867,17 @@ class QLearner:
             "final_rms": curve.rms[-1] if curve.rms else None,
         }
 
+    def _epsilon(self, schedule: Callable[[int], float]) -> float:
+        eps = float(schedule(self.n_sessions_))
+        if not 0.0 <= eps <= self.epsilon_:
+            raise InputError(
+                "epsilon",
+                f"schedule gave {eps} at session {self.n_sessions_}: "
+                "epsilon must lie in [0, 1] and never increase",
+            )
+        self.epsilon_ = eps
+        return eps
+
     def _validate(self) -> None:
         if not 0.0 < self.learning_rate <= 1.0:
             raise InputError("learning_rate", f"must be in (0, 1], got {self.learning_rate}")
@@ -855,15 +895,16 @@ class QLearner:
         player.initialise_q(np.random.default_rng(q_seed), self.q_init_scale)
         self.rng_ = np.random.default_rng(explore_seed)
         self.n_sessions_ = 0
+        self.epsilon_ = 1.0
         self.learning_curve_ = LearningCurve()
 
-    def _close_block(self, block: list[tuple[float, float]], eps: float) -> None:
+    def _close_block(self, block: list[tuple[float, float]]) -> None:
         rewards, rms = np.array(block).T
         curve = self.learning_curve_
         curve.sessions.append(self.n_sessions_)
         curve.mean_reward.append(float(rewards.mean()))
         curve.rms.append(float(rms.mean()))
-        curve.epsilon.append(eps)
+        curve.epsilon.append(self.epsilon_)
         block.clear()
 
     def _maybe_checkpoint(self, player: CyberPlayer) -> None:

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from mirror_avatar import players
 from mirror_avatar.errors import InputError
 from mirror_avatar.learning import (
     DEFAULT_ACTIONS,
@@ -460,3 +461,37 @@ def npy_bytes(array: np.ndarray) -> bytes:
     buffer = io.BytesIO()
     np.save(buffer, array)
     return buffer.getvalue()
+
+
+def test_epsilon_must_not_increase(slow_chunks):
+    learner = QLearner(epsilon=lambda i: 0.1 + 0.01 * i, progress=False)
+    with pytest.raises(InputError, match="never increase"):
+        learner.train(CyberPlayer(), repeat(slow_chunks[0], 3))
+    with pytest.raises(InputError, match="half_life"):
+        ExponentialEpsilon(start=0.1, end=0.2)
+
+
+def test_chunk_period_must_match_the_player():
+    positions, velocities = np.zeros((1, 2, 10)), np.zeros((1, 2, 10))
+    chunk = {"positions": positions, "velocities": velocities, "period": 0.01}
+    with pytest.raises(InputError, match="sampled every 0.01 s"):
+        list(iter_sessions([chunk], CONTROL_PERIOD))
+    assert len(list(iter_sessions([dict(chunk, period=CONTROL_PERIOD)], CONTROL_PERIOD))) == 1
+    with pytest.raises(InputError, match="must hold positions and velocities"):
+        list(iter_sessions([{"positions": positions}]))
+    with pytest.raises(InputError, match="numeric"):
+        list(iter_sessions([(positions, "fast")]))
+
+
+def test_bad_dynamics_are_input_errors():
+    with pytest.raises(InputError, match="n_substeps"):
+        CyberPlayer(n_substeps=0).session_arguments()
+    with pytest.raises(InputError, match="actions"):
+        CyberPlayer(actions=[]).session_arguments()
+
+
+def test_check_player_conformance(slow_chunks):
+    check_player = getattr(players, "check_player", None)
+    if check_player is None:
+        pytest.skip("mirror_avatar.players.check_player is not written yet")
+    check_player(trained_player(slow_chunks[0], n_sessions=5))
