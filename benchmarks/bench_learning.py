@@ -25,23 +25,14 @@ from mirror_avatar.learning import (
     CyberPlayer,
     QLearner,
     make_default_discretisation,
+    make_follower_sessions,
 )
 from mirror_avatar.players import CONTROL_PERIOD
 
-LAG = 10
-
 
 def follower_sessions(group: str = "slow") -> tuple[np.ndarray, np.ndarray]:
-    """Sessions (k, 2, n) from the bundled trials of one style: partner and its lagged copy."""
-    positions, velocities = [], []
-    for trial in load_zhai2017():
-        if trial.group == group:
-            uniform = trial.resampled(1.0 / CONTROL_PERIOD)
-            x, v = uniform.positions, uniform.velocity()
-            positions.append(np.stack([x[LAG:], x[:-LAG]]))
-            velocities.append(np.stack([v[LAG:], v[:-LAG]]))
-    n = min(p.shape[1] for p in positions)
-    return np.stack([p[:, :n] for p in positions]), np.stack([v[:, :n] for v in velocities])
+    """Sessions (k, 2, n) from the bundled trials of one style: partner and its 0.3 s late copy."""
+    return make_follower_sessions([t for t in load_zhai2017() if t.group == group], lag=0.3)
 
 
 def cycle(chunk: tuple[np.ndarray, np.ndarray], n_sessions: int) -> Iterator[tuple]:

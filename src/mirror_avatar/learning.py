@@ -58,7 +58,7 @@ from tqdm.auto import tqdm
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.players import CONTROL_PERIOD
-from mirror_avatar.trials import PLAYING_RANGE
+from mirror_avatar.trials import PLAYING_RANGE, Trial
 
 Array = NDArray[np.float64]
 Features = Literal["absolute", "relative"]
@@ -640,6 +640,41 @@ def iter_sessions(
         positions, velocities = _chunk_arrays(chunk)
         for session_x, session_v in zip(positions, velocities, strict=True):
             yield session_x[0], session_v[0], session_x[1], session_v[1]
+
+
+def make_follower_sessions(
+    trials: Iterable[Trial], lag: float = 0.3, period: float = CONTROL_PERIOD
+) -> tuple[Array, Array]:
+    """Build follower sessions from recorded trials: a task with a known answer.
+
+    Each trial, resampled to 1 / period, is the partner; the target is the same motion ``lag``
+    seconds later (a perfect follower with a fixed delay). Trials are cut to the shortest one.
+
+    Parameters
+    ----------
+    trials
+        Recorded trials (any rate).
+    lag
+        Delay of the target behind the partner (s), rounded to whole periods (at least one).
+    period
+        Control period (s).
+
+    Returns
+    -------
+    positions, velocities : ndarray, shape (k, 2, n)
+        A chunk (see `iter_sessions`): player 0 the partner, player 1 the delayed target.
+    """
+    shift = max(round(lag / period), 1)
+    positions, velocities = [], []
+    for trial in trials:
+        uniform = trial.resampled(1.0 / period)
+        x, v = uniform.positions, uniform.velocity()
+        positions.append(np.stack([x[shift:], x[:-shift]]))
+        velocities.append(np.stack([v[shift:], v[:-shift]]))
+    if not positions:
+        raise InputError("trials", "no trials to build sessions from")
+    n = min(p.shape[1] for p in positions)
+    return np.stack([p[:, :n] for p in positions]), np.stack([v[:, :n] for v in velocities])
 
 
 def _chunk_arrays(chunk: Any) -> tuple[Array, Array]:

@@ -25,32 +25,20 @@ from mirror_avatar.learning import (
     iter_sessions,
     load_cyber_player,
     make_default_discretisation,
+    make_follower_sessions,
     run_q_session,
     update_q,
 )
 from mirror_avatar.players import CONTROL_PERIOD, Player
-from mirror_avatar.trials import Trial
+from mirror_avatar.trials import Trial, make_trial
 
 HKB = np.array([1.0, 2.0, -1.0, 0.1])
-LAG = 10  # samples at T = 0.03 s: the target follows the partner 0.3 s late
-
-
-def follower_chunk(trials: list[Trial], lag: int = LAG) -> tuple[np.ndarray, np.ndarray]:
-    """Sessions (k, 2, n): partner = a real trial at 1/T, target = the same trial `lag` late."""
-    positions, velocities = [], []
-    for trial in trials:
-        uniform = trial.resampled(1.0 / CONTROL_PERIOD)
-        x, v = uniform.positions, uniform.velocity()
-        positions.append(np.stack([x[lag:], x[:-lag]]))
-        velocities.append(np.stack([v[lag:], v[:-lag]]))
-    n = min(p.shape[1] for p in positions)
-    return np.stack([p[:, :n] for p in positions]), np.stack([v[:, :n] for v in velocities])
 
 
 @pytest.fixture(scope="module")
 def slow_chunks(zhai_trials: list[Trial]) -> tuple[tuple, tuple]:
     slow = [t for t in zhai_trials if t.group == "slow"]
-    return follower_chunk(slow[:7]), follower_chunk(slow[7:])
+    return make_follower_sessions(slow[:7]), make_follower_sessions(slow[7:])
 
 
 def repeat(chunk: tuple[np.ndarray, np.ndarray], n_sessions: int):
@@ -495,3 +483,16 @@ def test_check_player_conformance(slow_chunks):
     if check_player is None:
         pytest.skip("mirror_avatar.players.check_player is not written yet")
     check_player(trained_player(slow_chunks[0], n_sessions=5))
+
+
+def test_make_follower_sessions_delays_the_partner(zhai_trials):
+    positions, velocities = make_follower_sessions(zhai_trials[:3], lag=0.3)
+    assert positions.shape == velocities.shape and positions.shape[:2] == (3, 2)
+    np.testing.assert_array_equal(positions[:, 1, 10:], positions[:, 0, :-10])
+    uniform = zhai_trials[0].resampled(1 / CONTROL_PERIOD)
+    np.testing.assert_array_equal(positions[0, 0], uniform.positions[10 : 10 + positions.shape[2]])
+    with pytest.raises(InputError, match="no trials"):
+        make_follower_sessions([])
+    t = np.arange(100) * 0.03
+    positions, _ = make_follower_sessions([make_trial(t, 0.1 * np.sin(t))], lag=0.001)
+    np.testing.assert_array_equal(positions[0, 1, 1:], positions[0, 0, :-1])
