@@ -77,9 +77,11 @@ class MirrorGameEnv(gym.Env[Any, Any]):
         self.action_space = spaces.Discrete(self._actions.size)
         if observation == "continuous":
             low, high = PLAYING_RANGE
-            bound = np.array([high, VELOCITY_BOUND, high, VELOCITY_BOUND], dtype=np.float32)
-            bound[[0, 2]] = max(abs(low), high)
-            self.observation_space = spaces.Box(-bound, bound, dtype=np.float32)
+            self.observation_space = spaces.Box(
+                np.array([low, -VELOCITY_BOUND, low, -VELOCITY_BOUND], dtype=np.float32),
+                np.array([high, VELOCITY_BOUND, high, VELOCITY_BOUND], dtype=np.float32),
+                dtype=np.float32,
+            )
         elif observation == "discrete":
             self.observation_space = spaces.Discrete(self.player.discretisation_.n_states)
         else:

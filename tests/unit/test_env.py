@@ -88,3 +88,18 @@ def test_bad_arguments_are_input_errors():
     env = MirrorGameEnv(lambda rng: sine_chunk(k=2))
     with pytest.raises(InputError, match="one session"):
         env.reset(seed=0)
+
+
+def test_greedy_policy_through_the_env_scores_as_the_compiled_session():
+    player = CyberPlayer()
+    player.initialise_q(2, 1.0)
+    chunk = sine_chunk(k=1, n=200)
+    env = MirrorGameEnv(chunk, player=player, observation="discrete")
+    obs, _ = env.reset(seed=0)
+    rewards, truncated = [], False
+    while not truncated:
+        obs, reward, _, truncated, _ = env.step(int(np.argmax(player.q_table_[obs])))
+        rewards.append(reward)
+    mean_reward, _ = player.evaluate([chunk])
+    assert len(rewards) == 199
+    assert np.mean(rewards) == pytest.approx(mean_reward[0], rel=1e-12)
