@@ -852,7 +852,9 @@ class QLearner:
         Parameters
         ----------
         player
-            The cyber player; its Q-table is created (seeded) on the first call.
+            The cyber player. On the first call its Q-table is created (seeded) unless it has
+            one already (a loaded checkpoint: training then continues from it, counting
+            sessions, and so epsilon, from the checkpoint's ``training_["n_sessions"]``).
         sessions
             Iterable of chunks (see `iter_sessions`), consumed lazily: only one chunk is held.
         total
@@ -927,9 +929,10 @@ class QLearner:
         sequence = np.random.SeedSequence(self.random_state)
         self.seed_ = int(sequence.entropy)  # type: ignore[arg-type]
         q_seed, explore_seed = sequence.spawn(2)
-        player.initialise_q(np.random.default_rng(q_seed), self.q_init_scale)
+        if not hasattr(player, "q_table_"):
+            player.initialise_q(np.random.default_rng(q_seed), self.q_init_scale)
         self.rng_ = np.random.default_rng(explore_seed)
-        self.n_sessions_ = 0
+        self.n_sessions_ = int(getattr(player, "training_", {}).get("n_sessions", 0))
         self.epsilon_ = 1.0
         self.learning_curve_ = LearningCurve()
 

@@ -496,3 +496,17 @@ def test_make_follower_sessions_delays_the_partner(zhai_trials):
     t = np.arange(100) * 0.03
     positions, _ = make_follower_sessions([make_trial(t, 0.1 * np.sin(t))], lag=0.001)
     np.testing.assert_array_equal(positions[0, 1, 1:], positions[0, 0, :-1])
+
+
+def test_training_resumes_from_a_checkpoint(slow_chunks, tmp_path):
+    path = tmp_path / "ckpt.npz"
+    QLearner(random_state=0, progress=False, checkpoint_path=path).train(
+        CyberPlayer(), repeat(slow_chunks[0], 4)
+    )
+    resumed = load_cyber_player(path)
+    saved_q = resumed.q_table_.copy()
+    learner = QLearner(random_state=1, progress=False).train(resumed, [])
+    np.testing.assert_array_equal(resumed.q_table_, saved_q)
+    learner.train(resumed, repeat(slow_chunks[0], 2))
+    assert learner.n_sessions_ == 6 and resumed.training_["n_sessions"] == 6
+    assert learner.epsilon_ == pytest.approx(ExponentialEpsilon()(5))
