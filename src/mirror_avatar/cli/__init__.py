@@ -12,6 +12,7 @@ import sys
 import click
 
 from mirror_avatar.cli.info import info
+from mirror_avatar.cli.play import play
 from mirror_avatar.errors import InputError
 
 
@@ -22,6 +23,7 @@ def cli() -> None:
 
 
 cli.add_command(info)
+cli.add_command(play)
 
 
 def main(argv: list[str] | None = None) -> int:

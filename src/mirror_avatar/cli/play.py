@@ -1,0 +1,77 @@
+"""``mirror-avatar play``: the live mirror game in a browser."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from mirror_avatar.errors import InputError
+
+
+@click.command()
+@click.option(
+    "--avatar",
+    "avatar_spec",
+    default=None,
+    metavar="SPEC",
+    help="The avatar (a player spec); default: a virtual trainer learned from the bundled data.",
+)
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on.")
+@click.option("--port", default=8765, show_default=True, type=click.IntRange(0, 65535))
+@click.option(
+    "--out",
+    "out_dir",
+    default=Path("recordings"),
+    show_default=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Where trials are recorded (one folder per participant).",
+)
+@click.option(
+    "--require-token",
+    is_flag=True,
+    help="Require the access token even on loopback (always required on other addresses).",
+)
+@click.option("--max-sessions", default=4, show_default=True, type=click.IntRange(1, 64))
+def play(
+    avatar_spec: str | None,
+    host: str,
+    port: int,
+    out_dir: Path,
+    require_token: bool,
+    max_sessions: int,
+) -> None:
+    """Serve the mirror game on http://HOST:PORT and record every trial to OUT.
+
+    Modes: solo, avatar leads, avatar follows and joint improvisation. Each trial is saved as it
+    is played: the person's trial as CSV (time,position), a session CSV with both players in the
+    avatar modes, and a JSON sidecar; an interrupted trial is kept and marked incomplete.
+    """
+    from mirror_avatar.live.server import (
+        LiveSettings,
+        create_app,
+        is_loopback,
+        make_server,
+        make_token,
+    )
+    from mirror_avatar.live.session import DEFAULT_AVATAR, make_avatar_factory
+
+    spec = avatar_spec or DEFAULT_AVATAR
+    token = make_token() if require_token or not is_loopback(host) else None
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise InputError(out_dir, f"cannot create the output folder ({error.strerror})") from None
+    factory = make_avatar_factory(spec)
+    factory("avatar_follows", 0)  # a bad spec fails here, before the server starts
+    settings = LiveSettings(
+        out_dir=out_dir, avatar_spec=spec, token=token, max_sessions=max_sessions
+    )
+    server = make_server(create_app(settings, factory), host, port, "info")
+    shown = "localhost" if host in ("0.0.0.0", "::") else host
+    url = f"http://{shown}:{port}/" + (f"?token={token}" if token else "")
+    click.echo(f"mirror-avatar play: avatar {spec}; recording to {out_dir.resolve()}")
+    if token:
+        click.echo(f"access token: {token} (needed by every connection)")
+    click.echo(f"open {url}  (Ctrl+C to stop)")
+    server.run()

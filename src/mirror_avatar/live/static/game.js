@@ -1,0 +1,233 @@
+// Mirror game page: reads the pointer (mouse, touch or keyboard), sends its latest position once per
+// animation frame while a trial runs, draws both dots, and shows the trial's results.
+// Positions are in normalised units: the track spans [-0.5, 0.5].
+"use strict";
+
+(() => {
+  const KEY_SPEED = 0.8; // units/s while an arrow key is held
+  const $ = (id) => document.getElementById(id);
+  const ui = {
+    status: $("status"), form: $("setup"), participant: $("participant"), mode: $("mode"),
+    duration: $("duration"), start: $("start"), stop: $("stop"), track: $("track"),
+    person: $("person-dot"), avatar: $("avatar-dot"), countdown: $("countdown"),
+    progress: $("progress"), results: $("results"), metrics: $("metrics"), plot: $("plot"),
+    saved: $("saved"), avatarLegend: $("avatar-legend"),
+  };
+  const game = {
+    phase: "connecting", // connecting | idle | countdown | running | closed
+    x: 0, avatarX: null, seq: 0, sent: new Map(), rtt: null, keys: new Set(), lastFrame: null,
+    summary: null,
+  };
+  window.mirrorGame = game; // inspected by the browser tests
+
+  const token = new URLSearchParams(location.search).get("token");
+  const wsUrl = new URL("ws", location.href);
+  wsUrl.protocol = location.protocol === "https:" ? "wss:" : "ws:";
+  wsUrl.search = token ? `?token=${encodeURIComponent(token)}` : "";
+  const socket = new WebSocket(wsUrl);
+
+  const clip = (x) => Math.max(-0.5, Math.min(0.5, x));
+  const toPixels = (x) => (x + 0.5) * ui.track.clientWidth;
+  const setStatus = (text) => { ui.status.textContent = text; };
+
+  function pointerTo(clientX) {
+    const rect = ui.track.getBoundingClientRect();
+    game.x = clip((clientX - rect.left) / rect.width - 0.5);
+  }
+
+  function send(message) {
+    if (socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify(message));
+  }
+
+  function active() { return game.phase === "countdown" || game.phase === "running"; }
+
+  function frame(now) {
+    if (game.lastFrame !== null && game.keys.size) {
+      const dt = Math.min(0.1, (now - game.lastFrame) / 1000);
+      const direction = (game.keys.has("right") ? 1 : 0) - (game.keys.has("left") ? 1 : 0);
+      game.x = clip(game.x + direction * KEY_SPEED * dt);
+    }
+    game.lastFrame = now;
+    if (active()) {
+      game.seq += 1;
+      game.sent.set(game.seq, performance.now());
+      send({ type: "position", seq: game.seq, x: game.x, rtt: game.rtt });
+    }
+    ui.person.style.left = `${toPixels(game.x)}px`;
+    if (game.avatarX !== null) ui.avatar.style.left = `${toPixels(game.avatarX)}px`;
+    requestAnimationFrame(frame);
+  }
+
+  function onAvatar(message) {
+    const sentAt = game.sent.get(message.seq);
+    if (sentAt !== undefined) {
+      game.rtt = Math.round((performance.now() - sentAt) * 100) / 100;
+      for (const seq of game.sent.keys()) { if (seq <= message.seq) game.sent.delete(seq); }
+    }
+    if (message.x !== null) game.avatarX = message.x;
+    ui.progress.style.width = `${(100 * message.progress).toFixed(1)}%`;
+  }
+
+  function setPhase(phase) {
+    game.phase = phase;
+    const busy = active();
+    ui.start.disabled = busy || phase === "connecting" || phase === "closed";
+    ui.stop.disabled = !busy;
+    for (const input of [ui.participant, ui.mode, ui.duration]) input.disabled = busy;
+  }
+
+  function row(label, value) {
+    const tr = document.createElement("tr");
+    const th = document.createElement("th");
+    const td = document.createElement("td");
+    th.textContent = label;
+    td.textContent = value;
+    tr.append(th, td);
+    return tr;
+  }
+
+  const fixed = (value, digits, unit = "") =>
+    value === undefined || value === null ? "–" : `${value.toFixed(digits)}${unit}`;
+
+  function showResults(summary) {
+    const m = summary.metrics || {};
+    const rtt = summary.round_trip_ms || {};
+    const body = ui.metrics.tBodies[0];
+    body.replaceChildren(
+      row("Mode", summary.mode.replace("_", " ")),
+      row("Samples", `${summary.n_samples} at ${summary.sampling_rate_hz.toFixed(1)} Hz`),
+      row("Your mean speed", fixed(m.person_speed, 3, " units/s")),
+    );
+    if (m.rmse !== undefined) {
+      body.append(
+        row("Avatar mean speed", fixed(m.avatar_speed, 3, " units/s")),
+        row("RMSE", fixed(m.rmse, 3, " units")),
+        row("CV (phase locking)", fixed(m.circular_variance, 3)),
+        row("Relative phase (you − avatar)", fixed(m.relative_phase, 3, " rad")),
+        row("EMD between velocity profiles", fixed(m.emd, 4)),
+      );
+    }
+    body.append(row("Round trip (median)", fixed(rtt.median, 1, " ms")));
+    const complete = summary.complete ? "complete" : `incomplete (${summary.end_reason})`;
+    ui.saved.textContent = `Saved ${summary.files.person}` +
+      (summary.files.session ? ` and ${summary.files.session}` : "") + ` – ${complete}`;
+    ui.saved.classList.toggle("incomplete", !summary.complete);
+    ui.results.hidden = false;
+    drawDistributions(m);
+  }
+
+  function drawDistributions(m) {
+    const canvas = ui.plot;
+    const scale = window.devicePixelRatio || 1;
+    const width = canvas.clientWidth, height = canvas.clientHeight;
+    canvas.width = width * scale;
+    canvas.height = height * scale;
+    const ctx = canvas.getContext("2d");
+    ctx.scale(scale, scale);
+    ctx.clearRect(0, 0, width, height);
+    if (!m.velocity_bins) return;
+    const bins = m.velocity_bins;
+    const series = [[m.person_ims, "#2563eb"], [m.avatar_ims, "#ea7a12"]].filter((s) => s[0]);
+    const vmax = 2;
+    const pad = { left: 12, right: 12, top: 10, bottom: 24 };
+    const peak = Math.max(...series.flatMap(([p]) => p)) || 1;
+    const px = (v) => pad.left + ((v + vmax) / (2 * vmax)) * (width - pad.left - pad.right);
+    const py = (p) => height - pad.bottom - (p / peak) * (height - pad.top - pad.bottom);
+    ctx.strokeStyle = "#d8dde6";
+    ctx.fillStyle = "#667085";
+    ctx.font = "11px system-ui, sans-serif";
+    ctx.textAlign = "center";
+    ctx.beginPath();
+    ctx.moveTo(pad.left, height - pad.bottom);
+    ctx.lineTo(width - pad.right, height - pad.bottom);
+    ctx.stroke();
+    for (let v = -vmax; v <= vmax; v += 1) ctx.fillText(String(v), px(v), height - 8);
+    for (const [p, colour] of series) {
+      ctx.beginPath();
+      ctx.moveTo(px(bins[0]), py(0));
+      bins.forEach((v, i) => { if (Math.abs(v) <= vmax) ctx.lineTo(px(v), py(p[i])); });
+      ctx.lineTo(px(vmax), py(0));
+      ctx.globalAlpha = 0.18;
+      ctx.fillStyle = colour;
+      ctx.fill();
+      ctx.globalAlpha = 1;
+      ctx.strokeStyle = colour;
+      ctx.lineWidth = 1.5;
+      ctx.stroke();
+    }
+  }
+
+  socket.addEventListener("message", (event) => {
+    const message = JSON.parse(event.data);
+    switch (message.type) {
+      case "ready": {
+        for (const option of ui.mode.options) option.disabled = !message.modes.includes(option.value);
+        if (ui.mode.selectedOptions[0].disabled) ui.mode.value = "solo";
+        setPhase("idle");
+        setStatus(message.avatar ? `Avatar: ${message.avatar}` : "Solo recording only");
+        break;
+      }
+      case "avatar": onAvatar(message); break;
+      case "countdown":
+        setPhase("countdown");
+        ui.countdown.hidden = false;
+        ui.countdown.textContent = message.remaining;
+        setStatus("Get ready…");
+        break;
+      case "go":
+        setPhase("running");
+        ui.countdown.hidden = true;
+        game.avatarX = message.avatar;
+        ui.avatar.hidden = message.avatar === null;
+        setStatus("Playing");
+        break;
+      case "done":
+        setPhase("idle");
+        ui.countdown.hidden = true;
+        game.summary = message.summary;
+        showResults(message.summary);
+        setStatus(message.summary.complete ? "Trial saved" : "Trial stopped and saved");
+        break;
+      case "error":
+        setStatus(`Server: ${message.message}`);
+        if (game.phase === "countdown" && ui.countdown.hidden) setPhase("idle");
+        break;
+      default:
+        break;
+    }
+  });
+  socket.addEventListener("close", () => {
+    setPhase("closed");
+    setStatus("Disconnected from the server; reload the page to play again.");
+  });
+
+  ui.form.addEventListener("submit", (event) => {
+    event.preventDefault();
+    if (!ui.form.reportValidity()) return;
+    ui.results.hidden = true;
+    ui.progress.style.width = "0%";
+    ui.avatar.hidden = true;
+    ui.avatarLegend.hidden = ui.mode.value === "solo";
+    game.sent.clear();
+    game.rtt = null;
+    setPhase("countdown");
+    send({
+      type: "start", mode: ui.mode.value, participant: ui.participant.value,
+      duration: Number(ui.duration.value),
+    });
+  });
+  ui.stop.addEventListener("click", () => send({ type: "stop" }));
+
+  window.addEventListener("pointermove", (event) => pointerTo(event.clientX));
+  ui.track.addEventListener("pointerdown", (event) => pointerTo(event.clientX));
+  const KEYS = { ArrowLeft: "left", ArrowRight: "right", a: "left", d: "right" };
+  window.addEventListener("keydown", (event) => {
+    if (KEYS[event.key] && event.target.tagName !== "INPUT") {
+      game.keys.add(KEYS[event.key]);
+      event.preventDefault();
+    }
+  });
+  window.addEventListener("keyup", (event) => game.keys.delete(KEYS[event.key]));
+  window.addEventListener("blur", () => game.keys.clear());
+  requestAnimationFrame(frame);
+})();

@@ -1,0 +1,287 @@
+"""The live server over real sockets: a uvicorn server in a thread and `websockets` clients."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+import pytest
+from websockets.exceptions import ConnectionClosed, InvalidStatus
+from websockets.sync.client import ClientConnection, connect
+
+from mirror_avatar.live.server import LiveSettings, ServerThread, create_app
+from mirror_avatar.live.session import AvatarFactory, make_avatar_factory
+from mirror_avatar.players import CONTROL_PERIOD
+from mirror_avatar.trials import make_trial
+
+FRAME = 1 / 60
+
+
+def sway(t: float) -> float:
+    """The test's pointer trajectory (units): a 0.5 Hz sine of amplitude 0.3."""
+    return 0.3 * math.sin(2 * math.pi * 0.5 * t)
+
+
+class Browser:
+    """A scripted browser: sends the pointer once per frame and reads every reply."""
+
+    def __init__(self, ws: ClientConnection) -> None:
+        self.ws = ws
+        self.seq = 0
+        self.messages: list[dict[str, Any]] = []
+        self.ready = self.receive()
+
+    def receive(self, timeout: float = 5.0) -> dict[str, Any]:
+        message = json.loads(self.ws.recv(timeout))
+        self.messages.append(message)
+        return message
+
+    def send(self, message: dict[str, Any] | str) -> None:
+        self.ws.send(message if isinstance(message, str) else json.dumps(message))
+
+    def start(self, mode: str, duration: float, **extra: Any) -> None:
+        self.send({"type": "start", "mode": mode, "participant": "P07", "duration": duration})
+        self.messages.clear()
+
+    def position(self, x: float) -> dict[str, Any]:
+        """Send one position and return the server's answer to it."""
+        self.seq += 1
+        self.send({"type": "position", "seq": self.seq, "x": x, "rtt": 1.0})
+        while True:
+            message = self.receive()
+            if message["type"] in ("avatar", "error"):
+                return message
+
+    def play(
+        self, trajectory: Callable[[float], float], until: float = math.inf
+    ) -> dict[str, Any] | None:
+        """Move along ``trajectory`` (time since go, s) until done or ``until`` s; return done."""
+        began = None
+        deadline = time.monotonic() + 30.0
+        while True:
+            assert time.monotonic() < deadline, "the trial never ended"
+            t = 0.0 if began is None else time.monotonic() - began
+            if t > until:
+                return None
+            self.position(trajectory(t))
+            for message in self.messages:
+                if message["type"] == "go" and began is None:
+                    began = time.monotonic()
+                if message["type"] == "done":
+                    return message["summary"]
+            self.messages.clear()
+            time.sleep(FRAME)
+
+
+class Replay:
+    """A player replaying a fixed sine, ignoring its partner (stands in for the engine in the
+    robustness tests, which are about the server, not the avatar)."""
+
+    period = CONTROL_PERIOD
+
+    def reset(self, seed: int | None = None) -> tuple[float, float]:
+        self.k = 0
+        return 0.0, 0.0
+
+    def step(self, partner_position: float, partner_velocity: float) -> tuple[float, float]:
+        self.k += 1
+        return 0.2 * math.sin(self.k * self.period), 0.2 * math.cos(self.k * self.period)
+
+
+def replay_factory(mode: str, seed: int) -> Replay:
+    return Replay()
+
+
+class Live:
+    """Live servers on free ports and browsers connected to them, all closed by the test's end."""
+
+    def __init__(self, stack: ExitStack, out_dir: Path) -> None:
+        self.stack = stack
+        self.out_dir = out_dir
+
+    def serve(self, factory: AvatarFactory | None = replay_factory, **options: Any) -> ServerThread:
+        settings = LiveSettings(out_dir=self.out_dir, avatar_spec="test", countdown=0, **options)
+        return self.stack.enter_context(ServerThread(create_app(settings, factory)))
+
+    def open(self, server: ServerThread, query: str = "", **options: Any) -> Browser:
+        url = server.url.replace("http", "ws") + "/ws" + query
+        return Browser(self.stack.enter_context(connect(url, proxy=None, **options)))
+
+
+@pytest.fixture
+def live(tmp_path: Path) -> Iterator[Live]:
+    with ExitStack() as stack:
+        yield Live(stack, tmp_path / "recordings")
+
+
+def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
+    lines = path.read_text().splitlines()
+    return lines[0].split(","), np.loadtxt(lines[1:], delimiter=",", ndmin=2)
+
+
+def sidecars(tmp_path: Path) -> list[dict[str, Any]]:
+    paths = sorted((tmp_path / "recordings" / "P07").glob("*.json"))
+    return [json.loads(path.read_text()) for path in paths]
+
+
+def test_solo_trial_is_recorded_as_a_trial_csv(live, tmp_path):
+    player = live.open(live.serve())
+    assert player.ready["modes"] == ["solo", "avatar_leads", "avatar_follows", "joint"]
+    player.start("solo", 1.5)
+    summary = player.play(sway)
+    assert summary is not None and summary["complete"] and summary["avatar"] is None
+    directory = tmp_path / "recordings" / "P07"
+    header, data = read_csv(directory / summary["files"]["person"])
+    assert header == ["time", "position"]
+    assert summary["files"]["session"] is None
+    assert data.shape == (round(1.5 / CONTROL_PERIOD) + 1, 2)
+    np.testing.assert_allclose(np.diff(data[:, 0]), CONTROL_PERIOD, atol=1e-4)
+    # the recorded trace is the sent one, up to the delay between client and server clocks
+    lags = np.arange(0.0, 0.2, 0.005)
+    errors = [np.abs(data[:, 1] - [sway(t - lag) for t in data[:, 0]]).max() for lag in lags]
+    assert min(errors) < 0.04
+    trial = make_trial(data[:, 0], data[:, 1])
+    assert trial.rate == pytest.approx(1 / CONTROL_PERIOD)
+    assert summary["round_trip_ms"]["n"] > 40 and summary["seed"] >= 0
+    assert summary["metrics"]["person_speed"] == pytest.approx(0.6, rel=0.15)
+
+
+def test_avatar_modes_write_a_session_with_both_players(live, tmp_path):
+    pytest.importorskip("mirror_avatar.metrics")
+    player = live.open(live.serve())
+    player.start("avatar_leads", 1.0)
+    summary = player.play(sway)
+    assert summary["complete"] and summary["avatar_role"] == "leader"
+    header, data = read_csv(tmp_path / "recordings" / "P07" / summary["files"]["session"])
+    assert header == ["time", "person", "avatar"]
+    expected = [0.2 * math.sin(k * CONTROL_PERIOD) for k in range(data.shape[0])]
+    np.testing.assert_allclose(data[:, 2], expected, atol=2e-6)
+    for key in ("rmse", "circular_variance", "relative_phase", "emd"):
+        assert math.isfinite(summary["metrics"][key])
+
+
+def test_dropped_connection_leaves_an_incomplete_trial_and_server_keeps_serving(live, tmp_path):
+    server = live.serve()
+    player = live.open(server)
+    player.start("avatar_follows", 30.0)
+    assert player.play(sway, until=1.0) is None
+    player.ws.close()
+    deadline = time.monotonic() + 5
+    while "ended_utc" not in (found := sidecars(tmp_path))[0]:
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    record = found[0]
+    assert not record["complete"] and record["end_reason"] == "connection closed"
+    _, data = read_csv(tmp_path / "recordings" / "P07" / record["files"]["session"])
+    assert 20 < data.shape[0] < 60 and record["n_samples"] == data.shape[0]
+    again = live.open(server)
+    again.start("solo", 1.0)
+    assert again.play(sway)["complete"]
+
+
+def test_a_client_that_stops_sending_is_timed_out(live, tmp_path):
+    player = live.open(live.serve(stale_timeout=0.3))
+    player.start("solo", 30.0)
+    player.play(sway, until=0.6)
+    time.sleep(0.8)
+    with pytest.raises(ConnectionClosed) as closed:
+        while True:
+            player.receive()
+    assert closed.value.rcvd.code == 4408
+    (record,) = sidecars(tmp_path)
+    assert not record["complete"] and record["end_reason"] == "the browser stopped sending"
+
+
+def test_bad_messages_are_answered_and_ignored(live, tmp_path):
+    server = live.serve()
+    player, other = live.open(server), live.open(server)
+    player.start("solo", 3.0)
+    other.start("avatar_follows", 1.0)
+    player.position(0.1)
+    position = '{"type": "position", "seq": 1, "x": %s}'
+    bad = ["not json", "[1, 2]", '{"type": "jump"}', "x" * 600]
+    bad += [position % x for x in ("0.7", "NaN", '"0.1"', "1" + "0" * 400)]
+    for message in bad:
+        player.send(message)
+        assert player.receive()["type"] == "error"
+    player.ws.send(b"\x00\x01")
+    assert "text" in player.receive()["message"]
+    player.send({"type": "start", "mode": "solo", "participant": "../etc", "duration": 1})
+    assert "participant" in player.receive()["message"]
+    assert player.play(lambda t: -0.2)["complete"]
+    assert other.play(sway)["complete"]
+    records = {record["mode"]: record for record in sidecars(tmp_path)}
+    assert records["solo"]["rejected_messages"] == 10
+    _, data = read_csv(tmp_path / "recordings" / "P07" / records["solo"]["files"]["person"])
+    assert np.abs(data[:, 1]).max() <= 0.2 + 1e-9
+
+
+def test_oversized_frames_close_only_their_connection(live):
+    server = live.serve()
+    player, other = live.open(server), live.open(server)
+    player.send("x" * 100_000)
+    with pytest.raises(ConnectionClosed) as closed:
+        player.receive()
+    assert closed.value.rcvd.code == 1009
+    other.start("solo", 1.0)
+    assert other.play(sway)["complete"]
+
+
+def test_too_many_sessions_are_refused(live):
+    server = live.serve(max_sessions=2)
+    first, second = live.open(server), live.open(server)
+    third = live.open(server)
+    assert third.ready["type"] == "error" and "busy" in third.ready["message"]
+    with pytest.raises(ConnectionClosed) as closed:
+        third.receive()
+    assert closed.value.rcvd.code == 1013
+    first.start("solo", 1.0)
+    assert first.play(sway)["complete"]
+    assert second.position(0.0)["type"] == "avatar"
+
+
+def test_token_is_required_on_every_connection(live):
+    server = live.serve(token="s3cret")
+    web = live.stack.enter_context(httpx.Client(trust_env=False))
+    assert web.get(server.url + "/").status_code == 403
+    assert web.get(server.url + "/static/game.js").status_code == 403
+    assert web.get(server.url + "/?token=wrong").status_code == 403
+    with httpx.Client(trust_env=False) as browser:
+        page = browser.get(server.url + "/?token=s3cret")
+        assert page.status_code == 200 and "Mirror game" in page.text
+        assert browser.get(server.url + "/static/game.js").status_code == 200  # by cookie
+    with pytest.raises(InvalidStatus) as refused:
+        live.open(server)
+    assert refused.value.response.status_code == 403
+    assert live.open(server, "?token=s3cret").ready["type"] == "ready"
+
+
+def test_cross_origin_websockets_are_refused(live):
+    server = live.serve()
+    with pytest.raises(InvalidStatus):
+        live.open(server, origin="http://evil.example")
+    assert live.open(server, origin=server.url).ready["type"] == "ready"
+
+
+def test_server_without_avatar_offers_solo_only(live):
+    player = live.open(live.serve(factory=None))
+    assert player.ready["modes"] == ["solo"]
+    player.start("joint", 1.0)
+    assert "needs an avatar" in player.receive()["message"]
+
+
+def test_default_avatar_is_the_engine_virtual_trainer(live, tmp_path):
+    pytest.importorskip("mirror_avatar.specs")
+    player = live.open(live.serve(factory=make_avatar_factory()))
+    player.start("avatar_follows", 2.0)
+    summary = player.play(sway)
+    assert summary["complete"]
+    _, data = read_csv(tmp_path / "recordings" / "P07" / summary["files"]["session"])
+    assert np.ptp(data[:, 2]) > 0.1
