@@ -1,0 +1,233 @@
+"""The live game in a real browser: Playwright driving Debian's Chromium against a real server.
+
+In CI (``CI=true``) these tests fail when Chromium is missing; elsewhere they skip.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import psutil
+import pytest
+
+from mirror_avatar.live.server import LiveSettings, ServerThread, create_app
+from mirror_avatar.live.session import make_avatar_factory
+
+pytestmark = pytest.mark.browser
+
+CHROMIUM = Path("/usr/bin/chromium")
+ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+SCREENSHOTS = Path(__file__).parents[2] / "output" / "screenshots"
+
+
+def sway(t: Any) -> Any:
+    """The driven pointer trajectory (units): a 0.4 Hz sine of amplitude 0.3."""
+    return 0.3 * np.sin(2 * np.pi * 0.4 * t)
+
+
+@pytest.fixture(scope="module")
+def playwright() -> Iterator[Any]:
+    if not CHROMIUM.exists():
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"{CHROMIUM} is missing: install Debian's chromium package")
+        pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as running:
+        yield running
+
+
+@pytest.fixture(scope="module")
+def chromium(playwright: Any) -> Iterator[Any]:
+    browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+    yield browser
+    browser.close()
+
+
+@pytest.fixture(scope="module")
+def avatar_factory():
+    try:
+        return make_avatar_factory()
+    except ImportError:
+        return None
+
+
+@pytest.fixture
+def server(tmp_path: Path, avatar_factory) -> Iterator[ServerThread]:
+    settings = LiveSettings(out_dir=tmp_path, avatar_spec="bundled:slow", countdown=1)
+    with ServerThread(create_app(settings, avatar_factory)) as running:
+        yield running
+
+
+def start_trial(page: Any, url: str, mode: str, duration: float) -> None:
+    page.goto(url)
+    page.wait_for_function("window.mirrorGame && window.mirrorGame.phase === 'idle'")
+    page.fill("#participant", "B01")
+    page.select_option("#mode", mode)
+    page.fill("#duration", str(duration))
+    page.click("#start")
+    box = page.locator("#track").bounding_box()
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.wait_for_function("window.mirrorGame.phase === 'running'", timeout=15_000)
+
+
+def drive(page: Any, seconds: float) -> np.ndarray:
+    """Move the mouse over the track along `sway` for ``seconds`` or until the trial ends.
+
+    Returns
+    -------
+    ndarray
+        The (time, position) pairs driven, shape (n, 2), time since the first move.
+    """
+    box = page.locator("#track").bounding_box()
+    y = box["y"] + box["height"] / 2
+    began = time.monotonic()
+    driven = []
+    while (t := time.monotonic() - began) < seconds:
+        x = float(sway(t))
+        page.mouse.move(box["x"] + (x + 0.5) * box["width"], y)
+        driven.append((t, x))
+        if len(driven) % 15 == 0 and page.evaluate("window.mirrorGame.phase") != "running":
+            break
+        time.sleep(max(0.0, began + len(driven) / 60 - time.monotonic()))
+    return np.asarray(driven)
+
+
+def finish(page: Any, name: str, tmp_path: Path) -> dict[str, Any]:
+    page.wait_for_selector("#results:not([hidden])", timeout=15_000)
+    summary = page.evaluate("window.mirrorGame.summary")
+    page.screenshot(path=tmp_path / f"{name}.png", full_page=True)
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    shutil.copy(tmp_path / f"{name}.png", SCREENSHOTS / f"{name}.png")
+    return summary
+
+
+def load_csv(path: Path) -> np.ndarray:
+    assert path.read_text().splitlines()[0] in ("time,position", "time,person,avatar")
+    return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+
+
+def mismatch(recorded: np.ndarray, driven: np.ndarray) -> np.ndarray:
+    """|recorded - driven| (units) at the clock offset that fits best; driven positions hold
+    until the next move, the first one from time 0 (the pointer is parked there beforehand)."""
+
+    def errors(offset: float) -> np.ndarray:
+        index = np.searchsorted(driven[:, 0], recorded[:, 0] + offset, side="right") - 1
+        return np.abs(recorded[:, 1] - driven[np.maximum(index, 0), 1])
+
+    offsets = np.arange(-0.3, 0.3, 0.002)
+    return min((errors(offset) for offset in offsets), key=lambda e: float(np.mean(e)))
+
+
+def assert_matches(recorded: np.ndarray, driven: np.ndarray) -> None:
+    error = mismatch(recorded[recorded[:, 0] <= driven[-1, 0]], driven)
+    step = np.abs(np.diff(driven[:, 1])).max()
+    # exact (sub-pixel) for most samples; a sample taken as the pointer moves is one step off
+    assert np.median(error) < 0.001
+    assert error.max() < step + 0.002
+
+
+def test_solo_trial_records_the_driven_trajectory(chromium, server, tmp_path):
+    page = chromium.new_page(viewport={"width": 1100, "height": 760})
+    start_trial(page, server.url, "solo", 4)
+    driven = drive(page, 10)
+    summary = finish(page, "solo", tmp_path)
+    assert summary["complete"] and summary["mode"] == "solo"
+    data = load_csv(tmp_path / "B01" / summary["files"]["person"])
+    assert data.shape[0] == summary["n_samples"] == round(4 / 0.03) + 1
+    assert_matches(data, driven)
+    assert page.locator("#metrics").inner_text().count("units/s") == 1
+    page.close()
+
+
+def test_avatar_follows_the_driven_mouse(chromium, server, tmp_path):
+    page = chromium.new_page(viewport={"width": 1100, "height": 760})
+    start_trial(page, server.url, "avatar_follows", 5)
+    driven = drive(page, 10)
+    summary = finish(page, "avatar_follows", tmp_path)
+    assert summary["complete"] and summary["avatar_role"] == "follower"
+    data = load_csv(tmp_path / "B01" / summary["files"]["session"])
+    assert_matches(data[:, :2], driven)
+    metrics = summary["metrics"]
+    assert metrics["relative_phase"] > 0  # the person (player 1) is ahead
+    assert metrics["circular_variance"] > 0.5 and metrics["rmse"] < 0.2
+    assert summary["round_trip_ms"]["n"] > 100 and summary["round_trip_ms"]["median"] < 100
+    table = page.locator("#metrics").inner_text()
+    for label in ("RMSE", "CV", "Relative phase", "Round trip"):
+        assert label in table
+    page.close()
+
+
+def chromium_mains() -> set[int]:
+    """Process ids of the Chromium browsers this test process started (not their helpers)."""
+    return {
+        child.pid
+        for child in psutil.Process().children(recursive=True)
+        if CHROMIUM.name in child.name() and "--type=" not in " ".join(child.cmdline())
+    }
+
+
+def test_killing_the_browser_mid_trial_leaves_an_incomplete_trial(playwright, server, tmp_path):
+    before = chromium_mains()
+    browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+    (main,) = chromium_mains() - before
+    page = browser.new_page()
+    start_trial(page, server.url, "avatar_follows", 30)
+    driven = drive(page, 1.5)
+    os.kill(main, signal.SIGKILL)
+    psutil.Process(main).wait(10)
+    sidecar = next((tmp_path / "B01").glob("*.json"))
+    deadline = time.monotonic() + 10
+    while "ended_utc" not in (record := json.loads(sidecar.read_text())):
+        assert time.monotonic() < deadline, "the trial was never closed"
+        time.sleep(0.05)
+    assert not record["complete"] and record["end_reason"] in (
+        "connection closed",
+        "the browser stopped sending",
+    )
+    data = load_csv(tmp_path / "B01" / record["files"]["session"])
+    assert data.shape[0] == record["n_samples"] > 20
+    assert_matches(data[:, :2], driven)
+
+
+def test_server_keeps_serving_and_tabs_can_close(chromium, server, tmp_path):
+    page = chromium.new_page()
+    start_trial(page, server.url, "solo", 30)
+    drive(page, 0.5)
+    page.close()
+    other = chromium.new_page()
+    start_trial(other, server.url, "joint", 2)
+    drive(other, 5)
+    assert finish(other, "joint", tmp_path)["complete"]
+    records = [json.loads(p.read_text()) for p in (tmp_path / "B01").glob("*.json")]
+    assert sorted((r["mode"], r["complete"]) for r in records) == [
+        ("joint", True),
+        ("solo", False),
+    ]
+    other.close()
+
+
+def test_token_protected_server_refuses_pages_without_it(chromium, tmp_path):
+    settings = LiveSettings(out_dir=tmp_path, token="letmein", countdown=0)
+    with ServerThread(create_app(settings, None), host="0.0.0.0") as running:
+        local = f"http://127.0.0.1:{running.port}/"
+        page = chromium.new_page()
+        assert page.goto(local).status == 403
+        assert page.goto(local + "?token=letmein").status == 200
+        page.wait_for_function("window.mirrorGame.phase === 'idle'")
+        page.close()
