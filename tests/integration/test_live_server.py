@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import socket
+import subprocess
+import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack
@@ -285,3 +289,58 @@ def test_default_avatar_is_the_engine_virtual_trainer(live, tmp_path):
     assert summary["complete"]
     _, data = read_csv(tmp_path / "recordings" / "P07" / summary["files"]["session"])
     assert np.ptp(data[:, 2]) > 0.1
+
+
+def run_play(*args: str, out_dir: Path) -> subprocess.Popen[str]:
+    command = Path(sys.executable).parent / "mirror-avatar"
+    environment = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.Popen(
+        [str(command), "play", "--out", str(out_dir), *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=environment,
+    )
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def test_play_command_requires_a_token_off_loopback(tmp_path):
+    pytest.importorskip("mirror_avatar.specs")
+    port = free_port()
+    process = run_play("--host", "0.0.0.0", "--port", str(port), out_dir=tmp_path)
+    try:
+        lines = []
+        while not (lines and lines[-1].startswith("open ")):
+            line = process.stdout.readline()
+            assert line, f"play exited early: {process.stderr.read()}"
+            lines.append(line.strip())
+        token = next(line.split()[2] for line in lines if line.startswith("access token"))
+        assert f"?token={token}" in lines[-1]
+        url = f"http://127.0.0.1:{port}/"
+        with httpx.Client(trust_env=False) as web:
+            deadline = time.monotonic() + 20
+            while True:
+                try:
+                    refused = web.get(url)
+                    break
+                except httpx.ConnectError:
+                    assert time.monotonic() < deadline
+                    time.sleep(0.1)
+            assert refused.status_code == 403
+            assert web.get(url, params={"token": token}).status_code == 200
+    finally:
+        process.terminate()
+        process.communicate(timeout=10)
+
+
+def test_play_command_rejects_a_bad_avatar_in_one_line(tmp_path):
+    pytest.importorskip("mirror_avatar.specs")
+    process = run_play("--avatar", "no-such-avatar:xyz", "--port", "0", out_dir=tmp_path)
+    out, err = process.communicate(timeout=60)
+    assert process.returncode == 2
+    assert len(err.strip().splitlines()) == 1 and err.startswith("mirror-avatar: error:")

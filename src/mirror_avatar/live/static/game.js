@@ -64,7 +64,10 @@
       game.rtt = Math.round((performance.now() - sentAt) * 100) / 100;
       for (const seq of game.sent.keys()) { if (seq <= message.seq) game.sent.delete(seq); }
     }
-    if (message.x !== null) game.avatarX = message.x;
+    if (message.x !== null) {
+      game.avatarX = message.x;
+      ui.avatar.hidden = false;
+    }
     ui.progress.style.width = `${(100 * message.progress).toFixed(1)}%`;
   }
 
