@@ -155,6 +155,21 @@ def test_solo_trial_records_the_driven_trajectory(chromium, server, tmp_path):
     page.close()
 
 
+def test_keyboard_moves_the_dot_at_a_constant_speed(chromium, server, tmp_path):
+    page = chromium.new_page()
+    start_trial(page, server.url, "solo", 2)
+    page.keyboard.down("ArrowRight")
+    time.sleep(0.5)
+    page.keyboard.up("ArrowRight")
+    summary = finish(page, "keyboard", tmp_path)
+    data = load_csv(tmp_path / "B01" / summary["files"]["person"])
+    moving = np.flatnonzero(np.diff(data[:, 1]) > 0)
+    speed = np.polyfit(data[moving, 0], data[moving, 1], 1)[0]
+    assert speed == pytest.approx(0.8, rel=0.1)  # KEY_SPEED in game.js, units/s
+    assert data[-1, 1] == pytest.approx(0.4, abs=0.06)  # about 0.5 s at 0.8 units/s
+    page.close()
+
+
 def test_avatar_follows_the_driven_mouse(chromium, server, tmp_path):
     pytest.importorskip("mirror_avatar.specs")
     page = chromium.new_page(viewport={"width": 1100, "height": 760})
