@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import secrets
 import time
@@ -107,6 +108,8 @@ def start_trial(
     if with_avatar and avatar_factory is None:
         raise ValueError("an avatar mode needs an avatar factory")
     avatar = avatar_factory(request.mode, seed) if with_avatar and avatar_factory else None
+    if avatar is not None and not math.isclose(avatar.period, period):
+        raise ValueError(f"the avatar steps every {avatar.period} s, the server every {period} s")
     now = datetime.now(UTC)
     stem = f"{request.participant}_{request.mode}_{now.strftime('%Y%m%dT%H%M%S%fZ')}"
     metadata = {
@@ -114,6 +117,7 @@ def start_trial(
         "mode": request.mode,
         "avatar": avatar_spec if with_avatar else None,
         "avatar_role": AVATAR_ROLES.get(request.mode),
+        "avatar_player": None if avatar is None else type(avatar).__name__,
         "seed": seed,
         "duration_requested_s": request.duration,
         "period_s": period,
