@@ -129,8 +129,15 @@
     ctx.scale(scale, scale);
     ctx.clearRect(0, 0, width, height);
     if (!m.velocity_bins) return;
-    const bins = m.velocity_bins;
-    const series = [[m.person_ims, "#2563eb"], [m.avatar_ims, "#ea7a12"]].filter((s) => s[0]);
+    // four neighbouring bins merged: a short trial's 200-bin histogram is too ragged to read
+    const merge = (values, mean) => values.reduce((out, value, i) => {
+      out[Math.floor(i / 4)] = (out[Math.floor(i / 4)] || 0) + (mean ? value / 4 : value);
+      return out;
+    }, []);
+    const bins = merge(m.velocity_bins, true);
+    const series = [[m.person_ims, "#2563eb"], [m.avatar_ims, "#ea7a12"]]
+      .filter((s) => s[0])
+      .map(([p, colour]) => [merge(p, false), colour]);
     const vmax = 2;
     const pad = { left: 12, right: 12, top: 10, bottom: 24 };
     const peak = Math.max(...series.flatMap(([p]) => p)) || 1;
@@ -188,6 +195,7 @@
         setPhase("idle");
         ui.countdown.hidden = true;
         game.summary = message.summary;
+        if (message.summary.complete) ui.progress.style.width = "100%";
         showResults(message.summary);
         setStatus(message.summary.complete ? "Trial saved" : "Trial stopped and saved");
         break;
