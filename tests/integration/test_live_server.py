@@ -190,6 +190,20 @@ def test_dropped_connection_leaves_an_incomplete_trial_and_server_keeps_serving(
     assert again.play(sway)["complete"]
 
 
+def test_stop_ends_the_trial_early_and_another_can_start(live, tmp_path):
+    player = live.open(live.serve())
+    player.start("solo", 30.0)
+    player.play(sway, until=0.5)
+    player.send({"type": "stop"})
+    while (message := player.receive())["type"] != "done":
+        pass
+    summary = message["summary"]
+    assert not summary["complete"] and summary["end_reason"] == "stopped by the participant"
+    player.start("solo", 1.0)
+    assert player.play(sway)["complete"]
+    assert len(sidecars(tmp_path)) == 2
+
+
 def test_a_client_that_stops_sending_is_timed_out(live, tmp_path):
     player = live.open(live.serve(stale_timeout=0.3))
     player.start("solo", 30.0)

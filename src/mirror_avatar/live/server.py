@@ -262,6 +262,8 @@ class Connection:
                 }
             )
         elif isinstance(request, StopRequest):
+            if self.ticker is not None:
+                self.ticker.cancel()
             summary = self.end_trial(False, "stopped by the participant")
             if summary is not None:
                 await self.send({"type": "done", "summary": summary})
@@ -294,6 +296,8 @@ class Connection:
             await self._run_trial(trial)
         except Exception as error:  # a failing avatar must not lose the recording
             logger.exception("trial failed")
+            if self.trial is not trial:
+                return
             self.end_trial(False, f"server error: {type(error).__name__}")
             await self.send({"type": "error", "message": "server error: trial saved as incomplete"})
 
@@ -308,6 +312,8 @@ class Connection:
             delay = start + trial.k * trial.period - loop.time()
             if delay > 0:
                 await asyncio.sleep(delay)
+            if self.trial is not trial:
+                return
             if time.monotonic() - trial.last_heard > self.settings.stale_timeout:
                 self.end_trial(False, "the browser stopped sending")
                 await self.close(CLOSE_STALE, "no position received: trial saved as incomplete")
