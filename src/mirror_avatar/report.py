@@ -6,9 +6,19 @@ Each experiment returns a `Section`; `write_report` assembles sections into one 
 
 from __future__ import annotations
 
+import base64
+import io
+import json
+import math
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
+import jinja2
+import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
@@ -39,3 +49,114 @@ class Section:
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)
     figures: dict[str, Figure] = field(default_factory=dict)
     metrics: dict[str, Any] = field(default_factory=dict)
+
+
+def write_report(
+    sections: Sequence[Section],
+    out_dir: str | os.PathLike[str],
+    title: str = "mirror-avatar report",
+    metadata: Mapping[str, Any] | None = None,
+) -> Path:
+    """Write ``out_dir/report.html`` and ``out_dir/metrics.json``.
+
+    The HTML is self-contained (figures embedded as base64 PNG, tables as HTML, all text
+    escaped); ``metrics.json`` holds ``{section.key: section.metrics, ..., "metadata": metadata}``,
+    with NaN and infinities written as ``null``. Both files are written atomically (a temporary
+    file in ``out_dir``, then `os.replace`). Every figure is closed once rendered.
+
+    Parameters
+    ----------
+    sections
+        The report's sections, in order; keys must be distinct.
+    out_dir
+        Output directory, created if missing.
+    title
+        Report title.
+    metadata
+        What the run was (version, seed, date, command, wall time...), shown at the top of the
+        report and stored in ``metrics.json``; JSON-serialisable.
+
+    Returns
+    -------
+    pathlib.Path
+        Path of ``report.html``.
+    """
+    keys = [section.key for section in sections]
+    if len(set(keys)) != len(keys) or "metadata" in keys:
+        raise ValueError(f"section keys must be distinct and not 'metadata', got {keys}")
+    metadata = dict(metadata or {})
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    metrics = {s.key: s.metrics for s in sections} | {"metadata": metadata}
+    _write_atomic(out / "metrics.json", json.dumps(_json_safe(metrics), indent=2) + "\n")
+    html = _template().render(
+        title=title,
+        metadata=metadata,
+        sections=[_render_section(section) for section in sections],
+    )
+    path = out / "report.html"
+    _write_atomic(path, html)
+    return path
+
+
+def render_png(figure: Figure, dpi: int = 110) -> bytes:
+    """Render a figure to PNG bytes (Agg), then clear it to release its memory."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=dpi)
+    figure.clear()
+    return buffer.getvalue()
+
+
+def _render_section(section: Section) -> dict[str, Any]:
+    return {
+        "key": section.key,
+        "title": section.title,
+        "text": section.text,
+        "tables": [
+            (caption, table.to_html(float_format=_format_float, border=0, na_rep="-"))
+            for caption, table in section.tables.items()
+        ],
+        "figures": [
+            (caption, base64.b64encode(render_png(figure)).decode("ascii"))
+            for caption, figure in section.figures.items()
+        ],
+    }
+
+
+def _format_float(value: float) -> str:
+    return f"{value:.4g}"
+
+
+def _template() -> jinja2.Template:
+    environment = jinja2.Environment(
+        loader=jinja2.PackageLoader("mirror_avatar", "templates"),
+        autoescape=True,
+        undefined=jinja2.StrictUndefined,
+    )
+    return environment.get_template("report.html.j2")
+
+
+def _json_safe(value: Any) -> Any:
+    """Plain JSON values: numpy scalars and arrays converted, NaN and infinities as ``None``."""
+    if isinstance(value, Mapping):
+        return {str(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return _json_safe(value.tolist())
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        return _json_safe(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "w", encoding="utf-8") as file:
+            file.write(text)
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise

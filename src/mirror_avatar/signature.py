@@ -8,12 +8,17 @@ range are counted in the end bins). Two signatures are compared by the earth mov
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import scipy.stats
 from numpy.typing import ArrayLike, NDArray
+from shapely.geometry import Polygon
 
 from mirror_avatar.errors import InputError
+from mirror_avatar.trials import Trial
 
 Array = NDArray[np.float64]
 
@@ -120,3 +125,409 @@ def compute_emd_matrix(
         block = cdf_a[start : start + 256, None, :] - cdf_b[None, :, :]
         distance[start : start + 256] = np.abs(block).sum(axis=2)
     return distance * bins.width / (bins.hi - bins.lo)
+
+
+def classical_mds(distances: ArrayLike, n_components: int = 2) -> Array:
+    """Classical (Torgerson) multidimensional scaling of a distance matrix (METHODS section 3).
+
+    Double-centres ``-D**2 / 2`` and returns the top eigenvectors scaled by the square roots of
+    their eigenvalues; negative eigenvalues (a non-Euclidean ``D``) are clipped to zero. Each axis
+    is oriented so that its largest-magnitude coordinate is positive, which makes the result
+    deterministic.
+
+    Parameters
+    ----------
+    distances
+        Symmetric distance matrix, shape (m, m), zero diagonal.
+    n_components
+        Number of dimensions to keep.
+
+    Returns
+    -------
+    numpy.ndarray
+        Coordinates, shape (m, n_components); Euclidean distances between rows approximate
+        ``distances``. Columns beyond ``m`` are zero.
+    """
+    d = np.asarray(distances, dtype=np.float64)
+    if d.ndim != 2 or d.shape[0] != d.shape[1]:
+        raise InputError(None, f"distances must be a square matrix, got shape {d.shape}")
+    if not np.all(np.isfinite(d)):
+        raise InputError(None, "distances have NaN or infinite values")
+    m = d.shape[0]
+    centring = np.eye(m) - 1.0 / m
+    gram = -0.5 * centring @ (d**2) @ centring
+    values, vectors = np.linalg.eigh((gram + gram.T) / 2)
+    order = np.argsort(values)[::-1][:n_components]
+    values = np.clip(values[order], 0.0, None)
+    vectors = vectors[:, order]
+    largest = vectors[np.argmax(np.abs(vectors), axis=0), np.arange(vectors.shape[1])]
+    vectors = vectors * np.where(largest < 0, -1.0, 1.0)
+    coordinates = np.zeros((m, n_components))
+    coordinates[:, : vectors.shape[1]] = vectors * np.sqrt(values)
+    return coordinates
+
+
+@dataclass(frozen=True)
+class Ellipse:
+    """A Gaussian confidence ellipse in a plane.
+
+    Parameters
+    ----------
+    centre
+        Centre, shape (2,).
+    axes
+        Unit axis directions as columns, shape (2, 2); the first column is the major axis.
+    semi_axes
+        Semi-axis lengths along those directions, shape (2,).
+    level
+        Probability mass of the Gaussian the ellipse encloses.
+    """
+
+    centre: Array
+    axes: Array
+    semi_axes: Array
+    level: float
+
+    @property
+    def area(self) -> float:
+        """Exact area ``pi * a * b``."""
+        return float(np.pi * self.semi_axes[0] * self.semi_axes[1])
+
+    def boundary(self, n_points: int = 512) -> Array:
+        """Points on the ellipse, shape (n_points, 2), counter-clockwise, not closed."""
+        angle = np.linspace(0.0, 2 * np.pi, n_points, endpoint=False)
+        unit = np.stack([np.cos(angle), np.sin(angle)])
+        return (self.centre[:, None] + self.axes @ (self.semi_axes[:, None] * unit)).T
+
+    def polygon(self, quad_segs: int = 128) -> Polygon:
+        """Return the ellipse as a shapely polygon with ``4 * quad_segs`` vertices.
+
+        The inscribed polygon's area is ``pi a b (1 - O((pi / (2 quad_segs))**2))``: 0.0025 %
+        low at the default.
+        """
+        return Polygon(self.boundary(4 * quad_segs))
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """Return the ellipse as plain lists and numbers."""
+        return {
+            "centre": self.centre.tolist(),
+            "axes": self.axes.tolist(),
+            "semi_axes": self.semi_axes.tolist(),
+            "level": self.level,
+            "area": self.area,
+        }
+
+
+def confidence_ellipse(points: ArrayLike, level: float = 0.7) -> Ellipse:
+    """Gaussian confidence ellipse of planar points (a player's characteristic region).
+
+    Centre = mean; axes = eigenvectors of the sample covariance (``ddof=1``); semi-axes
+    ``sqrt(chi2_2.ppf(level) * eigenvalue)``. The level is a **choice** (METHODS: 0.7).
+
+    Parameters
+    ----------
+    points
+        Points, shape (k, 2), k >= 3.
+    level
+        Probability in (0, 1).
+    """
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise InputError(None, f"points must have shape (k, 2), got {p.shape}")
+    if p.shape[0] < 3:
+        raise InputError(None, f"an ellipse needs at least 3 points, got {p.shape[0]}")
+    if not 0.0 < level < 1.0:
+        raise InputError("level", f"must be in (0, 1), got {level}")
+    values, vectors = np.linalg.eigh(np.cov(p, rowvar=False))
+    values, vectors = np.clip(values[::-1], 0.0, None), vectors[:, ::-1]
+    scale = float(scipy.stats.chi2.ppf(level, df=2))
+    return Ellipse(p.mean(axis=0), vectors, np.sqrt(scale * values), float(level))
+
+
+def ellipse_overlap(a: Ellipse, b: Ellipse, quad_segs: int = 128) -> float:
+    """Area of intersection over area of union of two ellipses, in [0, 1].
+
+    Computed on shapely polygons with ``4 * quad_segs`` vertices. Two degenerate (zero-area)
+    ellipses have overlap 0.
+    """
+    pa, pb = a.polygon(quad_segs), b.polygon(quad_segs)
+    union = pa.union(pb).area
+    return 0.0 if union == 0.0 else float(pa.intersection(pb).area / union)
+
+
+def velocity_strokes(velocity: ArrayLike, min_samples: int = 20) -> list[Array]:
+    """Split a velocity signal into strokes between consecutive zero crossings.
+
+    A crossing is where the sign of the velocity changes. Exact zeros (tracking drop-outs give
+    runs of them) take the sign of the last non-zero sample before them (samples before the first
+    non-zero one take its sign), so a pause inside a stroke does not split it, and a pause
+    between two strokes of opposite directions ends the first stroke.
+
+    Parameters
+    ----------
+    velocity
+        Velocity, shape (n,), units/s.
+    min_samples
+        Strokes with fewer samples are dropped (METHODS: 20 at 100 Hz).
+
+    Returns
+    -------
+    list of numpy.ndarray
+        The velocity of each complete stroke; the incomplete first and last segments are left out.
+    """
+    v = np.asarray(velocity, dtype=np.float64).ravel()
+    sign = np.sign(v)
+    nonzero = np.flatnonzero(sign)
+    if nonzero.size == 0:
+        return []
+    last_nonzero = np.maximum.accumulate(np.where(sign != 0, np.arange(v.size), nonzero[0]))
+    sign = sign[last_nonzero]
+    crossings = np.flatnonzero(sign[1:] != sign[:-1]) + 1
+    strokes = [v[start:stop] for start, stop in zip(crossings[:-1], crossings[1:], strict=True)]
+    return [stroke for stroke in strokes if stroke.size >= min_samples]
+
+
+def compute_stroke_moments(stroke: ArrayLike) -> tuple[float, float]:
+    """Skewness and kurtosis of one stroke's speed profile (METHODS section 3).
+
+    Time is rescaled to [0, 1] (sample i at ``i / (n - 1)``), ``|v|`` is normalised to unit area
+    and treated as a density ``f``; the moments are integrated with the trapezoid rule on that
+    grid. Kurtosis is Pearson's (3 for a Gaussian), not the excess.
+
+    Parameters
+    ----------
+    stroke
+        Velocity of one stroke, shape (n,), n >= 3, not all zero.
+
+    Returns
+    -------
+    tuple of float
+        ``(skewness, kurtosis)``.
+    """
+    speed = np.abs(np.asarray(stroke, dtype=np.float64))
+    if speed.size < 3 or not np.any(speed > 0):
+        raise InputError(None, "a stroke needs at least 3 samples and some motion")
+    t = np.linspace(0.0, 1.0, speed.size)
+    f = speed / np.trapezoid(speed, t)
+    mu = np.trapezoid(t * f, t)
+    variance = np.trapezoid((t - mu) ** 2 * f, t)
+    skewness = np.trapezoid((t - mu) ** 3 * f, t) / variance**1.5
+    kurtosis = np.trapezoid((t - mu) ** 4 * f, t) / variance**2
+    return float(skewness), float(kurtosis)
+
+
+def stroke_moments(velocity: ArrayLike, min_samples: int = 20) -> Array:
+    """Skewness and kurtosis of every complete stroke of a velocity signal.
+
+    Parameters
+    ----------
+    velocity
+        Velocity, shape (n,), units/s.
+    min_samples
+        Minimum stroke length in samples (see `velocity_strokes`).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (k, 2): columns skewness and kurtosis (Pearson), one row per stroke.
+    """
+    strokes = velocity_strokes(velocity, min_samples)
+    return np.array([compute_stroke_moments(s) for s in strokes]).reshape(-1, 2)
+
+
+@dataclass
+class SignatureAnalysis:
+    """Everything the signature analysis of a set of trials finds (see `analyse_signatures`).
+
+    Parameters
+    ----------
+    labels, groups
+        Label and group of each trial, length m.
+    group_names
+        The distinct groups in order of first appearance, length g.
+    bins
+        Bins of the signatures.
+    ims
+        Signature of each trial, shape (m, bins.n).
+    group_ims
+        Signature of each group (its trials' velocities pooled), shape (g, bins.n).
+    emd
+        Pairwise EMD between trials, shape (m, m).
+    coordinates
+        Similarity-space coordinates (classical MDS of ``emd``), shape (m, 2).
+    ellipses
+        Group -> confidence ellipse of its trials' coordinates (``None`` with fewer than 3 trials).
+    overlaps
+        Pairwise overlap of the groups' ellipses, shape (g, g) (NaN where an ellipse is missing).
+    strokes
+        Skewness and kurtosis of each trial's strokes, one (k_i, 2) array per trial.
+    stroke_ellipses
+        Group -> confidence ellipse of its strokes' (skewness, kurtosis) points (``None`` with
+        fewer than 3 strokes).
+    level, rate
+        Confidence level of the ellipses and the rate (Hz) trials were resampled to.
+    """
+
+    labels: list[str]
+    groups: list[str]
+    group_names: list[str]
+    bins: Bins
+    ims: Array
+    group_ims: Array
+    emd: Array
+    coordinates: Array
+    ellipses: dict[str, Ellipse | None]
+    overlaps: Array
+    strokes: list[Array]
+    stroke_ellipses: dict[str, Ellipse | None]
+    level: float
+    rate: float
+
+    def members(self, group: str) -> NDArray[np.intp]:
+        """Return the indices of the trials of ``group``."""
+        return np.flatnonzero(np.asarray(self.groups) == group)
+
+    def points_by_group(self) -> dict[str, Array]:
+        """Group -> similarity-space coordinates of its trials, shape (k, 2)."""
+        return {g: self.coordinates[self.members(g)] for g in self.group_names}
+
+    def strokes_by_group(self) -> dict[str, Array]:
+        """Group -> (skewness, kurtosis) of all its trials' strokes, shape (k, 2)."""
+        return {
+            g: np.concatenate([self.strokes[i] for i in self.members(g)]).reshape(-1, 2)
+            for g in self.group_names
+        }
+
+    def stroke_statistics(self) -> dict[str, dict[str, float]]:
+        """Group -> number of strokes and mean and SD (``ddof=1``) of skewness and kurtosis."""
+        return {g: _moment_summary(m) for g, m in self.strokes_by_group().items()}
+
+    def trial_stroke_statistics(self) -> dict[str, dict[str, float]]:
+        """Trial label -> number of strokes and mean and SD of skewness and kurtosis."""
+        return {
+            label: _moment_summary(m) for label, m in zip(self.labels, self.strokes, strict=True)
+        }
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """Return the analysis as plain lists, numbers and ``None`` (for NaN), for JSON."""
+        return {
+            "labels": self.labels,
+            "groups": self.groups,
+            "group_names": self.group_names,
+            "bins": {"n": self.bins.n, "lo": self.bins.lo, "hi": self.bins.hi},
+            "level": self.level,
+            "rate": self.rate,
+            "emd": self.emd.tolist(),
+            "coordinates": self.coordinates.tolist(),
+            "ellipses": {g: _ellipse_json(e) for g, e in self.ellipses.items()},
+            "overlaps": _nan_to_none(self.overlaps),
+            "stroke_statistics": _nan_to_none(self.stroke_statistics()),
+            "trial_stroke_statistics": _nan_to_none(self.trial_stroke_statistics()),
+            "stroke_ellipses": {g: _ellipse_json(e) for g, e in self.stroke_ellipses.items()},
+        }
+
+
+def analyse_signatures(
+    trials: Sequence[Trial],
+    bins: Bins = DEFAULT_BINS,
+    level: float = 0.7,
+    rate: float = 100.0,
+    min_samples: int = 20,
+) -> SignatureAnalysis:
+    """Signatures, EMDs, similarity space, regions and strokes of trials grouped by ``group``.
+
+    Parameters
+    ----------
+    trials
+        At least 3 trials; each is resampled to ``rate`` before its velocity is computed.
+    bins
+        Bins of the signatures.
+    level
+        Confidence level of the ellipses (**choice**, METHODS: 0.7).
+    rate
+        Resampling rate (Hz); the paper upsamples to 100 Hz.
+    min_samples
+        Minimum stroke length in samples.
+    """
+    if len(trials) < 3:
+        raise InputError(None, f"the signature analysis needs at least 3 trials, got {len(trials)}")
+    velocities = [trial.resampled(rate).velocity() for trial in trials]
+    groups = [trial.group for trial in trials]
+    names = list(dict.fromkeys(groups))
+    ims = np.stack([compute_ims(v, bins) for v in velocities])
+    pooled = {
+        name: [v for v, g in zip(velocities, groups, strict=True) if g == name] for name in names
+    }
+    group_ims = np.stack([compute_ims(np.concatenate(pooled[name]), bins) for name in names])
+    emd = compute_emd_matrix(ims, bins=bins)
+    coordinates = classical_mds(emd, 2)
+    strokes = [stroke_moments(v, min_samples) for v in velocities]
+    analysis = SignatureAnalysis(
+        labels=[trial.label for trial in trials],
+        groups=groups,
+        group_names=names,
+        bins=bins,
+        ims=ims,
+        group_ims=group_ims,
+        emd=emd,
+        coordinates=coordinates,
+        ellipses={},
+        overlaps=np.empty((0, 0)),
+        strokes=strokes,
+        stroke_ellipses={},
+        level=level,
+        rate=rate,
+    )
+    analysis.ellipses = {
+        g: _optional_ellipse(p, level) for g, p in analysis.points_by_group().items()
+    }
+    analysis.stroke_ellipses = {
+        g: _optional_ellipse(p, level) for g, p in analysis.strokes_by_group().items()
+    }
+    analysis.overlaps = compute_overlap_matrix([analysis.ellipses[g] for g in names])
+    return analysis
+
+
+def compute_overlap_matrix(ellipses: Sequence[Ellipse | None]) -> Array:
+    """Pairwise `ellipse_overlap`, shape (g, g); NaN where either ellipse is ``None``."""
+    n = len(ellipses)
+    overlaps = np.full((n, n), np.nan)
+    for i, a in enumerate(ellipses):
+        for j, b in enumerate(ellipses[i:], start=i):
+            if a is not None and b is not None:
+                overlaps[i, j] = overlaps[j, i] = ellipse_overlap(a, b)
+    return overlaps
+
+
+def _optional_ellipse(points: Array, level: float) -> Ellipse | None:
+    return confidence_ellipse(points, level) if points.shape[0] >= 3 else None
+
+
+def _ellipse_json(ellipse: Ellipse | None) -> dict[str, Any] | None:
+    return None if ellipse is None else ellipse.to_json_dict()
+
+
+def _moment_summary(moments: Array) -> dict[str, float]:
+    k = moments.shape[0]
+    mean = moments.mean(axis=0) if k else np.full(2, np.nan)
+    sd = moments.std(axis=0, ddof=1) if k > 1 else np.full(2, np.nan)
+    return {
+        "n_strokes": k,
+        "skewness_mean": float(mean[0]),
+        "skewness_sd": float(sd[0]),
+        "kurtosis_mean": float(mean[1]),
+        "kurtosis_sd": float(sd[1]),
+    }
+
+
+def _nan_to_none(value: Any) -> Any:
+    """Nested lists and dicts of ``value`` with NaN replaced by ``None`` (JSON has no NaN)."""
+    if isinstance(value, np.ndarray):
+        return _nan_to_none(value.tolist())
+    if isinstance(value, dict):
+        return {k: _nan_to_none(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_nan_to_none(v) for v in value]
+    if isinstance(value, float) and np.isnan(value):
+        return None
+    return value

@@ -3,3 +3,15 @@
 `EXPERIMENTS` lists them in report order; ``mirror-avatar reproduce`` runs them all. Each entry is
 called as ``run(trials, quick=..., seed=...)`` with the bundled (or given) solo trials.
 """
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from mirror_avatar.experiments import signature
+from mirror_avatar.report import Section
+
+EXPERIMENTS: list[tuple[str, Callable[..., Section]]] = [
+    ("signature", signature.run),
+]
+"""(name, run) pairs in report order; ``run(trials, quick=False, seed=0) -> Section``."""
