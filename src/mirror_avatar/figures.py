@@ -116,7 +116,7 @@ def plot_skew_kurtosis(
     ellipses
         Optional group name -> confidence ellipse of its strokes.
     show_human_range
-        Shade the range people's strokes fall in (`HUMAN_SKEWNESS` x `HUMAN_KURTOSIS`).
+        Outline (dashed) the range people's strokes fall in (`HUMAN_SKEWNESS` x `HUMAN_KURTOSIS`).
     title
         Axes title.
     """
@@ -125,7 +125,16 @@ def plot_skew_kurtosis(
     if show_human_range:
         (s0, s1), (k0, k1) = HUMAN_SKEWNESS, HUMAN_KURTOSIS
         axes.add_patch(
-            Rectangle((s0, k0), s1 - s0, k1 - k0, color="0.9", zorder=0, label="human range")
+            Rectangle(
+                (s0, k0),
+                s1 - s0,
+                k1 - k0,
+                fill=False,
+                ls="--",
+                color="k",
+                zorder=4,
+                label="human range",
+            )  # fmt: skip
         )
     for name, sk in moments.items():
         sk = np.asarray(sk, dtype=np.float64).reshape(-1, 2)

@@ -13,6 +13,8 @@ import click
 
 from mirror_avatar.cli.info import info
 from mirror_avatar.cli.play import play
+from mirror_avatar.cli.reproduce import reproduce
+from mirror_avatar.cli.signature import signature
 from mirror_avatar.errors import InputError
 
 
@@ -24,6 +26,8 @@ def cli() -> None:
 
 cli.add_command(info)
 cli.add_command(play)
+cli.add_command(reproduce)
+cli.add_command(signature)
 
 
 def main(argv: list[str] | None = None) -> int:

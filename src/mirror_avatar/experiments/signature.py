@@ -102,7 +102,7 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
             f"Similarity space with each group's {analysis.level:.0%} region": (
                 plot_similarity_space(analysis.points_by_group(), analysis.ellipses)
             ),
-            "Skewness and kurtosis of velocity strokes (grey: human range)": plot_skew_kurtosis(
+            "Skewness and kurtosis of velocity strokes (dashed: human range)": plot_skew_kurtosis(
                 analysis.strokes_by_group(), analysis.stroke_ellipses
             ),
         },
