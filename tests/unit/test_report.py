@@ -1,0 +1,53 @@
+import base64
+import json
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+from matplotlib.figure import Figure
+
+from mirror_avatar.report import Section, render_png, write_report
+
+
+def small_figure():
+    figure = Figure()
+    figure.add_subplot().plot([0, 1], [1, 0])
+    return figure
+
+
+def test_write_report_html_and_metrics(tmp_path):
+    figure = small_figure()
+    section = Section(
+        key="demo",
+        title="Demo <section>",
+        text=["a < b & <script>alert(1)</script>"],
+        tables={"numbers": pd.DataFrame({"x": [1.5, np.nan]}, index=["a", "b"])},
+        figures={"a line": figure},
+        metrics={"value": np.float64(0.25), "missing": float("nan"), "array": np.arange(3)},
+    )
+    path = write_report([section], tmp_path / "out", title="T", metadata={"seed": 7})
+    assert path == tmp_path / "out" / "report.html"
+    html = path.read_text()
+    assert "<script>" not in html and "&lt;script&gt;" in html
+    assert "Demo &lt;section&gt;" in html
+    assert "<td>1.5</td>" in html
+    encoded = re.search(r'data:image/png;base64,([A-Za-z0-9+/=]+)"', html).group(1)
+    assert base64.b64decode(encoded).startswith(b"\x89PNG")
+    assert figure.axes == []
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert metrics == {
+        "demo": {"value": 0.25, "missing": None, "array": [0, 1, 2]},
+        "metadata": {"seed": 7},
+    }
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["metrics.json", "report.html"]
+
+
+def test_write_report_rejects_duplicate_keys(tmp_path):
+    with pytest.raises(ValueError, match="distinct"):
+        write_report([Section("a", "A"), Section("a", "B")], tmp_path)
+    assert not (tmp_path / "report.html").exists()
+
+
+def test_render_png_is_a_png():
+    assert render_png(small_figure()).startswith(b"\x89PNG")
