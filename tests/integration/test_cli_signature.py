@@ -1,0 +1,62 @@
+import json
+
+import numpy as np
+import pytest
+
+from mirror_avatar import trial_io
+from mirror_avatar.cli import main
+
+FIGURES = ["ims.png", "similarity.png", "strokes.png"]
+needs_reader = pytest.mark.skipif(
+    not hasattr(trial_io, "read_trials"), reason="trial_io.read_trials has not landed yet"
+)
+
+
+def write_csvs(zhai_trials, root):
+    for trial in zhai_trials:
+        folder = root / trial.group
+        folder.mkdir(parents=True, exist_ok=True)
+        data = np.column_stack([trial.times, trial.positions])
+        np.savetxt(folder / f"{trial.label}.csv", data, delimiter=",", header="time,position",
+                   comments="")  # fmt: skip
+    return [root / "fast", root / "slow"]
+
+
+@needs_reader
+def test_signature_of_csv_directories(zhai_trials, tmp_path, capsys):
+    folders = write_csvs(zhai_trials, tmp_path / "data")
+    out = tmp_path / "out"
+    assert main(["signature", *map(str, folders), "--out", str(out)]) == 0
+    result = json.loads((out / "signature.json").read_text())
+    assert sorted(result["groups"]) == ["fast"] * 9 + ["slow"] * 9
+    emd = np.array(result["emd"])
+    same = np.equal.outer(result["groups"], result["groups"])
+    upper = np.triu(np.ones_like(emd, dtype=bool), 1)
+    assert 3 * emd[upper & same].mean() < emd[upper & ~same].mean()
+    for name in FIGURES:
+        assert (out / name).read_bytes().startswith(b"\x89PNG")
+
+
+def test_signature_of_bundled_data(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["signature", "--bundled", "--out", str(out), "--level", "0.5"]) == 0
+    result = json.loads((out / "signature.json").read_text())
+    assert result["level"] == 0.5 and result["group_names"] == ["fast", "slow"]
+    assert len(result["coordinates"]) == 18 and len(result["emd"]) == 18
+    assert set(result["ellipses"]) == {"fast", "slow"}
+    assert result["overlaps"][0][0] == pytest.approx(1.0)
+    assert result["stroke_statistics"]["fast"]["n_strokes"] > 0
+    assert sorted(p.name for p in out.iterdir()) == sorted([*FIGURES, "signature.json"])
+    assert "18 trials in 2 groups" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "arguments",
+    [["--bundled", "--level", "1.5"], ["--bundled", "--rate", "0"], []],
+)
+def test_bad_input_is_one_line_exit_2(tmp_path, capsys, arguments):
+    out = tmp_path / "out"
+    assert main(["signature", *arguments, "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("mirror-avatar: error:") and error.count("\n") == 1
+    assert not out.exists()
