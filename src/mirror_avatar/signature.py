@@ -167,7 +167,7 @@ def classical_mds(distances: ArrayLike, n_components: int = 2) -> Array:
     return coordinates
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Ellipse:
     """A Gaussian confidence ellipse in a plane.
 

@@ -36,3 +36,14 @@ def test_signature_experiment_tells_styles_apart_for_any_seed(zhai_trials):
         assert metrics["styles_distinct"] is True, seed
         assert metrics["max_between_overlap"] < metrics["min_half_overlap"]
         assert len(section.figures) == 3 and len(section.tables) == 4
+
+
+def test_signature_experiment_without_a_second_style(zhai_trials):
+    from mirror_avatar.experiments.signature import run
+
+    fast = [trial for trial in zhai_trials if trial.group == "fast"]
+    assert run(fast).metrics["styles_distinct"] is None
+    few_slow = fast[:4] + [trial for trial in zhai_trials if trial.group == "slow"][:2]
+    metrics = run(few_slow).metrics
+    assert metrics["styles_distinct"] is None
+    assert metrics["mean_between_emd"] > metrics["mean_within_emd"]

@@ -58,8 +58,9 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
         analysis.overlaps, index=analysis.group_names, columns=analysis.group_names
     )
     distinct = _off_diagonal(analysis.overlaps)
-    max_between = float(np.nanmax(distinct)) if distinct.size else float("nan")
-    min_self = float(halves["overlap"].min())
+    distinct = distinct[np.isfinite(distinct)]
+    max_between = float(distinct.max()) if distinct.size else float("nan")
+    min_self = float(halves["overlap"].min()) if len(halves) else float("nan")
     metrics: dict[str, Any] = {
         "n_trials": len(analysis.labels),
         "groups": analysis.group_names,
@@ -72,8 +73,8 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
         "overlaps": overlaps.to_dict(),
         "max_between_overlap": max_between,
         "min_half_overlap": min_self,
-        "half_overlaps": halves.to_dict(orient="records"),
-        "styles_distinct": bool(max_between < min_self) if distinct.size else None,
+        "half_overlaps": halves.reset_index().to_dict(orient="records"),
+        "styles_distinct": _verdict(max_between, min_self),
         "stroke_statistics": analysis.stroke_statistics(),
     }
     return Section(
@@ -162,7 +163,9 @@ def compute_half_overlaps(analysis: SignatureAnalysis, seed: int) -> pd.DataFram
                     "overlap": ellipse_overlap(ellipse, region),
                 }
             )
-    return pd.DataFrame(rows, columns=["group", "half", "trials", "overlap"])
+    return pd.DataFrame(rows, columns=["group", "half", "trials", "overlap"]).set_index(
+        ["group", "half"]
+    )
 
 
 def _stroke_table(analysis: SignatureAnalysis) -> pd.DataFrame:
@@ -192,14 +195,22 @@ def _describe(
         f"Mean EMD within groups {within:.4f}, between groups {between:.4f} "
         f"(ratio {between / within if within > 0 else float('nan'):.1f}).",
     ]
-    if np.isfinite(max_between):
-        verdict = "apart" if max_between < min_self else "NOT apart"
+    distinct = _verdict(max_between, min_self)
+    if distinct is not None:
+        verdict = "apart" if distinct else "NOT apart"
         text.append(
             f"Regions ({analysis.level:.0%} confidence ellipses): the largest overlap between two "
             f"groups is {max_between:.2f}, the smallest overlap of a group with its own region "
             f"re-estimated on half its trials is {min_self:.2f}: the styles are told {verdict}."
         )
     return text
+
+
+def _verdict(max_between: float, min_self: float) -> bool | None:
+    """Whether the styles are told apart; ``None`` when either overlap could not be computed."""
+    if np.isfinite(max_between) and np.isfinite(min_self):
+        return bool(max_between < min_self)
+    return None
 
 
 def _off_diagonal(matrix: np.ndarray) -> np.ndarray:
