@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 import shlex
 import time
 from datetime import UTC, datetime
@@ -12,11 +11,11 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
+from mirror_avatar.cli.signature import read_grouped
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments import EXPERIMENTS
 from mirror_avatar.report import write_report
-from mirror_avatar.trials import Trial
 
 
 @click.command()
@@ -43,10 +42,13 @@ from mirror_avatar.trials import Trial
     help="Trial file or directory to use instead of the bundled data (repeatable).",
 )
 def reproduce(out_dir: Path, quick: bool, seed: int, data: tuple[Path, ...]) -> None:
-    """Run the paper's validations on the bundled (or given) data and write the report."""
+    """Run the paper's validations on the bundled (or given) data and write the report.
+
+    Trials given with --data are grouped by the directory they are in.
+    """
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(out_dir, "exists and is not a directory")
-    trials = _read(data) if data else load_zhai2017()
+    trials = read_grouped(data, "directory") if data else load_zhai2017()
     started = time.perf_counter()
     sections, timings = [], {}
     for name, run in tqdm(EXPERIMENTS, desc="experiments", unit="experiment", disable=None):
@@ -68,12 +70,6 @@ def reproduce(out_dir: Path, quick: bool, seed: int, data: tuple[Path, ...]) -> 
         sections, out_dir, title="mirror-avatar: reproduction report", metadata=metadata
     )
     click.echo(str(path))
-
-
-def _read(paths: tuple[Path, ...]) -> list[Trial]:
-    read_trials = importlib.import_module("mirror_avatar.trial_io").read_trials
-    trials: list[Trial] = read_trials(list(paths))
-    return trials
 
 
 def _command_line(out_dir: Path, quick: bool, seed: int, data: tuple[Path, ...]) -> str:

@@ -90,7 +90,8 @@ def signature(
 def read_grouped(paths: Sequence[Path], group_by: str) -> list[Trial]:
     """Read the trials of each path and set their group.
 
-    ``directory``: the directory a path is (for a directory) or is in (for a file); ``file``:
+    ``directory``: the group the reader gave (the trial's directory), or else the directory a
+    path is (for a directory) or is in (for a file); ``file``:
     the file's stem for a file argument, the trial's label for trials read from a directory;
     ``none``: one group ``"all"``.
     """
@@ -106,5 +107,5 @@ def _group_of(trial: Trial, path: Path, group_by: str) -> str:
     if group_by == "none":
         return "all"
     if group_by == "directory":
-        return (path if path.is_dir() else path.resolve().parent).name
+        return trial.group or (path if path.is_dir() else path.resolve().parent).name
     return trial.label if path.is_dir() else path.stem
