@@ -60,3 +60,20 @@ def test_bad_input_is_one_line_exit_2(tmp_path, capsys, arguments):
     error = capsys.readouterr().err
     assert error.startswith("mirror-avatar: error:") and error.count("\n") == 1
     assert not out.exists()
+
+
+@needs_reader
+@pytest.mark.parametrize(
+    ("group_by", "expected"), [("none", {"all"}), ("file", {"fast-1", "slow-9"})]
+)
+def test_group_by_none_and_file(zhai_trials, tmp_path, capsys, group_by, expected):
+    folders = write_csvs(zhai_trials, tmp_path / "data")
+    out = tmp_path / "out"
+    arguments = ["signature", *map(str, folders), "--out", str(out), "--group-by", group_by]
+    assert main(arguments) == 0
+    result = json.loads((out / "signature.json").read_text(), parse_constant=pytest.fail)
+    assert expected <= set(result["groups"])
+    assert len(result["group_names"]) == (1 if group_by == "none" else 18)
+    if group_by == "file":
+        assert result["ellipses"]["fast-1"] is None
+        assert result["overlaps"][0][1] is None
