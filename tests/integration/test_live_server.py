@@ -217,6 +217,15 @@ def test_a_client_that_stops_sending_is_timed_out(live, tmp_path):
     assert not record["complete"] and record["end_reason"] == "the browser stopped sending"
 
 
+def test_idle_connections_are_closed_and_free_their_place(live):
+    server = live.serve(idle_timeout=0.3, max_sessions=1)
+    idle = live.open(server)
+    with pytest.raises(ConnectionClosed) as closed:
+        idle.receive()
+    assert closed.value.rcvd.code == 4408
+    assert live.open(server).ready["type"] == "ready"
+
+
 def test_bad_messages_are_answered_and_ignored(live, tmp_path):
     server = live.serve()
     player, other = live.open(server), live.open(server)
