@@ -1,17 +1,24 @@
 """Reading and writing trial files.
 
-Formats: CSV with header ``time,position`` (the exchange format), and the MATLAB struct format
-of the bundled data (a 1xK struct array with fields ``x`` and ``v``). Every reader validates
-its input and raises `InputError` with one line that names the file and the problem.
+Formats: CSV with header ``time,position`` (the exchange format; extra columns are ignored),
+and the MATLAB struct format of the bundled data (a 1xK struct array with fields ``x`` and
+``v``). Readers do not resample: irregular timestamps are kept (call ``trial.resampled``).
+Every reader validates its input and raises `InputError` with one line naming the file
+and the problem.
 """
 
 from __future__ import annotations
 
+import csv
+import io
+from collections.abc import Iterable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import scipy.io
 
+from mirror_avatar.atomic import write_atomic_text
 from mirror_avatar.errors import InputError
 from mirror_avatar.trials import Trial, make_trial
 
@@ -72,3 +79,96 @@ def read_mat_struct(
             )
         )
     return trials
+
+
+CSV_COLUMNS = ("time", "position")
+MAT_DURATION = 60.0
+"""Seconds spanned by each trial of a ``.mat`` file read through `read_trial` (**choice**)."""
+SUPPORTED = (".csv", ".mat")
+
+
+def _read_text(path: Path) -> str:
+    if not path.is_file():
+        raise InputError(path, "no such file")
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InputError(path, "not a text file") from None
+
+
+def read_csv_trial(path: str | Path) -> Trial:
+    """Read a CSV trial with header ``time,position`` (s, normalised units).
+
+    Raises
+    ------
+    InputError
+        Empty file, missing column (naming the columns found), a non-numeric value (naming
+        the row), or any problem `make_trial` finds.
+    """
+    path = Path(path)
+    rows = list(csv.reader(io.StringIO(_read_text(path))))
+    rows = [[cell.strip() for cell in row] for row in rows if any(cell.strip() for cell in row)]
+    if not rows:
+        raise InputError(path, "empty file")
+    header = rows[0]
+    missing = [name for name in CSV_COLUMNS if name not in header]
+    if missing:
+        raise InputError(path, f"missing column(s) {missing}; found {header}")
+    columns = [header.index(name) for name in CSV_COLUMNS]
+    values = np.empty((len(rows) - 1, 2))
+    for number, row in enumerate(rows[1:], start=2):
+        try:
+            values[number - 2] = [float(row[k]) for k in columns]
+        except (ValueError, IndexError):
+            raise InputError(path, f"row {number}: not two numbers in {row}") from None
+    return make_trial(values[:, 0], values[:, 1], source=str(path), label=path.stem)
+
+
+def write_csv_trial(trial: Trial, path: str | Path) -> None:
+    """Write ``trial`` as CSV with header ``time,position``, full float precision, atomically."""
+    lines = ["time,position"]
+    lines += [
+        f"{t!r},{x!r}" for t, x in zip(trial.times.tolist(), trial.positions.tolist(), strict=True)
+    ]
+    write_atomic_text(path, "\n".join(lines) + "\n")
+
+
+def read_trial(path: str | Path) -> Trial:
+    """Read one trial by extension; a ``.mat`` file must hold exactly one trial."""
+    trials = _read_file(Path(path))
+    if len(trials) != 1:
+        raise InputError(path, f"holds {len(trials)} trials, expected one")
+    return trials[0]
+
+
+def _read_file(path: Path) -> list[Trial]:
+    suffix = path.suffix.lower()
+    if suffix not in SUPPORTED:
+        raise InputError(path, f"unknown extension {suffix!r}; supported: {', '.join(SUPPORTED)}")
+    if not path.is_file():
+        raise InputError(path, "no such file")
+    if suffix == ".csv":
+        return [read_csv_trial(path)]
+    return read_mat_struct(path, MAT_DURATION)
+
+
+def read_trials(paths: Iterable[str | Path]) -> list[Trial]:
+    """Read trial files and directories of them (sorted; group = directory name if unset)."""
+    trials: list[Trial] = []
+    for path in map(Path, paths):
+        if not path.is_dir():
+            trials += _read_file(path)
+            continue
+        files = sorted(p for p in path.iterdir() if p.suffix.lower() in SUPPORTED)
+        if not files:
+            raise InputError(path, f"directory holds no trial files ({', '.join(SUPPORTED)})")
+        for file in files:
+            trials += [t if t.group else replace(t, group=path.name) for t in _read_file(file)]
+    return trials
+
+
+def write_trial(trial: Trial, path: str | Path) -> None:
+    """Write one trial by extension (``.csv``)."""
+    if Path(path).suffix.lower() != ".csv":
+        raise InputError(path, "can only write .csv")
+    write_csv_trial(trial, path)

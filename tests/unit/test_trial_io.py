@@ -1,0 +1,81 @@
+"""Tests of trial file reading and writing."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mirror_avatar.atomic import atomic_path
+from mirror_avatar.errors import InputError
+from mirror_avatar.trial_io import read_trial, read_trials, write_trial
+from mirror_avatar.trials import make_trial
+
+
+def test_csv_round_trip(tmp_path: Path, rng: np.random.Generator) -> None:
+    times = np.cumsum(rng.uniform(0.005, 0.015, 500))  # irregular timestamps
+    trial = make_trial(times, 0.3 * np.sin(times), label="a")
+    write_trial(trial, tmp_path / "a.csv")
+    back = read_trial(tmp_path / "a.csv")
+    np.testing.assert_allclose(back.times, trial.times, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(back.positions, trial.positions, rtol=0, atol=1e-12)
+
+
+def test_csv_extra_columns_and_whitespace(tmp_path: Path) -> None:
+    rows = "".join(f" {k / 100} , 0.1 , {k}\n" for k in range(200))
+    (tmp_path / "b.csv").write_text(" time , position , other\n" + rows)
+    trial = read_trial(tmp_path / "b.csv")
+    assert trial.positions.size == 200
+    assert trial.times[1] == pytest.approx(0.01)
+
+
+BAD_CSV = {
+    "empty": ("", "empty"),
+    "misnamed": ("t,position\n0,0\n", "found"),
+    "non-numeric": ("time,position\n0,0\n0.01,abc\n", "row 3"),
+    "nan": ("time,position\n" + "".join(f"{k / 100},nan\n" for k in range(200)), ""),
+    "decreasing": ("time,position\n" + "".join(f"{-k / 100},0\n" for k in range(200)), ""),
+    "too-few": ("time,position\n0,0\n", ""),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_CSV))
+def test_bad_csv(tmp_path: Path, case: str) -> None:
+    text, fragment = BAD_CSV[case]
+    path = tmp_path / f"{case}.csv"
+    path.write_text(text)
+    with pytest.raises(InputError) as error:
+        read_trial(path)
+    message = str(error.value)
+    assert "\n" not in message and path.name in message and fragment in message
+
+
+@pytest.mark.parametrize("name", ["missing.csv", "x.foo", "corrupt.mat"])
+def test_bad_files(tmp_path: Path, name: str) -> None:
+    if name != "missing.csv":
+        (tmp_path / name).write_bytes(b"\x00\x01garbage")
+    with pytest.raises(InputError, match=name.replace(".", r"\.")):
+        read_trials([tmp_path / name])
+
+
+def test_empty_directory(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="no trial files"):
+        read_trials([tmp_path])
+
+
+def test_directory_gives_group(tmp_path: Path, zhai_trials_100hz: list) -> None:
+    folder = tmp_path / "fast"
+    folder.mkdir()
+    for k, trial in enumerate(zhai_trials_100hz[:2]):
+        write_trial(make_trial(trial.times, trial.positions), folder / f"{k}.csv")
+    trials = read_trials([folder])
+    assert [t.group for t in trials] == ["fast", "fast"]
+
+
+def test_failed_write_keeps_existing_file(tmp_path: Path) -> None:
+    path = tmp_path / "good.txt"
+    path.write_text("good")
+    with pytest.raises(RuntimeError), atomic_path(path) as temporary:
+        temporary.write_text("half")
+        raise RuntimeError("boom")
+    assert path.read_text() == "good"
+    assert list(tmp_path.iterdir()) == [path]
