@@ -1,0 +1,35 @@
+"""Bad input files through the real console entry point: one line on stderr, exit code 2."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BAD_FILES = {
+    "empty.csv": b"",
+    "misnamed.csv": b"t,position\n0,0\n",
+    "words.csv": b"time,position\n0,0\n0.01,abc\n",
+    "corrupt.mat": b"MATLAB 5.0 but not really\x00\x01\x02",
+    "foreign.parquet": b"\x89PNG\r\n\x1a\n\x00\x00",
+    "trial.xyz": b"1,2\n",
+}
+
+
+@pytest.mark.parametrize("name", [*sorted(BAD_FILES), "missing.csv", "emptydir"])
+def test_bad_file_is_one_line_exit_2(tmp_path: Path, name: str) -> None:
+    path = tmp_path / name
+    if name in BAD_FILES:
+        path.write_bytes(BAD_FILES[name])
+    elif name == "emptydir":
+        path.mkdir()
+    command = "from mirror_avatar.cli import run; run()"
+    arguments = ["signature", str(path), "--out", str(tmp_path / "out")]
+    result = subprocess.run(
+        [sys.executable, "-c", command, *arguments], capture_output=True, text=True, check=False
+    )
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert name in lines[0]
+    assert "Traceback" not in result.stderr
