@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 from collections.abc import Iterable
 from dataclasses import replace
 from pathlib import Path
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import scipy.io
 
-from mirror_avatar.atomic import write_atomic_text
+from mirror_avatar.atomic import atomic_path, write_atomic_text
 from mirror_avatar.errors import InputError
 from mirror_avatar.trials import Trial, make_trial
 
@@ -84,7 +85,7 @@ def read_mat_struct(
 CSV_COLUMNS = ("time", "position")
 MAT_DURATION = 60.0
 """Seconds spanned by each trial of a ``.mat`` file read through `read_trial` (**choice**)."""
-SUPPORTED = (".csv", ".mat")
+SUPPORTED = (".csv", ".mat", ".parquet")
 
 
 def _read_text(path: Path) -> str:
@@ -133,6 +134,58 @@ def write_csv_trial(trial: Trial, path: str | Path) -> None:
     write_atomic_text(path, "\n".join(lines) + "\n")
 
 
+def read_parquet_trial(path: str | Path) -> Trial:
+    """Read a Parquet trial with columns ``time`` and ``position``; metadata from the schema.
+
+    Raises
+    ------
+    InputError
+        Not a Parquet file, a missing column (naming those found), or any `make_trial` problem.
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "no such file")
+    try:
+        table = pq.read_table(path)
+    except (pa.ArrowException, OSError) as error:
+        raise InputError(path, f"not a readable Parquet file ({type(error).__name__})") from None
+    missing = [name for name in CSV_COLUMNS if name not in table.column_names]
+    if missing:
+        raise InputError(path, f"missing column(s) {missing}; found {table.column_names}")
+    try:
+        times, positions = (table.column(n).to_numpy().astype(np.float64) for n in CSV_COLUMNS)
+    except (ValueError, TypeError, pa.ArrowException):
+        raise InputError(path, "columns time and position must be numeric") from None
+    stored = (table.schema.metadata or {}).get(b"mirror_avatar", b"{}")
+    try:
+        info = json.loads(stored)
+    except ValueError:
+        raise InputError(path, "schema metadata 'mirror_avatar' is not JSON") from None
+    return make_trial(
+        times,
+        positions,
+        source=str(path),
+        label=str(info.get("label") or path.stem),
+        group=str(info.get("group", "")),
+        metadata=dict(info.get("metadata", {})),
+    )
+
+
+def write_parquet_trial(trial: Trial, path: str | Path) -> None:
+    """Write ``trial`` as Parquet, keeping label, group and metadata as JSON schema metadata."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    info = {"label": trial.label, "group": trial.group, "metadata": trial.metadata}
+    table = pa.table({"time": trial.times, "position": trial.positions})
+    table = table.replace_schema_metadata({"mirror_avatar": json.dumps(info)})
+    with atomic_path(path) as temporary:
+        pq.write_table(table, temporary)
+
+
 def read_trial(path: str | Path) -> Trial:
     """Read one trial by extension; a ``.mat`` file must hold exactly one trial."""
     trials = _read_file(Path(path))
@@ -149,6 +202,8 @@ def _read_file(path: Path) -> list[Trial]:
         raise InputError(path, "no such file")
     if suffix == ".csv":
         return [read_csv_trial(path)]
+    if suffix == ".parquet":
+        return [read_parquet_trial(path)]
     return read_mat_struct(path, MAT_DURATION)
 
 
@@ -168,7 +223,11 @@ def read_trials(paths: Iterable[str | Path]) -> list[Trial]:
 
 
 def write_trial(trial: Trial, path: str | Path) -> None:
-    """Write one trial by extension (``.csv``)."""
-    if Path(path).suffix.lower() != ".csv":
-        raise InputError(path, "can only write .csv")
-    write_csv_trial(trial, path)
+    """Write one trial by extension (``.csv`` or ``.parquet``)."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".parquet":
+        write_parquet_trial(trial, path)
+    elif suffix == ".csv":
+        write_csv_trial(trial, path)
+    else:
+        raise InputError(path, "can only write .csv or .parquet")

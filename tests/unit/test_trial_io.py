@@ -20,6 +20,16 @@ def test_csv_round_trip(tmp_path: Path, rng: np.random.Generator) -> None:
     np.testing.assert_allclose(back.positions, trial.positions, rtol=0, atol=1e-12)
 
 
+def test_parquet_round_trip_keeps_metadata(tmp_path: Path, rng: np.random.Generator) -> None:
+    times = np.cumsum(rng.uniform(0.005, 0.015, 500))
+    trial = make_trial(times, 0.3 * np.sin(times), label="p", group="g", metadata={"seed": 7})
+    write_trial(trial, tmp_path / "p.parquet")
+    back = read_trial(tmp_path / "p.parquet")
+    np.testing.assert_allclose(back.positions, trial.positions, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(back.times, trial.times, rtol=0, atol=1e-12)
+    assert (back.label, back.group, back.metadata["seed"]) == ("p", "g", 7)
+
+
 def test_csv_extra_columns_and_whitespace(tmp_path: Path) -> None:
     rows = "".join(f" {k / 100} , 0.1 , {k}\n" for k in range(200))
     (tmp_path / "b.csv").write_text(" time , position , other\n" + rows)
@@ -49,7 +59,7 @@ def test_bad_csv(tmp_path: Path, case: str) -> None:
     assert "\n" not in message and path.name in message and fragment in message
 
 
-@pytest.mark.parametrize("name", ["missing.csv", "x.foo", "corrupt.mat"])
+@pytest.mark.parametrize("name", ["missing.csv", "x.foo", "corrupt.mat", "foreign.parquet"])
 def test_bad_files(tmp_path: Path, name: str) -> None:
     if name != "missing.csv":
         (tmp_path / name).write_bytes(b"\x00\x01garbage")
