@@ -85,7 +85,7 @@ def read_mat_struct(
 CSV_COLUMNS = ("time", "position")
 MAT_DURATION = 60.0
 """Seconds spanned by each trial of a ``.mat`` file read through `read_trial` (**choice**)."""
-SUPPORTED = (".csv", ".mat", ".parquet")
+SUPPORTED = (".csv", ".mat", ".parquet", "_motion.tsv")
 
 
 def _read_text(path: Path) -> str:
@@ -186,6 +186,59 @@ def write_parquet_trial(trial: Trial, path: str | Path) -> None:
         pq.write_table(table, temporary)
 
 
+def read_bids_motion(path: str | Path) -> Trial:
+    """Read a BIDS-Motion ``*_motion.tsv`` (no header, one position channel) and its sidecar.
+
+    Sample times are ``k / SamplingFrequency`` from the ``*_motion.json`` sidecar.
+
+    Raises
+    ------
+    InputError
+        Sidecar missing, not JSON or without a positive ``SamplingFrequency`` (Hz); a
+        non-numeric value (naming the row); or any `make_trial` problem.
+    """
+    path = Path(path)
+    text = _read_text(path)
+    sidecar = path.with_name(path.name[: -len(".tsv")] + ".json")
+    if not sidecar.is_file():
+        raise InputError(path, f"no sidecar {sidecar.name}")
+    try:
+        info = json.loads(sidecar.read_text(encoding="utf-8"))
+        rate = float(info["SamplingFrequency"])
+    except (ValueError, KeyError, TypeError):
+        raise InputError(path, f"{sidecar.name} has no numeric SamplingFrequency") from None
+    if not rate > 0:
+        raise InputError(path, f"{sidecar.name}: SamplingFrequency must be positive")
+    lines = [line for line in text.splitlines() if line.strip()]
+    positions = np.empty(len(lines))
+    for number, line in enumerate(lines, start=1):
+        try:
+            positions[number - 1] = float(line.split("\t")[0])
+        except ValueError:
+            raise InputError(path, f"row {number}: not a number: {line!r}") from None
+    times = np.arange(positions.size) / rate
+    label = str(info.get("TaskName") or path.stem)
+    return make_trial(times, positions, source=str(path), label=label)
+
+
+def write_bids_motion(trial: Trial, path: str | Path) -> None:
+    """Write a uniformly sampled ``trial`` as BIDS-Motion ``*_motion.tsv`` + ``*_motion.json``."""
+    path = Path(path)
+    if not path.name.endswith("_motion.tsv"):
+        raise InputError(path, "BIDS-Motion file names end in _motion.tsv")
+    steps = np.diff(trial.times)
+    if not np.allclose(steps, steps[0], rtol=1e-9, atol=0):
+        raise InputError(path, "BIDS-Motion needs uniform sampling; resample the trial first")
+    sidecar = {
+        "TaskName": trial.label or "mirror",
+        "SamplingFrequency": 1.0 / float(steps.mean()),
+        "MotionChannelCount": 1,
+    }
+    write_atomic_text(path, "".join(f"{x!r}\n" for x in trial.positions.tolist()))
+    json_path = path.with_name(path.name[: -len(".tsv")] + ".json")
+    write_atomic_text(json_path, json.dumps(sidecar, indent=2))
+
+
 def read_trial(path: str | Path) -> Trial:
     """Read one trial by extension; a ``.mat`` file must hold exactly one trial."""
     trials = _read_file(Path(path))
@@ -195,7 +248,7 @@ def read_trial(path: str | Path) -> Trial:
 
 
 def _read_file(path: Path) -> list[Trial]:
-    suffix = path.suffix.lower()
+    suffix = "_motion.tsv" if path.name.endswith("_motion.tsv") else path.suffix.lower()
     if suffix not in SUPPORTED:
         raise InputError(path, f"unknown extension {suffix!r}; supported: {', '.join(SUPPORTED)}")
     if not path.is_file():
@@ -204,6 +257,8 @@ def _read_file(path: Path) -> list[Trial]:
         return [read_csv_trial(path)]
     if suffix == ".parquet":
         return [read_parquet_trial(path)]
+    if suffix == "_motion.tsv":
+        return [read_bids_motion(path)]
     return read_mat_struct(path, MAT_DURATION)
 
 
@@ -214,7 +269,7 @@ def read_trials(paths: Iterable[str | Path]) -> list[Trial]:
         if not path.is_dir():
             trials += _read_file(path)
             continue
-        files = sorted(p for p in path.iterdir() if p.suffix.lower() in SUPPORTED)
+        files = sorted(p for p in path.iterdir() if p.name.lower().endswith(SUPPORTED))
         if not files:
             raise InputError(path, f"directory holds no trial files ({', '.join(SUPPORTED)})")
         for file in files:
@@ -223,11 +278,13 @@ def read_trials(paths: Iterable[str | Path]) -> list[Trial]:
 
 
 def write_trial(trial: Trial, path: str | Path) -> None:
-    """Write one trial by extension (``.csv`` or ``.parquet``)."""
+    """Write one trial by extension (``.csv``, ``.parquet`` or ``_motion.tsv``)."""
     suffix = Path(path).suffix.lower()
-    if suffix == ".parquet":
+    if Path(path).name.endswith("_motion.tsv"):
+        write_bids_motion(trial, path)
+    elif suffix == ".parquet":
         write_parquet_trial(trial, path)
     elif suffix == ".csv":
         write_csv_trial(trial, path)
     else:
-        raise InputError(path, "can only write .csv or .parquet")
+        raise InputError(path, "can only write .csv, .parquet or _motion.tsv")

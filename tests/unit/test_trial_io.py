@@ -30,6 +30,23 @@ def test_parquet_round_trip_keeps_metadata(tmp_path: Path, rng: np.random.Genera
     assert (back.label, back.group, back.metadata["seed"]) == ("p", "g", 7)
 
 
+def test_bids_motion_round_trip(tmp_path: Path) -> None:
+    times = np.arange(600) / 100.0
+    trial = make_trial(times, 0.3 * np.sin(times), label="mirror")
+    path = tmp_path / "sub-01_task-mirror_tracksys-x_motion.tsv"
+    write_trial(trial, path)
+    back = read_trial(path)
+    np.testing.assert_allclose(back.times, times, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(back.positions, trial.positions, rtol=0, atol=1e-12)
+    path.with_suffix(".json").unlink()
+    with pytest.raises(InputError, match="no sidecar"):
+        read_trial(path)
+
+
+def test_bundled_mat_reads(zhai_trials: list) -> None:
+    assert len(zhai_trials) == 18
+
+
 def test_csv_extra_columns_and_whitespace(tmp_path: Path) -> None:
     rows = "".join(f" {k / 100} , 0.1 , {k}\n" for k in range(200))
     (tmp_path / "b.csv").write_text(" time , position , other\n" + rows)
