@@ -1,0 +1,60 @@
+import numpy as np
+import pytest
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.metrics import (
+    compute_circular_variance,
+    compute_mean_relative_phase,
+    compute_relative_phase,
+    compute_rmse,
+    compute_time_lag,
+    paired_ttest,
+)
+
+RATE = 100.0
+T = np.arange(0, 30, 1 / RATE)
+
+
+def test_rmse_constant_offset():
+    x = np.sin(T)
+    assert compute_rmse(x + 0.3, x) == pytest.approx(0.3)
+
+
+@pytest.mark.parametrize("method", ["hilbert", "kralemann"])
+def test_known_phase_shift(method):
+    shift = 0.7
+    x1 = np.sin(2 * np.pi * 0.5 * T + shift)
+    x2 = np.sin(2 * np.pi * 0.5 * T)
+    dphi = compute_relative_phase(x1, x2, method=method)[200:-200]
+    assert compute_mean_relative_phase(dphi) == pytest.approx(shift, abs=1e-2)
+    assert compute_circular_variance(dphi) == pytest.approx(1.0, abs=1e-3)
+
+
+def test_uniform_phases_cv_near_zero(rng):
+    assert compute_circular_variance(rng.uniform(-np.pi, np.pi, 20000)) < 0.03
+
+
+def test_time_lag_sign():
+    x1 = np.sin(2 * np.pi * 0.3 * T) + 0.5 * np.sin(2 * np.pi * 0.77 * T)
+    delay = 25  # samples: x2 follows x1 by 0.25 s
+    x2 = np.roll(x1, delay)
+    assert compute_time_lag(x1, x2, RATE) == pytest.approx(0.25)
+    assert compute_time_lag(x2, x1, RATE) == pytest.approx(-0.25)
+    assert compute_mean_relative_phase(compute_relative_phase(x1, x2)) > 0
+
+
+def test_paired_ttest_by_hand():
+    a = np.array([1.0, 2.0, 3.0, 4.0, 6.0])
+    b = np.array([1.5, 1.0, 2.0, 3.0, 4.0])
+    d = a - b
+    t = d.mean() / (d.std(ddof=1) / np.sqrt(d.size))
+    res = paired_ttest(a, b)
+    assert res.t == pytest.approx(t) and res.df == 4
+    assert str(res).startswith("t(4) = ")
+
+
+def test_bad_input():
+    with pytest.raises(InputError):
+        compute_rmse([1.0, 2.0], [1.0])
+    with pytest.raises(InputError):
+        compute_relative_phase(T, T, method="nope")
