@@ -82,6 +82,19 @@ def read_mat_struct(
     return trials
 
 
+def write_mat_struct(trials: list[Trial], path: str | Path, variable: str) -> None:
+    """Write trials as a MATLAB v5 1xK struct array with fields ``x`` and ``v`` (column vectors).
+
+    Like the bundled format, timestamps are not stored; `read_mat_struct` spreads the samples
+    evenly over the duration it is given. ``v`` is `Trial.velocity` (units/s).
+    """
+    struct = np.empty((1, len(trials)), dtype=[("x", object), ("v", object)])
+    for k, trial in enumerate(trials):
+        struct[0, k] = (trial.positions[:, None], trial.velocity()[:, None])
+    with atomic_path(path) as temporary, temporary.open("wb") as handle:
+        scipy.io.savemat(handle, {variable: struct})
+
+
 CSV_COLUMNS = ("time", "position")
 MAT_DURATION = 60.0
 """Seconds spanned by each trial of a ``.mat`` file read through `read_trial` (**choice**)."""

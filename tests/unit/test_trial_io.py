@@ -7,7 +7,13 @@ import pytest
 
 from mirror_avatar.atomic import atomic_path
 from mirror_avatar.errors import InputError
-from mirror_avatar.trial_io import read_trial, read_trials, write_trial
+from mirror_avatar.trial_io import (
+    read_mat_struct,
+    read_trial,
+    read_trials,
+    write_mat_struct,
+    write_trial,
+)
 from mirror_avatar.trials import make_trial
 
 
@@ -45,6 +51,17 @@ def test_bids_motion_round_trip(tmp_path: Path) -> None:
 
 def test_bundled_mat_reads(zhai_trials: list) -> None:
     assert len(zhai_trials) == 18
+
+
+def test_mat_round_trip(tmp_path: Path, zhai_trials_100hz: list) -> None:
+    trials = zhai_trials_100hz[:3]
+    write_mat_struct(trials, tmp_path / "s.mat", "s")
+    duration = float(trials[0].times[-1] - trials[0].times[0])
+    back = read_mat_struct(tmp_path / "s.mat", duration, variable="s")
+    assert len(back) == 3
+    for a, b in zip(trials, back, strict=True):
+        np.testing.assert_allclose(b.positions, a.positions, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(back[0].times + trials[0].times[0], trials[0].times, atol=1e-9)
 
 
 def test_csv_extra_columns_and_whitespace(tmp_path: Path) -> None:
