@@ -7,12 +7,15 @@ Sign convention everywhere: positive relative phase and positive time lag mean p
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal, stats
 
 from mirror_avatar.errors import InputError
+from mirror_avatar.signature import compute_emd, compute_ims
+from mirror_avatar.trials import compute_velocity
 
 PHASE_METHODS = ("hilbert", "kralemann")
 
@@ -143,3 +146,49 @@ def paired_ttest(a: ArrayLike, b: ArrayLike) -> TTest:
     x, y = _check_pair(a, b)
     res = stats.ttest_rel(x, y)
     return TTest(t=float(res.statistic), df=x.size - 1, p=float(res.pvalue))
+
+
+def session_metrics(session: Any, trim: float = 0.0) -> dict[str, float | None]:
+    """All coordination metrics of one two-player session.
+
+    Parameters
+    ----------
+    session
+        Any object with ``times`` (n,) s, ``positions`` (2, n), ``velocities`` (2, n) and
+        ``references`` (2, n) reference positions or ``None`` (the game's ``Session``).
+    trim
+        Seconds dropped at the start (transient), a **choice**.
+
+    Returns
+    -------
+    dict
+        ``rmse``, ``circular_variance``, ``mean_relative_phase`` and ``sd_relative_phase``
+        (circular SD, rad), ``time_lag`` (s), ``emd_players`` and, when references are
+        present, ``emd_reference_1`` / ``emd_reference_2`` (else ``None``).
+    """
+    times = np.asarray(session.times, dtype=float)
+    keep = times >= times[0] + trim
+    if keep.sum() < 2:
+        raise InputError("trim", f"{trim} s leaves fewer than two samples")
+    rate = 1.0 / float(np.median(np.diff(times)))
+    x = np.asarray(session.positions, dtype=float)[:, keep]
+    v = np.asarray(session.velocities, dtype=float)[:, keep]
+    dphi = compute_relative_phase(x[0], x[1])
+    r = compute_circular_variance(dphi)
+    ims = [compute_ims(v[i]) for i in range(2)]
+    out: dict[str, float | None] = {
+        "rmse": compute_rmse(x[0], x[1]),
+        "circular_variance": r,
+        "mean_relative_phase": compute_mean_relative_phase(dphi),
+        "sd_relative_phase": float(np.sqrt(-2.0 * np.log(max(r, 1e-12)))),
+        "time_lag": compute_time_lag(x[0], x[1], rate),
+        "emd_players": compute_emd(ims[0], ims[1]),
+        "emd_reference_1": None,
+        "emd_reference_2": None,
+    }
+    if getattr(session, "references", None) is not None:
+        ref = np.asarray(session.references, dtype=float)[:, keep]
+        for i in range(2):
+            ref_ims = compute_ims(compute_velocity(ref[i], rate))
+            out[f"emd_reference_{i + 1}"] = compute_emd(ims[i], ref_ims)
+    return out

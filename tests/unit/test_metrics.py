@@ -58,3 +58,19 @@ def test_bad_input():
         compute_rmse([1.0, 2.0], [1.0])
     with pytest.raises(InputError):
         compute_relative_phase(T, T, method="nope")
+
+
+def test_session_metrics_on_two_sinusoids():
+    from types import SimpleNamespace
+
+    from mirror_avatar.metrics import session_metrics
+
+    x = np.stack([np.sin(2 * np.pi * 0.5 * T + 0.4), np.sin(2 * np.pi * 0.5 * T)])
+    v = np.gradient(x, 1 / RATE, axis=1)
+    s = SimpleNamespace(times=T, positions=x, velocities=v, references=x)
+    m = session_metrics(s, trim=2.0)
+    assert m["circular_variance"] == pytest.approx(1.0, abs=1e-3)
+    assert m["mean_relative_phase"] == pytest.approx(0.4, abs=2e-2)
+    assert m["time_lag"] == pytest.approx(0.4 / (2 * np.pi * 0.5), abs=0.011)
+    assert m["emd_players"] == pytest.approx(0.0, abs=1e-2)
+    assert m["emd_reference_1"] == pytest.approx(0.0, abs=2e-2)
