@@ -123,3 +123,30 @@ def test_failed_write_keeps_existing_file(tmp_path: Path) -> None:
         raise RuntimeError("boom")
     assert path.read_text() == "good"
     assert list(tmp_path.iterdir()) == [path]
+
+
+def _write_parquet_with_nan(path: Path) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    positions = np.zeros(200)
+    positions[50] = np.nan
+    pq.write_table(pa.table({"time": np.arange(200) / 100.0, "position": positions}), path)
+
+
+def _write_bids_with_nan(path: Path) -> None:
+    path.write_text("0.0\n" * 100 + "nan\n" + "0.0\n" * 99)
+    path.with_name(path.name.replace(".tsv", ".json")).write_text('{"SamplingFrequency": 100}')
+
+
+@pytest.mark.parametrize(
+    ("name", "write"),
+    [("nan.parquet", _write_parquet_with_nan), ("sub-01_task-x_motion.tsv", _write_bids_with_nan)],
+)
+def test_nan_in_binary_and_bids_files_is_rejected(tmp_path: Path, name: str, write) -> None:
+    path = tmp_path / name
+    write(path)
+    with pytest.raises(InputError) as error:
+        read_trial(path)
+    message = str(error.value)
+    assert "\n" not in message and name in message and "NaN" in message
