@@ -1,0 +1,334 @@
+"""The virtual trainer's end effector: an HKB oscillator driven by a per-interval optimal control.
+
+End-effector dynamics (METHODS section 5), with control input ``u`` (units/s²)::
+
+    x'' = -(alpha x² + beta x'² - gamma) x' - omega² x + u
+
+On each control interval [t_k, t_k + T] the controller minimises::
+
+    J = theta_p/2 (x(T) - r_p)² + 1/2 ∫ [theta_s (x' - r_s)² + theta_v (x' - r_v)² + eta u²] dτ
+
+with ``r_p`` the partner's predicted position at the end of the interval, ``r_s`` the reference
+velocity from the IMS generator and ``r_v`` the partner's estimated velocity (joint improvisation
+only), all held constant over the interval, and ``theta_s = 1 - theta_p - theta_v``.
+
+How it is solved (follows METHODS section 5; departs from the original implementation, which
+called MATLAB's bvp4c at every step): Pontryagin's principle gives the nonlinear two-point boundary
+value problem of the section, solved here **exactly up to integration error** by shooting on the
+two initial costates. The state-costate system and its sensitivities with respect to the initial
+costates are integrated with fixed-step RK4 (`N_SUBSTEPS` steps per interval), and Newton's method
+on the two terminal conditions converges from a zero costate in a few iterations (the problem is
+nearly linear over 0.03 s). The published closed-form quadratic-in-time approximation is **not**
+used: it gets velocity and control wrong by tens of percent. After the interval, the position is
+clipped to the playing range [-0.5, 0.5] and an outward velocity at the wall is set to zero (a hand
+stopped at the edge of the range).
+
+Everything numerical is compiled with numba; `optimal_control_step` is the single step used by the
+live players, the game engine and the batch engine.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.players import CONTROL_PERIOD
+from mirror_avatar.trials import PLAYING_RANGE
+
+N_SUBSTEPS = 8
+"""RK4 steps per control interval in the shooting solve."""
+
+MAX_NEWTON = 8
+"""Most Newton iterations on the initial costates per control interval."""
+
+NEWTON_TOLERANCE = 1e-7
+"""Newton stops when the control at t_k changes by less than this fraction of itself."""
+
+_LOW, _HIGH = PLAYING_RANGE
+
+
+@dataclass(frozen=True)
+class HKBParams:
+    """Parameters of one virtual trainer's end effector and cost.
+
+    Parameters
+    ----------
+    omega
+        Natural frequency (rad/s).
+    theta_p
+        Weight of the terminal position error to the partner's predicted position.
+    theta_v
+        Weight of the velocity error to the partner's estimated velocity (joint improvisation;
+        0 in leader and follower roles).
+    alpha, beta, gamma
+        HKB nonlinear damping coefficients (paper: 1, 2, -1; with gamma < 0 there is no limit
+        cycle and all motion comes from the control).
+    eta
+        Weight of the control effort (paper: 1e-4).
+    period
+        Control period T (s).
+    """
+
+    omega: float
+    theta_p: float
+    theta_v: float = 0.0
+    alpha: float = 1.0
+    beta: float = 2.0
+    gamma: float = -1.0
+    eta: float = 1e-4
+    period: float = CONTROL_PERIOD
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.theta_p <= 1.0 and 0.0 <= self.theta_v <= 1.0):
+            raise InputError("HKBParams", "theta_p and theta_v must lie in [0, 1]")
+        if self.theta_s < 0.0:
+            raise InputError("HKBParams", "theta_p + theta_v must not exceed 1")
+        if not (self.eta > 0.0 and self.period > 0.0):
+            raise InputError("HKBParams", "eta and period must be positive")
+
+    @property
+    def theta_s(self) -> float:
+        """Weight of the velocity error to the reference signature, 1 - theta_p - theta_v."""
+        return 1.0 - self.theta_p - self.theta_v
+
+    def as_vector(self) -> NDArray[np.float64]:
+        """Return the parameters in the order the compiled functions read them, shape (8,)."""
+        return np.array(
+            [
+                self.alpha,
+                self.beta,
+                self.gamma,
+                self.omega,
+                self.eta,
+                self.theta_p,
+                self.theta_v,
+                self.period,
+            ]
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-serialisable parameters."""
+        return asdict(self)
+
+    def with_(self, **changes: float) -> HKBParams:
+        """Return a copy with some parameters overridden."""
+        return replace(self, **changes)
+
+
+LEADER = HKBParams(omega=0.8, theta_p=0.1)
+"""The paper's leader: weak pull to the partner, strong pull to its own signature."""
+
+FOLLOWER = HKBParams(omega=0.1, theta_p=0.9)
+"""The paper's follower: strong pull to the partner's predicted position."""
+
+JOINT = HKBParams(omega=0.45, theta_p=0.5, theta_v=0.2)
+"""Joint improvisation (**choice**: the paper gives no numbers). Between leader and follower in
+position weight and frequency, with a velocity term towards the partner's (theta_s = 0.3)."""
+
+ROLES = ("leader", "follower", "joint")
+_PRESETS = {"leader": LEADER, "follower": FOLLOWER, "joint": JOINT}
+
+
+def preset(role: str) -> HKBParams:
+    """Return the parameters of a role: ``"leader"``, ``"follower"`` or ``"joint"``."""
+    try:
+        return _PRESETS[role]
+    except KeyError:
+        raise InputError("role", f"unknown role {role!r}; expected one of {ROLES}") from None
+
+
+@njit(cache=True)
+def hkb_acceleration(
+    x: float, v: float, u: float, alpha: float, beta: float, gamma: float, omega: float
+) -> float:
+    """HKB acceleration ``-(alpha x² + beta v² - gamma) v - omega² x + u`` (units/s²)."""
+    return -(alpha * x * x + beta * v * v - gamma) * v - omega * omega * x + u
+
+
+@njit(cache=True)
+def _derivatives(
+    w: NDArray[np.float64],
+    p: NDArray[np.float64],
+    targets: NDArray[np.float64],
+    frozen: float,
+    dw: NDArray[np.float64],
+) -> None:
+    """Right-hand side of the state-costate system and of its costate sensitivities.
+
+    ``w = [x, y, l1, l2, s]`` with ``s[i, j] = w[4 + 2 i + j]`` = d z_i / d(l1(0), l2(0))_j;
+    ``targets = [r_s, r_v]``. Writes the derivative of ``w`` into ``dw``, shape (12,).
+    With ``frozen`` >= 0 (a damping coefficient, 1/s) the HKB damping ``alpha x² + beta y² -
+    gamma`` is frozen at that value, which makes the system linear; with ``frozen`` < 0 it is
+    the full nonlinear system.
+    """
+    alpha, beta, gamma, omega, eta, theta_v = p[0], p[1], p[2], p[3], p[4], p[6]
+    theta_s = 1.0 - p[5] - theta_v
+    x, y, l1, l2 = w[0], w[1], w[2], w[3]
+    w2 = omega * omega
+    if frozen >= 0.0:
+        alpha = beta = 0.0
+        gamma = -frozen
+    damping = alpha * x * x + 3.0 * beta * y * y - gamma
+    coupling = 2.0 * alpha * x * y + w2
+    dw[0] = y
+    dw[1] = hkb_acceleration(x, y, -l2 / eta, alpha, beta, gamma, omega)
+    dw[2] = l2 * coupling
+    dw[3] = l2 * damping - l1 - theta_s * (y - targets[0]) - theta_v * (y - targets[1])
+    for j in range(2):
+        sx, sy, s1, s2 = w[4 + j], w[6 + j], w[8 + j], w[10 + j]
+        dw[4 + j] = sy
+        dw[6 + j] = -coupling * sx - damping * sy - s2 / eta
+        dw[8 + j] = 2.0 * alpha * l2 * (y * sx + x * sy) + coupling * s2
+        dw[10 + j] = (
+            2.0 * alpha * l2 * x * sx
+            + (6.0 * beta * l2 * y - theta_s - theta_v) * sy
+            - s1
+            + damping * s2
+        )
+
+
+@njit(cache=True)
+def _shoot(
+    x: float,
+    y: float,
+    l1: float,
+    l2: float,
+    p: NDArray[np.float64],
+    targets: NDArray[np.float64],
+    frozen: float,
+    n_substeps: int,
+    work: NDArray[np.float64],
+) -> None:
+    """Integrate state, costates and sensitivities over one interval with RK4, in place.
+
+    ``work`` (4, 12): row 0 receives the solution at the end of the interval (layout of
+    `_derivatives`), rows 1-3 are scratch.
+    """
+    h = p[7] / n_substeps
+    state, stage, k, acc = work[0], work[1], work[2], work[3]
+    state[:] = 0.0
+    state[0], state[1], state[2], state[3] = x, y, l1, l2
+    state[8] = 1.0
+    state[11] = 1.0
+    for _ in range(n_substeps):
+        for i in range(12):
+            acc[i] = 0.0
+            stage[i] = state[i]
+        for stage_index in range(4):
+            _derivatives(stage, p, targets, frozen, k)
+            weight = 1.0 if stage_index == 0 or stage_index == 3 else 2.0
+            step = h if stage_index == 2 else 0.5 * h
+            for i in range(12):
+                acc[i] += weight * k[i]
+                stage[i] = state[i] + step * k[i]
+        for i in range(12):
+            state[i] += h / 6.0 * acc[i]
+
+
+@njit(cache=True)
+def solve_interval(
+    x: float,
+    y: float,
+    partner_prediction: float,
+    reference_velocity: float,
+    partner_velocity: float,
+    p: NDArray[np.float64],
+    n_substeps: int,
+    max_newton: int,
+) -> tuple[float, float, float, float]:
+    """Solve one interval's optimal-control problem without clipping.
+
+    The initial guess is the exact solution of the problem with the HKB damping frozen at its
+    mean along a velocity ramp from ``y`` to ``r_s`` (linear, so one Newton step solves it); then
+    Newton's method on the full nonlinear problem until the control at t_k changes by less than
+    `NEWTON_TOLERANCE` (relative) or ``max_newton`` iterations are spent.
+
+    Parameters
+    ----------
+    x, y
+        Position (units) and velocity (units/s) at t_k.
+    partner_prediction
+        Predicted partner position at t_k + T (units).
+    reference_velocity
+        Reference velocity r_s (units/s).
+    partner_velocity
+        Estimated partner velocity r_v (units/s), used when theta_v > 0.
+    p
+        `HKBParams.as_vector`, shape (8,).
+    n_substeps, max_newton
+        RK4 steps per interval and the most Newton iterations on the nonlinear problem.
+
+    Returns
+    -------
+    tuple of float
+        ``(x(T), y(T), lambda1(0), lambda2(0))``; the optimal control at t_k is
+        ``-lambda2(0) / eta``.
+    """
+    targets = np.array([reference_velocity, partner_velocity])
+    work = np.empty((4, 12))
+    state = work[0]
+    theta_p = p[5]
+    mean_square = (y * y + y * reference_velocity + reference_velocity * reference_velocity) / 3.0
+    frozen = max(p[0] * x * x + p[1] * mean_square - p[2], 0.0)
+    l1, l2 = 0.0, 0.0
+    x_end, y_end = x, y
+    for iteration in range(max_newton + 1):
+        _shoot(x, y, l1, l2, p, targets, frozen if iteration == 0 else -1.0, n_substeps, work)
+        r1 = state[2] - theta_p * (state[0] - partner_prediction)
+        r2 = state[3]
+        # Jacobian of the terminal residual with respect to (l1(0), l2(0)).
+        j11 = state[8] - theta_p * state[4]
+        j12 = state[9] - theta_p * state[5]
+        j21, j22 = state[10], state[11]
+        det = j11 * j22 - j12 * j21
+        d1 = -(j22 * r1 - j12 * r2) / det
+        d2 = -(j11 * r2 - j21 * r1) / det
+        l1 += d1
+        l2 += d2
+        # End state to first order in the update (exact once Newton has converged).
+        x_end = state[0] + state[4] * d1 + state[5] * d2
+        y_end = state[1] + state[6] * d1 + state[7] * d2
+        if iteration > 0 and abs(d2) <= NEWTON_TOLERANCE * (abs(l2) + p[4]):
+            break
+    return x_end, y_end, l1, l2
+
+
+@njit(cache=True)
+def clip_to_range(x: float, v: float) -> tuple[float, float]:
+    """Clip a position to [-0.5, 0.5]; at a wall, drop the velocity pushing further out."""
+    if x > _HIGH:
+        return _HIGH, min(v, 0.0)
+    if x < _LOW:
+        return _LOW, max(v, 0.0)
+    return x, v
+
+
+@njit(cache=True)
+def optimal_control_step(
+    x: float,
+    y: float,
+    partner_prediction: float,
+    reference_velocity: float,
+    partner_velocity: float,
+    p: NDArray[np.float64],
+) -> tuple[float, float, float]:
+    """Advance the virtual trainer by one control period under its optimal control.
+
+    Parameters are those of `solve_interval`.
+
+    Returns
+    -------
+    tuple of float
+        Position (units, clipped to [-0.5, 0.5]) and velocity (units/s) at t_k + T, and the
+        optimal control at t_k (units/s²).
+    """
+    x_next, y_next, _, l2 = solve_interval(
+        x, y, partner_prediction, reference_velocity, partner_velocity, p, N_SUBSTEPS, MAX_NEWTON
+    )
+    x_next, y_next = clip_to_range(x_next, y_next)
+    return x_next, y_next, -l2 / p[4]
