@@ -1,0 +1,380 @@
+"""The IMS generator: a Markov chain over vector-quantised STFT frames (METHODS section 4).
+
+Learns a person's individual motor signature from a few solo trials and generates new motion with
+it. Follows METHODS section 4:
+
+1. frames of the 100 Hz position signal: periodic Hamming window of ``window`` = 60 samples, hop
+   15 (overlap 45), FFT length 60 -> 31 one-sided bins;
+2. features: ``[Re X0..Re X30, Im X1..Im X29]`` (60 numbers per frame, phase kept);
+3. codebook: Lloyd's algorithm (scikit-learn `KMeans`, ``algorithm="lloyd"``) with ``n_symbols``
+   code vectors; each frame's symbol is its nearest code vector;
+4. a first-order Markov chain over the symbols: transitions counted over all training trials
+   (maximum likelihood), plus ``pseudo_count`` in every cell (**choice**, default 1e-3: a row
+   seen ~10 times keeps ~97 % of its counted mass) so every row, including a symbol never
+   followed by another in training, is a valid distribution; the initial symbol is drawn from the
+   symbols' frequencies in training (**choice**: too few trials to estimate a start distribution);
+5. synthesis: a sampled symbol sequence, each symbol's code vector inverse-transformed, weighted
+   overlap-add with the same window; positions clipped to [-0.5, 0.5], velocity as METHODS
+   section 2. Frames are generated beyond both ends and trimmed, so the window's taper never
+   shows ("no edge artefacts").
+
+Each code vector's windowed time-domain frame is precomputed after fitting, so generation is a
+compiled chain walk plus a compiled overlap-add.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from typing import Any, Self
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+from sklearn.cluster import KMeans
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.model_files import load_model, save_model
+from mirror_avatar.stft import (
+    compute_stft,
+    features_to_spectra,
+    hamming_window,
+    overlap_add,
+    spectra_to_features,
+    synthesis_frames,
+)
+from mirror_avatar.trials import PLAYING_RANGE, Trial, compute_velocity, make_trial
+
+FORMAT_NAME = "mirror-avatar/ims-generator"
+FORMAT_VERSION = 1
+
+Array = NDArray[np.float64]
+Seed = int | np.random.Generator | None
+
+
+@njit(cache=True)
+def sample_chain(cumulative: Array, start_cumulative: Array, uniforms: Array) -> NDArray[np.int64]:
+    """Walk a Markov chain by inverse-CDF sampling.
+
+    Parameters
+    ----------
+    cumulative
+        Row-wise cumulative transition probabilities, shape (n, n), last column 1.
+    start_cumulative
+        Cumulative initial distribution, shape (n,).
+    uniforms
+        Uniform draws in [0, 1), one per symbol of the sequence, shape (length,).
+
+    Returns
+    -------
+    numpy.ndarray
+        The symbol sequence, shape (length,).
+    """
+    n = start_cumulative.size
+    sequence = np.empty(uniforms.size, dtype=np.int64)
+    state = min(np.searchsorted(start_cumulative, uniforms[0], side="right"), n - 1)
+    sequence[0] = state
+    for k in range(1, uniforms.size):
+        state = min(np.searchsorted(cumulative[state], uniforms[k], side="right"), n - 1)
+        sequence[k] = state
+    return sequence
+
+
+def count_transitions(sequences: Sequence[NDArray[np.int64]], n_symbols: int) -> Array:
+    """Transition counts ``C[i, j]`` = times symbol j followed symbol i, shape (n, n)."""
+    counts = np.zeros((n_symbols, n_symbols))
+    for sequence in sequences:
+        np.add.at(counts, (sequence[:-1], sequence[1:]), 1.0)
+    return counts
+
+
+def estimate_transitions(counts: Array, pseudo_count: float) -> Array:
+    """Row-normalised transition matrix from counts plus ``pseudo_count`` per cell."""
+    smoothed = counts + pseudo_count
+    totals = smoothed.sum(axis=1, keepdims=True)
+    uniform = np.full_like(smoothed, 1.0 / smoothed.shape[1])
+    return np.divide(smoothed, totals, out=uniform, where=totals > 0)
+
+
+class IMSGenerator:
+    """Generate motion with a person's individual motor signature.
+
+    Parameters
+    ----------
+    n_symbols
+        Codebook size N (paper: 256, after a sweep over 32-256).
+    window
+        Frame length in samples (even; paper: 60 at 100 Hz).
+    hop
+        Samples between frames (paper: 15, overlap 45).
+    rate
+        Sampling rate of the model (Hz); training trials are resampled to it.
+    pseudo_count
+        Added to every transition count (**choice**).
+    n_init
+        k-means restarts (best distortion kept).
+    random_state
+        Seed of k-means (and default seed of `sample` when it gets none).
+
+    Attributes
+    ----------
+    codebook_ : ndarray, shape (n_symbols, window)
+        Code vectors (feature space of `mirror_avatar.stft.spectra_to_features`).
+    transmat_ : ndarray, shape (n_symbols, n_symbols)
+        Transition probabilities, rows sum to 1.
+    startprob_ : ndarray, shape (n_symbols,)
+        Initial-symbol probabilities.
+    training_summary_ : dict
+        Labels, groups and durations of the training trials, frames, distortion, seed.
+    """
+
+    codebook_: Array
+    transmat_: Array
+    startprob_: Array
+    training_summary_: dict[str, Any]
+
+    def __init__(
+        self,
+        n_symbols: int = 256,
+        window: int = 60,
+        hop: int = 15,
+        rate: float = 100.0,
+        pseudo_count: float = 1e-3,
+        n_init: int = 1,
+        random_state: int | None = None,
+    ) -> None:
+        self.n_symbols = n_symbols
+        self.window = window
+        self.hop = hop
+        self.rate = rate
+        self.pseudo_count = pseudo_count
+        self.n_init = n_init
+        self.random_state = random_state
+
+    # -- fitting ------------------------------------------------------------------------------
+
+    def fit(self, trials: Sequence[Trial]) -> Self:
+        """Learn the codebook and the chain from solo trials (any rate; resampled to `rate`).
+
+        Raises
+        ------
+        InputError
+            No trials, bad hyper-parameters, or fewer frames than symbols.
+        """
+        self._check_parameters()
+        signals = [self._signal(trial) for trial in trials]
+        if not signals:
+            raise InputError("trials", "no trials to fit the generator on")
+        features = [self._features(signal) for signal in signals]
+        n_frames = sum(f.shape[0] for f in features)
+        if n_frames < self.n_symbols:
+            raise InputError(
+                "trials",
+                f"{n_frames} frames are too few for {self.n_symbols} symbols; "
+                "give longer or more trials, or fewer symbols",
+            )
+        kmeans = KMeans(
+            n_clusters=self.n_symbols,
+            n_init=self.n_init,
+            algorithm="lloyd",
+            random_state=self.random_state,
+        ).fit(np.vstack(features))
+        self.codebook_ = kmeans.cluster_centers_.astype(np.float64)
+        sequences = [self._quantise(f) for f in features]
+        self.transmat_ = estimate_transitions(
+            count_transitions(sequences, self.n_symbols), self.pseudo_count
+        )
+        frequency = np.bincount(np.concatenate(sequences), minlength=self.n_symbols) + 0.0
+        self.startprob_ = frequency / frequency.sum()
+        self.training_summary_ = {
+            "labels": [t.label for t in trials],
+            "groups": sorted({t.group for t in trials}),
+            "durations": [round(t.duration, 6) for t in trials],
+            "n_frames": int(n_frames),
+            "distortion": float(kmeans.inertia_ / (n_frames * self.window)),
+            "symbols_used": float(np.mean(frequency > 0)),
+            "random_state": self.random_state,
+        }
+        self._prepare_sampling()
+        return self
+
+    def _check_parameters(self) -> None:
+        if not (isinstance(self.n_symbols, int | np.integer) and self.n_symbols >= 2):
+            raise InputError(
+                "generator", f"n_symbols must be an integer >= 2, got {self.n_symbols}"
+            )
+        if self.window % 2 or self.window < 4 or not 0 < self.hop <= self.window // 2:
+            raise InputError("generator", "window must be even (>= 4) and hop in (0, window / 2]")
+        if not (self.rate > 0 and self.pseudo_count > 0):
+            raise InputError("generator", "rate and pseudo_count must be positive")
+
+    def _signal(self, trial: Trial) -> Array:
+        if trial.is_uniform and math.isclose(trial.rate, self.rate, rel_tol=1e-6):
+            return trial.positions
+        return trial.resampled(self.rate).positions
+
+    def _features(self, signal: Array) -> Array:
+        return spectra_to_features(compute_stft(signal, self.window, self.hop))
+
+    def _quantise(self, features: Array) -> NDArray[np.int64]:
+        distances = (
+            np.sum(features**2, axis=1)[:, None]
+            - 2.0 * features @ self.codebook_.T
+            + np.sum(self.codebook_**2, axis=1)[None, :]
+        )
+        return np.argmin(distances, axis=1).astype(np.int64)
+
+    def _prepare_sampling(self) -> None:
+        spectra = features_to_spectra(self.codebook_, self.window)
+        self._frames = synthesis_frames(spectra, self.window)
+        self._window_squared = hamming_window(self.window) ** 2
+        self._cumulative = np.cumsum(self.transmat_, axis=1)
+        self._cumulative[:, -1] = 1.0
+        self._start_cumulative = np.cumsum(self.startprob_)
+        self._start_cumulative[-1] = 1.0
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "codebook_"):
+            raise InputError("generator", "not fitted: call fit(trials) or load a model first")
+
+    # -- diagnostics --------------------------------------------------------------------------
+
+    def score(self, trials: Sequence[Trial]) -> dict[str, float]:
+        """Diagnostics of the model on trials.
+
+        Returns
+        -------
+        dict
+            ``distortion`` (mean squared quantisation error per feature), ``symbols_used``
+            (fraction of code vectors that are some frame's nearest) and
+            ``log_likelihood`` (mean log-probability per transition of the trials' symbols).
+        """
+        self._check_fitted()
+        features = [self._features(self._signal(t)) for t in trials]
+        sequences = [self._quantise(f) for f in features]
+        stacked, symbols = np.vstack(features), np.concatenate(sequences)
+        error = np.sum((stacked - self.codebook_[symbols]) ** 2) / stacked.size
+        log_p = [np.log(self.transmat_[s[:-1], s[1:]]) for s in sequences if s.size > 1]
+        return {
+            "distortion": float(error),
+            "symbols_used": float(np.unique(symbols).size / self.n_symbols),
+            "log_likelihood": float(np.mean(np.concatenate(log_p))) if log_p else math.nan,
+        }
+
+    # -- generation ---------------------------------------------------------------------------
+
+    def sample_positions(self, n_samples: int, random_state: Seed = None) -> Array:
+        """Generate ``n_samples`` positions at `rate` (units, clipped to [-0.5, 0.5])."""
+        self._check_fitted()
+        if n_samples < 1:
+            raise InputError("generator", f"n_samples must be positive, got {n_samples}")
+        rng = np.random.default_rng(self.random_state if random_state is None else random_state)
+        pad = self.window // self.hop
+        n_frames = math.ceil(max(n_samples - self.window, 0) / self.hop) + 1 + 2 * pad
+        sequence = sample_chain(self._cumulative, self._start_cumulative, rng.random(n_frames))
+        signal = overlap_add(self._frames, sequence, self.hop, self._window_squared)
+        start = pad * self.hop
+        return np.clip(signal[start : start + n_samples], *PLAYING_RANGE)
+
+    def sample_velocity(self, n_samples: int, random_state: Seed = None) -> Array:
+        """Generate a velocity signal of ``n_samples`` at `rate` (units/s).
+
+        The velocity of `sample_positions` (METHODS section 2); this is what a virtual trainer
+        uses as its reference r_s.
+        """
+        return compute_velocity(self.sample_positions(n_samples, random_state), self.rate)
+
+    def sample(self, duration: float, n: int = 1, random_state: Seed = None) -> list[Trial]:
+        """Generate ``n`` new trials of ``duration`` seconds at `rate`.
+
+        Parameters
+        ----------
+        duration
+            Length of each trial (s).
+        n
+            Number of trials.
+        random_state
+            Seed or generator; the same seed gives the same trials. None uses the
+            constructor's ``random_state``.
+
+        Returns
+        -------
+        list of Trial
+            Labelled ``generated-1..n``, group = the training group(s), seed in the metadata.
+        """
+        if not (duration > 0 and n >= 1):
+            raise InputError("generator", "duration and n must be positive")
+        rng = np.random.default_rng(self.random_state if random_state is None else random_state)
+        n_samples = int(round(duration * self.rate)) + 1
+        times = np.arange(n_samples) / self.rate
+        group = "+".join(self.training_summary_["groups"])
+        seed = random_state if isinstance(random_state, int) else None
+        return [
+            make_trial(
+                times,
+                self.sample_positions(n_samples, rng),
+                label=f"generated-{k + 1}",
+                group=group,
+                metadata={"generator": "ims-markov-chain", "seed": seed, "index": k},
+            )
+            for k in range(n)
+        ]
+
+    # -- persistence --------------------------------------------------------------------------
+
+    def get_params(self) -> dict[str, Any]:
+        """Hyper-parameters, as given to the constructor."""
+        return {
+            "n_symbols": int(self.n_symbols),
+            "window": int(self.window),
+            "hop": int(self.hop),
+            "rate": float(self.rate),
+            "pseudo_count": float(self.pseudo_count),
+            "n_init": int(self.n_init),
+            "random_state": self.random_state,
+        }
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the fitted model to ``path`` (``.npz`` + JSON metadata), atomically."""
+        self._check_fitted()
+        save_model(
+            path,
+            FORMAT_NAME,
+            FORMAT_VERSION,
+            {"codebook": self.codebook_, "transmat": self.transmat_, "startprob": self.startprob_},
+            {"parameters": self.get_params(), "training": self.training_summary_},
+        )
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> IMSGenerator:
+        """Read a model written by `save`.
+
+        Raises
+        ------
+        InputError
+            The file is missing, corrupt, truncated, of another format or inconsistent.
+        """
+        arrays, metadata = load_model(
+            path, FORMAT_NAME, FORMAT_VERSION, ("codebook", "transmat", "startprob")
+        )
+        try:
+            model = cls(**metadata["parameters"])
+            model._check_parameters()
+            model.training_summary_ = dict(metadata["training"])
+        except (KeyError, TypeError, InputError) as error:
+            raise InputError(path, f"invalid model parameters ({error})") from None
+        n, width = model.n_symbols, model.window
+        expected = {"codebook": (n, width), "transmat": (n, n), "startprob": (n,)}
+        for name, shape in expected.items():
+            array = arrays[name]
+            if array.shape != shape or array.dtype.kind != "f" or not np.all(np.isfinite(array)):
+                raise InputError(path, f"{name} must be finite floats of shape {shape}")
+        rows = np.concatenate([arrays["transmat"].sum(axis=1), [arrays["startprob"].sum()]])
+        if np.any(arrays["transmat"] < 0) or not np.allclose(rows, 1.0, atol=1e-9):
+            raise InputError(path, "transition probabilities are not valid distributions")
+        model.codebook_ = arrays["codebook"].astype(np.float64)
+        model.transmat_ = arrays["transmat"].astype(np.float64)
+        model.startprob_ = arrays["startprob"].astype(np.float64)
+        model._prepare_sampling()
+        return model

@@ -1,0 +1,141 @@
+"""Tests of the IMS generator: chain estimation, sampling, persistence, and real-data validation."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.generator import (
+    IMSGenerator,
+    count_transitions,
+    estimate_transitions,
+    sample_chain,
+)
+from mirror_avatar.signature import compute_emd, compute_ims, stroke_moments
+
+
+@pytest.fixture(scope="module")
+def small_model(zhai_trials_100hz: list) -> IMSGenerator:
+    return IMSGenerator(n_symbols=32, random_state=0).fit(zhai_trials_100hz[9:12])
+
+
+def test_chain_fitted_to_a_known_sequence_recovers_its_frequencies() -> None:
+    rng = np.random.default_rng(5)
+    truth = np.array([[0.1, 0.6, 0.3], [0.5, 0.25, 0.25], [0.2, 0.2, 0.6]])
+    cumulative = np.cumsum(truth, axis=1)
+    sequence = sample_chain(cumulative, np.array([1.0, 1.0, 1.0]), rng.random(200_000))
+    estimate = estimate_transitions(count_transitions([sequence], 3), pseudo_count=1e-3)
+    np.testing.assert_allclose(estimate, truth, atol=0.01)
+
+
+def test_transition_rows_are_distributions_even_for_unseen_states() -> None:
+    counts = count_transitions([np.array([0, 1, 0, 1, 1])], 4)
+    matrix = estimate_transitions(counts, pseudo_count=1e-3)
+    np.testing.assert_allclose(matrix.sum(axis=1), 1.0)
+    np.testing.assert_allclose(matrix[3], 0.25)
+    assert counts[0, 1] == 2 and counts[1, 1] == 1 and counts[1, 0] == 1
+
+
+def test_fitted_model_shapes_and_diagnostics(small_model: IMSGenerator, zhai_trials_100hz) -> None:
+    assert small_model.codebook_.shape == (32, 60)
+    np.testing.assert_allclose(small_model.transmat_.sum(axis=1), 1.0)
+    assert small_model.startprob_.sum() == pytest.approx(1.0)
+    score = small_model.score(zhai_trials_100hz[9:12])
+    assert score["distortion"] == pytest.approx(small_model.training_summary_["distortion"])
+    assert 0 < score["symbols_used"] <= 1 and score["log_likelihood"] < 0
+
+
+def test_samples_are_clean_and_reproducible(small_model: IMSGenerator) -> None:
+    trials = small_model.sample(20.0, n=2, random_state=3)
+    again = small_model.sample(20.0, n=2, random_state=3)
+    assert [t.n_samples for t in trials] == [2001, 2001]
+    for trial, other in zip(trials, again, strict=True):
+        np.testing.assert_array_equal(trial.positions, other.positions)
+        assert np.all(np.isfinite(trial.positions)) and np.all(np.abs(trial.positions) <= 0.5)
+    assert not np.array_equal(trials[0].positions, trials[1].positions)
+
+
+def test_no_edge_artefacts(small_model: IMSGenerator) -> None:
+    velocity = small_model.sample_velocity(3000, random_state=1)
+    edge, inside = np.abs(velocity[:30]).mean(), np.abs(velocity[30:-30]).mean()
+    assert edge > 0.2 * inside  # the window taper would pull the ends towards zero
+    positions = small_model.sample_positions(3000, random_state=1)
+    assert np.abs(np.diff(positions[:30])).max() < 5 * np.abs(np.diff(positions)).mean() + 0.01
+
+
+def test_save_load_round_trip_samples_identically(small_model: IMSGenerator, tmp_path: Path):
+    small_model.save(tmp_path / "m.npz")
+    loaded = IMSGenerator.load(tmp_path / "m.npz")
+    np.testing.assert_array_equal(
+        loaded.sample_velocity(1000, 9), small_model.sample_velocity(1000, 9)
+    )
+    assert loaded.training_summary_ == small_model.training_summary_
+
+
+def _truncate(path: Path) -> None:
+    path.write_bytes(path.read_bytes()[:200])
+
+
+def _foreign(path: Path) -> None:
+    np.savez(path, codebook=np.zeros(3))
+
+
+def _text(path: Path) -> None:
+    path.write_text("not a model")
+
+
+def _bad_rows(path: Path) -> None:
+    model = IMSGenerator.load(path)
+    model.transmat_ = model.transmat_ * 2
+    model.save(path)
+
+
+@pytest.mark.parametrize(
+    ("damage", "fragment"),
+    [(_truncate, "readable"), (_foreign, "no metadata"), (_text, "readable"), (_bad_rows, "valid")],
+)
+def test_bad_model_files(small_model: IMSGenerator, tmp_path: Path, damage, fragment) -> None:
+    path = tmp_path / "m.npz"
+    small_model.save(path)
+    damage(path)
+    with pytest.raises(InputError, match=fragment) as error:
+        IMSGenerator.load(path)
+    assert "\n" not in str(error.value) and "m.npz" in str(error.value)
+
+
+def test_too_few_frames_and_unfitted() -> None:
+    with pytest.raises(InputError, match="not fitted"):
+        IMSGenerator().sample_velocity(100)
+    with pytest.raises(InputError, match="no trials"):
+        IMSGenerator().fit([])
+
+
+def test_generated_motion_has_its_person_signature(zhai_trials_100hz: list) -> None:
+    """Bundled data, 2/3 of each style for training: the must-show numbers of the generator."""
+    rng = np.random.default_rng(0)
+    styles = {g: [t for t in zhai_trials_100hz if t.group == g] for g in ("fast", "slow")}
+    held_out, generated = {}, {}
+    for style, trials in styles.items():
+        order = rng.permutation(len(trials))
+        train, held_out[style] = [trials[i] for i in order[:6]], [trials[i] for i in order[6:]]
+        model = IMSGenerator(random_state=0).fit(train)
+        generated[style] = model.sample(60.0, n=3, random_state=1)
+    ims = {s: [compute_ims(t.velocity()) for t in held_out[s]] for s in styles}
+    every = {s: [compute_ims(t.velocity()) for t in styles[s]] for s in styles}
+    human_within = {
+        s: np.mean([compute_emd(a, b) for i, a in enumerate(every[s]) for b in every[s][i + 1 :]])
+        for s in styles
+    }
+    between = np.mean([compute_emd(a, b) for a in every["fast"] for b in every["slow"]])
+    for style in styles:
+        gen_ims = [compute_ims(t.velocity()) for t in generated[style]]
+        to_own = np.mean([compute_emd(g, h) for g in gen_ims for h in ims[style]])
+        assert to_own <= 1.5 * human_within[style]
+        assert to_own <= between / 2
+        for g in gen_ims:
+            nearest = min(styles, key=lambda s: np.mean([compute_emd(g, h) for h in ims[s]]))
+            assert nearest == style
+        human = np.vstack([stroke_moments(t.velocity()) for t in styles[style]])
+        synthetic = np.vstack([stroke_moments(t.velocity()) for t in generated[style]])
+        assert np.all(np.abs(synthetic.mean(axis=0) - human.mean(axis=0)) <= human.std(axis=0))
