@@ -37,8 +37,10 @@ from numba import njit
 from numpy.typing import NDArray
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.players import CONTROL_PERIOD
 from mirror_avatar.trials import PLAYING_RANGE
+
+CONTROL_PERIOD = 0.03
+"""The control period T of the paper (s): players are advanced every T."""
 
 N_SUBSTEPS = 8
 """RK4 steps per control interval in the shooting solve."""

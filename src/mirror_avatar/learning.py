@@ -57,8 +57,8 @@ from numpy.typing import ArrayLike, NDArray
 from tqdm.auto import tqdm
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.players import CONTROL_PERIOD
-from mirror_avatar.trials import PLAYING_RANGE, Trial
+from mirror_avatar.hkb import CONTROL_PERIOD, clip_to_range, hkb_acceleration
+from mirror_avatar.trials import Trial
 
 Array = NDArray[np.float64]
 Features = Literal["absolute", "relative"]
@@ -72,17 +72,10 @@ VELOCITY_WEIGHT = 0.1
 FORMAT_NAME = "mirror-avatar/cyber-player"
 FORMAT_VERSION = 1
 N_FEATURES = 4
-_LOW, _HIGH = PLAYING_RANGE
 
 
 # ---------------------------------------------------------------------------------------------
 # Compiled core: HKB step, reward, state index, greedy choice, one Q-learning session.
-
-
-@njit(cache=True)
-def _hkb_acceleration(x: float, v: float, u: float, hkb: Array) -> float:
-    alpha, beta, gamma, omega = hkb[0], hkb[1], hkb[2], hkb[3]
-    return -(alpha * x * x + beta * v * v - gamma) * v - omega * omega * x + u
 
 
 @njit(cache=True)
@@ -111,21 +104,18 @@ def integrate_hkb(
         and an outward velocity at the boundary is set to zero.
     """
     h = period / n_substeps
+    alpha, beta, gamma, omega = hkb[0], hkb[1], hkb[2], hkb[3]
     for _ in range(n_substeps):
-        a1 = _hkb_acceleration(x, v, u, hkb)
+        a1 = hkb_acceleration(x, v, u, alpha, beta, gamma, omega)
         x2, v2 = x + 0.5 * h * v, v + 0.5 * h * a1
-        a2 = _hkb_acceleration(x2, v2, u, hkb)
+        a2 = hkb_acceleration(x2, v2, u, alpha, beta, gamma, omega)
         x3, v3 = x + 0.5 * h * v2, v + 0.5 * h * a2
-        a3 = _hkb_acceleration(x3, v3, u, hkb)
+        a3 = hkb_acceleration(x3, v3, u, alpha, beta, gamma, omega)
         x4, v4 = x + h * v3, v + h * a3
-        a4 = _hkb_acceleration(x4, v4, u, hkb)
+        a4 = hkb_acceleration(x4, v4, u, alpha, beta, gamma, omega)
         x += h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
         v += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-    if x > _HIGH:
-        x, v = _HIGH, min(v, 0.0)
-    elif x < _LOW:
-        x, v = _LOW, max(v, 0.0)
-    return x, v
+    return clip_to_range(x, v)
 
 
 @njit(cache=True)

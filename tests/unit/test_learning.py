@@ -479,10 +479,7 @@ def test_bad_dynamics_are_input_errors():
 
 
 def test_check_player_conformance(slow_chunks):
-    check_player = getattr(players, "check_player", None)
-    if check_player is None:
-        pytest.skip("mirror_avatar.players.check_player is not written yet")
-    check_player(trained_player(slow_chunks[0], n_sessions=5))
+    players.check_player(lambda: trained_player(slow_chunks[0], n_sessions=5))
 
 
 def test_make_follower_sessions_delays_the_partner(zhai_trials):

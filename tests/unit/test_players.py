@@ -1,0 +1,103 @@
+"""Tests of the player implementations and of the conformance check."""
+
+import math
+
+import numpy as np
+import pytest
+
+from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.hkb import FOLLOWER, JOINT, LEADER
+from mirror_avatar.players import (
+    PlayerCheckError,
+    RecordedPlayer,
+    VirtualTrainer,
+    check_player,
+    draw_reference,
+)
+
+
+@pytest.fixture(scope="module")
+def generator(zhai_trials_100hz: list) -> IMSGenerator:
+    return IMSGenerator(n_symbols=32, random_state=0).fit(zhai_trials_100hz[9:12])
+
+
+@pytest.mark.parametrize("params", [LEADER, FOLLOWER, JOINT])
+def test_virtual_trainer_with_a_generator_passes_the_check(generator, params) -> None:
+    check_player(lambda: VirtualTrainer(params, generator))
+
+
+def test_virtual_trainer_with_a_recorded_reference_passes_the_check(zhai_trials_100hz) -> None:
+    check_player(lambda: VirtualTrainer(FOLLOWER, zhai_trials_100hz[0]))
+
+
+def test_recorded_player_passes_the_check(zhai_trials) -> None:
+    check_player(lambda: RecordedPlayer(zhai_trials[3]))
+
+
+class _Drifting:
+    """A player that leaves the playing range."""
+
+    period = 0.03
+    stochastic = False
+
+    def reset(self, seed=None):
+        self.x = 0.0
+        return self.x, 0.0
+
+    def step(self, partner_position, partner_velocity):
+        self.x += 0.01
+        return self.x, 0.3
+
+
+class _Forgetful(_Drifting):
+    """A stochastic player that ignores its seed."""
+
+    stochastic = True
+
+    def step(self, partner_position, partner_velocity):
+        return 0.0, 0.0
+
+
+@pytest.mark.parametrize(("factory", "fragment"), [(_Drifting, "range"), (_Forgetful, "seed")])
+def test_the_check_catches_broken_players(factory, fragment) -> None:
+    with pytest.raises(PlayerCheckError, match=fragment):
+        check_player(factory)
+
+
+def test_references_extend_consistently(generator) -> None:
+    short = draw_reference(generator, 3000, 0.03, np.random.default_rng(4))
+    long = draw_reference(generator, 7000, 0.03, np.random.default_rng(4))
+    np.testing.assert_array_equal(short, long[:3000])
+    trainer = VirtualTrainer(LEADER, generator)
+    trainer.reset(seed=4)
+    steps = [trainer.step(0.0, 0.0) and trainer.last_reference for _ in range(2500)]
+    np.testing.assert_array_equal(steps, long[:2500])
+
+
+def test_recorded_reference_is_the_trial_velocity(zhai_trials_100hz) -> None:
+    trial = zhai_trials_100hz[0]
+    reference = draw_reference(trial, 100, 0.03, np.random.default_rng(0))
+    expected = np.interp(np.arange(100) * 0.03, trial.times - trial.times[0], trial.velocity())
+    np.testing.assert_allclose(reference, expected)
+
+
+def test_recorded_player_replays_and_holds_at_the_end(zhai_trials_100hz) -> None:
+    trial = zhai_trials_100hz[0]
+    player = RecordedPlayer(trial)
+    assert player.reset()[0] == pytest.approx(trial.positions[0])
+    positions = [player.step(0.0, 0.0)[0] for _ in range(3000)]
+    assert positions[99] == pytest.approx(
+        np.interp(3.0, trial.times - trial.times[0], trial.positions)
+    )
+    assert positions[-1] == positions[-2]
+
+
+def test_follower_predicts_the_partner_by_constant_velocity(generator) -> None:
+    """Against a partner moving at constant velocity the follower ends up on top of it."""
+    follower = VirtualTrainer(FOLLOWER.with_(theta_p=0.99), generator)
+    follower.reset(seed=0)
+    x = 0.0
+    for k in range(300):
+        x, _ = follower.step(-0.3 + 0.002 * k, 0.002 / 0.03)
+    assert x == pytest.approx(-0.3 + 0.002 * 300, abs=0.02)
+    assert not math.isnan(follower.last_control)
