@@ -42,13 +42,13 @@ from mirror_avatar.trials import PLAYING_RANGE
 CONTROL_PERIOD = 0.03
 """The control period T of the paper (s): players are advanced every T."""
 
-N_SUBSTEPS = 8
+N_SUBSTEPS = 6
 """RK4 steps per control interval in the shooting solve."""
 
 MAX_NEWTON = 8
 """Most Newton iterations on the initial costates per control interval."""
 
-NEWTON_TOLERANCE = 1e-7
+NEWTON_TOLERANCE = 1e-6
 """Newton stops when the control at t_k changes by less than this fraction of itself."""
 
 _LOW, _HIGH = PLAYING_RANGE
@@ -242,13 +242,15 @@ def solve_interval(
     p: NDArray[np.float64],
     n_substeps: int,
     max_newton: int,
-) -> tuple[float, float, float, float]:
+) -> tuple[float, float, float, float, bool]:
     """Solve one interval's optimal-control problem without clipping.
 
     The initial guess is the exact solution of the problem with the HKB damping frozen at its
     mean along a velocity ramp from ``y`` to ``r_s`` (linear, so one Newton step solves it); then
     Newton's method on the full nonlinear problem until the control at t_k changes by less than
-    `NEWTON_TOLERANCE` (relative) or ``max_newton`` iterations are spent.
+    `NEWTON_TOLERANCE` (relative). If Newton has not converged after ``max_newton`` iterations or
+    the shooting overflows (speeds of several units/s, where the HKB damping ``3 beta y²``
+    makes forward shooting ill-conditioned), the frozen-damping solution is returned instead.
 
     Parameters
     ----------
@@ -267,9 +269,9 @@ def solve_interval(
 
     Returns
     -------
-    tuple of float
-        ``(x(T), y(T), lambda1(0), lambda2(0))``; the optimal control at t_k is
-        ``-lambda2(0) / eta``.
+    tuple
+        ``(x(T), y(T), lambda1(0), lambda2(0), converged)``; the optimal control at t_k is
+        ``-lambda2(0) / eta``; ``converged`` is False when the frozen-damping fallback is used.
     """
     targets = np.array([reference_velocity, partner_velocity])
     work = np.empty((4, 12))
@@ -278,7 +280,7 @@ def solve_interval(
     mean_square = (y * y + y * reference_velocity + reference_velocity * reference_velocity) / 3.0
     frozen = max(p[0] * x * x + p[1] * mean_square - p[2], 0.0)
     l1, l2 = 0.0, 0.0
-    x_end, y_end = x, y
+    fallback = (x, y, 0.0, 0.0)
     for iteration in range(max_newton + 1):
         _shoot(x, y, l1, l2, p, targets, frozen if iteration == 0 else -1.0, n_substeps, work)
         r1 = state[2] - theta_p * (state[0] - partner_prediction)
@@ -295,9 +297,13 @@ def solve_interval(
         # End state to first order in the update (exact once Newton has converged).
         x_end = state[0] + state[4] * d1 + state[5] * d2
         y_end = state[1] + state[6] * d1 + state[7] * d2
-        if iteration > 0 and abs(d2) <= NEWTON_TOLERANCE * (abs(l2) + p[4]):
+        if not (np.isfinite(x_end) and np.isfinite(y_end) and np.isfinite(l2)):
             break
-    return x_end, y_end, l1, l2
+        if iteration == 0:
+            fallback = (x_end, y_end, l1, l2)
+        elif abs(d2) <= NEWTON_TOLERANCE * (abs(l2) + p[4]):
+            return x_end, y_end, l1, l2, True
+    return fallback[0], fallback[1], fallback[2], fallback[3], False
 
 
 @njit(cache=True)
@@ -329,7 +335,7 @@ def optimal_control_step(
         Position (units, clipped to [-0.5, 0.5]) and velocity (units/s) at t_k + T, and the
         optimal control at t_k (units/s²).
     """
-    x_next, y_next, _, l2 = solve_interval(
+    x_next, y_next, _, l2, _ = solve_interval(
         x, y, partner_prediction, reference_velocity, partner_velocity, p, N_SUBSTEPS, MAX_NEWTON
     )
     x_next, y_next = clip_to_range(x_next, y_next)

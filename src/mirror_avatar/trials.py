@@ -13,6 +13,7 @@ units/s.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cache
 from typing import Any, Literal
 
 import numpy as np
@@ -205,6 +206,15 @@ def resample(
     return replace(trial, times=grid, positions=np.asarray(positions), metadata=metadata)
 
 
+@cache
+def butterworth_lowpass(order: int, cutoff: float, rate: float) -> Array:
+    """Return a Butterworth low-pass filter's second-order sections (designed once per setting).
+
+    Callers must not modify the array: it is shared.
+    """
+    return np.asarray(butter(order, cutoff, btype="low", fs=rate, output="sos"))
+
+
 def lowpass(signal: ArrayLike, rate: float, cutoff: float = 10.0, order: int = 4) -> Array:
     """Zero-phase Butterworth low-pass filter.
 
@@ -223,7 +233,7 @@ def lowpass(signal: ArrayLike, rate: float, cutoff: float = 10.0, order: int = 4
     x = np.asarray(signal, dtype=np.float64)
     if cutoff >= rate / 2:
         return x.copy()
-    sos = butter(order, cutoff, btype="low", fs=rate, output="sos")
+    sos = butterworth_lowpass(order, cutoff, rate).copy()
     padlen = min(3 * (2 * len(sos) + 1), x.size - 1)
     return np.asarray(sosfiltfilt(sos, x, padlen=padlen))
 

@@ -1,0 +1,45 @@
+"""The batch engine on a real local Dask cluster gives the same sessions as local processes."""
+
+import numpy as np
+import pytest
+
+from mirror_avatar import batch
+from mirror_avatar.batch import run_sessions
+from mirror_avatar.errors import InputError
+from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.hkb import FOLLOWER, LEADER
+from mirror_avatar.players import VirtualTrainer
+
+distributed = pytest.importorskip("distributed")
+
+
+def test_dask_and_local_runs_are_identical(zhai_trials_100hz: list) -> None:
+    model = IMSGenerator(n_symbols=32, random_state=0).fit(zhai_trials_100hz[9:12])
+    pairs = [(VirtualTrainer(LEADER, model), VirtualTrainer(FOLLOWER, model))]
+    local = list(run_sessions(pairs, 5, duration=3.0, seed=4, n_jobs=1, chunk_size=2))
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        remote = list(
+            run_sessions(
+                pairs,
+                5,
+                duration=3.0,
+                seed=4,
+                backend="dask",
+                scheduler=cluster.scheduler_address,
+                chunk_size=2,
+            )
+        )
+    assert [b.start for b in remote] == [0, 2, 4]
+    for a, b in zip(local, remote, strict=True):
+        np.testing.assert_array_equal(a.positions, b.positions)
+        np.testing.assert_array_equal(a.controls, b.controls)
+
+
+def test_unreachable_scheduler_is_one_line(zhai_trials_100hz: list, monkeypatch) -> None:
+    monkeypatch.setattr(batch, "DASK_CONNECT_TIMEOUT", 1.0)
+    model = IMSGenerator(n_symbols=32, random_state=0).fit(zhai_trials_100hz[9:12])
+    pairs = [(VirtualTrainer(LEADER, model), VirtualTrainer(FOLLOWER, model))]
+    with pytest.raises(InputError, match="cannot reach"):
+        next(run_sessions(pairs, 1, backend="dask", scheduler="tcp://127.0.0.1:1"))
