@@ -7,7 +7,7 @@ Sign convention everywhere: positive relative phase and positive time lag mean p
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -15,7 +15,9 @@ from scipy import signal, stats
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.signature import compute_emd, compute_ims
-from mirror_avatar.trials import compute_velocity
+
+if TYPE_CHECKING:
+    from mirror_avatar.game import Session
 
 PHASE_METHODS = ("hilbert", "kralemann")
 
@@ -148,23 +150,28 @@ def paired_ttest(a: ArrayLike, b: ArrayLike) -> TTest:
     return TTest(t=float(res.statistic), df=x.size - 1, p=float(res.pvalue))
 
 
-def session_metrics(session: Any, trim: float = 0.0) -> dict[str, float | None]:
-    """All coordination metrics of one two-player session.
+def session_metrics(session: Session, trim: float = 0.0) -> dict[str, float | None]:
+    """All coordination metrics of one two-player session (METHODS section 6).
+
+    Relative phase and time lag are of player 0 with respect to player 1: positive when player 0
+    is ahead.
 
     Parameters
     ----------
     session
-        Any object with ``times`` (n,) s, ``positions`` (2, n), ``velocities`` (2, n) and
-        ``references`` (2, n) reference positions or ``None`` (the game's ``Session``).
+        A `mirror_avatar.game.Session` (times (n,) s, positions and velocities (2, n), reference
+        velocities (2, n), NaN where a player has none).
     trim
         Seconds dropped at the start (transient), a **choice**.
 
     Returns
     -------
     dict
-        ``rmse``, ``circular_variance``, ``mean_relative_phase`` and ``sd_relative_phase``
-        (circular SD, rad), ``time_lag`` (s), ``emd_players`` and, when references are
-        present, ``emd_reference_1`` / ``emd_reference_2`` (else ``None``).
+        ``rmse`` (units), ``circular_variance`` (the paper's name for the mean resultant length),
+        ``mean_relative_phase`` and ``sd_relative_phase`` (circular SD) (rad), ``time_lag`` (s),
+        ``emd_players`` (between the two players' velocity IMS) and ``emd_reference_0`` /
+        ``emd_reference_1`` (each player's IMS to the IMS of its reference velocities; None for
+        a player without references).
     """
     times = np.asarray(session.times, dtype=float)
     keep = times >= times[0] + trim
@@ -173,6 +180,7 @@ def session_metrics(session: Any, trim: float = 0.0) -> dict[str, float | None]:
     rate = 1.0 / float(np.median(np.diff(times)))
     x = np.asarray(session.positions, dtype=float)[:, keep]
     v = np.asarray(session.velocities, dtype=float)[:, keep]
+    references = np.asarray(session.references, dtype=float)[:, keep]
     dphi = compute_relative_phase(x[0], x[1])
     r = compute_circular_variance(dphi)
     ims = [compute_ims(v[i]) for i in range(2)]
@@ -183,12 +191,9 @@ def session_metrics(session: Any, trim: float = 0.0) -> dict[str, float | None]:
         "sd_relative_phase": float(np.sqrt(-2.0 * np.log(max(r, 1e-12)))),
         "time_lag": compute_time_lag(x[0], x[1], rate),
         "emd_players": compute_emd(ims[0], ims[1]),
-        "emd_reference_1": None,
-        "emd_reference_2": None,
     }
-    if getattr(session, "references", None) is not None:
-        ref = np.asarray(session.references, dtype=float)[:, keep]
-        for i in range(2):
-            ref_ims = compute_ims(compute_velocity(ref[i], rate))
-            out[f"emd_reference_{i + 1}"] = compute_emd(ims[i], ref_ims)
+    for i in range(2):
+        finite = references[i][np.isfinite(references[i])]
+        emd = compute_emd(ims[i], compute_ims(finite)) if finite.size else None
+        out[f"emd_reference_{i}"] = emd
     return out

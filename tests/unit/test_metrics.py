@@ -1,7 +1,10 @@
+"""Tests of the coordination metrics against constructed signals with known answers."""
+
 import numpy as np
 import pytest
 
 from mirror_avatar.errors import InputError
+from mirror_avatar.game import Session
 from mirror_avatar.metrics import (
     compute_circular_variance,
     compute_mean_relative_phase,
@@ -9,6 +12,7 @@ from mirror_avatar.metrics import (
     compute_rmse,
     compute_time_lag,
     paired_ttest,
+    session_metrics,
 )
 
 RATE = 100.0
@@ -61,16 +65,14 @@ def test_bad_input():
 
 
 def test_session_metrics_on_two_sinusoids():
-    from types import SimpleNamespace
-
-    from mirror_avatar.metrics import session_metrics
-
     x = np.stack([np.sin(2 * np.pi * 0.5 * T + 0.4), np.sin(2 * np.pi * 0.5 * T)])
     v = np.gradient(x, 1 / RATE, axis=1)
-    s = SimpleNamespace(times=T, positions=x, velocities=v, references=x)
-    m = session_metrics(s, trim=2.0)
+    references = np.stack([v[0], np.full(T.size, np.nan)])
+    session = Session(T, x, v, np.full_like(x, np.nan), references)
+    m = session_metrics(session, trim=2.0)
     assert m["circular_variance"] == pytest.approx(1.0, abs=1e-3)
     assert m["mean_relative_phase"] == pytest.approx(0.4, abs=2e-2)
     assert m["time_lag"] == pytest.approx(0.4 / (2 * np.pi * 0.5), abs=0.011)
     assert m["emd_players"] == pytest.approx(0.0, abs=1e-2)
-    assert m["emd_reference_1"] == pytest.approx(0.0, abs=2e-2)
+    assert m["emd_reference_0"] == pytest.approx(0.0, abs=1e-12)
+    assert m["emd_reference_1"] is None
