@@ -411,10 +411,13 @@ class CyberPlayer:
         The learned action values; set by `initialise_q` or a trainer, or by `load`.
     training_ : dict
         Summary of how the Q-table was trained (seed, sessions, hyper-parameters, last scores).
+    label : str
+        A name for the player (recorded in sessions).
     """
 
     q_table_: Array
     training_: dict[str, Any]
+    label = "cyber player"
 
     def __init__(
         self,
