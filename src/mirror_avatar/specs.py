@@ -1,0 +1,161 @@
+"""Player specs: one string naming a player, as the command line and the live server take them.
+
+A SPEC is one of:
+
+- ``bundled:fast`` / ``bundled:slow``: a virtual trainer whose IMS generator is fitted on all nine
+  bundled trials of that style (`mirror_avatar.datasets.load_zhai2017`, resampled to 100 Hz, k-means
+  seed `BUNDLED_SEED`). Fitted generators are cached in-process and on disk (`cache_dir`).
+- a generator model ``.npz`` (format ``mirror-avatar/ims-generator``): a virtual trainer with that
+  signature;
+- a cyber-player policy ``.npz`` (format ``mirror-avatar/cyber-player``): the trained player (its
+  dynamics are its own, so the role is not used);
+- a recorded trial file (CSV, Parquet, MAT or BIDS-Motion, `mirror_avatar.trial_io.read_trial`):
+  the recording replayed open-loop (`RecordedPlayer`, the role is not used);
+- ``vt:FILE`` with FILE a recorded trial: a virtual trainer whose reference velocity is that
+  recording's.
+
+Virtual trainers take the end-effector and cost parameters of the role. The format of an ``.npz``
+file is read from its JSON metadata without unpickling.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+from functools import lru_cache
+from pathlib import Path
+
+from mirror_avatar import __version__
+from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.errors import InputError
+from mirror_avatar.generator import FORMAT_NAME as GENERATOR_FORMAT
+from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.hkb import HKBParams, preset
+from mirror_avatar.learning import FORMAT_NAME as CYBER_FORMAT
+from mirror_avatar.learning import load_cyber_player
+from mirror_avatar.model_files import read_archive
+from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
+from mirror_avatar.trial_io import read_trial
+from mirror_avatar.trials import DEFAULT_RATE, Trial
+
+__all__ = [
+    "BUNDLED_SEED",
+    "BUNDLED_STYLES",
+    "bundled_generator",
+    "cache_dir",
+    "load_player",
+]
+
+BUNDLED_STYLES = ("fast", "slow")
+"""Styles of the bundled data a ``bundled:`` spec can name."""
+
+BUNDLED_SEED = 0
+"""k-means seed of the generators fitted on the bundled styles (**choice**)."""
+
+SPEC_FORMS = "bundled:fast, bundled:slow, vt:TRIAL_FILE, a model .npz or a trial file"
+
+
+def load_player(spec: str, role: str | HKBParams, seed: int | None = None) -> Player:
+    """Build the player a spec names.
+
+    Parameters
+    ----------
+    spec
+        See the module docstring.
+    role
+        A role preset name (``"leader"``, ``"follower"``, ``"joint"``) or the parameters of the
+        virtual trainer; not used by recorded and cyber players.
+    seed
+        If not None, the player is reset with it before being returned, so it is ready to step.
+        Callers that reset it again with the same seed (`mirror_avatar.game.play`, the live
+        trial) replay exactly the same motion; None leaves the player as built, to be reset by
+        the caller.
+
+    Returns
+    -------
+    Player
+
+    Raises
+    ------
+    InputError
+        ``spec: problem`` for an unknown spec, an unknown role, or a missing or unreadable file.
+    """
+    params = preset(role) if isinstance(role, str) else role
+    player = _build(spec, params)
+    if seed is not None:
+        player.reset(seed)
+    return player
+
+
+def _build(spec: str, params: HKBParams) -> Player:
+    label = f"virtual trainer ({spec})"
+    if spec.startswith("bundled:"):
+        style = spec.removeprefix("bundled:")
+        if style not in BUNDLED_STYLES:
+            raise InputError(
+                spec, f"unknown bundled style {style!r}; expected one of {BUNDLED_STYLES}"
+            )
+        return VirtualTrainer(params, bundled_generator(style), label=label)
+    if spec.startswith("vt:"):
+        trial = _read_recording(spec.removeprefix("vt:"))
+        return VirtualTrainer(params, trial, label=label)
+    path = Path(spec)
+    if path.suffix.lower() == ".npz":
+        return _load_model(path, params, label)
+    if not path.exists():
+        raise InputError(spec, f"no such file, and not a player spec ({SPEC_FORMS})")
+    return RecordedPlayer(_read_recording(spec))
+
+
+def _read_recording(path: str) -> Trial:
+    return read_trial(path).resampled(DEFAULT_RATE)
+
+
+def _load_model(path: Path, params: HKBParams, label: str) -> Player:
+    _, metadata = read_archive(path)
+    kind = metadata.get("format")
+    if kind == GENERATOR_FORMAT:
+        return VirtualTrainer(params, IMSGenerator.load(path), label=label)
+    if kind == CYBER_FORMAT:
+        return load_cyber_player(path)
+    raise InputError(
+        path, f"model format {kind!r} is neither {GENERATOR_FORMAT!r} nor {CYBER_FORMAT!r}"
+    )
+
+
+def cache_dir() -> Path:
+    """Directory of cached fitted models: ``$XDG_CACHE_HOME/mirror-avatar`` (``~/.cache``)."""
+    root = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(root) / "mirror-avatar"
+
+
+@lru_cache(maxsize=len(BUNDLED_STYLES))
+def bundled_generator(style: str) -> IMSGenerator:
+    """Return the IMS generator fitted on all bundled trials of ``style`` at 100 Hz.
+
+    The fitted model is kept on disk under `cache_dir`, in a file named by a hash of the style,
+    the generator's parameters and the package version; it is written atomically, and a file
+    that cannot be read back is refitted and overwritten. An unwritable cache only costs a refit.
+
+    Parameters
+    ----------
+    style
+        One of `BUNDLED_STYLES`.
+    """
+    model = IMSGenerator(rate=DEFAULT_RATE, random_state=BUNDLED_SEED)
+    key = json.dumps(
+        {"style": style, "parameters": model.get_params(), "version": __version__}, sort_keys=True
+    )
+    path = cache_dir() / f"bundled-{style}-{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
+    if path.is_file():
+        try:
+            return IMSGenerator.load(path)
+        except InputError:
+            pass
+    trials = [t.resampled(DEFAULT_RATE) for t in load_zhai2017() if t.group == style]
+    model.fit(trials)
+    with contextlib.suppress(OSError):
+        model.save(path)
+    return model
