@@ -15,6 +15,7 @@ from mirror_avatar.cli.info import info
 from mirror_avatar.cli.play import play
 from mirror_avatar.cli.reproduce import reproduce
 from mirror_avatar.cli.signature import signature
+from mirror_avatar.cli.simulate import evaluate, simulate
 from mirror_avatar.errors import InputError
 
 
@@ -28,6 +29,8 @@ cli.add_command(info)
 cli.add_command(play)
 cli.add_command(reproduce)
 cli.add_command(signature)
+cli.add_command(simulate)
+cli.add_command(evaluate)
 
 
 def main(argv: list[str] | None = None) -> int:

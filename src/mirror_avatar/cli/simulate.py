@@ -1,0 +1,140 @@
+"""``mirror-avatar simulate`` and ``evaluate``: play a session of two players, measure a session."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import click
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.game import Session, load_session, play
+from mirror_avatar.metrics import session_metrics
+from mirror_avatar.specs import load_player
+
+TRIM = 1.0
+"""Seconds of start-up transient left out of the metrics by default (**choice**)."""
+
+METRIC_ROWS = (
+    ("circular_variance", "CV (phase locking, 0-1)", ""),
+    ("rmse", "RMSE", "units"),
+    ("mean_relative_phase", "mean relative phase (player 0 - player 1)", "rad"),
+    ("sd_relative_phase", "circular SD of relative phase", "rad"),
+    ("time_lag", "time lag (player 0 ahead > 0)", "s"),
+    ("emd_players", "EMD between the players' IMS", ""),
+    ("emd_reference_0", "EMD player 0 to its reference IMS", ""),
+    ("emd_reference_1", "EMD player 1 to its reference IMS", ""),
+)
+"""(key, description, unit) of the metrics `evaluate` prints, in order."""
+
+SPEC_HELP = (
+    "A player spec: bundled:fast, bundled:slow, a generator or cyber-player .npz, a recorded "
+    "trial file (replayed), or vt:TRIAL_FILE."
+)
+
+
+def format_metrics(metrics: dict[str, Any]) -> str:
+    """Render `mirror_avatar.metrics.session_metrics` output as an aligned text table."""
+    width = max(len(description) for _, description, _ in METRIC_ROWS)
+    lines = []
+    for key, description, unit in METRIC_ROWS:
+        value = metrics.get(key)
+        shown = "-" if value is None else f"{value:.4f}"
+        lines.append(f"{description:<{width}}  {shown:>8}  {unit}".rstrip())
+    return "\n".join(lines)
+
+
+def _check_out_dir(out_dir: Path) -> None:
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, "exists and is not a directory")
+
+
+def _write_outputs(session: Session, out_dir: Path, summary: dict[str, Any]) -> Path:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    session.save(out_dir / "session.parquet")
+    session.save_csv(out_dir / "session.csv")
+    metrics_path = out_dir / "metrics.json"
+    metrics_path.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    return metrics_path
+
+
+@click.command()
+@click.option("--leader", "leader_spec", required=True, help=f"Player 0. {SPEC_HELP}")
+@click.option("--follower", "follower_spec", required=True, help=f"Player 1. {SPEC_HELP}")
+@click.option(
+    "--joint",
+    is_flag=True,
+    help="Joint improvisation: both virtual trainers take the joint preset, neither leads.",
+)
+@click.option("--duration", type=float, default=60.0, show_default=True, help="Session length (s).")
+@click.option("--seed", type=int, default=None, help="Session seed (default: fresh, recorded).")
+@click.option(
+    "--trim", type=float, default=TRIM, show_default=True, help="Seconds left out of the metrics."
+)
+@click.option(
+    "--out",
+    "out_dir",
+    required=True,
+    type=click.Path(path_type=Path),
+    help="Directory for session.parquet/.csv/.json and metrics.json.",
+)
+def simulate(
+    leader_spec: str,
+    follower_spec: str,
+    joint: bool,
+    duration: float,
+    seed: int | None,
+    trim: float,
+    out_dir: Path,
+) -> None:
+    """Play a session between two players and write it with its metrics.
+
+    Player 0 is the --leader, player 1 the --follower; virtual trainers take the leader and
+    follower presets (both the joint preset with --joint). Relative phase and time lag are
+    player 0 minus player 1: positive when player 0 is ahead.
+    """
+    _check_out_dir(out_dir)
+    if not duration > 0.0:
+        raise InputError("--duration", f"must be positive, got {duration:g} s")
+    if not 0.0 <= trim < duration:
+        raise InputError("--trim", f"must lie in [0, duration) = [0, {duration:g}) s, got {trim:g}")
+    roles = ("joint", "joint") if joint else ("leader", "follower")
+    players = [
+        load_player(spec, role)
+        for spec, role in zip((leader_spec, follower_spec), roles, strict=True)
+    ]
+    session = play(players[0], players[1], duration=duration, seed=seed, roles=roles)
+    session.metadata["specs"] = [leader_spec, follower_spec]
+    metrics = session_metrics(session, trim=trim)
+    summary = {
+        "seed": session.metadata["seed"],
+        "specs": {"player 0": leader_spec, "player 1": follower_spec},
+        "roles": list(roles),
+        "duration": session.duration,
+        "trim": trim,
+        "convention": "relative phase and time lag: player 0 minus player 1, positive = 0 ahead",
+        "metrics": metrics,
+    }
+    metrics_path = _write_outputs(session, out_dir, summary)
+    click.echo(
+        f"player 0 ({roles[0]}): {leader_spec}; player 1 ({roles[1]}): {follower_spec}; "
+        f"{session.duration:g} s, seed {summary['seed']}"
+    )
+    click.echo(format_metrics(metrics))
+    click.echo(f"wrote {metrics_path.parent.resolve()}")
+
+
+@click.command()
+@click.argument("session_path", type=click.Path(path_type=Path))
+@click.option(
+    "--trim", type=float, default=TRIM, show_default=True, help="Seconds left out of the metrics."
+)
+@click.option("--json", "as_json", is_flag=True, help="Print the metrics as JSON.")
+def evaluate(session_path: Path, trim: float, as_json: bool) -> None:
+    """Print the coordination metrics of a saved session (.parquet or .csv).
+
+    Relative phase and time lag are player 0 minus player 1: positive when player 0 is ahead.
+    """
+    metrics = session_metrics(load_session(session_path), trim=trim)
+    click.echo(json.dumps(metrics, indent=2) if as_json else format_metrics(metrics))

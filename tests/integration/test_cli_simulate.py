@@ -1,0 +1,119 @@
+"""``mirror-avatar simulate`` and ``evaluate`` through the command line."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mirror_avatar.cli import main
+from mirror_avatar.game import load_session
+from mirror_avatar.metrics import session_metrics
+from mirror_avatar.specs import bundled_generator
+from mirror_avatar.trial_io import write_trial
+from mirror_avatar.trials import Trial
+
+
+@pytest.fixture(autouse=True)
+def private_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fitted bundled generators go to a per-test cache."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    bundled_generator.cache_clear()
+
+
+def _simulate(out: Path, *extra: str) -> int:
+    arguments = ["simulate", "--duration", "20", "--out", str(out), *extra]
+    return main(arguments)
+
+
+def test_simulate_writes_session_and_metrics(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    status = _simulate(out, "--leader", "bundled:slow", "--follower", "bundled:fast", "--seed", "7")
+    printed = capsys.readouterr().out
+    assert status == 0
+    assert str(out.resolve()) in printed and "CV" in printed
+    summary = json.loads((out / "metrics.json").read_text())
+    assert summary["seed"] == 7
+    assert summary["specs"] == {"player 0": "bundled:slow", "player 1": "bundled:fast"}
+    assert summary["roles"] == ["leader", "follower"]
+    parquet = load_session(out / "session.parquet")
+    csv = load_session(out / "session.csv")
+    np.testing.assert_allclose(csv.positions, parquet.positions, rtol=1e-12)
+    assert parquet.times.size == round(20 / 0.03) + 1
+    assert parquet.metadata["specs"] == ["bundled:slow", "bundled:fast"]
+    recomputed = session_metrics(parquet, trim=summary["trim"])
+    assert recomputed == pytest.approx(summary["metrics"])
+    assert summary["metrics"]["emd_reference_0"] < summary["metrics"]["emd_reference_1"]
+
+    assert main(["evaluate", str(out / "session.parquet"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == pytest.approx(summary["metrics"])
+    assert main(["evaluate", str(out / "session.csv")]) == 0
+    table = capsys.readouterr().out
+    cv = summary["metrics"]["circular_variance"]
+    assert f"{cv:.4f}" in table.splitlines()[0]
+
+
+def test_same_seed_same_session(tmp_path: Path) -> None:
+    specs = ["--leader", "bundled:slow", "--follower", "bundled:slow", "--seed", "3"]
+    assert _simulate(tmp_path / "a", *specs) == 0
+    assert _simulate(tmp_path / "b", *specs) == 0
+    a = load_session(tmp_path / "a" / "session.parquet")
+    b = load_session(tmp_path / "b" / "session.parquet")
+    np.testing.assert_array_equal(a.positions, b.positions)
+
+
+def test_recorded_leader_and_joint_roles(tmp_path: Path, zhai_trials: list[Trial]) -> None:
+    person = tmp_path / "person.csv"
+    write_trial(zhai_trials[12], person)
+    out = tmp_path / "run"
+    status = _simulate(out, "--leader", str(person), "--follower", f"vt:{person}", "--joint")
+    assert status == 0
+    session = load_session(out / "session.parquet")
+    assert session.roles == ("joint", "joint")
+    assert session.metadata["players"][0]["class"] == "RecordedPlayer"
+    assert np.all(np.isnan(session.references[0]))
+    summary = json.loads((out / "metrics.json").read_text())
+    assert summary["metrics"]["emd_reference_0"] is None
+    assert isinstance(summary["seed"], int)
+
+
+@pytest.mark.parametrize(
+    ("arguments", "source"),
+    [
+        (["--leader", "nobody", "--follower", "bundled:slow"], "nobody"),
+        (["--leader", "bundled:slow", "--follower", "bundled:medium"], "bundled:medium"),
+        (["--leader", "bundled:slow", "--follower", "bundled:slow", "--trim", "60"], "--trim"),
+        (["--leader", "bundled:slow", "--follower", "bundled:slow", "--duration", "0"], "--dur"),
+    ],
+)
+def test_simulate_bad_input(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], arguments: list[str], source: str
+) -> None:
+    status = main(["simulate", "--out", str(tmp_path / "out"), *arguments])
+    error = capsys.readouterr().err
+    assert status == 2
+    assert error.startswith(f"mirror-avatar: error: {source}") and error.count("\n") == 1
+
+
+def test_bad_input_through_the_console_script(tmp_path: Path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    command = "from mirror_avatar.cli import run; run()"
+    runs = [
+        ["evaluate", str(tmp_path / "missing.parquet")],
+        ["evaluate", str(blocker)],
+        ["simulate", "--leader", "bundled:slow", "--follower", "x.npz", "--out", str(blocker)],
+    ]
+    for arguments in runs:
+        result = subprocess.run(
+            [sys.executable, "-c", command, *arguments], capture_output=True, text=True, check=False
+        )
+        assert result.returncode == 2, result.stderr
+        assert result.stderr.startswith("mirror-avatar: error: ")
+        assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
