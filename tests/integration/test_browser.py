@@ -171,7 +171,6 @@ def test_keyboard_moves_the_dot_at_a_constant_speed(chromium, server, tmp_path):
 
 
 def test_avatar_follows_the_driven_mouse(chromium, server, tmp_path):
-    pytest.importorskip("mirror_avatar.specs")
     page = chromium.new_page(viewport={"width": 1100, "height": 760})
     start_trial(page, server.url, "avatar_follows", 5)
     driven = drive(page, 10)
@@ -199,7 +198,6 @@ def chromium_mains() -> set[int]:
 
 
 def test_killing_the_browser_mid_trial_leaves_an_incomplete_trial(playwright, server, tmp_path):
-    pytest.importorskip("mirror_avatar.specs")
     before = chromium_mains()
     browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
     (main,) = chromium_mains() - before
@@ -223,7 +221,6 @@ def test_killing_the_browser_mid_trial_leaves_an_incomplete_trial(playwright, se
 
 
 def test_server_keeps_serving_and_tabs_can_close(chromium, server, tmp_path):
-    pytest.importorskip("mirror_avatar.specs")
     page = chromium.new_page()
     start_trial(page, server.url, "solo", 30)
     drive(page, 0.5)

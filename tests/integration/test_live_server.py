@@ -158,7 +158,6 @@ def test_solo_trial_is_recorded_as_a_trial_csv(live, tmp_path):
 
 
 def test_avatar_modes_write_a_session_with_both_players(live, tmp_path):
-    pytest.importorskip("mirror_avatar.metrics")
     player = live.open(live.serve())
     player.start("avatar_leads", 1.0)
     summary = player.play(sway)
@@ -305,7 +304,6 @@ def test_server_without_avatar_offers_solo_only(live):
 
 
 def test_default_avatar_is_the_engine_virtual_trainer(live, tmp_path):
-    pytest.importorskip("mirror_avatar.specs")
     player = live.open(live.serve(factory=make_avatar_factory()))
     player.start("avatar_follows", 2.0)
     summary = player.play(sway)
@@ -333,7 +331,6 @@ def free_port() -> int:
 
 
 def test_play_command_requires_a_token_off_loopback(tmp_path):
-    pytest.importorskip("mirror_avatar.specs")
     port = free_port()
     process = run_play("--host", "0.0.0.0", "--port", str(port), out_dir=tmp_path)
     try:
@@ -362,7 +359,6 @@ def test_play_command_requires_a_token_off_loopback(tmp_path):
 
 
 def test_play_command_rejects_a_bad_avatar_in_one_line(tmp_path):
-    pytest.importorskip("mirror_avatar.specs")
     process = run_play("--avatar", "no-such-avatar:xyz", "--port", "0", out_dir=tmp_path)
     out, err = process.communicate(timeout=60)
     assert process.returncode == 2

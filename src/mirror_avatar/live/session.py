@@ -38,6 +38,12 @@ from typing import IO, Any
 import numpy as np
 
 from mirror_avatar.live.protocol import StartRequest
+from mirror_avatar.metrics import (
+    compute_circular_variance,
+    compute_mean_relative_phase,
+    compute_relative_phase,
+    compute_rmse,
+)
 from mirror_avatar.players import CONTROL_PERIOD, Player
 from mirror_avatar.signature import DEFAULT_BINS, compute_emd, compute_ims
 from mirror_avatar.trials import DEFAULT_RATE, MIN_SAMPLES, make_trial
@@ -267,12 +273,6 @@ def compute_trial_metrics(
     }
     if avatar is None:
         return result
-    from mirror_avatar.metrics import (
-        compute_circular_variance,
-        compute_relative_phase,
-        compute_rmse,
-    )
-
     avatar_trial = make_trial(times, avatar).resampled(DEFAULT_RATE)
     avatar_velocity = avatar_trial.velocity()
     avatar_ims = compute_ims(avatar_velocity)
@@ -282,7 +282,7 @@ def compute_trial_metrics(
     result["emd"] = compute_emd(person_ims, avatar_ims)
     result["rmse"] = float(compute_rmse(person_trial.positions, avatar_trial.positions))
     result["circular_variance"] = float(compute_circular_variance(phase))
-    result["relative_phase"] = float(np.angle(np.mean(np.exp(1j * phase))))
+    result["relative_phase"] = compute_mean_relative_phase(phase)
     return result
 
 
