@@ -14,6 +14,7 @@ from mirror_avatar.metrics import (
     paired_ttest,
     session_metrics,
 )
+from mirror_avatar.signature import DEFAULT_BINS
 
 RATE = 100.0
 T = np.arange(0, 30, 1 / RATE)
@@ -76,3 +77,17 @@ def test_session_metrics_on_two_sinusoids():
     assert m["emd_players"] == pytest.approx(0.0, abs=1e-2)
     assert m["emd_reference_0"] == pytest.approx(0.0, abs=1e-12)
     assert m["emd_reference_1"] is None
+
+
+def test_session_emd_to_reference_is_the_shift_of_the_velocities():
+    x = np.stack([0.3 * np.sin(2 * np.pi * 0.5 * T), 0.3 * np.sin(2 * np.pi * 0.5 * T + 1.0)])
+    v = np.gradient(x, 1 / RATE, axis=1)
+    shift = 0.25
+    references = v + shift
+    references[:, -1] = np.nan
+    session = Session(T, x, v, np.full_like(x, np.nan), references)
+    m = session_metrics(session)
+    bins = DEFAULT_BINS
+    expected = shift / (bins.hi - bins.lo)
+    for key in ("emd_reference_0", "emd_reference_1"):
+        assert m[key] == pytest.approx(expected, abs=bins.width / (bins.hi - bins.lo))
