@@ -1,7 +1,14 @@
 import numpy as np
+import pytest
 from matplotlib.figure import Figure
+from matplotlib.patches import StepPatch
 
-from mirror_avatar.figures import plot_ims, plot_similarity_space, plot_skew_kurtosis
+from mirror_avatar.figures import (
+    plot_ims,
+    plot_relative_phase,
+    plot_similarity_space,
+    plot_skew_kurtosis,
+)
 from mirror_avatar.report import render_png
 from mirror_avatar.signature import DEFAULT_BINS, confidence_ellipse
 
@@ -38,4 +45,22 @@ def test_plot_skew_kurtosis_with_human_range(rng):
     (axes,) = figure.axes
     assert len(axes.patches) == 2
     assert len(plot_skew_kurtosis(moments, show_human_range=False).axes[0].patches) == 0
+    assert render_png(figure).startswith(b"\x89PNG")
+
+
+def test_plot_relative_phase_draws_densities_and_circular_means(rng):
+    phases = {
+        "locked": rng.vonmises(0.5, 8.0, size=4000),
+        "across pi": rng.vonmises(3.0, 8.0, 4000),
+    }
+    figure = plot_relative_phase(phases, n_bins=36)
+    (axes,) = figure.axes
+    assert len(axes.patches) == 2
+    for patch in axes.patches:
+        assert isinstance(patch, StepPatch)
+        values, edges, _ = patch.get_data()
+        assert np.sum(values * np.diff(edges)) == pytest.approx(1.0)
+    means = [float(np.asarray(line.get_xdata())[0]) for line in axes.lines]
+    assert means[0] == pytest.approx(0.5, abs=0.03)
+    assert abs(means[1]) == pytest.approx(3.0, abs=0.03)
     assert render_png(figure).startswith(b"\x89PNG")
