@@ -30,12 +30,14 @@ from collections.abc import Sequence
 from typing import Any, Self
 
 import numpy as np
+import pandas as pd
 from numba import njit
 from numpy.typing import NDArray
 from sklearn.cluster import KMeans
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.model_files import load_model, save_model
+from mirror_avatar.signature import compute_emd, compute_ims
 from mirror_avatar.stft import (
     compute_stft,
     features_to_spectra,
@@ -378,3 +380,58 @@ class IMSGenerator:
         model.startprob_ = arrays["startprob"].astype(np.float64)
         model._prepare_sampling()
         return model
+
+
+def sweep_codebook(
+    train_trials: Sequence[Trial],
+    test_trials: Sequence[Trial],
+    sizes: Sequence[int] = (32, 64, 128, 256),
+    random_state: int | None = 0,
+    duration: float = 60.0,
+) -> pd.DataFrame:
+    """Fit a generator for each codebook size and compare it with held-out human trials.
+
+    The paper chose N = 256 after such a sweep over 32-256 (METHODS section 4, step 3).
+
+    Parameters
+    ----------
+    train_trials
+        Trials the generators are fitted on.
+    test_trials
+        Held-out human trials of the same person or style (at least one).
+    sizes
+        Codebook sizes N to try.
+    random_state
+        Seed of k-means and of the generated trials (the same for every size).
+    duration
+        Length (s) of each generated trial; as many are generated as there are test trials.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Indexed by ``n_symbols``, columns ``train_distortion`` and ``test_distortion`` (mean
+        squared quantisation error per feature), ``symbols_used`` (fraction of code vectors the
+        training frames use), ``test_log_likelihood`` (mean log-probability per transition of the
+        test trials' symbols) and ``emd_to_test`` (mean EMD between the IMS of each generated
+        trial and each test trial).
+    """
+    if not test_trials:
+        raise InputError("test_trials", "the codebook sweep needs held-out trials")
+    rows = []
+    for size in sizes:
+        model = IMSGenerator(n_symbols=int(size), random_state=random_state).fit(train_trials)
+        human = [compute_ims(compute_velocity(model._signal(t), model.rate)) for t in test_trials]
+        test = model.score(test_trials)
+        generated = model.sample(duration, n=len(test_trials), random_state=random_state)
+        emd = [compute_emd(compute_ims(g.velocity()), h) for g in generated for h in human]
+        rows.append(
+            {
+                "n_symbols": int(size),
+                "train_distortion": model.training_summary_["distortion"],
+                "test_distortion": test["distortion"],
+                "symbols_used": model.training_summary_["symbols_used"],
+                "test_log_likelihood": test["log_likelihood"],
+                "emd_to_test": float(np.mean(emd)),
+            }
+        )
+    return pd.DataFrame(rows).set_index("n_symbols")

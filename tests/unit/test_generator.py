@@ -11,6 +11,7 @@ from mirror_avatar.generator import (
     count_transitions,
     estimate_transitions,
     sample_chain,
+    sweep_codebook,
 )
 from mirror_avatar.signature import compute_emd, compute_ims, stroke_moments
 
@@ -139,3 +140,15 @@ def test_generated_motion_has_its_person_signature(zhai_trials_100hz: list) -> N
         human = np.vstack([stroke_moments(t.velocity()) for t in styles[style]])
         synthetic = np.vstack([stroke_moments(t.velocity()) for t in generated[style]])
         assert np.all(np.abs(synthetic.mean(axis=0) - human.mean(axis=0)) <= human.std(axis=0))
+
+
+def test_codebook_sweep_distortion_falls_with_size(zhai_trials_100hz: list) -> None:
+    train, test = zhai_trials_100hz[9:11], zhai_trials_100hz[11:12]
+    sweep = sweep_codebook(train, test, sizes=(8, 32), random_state=0, duration=20.0)
+    assert list(sweep.index) == [8, 32]
+    assert sweep.loc[32, "train_distortion"] < sweep.loc[8, "train_distortion"]
+    assert sweep.loc[32, "test_distortion"] < sweep.loc[8, "test_distortion"]
+    assert np.all(sweep["test_log_likelihood"] < 0)
+    assert np.all((sweep["emd_to_test"] > 0) & (sweep["emd_to_test"] < 0.1))
+    with pytest.raises(InputError, match="held-out"):
+        sweep_codebook(train, [], sizes=(8,))
