@@ -145,6 +145,61 @@ def plot_skew_kurtosis(
     return figure
 
 
+def plot_learning_curves(
+    curves: Mapping[str, tuple[ArrayLike, ArrayLike]],
+    baselines: Mapping[str, float] | None = None,
+    title: str = "Cyber player: learning curves",
+) -> Figure:
+    """RMS position error to the target against training sessions, one line per run.
+
+    Parameters
+    ----------
+    curves
+        Run name -> (sessions trained, shape (k,); RMS to the target over the block, units,
+        shape (k,)).
+    baselines
+        Optional name -> a constant RMS (units) drawn as a dashed horizontal line.
+    title
+        Axes title.
+    """
+    figure, axes = _new_figure()
+    colours = _colours(list(curves) + list(baselines or {}))
+    for name, (sessions, rms) in curves.items():
+        axes.plot(np.asarray(sessions), np.asarray(rms), color=colours[name], lw=1.5, label=name)
+    for name, value in (baselines or {}).items():
+        axes.axhline(value, color=colours[name], ls="--", lw=1.0, label=name)
+    axes.set(xlabel="training sessions", ylabel="RMS to the target (units)", title=title)
+    axes.set_ylim(bottom=0.0)
+    axes.legend(frameon=False)
+    return figure
+
+
+def plot_positions(
+    times: ArrayLike,
+    positions: Mapping[str, ArrayLike],
+    title: str = "Positions",
+) -> Figure:
+    """Position time series of several players on one time axis.
+
+    Parameters
+    ----------
+    times
+        Sample times (s), shape (n,).
+    positions
+        Player name -> positions (units), shape (n,).
+    title
+        Axes title.
+    """
+    figure, axes = _new_figure()
+    colours = _colours(list(positions))
+    t = np.asarray(times, dtype=np.float64)
+    for name, x in positions.items():
+        axes.plot(t, np.asarray(x, dtype=np.float64), color=colours[name], lw=1.2, label=name)
+    axes.set(xlabel="time (s)", ylabel="position (units)", title=title)
+    axes.legend(frameon=False)
+    return figure
+
+
 def _new_figure() -> tuple[Figure, Axes]:
     figure = Figure(figsize=FIGSIZE, layout="constrained")
     FigureCanvasAgg(figure)

@@ -1,0 +1,99 @@
+"""``mirror-avatar train``: teach a cyber player to imitate a virtual trainer (METHODS 7)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.specs import load_player
+from mirror_avatar.training import (
+    TRAINING_ROLES,
+    Reference,
+    learning_curve_path,
+    train_cyber_player,
+)
+
+MODEL_HELP = "An IMS generator .npz, bundled:fast, bundled:slow or vt:TRIAL_FILE."
+
+
+def load_reference(spec: str) -> Reference:
+    """Return the generator (or recorded trial) a model spec names; InputError for other players."""
+    player = load_player(spec, "follower")
+    if not isinstance(player, VirtualTrainer):
+        raise InputError(spec, f"names a {type(player).__name__}, not a virtual trainer model")
+    return player.reference
+
+
+@click.command()
+@click.option("--target", "target_spec", required=True, help=f"The person to imitate. {MODEL_HELP}")
+@click.option(
+    "--partners",
+    "partner_specs",
+    required=True,
+    multiple=True,
+    help="Training partners (repeat the option or separate with commas). " + MODEL_HELP,
+)
+@click.option(
+    "--role", type=click.Choice(TRAINING_ROLES), default="follower", show_default=True,
+    help="The role the cyber player learns; the partners take the other one.",
+)  # fmt: skip
+@click.option("--sessions", type=int, required=True, help="Training sessions of --duration s.")
+@click.option("--duration", type=float, default=60.0, show_default=True, help="Session length (s).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Run seed (recorded).")
+@click.option("--scheduler", default=None, help="Dask scheduler address (tcp://host:port).")
+@click.option("--jobs", type=int, default=2, show_default=True, help="Local processes.")
+@click.option(
+    "--checkpoint-every", type=int, default=None, help="Also save the policy every N sessions."
+)
+@click.option(
+    "--out", "out_path", required=True, type=click.Path(path_type=Path), help="Policy .npz file."
+)
+def train(
+    target_spec: str,
+    partner_specs: tuple[str, ...],
+    role: str,
+    sessions: int,
+    duration: float,
+    seed: int,
+    scheduler: str | None,
+    jobs: int,
+    checkpoint_every: int | None,
+    out_path: Path,
+) -> None:
+    """Train a cyber player on virtual-trainer sessions and write the policy.
+
+    Each session, a partner (in turn) plays with the target; the cyber player watches the
+    partner and is rewarded for moving like the target. Writes OUT and
+    OUT.learning_curve.csv (the stem of OUT, then .learning_curve.csv).
+    """
+    if out_path.suffix.lower() != ".npz":
+        raise InputError(out_path, "the policy file must end in .npz")
+    if sessions < 1 or jobs < 1 or (checkpoint_every is not None and checkpoint_every < 1):
+        raise InputError("--sessions", "--sessions, --jobs and --checkpoint-every must be >= 1")
+    if not duration > 0.0:
+        raise InputError("--duration", f"must be positive, got {duration:g} s")
+    specs = [s.strip() for spec in partner_specs for s in spec.split(",") if s.strip()]
+    target = load_reference(target_spec)
+    partners = [load_reference(spec) for spec in specs]
+    player, curve = train_cyber_player(
+        target,
+        partners,
+        role=role,  # type: ignore[arg-type]
+        n_sessions=sessions,
+        seed=seed,
+        duration=duration,
+        backend="dask" if scheduler else "local",
+        scheduler=scheduler,
+        n_jobs=jobs,
+        checkpoint=out_path,
+        checkpoint_every=checkpoint_every,
+    )
+    curve_path = curve.save(learning_curve_path(out_path))
+    click.echo(
+        f"trained a {role} on {sessions} sessions (seed {seed}): RMS to the target "
+        f"{curve.rms[0]:.4f} -> {curve.rms[-1]:.4f} units"
+    )
+    click.echo(f"wrote {out_path.resolve()} and {curve_path.resolve()}")

@@ -1,0 +1,446 @@
+"""Validation of the cyber player (paper Tables I-II, figures 8-9; METHODS section 7).
+
+A cyber player is trained to imitate VT5 as a follower and as a leader (`mirror_avatar.training`),
+then replaces VT5 and plays closed-loop (`mirror_avatar.game.play`) with VT1..VT4 (seen in
+training) and VT6 (unseen). Each partner plays the same seeded sessions with VT5 and with the
+cyber player, so CV and RMS can be compared by paired t-tests (the paper finds no significant
+difference, all p > 0.05). Also reported: EMD of each player's velocity signature to the
+partner's, the similarity-space regions of VT5, the cyber player and the partners with their
+overlaps, example position time series, learning curves, and a baseline comparison on held-out
+virtual-trainer sessions: RMS to VT5 of the trained player, of an untrained one (random Q) and of
+simply copying the partner.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from mirror_avatar.batch import run_sessions
+from mirror_avatar.figures import plot_learning_curves, plot_positions, plot_similarity_space
+from mirror_avatar.game import Session, play
+from mirror_avatar.learning import CyberPlayer, LearningCurve
+from mirror_avatar.metrics import (
+    compute_circular_variance,
+    compute_relative_phase,
+    compute_rmse,
+    paired_ttest,
+)
+from mirror_avatar.report import Section
+from mirror_avatar.signature import (
+    classical_mds,
+    compute_emd,
+    compute_emd_matrix,
+    compute_ims,
+    confidence_ellipse,
+    ellipse_overlap,
+)
+from mirror_avatar.training import (
+    SEEN_PARTNERS,
+    TARGET,
+    TRAINING_ROLES,
+    UNSEEN_PARTNER,
+    Role,
+    VirtualTrainerSpec,
+    derive_seeds,
+    make_cyber_player,
+    make_pairs,
+    make_virtual_trainers,
+    train_cyber_player,
+)
+from mirror_avatar.trials import Trial
+
+TRAINING_SESSIONS = 2000
+"""Training sessions per role by default (**choice**: keeps ``make demo`` to a few minutes; the
+paper used about 24 000)."""
+
+QUICK_TRAINING_SESSIONS = 300
+VALIDATION_SESSIONS = 20
+"""Sessions per partner and role in validation (the paper's 20)."""
+
+QUICK_VALIDATION_SESSIONS = 4
+BASELINE_SESSIONS = 100
+"""Held-out virtual-trainer sessions for the baseline comparison."""
+
+QUICK_BASELINE_SESSIONS = 20
+TRIM = 1.0
+"""Seconds of start-up transient left out of every metric (**choice**)."""
+
+PAPER = {"cv": (0.74, 0.90), "rms": (0.10, 0.12), "emd": (0.002, 0.008)}
+"""The paper's Table I ranges."""
+
+
+@dataclass
+class RoleResult:
+    """Everything measured for one role: training, closed-loop validation and baselines."""
+
+    role: Role
+    curve: LearningCurve
+    train_seconds: float
+    records: pd.DataFrame
+    velocities: dict[str, list[np.ndarray]]
+    example: tuple[Session, Session]
+    baselines: dict[str, float]
+
+
+def run(
+    trials: Sequence[Trial],
+    quick: bool = False,
+    seed: int = 0,
+    n_sessions: int | None = None,
+    n_validation: int | None = None,
+    n_jobs: int = 2,
+) -> Section:
+    """Train the cyber player as follower and leader and validate it against VT5.
+
+    Parameters
+    ----------
+    trials
+        Solo trials; six virtual trainers are made from them (`make_virtual_trainers`).
+    quick
+        Fewer training sessions (`QUICK_TRAINING_SESSIONS`) and validation sessions.
+    seed
+        Seeds the generators, the training runs, the validation and baseline sessions.
+    n_sessions, n_validation
+        Override the number of training sessions per role and validation sessions per partner.
+    n_jobs
+        Local processes generating training sessions.
+
+    Returns
+    -------
+    Section
+        Tables I-II in the paper's layout, baselines, figures and metrics.
+    """
+    n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else TRAINING_SESSIONS)
+    n_valid = n_validation or (QUICK_VALIDATION_SESSIONS if quick else VALIDATION_SESSIONS)
+    n_base = QUICK_BASELINE_SESSIONS if quick else BASELINE_SESSIONS
+    trainers = make_virtual_trainers(trials, seed=seed)
+    results = [
+        run_role(trainers, role, n_train, n_valid, n_base, seed, n_jobs) for role in TRAINING_ROLES
+    ]
+    table_one = pd.concat([make_table_one(r) for r in results])
+    table_two = pd.concat([make_table_two(r) for r in results])
+    baselines = pd.DataFrame({r.role: r.baselines for r in results}).T
+    regions = {r.role: compute_regions(r.velocities) for r in results}
+    overlaps = pd.concat({role: reg[2] for role, reg in regions.items()})
+    metrics = _metrics(results, table_one, table_two, overlaps, trainers, seed, n_train, n_valid)
+    figures: dict[str, Any] = {}
+    for result in results:
+        points, ellipses, _ = regions[result.role]
+        figures |= {
+            f"Learning curve, {result.role} (dashed: baselines on held-out sessions)": (
+                plot_learning_curves(
+                    {"trained cyber player": (result.curve.sessions, result.curve.rms)},
+                    {f"{k} (held out)": v for k, v in result.baselines.items()},
+                    title=f"Learning to imitate VT5 as {result.role}",
+                )
+            ),
+            f"Similarity space, {result.role}: 70% regions of VT5, cyber player, partners": (
+                plot_similarity_space(points, ellipses)
+            ),
+            f"Example positions, {result.role}, partner VT1 (first 20 s)": _plot_example(result),
+        }
+    return Section(
+        key="cyber_player",
+        title="Cyber player: learning to move like VT5 (Tables I-II)",
+        text=_describe(results, table_two, n_train, n_valid),
+        tables={
+            "Table I: VT5 and the cyber player against each partner (mean +- SD)": table_one,
+            "Table II: paired t-tests, VT5 vs cyber player": table_two,
+            "RMS to VT5 on held-out VT sessions (units): trained, untrained, copy partner": (
+                baselines
+            ),
+            "Overlap of the similarity-space regions (intersection / union)": overlaps,
+        },
+        figures=figures,
+        metrics=metrics,
+    )
+
+
+def run_role(
+    trainers: Sequence[VirtualTrainerSpec],
+    role: Role,
+    n_train: int,
+    n_valid: int,
+    n_base: int,
+    seed: int,
+    n_jobs: int,
+) -> RoleResult:
+    """Train for ``role``, then validate closed-loop and against the baselines."""
+    target = trainers[TARGET]
+    start = time.perf_counter()
+    player, curve = train_cyber_player(
+        target.generator,
+        [trainers[i].generator for i in SEEN_PARTNERS],
+        role=role,
+        n_sessions=n_train,
+        seed=seed,
+        n_jobs=n_jobs,
+    )
+    seconds = time.perf_counter() - start
+    records, velocities, example = validate(player, trainers, role, n_valid, seed)
+    baselines = compare_baselines(player, trainers, role, n_base, seed, n_jobs)
+    return RoleResult(role, curve, seconds, records, velocities, example, baselines)
+
+
+def validate(
+    player: CyberPlayer,
+    trainers: Sequence[VirtualTrainerSpec],
+    role: Role,
+    n_sessions: int,
+    seed: int,
+) -> tuple[pd.DataFrame, dict[str, list[np.ndarray]], tuple[Session, Session]]:
+    """Play each partner against VT5 and against the cyber player, the same seeds for both.
+
+    The partner (player 0) takes the other role's preset; VT5 or the cyber player is player 1.
+
+    Returns
+    -------
+    records : DataFrame
+        One row per session: partner, player (``"VT5"`` or ``"cyber player"``), session index,
+        ``cv``, ``rms`` (to the partner, units), ``emd`` (velocity IMS to the partner's).
+    velocities : dict
+        ``"VT5"``, ``"cyber player"``, ``"partners"`` -> each session's velocity (units/s) after
+        the transient (partners: from the VT5 sessions).
+    example : tuple of Session
+        The first session with VT1: with VT5, with the cyber player.
+    """
+    other = "leader" if role == "follower" else "follower"
+    roles = (other, role)
+    seeds = np.random.SeedSequence([seed, 1]).generate_state(n_sessions)
+    rows: list[dict[str, Any]] = []
+    velocities: dict[str, list[np.ndarray]] = {"VT5": [], "cyber player": [], "partners": []}
+    sessions: list[Session] = []
+    for index in (*SEEN_PARTNERS, UNSEEN_PARTNER):
+        partner = trainers[index].player(other)
+        for k, s in enumerate(seeds):
+            for name, avatar in (("VT5", trainers[TARGET].player(role)), ("cyber player", player)):
+                session = play(partner, avatar, seed=int(s), roles=roles)
+                keep = session.times >= TRIM
+                rows.append(
+                    {"partner": trainers[index].label, "player": name, "session": k}
+                    | measure(session.positions[:, keep], session.velocities[:, keep])
+                )
+                velocities[name].append(session.velocities[1, keep])
+                if name == "VT5":
+                    velocities["partners"].append(session.velocities[0, keep])
+                if index == SEEN_PARTNERS[0] and k == 0:
+                    sessions.append(session)
+    return pd.DataFrame(rows), velocities, (sessions[0], sessions[1])
+
+
+def measure(positions: np.ndarray, velocities: np.ndarray) -> dict[str, float]:
+    """CV, RMS (units) and EMD of the velocity signatures between the two players of a session.
+
+    The metrics of `mirror_avatar.metrics.session_metrics` without the time lag; the CV is NaN
+    when a player does not move at all (no phase).
+
+    Parameters
+    ----------
+    positions, velocities
+        Shape (2, n): units and units/s.
+    """
+    moving = bool(np.all(np.ptp(positions, axis=1) > 0.0))
+    cv = compute_circular_variance(compute_relative_phase(*positions)) if moving else math.nan
+    return {
+        "cv": cv,
+        "rms": compute_rmse(*positions),
+        "emd": compute_emd(compute_ims(velocities[0]), compute_ims(velocities[1])),
+    }
+
+
+def compare_baselines(
+    player: CyberPlayer,
+    trainers: Sequence[VirtualTrainerSpec],
+    role: Role,
+    n_sessions: int,
+    seed: int,
+    n_jobs: int = 2,
+) -> dict[str, float]:
+    """RMS to VT5 (units) on held-out VT sessions: trained, untrained, copy the partner.
+
+    The sessions are VT5 playing ``role`` with VT1..VT4 and VT6, seeded apart from training; the
+    trained and untrained (seeded random Q-table) players replay each session open-loop against
+    its partner (`CyberPlayer.evaluate`), and "copy the partner" is the RMS between the partner's
+    and VT5's positions.
+    """
+    partners = [trainers[i].generator for i in (*SEEN_PARTNERS, UNSEEN_PARTNER)]
+    pairs = make_pairs(trainers[TARGET].generator, partners, role)
+    held_out = derive_seeds(seed + 1)[0]
+    chunks = list(run_sessions(pairs, n_sessions, seed=held_out, n_jobs=n_jobs, progress=False))
+    untrained = make_cyber_player(role)
+    untrained.initialise_q(seed, 1e-3)
+    squared = [((c.positions[:, 0, 1:] - c.positions[:, 1, 1:]) ** 2).mean(axis=1) for c in chunks]
+    return {
+        "trained": float(player.evaluate(chunks)[1].mean()),
+        "untrained (random Q)": float(untrained.evaluate(chunks)[1].mean()),
+        "copy the partner": float(np.sqrt(np.concatenate(squared)).mean()),
+    }
+
+
+def make_table_one(result: RoleResult) -> pd.DataFrame:
+    """Paper Table I: per partner, EMD to the partner and CV, RMS mean +- SD, VT5 and cyber."""
+    rows = {}
+    for partner, block in result.records.groupby("partner", sort=False):
+        row: dict[str, str] = {}
+        for name in ("VT5", "cyber player"):
+            own = block[block["player"] == name]
+            row[f"EMD {name}"] = f"{own['emd'].mean():.4f}"
+            row[f"CV {name}"] = _mean_sd(own["cv"])
+            row[f"RMS {name}"] = _mean_sd(own["rms"])
+        rows[(result.role, _partner_name(str(partner)))] = row
+    return pd.DataFrame.from_dict(rows, orient="index")
+
+
+def make_table_two(result: RoleResult) -> pd.DataFrame:
+    """Paper Table II: paired t-tests of CV and RMS, VT5 against the cyber player, per partner.
+
+    Sessions where either player has no CV (it did not move) are left out of the CV test.
+    """
+    rows = {}
+    for partner, block in result.records.groupby("partner", sort=False):
+        vt5 = block[block["player"] == "VT5"].sort_values("session")
+        cyber = block[block["player"] == "cyber player"].sort_values("session")
+        row: dict[str, Any] = {}
+        for key in ("cv", "rms"):
+            a, b = vt5[key].to_numpy(), cyber[key].to_numpy()
+            both = np.isfinite(a) & np.isfinite(b)
+            if both.sum() < 2:
+                row[f"{key.upper()} t(df)"], row[f"{key.upper()} p"] = "undefined", math.nan
+                continue
+            test = paired_ttest(a[both], b[both])
+            row[f"{key.upper()} t(df)"] = f"t({test.df}) = {test.t:.2f}"
+            row[f"{key.upper()} p"] = test.p
+        rows[(result.role, _partner_name(str(partner)))] = row
+    return pd.DataFrame.from_dict(rows, orient="index")
+
+
+def compute_regions(
+    velocities: dict[str, list[np.ndarray]],
+) -> tuple[dict[str, np.ndarray], dict[str, Any], pd.DataFrame]:
+    """Similarity space of the sessions' velocity signatures and each group's 70% region.
+
+    Returns the points per group (classical MDS of the EMD matrix), the ellipses and the table
+    of pairwise overlaps (intersection / union).
+    """
+    names = list(velocities)
+    ims = np.array([compute_ims(v) for name in names for v in velocities[name]])
+    points = classical_mds(compute_emd_matrix(ims))
+    counts = np.cumsum([0] + [len(velocities[name]) for name in names])
+    groups = {name: points[counts[i] : counts[i + 1]] for i, name in enumerate(names)}
+    ellipses = {
+        name: confidence_ellipse(xy) if len(xy) >= 3 else None for name, xy in groups.items()
+    }
+    table = pd.DataFrame(np.nan, index=names, columns=names)
+    for a in names:
+        for b in names:
+            ea, eb = ellipses[a], ellipses[b]
+            if ea is not None and eb is not None:
+                table.loc[a, b] = ellipse_overlap(ea, eb)
+    return groups, ellipses, table
+
+
+def _plot_example(result: RoleResult) -> Any:
+    with_vt5, with_cyber = result.example
+    keep = with_vt5.times <= 20.0
+    return plot_positions(
+        with_vt5.times[keep],
+        {
+            "partner VT1 (with VT5)": with_vt5.positions[0, keep],
+            "VT5": with_vt5.positions[1, keep],
+            "cyber player": with_cyber.positions[1, keep],
+        },
+        title=f"Cyber player as {result.role}",
+    )
+
+
+def _mean_sd(values: pd.Series) -> str:
+    return f"{values.mean():.3f} +- {values.std(ddof=1):.3f}"
+
+
+def _partner_name(label: str) -> str:
+    return f"{label} (unseen)" if label == f"VT{UNSEEN_PARTNER + 1}" else label
+
+
+def _metrics(
+    results: list[RoleResult],
+    table_one: pd.DataFrame,
+    table_two: pd.DataFrame,
+    overlaps: pd.DataFrame,
+    trainers: Sequence[VirtualTrainerSpec],
+    seed: int,
+    n_train: int,
+    n_valid: int,
+) -> dict[str, Any]:
+    out: dict[str, Any] = {
+        "seed": seed,
+        "training_sessions": n_train,
+        "validation_sessions_per_partner": n_valid,
+        "trim_s": TRIM,
+        "virtual_trainers": {t.label: list(t.trial_labels) for t in trainers},
+        "target": trainers[TARGET].label,
+        "paper_table_one": {k: list(v) for k, v in PAPER.items()},
+    }
+    for r in results:
+        cyber = r.records[r.records["player"] == "cyber player"]
+        vt5_ims = compute_ims(np.concatenate(r.velocities["VT5"]))
+        cyber_ims = compute_ims(np.concatenate(r.velocities["cyber player"]))
+        p_values = table_two.loc[r.role, ["CV p", "RMS p"]].to_numpy(dtype=float)
+        out[r.role] = {
+            "training_seconds": r.train_seconds,
+            "learning_curve": r.curve.as_rows(),
+            "baselines_rms": r.baselines,
+            "cyber_cv_mean": float(cyber["cv"].mean()),
+            "cyber_rms_mean": float(cyber["rms"].mean()),
+            "cyber_emd_to_partner_mean": float(cyber["emd"].mean()),
+            "emd_cyber_to_vt5": compute_emd(cyber_ims, vt5_ims),
+            "records": r.records.to_dict(orient="records"),
+            "table_one": pd.DataFrame(table_one.loc[r.role]).to_dict(orient="index"),
+            "table_two": pd.DataFrame(table_two.loc[r.role]).to_dict(orient="index"),
+            "overlaps": overlaps.loc[r.role].to_dict(),
+            "n_p_above_0.05": int((p_values > 0.05).sum()),
+            "n_tests": int(p_values.size),
+            "trained_beats_baselines": r.baselines["trained"]
+            < min(r.baselines["untrained (random Q)"], r.baselines["copy the partner"]),
+        }
+    return out
+
+
+def _describe(
+    results: list[RoleResult], table_two: pd.DataFrame, n_train: int, n_valid: int
+) -> list[str]:
+    text = [
+        f"Six virtual trainers were fitted on disjoint groups of three bundled trials (VT1-VT3 "
+        f"fast, VT4-VT6 slow); the target is VT5 (slow-4..6). For each role a cyber player was "
+        f"trained on {n_train} sessions of 60 s with partners VT1-VT4 (the paper: about 24 000), "
+        f"then replaced VT5 in {n_valid} closed-loop sessions per partner (VT6 unseen). Metrics "
+        f"leave out the first {TRIM:g} s.",
+        f"Paper Table I: CV {PAPER['cv'][0]}-{PAPER['cv'][1]}, RMS {PAPER['rms'][0]}-"
+        f"{PAPER['rms'][1]}, EMD {PAPER['emd'][0]}-{PAPER['emd'][1]}; Table II: all p > 0.05.",
+    ]
+    for r in results:
+        cyber = r.records[r.records["player"] == "cyber player"]
+        p = table_two.loc[r.role, ["CV p", "RMS p"]].to_numpy(dtype=float)
+        b = r.baselines
+        text.append(
+            f"As {r.role}: trained in {r.train_seconds:.0f} s; the cyber player's CV "
+            f"{cyber['cv'].mean():.3f}, RMS to the partner {cyber['rms'].mean():.3f}, EMD to the "
+            f"partner {cyber['emd'].mean():.4f}; {int((p > 0.05).sum())} of {p.size} t-tests "
+            f"with p > 0.05. RMS to VT5 on held-out sessions: trained {b['trained']:.3f}, "
+            f"untrained {b['untrained (random Q)']:.3f}, copy the partner "
+            f"{b['copy the partner']:.3f} units"
+            + (
+                "."
+                if b["trained"] < b["copy the partner"]
+                else " - copying the partner imitates VT5 better than the trained player."
+            )
+        )
+    if np.isnan(table_two[["CV p", "RMS p"]].to_numpy(dtype=float)).any():
+        text.append("Some t-tests are undefined (a player that did not move, or no variance).")
+    return text

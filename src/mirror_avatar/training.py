@@ -1,0 +1,313 @@
+"""The paper's training set-up: six virtual trainers and the cyber player's training driver.
+
+The paper (METHODS section 7) fits one IMS generator per person, VT_1..VT_6, and teaches a cyber
+player to imitate person 5: as a **follower**, VT_1..VT_4 (leader preset) lead sessions in which
+VT_5 (follower preset) follows, and the cyber player, watching the leader, is rewarded for moving
+like VT_5; **leader** training is symmetric (VT_5 with the leader preset, the partners with the
+follower preset). VT_6 is never seen in training and serves as the unseen partner in validation.
+
+The bundled data (`mirror_avatar.datasets.load_zhai2017`) has 18 trials of two styles, not six
+people, so `make_virtual_trainers` builds six "persons" from six disjoint groups of three trials
+(**choice**): fast-1..3, fast-4..6, fast-7..9, slow-1..3, slow-4..6, slow-7..9 -> VT1..VT6. The
+target VT5 is then slow-4..6, a slow player, with seen partners VT1..VT3 (fast) and VT4 (slow)
+and the unseen partner VT6 (slow).
+
+`train_cyber_player` streams the batch engine's chunks (`mirror_avatar.batch.run_sessions`) straight
+into `mirror_avatar.learning.QLearner.train`: sessions are generated and learnt from chunk by chunk,
+never all held in memory. Player 0 of every session is the partner, player 1 the target.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from mirror_avatar import hkb
+from mirror_avatar.batch import run_sessions
+from mirror_avatar.errors import InputError
+from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.learning import (
+    DEFAULT_ACTIONS,
+    CyberPlayer,
+    ExponentialEpsilon,
+    LearningCurve,
+    QLearner,
+)
+from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.trials import DEFAULT_RATE, Trial
+
+Role = Literal["follower", "leader"]
+Reference = IMSGenerator | Trial
+"""What a virtual trainer draws its reference velocity from: a generator or a recorded trial."""
+TRAINING_ROLES: tuple[Role, ...] = ("follower", "leader")
+
+TARGET = 4
+"""Index of the target, VT5 (the paper imitates person 5)."""
+
+SEEN_PARTNERS = (0, 1, 2, 3)
+"""Indices of the training partners VT1..VT4."""
+
+UNSEEN_PARTNER = 5
+"""Index of VT6, the partner never met in training."""
+
+TRIALS_PER_TRAINER = 3
+"""Trials each virtual trainer's generator is fitted on (**choice**, see the module docstring)."""
+
+CURVE_POINTS = 100
+"""About how many points a learning curve has (sessions per point = n_sessions / CURVE_POINTS)."""
+
+ACTION_SCALE = 4.0
+"""Factor on `mirror_avatar.learning.DEFAULT_ACTIONS` for the cyber player imitating a virtual
+trainer (**choice**): accelerations 0, ±2, ±4, ±8, ±16 units/s². The virtual trainers' own controls
+have median |u| about 6.5 and 90th percentile about 19 units/s² (follower VT5 with VT1..VT6), far
+beyond ±4; on held-out follower sessions (1500 training sessions) the RMS to VT5 was 0.127
+(x1), 0.082 (x2), 0.061 (x4) and 0.060 (x8) units, against 0.096 for copying the partner."""
+
+EPSILON_HALF_LIVES = 8.0
+"""Half-lives of exploration over a training run (**choice**): epsilon decays from 0.5 to about
+0.01 over the run, whatever its length."""
+
+
+@dataclass(frozen=True, eq=False)
+class VirtualTrainerSpec:
+    """One virtual "person": a label, the trials it was fitted on and its IMS generator.
+
+    Attributes
+    ----------
+    label
+        ``"VT1"`` .. ``"VT6"``.
+    trial_labels
+        Labels of the trials its generator was fitted on.
+    generator
+        The fitted `IMSGenerator` (100 Hz).
+    """
+
+    label: str
+    trial_labels: tuple[str, ...]
+    generator: IMSGenerator
+
+    def player(self, role: str | hkb.HKBParams) -> VirtualTrainer:
+        """Make a virtual trainer with this person's generator and a role preset (or parameters)."""
+        params = hkb.preset(role) if isinstance(role, str) else role
+        return VirtualTrainer(params, self.generator, label=self.label)
+
+
+def make_virtual_trainers(
+    trials: Sequence[Trial], n: int = 6, seed: int = 0, n_symbols: int = 256
+) -> list[VirtualTrainerSpec]:
+    """Fit one IMS generator per virtual "person": VT1..VTn from disjoint groups of trials.
+
+    Trials are taken group by group in order of first appearance (``"fast"`` then ``"slow"`` for
+    the bundled data), in their given order within a group, and each group is cut into ``n /
+    n_groups`` consecutive blocks of equal size (leftover trials at a group's end are unused).
+    With the bundled 18 trials and ``n = 6``: VT1..VT3 = fast-1..3, 4..6, 7..9 and VT4..VT6 =
+    slow-1..3, 4..6, 7..9.
+
+    Parameters
+    ----------
+    trials
+        Solo trials (any rate; resampled to 100 Hz).
+    n
+        Number of virtual trainers; a multiple of the number of groups.
+    seed
+        Seeds the generators' k-means (each gets its own seed spawned from it).
+    n_symbols
+        Codebook size of every generator.
+
+    Returns
+    -------
+    list of VirtualTrainerSpec
+        VT1..VTn in order.
+
+    Raises
+    ------
+    InputError
+        If ``n`` is not a positive multiple of the number of groups or a group has fewer than
+        ``n / n_groups`` trials.
+    """
+    groups: dict[str, list[Trial]] = {}
+    for trial in trials:
+        groups.setdefault(str(trial.group), []).append(trial)
+    if n < 1 or not groups or n % len(groups):
+        raise InputError("trainers", f"n = {n} is not a positive multiple of {len(groups)} groups")
+    per_group = n // len(groups)
+    blocks: list[list[Trial]] = []
+    for name, members in groups.items():
+        size = len(members) // per_group
+        if size < 1:
+            raise InputError("trials", f"group {name!r} has {len(members)} trials for {per_group}")
+        blocks += [members[i * size : (i + 1) * size] for i in range(per_group)]
+    seeds = np.random.SeedSequence(seed).generate_state(n)
+    return [
+        VirtualTrainerSpec(
+            f"VT{i + 1}",
+            tuple(t.label for t in block),
+            IMSGenerator(n_symbols=n_symbols, rate=DEFAULT_RATE, random_state=int(s)).fit(
+                [t.resampled(DEFAULT_RATE) for t in block]
+            ),
+        )
+        for i, (block, s) in enumerate(zip(blocks, seeds, strict=True))
+    ]
+
+
+def make_cyber_player(role: Role, action_scale: float = ACTION_SCALE) -> CyberPlayer:
+    """Make an untrained cyber player whose HKB end effector has the role preset's parameters.
+
+    Follows METHODS section 7 with the virtual trainer's end-effector parameters of the same role
+    (`mirror_avatar.hkb.FOLLOWER` or ``LEADER``: omega 0.1 or 0.8 rad/s, alpha 1, beta 2,
+    gamma -1, eta 1e-4) and the accelerations ``action_scale * DEFAULT_ACTIONS`` (units/s²;
+    departs from METHODS' ±4 maximum, see `ACTION_SCALE`).
+    """
+    params = hkb.preset(_check_role(role))
+    return CyberPlayer(
+        actions=tuple(action_scale * a for a in DEFAULT_ACTIONS),
+        alpha=params.alpha,
+        beta=params.beta,
+        gamma=params.gamma,
+        omega=params.omega,
+        eta=params.eta,
+        period=params.period,
+    )
+
+
+def make_learner(
+    n_sessions: int,
+    random_state: int | None,
+    checkpoint: str | os.PathLike[str] | None = None,
+    checkpoint_every: int | None = None,
+    progress: bool | None = None,
+) -> QLearner:
+    """Make the `QLearner` for a run of ``n_sessions`` (**choice**s scaled to the run's length).
+
+    Exploration decays from 0.5 to 0.01 with a half-life of ``n_sessions / EPSILON_HALF_LIVES``
+    sessions, and the learning curve has about `CURVE_POINTS` points; learning rate 0.1 and
+    discount 0.95 are `QLearner`'s defaults.
+    """
+    return QLearner(
+        epsilon=ExponentialEpsilon(half_life=max(n_sessions / EPSILON_HALF_LIVES, 1.0)),
+        block_size=max(n_sessions // CURVE_POINTS, 1),
+        checkpoint_every=checkpoint_every,
+        checkpoint_path=checkpoint,
+        progress=progress,
+        random_state=random_state,
+    )
+
+
+def make_pairs(
+    target: Reference, partners: Sequence[Reference], role: Role
+) -> list[tuple[VirtualTrainer, VirtualTrainer]]:
+    """Training pairs ``(partner, target)``: the target takes ``role``, the partners the other.
+
+    Parameters
+    ----------
+    target
+        The generator (or recorded trial) of the person to imitate.
+    partners
+        Generators (or recorded trials) of the training partners.
+    role
+        The role the cyber player learns (``"follower"`` or ``"leader"``).
+    """
+    role = _check_role(role)
+    if not partners:
+        raise InputError("partners", "need at least one training partner")
+    other = "leader" if role == "follower" else "follower"
+    trainee = VirtualTrainer(hkb.preset(role), target, label="target")
+    return [
+        (VirtualTrainer(hkb.preset(other), p, label=f"partner {i + 1}"), trainee)
+        for i, p in enumerate(partners)
+    ]
+
+
+def derive_seeds(seed: int | None) -> tuple[int, int]:
+    """Independent seeds for the training sessions and for the learner, from one run seed."""
+    sessions, learner = np.random.SeedSequence(seed).generate_state(2)
+    return int(sessions), int(learner)
+
+
+def train_cyber_player(
+    target: Reference,
+    partners: Sequence[Reference],
+    role: Role = "follower",
+    n_sessions: int = 2000,
+    seed: int | None = 0,
+    duration: float = 60.0,
+    backend: Literal["local", "dask"] = "local",
+    scheduler: str | None = None,
+    n_jobs: int = 2,
+    chunk_size: int = 50,
+    checkpoint: str | os.PathLike[str] | None = None,
+    checkpoint_every: int | None = None,
+    progress: bool | None = None,
+) -> tuple[CyberPlayer, LearningCurve]:
+    """Train a cyber player to imitate ``target`` in ``role`` with virtual-trainer sessions.
+
+    Session i is played by ``partners[i % len(partners)]`` (player 0, the other role's preset)
+    and the target (player 1, ``role``'s preset) on the batch engine, and the cyber player
+    Q-learns from it as the chunks arrive (`QLearner.train`), so memory stays flat whatever
+    ``n_sessions``.
+
+    Parameters
+    ----------
+    target, partners
+        IMS generators (or recorded trials) of the person to imitate and of the partners.
+    role
+        ``"follower"`` or ``"leader"``.
+    n_sessions
+        Number of training sessions (the paper: about 24 000).
+    seed
+        Run seed; the sessions' and the learner's seeds are derived from it (`derive_seeds`), so
+        the same seed gives the same Q-table. Recorded in ``player.training_``.
+    duration
+        Session length (s).
+    backend, scheduler, n_jobs, chunk_size
+        Where the sessions are played (see `mirror_avatar.batch.run_sessions`).
+    checkpoint, checkpoint_every
+        Save the player to ``checkpoint`` every ``checkpoint_every`` sessions and at the end.
+    progress
+        Progress bar: True, False, or None (only on a terminal).
+
+    Returns
+    -------
+    player : CyberPlayer
+        The trained player (greedy at play time).
+    curve : LearningCurve
+        Mean reward per step and RMS to the target (units) per block of sessions.
+    """
+    pairs = make_pairs(target, partners, role)
+    session_seed, learner_seed = derive_seeds(seed)
+    chunks = run_sessions(
+        pairs,
+        n_sessions,
+        duration=duration,
+        seed=session_seed,
+        backend=backend,
+        scheduler=scheduler,
+        n_jobs=n_jobs,
+        chunk_size=chunk_size,
+        progress=False,
+    )
+    player = make_cyber_player(role)
+    learner = make_learner(n_sessions, learner_seed, checkpoint, checkpoint_every, progress)
+    learner.train(player, chunks, total=n_sessions)
+    player.training_ |= {"run_seed": seed, "role": role, "n_partners": len(partners)}
+    player.label = f"cyber player ({role})"
+    if checkpoint is not None:
+        player.save(checkpoint)
+    return player, learner.learning_curve_
+
+
+def learning_curve_path(policy: str | os.PathLike[str]) -> Path:
+    """Where the learning curve of a policy file goes: ``POLICY.learning_curve.csv``."""
+    path = Path(policy)
+    return path.with_name(f"{path.stem}.learning_curve.csv")
+
+
+def _check_role(role: str) -> Role:
+    if role not in TRAINING_ROLES:
+        raise InputError("role", f"must be 'follower' or 'leader', not {role!r}")
+    return role
