@@ -1,0 +1,79 @@
+"""The virtual-trainer validation on the bundled real data (paper section VI-B).
+
+Relative phase is partner minus VT: positive when the partner is ahead.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.experiments import EXPERIMENTS
+from mirror_avatar.experiments.virtual_trainer import run
+from mirror_avatar.report import Section
+from mirror_avatar.trials import Trial
+
+
+@pytest.fixture(scope="module")
+def section(zhai_trials: list[Trial]) -> Section:
+    return run(zhai_trials, quick=True, seed=0)
+
+
+@pytest.fixture(scope="module")
+def summary(section: Section) -> pd.DataFrame:
+    (table,) = [t for caption, t in section.tables.items() if "against the paper" in caption]
+    return table
+
+
+def test_vt_follows_slow_people_closely(summary: pd.DataFrame) -> None:
+    own = summary.loc["follows (slow people)"]
+    assert own["sessions"] == 9
+    assert own["cv"] >= 0.9
+    assert own["rmse"] <= 0.12
+    assert summary.loc["follows", "sessions"] == 18
+
+
+def test_vt_lags_when_following_and_leads_when_leading(summary: pd.DataFrame) -> None:
+    for row in ("follows (slow people)", "follows (fast people)", "follows"):
+        assert summary.loc[row, "phase"] > 0
+        assert summary.loc[row, "lag"] > 0
+    assert summary.loc["leads", "phase"] < 0
+    assert summary.loc["leads", "lag"] < 0
+
+
+def test_vt_keeps_its_own_signature(summary: pd.DataFrame) -> None:
+    for row in ("leads", "follows (slow people)"):
+        assert (
+            summary.loc[row, "emd_reference_style (slow)"]
+            < summary.loc[row, "emd_other_style (fast)"]
+        )
+    assert summary.loc["leads", "emd_own_reference"] < summary.loc["leads", "emd_partner"]
+
+
+def test_section_contents(section: Section) -> None:
+    assert section.key == "virtual_trainer"
+    assert len(section.figures) == 4
+    metrics = section.metrics
+    assert metrics["seed"] == 0 and len(metrics["session_seeds"]) == 18 + 5
+    assert len(metrics["follows"]) == 18 and len(metrics["leads"]) == 5
+    assert metrics["paper"]["follows"]["circular_variance"] == 0.933
+    json.dumps(metrics, allow_nan=True)
+    per_session = section.tables["Each recorded person as leader, the VT following"]
+    assert np.all(per_session["cv"].between(0, 1))
+
+
+def test_registered_after_the_generator() -> None:
+    names = [name for name, _ in EXPERIMENTS]
+    assert "virtual_trainer" in names
+    earlier = "generator" if "generator" in names else "signature"
+    assert names.index("virtual_trainer") == names.index(earlier) + 1
+
+
+def test_needs_both_styles(zhai_trials: list[Trial]) -> None:
+    slow_only = [t for t in zhai_trials if t.group == "slow"]
+    with pytest.raises(InputError, match="two styles"):
+        run(slow_only, quick=True)
