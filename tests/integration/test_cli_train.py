@@ -1,0 +1,99 @@
+"""``mirror-avatar train`` through the command line."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mirror_avatar.cli import main
+from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.learning import load_cyber_player
+from mirror_avatar.specs import bundled_generator
+from mirror_avatar.trials import DEFAULT_RATE
+
+
+@pytest.fixture(autouse=True)
+def private_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fitted bundled generators go to a per-test cache."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    bundled_generator.cache_clear()
+
+
+@pytest.fixture
+def models(tmp_path: Path) -> list[Path]:
+    trials = [t.resampled(DEFAULT_RATE) for t in load_zhai2017()]
+    paths = []
+    for name, block in (("a", trials[9:12]), ("b", trials[:3]), ("c", trials[3:6])):
+        path = tmp_path / f"{name}.npz"
+        IMSGenerator(n_symbols=32, random_state=0).fit(block).save(path)
+        paths.append(path)
+    return paths
+
+
+def _train(out: Path, target: Path, *partners: str, extra: tuple[str, ...] = ()) -> int:
+    arguments = ["train", "--target", str(target), "--sessions", "6", "--duration", "5"]
+    for partner in partners:
+        arguments += ["--partners", partner]
+    return main([*arguments, "--jobs", "1", "--out", str(out), *extra])
+
+
+def test_train_writes_policy_and_curve(
+    tmp_path: Path, models: list[Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "policies" / "vt5.npz"
+    partners = f"{models[1]},{models[2]}"
+    status = _train(out, models[0], partners, extra=("--role", "leader", "--seed", "4",
+                                                    "--checkpoint-every", "2"))  # fmt: skip
+    assert status == 0
+    assert str(out.resolve()) in capsys.readouterr().out
+    player = load_cyber_player(out)
+    assert player.training_["role"] == "leader" and player.training_["run_seed"] == 4
+    assert player.training_["n_partners"] == 2 and player.training_["n_sessions"] == 6
+    curve = (tmp_path / "policies" / "vt5.learning_curve.csv").read_text().splitlines()
+    assert curve[0] == "sessions,mean_reward,rms,epsilon" and len(curve) == 7
+    again = tmp_path / "again.npz"
+    assert _train(again, models[0], str(models[1]), str(models[2]),
+                  extra=("--role", "leader", "--seed", "4")) == 0  # fmt: skip
+    np.testing.assert_array_equal(load_cyber_player(again).q_table_, player.q_table_)
+
+
+def test_train_accepts_bundled_styles(tmp_path: Path) -> None:
+    out = tmp_path / "p.npz"
+    assert _train(out, Path("bundled:slow"), "bundled:fast") == 0
+    assert load_cyber_player(out).training_["role"] == "follower"
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (["--target", "bundled:medium", "--partners", "bundled:fast"], "bundled:medium"),
+        (["--target", "missing.npz", "--partners", "bundled:fast"], "missing.npz"),
+        (["--target", "bundled:slow", "--partners", "bundled:fast", "--sessions", "0"], ">= 1"),
+        (["--target", "bundled:slow", "--partners", "bundled:fast", "--role", "joint"], "joint"),
+    ],
+)
+def test_bad_input_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], arguments: list[str], message: str
+) -> None:
+    defaults = ["--sessions", "2"] if "--sessions" not in arguments else []
+    status = main(["train", *arguments, *defaults, "--out", str(tmp_path / "p.npz")])
+    err = capsys.readouterr().err
+    assert status == 2 and message in err and len(err.strip().splitlines()) == 1
+
+
+def test_cyber_player_model_is_not_a_training_partner(tmp_path: Path, models: list[Path]) -> None:
+    policy = tmp_path / "p.npz"
+    assert _train(policy, models[0], str(models[1])) == 0
+    result = subprocess.run(
+        [sys.executable, "-c", "from mirror_avatar.cli import run; run()", "train",
+         "--target", str(models[0]),
+         "--partners", str(policy), "--sessions", "2", "--out", str(tmp_path / "q.npz")],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert result.returncode == 2, result.stderr
+    assert "CyberPlayer" in result.stderr and "Traceback" not in result.stderr

@@ -1,0 +1,59 @@
+"""The cyber player's validation experiment (paper Tables I-II) end to end, scaled down."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+
+from mirror_avatar.experiments import EXPERIMENTS
+from mirror_avatar.experiments.cyber_player import measure, run
+from mirror_avatar.report import write_report
+from mirror_avatar.trials import Trial
+
+
+def test_quick_validation_runs_end_to_end(zhai_trials: list[Trial], tmp_path) -> None:
+    section = run(zhai_trials, quick=True, seed=2, n_sessions=60, n_validation=3)
+    assert ("cyber_player", run) in EXPERIMENTS
+    table_one = section.tables[
+        "Table I: VT5 and the cyber player against each partner (mean +- SD)"
+    ]
+    partners = ["VT1", "VT2", "VT3", "VT4", "VT6 (unseen)"]
+    assert list(table_one.index) == [(r, p) for r in ("follower", "leader") for p in partners]
+    table_two = section.tables["Table II: paired t-tests, VT5 vs cyber player"]
+    assert table_two["RMS t(df)"].str.startswith("t(2)").all()
+    p_values = table_two[["CV p", "RMS p"]].to_numpy(dtype=float)
+    assert np.all((p_values[np.isfinite(p_values)] >= 0) & (p_values[np.isfinite(p_values)] <= 1))
+    metrics = section.metrics
+    assert metrics["seed"] == 2 and metrics["training_sessions"] == 60
+    assert metrics["target"] == "VT5" and metrics["virtual_trainers"]["VT5"][0] == "slow-4"
+    for role in ("follower", "leader"):
+        result = metrics[role]
+        assert len(result["records"]) == 2 * 5 * 3
+        baselines = result["baselines_rms"]
+        assert baselines["trained"] < baselines["untrained (random Q)"]
+        assert 0.0 < baselines["copy the partner"] < 0.3
+        assert result["learning_curve"][-1]["sessions"] == 60
+        overlap = pd.DataFrame(result["overlaps"])
+        assert np.allclose(np.diag(overlap.to_numpy(dtype=float)), 1.0)
+    assert len(section.figures) == 6
+    html = write_report([section], tmp_path).read_text()
+    assert 'id="cyber_player"' in html
+    json.loads((tmp_path / "metrics.json").read_text())
+
+
+def test_measure_against_direct_computation() -> None:
+    """Two sinusoids a quarter period apart: CV 1, RMS sqrt(2) A / sqrt(2) = A, EMD 0."""
+    t = np.arange(0, 60, 0.03)
+    a, w = 0.3, 2 * np.pi * 0.5
+    positions = np.vstack([a * np.sin(w * t), a * np.cos(w * t)])
+    velocities = np.vstack([a * w * np.cos(w * t), -a * w * np.sin(w * t)])
+    out = measure(positions, velocities)
+    assert out["cv"] > 0.99
+    assert out["rms"] == math.sqrt(np.mean((positions[0] - positions[1]) ** 2))
+    assert abs(out["rms"] - a) < 1e-3
+    assert out["emd"] < 0.01
+    still = measure(np.vstack([positions[0], np.zeros_like(t)]), velocities)
+    assert math.isnan(still["cv"])
