@@ -16,6 +16,7 @@ from mirror_avatar.cli.play import play
 from mirror_avatar.cli.reproduce import reproduce
 from mirror_avatar.cli.signature import signature
 from mirror_avatar.cli.simulate import evaluate, simulate
+from mirror_avatar.cli.train import train
 from mirror_avatar.errors import InputError
 
 
@@ -31,6 +32,7 @@ cli.add_command(reproduce)
 cli.add_command(signature)
 cli.add_command(simulate)
 cli.add_command(evaluate)
+cli.add_command(train)
 
 
 def main(argv: list[str] | None = None) -> int:
