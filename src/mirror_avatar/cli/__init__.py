@@ -11,6 +11,7 @@ import sys
 
 import click
 
+from mirror_avatar.cli.generator import generator
 from mirror_avatar.cli.info import info
 from mirror_avatar.cli.play import play
 from mirror_avatar.cli.reproduce import reproduce
@@ -26,6 +27,7 @@ def cli() -> None:
     """Build avatars that move like a specific person and play the mirror game."""
 
 
+cli.add_command(generator)
 cli.add_command(info)
 cli.add_command(play)
 cli.add_command(reproduce)

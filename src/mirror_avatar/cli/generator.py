@@ -1,0 +1,125 @@
+"""``mirror-avatar generator``: fit an IMS generator on trial files and sample new trials."""
+
+from __future__ import annotations
+
+import importlib
+import json
+from pathlib import Path
+
+import click
+import numpy as np
+import pandas as pd
+
+from mirror_avatar.atomic import write_atomic_text
+from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.errors import InputError
+from mirror_avatar.generator import IMSGenerator, sweep_codebook
+from mirror_avatar.trials import Trial
+
+BUNDLED_STYLES = ("fast", "slow")
+
+
+@click.group()
+def generator() -> None:
+    """Learn a person's motor signature (IMS generator) and generate motion with it."""
+
+
+@generator.command()
+@click.argument("paths", nargs=-1, type=click.Path(path_type=Path))
+@click.option(
+    "--out", "out_path", required=True, type=click.Path(path_type=Path), help="Model file (.npz)."
+)
+@click.option("--symbols", type=int, default=256, show_default=True, help="Codebook size N.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of k-means.")
+@click.option(
+    "--bundled",
+    type=click.Choice(BUNDLED_STYLES),
+    help="Fit on the bundled Zhai 2017 trials of this style (as well as any files).",
+)
+@click.option(
+    "--sweep",
+    is_flag=True,
+    help="Also sweep codebook sizes 32-256 on a 2/3 : 1/3 split of the trials and write "
+    "MODEL.sweep.csv.",
+)
+def fit(
+    paths: tuple[Path, ...], out_path: Path, symbols: int, seed: int, bundled: str | None,
+    sweep: bool,
+) -> None:  # fmt: skip
+    """Fit a generator on the trials in FILE_OR_DIR... (CSV, MAT, Parquet, BIDS motion)."""
+    if out_path.suffix != ".npz":
+        raise InputError(out_path, "the model file must end in .npz")
+    if not paths and bundled is None:
+        raise InputError(None, "give trial files or directories, or --bundled fast|slow")
+    trials = _read(paths) + ([t for t in load_zhai2017() if t.group == bundled] if bundled else [])
+    model = IMSGenerator(n_symbols=symbols, random_state=seed).fit(trials)
+    model.save(out_path)
+    summary = model.training_summary_
+    click.echo(
+        f"{len(trials)} trials, {summary['n_frames']} frames, {symbols} symbols, distortion "
+        f"{summary['distortion']:.4g} -> {out_path}"
+    )
+    if sweep:
+        table = _sweep(trials, seed)
+        sweep_path = out_path.with_name(out_path.stem + ".sweep.csv")
+        write_atomic_text(sweep_path, table.to_csv())
+        click.echo(table.to_string())
+        click.echo(f"sweep -> {sweep_path}")
+
+
+@generator.command()
+@click.argument("model_path", type=click.Path(path_type=Path))
+@click.option("--duration", type=float, default=60.0, show_default=True, help="Seconds per trial.")
+@click.option("--count", type=int, default=1, show_default=True, help="Number of trials.")
+@click.option(
+    "--out", "out_dir", required=True, type=click.Path(path_type=Path), help="Output directory."
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the sampling.")
+@click.option(
+    "--rate", type=float, default=100.0, show_default=True, help="Rate (Hz) of the written files."
+)
+def sample(
+    model_path: Path, duration: float, count: int, out_dir: Path, seed: int, rate: float
+) -> None:
+    """Generate COUNT trials with the generator in MODEL_PATH, as CSV files time,position.
+
+    Also writes ``samples.json`` (model, seed, duration, rate and file names).
+    """
+    if not (duration > 0 and count >= 1 and rate > 0):
+        raise InputError(None, "--duration, --count and --rate must be positive")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, "not a directory")
+    model = IMSGenerator.load(model_path)
+    trials = model.sample(duration, n=count, random_state=seed)
+    write_csv_trial = importlib.import_module("mirror_avatar.trial_io").write_csv_trial
+    out_dir.mkdir(parents=True, exist_ok=True)
+    names = [f"generated-{k + 1:03d}.csv" for k in range(count)]
+    for trial, name in zip(trials, names, strict=True):
+        write_csv_trial(trial if rate == model.rate else trial.resampled(rate), out_dir / name)
+    manifest = {
+        "model": str(model_path),
+        "seed": seed,
+        "duration": duration,
+        "rate": rate,
+        "files": names,
+    }
+    write_atomic_text(out_dir / "samples.json", json.dumps(manifest, indent=2) + "\n")
+    click.echo(f"{count} trials of {duration:g} s -> {out_dir}")
+
+
+def _read(paths: tuple[Path, ...]) -> list[Trial]:
+    if not paths:
+        return []
+    read_trials = importlib.import_module("mirror_avatar.trial_io").read_trials
+    trials: list[Trial] = read_trials(paths)
+    return trials
+
+
+def _sweep(trials: list[Trial], seed: int) -> pd.DataFrame:
+    if len(trials) < 2:
+        raise InputError("--sweep", "needs at least 2 trials (2/3 to fit, 1/3 to compare)")
+    order = np.random.default_rng(seed).permutation(len(trials))
+    n_train = min(max(round(2 * len(trials) / 3), 1), len(trials) - 1)
+    train = [trials[i] for i in order[:n_train]]
+    test = [trials[i] for i in order[n_train:]]
+    return sweep_codebook(train, test, random_state=seed)
