@@ -15,6 +15,7 @@ import importlib.util
 import resource
 import time
 import tracemalloc
+from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 
@@ -47,7 +48,7 @@ def load_bench_learning() -> ModuleType:
 
 
 def timed_training(
-    target: Reference, partners: list[Reference], n_sessions: int
+    target: Reference, partners: Sequence[Reference], n_sessions: int
 ) -> tuple[float, float, float]:
     """Wall time (s), peak traced memory (MB) and final RMS of one training run."""
     tracemalloc.start()
@@ -107,7 +108,7 @@ def run(quick: bool) -> list[dict]:
     return rows
 
 
-def _stage_rows(target: Reference, partners: list[Reference], n_sessions: int) -> list[dict]:
+def _stage_rows(target: Reference, partners: Sequence[Reference], n_sessions: int) -> list[dict]:
     """Measure generation and Q-learning throughput apart, and Q-learning against Python."""
     pairs = make_pairs(target, partners, "follower")
     start = time.perf_counter()
