@@ -46,7 +46,7 @@ def test_vt_lags_when_following_and_leads_when_leading(summary: pd.DataFrame) ->
 
 
 def test_vt_keeps_its_own_signature(summary: pd.DataFrame) -> None:
-    for row in ("leads", "follows (slow people)"):
+    for row in ("leads", "leads (same-style VT)", "follows (slow people)"):
         assert (
             summary.loc[row, "emd_reference_style (slow)"]
             < summary.loc[row, "emd_other_style (fast)"]
@@ -58,8 +58,9 @@ def test_section_contents(section: Section) -> None:
     assert section.key == "virtual_trainer"
     assert len(section.figures) == 4
     metrics = section.metrics
-    assert metrics["seed"] == 0 and len(metrics["session_seeds"]) == 18 + 5
+    assert metrics["seed"] == 0 and len(metrics["session_seeds"]) == 18 + 2 * 5
     assert len(metrics["follows"]) == 18 and len(metrics["leads"]) == 5
+    assert len(metrics["leads_same_style"]) == 5
     assert metrics["paper"]["follows"]["circular_variance"] == 0.933
     json.dumps(metrics, allow_nan=True)
     per_session = section.tables["Each recorded person as leader, the VT following"]

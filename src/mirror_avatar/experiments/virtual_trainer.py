@@ -6,7 +6,7 @@ A virtual trainer (VT) whose IMS generator is fitted on one movement style (the 
 - *VT follows*: every recorded solo trial, of every style, is replayed open-loop as the leader
   (`mirror_avatar.players.RecordedPlayer`) and the VT with the follower preset follows it;
 - *VT leads*: the VT with the leader preset leads another VT (follower preset) whose generator is
-  fitted on the other style.
+  fitted on the other style; as a control, it also leads a VT follower of its own style.
 
 Each condition reports the paper's numbers: CV (the paper's "circular variance", the mean resultant
 length of the relative phase), RMSE, relative phase mean and SD, EMD of the VT's velocity IMS to
@@ -64,9 +64,13 @@ EXAMPLE_SECONDS = 20.0
 
 @dataclass
 class Condition:
-    """The sessions of one condition and their metrics (player 0 partner, player 1 the VT)."""
+    """The sessions of one condition and their metrics (player 0 partner, player 1 the VT).
+
+    ``name`` labels its rows; ``paper`` is its key in `PAPER`.
+    """
 
     name: str
+    paper: str
     sessions: list[Session]
     partner_styles: list[str]
     metrics: list[dict[str, float | None]]
@@ -87,7 +91,7 @@ def run(
         Solo trials with groups including ``reference_style`` and ``partner_style`` (any rate;
         resampled to 100 Hz).
     quick
-        Play `LEAD_SESSIONS` // 4 leading sessions instead of `LEAD_SESSIONS`.
+        Play `LEAD_SESSIONS` // 4 leading sessions per partner instead of `LEAD_SESSIONS`.
     seed
         Seeds the generators' k-means and every session (spawned with `numpy.random.SeedSequence`).
     reference_style, partner_style
@@ -111,16 +115,19 @@ def run(
     }
     n_lead = LEAD_SESSIONS // 4 if quick else LEAD_SESSIONS
     follow_trials = [t for group in by_style.values() for t in group]
-    seeds = _session_seeds(seed, len(follow_trials) + n_lead)
+    seeds = _session_seeds(seed, len(follow_trials) + 2 * n_lead)
     follows = play_follow_sessions(follow_trials, generators[reference_style], seeds)
-    leads = play_lead_sessions(
-        generators[reference_style], generators[partner_style], seeds[len(follow_trials) :]
-    )
+    lead_seeds = seeds[len(follow_trials) :]
+    own = generators[reference_style]
+    leads = [
+        play_lead_sessions(own, generators[partner_style], lead_seeds[:n_lead], "leads"),
+        play_lead_sessions(own, own, lead_seeds[n_lead:], "leads (same-style VT)"),
+    ]
     signatures = {
         style: compute_ims(np.concatenate([t.velocity() for t in group]))
         for style, group in by_style.items()
     }
-    summary = summarise(follows, leads, signatures, reference_style)
+    summary = summarise([follows, *leads], signatures, reference_style)
     metrics = _metrics(summary, follows, leads, seeds, seed, reference_style, partner_style)
     return Section(
         key="virtual_trainer",
@@ -166,15 +173,16 @@ def play_follow_sessions(
         duration = float(trial.times[-1] - trial.times[0])
         sessions.append(play(RecordedPlayer(trial), vt, duration, seed, ("leader", "follower")))
     styles = [str(t.group) for t in trials]
-    return Condition("follows", sessions, styles, [session_metrics(s, TRIM) for s in sessions])
+    metrics = [session_metrics(s, TRIM) for s in sessions]
+    return Condition("follows", "follows", sessions, styles, metrics)
 
 
 def play_lead_sessions(
-    generator: IMSGenerator, partner_generator: IMSGenerator, seeds: Sequence[int]
+    generator: IMSGenerator, partner_generator: IMSGenerator, seeds: Sequence[int], name: str
 ) -> Condition:
-    """Play the leader VT (player 1) with a follower VT of the other style (player 0).
+    """Play the leader VT (player 1) with a follower VT (player 0) of ``partner_generator``.
 
-    One `LEAD_DURATION` session per seed.
+    One `LEAD_DURATION` session per seed; ``name`` labels the condition.
     """
     sessions = []
     for seed in seeds:
@@ -182,7 +190,8 @@ def play_lead_sessions(
         vt = VirtualTrainer(LEADER, generator, label="VT leader")
         sessions.append(play(partner, vt, LEAD_DURATION, seed, ("follower", "leader")))
     styles = ["VT"] * len(sessions)
-    return Condition("leads", sessions, styles, [session_metrics(s, TRIM) for s in sessions])
+    metrics = [session_metrics(s, TRIM) for s in sessions]
+    return Condition(name, "leads", sessions, styles, metrics)
 
 
 def compute_style_emds(
@@ -200,8 +209,7 @@ def compute_style_emds(
 
 
 def summarise(
-    follows: Condition,
-    leads: Condition,
+    conditions: Sequence[Condition],
     signatures: dict[str, np.ndarray],
     reference_style: str,
 ) -> pd.DataFrame:
@@ -213,7 +221,7 @@ def summarise(
     to each style, and the paper's CV, RMSE and phase.
     """
     rows = {}
-    for condition in (follows, leads):
+    for condition in conditions:
         emds = compute_style_emds(condition, signatures)
         groups = sorted(set(condition.partner_styles))
         for group in [*groups, None] if len(groups) > 1 else [None]:
@@ -231,7 +239,7 @@ def _row(
     def values(key: str) -> np.ndarray:
         return np.array([float(v) for m in selected if (v := m[key]) is not None])
 
-    paper = PAPER[condition.name]
+    paper = PAPER[condition.paper]
     row: dict[str, Any] = {
         "sessions": len(selected),
         "cv": values("circular_variance").mean(),
@@ -274,21 +282,24 @@ def _session_table(condition: Condition) -> pd.DataFrame:
 
 
 def _figures(
-    follows: Condition, leads: Condition, by_style: dict[str, list[Trial]], reference_style: str
+    follows: Condition,
+    leads: Sequence[Condition],
+    by_style: dict[str, list[Trial]],
+    reference_style: str,
 ) -> dict[str, Any]:
     example = next(i for i, style in enumerate(follows.partner_styles) if style == reference_style)
-    follow_session, lead_session = follows.sessions[example], leads.sessions[0]
+    follow_session, lead_session = follows.sessions[example], leads[0].sessions[0]
     n = int(round(EXAMPLE_SECONDS / follow_session.period)) + 1
     phases = {
         f"VT follows ({style} people)": _phases(follows, style)
         for style in sorted(set(follows.partner_styles))
     }
-    phases["VT leads a VT"] = _phases(leads, None)
+    phases |= {f"VT {condition.name}": _phases(condition, None) for condition in leads}
     velocities = {
         f"{style} people": compute_ims(np.concatenate([t.velocity() for t in group]))
         for style, group in by_style.items()
     }
-    for condition in (follows, leads):
+    for condition in (follows, *leads):
         pooled = np.concatenate([s.velocities[1] for s in condition.sessions])
         velocities[f"VT ({condition.name})"] = compute_ims(pooled)
     return {
@@ -331,7 +342,7 @@ def _phases(condition: Condition, style: str | None) -> np.ndarray:
 def _metrics(
     summary: pd.DataFrame,
     follows: Condition,
-    leads: Condition,
+    leads: Sequence[Condition],
     seeds: list[int],
     seed: int,
     reference_style: str,
@@ -349,7 +360,8 @@ def _metrics(
             dict(m, leader=s.labels[0])
             for m, s in zip(follows.metrics, follows.sessions, strict=True)
         ],
-        "leads": leads.metrics,
+        "leads": leads[0].metrics,
+        "leads_same_style": leads[1].metrics,
         "paper": PAPER,
     }
 
@@ -358,16 +370,22 @@ def _describe(
     summary: pd.DataFrame, reference_style: str, partner_style: str, n_follow: int, n_lead: int
 ) -> list[str]:
     own = summary.loc[f"follows ({reference_style} people)"]
-    leads = summary.loc["leads"]
+    leads, same = summary.loc["leads"], summary.loc["leads (same-style VT)"]
     return [
         f"The VT under test has a signature learned from the {reference_style} trials. It follows "
         f"each of the {n_follow} recorded trials replayed as leader, and leads a VT follower with "
-        f"the {partner_style} signature in {n_lead} sessions of {LEAD_DURATION:g} s. The first "
-        f'{TRIM:g} s of each session are left out. CV is the paper\'s "circular variance", the '
-        "mean resultant length of the relative phase (1 = phase locked).",
+        f"the {partner_style} signature (and, as a control, one with its own signature) in "
+        f"{n_lead} sessions of {LEAD_DURATION:g} s each. The first {TRIM:g} s of each session are "
+        'left out. CV is the paper\'s "circular variance", the mean resultant length of the '
+        "relative phase (1 = phase locked).",
         f"Following {reference_style} people: CV {own['cv']:.3f}, RMSE {own['rmse']:.3f}, "
         f"relative phase {own['phase']:+.3f} rad (paper, with a person: CV 0.933, RMSE 0.112, "
-        f"+0.394). Leading: CV {leads['cv']:.3f}, RMSE {leads['rmse']:.3f}, relative phase "
-        f"{leads['phase']:+.3f} rad (paper: 0.868, 0.122, -0.664). Positive phase: the partner "
-        "is ahead, so the VT lags when it follows and is ahead when it leads if the signs match.",
+        f"+0.394). Leading the {partner_style} VT: CV {leads['cv']:.3f}, RMSE "
+        f"{leads['rmse']:.3f}, relative phase {leads['phase']:+.3f} rad (paper, leading a person: "
+        f"0.868, 0.122, -0.664); leading a VT of its own style: CV {same['cv']:.3f}, RMSE "
+        f"{same['rmse']:.3f}, relative phase {same['phase']:+.3f} rad. Positive phase: the "
+        "partner is ahead, so the VT lags when it follows and is ahead when it leads if the "
+        "signs match. A VT follower keeps a weak pull (theta_s = 0.1) to its own reference "
+        "velocity, so a follower with another style locks less tightly to the leader than a "
+        "person following would.",
     ]
