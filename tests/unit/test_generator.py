@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.signal import butter, sosfilt_zi, sosfiltfilt
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import (
@@ -12,8 +13,10 @@ from mirror_avatar.generator import (
     estimate_transitions,
     sample_chain,
     sweep_codebook,
+    zero_phase_filter,
 )
 from mirror_avatar.signature import compute_emd, compute_ims, stroke_moments
+from mirror_avatar.trials import compute_velocity
 
 
 @pytest.fixture(scope="module")
@@ -152,3 +155,27 @@ def test_codebook_sweep_distortion_falls_with_size(zhai_trials_100hz: list) -> N
     assert np.all((sweep["emd_to_test"] > 0) & (sweep["emd_to_test"] < 0.1))
     with pytest.raises(InputError, match="held-out"):
         sweep_codebook(train, [], sizes=(8,))
+
+
+@pytest.mark.parametrize("n_samples", [6000, 37, 16, 5])
+def test_fast_velocity_equals_compute_velocity(small_model: IMSGenerator, n_samples: int) -> None:
+    fast = small_model.sample_velocity(n_samples, random_state=4)
+    positions = small_model.sample_positions(n_samples, random_state=4)
+    np.testing.assert_allclose(fast, compute_velocity(positions, 100.0), rtol=0, atol=1e-12)
+
+
+def test_zero_phase_filter_matches_scipy(rng: np.random.Generator) -> None:
+    sos = butter(4, 7.0, fs=100.0, output="sos")
+    signal = np.cumsum(rng.normal(size=500))
+    for padlen in (0, 15, 40):
+        ours = zero_phase_filter(sos, sosfilt_zi(sos), signal, padlen)
+        np.testing.assert_allclose(ours, sosfiltfilt(sos, signal, padlen=padlen), atol=1e-12)
+
+
+def test_low_rate_model_skips_the_filter(zhai_trials: list) -> None:
+    model = IMSGenerator(n_symbols=8, window=8, hop=2, rate=15.0, random_state=0)
+    model.fit(zhai_trials[:2])
+    positions = model.sample_positions(200, random_state=2)
+    np.testing.assert_allclose(
+        model.sample_velocity(200, random_state=2), compute_velocity(positions, 15.0), atol=1e-12
+    )
