@@ -70,6 +70,12 @@ def measure(task: Callable[[], object]) -> tuple[float, float]:
     return elapsed, peak / 2**20
 
 
+def repeat(task: Callable[[], object], times: int) -> None:
+    """Call ``task`` ``times`` times, keeping no result (as a training loop would)."""
+    for _ in range(times):
+        task()
+
+
 def run(quick: bool) -> list[dict]:
     trials = training_trials()
     model = IMSGenerator(random_state=0)
@@ -79,11 +85,9 @@ def run(quick: bool) -> list[dict]:
     model.sample_velocity(n_samples, 0)  # compile
     n_fast, n_slow = (200, 3) if quick else (2000, 20)
     rng = np.random.default_rng(0)
-    fast_s, fast_mb = measure(
-        lambda: [model.sample_velocity(n_samples, rng) for _ in range(n_fast)]
-    )
+    fast_s, fast_mb = measure(lambda: repeat(lambda: model.sample_velocity(n_samples, rng), n_fast))
     slow_s, slow_mb = measure(
-        lambda: [baseline_velocity(model, n_samples, rng) for _ in range(n_slow)]
+        lambda: repeat(lambda: baseline_velocity(model, n_samples, rng), n_slow)
     )
     trial_s, trial_mb = measure(lambda: model.sample(REFERENCE_S, n=n_fast // 4, random_state=1))
 
