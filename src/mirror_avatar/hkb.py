@@ -16,12 +16,13 @@ How it is solved (follows METHODS section 5; departs from the original implement
 called MATLAB's bvp4c at every step): Pontryagin's principle gives the nonlinear two-point boundary
 value problem of the section, solved here **exactly up to integration error** by shooting on the
 two initial costates. The state-costate system and its sensitivities with respect to the initial
-costates are integrated with fixed-step RK4 (`N_SUBSTEPS` steps per interval), and Newton's method
-on the two terminal conditions converges from a zero costate in a few iterations (the problem is
-nearly linear over 0.03 s). The published closed-form quadratic-in-time approximation is **not**
-used: it gets velocity and control wrong by tens of percent. After the interval, the position is
-clipped to the playing range [-0.5, 0.5] and an outward velocity at the wall is set to zero (a hand
-stopped at the edge of the range).
+costates are integrated with fixed-step RK4 (at least `N_SUBSTEPS` steps per interval, more when
+the interval is stiff, see `count_substeps`), and Newton's method on the two terminal conditions
+converges in two or three iterations from the exact solution of the problem with frozen damping
+(the problem is nearly linear over 0.03 s). The published closed-form quadratic-in-time
+approximation is **not** used: it gets velocity and control wrong by tens of percent. After the
+interval, the position is clipped to the playing range [-0.5, 0.5] and an outward velocity at the
+wall is set to zero (a hand stopped at the edge of the range).
 
 Everything numerical is compiled with numba; `optimal_control_step` is the single step used by the
 live players, the game engine and the batch engine.
@@ -42,14 +43,18 @@ from mirror_avatar.trials import PLAYING_RANGE
 CONTROL_PERIOD = 0.03
 """The control period T of the paper (s): players are advanced every T."""
 
-N_SUBSTEPS = 6
-"""RK4 steps per control interval in the shooting solve."""
+N_SUBSTEPS = 4
+"""Fewest RK4 steps per control interval in the shooting solve."""
+
+STEP_STIFFNESS = 0.5
+"""Largest RK4 step times the interval's fastest rate: more substeps are taken when needed."""
 
 MAX_NEWTON = 8
 """Most Newton iterations on the initial costates per control interval."""
 
-NEWTON_TOLERANCE = 1e-6
-"""Newton stops when the control at t_k changes by less than this fraction of itself."""
+NEWTON_TOLERANCE = 1e-3
+"""Newton stops when the control at t_k changes by less than this fraction of itself (the
+end state, extrapolated to first order in the last update, is then accurate to its square)."""
 
 _LOW, _HIGH = PLAYING_RANGE
 
@@ -156,7 +161,8 @@ def hkb_acceleration(
 def _derivatives(
     w: NDArray[np.float64],
     p: NDArray[np.float64],
-    targets: NDArray[np.float64],
+    reference_velocity: float,
+    partner_velocity: float,
     frozen: float,
     dw: NDArray[np.float64],
 ) -> None:
@@ -180,7 +186,9 @@ def _derivatives(
     dw[0] = y
     dw[1] = hkb_acceleration(x, y, -l2 / eta, alpha, beta, gamma, omega)
     dw[2] = l2 * coupling
-    dw[3] = l2 * damping - l1 - theta_s * (y - targets[0]) - theta_v * (y - targets[1])
+    dw[3] = (
+        l2 * damping - l1 - theta_s * (y - reference_velocity) - theta_v * (y - partner_velocity)
+    )
     for j in range(2):
         sx, sy, s1, s2 = w[4 + j], w[6 + j], w[8 + j], w[10 + j]
         dw[4 + j] = sy
@@ -201,7 +209,8 @@ def _shoot(
     l1: float,
     l2: float,
     p: NDArray[np.float64],
-    targets: NDArray[np.float64],
+    reference_velocity: float,
+    partner_velocity: float,
     frozen: float,
     n_substeps: int,
     work: NDArray[np.float64],
@@ -222,7 +231,7 @@ def _shoot(
             acc[i] = 0.0
             stage[i] = state[i]
         for stage_index in range(4):
-            _derivatives(stage, p, targets, frozen, k)
+            _derivatives(stage, p, reference_velocity, partner_velocity, frozen, k)
             weight = 1.0 if stage_index == 0 or stage_index == 3 else 2.0
             step = h if stage_index == 2 else 0.5 * h
             for i in range(12):
@@ -230,6 +239,30 @@ def _shoot(
                 stage[i] = state[i] + step * k[i]
         for i in range(12):
             state[i] += h / 6.0 * acc[i]
+
+
+@njit(cache=True)
+def count_substeps(
+    x: float,
+    y: float,
+    reference_velocity: float,
+    partner_velocity: float,
+    p: NDArray[np.float64],
+    n_min: int,
+) -> int:
+    """RK4 steps for one interval: at least ``n_min``, and enough that step x rate <= 0.5.
+
+    The fastest rates (1/s) of the state-costate system are the costate-control coupling
+    ``sqrt((theta_s + theta_v) / eta)`` (about 95/s for the leader) and the HKB damping
+    ``alpha x² + 3 beta y² - gamma``, bounded with the largest of the current, reference and
+    partner speeds (at 9 units/s the damping is about 490/s, and RK4 with the minimum steps
+    would be unstable); `STEP_STIFFNESS` keeps RK4 accurate to well under 1 % at both.
+    """
+    speed = max(abs(y), abs(reference_velocity), abs(partner_velocity) if p[6] > 0.0 else 0.0)
+    damping = p[0] * x * x + 3.0 * p[1] * speed * speed - p[2]
+    coupling = np.sqrt((1.0 - p[5]) / p[4])
+    rate = max(damping, coupling)
+    return max(n_min, int(np.ceil(rate * p[7] / STEP_STIFFNESS)))
 
 
 @njit(cache=True)
@@ -242,15 +275,18 @@ def solve_interval(
     p: NDArray[np.float64],
     n_substeps: int,
     max_newton: int,
+    tolerance: float,
 ) -> tuple[float, float, float, float, bool]:
     """Solve one interval's optimal-control problem without clipping.
 
     The initial guess is the exact solution of the problem with the HKB damping frozen at its
     mean along a velocity ramp from ``y`` to ``r_s`` (linear, so one Newton step solves it); then
     Newton's method on the full nonlinear problem until the control at t_k changes by less than
-    `NEWTON_TOLERANCE` (relative). If Newton has not converged after ``max_newton`` iterations or
-    the shooting overflows (speeds of several units/s, where the HKB damping ``3 beta y²``
-    makes forward shooting ill-conditioned), the frozen-damping solution is returned instead.
+    ``tolerance`` (relative) and the last update moves the end velocity by less than
+    ``tolerance`` (relative, floor 1 unit/s). If Newton has not converged after ``max_newton``
+    iterations or the shooting overflows (speeds of several units/s, where the HKB damping
+    ``3 beta y²`` makes forward shooting ill-conditioned), the frozen-damping solution is
+    returned instead.
 
     Parameters
     ----------
@@ -265,7 +301,10 @@ def solve_interval(
     p
         `HKBParams.as_vector`, shape (8,).
     n_substeps, max_newton
-        RK4 steps per interval and the most Newton iterations on the nonlinear problem.
+        Fewest RK4 steps per interval (`count_substeps` adds more where the interval is stiff)
+        and the most Newton iterations on the nonlinear problem.
+    tolerance
+        Newton stops when the update of lambda2(0) is below this fraction of lambda2(0) + eta.
 
     Returns
     -------
@@ -273,16 +312,27 @@ def solve_interval(
         ``(x(T), y(T), lambda1(0), lambda2(0), converged)``; the optimal control at t_k is
         ``-lambda2(0) / eta``; ``converged`` is False when the frozen-damping fallback is used.
     """
-    targets = np.array([reference_velocity, partner_velocity])
     work = np.empty((4, 12))
     state = work[0]
     theta_p = p[5]
+    n_substeps = count_substeps(x, y, reference_velocity, partner_velocity, p, n_substeps)
     mean_square = (y * y + y * reference_velocity + reference_velocity * reference_velocity) / 3.0
     frozen = max(p[0] * x * x + p[1] * mean_square - p[2], 0.0)
     l1, l2 = 0.0, 0.0
     fallback = (x, y, 0.0, 0.0)
     for iteration in range(max_newton + 1):
-        _shoot(x, y, l1, l2, p, targets, frozen if iteration == 0 else -1.0, n_substeps, work)
+        _shoot(
+            x,
+            y,
+            l1,
+            l2,
+            p,
+            reference_velocity,
+            partner_velocity,
+            frozen if iteration == 0 else -1.0,
+            n_substeps,
+            work,
+        )
         r1 = state[2] - theta_p * (state[0] - partner_prediction)
         r2 = state[3]
         # Jacobian of the terminal residual with respect to (l1(0), l2(0)).
@@ -301,7 +351,9 @@ def solve_interval(
             break
         if iteration == 0:
             fallback = (x_end, y_end, l1, l2)
-        elif abs(d2) <= NEWTON_TOLERANCE * (abs(l2) + p[4]):
+        elif abs(d2) <= tolerance * (abs(l2) + p[4]) and abs(y_end - state[1]) <= tolerance * (
+            abs(y_end) + 1.0
+        ):
             return x_end, y_end, l1, l2, True
     return fallback[0], fallback[1], fallback[2], fallback[3], False
 
@@ -336,7 +388,15 @@ def optimal_control_step(
         optimal control at t_k (units/s²).
     """
     x_next, y_next, _, l2, _ = solve_interval(
-        x, y, partner_prediction, reference_velocity, partner_velocity, p, N_SUBSTEPS, MAX_NEWTON
+        x,
+        y,
+        partner_prediction,
+        reference_velocity,
+        partner_velocity,
+        p,
+        N_SUBSTEPS,
+        MAX_NEWTON,
+        NEWTON_TOLERANCE,
     )
     x_next, y_next = clip_to_range(x_next, y_next)
     return x_next, y_next, -l2 / p[4]
