@@ -2,11 +2,13 @@
 
 import numpy as np
 import pytest
+from shapely.geometry import Point
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments import EXPERIMENTS
-from mirror_avatar.experiments.generator import run, split_and_generate
+from mirror_avatar.experiments.generator import fraction_inside, run, split_and_generate
 from mirror_avatar.report import Section
+from mirror_avatar.signature import analyse_signatures
 
 
 @pytest.fixture(scope="module")
@@ -42,6 +44,14 @@ def _check(section: Section, seed: int) -> None:
 
 def test_split_is_reproducible_and_disjoint(zhai_trials, section: Section) -> None:
     again = split_and_generate(zhai_trials, seed=0)
+    everything = [t for sp in again.values() for t in sp.train + sp.held_out + sp.generated]
+    analysis = analyse_signatures(everything)
+    for style in again:
+        region = analysis.ellipses[style].polygon()
+        points = analysis.points_by_group()[f"{style} (generated)"]
+        expected = np.mean([region.contains(Point(p)) for p in points])
+        share = fraction_inside(analysis, style, f"{style} (generated)")
+        assert share == expected == section.metrics["generated_inside_human_region"][style]
     for style, parts in section.metrics["split"].items():
         assert parts["train"] == [t.label for t in again[style].train]
         assert parts["held_out"] == [t.label for t in again[style].held_out]

@@ -70,6 +70,7 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
     identified = identify_styles(analysis, splits)
     strokes = compare_strokes(analysis, styles)
     overlaps = {s: _overlap(analysis, s, _generated_group(s)) for s in styles}
+    inside = {s: fraction_inside(analysis, s, _generated_group(s)) for s in styles}
     sweep = pd.concat(
         {
             s: sweep_codebook(
@@ -104,13 +105,14 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
         "identification": identified.to_dict(orient="index"),
         "strokes": strokes.to_dict(orient="index"),
         "overlap_human_generated": overlaps,
+        "generated_inside_human_region": inside,
         "codebook_sweep": sweep.reset_index().to_dict(orient="records"),
         "checks": checks,
     }
     return Section(
         key="generator",
         title="IMS generator: generated motion against held-out human motion",
-        text=_describe(splits, emd_table, identified, overlaps, checks),
+        text=_describe(splits, emd_table, identified, overlaps, inside, checks),
         tables={
             "Mean EMD of generated trials to the held-out human trials, against human-vs-human "
             "EMD within the style and between styles": emd_table,
@@ -229,6 +231,22 @@ def compare_strokes(analysis: SignatureAnalysis, styles: Sequence[str]) -> pd.Da
     return pd.DataFrame.from_dict(rows, orient="index")
 
 
+def fraction_inside(analysis: SignatureAnalysis, region: str, group: str) -> float | None:
+    """Fraction of ``group``'s trials whose similarity-space point lies in ``region``'s ellipse.
+
+    A complement to the overlap (intersection / union), which stays small when one region is
+    estimated from a handful of nearly collinear points even if it lies inside the other. A
+    region of level p holds about a fraction p of its own group's trials, the yardstick here.
+    ``None`` when ``region`` has no (or a degenerate) ellipse.
+    """
+    ellipse = analysis.ellipses[region]
+    if ellipse is None or not np.all(ellipse.semi_axes > 0):
+        return None
+    points = analysis.points_by_group()[group]
+    scaled = (points - ellipse.centre) @ ellipse.axes / ellipse.semi_axes
+    return float(np.mean(np.sum(scaled**2, axis=1) <= 1.0))
+
+
 def _overlap(analysis: SignatureAnalysis, a: str, b: str) -> float | None:
     names = analysis.group_names
     value = float(analysis.overlaps[names.index(a), names.index(b)])
@@ -262,6 +280,7 @@ def _describe(
     emd_table: pd.DataFrame,
     identified: pd.DataFrame,
     overlaps: dict[str, float | None],
+    inside: dict[str, float | None],
     checks: dict[str, bool],
 ) -> list[str]:
     text = [
@@ -270,13 +289,15 @@ def _describe(
         + f" and generated as many {DURATION:g} s trials as were held out.",
     ]
     for style, row in emd_table.iterrows():
-        overlap = overlaps[str(style)]
+        overlap, share = overlaps[str(style)], inside[str(style)]
         text.append(
             f"{style}: mean EMD generated vs held-out human {row['generated_vs_held_out']:.4f}, "
             f"human vs human within the style {row['human_within']:.4f} "
             f"(ratio {row['ratio_to_human_within']:.2f}), between styles {row['between']:.4f} "
             f"(ratio {row['ratio_to_between']:.2f}); overlap of the human and generated regions "
             + ("n/a" if overlap is None else f"{overlap:.2f}")
+            + ", generated trials inside the human region "
+            + ("n/a" if share is None else f"{share:.0%}")
             + "."
         )
     text.append(
