@@ -164,15 +164,16 @@ def _derivatives(
     reference_velocity: float,
     partner_velocity: float,
     frozen: float,
+    size: int,
     dw: NDArray[np.float64],
 ) -> None:
     """Right-hand side of the state-costate system and of its costate sensitivities.
 
-    ``w = [x, y, l1, l2, s]`` with ``s[i, j] = w[4 + 2 i + j]`` = d z_i / d(l1(0), l2(0))_j;
-    ``targets = [r_s, r_v]``. Writes the derivative of ``w`` into ``dw``, shape (12,).
-    With ``frozen`` >= 0 (a damping coefficient, 1/s) the HKB damping ``alpha x² + beta y² -
-    gamma`` is frozen at that value, which makes the system linear; with ``frozen`` < 0 it is
-    the full nonlinear system.
+    ``w = [x, y, l1, l2, s]`` with ``s[i, j] = w[4 + 2 i + j]`` = d z_i / d(l1(0), l2(0))_j.
+    Writes the derivative of the first ``size`` entries of ``w`` (4: state and costates only,
+    12: with the sensitivities) into ``dw``, shape (12,). With ``frozen`` >= 0 (a damping
+    coefficient, 1/s) the HKB damping ``alpha x² + beta y² - gamma`` is frozen at that value,
+    which makes the system linear; with ``frozen`` < 0 it is the full nonlinear system.
     """
     alpha, beta, gamma, omega, eta, theta_v = p[0], p[1], p[2], p[3], p[4], p[6]
     theta_s = 1.0 - p[5] - theta_v
@@ -189,7 +190,7 @@ def _derivatives(
     dw[3] = (
         l2 * damping - l1 - theta_s * (y - reference_velocity) - theta_v * (y - partner_velocity)
     )
-    for j in range(2):
+    for j in range(2 if size == 12 else 0):
         sx, sy, s1, s2 = w[4 + j], w[6 + j], w[8 + j], w[10 + j]
         dw[4 + j] = sy
         dw[6 + j] = -coupling * sx - damping * sy - s2 / eta
@@ -213,9 +214,10 @@ def _shoot(
     partner_velocity: float,
     frozen: float,
     n_substeps: int,
+    size: int,
     work: NDArray[np.float64],
 ) -> None:
-    """Integrate state, costates and sensitivities over one interval with RK4, in place.
+    """Integrate state and costates (``size`` 4), and sensitivities (12), with RK4, in place.
 
     ``work`` (4, 12): row 0 receives the solution at the end of the interval (layout of
     `_derivatives`), rows 1-3 are scratch.
@@ -227,17 +229,17 @@ def _shoot(
     state[8] = 1.0
     state[11] = 1.0
     for _ in range(n_substeps):
-        for i in range(12):
+        for i in range(size):
             acc[i] = 0.0
             stage[i] = state[i]
         for stage_index in range(4):
-            _derivatives(stage, p, reference_velocity, partner_velocity, frozen, k)
+            _derivatives(stage, p, reference_velocity, partner_velocity, frozen, size, k)
             weight = 1.0 if stage_index == 0 or stage_index == 3 else 2.0
             step = h if stage_index == 2 else 0.5 * h
-            for i in range(12):
+            for i in range(size):
                 acc[i] += weight * k[i]
                 stage[i] = state[i] + step * k[i]
-        for i in range(12):
+        for i in range(size):
             state[i] += h / 6.0 * acc[i]
 
 
@@ -281,7 +283,10 @@ def solve_interval(
 
     The initial guess is the exact solution of the problem with the HKB damping frozen at its
     mean along a velocity ramp from ``y`` to ``r_s`` (linear, so one Newton step solves it); then
-    Newton's method on the full nonlinear problem until the control at t_k changes by less than
+    Newton iterations on the full nonlinear problem: the first with sensitivities, the next
+    as chord iterations (shooting state and costates only, with the last Jacobian and end-state
+    sensitivities) while each shrinks the update at least fourfold, until the control at t_k
+    changes by less than
     ``tolerance`` (relative) and the last update moves the end velocity by less than
     ``tolerance`` (relative, floor 1 unit/s). If Newton has not converged after ``max_newton``
     iterations or the shooting overflows (speeds of several units/s, where the HKB damping
@@ -302,7 +307,7 @@ def solve_interval(
         `HKBParams.as_vector`, shape (8,).
     n_substeps, max_newton
         Fewest RK4 steps per interval (`count_substeps` adds more where the interval is stiff)
-        and the most Newton iterations on the nonlinear problem.
+        and the most chord-Newton iterations on the nonlinear problem.
     tolerance
         Newton stops when the update of lambda2(0) is below this fraction of lambda2(0) + eta.
 
@@ -320,33 +325,31 @@ def solve_interval(
     frozen = max(p[0] * x * x + p[1] * mean_square - p[2], 0.0)
     l1, l2 = 0.0, 0.0
     fallback = (x, y, 0.0, 0.0)
+    j11 = j12 = j21 = j22 = det = sx1 = sx2 = sy1 = sy2 = 0.0
+    size, previous = 12, np.inf
     for iteration in range(max_newton + 1):
+        damping = frozen if iteration == 0 else -1.0
         _shoot(
-            x,
-            y,
-            l1,
-            l2,
-            p,
-            reference_velocity,
-            partner_velocity,
-            frozen if iteration == 0 else -1.0,
-            n_substeps,
-            work,
+            x, y, l1, l2, p, reference_velocity, partner_velocity, damping, n_substeps, size, work
         )
+        if size == 12:
+            # Jacobian of the terminal residual in (l1(0), l2(0)), and end-state sensitivities.
+            j11 = state[8] - theta_p * state[4]
+            j12 = state[9] - theta_p * state[5]
+            j21, j22 = state[10], state[11]
+            det = j11 * j22 - j12 * j21
+            sx1, sx2, sy1, sy2 = state[4], state[5], state[6], state[7]
         r1 = state[2] - theta_p * (state[0] - partner_prediction)
         r2 = state[3]
-        # Jacobian of the terminal residual with respect to (l1(0), l2(0)).
-        j11 = state[8] - theta_p * state[4]
-        j12 = state[9] - theta_p * state[5]
-        j21, j22 = state[10], state[11]
-        det = j11 * j22 - j12 * j21
         d1 = -(j22 * r1 - j12 * r2) / det
         d2 = -(j11 * r2 - j21 * r1) / det
         l1 += d1
         l2 += d2
-        # End state to first order in the update (exact once Newton has converged).
-        x_end = state[0] + state[4] * d1 + state[5] * d2
-        y_end = state[1] + state[6] * d1 + state[7] * d2
+        size = 12 if iteration == 0 or abs(d2) > 0.25 * previous else 4
+        previous = abs(d2)
+        # End state to first order in the update (exact once the iteration has converged).
+        x_end = state[0] + sx1 * d1 + sx2 * d2
+        y_end = state[1] + sy1 * d1 + sy2 * d2
         if not (np.isfinite(x_end) and np.isfinite(y_end) and np.isfinite(l2)):
             break
         if iteration == 0:
