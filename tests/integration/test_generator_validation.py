@@ -39,7 +39,11 @@ def _check(section: Section, seed: int) -> None:
         assert row["generated_vs_held_out"] < row["generated_vs_other_styles"], style
         assert len(metrics["split"][style]["train"]) == 6
         assert len(metrics["split"][style]["held_out"]) == 3
-    assert len(section.figures) == 3 and len(section.tables) == 4
+    for style, row in metrics["smoothing"].items():
+        ratio = row["generated_acceleration_rms"] / row["human_acceleration_rms"]
+        assert row["acceleration_ratio"] == pytest.approx(ratio)
+        assert 0.5 < row["acceleration_ratio"] < 1.5 and 0.7 < row["velocity_ratio"] < 1.3, style
+    assert len(section.figures) == 3 and len(section.tables) == 5
 
 
 def test_split_is_reproducible_and_disjoint(zhai_trials, section: Section) -> None:
