@@ -1,0 +1,200 @@
+"""Game engine: virtual-trainer sessions per second, against a per-step solve_bvp baseline.
+
+The batch engine (`mirror_avatar.batch.run_sessions`, compiled sessions on local processes) plays
+60 s leader-vs-follower sessions between virtual trainers driven by the bundled "fast" and "slow"
+IMS generators. The baseline solves the same optimal-control step the straightforward way, as the
+original MATLAB implementation did with bvp4c: scipy's ``solve_bvp`` on the nonlinear two-point
+boundary value problem at every step, timed on a few steps in the same run. Also: the compiled
+step alone, one live `VirtualTrainer.step` call, peak memory, and the projected time of the
+paper's 24 000 training sessions.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import time
+import tracemalloc
+
+import numpy as np
+from scipy.integrate import solve_bvp
+
+from mirror_avatar.batch import run_sessions
+from mirror_avatar.hkb import FOLLOWER, LEADER, HKBParams, clip_to_range, optimal_control_step
+from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.specs import bundled_generator
+
+PAPER_SESSIONS = 24_000
+SESSION_SECONDS = 60.0
+
+
+def solve_step_bvp(
+    params: HKBParams, x0: float, y0: float, rp: float, rs: float, rv: float
+) -> tuple[float, float, float]:
+    """One optimal-control step by scipy's collocation solver (the bvp4c way), tolerance 1e-3.
+
+    bvp4c's default relative tolerance is 1e-3; the mesh starts at 10 nodes as bvp4c examples do.
+
+    Returns
+    -------
+    tuple of float
+        Position and velocity at the end of the interval (clipped) and the control at its start.
+    """
+    a, b, g, w, eta = params.alpha, params.beta, params.gamma, params.omega, params.eta
+    tp, tv, ts = params.theta_p, params.theta_v, params.theta_s
+
+    def rhs(_t: np.ndarray, z: np.ndarray) -> np.ndarray:
+        x, y, l1, l2 = z
+        return np.vstack(
+            [
+                y,
+                -(a * x * x + b * y * y - g) * y - w * w * x - l2 / eta,
+                l2 * (2 * a * x * y + w * w),
+                l2 * (a * x * x + 3 * b * y * y - g) - l1 - ts * (y - rs) - tv * (y - rv),
+            ]
+        )
+
+    def boundary(za: np.ndarray, zb: np.ndarray) -> np.ndarray:
+        return np.array([za[0] - x0, za[1] - y0, zb[2] - tp * (zb[0] - rp), zb[3]])
+
+    t = np.linspace(0.0, params.period, 10)
+    guess = np.zeros((4, t.size))
+    guess[0], guess[1] = x0 + y0 * t, y0
+    solution = solve_bvp(rhs, boundary, t, guess, tol=1e-3)
+    x_end, y_end = clip_to_range(*solution.sol(params.period)[:2])
+    return x_end, y_end, float(-solution.sol(0.0)[3] / eta)
+
+
+def make_pairs() -> list[tuple[VirtualTrainer, VirtualTrainer]]:
+    """Leader and follower virtual trainers over the two bundled styles (4 pairs)."""
+    fast, slow = bundled_generator("fast"), bundled_generator("slow")
+    return [
+        (VirtualTrainer(LEADER, lead), VirtualTrainer(FOLLOWER, follow))
+        for lead in (fast, slow)
+        for follow in (fast, slow)
+    ]
+
+
+def measure_batch(
+    pairs: list[tuple[VirtualTrainer, VirtualTrainer]], n_sessions: int, n_jobs: int
+) -> tuple[float, float, np.ndarray]:
+    """Seconds for ``n_sessions`` of 60 s, peak traced memory (MB) of this process, 1st chunk."""
+    tracemalloc.start()
+    start = time.perf_counter()
+    first = None
+    for batch in run_sessions(
+        pairs, n_sessions, SESSION_SECONDS, seed=0, n_jobs=n_jobs, chunk_size=25, progress=False
+    ):
+        first = batch if first is None else first
+    elapsed = time.perf_counter() - start
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert first is not None
+    return elapsed, peak / 2**20, first.positions
+
+
+def step_inputs(positions: np.ndarray, n: int) -> list[tuple[float, ...]]:
+    """``n`` follower steps taken from a played session: (x, y, r_p, r_s, r_v) at human speeds."""
+    rng = np.random.default_rng(0)
+    leader, follower = positions[0, 0], positions[0, 1]
+    ks = rng.choice(np.arange(1, leader.size - 1), n, replace=False)
+    period = LEADER.period
+    return [
+        (
+            follower[k],
+            (follower[k] - follower[k - 1]) / period,
+            2 * leader[k] - leader[k - 1],
+            float(rng.uniform(-0.5, 0.5)),
+            0.0,
+        )
+        for k in ks
+    ]
+
+
+def run(quick: bool) -> list[dict]:
+    pairs = make_pairs()
+    n_jobs = 2
+    for jobs in (1, n_jobs):  # load the compiled code in this process and in the workers
+        list(run_sessions(pairs, 2 * jobs, 1.0, n_jobs=jobs, chunk_size=1, progress=False))
+    n_sessions = 200 if quick else 2000
+    elapsed, peak_mb, positions = measure_batch(pairs, n_sessions, n_jobs)
+    sessions_per_s = n_sessions / elapsed
+    inline, _, _ = measure_batch(pairs, n_sessions // 10, 1)
+    inline_per_s = n_sessions // 10 / inline
+    steps_per_session = 2 * int(round(SESSION_SECONDS / LEADER.period))
+
+    inputs = step_inputs(positions, 10 if quick else 30)
+    p = FOLLOWER.as_vector()
+    start = time.perf_counter()
+    for args in inputs:
+        solve_step_bvp(FOLLOWER, *args)
+    bvp_step = (time.perf_counter() - start) / len(inputs)
+    n_repeat = 20_000
+    start = time.perf_counter()
+    for _ in range(n_repeat // len(inputs)):
+        for args in inputs:
+            optimal_control_step(*args, p)
+    step = (time.perf_counter() - start) / (n_repeat // len(inputs) * len(inputs))
+    bvp_sessions_per_s = 1.0 / (bvp_step * steps_per_session)
+
+    trainer = pairs[0][1]
+    trainer.reset(seed=0)
+    start = time.perf_counter()
+    for k in range(1000):
+        trainer.step(0.1 * np.sin(0.03 * k), 0.0)
+    live_step = (time.perf_counter() - start) / 1000
+
+    projected = PAPER_SESSIONS / sessions_per_s
+    return [
+        {
+            "name": "batch engine: VT-vs-VT sessions of 60 s",
+            "value": sessions_per_s,
+            "unit": "sessions/s",
+            "baseline": bvp_sessions_per_s,
+            "ratio": sessions_per_s / bvp_sessions_per_s,
+            "peak_memory_mb": peak_mb,
+            "note": f"{n_sessions} sessions, {n_jobs} processes (cores: {os.cpu_count()}), "
+            "chunks of 25; baseline = solve_bvp per step (1 core), projected from "
+            f"{len(inputs)} steps",
+        },
+        {
+            "name": "batch engine in this process (n_jobs=1)",
+            "value": inline_per_s,
+            "unit": "sessions/s",
+            "baseline": bvp_sessions_per_s,
+            "ratio": inline_per_s / bvp_sessions_per_s,
+            "note": f"{n_sessions // 10} sessions, 1 core",
+        },
+        {
+            "name": f"projected time for {PAPER_SESSIONS} sessions of 60 s",
+            "value": projected / 60.0,
+            "unit": "min",
+            "baseline": PAPER_SESSIONS / bvp_sessions_per_s / 3600.0,
+            "note": "target < 2 min on 2 cores; baseline column in hours (1 core)",
+        },
+        {
+            "name": "optimal-control step (compiled, called from Python)",
+            "value": step * 1e6,
+            "unit": "us",
+            "baseline": bvp_step * 1e6,
+            "ratio": bvp_step / step,
+            "note": "follower steps at states from a played session; baseline = solve_bvp",
+        },
+        {
+            "name": "compiled step inside the batch loop (derived)",
+            "value": 1e6 * n_jobs / (sessions_per_s * steps_per_session),
+            "unit": "us per step per core",
+            "note": "batch wall time x processes / steps, incl. reference drawing and IPC",
+        },
+        {
+            "name": "live VirtualTrainer.step",
+            "value": live_step * 1e6,
+            "unit": "us",
+            "note": "budget 30 000 us (the control period)",
+        },
+        {
+            "name": "process peak resident memory",
+            "value": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+            "unit": "MB",
+        },
+    ]
