@@ -56,6 +56,7 @@ def test_train_writes_policy_and_curve(
     assert player.training_["n_partners"] == 2 and player.training_["n_sessions"] == 6
     curve = (tmp_path / "policies" / "vt5.learning_curve.csv").read_text().splitlines()
     assert curve[0] == "sessions,mean_reward,rms,epsilon" and len(curve) == 7
+    assert (tmp_path / "policies" / "vt5.learning_curve.png").read_bytes()[:4] == b"\x89PNG"
     again = tmp_path / "again.npz"
     assert _train(again, models[0], str(models[1]), str(models[2]),
                   extra=("--role", "leader", "--seed", "4")) == 0  # fmt: skip

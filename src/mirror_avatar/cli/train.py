@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from mirror_avatar.errors import InputError
+from mirror_avatar.figures import plot_learning_curves
 from mirror_avatar.players import VirtualTrainer
 from mirror_avatar.specs import load_player
 from mirror_avatar.training import (
@@ -67,7 +68,7 @@ def train(
 
     Each session, a partner (in turn) plays with the target; the cyber player watches the
     partner and is rewarded for moving like the target. Writes OUT and
-    OUT.learning_curve.csv (the stem of OUT, then .learning_curve.csv).
+    OUT.learning_curve.csv and .png (the stem of OUT, then .learning_curve.csv / .png).
     """
     if out_path.suffix.lower() != ".npz":
         raise InputError(out_path, "the policy file must end in .npz")
@@ -92,8 +93,10 @@ def train(
         checkpoint_every=checkpoint_every,
     )
     curve_path = curve.save(learning_curve_path(out_path))
+    figure = plot_learning_curves({f"{role}, seed {seed}": (curve.sessions, curve.rms)})
+    figure.savefig(curve_path.with_suffix(".png"), dpi=120)
     click.echo(
         f"trained a {role} on {sessions} sessions (seed {seed}): RMS to the target "
         f"{curve.rms[0]:.4f} -> {curve.rms[-1]:.4f} units"
     )
-    click.echo(f"wrote {out_path.resolve()} and {curve_path.resolve()}")
+    click.echo(f"wrote {out_path.resolve()} and {curve_path.resolve()} (.png)")
