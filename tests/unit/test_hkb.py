@@ -164,3 +164,40 @@ def test_fast_steps_stay_close_to_the_tight_solution(y0: float, rs: float) -> No
     x_end, y_end, _ = optimal_control_step(0.0, y0, 0.0, rs, 0.0, LEADER.as_vector())
     assert abs(x_end - x_true) < 0.01
     assert relative_error(y_end, y_true) < 0.2
+
+
+def test_sessions_on_recorded_references_never_run_away(zhai_trials_100hz) -> None:
+    """Leader and follower on the recorded velocities of the bundled trials (up to ~9 units/s).
+
+    Speeds stay within the references' range: a wrongly accepted shooting solution once drove a
+    trainer to hundreds of units/s here.
+    """
+    period = LEADER.period
+    params = (LEADER.as_vector(), FOLLOWER.as_vector())
+    for first in range(0, 18, 3):
+        references = []
+        for trial in (zhai_trials_100hz[first], zhai_trials_100hz[first + 1]):
+            offsets = trial.times - trial.times[0]
+            references.append(
+                np.interp(np.arange(0, offsets[-1], period), offsets, trial.velocity())
+            )
+        n = min(r.size for r in references)
+        x, v, previous = [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]
+        fastest = 0.0
+        for k in range(n):
+            states = [
+                optimal_control_step(
+                    x[i],
+                    v[i],
+                    2 * x[1 - i] - previous[1 - i],
+                    references[i][k],
+                    v[1 - i],
+                    params[i],
+                )
+                for i in range(2)
+            ]
+            previous = list(x)
+            x, v = [s[0] for s in states], [s[1] for s in states]
+            fastest = max(fastest, abs(v[0]), abs(v[1]))
+        assert np.isfinite(fastest)
+        assert fastest <= max(np.abs(r[:n]).max() for r in references) + 0.5
