@@ -56,9 +56,9 @@ from mirror_avatar.training import (
 )
 from mirror_avatar.trials import Trial
 
-TRAINING_SESSIONS = 2000
-"""Training sessions per role by default (**choice**: keeps ``make demo`` to a few minutes; the
-paper used about 24 000)."""
+TRAINING_SESSIONS = 4000
+"""Training sessions per role by default (**choice**: the whole experiment took 84 s on 2 loaded
+cores, keeping ``make demo`` to a few minutes; the paper used about 24 000)."""
 
 QUICK_TRAINING_SESSIONS = 300
 VALIDATION_SESSIONS = 20
