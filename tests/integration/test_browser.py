@@ -190,12 +190,18 @@ def test_avatar_follows_the_driven_mouse(chromium, server, tmp_path):
 
 
 def chromium_mains() -> set[int]:
-    """Process ids of the Chromium browsers this test process started (not their helpers)."""
-    return {
-        child.pid
-        for child in psutil.Process().children(recursive=True)
-        if CHROMIUM.name in child.name() and "--type=" not in " ".join(child.cmdline())
-    }
+    """Process ids of the running Chromium browsers this test process started (no helpers).
+
+    Browsers that already exited but are not reaped yet (zombies) are left out.
+    """
+    mains = set()
+    for child in psutil.Process().children(recursive=True):
+        try:
+            if CHROMIUM.name in child.name() and "--type=" not in " ".join(child.cmdline()):
+                mains.add(child.pid)
+        except (psutil.ZombieProcess, psutil.NoSuchProcess):
+            continue
+    return mains
 
 
 def test_killing_the_browser_mid_trial_leaves_an_incomplete_trial(playwright, server, tmp_path):
