@@ -43,8 +43,6 @@ import io
 import json
 import math
 import os
-import tempfile
-import zipfile
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -56,8 +54,10 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from tqdm.auto import tqdm
 
+from mirror_avatar.atomic import write_atomic_bytes
 from mirror_avatar.errors import InputError
 from mirror_avatar.hkb import CONTROL_PERIOD, clip_to_range, hkb_acceleration
+from mirror_avatar.model_files import load_model, save_model
 from mirror_avatar.trials import Trial
 
 Array = NDArray[np.float64]
@@ -769,7 +769,7 @@ class LearningCurve:
             data = buffer.getvalue().encode()
         else:
             data = json.dumps(self.as_rows(), indent=1).encode()
-        _write_atomically(path, data)
+        write_atomic_bytes(path, data)
         return path
 
 
@@ -952,31 +952,25 @@ def save_cyber_player(player: CyberPlayer, path: str | os.PathLike[str]) -> Path
     """Write a trained player to ``path`` (one ``.npz``), atomically.
 
     The file holds arrays ``q_table`` (n_states, n_actions), ``edges`` (all interior bin edges),
-    ``edge_counts`` (4,), ``actions`` (n_actions,) and ``metadata``, a JSON string with the
-    format name and version, the dynamics parameters, the discretisation, the training summary
-    and its seed.
+    ``edge_counts`` (4,), ``actions`` (n_actions,) and the JSON metadata of
+    `mirror_avatar.model_files.save_model`: format name and version, the dynamics parameters, the
+    discretisation, the training summary and its seed.
     """
     disc = player.discretisation_
+    training = getattr(player, "training_", {})
     metadata = {
-        "format": FORMAT_NAME,
-        "version": FORMAT_VERSION,
         "parameters": player.parameters(),
         "discretisation": {"features": disc.features, "shape": list(disc.shape)},
-        "training": getattr(player, "training_", {}),
-        "seed": getattr(player, "training_", {}).get("seed"),
+        "training": training,
+        "seed": training.get("seed"),
     }
-    buffer = io.BytesIO()
-    np.savez(
-        buffer,
-        q_table=player.q_table_,
-        edges=disc.flat_edges,
-        edge_counts=np.array([e.size for e in disc.edges], dtype=np.int64),
-        actions=player.actions_,
-        metadata=np.array(json.dumps(metadata)),
-    )
-    path = Path(path)
-    _write_atomically(path, buffer.getvalue())
-    return path
+    arrays = {
+        "q_table": player.q_table_,
+        "edges": disc.flat_edges,
+        "edge_counts": np.array([e.size for e in disc.edges], dtype=np.int64),
+        "actions": player.actions_,
+    }
+    return save_model(path, FORMAT_NAME, FORMAT_VERSION, arrays, metadata)
 
 
 def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
@@ -989,27 +983,9 @@ def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
         truncated), of another format or version, or internally inconsistent (for instance a
         Q-table whose shape does not match the discretisation and action set).
     """
-    try:
-        with open(path, "rb") as file:
-            archive = np.load(file, allow_pickle=False)
-            if not isinstance(archive, np.lib.npyio.NpzFile):
-                raise InputError(path, "not an .npz archive (a single array?)")
-            with archive:
-                arrays = {key: archive[key] for key in archive.files}
-    except FileNotFoundError:
-        raise InputError(path, "no such file") from None
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
-        raise InputError(path, f"not a readable .npz model file ({error})") from None
-    return _player_from_arrays(path, arrays)
-
-
-def _player_from_arrays(
-    path: str | os.PathLike[str], arrays: dict[str, NDArray[Any]]
-) -> CyberPlayer:
-    missing = {"q_table", "edges", "edge_counts", "actions", "metadata"} - arrays.keys()
-    if missing:
-        raise InputError(path, f"not a cyber-player file (missing {', '.join(sorted(missing))})")
-    metadata = _read_metadata(path, arrays["metadata"])
+    arrays, metadata = load_model(
+        path, FORMAT_NAME, FORMAT_VERSION, ("q_table", "edges", "edge_counts", "actions")
+    )
     counts = arrays["edge_counts"]
     if counts.shape != (N_FEATURES,) or np.any(counts < 0) or counts.sum() != arrays["edges"].size:
         raise InputError(path, "bin edge counts do not match the bin edges")
@@ -1032,29 +1008,3 @@ def _player_from_arrays(
     player.q_table_ = q.astype(np.float64)
     player.training_ = metadata.get("training", {})
     return player
-
-
-def _read_metadata(path: str | os.PathLike[str], array: NDArray[Any]) -> dict[str, Any]:
-    try:
-        metadata = json.loads(str(array[()]))
-    except (ValueError, TypeError, IndexError):
-        raise InputError(path, "metadata is not valid JSON") from None
-    if not isinstance(metadata, dict) or metadata.get("format") != FORMAT_NAME:
-        raise InputError(path, f"not a {FORMAT_NAME} file")
-    if metadata.get("version") != FORMAT_VERSION:
-        raise InputError(path, f"unsupported format version {metadata.get('version')!r}")
-    return metadata
-
-
-def _write_atomically(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as file:
-            file.write(data)
-            file.flush()
-            os.fsync(file.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
