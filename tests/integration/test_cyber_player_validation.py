@@ -9,7 +9,8 @@ import numpy as np
 import pandas as pd
 
 from mirror_avatar.experiments import EXPERIMENTS
-from mirror_avatar.experiments.cyber_player import measure, run
+from mirror_avatar.experiments.cyber_player import RoleResult, check_criteria, measure, run
+from mirror_avatar.learning import LearningCurve
 from mirror_avatar.report import write_report
 from mirror_avatar.trials import Trial
 
@@ -39,6 +40,15 @@ def test_quick_validation_runs_end_to_end(zhai_trials: list[Trial], tmp_path) ->
         overlap = pd.DataFrame(result["overlaps"])
         assert np.allclose(np.diag(overlap.to_numpy(dtype=float)), 1.0)
     assert len(section.figures) == 6
+    criteria = section.tables["Reproduction criteria (issue 5): cyber player vs VT5, per partner"]
+    assert list(criteria.index) == list(table_one.index)
+    for (role, partner), row in criteria.iterrows():
+        cyber = pd.DataFrame(metrics[role]["records"]).query(
+            "player == 'cyber player' and partner == @partner.split()[0]"
+        )
+        assert math.isclose(row["rms cyber"], cyber["rms"].mean())
+        assert row["rms <= max"] == (row["rms cyber"] <= 0.15)
+        assert metrics[role]["criteria"][partner]["all"] == row["all"]
     html = write_report([section], tmp_path).read_text()
     assert 'id="cyber_player"' in html
     json.loads((tmp_path / "metrics.json").read_text())
@@ -57,3 +67,38 @@ def test_measure_against_direct_computation() -> None:
     assert out["emd"] < 0.01
     still = measure(np.vstack([positions[0], np.zeros_like(t)]), velocities)
     assert math.isnan(still["cv"])
+
+
+def test_check_criteria_by_hand() -> None:
+    """Partner A meets every criterion; B misses the CV ones and C the RMS ones."""
+    means = {  # partner -> (cv VT5, cv cyber, rms VT5, rms cyber)
+        "VT1": (0.85, 0.83, 0.10, 0.12),
+        "VT2": (0.50, 0.70, 0.10, 0.10),
+        "VT6": (0.90, 0.90, 0.10, 0.20),
+    }
+    rows = [
+        {"partner": partner, "player": name, "session": k, "cv": cv + d, "rms": rms - d}
+        for partner, (cv5, cvc, rms5, rmsc) in means.items()
+        for name, cv, rms in (("VT5", cv5, rms5), ("cyber player", cvc, rmsc))
+        for k, d in enumerate((-0.01, 0.01))
+    ]
+    velocity = np.sin(np.arange(0, 30, 0.03))
+    result = RoleResult(
+        "leader",
+        LearningCurve(),
+        0.0,
+        pd.DataFrame(rows),
+        {"VT5": [velocity], "cyber player": [velocity], "partners": [velocity]},
+        example=None,  # type: ignore[arg-type]
+        baselines={},
+    )
+    checks = check_criteria(result)
+    assert list(checks.index) == ["VT1", "VT2", "VT6 (unseen)"]
+    assert np.allclose(checks["cv cyber"], [0.83, 0.70, 0.90])
+    assert np.allclose(checks["rms VT5"], 0.10)
+    assert (checks["emd to VT5"] == 0.0).all() and checks["emd <= max"].all()
+    assert checks["cv within"].tolist() == [True, False, True]
+    assert checks["cv >= min"].tolist() == [True, False, True]
+    assert checks["rms within"].tolist() == [True, True, False]
+    assert checks["rms <= max"].tolist() == [True, True, False]
+    assert checks["all"].tolist() == [True, False, False]

@@ -75,6 +75,11 @@ TRIM = 1.0
 PAPER = {"cv": (0.74, 0.90), "rms": (0.10, 0.12), "emd": (0.002, 0.008)}
 """The paper's Table I ranges."""
 
+CRITERIA = {"max_difference": 0.05, "min_cv": 0.75, "max_rms": 0.15, "max_emd_to_vt5": 0.01}
+"""The reproduction criteria checked per partner (issue 5): the cyber player's mean CV and RMS
+each within ``max_difference`` of VT5's, its CV at least ``min_cv`` and RMS at most ``max_rms``,
+and its velocity IMS within EMD ``max_emd_to_vt5`` of VT5's (over all sessions of the role)."""
+
 
 @dataclass
 class RoleResult:
@@ -126,10 +131,13 @@ def run(
     ]
     table_one = pd.concat([make_table_one(r) for r in results])
     table_two = pd.concat([make_table_two(r) for r in results])
+    criteria = {r.role: check_criteria(r) for r in results}
     baselines = pd.DataFrame({r.role: r.baselines for r in results}).T
     regions = {r.role: compute_regions(r.velocities) for r in results}
     overlaps = pd.concat({role: reg[2] for role, reg in regions.items()})
     metrics = _metrics(results, table_one, table_two, overlaps, trainers, seed, n_train, n_valid)
+    for role, checks in criteria.items():
+        metrics[role]["criteria"] = checks.to_dict(orient="index")
     figures: dict[str, Any] = {}
     for result in results:
         points, ellipses, _ = regions[result.role]
@@ -153,6 +161,9 @@ def run(
         tables={
             "Table I: VT5 and the cyber player against each partner (mean +- SD)": table_one,
             "Table II: paired t-tests, VT5 vs cyber player": table_two,
+            "Reproduction criteria (issue 5): cyber player vs VT5, per partner": pd.concat(
+                criteria
+            ),
             "RMS to VT5 on held-out VT sessions (units): trained, untrained, copy partner": (
                 baselines
             ),
@@ -298,6 +309,47 @@ def make_table_one(result: RoleResult) -> pd.DataFrame:
     return pd.DataFrame.from_dict(rows, orient="index")
 
 
+def compute_emd_to_target(result: RoleResult) -> float:
+    """EMD between the cyber player's and VT5's velocity IMS, each pooled over all sessions."""
+    return compute_emd(
+        compute_ims(np.concatenate(result.velocities["cyber player"])),
+        compute_ims(np.concatenate(result.velocities["VT5"])),
+    )
+
+
+def check_criteria(result: RoleResult) -> pd.DataFrame:
+    """Per partner (the index): mean CV and RMS of VT5 and the cyber player, `CRITERIA` met.
+
+    Columns ``cv VT5``, ``cv cyber``, ``rms VT5``, ``rms cyber`` (means over the sessions),
+    ``emd to VT5`` (the cyber player's pooled velocity IMS against VT5's, same for every
+    partner), then booleans ``cv within``, ``rms within`` (difference at most
+    ``max_difference``), ``cv >= min``, ``rms <= max``, ``emd <= max`` and ``all``.
+    """
+    emd = compute_emd_to_target(result)
+    limit = CRITERIA["max_difference"]
+    rows = {}
+    for partner, block in result.records.groupby("partner", sort=False):
+        vt5 = block[block["player"] == "VT5"][["cv", "rms"]].mean()
+        cyber = block[block["player"] == "cyber player"][["cv", "rms"]].mean()
+        passed = {
+            "cv within": abs(cyber["cv"] - vt5["cv"]) <= limit,
+            "rms within": abs(cyber["rms"] - vt5["rms"]) <= limit,
+            "cv >= min": cyber["cv"] >= CRITERIA["min_cv"],
+            "rms <= max": cyber["rms"] <= CRITERIA["max_rms"],
+            "emd <= max": emd <= CRITERIA["max_emd_to_vt5"],
+        }
+        row = {
+            "cv VT5": float(vt5["cv"]),
+            "cv cyber": float(cyber["cv"]),
+            "rms VT5": float(vt5["rms"]),
+            "rms cyber": float(cyber["rms"]),
+            "emd to VT5": emd,
+        } | {key: bool(value) for key, value in passed.items()}
+        row["all"] = all(passed.values())
+        rows[_partner_name(str(partner))] = row
+    return pd.DataFrame.from_dict(rows, orient="index")
+
+
 def make_table_two(result: RoleResult) -> pd.DataFrame:
     """Paper Table II: paired t-tests of CV and RMS, VT5 against the cyber player, per partner.
 
@@ -389,8 +441,6 @@ def _metrics(
     }
     for r in results:
         cyber = r.records[r.records["player"] == "cyber player"]
-        vt5_ims = compute_ims(np.concatenate(r.velocities["VT5"]))
-        cyber_ims = compute_ims(np.concatenate(r.velocities["cyber player"]))
         p_values = table_two.loc[r.role, ["CV p", "RMS p"]].to_numpy(dtype=float)
         out[r.role] = {
             "training_seconds": r.train_seconds,
@@ -399,7 +449,7 @@ def _metrics(
             "cyber_cv_mean": float(cyber["cv"].mean()),
             "cyber_rms_mean": float(cyber["rms"].mean()),
             "cyber_emd_to_partner_mean": float(cyber["emd"].mean()),
-            "emd_cyber_to_vt5": compute_emd(cyber_ims, vt5_ims),
+            "emd_cyber_to_vt5": compute_emd_to_target(r),
             "records": r.records.to_dict(orient="records"),
             "table_one": pd.DataFrame(table_one.loc[r.role]).to_dict(orient="index"),
             "table_two": pd.DataFrame(table_two.loc[r.role]).to_dict(orient="index"),
@@ -441,6 +491,32 @@ def _describe(
                 else " - copying the partner imitates VT5 better than the trained player."
             )
         )
+        text.append(_describe_criteria(r))
     if np.isnan(table_two[["CV p", "RMS p"]].to_numpy(dtype=float)).any():
         text.append("Some t-tests are undefined (a player that did not move, or no variance).")
+    return text
+
+
+def _describe_criteria(result: RoleResult) -> str:
+    checks = check_criteria(result)
+    speeds = {
+        name: float(np.abs(np.concatenate(result.velocities[name])).mean())
+        for name in ("VT5", "cyber player")
+    }
+    text = (
+        f"Reproduction criteria (CV and RMS within {CRITERIA['max_difference']} of VT5's, CV >= "
+        f"{CRITERIA['min_cv']}, RMS <= {CRITERIA['max_rms']}, IMS within EMD "
+        f"{CRITERIA['max_emd_to_vt5']} of VT5's) met as {result.role} against "
+        f"{int(checks['all'].sum())} of {len(checks)} partners; mean speed VT5 "
+        f"{speeds['VT5']:.3f}, cyber player {speeds['cyber player']:.3f} units/s."
+    )
+    if result.role == "leader":
+        text += (
+            " For a leader, 'copy the partner' replays a follower that tracks VT5 with a lag: "
+            "VT5's own motion, delayed - information a leader cannot have in closed loop, where "
+            "the partner follows the avatar. The reward (squared error to VT5) makes the optimal "
+            "policy the conditional mean of VT5's motion given the observed state; VT5's "
+            "self-generated motion is not predictable from it, so the learned leader moves less "
+            "than VT5 and stays closer to its partner than VT5 does."
+        )
     return text
