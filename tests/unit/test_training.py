@@ -11,7 +11,7 @@ import pytest
 from mirror_avatar import hkb
 from mirror_avatar.batch import run_sessions
 from mirror_avatar.errors import InputError
-from mirror_avatar.learning import DEFAULT_ACTIONS, load_cyber_player
+from mirror_avatar.learning import DEFAULT_ACTIONS, load_cyber_player, make_default_discretisation
 from mirror_avatar.training import (
     SEEN_PARTNERS,
     TARGET,
@@ -21,6 +21,7 @@ from mirror_avatar.training import (
     learning_curve_path,
     make_cyber_player,
     make_pairs,
+    make_role_discretisation,
     make_virtual_trainers,
     train_cyber_player,
 )
@@ -76,6 +77,24 @@ def test_cyber_player_takes_the_role_dynamics() -> None:
     assert follower.omega == hkb.FOLLOWER.omega and leader.omega == hkb.LEADER.omega
     assert (follower.alpha, follower.beta, follower.gamma) == (1.0, 2.0, -1.0)
     np.testing.assert_allclose(follower.actions_, 4.0 * np.array(DEFAULT_ACTIONS))
+
+
+def test_role_discretisations() -> None:
+    """The leader keeps the default bins; the follower's own ones are finer, symmetric about 0."""
+    default = make_default_discretisation("relative")
+    leader, follower = make_role_discretisation("leader"), make_role_discretisation("follower")
+    assert make_cyber_player("leader").discretisation_.shape == leader.shape == default.shape
+    assert make_cyber_player("follower").discretisation_.shape == follower.shape == (18, 14, 6, 7)
+    assert follower.features == leader.features == "relative"
+    for own in follower.edges[:2]:
+        np.testing.assert_array_equal(own, -own[::-1])
+        assert own[own.size // 2] == 0.0
+    for d in (2, 3):
+        np.testing.assert_array_equal(follower.edges[d], default.edges[d])
+    assert follower.index(0.055, 0.0, 0.0, 0.3) != follower.index(0.08, 0.0, 0.0, 0.3)
+    assert default.index(0.055, 0.0, 0.0, 0.3) == default.index(0.08, 0.0, 0.0, 0.3)
+    with pytest.raises(InputError, match="role"):
+        make_role_discretisation("joint")  # type: ignore[arg-type]
 
 
 def test_seeds_are_derived_independently() -> None:
@@ -153,7 +172,7 @@ def test_learning_happens_and_beats_the_baselines(trainers: list[VirtualTrainerS
     player, curve = train_cyber_player(
         trainers[TARGET].generator,
         [trainers[i].generator for i in SEEN_PARTNERS],
-        n_sessions=1500,
+        n_sessions=3000,
         seed=0,
         progress=False,
     )
