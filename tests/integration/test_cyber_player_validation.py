@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from mirror_avatar.experiments import EXPERIMENTS
 from mirror_avatar.experiments.cyber_player import RoleResult, check_criteria, measure, run
@@ -102,3 +103,17 @@ def test_check_criteria_by_hand() -> None:
     assert checks["rms within"].tolist() == [True, True, False]
     assert checks["rms <= max"].tolist() == [True, True, False]
     assert checks["all"].tolist() == [True, False, False]
+
+
+@pytest.mark.slow
+def test_full_scale_follower_meets_the_reproduction_criteria(zhai_trials: list[Trial]) -> None:
+    """The default run (4000 training sessions, 20 validation sessions per partner, seed 0):
+    the follower passes every criterion against all five partners and beats both baselines."""
+    metrics = run(zhai_trials, quick=False).metrics
+    follower = metrics["follower"]
+    assert all(row["all"] for row in follower["criteria"].values())
+    assert len(follower["criteria"]) == 5
+    assert follower["trained_beats_baselines"]
+    leader = metrics["leader"]
+    assert leader["emd_cyber_to_vt5"] < 0.01
+    assert all(row["rms within"] for row in leader["criteria"].values())
