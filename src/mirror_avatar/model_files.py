@@ -23,6 +23,8 @@ from mirror_avatar.atomic import write_atomic_bytes
 from mirror_avatar.errors import InputError
 
 PathLike = str | os.PathLike[str]
+ZIP_MAGIC = b"PK\x03\x04"
+"""The first bytes of every ``.npz`` archive (a zip file)."""
 
 
 def save_model(
@@ -70,11 +72,16 @@ def read_archive(path: PathLike) -> tuple[dict[str, NDArray[Any]], dict[str, Any
     """
     try:
         with open(path, "rb") as file:
+            if file.read(4) != ZIP_MAGIC:
+                raise InputError(path, "not a readable .npz model file (not a zip archive)")
+            file.seek(0)
             archive = np.load(file, allow_pickle=False)
             if not isinstance(archive, np.lib.npyio.NpzFile):
                 raise InputError(path, "not an .npz archive (a single array?)")
             with archive:
                 arrays = {key: archive[key] for key in archive.files}
+    except InputError:
+        raise
     except FileNotFoundError:
         raise InputError(path, "no such file") from None
     except IsADirectoryError:
