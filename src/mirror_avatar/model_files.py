@@ -75,10 +75,7 @@ def read_archive(path: PathLike) -> tuple[dict[str, NDArray[Any]], dict[str, Any
             if file.read(4) != ZIP_MAGIC:
                 raise InputError(path, "not a readable .npz model file (not a zip archive)")
             file.seek(0)
-            archive = np.load(file, allow_pickle=False)
-            if not isinstance(archive, np.lib.npyio.NpzFile):
-                raise InputError(path, "not an .npz archive (a single array?)")
-            with archive:
+            with np.load(file, allow_pickle=False) as archive:
                 arrays = {key: archive[key] for key in archive.files}
     except InputError:
         raise

@@ -417,7 +417,7 @@ def edit_metadata(path: Path, **changes) -> None:
         (lambda p: p.write_bytes(b"garbage, not a zip"), "not a readable"),
         (lambda p: p.write_bytes(p.read_bytes()[: p.stat().st_size // 2]), "not a readable"),
         (lambda p: np.savez(p, weights=np.ones(3)), "no metadata"),
-        (lambda p: p.write_bytes(npy_bytes(np.ones(3))), "not an .npz"),
+        (lambda p: p.write_bytes(npy_bytes(np.ones(3))), "not a zip archive"),
         (lambda p: rewrite(p, q_table=np.zeros((5, 9))), "does not match"),
         (lambda p: rewrite(p, actions=np.ones(4)), "does not match"),
         (lambda p: rewrite(p, edge_counts=np.array([1, 2, 3])), "edge counts"),
