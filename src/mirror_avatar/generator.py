@@ -38,7 +38,6 @@ import numpy as np
 import pandas as pd
 from numba import njit
 from numpy.typing import NDArray
-from scipy.signal import sosfilt_zi
 from sklearn.cluster import KMeans
 
 from mirror_avatar.errors import InputError
@@ -55,19 +54,12 @@ from mirror_avatar.stft import (
 from mirror_avatar.trials import (
     PLAYING_RANGE,
     Trial,
-    butterworth_lowpass,
     compute_velocity,
-    finite_difference,
     make_trial,
 )
 
 FORMAT_NAME = "mirror-avatar/ims-generator"
 FORMAT_VERSION = 1
-VELOCITY_CUTOFF = 10.0
-"""Low-pass cut-off (Hz) before differentiating, as `mirror_avatar.trials.compute_velocity`."""
-VELOCITY_ORDER = 4
-"""Butterworth order of that low-pass."""
-
 Array = NDArray[np.float64]
 Seed = int | np.random.Generator | None
 
@@ -98,56 +90,6 @@ def sample_chain(cumulative: Array, start_cumulative: Array, uniforms: Array) ->
         state = min(np.searchsorted(cumulative[state], uniforms[k], side="right"), n - 1)
         sequence[k] = state
     return sequence
-
-
-@njit(cache=True)
-def _cascade(sos: Array, signal: Array, initial: Array, scale: float) -> None:
-    """Second-order sections in direct form II transposed, in place (as `scipy.signal.sosfilt`).
-
-    ``initial`` (n_sections, 2) times ``scale`` is the initial state.
-    """
-    for s in range(sos.shape[0]):
-        b0, b1, b2, a1, a2 = sos[s, 0], sos[s, 1], sos[s, 2], sos[s, 4], sos[s, 5]
-        z0, z1 = initial[s, 0] * scale, initial[s, 1] * scale
-        for i in range(signal.size):
-            x = signal[i]
-            y = b0 * x + z0
-            z0 = b1 * x - a1 * y + z1
-            z1 = b2 * x - a2 * y
-            signal[i] = y
-
-
-@njit(cache=True)
-def zero_phase_filter(sos: Array, initial: Array, signal: Array, padlen: int) -> Array:
-    """Forward-backward filtering with odd extension, as `scipy.signal.sosfiltfilt`.
-
-    Parameters
-    ----------
-    sos
-        Second-order sections, shape (n_sections, 6), ``a0 = 1``.
-    initial
-        Steady-state initial conditions for a unit step (`scipy.signal.sosfilt_zi`),
-        shape (n_sections, 2).
-    signal
-        Signal, shape (n,), n > padlen.
-    padlen
-        Samples of odd extension at each end.
-
-    Returns
-    -------
-    numpy.ndarray
-        Filtered signal, shape (n,).
-    """
-    n = signal.size
-    extended = np.empty(n + 2 * padlen)
-    for i in range(padlen):
-        extended[i] = 2.0 * signal[0] - signal[padlen - i]
-        extended[n + padlen + i] = 2.0 * signal[n - 1] - signal[n - 2 - i]
-    extended[padlen : padlen + n] = signal
-    _cascade(sos, extended, initial, extended[0])
-    backward = extended[::-1].copy()
-    _cascade(sos, backward, initial, backward[0])
-    return backward[::-1][padlen : padlen + n].copy()
 
 
 def count_transitions(sequences: Sequence[NDArray[np.int64]], n_symbols: int) -> Array:
@@ -302,9 +244,6 @@ class IMSGenerator:
         self._cumulative[:, -1] = 1.0
         self._start_cumulative = np.cumsum(self.startprob_)
         self._start_cumulative[-1] = 1.0
-        if self.rate / 2 > VELOCITY_CUTOFF:
-            self._sos = butterworth_lowpass(VELOCITY_ORDER, VELOCITY_CUTOFF, self.rate).copy()
-            self._sos_initial = np.asarray(sosfilt_zi(self._sos), dtype=np.float64)
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "codebook_"):
@@ -352,17 +291,11 @@ class IMSGenerator:
     def sample_velocity(self, n_samples: int, random_state: Seed = None) -> Array:
         """Generate a velocity signal of ``n_samples`` at `rate` (units/s).
 
-        The velocity of `sample_positions` (METHODS section 2, as
+        The velocity of `sample_positions` (METHODS section 2,
         `mirror_avatar.trials.compute_velocity`); this is what a virtual trainer uses as its
-        reference r_s. The zero-phase low-pass runs compiled (`zero_phase_filter`, equal to
-        `scipy.signal.sosfiltfilt` to rounding) because it dominates the cost otherwise.
+        reference r_s.
         """
-        positions = self.sample_positions(n_samples, random_state)
-        if not hasattr(self, "_sos"):
-            return compute_velocity(positions, self.rate, VELOCITY_CUTOFF, VELOCITY_ORDER)
-        padlen = min(3 * (2 * self._sos.shape[0] + 1), positions.size - 1)
-        smooth = zero_phase_filter(self._sos, self._sos_initial, positions, padlen)
-        return finite_difference(smooth, 1.0 / self.rate)
+        return compute_velocity(self.sample_positions(n_samples, random_state), self.rate)
 
     def sample(self, duration: float, n: int = 1, random_state: Seed = None) -> list[Trial]:
         """Generate ``n`` new trials of ``duration`` seconds at `rate`.

@@ -17,9 +17,10 @@ from functools import cache
 from typing import Any, Literal
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import PchipInterpolator
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import butter, sosfilt_zi
 
 from mirror_avatar.errors import InputError
 
@@ -207,16 +208,72 @@ def resample(
 
 
 @cache
-def butterworth_lowpass(order: int, cutoff: float, rate: float) -> Array:
-    """Return a Butterworth low-pass filter's second-order sections (designed once per setting).
+def butterworth_lowpass(order: int, cutoff: float, rate: float) -> tuple[Array, Array]:
+    """Return a Butterworth low-pass filter, designed once per setting.
 
-    Callers must not modify the array: it is shared.
+    Returns
+    -------
+    sos, initial : ndarray
+        Second-order sections, shape (n_sections, 6), and their steady-state initial
+        conditions for a unit step (`scipy.signal.sosfilt_zi`), shape (n_sections, 2). Shared:
+        callers must not modify them.
     """
-    return np.asarray(butter(order, cutoff, btype="low", fs=rate, output="sos"))
+    sos = np.asarray(butter(order, cutoff, btype="low", fs=rate, output="sos"), dtype=np.float64)
+    return sos, np.asarray(sosfilt_zi(sos), dtype=np.float64)
+
+
+@njit(cache=True)
+def _cascade(sos: Array, signal: Array, initial: Array, scale: float) -> None:
+    """Second-order sections in direct form II transposed, in place (as `scipy.signal.sosfilt`).
+
+    ``initial`` (n_sections, 2) times ``scale`` is the initial state.
+    """
+    for s in range(sos.shape[0]):
+        b0, b1, b2, a1, a2 = sos[s, 0], sos[s, 1], sos[s, 2], sos[s, 4], sos[s, 5]
+        z0, z1 = initial[s, 0] * scale, initial[s, 1] * scale
+        for i in range(signal.size):
+            x = signal[i]
+            y = b0 * x + z0
+            z0 = b1 * x - a1 * y + z1
+            z1 = b2 * x - a2 * y
+            signal[i] = y
+
+
+@njit(cache=True)
+def zero_phase_filter(sos: Array, initial: Array, signal: Array, padlen: int) -> Array:
+    """Forward-backward filtering with odd extension, as `scipy.signal.sosfiltfilt`.
+
+    Parameters
+    ----------
+    sos
+        Second-order sections, shape (n_sections, 6), ``a0 = 1``.
+    initial
+        Steady-state initial conditions for a unit step (`scipy.signal.sosfilt_zi`),
+        shape (n_sections, 2).
+    signal
+        Signal, shape (n,), n > padlen.
+    padlen
+        Samples of odd extension at each end.
+
+    Returns
+    -------
+    numpy.ndarray
+        Filtered signal, shape (n,).
+    """
+    n = signal.size
+    extended = np.empty(n + 2 * padlen)
+    for i in range(padlen):
+        extended[i] = 2.0 * signal[0] - signal[padlen - i]
+        extended[n + padlen + i] = 2.0 * signal[n - 1] - signal[n - 2 - i]
+    extended[padlen : padlen + n] = signal
+    _cascade(sos, extended, initial, extended[0])
+    backward = extended[::-1].copy()
+    _cascade(sos, backward, initial, backward[0])
+    return backward[::-1][padlen : padlen + n].copy()
 
 
 def lowpass(signal: ArrayLike, rate: float, cutoff: float = 10.0, order: int = 4) -> Array:
-    """Zero-phase Butterworth low-pass filter.
+    """Zero-phase Butterworth low-pass filter (`scipy.signal.sosfiltfilt`'s method, compiled).
 
     Parameters
     ----------
@@ -233,9 +290,9 @@ def lowpass(signal: ArrayLike, rate: float, cutoff: float = 10.0, order: int = 4
     x = np.asarray(signal, dtype=np.float64)
     if cutoff >= rate / 2:
         return x.copy()
-    sos = butterworth_lowpass(order, cutoff, rate).copy()
+    sos, initial = butterworth_lowpass(order, cutoff, rate)
     padlen = min(3 * (2 * len(sos) + 1), x.size - 1)
-    return np.asarray(sosfiltfilt(sos, x, padlen=padlen))
+    return zero_phase_filter(sos, initial, x, padlen)
 
 
 def finite_difference(signal: ArrayLike, step: float) -> Array:

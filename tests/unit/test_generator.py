@@ -13,10 +13,9 @@ from mirror_avatar.generator import (
     estimate_transitions,
     sample_chain,
     sweep_codebook,
-    zero_phase_filter,
 )
 from mirror_avatar.signature import compute_emd, compute_ims, stroke_moments
-from mirror_avatar.trials import compute_velocity
+from mirror_avatar.trials import compute_velocity, zero_phase_filter
 
 
 @pytest.fixture(scope="module")
