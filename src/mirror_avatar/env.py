@@ -27,7 +27,8 @@ from mirror_avatar.trials import PLAYING_RANGE
 VELOCITY_BOUND = 5.0
 """Velocities (units/s) in continuous observations are clipped to ±VELOCITY_BOUND."""
 
-Session = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+Session = tuple[NDArray[np.float64], ...]
+"""``(partner_x, partner_v, target_x, target_v, target_r)`` as `iter_sessions` yields them."""
 
 
 class MirrorGameEnv(gym.Env[Any, Any]):
@@ -46,7 +47,8 @@ class MirrorGameEnv(gym.Env[Any, Any]):
         ``CyberPlayer()``.
     observation
         ``"continuous"``: ``[x, x', x_p, x_p']`` as float32 (velocities clipped to
-        ±`VELOCITY_BOUND`); ``"discrete"``: the Q-table cell of that state.
+        ±`VELOCITY_BOUND`); ``"discrete"``: the Q-table cell of that state (with the target's
+        reference velocity as the avatar's own for ``"reference"`` features).
 
     Notes
     -----
@@ -96,7 +98,7 @@ class MirrorGameEnv(gym.Env[Any, Any]):
         super().reset(seed=seed)
         self._session = self._next_session()
         self._k = 0
-        _, _, target_x, target_v = self._session
+        _, _, target_x, target_v, _ = self._session
         self._state = (float(target_x[0]), float(target_v[0]))
         return self._observe(), self._info()
 
@@ -108,7 +110,7 @@ class MirrorGameEnv(gym.Env[Any, Any]):
         x, v = integrate_hkb(x, v, u, self._hkb, float(player.period), int(player.n_substeps))
         self._state = (x, v)
         self._k += 1
-        _, _, target_x, target_v = self._session
+        _, _, target_x, target_v, _ = self._session
         reward = compute_reward(x, v, target_x[self._k], target_v[self._k], u, float(player.eta))
         truncated = self._k == target_x.size - 1
         return self._observe(), float(reward), False, truncated, self._info()
@@ -123,17 +125,17 @@ class MirrorGameEnv(gym.Env[Any, Any]):
         return sessions[0]
 
     def _observe(self) -> Any:
-        partner_x, partner_v, _, _ = self._session
+        partner_x, partner_v, _, _, target_r = self._session
         x, v = self._state
         xp, vp = float(partner_x[self._k]), float(partner_v[self._k])
         if self.observation == "discrete":
-            return self.player.discretisation_.index(x, v, xp, vp)
+            return self.player.discretisation_.index(x, v, xp, vp, float(target_r[self._k]))
         box = self.observation_space
         assert isinstance(box, spaces.Box)
         return np.clip(np.array([x, v, xp, vp], dtype=np.float32), box.low, box.high)
 
     def _info(self) -> dict[str, Any]:
-        _, _, target_x, target_v = self._session
+        _, _, target_x, target_v, _ = self._session
         return {"target": (float(target_x[self._k]), float(target_v[self._k]))}
 
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, Self
 
 import numpy as np
@@ -347,16 +347,56 @@ class IMSGenerator:
             "random_state": self.random_state,
         }
 
+    def to_arrays(self) -> tuple[dict[str, NDArray[np.float64]], dict[str, Any]]:
+        """The fitted model as arrays (``codebook``, ``transmat``, ``startprob``) and metadata."""
+        self._check_fitted()
+        arrays = {"codebook": self.codebook_, "transmat": self.transmat_, "startprob": self.startprob_}
+        return arrays, {"parameters": self.get_params(), "training": self.training_summary_}
+
+    @classmethod
+    def from_arrays(
+        cls,
+        arrays: Mapping[str, NDArray[Any]],
+        metadata: Mapping[str, Any],
+        source: str | os.PathLike[str] | None,
+    ) -> IMSGenerator:
+        """Rebuild a fitted model from `to_arrays` output, checking every array.
+
+        Raises
+        ------
+        InputError
+            ``source: problem`` when the parameters are invalid or an array is missing, of the
+            wrong shape, non-finite or not a probability distribution.
+        """
+        try:
+            model = cls(**metadata["parameters"])
+            model._check_parameters()
+            model.training_summary_ = dict(metadata["training"])
+        except (KeyError, TypeError, InputError) as error:
+            raise InputError(source, f"invalid model parameters ({error})") from None
+        n, width = model.n_symbols, model.window
+        expected = {"codebook": (n, width), "transmat": (n, n), "startprob": (n,)}
+        for name, shape in expected.items():
+            array = arrays.get(name)
+            if (
+                array is None
+                or array.shape != shape
+                or array.dtype.kind != "f"
+                or not np.all(np.isfinite(array))
+            ):
+                raise InputError(source, f"{name} must be finite floats of shape {shape}")
+        rows = np.concatenate([arrays["transmat"].sum(axis=1), [arrays["startprob"].sum()]])
+        if np.any(arrays["transmat"] < 0) or not np.allclose(rows, 1.0, atol=1e-9):
+            raise InputError(source, "transition probabilities are not valid distributions")
+        model.codebook_ = arrays["codebook"].astype(np.float64)
+        model.transmat_ = arrays["transmat"].astype(np.float64)
+        model.startprob_ = arrays["startprob"].astype(np.float64)
+        model._prepare_sampling()
+        return model
+
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the fitted model to ``path`` (``.npz`` + JSON metadata), atomically."""
-        self._check_fitted()
-        save_model(
-            path,
-            FORMAT_NAME,
-            FORMAT_VERSION,
-            {"codebook": self.codebook_, "transmat": self.transmat_, "startprob": self.startprob_},
-            {"parameters": self.get_params(), "training": self.training_summary_},
-        )
+        save_model(path, FORMAT_NAME, FORMAT_VERSION, *self.to_arrays())
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> IMSGenerator:
@@ -370,26 +410,7 @@ class IMSGenerator:
         arrays, metadata = load_model(
             path, FORMAT_NAME, FORMAT_VERSION, ("codebook", "transmat", "startprob")
         )
-        try:
-            model = cls(**metadata["parameters"])
-            model._check_parameters()
-            model.training_summary_ = dict(metadata["training"])
-        except (KeyError, TypeError, InputError) as error:
-            raise InputError(path, f"invalid model parameters ({error})") from None
-        n, width = model.n_symbols, model.window
-        expected = {"codebook": (n, width), "transmat": (n, n), "startprob": (n,)}
-        for name, shape in expected.items():
-            array = arrays[name]
-            if array.shape != shape or array.dtype.kind != "f" or not np.all(np.isfinite(array)):
-                raise InputError(path, f"{name} must be finite floats of shape {shape}")
-        rows = np.concatenate([arrays["transmat"].sum(axis=1), [arrays["startprob"].sum()]])
-        if np.any(arrays["transmat"] < 0) or not np.allclose(rows, 1.0, atol=1e-9):
-            raise InputError(path, "transition probabilities are not valid distributions")
-        model.codebook_ = arrays["codebook"].astype(np.float64)
-        model.transmat_ = arrays["transmat"].astype(np.float64)
-        model.startprob_ = arrays["startprob"].astype(np.float64)
-        model._prepare_sampling()
-        return model
+        return cls.from_arrays(arrays, metadata, path)
 
 
 def sweep_codebook(

@@ -24,6 +24,12 @@ Follows METHODS section 7; the **choice**s it leaves open, all configurable:
 - state discretisation (`Discretisation`): ``"absolute"`` features ``[x, x', x_p, x_p']`` or
   ``"relative"`` features ``[x - x_p, x' - x_p', x_p, x_p']`` (the default, measured better on the
   real-data follower task, see the tests and benchmark), each cut by its own increasing bin edges;
+- **departure**: ``"reference"`` features ``[x - x_p, x' - r_s, x, r_s]``, where r_s is the
+  avatar's own reference velocity drawn from an IMS generator exactly as a virtual trainer draws
+  it (METHODS section 5). The avatar then has a motion source of its own, as the person it
+  imitates does; in training r_s is the target's reference in each session. Used for the
+  leader, whose motion the partner's state cannot predict (measured in
+  `mirror_avatar.training.make_role_discretisation`);
 - position clipped to the playing range [-0.5, 0.5] after each period, and the velocity component
   pushing further out set to zero (a hand stopped at the edge of the range);
 - a training session starts the avatar at the target's initial state;
@@ -56,12 +62,18 @@ from tqdm.auto import tqdm
 
 from mirror_avatar.atomic import write_atomic_bytes
 from mirror_avatar.errors import InputError
+from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.hkb import CONTROL_PERIOD, clip_to_range, hkb_acceleration
 from mirror_avatar.model_files import load_model, save_model
+from mirror_avatar.players import ReferenceTrack
 from mirror_avatar.trials import Trial
 
 Array = NDArray[np.float64]
-Features = Literal["absolute", "relative"]
+Features = Literal["absolute", "relative", "reference"]
+FEATURES: tuple[Features, ...] = ("absolute", "relative", "reference")
+"""The state feature sets, in the order of their compiled codes `ABSOLUTE`, `RELATIVE`,
+`REFERENCE`."""
+ABSOLUTE, RELATIVE, REFERENCE = range(3)
 
 DEFAULT_ACTIONS = (-4.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 4.0)
 """The 9 accelerations (units/s²) the avatar can choose from (**choice**, METHODS section 7)."""
@@ -70,6 +82,8 @@ VELOCITY_WEIGHT = 0.1
 """Weight of the velocity error in the reward (METHODS section 7)."""
 
 FORMAT_NAME = "mirror-avatar/cyber-player"
+REFERENCE_PREFIX = "reference_"
+"""Prefix of the reference generator's arrays in a model file."""
 FORMAT_VERSION = 1
 N_FEATURES = 4
 
@@ -147,18 +161,29 @@ def _bin(value: float, edges: Array, start: int, stop: int) -> int:
 
 
 @njit(cache=True)
+def _features(
+    x: float, v: float, xp: float, vp: float, r: float, mode: int
+) -> tuple[float, float, float, float]:
+    if mode == ABSOLUTE:
+        return x, v, xp, vp
+    if mode == RELATIVE:
+        return x - xp, v - vp, xp, vp
+    return x - xp, v - r, x, r
+
+
+@njit(cache=True)
 def _state_index(
     x: float,
     v: float,
     xp: float,
     vp: float,
-    relative: bool,
+    r: float,
+    mode: int,
     edges: Array,
     offsets: NDArray[np.int64],
 ) -> int:
-    f0, f1 = (x - xp, v - vp) if relative else (x, v)
     index = 0
-    for d, value in enumerate((f0, f1, xp, vp)):
+    for d, value in enumerate(_features(x, v, xp, vp, r, mode)):
         start, stop = offsets[d], offsets[d + 1]
         index = index * (stop - start + 1) + _bin(value, edges, start, stop)
     return index
@@ -190,11 +215,12 @@ def _greedy_action(
     v: float,
     xp: float,
     vp: float,
-    relative: bool,
+    r: float,
+    mode: int,
     edges: Array,
     offsets: NDArray[np.int64],
 ) -> int:
-    return int(np.argmax(q[_state_index(x, v, xp, vp, relative, edges, offsets)]))
+    return int(np.argmax(q[_state_index(x, v, xp, vp, r, mode, edges, offsets)]))
 
 
 @njit(cache=True)
@@ -204,7 +230,8 @@ def _greedy_step(
     v: float,
     xp: float,
     vp: float,
-    relative: bool,
+    r: float,
+    mode: int,
     edges: Array,
     offsets: NDArray[np.int64],
     actions: Array,
@@ -212,7 +239,7 @@ def _greedy_step(
     period: float,
     n_substeps: int,
 ) -> tuple[float, float]:
-    u = actions[_greedy_action(q, x, v, xp, vp, relative, edges, offsets)]
+    u = actions[_greedy_action(q, x, v, xp, vp, r, mode, edges, offsets)]
     return integrate_hkb(x, v, u, hkb, period, n_substeps)
 
 
@@ -223,7 +250,8 @@ def run_q_session(
     partner_v: Array,
     target_x: Array,
     target_v: Array,
-    relative: bool,
+    target_r: Array,
+    mode: int,
     edges: Array,
     offsets: NDArray[np.int64],
     actions: Array,
@@ -250,8 +278,11 @@ def run_q_session(
     partner_x, partner_v, target_x, target_v
         Partner and target positions (units) and velocities (units/s), shape (n,) each, sampled
         at the control period.
-    relative, edges, offsets
-        The state discretisation (see `Discretisation`).
+    target_r
+        The target's reference velocity (units/s), shape (n,): the avatar's own reference in
+        ``"reference"`` features, unused otherwise.
+    mode, edges, offsets
+        The state discretisation (`Discretisation.mode`, ``flat_edges``, ``offsets``).
     actions
         Accelerations (units/s²), shape (n_actions,).
     hkb, period, n_substeps
@@ -271,7 +302,7 @@ def run_q_session(
         Root mean square of the avatar's position minus the target's over samples 1..n-1 (units).
     """
     x, v = target_x[0], target_v[0]
-    s = _state_index(x, v, partner_x[0], partner_v[0], relative, edges, offsets)
+    s = _state_index(x, v, partner_x[0], partner_v[0], target_r[0], mode, edges, offsets)
     reward_sum = 0.0
     squares = 0.0
     for k in range(partner_x.size - 1):
@@ -279,7 +310,9 @@ def run_q_session(
         u = actions[a]
         x, v = integrate_hkb(x, v, u, hkb, period, n_substeps)
         r = compute_reward(x, v, target_x[k + 1], target_v[k + 1], u, eta)
-        s_next = _state_index(x, v, partner_x[k + 1], partner_v[k + 1], relative, edges, offsets)
+        s_next = _state_index(
+            x, v, partner_x[k + 1], partner_v[k + 1], target_r[k + 1], mode, edges, offsets
+        )
         update_q(q, s, a, r, s_next, learning_rate, discount)
         s = s_next
         reward_sum += r
@@ -299,7 +332,8 @@ class Discretisation:
     ----------
     features
         ``"absolute"``: features ``[x, x', x_p, x_p']``; ``"relative"``: ``[x - x_p, x' - x_p',
-        x_p, x_p']`` (positions in units, velocities in units/s).
+        x_p, x_p']``; ``"reference"``: ``[x - x_p, x' - r_s, x, r_s]`` with r_s the avatar's
+        own reference velocity (positions in units, velocities in units/s).
     edges
         Four increasing arrays of interior bin edges, one per feature; feature d has
         ``len(edges[d]) + 1`` bins, the outer two open-ended (values beyond the range fall in
@@ -310,8 +344,8 @@ class Discretisation:
     edges: tuple[Array, ...]
 
     def __post_init__(self) -> None:
-        if self.features not in ("absolute", "relative"):
-            raise InputError("features", f"must be 'absolute' or 'relative', not {self.features!r}")
+        if self.features not in FEATURES:
+            raise InputError("features", f"must be one of {FEATURES}, not {self.features!r}")
         edges = tuple(np.asarray(e, dtype=np.float64).ravel() for e in self.edges)
         if len(edges) != N_FEATURES:
             raise InputError("edges", f"need {N_FEATURES} arrays of bin edges, got {len(edges)}")
@@ -334,6 +368,16 @@ class Discretisation:
         return cls(features, edges)
 
     @property
+    def mode(self) -> int:
+        """Compiled code of the feature set: `ABSOLUTE`, `RELATIVE` or `REFERENCE`."""
+        return FEATURES.index(self.features)
+
+    @property
+    def needs_reference(self) -> bool:
+        """True when the state includes the avatar's own reference velocity."""
+        return self.features == "reference"
+
+    @property
     def shape(self) -> tuple[int, ...]:
         """Number of bins per feature."""
         return tuple(e.size + 1 for e in self.edges)
@@ -353,31 +397,46 @@ class Discretisation:
         """Start of each feature's edges in `flat_edges`, then the total, shape (5,)."""
         return np.concatenate([[0], np.cumsum([e.size for e in self.edges])]).astype(np.int64)
 
-    def index(self, x: float, v: float, xp: float, vp: float) -> int:
-        """Cell of the state (own position, velocity, partner's position, velocity)."""
-        return int(
-            _state_index(x, v, xp, vp, self.features == "relative", self.flat_edges, self.offsets)
-        )
+    def index(self, x: float, v: float, xp: float, vp: float, r: float = 0.0) -> int:
+        """Cell of the state (own position, velocity, partner's position, velocity, own
+        reference velocity; ``r`` only matters for ``"reference"`` features)."""
+        return int(_state_index(x, v, xp, vp, r, self.mode, self.flat_edges, self.offsets))
 
 
 def make_default_discretisation(features: Features = "relative") -> Discretisation:
-    """Make the default discretisation (**choice**), finer near zero for relative features.
+    """Make the default discretisation of a feature set (**choice**), finer near zero.
 
     Parameters
     ----------
     features
-        ``"relative"`` (default; 10 x 8 x 6 x 7 = 3360 cells) or ``"absolute"``
-        (8 x 8 x 6 x 7 = 2688 cells).
+        ``"relative"`` (default; 10 x 8 x 6 x 7 = 3360 cells), ``"absolute"`` (8 x 8 x 6 x 7 =
+        2688 cells) or ``"reference"`` (10 x 10 x 8 x 12 = 9600 cells: ``x - x_p`` and
+        ``x' - r_s`` symmetric about 0 with edges at ±0.02, 0.05, 0.1, 0.2 units and ±0.05,
+        0.1, 0.2, 0.4 units/s, ``x`` in 8 bins over ±0.4 units, ``r_s`` with edges at 0, ±0.05,
+        0.15, 0.3, 0.5, 0.8 units/s).
     """
+    if features == "reference":
+        return Discretisation(
+            features,
+            (
+                symmetric_edges(0.02, 0.05, 0.1, 0.2),
+                symmetric_edges(0.05, 0.1, 0.2, 0.4),
+                np.linspace(-0.4, 0.4, 7),
+                symmetric_edges(0.05, 0.15, 0.3, 0.5, 0.8),
+            ),
+        )
     partner = (np.linspace(-0.4, 0.4, 5), np.array([-0.5, -0.2, -0.05, 0.05, 0.2, 0.5]))
     if features == "relative":
-        own = (
-            np.array([-0.2, -0.1, -0.05, -0.02, 0.0, 0.02, 0.05, 0.1, 0.2]),
-            np.array([-0.5, -0.25, -0.1, 0.0, 0.1, 0.25, 0.5]),
-        )
+        own = (symmetric_edges(0.02, 0.05, 0.1, 0.2), symmetric_edges(0.1, 0.25, 0.5))
     else:
-        own = (np.linspace(-0.45, 0.45, 7), np.array([-0.5, -0.25, -0.1, 0.0, 0.1, 0.25, 0.5]))
+        own = (np.linspace(-0.45, 0.45, 7), symmetric_edges(0.1, 0.25, 0.5))
     return Discretisation(features, own + partner)
+
+
+def symmetric_edges(*positive: float) -> Array:
+    """Bin edges ``-positive[::-1], 0, positive``."""
+    edges = np.asarray(positive, dtype=np.float64)
+    return np.concatenate([-edges[::-1], [0.0], edges])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -404,6 +463,10 @@ class CyberPlayer:
         RK4 substeps per period.
     initial_position
         Position (units) returned by `reset`; the avatar starts at rest.
+    reference
+        The avatar's own motion source for ``"reference"`` features: an `IMSGenerator` (a
+        reference velocity is drawn at each `reset` from its seed, as a virtual trainer does) or
+        a recorded `Trial`. Unused by the other feature sets.
 
     Attributes
     ----------
@@ -432,6 +495,7 @@ class CyberPlayer:
         period: float = CONTROL_PERIOD,
         n_substeps: int = 3,
         initial_position: float = 0.0,
+        reference: IMSGenerator | Trial | None = None,
     ) -> None:
         self.discretisation = discretisation
         self.actions = actions
@@ -443,6 +507,12 @@ class CyberPlayer:
         self.period = period
         self.n_substeps = n_substeps
         self.initial_position = initial_position
+        self.reference = reference
+
+    @property
+    def stochastic(self) -> bool:
+        """True when every `reset` draws a fresh reference from a generator."""
+        return self.discretisation_.needs_reference and isinstance(self.reference, IMSGenerator)
 
     @cached_property
     def discretisation_(self) -> Discretisation:
@@ -487,7 +557,7 @@ class CyberPlayer:
             raise InputError("cyber player", "period must be > 0 s and n_substeps >= 1")
         disc = self.discretisation_
         return (
-            disc.features == "relative",
+            disc.mode,
             disc.flat_edges,
             disc.offsets,
             self.actions_,
@@ -497,37 +567,48 @@ class CyberPlayer:
             float(self.eta),
         )
 
-    def decide(self, x: float, v: float, xp: float, vp: float) -> int:
-        """Index of the greedy action in the state (own x, x', partner's x, x')."""
+    def decide(self, x: float, v: float, xp: float, vp: float, r: float = 0.0) -> int:
+        """Index of the greedy action in the state (own x, x', partner's x, x', own reference)."""
         disc = self.discretisation_
-        relative = disc.features == "relative"
         return int(
-            _greedy_action(self.q_table_, x, v, xp, vp, relative, disc.flat_edges, disc.offsets)
+            _greedy_action(self.q_table_, x, v, xp, vp, r, disc.mode, disc.flat_edges, disc.offsets)
         )
 
     def reset(self, seed: int | None = None) -> tuple[float, float]:
         """Start a trial at rest at `initial_position`.
 
-        The greedy policy is deterministic, so ``seed`` does not change anything; it is accepted
-        for the `Player` protocol.
+        The greedy policy is deterministic; with ``"reference"`` features the reference velocity
+        is drawn from ``seed`` (fresh entropy if None), otherwise ``seed`` changes nothing.
         """
         if not hasattr(self, "q_table_"):
             raise InputError("cyber player", "has no Q-table: train it or load one first")
         self._policy = (self.q_table_, *self.session_arguments()[:-1])
+        self._references = self._reference_track(seed)
+        self._k = 0
         self._state = (float(self.initial_position), 0.0)
         return self._state
 
+    def _reference_track(self, seed: int | None) -> ReferenceTrack | None:
+        if not self.discretisation_.needs_reference:
+            return None
+        if self.reference is None:
+            raise InputError("cyber player", "reference features need a reference generator")
+        return ReferenceTrack(self.reference, float(self.period), seed)
+
     def step(self, partner_position: float, partner_velocity: float) -> tuple[float, float]:
         """Observe the partner, apply the greedy acceleration for one period, return (x, x')."""
-        q, relative, edges, offsets, actions, hkb, period, n_substeps = self._policy
+        q, mode, edges, offsets, actions, hkb, period, n_substeps = self._policy
         x, v = self._state
+        r = 0.0 if self._references is None else self._references[self._k]
+        self._k += 1
         self._state = _greedy_step(
             q,
             x,
             v,
             float(partner_position),
             float(partner_velocity),
-            relative,
+            r,
+            mode,
             edges,
             offsets,
             actions,
@@ -559,7 +640,7 @@ class CyberPlayer:
 
     def play_session(
         self,
-        session: tuple[Array, Array, Array, Array],
+        session: tuple[Array, Array, Array, Array, Array],
         learning_rate: float,
         discount: float,
         epsilon: float,
@@ -570,7 +651,9 @@ class CyberPlayer:
         Parameters
         ----------
         session
-            ``(partner_x, partner_v, target_x, target_v)``, shape (n,) each, at the control period.
+            ``(partner_x, partner_v, target_x, target_v, target_r)``, shape (n,) each, at the
+            control period (as `iter_sessions` yields them; ``target_r`` may be NaN when the
+            features do not use it).
         learning_rate, discount, epsilon, rng
             As in `run_q_session`.
 
@@ -578,7 +661,16 @@ class CyberPlayer:
         -------
         mean_reward, rms : float
             Mean reward per step and RMS position error to the target (units).
+
+        Raises
+        ------
+        InputError
+            If the features need the target's reference velocity and the session has none.
         """
+        if self.discretisation_.needs_reference and not np.all(np.isfinite(session[4])):
+            raise InputError(
+                "sessions", "reference features need the target's reference velocities"
+            )
         total, rms = run_q_session(  # type: ignore[call-arg]
             self.q_table_,
             *session,
@@ -606,8 +698,8 @@ class CyberPlayer:
 
 def iter_sessions(
     chunks: Iterable[Any], period: float | None = None
-) -> Iterator[tuple[Array, Array, Array, Array]]:
-    """Yield ``(partner_x, partner_v, target_x, target_v)`` for each session in a stream of chunks.
+) -> Iterator[tuple[Array, Array, Array, Array, Array]]:
+    """Yield ``(partner_x, partner_v, target_x, target_v, target_r)`` for each session in chunks.
 
     Parameters
     ----------
@@ -616,7 +708,11 @@ def iter_sessions(
         player 0 the partner, player 1 the target, n samples at the control period) or (2, n) for
         one session, given as an object with ``positions`` and ``velocities`` attributes, a
         mapping with those keys, or a ``(positions, velocities)`` pair. A chunk may also carry
-        its sampling period (s) as a ``period`` attribute or key.
+        its sampling period (s) as a ``period`` attribute or key, and the players' reference
+        velocities (units/s, same shape) as ``references`` (a
+        `mirror_avatar.batch.SessionBatch` does): ``target_r`` is the target's, its trailing
+        NaN (no reference after the last step) replaced by the one before; all NaN without
+        references.
     period
         The control period (s) the sessions must be sampled at, checked against a chunk's own
         ``period`` when it has one.
@@ -631,8 +727,23 @@ def iter_sessions(
         if period is not None and own is not None and not math.isclose(own, period):
             raise InputError("sessions", f"sampled every {own} s, not every {period} s")
         positions, velocities = _chunk_arrays(chunk)
-        for session_x, session_v in zip(positions, velocities, strict=True):
-            yield session_x[0], session_v[0], session_x[1], session_v[1]
+        references = _target_references(chunk, positions.shape)
+        for session_x, session_v, session_r in zip(positions, velocities, references, strict=True):
+            yield session_x[0], session_v[0], session_x[1], session_v[1], session_r
+
+
+def _target_references(chunk: Any, shape: tuple[int, ...]) -> Array:
+    """The target's reference velocities of a chunk, shape (k, n); NaN when it has none."""
+    found = chunk.get("references") if isinstance(chunk, Mapping) else getattr(chunk, "references", None)
+    if found is None:
+        return np.full((shape[0], shape[2]), np.nan)
+    references = np.asarray(found, dtype=np.float64)
+    references = references[np.newaxis] if references.ndim == 2 else references
+    if references.shape != shape:
+        raise InputError("sessions", f"references {references.shape} do not match {shape}")
+    target = references[:, 1].copy()
+    target[:, -1] = np.where(np.isnan(target[:, -1]), target[:, -2], target[:, -1])
+    return target
 
 
 def make_follower_sessions(
@@ -954,11 +1065,18 @@ def save_cyber_player(player: CyberPlayer, path: str | os.PathLike[str]) -> Path
     The file holds arrays ``q_table`` (n_states, n_actions), ``edges`` (all interior bin edges),
     ``edge_counts`` (4,), ``actions`` (n_actions,) and the JSON metadata of
     `mirror_avatar.model_files.save_model`: format name and version, the dynamics parameters, the
-    discretisation, the training summary and its seed.
+    discretisation, the training summary and its seed. A player with ``"reference"`` features
+    also stores its reference generator (arrays prefixed ``reference_``, metadata
+    ``reference``), so the file alone plays.
+
+    Raises
+    ------
+    InputError
+        If a player with ``"reference"`` features has no `IMSGenerator` as its reference.
     """
     disc = player.discretisation_
     training = getattr(player, "training_", {})
-    metadata = {
+    metadata: dict[str, Any] = {
         "parameters": player.parameters(),
         "discretisation": {"features": disc.features, "shape": list(disc.shape)},
         "training": training,
@@ -970,6 +1088,11 @@ def save_cyber_player(player: CyberPlayer, path: str | os.PathLike[str]) -> Path
         "edge_counts": np.array([e.size for e in disc.edges], dtype=np.int64),
         "actions": player.actions_,
     }
+    if disc.needs_reference:
+        if not isinstance(player.reference, IMSGenerator):
+            raise InputError(path, "only a reference IMS generator can be saved with the player")
+        reference_arrays, metadata["reference"] = player.reference.to_arrays()
+        arrays |= {f"{REFERENCE_PREFIX}{k}": a for k, a in reference_arrays.items()}
     return save_model(path, FORMAT_NAME, FORMAT_VERSION, arrays, metadata)
 
 
@@ -1007,4 +1130,13 @@ def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
         raise InputError(path, "Q-table must hold finite floating-point values")
     player.q_table_ = q.astype(np.float64)
     player.training_ = metadata.get("training", {})
+    if disc.needs_reference:
+        if not isinstance(metadata.get("reference"), dict):
+            raise InputError(path, "reference features but no reference generator in the file")
+        prefixed = {
+            k.removeprefix(REFERENCE_PREFIX): a
+            for k, a in arrays.items()
+            if k.startswith(REFERENCE_PREFIX)
+        }
+        player.reference = IMSGenerator.from_arrays(prefixed, metadata["reference"], path)
     return player

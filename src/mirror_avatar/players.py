@@ -28,6 +28,7 @@ __all__ = [
     "Player",
     "PlayerCheckError",
     "RecordedPlayer",
+    "ReferenceTrack",
     "VirtualTrainer",
     "check_player",
     "draw_reference",
@@ -102,6 +103,46 @@ def draw_reference(
     return np.interp(times, np.arange(velocity.size) / rate, velocity)
 
 
+class ReferenceTrack:
+    """A player's reference velocity at the control times ``k * period``, drawn from one seed.
+
+    Drawn with `draw_reference` in blocks of `REFERENCE_BLOCK` seconds and extended (by doubling,
+    the same values as one longer draw) when a step runs past its end, so a session of any
+    length has a reference.
+
+    Parameters
+    ----------
+    reference
+        An `IMSGenerator` or a recorded `Trial`.
+    period
+        Control period (s).
+    seed
+        Seed of the draw; None draws fresh entropy.
+
+    Attributes
+    ----------
+    seed : int
+        The entropy actually used (replays the same reference).
+    """
+
+    def __init__(self, reference: IMSGenerator | Trial, period: float, seed: int | None) -> None:
+        self.reference = reference
+        self.period = period
+        self.seed = int(np.random.SeedSequence(seed).entropy)  # type: ignore[arg-type]
+        self._values = self._draw(int(round(REFERENCE_BLOCK / period)))
+
+    def _draw(self, n_steps: int) -> Array:
+        return draw_reference(
+            self.reference, n_steps, self.period, np.random.default_rng(self.seed)
+        )
+
+    def __getitem__(self, k: int) -> float:
+        """Reference velocity (units/s) of control period k (k >= 0)."""
+        while k >= self._values.size:
+            self._values = self._draw(2 * self._values.size)
+        return float(self._values[k])
+
+
 class VirtualTrainer:
     """The model-based player: an HKB end effector under per-interval optimal control.
 
@@ -159,10 +200,8 @@ class VirtualTrainer:
 
         The seed actually used is kept in ``seed_``.
         """
-        self.seed_ = int(np.random.SeedSequence(seed).entropy)  # type: ignore[arg-type]
-        self._references = self.draw_reference(
-            self.seed_, int(round(REFERENCE_BLOCK / self.period))
-        )
+        self._references = ReferenceTrack(self.reference, self.period, seed)
+        self.seed_ = self._references.seed
         self._k = 0
         self._x, self._v = float(self.start[0]), float(self.start[1])
         self._previous_partner = math.nan
@@ -171,11 +210,9 @@ class VirtualTrainer:
 
     def step(self, partner_position: float, partner_velocity: float) -> tuple[float, float]:
         """Observe the partner at t_k and advance to t_k + T under the optimal control."""
-        if self._k == self._references.size:
-            self._references = self.draw_reference(self.seed_, 2 * self._references.size)
         previous = self._previous_partner
         prediction = partner_position if math.isnan(previous) else 2 * partner_position - previous
-        reference = float(self._references[self._k])
+        reference = self._references[self._k]
         self._x, self._v, self.last_control = optimal_control_step(
             self._x, self._v, prediction, reference, partner_velocity, self._vector
         )

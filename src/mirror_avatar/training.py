@@ -39,6 +39,7 @@ from mirror_avatar.learning import (
     LearningCurve,
     QLearner,
     make_default_discretisation,
+    symmetric_edges,
 )
 from mirror_avatar.players import VirtualTrainer
 from mirror_avatar.trials import DEFAULT_RATE, Trial
@@ -189,21 +190,23 @@ def make_role_discretisation(role: Role) -> Discretisation:
     generators) was 0.110 after 1500 sessions, 0.071 after 2500 and 0.047 after 4000, against
     0.092 for copying the partner.
     """
-    default = make_default_discretisation("relative")
     if _check_role(role) == "leader":
-        return default
-    own = tuple(np.concatenate([-e[::-1], [0.0], e]) for e in FOLLOWER_EDGES)
-    return Discretisation("relative", own + default.edges[2:])
+        return make_default_discretisation("reference")
+    own = tuple(symmetric_edges(*e) for e in FOLLOWER_EDGES)
+    return Discretisation("relative", own + make_default_discretisation("relative").edges[2:])
 
 
-def make_cyber_player(role: Role, action_scale: float = ACTION_SCALE) -> CyberPlayer:
+def make_cyber_player(
+    role: Role, reference: Reference | None = None, action_scale: float = ACTION_SCALE
+) -> CyberPlayer:
     """Make an untrained cyber player whose HKB end effector has the role preset's parameters.
 
     Follows METHODS section 7 with the virtual trainer's end-effector parameters of the same role
     (`mirror_avatar.hkb.FOLLOWER` or ``LEADER``: omega 0.1 or 0.8 rad/s, alpha 1, beta 2,
     gamma -1, eta 1e-4), the role's discretisation (`make_role_discretisation`) and the
     accelerations ``action_scale * DEFAULT_ACTIONS`` (units/s²; departs from METHODS' ±4
-    maximum, see `ACTION_SCALE`).
+    maximum, see `ACTION_SCALE`). ``reference`` is the motion source of a leader's
+    ``"reference"`` features: the generator (or trial) of the person it imitates.
     """
     params = hkb.preset(_check_role(role))
     return CyberPlayer(
@@ -215,6 +218,7 @@ def make_cyber_player(role: Role, action_scale: float = ACTION_SCALE) -> CyberPl
         omega=params.omega,
         eta=params.eta,
         period=params.period,
+        reference=reference,
     )
 
 
@@ -334,7 +338,7 @@ def train_cyber_player(
         chunk_size=chunk_size,
         progress=False,
     )
-    player = make_cyber_player(role)
+    player = make_cyber_player(role, target)
     learner = make_learner(n_sessions, learner_seed, checkpoint, checkpoint_every, progress)
     learner.train(player, chunks, total=n_sessions)
     player.training_ |= {"run_seed": seed, "role": role, "n_partners": len(partners)}

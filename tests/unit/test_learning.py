@@ -156,7 +156,7 @@ def test_choose_action_is_greedy_without_exploration(rng):
     assert set(picks) == set(range(9))
 
 
-def reference_session(q, px, pv, tx, tv, player, lr, discount, eps, rng):
+def reference_session(q, px, pv, tx, tv, tr, player, lr, discount, eps, rng):
     """Straightforward Python Q-learning over one session, for comparison with the compiled one."""
     disc, actions = player.discretisation_, np.asarray(DEFAULT_ACTIONS)
     alpha, beta, gamma, omega = HKB
@@ -166,7 +166,10 @@ def reference_session(q, px, pv, tx, tv, player, lr, discount, eps, rng):
         return -(alpha * x * x + beta * v * v - gamma) * v - omega * omega * x + u
 
     def cell(x, v, k):
-        features = (x - px[k], v - pv[k], px[k], pv[k])
+        if disc.features == "reference":
+            features = (x - px[k], v - tr[k], x, tr[k])
+        else:
+            features = (x - px[k], v - pv[k], px[k], pv[k])
         bins = [
             int(np.searchsorted(e, f, side="right"))
             for f, e in zip(features, disc.edges, strict=True)
@@ -197,11 +200,13 @@ def reference_session(q, px, pv, tx, tv, player, lr, discount, eps, rng):
     return total, math.sqrt(squares / (px.size - 1))
 
 
-def test_run_q_session_matches_python_reference(slow_chunks):
+@pytest.mark.parametrize("features", ["relative", "reference"])
+def test_run_q_session_matches_python_reference(slow_chunks, features):
     positions, velocities = slow_chunks[0]
     px, tx = positions[0, :, :400]
     pv, tv = velocities[0, :, :400]
-    player = CyberPlayer()
+    tr = tv + 0.1 * np.sin(np.arange(tv.size) / 7.0)
+    player = CyberPlayer(make_default_discretisation(features))
     player.initialise_q(3, 1e-2)
     q_reference = player.q_table_.copy()
     fast = run_q_session(
@@ -210,6 +215,7 @@ def test_run_q_session_matches_python_reference(slow_chunks):
         pv,
         tx,
         tv,
+        tr,
         *player.session_arguments(),
         0.2,
         0.95,
@@ -217,7 +223,7 @@ def test_run_q_session_matches_python_reference(slow_chunks):
         np.random.default_rng(5),
     )
     slow = reference_session(
-        q_reference, px, pv, tx, tv, player, 0.2, 0.95, 0.3, np.random.default_rng(5)
+        q_reference, px, pv, tx, tv, tr, player, 0.2, 0.95, 0.3, np.random.default_rng(5)
     )
     np.testing.assert_allclose(fast, slow, rtol=1e-12)
     np.testing.assert_allclose(player.q_table_, q_reference, rtol=0, atol=1e-14)

@@ -80,12 +80,15 @@ def test_cyber_player_takes_the_role_dynamics() -> None:
 
 
 def test_role_discretisations() -> None:
-    """The leader keeps the default bins; the follower's own ones are finer, symmetric about 0."""
+    """The leader uses reference features; the follower's own bins are finer, symmetric about 0."""
     default = make_default_discretisation("relative")
     leader, follower = make_role_discretisation("leader"), make_role_discretisation("follower")
-    assert make_cyber_player("leader").discretisation_.shape == leader.shape == default.shape
+    assert make_cyber_player("leader").discretisation_.shape == leader.shape == (10, 10, 8, 12)
     assert make_cyber_player("follower").discretisation_.shape == follower.shape == (18, 14, 6, 7)
-    assert follower.features == leader.features == "relative"
+    assert leader.features == "reference" and follower.features == "relative"
+    # the leader's cell follows its own reference velocity, not the partner's velocity
+    assert leader.index(0.0, 0.2, 0.0, 0.0, 0.2) != leader.index(0.0, 0.2, 0.0, 0.0, -0.2)
+    assert leader.index(0.0, 0.2, 0.0, 0.5, 0.2) == leader.index(0.0, 0.2, 0.0, -0.5, 0.2)
     for own in follower.edges[:2]:
         np.testing.assert_array_equal(own, -own[::-1])
         assert own[own.size // 2] == 0.0
@@ -144,7 +147,7 @@ def test_training_learns_from_exactly_the_batch_sessions(
     for i in range(6):
         chunk = chunks[0]
         session = (chunk.positions[i, 0], chunk.velocities[i, 0], chunk.positions[i, 1],
-                   chunk.velocities[i, 1])  # fmt: skip
+                   chunk.velocities[i, 1], chunk.references[i, 1])  # fmt: skip
         epsilon = 0.01 + 0.49 * 0.5 ** (i / 1.0)
         scores.append(replay.play_session(session, 0.1, 0.95, epsilon, rng))
     np.testing.assert_allclose(replay.q_table_, player.q_table_)

@@ -287,7 +287,7 @@ def compare_baselines(
     pairs = make_pairs(trainers[TARGET].generator, partners, role)
     held_out = derive_seeds(seed + 1)[0]
     chunks = list(run_sessions(pairs, n_sessions, seed=held_out, n_jobs=n_jobs, progress=False))
-    untrained = make_cyber_player(role)
+    untrained = make_cyber_player(role, trainers[TARGET].generator)
     untrained.initialise_q(seed, 1e-3)
     squared = [((c.positions[:, 0, 1:] - c.positions[:, 1, 1:]) ** 2).mean(axis=1) for c in chunks]
     return {
