@@ -11,7 +11,10 @@ import pytest
 from mirror_avatar import hkb
 from mirror_avatar.batch import run_sessions
 from mirror_avatar.errors import InputError
+from mirror_avatar.game import play
 from mirror_avatar.learning import DEFAULT_ACTIONS, load_cyber_player, make_default_discretisation
+from mirror_avatar.model_files import read_archive, save_model
+from mirror_avatar.players import check_player
 from mirror_avatar.training import (
     SEEN_PARTNERS,
     TARGET,
@@ -152,6 +155,41 @@ def test_training_learns_from_exactly_the_batch_sessions(
         scores.append(replay.play_session(session, 0.1, 0.95, epsilon, rng))
     np.testing.assert_allclose(replay.q_table_, player.q_table_)
     assert curve.rms == pytest.approx([s[1] for s in scores])
+
+
+def test_leader_plays_from_its_own_reference(
+    trainers: list[VirtualTrainerSpec], tmp_path: Path
+) -> None:
+    """A reference-feature leader draws its reference from VT5's generator at each reset, passes
+    the step protocol as a stochastic player and plays the same from its saved file alone."""
+    leader, _ = _train(trainers, seed=2, role="leader")
+    assert leader.reference is trainers[TARGET].generator and leader.stochastic
+    check_player(lambda: leader)
+    path = leader.save(tmp_path / "leader.npz")
+    loaded = load_cyber_player(path)
+    np.testing.assert_array_equal(loaded.q_table_, leader.q_table_)
+    partner = trainers[0].player("follower")
+    a, b = (play(p, partner, 3.0, seed=4).positions for p in (leader, loaded))
+    np.testing.assert_array_equal(a, b)
+    arrays, metadata = read_archive(path)
+    kept = {k: v for k, v in arrays.items() if not k.startswith("reference_")}
+    del metadata["reference"]
+    broken = tmp_path / "broken.npz"
+    save_model(broken, metadata.pop("format"), metadata.pop("version"), kept, metadata)
+    with pytest.raises(InputError, match="broken.npz: reference features but no reference"):
+        load_cyber_player(broken)
+
+
+def test_reference_features_need_reference_velocities(trainers: list[VirtualTrainerSpec]) -> None:
+    leader = make_cyber_player("leader")
+    leader.initialise_q(0, 1e-3)
+    with pytest.raises(InputError, match="reference generator"):
+        leader.reset(seed=0)
+    pairs = make_pairs(trainers[TARGET].generator, [trainers[0].generator], "leader")
+    chunk = next(run_sessions(pairs, 1, duration=2.0, n_jobs=1))
+    with pytest.raises(InputError, match="reference velocities"):
+        leader.evaluate([(chunk.positions, chunk.velocities)])
+    assert leader.evaluate([chunk])[1].shape == (1,)
 
 
 def test_checkpoint_and_learning_curve_files(
