@@ -348,9 +348,16 @@ class IMSGenerator:
         }
 
     def to_arrays(self) -> tuple[dict[str, NDArray[np.float64]], dict[str, Any]]:
-        """The fitted model as arrays (``codebook``, ``transmat``, ``startprob``) and metadata."""
+        """Return the fitted model's arrays and metadata, as `save` writes them.
+
+        Arrays ``codebook``, ``transmat``, ``startprob``; metadata ``parameters``, ``training``.
+        """
         self._check_fitted()
-        arrays = {"codebook": self.codebook_, "transmat": self.transmat_, "startprob": self.startprob_}
+        arrays = {
+            "codebook": self.codebook_,
+            "transmat": self.transmat_,
+            "startprob": self.startprob_,
+        }
         return arrays, {"parameters": self.get_params(), "training": self.training_summary_}
 
     @classmethod

@@ -398,8 +398,11 @@ class Discretisation:
         return np.concatenate([[0], np.cumsum([e.size for e in self.edges])]).astype(np.int64)
 
     def index(self, x: float, v: float, xp: float, vp: float, r: float = 0.0) -> int:
-        """Cell of the state (own position, velocity, partner's position, velocity, own
-        reference velocity; ``r`` only matters for ``"reference"`` features)."""
+        """Return the cell of a state.
+
+        The state is own position, velocity, partner's position, velocity and own reference
+        velocity (``r`` only matters for ``"reference"`` features).
+        """
         return int(_state_index(x, v, xp, vp, r, self.mode, self.flat_edges, self.offsets))
 
 
@@ -733,8 +736,11 @@ def iter_sessions(
 
 
 def _target_references(chunk: Any, shape: tuple[int, ...]) -> Array:
-    """The target's reference velocities of a chunk, shape (k, n); NaN when it has none."""
-    found = chunk.get("references") if isinstance(chunk, Mapping) else getattr(chunk, "references", None)
+    """Return the target's reference velocities of a chunk, shape (k, n); NaN if it has none."""
+    if isinstance(chunk, Mapping):
+        found = chunk.get("references")
+    else:
+        found = getattr(chunk, "references", None)
     if found is None:
         return np.full((shape[0], shape[2]), np.nan)
     references = np.asarray(found, dtype=np.float64)

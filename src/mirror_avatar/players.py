@@ -137,7 +137,7 @@ class ReferenceTrack:
         )
 
     def __getitem__(self, k: int) -> float:
-        """Reference velocity (units/s) of control period k (k >= 0)."""
+        """Return the reference velocity (units/s) of control period k (k >= 0)."""
         while k >= self._values.size:
             self._values = self._draw(2 * self._values.size)
         return float(self._values[k])

@@ -169,26 +169,30 @@ def make_virtual_trainers(
 def make_role_discretisation(role: Role) -> Discretisation:
     """Make the state discretisation of a cyber player imitating VT5 in ``role`` (**choice**).
 
-    Both roles use relative features ``[x - x_p, x' - x_p', x_p, x_p']`` with the partner's bins
-    of `mirror_avatar.learning.make_default_discretisation`. The **follower** cuts its own
-    features finer (`FOLLOWER_EDGES`: 18 x 14 bins instead of 10 x 8, 10 584 cells); the
-    **leader** keeps the default (3360 cells).
+    The **follower** uses relative features ``[x - x_p, x' - x_p', x_p, x_p']`` with its own
+    features cut finer than the default (`FOLLOWER_EDGES`: 18 x 14 bins instead of 10 x 8,
+    10 584 cells) and the partner's bins of `mirror_avatar.learning.make_default_discretisation`.
+    The **leader** uses ``"reference"`` features ``[x - x_p, x' - r_s, x, r_s]`` (9600 cells), r_s
+    its own reference velocity from VT5's generator (a **departure** from METHODS section 7).
 
     Measured (4000 training sessions, validation as in `mirror_avatar.experiments.cyber_player`
     with 10 sessions per partner, four learner seeds): the largest difference between the
     follower's and VT5's mean CV over the five partners was 0.027-0.046 with the finer bins
     against 0.051-0.061 with the default ones (the default follower is too well coordinated
     with the slow partners VT4 and VT6: CV 0.93 against VT5's 0.88), RMS differences at most
-    0.007 either way, EMD to VT5's IMS 0.005 against 0.004, RMS to VT5 on held-out sessions
-    0.058 against 0.049 (copying the partner: 0.097). As a leader the finer bins made the
-    cyber player faster than VT5 (mean speed 0.35-0.38 against 0.26 units/s) and more
-    coordinated (CV 0.89-0.94 against VT5's 0.50-0.81), worse than the default (0.19-0.23
-    units/s, CV 0.69-0.91); absolute features made the leader slower (0.10-0.13 units/s, EMD
-    to VT5 0.020-0.024) with a CV that swung between 0.47 and 0.92 across training lengths.
+    0.007 either way, EMD to VT5's IMS 0.005 against 0.004. The finer follower needs more
+    sessions: its RMS to VT5 on held-out sessions (64-symbol generators) was 0.110 after 1500
+    sessions, 0.071 after 2500 and 0.047 after 4000, against 0.092 for copying the partner.
 
-    The finer follower needs more sessions: its RMS to VT5 on held-out sessions (64-symbol
-    generators) was 0.110 after 1500 sessions, 0.071 after 2500 and 0.047 after 4000, against
-    0.092 for copying the partner.
+    A leader on the METHODS state (relative or absolute features, any bins, discounts 0.8-0.99,
+    up to 16 000 sessions) learns the conditional mean of VT5's motion given the two players'
+    states; VT5's self-generated motion is not predictable from them, so that leader partly
+    followed its follower: CV 0.80-0.88 against VT5's 0.51-0.82, RMS to the partner 0.026-0.066
+    against 0.054-0.109, no better than copying the partner on held-out sessions (0.094 against
+    0.083). With the reference features (4000 sessions, 20 validation sessions per partner) its
+    CV is within 0.015 and its RMS within 0.001 of VT5's against all five partners, its IMS
+    within EMD 0.0015 of VT5's, and its RMS to VT5 on held-out sessions 0.075 against 0.083 for
+    copying the partner.
     """
     if _check_role(role) == "leader":
         return make_default_discretisation("reference")
