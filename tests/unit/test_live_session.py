@@ -67,19 +67,25 @@ def test_samples_are_on_the_control_clock_and_the_avatar_sees_the_person(tmp_pat
 
 
 def test_the_avatar_is_given_the_persons_finite_difference_velocity(tmp_path):
-    seen = []
+    watchers = []
 
     class Watcher(Echo):
+        def __init__(self) -> None:
+            self.seen: list[float] = []
+            watchers.append(self)
+
         def step(self, partner_position: float, partner_velocity: float) -> tuple[float, float]:
-            seen.append(partner_velocity)
+            self.seen.append(partner_velocity)
             return super().step(partner_position, partner_velocity)
 
     request = StartRequest(mode="joint", participant="P1", duration=0.09)
     trial = start_trial(tmp_path, request, lambda mode, seed: Watcher(), "watcher")
+    live, spare = watchers
+    assert trial.avatar is live and spare.seen == [0.0]  # the spare one compiled the step
     for x in (0.1, 0.13, 0.19, 0.19):
         trial.update_person(x, None)
         trial.tick()
-    np.testing.assert_allclose(seen, [0.0, 0.03 / T, 0.06 / T, 0.0])
+    np.testing.assert_allclose(live.seen, [0.0, 0.03 / T, 0.06 / T, 0.0])
     assert 0 <= trial.finish(True, "completed")["seed"] < 2**63
 
 

@@ -116,6 +116,8 @@ def start_trial(
     avatar = avatar_factory(request.mode, seed) if with_avatar and avatar_factory else None
     if avatar is not None and not math.isclose(avatar.period, period):
         raise ValueError(f"the avatar steps every {avatar.period} s, the server every {period} s")
+    if with_avatar and avatar_factory:
+        _warm_up(avatar_factory(request.mode, seed))
     now = datetime.now(UTC)
     stem = f"{request.participant}_{request.mode}_{now.strftime('%Y%m%dT%H%M%S%fZ')}"
     metadata = {
@@ -134,6 +136,12 @@ def start_trial(
     }
     recorder = TrialRecorder(out_dir / request.participant, stem, metadata, with_avatar)
     return LiveTrial(request.mode, request.duration, recorder, avatar, seed, period)
+
+
+def _warm_up(avatar: Player) -> None:
+    """Step a spare avatar once, so compiling its step happens here, not on the live clock."""
+    avatar.reset(seed=0)
+    avatar.step(0.0, 0.0)
 
 
 @dataclass
