@@ -106,14 +106,15 @@ def test_check_criteria_by_hand() -> None:
 
 
 @pytest.mark.slow
-def test_full_scale_follower_meets_the_reproduction_criteria(zhai_trials: list[Trial]) -> None:
+def test_full_scale_run_meets_the_reproduction_criteria(zhai_trials: list[Trial]) -> None:
     """The default run (4000 training sessions, 20 validation sessions per partner, seed 0):
-    the follower passes every criterion against all five partners and beats both baselines."""
+    the follower passes every criterion against all five partners; the leader matches VT5
+    against all five and misses only the CV bound, where VT5's own CV misses it too."""
     metrics = run(zhai_trials, quick=False).metrics
-    follower = metrics["follower"]
+    follower, leader = metrics["follower"], metrics["leader"]
+    assert len(follower["criteria"]) == len(leader["criteria"]) == 5
     assert all(row["all"] for row in follower["criteria"].values())
-    assert len(follower["criteria"]) == 5
-    assert follower["trained_beats_baselines"]
-    leader = metrics["leader"]
-    assert leader["emd_cyber_to_vt5"] < 0.01
-    assert all(row["rms within"] for row in leader["criteria"].values())
+    for row in leader["criteria"].values():
+        assert row["cv within"] and row["rms within"] and row["rms <= max"] and row["emd <= max"]
+        assert row["cv >= min"] or row["cv VT5"] < 0.75
+    assert follower["trained_beats_baselines"] and leader["trained_beats_baselines"]
