@@ -477,6 +477,8 @@ class CyberPlayer:
         The learned action values; set by `initialise_q` or a trainer, or by `load`.
     training_ : dict
         Summary of how the Q-table was trained (seed, sessions, hyper-parameters, last scores).
+    last_reference : float
+        Own reference velocity (units/s) of the last step; NaN without ``"reference"`` features.
     label : str
         A name for the player (recorded in sessions).
     """
@@ -484,6 +486,7 @@ class CyberPlayer:
     q_table_: Array
     training_: dict[str, Any]
     label = "cyber player"
+    last_reference = math.nan
 
     def __init__(
         self,
@@ -603,6 +606,7 @@ class CyberPlayer:
         q, mode, edges, offsets, actions, hkb, period, n_substeps = self._policy
         x, v = self._state
         r = 0.0 if self._references is None else self._references[self._k]
+        self.last_reference = math.nan if self._references is None else r
         self._k += 1
         self._state = _greedy_step(
             q,

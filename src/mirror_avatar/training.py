@@ -319,6 +319,8 @@ def train_cyber_player(
         Where the sessions are played (see `mirror_avatar.batch.run_sessions`).
     checkpoint, checkpoint_every
         Save the player to ``checkpoint`` every ``checkpoint_every`` sessions and at the end.
+        A leader's file holds its motion source, so ``target`` must then be an `IMSGenerator`
+        (checked before training).
     progress
         Progress bar: True, False, or None (only on a terminal).
 
@@ -330,6 +332,8 @@ def train_cyber_player(
         Mean reward per step and RMS to the target (units) per block of sessions.
     """
     pairs = make_pairs(target, partners, role)
+    if checkpoint is not None and role == "leader" and not isinstance(target, IMSGenerator):
+        raise InputError("target", "a leader saved to a file needs an IMS generator, not a trial")
     session_seed, learner_seed = derive_seeds(seed)
     chunks = run_sessions(
         pairs,

@@ -169,8 +169,10 @@ def test_leader_plays_from_its_own_reference(
     loaded = load_cyber_player(path)
     np.testing.assert_array_equal(loaded.q_table_, leader.q_table_)
     partner = trainers[0].player("follower")
-    a, b = (play(p, partner, 3.0, seed=4).positions for p in (leader, loaded))
-    np.testing.assert_array_equal(a, b)
+    a, b = (play(p, partner, 3.0, seed=4) for p in (leader, loaded))
+    np.testing.assert_array_equal(a.positions, b.positions)
+    assert np.all(np.isfinite(a.references[0, :-1]))  # the leader's own reference is recorded
+    np.testing.assert_array_equal(a.references, b.references)
     arrays, metadata = read_archive(path)
     kept = {k: v for k, v in arrays.items() if not k.startswith("reference_")}
     del metadata["reference"]
@@ -178,6 +180,16 @@ def test_leader_plays_from_its_own_reference(
     save_model(broken, metadata.pop("format"), metadata.pop("version"), kept, metadata)
     with pytest.raises(InputError, match="broken.npz: reference features but no reference"):
         load_cyber_player(broken)
+
+
+def test_a_saved_leader_needs_a_generator_target(
+    trainers: list[VirtualTrainerSpec], zhai_trials: list[Trial], tmp_path: Path
+) -> None:
+    with pytest.raises(InputError, match="target: a leader saved to a file needs an IMS"):
+        train_cyber_player(
+            zhai_trials[12], [trainers[0].generator], "leader", checkpoint=tmp_path / "p.npz"
+        )
+    assert not (tmp_path / "p.npz").exists()
 
 
 def test_reference_features_need_reference_velocities(trainers: list[VirtualTrainerSpec]) -> None:
