@@ -189,10 +189,10 @@ def make_role_discretisation(role: Role) -> Discretisation:
     states; VT5's self-generated motion is not predictable from them, so that leader partly
     followed its follower: CV 0.80-0.88 against VT5's 0.51-0.82, RMS to the partner 0.026-0.066
     against 0.054-0.109, no better than copying the partner on held-out sessions (0.094 against
-    0.083). With the reference features (4000 sessions, 20 validation sessions per partner) its
-    CV is within 0.015 and its RMS within 0.001 of VT5's against all five partners, its IMS
-    within EMD 0.0015 of VT5's, and its RMS to VT5 on held-out sessions 0.075 against 0.083 for
-    copying the partner.
+    0.083). With the reference features (4000 sessions, 20 validation sessions per partner, run
+    seeds 0, 1 and 2) its CV is within 0.015-0.030 and its RMS within 0.001-0.002 of VT5's
+    against all five partners, its IMS within EMD 0.0015-0.0021 of VT5's, and its RMS to VT5 on
+    held-out sessions 0.072-0.075 against 0.082-0.083 for copying the partner.
     """
     if _check_role(role) == "leader":
         return make_default_discretisation("reference")
