@@ -27,7 +27,8 @@ from mirror_avatar.trials import PLAYING_RANGE
 VELOCITY_BOUND = 5.0
 """Velocities (units/s) in continuous observations are clipped to ±VELOCITY_BOUND."""
 
-Session = tuple[NDArray[np.float64], ...]
+Array = NDArray[np.float64]
+Session = tuple[Array, Array, Array, Array, Array]
 """``(partner_x, partner_v, target_x, target_v, target_r)`` as `iter_sessions` yields them."""
 
 

@@ -605,8 +605,10 @@ class CyberPlayer:
         """Observe the partner, apply the greedy acceleration for one period, return (x, x')."""
         q, mode, edges, offsets, actions, hkb, period, n_substeps = self._policy
         x, v = self._state
-        r = 0.0 if self._references is None else self._references[self._k]
-        self.last_reference = math.nan if self._references is None else r
+        if self._references is None:
+            r = 0.0
+        else:
+            r = self.last_reference = self._references[self._k]
         self._k += 1
         self._state = _greedy_step(
             q,
@@ -730,7 +732,7 @@ def iter_sessions(
         If a chunk has another form, shape, sampling period, or non-finite values.
     """
     for chunk in chunks:
-        own = chunk.get("period") if isinstance(chunk, Mapping) else getattr(chunk, "period", None)
+        own = _chunk_field(chunk, "period")
         if period is not None and own is not None and not math.isclose(own, period):
             raise InputError("sessions", f"sampled every {own} s, not every {period} s")
         positions, velocities = _chunk_arrays(chunk)
@@ -739,12 +741,14 @@ def iter_sessions(
             yield session_x[0], session_v[0], session_x[1], session_v[1], session_r
 
 
+def _chunk_field(chunk: Any, name: str) -> Any:
+    """Return a chunk's optional field ``name`` (a mapping key or an attribute), or None."""
+    return chunk.get(name) if isinstance(chunk, Mapping) else getattr(chunk, name, None)
+
+
 def _target_references(chunk: Any, shape: tuple[int, ...]) -> Array:
     """Return the target's reference velocities of a chunk, shape (k, n); NaN if it has none."""
-    if isinstance(chunk, Mapping):
-        found = chunk.get("references")
-    else:
-        found = getattr(chunk, "references", None)
+    found = _chunk_field(chunk, "references")
     if found is None:
         return np.full((shape[0], shape[2]), np.nan)
     references = np.asarray(found, dtype=np.float64)

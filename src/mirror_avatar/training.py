@@ -332,7 +332,12 @@ def train_cyber_player(
         Mean reward per step and RMS to the target (units) per block of sessions.
     """
     pairs = make_pairs(target, partners, role)
-    if checkpoint is not None and role == "leader" and not isinstance(target, IMSGenerator):
+    player = make_cyber_player(role, target)
+    if (
+        checkpoint is not None
+        and player.discretisation_.needs_reference
+        and not isinstance(target, IMSGenerator)
+    ):
         raise InputError("target", "a leader saved to a file needs an IMS generator, not a trial")
     session_seed, learner_seed = derive_seeds(seed)
     chunks = run_sessions(
@@ -346,7 +351,6 @@ def train_cyber_player(
         chunk_size=chunk_size,
         progress=False,
     )
-    player = make_cyber_player(role, target)
     learner = make_learner(n_sessions, learner_seed, checkpoint, checkpoint_every, progress)
     learner.train(player, chunks, total=n_sessions)
     player.training_ |= {"run_seed": seed, "role": role, "n_partners": len(partners)}
