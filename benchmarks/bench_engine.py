@@ -1,6 +1,7 @@
 """Game engine: virtual-trainer sessions per second, against a per-step solve_bvp baseline.
 
-The batch engine (`mirror_avatar.batch.run_sessions`, compiled sessions on local processes) plays
+The batch engine (`mirror_avatar.engine.batch.run_sessions`, the compiled loop on local processes)
+plays
 60 s leader-vs-follower sessions between virtual trainers driven by the bundled "fast" and "slow"
 IMS generators. The baseline solves the same optimal-control step the straightforward way, as the
 original MATLAB implementation did with bvp4c: scipy's ``solve_bvp`` on the nonlinear two-point
@@ -17,52 +18,23 @@ import time
 import tracemalloc
 
 import numpy as np
-from scipy.integrate import solve_bvp
 
-from mirror_avatar.batch import run_sessions
-from mirror_avatar.hkb import FOLLOWER, LEADER, HKBParams, clip_to_range, optimal_control_step
-from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.dynamics import FOLLOWER, LEADER, HKBParams, clip_to_range, optimal_control_step
+from mirror_avatar.engine.batch import run_sessions
+from mirror_avatar.players import Observation, VirtualTrainer
 from mirror_avatar.specs import bundled_generator
+from mirror_avatar.testing import solve_step_bvp
 
 PAPER_SESSIONS = 24_000
 SESSION_SECONDS = 60.0
 
 
-def solve_step_bvp(
+def solve_step_bvp_like_bvp4c(
     params: HKBParams, x0: float, y0: float, rp: float, rs: float, rv: float
 ) -> tuple[float, float, float]:
-    """One optimal-control step by scipy's collocation solver (the bvp4c way), tolerance 1e-3.
-
-    bvp4c's default relative tolerance is 1e-3; the mesh starts at 10 nodes as bvp4c examples do.
-
-    Returns
-    -------
-    tuple of float
-        Position and velocity at the end of the interval (clipped) and the control at its start.
-    """
-    a, b, g, w, eta = params.alpha, params.beta, params.gamma, params.omega, params.eta
-    tp, tv, ts = params.theta_p, params.theta_v, params.theta_s
-
-    def rhs(_t: np.ndarray, z: np.ndarray) -> np.ndarray:
-        x, y, l1, l2 = z
-        return np.vstack(
-            [
-                y,
-                -(a * x * x + b * y * y - g) * y - w * w * x - l2 / eta,
-                l2 * (2 * a * x * y + w * w),
-                l2 * (a * x * x + 3 * b * y * y - g) - l1 - ts * (y - rs) - tv * (y - rv),
-            ]
-        )
-
-    def boundary(za: np.ndarray, zb: np.ndarray) -> np.ndarray:
-        return np.array([za[0] - x0, za[1] - y0, zb[2] - tp * (zb[0] - rp), zb[3]])
-
-    t = np.linspace(0.0, params.period, 10)
-    guess = np.zeros((4, t.size))
-    guess[0], guess[1] = x0 + y0 * t, y0
-    solution = solve_bvp(rhs, boundary, t, guess, tol=1e-3)
-    x_end, y_end = clip_to_range(*solution.sol(params.period)[:2])
-    return x_end, y_end, float(-solution.sol(0.0)[3] / eta)
+    """One optimal-control step the bvp4c way: tolerance 1e-3, a mesh of 10 nodes, clipped."""
+    x_end, y_end, u0 = solve_step_bvp(params, x0, y0, rp, rs, rv, tol=1e-3, n_nodes=10)
+    return (*clip_to_range(x_end, y_end), u0)
 
 
 def make_pairs() -> list[tuple[VirtualTrainer, VirtualTrainer]]:
@@ -82,21 +54,21 @@ def measure_batch(
     tracemalloc.start()
     start = time.perf_counter()
     first = None
-    for batch in run_sessions(
+    for chunk in run_sessions(
         pairs, n_sessions, SESSION_SECONDS, seed=0, n_jobs=n_jobs, chunk_size=25, progress=False
     ):
-        first = batch if first is None else first
+        first = chunk[0].positions if first is None else first
     elapsed = time.perf_counter() - start
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     assert first is not None
-    return elapsed, peak / 2**20, first.positions
+    return elapsed, peak / 2**20, first
 
 
 def step_inputs(positions: np.ndarray, n: int) -> list[tuple[float, float, float, float, float]]:
     """``n`` follower steps taken from a played session: (x, y, r_p, r_s, r_v) at human speeds."""
     rng = np.random.default_rng(0)
-    leader, follower = positions[0, 0], positions[0, 1]
+    leader, follower = positions
     ks = rng.choice(np.arange(1, leader.size - 1), n, replace=False)
     period = LEADER.period
     return [
@@ -124,9 +96,9 @@ def run(quick: bool) -> list[dict]:
     steps_per_session = 2 * int(round(SESSION_SECONDS / LEADER.period))
 
     inputs = step_inputs(positions, 10 if quick else 30)
-    p = FOLLOWER.as_vector()
+    p = FOLLOWER.record()[0]
     start = time.perf_counter()
-    baseline = [solve_step_bvp(FOLLOWER, *args) for args in inputs]
+    baseline = [solve_step_bvp_like_bvp4c(FOLLOWER, *args) for args in inputs]
     bvp_step = (time.perf_counter() - start) / len(inputs)
     velocity_gap = max(
         abs(optimal_control_step(*args, p)[1] - b[1])
@@ -142,9 +114,10 @@ def run(quick: bool) -> list[dict]:
 
     trainer = pairs[0][1]
     trainer.reset(seed=0)
+    seen = [Observation.of_partner(k, 0.1 * np.sin(0.03 * k), 0.0, 0.0) for k in range(1000)]
     start = time.perf_counter()
-    for k in range(1000):
-        trainer.step(0.1 * np.sin(0.03 * k), 0.0)
+    for observation in seen:
+        trainer.step(observation)
     live_step = (time.perf_counter() - start) / 1000
 
     projected = PAPER_SESSIONS / sessions_per_s

@@ -24,14 +24,18 @@ import numpy as np
 from websockets.sync.client import connect
 from websockets.sync.server import serve
 
-from mirror_avatar.live.server import LiveSettings, ServerThread, create_app
+from mirror_avatar.dynamics import CONTROL_PERIOD
+from mirror_avatar.graphs import complete_graph
+from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import (
     DEFAULT_AVATAR,
     AvatarFactory,
-    TrialRecorder,
+    PersonTrialWriter,
     make_avatar_factory,
 )
-from mirror_avatar.players import CONTROL_PERIOD
+from mirror_avatar.players import Observation
+from mirror_avatar.session import SessionWriter
+from mirror_avatar.testing import ServerThread
 
 
 def peak_memory_mb() -> float:
@@ -41,26 +45,39 @@ def peak_memory_mb() -> float:
 
 def time_steps(factory: AvatarFactory, mode: str, n: int) -> float:
     """Mean seconds per avatar step in ``mode``."""
-    player = factory(mode, 1)
+    player = factory(mode)
     player.reset(1)
-    partner = [0.3 * math.sin(math.pi * k * CONTROL_PERIOD) for k in range(n + 1)]
-    for k in range(20):  # compile and warm up
-        player.step(partner[k], 0.0)
+    partner = [0.3 * math.sin(math.pi * k * CONTROL_PERIOD) for k in range(n + 2)]
+    seen = [
+        Observation.of_partner(
+            k, partner[k + 1], (partner[k + 1] - partner[k]) / CONTROL_PERIOD, partner[k]
+        )  # fmt: skip
+        for k in range(n + 1)
+    ]
+    for observation in seen[:20]:  # compile and warm up
+        player.step(observation)
     start = time.perf_counter()
-    for k in range(n):
-        player.step(partner[k + 1], (partner[k + 1] - partner[k]) / CONTROL_PERIOD)
+    for observation in seen[1:]:
+        player.step(observation)
     return (time.perf_counter() - start) / n
 
 
 def time_recording(n: int) -> float:
-    """Mean seconds per recorded sample (both CSV files written and flushed)."""
+    """Mean seconds per recorded sample (the session and trial CSV lines written and flushed)."""
     with tempfile.TemporaryDirectory() as folder:
-        recorder = TrialRecorder(Path(folder), "bench", {}, with_avatar=True)
+        labels, roles = ("person", "avatar"), ("leader", "follower")
+        session = SessionWriter(Path(folder) / "bench_session.csv", labels, roles,
+                                complete_graph(2), CONTROL_PERIOD, {})  # fmt: skip
+        person = PersonTrialWriter(Path(folder) / "bench.csv")
+        rows = [np.array([k * CONTROL_PERIOD, 0.1, 0.2, np.nan, np.nan, -0.1, -0.2, 3.0, 0.5])
+                for k in range(n)]  # fmt: skip
         start = time.perf_counter()
-        for k in range(n):
-            recorder.append(k * CONTROL_PERIOD, 0.1, -0.1)
+        for row in rows:
+            session.append(row)
+            person(row)
         elapsed = time.perf_counter() - start
-        recorder.finish(True, {})
+        session.close(True)
+        person.close()
     return elapsed / n
 
 

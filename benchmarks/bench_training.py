@@ -2,29 +2,27 @@
 
 The paper trained for about 24 000 sessions of 60 s (about 5 days). Here a training run generates
 the virtual-trainer sessions with the batch engine (2 local processes) and Q-learns from them as
-they arrive (`mirror_avatar.training.train_cyber_player`, follower role, target VT5, partners
-VT1..VT4). The full benchmark runs the 24 000 sessions; quick mode runs a scaled-down run and
-projects. Peak traced memory is measured for two run lengths: streaming keeps it flat. Generation
-and Q-learning throughputs are measured separately, and Q-learning against the plain-Python loop
-of ``bench_learning.py`` on a subset of steps.
+they arrive (`mirror_avatar.learning.imitation.train_cyber_player`, follower role, target VT5,
+partners VT1..VT4). The full benchmark runs the 24 000 sessions; quick mode runs a scaled-down
+run and projects. Peak traced memory is measured for two run lengths: streaming keeps it flat.
+Generation and Q-learning throughputs are measured separately, and Q-learning against the
+plain-Python loop of `mirror_avatar.testing.python_learn_session` on a subset of steps.
 """
 
 from __future__ import annotations
 
-import importlib.util
+import itertools
 import resource
 import time
 import tracemalloc
 from collections.abc import Sequence
-from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 
-from mirror_avatar.batch import run_sessions
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.learning import CyberPlayer, QLearner
-from mirror_avatar.training import (
+from mirror_avatar.engine.batch import run_sessions
+from mirror_avatar.learning.agent import CyberPlayer
+from mirror_avatar.learning.imitation import (
     SEEN_PARTNERS,
     TARGET,
     Reference,
@@ -32,19 +30,11 @@ from mirror_avatar.training import (
     make_virtual_trainers,
     train_cyber_player,
 )
+from mirror_avatar.learning.training import QLearner
+from mirror_avatar.testing import python_learn_session
 
 PAPER_SESSIONS = 24_000
 TARGET_SECONDS = 120.0
-
-
-def load_bench_learning() -> ModuleType:
-    """Load the sibling benchmark module, for its plain-Python Q-learning loop."""
-    path = Path(__file__).with_name("bench_learning.py")
-    spec = importlib.util.spec_from_file_location("bench_learning", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def timed_training(
@@ -112,21 +102,20 @@ def _stage_rows(target: Reference, partners: Sequence[Reference], n_sessions: in
     """Measure generation and Q-learning throughput apart, and Q-learning against Python."""
     pairs = make_pairs(target, partners, "follower")
     start = time.perf_counter()
-    chunks = list(run_sessions(pairs, n_sessions, seed=1, n_jobs=2, progress=False))
+    chunks = run_sessions(pairs, n_sessions, seed=1, n_jobs=2, progress=False)
+    sessions = list(itertools.chain.from_iterable(chunks))
     generate = n_sessions / (time.perf_counter() - start)
-    n_steps = chunks[0].positions.shape[2] - 1
+    n_steps = sessions[0].n_samples - 1
     player = CyberPlayer()
     start = time.perf_counter()
-    QLearner(random_state=0, progress=False).train(player, chunks)
+    QLearner(player, random_state=0, progress=False).fit(sessions)
     learn_s = time.perf_counter() - start
     updates = n_sessions * n_steps / learn_s
-    c = chunks[0]
     subset = 300
-    session = (c.positions[0, 0, :subset], c.velocities[0, 0, :subset],
-               c.positions[0, 1, :subset], c.velocities[0, 1, :subset])  # fmt: skip
+    (px, tx), (pv, tv) = sessions[0].positions[:, :subset], sessions[0].velocities[:, :subset]
     start = time.perf_counter()
-    done = load_bench_learning().python_q_learning(player, session, np.random.default_rng(0))
-    python_rate = done / (time.perf_counter() - start)
+    python_learn_session(player, px, pv, tx, tv, tv, 0.1, 0.95, 0.1, np.random.default_rng(0))
+    python_rate = (subset - 1) / (time.perf_counter() - start)
     return [
         {
             "name": "VT session generation (batch engine)",
@@ -146,6 +135,6 @@ def _stage_rows(target: Reference, partners: Sequence[Reference], n_sessions: in
             "unit": "updates/s",
             "baseline": python_rate,
             "ratio": updates / python_rate,
-            "note": f"plain-Python loop of bench_learning on {done} steps",
+            "note": f"plain-Python loop (mirror_avatar.testing) on {subset - 1} steps",
         },
     ]

@@ -1,12 +1,21 @@
-"""Atomic file writes: a failure never leaves a half-written file or clobbers a good one."""
+"""Atomic file writes: a failure never leaves a half-written file or clobbers a good one.
+
+Also the one conversion of results to plain JSON (`json_safe`): numpy scalars and arrays become
+numbers and lists, NaN and infinities ``null``.
+"""
 
 from __future__ import annotations
 
+import json
+import math
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 
 @contextmanager
@@ -43,3 +52,23 @@ def write_atomic_bytes(path: str | Path, data: bytes) -> None:
 def write_atomic_text(path: str | Path, text: str) -> None:
     """Write UTF-8 ``text`` to ``path`` atomically."""
     write_atomic_bytes(path, text.encode("utf-8"))
+
+
+def write_atomic_json(path: str | Path, value: Any) -> None:
+    """Write ``json_safe(value)`` to ``path`` atomically, indented, with a final newline."""
+    write_atomic_text(path, json.dumps(json_safe(value), indent=2) + "\n")
+
+
+def json_safe(value: Any) -> Any:
+    """Plain JSON values: numpy scalars and arrays converted, NaN and infinities as ``None``."""
+    if isinstance(value, Mapping):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return json_safe(value.tolist())
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        return json_safe(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

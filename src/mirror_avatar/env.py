@@ -1,55 +1,93 @@
-"""A Gymnasium environment: the cyber player's view of a mirror-game session (METHODS section 7).
+"""A Gymnasium environment: the cyber player's view of a recorded session (METHODS section 7).
 
-One episode is one session against a partner whose motion is given in advance (a recorded or
-simulated trial), with the target player's trajectory supplying the reward. The agent drives the
-same HKB end effector as `mirror_avatar.learning.CyberPlayer` with the same action set and reward,
-computed by the same compiled functions, so any Gymnasium agent can be compared with the tabular
-Q-learner. Needs the ``rl`` extra (gymnasium).
+One episode is one recorded `mirror_avatar.session.Session` in which the agent takes the place of
+the **target player**: the other players replay what they did (`RecordedPlayer.on_grid`), the
+agent drives the same HKB end effector as `mirror_avatar.learning.agent.CyberPlayer` with the same
+action set, and is rewarded for matching what the target did, with the same compiled reward.
+Episodes run on the engine's own step loop (`mirror_avatar.engine.loop.Engine`) with the session's
+graph, so the agent observes the mean of the target's neighbours as every player does. Any
+Gymnasium agent can thus be compared with the tabular Q-learner. Needs the ``rl`` extra.
 
 Seeding follows Gymnasium: ``reset(seed=s)`` reseeds ``self.np_random``, which picks the session
-(from a given set of sessions) or is passed to a session-making callable.
+(from a given list) or is passed to a session-making callable.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any, Literal
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from numpy.typing import NDArray
 
+from mirror_avatar.dynamics import integrate_hkb
+from mirror_avatar.engine.loop import Engine
 from mirror_avatar.errors import InputError
-from mirror_avatar.learning import CyberPlayer, compute_reward, integrate_hkb, iter_sessions
+from mirror_avatar.learning.agent import CyberPlayer
+from mirror_avatar.learning.kernels import compute_reward
+from mirror_avatar.players.base import Observation, Player, partner_state
+from mirror_avatar.players.recorded import RecordedPlayer
+from mirror_avatar.session import Session
 from mirror_avatar.trials import PLAYING_RANGE
 
 VELOCITY_BOUND = 5.0
 """Velocities (units/s) in continuous observations are clipped to ±VELOCITY_BOUND."""
 
-Array = NDArray[np.float64]
-Session = tuple[Array, Array, Array, Array, Array]
-"""``(partner_x, partner_v, target_x, target_v, target_r)`` as `iter_sessions` yields them."""
+SessionSource = Sequence[Session] | Callable[[np.random.Generator], Session] | Iterator[Session]
+
+
+class ActionPlayer(Player):
+    """The agent's avatar: the cyber player's end effector driven by the action it is given.
+
+    Parameters
+    ----------
+    player
+        Supplies the end effector, the action set and the period.
+    """
+
+    def __init__(self, player: CyberPlayer) -> None:
+        self.period = player.period
+        self.label = "agent"
+        self.actions = player.actions_
+        self.n_substeps = int(player.n_substeps)
+        self._record = player.params.record()
+        self.start = (0.0, 0.0)
+        self.state = self.start
+        self.action = 0
+
+    def reset(self, seed: int | None = None) -> tuple[float, float]:
+        """Start at `start` (the target's initial state, set by the environment)."""
+        self.state = self.start
+        return self.state
+
+    def step(self, observation: Observation) -> tuple[float, float]:
+        """Apply ``actions[action]`` for one period."""
+        self.last_control = float(self.actions[self.action])
+        x, v = self.state
+        self.state = integrate_hkb(x, v, self.last_control, self._record[0], self.n_substeps)
+        return self.state
 
 
 class MirrorGameEnv(gym.Env[Any, Any]):
-    """The cyber player's session against a partner, rewarded for matching a target player.
+    """The cyber player in the target's place in recorded sessions, rewarded for matching it.
 
     Parameters
     ----------
     sessions
-        Where episodes come from. A chunk (positions and velocities of shape (k, 2, n) or (2, n),
-        player 0 the partner, player 1 the target, sampled at the control period; see
-        `mirror_avatar.learning.iter_sessions`): each reset picks one of its k sessions with
-        ``self.np_random``. Or a callable taking ``self.np_random`` and returning such a chunk
-        with one session. Or an iterator of such chunks, advanced at each reset.
+        Where episodes come from: a list of sessions (each reset picks one with
+        ``self.np_random``), a callable taking ``self.np_random`` and returning a session, or an
+        iterator of sessions, advanced at each reset. Sessions are sampled at the control period.
     player
         Supplies the dynamics, actions, reward weight and discretisation; default
         ``CyberPlayer()``.
     observation
-        ``"continuous"``: ``[x, x', x_p, x_p']`` as float32 (velocities clipped to
-        ±`VELOCITY_BOUND`); ``"discrete"``: the Q-table cell of that state (with the target's
-        reference velocity as the avatar's own for ``"reference"`` features).
+        ``"continuous"``: ``[x, x', x_p, x_p']`` as float32 (the partner is the mean of the
+        target's neighbours; velocities clipped to ±`VELOCITY_BOUND`); ``"discrete"``: the
+        Q-table cell of that state (with the target's reference velocity as the avatar's own for
+        ``"reference"`` features).
+    target
+        Index of the target player in the sessions.
 
     Notes
     -----
@@ -63,21 +101,20 @@ class MirrorGameEnv(gym.Env[Any, Any]):
 
     def __init__(
         self,
-        sessions: Any,
+        sessions: SessionSource,
         player: CyberPlayer | None = None,
         observation: Literal["continuous", "discrete"] = "continuous",
+        target: int = 1,
     ) -> None:
         self.player = player or CyberPlayer()
         self.observation = observation
+        self.target = target
         self._source = sessions
-        self._fixed: list[Session] = (
-            []
-            if callable(sessions) or isinstance(sessions, Iterator)
-            else _sessions(sessions, self.player.period)
-        )
-        self._actions = self.player.actions_
-        self._hkb = self.player.hkb_
-        self.action_space = spaces.Discrete(self._actions.size)
+        self._fixed = [] if callable(sessions) or isinstance(sessions, Iterator) else sessions
+        if not (self._fixed or callable(sessions) or isinstance(sessions, Iterator)):
+            raise InputError("sessions", "give sessions, a function making one, or an iterator")
+        self._agent = ActionPlayer(self.player)
+        self.action_space = spaces.Discrete(self._agent.actions.size)
         if observation == "continuous":
             low, high = PLAYING_RANGE
             self.observation_space = spaces.Box(
@@ -97,48 +134,71 @@ class MirrorGameEnv(gym.Env[Any, Any]):
     ) -> tuple[Any, dict[str, Any]]:
         """Start an episode on the next session; return the first observation and info."""
         super().reset(seed=seed)
-        self._session = self._next_session()
-        self._k = 0
-        _, _, target_x, target_v, _ = self._session
-        self._state = (float(target_x[0]), float(target_v[0]))
+        session = self._next_session()
+        self._session = session
+        self._agent.start = (
+            float(session.positions[self.target, 0]),
+            float(session.velocities[self.target, 0]),
+        )
+        players: list[Player] = [
+            RecordedPlayer.on_grid(x, v, session.period, label)
+            for x, v, label in zip(
+                session.positions, session.velocities, session.labels, strict=True
+            )
+        ]
+        players[self.target] = self._agent
+        self._engine = Engine(players, session.graph)
+        self._engine.reset(0, session.n_samples)
         return self._observe(), self._info()
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         """Apply acceleration ``actions[action]`` for one period."""
-        u = float(self._actions[int(action)])
-        x, v = self._state
-        player = self.player
-        x, v = integrate_hkb(x, v, u, self._hkb, float(player.period), int(player.n_substeps))
-        self._state = (x, v)
-        self._k += 1
-        _, _, target_x, target_v, _ = self._session
-        reward = compute_reward(x, v, target_x[self._k], target_v[self._k], u, float(player.eta))
-        truncated = self._k == target_x.size - 1
+        self._agent.action = int(action)
+        self._engine.step()
+        k = self._engine.k
+        x, v = self._agent.state
+        target_x, target_v = (
+            self._session.positions[self.target],
+            self._session.velocities[self.target],
+        )
+        reward = compute_reward(
+            x, v, target_x[k], target_v[k], self._agent.last_control, float(self.player.params.eta)
+        )
+        truncated = k == self._session.n_samples - 1
         return self._observe(), float(reward), False, truncated, self._info()
 
     def _next_session(self) -> Session:
         if self._fixed:
-            return self._fixed[int(self.np_random.integers(len(self._fixed)))]
-        chunk = self._source(self.np_random) if callable(self._source) else next(self._source)
-        sessions = _sessions(chunk, self.player.period)
-        if len(sessions) != 1:
-            raise InputError("sessions", f"expected one session per episode, got {len(sessions)}")
-        return sessions[0]
+            session = self._fixed[int(self.np_random.integers(len(self._fixed)))]
+        elif callable(self._source):
+            session = self._source(self.np_random)
+        else:
+            session = next(self._source)  # type: ignore[arg-type]
+        if not isinstance(session, Session):
+            raise InputError("sessions", f"expected a Session, got {type(session).__name__}")
+        if not np.flatnonzero(session.graph[self.target]).size:
+            raise InputError("sessions", f"the target (player {self.target}) observes no one")
+        return session
 
     def _observe(self) -> Any:
-        partner_x, partner_v, _, _, target_r = self._session
-        x, v = self._state
-        xp, vp = float(partner_x[self._k]), float(partner_v[self._k])
+        k = self._engine.k
+        x, v = self._agent.state
+        seen = self._engine.observe(self.target)
+        xp, vp, _ = partner_state(seen.positions, seen.velocities, seen.previous_positions, x, v)
         if self.observation == "discrete":
-            return self.player.discretisation_.index(x, v, xp, vp, float(target_r[self._k]))
+            reference = float(
+                self._session.references[self.target, min(k, self._session.n_samples - 2)]
+            )
+            return self.player.discretisation_.index(x, v, xp, vp, reference)
         box = self.observation_space
         assert isinstance(box, spaces.Box)
         return np.clip(np.array([x, v, xp, vp], dtype=np.float32), box.low, box.high)
 
     def _info(self) -> dict[str, Any]:
-        _, _, target_x, target_v, _ = self._session
-        return {"target": (float(target_x[self._k]), float(target_v[self._k]))}
-
-
-def _sessions(chunk: Any, period: float) -> list[Session]:
-    return list(iter_sessions([chunk], period))
+        k = self._engine.k
+        return {
+            "target": (
+                float(self._session.positions[self.target, k]),
+                float(self._session.velocities[self.target, k]),
+            )
+        }

@@ -11,11 +11,8 @@ it. Follows METHODS section 4:
 4. a first-order Markov chain over the symbols: transitions counted over all training trials
    (maximum likelihood), plus ``pseudo_count`` in every cell (**choice**, default 1e-3: a row
    seen ~10 times keeps ~97 % of its counted mass) so every row, including a symbol never
-   followed by another in training, is a valid distribution. Measured on 6 bundled trials of a
-   style (2382 frames, 256 symbols: median 8-9 transitions per row, 43-90 rows with fewer than
-   5): pseudo-counts 1e-3 / 1e-2 / 1e-1 / 1 give a mean EMD to held-out slow trials of
-   0.007 / 0.020 / 0.047 / 0.053 (random jumps add fast strokes to slow motion) and to fast
-   trials 0.024 / 0.018 / 0.015 / 0.016, so the default stays small. The initial symbol is
+   followed by another in training, is a valid distribution; larger pseudo-counts make random
+   jumps that add fast strokes to slow motion, so the default stays small. The initial symbol is
    drawn from the symbols' frequencies in training (**choice**: too few trials to estimate a
    start distribution). Baum-Welch on a hidden chain (METHODS: an option) is not implemented.
 5. synthesis: a sampled symbol sequence, each symbol's code vector inverse-transformed, weighted

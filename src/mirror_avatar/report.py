@@ -8,19 +8,17 @@ from __future__ import annotations
 
 import base64
 import io
-import json
-import math
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import jinja2
-import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
+
+from mirror_avatar.atomic import write_atomic_json, write_atomic_text
 
 
 @dataclass
@@ -88,14 +86,14 @@ def write_report(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     metrics = {s.key: s.metrics for s in sections} | {"metadata": metadata}
-    _write_atomic(out / "metrics.json", json.dumps(_json_safe(metrics), indent=2) + "\n")
+    write_atomic_json(out / "metrics.json", metrics)
     html = _template().render(
         title=title,
         metadata=metadata,
         sections=[_render_section(section) for section in sections],
     )
     path = out / "report.html"
-    _write_atomic(path, html)
+    write_atomic_text(path, html)
     return path
 
 
@@ -134,29 +132,3 @@ def _template() -> jinja2.Template:
         undefined=jinja2.StrictUndefined,
     )
     return environment.get_template("report.html.j2")
-
-
-def _json_safe(value: Any) -> Any:
-    """Plain JSON values: numpy scalars and arrays converted, NaN and infinities as ``None``."""
-    if isinstance(value, Mapping):
-        return {str(k): _json_safe(v) for k, v in value.items()}
-    if isinstance(value, np.ndarray):
-        return _json_safe(value.tolist())
-    if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, np.generic):
-        return _json_safe(value.item())
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as file:
-            file.write(text)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise

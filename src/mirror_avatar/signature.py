@@ -17,6 +17,7 @@ import scipy.stats
 from numpy.typing import ArrayLike, NDArray
 from shapely.geometry import Polygon
 
+from mirror_avatar.atomic import json_safe
 from mirror_avatar.errors import InputError
 from mirror_avatar.trials import Trial
 
@@ -420,9 +421,9 @@ class SignatureAnalysis:
             "emd": self.emd.tolist(),
             "coordinates": self.coordinates.tolist(),
             "ellipses": {g: _ellipse_json(e) for g, e in self.ellipses.items()},
-            "overlaps": _nan_to_none(self.overlaps),
-            "stroke_statistics": _nan_to_none(self.stroke_statistics()),
-            "trial_stroke_statistics": _nan_to_none(self.trial_stroke_statistics()),
+            "overlaps": json_safe(self.overlaps),
+            "stroke_statistics": json_safe(self.stroke_statistics()),
+            "trial_stroke_statistics": json_safe(self.trial_stroke_statistics()),
             "stroke_ellipses": {g: _ellipse_json(e) for g, e in self.stroke_ellipses.items()},
         }
 
@@ -518,16 +519,3 @@ def _moment_summary(moments: Array) -> dict[str, float]:
         "kurtosis_mean": float(mean[1]),
         "kurtosis_sd": float(sd[1]),
     }
-
-
-def _nan_to_none(value: Any) -> Any:
-    """Nested lists and dicts of ``value`` with NaN replaced by ``None`` (JSON has no NaN)."""
-    if isinstance(value, np.ndarray):
-        return _nan_to_none(value.tolist())
-    if isinstance(value, dict):
-        return {k: _nan_to_none(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_nan_to_none(v) for v in value]
-    if isinstance(value, float) and np.isnan(value):
-        return None
-    return value

@@ -28,13 +28,13 @@ from functools import lru_cache
 from pathlib import Path
 
 from mirror_avatar import __version__
-from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
+from mirror_avatar.dynamics import HKBParams, preset
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import FORMAT_NAME as GENERATOR_FORMAT
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.hkb import HKBParams, preset
-from mirror_avatar.learning import FORMAT_NAME as CYBER_FORMAT
-from mirror_avatar.learning import load_cyber_player
+from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
+from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.model_files import read_archive
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.trial_io import read_trial
@@ -48,16 +48,13 @@ __all__ = [
     "load_player",
 ]
 
-BUNDLED_STYLES = ("fast", "slow")
-"""Styles of the bundled data a ``bundled:`` spec can name."""
-
 BUNDLED_SEED = 0
 """k-means seed of the generators fitted on the bundled styles (**choice**)."""
 
 SPEC_FORMS = "bundled:fast, bundled:slow, vt:TRIAL_FILE, a model .npz or a trial file"
 
 
-def load_player(spec: str, role: str | HKBParams, seed: int | None = None) -> Player:
+def load_player(spec: str, role: str | HKBParams) -> Player:
     """Build the player a spec names.
 
     Parameters
@@ -67,11 +64,6 @@ def load_player(spec: str, role: str | HKBParams, seed: int | None = None) -> Pl
     role
         A role preset name (``"leader"``, ``"follower"``, ``"joint"``) or the parameters of the
         virtual trainer; not used by recorded and cyber players.
-    seed
-        If not None, the player is reset with it before being returned, so it is ready to step.
-        Callers that reset it again with the same seed (`mirror_avatar.game.play`, the live
-        trial) replay exactly the same motion; None leaves the player as built, to be reset by
-        the caller.
 
     Returns
     -------
@@ -83,13 +75,6 @@ def load_player(spec: str, role: str | HKBParams, seed: int | None = None) -> Pl
         ``spec: problem`` for an unknown spec, an unknown role, or a missing or unreadable file.
     """
     params = preset(role) if isinstance(role, str) else role
-    player = _build(spec, params)
-    if seed is not None:
-        player.reset(seed)
-    return player
-
-
-def _build(spec: str, params: HKBParams) -> Player:
     label = f"virtual trainer ({spec})"
     if spec.startswith("bundled:"):
         style = spec.removeprefix("bundled:")

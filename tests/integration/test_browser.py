@@ -18,8 +18,11 @@ import numpy as np
 import psutil
 import pytest
 
-from mirror_avatar.live.server import LiveSettings, ServerThread, create_app
+from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import make_avatar_factory
+from mirror_avatar.players import Observation
+from mirror_avatar.session import load_session
+from mirror_avatar.testing import ServerThread
 
 pytestmark = pytest.mark.browser
 
@@ -64,7 +67,9 @@ def avatar_factory():
     """The default avatar, built once first (as ``mirror-avatar play`` does) so that fitting the
     bundled generator and compiling the engine do not delay the first trial."""
     factory = make_avatar_factory()
-    factory("avatar_follows", 0).step(0.0, 0.0)
+    avatar = factory("avatar_follows")
+    avatar.reset(seed=0)
+    avatar.step(Observation.of_partner(0, 0.0, 0.0, 0.0))
     return factory
 
 
@@ -119,7 +124,7 @@ def finish(page: Any, name: str, tmp_path: Path) -> dict[str, Any]:
 
 
 def load_csv(path: Path) -> np.ndarray:
-    assert path.read_text().splitlines()[0] in ("time,position", "time,person,avatar")
+    assert path.read_text().splitlines()[0] == "time,position"
     return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
 
 
@@ -177,10 +182,10 @@ def test_avatar_follows_the_driven_mouse(chromium, server, tmp_path):
     driven = drive(page, 10)
     summary = finish(page, "avatar_follows", tmp_path)
     assert summary["complete"] and summary["avatar_role"] == "follower"
-    data = load_csv(tmp_path / "B01" / summary["files"]["session"])
-    assert_matches(data[:, :2], driven)
+    session = load_session(tmp_path / "B01" / summary["files"]["session"])
+    assert_matches(np.column_stack([session.times, session.positions[0]]), driven)
     metrics = summary["metrics"]
-    assert metrics["relative_phase"] > 0  # the person (player 1) is ahead
+    assert metrics["mean_relative_phase"] > 0  # the person (player 0) is ahead
     assert metrics["circular_variance"] > 0.5 and metrics["rmse"] < 0.2
     assert summary["round_trip_ms"]["n"] > 100 and summary["round_trip_ms"]["median"] < 100
     table = page.locator("#metrics").inner_text()
@@ -213,18 +218,19 @@ def test_killing_the_browser_mid_trial_leaves_an_incomplete_trial(playwright, se
     driven = drive(page, 1.5)
     os.kill(main, signal.SIGKILL)
     psutil.Process(main).wait(10)
-    sidecar = next((tmp_path / "B01").glob("*.json"))
+    sidecar = next((tmp_path / "B01").glob("*_session.json"))
     deadline = time.monotonic() + 10
-    while "ended_utc" not in (record := json.loads(sidecar.read_text())):
+    while "ended_utc" not in (record := json.loads(sidecar.read_text())["metadata"]):
         assert time.monotonic() < deadline, "the trial was never closed"
         time.sleep(0.05)
     assert not record["complete"] and record["end_reason"] in (
         "connection closed",
         "the browser stopped sending",
     )
-    data = load_csv(tmp_path / "B01" / record["files"]["session"])
-    assert data.shape[0] == record["n_samples"] > 20
-    assert_matches(data[:, :2], driven)
+    session = load_session(tmp_path / "B01" / record["files"]["session"])
+    assert session.n_samples == json.loads(sidecar.read_text())["n_samples"] > 20
+    assert session.metadata["complete"] is False
+    assert_matches(np.column_stack([session.times, session.positions[0]]), driven)
 
 
 def test_server_keeps_serving_and_tabs_can_close(chromium, server, tmp_path):
@@ -236,7 +242,7 @@ def test_server_keeps_serving_and_tabs_can_close(chromium, server, tmp_path):
     start_trial(other, server.url, "joint", 2)
     drive(other, 5)
     assert finish(other, "joint", tmp_path)["complete"]
-    records = [json.loads(p.read_text()) for p in (tmp_path / "B01").glob("*.json")]
+    records = [load_session(p).metadata for p in (tmp_path / "B01").glob("*_session.csv")]
     assert sorted((r["mode"], r["complete"]) for r in records) == [
         ("joint", True),
         ("solo", False),

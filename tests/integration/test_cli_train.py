@@ -12,7 +12,7 @@ import pytest
 from mirror_avatar.cli import main
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.learning import load_cyber_player
+from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.specs import bundled_generator
 from mirror_avatar.trials import DEFAULT_RATE
 

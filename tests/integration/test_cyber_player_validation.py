@@ -11,8 +11,9 @@ import pytest
 
 from mirror_avatar.experiments import EXPERIMENTS
 from mirror_avatar.experiments.cyber_player import RoleResult, check_criteria, measure, run
-from mirror_avatar.learning import LearningCurve
+from mirror_avatar.learning.training import LearningCurve
 from mirror_avatar.report import write_report
+from mirror_avatar.session import Session
 from mirror_avatar.trials import Trial
 
 
@@ -41,7 +42,7 @@ def test_quick_validation_runs_end_to_end(zhai_trials: list[Trial], tmp_path) ->
         overlap = pd.DataFrame(result["overlaps"])
         assert np.allclose(np.diag(overlap.to_numpy(dtype=float)), 1.0)
     assert len(section.figures) == 6
-    criteria = section.tables["Reproduction criteria (issue 5): cyber player vs VT5, per partner"]
+    criteria = section.tables["Reproduction criteria: cyber player vs VT5, per partner"]
     assert list(criteria.index) == list(table_one.index)
     for (role, partner), row in criteria.iterrows():
         cyber = pd.DataFrame(metrics[role]["records"]).query(
@@ -61,12 +62,13 @@ def test_measure_against_direct_computation() -> None:
     a, w = 0.3, 2 * np.pi * 0.5
     positions = np.vstack([a * np.sin(w * t), a * np.cos(w * t)])
     velocities = np.vstack([a * w * np.cos(w * t), -a * w * np.sin(w * t)])
-    out = measure(positions, velocities)
+    nan = np.full_like(positions, np.nan)
+    out = measure(Session(t, positions, velocities, nan, nan))
     assert out["cv"] > 0.99
     assert out["rms"] == math.sqrt(np.mean((positions[0] - positions[1]) ** 2))
     assert abs(out["rms"] - a) < 1e-3
     assert out["emd"] < 0.01
-    still = measure(np.vstack([positions[0], np.zeros_like(t)]), velocities)
+    still = measure(Session(t, np.vstack([positions[0], np.zeros_like(t)]), velocities, nan, nan))
     assert math.isnan(still["cv"])
 
 

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from mirror_avatar import batch
-from mirror_avatar.batch import run_sessions
+from mirror_avatar.dynamics import FOLLOWER, LEADER
+from mirror_avatar.engine import batch
+from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.hkb import FOLLOWER, LEADER
 from mirror_avatar.players import VirtualTrainer
 
 distributed = pytest.importorskip("distributed")
@@ -31,8 +31,8 @@ def test_dask_and_local_runs_are_identical(zhai_trials_100hz: list) -> None:
                 chunk_size=2,
             )
         )
-    assert [b.start for b in remote] == [0, 2, 4]
-    for a, b in zip(local, remote, strict=True):
+    assert [[s.metadata["session"] for s in chunk] for chunk in remote] == [[0, 1], [2, 3], [4]]
+    for a, b in zip(sum(local, []), sum(remote, []), strict=True):
         np.testing.assert_array_equal(a.positions, b.positions)
         np.testing.assert_array_equal(a.controls, b.controls)
 

@@ -20,9 +20,12 @@ import pytest
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
-from mirror_avatar.live.server import LiveSettings, ServerThread, create_app
+from mirror_avatar.dynamics import CONTROL_PERIOD
+from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import AvatarFactory, make_avatar_factory
-from mirror_avatar.players import CONTROL_PERIOD
+from mirror_avatar.players import Player
+from mirror_avatar.session import load_session
+from mirror_avatar.testing import ServerThread
 from mirror_avatar.trials import make_trial
 
 FRAME = 1 / 60
@@ -84,22 +87,20 @@ class Browser:
             time.sleep(FRAME)
 
 
-class Replay:
+class Replay(Player):
     """A player replaying a fixed sine, ignoring its partner (stands in for the engine in the
     robustness tests, which are about the server, not the avatar)."""
-
-    period = CONTROL_PERIOD
 
     def reset(self, seed: int | None = None) -> tuple[float, float]:
         self.k = 0
         return 0.0, 0.0
 
-    def step(self, partner_position: float, partner_velocity: float) -> tuple[float, float]:
+    def step(self, observation: Any) -> tuple[float, float]:
         self.k += 1
         return 0.2 * math.sin(self.k * self.period), 0.2 * math.cos(self.k * self.period)
 
 
-def replay_factory(mode: str, seed: int) -> Replay:
+def replay_factory(mode: str) -> Replay:
     return Replay()
 
 
@@ -131,8 +132,10 @@ def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
 
 
 def sidecars(tmp_path: Path) -> list[dict[str, Any]]:
-    paths = sorted((tmp_path / "recordings" / "P07").glob("*.json"))
-    return [json.loads(path.read_text()) for path in paths]
+    """The live metadata of each trial's session sidecar, with the number of samples."""
+    paths = sorted((tmp_path / "recordings" / "P07").glob("*_session.json"))
+    records = [json.loads(path.read_text()) for path in paths]
+    return [record["metadata"] | {"n_samples": record.get("n_samples")} for record in records]
 
 
 def test_solo_trial_is_recorded_as_a_trial_csv(live, tmp_path):
@@ -144,7 +147,9 @@ def test_solo_trial_is_recorded_as_a_trial_csv(live, tmp_path):
     directory = tmp_path / "recordings" / "P07"
     header, data = read_csv(directory / summary["files"]["person"])
     assert header == ["time", "position"]
-    assert summary["files"]["session"] is None
+    solo = load_session(directory / summary["files"]["session"])
+    np.testing.assert_array_equal(solo.positions[0], data[:, 1])
+    assert solo.n_players == 1 and solo.roles == ("solo",)
     assert data.shape == (round(1.5 / CONTROL_PERIOD) + 1, 2)
     np.testing.assert_allclose(np.diff(data[:, 0]), CONTROL_PERIOD, atol=1e-4)
     # the recorded trace is the sent one, up to the delay between client and server clocks
@@ -162,11 +167,11 @@ def test_avatar_modes_write_a_session_with_both_players(live, tmp_path):
     player.start("avatar_leads", 1.0)
     summary = player.play(sway)
     assert summary["complete"] and summary["avatar_role"] == "leader"
-    header, data = read_csv(tmp_path / "recordings" / "P07" / summary["files"]["session"])
-    assert header == ["time", "person", "avatar"]
-    expected = [0.2 * math.sin(k * CONTROL_PERIOD) for k in range(data.shape[0])]
-    np.testing.assert_allclose(data[:, 2], expected, atol=2e-6)
-    for key in ("rmse", "circular_variance", "relative_phase", "emd"):
+    session = load_session(tmp_path / "recordings" / "P07" / summary["files"]["session"])
+    assert session.labels == ("person P07", "avatar") and session.roles == ("follower", "leader")
+    expected = [0.2 * math.sin(k * CONTROL_PERIOD) for k in range(session.n_samples)]
+    np.testing.assert_allclose(session.positions[1], expected, atol=1e-15)
+    for key in ("rmse", "circular_variance", "mean_relative_phase", "emd_players"):
         assert math.isfinite(summary["metrics"][key])
 
 
@@ -182,8 +187,8 @@ def test_dropped_connection_leaves_an_incomplete_trial_and_server_keeps_serving(
         time.sleep(0.05)
     record = found[0]
     assert not record["complete"] and record["end_reason"] == "connection closed"
-    _, data = read_csv(tmp_path / "recordings" / "P07" / record["files"]["session"])
-    assert 20 < data.shape[0] < 60 and record["n_samples"] == data.shape[0]
+    session = load_session(tmp_path / "recordings" / "P07" / record["files"]["session"])
+    assert 20 < session.n_samples < 60 and record["n_samples"] == session.n_samples
     again = live.open(server)
     again.start("solo", 1.0)
     assert again.play(sway)["complete"]
@@ -308,8 +313,8 @@ def test_default_avatar_is_the_engine_virtual_trainer(live, tmp_path):
     player.start("avatar_follows", 2.0)
     summary = player.play(sway)
     assert summary["complete"]
-    _, data = read_csv(tmp_path / "recordings" / "P07" / summary["files"]["session"])
-    assert np.ptp(data[:, 2]) > 0.1
+    session = load_session(tmp_path / "recordings" / "P07" / summary["files"]["session"])
+    assert np.ptp(session.positions[1]) > 0.1
 
 
 def run_play(*args: str, out_dir: Path) -> subprocess.Popen[str]:

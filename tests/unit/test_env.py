@@ -4,46 +4,69 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
+from mirror_avatar.dynamics import FOLLOWER, integrate_hkb
 from mirror_avatar.env import MirrorGameEnv
 from mirror_avatar.errors import InputError
-from mirror_avatar.learning import DEFAULT_ACTIONS, CyberPlayer, compute_reward, integrate_hkb
+from mirror_avatar.graphs import star_graph
+from mirror_avatar.learning.agent import DEFAULT_ACTIONS, CyberPlayer
+from mirror_avatar.learning.kernels import compute_reward
+from mirror_avatar.learning.training import score_imitation
+from mirror_avatar.session import Session
 
 
-def sine_chunk(k: int = 3, n: int = 50, lag: int = 5) -> tuple[np.ndarray, np.ndarray]:
-    """k sessions (k, 2, n): partner a 0.2 Hz sine of varying amplitude, target the same, lagged."""
+def sine_sessions(k: int = 3, n: int = 50, lag: int = 5) -> list[Session]:
+    """k dyads: partner a 0.2 Hz sine of varying amplitude, target the same, lagged."""
     t = np.arange(n + lag) * 0.03
-    amplitudes = np.linspace(0.2, 0.4, k)[:, None]
-    x = amplitudes * np.sin(2 * np.pi * 0.2 * t)
-    v = amplitudes * 2 * np.pi * 0.2 * np.cos(2 * np.pi * 0.2 * t)
-    return np.stack([x[:, lag:], x[:, :-lag]], axis=1), np.stack([v[:, lag:], v[:, :-lag]], axis=1)
+    sessions = []
+    for amplitude in np.linspace(0.2, 0.4, k):
+        x = amplitude * np.sin(2 * np.pi * 0.2 * t)
+        v = amplitude * 2 * np.pi * 0.2 * np.cos(2 * np.pi * 0.2 * t)
+        nan = np.full((2, n), np.nan)
+        sessions.append(
+            Session(t[:n], np.stack([x[lag:], x[:-lag]]), np.stack([v[lag:], v[:-lag]]), nan, nan)
+        )
+    return sessions
 
 
 @pytest.mark.parametrize("observation", ["continuous", "discrete"])
 def test_env_passes_gymnasium_check_env(observation):
-    env = MirrorGameEnv(sine_chunk(), observation=observation)
+    env = MirrorGameEnv(sine_sessions(), observation=observation)
     check_env(env, skip_render_check=True)
 
 
 def test_episode_is_one_session_with_the_cyber_player_reward():
-    positions, velocities = sine_chunk(k=1, n=40)
-    env = MirrorGameEnv((positions[0], velocities[0]))
+    (session,) = sine_sessions(k=1, n=40)
+    env = MirrorGameEnv([session])
     obs, info = env.reset(seed=0)
-    (px, tx), (pv, tv) = positions[0], velocities[0]
+    (px, tx), (pv, tv) = session.positions, session.velocities
     np.testing.assert_allclose(obs, [tx[0], tv[0], px[0], pv[0]], rtol=1e-6)
     x, v = tx[0], tv[0]
-    hkb = np.array([1.0, 2.0, -1.0, 0.1])
     for k in range(1, 40):
         action = k % 9
         obs, reward, terminated, truncated, info = env.step(action)
-        x, v = integrate_hkb(x, v, DEFAULT_ACTIONS[action], hkb, 0.03, 3)
+        x, v = integrate_hkb(x, v, DEFAULT_ACTIONS[action], FOLLOWER.record()[0], 3)
         assert reward == compute_reward(x, v, tx[k], tv[k], DEFAULT_ACTIONS[action], 1e-4)
         np.testing.assert_allclose(obs, [x, v, px[k], pv[k]], rtol=1e-6)
         assert info["target"] == (tx[k], tv[k])
         assert not terminated and truncated == (k == 39)
 
 
+def test_in_a_group_the_agent_sees_the_mean_of_the_targets_neighbours():
+    (dyad,) = sine_sessions(k=1, n=30)
+    x = np.vstack([dyad.positions, -dyad.positions[:1]])
+    v = np.vstack([dyad.velocities, -dyad.velocities[:1]])
+    nan = np.full_like(x, np.nan)
+    group = Session(dyad.times, x, v, nan, nan, graph=star_graph(3, centre=1))
+    env = MirrorGameEnv([group], target=1)
+    obs, _ = env.reset(seed=0)
+    np.testing.assert_allclose(obs[2:], [0.0, 0.0], atol=1e-7)
+    leaf = MirrorGameEnv([group], target=2)
+    obs, _ = leaf.reset(seed=0)
+    np.testing.assert_allclose(obs, [x[2, 0], v[2, 0], x[1, 0], v[1, 0]], rtol=1e-6)
+
+
 def test_seeded_resets_pick_the_same_sessions():
-    env = MirrorGameEnv(sine_chunk(k=5))
+    env = MirrorGameEnv(sine_sessions(k=5))
     first = [env.reset(seed=s)[0][2:] for s in range(10)]
     again = [env.reset(seed=s)[0][2:] for s in range(10)]
     np.testing.assert_array_equal(first, again)
@@ -51,10 +74,10 @@ def test_seeded_resets_pick_the_same_sessions():
 
 
 def test_callable_and_iterator_sources():
-    def make(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        positions, velocities = sine_chunk(k=1)
-        shift = rng.uniform(-0.05, 0.05)
-        return positions[0] + shift, velocities[0]
+    def make(rng: np.random.Generator) -> Session:
+        (session,) = sine_sessions(k=1)
+        session.positions[0] += rng.uniform(-0.05, 0.05)
+        return session
 
     env = MirrorGameEnv(make)
     a, b = env.reset(seed=4)[0], env.reset(seed=4)[0]
@@ -62,8 +85,7 @@ def test_callable_and_iterator_sources():
     assert not np.array_equal(a, env.reset(seed=5)[0])
     check_env(MirrorGameEnv(make), skip_render_check=True)
 
-    chunks = iter([sine_chunk(k=1), sine_chunk(k=1)])
-    env = MirrorGameEnv(chunks)
+    env = MirrorGameEnv(iter(sine_sessions(k=2)))
     env.reset()
     env.reset()
     with pytest.raises(StopIteration):
@@ -72,34 +94,34 @@ def test_callable_and_iterator_sources():
 
 def test_discrete_observation_is_the_q_table_cell():
     player = CyberPlayer()
-    env = MirrorGameEnv(sine_chunk(k=1), player=player, observation="discrete")
+    (session,) = sine_sessions(k=1)
+    env = MirrorGameEnv([session], player=player, observation="discrete")
     obs, _ = env.reset(seed=0)
-    positions, velocities = sine_chunk(k=1)
-    (px, tx), (pv, tv) = positions[0], velocities[0]
+    (px, tx), (pv, tv) = session.positions, session.velocities
     assert obs == player.discretisation_.index(tx[0], tv[0], px[0], pv[0])
     assert env.observation_space.n == player.discretisation_.n_states
 
 
 def test_bad_arguments_are_input_errors():
     with pytest.raises(InputError, match="observation"):
-        MirrorGameEnv(sine_chunk(), observation="pixels")  # type: ignore[arg-type]
+        MirrorGameEnv(sine_sessions(), observation="pixels")  # type: ignore[arg-type]
     with pytest.raises(InputError, match="sessions"):
-        MirrorGameEnv((np.zeros(5), np.zeros(5)))
-    env = MirrorGameEnv(lambda rng: sine_chunk(k=2))
-    with pytest.raises(InputError, match="one session"):
+        MirrorGameEnv([])
+    env = MirrorGameEnv(lambda rng: sine_sessions(k=2))  # type: ignore[arg-type, return-value]
+    with pytest.raises(InputError, match="expected a Session"):
         env.reset(seed=0)
 
 
 def test_greedy_policy_through_the_env_scores_as_the_compiled_session():
     player = CyberPlayer()
     player.initialise_q(2, 1.0)
-    chunk = sine_chunk(k=1, n=200)
-    env = MirrorGameEnv(chunk, player=player, observation="discrete")
+    sessions = sine_sessions(k=1, n=200)
+    env = MirrorGameEnv(sessions, player=player, observation="discrete")
     obs, _ = env.reset(seed=0)
     rewards, truncated = [], False
     while not truncated:
         obs, reward, _, truncated, _ = env.step(int(np.argmax(player.q_table_[obs])))
         rewards.append(reward)
-    mean_reward, _ = player.evaluate([chunk])
+    mean_reward, _ = score_imitation(player, sessions)
     assert len(rewards) == 199
     assert np.mean(rewards) == pytest.approx(mean_reward[0], rel=1e-12)

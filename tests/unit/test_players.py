@@ -5,15 +5,19 @@ import math
 import numpy as np
 import pytest
 
+from mirror_avatar.dynamics import FOLLOWER, JOINT, LEADER
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.hkb import FOLLOWER, JOINT, LEADER
 from mirror_avatar.players import (
+    Observation,
+    Player,
     PlayerCheckError,
     RecordedPlayer,
     VirtualTrainer,
     check_player,
     draw_reference,
 )
+
+STILL = Observation.of_partner(0, 0.0, 0.0, 0.0)
 
 
 @pytest.fixture(scope="module")
@@ -34,17 +38,14 @@ def test_recorded_player_passes_the_check(zhai_trials) -> None:
     check_player(lambda: RecordedPlayer(zhai_trials[3]))
 
 
-class _Drifting:
+class _Drifting(Player):
     """A player that leaves the playing range."""
-
-    period = 0.03
-    stochastic = False
 
     def reset(self, seed=None):
         self.x = 0.0
         return self.x, 0.0
 
-    def step(self, partner_position, partner_velocity):
+    def step(self, observation):
         self.x += 0.01
         return self.x, 0.3
 
@@ -54,11 +55,42 @@ class _Forgetful(_Drifting):
 
     stochastic = True
 
-    def step(self, partner_position, partner_velocity):
+    def step(self, observation):
         return 0.0, 0.0
 
 
-@pytest.mark.parametrize(("factory", "fragment"), [(_Drifting, "range"), (_Forgetful, "seed")])
+class _Lonely(_Forgetful):
+    """A player that fails when it has no neighbour."""
+
+    stochastic = False
+
+    def step(self, observation):
+        return float(observation.positions[0]), 0.0
+
+
+class _Sloppy(_Forgetful):
+    """A player that reports its control as a string."""
+
+    stochastic = False
+    last_control = "none"
+
+
+class _Undeclared:
+    """Not a Player at all."""
+
+    period = 0.03
+
+
+@pytest.mark.parametrize(
+    ("factory", "fragment"),
+    [
+        (_Drifting, "range"),
+        (_Forgetful, "seed"),
+        (_Lonely, "failed with 0 neighbours"),
+        (_Sloppy, "last_control must be a float"),
+        (_Undeclared, "not a mirror_avatar.players.Player"),
+    ],
+)
 def test_the_check_catches_broken_players(factory, fragment) -> None:
     with pytest.raises(PlayerCheckError, match=fragment):
         check_player(factory)
@@ -70,7 +102,7 @@ def test_references_extend_consistently(generator) -> None:
     np.testing.assert_array_equal(short, long[:3000])
     trainer = VirtualTrainer(LEADER, generator)
     trainer.reset(seed=4)
-    steps = [trainer.step(0.0, 0.0) and trainer.last_reference for _ in range(2500)]
+    steps = [trainer.step(STILL) and trainer.last_reference for _ in range(2500)]
     np.testing.assert_array_equal(steps, long[:2500])
 
 
@@ -85,7 +117,7 @@ def test_recorded_player_replays_and_holds_at_the_end(zhai_trials_100hz) -> None
     trial = zhai_trials_100hz[0]
     player = RecordedPlayer(trial)
     assert player.reset()[0] == pytest.approx(trial.positions[0])
-    positions = [player.step(0.0, 0.0)[0] for _ in range(3000)]
+    positions = [player.step(STILL)[0] for _ in range(3000)]
     assert positions[99] == pytest.approx(
         np.interp(3.0, trial.times - trial.times[0], trial.positions)
     )
@@ -98,6 +130,18 @@ def test_follower_predicts_the_partner_by_constant_velocity(generator) -> None:
     follower.reset(seed=0)
     x = 0.0
     for k in range(300):
-        x, _ = follower.step(-0.3 + 0.002 * k, 0.002 / 0.03)
+        x, _ = follower.step(
+            Observation.of_partner(k, -0.3 + 0.002 * k, 0.002 / 0.03, -0.3 + 0.002 * (k - 1))
+        )
     assert x == pytest.approx(-0.3 + 0.002 * 300, abs=0.02)
     assert not math.isnan(follower.last_control)
+
+
+def test_a_group_is_seen_through_its_mean(generator) -> None:
+    """Neighbours at the same mean state give the same step as one partner there."""
+    group = Observation(5, np.array([0.1, 0.3]), np.array([0.5, -0.1]), np.array([0.09, 0.31]))
+    single = Observation.of_partner(5, 0.2, 0.2, 0.2)
+    trainers = [VirtualTrainer(JOINT, generator) for _ in range(2)]
+    for trainer in trainers:
+        trainer.reset(seed=3)
+    assert trainers[0].step(group) == trainers[1].step(single)

@@ -11,12 +11,10 @@ import numpy as np
 import pandas as pd
 
 from mirror_avatar.atomic import write_atomic_text
-from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator, sweep_codebook
 from mirror_avatar.trials import Trial
-
-BUNDLED_STYLES = ("fast", "slow")
 
 
 @click.group()

@@ -63,7 +63,7 @@ def play(
     except OSError as error:
         raise InputError(out_dir, f"cannot create the output folder ({error.strerror})") from None
     factory = make_avatar_factory(spec)
-    factory("avatar_follows", 0)  # a bad spec fails here, before the server starts
+    factory("avatar_follows")  # a bad spec fails here, before the server starts
     settings = LiveSettings(
         out_dir=out_dir, avatar_spec=spec, token=token, max_sessions=max_sessions
     )

@@ -8,9 +8,10 @@ from typing import Any
 
 import click
 
+from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
-from mirror_avatar.game import Session, load_session, play
 from mirror_avatar.metrics import session_metrics
+from mirror_avatar.session import Session, load_session
 from mirror_avatar.specs import load_player
 
 TRIM = 1.0
@@ -104,7 +105,7 @@ def simulate(
         load_player(spec, role)
         for spec, role in zip((leader_spec, follower_spec), roles, strict=True)
     ]
-    session = play(players[0], players[1], duration=duration, seed=seed, roles=roles)
+    session = play(players, duration=duration, seed=seed, roles=roles)
     session.metadata["specs"] = [leader_spec, follower_spec]
     metrics = session_metrics(session, trim=trim)
     summary = {

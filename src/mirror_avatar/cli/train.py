@@ -8,14 +8,14 @@ import click
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_learning_curves
-from mirror_avatar.players import VirtualTrainer
-from mirror_avatar.specs import load_player
-from mirror_avatar.training import (
+from mirror_avatar.learning.imitation import (
     TRAINING_ROLES,
     Reference,
     learning_curve_path,
     train_cyber_player,
 )
+from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.specs import load_player
 
 MODEL_HELP = "An IMS generator .npz, bundled:fast, bundled:slow or vt:TRIAL_FILE."
 

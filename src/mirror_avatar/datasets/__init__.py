@@ -17,6 +17,9 @@ from mirror_avatar.trials import Trial
 ZHAI2017_STYLES = {"fast": "reference1", "slow": "reference2"}
 """Style group -> file stem. ``fast``: about 1 Hz, nearly periodic; ``slow``: about 0.1 Hz."""
 
+BUNDLED_STYLES = tuple(ZHAI2017_STYLES)
+"""The styles of the bundled trials, as ``bundled:STYLE`` specs and ``--bundled`` name them."""
+
 ZHAI2017_DURATION = 60.0
 """Each trial covers 60 s (the original software plays its 779 samples over 60 s)."""
 

@@ -1,7 +1,8 @@
 """Validation of the cyber player (paper Tables I-II, figures 8-9; METHODS section 7).
 
-A cyber player is trained to imitate VT5 as a follower and as a leader (`mirror_avatar.training`),
-then replaces VT5 and plays closed-loop (`mirror_avatar.game.play`) with VT1..VT4 (seen in
+A cyber player is trained to imitate VT5 as a follower and as a leader
+(`mirror_avatar.learning.imitation`), then replaces VT5 and plays closed-loop
+(`mirror_avatar.engine.loop.play`) with VT1..VT4 (seen in
 training) and VT6 (unseen). Each partner plays the same seeded sessions with VT5 and with the
 cyber player, so CV and RMS can be compared by paired t-tests (the paper finds no significant
 difference, all p > 0.05). Also reported: EMD of each player's velocity signature to the
@@ -13,6 +14,7 @@ simply copying the partner.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Sequence
@@ -22,26 +24,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.batch import run_sessions
+from mirror_avatar.engine.batch import run_sessions
+from mirror_avatar.engine.loop import play
 from mirror_avatar.figures import plot_learning_curves, plot_positions, plot_similarity_space
-from mirror_avatar.game import Session, play
-from mirror_avatar.learning import CyberPlayer, LearningCurve
-from mirror_avatar.metrics import (
-    compute_circular_variance,
-    compute_relative_phase,
-    compute_rmse,
-    paired_ttest,
-)
-from mirror_avatar.report import Section
-from mirror_avatar.signature import (
-    classical_mds,
-    compute_emd,
-    compute_emd_matrix,
-    compute_ims,
-    confidence_ellipse,
-    ellipse_overlap,
-)
-from mirror_avatar.training import (
+from mirror_avatar.learning.agent import CyberPlayer
+from mirror_avatar.learning.imitation import (
     SEEN_PARTNERS,
     TARGET,
     TRAINING_ROLES,
@@ -54,15 +41,24 @@ from mirror_avatar.training import (
     make_virtual_trainers,
     train_cyber_player,
 )
+from mirror_avatar.learning.training import LearningCurve, score_imitation
+from mirror_avatar.metrics import paired_ttest, session_metrics
+from mirror_avatar.report import Section
+from mirror_avatar.seeds import draw_seeds
+from mirror_avatar.session import Session
+from mirror_avatar.signature import (
+    classical_mds,
+    compute_emd,
+    compute_emd_matrix,
+    compute_ims,
+    confidence_ellipse,
+    ellipse_overlap,
+)
 from mirror_avatar.trials import Trial
 
 TRAINING_SESSIONS = 4000
-"""Training sessions per role by default (**choice**: the whole experiment took 42-84 s on 2
-cores, quiet or loaded, keeping ``make demo`` to a few minutes; the paper used about 24 000).
-With it and seed 0 the follower meets every `CRITERIA` against all five partners; the leader
-matches VT5 (CV within 0.015, RMS within 0.001) against all five but meets ``min_cv`` only
-against the slow partners VT4 and VT6: leading the fast VT1-VT3, VT5's own CV is 0.51-0.58 (see
-`_describe_criteria`)."""
+"""Training sessions per role by default (**choice**: enough for both roles to match VT5 while
+keeping ``make demo`` to a few minutes; the paper used about 24 000)."""
 
 QUICK_TRAINING_SESSIONS = 300
 VALIDATION_SESSIONS = 20
@@ -80,9 +76,9 @@ PAPER = {"cv": (0.74, 0.90), "rms": (0.10, 0.12), "emd": (0.002, 0.008)}
 """The paper's Table I ranges."""
 
 CRITERIA = {"max_difference": 0.05, "min_cv": 0.75, "max_rms": 0.15, "max_emd_to_vt5": 0.01}
-"""The reproduction criteria checked per partner (issue 5): the cyber player's mean CV and RMS
-each within ``max_difference`` of VT5's, its CV at least ``min_cv`` and RMS at most ``max_rms``,
-and its velocity IMS within EMD ``max_emd_to_vt5`` of VT5's (over all sessions of the role)."""
+"""The reproduction criteria checked per partner: the cyber player's mean CV and RMS each
+within ``max_difference`` of VT5's, its CV at least ``min_cv`` and RMS at most ``max_rms``, and
+its velocity IMS within EMD ``max_emd_to_vt5`` of VT5's (over all sessions of the role)."""
 
 
 @dataclass
@@ -165,9 +161,7 @@ def run(
         tables={
             "Table I: VT5 and the cyber player against each partner (mean +- SD)": table_one,
             "Table II: paired t-tests, VT5 vs cyber player": table_two,
-            "Reproduction criteria (issue 5): cyber player vs VT5, per partner": pd.concat(
-                criteria
-            ),
+            "Reproduction criteria: cyber player vs VT5, per partner": pd.concat(criteria),
             "RMS to VT5 on held-out VT sessions (units): trained, untrained, copy partner": (
                 baselines
             ),
@@ -228,7 +222,7 @@ def validate(
     """
     other = "leader" if role == "follower" else "follower"
     roles = (other, role)
-    seeds = np.random.SeedSequence([seed, 1]).generate_state(n_sessions)
+    seeds = draw_seeds([seed, 1], n_sessions)
     rows: list[dict[str, Any]] = []
     velocities: dict[str, list[np.ndarray]] = {"VT5": [], "cyber player": [], "partners": []}
     sessions: list[Session] = []
@@ -236,37 +230,31 @@ def validate(
         partner = trainers[index].player(other)
         for k, s in enumerate(seeds):
             for name, avatar in (("VT5", trainers[TARGET].player(role)), ("cyber player", player)):
-                session = play(partner, avatar, seed=int(s), roles=roles)
-                keep = session.times >= TRIM
+                session = play([partner, avatar], seed=s, roles=roles)
+                trimmed = session.trimmed(TRIM)
                 rows.append(
                     {"partner": trainers[index].label, "player": name, "session": k}
-                    | measure(session.positions[:, keep], session.velocities[:, keep])
+                    | measure(trimmed)
                 )
-                velocities[name].append(session.velocities[1, keep])
+                velocities[name].append(trimmed.velocities[1])
                 if name == "VT5":
-                    velocities["partners"].append(session.velocities[0, keep])
+                    velocities["partners"].append(trimmed.velocities[0])
                 if index == SEEN_PARTNERS[0] and k == 0:
                     sessions.append(session)
     return pd.DataFrame(rows), velocities, (sessions[0], sessions[1])
 
 
-def measure(positions: np.ndarray, velocities: np.ndarray) -> dict[str, float]:
-    """CV, RMS (units) and EMD of the velocity signatures between the two players of a session.
+def measure(session: Session) -> dict[str, float]:
+    """Return the table's CV, RMS (units) and EMD between the players' velocity IMS.
 
-    The metrics of `mirror_avatar.metrics.session_metrics` without the time lag; the CV is NaN
-    when a player does not move at all (no phase).
-
-    Parameters
-    ----------
-    positions, velocities
-        Shape (2, n): units and units/s.
+    Read from `mirror_avatar.metrics.session_metrics`; the CV is NaN when a player does not
+    move at all (no phase).
     """
-    moving = bool(np.all(np.ptp(positions, axis=1) > 0.0))
-    cv = compute_circular_variance(compute_relative_phase(*positions)) if moving else math.nan
+    metrics = session_metrics(session)
     return {
-        "cv": cv,
-        "rms": compute_rmse(*positions),
-        "emd": compute_emd(compute_ims(velocities[0]), compute_ims(velocities[1])),
+        "cv": metrics["circular_variance"],
+        "rms": metrics["rmse"],
+        "emd": metrics["emd_players"],
     }
 
 
@@ -281,21 +269,22 @@ def compare_baselines(
     """RMS to VT5 (units) on held-out VT sessions: trained, untrained, copy the partner.
 
     The sessions are VT5 playing ``role`` with VT1..VT4 and VT6, seeded apart from training; the
-    trained and untrained (seeded random Q-table) players replay each session open-loop against
-    its partner (`CyberPlayer.evaluate`), and "copy the partner" is the RMS between the partner's
-    and VT5's positions.
+    trained and untrained (seeded random Q-table) players replay each session open-loop in
+    VT5's place (`mirror_avatar.learning.training.score_imitation`), and "copy the partner" is
+    the RMS between the partner's and VT5's positions.
     """
     partners = [trainers[i].generator for i in (*SEEN_PARTNERS, UNSEEN_PARTNER)]
     pairs = make_pairs(trainers[TARGET].generator, partners, role)
     held_out = derive_seeds(seed + 1)[0]
-    chunks = list(run_sessions(pairs, n_sessions, seed=held_out, n_jobs=n_jobs, progress=False))
+    chunks = run_sessions(pairs, n_sessions, seed=held_out, n_jobs=n_jobs, progress=False)
+    sessions = list(itertools.chain.from_iterable(chunks))
     untrained = make_cyber_player(role, trainers[TARGET].generator)
     untrained.initialise_q(seed, 1e-3)
-    squared = [((c.positions[:, 0, 1:] - c.positions[:, 1, 1:]) ** 2).mean(axis=1) for c in chunks]
+    copy = [np.sqrt(np.mean((s.positions[0, 1:] - s.positions[1, 1:]) ** 2)) for s in sessions]
     return {
-        "trained": float(player.evaluate(chunks)[1].mean()),
-        "untrained (random Q)": float(untrained.evaluate(chunks)[1].mean()),
-        "copy the partner": float(np.sqrt(np.concatenate(squared)).mean()),
+        "trained": float(score_imitation(player, sessions)[1].mean()),
+        "untrained (random Q)": float(score_imitation(untrained, sessions)[1].mean()),
+        "copy the partner": float(np.mean(copy)),
     }
 
 

@@ -26,14 +26,16 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from mirror_avatar.dynamics import FOLLOWER, LEADER
+from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_ims, plot_positions, plot_relative_phase
-from mirror_avatar.game import Session, play
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.hkb import FOLLOWER, LEADER
 from mirror_avatar.metrics import compute_relative_phase, session_metrics
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import Section
+from mirror_avatar.seeds import spawn_seeds
+from mirror_avatar.session import Session
 from mirror_avatar.signature import DEFAULT_BINS, compute_emd, compute_ims
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 
@@ -115,7 +117,7 @@ def run(
     }
     n_lead = LEAD_SESSIONS // 4 if quick else LEAD_SESSIONS
     follow_trials = [t for group in by_style.values() for t in group]
-    seeds = _session_seeds(seed, len(follow_trials) + 2 * n_lead)
+    seeds = [int(s) for s in spawn_seeds(seed, len(follow_trials) + 2 * n_lead)]
     follows = play_follow_sessions(follow_trials, generators[reference_style], seeds)
     lead_seeds = seeds[len(follow_trials) :]
     own = generators[reference_style]
@@ -155,11 +157,6 @@ def _split_styles(trials: Sequence[Trial], styles: tuple[str, str]) -> dict[str,
     return by_style
 
 
-def _session_seeds(seed: int, n: int) -> list[int]:
-    children = np.random.SeedSequence(seed).spawn(n)
-    return [int(child.generate_state(1)[0]) for child in children]
-
-
 def play_follow_sessions(
     trials: Sequence[Trial], generator: IMSGenerator, seeds: Sequence[int]
 ) -> Condition:
@@ -171,7 +168,7 @@ def play_follow_sessions(
     for trial, seed in zip(trials, seeds, strict=False):
         vt = VirtualTrainer(FOLLOWER, generator, label="VT follower")
         duration = float(trial.times[-1] - trial.times[0])
-        sessions.append(play(RecordedPlayer(trial), vt, duration, seed, ("leader", "follower")))
+        sessions.append(play([RecordedPlayer(trial), vt], duration, seed, ("leader", "follower")))
     styles = [str(t.group) for t in trials]
     metrics = [session_metrics(s, TRIM) for s in sessions]
     return Condition("follows", "follows", sessions, styles, metrics)
@@ -188,7 +185,7 @@ def play_lead_sessions(
     for seed in seeds:
         partner = VirtualTrainer(FOLLOWER, partner_generator, label="VT follower (partner)")
         vt = VirtualTrainer(LEADER, generator, label="VT leader")
-        sessions.append(play(partner, vt, LEAD_DURATION, seed, ("follower", "leader")))
+        sessions.append(play([partner, vt], LEAD_DURATION, seed, ("follower", "leader")))
     styles = ["VT"] * len(sessions)
     metrics = [session_metrics(s, TRIM) for s in sessions]
     return Condition(name, "leads", sessions, styles, metrics)
@@ -198,10 +195,7 @@ def compute_style_emds(
     condition: Condition, signatures: dict[str, np.ndarray]
 ) -> dict[str, np.ndarray]:
     """EMD between the VT's velocity IMS in each session and each style's signature."""
-    keep = [s.times >= s.times[0] + TRIM for s in condition.sessions]
-    vt_ims = [
-        compute_ims(s.velocities[1][k]) for s, k in zip(condition.sessions, keep, strict=True)
-    ]
+    vt_ims = [compute_ims(s.trimmed(TRIM).velocities[1]) for s in condition.sessions]
     return {
         style: np.array([compute_emd(ims, signature) for ims in vt_ims])
         for style, signature in signatures.items()
@@ -333,8 +327,7 @@ def _phases(condition: Condition, style: str | None) -> np.ndarray:
     chunks = []
     for session, group in zip(condition.sessions, condition.partner_styles, strict=True):
         if style is None or group == style:
-            keep = session.times >= session.times[0] + TRIM
-            x = session.positions[:, keep]
+            x = session.trimmed(TRIM).positions
             chunks.append(compute_relative_phase(x[0], x[1]))
     return np.concatenate(chunks)
 

@@ -25,8 +25,6 @@ import hmac
 import ipaddress
 import logging
 import secrets
-import socket
-import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,6 +40,7 @@ from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Receive, Scope, Send
 from starlette.websockets import WebSocket, WebSocketClose, WebSocketDisconnect
 
+from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
 from mirror_avatar.live.protocol import (
     DURATION_RANGE,
@@ -53,7 +52,6 @@ from mirror_avatar.live.protocol import (
     parse_message,
 )
 from mirror_avatar.live.session import AvatarFactory, LiveTrial, start_trial
-from mirror_avatar.players import CONTROL_PERIOD
 
 logger = logging.getLogger(__name__)
 STATIC = Path(__file__).parent / "static"
@@ -366,46 +364,3 @@ def make_server(app: ASGIApp, host: str, port: int, log_level: str = "warning") 
         lifespan="off",
     )
     return uvicorn.Server(config)
-
-
-class ServerThread:
-    """Run an ASGI app on a free loopback port in a background thread (a context manager).
-
-    Used by the tests and the benchmark to talk to a real server over real sockets.
-
-    Parameters
-    ----------
-    app
-        The application to serve.
-    host
-        Address to bind (port chosen by the operating system).
-    """
-
-    def __init__(self, app: ASGIApp, host: str = "127.0.0.1") -> None:
-        self.socket = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        self.socket.bind((host, 0))
-        self.host, self.port = self.socket.getsockname()[:2]
-        self.server = make_server(app, self.host, self.port)
-        self.thread = threading.Thread(
-            target=self.server.run, kwargs={"sockets": [self.socket]}, daemon=True
-        )
-
-    @property
-    def url(self) -> str:
-        """The server's base HTTP URL."""
-        return f"http://{self.host}:{self.port}"
-
-    def __enter__(self) -> ServerThread:
-        self.thread.start()
-        deadline = time.monotonic() + 10.0
-        while not self.server.started:
-            if time.monotonic() > deadline or not self.thread.is_alive():
-                raise RuntimeError("the live server did not start")
-            time.sleep(0.01)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.server.should_exit = True
-        self.thread.join(10.0)
-        self.socket.close()

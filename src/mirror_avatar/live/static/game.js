@@ -106,8 +106,8 @@
         row("Avatar mean speed", fixed(m.avatar_speed, 3, " units/s")),
         row("RMSE", fixed(m.rmse, 3, " units")),
         row("CV (phase locking)", fixed(m.circular_variance, 3)),
-        row("Relative phase (you − avatar)", fixed(m.relative_phase, 3, " rad")),
-        row("EMD between velocity profiles", fixed(m.emd, 4)),
+        row("Relative phase (you − avatar)", fixed(m.mean_relative_phase, 3, " rad")),
+        row("EMD between velocity profiles", fixed(m.emd_players, 4)),
       );
     }
     body.append(row("Round trip (median)", fixed(rtt.median, 1, " ms")));

@@ -1,25 +1,23 @@
-"""Coordination metrics between two players (METHODS section 6).
+"""Coordination between two position series (METHODS section 6), as functions on arrays.
 
 Every function checks its inputs at the door and raises :class:`InputError` on bad input.
-Sign convention everywhere: positive relative phase and positive time lag mean player 1 leads.
+Sign convention everywhere: positive relative phase and positive time lag mean series 1 leads.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal, stats
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.signature import compute_emd, compute_ims
-
-if TYPE_CHECKING:
-    from mirror_avatar.game import Session
 
 PHASE_METHODS = ("hilbert", "kralemann")
+
+MAX_LAG = 1.5
+"""Largest time lag searched by the cross-correlation (s, METHODS section 6)."""
 
 
 def _check_pair(x1: ArrayLike, x2: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -42,6 +40,29 @@ def compute_rmse(x1: ArrayLike, x2: ArrayLike) -> float:
 
 def _protophase(x: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.unwrap(np.angle(signal.hilbert(x - x.mean())))
+
+
+def compute_phase(x: ArrayLike, method: str = "hilbert", n_terms: int = 10) -> NDArray[np.float64]:
+    """Unwrapped phase of one position series, shape (n,), radians.
+
+    Parameters
+    ----------
+    x
+        Positions, shape (n,), n >= 2.
+    method
+        ``"hilbert"``: phase of the analytic signal of the mean-removed position (METHODS 6).
+        ``"kralemann"``: that protophase refined to a phase by the Fourier-series transform of
+        its density (Kralemann et al. 2008), a **choice** offered as an option.
+    n_terms
+        Number of Fourier terms of the Kralemann transform (**choice**, default 10).
+    """
+    a = np.asarray(x, dtype=float)
+    if a.ndim != 1 or a.size < 2 or not np.all(np.isfinite(a)):
+        raise InputError("positions", f"need a finite 1-D series of length >= 2, got {a.shape}")
+    if method not in PHASE_METHODS:
+        raise InputError("method", f"unknown phase method {method!r}; use one of {PHASE_METHODS}")
+    theta = _protophase(a)
+    return _kralemann_phase(theta, n_terms) if method == "kralemann" else theta
 
 
 def _kralemann_phase(theta: NDArray[np.float64], n_terms: int) -> NDArray[np.float64]:
@@ -67,12 +88,8 @@ def compute_relative_phase(
     ----------
     x1, x2
         Positions of player 1 and 2, shape (n,).
-    method
-        ``"hilbert"``: phase of the analytic signal of the mean-removed position (METHODS 6).
-        ``"kralemann"``: that protophase refined to a phase by the Fourier-series transform of
-        its density (Kralemann et al. 2008), a **choice** offered as an option.
-    n_terms
-        Number of Fourier terms of the Kralemann transform (**choice**, default 10).
+    method, n_terms
+        As in `compute_phase`.
 
     Returns
     -------
@@ -80,12 +97,12 @@ def compute_relative_phase(
         Positive values mean player 1 is ahead (leading).
     """
     a, b = _check_pair(x1, x2)
-    if method not in PHASE_METHODS:
-        raise InputError("method", f"unknown phase method {method!r}; use one of {PHASE_METHODS}")
-    p1, p2 = _protophase(a), _protophase(b)
-    if method == "kralemann":
-        p1, p2 = _kralemann_phase(p1, n_terms), _kralemann_phase(p2, n_terms)
-    return np.angle(np.exp(1j * (p1 - p2)))
+    return wrap_phase(compute_phase(a, method, n_terms) - compute_phase(b, method, n_terms))
+
+
+def wrap_phase(phase: ArrayLike) -> NDArray[np.float64]:
+    """Wrap angles to [-pi, pi] (radians)."""
+    return np.angle(np.exp(1j * np.asarray(phase, dtype=float)))
 
 
 def _check_phase(phase_difference: ArrayLike) -> NDArray[np.float64]:
@@ -113,10 +130,26 @@ def compute_mean_relative_phase(phase_difference: ArrayLike) -> float:
     return float(np.angle(np.mean(np.exp(1j * d))))
 
 
-def compute_time_lag(x1: ArrayLike, x2: ArrayLike, rate: float, max_lag: float = 1.5) -> float:
+def compute_circular_sd(resultant_length: float) -> float:
+    """Circular standard deviation ``sqrt(-2 ln R)`` (radians) of a mean resultant length R."""
+    return float(np.sqrt(-2.0 * np.log(max(resultant_length, 1e-12))))
+
+
+def compute_time_lag(x1: ArrayLike, x2: ArrayLike, rate: float, max_lag: float = MAX_LAG) -> float:
     """Lag (s) maximising the normalised cross-correlation within +-``max_lag``.
 
     Positive lag = player 1 leads: ``x2(t) ~ x1(t - lag)``, consistent with the relative phase.
+    """
+    return compute_cross_correlation_peak(x1, x2, rate, max_lag)[0]
+
+
+def compute_cross_correlation_peak(
+    x1: ArrayLike, x2: ArrayLike, rate: float, max_lag: float = MAX_LAG
+) -> tuple[float, float]:
+    """Lag (s) and value of the largest normalised cross-correlation within +-``max_lag``.
+
+    The correlation is ``sum(a(t) b(t + lag)) / sqrt(sum a² sum b²)`` of the mean-removed series
+    (1 for identical shapes). Positive lag = player 1 leads, as in `compute_time_lag`.
     """
     a, b = _check_pair(x1, x2)
     if not (np.isfinite(rate) and rate > 0 and np.isfinite(max_lag) and max_lag >= 0):
@@ -128,7 +161,8 @@ def compute_time_lag(x1: ArrayLike, x2: ArrayLike, rate: float, max_lag: float =
     corr = signal.correlate(b, a, mode="full") / norm
     lags = signal.correlation_lags(b.size, a.size, mode="full")
     keep = np.abs(lags) <= round(max_lag * rate)
-    return float(lags[keep][np.argmax(corr[keep])] / rate)
+    best = int(np.argmax(corr[keep]))
+    return float(lags[keep][best] / rate), float(corr[keep][best])
 
 
 @dataclass(frozen=True)
@@ -148,52 +182,3 @@ def paired_ttest(a: ArrayLike, b: ArrayLike) -> TTest:
     x, y = _check_pair(a, b)
     res = stats.ttest_rel(x, y)
     return TTest(t=float(res.statistic), df=x.size - 1, p=float(res.pvalue))
-
-
-def session_metrics(session: Session, trim: float = 0.0) -> dict[str, float | None]:
-    """All coordination metrics of one two-player session (METHODS section 6).
-
-    Relative phase and time lag are of player 0 with respect to player 1: positive when player 0
-    is ahead.
-
-    Parameters
-    ----------
-    session
-        A `mirror_avatar.game.Session` (times (n,) s, positions and velocities (2, n), reference
-        velocities (2, n), NaN where a player has none).
-    trim
-        Seconds dropped at the start (transient), a **choice**.
-
-    Returns
-    -------
-    dict
-        ``rmse`` (units), ``circular_variance`` (the paper's name for the mean resultant length),
-        ``mean_relative_phase`` and ``sd_relative_phase`` (circular SD) (rad), ``time_lag`` (s),
-        ``emd_players`` (between the two players' velocity IMS) and ``emd_reference_0`` /
-        ``emd_reference_1`` (each player's IMS to the IMS of its reference velocities; None for
-        a player without references).
-    """
-    times = np.asarray(session.times, dtype=float)
-    keep = times >= times[0] + trim
-    if keep.sum() < 2:
-        raise InputError("trim", f"{trim} s leaves fewer than two samples")
-    rate = 1.0 / float(np.median(np.diff(times)))
-    x = np.asarray(session.positions, dtype=float)[:, keep]
-    v = np.asarray(session.velocities, dtype=float)[:, keep]
-    references = np.asarray(session.references, dtype=float)[:, keep]
-    dphi = compute_relative_phase(x[0], x[1])
-    r = compute_circular_variance(dphi)
-    ims = [compute_ims(v[i]) for i in range(2)]
-    out: dict[str, float | None] = {
-        "rmse": compute_rmse(x[0], x[1]),
-        "circular_variance": r,
-        "mean_relative_phase": compute_mean_relative_phase(dphi),
-        "sd_relative_phase": float(np.sqrt(-2.0 * np.log(max(r, 1e-12)))),
-        "time_lag": compute_time_lag(x[0], x[1], rate),
-        "emd_players": compute_emd(ims[0], ims[1]),
-    }
-    for i in range(2):
-        finite = references[i][np.isfinite(references[i])]
-        emd = compute_emd(ims[i], compute_ims(finite)) if finite.size else None
-        out[f"emd_reference_{i}"] = emd
-    return out

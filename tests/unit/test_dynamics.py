@@ -1,53 +1,38 @@
-"""Tests of the virtual trainer's optimal-control step against a tight nonlinear BVP solution."""
+"""Tests of the HKB end effector: the optimal-control step against a tight nonlinear BVP
+solution, and the RK4 step of the cyber player against scipy's ODE solver."""
 
 from functools import cache
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_bvp
+from scipy.integrate import solve_ivp
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.hkb import (
+from mirror_avatar.dynamics import (
     FOLLOWER,
     JOINT,
     LEADER,
+    PARAMS_DTYPE,
     HKBParams,
     clip_to_range,
     hkb_acceleration,
+    integrate_hkb,
     optimal_control_step,
     preset,
+    records,
 )
+from mirror_avatar.engine.loop import play
+from mirror_avatar.errors import InputError
+from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.testing import solve_step_bvp
 
 
 def solve_reference(params: HKBParams, x0, y0, rp, rs, rv) -> tuple[float, float, float]:
-    """The nonlinear two-point BVP of METHODS section 5 solved by scipy at tolerance 1e-8.
+    """The nonlinear two-point BVP of METHODS section 5 solved by scipy at tolerance 1e-8."""
+    return solve_step_bvp(params, x0, y0, rp, rs, rv)
 
-    Returns the end position and velocity and the control at the start of the interval.
-    """
-    a, b, g, w, eta = params.alpha, params.beta, params.gamma, params.omega, params.eta
-    tp, tv, ts = params.theta_p, params.theta_v, params.theta_s
 
-    def rhs(_t, z):
-        x, y, l1, l2 = z
-        return np.vstack(
-            [
-                y,
-                -(a * x * x + b * y * y - g) * y - w * w * x - l2 / eta,
-                l2 * (2 * a * x * y + w * w),
-                l2 * (a * x * x + 3 * b * y * y - g) - l1 - ts * (y - rs) - tv * (y - rv),
-            ]
-        )
-
-    def boundary(za, zb):
-        return np.array([za[0] - x0, za[1] - y0, zb[2] - tp * (zb[0] - rp), zb[3]])
-
-    t = np.linspace(0.0, params.period, 100)
-    guess = np.zeros((4, t.size))
-    guess[0], guess[1] = x0 + y0 * t, y0
-    solution = solve_bvp(rhs, boundary, t, guess, tol=1e-8, max_nodes=100_000)
-    assert solution.success, solution.message
-    x_end, y_end = solution.sol(params.period)[:2]
-    return float(x_end), float(y_end), float(-solution.sol(0.0)[3] / eta)
+def step(params: HKBParams, x0, y0, rp, rs, rv, coupled=True) -> tuple[float, float, float]:
+    return optimal_control_step(x0, y0, rp, rs, rv, params.record()[0], coupled)
 
 
 @cache
@@ -73,7 +58,7 @@ def test_step_matches_tight_bvp_solution(case: int) -> None:
     role, x0, y0, rp, rs, rv = grid()[case]
     params = preset(role)
     x_true, y_true, u_true = solve_reference(params, x0, y0, rp, rs, rv)
-    x_end, y_end, u0 = optimal_control_step(x0, y0, rp, rs, rv, params.as_vector())
+    x_end, y_end, u0 = step(params, x0, y0, rp, rs, rv)
     x_true, y_true = clip_to_range(x_true, y_true)
     assert abs(x_end - x_true) < 1e-3
     assert relative_error(y_end, y_true) < 0.05
@@ -95,7 +80,7 @@ def quadratic_in_time_step(params: HKBParams, x0, y0, rp, rs) -> tuple[float, fl
 
 
 def test_closed_form_shortcut_is_not_what_runs() -> None:
-    shortcut, step = [], []
+    shortcut, compiled = [], []
     for role, x0, y0, rp, rs, rv in grid():
         if role == "joint":
             continue
@@ -104,34 +89,53 @@ def test_closed_form_shortcut_is_not_what_runs() -> None:
         if abs(x_true) >= 0.5:
             continue
         _, y_short = quadratic_in_time_step(params, x0, y0, rp, rs)
-        _, y_step, u_step = optimal_control_step(x0, y0, rp, rs, rv, params.as_vector())
+        _, y_step, u_step = step(params, x0, y0, rp, rs, rv)
         u_short = (y_short - y0) / params.period
         shortcut.append((relative_error(y_short, y_true), relative_error(u_short, u_true, 1.0)))
-        step.append((relative_error(y_step, y_true), relative_error(u_step, u_true, 1.0)))
+        compiled.append((relative_error(y_step, y_true), relative_error(u_step, u_true, 1.0)))
     velocity_short, control_short = np.median(shortcut, axis=0)
     assert velocity_short > 0.1 and control_short > 0.3
-    assert np.max(step) < 0.01
+    assert np.max(compiled) < 0.01
 
 
 def test_velocity_tracks_reference_within_a_few_periods() -> None:
-    p = LEADER.as_vector()
     x, y = 0.0, 0.0
     for _ in range(20):
-        x, y, _ = optimal_control_step(x, y, x, 0.8, 0.0, p)
+        x, y, _ = step(LEADER, x, y, x, 0.8, 0.0)
     assert y == pytest.approx(0.8, rel=0.1)
 
 
 def test_follower_converges_to_a_still_partner() -> None:
-    p = FOLLOWER.as_vector()
     x, y = -0.3, 0.0
     for _ in range(200):
-        x, y, _ = optimal_control_step(x, y, 0.2, 0.0, 0.0, p)
+        x, y, _ = step(FOLLOWER, x, y, 0.2, 0.0, 0.0)
     assert x == pytest.approx(0.2, abs=0.01)
 
 
+@pytest.mark.parametrize("case", range(0, 75, 5))
+def test_a_player_alone_solves_the_problem_without_partner_terms(case: int) -> None:
+    """Uncoupled, the step is the tight solution with theta_p = theta_v = 0 (theta_s = 1)."""
+    role, x0, y0, rp, rs, rv = grid()[case]
+    alone = preset(role).with_(theta_p=0.0, theta_v=0.0)
+    x_true, y_true, u_true = solve_reference(alone, x0, y0, rp, rs, rv)
+    x_true, y_true = clip_to_range(x_true, y_true)
+    x_end, y_end, u0 = step(preset(role), x0, y0, rp + 0.3, rs, rv + 1.0, coupled=False)
+    assert abs(x_end - x_true) < 1e-3
+    assert relative_error(y_end, y_true) < 0.05
+    assert relative_error(u0, u_true, floor=1.0) < 0.05
+
+
 def test_position_is_clipped_at_the_wall() -> None:
-    x, y, _ = optimal_control_step(0.49, 2.0, 0.6, 2.0, 0.0, LEADER.as_vector())
+    x, y, _ = step(LEADER, 0.49, 2.0, 0.6, 2.0, 0.0)
     assert x == 0.5 and y == 0.0
+
+
+def test_parameters_reach_compiled_code_by_name() -> None:
+    table = records([LEADER, None, FOLLOWER])
+    assert table.dtype == PARAMS_DTYPE and table.shape == (3,)
+    assert table[0]["omega"] == LEADER.omega and table[2]["theta_p"] == FOLLOWER.theta_p
+    assert all(table[1][name] == 0.0 for name in PARAMS_DTYPE.names)
+    assert LEADER.record()[0]["period"] == LEADER.period
 
 
 def test_acceleration_formula() -> None:
@@ -161,7 +165,7 @@ def test_fast_steps_stay_close_to_the_tight_solution(y0: float, rs: float) -> No
     converged shooting once gave here); the 5 % target holds at human speeds (the grid above).
     """
     x_true, y_true, _ = solve_reference(LEADER, 0.0, y0, 0.0, rs, 0.0)
-    x_end, y_end, _ = optimal_control_step(0.0, y0, 0.0, rs, 0.0, LEADER.as_vector())
+    x_end, y_end, _ = step(LEADER, 0.0, y0, 0.0, rs, 0.0)
     assert abs(x_end - x_true) < 0.01
     assert relative_error(y_end, y_true) < 0.2
 
@@ -172,32 +176,32 @@ def test_sessions_on_recorded_references_never_run_away(zhai_trials_100hz) -> No
     Speeds stay within the references' range: a wrongly accepted shooting solution once drove a
     trainer to hundreds of units/s here.
     """
-    period = LEADER.period
-    params = (LEADER.as_vector(), FOLLOWER.as_vector())
     for first in range(0, 18, 3):
-        references = []
-        for trial in (zhai_trials_100hz[first], zhai_trials_100hz[first + 1]):
-            offsets = trial.times - trial.times[0]
-            references.append(
-                np.interp(np.arange(0, offsets[-1], period), offsets, trial.velocity())
-            )
-        n = min(r.size for r in references)
-        x, v, previous = [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]
-        fastest = 0.0
-        for k in range(n):
-            states = [
-                optimal_control_step(
-                    x[i],
-                    v[i],
-                    2 * x[1 - i] - previous[1 - i],
-                    references[i][k],
-                    v[1 - i],
-                    params[i],
-                )
-                for i in range(2)
-            ]
-            previous = list(x)
-            x, v = [s[0] for s in states], [s[1] for s in states]
-            fastest = max(fastest, abs(v[0]), abs(v[1]))
+        trials = (zhai_trials_100hz[first], zhai_trials_100hz[first + 1])
+        players = [VirtualTrainer(LEADER, trials[0]), VirtualTrainer(FOLLOWER, trials[1])]
+        session = play(players, duration=min(t.duration for t in trials), seed=first)
+        fastest = np.abs(session.velocities).max()
         assert np.isfinite(fastest)
-        assert fastest <= max(np.abs(r[:n]).max() for r in references) + 0.5
+        assert fastest <= np.abs(session.references[:, :-1]).max() + 0.5
+
+
+HKB_CASES = [(0.1, 0.2, 2.0), (-0.3, -0.5, -4.0), (0.0, 1.0, 0.5)]
+
+
+@pytest.mark.parametrize(("x0", "v0", "u"), HKB_CASES)
+def test_integrate_hkb_matches_solve_ivp(x0, v0, u):
+    p = FOLLOWER
+
+    def rhs(_t, y):
+        x, v = y
+        return [v, hkb_acceleration(x, v, u, p.alpha, p.beta, p.gamma, p.omega)]
+
+    exact = solve_ivp(rhs, (0.0, p.period), [x0, v0], rtol=1e-12, atol=1e-14).y[:, -1]
+    x, v = integrate_hkb(x0, v0, u, p.record()[0], 3)
+    np.testing.assert_allclose([x, v], exact, rtol=0, atol=1e-8)
+
+
+def test_integrate_hkb_stops_at_the_edge_of_the_range():
+    p = FOLLOWER.record()[0]
+    assert integrate_hkb(0.499, 1.0, 4.0, p, 3) == (0.5, 0.0)
+    assert integrate_hkb(-0.499, -1.0, -4.0, p, 3) == (-0.5, 0.0)

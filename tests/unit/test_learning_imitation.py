@@ -8,14 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mirror_avatar import hkb
-from mirror_avatar.batch import run_sessions
+from mirror_avatar import dynamics
+from mirror_avatar.engine.batch import run_sessions
+from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
-from mirror_avatar.game import play
-from mirror_avatar.learning import DEFAULT_ACTIONS, load_cyber_player, make_default_discretisation
-from mirror_avatar.model_files import read_archive, save_model
-from mirror_avatar.players import check_player
-from mirror_avatar.training import (
+from mirror_avatar.learning.agent import DEFAULT_ACTIONS, load_cyber_player
+from mirror_avatar.learning.discretisation import make_default_discretisation
+from mirror_avatar.learning.imitation import (
     SEEN_PARTNERS,
     TARGET,
     UNSEEN_PARTNER,
@@ -28,6 +27,9 @@ from mirror_avatar.training import (
     make_virtual_trainers,
     train_cyber_player,
 )
+from mirror_avatar.learning.training import ImitationTask, play_task, score_imitation
+from mirror_avatar.model_files import read_archive, save_model
+from mirror_avatar.players import check_player
 from mirror_avatar.trials import Trial
 
 
@@ -65,10 +67,10 @@ def test_pairs_put_the_partner_first_in_the_other_role(
     partners = [trainers[i].generator for i in SEEN_PARTNERS]
     follower = make_pairs(trainers[TARGET].generator, partners, "follower")
     assert len(follower) == 4
-    assert all(p.params == hkb.LEADER and t.params == hkb.FOLLOWER for p, t in follower)
+    assert all(p.params == dynamics.LEADER and t.params == dynamics.FOLLOWER for p, t in follower)
     assert all(t.reference is trainers[TARGET].generator for _, t in follower)
     leader = make_pairs(trainers[TARGET].generator, partners, "leader")
-    assert all(p.params == hkb.FOLLOWER and t.params == hkb.LEADER for p, t in leader)
+    assert all(p.params == dynamics.FOLLOWER and t.params == dynamics.LEADER for p, t in leader)
     with pytest.raises(InputError, match="role"):
         make_pairs(trainers[TARGET].generator, partners, "joint")  # type: ignore[arg-type]
     with pytest.raises(InputError, match="partner"):
@@ -77,8 +79,8 @@ def test_pairs_put_the_partner_first_in_the_other_role(
 
 def test_cyber_player_takes_the_role_dynamics() -> None:
     follower, leader = make_cyber_player("follower"), make_cyber_player("leader")
-    assert follower.omega == hkb.FOLLOWER.omega and leader.omega == hkb.LEADER.omega
-    assert (follower.alpha, follower.beta, follower.gamma) == (1.0, 2.0, -1.0)
+    assert follower.params == dynamics.FOLLOWER and leader.params == dynamics.LEADER
+    assert (follower.params.alpha, follower.params.beta, follower.params.gamma) == (1.0, 2.0, -1.0)
     np.testing.assert_allclose(follower.actions_, 4.0 * np.array(DEFAULT_ACTIONS))
 
 
@@ -140,19 +142,17 @@ def test_training_learns_from_exactly_the_batch_sessions(
     pairs = make_pairs(trainers[TARGET].generator, [trainers[i].generator for i in SEEN_PARTNERS],
                        "follower")  # fmt: skip
     session_seed, learner_seed = derive_seeds(5)
-    chunks = list(run_sessions(pairs, 6, duration=5.0, seed=session_seed, n_jobs=1))
+    (chunk,) = run_sessions(pairs, 6, duration=5.0, seed=session_seed, n_jobs=1)
     replay = make_cyber_player("follower")
     sequence = np.random.SeedSequence(learner_seed)
     q_seed, explore_seed = sequence.spawn(2)
     replay.initialise_q(np.random.default_rng(q_seed), 1e-3)
     rng = np.random.default_rng(explore_seed)
     scores = []
-    for i in range(6):
-        chunk = chunks[0]
-        session = (chunk.positions[i, 0], chunk.velocities[i, 0], chunk.positions[i, 1],
-                   chunk.velocities[i, 1], chunk.references[i, 1])  # fmt: skip
+    for i, session in enumerate(chunk):
+        task = ImitationTask.from_session(session, 1, session.period)
         epsilon = 0.01 + 0.49 * 0.5 ** (i / 1.0)
-        scores.append(replay.play_session(session, 0.1, 0.95, epsilon, rng))
+        scores.append(play_task(replay, task, 0.1, 0.95, epsilon, rng))
     np.testing.assert_allclose(replay.q_table_, player.q_table_)
     assert curve.rms == pytest.approx([s[1] for s in scores])
 
@@ -169,7 +169,7 @@ def test_leader_plays_from_its_own_reference(
     loaded = load_cyber_player(path)
     np.testing.assert_array_equal(loaded.q_table_, leader.q_table_)
     partner = trainers[0].player("follower")
-    a, b = (play(p, partner, 3.0, seed=4) for p in (leader, loaded))
+    a, b = (play([p, partner], 3.0, seed=4) for p in (leader, loaded))
     np.testing.assert_array_equal(a.positions, b.positions)
     assert np.all(np.isfinite(a.references[0, :-1]))  # the leader's own reference is recorded
     np.testing.assert_array_equal(a.references, b.references)
@@ -198,10 +198,12 @@ def test_reference_features_need_reference_velocities(trainers: list[VirtualTrai
     with pytest.raises(InputError, match="reference generator"):
         leader.reset(seed=0)
     pairs = make_pairs(trainers[TARGET].generator, [trainers[0].generator], "leader")
-    chunk = next(run_sessions(pairs, 1, duration=2.0, n_jobs=1))
+    (session,) = next(run_sessions(pairs, 1, duration=2.0, n_jobs=1))
+    session.references[:] = np.nan
     with pytest.raises(InputError, match="reference velocities"):
-        leader.evaluate([(chunk.positions, chunk.velocities)])
-    assert leader.evaluate([chunk])[1].shape == (1,)
+        score_imitation(leader, [session])
+    (session,) = next(run_sessions(pairs, 1, duration=2.0, n_jobs=1))
+    assert score_imitation(leader, [session])[1].shape == (1,)
 
 
 def test_checkpoint_and_learning_curve_files(
@@ -211,7 +213,8 @@ def test_checkpoint_and_learning_curve_files(
     player, curve = _train(trainers, seed=1, checkpoint=policy, checkpoint_every=3)
     loaded = load_cyber_player(policy)
     np.testing.assert_array_equal(loaded.q_table_, player.q_table_)
-    assert loaded.training_["role"] == "follower" and loaded.omega == hkb.FOLLOWER.omega
+    assert loaded.training_["role"] == "follower"
+    assert loaded.params.omega == dynamics.FOLLOWER.omega
     path = curve.save(learning_curve_path(policy))
     assert path == tmp_path / "policy.learning_curve.csv"
     lines = path.read_text().splitlines()
@@ -232,12 +235,12 @@ def test_learning_happens_and_beats_the_baselines(trainers: list[VirtualTrainerS
     assert np.mean(curve.rms[-10:]) < 0.6 * np.mean(curve.rms[:5])
     partners = [trainers[i].generator for i in (*SEEN_PARTNERS, UNSEEN_PARTNER)]
     pairs = make_pairs(trainers[TARGET].generator, partners, "follower")
-    chunks = list(run_sessions(pairs, 30, seed=99, n_jobs=2))
+    sessions = [s for chunk in run_sessions(pairs, 30, seed=99, n_jobs=2) for s in chunk]
     untrained = make_cyber_player("follower")
     untrained.initialise_q(0, 1e-3)
-    trained_rms = player.evaluate(chunks)[1].mean()
-    positions = np.concatenate([c.positions for c in chunks])
+    trained_rms = score_imitation(player, sessions)[1].mean()
+    positions = np.stack([s.positions for s in sessions])
     copy_rms = np.sqrt(((positions[:, 0, 1:] - positions[:, 1, 1:]) ** 2).mean(axis=1)).mean()
-    assert trained_rms < 0.5 * untrained.evaluate(chunks)[1].mean()
+    assert trained_rms < 0.5 * score_imitation(untrained, sessions)[1].mean()
     assert trained_rms < copy_rms
     assert math.isfinite(trained_rms)

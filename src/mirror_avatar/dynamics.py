@@ -24,12 +24,17 @@ approximation is **not** used: it gets velocity and control wrong by tens of per
 interval, the position is clipped to the playing range [-0.5, 0.5] and an outward velocity at the
 wall is set to zero (a hand stopped at the edge of the range).
 
-Everything numerical is compiled with numba; `optimal_control_step` is the single step used by the
-live players, the game engine and the batch engine.
+The cyber player's end effector is the same oscillator with a control chosen from a finite set and
+held over the period (`integrate_hkb`, METHODS section 7).
+
+Everything numerical is compiled with numba. Compiled functions read the parameters by name from a
+record of `PARAMS_DTYPE` (`HKBParams.record`), so `optimal_control_step` and `integrate_hkb` are the
+single steps used by every player, in the Python step loop and in the compiled batch loop alike.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
 from typing import Any
 
@@ -55,9 +60,25 @@ MAX_NEWTON = 8
 NEWTON_TOLERANCE = 1e-3
 """Newton stops when the control at t_k and the end velocity change by less than this fraction
 (the end state, extrapolated to first order in the last update, is then accurate to about its
-square: measured within 1e-5 units and 0.7 % of a solve_bvp solution at tolerance 1e-8)."""
+square)."""
+
+PARAMS_DTYPE = np.dtype(
+    [
+        ("alpha", np.float64),
+        ("beta", np.float64),
+        ("gamma", np.float64),
+        ("omega", np.float64),
+        ("eta", np.float64),
+        ("theta_p", np.float64),
+        ("theta_v", np.float64),
+        ("period", np.float64),
+    ]
+)
+"""The fields of `HKBParams` as compiled code reads them (a numpy record, by name)."""
 
 _LOW, _HIGH = PLAYING_RANGE
+Record = Any
+"""A numpy record of `PARAMS_DTYPE` (numba's Record type in compiled code)."""
 
 
 @dataclass(frozen=True)
@@ -104,20 +125,12 @@ class HKBParams:
         """Weight of the velocity error to the reference signature, 1 - theta_p - theta_v."""
         return 1.0 - self.theta_p - self.theta_v
 
-    def as_vector(self) -> NDArray[np.float64]:
-        """Return the parameters in the order the compiled functions read them, shape (8,)."""
-        return np.array(
-            [
-                self.alpha,
-                self.beta,
-                self.gamma,
-                self.omega,
-                self.eta,
-                self.theta_p,
-                self.theta_v,
-                self.period,
-            ]
-        )
+    def record(self) -> NDArray[np.void]:
+        """Return the parameters as a one-element array of `PARAMS_DTYPE`, shape (1,).
+
+        Compiled functions take its element (``record()[0]``) and read the fields by name.
+        """
+        return records([self])
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable parameters."""
@@ -137,6 +150,19 @@ FOLLOWER = HKBParams(omega=0.1, theta_p=0.9)
 JOINT = HKBParams(omega=0.45, theta_p=0.5, theta_v=0.2)
 """Joint improvisation (**choice**: the paper gives no numbers). Between leader and follower in
 position weight and frequency, with a velocity term towards the partner's (theta_s = 0.3)."""
+
+
+def records(params: Sequence[HKBParams | None]) -> NDArray[np.void]:
+    """Stack parameters into an array of `PARAMS_DTYPE`, shape (len(params),).
+
+    None (a player without an HKB end effector) gives a record of zeros.
+    """
+    table = np.zeros(len(params), dtype=PARAMS_DTYPE)
+    for i, p in enumerate(params):
+        if p is not None:
+            table[i] = tuple(getattr(p, name) for name in PARAMS_DTYPE.names or ())
+    return table
+
 
 ROLES = ("leader", "follower", "joint")
 _PRESETS = {"leader": LEADER, "follower": FOLLOWER, "joint": JOINT}
@@ -161,7 +187,9 @@ def hkb_acceleration(
 @njit(cache=True)
 def _derivatives(
     w: NDArray[np.float64],
-    p: NDArray[np.float64],
+    p: Record,
+    theta_p: float,
+    theta_v: float,
     reference_velocity: float,
     partner_velocity: float,
     frozen: float,
@@ -175,9 +203,10 @@ def _derivatives(
     12: with the sensitivities) into ``dw``, shape (12,). With ``frozen`` >= 0 (a damping
     coefficient, 1/s) the HKB damping ``alpha x² + beta y² - gamma`` is frozen at that value,
     which makes the system linear; with ``frozen`` < 0 it is the full nonlinear system.
+    ``theta_p`` and ``theta_v`` are the partner weights in use (see `partner_weights`).
     """
-    alpha, beta, gamma, omega, eta, theta_v = p[0], p[1], p[2], p[3], p[4], p[6]
-    theta_s = 1.0 - p[5] - theta_v
+    alpha, beta, gamma, omega, eta = p.alpha, p.beta, p.gamma, p.omega, p.eta
+    theta_s = 1.0 - theta_p - theta_v
     x, y, l1, l2 = w[0], w[1], w[2], w[3]
     w2 = omega * omega
     if frozen >= 0.0:
@@ -210,7 +239,9 @@ def _shoot(
     y: float,
     l1: float,
     l2: float,
-    p: NDArray[np.float64],
+    p: Record,
+    theta_p: float,
+    theta_v: float,
     reference_velocity: float,
     partner_velocity: float,
     frozen: float,
@@ -223,7 +254,7 @@ def _shoot(
     ``work`` (4, 12): row 0 receives the solution at the end of the interval (layout of
     `_derivatives`), rows 1-3 are scratch.
     """
-    h = p[7] / n_substeps
+    h = p.period / n_substeps
     state, stage, k, acc = work[0], work[1], work[2], work[3]
     state[:] = 0.0
     state[0], state[1], state[2], state[3] = x, y, l1, l2
@@ -234,7 +265,9 @@ def _shoot(
             acc[i] = 0.0
             stage[i] = state[i]
         for stage_index in range(4):
-            _derivatives(stage, p, reference_velocity, partner_velocity, frozen, size, k)
+            _derivatives(
+                stage, p, theta_p, theta_v, reference_velocity, partner_velocity, frozen, size, k
+            )
             weight = 1.0 if stage_index == 0 or stage_index == 3 else 2.0
             step = h if stage_index == 2 else 0.5 * h
             for i in range(size):
@@ -250,7 +283,9 @@ def count_substeps(
     y: float,
     reference_velocity: float,
     partner_velocity: float,
-    p: NDArray[np.float64],
+    p: Record,
+    theta_p: float,
+    theta_v: float,
     n_min: int,
 ) -> int:
     """RK4 steps for one interval: at least ``n_min``, and enough that step x rate <= 0.5.
@@ -261,11 +296,11 @@ def count_substeps(
     partner speeds (at 9 units/s the damping is about 490/s, and RK4 with the minimum steps
     would be unstable); `STEP_STIFFNESS` keeps RK4 accurate to well under 1 % at both.
     """
-    speed = max(abs(y), abs(reference_velocity), abs(partner_velocity) if p[6] > 0.0 else 0.0)
-    damping = p[0] * x * x + 3.0 * p[1] * speed * speed - p[2]
-    coupling = np.sqrt((1.0 - p[5]) / p[4])
+    speed = max(abs(y), abs(reference_velocity), abs(partner_velocity) if theta_v > 0.0 else 0.0)
+    damping = p.alpha * x * x + 3.0 * p.beta * speed * speed - p.gamma
+    coupling = np.sqrt((1.0 - theta_p) / p.eta)
     rate = max(damping, coupling)
-    return max(n_min, int(np.ceil(rate * p[7] / STEP_STIFFNESS)))
+    return max(n_min, int(np.ceil(rate * p.period / STEP_STIFFNESS)))
 
 
 @njit(cache=True)
@@ -275,7 +310,8 @@ def solve_interval(
     partner_prediction: float,
     reference_velocity: float,
     partner_velocity: float,
-    p: NDArray[np.float64],
+    p: Record,
+    coupled: bool,
     n_substeps: int,
     max_newton: int,
     tolerance: float,
@@ -304,7 +340,9 @@ def solve_interval(
     partner_velocity
         Estimated partner velocity r_v (units/s), used when theta_v > 0.
     p
-        `HKBParams.as_vector`, shape (8,).
+        The parameters, a record of `PARAMS_DTYPE` (`HKBParams.record`).
+    coupled
+        False for a player alone: the partner terms are dropped (see `partner_weights`).
     n_substeps, max_newton
         Fewest RK4 steps per interval (`count_substeps` adds more where the interval is stiff)
         and the most chord-Newton iterations on the nonlinear problem.
@@ -319,10 +357,12 @@ def solve_interval(
     """
     work = np.empty((4, 12))
     state = work[0]
-    theta_p = p[5]
-    n_substeps = count_substeps(x, y, reference_velocity, partner_velocity, p, n_substeps)
+    theta_p, theta_v = partner_weights(p, coupled)
+    n_substeps = count_substeps(
+        x, y, reference_velocity, partner_velocity, p, theta_p, theta_v, n_substeps
+    )
     mean_square = (y * y + y * reference_velocity + reference_velocity * reference_velocity) / 3.0
-    frozen = max(p[0] * x * x + p[1] * mean_square - p[2], 0.0)
+    frozen = max(p.alpha * x * x + p.beta * mean_square - p.gamma, 0.0)
     l1, l2 = 0.0, 0.0
     fallback = (x, y, 0.0, 0.0)
     j11 = j12 = j21 = j22 = det = sx1 = sx2 = sy1 = sy2 = 0.0
@@ -330,7 +370,19 @@ def solve_interval(
     for iteration in range(max_newton + 1):
         damping = frozen if iteration == 0 else -1.0
         _shoot(
-            x, y, l1, l2, p, reference_velocity, partner_velocity, damping, n_substeps, size, work
+            x,
+            y,
+            l1,
+            l2,
+            p,
+            theta_p,
+            theta_v,
+            reference_velocity,
+            partner_velocity,
+            damping,
+            n_substeps,
+            size,
+            work,
         )
         if size == 12:
             # Jacobian of the terminal residual in (l1(0), l2(0)), and end-state sensitivities.
@@ -354,7 +406,7 @@ def solve_interval(
             break
         if iteration == 0:
             fallback = (x_end, y_end, l1, l2)
-        elif abs(d2) <= tolerance * (abs(l2) + p[4]) and abs(y_end - state[1]) <= tolerance * (
+        elif abs(d2) <= tolerance * (abs(l2) + p.eta) and abs(y_end - state[1]) <= tolerance * (
             abs(y_end) + 1.0
         ):
             return x_end, y_end, l1, l2, True
@@ -378,11 +430,12 @@ def optimal_control_step(
     partner_prediction: float,
     reference_velocity: float,
     partner_velocity: float,
-    p: NDArray[np.float64],
+    p: Record,
+    coupled: bool = True,
 ) -> tuple[float, float, float]:
     """Advance the virtual trainer by one control period under its optimal control.
 
-    Parameters are those of `solve_interval`.
+    Parameters are those of `solve_interval`; ``coupled`` is False for a player with no partner.
 
     Returns
     -------
@@ -397,9 +450,60 @@ def optimal_control_step(
         reference_velocity,
         partner_velocity,
         p,
+        coupled,
         N_SUBSTEPS,
         MAX_NEWTON,
         NEWTON_TOLERANCE,
     )
     x_next, y_next = clip_to_range(x_next, y_next)
-    return x_next, y_next, -l2 / p[4]
+    return x_next, y_next, -l2 / p.eta
+
+
+@njit(cache=True)
+def partner_weights(p: Record, coupled: bool) -> tuple[float, float]:
+    """Return the weights ``(theta_p, theta_v)`` of the partner terms in use.
+
+    A player coupled to others uses its own; a player alone (no neighbour, METHODS section 8
+    with an empty neighbourhood) has no partner to track, so both are 0 and the whole weight
+    ``theta_s = 1`` goes to its reference velocity (**choice**: the methods do not say).
+    """
+    if coupled:
+        return p.theta_p, p.theta_v
+    return 0.0, 0.0
+
+
+@njit(cache=True)
+def integrate_hkb(x: float, v: float, u: float, p: Record, n_substeps: int) -> tuple[float, float]:
+    """Advance the HKB end effector by one control period with u held constant (RK4).
+
+    Parameters
+    ----------
+    x, v
+        Position (units) and velocity (units/s) at the start of the period.
+    u
+        Acceleration input (units/s²), held over the period.
+    p
+        The end effector, a record of `PARAMS_DTYPE` (alpha, beta, gamma, omega and period are
+        read).
+    n_substeps
+        Number of RK4 steps of length ``p.period / n_substeps``.
+
+    Returns
+    -------
+    tuple of float
+        Position and velocity at the end of the period; the position is clipped to [-0.5, 0.5]
+        and an outward velocity at the boundary is set to zero.
+    """
+    h = p.period / n_substeps
+    alpha, beta, gamma, omega = p.alpha, p.beta, p.gamma, p.omega
+    for _ in range(n_substeps):
+        a1 = hkb_acceleration(x, v, u, alpha, beta, gamma, omega)
+        x2, v2 = x + 0.5 * h * v, v + 0.5 * h * a1
+        a2 = hkb_acceleration(x2, v2, u, alpha, beta, gamma, omega)
+        x3, v3 = x + 0.5 * h * v2, v + 0.5 * h * a2
+        a3 = hkb_acceleration(x3, v3, u, alpha, beta, gamma, omega)
+        x4, v4 = x + h * v3, v + h * a3
+        a4 = hkb_acceleration(x4, v4, u, alpha, beta, gamma, omega)
+        x += h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
+        v += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    return clip_to_range(x, v)

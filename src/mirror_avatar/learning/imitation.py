@@ -12,13 +12,15 @@ people, so `make_virtual_trainers` builds six "persons" from six disjoint groups
 target VT5 is then slow-4..6, a slow player, with seen partners VT1..VT3 (fast) and VT4 (slow)
 and the unseen partner VT6 (slow).
 
-`train_cyber_player` streams the batch engine's chunks (`mirror_avatar.batch.run_sessions`) straight
-into `mirror_avatar.learning.QLearner.train`: sessions are generated and learnt from chunk by chunk,
-never all held in memory. Player 0 of every session is the partner, player 1 the target.
+`train_cyber_player` streams the batch engine's sessions (`mirror_avatar.engine.batch.run_sessions`)
+straight into `mirror_avatar.learning.training.QLearner.fit`: sessions are generated and learnt
+from chunk by chunk, never all held in memory. Player 0 of every session is the partner, player 1
+the target.
 """
 
 from __future__ import annotations
 
+import itertools
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -27,21 +29,19 @@ from typing import Literal
 
 import numpy as np
 
-from mirror_avatar import hkb
-from mirror_avatar.batch import run_sessions
+from mirror_avatar import dynamics
+from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.learning import (
-    DEFAULT_ACTIONS,
-    CyberPlayer,
+from mirror_avatar.learning.agent import DEFAULT_ACTIONS, CyberPlayer
+from mirror_avatar.learning.discretisation import (
     Discretisation,
-    ExponentialEpsilon,
-    LearningCurve,
-    QLearner,
     make_default_discretisation,
     symmetric_edges,
 )
-from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.learning.training import ExponentialEpsilon, LearningCurve, QLearner
+from mirror_avatar.players.virtual_trainer import VirtualTrainer
+from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 Role = Literal["follower", "leader"]
@@ -65,11 +65,10 @@ CURVE_POINTS = 100
 """About how many points a learning curve has (sessions per point = n_sessions / CURVE_POINTS)."""
 
 ACTION_SCALE = 4.0
-"""Factor on `mirror_avatar.learning.DEFAULT_ACTIONS` for the cyber player imitating a virtual
-trainer (**choice**): accelerations 0, ±2, ±4, ±8, ±16 units/s². The virtual trainers' own controls
-have median |u| about 6.5 and 90th percentile about 19 units/s² (follower VT5 with VT1..VT6), far
-beyond ±4; on held-out follower sessions (1500 training sessions) the RMS to VT5 was 0.127
-(x1), 0.082 (x2), 0.061 (x4) and 0.060 (x8) units, against 0.096 for copying the partner."""
+"""Factor on `mirror_avatar.learning.agent.DEFAULT_ACTIONS` for the cyber player imitating a
+virtual trainer (**choice**): accelerations 0, ±2, ±4, ±8, ±16 units/s², because the virtual
+trainers' own controls reach far beyond the METHODS maximum of ±4 units/s² (the benchmark
+``bench_learning`` compares the scales)."""
 
 FOLLOWER_EDGES = (
     np.array([0.015, 0.03, 0.05, 0.07, 0.1, 0.14, 0.2, 0.3]),
@@ -102,9 +101,9 @@ class VirtualTrainerSpec:
     trial_labels: tuple[str, ...]
     generator: IMSGenerator
 
-    def player(self, role: str | hkb.HKBParams) -> VirtualTrainer:
+    def player(self, role: str | dynamics.HKBParams) -> VirtualTrainer:
         """Make a virtual trainer with this person's generator and a role preset (or parameters)."""
-        params = hkb.preset(role) if isinstance(role, str) else role
+        params = dynamics.preset(role) if isinstance(role, str) else role
         return VirtualTrainer(params, self.generator, label=self.label)
 
 
@@ -153,7 +152,7 @@ def make_virtual_trainers(
         if size < 1:
             raise InputError("trials", f"group {name!r} has {len(members)} trials for {per_group}")
         blocks += [members[i * size : (i + 1) * size] for i in range(per_group)]
-    seeds = np.random.SeedSequence(seed).generate_state(n)
+    seeds = draw_seeds(seed, n)
     return [
         VirtualTrainerSpec(
             f"VT{i + 1}",
@@ -171,28 +170,17 @@ def make_role_discretisation(role: Role) -> Discretisation:
 
     The **follower** uses relative features ``[x - x_p, x' - x_p', x_p, x_p']`` with its own
     features cut finer than the default (`FOLLOWER_EDGES`: 18 x 14 bins instead of 10 x 8,
-    10 584 cells) and the partner's bins of `mirror_avatar.learning.make_default_discretisation`.
+    10 584 cells; with the default bins the follower was more tightly coordinated with slow
+    partners than VT5 is) and the partner's bins of
+    `mirror_avatar.learning.discretisation.make_default_discretisation`. The finer follower
+    needs more training sessions.
+
     The **leader** uses ``"reference"`` features ``[x - x_p, x' - r_s, x, r_s]`` (9600 cells), r_s
-    its own reference velocity from VT5's generator (a **departure** from METHODS section 7).
-
-    Measured (4000 training sessions, validation as in `mirror_avatar.experiments.cyber_player`
-    with 10 sessions per partner, four learner seeds): the largest difference between the
-    follower's and VT5's mean CV over the five partners was 0.027-0.046 with the finer bins
-    against 0.051-0.061 with the default ones (the default follower is too well coordinated
-    with the slow partners VT4 and VT6: CV 0.93 against VT5's 0.88), RMS differences at most
-    0.007 either way, EMD to VT5's IMS 0.005 against 0.004. The finer follower needs more
-    sessions: its RMS to VT5 on held-out sessions (64-symbol generators) was 0.110 after 1500
-    sessions, 0.071 after 2500 and 0.047 after 4000, against 0.092 for copying the partner.
-
-    A leader on the METHODS state (relative or absolute features, any bins, discounts 0.8-0.99,
-    up to 16 000 sessions) learns the conditional mean of VT5's motion given the two players'
-    states; VT5's self-generated motion is not predictable from them, so that leader partly
-    followed its follower: CV 0.80-0.88 against VT5's 0.51-0.82, RMS to the partner 0.026-0.066
-    against 0.054-0.109, no better than copying the partner on held-out sessions (0.094 against
-    0.083). With the reference features (4000 sessions, 20 validation sessions per partner, run
-    seeds 0, 1 and 2) its CV is within 0.015-0.030 and its RMS within 0.001-0.002 of VT5's
-    against all five partners, its IMS within EMD 0.0015-0.0021 of VT5's, and its RMS to VT5 on
-    held-out sessions 0.072-0.075 against 0.082-0.083 for copying the partner.
+    its own reference velocity from VT5's generator (a **departure** from METHODS section 7). On
+    the METHODS state a leader learns the conditional mean of VT5's motion given the two
+    players' states; VT5's self-generated motion is not predictable from them, so such a leader
+    partly follows its follower and does no better than copying it. The report's cyber-player
+    section measures both roles against VT5.
     """
     if _check_role(role) == "leader":
         return make_default_discretisation("reference")
@@ -206,27 +194,22 @@ def make_cyber_player(
     """Make an untrained cyber player whose HKB end effector has the role preset's parameters.
 
     Follows METHODS section 7 with the virtual trainer's end-effector parameters of the same role
-    (`mirror_avatar.hkb.FOLLOWER` or ``LEADER``: omega 0.1 or 0.8 rad/s, alpha 1, beta 2,
+    (`mirror_avatar.dynamics.FOLLOWER` or ``LEADER``: omega 0.1 or 0.8 rad/s, alpha 1, beta 2,
     gamma -1, eta 1e-4), the role's discretisation (`make_role_discretisation`) and the
     accelerations ``action_scale * DEFAULT_ACTIONS`` (units/s²; departs from METHODS' ±4
     maximum, see `ACTION_SCALE`). ``reference`` is the motion source of a leader's
     ``"reference"`` features: the generator (or trial) of the person it imitates.
     """
-    params = hkb.preset(_check_role(role))
     return CyberPlayer(
         make_role_discretisation(role),
         actions=tuple(action_scale * a for a in DEFAULT_ACTIONS),
-        alpha=params.alpha,
-        beta=params.beta,
-        gamma=params.gamma,
-        omega=params.omega,
-        eta=params.eta,
-        period=params.period,
+        params=dynamics.preset(_check_role(role)),
         reference=reference,
     )
 
 
 def make_learner(
+    player: CyberPlayer,
     n_sessions: int,
     random_state: int | None,
     checkpoint: str | os.PathLike[str] | None = None,
@@ -240,6 +223,7 @@ def make_learner(
     discount 0.95 are `QLearner`'s defaults.
     """
     return QLearner(
+        player,
         epsilon=ExponentialEpsilon(half_life=max(n_sessions / EPSILON_HALF_LIVES, 1.0)),
         block_size=max(n_sessions // CURVE_POINTS, 1),
         checkpoint_every=checkpoint_every,
@@ -252,7 +236,7 @@ def make_learner(
 def make_pairs(
     target: Reference, partners: Sequence[Reference], role: Role
 ) -> list[tuple[VirtualTrainer, VirtualTrainer]]:
-    """Training pairs ``(partner, target)``: the target takes ``role``, the partners the other.
+    """Training dyads ``(partner, target)``: the target takes ``role``, the partners the other.
 
     Parameters
     ----------
@@ -267,17 +251,17 @@ def make_pairs(
     if not partners:
         raise InputError("partners", "need at least one training partner")
     other = "leader" if role == "follower" else "follower"
-    trainee = VirtualTrainer(hkb.preset(role), target, label="target")
+    trainee = VirtualTrainer(dynamics.preset(role), target, label="target")
     return [
-        (VirtualTrainer(hkb.preset(other), p, label=f"partner {i + 1}"), trainee)
+        (VirtualTrainer(dynamics.preset(other), p, label=f"partner {i + 1}"), trainee)
         for i, p in enumerate(partners)
     ]
 
 
 def derive_seeds(seed: int | None) -> tuple[int, int]:
     """Independent seeds for the training sessions and for the learner, from one run seed."""
-    sessions, learner = np.random.SeedSequence(seed).generate_state(2)
-    return int(sessions), int(learner)
+    sessions, learner = draw_seeds(seed, 2)
+    return sessions, learner
 
 
 def train_cyber_player(
@@ -299,7 +283,7 @@ def train_cyber_player(
 
     Session i is played by ``partners[i % len(partners)]`` (player 0, the other role's preset)
     and the target (player 1, ``role``'s preset) on the batch engine, and the cyber player
-    Q-learns from it as the chunks arrive (`QLearner.train`), so memory stays flat whatever
+    Q-learns from it as the chunks arrive (`QLearner.fit`), so memory stays flat whatever
     ``n_sessions``.
 
     Parameters
@@ -316,7 +300,7 @@ def train_cyber_player(
     duration
         Session length (s).
     backend, scheduler, n_jobs, chunk_size
-        Where the sessions are played (see `mirror_avatar.batch.run_sessions`).
+        Where the sessions are played (see `mirror_avatar.engine.batch.run_sessions`).
     checkpoint, checkpoint_every
         Save the player to ``checkpoint`` every ``checkpoint_every`` sessions and at the end.
         A leader's file holds its motion source, so ``target`` must then be an `IMSGenerator`
@@ -351,8 +335,8 @@ def train_cyber_player(
         chunk_size=chunk_size,
         progress=False,
     )
-    learner = make_learner(n_sessions, learner_seed, checkpoint, checkpoint_every, progress)
-    learner.train(player, chunks, total=n_sessions)
+    learner = make_learner(player, n_sessions, learner_seed, checkpoint, checkpoint_every, progress)
+    learner.fit(itertools.chain.from_iterable(chunks), total=n_sessions)
     player.training_ |= {"run_seed": seed, "role": role, "n_partners": len(partners)}
     player.label = f"cyber player ({role})"
     if checkpoint is not None:

@@ -1,0 +1,205 @@
+"""The batch engine: many sessions in the compiled loop, streamed in chunks from many processes.
+
+A session of built-in players (`mirror_avatar.players.base.Player.plan`) is one call of the
+compiled loop (`mirror_avatar.engine.compiled.run_plans`), which calls the same step kernels as
+the players' own ``step``, so a batch session is identical to `mirror_avatar.engine.loop.play`
+of the same players with the same seed. Sessions are grouped in chunks run on local processes
+(joblib) or on a Dask cluster, and yielded in order as lists of `mirror_avatar.session.Session`:
+a 24 000-session run never holds more than a few chunks in memory. Session ``i`` uses
+``lineups[i % len(lineups)]`` and the seed ``spawn_seeds(seed, n, bits=64)[i]``, so results depend
+neither on the chunk size nor on the backend. The graph may be fixed or drawn for each session.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Iterator, Sequence
+from typing import Any, Literal
+
+import numpy as np
+from joblib import Parallel, delayed
+from numpy.typing import NDArray
+from tqdm.auto import tqdm
+
+from mirror_avatar.engine.compiled import run_plans
+from mirror_avatar.engine.loop import check_lineup, count_samples, spawn_session_seeds
+from mirror_avatar.errors import InputError
+from mirror_avatar.graphs import GraphSource, draw_graph
+from mirror_avatar.players.base import Player
+from mirror_avatar.seeds import spawn_seeds
+from mirror_avatar.session import Session, default_roles
+
+DASK_CONNECT_TIMEOUT = 10.0
+"""Seconds to wait for a Dask scheduler before giving up."""
+
+Lineup = Sequence[Player]
+
+
+def play_compiled(
+    players: Lineup,
+    n_samples: int,
+    seed: int,
+    graph: GraphSource = None,
+    roles: Sequence[str] | None = None,
+) -> Session:
+    """Play one session in the compiled loop, as `mirror_avatar.engine.loop.play` would."""
+    period = check_lineup(players)
+    seeds, graph_seed = spawn_session_seeds(seed, len(players))
+    adjacency = draw_graph(graph, len(players), graph_seed)
+    plans = [p.plan(s, n_samples - 1) for p, s in zip(players, seeds, strict=True)]
+    missing = [type(p).__name__ for p, plan in zip(players, plans, strict=True) if plan is None]
+    if missing:
+        raise InputError("players", f"the compiled engine cannot run {', '.join(missing)}")
+    out = run_plans(plans, adjacency, n_samples)  # type: ignore[arg-type]
+    return Session(
+        np.arange(n_samples, dtype=np.float64) * period,
+        out[0],
+        out[1],
+        out[2],
+        out[3],
+        labels=tuple(p.label or f"player {i}" for i, p in enumerate(players)),
+        roles=tuple(roles) if roles is not None else default_roles(len(players)),
+        graph=adjacency,
+        metadata={"seed": seed, "player_seeds": seeds},
+    )
+
+
+def run_chunk(
+    lineups: Sequence[Lineup],
+    seeds: NDArray[np.uint64],
+    start: int,
+    n_samples: int,
+    graph: GraphSource = None,
+    roles: Sequence[str] | None = None,
+) -> list[Session]:
+    """Play sessions ``start .. start + len(seeds) - 1`` of a run (in the calling process)."""
+    sessions = []
+    for offset, seed in enumerate(seeds):
+        index = (start + offset) % len(lineups)
+        session = play_compiled(lineups[index], n_samples, int(seed), graph, roles)
+        session.metadata |= {"session": start + offset, "lineup": index}
+        sessions.append(session)
+    return sessions
+
+
+def run_sessions(
+    lineups: Sequence[Lineup],
+    n_sessions: int,
+    duration: float = 60.0,
+    seed: int | None = 0,
+    backend: Literal["local", "dask"] = "local",
+    scheduler: str | None = None,
+    n_jobs: int = 2,
+    chunk_size: int = 50,
+    progress: bool | None = None,
+    graph: GraphSource = None,
+    roles: Sequence[str] | None = None,
+) -> Iterator[list[Session]]:
+    """Run many sessions in the compiled loop and yield them in order, a chunk at a time.
+
+    Parameters
+    ----------
+    lineups
+        Players of each kind of session (virtual trainers, recordings, cyber players); session
+        i uses ``lineups[i % len(lineups)]``.
+    n_sessions
+        Number of sessions.
+    duration
+        Session length (s).
+    seed
+        Seed of the run (session seeds are spawned from it).
+    backend
+        ``"local"``: joblib processes on this machine (``n_jobs=1`` runs in this process);
+        ``"dask"``: the Dask cluster at ``scheduler``.
+    scheduler
+        Address of a Dask scheduler (``tcp://host:port``); required for ``backend="dask"``.
+    n_jobs
+        Local worker processes.
+    chunk_size
+        Sessions per chunk (the unit of work and of memory: about 2 MB per 50 dyads of 60 s).
+    progress
+        tqdm progress bar over sessions: True, False, or None (only on a terminal).
+    graph
+        Who observes whom: a fixed adjacency matrix, a function drawing one for each session
+        from its own generator (`mirror_avatar.graphs.GraphSource`), or None (complete).
+    roles
+        The players' roles, recorded in every session.
+
+    Yields
+    ------
+    list of Session
+        Consecutive chunks; the last may be shorter.
+    """
+    period = _check_run(lineups, n_sessions, chunk_size, backend, scheduler, graph)
+    n_samples = count_samples(duration, period)
+    seeds = spawn_seeds(seed, n_sessions, bits=64)
+    starts = range(0, n_sessions, chunk_size)
+    tasks = ((list(lineups), seeds[s : s + chunk_size], s, n_samples, graph, roles) for s in starts)
+    if backend == "dask":
+        results = _run_on_dask(tasks, str(scheduler))
+    elif n_jobs == 1:
+        results = (run_chunk(*task) for task in tasks)
+    else:
+        parallel = Parallel(n_jobs=n_jobs, return_as="generator", pre_dispatch="2*n_jobs")
+        results = parallel(delayed(run_chunk)(*task) for task in tasks)
+    with tqdm(total=n_sessions, disable=_quiet(progress), unit="session") as bar:
+        for chunk in results:
+            bar.update(len(chunk))
+            yield chunk
+
+
+def _check_run(
+    lineups: Sequence[Lineup],
+    n_sessions: int,
+    chunk_size: int,
+    backend: str,
+    scheduler: str | None,
+    graph: GraphSource,
+) -> float:
+    if not lineups:
+        raise InputError("lineups", "no players to run")
+    periods = set()
+    for lineup in lineups:
+        periods.add(check_lineup(lineup))
+        if not callable(graph):
+            draw_graph(graph, len(lineup), 0)
+        for player in lineup:
+            if type(player).plan is Player.plan:
+                raise InputError(
+                    "lineups", f"the batch engine cannot run {type(player).__name__} players"
+                )
+    if len(periods) != 1:
+        raise InputError("lineups", f"all players need the same control period, got {periods}")
+    if n_sessions < 1 or chunk_size < 1:
+        raise InputError("sessions", "n_sessions and chunk_size must be positive")
+    if backend not in ("local", "dask"):
+        raise InputError("backend", f"unknown backend {backend!r}; expected local or dask")
+    if backend == "dask" and not scheduler:
+        raise InputError("backend", "the dask backend needs a scheduler address")
+    return periods.pop()
+
+
+def _run_on_dask(tasks: Iterator[tuple[Any, ...]], scheduler: str) -> Iterator[list[Session]]:
+    """Submit chunks to a Dask cluster, keeping a few in flight, and yield them in order."""
+    from distributed import Client
+
+    try:
+        client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
+    except (OSError, TimeoutError) as error:
+        raise InputError(scheduler, f"cannot reach the Dask scheduler ({error})") from None
+    with client:
+        in_flight: deque[Any] = deque()
+        window = 2 * max(sum(client.nthreads().values()), 1)
+        lineups_future = None
+        for lineups, *rest in tasks:
+            if lineups_future is None:
+                lineups_future = client.scatter(lineups, broadcast=True)
+            in_flight.append(client.submit(run_chunk, lineups_future, *rest))
+            if len(in_flight) >= window:
+                yield in_flight.popleft().result()
+        while in_flight:
+            yield in_flight.popleft().result()
+
+
+def _quiet(progress: bool | None) -> bool | None:
+    return None if progress is None else not progress

@@ -1,0 +1,239 @@
+"""One compiled loop for a whole session of built-in players (virtual trainer, recording, cyber).
+
+Each player's `mirror_avatar.players.base.PlayerPlan` is packed into arrays (`pack_session`);
+`run_packed` then advances all players sample by sample in compiled code, calling each kind's own
+step kernel (`virtual_trainer_step`, `recorded_step`, `cyber_step`, the kernels the players'
+Python ``step`` methods call) with the neighbours gathered by `gather_neighbours`, and records
+into one array exactly what `mirror_avatar.engine.loop.Engine` records.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from mirror_avatar.dynamics import records
+from mirror_avatar.errors import InputError
+from mirror_avatar.graphs import Graph
+from mirror_avatar.learning.agent import GreedyPolicy, cyber_step
+from mirror_avatar.players.base import (
+    CYBER,
+    RECORDED,
+    VIRTUAL_TRAINER,
+    PlayerPlan,
+    gather_neighbours,
+)
+from mirror_avatar.players.recorded import recorded_step
+from mirror_avatar.players.virtual_trainer import virtual_trainer_step
+
+Array = NDArray[np.float64]
+Ints = NDArray[np.int64]
+
+
+@dataclass(frozen=True, eq=False)
+class PackedSession:
+    """A session's players as the arrays `run_packed` reads (N players, C cyber players).
+
+    Attributes
+    ----------
+    kinds
+        Each player's kind code, shape (N,).
+    params
+        HKB parameters, a record array of `mirror_avatar.dynamics.PARAMS_DTYPE`, shape (N,).
+    references
+        Reference velocity per step (units/s), shape (N, n - 1); NaN for players without.
+    tracks, track_lengths
+        Recordings on the control grid, shape (N, 2, L), and each one's length, shape (N,).
+    slots
+        Each player's row in the cyber tables (-1 for the others), shape (N,).
+    q_tables, modes, edges, offsets, actions, n_actions, substeps
+        The cyber policies: Q-tables padded with -inf to shape (C, S, A), feature codes (C,),
+        bin edges (C, E), edge offsets (C, 5), actions (C, A), action counts (C,) and RK4
+        substeps (C,).
+    neighbour_index, neighbour_count
+        Row k lists player k's neighbours in its first ``neighbour_count[k]`` entries, (N, N).
+    starts
+        Initial positions and velocities, shape (N, 2).
+    """
+
+    kinds: Ints
+    params: NDArray[np.void]
+    references: Array
+    tracks: Array
+    track_lengths: Ints
+    slots: Ints
+    q_tables: Array
+    modes: Ints
+    edges: Array
+    offsets: Ints
+    actions: Array
+    n_actions: Ints
+    substeps: Ints
+    neighbour_index: Ints
+    neighbour_count: Ints
+    starts: Array
+
+
+def pack_session(plans: Sequence[PlayerPlan], graph: Graph, n_steps: int) -> PackedSession:
+    """Pack the players' plans and the graph for `run_packed` (``n_steps`` = samples - 1)."""
+    n = len(plans)
+    references = np.full((n, n_steps), np.nan)
+    for i, plan in enumerate(plans):
+        if plan.reference is not None:
+            references[i] = plan.reference[:n_steps]
+    tracks, lengths = _pack_tracks(plans)
+    policies = [plan.policy for plan in plans if plan.kind == CYBER and plan.policy is not None]
+    slots = np.cumsum([plan.kind == CYBER for plan in plans]) - 1
+    neighbour_index = np.zeros((n, n), dtype=np.int64)
+    neighbour_count = np.zeros(n, dtype=np.int64)
+    for k in range(n):
+        found = np.flatnonzero(graph[k])
+        neighbour_index[k, : found.size] = found
+        neighbour_count[k] = found.size
+    return PackedSession(
+        np.array([plan.kind for plan in plans], dtype=np.int64),
+        records([plan.params for plan in plans]),
+        references,
+        tracks,
+        lengths,
+        np.where([plan.kind == CYBER for plan in plans], slots, -1).astype(np.int64),
+        *_pack_policies(policies),
+        neighbour_index,
+        neighbour_count,
+        np.array([plan.start for plan in plans], dtype=np.float64),
+    )
+
+
+def _pack_tracks(plans: Sequence[PlayerPlan]) -> tuple[Array, Ints]:
+    lengths = np.array(
+        [0 if plan.track is None else plan.track.shape[1] for plan in plans], dtype=np.int64
+    )
+    tracks = np.full((len(plans), 2, max(int(lengths.max()), 1)), np.nan)
+    for i, plan in enumerate(plans):
+        if plan.track is not None:
+            tracks[i, :, : lengths[i]] = plan.track
+    return tracks, lengths
+
+
+def _pack_policies(
+    policies: Sequence[GreedyPolicy],
+) -> tuple[Array, Ints, Array, Ints, Array, Ints, Ints]:
+    count = len(policies)
+    n_states = max([p.q_table.shape[0] for p in policies], default=1)
+    n_actions = np.array([p.actions.size for p in policies], dtype=np.int64)
+    n_edges = max([p.discretisation.flat_edges.size for p in policies], default=1)
+    q_tables = np.full((count, n_states, max(n_actions, default=1)), -np.inf)
+    edges = np.zeros((count, n_edges))
+    offsets = np.zeros((count, 5), dtype=np.int64)
+    actions = np.zeros((count, q_tables.shape[2]))
+    for c, policy in enumerate(policies):
+        q = policy.q_table
+        q_tables[c, : q.shape[0], : q.shape[1]] = q
+        flat = policy.discretisation.flat_edges
+        edges[c, : flat.size] = flat
+        offsets[c] = policy.discretisation.offsets
+        actions[c, : policy.actions.size] = policy.actions
+    modes = np.array([p.discretisation.mode for p in policies], dtype=np.int64)
+    substeps = np.array([p.n_substeps for p in policies], dtype=np.int64)
+    return q_tables, modes, edges, offsets, actions, n_actions, substeps
+
+
+def run_plans(plans: Sequence[PlayerPlan], graph: Graph, n_samples: int) -> Array:
+    """Play a session of ``n_samples`` samples; return its channels, shape (4, N, n_samples).
+
+    The channels are positions, velocities, controls and references, as recorded by
+    `mirror_avatar.engine.loop.Engine`.
+    """
+    if n_samples < 2:
+        raise InputError("duration", "a session needs at least two samples")
+    packed = pack_session(plans, graph, n_samples - 1)
+    out = np.empty((4, len(plans), n_samples))
+    run_packed(
+        packed.kinds,
+        packed.params,
+        packed.references,
+        packed.tracks,
+        packed.track_lengths,
+        packed.slots,
+        packed.q_tables,
+        packed.modes,
+        packed.edges,
+        packed.offsets,
+        packed.actions,
+        packed.n_actions,
+        packed.substeps,
+        packed.neighbour_index,
+        packed.neighbour_count,
+        packed.starts,
+        out,
+    )
+    return out
+
+
+@njit(cache=True)
+def run_packed(
+    kinds: Ints,
+    params: NDArray[np.void],
+    references: Array,
+    tracks: Array,
+    track_lengths: Ints,
+    slots: Ints,
+    q_tables: Array,
+    modes: Ints,
+    edges: Array,
+    offsets: Ints,
+    actions: Array,
+    n_actions: Ints,
+    substeps: Ints,
+    neighbour_index: Ints,
+    neighbour_count: Ints,
+    starts: Array,
+    out: Array,
+) -> None:
+    """Advance every player from sample 0 to the last, writing ``out`` (4, N, n) in place.
+
+    Arguments are the fields of `PackedSession`; ``out`` receives positions, velocities,
+    controls and references (the last two NaN at the last sample and for players without).
+    """
+    n_players, n = kinds.size, out.shape[2]
+    out[:, :, :] = np.nan
+    for i in range(n_players):
+        out[0, i, 0] = starts[i, 0]
+        out[1, i, 0] = starts[i, 1]
+    xs, vs, previous = np.empty(n_players), np.empty(n_players), np.empty(n_players)
+    for k in range(n - 1):
+        for i in range(n_players):
+            m = neighbour_count[i]
+            gather_neighbours(out[0], out[1], k, neighbour_index[i, :m], xs, vs, previous)
+            x, v, reference = out[0, i, k], out[1, i, k], references[i, k]
+            u = np.nan
+            if kinds[i] == VIRTUAL_TRAINER:
+                x, v, u = virtual_trainer_step(
+                    params[i], x, v, xs[:m], vs[:m], previous[:m], reference
+                )
+            elif kinds[i] == RECORDED:
+                x, v = recorded_step(tracks[i, :, : track_lengths[i]], k)
+            else:
+                c = slots[i]
+                x, v, u = cyber_step(
+                    q_tables[c],
+                    modes[c],
+                    edges[c],
+                    offsets[c],
+                    actions[c, : n_actions[c]],
+                    params[i],
+                    substeps[c],
+                    x,
+                    v,
+                    xs[:m],
+                    vs[:m],
+                    reference,
+                )
+            out[0, i, k + 1] = x
+            out[1, i, k + 1] = v
+            out[2, i, k] = u
+            out[3, i, k] = reference

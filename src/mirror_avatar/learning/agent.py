@@ -1,0 +1,407 @@
+"""The cyber player: a Q-table avatar driving its own HKB end effector (METHODS section 7).
+
+Every control period T the avatar observes its own state and its partner's (the mean of its
+neighbours), finds the cell of that state (`mirror_avatar.learning.discretisation`), applies the
+acceleration of the best action of that cell, held over T, to its own Haken-Kelso-Bunz end
+effector (`mirror_avatar.dynamics.integrate_hkb`, a few RK4 substeps), and reports that control.
+At play time the policy is greedy; `mirror_avatar.learning.training.QLearner` fills the Q-table.
+
+Follows METHODS section 7; the **choice**s it leaves open, all configurable:
+
+- actions: 0, ±0.5, ±1, ±2, ±4 (units/s², the group's later code);
+- the end effector: `mirror_avatar.dynamics.FOLLOWER`'s (omega = 0.1 rad/s, alpha = 1, beta = 2,
+  gamma = -1, eta = 1e-4) unless other parameters are given;
+- the state discretisation (relative features by default);
+- position clipped to the playing range [-0.5, 0.5] after each period, and the velocity component
+  pushing further out set to zero (a hand stopped at the edge of the range);
+- alone (no neighbour), the avatar takes its own state as its partner's.
+
+`cyber_step` is the compiled step, called by `CyberPlayer.step` and by the compiled batch loop.
+
+A trained player is saved as one ``.npz`` file holding the Q-table, the bin edges, the action set
+and a JSON metadata string (format name ``mirror-avatar/cyber-player``), loaded with
+``allow_pickle=False`` (`save_cyber_player`, `load_cyber_player`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numba import njit
+from numpy.typing import ArrayLike, NDArray
+
+from mirror_avatar.dynamics import FOLLOWER, HKBParams, Record, integrate_hkb
+from mirror_avatar.errors import InputError
+from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.learning.discretisation import (
+    N_FEATURES,
+    Discretisation,
+    make_default_discretisation,
+    state_index,
+)
+from mirror_avatar.model_files import load_model, save_model
+from mirror_avatar.players.base import CYBER, Observation, Player, PlayerPlan, partner_state
+from mirror_avatar.players.reference import ReferenceTrack, draw_reference
+from mirror_avatar.seeds import entropy_of
+from mirror_avatar.trials import Trial
+
+if TYPE_CHECKING:
+    import os
+
+Array = NDArray[np.float64]
+
+DEFAULT_ACTIONS = (-4.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 4.0)
+"""The 9 accelerations (units/s²) the avatar can choose from (**choice**, METHODS section 7)."""
+
+DEFAULT_SUBSTEPS = 3
+"""RK4 substeps per control period of the avatar's end effector (**choice**)."""
+
+FORMAT_NAME = "mirror-avatar/cyber-player"
+FORMAT_VERSION = 1
+REFERENCE_PREFIX = "reference_"
+"""Prefix of the reference generator's arrays in a model file."""
+
+
+@njit(cache=True)
+def cyber_step(
+    q: Array,
+    mode: int,
+    edges: Array,
+    offsets: NDArray[np.int64],
+    actions: Array,
+    p: Record,
+    n_substeps: int,
+    x: float,
+    v: float,
+    positions: Array,
+    velocities: Array,
+    reference: float,
+) -> tuple[float, float, float]:
+    """Apply the greedy action for one period given the neighbours at t_k.
+
+    Parameters
+    ----------
+    q, mode, edges, offsets, actions, n_substeps
+        The policy (`GreedyPolicy`): Q-table (n_states, n_actions) and discretisation.
+    p
+        The end effector, a record of `mirror_avatar.dynamics.PARAMS_DTYPE`.
+    x, v
+        Own position (units) and velocity (units/s) at t_k.
+    positions, velocities
+        The neighbours' positions and velocities at t_k, shape (m,).
+    reference
+        Own reference velocity (units/s), used by ``"reference"`` features only.
+
+    Returns
+    -------
+    tuple of float
+        Position and velocity at t_k + T, and the acceleration applied (units/s²).
+    """
+    xp, vp, _ = partner_state(positions, velocities, positions, x, v)
+    u = actions[np.argmax(q[state_index(x, v, xp, vp, reference, mode, edges, offsets)])]
+    x, v = integrate_hkb(x, v, u, p, n_substeps)
+    return x, v, u
+
+
+@dataclass(frozen=True, eq=False)
+class GreedyPolicy:
+    """What a trained cyber player plays: its Q-table, cells and actions.
+
+    Attributes
+    ----------
+    q_table
+        Action values, shape (n_states, n_actions).
+    discretisation
+        The cells.
+    actions
+        Accelerations (units/s²), shape (n_actions,).
+    n_substeps
+        RK4 substeps per period.
+    """
+
+    q_table: Array
+    discretisation: Discretisation
+    actions: Array
+    n_substeps: int
+
+
+class CyberPlayer(Player):
+    """A Q-learning avatar (see the module docstring).
+
+    Parameters
+    ----------
+    discretisation
+        State discretisation; default `make_default_discretisation()` (relative features).
+    actions
+        Accelerations (units/s²) to choose from, default `DEFAULT_ACTIONS`.
+    params
+        The avatar's own end effector (alpha, beta, gamma, omega, eta and period are used; eta
+        weighs the control effort in the reward).
+    n_substeps
+        RK4 substeps per period.
+    initial_position
+        Position (units) returned by `reset`; the avatar starts at rest.
+    reference
+        The avatar's own motion source for ``"reference"`` features: an `IMSGenerator` (a
+        reference velocity is drawn at each `reset` from its seed, as a virtual trainer does) or
+        a recorded `Trial`. Unused by the other feature sets.
+    label
+        A name for the player (recorded in sessions).
+
+    Attributes
+    ----------
+    q_table_ : ndarray, shape (n_states, n_actions)
+        The learned action values; set by `initialise_q` or a learner, or by loading a file.
+    training_ : dict
+        Summary of how the Q-table was trained (seed, sessions, hyper-parameters, last scores).
+    """
+
+    q_table_: Array
+    training_: dict[str, Any]
+
+    def __init__(
+        self,
+        discretisation: Discretisation | None = None,
+        actions: ArrayLike = DEFAULT_ACTIONS,
+        params: HKBParams = FOLLOWER,
+        n_substeps: int = DEFAULT_SUBSTEPS,
+        initial_position: float = 0.0,
+        reference: IMSGenerator | Trial | None = None,
+        label: str = "cyber player",
+    ) -> None:
+        self.discretisation = discretisation
+        self.actions = actions
+        self.params = params
+        self.n_substeps = n_substeps
+        self.initial_position = initial_position
+        self.reference = reference
+        self.label = label
+        self.period = params.period
+        self.last_control = math.nan
+        self.last_reference = math.nan
+
+    @property
+    def stochastic(self) -> bool:  # type: ignore[override]
+        """True when every `reset` draws a fresh reference from a generator."""
+        return self.discretisation_.needs_reference and isinstance(self.reference, IMSGenerator)
+
+    @cached_property
+    def discretisation_(self) -> Discretisation:
+        """The discretisation in use (the default one when none was given), fixed on first use."""
+        return self.discretisation or make_default_discretisation()
+
+    @property
+    def actions_(self) -> Array:
+        """The action set as a float array, shape (n_actions,)."""
+        actions = np.asarray(self.actions, dtype=np.float64)
+        if actions.ndim != 1 or actions.size == 0 or not np.all(np.isfinite(actions)):
+            raise InputError("actions", "must be a non-empty list of finite accelerations")
+        return actions
+
+    @property
+    def policy_(self) -> GreedyPolicy:
+        """The greedy policy of the current Q-table."""
+        if not hasattr(self, "q_table_"):
+            raise InputError("cyber player", "has no Q-table: train it or load one first")
+        if self.n_substeps < 1:
+            raise InputError("cyber player", "n_substeps must be >= 1")
+        return GreedyPolicy(self.q_table_, self.discretisation_, self.actions_, self.n_substeps)
+
+    def initialise_q(self, random_state: int | np.random.Generator | None, scale: float) -> None:
+        """Fill `q_table_` with independent uniform values in [-scale, 0] (seeded)."""
+        rng = np.random.default_rng(random_state)
+        shape = (self.discretisation_.n_states, self.actions_.size)
+        self.q_table_ = -scale * rng.random(shape)
+
+    def reset(self, seed: int | None = None) -> tuple[float, float]:
+        """Start a trial at rest at `initial_position`.
+
+        The greedy policy is deterministic; with ``"reference"`` features the reference velocity
+        is drawn from ``seed`` (fresh entropy if None), otherwise ``seed`` changes nothing.
+        """
+        policy = self.policy_
+        self._policy = (
+            policy.q_table,
+            policy.discretisation.mode,
+            policy.discretisation.flat_edges,
+            policy.discretisation.offsets,
+            policy.actions,
+            self.params.record(),
+            policy.n_substeps,
+        )
+        self._references = self._reference_track(seed)
+        self._k = 0
+        self._state = (float(self.initial_position), 0.0)
+        self.last_control = self.last_reference = math.nan
+        return self._state
+
+    def _reference_track(self, seed: int | None) -> ReferenceTrack | None:
+        if not self.discretisation_.needs_reference:
+            return None
+        return ReferenceTrack(self._motion_source(), float(self.period), seed)
+
+    def _motion_source(self) -> IMSGenerator | Trial:
+        if self.reference is None:
+            raise InputError("cyber player", "reference features need a reference generator")
+        return self.reference
+
+    def step(self, observation: Observation) -> tuple[float, float]:
+        """Observe the neighbours, apply the greedy acceleration for one period, return (x, x')."""
+        q, mode, edges, offsets, actions, record, n_substeps = self._policy
+        if self._references is None:
+            r = 0.0
+        else:
+            r = self.last_reference = self._references[self._k]
+        self._k += 1
+        x, v, self.last_control = cyber_step(
+            q,
+            mode,
+            edges,
+            offsets,
+            actions,
+            record[0],
+            n_substeps,
+            self._state[0],
+            self._state[1],
+            observation.positions,
+            observation.velocities,
+            r,
+        )
+        self._state = (x, v)
+        return self._state
+
+    def parameters(self) -> dict[str, float | int]:
+        """Return the dynamics parameters, as saved in a model file."""
+        return self.params.to_dict() | {
+            "n_substeps": int(self.n_substeps),
+            "initial_position": float(self.initial_position),
+        }
+
+    def describe(self) -> dict[str, Any]:
+        """Class, label, parameters and feature set."""
+        return super().describe() | {
+            "params": self.parameters(),
+            "features": self.discretisation_.features,
+        }
+
+    def plan(self, seed: int, n_steps: int) -> PlayerPlan:
+        """Return the start, end effector, policy and the reference `reset(seed)` draws."""
+        reference = None
+        if self.discretisation_.needs_reference:
+            rng = np.random.default_rng(entropy_of(seed))
+            reference = draw_reference(self._motion_source(), n_steps, self.period, rng)
+        start = (float(self.initial_position), 0.0)
+        return PlayerPlan(CYBER, start, self.params, reference=reference, policy=self.policy_)
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the model to one ``.npz`` file atomically (see `save_cyber_player`)."""
+        return save_cyber_player(self, path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> CyberPlayer:
+        """Read a model written by `save` (see `load_cyber_player`)."""
+        return load_cyber_player(path)
+
+
+def save_cyber_player(player: CyberPlayer, path: str | os.PathLike[str]) -> Path:
+    """Write a trained player to ``path`` (one ``.npz``), atomically.
+
+    The file holds arrays ``q_table`` (n_states, n_actions), ``edges`` (all interior bin edges),
+    ``edge_counts`` (4,), ``actions`` (n_actions,) and the JSON metadata of
+    `mirror_avatar.model_files.save_model`: format name and version, the dynamics parameters, the
+    discretisation, the training summary and its seed. A player with ``"reference"`` features
+    also stores its reference generator (arrays prefixed ``reference_``, metadata
+    ``reference``), so the file alone plays.
+
+    Raises
+    ------
+    InputError
+        If a player with ``"reference"`` features has no `IMSGenerator` as its reference.
+    """
+    disc = player.discretisation_
+    training = getattr(player, "training_", {})
+    metadata: dict[str, Any] = {
+        "parameters": player.parameters(),
+        "discretisation": {"features": disc.features, "shape": list(disc.shape)},
+        "training": training,
+        "seed": training.get("seed"),
+    }
+    arrays = {
+        "q_table": player.q_table_,
+        "edges": disc.flat_edges,
+        "edge_counts": np.array([e.size for e in disc.edges], dtype=np.int64),
+        "actions": player.actions_,
+    }
+    if disc.needs_reference:
+        if not isinstance(player.reference, IMSGenerator):
+            raise InputError(path, "only a reference IMS generator can be saved with the player")
+        reference_arrays, metadata["reference"] = player.reference.to_arrays()
+        arrays |= {f"{REFERENCE_PREFIX}{k}": a for k, a in reference_arrays.items()}
+    return save_model(path, FORMAT_NAME, FORMAT_VERSION, arrays, metadata)
+
+
+def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
+    """Read a player written by `save_cyber_player`.
+
+    Raises
+    ------
+    InputError
+        ``path: problem`` when the file is missing, not a readable ``.npz`` (corrupt or
+        truncated), of another format or version, or internally inconsistent (for instance a
+        Q-table whose shape does not match the discretisation and action set).
+    """
+    arrays, metadata = load_model(
+        path, FORMAT_NAME, FORMAT_VERSION, ("q_table", "edges", "edge_counts", "actions")
+    )
+    counts = arrays["edge_counts"]
+    if counts.shape != (N_FEATURES,) or np.any(counts < 0) or counts.sum() != arrays["edges"].size:
+        raise InputError(path, "bin edge counts do not match the bin edges")
+    edges = np.split(arrays["edges"].astype(np.float64), np.cumsum(counts)[:-1])
+    try:
+        disc = Discretisation(metadata["discretisation"]["features"], tuple(edges))
+        player = _player_from_parameters(disc, arrays["actions"], dict(metadata["parameters"]))
+        actions = player.actions_
+    except (InputError, KeyError, TypeError) as error:
+        raise InputError(path, f"invalid model description ({error})") from None
+    q = arrays["q_table"]
+    if q.shape != (disc.n_states, actions.size):
+        raise InputError(
+            path,
+            f"Q-table shape {q.shape} does not match {disc.n_states} states x "
+            f"{actions.size} actions",
+        )
+    if q.dtype.kind != "f" or not np.all(np.isfinite(q)):
+        raise InputError(path, "Q-table must hold finite floating-point values")
+    player.q_table_ = q.astype(np.float64)
+    player.training_ = metadata.get("training", {})
+    if disc.needs_reference:
+        if not isinstance(metadata.get("reference"), dict):
+            raise InputError(path, "reference features but no reference generator in the file")
+        prefixed = {
+            k.removeprefix(REFERENCE_PREFIX): a
+            for k, a in arrays.items()
+            if k.startswith(REFERENCE_PREFIX)
+        }
+        player.reference = IMSGenerator.from_arrays(prefixed, metadata["reference"], path)
+    return player
+
+
+def _player_from_parameters(
+    disc: Discretisation, actions: ArrayLike, parameters: dict[str, Any]
+) -> CyberPlayer:
+    """Build the player a file's ``parameters`` describe (version 1 files lack theta_p)."""
+    n_substeps = int(parameters.pop("n_substeps"))
+    initial_position = float(parameters.pop("initial_position"))
+    parameters.setdefault("theta_p", 0.0)
+    return CyberPlayer(
+        disc,
+        actions,
+        params=HKBParams(**parameters),
+        n_substeps=n_substeps,
+        initial_position=initial_position,
+    )

@@ -1,0 +1,399 @@
+"""Training a cyber player: the `QLearner` estimator, its exploration schedule and learning curve.
+
+The learner consumes recorded sessions (`mirror_avatar.session.Session`, streamed: only one is
+held at a time) in which a **target player** plays with its neighbours; in each, the avatar takes
+the target's place and learns off-policy from what the target did (`learn_session`). As in
+scikit-learn's ``MiniBatchKMeans``, `QLearner.fit` (a fresh start) and `QLearner.partial_fit`
+(more sessions) share one per-session step, and the learner owns its state (trailing
+underscores). Exploration decreases monotonically from session to session; the Q-table starts
+random (seeded).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from tqdm.auto import tqdm
+
+from mirror_avatar.atomic import write_atomic_bytes
+from mirror_avatar.errors import InputError
+from mirror_avatar.learning.agent import CyberPlayer
+from mirror_avatar.learning.kernels import learn_session, mean_track
+from mirror_avatar.session import Session
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ExponentialEpsilon:
+    """Exploration probability decaying from ``start`` towards ``end``: strictly decreasing.
+
+    ``epsilon(i) = end + (start - end) * 0.5 ** (i / half_life)`` for session i = 0, 1, ...
+    (**choice**; any callable from session index to probability can be given to `QLearner`).
+    """
+
+    start: float = 0.5
+    end: float = 0.01
+    half_life: float = 30.0
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.end < self.start <= 1.0 and self.half_life > 0):
+            raise InputError("epsilon", "need 0 <= end < start <= 1 and half_life > 0")
+
+    def __call__(self, session: int) -> float:
+        """Epsilon for session ``session`` (counted from 0)."""
+        return self.end + (self.start - self.end) * 0.5 ** (session / self.half_life)
+
+
+CURVE_COLUMNS = ("sessions", "mean_reward", "rms", "epsilon")
+
+
+@dataclass
+class LearningCurve:
+    """Mean reward per step and RMS to the target, averaged over blocks of training sessions.
+
+    Attributes
+    ----------
+    sessions
+        Number of sessions trained at the end of each block.
+    mean_reward
+        Mean reward per step over the block.
+    rms
+        Mean over the block of each session's RMS position error to the target (units).
+    epsilon
+        Exploration probability of the block's last session.
+    """
+
+    sessions: list[int] = field(default_factory=list)
+    mean_reward: list[float] = field(default_factory=list)
+    rms: list[float] = field(default_factory=list)
+    epsilon: list[float] = field(default_factory=list)
+
+    def as_rows(self) -> list[dict[str, float]]:
+        """One dict per block."""
+        columns = (self.sessions, self.mean_reward, self.rms, self.epsilon)
+        return [
+            dict(zip(CURVE_COLUMNS, values, strict=True)) for values in zip(*columns, strict=True)
+        ]
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the curve as CSV (``.csv``) or JSON (any other suffix), atomically."""
+        path = Path(path)
+        if path.suffix.lower() == ".csv":
+            buffer = io.StringIO()
+            writer = csv.DictWriter(buffer, fieldnames=CURVE_COLUMNS)
+            writer.writeheader()
+            writer.writerows(self.as_rows())
+            data = buffer.getvalue().encode()
+        else:
+            data = json.dumps(self.as_rows(), indent=1).encode()
+        write_atomic_bytes(path, data)
+        return path
+
+
+@dataclass(frozen=True, eq=False)
+class ImitationTask:
+    """One session seen from the avatar in the target's place: arrays at the control period.
+
+    Attributes
+    ----------
+    partner_x, partner_v
+        Mean position (units) and velocity (units/s) of the target's neighbours, shape (n,).
+    target_x, target_v, target_r
+        The target's positions, velocities and reference velocities (units/s; its last,
+        undefined reference repeats the one before; NaN throughout when it has none).
+    """
+
+    partner_x: Array
+    partner_v: Array
+    target_x: Array
+    target_v: Array
+    target_r: Array
+
+    @classmethod
+    def from_session(cls, session: Session, target: int, period: float) -> ImitationTask:
+        """Take the target's place in ``session``.
+
+        Raises
+        ------
+        InputError
+            If the session is sampled at another period, has no player ``target``, the target
+            has no neighbour, or positions and velocities are not finite.
+        """
+        if not math.isclose(session.period, period):
+            raise InputError("sessions", f"sampled every {session.period} s, not every {period} s")
+        if not 0 <= target < session.n_players:
+            raise InputError("sessions", f"no player {target} in a session of {session.n_players}")
+        neighbours = np.flatnonzero(session.graph[target])
+        if neighbours.size == 0:
+            raise InputError("sessions", f"the target (player {target}) observes no one")
+        x, v = session.positions, session.velocities
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
+            raise InputError("sessions", "positions and velocities must be finite")
+        reference = session.references[target].copy()
+        if reference.size > 1 and np.isnan(reference[-1]):
+            reference[-1] = reference[-2]
+        return cls(
+            mean_track(x[neighbours]),
+            mean_track(v[neighbours]),
+            x[target],
+            v[target],
+            reference,
+        )
+
+
+def play_task(
+    player: CyberPlayer,
+    task: ImitationTask,
+    learning_rate: float,
+    discount: float,
+    epsilon: float,
+    rng: np.random.Generator,
+) -> tuple[float, float]:
+    """Play one task with `learn_session`, updating the Q-table when ``learning_rate`` > 0.
+
+    Returns
+    -------
+    mean_reward, rms : float
+        Mean reward per step and RMS position error to the target (units).
+
+    Raises
+    ------
+    InputError
+        If the player's features need the target's reference velocity and the task has none.
+    """
+    policy = player.policy_
+    disc = policy.discretisation
+    if disc.needs_reference and not np.all(np.isfinite(task.target_r)):
+        raise InputError("sessions", "reference features need the target's reference velocities")
+    total, rms = learn_session(
+        policy.q_table,
+        task.partner_x,
+        task.partner_v,
+        task.target_x,
+        task.target_v,
+        task.target_r,
+        disc.mode,
+        disc.flat_edges,
+        disc.offsets,
+        policy.actions,
+        player.params.record()[0],
+        policy.n_substeps,
+        learning_rate,
+        discount,
+        epsilon,
+        rng,
+    )
+    return total / max(task.target_x.size - 1, 1), rms
+
+
+def score_imitation(
+    player: CyberPlayer, sessions: Iterable[Session], target: int = 1
+) -> tuple[Array, Array]:
+    """Play each session greedily in the target's place (no learning, open loop).
+
+    Returns
+    -------
+    mean_reward, rms : ndarray, shape (n_sessions,)
+        Mean reward per step and RMS position error to the target (units) per session.
+    """
+    rng = np.random.default_rng(0)
+    scores = [
+        play_task(player, ImitationTask.from_session(s, target, player.period), 0.0, 0.0, 0.0, rng)
+        for s in sessions
+    ]
+    return np.array([r for r, _ in scores]), np.array([e for _, e in scores])
+
+
+class QLearner:
+    """Tabular Q-learning of a `CyberPlayer` from a stream of sessions.
+
+    Parameters
+    ----------
+    player
+        The cyber player to train, in place. Its Q-table is created (seeded) when training
+        starts unless it has one (a loaded checkpoint: training then continues from it,
+        counting sessions, and so epsilon, from its ``training_["n_sessions"]``).
+    target
+        Index of the target player in every session: the one the avatar learns to imitate.
+    learning_rate
+        Step size alpha of the Q update (**choice**).
+    discount
+        Discount factor gamma (**choice**; 0.95 looks about 20 periods = 0.6 s ahead).
+    epsilon
+        Callable giving the exploration probability of session i; must not increase with i.
+        Default `ExponentialEpsilon()`.
+    q_init_scale
+        Initial Q values are uniform in [-q_init_scale, 0] (**choice**).
+    block_size
+        Sessions per point of the learning curve.
+    checkpoint_every, checkpoint_path
+        Save the player to ``checkpoint_path`` every ``checkpoint_every`` sessions (and at the end).
+    progress
+        Show a tqdm progress bar: True, False, or None (only on a terminal).
+    random_state
+        Seed of the initial Q-table and of exploration; the same seed and sessions give the same
+        Q-table. None draws fresh entropy (recorded in ``player.training_["seed"]``).
+
+    Attributes
+    ----------
+    learning_curve_ : LearningCurve
+        Scores per block of sessions.
+    n_sessions_ : int
+        Sessions trained so far.
+    epsilon_ : float
+        Exploration probability of the last session trained (1 before training).
+    seed_ : int
+        The entropy the random generators were seeded from.
+    """
+
+    learning_curve_: LearningCurve
+    n_sessions_: int
+    epsilon_: float
+    seed_: int
+    rng_: np.random.Generator
+
+    def __init__(
+        self,
+        player: CyberPlayer,
+        target: int = 1,
+        learning_rate: float = 0.1,
+        discount: float = 0.95,
+        epsilon: Callable[[int], float] | None = None,
+        q_init_scale: float = 1e-3,
+        block_size: int = 10,
+        checkpoint_every: int | None = None,
+        checkpoint_path: str | os.PathLike[str] | None = None,
+        progress: bool | None = None,
+        random_state: int | None = None,
+    ) -> None:
+        self.player = player
+        self.target = target
+        self.learning_rate = learning_rate
+        self.discount = discount
+        self.epsilon = epsilon
+        self.q_init_scale = q_init_scale
+        self.block_size = block_size
+        self.checkpoint_every = checkpoint_every
+        self.checkpoint_path = checkpoint_path
+        self.progress = progress
+        self.random_state = random_state
+
+    def fit(self, sessions: Iterable[Session], total: int | None = None) -> QLearner:
+        """Start training afresh (seeded) and learn from ``sessions``; see `partial_fit`."""
+        self._validate()
+        self._start()
+        return self.partial_fit(sessions, total)
+
+    def partial_fit(self, sessions: Iterable[Session], total: int | None = None) -> QLearner:
+        """Learn from more sessions, continuing where the last call stopped.
+
+        Parameters
+        ----------
+        sessions
+            Sessions, consumed lazily: only one is held at a time.
+        total
+            Expected number of sessions, for the progress bar only.
+
+        Returns
+        -------
+        QLearner
+            ``self``, with `learning_curve_` and `n_sessions_` updated and ``player.training_``
+            summarising the training.
+        """
+        self._validate()
+        if not hasattr(self, "n_sessions_"):
+            self._start()
+        block: list[tuple[float, float]] = []
+        disable = None if self.progress is None else not self.progress
+        with tqdm(total=total, disable=disable, unit="session") as bar:
+            for session in sessions:
+                block.append(self._learn(session))
+                if len(block) == self.block_size:
+                    self._close_block(block)
+                self._maybe_checkpoint()
+                bar.update()
+        if block:
+            self._close_block(block)
+        self.player.training_ = self.summary()
+        if self.checkpoint_path is not None:
+            self.player.save(self.checkpoint_path)
+        return self
+
+    def _learn(self, session: Session) -> tuple[float, float]:
+        """Learn from one session: the step `fit` and `partial_fit` share."""
+        task = ImitationTask.from_session(session, self.target, self.player.period)
+        eps = self._epsilon(self.epsilon or ExponentialEpsilon())
+        scores = play_task(self.player, task, self.learning_rate, self.discount, eps, self.rng_)
+        self.n_sessions_ += 1
+        return scores
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-serialisable summary of the training so far (saved with the model)."""
+        curve = self.learning_curve_
+        return {
+            "seed": self.seed_,
+            "n_sessions": self.n_sessions_,
+            "learning_rate": self.learning_rate,
+            "discount": self.discount,
+            "epsilon": repr(self.epsilon or ExponentialEpsilon()),
+            "q_init_scale": self.q_init_scale,
+            "final_mean_reward": curve.mean_reward[-1] if curve.mean_reward else None,
+            "final_rms": curve.rms[-1] if curve.rms else None,
+        }
+
+    def _epsilon(self, schedule: Callable[[int], float]) -> float:
+        eps = float(schedule(self.n_sessions_))
+        if not 0.0 <= eps <= self.epsilon_:
+            raise InputError(
+                "epsilon",
+                f"schedule gave {eps} at session {self.n_sessions_}: "
+                "epsilon must lie in [0, 1] and never increase",
+            )
+        self.epsilon_ = eps
+        return eps
+
+    def _validate(self) -> None:
+        if not 0.0 < self.learning_rate <= 1.0:
+            raise InputError("learning_rate", f"must be in (0, 1], got {self.learning_rate}")
+        if not 0.0 <= self.discount < 1.0:
+            raise InputError("discount", f"must be in [0, 1), got {self.discount}")
+        if self.block_size < 1:
+            raise InputError("block_size", f"must be at least 1, got {self.block_size}")
+        if self.checkpoint_every is not None and self.checkpoint_path is None:
+            raise InputError("checkpoint_every", "needs a checkpoint_path")
+
+    def _start(self) -> None:
+        sequence = np.random.SeedSequence(self.random_state)
+        self.seed_ = int(sequence.entropy)  # type: ignore[arg-type]
+        q_seed, explore_seed = sequence.spawn(2)
+        if not hasattr(self.player, "q_table_"):
+            self.player.initialise_q(np.random.default_rng(q_seed), self.q_init_scale)
+        self.rng_ = np.random.default_rng(explore_seed)
+        self.n_sessions_ = int(getattr(self.player, "training_", {}).get("n_sessions", 0))
+        self.epsilon_ = 1.0
+        self.learning_curve_ = LearningCurve()
+
+    def _close_block(self, block: list[tuple[float, float]]) -> None:
+        rewards, rms = np.array(block).T
+        curve = self.learning_curve_
+        curve.sessions.append(self.n_sessions_)
+        curve.mean_reward.append(float(rewards.mean()))
+        curve.rms.append(float(rms.mean()))
+        curve.epsilon.append(self.epsilon_)
+        block.clear()
+
+    def _maybe_checkpoint(self) -> None:
+        if self.checkpoint_every and self.n_sessions_ % self.checkpoint_every == 0:
+            self.player.training_ = self.summary()
+            self.player.save(self.checkpoint_path)  # type: ignore[arg-type]

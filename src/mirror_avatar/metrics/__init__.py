@@ -1,0 +1,40 @@
+"""Coordination metrics: functions on arrays, composed into one `session_metrics`.
+
+`coordination` measures two position series (RMSE, relative phase, the paper's circular
+variance, time lag and cross-correlation, paired t-tests; METHODS section 6), `group` the
+synchronisation of N players (cluster phase, METHODS section 8), and `summary` composes them
+into `session_metrics`, the one summary of a session every part of the toolkit reports.
+"""
+
+from mirror_avatar.metrics.coordination import (
+    TTest,
+    compute_circular_sd,
+    compute_circular_variance,
+    compute_cross_correlation_peak,
+    compute_mean_relative_phase,
+    compute_phase,
+    compute_relative_phase,
+    compute_rmse,
+    compute_time_lag,
+    paired_ttest,
+    wrap_phase,
+)
+from mirror_avatar.metrics.group import ClusterPhase, compute_cluster_phase
+from mirror_avatar.metrics.summary import session_metrics
+
+__all__ = [
+    "ClusterPhase",
+    "TTest",
+    "compute_circular_sd",
+    "compute_circular_variance",
+    "compute_cluster_phase",
+    "compute_cross_correlation_peak",
+    "compute_mean_relative_phase",
+    "compute_phase",
+    "compute_relative_phase",
+    "compute_rmse",
+    "compute_time_lag",
+    "paired_ttest",
+    "session_metrics",
+    "wrap_phase",
+]

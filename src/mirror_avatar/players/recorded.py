@@ -1,0 +1,98 @@
+"""A recorded trial replayed open-loop: the player ignores its neighbours.
+
+`recorded_step` is the compiled step, called by `RecordedPlayer.step` and by the compiled batch
+loop.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from mirror_avatar.dynamics import CONTROL_PERIOD
+from mirror_avatar.players.base import RECORDED, Observation, Player, PlayerPlan
+from mirror_avatar.trials import PLAYING_RANGE, Trial
+
+Array = NDArray[np.float64]
+
+
+@njit(cache=True)
+def recorded_step(track: Array, k: int) -> tuple[float, float]:
+    """Return the recording at sample k + 1; past its end, the last position at rest.
+
+    Parameters
+    ----------
+    track
+        Positions (units) and velocities (units/s) on the control grid, shape (2, L).
+    k
+        The current sample.
+    """
+    if k + 1 < track.shape[1]:
+        return track[0, k + 1], track[1, k + 1]
+    return track[0, track.shape[1] - 1], 0.0
+
+
+class RecordedPlayer(Player):
+    """A recorded trial replayed as it was recorded (see the module docstring).
+
+    Positions and velocities (METHODS section 2) are interpolated onto the control grid; after
+    the end of the recording the player stays still at its last position.
+
+    Parameters
+    ----------
+    trial
+        The recording.
+    period
+        Control period (s).
+
+    Attributes
+    ----------
+    track : ndarray, shape (2, L)
+        Positions (units) and velocities (units/s) on the control grid.
+    """
+
+    def __init__(self, trial: Trial, period: float = CONTROL_PERIOD) -> None:
+        offsets = trial.times - trial.times[0]
+        n_steps = int(math.floor(offsets[-1] / period)) + 1
+        grid = np.arange(n_steps) * period
+        positions = np.clip(np.interp(grid, offsets, trial.positions), *PLAYING_RANGE)
+        self.track = np.vstack([positions, np.interp(grid, offsets, trial.velocity())])
+        self.period = period
+        self.label = trial.label or "recorded trial"
+        self.source = str(trial.metadata.get("source", ""))
+
+    @classmethod
+    def on_grid(
+        cls, positions: Array, velocities: Array, period: float, label: str = "recorded player"
+    ) -> RecordedPlayer:
+        """Replay positions (units) and velocities (units/s) already on the control grid, (L,)."""
+        player = cls.__new__(cls)
+        player.track = np.vstack([positions, velocities]).astype(np.float64)
+        player.period = period
+        player.label = label
+        player.source = ""
+        return player
+
+    def reset(self, seed: int | None = None) -> tuple[float, float]:
+        """Rewind to the start of the recording (``seed`` changes nothing)."""
+        self._k = 0
+        return float(self.track[0, 0]), float(self.track[1, 0])
+
+    def step(self, observation: Observation) -> tuple[float, float]:
+        """Return the recording one period later, whatever the neighbours do."""
+        x, v = recorded_step(self.track, self._k)
+        self._k += 1
+        return x, v
+
+    def describe(self) -> dict[str, Any]:
+        """Class, label and the recording's source."""
+        return super().describe() | {"source": self.source}
+
+    def plan(self, seed: int, n_steps: int) -> PlayerPlan:
+        """Return the recording on the control grid (``seed`` changes nothing)."""
+        start = (float(self.track[0, 0]), float(self.track[1, 0]))
+        return PlayerPlan(RECORDED, start, track=self.track)

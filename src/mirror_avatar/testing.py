@@ -1,0 +1,205 @@
+"""Test support, as ``numpy.testing`` is for numpy: what the tests and the benchmarks share.
+
+Slow, obvious reference implementations the compiled code is checked and timed against
+(`solve_step_bvp`, `python_learn_session`), tasks with known answers (`make_follower_sessions`),
+and a real live server on a loopback port (`ServerThread`). Nothing else in the package uses it.
+"""
+
+from __future__ import annotations
+
+import math
+import socket
+import threading
+import time
+from collections.abc import Iterable
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.integrate import solve_bvp
+from starlette.types import ASGIApp
+
+from mirror_avatar.dynamics import CONTROL_PERIOD, HKBParams
+from mirror_avatar.errors import InputError
+from mirror_avatar.learning.agent import CyberPlayer
+from mirror_avatar.learning.kernels import VELOCITY_WEIGHT
+from mirror_avatar.live.server import make_server
+from mirror_avatar.session import Session
+from mirror_avatar.trials import Trial
+
+Array = NDArray[np.float64]
+
+
+def solve_step_bvp(
+    params: HKBParams,
+    x0: float,
+    y0: float,
+    rp: float,
+    rs: float,
+    rv: float,
+    tol: float = 1e-8,
+    n_nodes: int = 100,
+) -> tuple[float, float, float]:
+    """One optimal-control step by scipy's collocation solver on the nonlinear BVP of METHODS 5.
+
+    With ``tol=1e-3`` and ``n_nodes=10`` this is what the original implementation's bvp4c did at
+    every step; the default is a tight solution to check the compiled step against.
+
+    Returns
+    -------
+    tuple of float
+        Position and velocity at the end of the interval (not clipped) and the control at its
+        start (units, units/s, units/s²).
+    """
+    a, b, g, w, eta = params.alpha, params.beta, params.gamma, params.omega, params.eta
+    tp, tv, ts = params.theta_p, params.theta_v, params.theta_s
+
+    def rhs(_t: Array, z: Array) -> Array:
+        x, y, l1, l2 = z
+        return np.vstack(
+            [
+                y,
+                -(a * x * x + b * y * y - g) * y - w * w * x - l2 / eta,
+                l2 * (2 * a * x * y + w * w),
+                l2 * (a * x * x + 3 * b * y * y - g) - l1 - ts * (y - rs) - tv * (y - rv),
+            ]
+        )
+
+    def boundary(za: Array, zb: Array) -> Array:
+        return np.array([za[0] - x0, za[1] - y0, zb[2] - tp * (zb[0] - rp), zb[3]])
+
+    t = np.linspace(0.0, params.period, n_nodes)
+    guess = np.zeros((4, t.size))
+    guess[0], guess[1] = x0 + y0 * t, y0
+    solution = solve_bvp(rhs, boundary, t, guess, tol=tol, max_nodes=100_000)
+    if not solution.success:
+        raise RuntimeError(f"solve_bvp failed: {solution.message}")
+    x_end, y_end = solution.sol(params.period)[:2]
+    return float(x_end), float(y_end), float(-solution.sol(0.0)[3] / eta)
+
+
+def python_learn_session(
+    player: CyberPlayer,
+    partner_x: Array,
+    partner_v: Array,
+    target_x: Array,
+    target_v: Array,
+    target_r: Array,
+    learning_rate: float,
+    discount: float,
+    epsilon: float,
+    rng: np.random.Generator,
+) -> tuple[float, float]:
+    """Q-learn one session in plain Python, as `mirror_avatar.learning.kernels.learn_session` does.
+
+    Updates ``player.q_table_`` in place; returns the sum of rewards and the RMS to the target.
+    """
+    q, disc, actions = player.q_table_, player.discretisation_, list(player.actions_)
+    p, n_substeps = player.params, int(player.n_substeps)
+    h = p.period / n_substeps
+
+    def acc(x: float, v: float, u: float) -> float:
+        return -(p.alpha * x * x + p.beta * v * v - p.gamma) * v - p.omega**2 * x + u
+
+    def cell(x: float, v: float, k: int) -> int:
+        if disc.features == "reference":
+            features = (x - partner_x[k], v - target_r[k], x, target_r[k])
+        elif disc.features == "relative":
+            features = (x - partner_x[k], v - partner_v[k], partner_x[k], partner_v[k])
+        else:
+            features = (x, v, partner_x[k], partner_v[k])
+        index = 0
+        for f, edges in zip(features, disc.edges, strict=True):
+            index = index * (len(edges) + 1) + sum(1 for edge in edges if f >= edge)
+        return index
+
+    x, v = float(target_x[0]), float(target_v[0])
+    total = squares = 0.0
+    for k in range(len(partner_x) - 1):
+        s = cell(x, v, k)
+        a = int(rng.integers(0, len(actions))) if rng.random() < epsilon else int(np.argmax(q[s]))
+        u = actions[a]
+        for _ in range(n_substeps):
+            a1 = acc(x, v, u)
+            x2, v2 = x + h / 2 * v, v + h / 2 * a1
+            a2 = acc(x2, v2, u)
+            x3, v3 = x + h / 2 * v2, v + h / 2 * a2
+            a3 = acc(x3, v3, u)
+            x4, v4 = x + h * v3, v + h * a3
+            a4 = acc(x4, v4, u)
+            x, v = x + h / 6 * (v + 2 * v2 + 2 * v3 + v4), v + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
+        if abs(x) > 0.5:
+            x, v = math.copysign(0.5, x), (min(v, 0.0) if x > 0 else max(v, 0.0))
+        r = -((x - target_x[k + 1]) ** 2) - VELOCITY_WEIGHT * (v - target_v[k + 1]) ** 2
+        r -= p.eta * u * u
+        q[s, a] += learning_rate * (r + discount * max(q[cell(x, v, k + 1)]) - q[s, a])
+        total += r
+        squares += (x - target_x[k + 1]) ** 2
+    return total, math.sqrt(squares / (len(partner_x) - 1))
+
+
+def make_follower_sessions(
+    trials: Iterable[Trial], lag: float = 0.3, period: float = CONTROL_PERIOD
+) -> list[Session]:
+    """Dyads from recorded trials with a known answer: a perfect follower with a fixed delay.
+
+    Each trial, resampled to 1 / period, is player 0 (the partner); player 1 (the target) is
+    the same motion ``lag`` seconds later (rounded to whole periods, at least one). Trials are
+    cut to the shortest one.
+    """
+    shift = max(round(lag / period), 1)
+    pairs = []
+    for trial in trials:
+        uniform = trial.resampled(1.0 / period)
+        x, v = uniform.positions, uniform.velocity()
+        pairs.append((np.stack([x[shift:], x[:-shift]]), np.stack([v[shift:], v[:-shift]])))
+    if not pairs:
+        raise InputError("trials", "no trials to build sessions from")
+    n = min(x.shape[1] for x, _ in pairs)
+    times = np.arange(n) * period
+    return [
+        Session(times, x[:, :n], v[:, :n], np.full((2, n), np.nan), np.full((2, n), np.nan))
+        for x, v in pairs
+    ]
+
+
+class ServerThread:
+    """Run an ASGI app on a free loopback port in a background thread (a context manager).
+
+    Used by the tests and the benchmark to talk to a real server over real sockets.
+
+    Parameters
+    ----------
+    app
+        The application to serve.
+    host
+        Address to bind (port chosen by the operating system).
+    """
+
+    def __init__(self, app: ASGIApp, host: str = "127.0.0.1") -> None:
+        self.socket = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.socket.bind((host, 0))
+        self.host, self.port = self.socket.getsockname()[:2]
+        self.server = make_server(app, self.host, self.port)
+        self.thread = threading.Thread(
+            target=self.server.run, kwargs={"sockets": [self.socket]}, daemon=True
+        )
+
+    @property
+    def url(self) -> str:
+        """The server's base HTTP URL."""
+        return f"http://{self.host}:{self.port}"
+
+    def __enter__(self) -> ServerThread:
+        self.thread.start()
+        deadline = time.monotonic() + 10.0
+        while not self.server.started:
+            if time.monotonic() > deadline or not self.thread.is_alive():
+                raise RuntimeError("the live server did not start")
+            time.sleep(0.01)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.server.should_exit = True
+        self.thread.join(10.0)
+        self.socket.close()
