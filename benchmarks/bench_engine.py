@@ -115,6 +115,8 @@ def run(quick: bool) -> list[dict]:
     trainer = pairs[0][1]
     trainer.reset(seed=0)
     seen = [Observation.of_partner(k, 0.1 * np.sin(0.03 * k), 0.0, 0.0) for k in range(1000)]
+    for observation in seen[:10]:  # load the compiled step in this process
+        trainer.step(observation)
     start = time.perf_counter()
     for observation in seen:
         trainer.step(observation)

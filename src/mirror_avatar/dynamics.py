@@ -164,12 +164,25 @@ def records(params: Sequence[HKBParams | None]) -> NDArray[np.void]:
     return table
 
 
-ROLES = ("leader", "follower", "joint")
-_PRESETS = {"leader": LEADER, "follower": FOLLOWER, "joint": JOINT}
+GROUP = HKBParams(omega=0.75, theta_p=0.8, theta_v=0.05)
+"""A member of a group improvising together (METHODS section 8): the middle of the group's later
+code's ranges, theta_p 0.75-0.85, theta_s 0.1-0.2, theta_v 0.05, omega 0.5-1 (so theta_s = 0.15)."""
+
+GROUP_LEADER = HKBParams(omega=0.75, theta_p=0.2)
+"""A group's leader (METHODS section 8: theta_p 0.2, theta_s 0.8)."""
+
+ROLES = ("leader", "follower", "joint", "group", "group_leader")
+_PRESETS = {
+    "leader": LEADER,
+    "follower": FOLLOWER,
+    "joint": JOINT,
+    "group": GROUP,
+    "group_leader": GROUP_LEADER,
+}
 
 
 def preset(role: str) -> HKBParams:
-    """Return the parameters of a role: ``"leader"``, ``"follower"`` or ``"joint"``."""
+    """Return the parameters of a role preset, one of `ROLES`."""
     try:
         return _PRESETS[role]
     except KeyError:
@@ -494,8 +507,23 @@ def integrate_hkb(x: float, v: float, u: float, p: Record, n_substeps: int) -> t
         Position and velocity at the end of the period; the position is clipped to [-0.5, 0.5]
         and an outward velocity at the boundary is set to zero.
     """
-    h = p.period / n_substeps
-    alpha, beta, gamma, omega = p.alpha, p.beta, p.gamma, p.omega
+    return advance_hkb(x, v, u, p.alpha, p.beta, p.gamma, p.omega, p.period, n_substeps)
+
+
+@njit(cache=True)
+def advance_hkb(
+    x: float,
+    v: float,
+    u: float,
+    alpha: float,
+    beta: float,
+    gamma: float,
+    omega: float,
+    period: float,
+    n_substeps: int,
+) -> tuple[float, float]:
+    """`integrate_hkb` with the parameters as numbers, for loops that hold them in registers."""
+    h = period / n_substeps
     for _ in range(n_substeps):
         a1 = hkb_acceleration(x, v, u, alpha, beta, gamma, omega)
         x2, v2 = x + 0.5 * h * v, v + 0.5 * h * a1

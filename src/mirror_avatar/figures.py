@@ -190,13 +190,84 @@ def plot_positions(
     title
         Axes title.
     """
+    return plot_series(times, positions, "position (units)", title)
+
+
+def plot_series(
+    times: ArrayLike, series: Mapping[str, ArrayLike], ylabel: str, title: str
+) -> Figure:
+    """Several time series on one time axis (s), one line each.
+
+    Parameters
+    ----------
+    times
+        Sample times (s), shape (n,).
+    series
+        Name -> values, shape (n,).
+    ylabel, title
+        Axis label (with units) and axes title.
+    """
     figure, axes = _new_figure()
-    colours = _colours(list(positions))
+    colours = _colours(list(series))
     t = np.asarray(times, dtype=np.float64)
-    for name, x in positions.items():
-        axes.plot(t, np.asarray(x, dtype=np.float64), color=colours[name], lw=1.2, label=name)
-    axes.set(xlabel="time (s)", ylabel="position (units)", title=title)
+    for name, values in series.items():
+        axes.plot(t, np.asarray(values, dtype=np.float64), color=colours[name], lw=1.2, label=name)
+    axes.set(xlabel="time (s)", ylabel=ylabel, title=title)
     axes.legend(frameon=False)
+    return figure
+
+
+def plot_bars(
+    values: Mapping[str, Mapping[str, float]], ylabel: str, title: str, limit: float | None = None
+) -> Figure:
+    """Draw grouped bars: for each category (x axis), one bar per series.
+
+    Parameters
+    ----------
+    values
+        Series name -> category -> value; every series has the same categories.
+    ylabel, title
+        Axis label and axes title.
+    limit
+        Optional value drawn as a dashed horizontal line (a threshold).
+    """
+    figure, axes = _new_figure()
+    names = list(values)
+    categories = list(next(iter(values.values())))
+    colours = _colours(names)
+    width = 0.8 / len(names)
+    x = np.arange(len(categories))
+    for i, name in enumerate(names):
+        heights = [values[name][c] for c in categories]
+        axes.bar(x + (i - (len(names) - 1) / 2) * width, heights, width, color=colours[name],
+                 label=name)  # fmt: skip
+    if limit is not None:
+        axes.axhline(limit, color="0.4", ls="--", lw=1.0)
+    axes.set_xticks(x, categories)
+    axes.set(ylabel=ylabel, title=title)
+    axes.legend(frameon=False)
+    return figure
+
+
+def plot_graph(adjacency: ArrayLike, labels: list[str], title: str = "Who observes whom") -> Figure:
+    """Draw a coupling graph, players on a circle; an arrow k -> j when only k observes j."""
+    figure, axes = _new_figure()
+    links = np.asarray(adjacency) != 0
+    n = links.shape[0]
+    angles = np.pi / 2 - 2 * np.pi * np.arange(n) / n
+    xy = np.column_stack([np.cos(angles), np.sin(angles)])
+    for k in range(n):
+        for j in range(n):
+            if links[k, j] and (k < j or not links[j, k]):
+                style = "-" if links[j, k] else "->"
+                arrow = {"arrowstyle": style, "color": "0.45", "lw": 1.5}
+                axes.annotate("", xy=xy[j], xytext=xy[k], arrowprops=arrow)
+    colours = _colours(labels)
+    for k, label in enumerate(labels):
+        axes.scatter(xy[k, 0], xy[k, 1], s=600, color=colours[label], zorder=3)
+        axes.annotate(label, xy[k] * 1.28, ha="center", va="center")
+    axes.set(xlim=(-1.6, 1.6), ylim=(-1.5, 1.5), title=title, aspect="equal")
+    axes.set_axis_off()
     return figure
 
 

@@ -8,7 +8,10 @@ graph on two players; a player alone (N = 1) has no neighbour.
 
 from __future__ import annotations
 
+import json
+import os
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -101,6 +104,69 @@ def make_graph(topology: str, n: int, rng: np.random.Generator | None = None) ->
     if topology not in builders:
         raise InputError("graph", f"unknown topology {topology!r}; expected one of {TOPOLOGIES}")
     return builders[topology](n)
+
+
+def graph_source(spec: str, n_players: int, connected: bool = True) -> GraphSource:
+    """Return the graph a command-line ``--graph`` names, for sessions of ``n_players``.
+
+    Parameters
+    ----------
+    spec
+        A topology of `TOPOLOGIES` (``random``: a new connected graph for every session) or an
+        adjacency matrix file (`read_graph`).
+    n_players
+        The number of players the graph must cover.
+    connected
+        Whether a graph from a file must be connected.
+
+    Raises
+    ------
+    InputError
+        Naming the file or option and the problem.
+    """
+    if spec == "random":
+        return random_connected_graph
+    if spec in TOPOLOGIES:
+        return make_graph(spec, n_players)
+    path = Path(spec)
+    if not path.suffix:
+        raise InputError(spec, f"not a topology ({', '.join(TOPOLOGIES)}) or a .csv/.json file")
+    try:
+        return check_graph(read_graph(path), n_players, connected)
+    except InputError as error:
+        raise InputError(path, error.problem) from None
+
+
+def read_graph(path: str | os.PathLike[str]) -> Graph:
+    """Read an adjacency matrix from a file.
+
+    CSV: rows of 0 and 1 separated by commas. JSON: a list of rows, or an object whose
+    ``"adjacency"`` is one. Validated by `check_graph` without requiring connectedness.
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable file, or not an adjacency matrix.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise InputError(path, f"cannot read the graph ({type(error).__name__})") from None
+    if path.suffix.lower() == ".json":
+        try:
+            value = json.loads(text)
+        except ValueError:
+            raise InputError(path, "not valid JSON") from None
+        rows = value.get("adjacency", []) if isinstance(value, dict) else value
+    elif path.suffix.lower() == ".csv":
+        rows = [line.split(",") for line in text.splitlines() if line.strip()]
+    else:
+        raise InputError(path, "a graph file must be .csv or .json")
+    try:
+        return check_graph(rows, connected=False)
+    except InputError as error:
+        raise InputError(path, error.problem) from None
 
 
 def draw_graph(source: GraphSource, n_players: int, seed: int) -> Graph:

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import scipy.io
 
-from mirror_avatar.atomic import atomic_path, write_atomic_text
+from mirror_avatar.atomic import atomic_path, write_atomic_json, write_atomic_text
 from mirror_avatar.errors import InputError
 from mirror_avatar.trials import Trial, make_trial
 
@@ -249,7 +249,7 @@ def write_bids_motion(trial: Trial, path: str | Path) -> None:
     }
     write_atomic_text(path, "".join(f"{x!r}\n" for x in trial.positions.tolist()))
     json_path = path.with_name(path.name[: -len(".tsv")] + ".json")
-    write_atomic_text(json_path, json.dumps(sidecar, indent=2))
+    write_atomic_json(json_path, sidecar)
 
 
 def read_trial(path: str | Path) -> Trial:

@@ -27,7 +27,12 @@ from mirror_avatar.learning.imitation import (
     make_virtual_trainers,
     train_cyber_player,
 )
-from mirror_avatar.learning.training import ImitationTask, play_task, score_imitation
+from mirror_avatar.learning.training import (
+    ImitationTask,
+    play_task,
+    policy_arguments,
+    score_imitation,
+)
 from mirror_avatar.model_files import read_archive, save_model
 from mirror_avatar.players import check_player
 from mirror_avatar.trials import Trial
@@ -152,7 +157,7 @@ def test_training_learns_from_exactly_the_batch_sessions(
     for i, session in enumerate(chunk):
         task = ImitationTask.from_session(session, 1, session.period)
         epsilon = 0.01 + 0.49 * 0.5 ** (i / 1.0)
-        scores.append(play_task(replay, task, 0.1, 0.95, epsilon, rng))
+        scores.append(play_task(policy_arguments(replay), task, 0.1, 0.95, epsilon, rng))
     np.testing.assert_allclose(replay.q_table_, player.q_table_)
     assert curve.rms == pytest.approx([s[1] for s in scores])
 

@@ -12,6 +12,7 @@ from mirror_avatar.learning.kernels import (
     mean_track,
     update_q,
 )
+from mirror_avatar.players.base import neighbour_mean
 from mirror_avatar.testing import make_follower_sessions, python_learn_session
 
 
@@ -57,8 +58,10 @@ def test_choose_action_is_greedy_without_exploration(rng):
     assert set(picks) == set(range(9))
 
 
-def test_mean_track_is_the_mean_of_the_neighbours(rng):
+def test_mean_track_is_what_players_see(rng):
     tracks = rng.normal(size=(3, 40))
+    expected = [neighbour_mean(np.ascontiguousarray(tracks[:, k])) for k in range(40)]
+    np.testing.assert_array_equal(mean_track(tracks), expected)
     np.testing.assert_allclose(mean_track(tracks), tracks.mean(axis=0), rtol=1e-14)
     np.testing.assert_array_equal(mean_track(tracks[:1]), tracks[0])
 

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import importlib
-import json
 from pathlib import Path
 
 import click
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.atomic import write_atomic_text
+from mirror_avatar.atomic import write_atomic_json, write_atomic_text
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator, sweep_codebook
@@ -101,7 +100,7 @@ def sample(
         "rate": rate,
         "files": names,
     }
-    write_atomic_text(out_dir / "samples.json", json.dumps(manifest, indent=2) + "\n")
+    write_atomic_json(out_dir / "samples.json", manifest)
     click.echo(f"{count} trials of {duration:g} s -> {out_dir}")
 
 

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import importlib
-import json
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
 import click
 
+from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_ims, plot_similarity_space, plot_skew_kurtosis
@@ -68,7 +68,7 @@ def signature(
     trials = (read_grouped(paths, group_by) if paths else []) + (load_zhai2017() if bundled else [])
     analysis = analyse_signatures(trials, level=level, rate=rate)
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "signature.json").write_text(json.dumps(analysis.to_json_dict(), indent=2) + "\n")
+    write_atomic_json(out_dir / "signature.json", analysis.to_json_dict())
     figures = {
         "ims.png": plot_ims(
             dict(zip(analysis.group_names, analysis.group_ims, strict=True)), analysis.bins

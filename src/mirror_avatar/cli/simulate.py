@@ -8,6 +8,7 @@ from typing import Any
 
 import click
 
+from mirror_avatar.atomic import json_safe, write_atomic_json
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.metrics import session_metrics
@@ -56,7 +57,7 @@ def _write_outputs(session: Session, out_dir: Path, summary: dict[str, Any]) -> 
     session.save(out_dir / "session.parquet")
     session.save_csv(out_dir / "session.csv")
     metrics_path = out_dir / "metrics.json"
-    metrics_path.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    write_atomic_json(metrics_path, summary)
     return metrics_path
 
 
@@ -138,4 +139,4 @@ def evaluate(session_path: Path, trim: float, as_json: bool) -> None:
     Relative phase and time lag are player 0 minus player 1: positive when player 0 is ahead.
     """
     metrics = session_metrics(load_session(session_path), trim=trim)
-    click.echo(json.dumps(metrics, indent=2) if as_json else format_metrics(metrics))
+    click.echo(json.dumps(json_safe(metrics), indent=2) if as_json else format_metrics(metrics))

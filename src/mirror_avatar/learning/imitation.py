@@ -25,7 +25,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -33,6 +33,7 @@ from mirror_avatar import dynamics
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.graphs import GraphSource, random_connected_graph
 from mirror_avatar.learning.agent import DEFAULT_ACTIONS, CyberPlayer
 from mirror_avatar.learning.discretisation import (
     Discretisation,
@@ -188,6 +189,17 @@ def make_role_discretisation(role: Role) -> Discretisation:
     return Discretisation("relative", own + make_default_discretisation("relative").edges[2:])
 
 
+def make_group_discretisation() -> Discretisation:
+    """Make the state discretisation of a cyber player in a group (**choice**).
+
+    Relative features ``[x - m, x' - m', m, m']`` with m the mean position of its neighbours (the
+    partner of METHODS section 8, for the tabular player), cut as the follower's
+    (`make_role_discretisation`): a group member's position weight (theta_p 0.8) makes it
+    mostly follow the group's mean.
+    """
+    return make_role_discretisation("follower")
+
+
 def make_cyber_player(
     role: Role, reference: Reference | None = None, action_scale: float = ACTION_SCALE
 ) -> CyberPlayer:
@@ -215,8 +227,11 @@ def make_learner(
     checkpoint: str | os.PathLike[str] | None = None,
     checkpoint_every: int | None = None,
     progress: bool | None = None,
+    target: int = 1,
 ) -> QLearner:
     """Make the `QLearner` for a run of ``n_sessions`` (**choice**s scaled to the run's length).
+
+    It learns to imitate player ``target`` of the sessions.
 
     Exploration decays from 0.5 to 0.01 with a half-life of ``n_sessions / EPSILON_HALF_LIVES``
     sessions, and the learning curve has about `CURVE_POINTS` points; learning rate 0.1 and
@@ -224,6 +239,7 @@ def make_learner(
     """
     return QLearner(
         player,
+        target=target,
         epsilon=ExponentialEpsilon(half_life=max(n_sessions / EPSILON_HALF_LIVES, 1.0)),
         block_size=max(n_sessions // CURVE_POINTS, 1),
         checkpoint_every=checkpoint_every,
@@ -283,7 +299,7 @@ def train_cyber_player(
 
     Session i is played by ``partners[i % len(partners)]`` (player 0, the other role's preset)
     and the target (player 1, ``role``'s preset) on the batch engine, and the cyber player
-    Q-learns from it as the chunks arrive (`QLearner.fit`), so memory stays flat whatever
+    Q-learns from it as the chunks arrive (`imitate`), so memory stays flat whatever
     ``n_sessions``.
 
     Parameters
@@ -292,21 +308,10 @@ def train_cyber_player(
         IMS generators (or recorded trials) of the person to imitate and of the partners.
     role
         ``"follower"`` or ``"leader"``.
-    n_sessions
-        Number of training sessions (the paper: about 24 000).
-    seed
-        Run seed; the sessions' and the learner's seeds are derived from it (`derive_seeds`), so
-        the same seed gives the same Q-table. Recorded in ``player.training_``.
-    duration
-        Session length (s).
-    backend, scheduler, n_jobs, chunk_size
-        Where the sessions are played (see `mirror_avatar.engine.batch.run_sessions`).
-    checkpoint, checkpoint_every
-        Save the player to ``checkpoint`` every ``checkpoint_every`` sessions and at the end.
-        A leader's file holds its motion source, so ``target`` must then be an `IMSGenerator`
-        (checked before training).
-    progress
-        Progress bar: True, False, or None (only on a terminal).
+    n_sessions, seed, duration, backend, scheduler, n_jobs, chunk_size, checkpoint,
+    checkpoint_every, progress
+        As in `imitate`. A leader's file holds its motion source, so with a ``checkpoint``
+        ``target`` must be an `IMSGenerator` (checked before training).
 
     Returns
     -------
@@ -315,7 +320,6 @@ def train_cyber_player(
     curve : LearningCurve
         Mean reward per step and RMS to the target (units) per block of sessions.
     """
-    pairs = make_pairs(target, partners, role)
     player = make_cyber_player(role, target)
     if (
         checkpoint is not None
@@ -323,9 +327,84 @@ def train_cyber_player(
         and not isinstance(target, IMSGenerator)
     ):
         raise InputError("target", "a leader saved to a file needs an IMS generator, not a trial")
+    player.label = f"cyber player ({role})"
+    curve = imitate(
+        player,
+        make_pairs(target, partners, role),
+        1,
+        n_sessions=n_sessions,
+        seed=seed,
+        duration=duration,
+        backend=backend,
+        scheduler=scheduler,
+        n_jobs=n_jobs,
+        chunk_size=chunk_size,
+        checkpoint=checkpoint,
+        checkpoint_every=checkpoint_every,
+        progress=progress,
+        summary={"role": role, "n_partners": len(partners)},
+    )
+    return player, curve
+
+
+def imitate(
+    player: CyberPlayer,
+    lineups: Sequence[Sequence[VirtualTrainer]],
+    target: int,
+    n_sessions: int = 4000,
+    seed: int | None = 0,
+    duration: float = 60.0,
+    graph: GraphSource = None,
+    backend: Literal["local", "dask"] = "local",
+    scheduler: str | None = None,
+    n_jobs: int = 2,
+    chunk_size: int = 50,
+    checkpoint: str | os.PathLike[str] | None = None,
+    checkpoint_every: int | None = None,
+    progress: bool | None = None,
+    summary: dict[str, Any] | None = None,
+) -> LearningCurve:
+    """Teach ``player`` to move like player ``target`` of sessions the batch engine streams.
+
+    Session i is played by ``lineups[i % len(lineups)]`` on ``graph``; the cyber player takes
+    the target's place and Q-learns from it as the chunks arrive (`QLearner.fit`), so memory
+    stays flat whatever ``n_sessions``.
+
+    Parameters
+    ----------
+    player
+        The cyber player, trained in place.
+    lineups
+        The virtual trainers of each kind of session.
+    target
+        Index of the player to imitate in every lineup.
+    n_sessions
+        Number of training sessions (the paper: about 24 000).
+    seed
+        Run seed; the sessions' and the learner's seeds are derived from it (`derive_seeds`), so
+        the same seed gives the same Q-table. Recorded in ``player.training_``.
+    duration
+        Session length (s).
+    graph
+        Who observes whom (`mirror_avatar.graphs.GraphSource`; a function draws a new graph for
+        every session).
+    backend, scheduler, n_jobs, chunk_size
+        Where the sessions are played (see `mirror_avatar.engine.batch.run_sessions`).
+    checkpoint, checkpoint_every
+        Save the player to ``checkpoint`` every ``checkpoint_every`` sessions and at the end.
+    progress
+        Progress bar: True, False, or None (only on a terminal).
+    summary
+        More to record in ``player.training_``.
+
+    Returns
+    -------
+    LearningCurve
+        Mean reward per step and RMS to the target (units) per block of sessions.
+    """
     session_seed, learner_seed = derive_seeds(seed)
     chunks = run_sessions(
-        pairs,
+        lineups,
         n_sessions,
         duration=duration,
         seed=session_seed,
@@ -334,14 +413,94 @@ def train_cyber_player(
         n_jobs=n_jobs,
         chunk_size=chunk_size,
         progress=False,
+        graph=graph,
     )
-    learner = make_learner(player, n_sessions, learner_seed, checkpoint, checkpoint_every, progress)
+    learner = make_learner(
+        player, n_sessions, learner_seed, checkpoint, checkpoint_every, progress, target
+    )
     learner.fit(itertools.chain.from_iterable(chunks), total=n_sessions)
-    player.training_ |= {"run_seed": seed, "role": role, "n_partners": len(partners)}
-    player.label = f"cyber player ({role})"
+    player.training_ |= {"run_seed": seed} | (summary or {})
     if checkpoint is not None:
         player.save(checkpoint)
-    return player, learner.learning_curve_
+    return learner.learning_curve_
+
+
+def make_group(
+    target: Reference, partners: Sequence[Reference], params: dynamics.HKBParams = dynamics.GROUP
+) -> list[VirtualTrainer]:
+    """Make a group of virtual trainers with the same parameters: the partners, the target."""
+    if not partners:
+        raise InputError("partners", "a group needs at least one partner")
+    members = [VirtualTrainer(params, p, label=f"partner {i + 1}") for i, p in enumerate(partners)]
+    return [*members, VirtualTrainer(params, target, label="target")]
+
+
+def make_group_cyber_player(
+    reference: Reference | None = None, action_scale: float = ACTION_SCALE
+) -> CyberPlayer:
+    """Make an untrained cyber player for a group (**choice**).
+
+    Its end effector is `mirror_avatar.dynamics.GROUP`'s; its state is built from its own state
+    and its neighbours' mean, cut as `make_group_discretisation` says; the accelerations are
+    ``action_scale * DEFAULT_ACTIONS``.
+    """
+    return CyberPlayer(
+        make_group_discretisation(),
+        actions=tuple(action_scale * a for a in DEFAULT_ACTIONS),
+        params=dynamics.GROUP,
+        reference=reference,
+        label="cyber player (group)",
+    )
+
+
+def train_group_cyber_player(
+    target: Reference,
+    partners: Sequence[Reference],
+    n_sessions: int = 4000,
+    seed: int | None = 0,
+    duration: float = 60.0,
+    graph: GraphSource = random_connected_graph,
+    **options: Any,
+) -> tuple[CyberPlayer, LearningCurve]:
+    """Train a cyber player to imitate ``target`` in a group with ``partners`` (METHODS 8).
+
+    Every session the partners and the target (the last player), all with the
+    `mirror_avatar.dynamics.GROUP` parameters, improvise together on ``graph`` (by default a new
+    random connected graph each session); the cyber player takes the target's place and learns
+    from what it did (`imitate`).
+
+    Parameters
+    ----------
+    target, partners
+        IMS generators (or recorded trials) of the person to imitate and of the others.
+    n_sessions, seed, duration, graph
+        As in `imitate`.
+    **options
+        ``backend``, ``scheduler``, ``n_jobs``, ``chunk_size``, ``checkpoint``,
+        ``checkpoint_every``, ``progress`` of `imitate`.
+
+    Returns
+    -------
+    player : CyberPlayer
+        The trained player.
+    curve : LearningCurve
+        Mean reward per step and RMS to the target (units) per block of sessions.
+    """
+    player = make_group_cyber_player(target)
+    group = make_group(target, partners)
+    summary = {"role": "group", "n_players": len(group)}
+    curve = imitate(
+        player,
+        [group],
+        len(partners),
+        n_sessions,
+        seed,
+        duration,
+        graph,
+        summary=summary,
+        **options,
+    )
+    return player, curve
 
 
 def learning_curve_path(policy: str | os.PathLike[str]) -> Path:

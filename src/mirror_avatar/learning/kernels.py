@@ -19,9 +19,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from mirror_avatar.dynamics import Record, integrate_hkb
+from mirror_avatar.dynamics import Record, advance_hkb
 from mirror_avatar.learning.discretisation import state_index
-from mirror_avatar.players.base import neighbour_mean
 
 Array = NDArray[np.float64]
 
@@ -75,12 +74,13 @@ def update_q(
 def mean_track(neighbours: Array) -> Array:
     """Return the neighbours' mean at every sample, shape (n,), from tracks (m, n), m >= 1.
 
-    Each sample's mean is `mirror_avatar.players.base.neighbour_mean`, as in play.
+    Summed in the neighbours' order, as `mirror_avatar.players.base.neighbour_mean` sums them in
+    play, so each sample's mean is the one a player sees.
     """
-    means = np.empty(neighbours.shape[1])
-    for k in range(means.size):
-        means[k] = neighbour_mean(neighbours[:, k])
-    return means
+    means = neighbours[0].copy()
+    for j in range(1, neighbours.shape[0]):
+        means += neighbours[j]
+    return means / neighbours.shape[0]
 
 
 @njit(cache=True)
@@ -141,6 +141,7 @@ def learn_session(
         Root mean square of the avatar's position minus the target's over samples 1..n-1 (units).
     """
     n = target_x.size
+    alpha, beta, gamma, omega, period, eta = p.alpha, p.beta, p.gamma, p.omega, p.period, p.eta
     x, v = target_x[0], target_v[0]
     s = state_index(x, v, partner_x[0], partner_v[0], target_r[0], mode, edges, offsets)
     reward_sum = 0.0
@@ -148,8 +149,8 @@ def learn_session(
     for k in range(n - 1):
         a = choose_action(q, s, epsilon, rng)
         u = actions[a]
-        x, v = integrate_hkb(x, v, u, p, n_substeps)
-        r = compute_reward(x, v, target_x[k + 1], target_v[k + 1], u, p.eta)
+        x, v = advance_hkb(x, v, u, alpha, beta, gamma, omega, period, n_substeps)
+        r = compute_reward(x, v, target_x[k + 1], target_v[k + 1], u, eta)
         s_next = state_index(
             x, v, partner_x[k + 1], partner_v[k + 1], target_r[k + 1], mode, edges, offsets
         )

@@ -28,6 +28,7 @@ from tqdm.auto import tqdm
 from mirror_avatar.atomic import write_atomic_bytes
 from mirror_avatar.errors import InputError
 from mirror_avatar.learning.agent import CyberPlayer
+from mirror_avatar.learning.discretisation import REFERENCE
 from mirror_avatar.learning.kernels import learn_session, mean_track
 from mirror_avatar.session import Session
 
@@ -137,23 +138,38 @@ class ImitationTask:
         neighbours = np.flatnonzero(session.graph[target])
         if neighbours.size == 0:
             raise InputError("sessions", f"the target (player {target}) observes no one")
-        x, v = session.positions, session.velocities
+        involved = np.append(neighbours, target)
+        x, v = session.positions[involved], session.velocities[involved]
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
             raise InputError("sessions", "positions and velocities must be finite")
         reference = session.references[target].copy()
         if reference.size > 1 and np.isnan(reference[-1]):
             reference[-1] = reference[-2]
-        return cls(
-            mean_track(x[neighbours]),
-            mean_track(v[neighbours]),
-            x[target],
-            v[target],
-            reference,
-        )
+        return cls(mean_track(x[:-1]), mean_track(v[:-1]), x[-1], v[-1], reference)
+
+
+PolicyArguments = tuple[Array, int, Array, NDArray[np.int64], Array, Any, int]
+"""A cyber player's arguments of `learn_session`: Q-table, feature code, bin edges, their
+offsets, actions, end-effector record and RK4 substeps."""
+
+
+def policy_arguments(player: CyberPlayer) -> PolicyArguments:
+    """Return the player's arguments of `learn_session` (its Q-table is updated in place)."""
+    policy = player.policy_
+    disc = policy.discretisation
+    return (
+        policy.q_table,
+        disc.mode,
+        disc.flat_edges,
+        disc.offsets,
+        policy.actions,
+        player.params.record()[0],
+        policy.n_substeps,
+    )
 
 
 def play_task(
-    player: CyberPlayer,
+    policy: PolicyArguments,
     task: ImitationTask,
     learning_rate: float,
     discount: float,
@@ -161,6 +177,15 @@ def play_task(
     rng: np.random.Generator,
 ) -> tuple[float, float]:
     """Play one task with `learn_session`, updating the Q-table when ``learning_rate`` > 0.
+
+    Parameters
+    ----------
+    policy
+        `policy_arguments` of the player.
+    task
+        The session, seen from the target's place.
+    learning_rate, discount, epsilon, rng
+        As in `learn_session`.
 
     Returns
     -------
@@ -172,23 +197,22 @@ def play_task(
     InputError
         If the player's features need the target's reference velocity and the task has none.
     """
-    policy = player.policy_
-    disc = policy.discretisation
-    if disc.needs_reference and not np.all(np.isfinite(task.target_r)):
+    q, mode, edges, offsets, actions, record, n_substeps = policy
+    if mode == REFERENCE and not np.all(np.isfinite(task.target_r)):
         raise InputError("sessions", "reference features need the target's reference velocities")
     total, rms = learn_session(
-        policy.q_table,
+        q,
         task.partner_x,
         task.partner_v,
         task.target_x,
         task.target_v,
         task.target_r,
-        disc.mode,
-        disc.flat_edges,
-        disc.offsets,
-        policy.actions,
-        player.params.record()[0],
-        policy.n_substeps,
+        mode,
+        edges,
+        offsets,
+        actions,
+        record,
+        n_substeps,
         learning_rate,
         discount,
         epsilon,
@@ -208,8 +232,9 @@ def score_imitation(
         Mean reward per step and RMS position error to the target (units) per session.
     """
     rng = np.random.default_rng(0)
+    policy = policy_arguments(player)
     scores = [
-        play_task(player, ImitationTask.from_session(s, target, player.period), 0.0, 0.0, 0.0, rng)
+        play_task(policy, ImitationTask.from_session(s, target, player.period), 0.0, 0.0, 0.0, rng)
         for s in sessions
     ]
     return np.array([r for r, _ in scores]), np.array([e for _, e in scores])
@@ -314,6 +339,7 @@ class QLearner:
         self._validate()
         if not hasattr(self, "n_sessions_"):
             self._start()
+        self._policy = policy_arguments(self.player)
         block: list[tuple[float, float]] = []
         disable = None if self.progress is None else not self.progress
         with tqdm(total=total, disable=disable, unit="session") as bar:
@@ -334,7 +360,7 @@ class QLearner:
         """Learn from one session: the step `fit` and `partial_fit` share."""
         task = ImitationTask.from_session(session, self.target, self.player.period)
         eps = self._epsilon(self.epsilon or ExponentialEpsilon())
-        scores = play_task(self.player, task, self.learning_rate, self.discount, eps, self.rng_)
+        scores = play_task(self._policy, task, self.learning_rate, self.discount, eps, self.rng_)
         self.n_sessions_ += 1
         return scores
 
