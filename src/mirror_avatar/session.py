@@ -46,6 +46,9 @@ FORMAT_VERSION = 2
 MIN_SESSION_SAMPLES = 3
 """Fewest samples a session file may hold."""
 
+_CHANNEL_FIELDS = ("positions", "velocities", "controls", "references")
+"""The `Session` fields holding the `CHANNELS`, in order."""
+
 
 def default_roles(n_players: int) -> tuple[str, ...]:
     """Roles when none are given: ``solo``; ``leader``, ``follower``; ``joint`` for everyone."""
@@ -109,6 +112,32 @@ class Session:
             if self.graph is None or np.size(self.graph) == 0
             else check_graph(self.graph, players, connected=False)
         )
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle the four channels as one array (sessions cross process boundaries in bulk).
+
+        Channels that are already the four rows of one array (as the compiled loop writes
+        them) are pickled without a copy.
+        """
+        state = dict(self.__dict__)
+        fields = [state.pop(name) for name in _CHANNEL_FIELDS]
+        base = fields[0].base
+        rows = isinstance(base, np.ndarray) and base.shape == (4, *fields[0].shape)
+        if rows and all(
+            f.base is base and f.ctypes.data == base[i].ctypes.data and f.strides == base[i].strides
+            for i, f in enumerate(fields)
+        ):
+            state["channels"] = base
+        else:
+            state["channels"] = np.stack(fields)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Restore a pickled session, its channels views of the one array."""
+        channels = state.pop("channels")
+        self.__dict__.update(state)
+        for name, values in zip(_CHANNEL_FIELDS, channels, strict=True):
+            setattr(self, name, values)
 
     @property
     def n_players(self) -> int:
