@@ -164,9 +164,11 @@ def records(params: Sequence[HKBParams | None]) -> NDArray[np.void]:
     return table
 
 
-GROUP = HKBParams(omega=0.75, theta_p=0.8, theta_v=0.05)
-"""A member of a group improvising together (METHODS section 8): the middle of the group's later
-code's ranges, theta_p 0.75-0.85, theta_s 0.1-0.2, theta_v 0.05, omega 0.5-1 (so theta_s = 0.15)."""
+GROUP = HKBParams(omega=0.75, theta_p=0.85, theta_v=0.05)
+"""A member of a group improvising together (METHODS section 8; the group's later code uses
+theta_p 0.75-0.85, theta_s 0.1-0.2, theta_v 0.05, omega 0.5-1): the strongest coupling of that
+range, theta_s = 0.1 (**choice**: with the bundled styles' fast references, weaker coupling keeps
+a group of four on a complete graph below a group synchronisation of 0.8), omega in the middle."""
 
 GROUP_LEADER = HKBParams(omega=0.75, theta_p=0.2)
 """A group's leader (METHODS section 8: theta_p 0.2, theta_s 0.8)."""

@@ -151,6 +151,10 @@ def read_graph(path: str | os.PathLike[str]) -> Graph:
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(
+            path, f"no such file, and not a topology ({', '.join(TOPOLOGIES)})"
+        ) from None
     except (OSError, UnicodeDecodeError) as error:
         raise InputError(path, f"cannot read the graph ({type(error).__name__})") from None
     if path.suffix.lower() == ".json":

@@ -1,4 +1,6 @@
-"""Tests of coupling graphs: named topologies, random connected graphs, validation."""
+"""Tests of coupling graphs: named topologies, random connected graphs, files, validation."""
+
+import json
 
 import numpy as np
 import pytest
@@ -8,11 +10,13 @@ from mirror_avatar.graphs import (
     check_graph,
     complete_graph,
     draw_graph,
+    graph_source,
     is_connected,
     make_graph,
     neighbours,
     path_graph,
     random_connected_graph,
+    read_graph,
     ring_graph,
     star_graph,
 )
@@ -77,3 +81,37 @@ def test_bad_topologies() -> None:
         star_graph(3, centre=5)
     with pytest.raises(InputError, match="players"):
         check_graph(complete_graph(3), n_players=4)
+
+
+def test_graph_files(tmp_path) -> None:
+    ring = ring_graph(4)
+    (tmp_path / "ring.csv").write_text("\n".join(",".join(map(str, row)) for row in ring) + "\n")
+    (tmp_path / "ring.json").write_text(json.dumps({"adjacency": ring.tolist()}))
+    (tmp_path / "rows.json").write_text(json.dumps(ring.tolist()))
+    for name in ("ring.csv", "ring.json", "rows.json"):
+        np.testing.assert_array_equal(read_graph(tmp_path / name), ring)
+        np.testing.assert_array_equal(graph_source(str(tmp_path / name), 4), ring)
+    np.testing.assert_array_equal(graph_source("star", 3), star_graph(3))
+    assert graph_source("random", 5) is random_connected_graph
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "problem"),
+    [
+        ("g.csv", "0,1\n1,0\n", "2 rows for 4 players"),
+        ("g.csv", "0,1,0,0\n1,0,0,0\n0,0,0,1\n0,0,1,0\n", "not connected"),
+        ("g.csv", "0,x\n1,0\n", "numeric"),
+        ("g.json", "{not json", "not valid JSON"),
+        ("g.txt", "0", "must be .csv or .json"),
+        ("missing.csv", None, "no such file"),
+    ],
+)
+def test_bad_graph_files_name_the_file(tmp_path, name, text, problem) -> None:
+    path = tmp_path / name
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(InputError, match=problem) as error:
+        graph_source(str(path), 4)
+    assert str(error.value).startswith(str(path))
+    with pytest.raises(InputError, match="not a topology"):
+        graph_source("lattice", 4)

@@ -12,6 +12,7 @@ import sys
 import click
 
 from mirror_avatar.cli.generator import generator
+from mirror_avatar.cli.group import group
 from mirror_avatar.cli.info import info
 from mirror_avatar.cli.play import play
 from mirror_avatar.cli.reproduce import reproduce
@@ -28,6 +29,7 @@ def cli() -> None:
 
 
 cli.add_command(generator)
+cli.add_command(group)
 cli.add_command(info)
 cli.add_command(play)
 cli.add_command(reproduce)

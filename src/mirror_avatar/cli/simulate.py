@@ -1,4 +1,4 @@
-"""``mirror-avatar simulate`` and ``evaluate``: play a session of two players, measure a session."""
+"""``mirror-avatar simulate`` and ``evaluate``: play two players; measure any session."""
 
 from __future__ import annotations
 
@@ -37,22 +37,60 @@ SPEC_HELP = (
 
 
 def format_metrics(metrics: dict[str, Any]) -> str:
-    """Render `mirror_avatar.metrics.session_metrics` output as an aligned text table."""
-    width = max(len(description) for _, description, _ in METRIC_ROWS)
+    """Render `mirror_avatar.metrics.session_metrics` output as aligned text tables.
+
+    A group (three or more players) gets its synchronisation and one row per player.
+    """
+    if "players" in metrics:
+        return format_group_metrics(metrics)
+    rows = [row for row in METRIC_ROWS if row[0] in metrics]
+    width = max(len(description) for _, description, _ in rows)
     lines = []
-    for key, description, unit in METRIC_ROWS:
+    for key, description, unit in rows:
         value = metrics.get(key)
         shown = "-" if value is None else f"{value:.4f}"
         lines.append(f"{description:<{width}}  {shown:>8}  {unit}".rstrip())
     return "\n".join(lines)
 
 
-def _check_out_dir(out_dir: Path) -> None:
+GROUP_COLUMNS = (
+    ("synchronisation", "rho_k"),
+    ("relative_phase_to_group", "phase"),
+    ("circular_variance", "CV"),
+    ("rmse", "RMSE"),
+    ("time_lag", "lag"),
+    ("max_cross_correlation", "xcorr"),
+)
+"""(key, heading) of the per-player columns of a group, against the mean of each player's
+neighbours except ``synchronisation`` (rho_k) and ``relative_phase_to_group`` (rad)."""
+
+
+def format_group_metrics(metrics: dict[str, Any]) -> str:
+    """Render the metrics of a group: synchronisation, then a table of the players."""
+    lines = [
+        "group synchronisation (rho_g, 1 = synchronised)  "
+        f"{metrics['group_synchronisation']:.4f} +- {metrics['group_synchronisation_sd']:.4f}",
+        f"Kuramoto order parameter                        {metrics['kuramoto_order']:.4f}",
+        "player  " + "".join(f"{heading:>8}" for _, heading in GROUP_COLUMNS) + "  neighbours",
+    ]
+    for k, player in enumerate(metrics["players"]):
+        cells = "".join(
+            f"{'-' if player.get(key) is None else format(player[key], '.4f'):>8}"
+            for key, _ in GROUP_COLUMNS
+        )
+        lines.append(f"{k:<6}  {cells}  {player['neighbours']} {player['label']}")
+    lines.append("(CV, RMSE in units, lag in s and cross-correlation against the neighbours' mean)")
+    return "\n".join(lines)
+
+
+def check_out_dir(out_dir: Path) -> None:
+    """Refuse an output path that is a file."""
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(out_dir, "exists and is not a directory")
 
 
-def _write_outputs(session: Session, out_dir: Path, summary: dict[str, Any]) -> Path:
+def write_outputs(session: Session, out_dir: Path, summary: dict[str, Any]) -> Path:
+    """Write the session (Parquet, CSV, sidecar) and ``metrics.json``; return the latter's path."""
     out_dir.mkdir(parents=True, exist_ok=True)
     session.save(out_dir / "session.parquet")
     session.save_csv(out_dir / "session.csv")
@@ -96,7 +134,7 @@ def simulate(
     follower presets (both the joint preset with --joint). Relative phase and time lag are
     player 0 minus player 1: positive when player 0 is ahead.
     """
-    _check_out_dir(out_dir)
+    check_out_dir(out_dir)
     if not duration > 0.0:
         raise InputError("--duration", f"must be positive, got {duration:g} s")
     if not 0.0 <= trim < duration:
@@ -118,7 +156,7 @@ def simulate(
         "convention": "relative phase and time lag: player 0 minus player 1, positive = 0 ahead",
         "metrics": metrics,
     }
-    metrics_path = _write_outputs(session, out_dir, summary)
+    metrics_path = write_outputs(session, out_dir, summary)
     click.echo(
         f"player 0 ({roles[0]}): {leader_spec}; player 1 ({roles[1]}): {follower_spec}; "
         f"{session.duration:g} s, seed {summary['seed']}"
@@ -136,7 +174,9 @@ def simulate(
 def evaluate(session_path: Path, trim: float, as_json: bool) -> None:
     """Print the coordination metrics of a saved session (.parquet or .csv).
 
-    Relative phase and time lag are player 0 minus player 1: positive when player 0 is ahead.
+    Any number of players: for two, relative phase and time lag are player 0 minus player 1
+    (positive when player 0 is ahead); for a group, its synchronisation and each player against
+    the mean of its neighbours (positive lag: the player is ahead).
     """
     metrics = session_metrics(load_session(session_path), trim=trim)
     click.echo(json.dumps(json_safe(metrics), indent=2) if as_json else format_metrics(metrics))

@@ -14,6 +14,7 @@ from mirror_avatar.learning.imitation import (
     learning_curve_path,
     train_cyber_player,
 )
+from mirror_avatar.learning.training import LearningCurve
 from mirror_avatar.players import VirtualTrainer
 from mirror_avatar.specs import load_player
 
@@ -26,6 +27,14 @@ def load_reference(spec: str) -> Reference:
     if not isinstance(player, VirtualTrainer):
         raise InputError(spec, f"names a {type(player).__name__}, not a virtual trainer model")
     return player.reference
+
+
+def write_learning_curve(curve: LearningCurve, policy: Path, name: str) -> Path:
+    """Write a policy's learning curve beside it, as CSV and PNG; return the CSV's path."""
+    curve_path = curve.save(learning_curve_path(policy))
+    figure = plot_learning_curves({name: (curve.sessions, curve.rms)})
+    figure.savefig(curve_path.with_suffix(".png"), dpi=120)
+    return curve_path
 
 
 @click.command()
@@ -92,9 +101,7 @@ def train(
         checkpoint=out_path,
         checkpoint_every=checkpoint_every,
     )
-    curve_path = curve.save(learning_curve_path(out_path))
-    figure = plot_learning_curves({f"{role}, seed {seed}": (curve.sessions, curve.rms)})
-    figure.savefig(curve_path.with_suffix(".png"), dpi=120)
+    curve_path = write_learning_curve(curve, out_path, f"{role}, seed {seed}")
     click.echo(
         f"trained a {role} on {sessions} sessions (seed {seed}): RMS to the target "
         f"{curve.rms[0]:.4f} -> {curve.rms[-1]:.4f} units"

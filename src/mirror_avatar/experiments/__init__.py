@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from mirror_avatar.experiments import cyber_player, generator, signature, virtual_trainer
+from mirror_avatar.experiments import cyber_player, generator, group, signature, virtual_trainer
 from mirror_avatar.report import Section
 
 EXPERIMENTS: list[tuple[str, Callable[..., Section]]] = [
@@ -16,5 +16,6 @@ EXPERIMENTS: list[tuple[str, Callable[..., Section]]] = [
     ("generator", generator.run),
     ("virtual_trainer", virtual_trainer.run),
     ("cyber_player", cyber_player.run),
+    ("group", group.run),
 ]
 """(name, run) pairs in report order; ``run(trials, quick=False, seed=0) -> Section``."""

@@ -1,0 +1,172 @@
+"""``mirror-avatar group``: groups of players on a coupling graph (METHODS section 8)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from mirror_avatar.cli.simulate import (
+    SPEC_HELP,
+    TRIM,
+    check_out_dir,
+    format_metrics,
+    write_outputs,
+)
+from mirror_avatar.cli.train import load_reference, write_learning_curve
+from mirror_avatar.dynamics import GROUP, GROUP_LEADER
+from mirror_avatar.engine.loop import play
+from mirror_avatar.errors import InputError
+from mirror_avatar.graphs import TOPOLOGIES, graph_source
+from mirror_avatar.learning.imitation import train_group_cyber_player
+from mirror_avatar.metrics import session_metrics
+from mirror_avatar.specs import load_player
+
+GRAPH_HELP = (
+    f"Who observes whom: {', '.join(TOPOLOGIES)} (random: a new connected graph per session) "
+    "or an adjacency matrix file (.csv rows of 0/1, or .json)."
+)
+
+
+@click.group()
+def group() -> None:
+    """Play, measure and train players in groups on a coupling graph."""
+
+
+@group.command()
+@click.option("--player", "player_specs", multiple=True, required=True, help=SPEC_HELP)
+@click.option(
+    "--leader",
+    "leaders",
+    type=int,
+    multiple=True,
+    help="Index of a player that leads (the group-leader preset); repeatable.",
+)
+@click.option("--graph", "graph_spec", default="complete", show_default=True, help=GRAPH_HELP)
+@click.option("--duration", type=float, default=60.0, show_default=True, help="Session length (s).")
+@click.option("--seed", type=int, default=None, help="Session seed (default: fresh, recorded).")
+@click.option(
+    "--trim", type=float, default=TRIM, show_default=True, help="Seconds left out of the metrics."
+)
+@click.option(
+    "--out",
+    "out_dir",
+    required=True,
+    type=click.Path(path_type=Path),
+    help="Directory for session.parquet/.csv/.json and metrics.json.",
+)
+def simulate(
+    player_specs: tuple[str, ...],
+    leaders: tuple[int, ...],
+    graph_spec: str,
+    duration: float,
+    seed: int | None,
+    trim: float,
+    out_dir: Path,
+) -> None:
+    """Play a group session of the --player SPECs (player 0, 1, ...) and write it with metrics.
+
+    Virtual trainers take the group preset of METHODS section 8 (theta_p 0.85, theta_s 0.1,
+    theta_v 0.05), leaders the group-leader preset (theta_p 0.2, theta_s 0.8); each responds to
+    the mean of the players it observes.
+    """
+    check_out_dir(out_dir)
+    n = len(player_specs)
+    if n < 2:
+        raise InputError("--player", "a group needs at least two players")
+    if any(not 0 <= k < n for k in leaders):
+        raise InputError("--leader", f"player indices run from 0 to {n - 1}")
+    if not 0.0 <= trim < duration:
+        raise InputError("--trim", f"must lie in [0, --duration) = [0, {duration:g}) s")
+    roles = ["group_leader" if k in leaders else "group" for k in range(n)]
+    players = [
+        load_player(spec, GROUP_LEADER if role == "group_leader" else GROUP)
+        for spec, role in zip(player_specs, roles, strict=True)
+    ]
+    session = play(players, duration, seed, roles, graph_source(graph_spec, n))
+    session.metadata["specs"] = list(player_specs)
+    metrics = session_metrics(session, trim=trim)
+    summary = {
+        "seed": session.metadata["seed"],
+        "specs": {f"player {k}": spec for k, spec in enumerate(player_specs)},
+        "roles": roles,
+        "graph": session.graph.tolist(),
+        "duration": session.duration,
+        "trim": trim,
+        "metrics": metrics,
+    }
+    path = write_outputs(session, out_dir, summary)
+    click.echo(
+        f"{n} players on a {graph_spec} graph; {session.duration:g} s, seed {summary['seed']}"
+    )
+    click.echo(format_metrics(metrics))
+    click.echo(f"wrote {path.parent.resolve()}")
+
+
+@group.command()
+@click.option("--target", "target_spec", required=True, help="The person to imitate (a model).")
+@click.option(
+    "--player",
+    "player_specs",
+    multiple=True,
+    required=True,
+    help="The other members of the group (models); repeatable.",
+)
+@click.option("--graph", "graph_spec", default="random", show_default=True, help=GRAPH_HELP)
+@click.option("--sessions", type=int, required=True, help="Training sessions of --duration s.")
+@click.option("--duration", type=float, default=60.0, show_default=True, help="Session length (s).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Run seed (recorded).")
+@click.option("--scheduler", default=None, help="Dask scheduler address (tcp://host:port).")
+@click.option("--jobs", type=int, default=2, show_default=True, help="Local processes.")
+@click.option(
+    "--checkpoint-every", type=int, default=None, help="Also save the policy every N sessions."
+)
+@click.option(
+    "--out", "out_path", required=True, type=click.Path(path_type=Path), help="Policy .npz file."
+)
+def train(
+    target_spec: str,
+    player_specs: tuple[str, ...],
+    graph_spec: str,
+    sessions: int,
+    duration: float,
+    seed: int,
+    scheduler: str | None,
+    jobs: int,
+    checkpoint_every: int | None,
+    out_path: Path,
+) -> None:
+    """Train a cyber player to take the target's place in a group.
+
+    Every session the --player models and the target (the last member) improvise together on
+    --graph; the cyber player learns from what the target did. A MODEL is an IMS generator
+    .npz, bundled:fast, bundled:slow or vt:TRIAL_FILE. Writes OUT (playable as a player SPEC,
+    in groups and dyads) and OUT.learning_curve.csv and .png.
+    """
+    if out_path.suffix.lower() != ".npz":
+        raise InputError(out_path, "the policy file must end in .npz")
+    if sessions < 1 or jobs < 1 or (checkpoint_every is not None and checkpoint_every < 1):
+        raise InputError("--sessions", "--sessions, --jobs and --checkpoint-every must be >= 1")
+    if not duration > 0.0:
+        raise InputError("--duration", f"must be positive, got {duration:g} s")
+    target = load_reference(target_spec)
+    partners = [load_reference(spec) for spec in player_specs]
+    player, curve = train_group_cyber_player(
+        target,
+        partners,
+        n_sessions=sessions,
+        seed=seed,
+        duration=duration,
+        graph=graph_source(graph_spec, len(partners) + 1),
+        backend="dask" if scheduler else "local",
+        scheduler=scheduler,
+        n_jobs=jobs,
+        checkpoint=out_path,
+        checkpoint_every=checkpoint_every,
+    )
+    curve_path = write_learning_curve(curve, out_path, f"group of {len(partners) + 1}, seed {seed}")
+    click.echo(
+        f"trained a group member on {sessions} sessions (seed {seed}): RMS to the target "
+        f"{curve.rms[0]:.4f} -> {curve.rms[-1]:.4f} units"
+    )
+    click.echo(f"wrote {out_path.resolve()} and {curve_path.resolve()} (.png)")

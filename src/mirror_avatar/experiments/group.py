@@ -1,0 +1,378 @@
+"""A cyber player in a group of four on random graphs (METHODS section 8).
+
+Four virtual trainers improvise together with the `mirror_avatar.dynamics.GROUP` parameters, each
+with the signature of one of the paper's virtual "persons" (`GROUP_MEMBERS`: VT1 from the fast
+bundled trials, VT4, VT6 and VT5 from the slow ones; VT5, the last, is the target). A tabular
+cyber player is trained to take VT5's place on sessions with a new random connected graph each
+(`mirror_avatar.learning.imitation.train_group_cyber_player`), then plays closed-loop in VT5's
+place on new random graphs, each session paired with the same session played by VT5 (same seed:
+same graph, same partners' references). Reported in the layout of the group's published example:
+the target's CV, RMS, time lag and maximum cross-correlation against the mean of its neighbours,
+and the group synchronisation, each mean ± SD, with paired t-tests; the same on fixed topologies;
+baselines on held-out sessions; figures of positions, rho_g(t), the graph and each player's rho_k
+on a complete graph and on a path.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from mirror_avatar.engine.batch import play_compiled
+from mirror_avatar.figures import plot_bars, plot_graph, plot_learning_curves, plot_series
+from mirror_avatar.graphs import GraphSource, make_graph, random_connected_graph
+from mirror_avatar.learning.agent import CyberPlayer
+from mirror_avatar.learning.imitation import (
+    VirtualTrainerSpec,
+    derive_seeds,
+    make_group,
+    make_group_cyber_player,
+    make_virtual_trainers,
+    train_group_cyber_player,
+)
+from mirror_avatar.learning.training import score_imitation
+from mirror_avatar.metrics import (
+    compute_cluster_phase,
+    compute_phase,
+    paired_ttest,
+    session_metrics,
+)
+from mirror_avatar.players import Player
+from mirror_avatar.report import Section
+from mirror_avatar.seeds import draw_seeds
+from mirror_avatar.session import Session
+from mirror_avatar.trials import Trial
+
+GROUP_MEMBERS = (0, 3, 5, 4)
+"""Which virtual "persons" (`make_virtual_trainers`) play: VT1 (fast), VT4, VT6 and VT5 (slow)."""
+
+TARGET = len(GROUP_MEMBERS) - 1
+"""Index of the target (VT5) in the group."""
+
+TRAINING_SESSIONS = 4000
+QUICK_TRAINING_SESSIONS = 300
+VALIDATION_SESSIONS = 60
+"""Sessions of the validation on random graphs (the published example's 60)."""
+
+QUICK_VALIDATION_SESSIONS = 6
+TOPOLOGY_SESSIONS = 20
+QUICK_TOPOLOGY_SESSIONS = 3
+BASELINE_SESSIONS = 60
+QUICK_BASELINE_SESSIONS = 10
+DURATION = 60.0
+TRIM = 1.0
+"""Seconds of start-up transient left out of every metric (**choice**)."""
+
+TOPOLOGIES = ("complete", "ring", "path", "star")
+
+MEASURES = ("circular_variance", "group_synchronisation", "rmse", "time_lag",
+            "max_cross_correlation")  # fmt: skip
+"""What is compared, in the published table's order."""
+
+PUBLISHED = {
+    "circular_variance": ((0.818, 0.092), (0.803, 0.053)),
+    "group_synchronisation": ((0.850, 0.051), (0.843, 0.046)),
+    "rmse": ((0.063, 0.023), (0.054, 0.006)),
+    "time_lag": ((-0.021, None), (-0.035, None)),
+    "max_cross_correlation": ((0.873, None), (0.886, None)),
+}
+"""The group's published example (METHODS section 8): (mean, SD) of the DQN cyber player, then of
+the virtual trainer it imitates."""
+
+CRITERIA = {"max_difference": 0.03, "max_rms_sd_ratio": 1.5}
+"""The cyber player's mean CV, group synchronisation and RMS each within ``max_difference`` of
+the target's, and its RMS SD at most ``max_rms_sd_ratio`` times the target's."""
+
+
+def run(
+    trials: Sequence[Trial],
+    quick: bool = False,
+    seed: int = 0,
+    n_sessions: int | None = None,
+    n_jobs: int = 2,
+) -> Section:
+    """Train a cyber player in a group of four and validate it against the target VT.
+
+    Parameters
+    ----------
+    trials
+        Solo trials; the virtual trainers are made from them (`make_virtual_trainers`).
+    quick
+        Fewer training, validation and topology sessions.
+    seed
+        Seeds the generators, the training run, the validation and the baselines.
+    n_sessions
+        Override the number of training sessions.
+    n_jobs
+        Local processes generating training sessions.
+    """
+    n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else TRAINING_SESSIONS)
+    n_valid = QUICK_VALIDATION_SESSIONS if quick else VALIDATION_SESSIONS
+    n_topology = QUICK_TOPOLOGY_SESSIONS if quick else TOPOLOGY_SESSIONS
+    n_base = QUICK_BASELINE_SESSIONS if quick else BASELINE_SESSIONS
+    people = make_virtual_trainers(trials, seed=seed)
+    members = [people[i] for i in GROUP_MEMBERS]
+    generators = [m.generator for m in members]
+    start = time.perf_counter()
+    player, curve = train_group_cyber_player(
+        generators[TARGET], generators[:TARGET], n_sessions=n_train, seed=seed, n_jobs=n_jobs,
+        progress=False,
+    )  # fmt: skip
+    train_seconds = time.perf_counter() - start
+    group = make_group(generators[TARGET], generators[:TARGET])
+    seeds = draw_seeds([seed, 2], n_valid + n_topology)
+    records, examples = compare(group, player, seeds[:n_valid], random_connected_graph)
+    table = summarise(records)
+    topology_records = pd.concat(
+        {name: compare(group, player, seeds[n_valid:], make_graph(name, len(group)))[0]
+         for name in TOPOLOGIES}
+    )  # fmt: skip
+    baselines = compare_baselines(player, group, n_base, seed)
+    synchrony = per_player_synchronisation(group, seeds[0])
+    checks = check_criteria(records)
+    metrics = {
+        "seed": seed,
+        "training_sessions": n_train,
+        "training_seconds": train_seconds,
+        "validation_sessions": n_valid,
+        "topology_sessions": n_topology,
+        "trim_s": TRIM,
+        "members": {f"player {i}": m.label for i, m in enumerate(members)},
+        "member_trials": {m.label: list(m.trial_labels) for m in members},
+        "target": members[TARGET].label,
+        "table": table.to_dict(orient="index"),
+        "criteria": checks,
+        "topologies": topology_table(topology_records).to_dict(orient="index"),
+        "per_player_synchronisation": synchrony,
+        "baselines_rms": baselines,
+        "learning_curve": curve.as_rows(),
+        "records": records.to_dict(orient="records"),
+        "published": {k: {"cyber": v[0], "virtual trainer": v[1]} for k, v in PUBLISHED.items()},
+    }
+    labels = [f"{m.label}{' (target)' if i == TARGET else ''}" for i, m in enumerate(members)]
+    return Section(
+        key="group",
+        title="Groups: a cyber player among four on random graphs (METHODS section 8)",
+        text=_describe(members, table, checks, baselines, synchrony, n_train, n_valid),
+        tables={
+            "Target VT5 and the cyber player in its place, random graphs (mean +- SD; CV, RMS, "
+            "lag and cross-correlation against the mean of the target's neighbours)": table,
+            "Fixed topologies (means)": topology_table(topology_records),
+            "RMS to VT5 on held-out group sessions (units)": pd.DataFrame(baselines, index=["RMS"]),
+            "Each player's synchronisation to the group (rho_k), virtual trainers only": (
+                pd.DataFrame(synchrony)
+            ),
+        },
+        figures=_figures(examples, labels, curve, baselines, synchrony),
+        metrics=metrics,
+    )
+
+
+def compare(
+    group: Sequence[Player], player: CyberPlayer, seeds: Sequence[int], graph: GraphSource
+) -> tuple[pd.DataFrame, tuple[Session, Session]]:
+    """Play each seed with the target VT and with the cyber player in its place.
+
+    Returns
+    -------
+    records : DataFrame
+        One row per session and player (``"VT5"`` or ``"cyber player"``): the target's
+        ``circular_variance``, ``rmse``, ``time_lag`` and ``max_cross_correlation`` against its
+        neighbours' mean, and the ``group_synchronisation``.
+    examples : tuple of Session
+        The first session with VT5 and with the cyber player.
+    """
+    with_cyber = [*group[:TARGET], player]
+    rows, examples = [], []
+    n_samples = int(round(DURATION / player.period)) + 1
+    for k, seed in enumerate(seeds):
+        for name, lineup in (("VT5", group), ("cyber player", with_cyber)):
+            session = play_compiled(lineup, n_samples, seed, graph)
+            rows.append({"session": k, "player": name} | measure(session))
+            if k == 0:
+                examples.append(session)
+    return pd.DataFrame(rows), (examples[0], examples[1])
+
+
+def measure(session: Session) -> dict[str, float]:
+    """Return the target's coordination with its neighbours and the group synchronisation."""
+    metrics = session_metrics(session, TRIM)
+    target = metrics["players"][TARGET]
+    return {key: float(target[key]) for key in MEASURES if key in target} | {
+        "group_synchronisation": metrics["group_synchronisation"]
+    }
+
+
+def summarise(records: pd.DataFrame) -> pd.DataFrame:
+    """Tabulate per measure the mean +- SD of VT5 and the cyber player, and a paired t-test."""
+    vt = records[records["player"] == "VT5"].sort_values("session")
+    cyber = records[records["player"] == "cyber player"].sort_values("session")
+    rows = {}
+    for key in MEASURES:
+        test = paired_ttest(vt[key].to_numpy(), cyber[key].to_numpy())
+        published_cyber, published_vt = PUBLISHED[key]
+        rows[key] = {
+            "VT5 mean": vt[key].mean(),
+            "VT5 SD": vt[key].std(ddof=1),
+            "cyber mean": cyber[key].mean(),
+            "cyber SD": cyber[key].std(ddof=1),
+            "t(df)": f"t({test.df}) = {test.t:.2f}",
+            "p": test.p,
+            "published VT": _published(published_vt),
+            "published cyber (DQN)": _published(published_cyber),
+        }
+    return pd.DataFrame.from_dict(rows, orient="index")
+
+
+def _published(value: tuple[float, float | None]) -> str:
+    mean, sd = value
+    return f"{mean:.3f}" if sd is None else f"{mean:.3f} +- {sd:.3f}"
+
+
+def check_criteria(records: pd.DataFrame) -> dict[str, Any]:
+    """`CRITERIA` on the random-graph sessions: differences of the means and the RMS SD ratio."""
+    vt = records[records["player"] == "VT5"]
+    cyber = records[records["player"] == "cyber player"]
+    out: dict[str, Any] = {}
+    for key in ("circular_variance", "group_synchronisation", "rmse"):
+        difference = float(cyber[key].mean() - vt[key].mean())
+        out[f"{key} difference"] = difference
+        out[f"{key} within"] = abs(difference) <= CRITERIA["max_difference"]
+    ratio = float(cyber["rmse"].std(ddof=1) / vt["rmse"].std(ddof=1))
+    out["rmse SD ratio"] = ratio
+    out["rmse SD within"] = ratio <= CRITERIA["max_rms_sd_ratio"]
+    out["all"] = all(v for k, v in out.items() if k.endswith("within"))
+    return out
+
+
+def topology_table(records: pd.DataFrame) -> pd.DataFrame:
+    """Means of CV, group synchronisation and RMS per topology (rows), VT5 and cyber player."""
+    frame = records.reset_index(level=0).rename(columns={"level_0": "topology"})
+    means = frame.pivot_table(
+        index="topology",
+        columns="player",
+        values=["circular_variance", "group_synchronisation", "rmse"],
+        aggfunc="mean",
+        sort=False,
+    )
+    means.columns = [" ".join(map(str, column)) for column in means.columns]
+    return means
+
+
+def compare_baselines(
+    player: CyberPlayer, group: Sequence[Player], n_sessions: int, seed: int
+) -> dict[str, float]:
+    """RMS to VT5 (units) on held-out group sessions: trained, untrained, copy the neighbours.
+
+    The sessions are the virtual-trainer group on new random graphs; the players replay each
+    open-loop in VT5's place (`score_imitation`); "copy the neighbours" is the RMS between the
+    mean position of VT5's neighbours and VT5's.
+    """
+    held_out = derive_seeds(seed + 1)[0]
+    n_samples = int(round(DURATION / player.period)) + 1
+    sessions = [
+        play_compiled(group, n_samples, s, random_connected_graph)
+        for s in draw_seeds(held_out, n_sessions)
+    ]
+    untrained = make_group_cyber_player(player.reference)
+    untrained.initialise_q(seed, 1e-3)
+    copies = []
+    for session in sessions:
+        neighbours = np.flatnonzero(session.graph[TARGET])
+        mean = session.positions[neighbours, 1:].mean(axis=0)
+        copies.append(np.sqrt(np.mean((mean - session.positions[TARGET, 1:]) ** 2)))
+    return {
+        "trained": float(score_imitation(player, sessions, TARGET)[1].mean()),
+        "untrained (random Q)": float(score_imitation(untrained, sessions, TARGET)[1].mean()),
+        "copy the neighbours' mean": float(np.mean(copies)),
+    }
+
+
+def per_player_synchronisation(group: Sequence[Player], seed: int) -> dict[str, dict[str, float]]:
+    """Each player's rho_k in one session of the VT group on a complete graph and on a path."""
+    n_samples = int(round(DURATION / group[0].period)) + 1
+    out = {}
+    for name in ("complete", "path"):
+        session = play_compiled(group, n_samples, seed, make_graph(name, len(group)))
+        x = session.trimmed(TRIM).positions
+        cluster = compute_cluster_phase(np.array([compute_phase(row) for row in x]))
+        out[name] = {f"player {i}": float(r) for i, r in enumerate(cluster.individual)}
+        out[name]["group (mean rho_g)"] = float(cluster.group.mean())
+    return out
+
+
+def _figures(
+    examples: tuple[Session, Session],
+    labels: list[str],
+    curve: Any,
+    baselines: dict[str, float],
+    synchrony: dict[str, dict[str, float]],
+) -> dict[str, Any]:
+    with_vt, with_cyber = (s.trimmed(TRIM) for s in examples)
+    keep = with_vt.times <= 20.0
+    positions = {label: x[keep] for label, x in zip(labels, with_vt.positions, strict=True)}
+    positions["cyber player (in VT5's place)"] = with_cyber.positions[TARGET, keep]
+    rho = {}
+    for name, session in (("with VT5", with_vt), ("with the cyber player", with_cyber)):
+        phases = np.array([compute_phase(x) for x in session.positions])
+        rho[name] = compute_cluster_phase(phases).group
+    bars = {name: {k: v for k, v in values.items() if k.startswith("player")}
+            for name, values in synchrony.items()}  # fmt: skip
+    return {
+        "Positions of the four players, first random-graph session (first 20 s)": plot_series(
+            with_vt.times[keep], positions, "position (units)", "A group of four"
+        ),
+        "Group synchronisation rho_g(t) in that session": plot_series(
+            with_vt.times, rho, "rho_g", "Group synchronisation"
+        ),
+        "That session's graph (drawn from its seed)": plot_graph(with_vt.graph, labels),
+        "Each player's synchronisation to the group, complete graph and path": plot_bars(
+            bars, "rho_k", "Synchronisation to the group (path: players 0 and 3 are the ends)"
+        ),
+        "Learning curve (dashed: baselines on held-out sessions)": plot_learning_curves(
+            {"trained cyber player": (curve.sessions, curve.rms)},
+            baselines,
+            title="Learning to imitate VT5 in a group",
+        ),  # fmt: skip
+    }
+
+
+def _describe(
+    members: Sequence[VirtualTrainerSpec],
+    table: pd.DataFrame,
+    checks: dict[str, Any],
+    baselines: dict[str, float],
+    synchrony: dict[str, dict[str, float]],
+    n_train: int,
+    n_valid: int,
+) -> list[str]:
+    who = ", ".join(f"{m.label} ({', '.join(m.trial_labels)})" for m in members)
+    path, complete = synchrony["path"], synchrony["complete"]["group (mean rho_g)"]
+    copy = baselines["copy the neighbours' mean"]
+    return [
+        f"Four virtual trainers improvise together with the group parameters of METHODS section "
+        f"8 (theta_p 0.85, theta_s 0.1, theta_v 0.05, omega 0.75): {who}; the last is the "
+        f"target. A tabular cyber player was trained on {n_train} sessions of {DURATION:g} s in "
+        f"the target's place, each on a new random connected graph, then replaced it in "
+        f"{n_valid} sessions on new random graphs, each paired with the same session (same "
+        f"seed and graph) played by the target. The first {TRIM:g} s are left out. CV, RMS, "
+        "time lag and cross-correlation are the target's against the mean of its neighbours.",
+        f"Criteria: mean CV, group synchronisation and RMS within {CRITERIA['max_difference']} "
+        f"of the target's, RMS SD at most {CRITERIA['max_rms_sd_ratio']} x the target's: "
+        + ("all met" if checks["all"] else "not all met")
+        + f" (differences CV {checks['circular_variance difference']:+.3f}, group "
+        f"synchronisation {checks['group_synchronisation difference']:+.3f}, RMS "
+        f"{checks['rmse difference']:+.3f}; RMS SD ratio {checks['rmse SD ratio']:.2f}; the "
+        "published DQN's was 3.8).",
+        f"RMS to the target on held-out sessions: trained {baselines['trained']:.3f}, untrained "
+        f"{baselines['untrained (random Q)']:.3f}, copying the neighbours' mean "
+        f"{copy:.3f} units.",
+        f"Virtual trainers alone: group synchronisation {complete:.3f} on a complete graph; "
+        f"on a path the ends synchronise to the group with rho_k {path['player 0']:.3f} and "
+        f"{path['player 3']:.3f}, the middle with {path['player 1']:.3f} and "
+        f"{path['player 2']:.3f}.",
+    ]
