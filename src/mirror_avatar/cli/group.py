@@ -8,12 +8,17 @@ import click
 
 from mirror_avatar.cli.simulate import (
     SPEC_HELP,
-    TRIM,
     check_out_dir,
     format_metrics,
+    session_options,
     write_outputs,
 )
-from mirror_avatar.cli.train import load_reference, write_learning_curve
+from mirror_avatar.cli.train import (
+    check_training,
+    load_reference,
+    training_options,
+    write_learning_curve,
+)
 from mirror_avatar.dynamics import GROUP, GROUP_LEADER
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
@@ -43,18 +48,7 @@ def group() -> None:
     help="Index of a player that leads (the group-leader preset); repeatable.",
 )
 @click.option("--graph", "graph_spec", default="complete", show_default=True, help=GRAPH_HELP)
-@click.option("--duration", type=float, default=60.0, show_default=True, help="Session length (s).")
-@click.option("--seed", type=int, default=None, help="Session seed (default: fresh, recorded).")
-@click.option(
-    "--trim", type=float, default=TRIM, show_default=True, help="Seconds left out of the metrics."
-)
-@click.option(
-    "--out",
-    "out_dir",
-    required=True,
-    type=click.Path(path_type=Path),
-    help="Directory for session.parquet/.csv/.json and metrics.json.",
-)
+@session_options
 def simulate(
     player_specs: tuple[str, ...],
     leaders: tuple[int, ...],
@@ -113,17 +107,7 @@ def simulate(
     help="The other members of the group (models); repeatable.",
 )
 @click.option("--graph", "graph_spec", default="random", show_default=True, help=GRAPH_HELP)
-@click.option("--sessions", type=int, required=True, help="Training sessions of --duration s.")
-@click.option("--duration", type=float, default=60.0, show_default=True, help="Session length (s).")
-@click.option("--seed", type=int, default=0, show_default=True, help="Run seed (recorded).")
-@click.option("--scheduler", default=None, help="Dask scheduler address (tcp://host:port).")
-@click.option("--jobs", type=int, default=2, show_default=True, help="Local processes.")
-@click.option(
-    "--checkpoint-every", type=int, default=None, help="Also save the policy every N sessions."
-)
-@click.option(
-    "--out", "out_path", required=True, type=click.Path(path_type=Path), help="Policy .npz file."
-)
+@training_options
 def train(
     target_spec: str,
     player_specs: tuple[str, ...],
@@ -143,12 +127,7 @@ def train(
     .npz, bundled:fast, bundled:slow or vt:TRIAL_FILE. Writes OUT (playable as a player SPEC,
     in groups and dyads) and OUT.learning_curve.csv and .png.
     """
-    if out_path.suffix.lower() != ".npz":
-        raise InputError(out_path, "the policy file must end in .npz")
-    if sessions < 1 or jobs < 1 or (checkpoint_every is not None and checkpoint_every < 1):
-        raise InputError("--sessions", "--sessions, --jobs and --checkpoint-every must be >= 1")
-    if not duration > 0.0:
-        raise InputError("--duration", f"must be positive, got {duration:g} s")
+    check_training(out_path, sessions, jobs, checkpoint_every, duration)
     target = load_reference(target_spec)
     partners = [load_reference(spec) for spec in player_specs]
     player, curve = train_group_cyber_player(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -83,6 +84,27 @@ def format_group_metrics(metrics: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def session_options(command: Callable[..., None]) -> Callable[..., None]:
+    """Add the options of a simulated session: duration, seed, trim and output folder."""
+    options = [
+        click.option(
+            "--duration", type=float, default=60.0, show_default=True, help="Session length (s)."
+        ),
+        click.option("--seed", type=int, default=None, help="Session seed (default: fresh)."),
+        click.option(
+            "--trim", type=float, default=TRIM, show_default=True,
+            help="Seconds left out of the metrics.",
+        ),
+        click.option(
+            "--out", "out_dir", required=True, type=click.Path(path_type=Path),
+            help="Directory for session.parquet/.csv/.json and metrics.json.",
+        ),
+    ]  # fmt: skip
+    for option in reversed(options):
+        command = option(command)
+    return command
+
+
 def check_out_dir(out_dir: Path) -> None:
     """Refuse an output path that is a file."""
     if out_dir.exists() and not out_dir.is_dir():
@@ -107,18 +129,7 @@ def write_outputs(session: Session, out_dir: Path, summary: dict[str, Any]) -> P
     is_flag=True,
     help="Joint improvisation: both virtual trainers take the joint preset, neither leads.",
 )
-@click.option("--duration", type=float, default=60.0, show_default=True, help="Session length (s).")
-@click.option("--seed", type=int, default=None, help="Session seed (default: fresh, recorded).")
-@click.option(
-    "--trim", type=float, default=TRIM, show_default=True, help="Seconds left out of the metrics."
-)
-@click.option(
-    "--out",
-    "out_dir",
-    required=True,
-    type=click.Path(path_type=Path),
-    help="Directory for session.parquet/.csv/.json and metrics.json.",
-)
+@session_options
 def simulate(
     leader_spec: str,
     follower_spec: str,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import click
@@ -29,6 +30,41 @@ def load_reference(spec: str) -> Reference:
     return player.reference
 
 
+def training_options(command: Callable[..., None]) -> Callable[..., None]:
+    """Add the options of a training run: sessions, duration, seed, where to run, output."""
+    options = [
+        click.option("--sessions", type=int, required=True, help="Training sessions."),
+        click.option(
+            "--duration", type=float, default=60.0, show_default=True, help="Session length (s)."
+        ),
+        click.option("--seed", type=int, default=0, show_default=True, help="Run seed (recorded)."),
+        click.option("--scheduler", default=None, help="Dask scheduler address (tcp://host:port)."),
+        click.option("--jobs", type=int, default=2, show_default=True, help="Local processes."),
+        click.option(
+            "--checkpoint-every", type=int, default=None, help="Also save the policy every N."
+        ),
+        click.option(
+            "--out", "out_path", required=True, type=click.Path(path_type=Path),
+            help="Policy .npz file.",
+        ),
+    ]  # fmt: skip
+    for option in reversed(options):
+        command = option(command)
+    return command
+
+
+def check_training(
+    out_path: Path, sessions: int, jobs: int, checkpoint_every: int | None, duration: float
+) -> None:
+    """Refuse a training run's bad options in one line, before any work."""
+    if out_path.suffix.lower() != ".npz":
+        raise InputError(out_path, "the policy file must end in .npz")
+    if sessions < 1 or jobs < 1 or (checkpoint_every is not None and checkpoint_every < 1):
+        raise InputError("--sessions", "--sessions, --jobs and --checkpoint-every must be >= 1")
+    if not duration > 0.0:
+        raise InputError("--duration", f"must be positive, got {duration:g} s")
+
+
 def write_learning_curve(curve: LearningCurve, policy: Path, name: str) -> Path:
     """Write a policy's learning curve beside it, as CSV and PNG; return the CSV's path."""
     curve_path = curve.save(learning_curve_path(policy))
@@ -50,17 +86,7 @@ def write_learning_curve(curve: LearningCurve, policy: Path, name: str) -> Path:
     "--role", type=click.Choice(TRAINING_ROLES), default="follower", show_default=True,
     help="The role the cyber player learns; the partners take the other one.",
 )  # fmt: skip
-@click.option("--sessions", type=int, required=True, help="Training sessions of --duration s.")
-@click.option("--duration", type=float, default=60.0, show_default=True, help="Session length (s).")
-@click.option("--seed", type=int, default=0, show_default=True, help="Run seed (recorded).")
-@click.option("--scheduler", default=None, help="Dask scheduler address (tcp://host:port).")
-@click.option("--jobs", type=int, default=2, show_default=True, help="Local processes.")
-@click.option(
-    "--checkpoint-every", type=int, default=None, help="Also save the policy every N sessions."
-)
-@click.option(
-    "--out", "out_path", required=True, type=click.Path(path_type=Path), help="Policy .npz file."
-)
+@training_options
 def train(
     target_spec: str,
     partner_specs: tuple[str, ...],
@@ -79,12 +105,7 @@ def train(
     partner and is rewarded for moving like the target. Writes OUT and
     OUT.learning_curve.csv and .png (the stem of OUT, then .learning_curve.csv / .png).
     """
-    if out_path.suffix.lower() != ".npz":
-        raise InputError(out_path, "the policy file must end in .npz")
-    if sessions < 1 or jobs < 1 or (checkpoint_every is not None and checkpoint_every < 1):
-        raise InputError("--sessions", "--sessions, --jobs and --checkpoint-every must be >= 1")
-    if not duration > 0.0:
-        raise InputError("--duration", f"must be positive, got {duration:g} s")
+    check_training(out_path, sessions, jobs, checkpoint_every, duration)
     specs = [s.strip() for spec in partner_specs for s in spec.split(",") if s.strip()]
     target = load_reference(target_spec)
     partners = [load_reference(spec) for spec in specs]
