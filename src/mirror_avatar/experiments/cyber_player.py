@@ -1,9 +1,9 @@
 """Validation of the cyber player (paper Tables I-II, figures 8-9; METHODS section 7).
 
 A cyber player is trained to imitate VT5 as a follower and as a leader
-(`mirror_avatar.learning.imitation`), then replaces VT5 and plays closed-loop
-(`mirror_avatar.engine.loop.play`) with VT1..VT4 (seen in
-training) and VT6 (unseen). Each partner plays the same seeded sessions with VT5 and with the
+(`mirror_avatar.learning.imitation`), then replaces VT5 and plays closed-loop (in the compiled
+loop, `mirror_avatar.engine.batch.play_compiled`) with VT1..VT4 (seen in training) and VT6
+(unseen). Each partner plays the same seeded sessions with VT5 and with the
 cyber player, so CV and RMS can be compared by paired t-tests (the paper finds no significant
 difference, all p > 0.05). Also reported: EMD of each player's velocity signature to the
 partner's, the similarity-space regions of VT5, the cyber player and the partners with their
@@ -24,8 +24,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.engine.batch import run_sessions
-from mirror_avatar.engine.loop import play
+from mirror_avatar.engine.batch import play_compiled, run_sessions
+from mirror_avatar.engine.loop import count_samples
 from mirror_avatar.figures import plot_learning_curves, plot_positions, plot_similarity_space
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.imitation import (
@@ -71,6 +71,9 @@ BASELINE_SESSIONS = 100
 QUICK_BASELINE_SESSIONS = 20
 TRIM = 1.0
 """Seconds of start-up transient left out of every metric (**choice**)."""
+
+SESSION_SECONDS = 60.0
+"""Length of a validation session (s)."""
 
 PAPER = {"cv": (0.74, 0.90), "rms": (0.10, 0.12), "emd": (0.002, 0.008)}
 """The paper's Table I ranges."""
@@ -225,12 +228,13 @@ def validate(
     seeds = draw_seeds([seed, 1], n_sessions)
     rows: list[dict[str, Any]] = []
     velocities: dict[str, list[np.ndarray]] = {"VT5": [], "cyber player": [], "partners": []}
+    n_samples = count_samples(SESSION_SECONDS, player.period)
     sessions: list[Session] = []
     for index in (*SEEN_PARTNERS, UNSEEN_PARTNER):
         partner = trainers[index].player(other)
         for k, s in enumerate(seeds):
             for name, avatar in (("VT5", trainers[TARGET].player(role)), ("cyber player", player)):
-                session = play([partner, avatar], seed=s, roles=roles)
+                session = play_compiled([partner, avatar], n_samples, s, roles=roles)
                 trimmed = session.trimmed(TRIM)
                 rows.append(
                     {"partner": trainers[index].label, "player": name, "session": k}

@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from mirror_avatar.engine.batch import play_compiled
+from mirror_avatar.engine.loop import count_samples
 from mirror_avatar.figures import plot_bars, plot_graph, plot_learning_curves, plot_series
 from mirror_avatar.graphs import GraphSource, make_graph, random_connected_graph
 from mirror_avatar.learning.agent import CyberPlayer
@@ -188,7 +189,7 @@ def compare(
     """
     with_cyber = [*group[:TARGET], player]
     rows, examples = [], []
-    n_samples = int(round(DURATION / player.period)) + 1
+    n_samples = count_samples(DURATION, player.period)
     for k, seed in enumerate(seeds):
         for name, lineup in (("VT5", group), ("cyber player", with_cyber)):
             session = play_compiled(lineup, n_samples, seed, graph)
@@ -273,7 +274,7 @@ def compare_baselines(
     mean position of VT5's neighbours and VT5's.
     """
     held_out = derive_seeds(seed + 1)[0]
-    n_samples = int(round(DURATION / player.period)) + 1
+    n_samples = count_samples(DURATION, player.period)
     sessions = [
         play_compiled(group, n_samples, s, random_connected_graph)
         for s in draw_seeds(held_out, n_sessions)
@@ -294,7 +295,7 @@ def compare_baselines(
 
 def per_player_synchronisation(group: Sequence[Player], seed: int) -> dict[str, dict[str, float]]:
     """Each player's rho_k in one session of the VT group on a complete graph and on a path."""
-    n_samples = int(round(DURATION / group[0].period)) + 1
+    n_samples = count_samples(DURATION, group[0].period)
     out = {}
     for name in ("complete", "path"):
         session = play_compiled(group, n_samples, seed, make_graph(name, len(group)))
