@@ -30,6 +30,7 @@ held over the period (`integrate_hkb`, METHODS section 7).
 Everything numerical is compiled with numba. Compiled functions read the parameters by name from a
 record of `PARAMS_DTYPE` (`HKBParams.record`), so `optimal_control_step` and `integrate_hkb` are the
 single steps used by every player, in the Python step loop and in the compiled batch loop alike.
+The parameters, both steps and the solver's pieces stay in one module: they are read together.
 """
 
 from __future__ import annotations

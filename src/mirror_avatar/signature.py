@@ -4,6 +4,9 @@ The IMS of a trial, or of a set of trials, is the probability density of its vel
 estimated by a histogram (default 200 bin centres on [-3.5, 3.5] units/s; samples outside the
 range are counted in the end bins). Two signatures are compared by the earth mover's distance
 (EMD): the area between their CDFs divided by the bin range, so that it lies in [0, 1].
+
+Also the analyses built on them: the similarity space, characteristic regions and their overlaps,
+and velocity strokes, composed by `analyse_signatures`; one module because they are one analysis.
 """
 
 from __future__ import annotations

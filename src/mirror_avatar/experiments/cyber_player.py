@@ -9,7 +9,7 @@ difference, all p > 0.05). Also reported: EMD of each player's velocity signatur
 partner's, the similarity-space regions of VT5, the cyber player and the partners with their
 overlaps, example position time series, learning curves, and a baseline comparison on held-out
 virtual-trainer sessions: RMS to VT5 of the trained player, of an untrained one (random Q) and of
-simply copying the partner.
+simply copying the partner. One module for one experiment: its runs, tables and text.
 """
 
 from __future__ import annotations

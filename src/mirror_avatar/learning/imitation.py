@@ -15,7 +15,11 @@ and the unseen partner VT6 (slow).
 `train_cyber_player` streams the batch engine's sessions (`mirror_avatar.engine.batch.run_sessions`)
 straight into `mirror_avatar.learning.training.QLearner.fit`: sessions are generated and learnt
 from chunk by chunk, never all held in memory. Player 0 of every session is the partner, player 1
-the target.
+the target. `train_group_cyber_player` does the same in a group (METHODS section 8): the target is
+the last member, and every session has a new random graph. Both go through `imitate`.
+
+The module is longer than most: it is the one place that says how the paper's cyber players are
+set up (persons, roles, cells, actions, learners) for dyads and groups alike.
 """
 
 from __future__ import annotations
