@@ -12,12 +12,9 @@ import click
 from mirror_avatar.atomic import json_safe, write_atomic_json
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
-from mirror_avatar.metrics import session_metrics
+from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.session import Session, load_session
 from mirror_avatar.specs import load_player
-
-TRIM = 1.0
-"""Seconds of start-up transient left out of the metrics by default (**choice**)."""
 
 METRIC_ROWS = (
     ("circular_variance", "CV (phase locking, 0-1)", ""),

@@ -42,7 +42,7 @@ from mirror_avatar.learning.imitation import (
     train_cyber_player,
 )
 from mirror_avatar.learning.training import LearningCurve, score_imitation
-from mirror_avatar.metrics import paired_ttest, session_metrics
+from mirror_avatar.metrics import TRIM, paired_ttest, session_metrics
 from mirror_avatar.report import Section
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.session import Session
@@ -69,8 +69,6 @@ BASELINE_SESSIONS = 100
 """Held-out virtual-trainer sessions for the baseline comparison."""
 
 QUICK_BASELINE_SESSIONS = 20
-TRIM = 1.0
-"""Seconds of start-up transient left out of every metric (**choice**)."""
 
 SESSION_SECONDS = 60.0
 """Length of a validation session (s)."""

@@ -37,6 +37,7 @@ from mirror_avatar.learning.imitation import (
 )
 from mirror_avatar.learning.training import score_imitation
 from mirror_avatar.metrics import (
+    TRIM,
     compute_cluster_phase,
     compute_phase,
     paired_ttest,
@@ -65,8 +66,6 @@ QUICK_TOPOLOGY_SESSIONS = 3
 BASELINE_SESSIONS = 60
 QUICK_BASELINE_SESSIONS = 10
 DURATION = 60.0
-TRIM = 1.0
-"""Seconds of start-up transient left out of every metric (**choice**)."""
 
 TOPOLOGIES = ("complete", "ring", "path", "star")
 

@@ -31,7 +31,7 @@ from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_ims, plot_positions, plot_relative_phase
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.metrics import compute_relative_phase, session_metrics
+from mirror_avatar.metrics import TRIM, compute_relative_phase, session_metrics
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import Section
 from mirror_avatar.seeds import spawn_seeds
@@ -45,8 +45,6 @@ REFERENCE_STYLE = "slow"
 PARTNER_STYLE = "fast"
 """Style of the VT follower it leads (**choice**)."""
 
-TRIM = 1.0
-"""Seconds of start-up transient left out of every session's metrics (**choice**)."""
 
 LEAD_SESSIONS = 20
 """Sessions of the VT leading (5 in quick mode)."""

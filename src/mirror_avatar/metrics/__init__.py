@@ -20,9 +20,10 @@ from mirror_avatar.metrics.coordination import (
     wrap_phase,
 )
 from mirror_avatar.metrics.group import ClusterPhase, compute_cluster_phase
-from mirror_avatar.metrics.summary import session_metrics
+from mirror_avatar.metrics.summary import TRIM, session_metrics
 
 __all__ = [
+    "TRIM",
     "ClusterPhase",
     "TTest",
     "compute_circular_sd",

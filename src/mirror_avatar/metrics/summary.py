@@ -40,6 +40,10 @@ from mirror_avatar.signature import compute_emd, compute_ims
 
 Array = NDArray[np.float64]
 
+TRIM = 1.0
+"""Seconds of start-up transient the toolkit leaves out of a session's metrics by default
+(**choice**: the players start at rest in the middle of the range)."""
+
 
 def session_metrics(session: Session, trim: float = 0.0) -> dict[str, Any]:
     """All coordination metrics of a session of any number of players (see the module docstring).
