@@ -55,6 +55,10 @@ from mirror_avatar.trials import (
     make_trial,
 )
 
+MIN_FRAMES_PER_SYMBOL = 4
+"""Fewest STFT frames per code vector a codebook is fitted on (**choice**: with fewer, most code
+vectors are single frames and the chain only replays the training trials)."""
+
 FORMAT_NAME = "mirror-avatar/ims-generator"
 FORMAT_VERSION = 1
 Array = NDArray[np.float64]
@@ -168,7 +172,8 @@ class IMSGenerator:
         Raises
         ------
         InputError
-            No trials, bad hyper-parameters, or fewer frames than symbols.
+            No trials, bad hyper-parameters, or fewer than `MIN_FRAMES_PER_SYMBOL` frames per
+            symbol.
         """
         self._check_parameters()
         signals = [self._signal(trial) for trial in trials]
@@ -176,11 +181,13 @@ class IMSGenerator:
             raise InputError("trials", "no trials to fit the generator on")
         features = [self._features(signal) for signal in signals]
         n_frames = sum(f.shape[0] for f in features)
-        if n_frames < self.n_symbols:
+        if n_frames < MIN_FRAMES_PER_SYMBOL * self.n_symbols:
+            most = max(n_frames // MIN_FRAMES_PER_SYMBOL, 1)
             raise InputError(
                 "trials",
-                f"{n_frames} frames are too few for {self.n_symbols} symbols; "
-                "give longer or more trials, or fewer symbols",
+                f"{n_frames} frames are too few for {self.n_symbols} symbols (a codebook needs "
+                f"{MIN_FRAMES_PER_SYMBOL} frames per symbol): give --symbols {most} or fewer, "
+                "or more trials",
             )
         kmeans = KMeans(
             n_clusters=self.n_symbols,

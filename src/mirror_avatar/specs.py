@@ -34,7 +34,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.generator import FORMAT_NAME as GENERATOR_FORMAT
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
-from mirror_avatar.learning.agent import load_cyber_player
+from mirror_avatar.learning.agent import CyberPlayer, load_cyber_player
 from mirror_avatar.model_files import read_archive
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.trial_io import read_trial
@@ -54,6 +54,10 @@ BUNDLED_SEED = 0
 SPEC_FORMS = "bundled:fast, bundled:slow, vt:TRIAL_FILE, a model .npz or a trial file"
 
 
+POLICY_ROLES = {"follower": ("follower",), "leader": ("leader",), "group": ("group", "joint")}
+"""The roles a cyber player trained in each role (``training_["role"]``) may play."""
+
+
 def load_player(spec: str, role: str | HKBParams) -> Player:
     """Build the player a spec names.
 
@@ -62,8 +66,9 @@ def load_player(spec: str, role: str | HKBParams) -> Player:
     spec
         See the module docstring.
     role
-        A role preset name (``"leader"``, ``"follower"``, ``"joint"``) or the parameters of the
-        virtual trainer; not used by recorded and cyber players.
+        A role preset name (`mirror_avatar.dynamics.ROLES`) or the parameters of the virtual
+        trainer. A recorded player ignores it; a cyber player refuses a role it was not trained
+        for (`POLICY_ROLES`).
 
     Returns
     -------
@@ -72,7 +77,8 @@ def load_player(spec: str, role: str | HKBParams) -> Player:
     Raises
     ------
     InputError
-        ``spec: problem`` for an unknown spec, an unknown role, or a missing or unreadable file.
+        ``spec: problem`` for an unknown spec, an unknown role, a missing or unreadable file, or a
+        cyber player asked to play a role it was not trained for.
     """
     params = preset(role) if isinstance(role, str) else role
     label = f"virtual trainer ({spec})"
@@ -88,7 +94,10 @@ def load_player(spec: str, role: str | HKBParams) -> Player:
         return VirtualTrainer(params, trial, label=label)
     path = Path(spec)
     if path.suffix.lower() == ".npz":
-        return _load_model(path, params, label)
+        player = _load_model(path, params, label)
+        if isinstance(player, CyberPlayer) and isinstance(role, str):
+            _check_policy_role(path, player, role)
+        return player
     if not path.exists():
         raise InputError(spec, f"no such file, and not a player spec ({SPEC_FORMS})")
     return RecordedPlayer(_read_recording(spec))
@@ -108,6 +117,17 @@ def _load_model(path: Path, params: HKBParams, label: str) -> Player:
     raise InputError(
         path, f"model format {kind!r} is neither {GENERATOR_FORMAT!r} nor {CYBER_FORMAT!r}"
     )
+
+
+def _check_policy_role(path: Path, player: CyberPlayer, role: str) -> None:
+    trained = player.training_.get("role")
+    if trained in POLICY_ROLES and role not in POLICY_ROLES[trained]:
+        raise InputError(
+            path,
+            f"a cyber player trained as {trained} cannot play {role}: train one for that role "
+            "(train --role, or group train), or use this one as "
+            + " or ".join(POLICY_ROLES[trained]),
+        )
 
 
 def cache_dir() -> Path:

@@ -1,10 +1,11 @@
 """Reading and writing trial files.
 
 Formats: CSV with header ``time,position`` (the exchange format; extra columns are ignored),
-and the MATLAB struct format of the bundled data (a 1xK struct array with fields ``x`` and
-``v``). Readers do not resample: irregular timestamps are kept (call ``trial.resampled``).
-Every reader validates its input and raises `InputError` with one line naming the file
-and the problem.
+Parquet, BIDS-Motion (``*_motion.tsv`` with its ``_motion.json`` and, if present,
+``_channels.tsv``), and the MATLAB struct format of the bundled data (a 1xK struct array with
+fields ``x`` and ``v``). Other columns and units are read as `mirror_avatar.importing.ImportOptions`
+say. Readers do not resample: irregular timestamps are kept (call ``trial.resampled``). Every
+reader validates its input and raises `InputError` with one line naming the file and the problem.
 """
 
 from __future__ import annotations
@@ -12,15 +13,16 @@ from __future__ import annotations
 import csv
 import io
 import json
-from collections.abc import Iterable
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import scipy.io
+from numpy.typing import NDArray
 
 from mirror_avatar.atomic import atomic_path, write_atomic_json, write_atomic_text
 from mirror_avatar.errors import InputError
+from mirror_avatar.importing import POSITION_UNITS, ImportOptions, fill_gaps, parse_number
 from mirror_avatar.trials import Trial, make_trial
 
 
@@ -95,7 +97,8 @@ def write_mat_struct(trials: list[Trial], path: str | Path, variable: str) -> No
         scipy.io.savemat(handle, {variable: struct})
 
 
-CSV_COLUMNS = ("time", "position")
+DEFAULT_IMPORT = ImportOptions()
+"""The exchange format: ``time`` in seconds and ``position`` in normalised units."""
 MAT_DURATION = 60.0
 """Seconds spanned by each trial of a ``.mat`` file read through `read_trial` (**choice**)."""
 SUPPORTED = (".csv", ".mat", ".parquet", "_motion.tsv")
@@ -110,32 +113,65 @@ def _read_text(path: Path) -> str:
         raise InputError(path, "not a text file") from None
 
 
-def read_csv_trial(path: str | Path) -> Trial:
-    """Read a CSV trial with header ``time,position`` (s, normalised units).
+def read_csv_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
+    """Read a CSV trial: by default columns ``time,position`` (s, normalised units).
+
+    Other columns and units are read as ``options`` say; blank cells are missing samples
+    (`mirror_avatar.importing.fill_gaps`). A byte-order mark is ignored.
 
     Raises
     ------
     InputError
-        Empty file, missing column (naming the columns found), a non-numeric value (naming
-        the row), or any problem `make_trial` finds.
+        Empty file, missing column (naming the columns found and the options to choose
+        others), a non-numeric value (naming the row), or any problem `make_trial` finds.
     """
     path = Path(path)
-    rows = list(csv.reader(io.StringIO(_read_text(path))))
+    rows = list(csv.reader(io.StringIO(_read_text(path).removeprefix("\ufeff"))))
     rows = [[cell.strip() for cell in row] for row in rows if any(cell.strip() for cell in row)]
     if not rows:
         raise InputError(path, "empty file")
     header = rows[0]
-    missing = [name for name in CSV_COLUMNS if name not in header]
+    names = (options.time_column, options.position_column)
+    missing = [name for name in names if name not in header]
     if missing:
-        raise InputError(path, f"missing column(s) {missing}; found {header}")
-    columns = [header.index(name) for name in CSV_COLUMNS]
+        raise InputError(
+            path,
+            f"missing column(s) {missing}; found {header[:8]}: name the columns to read with "
+            "--time-column and --position-column",
+        )
+    columns = [header.index(name) for name in names]
     values = np.empty((len(rows) - 1, 2))
     for number, row in enumerate(rows[1:], start=2):
         try:
-            values[number - 2] = [float(row[k]) for k in columns]
-        except (ValueError, IndexError):
-            raise InputError(path, f"row {number}: not two numbers in {row}") from None
-    return make_trial(values[:, 0], values[:, 1], source=str(path), label=path.stem)
+            values[number - 2] = [parse_number(row[k]) if k < len(row) else np.nan for k in columns]
+        except ValueError:
+            shown = [row[k][:20] for k in columns if k < len(row)]
+            raise InputError(path, f"row {number}: not numbers in {shown}") from None
+    if np.isnan(values[:, 0]).any():
+        first = int(np.argmax(np.isnan(values[:, 0]))) + 2
+        raise InputError(path, f"row {first}: no time in column {options.time_column!r}")
+    return import_trial(values[:, 0], values[:, 1], path, options, None)
+
+
+def import_trial(
+    times: NDArray[np.float64],
+    positions: NDArray[np.float64],
+    path: Path,
+    options: ImportOptions,
+    position_unit: str | None,
+) -> Trial:
+    """Convert a file's columns with ``options``, fill short drop-outs, and validate the trial.
+
+    ``position_unit`` (a unit the file itself names) overrides ``options.position_unit``.
+    The trial's metadata records the options and how many samples were interpolated.
+    """
+    seconds = options.seconds(times, str(path))
+    normalised = options.normalised(positions, position_unit)
+    seconds, normalised, filled = fill_gaps(seconds, normalised, options.max_gap, str(path))
+    metadata = {"import": options.describe() | {"interpolated_samples": filled}}
+    if position_unit is not None:
+        metadata["import"]["position_unit"] = position_unit
+    return make_trial(seconds, normalised, source=str(path), label=path.stem, metadata=metadata)
 
 
 def write_csv_trial(trial: Trial, path: str | Path) -> None:
@@ -147,8 +183,10 @@ def write_csv_trial(trial: Trial, path: str | Path) -> None:
     write_atomic_text(path, "\n".join(lines) + "\n")
 
 
-def read_parquet_trial(path: str | Path) -> Trial:
-    """Read a Parquet trial with columns ``time`` and ``position``; metadata from the schema.
+def read_parquet_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
+    """Read a Parquet trial, by default columns ``time`` and ``position``; metadata from the schema.
+
+    Other columns and units are read as ``options`` say (see `read_csv_trial`).
 
     Raises
     ------
@@ -165,25 +203,33 @@ def read_parquet_trial(path: str | Path) -> Trial:
         table = pq.read_table(path)
     except (pa.ArrowException, OSError) as error:
         raise InputError(path, f"not a readable Parquet file ({type(error).__name__})") from None
-    missing = [name for name in CSV_COLUMNS if name not in table.column_names]
+    names = (options.time_column, options.position_column)
+    missing = [name for name in names if name not in table.column_names]
     if missing:
-        raise InputError(path, f"missing column(s) {missing}; found {table.column_names}")
+        raise InputError(
+            path,
+            f"missing column(s) {missing}; found {table.column_names[:8]}: name the columns to "
+            "read with --time-column and --position-column",
+        )
     try:
-        times, positions = (table.column(n).to_numpy().astype(np.float64) for n in CSV_COLUMNS)
+        times, positions = (
+            table.column(n).to_numpy(zero_copy_only=False).astype(np.float64) for n in names
+        )
     except (ValueError, TypeError, pa.ArrowException):
-        raise InputError(path, "columns time and position must be numeric") from None
+        raise InputError(path, f"columns {list(names)} must be numeric") from None
     stored = (table.schema.metadata or {}).get(b"mirror_avatar", b"{}")
     try:
         info = json.loads(stored)
     except ValueError:
         raise InputError(path, "schema metadata 'mirror_avatar' is not JSON") from None
-    return make_trial(
-        times,
-        positions,
-        source=str(path),
+    if not isinstance(info, dict):
+        raise InputError(path, "schema metadata 'mirror_avatar' is not a JSON object")
+    trial = import_trial(times, positions, path, options, None)
+    return replace(
+        trial,
         label=str(info.get("label") or path.stem),
         group=str(info.get("group", "")),
-        metadata=dict(info.get("metadata", {})),
+        metadata=dict(info.get("metadata", {})) | trial.metadata,
     )
 
 
@@ -199,39 +245,82 @@ def write_parquet_trial(trial: Trial, path: str | Path) -> None:
         pq.write_table(table, temporary)
 
 
-def read_bids_motion(path: str | Path) -> Trial:
-    """Read a BIDS-Motion ``*_motion.tsv`` (no header, one position channel) and its sidecar.
+def read_bids_motion(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
+    """Read a BIDS-Motion ``*_motion.tsv`` (no header) with its ``_motion.json`` sidecar.
 
-    Sample times are ``k / SamplingFrequency`` from the ``*_motion.json`` sidecar.
+    Sample times are ``k / SamplingFrequency`` from the sidecar. With a ``*_channels.tsv`` beside
+    it, the position channel is the one ``options.position_column`` names, or the only one of
+    type ``POS``, and its ``units`` (mm, cm, m) convert it; without one, the file must hold one
+    column. Blank or ``n/a`` samples are missing (`mirror_avatar.importing.fill_gaps`).
 
     Raises
     ------
     InputError
-        Sidecar missing, not JSON or without a positive ``SamplingFrequency`` (Hz); a
-        non-numeric value (naming the row); or any `make_trial` problem.
+        Sidecar missing, not JSON or without a positive ``SamplingFrequency`` (Hz); several
+        channels and none chosen (naming them and ``--position-column``); a non-numeric value
+        (naming the row); or any `make_trial` problem.
     """
     path = Path(path)
     text = _read_text(path)
-    sidecar = path.with_name(path.name[: -len(".tsv")] + ".json")
+    stem = path.name[: -len("_motion.tsv")]
+    sidecar = path.with_name(f"{stem}_motion.json")
     if not sidecar.is_file():
         raise InputError(path, f"no sidecar {sidecar.name}")
     try:
         info = json.loads(sidecar.read_text(encoding="utf-8"))
         rate = float(info["SamplingFrequency"])
-    except (ValueError, KeyError, TypeError):
+    except (ValueError, KeyError, TypeError, OverflowError):
         raise InputError(path, f"{sidecar.name} has no numeric SamplingFrequency") from None
-    if not rate > 0:
+    if not (np.isfinite(rate) and rate > 0):
         raise InputError(path, f"{sidecar.name}: SamplingFrequency must be positive")
-    lines = [line for line in text.splitlines() if line.strip()]
+    lines = [line.split("\t") for line in text.splitlines() if line.strip()]
+    column, unit = _bids_channel(path, path.with_name(f"{stem}_channels.tsv"), options, lines)
     positions = np.empty(len(lines))
     for number, line in enumerate(lines, start=1):
         try:
-            positions[number - 1] = float(line.split("\t")[0])
+            positions[number - 1] = parse_number(line[column]) if column < len(line) else np.nan
         except ValueError:
-            raise InputError(path, f"row {number}: not a number: {line!r}") from None
+            raise InputError(path, f"row {number}: not a number: {line[column][:20]!r}") from None
     times = np.arange(positions.size) / rate
-    label = str(info.get("TaskName") or path.stem)
-    return make_trial(times, positions, source=str(path), label=label)
+    trial = import_trial(times, positions, path, replace(options, time_unit="s"), unit)
+    return replace(trial, label=str(info.get("TaskName") or path.stem))
+
+
+def _bids_channel(
+    path: Path, channels: Path, options: ImportOptions, lines: list[list[str]]
+) -> tuple[int, str | None]:
+    """Return the position channel's column and unit (None: as the options say)."""
+    if not channels.is_file():
+        if lines and len(lines[0]) > 1:
+            raise InputError(
+                path,
+                f"{len(lines[0])} columns and no {channels.name} naming them: give the channels "
+                "file, or keep one column",
+            )
+        return 0, None
+    table = list(csv.DictReader(io.StringIO(_read_text(channels)), delimiter="\t"))
+    names = [row.get("name", "") for row in table]
+    if options.position_column in names:
+        index = names.index(options.position_column)
+    else:
+        positional = [i for i, row in enumerate(table) if row.get("type", "").upper() == "POS"]
+        if len(table) == 1:
+            positional = [0]
+        if len(positional) != 1:
+            raise InputError(
+                path,
+                f"{len(table)} channels ({', '.join(names[:8])}): choose the position channel "
+                "with --position-column NAME",
+            )
+        index = positional[0]
+    unit = table[index].get("units", "").strip()
+    if unit in ("", "n/a"):
+        return index, None
+    if unit not in POSITION_UNITS:
+        raise InputError(
+            channels, f"unit {unit[:20]!r} of channel {names[index]!r} is not mm, cm or m"
+        )
+    return index, unit
 
 
 def write_bids_motion(trial: Trial, path: str | Path) -> None:
@@ -252,42 +341,36 @@ def write_bids_motion(trial: Trial, path: str | Path) -> None:
     write_atomic_json(json_path, sidecar)
 
 
-def read_trial(path: str | Path) -> Trial:
+def read_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
     """Read one trial by extension; a ``.mat`` file must hold exactly one trial."""
-    trials = _read_file(Path(path))
+    trials = read_trial_file(path, options)
     if len(trials) != 1:
         raise InputError(path, f"holds {len(trials)} trials, expected one")
     return trials[0]
 
 
-def _read_file(path: Path) -> list[Trial]:
+def read_trial_file(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> list[Trial]:
+    """Read the trials of one file by its extension (a ``.mat`` file may hold several).
+
+    Folders of files are read by `mirror_avatar.trial_sets.read_trial_set`.
+    """
+    path = Path(path)
     suffix = "_motion.tsv" if path.name.endswith("_motion.tsv") else path.suffix.lower()
     if suffix not in SUPPORTED:
-        raise InputError(path, f"unknown extension {suffix!r}; supported: {', '.join(SUPPORTED)}")
+        raise InputError(
+            path,
+            f"unknown extension {suffix!r}; trial files are {', '.join(SUPPORTED)}"
+            + (" (a folder name? it does not exist)" if not suffix else ""),
+        )
     if not path.is_file():
         raise InputError(path, "no such file")
     if suffix == ".csv":
-        return [read_csv_trial(path)]
+        return [read_csv_trial(path, options)]
     if suffix == ".parquet":
-        return [read_parquet_trial(path)]
+        return [read_parquet_trial(path, options)]
     if suffix == "_motion.tsv":
-        return [read_bids_motion(path)]
+        return [read_bids_motion(path, options)]
     return read_mat_struct(path, MAT_DURATION)
-
-
-def read_trials(paths: Iterable[str | Path]) -> list[Trial]:
-    """Read trial files and directories of them (sorted; group = directory name if unset)."""
-    trials: list[Trial] = []
-    for path in map(Path, paths):
-        if not path.is_dir():
-            trials += _read_file(path)
-            continue
-        files = sorted(p for p in path.iterdir() if p.name.lower().endswith(SUPPORTED))
-        if not files:
-            raise InputError(path, f"directory holds no trial files ({', '.join(SUPPORTED)})")
-        for file in files:
-            trials += [t if t.group else replace(t, group=path.name) for t in _read_file(file)]
-    return trials
 
 
 def write_trial(trial: Trial, path: str | Path) -> None:

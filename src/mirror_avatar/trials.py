@@ -141,15 +141,16 @@ def make_trial(
     if not MIN_RATE <= rate <= MAX_RATE:
         raise InputError(
             source,
-            f"mean sampling rate {rate:.3g} Hz is outside {MIN_RATE:g}-{MAX_RATE:g} Hz "
-            "(is time in seconds?)",
+            f"mean sampling rate {rate:.3g} Hz is outside {MIN_RATE:g}-{MAX_RATE:g} Hz: if time "
+            "is not in seconds, give --time-unit ms, epoch or epoch_ms",
         )
     peak = float(np.max(np.abs(x)))
     if peak > MAX_ABS_POSITION:
         raise InputError(
             source,
-            f"|position| reaches {peak:.3g}; positions must be normalised "
-            f"(playing range {PLAYING_RANGE[0]} to {PLAYING_RANGE[1]})",
+            f"|position| reaches {peak:.3g}, beyond the normalised playing range "
+            f"{PLAYING_RANGE[0]} to {PLAYING_RANGE[1]}: give the unit with --position-unit "
+            "mm, cm or m (and --playing-range, the centimetres that make one unit)",
         )
     meta = dict(metadata or {})
     if source is not None:

@@ -95,4 +95,5 @@ def test_group_train_writes_a_policy_that_plays_anywhere(tmp_path, models) -> No
     assert np.all(np.isfinite(session.controls[2, :-1]))  # the cyber player reports controls
     dyad = ["simulate", "--leader", fast, "--follower", str(policy), "--duration", "5",
             "--out", str(tmp_path / "dyad")]  # fmt: skip
-    assert main(dyad) == 0
+    assert main(dyad) == 2  # trained in a group, not as a follower
+    assert main([*dyad, "--joint"]) == 0

@@ -3,13 +3,9 @@ import json
 import numpy as np
 import pytest
 
-from mirror_avatar import trial_io
 from mirror_avatar.cli import main
 
 FIGURES = ["ims.png", "similarity.png", "strokes.png"]
-needs_reader = pytest.mark.skipif(
-    not hasattr(trial_io, "read_trials"), reason="trial_io.read_trials has not landed yet"
-)
 
 
 def write_csvs(zhai_trials, root):
@@ -22,7 +18,6 @@ def write_csvs(zhai_trials, root):
     return [root / "fast", root / "slow"]
 
 
-@needs_reader
 def test_signature_of_csv_directories(zhai_trials, tmp_path, capsys):
     folders = write_csvs(zhai_trials, tmp_path / "data")
     out = tmp_path / "out"
@@ -62,7 +57,6 @@ def test_bad_input_is_one_line_exit_2(tmp_path, capsys, arguments):
     assert not out.exists()
 
 
-@needs_reader
 @pytest.mark.parametrize(
     ("group_by", "expected"), [("none", {"all"}), ("file", {"fast-1", "slow-9"})]
 )

@@ -83,6 +83,22 @@ def test_recorded_leader_and_joint_roles(tmp_path: Path, zhai_trials: list[Trial
     assert isinstance(summary["seed"], int)
 
 
+def test_a_recording_shorter_than_the_session_is_refused_unless_extended(
+    tmp_path: Path, zhai_trials: list[Trial], capsys: pytest.CaptureFixture[str]
+) -> None:
+    person = tmp_path / "person.csv"
+    write_trial(zhai_trials[12], person)  # 60 s
+    arguments = ["simulate", "--leader", str(person), "--follower", "bundled:slow", "--duration",
+                 "90", "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(arguments) == 2
+    error = capsys.readouterr().err
+    assert "the recording lasts 60 s, the session 90 s" in error and "--extend-recordings" in error
+    assert not (tmp_path / "run").exists()
+    assert main([*arguments, "--extend-recordings"]) == 0
+    session = load_session(tmp_path / "run" / "session.parquet")
+    assert np.ptp(session.positions[0, session.times > 61]) == 0  # the leader holds still
+
+
 @pytest.mark.parametrize(
     ("arguments", "source"),
     [

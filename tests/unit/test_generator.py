@@ -178,3 +178,8 @@ def test_low_rate_model_skips_the_filter(zhai_trials: list) -> None:
     np.testing.assert_allclose(
         model.sample_velocity(200, random_state=2), compute_velocity(positions, 15.0), atol=1e-12
     )
+
+
+def test_a_codebook_needs_frames_for_every_symbol(zhai_trials_100hz) -> None:
+    with pytest.raises(InputError, match=r"too few for 256 symbols .* give --symbols 99 or fewer"):
+        IMSGenerator(n_symbols=256).fit(zhai_trials_100hz[:1])

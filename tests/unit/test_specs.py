@@ -155,3 +155,21 @@ def test_npz_of_another_format(tmp_path: Path) -> None:
 def test_unknown_role() -> None:
     with pytest.raises(InputError, match="unknown role"):
         load_player("bundled:slow", "captain")
+
+
+@pytest.mark.parametrize(
+    ("trained", "allowed", "refused"),
+    [
+        ("follower", "follower", "leader"),
+        ("leader", "leader", "joint"),
+        ("group", "joint", "follower"),
+    ],
+)
+def test_a_policy_plays_only_the_role_it_was_trained_for(tmp_path, trained, allowed, refused):
+    player = CyberPlayer()
+    player.initialise_q(0, 1.0)
+    player.training_ = {"role": trained}
+    path = save_cyber_player(player, tmp_path / "policy.npz")
+    assert isinstance(load_player(str(path), allowed), CyberPlayer)
+    with pytest.raises(InputError, match=f"trained as {trained} cannot play {refused}"):
+        load_player(str(path), refused)

@@ -10,10 +10,11 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.trial_io import (
     read_mat_struct,
     read_trial,
-    read_trials,
+    read_trial_file,
     write_mat_struct,
     write_trial,
 )
+from mirror_avatar.trial_sets import read_trial_set
 from mirror_avatar.trials import make_trial
 
 
@@ -98,12 +99,12 @@ def test_bad_files(tmp_path: Path, name: str) -> None:
     if name != "missing.csv":
         (tmp_path / name).write_bytes(b"\x00\x01garbage")
     with pytest.raises(InputError, match=name.replace(".", r"\.")):
-        read_trials([tmp_path / name])
+        read_trial_file(tmp_path / name)
 
 
 def test_empty_directory(tmp_path: Path) -> None:
-    with pytest.raises(InputError, match="no trial files"):
-        read_trials([tmp_path])
+    with pytest.raises(InputError, match="no readable trial file"):
+        read_trial_set([tmp_path])
 
 
 def test_directory_gives_group(tmp_path: Path, zhai_trials_100hz: list) -> None:
@@ -111,7 +112,7 @@ def test_directory_gives_group(tmp_path: Path, zhai_trials_100hz: list) -> None:
     folder.mkdir()
     for k, trial in enumerate(zhai_trials_100hz[:2]):
         write_trial(make_trial(trial.times, trial.positions), folder / f"{k}.csv")
-    trials = read_trials([folder])
+    trials = read_trial_set([folder]).trials
     assert [t.group for t in trials] == ["fast", "fast"]
 
 
@@ -125,17 +126,19 @@ def test_failed_write_keeps_existing_file(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == [path]
 
 
-def _write_parquet_with_nan(path: Path) -> None:
+def _write_parquet_with_nan(path: Path, gap: int) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    positions = np.zeros(200)
-    positions[50] = np.nan
+    positions = 0.1 * np.sin(np.arange(200) / 20.0)
+    positions[50 : 50 + gap] = np.nan
     pq.write_table(pa.table({"time": np.arange(200) / 100.0, "position": positions}), path)
 
 
-def _write_bids_with_nan(path: Path) -> None:
-    path.write_text("0.0\n" * 100 + "nan\n" + "0.0\n" * 99)
+def _write_bids_with_nan(path: Path, gap: int) -> None:
+    values = [repr(0.1 * float(np.sin(k / 20.0))) for k in range(200)]
+    values[100 : 100 + gap] = ["n/a"] * gap
+    path.write_text("\n".join(values) + "\n")
     path.with_name(path.name.replace(".tsv", ".json")).write_text('{"SamplingFrequency": 100}')
 
 
@@ -143,10 +146,15 @@ def _write_bids_with_nan(path: Path) -> None:
     ("name", "write"),
     [("nan.parquet", _write_parquet_with_nan), ("sub-01_task-x_motion.tsv", _write_bids_with_nan)],
 )
-def test_nan_in_binary_and_bids_files_is_rejected(tmp_path: Path, name: str, write) -> None:
+def test_drop_outs_in_binary_and_bids_files(tmp_path: Path, name: str, write) -> None:
+    """A short drop-out is interpolated (linearly) and recorded; a long one is refused."""
     path = tmp_path / name
-    write(path)
+    write(path, 3)
+    trial = read_trial(path)
+    assert trial.metadata["import"]["interpolated_samples"] == 3
+    assert np.all(np.isfinite(trial.positions)) and trial.n_samples == 200
+    write(path, 40)
     with pytest.raises(InputError) as error:
         read_trial(path)
     message = str(error.value)
-    assert "\n" not in message and name in message and "NaN" in message
+    assert "\n" not in message and name in message and "--max-gap" in message

@@ -11,6 +11,7 @@ import sys
 
 import click
 
+from mirror_avatar.cli.convert import convert
 from mirror_avatar.cli.generator import generator
 from mirror_avatar.cli.group import group
 from mirror_avatar.cli.info import info
@@ -28,6 +29,7 @@ def cli() -> None:
     """Build avatars that move like a specific person and play the mirror game."""
 
 
+cli.add_command(convert)
 cli.add_command(generator)
 cli.add_command(group)
 cli.add_command(info)

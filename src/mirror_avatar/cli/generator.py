@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 import click
@@ -10,9 +9,12 @@ import numpy as np
 import pandas as pd
 
 from mirror_avatar.atomic import write_atomic_json, write_atomic_text
+from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator, sweep_codebook
+from mirror_avatar.importing import ImportOptions
+from mirror_avatar.trial_io import write_csv_trial
 from mirror_avatar.trials import Trial
 
 
@@ -39,16 +41,23 @@ def generator() -> None:
     help="Also sweep codebook sizes 32-256 on a 2/3 : 1/3 split of the trials and write "
     "MODEL.sweep.csv.",
 )
+@import_options
 def fit(
-    paths: tuple[Path, ...], out_path: Path, symbols: int, seed: int, bundled: str | None,
+    paths: tuple[Path, ...],
+    out_path: Path,
+    symbols: int,
+    seed: int,
+    bundled: str | None,
     sweep: bool,
-) -> None:  # fmt: skip
+    options: ImportOptions,
+) -> None:
     """Fit a generator on the trials in FILE_OR_DIR... (CSV, MAT, Parquet, BIDS motion)."""
     if out_path.suffix != ".npz":
         raise InputError(out_path, "the model file must end in .npz")
     if not paths and bundled is None:
         raise InputError(None, "give trial files or directories, or --bundled fast|slow")
-    trials = _read(paths) + ([t for t in load_zhai2017() if t.group == bundled] if bundled else [])
+    trials = read_and_report(paths, "none", options) if paths else []
+    trials += [t for t in load_zhai2017() if t.group == bundled] if bundled else []
     model = IMSGenerator(n_symbols=symbols, random_state=seed).fit(trials)
     model.save(out_path)
     summary = model.training_summary_
@@ -88,7 +97,6 @@ def sample(
         raise InputError(out_dir, "not a directory")
     model = IMSGenerator.load(model_path)
     trials = model.sample(duration, n=count, random_state=seed)
-    write_csv_trial = importlib.import_module("mirror_avatar.trial_io").write_csv_trial
     out_dir.mkdir(parents=True, exist_ok=True)
     names = [f"generated-{k + 1:03d}.csv" for k in range(count)]
     for trial, name in zip(trials, names, strict=True):
@@ -102,14 +110,6 @@ def sample(
     }
     write_atomic_json(out_dir / "samples.json", manifest)
     click.echo(f"{count} trials of {duration:g} s -> {out_dir}")
-
-
-def _read(paths: tuple[Path, ...]) -> list[Trial]:
-    if not paths:
-        return []
-    read_trials = importlib.import_module("mirror_avatar.trial_io").read_trials
-    trials: list[Trial] = read_trials(paths)
-    return trials
 
 
 def _sweep(trials: list[Trial], seed: int) -> pd.DataFrame:

@@ -7,8 +7,10 @@ from pathlib import Path
 import click
 
 from mirror_avatar.cli.simulate import (
+    EXTEND_HELP,
     SPEC_HELP,
     check_out_dir,
+    check_recordings,
     format_metrics,
     session_options,
     write_outputs,
@@ -19,7 +21,6 @@ from mirror_avatar.cli.train import (
     training_options,
     write_learning_curve,
 )
-from mirror_avatar.dynamics import GROUP, GROUP_LEADER
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import TOPOLOGIES, graph_source
@@ -49,6 +50,7 @@ def group() -> None:
 )
 @click.option("--graph", "graph_spec", default="complete", show_default=True, help=GRAPH_HELP)
 @session_options
+@click.option("--extend-recordings", is_flag=True, help=EXTEND_HELP)
 def simulate(
     player_specs: tuple[str, ...],
     leaders: tuple[int, ...],
@@ -57,6 +59,7 @@ def simulate(
     seed: int | None,
     trim: float,
     out_dir: Path,
+    extend_recordings: bool,
 ) -> None:
     """Play a group session of the --player SPECs (player 0, 1, ...) and write it with metrics.
 
@@ -73,10 +76,8 @@ def simulate(
     if not 0.0 <= trim < duration:
         raise InputError("--trim", f"must lie in [0, --duration) = [0, {duration:g}) s")
     roles = ["group_leader" if k in leaders else "group" for k in range(n)]
-    players = [
-        load_player(spec, GROUP_LEADER if role == "group_leader" else GROUP)
-        for spec, role in zip(player_specs, roles, strict=True)
-    ]
+    players = [load_player(spec, role) for spec, role in zip(player_specs, roles, strict=True)]
+    check_recordings(players, player_specs, duration, extend_recordings)
     session = play(players, duration, seed, roles, graph_source(graph_spec, n))
     session.metadata["specs"] = list(player_specs)
     metrics = session_metrics(session, trim=trim)

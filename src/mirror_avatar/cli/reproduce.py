@@ -11,10 +11,11 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from mirror_avatar.cli.signature import read_grouped
+from mirror_avatar.cli.reading import group_option, import_options, read_and_report
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments import EXPERIMENTS
+from mirror_avatar.importing import ImportOptions
 from mirror_avatar.report import write_report
 
 
@@ -41,14 +42,23 @@ from mirror_avatar.report import write_report
     type=click.Path(path_type=Path),
     help="Trial file or directory to use instead of the bundled data (repeatable).",
 )
-def reproduce(out_dir: Path, quick: bool, seed: int, data: tuple[Path, ...]) -> None:
+@group_option()
+@import_options
+def reproduce(
+    out_dir: Path,
+    quick: bool,
+    seed: int,
+    data: tuple[Path, ...],
+    group_by: str,
+    options: ImportOptions,
+) -> None:
     """Run the paper's validations on the bundled (or given) data and write the report.
 
-    Trials given with --data are grouped by the directory they are in.
+    Trials given with --data are grouped by --group-by (default: the folder they are in).
     """
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(out_dir, "exists and is not a directory")
-    trials = read_grouped(data, "directory") if data else load_zhai2017()
+    trials = read_and_report(data, group_by, options) if data else load_zhai2017()
     started = time.perf_counter()
     sections, timings = [], {}
     for name, run in tqdm(EXPERIMENTS, desc="experiments", unit="experiment", disable=None):

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -13,8 +13,10 @@ from mirror_avatar.atomic import json_safe, write_atomic_json
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.metrics import TRIM, session_metrics
+from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.session import Session, load_session
 from mirror_avatar.specs import load_player
+from mirror_avatar.trials import Trial
 
 METRIC_ROWS = (
     ("circular_variance", "CV (phase locking, 0-1)", ""),
@@ -102,6 +104,33 @@ def session_options(command: Callable[..., None]) -> Callable[..., None]:
     return command
 
 
+EXTEND_HELP = (
+    "Let recordings shorter than --duration go on: a replayed player holds its last position, a "
+    "recorded reference velocity repeats."
+)
+
+
+def check_recordings(
+    players: Sequence[Player], specs: Sequence[str], duration: float, extend: bool
+) -> None:
+    """Refuse recordings shorter than the session unless ``extend`` (one line naming the spec)."""
+    if extend:
+        return
+    for player, spec in zip(players, specs, strict=True):
+        if isinstance(player, RecordedPlayer):
+            length = (player.track.shape[1] - 1) * player.period
+        elif isinstance(player, VirtualTrainer) and isinstance(player.reference, Trial):
+            length = player.reference.duration
+        else:
+            continue
+        if length < duration - player.period:
+            raise InputError(
+                spec,
+                f"the recording lasts {length:.4g} s, the session {duration:g} s: shorten "
+                "--duration, or give --extend-recordings",
+            )
+
+
 def check_out_dir(out_dir: Path) -> None:
     """Refuse an output path that is a file."""
     if out_dir.exists() and not out_dir.is_dir():
@@ -127,6 +156,7 @@ def write_outputs(session: Session, out_dir: Path, summary: dict[str, Any]) -> P
     help="Joint improvisation: both virtual trainers take the joint preset, neither leads.",
 )
 @session_options
+@click.option("--extend-recordings", is_flag=True, help=EXTEND_HELP)
 def simulate(
     leader_spec: str,
     follower_spec: str,
@@ -135,6 +165,7 @@ def simulate(
     seed: int | None,
     trim: float,
     out_dir: Path,
+    extend_recordings: bool,
 ) -> None:
     """Play a session between two players and write it with its metrics.
 
@@ -152,6 +183,7 @@ def simulate(
         load_player(spec, role)
         for spec, role in zip((leader_spec, follower_spec), roles, strict=True)
     ]
+    check_recordings(players, (leader_spec, follower_spec), duration, extend_recordings)
     session = play(players, duration=duration, seed=seed, roles=roles)
     session.metadata["specs"] = [leader_spec, follower_spec]
     metrics = session_metrics(session, trim=trim)

@@ -1,0 +1,63 @@
+"""``mirror-avatar convert``: a researcher's recordings as exchange-format trial CSVs."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import click
+
+from mirror_avatar.atomic import write_atomic_json
+from mirror_avatar.cli.reading import group_option, import_options, read_and_report
+from mirror_avatar.errors import InputError
+from mirror_avatar.importing import ImportOptions
+from mirror_avatar.trial_io import write_csv_trial
+
+UNSAFE = re.compile(r"[^A-Za-z0-9_.-]+")
+"""Characters replaced in folder and file names written."""
+
+
+@click.command()
+@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "out_dir",
+    required=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Folder for one sub-folder of CSV trials per group, and convert.json.",
+)
+@group_option()
+@import_options
+def convert(paths: tuple[Path, ...], out_dir: Path, group_by: str, options: ImportOptions) -> None:
+    """Convert trial files (CSV, Parquet, BIDS-Motion, MAT) to ``time,position`` CSVs.
+
+    Columns and units are read as the options say and short drop-outs interpolated; each group
+    (--group-by) gets a folder OUT/GROUP of ``<trial>.csv`` files in seconds and normalised
+    units, ready for every other command; convert.json records the sources and options.
+    """
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, "exists and is not a folder")
+    trials = read_and_report(paths, group_by, options)
+    written: list[dict[str, object]] = []
+    targets: set[Path] = set()
+    for trial in trials:
+        folder = out_dir / (UNSAFE.sub("_", trial.group) or "trials")
+        target = folder / f"{UNSAFE.sub('_', trial.label) or 'trial'}.csv"
+        if target in targets:
+            raise InputError(target, "two trials of one group would share this name")
+        targets.add(target)
+        folder.mkdir(parents=True, exist_ok=True)
+        write_csv_trial(trial, target)
+        written.append(
+            {
+                "file": target.relative_to(out_dir).as_posix(),
+                "source": trial.metadata.get("source"),
+                "group": trial.group,
+                "interpolated_samples": trial.metadata["import"]["interpolated_samples"]
+                if "import" in trial.metadata
+                else 0,
+            }
+        )
+    manifest = {"options": options.describe(), "group_by": group_by, "trials": written}
+    write_atomic_json(out_dir / "convert.json", manifest)
+    click.echo(f"{len(written)} trials -> {out_dir}")
