@@ -17,6 +17,8 @@ from matplotlib.patches import Polygon as PolygonPatch
 from matplotlib.patches import Rectangle
 from numpy.typing import ArrayLike
 
+from mirror_avatar.metrics import compute_cluster_phase, compute_phase, compute_relative_phase
+from mirror_avatar.session import Session
 from mirror_avatar.signature import DEFAULT_BINS, Bins, Ellipse
 
 HUMAN_SKEWNESS = (-0.5, 0.5)
@@ -324,3 +326,48 @@ def plot_relative_phase(
     axes.set_xlim(-np.pi, np.pi)
     axes.legend(frameon=False)
     return figure
+
+
+def plot_session(session: Session, trim: float = 0.0, seconds: float = 30.0) -> dict[str, Figure]:
+    """Draw what people look at for one session: positions, and how the players lock.
+
+    Parameters
+    ----------
+    session
+        Any number of players.
+    trim
+        Seconds left out at the start, as in the session's metrics.
+    seconds
+        Length of the position plot (s), from the start of what is kept.
+
+    Returns
+    -------
+    dict
+        ``positions``; for two players ``relative_phase`` (player 0 minus player 1); for a group
+        ``group_synchronisation`` (rho_g over time); keyed by file stem.
+    """
+    kept = session.trimmed(trim) if trim > 0 else session
+    show = kept.times <= kept.times[0] + seconds
+    labels = [f"{k}: {label}" for k, label in enumerate(kept.labels)]
+    figures = {
+        "positions": plot_positions(
+            kept.times[show],
+            {label: x[show] for label, x in zip(labels, kept.positions, strict=True)},
+            title=f"Positions (first {seconds:g} s)",
+        )
+    }
+    moving = bool(np.all(np.ptp(kept.positions, axis=1) > 0))
+    if kept.n_players == 2 and moving:
+        figures["relative_phase"] = plot_relative_phase(
+            {"player 0 - player 1": compute_relative_phase(*kept.positions)},
+            title="Relative phase (positive: player 0 ahead)",
+        )
+    elif kept.n_players > 2 and moving:
+        cluster = compute_cluster_phase(np.array([compute_phase(x) for x in kept.positions]))
+        figures["group_synchronisation"] = plot_series(
+            kept.times,
+            {"rho_g": cluster.group},
+            "rho_g (1 = synchronised)",
+            "Group synchronisation",
+        )
+    return figures

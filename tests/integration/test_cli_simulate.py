@@ -133,3 +133,37 @@ def test_bad_input_through_the_console_script(tmp_path: Path) -> None:
         assert result.returncode == 2, result.stderr
         assert result.stderr.startswith("mirror-avatar: error: ")
         assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
+
+
+def test_simulate_draws_the_session(tmp_path: Path) -> None:
+    out = tmp_path / "drawn"
+    assert (
+        _simulate(out, "--leader", "bundled:fast", "--follower", "bundled:slow", "--seed", "2") == 0
+    )
+    for name in ("positions.png", "relative_phase.png"):
+        assert (out / name).read_bytes()[:4] == b"\x89PNG"
+
+
+def test_evaluate_a_folder_of_sessions(
+    tmp_path: Path, zhai_trials: list[Trial], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Simulations and a plain two-player file in one folder: one table, solo trials skipped."""
+    folder = tmp_path / "study"
+    _simulate(folder / "a", "--leader", "bundled:fast", "--follower", "bundled:slow", "--seed", "1")
+    (folder / "solo").mkdir()
+    write_trial(zhai_trials[3], folder / "solo" / "person.csv")
+    t = np.arange(0, 20, 0.01)
+    lines = ["time,position_0,position_1"] + [
+        f"{a},{0.3 * np.sin(a)},{0.3 * np.sin(a - 0.3)}" for a in t
+    ]
+    (folder / "plain.csv").write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    assert main(["evaluate", str(folder), "--out", str(tmp_path / "table")]) == 0
+    printed = capsys.readouterr().out
+    assert "skipped" in printed and "person.csv" in printed and "same session" in printed
+    table = (tmp_path / "table" / "sessions.csv").read_text().splitlines()
+    assert len(table) == 3 and table[0].startswith("session,players,seconds,circular_variance")
+    assert (tmp_path / "table" / "report.html").read_text().count("<img") == 4
+    metrics = json.loads((tmp_path / "table" / "metrics.json").read_text())["sessions"]
+    plain = metrics[str(folder / "plain.csv")]
+    assert plain["mean_relative_phase"] == pytest.approx(0.3, abs=0.02)

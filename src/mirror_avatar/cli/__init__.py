@@ -12,13 +12,14 @@ import sys
 import click
 
 from mirror_avatar.cli.convert import convert
+from mirror_avatar.cli.evaluate import evaluate
 from mirror_avatar.cli.generator import generator
 from mirror_avatar.cli.group import group
 from mirror_avatar.cli.info import info
 from mirror_avatar.cli.play import play
 from mirror_avatar.cli.reproduce import reproduce
 from mirror_avatar.cli.signature import signature
-from mirror_avatar.cli.simulate import evaluate, simulate
+from mirror_avatar.cli.simulate import simulate
 from mirror_avatar.cli.train import train
 from mirror_avatar.errors import InputError
 

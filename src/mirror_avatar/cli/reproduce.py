@@ -9,7 +9,6 @@ from importlib.metadata import version
 from pathlib import Path
 
 import click
-from tqdm import tqdm
 
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
 from mirror_avatar.datasets import load_zhai2017
@@ -61,10 +60,12 @@ def reproduce(
     trials = read_and_report(data, group_by, options) if data else load_zhai2017()
     started = time.perf_counter()
     sections, timings = [], {}
-    for name, run in tqdm(EXPERIMENTS, desc="experiments", unit="experiment", disable=None):
+    for number, (name, run) in enumerate(EXPERIMENTS, start=1):
+        click.echo(f"reproduce: {name} ({number}/{len(EXPERIMENTS)}) ...", err=True)
         begun = time.perf_counter()
         sections.append(run(trials, quick=quick, seed=seed))
         timings[name] = round(time.perf_counter() - begun, 3)
+        click.echo(f"reproduce: {name} done in {timings[name]:.0f} s", err=True)
     metadata = {
         "version": version("mirror-avatar"),
         "command": _command_line(out_dir, quick, seed, data),

@@ -10,6 +10,7 @@ from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
+from mirror_avatar.experiments.signature import compute_group_emd
 from mirror_avatar.figures import plot_ims, plot_similarity_space, plot_skew_kurtosis
 from mirror_avatar.importing import ImportOptions
 from mirror_avatar.report import render_png
@@ -85,4 +86,7 @@ def signature(
     }
     for name, figure in figures.items():
         (out_dir / name).write_bytes(render_png(figure))
+    table = compute_group_emd(analysis)
+    click.echo("mean EMD between the trials of each pair of groups (diagonal: within a group)")
+    click.echo(table.to_string(float_format=lambda v: f"{v:.4f}", na_rep="-"))
     click.echo(f"{len(trials)} trials in {len(analysis.group_names)} groups -> {out_dir}")

@@ -1,20 +1,21 @@
-"""``mirror-avatar simulate`` and ``evaluate``: play two players; measure any session."""
+"""``mirror-avatar simulate``: play two players and write the session, metrics and figures."""
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import click
 
-from mirror_avatar.atomic import json_safe, write_atomic_json
+from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
+from mirror_avatar.figures import plot_session
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
-from mirror_avatar.session import Session, load_session
+from mirror_avatar.report import render_png
+from mirror_avatar.session import Session
 from mirror_avatar.specs import load_player
 from mirror_avatar.trials import Trial
 
@@ -138,12 +139,17 @@ def check_out_dir(out_dir: Path) -> None:
 
 
 def write_outputs(session: Session, out_dir: Path, summary: dict[str, Any]) -> Path:
-    """Write the session (Parquet, CSV, sidecar) and ``metrics.json``; return the latter's path."""
+    """Write the session (Parquet, CSV, sidecar), ``metrics.json`` and its figures (PNG).
+
+    Returns the path of ``metrics.json``.
+    """
     out_dir.mkdir(parents=True, exist_ok=True)
     session.save(out_dir / "session.parquet")
     session.save_csv(out_dir / "session.csv")
     metrics_path = out_dir / "metrics.json"
     write_atomic_json(metrics_path, summary)
+    for name, figure in plot_session(session, summary["trim"]).items():
+        write_atomic_bytes(out_dir / f"{name}.png", render_png(figure))
     return metrics_path
 
 
@@ -203,20 +209,3 @@ def simulate(
     )
     click.echo(format_metrics(metrics))
     click.echo(f"wrote {metrics_path.parent.resolve()}")
-
-
-@click.command()
-@click.argument("session_path", type=click.Path(path_type=Path))
-@click.option(
-    "--trim", type=float, default=TRIM, show_default=True, help="Seconds left out of the metrics."
-)
-@click.option("--json", "as_json", is_flag=True, help="Print the metrics as JSON.")
-def evaluate(session_path: Path, trim: float, as_json: bool) -> None:
-    """Print the coordination metrics of a saved session (.parquet or .csv).
-
-    Any number of players: for two, relative phase and time lag are player 0 minus player 1
-    (positive when player 0 is ahead); for a group, its synchronisation and each player against
-    the mean of its neighbours (positive lag: the player is ahead).
-    """
-    metrics = session_metrics(load_session(session_path), trim=trim)
-    click.echo(json.dumps(json_safe(metrics), indent=2) if as_json else format_metrics(metrics))

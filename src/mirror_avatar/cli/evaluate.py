@@ -1,0 +1,122 @@
+"""``mirror-avatar evaluate``: the coordination metrics of saved sessions, or folders of them."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import click
+import pandas as pd
+
+from mirror_avatar.atomic import json_safe, write_atomic_text
+from mirror_avatar.cli.simulate import format_metrics
+from mirror_avatar.errors import InputError
+from mirror_avatar.figures import plot_session
+from mirror_avatar.metrics import TRIM, session_metrics
+from mirror_avatar.report import Section, write_report
+from mirror_avatar.session import Session, load_session
+
+SESSION_FILES = (".csv", ".parquet")
+SUMMARY_KEYS = (
+    "circular_variance", "rmse", "mean_relative_phase", "time_lag", "group_synchronisation",
+    "kuramoto_order", "mean_circular_variance", "mean_rmse",
+)  # fmt: skip
+"""The columns of the table of several sessions (those that apply to each)."""
+
+
+def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], list[str]]:
+    """Read the sessions among ``paths`` (files, or folders searched recursively).
+
+    In folders, files that are not sessions (solo trials, other tables) are skipped with a note;
+    a file named explicitly must be a session.
+    """
+    found, notes = [], []
+    for path in paths:
+        if not path.is_dir():
+            found.append((path, load_session(path)))
+            continue
+        before = len(found)
+        for file in sorted(p for p in path.rglob("*") if p.suffix.lower() in SESSION_FILES):
+            if file.suffix.lower() == ".csv" and file.with_suffix(".parquet").is_file():
+                notes.append(f"skipped {file}: the same session as {file.with_suffix('.parquet')}")
+                continue
+            try:
+                found.append((file, load_session(file)))
+            except InputError as error:
+                notes.append(f"skipped {file}: {error.problem}")
+        if len(found) == before:
+            raise InputError(path, "no session files in it (time, position_0, ... columns)")
+    return found, notes
+
+
+def summary_row(path: Path, session: Session, metrics: dict[str, Any]) -> dict[str, Any]:
+    """One row of the table of sessions: the file, its players and the metrics that apply."""
+    row: dict[str, Any] = {"session": str(path), "players": session.n_players,
+                           "seconds": round(session.duration, 3)}  # fmt: skip
+    return row | {key: metrics[key] for key in SUMMARY_KEYS if key in metrics}
+
+
+@click.command()
+@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option(
+    "--trim", type=float, default=TRIM, show_default=True, help="Seconds left out of the metrics."
+)
+@click.option(
+    "--json", "as_json", is_flag=True, help="Print the metrics as JSON (one object per file)."
+)
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Also write sessions.csv, report.html (with figures) and metrics.json here.",
+)
+def evaluate(paths: tuple[Path, ...], trim: float, as_json: bool, out_dir: Path | None) -> None:
+    """Print the coordination metrics of saved sessions (.parquet or .csv, or folders of them).
+
+    Any session the toolkit writes (simulations, groups, live trials) or a plain CSV with
+    ``time, position_0, position_1, ...``. For two players, relative phase and time lag are
+    player 0 minus player 1 (positive when player 0 is ahead); for a group, its synchronisation
+    and each player against the mean of its neighbours. Several sessions give one table.
+    """
+    if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, "exists and is not a folder")
+    sessions, notes = find_sessions(paths)
+    for note in notes:
+        click.echo(note)
+    results = [(path, session, session_metrics(session, trim=trim)) for path, session in sessions]
+    rows = pd.DataFrame([summary_row(path, s, m) for path, s, m in results])
+    if as_json:
+        shown = results[0][2] if len(results) == 1 else {str(p): m for p, _, m in results}
+        click.echo(json.dumps(json_safe(shown), indent=2))
+    elif len(results) == 1:
+        click.echo(format_metrics(results[0][2]))
+    else:
+        click.echo(rows.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
+    if out_dir is not None:
+        write_evaluation(out_dir, results, rows, trim)
+        click.echo(f"wrote {out_dir.resolve()}")
+
+
+def write_evaluation(
+    out_dir: Path, results: list[tuple[Path, Session, dict[str, Any]]], rows: pd.DataFrame,
+    trim: float,
+) -> None:  # fmt: skip
+    """Write the table (CSV), every session's metrics (JSON) and an HTML page with figures."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_atomic_text(out_dir / "sessions.csv", rows.to_csv(index=False))
+    figures = {
+        f"{path.name}: {name.replace('_', ' ')}": figure
+        for path, session, _ in results
+        for name, figure in plot_session(session, trim).items()
+    }
+    section = Section(
+        key="sessions",
+        title=f"{len(results)} session(s)",
+        text=[f"Metrics leave out the first {trim:g} s of each session."],
+        tables={"Sessions": rows.set_index("session")},
+        figures=figures,
+        metrics={"trim": trim} | {str(path): metrics for path, _, metrics in results},
+    )
+    write_report([section], out_dir, title="mirror-avatar: sessions evaluated")
