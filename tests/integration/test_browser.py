@@ -186,7 +186,7 @@ def test_avatar_follows_the_driven_mouse(chromium, server, tmp_path):
     assert_matches(np.column_stack([session.times, session.positions[0]]), driven)
     metrics = summary["metrics"]
     assert metrics["mean_relative_phase"] > 0  # the person (player 0) is ahead
-    assert metrics["circular_variance"] > 0.5 and metrics["rmse"] < 0.2
+    assert metrics["phase_locking"] > 0.5 and metrics["rmse"] < 0.2
     assert summary["round_trip_ms"]["n"] > 100 and summary["round_trip_ms"]["median"] < 100
     table = page.locator("#metrics").inner_text()
     for label in ("RMSE", "CV", "Relative phase", "Round trip"):

@@ -55,7 +55,7 @@ def test_simulate_writes_session_and_metrics(
     assert json.loads(capsys.readouterr().out) == pytest.approx(summary["metrics"])
     assert main(["evaluate", str(out / "session.csv")]) == 0
     table = capsys.readouterr().out
-    cv = summary["metrics"]["circular_variance"]
+    cv = summary["metrics"]["phase_locking"]
     assert f"{cv:.4f}" in table.splitlines()[0]
 
 
@@ -162,7 +162,7 @@ def test_evaluate_a_folder_of_sessions(
     printed = capsys.readouterr().out
     assert "skipped" in printed and "person.csv" in printed and "same session" in printed
     table = (tmp_path / "table" / "sessions.csv").read_text().splitlines()
-    assert len(table) == 3 and table[0].startswith("session,players,seconds,circular_variance")
+    assert len(table) == 3 and table[0].startswith("session,players,seconds,phase_locking")
     assert (tmp_path / "table" / "report.html").read_text().count("<img") == 4
     metrics = json.loads((tmp_path / "table" / "metrics.json").read_text())["sessions"]
     plain = metrics[str(folder / "plain.csv")]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -35,6 +36,12 @@ def models(tmp_path: Path) -> list[Path]:
     return paths
 
 
+def _umask() -> int:
+    umask = os.umask(0)
+    os.umask(umask)
+    return umask
+
+
 def _train(out: Path, target: Path, *partners: str, extra: tuple[str, ...] = ()) -> int:
     arguments = ["train", "--target", str(target), "--sessions", "6", "--duration", "5"]
     for partner in partners:
@@ -50,7 +57,10 @@ def test_train_writes_policy_and_curve(
     status = _train(out, models[0], partners, extra=("--role", "leader", "--seed", "4",
                                                     "--checkpoint-every", "2"))  # fmt: skip
     assert status == 0
-    assert str(out.resolve()) in capsys.readouterr().out
+    printed = capsys.readouterr()
+    assert str(out.resolve()) in printed.out
+    assert f"checkpoints: {out.resolve()} is saved every 2 sessions" in printed.err
+    assert out.stat().st_mode & 0o777 == 0o666 & ~_umask()
     player = load_cyber_player(out)
     assert player.training_["role"] == "leader" and player.training_["run_seed"] == 4
     assert player.training_["n_partners"] == 2 and player.training_["n_sessions"] == 6

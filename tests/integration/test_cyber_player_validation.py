@@ -88,6 +88,8 @@ def test_check_criteria_by_hand() -> None:
     velocity = np.sin(np.arange(0, 30, 0.03))
     result = RoleResult(
         "leader",
+        "VT5",
+        "VT6",
         LearningCurve(),
         0.0,
         pd.DataFrame(rows),

@@ -171,7 +171,7 @@ def test_avatar_modes_write_a_session_with_both_players(live, tmp_path):
     assert session.labels == ("person P07", "avatar") and session.roles == ("follower", "leader")
     expected = [0.2 * math.sin(k * CONTROL_PERIOD) for k in range(session.n_samples)]
     np.testing.assert_allclose(session.positions[1], expected, atol=1e-15)
-    for key in ("rmse", "circular_variance", "mean_relative_phase", "emd_players"):
+    for key in ("rmse", "phase_locking", "mean_relative_phase", "emd_players"):
         assert math.isfinite(summary["metrics"][key])
 
 

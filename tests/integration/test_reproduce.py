@@ -47,3 +47,29 @@ def test_signature_experiment_without_a_second_style(zhai_trials):
     metrics = run(few_slow).metrics
     assert metrics["styles_distinct"] is None
     assert metrics["mean_between_emd"] > metrics["mean_within_emd"]
+
+
+def test_reproduce_on_three_people_casts_them_by_name(tmp_path, zhai_trials):
+    """Folders of three people: each becomes a virtual trainer and the report names them."""
+    from mirror_avatar.trial_io import write_csv_trial
+
+    people = {"alice": zhai_trials[0:6], "bob": zhai_trials[9:15], "carol": zhai_trials[6:9]}
+    people["carol"] = people["carol"] + zhai_trials[15:18]
+    arguments = ["reproduce", "--out", str(tmp_path / "report"), "--quick"]
+    for name, trials in people.items():
+        (tmp_path / name).mkdir()
+        for trial in trials:
+            write_csv_trial(trial, tmp_path / name / f"{trial.label}.csv")
+        arguments += ["--data", str(tmp_path / name)]
+    assert main(arguments) == 0
+    metrics = json.loads((tmp_path / "report" / "metrics.json").read_text())
+    assert metrics["signature"]["groups"] == ["alice", "bob", "carol"]
+    assert metrics["virtual_trainer"]["reference_style"] == "alice"
+    assert metrics["virtual_trainer"]["partner_style"] == "bob"
+    cyber = metrics["cyber_player"]
+    assert list(cyber["virtual_trainers"]) == ["alice", "bob", "carol"]
+    assert cyber["target"] == "bob"
+    assert {row["partner"] for row in cyber["follower"]["records"]} == {"alice", "carol"}
+    assert list(metrics["group"]["members"].values()) == ["alice", "carol", "bob"]
+    html = (tmp_path / "report" / "report.html").read_text()
+    assert "learning to move like bob" in html and "a group of 3" in html

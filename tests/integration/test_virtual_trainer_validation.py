@@ -6,6 +6,7 @@ Relative phase is partner minus VT: positive when the partner is ahead.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -14,7 +15,7 @@ import pytest
 from mirror_avatar.atomic import json_safe
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments import EXPERIMENTS
-from mirror_avatar.experiments.virtual_trainer import run
+from mirror_avatar.experiments.virtual_trainer import choose_styles, run
 from mirror_avatar.report import Section
 from mirror_avatar.trials import Trial
 
@@ -74,7 +75,19 @@ def test_registered_after_the_generator() -> None:
     assert names.index("virtual_trainer") == names.index(earlier) + 1
 
 
-def test_needs_both_styles(zhai_trials: list[Trial]) -> None:
+def test_needs_two_groups(zhai_trials: list[Trial]) -> None:
     slow_only = [t for t in zhai_trials if t.group == "slow"]
-    with pytest.raises(InputError, match="two styles"):
+    with pytest.raises(InputError, match="two groups of trials, found \\['slow'\\]"):
         run(slow_only, quick=True)
+    with pytest.raises(InputError, match="two styles"):
+        run(zhai_trials, quick=True, reference_style="slow", partner_style="medium")
+
+
+def test_choose_styles_prefers_slow_and_fast_then_order_of_appearance(
+    zhai_trials: list[Trial],
+) -> None:
+    assert choose_styles(zhai_trials) == ("slow", "fast")
+    people = [replace(t, group=g) for t, g in zip(zhai_trials[:3], "bab", strict=True)]
+    assert choose_styles(people) == ("b", "a")
+    assert choose_styles(people, partner="b") == ("a", "b")
+    assert choose_styles(zhai_trials, reference="fast") == ("fast", "slow")

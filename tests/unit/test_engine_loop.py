@@ -13,7 +13,7 @@ from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.graphs import path_graph, random_connected_graph, ring_graph, star_graph
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.discretisation import make_default_discretisation
-from mirror_avatar.metrics import compute_circular_variance, compute_relative_phase
+from mirror_avatar.metrics import compute_phase_locking, compute_relative_phase
 from mirror_avatar.players import ExternalPlayer, RecordedPlayer, VirtualTrainer
 from mirror_avatar.session import Session
 
@@ -58,7 +58,7 @@ def test_same_seed_same_session(generator: IMSGenerator, session: Session) -> No
 def test_follower_lags_the_leader(session: Session) -> None:
     phase = compute_relative_phase(session.positions[0], session.positions[1])
     assert np.angle(np.mean(np.exp(1j * phase))) > 0
-    assert compute_circular_variance(phase) > 0.8
+    assert compute_phase_locking(phase) > 0.8
 
 
 def test_velocities_are_consistent_with_positions(session: Session) -> None:

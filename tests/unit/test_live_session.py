@@ -119,7 +119,7 @@ def test_a_live_recording_is_evaluated_like_any_session(tmp_path):
     session = load_session(trial.session_path)
     assert session.n_samples == 101 and session.metadata["complete"]
     metrics = session_metrics(session)
-    for key in ("rmse", "circular_variance", "mean_relative_phase", "time_lag"):
+    for key in ("rmse", "phase_locking", "mean_relative_phase", "time_lag"):
         assert metrics[key] == summary["metrics"][key]
     assert metrics["mean_relative_phase"] > 0  # the person is ahead of the echo
 

@@ -5,10 +5,10 @@ import pytest
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.metrics import (
-    compute_circular_variance,
     compute_cross_correlation_peak,
     compute_mean_relative_phase,
     compute_phase,
+    compute_phase_locking,
     compute_relative_phase,
     compute_rmse,
     compute_time_lag,
@@ -33,7 +33,7 @@ def test_hilbert_phase_of_a_sine_shift():
     x2 = np.sin(2 * np.pi * 0.5 * T)
     dphi = compute_relative_phase(x1, x2)[200:-200]
     assert compute_mean_relative_phase(dphi) == pytest.approx(shift, abs=1e-2)
-    assert compute_circular_variance(dphi) == pytest.approx(1.0, abs=1e-3)
+    assert compute_phase_locking(dphi) == pytest.approx(1.0, abs=1e-3)
 
 
 def modulated(phase: np.ndarray, depth: float = 0.8) -> np.ndarray:
@@ -54,13 +54,13 @@ def test_kralemann_recovers_the_true_phase_from_a_non_uniform_protophase():
     both = [modulated(true_phase + shift), x]
     hilbert = compute_relative_phase(*both)[inner]
     kralemann = compute_relative_phase(*both, method="kralemann")[inner]
-    assert compute_circular_variance(hilbert) < 0.98
-    assert compute_circular_variance(kralemann) > 0.9999
+    assert compute_phase_locking(hilbert) < 0.98
+    assert compute_phase_locking(kralemann) > 0.9999
     assert compute_mean_relative_phase(kralemann) == pytest.approx(shift, abs=1e-6)
 
 
 def test_uniform_phases_cv_near_zero(rng):
-    assert compute_circular_variance(rng.uniform(-np.pi, np.pi, 20000)) < 0.03
+    assert compute_phase_locking(rng.uniform(-np.pi, np.pi, 20000)) < 0.03
 
 
 def test_cross_correlation_peak_of_a_scaled_delayed_copy():
@@ -103,7 +103,7 @@ def test_session_metrics_on_two_sinusoids():
     references = np.stack([v[0], np.full(T.size, np.nan)])
     session = Session(T, x, v, np.full_like(x, np.nan), references)
     m = session_metrics(session, trim=2.0)
-    assert m["circular_variance"] == pytest.approx(1.0, abs=1e-3)
+    assert m["phase_locking"] == pytest.approx(1.0, abs=1e-3)
     assert m["mean_relative_phase"] == pytest.approx(0.4, abs=2e-2)
     assert m["time_lag"] == pytest.approx(0.4 / (2 * np.pi * 0.5), abs=0.011)
     assert m["emd_players"] == pytest.approx(0.0, abs=1e-2)
@@ -130,7 +130,7 @@ def test_a_player_that_does_not_move_has_no_phase():
     v = np.gradient(x, 1 / RATE, axis=1)
     nan = np.full_like(x, np.nan)
     m = session_metrics(Session(T, x, v, nan, nan))
-    assert np.isnan(m["circular_variance"]) and np.isnan(m["time_lag"])
+    assert np.isnan(m["phase_locking"]) and np.isnan(m["time_lag"])
     assert m["rmse"] == pytest.approx(np.sqrt(0.5), rel=1e-3)
 
 

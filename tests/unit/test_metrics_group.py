@@ -86,7 +86,7 @@ def test_session_metrics_of_a_group():
     assert [p["neighbours"] for p in players] == [[1], [0, 2], [1, 3], [2]]
     assert players[0]["time_lag"] == pytest.approx(0.1 / np.pi, abs=0.011)  # 0 is ahead of 1
     assert players[1]["time_lag"] == pytest.approx(0.0, abs=0.011)
-    assert all(p["circular_variance"] > 0.99 and p["max_cross_correlation"] > 0.99 for p in players)
+    assert all(p["phase_locking"] > 0.99 and p["max_cross_correlation"] > 0.99 for p in players)
     assert m["mean_rmse"] == pytest.approx(np.mean([p["rmse"] for p in players]))
     assert set(m) >= {f"emd_reference_{i}" for i in range(4)}
 

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mirror_avatar.atomic import atomic_path
+from mirror_avatar.atomic import atomic_path, write_atomic_text
 from mirror_avatar.errors import InputError
 from mirror_avatar.trial_io import (
     read_mat_struct,
@@ -124,6 +124,14 @@ def test_failed_write_keeps_existing_file(tmp_path: Path) -> None:
         raise RuntimeError("boom")
     assert path.read_text() == "good"
     assert list(tmp_path.iterdir()) == [path]
+
+
+def test_an_overwritten_file_keeps_its_permissions(tmp_path: Path) -> None:
+    path = tmp_path / "shared.txt"
+    path.write_text("old")
+    path.chmod(0o640)
+    write_atomic_text(path, "new")
+    assert path.read_text() == "new" and path.stat().st_mode & 0o777 == 0o640
 
 
 def _write_parquet_with_nan(path: Path, gap: int) -> None:

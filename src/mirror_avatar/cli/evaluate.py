@@ -19,8 +19,8 @@ from mirror_avatar.session import Session, load_session
 
 SESSION_FILES = (".csv", ".parquet")
 SUMMARY_KEYS = (
-    "circular_variance", "rmse", "mean_relative_phase", "time_lag", "group_synchronisation",
-    "kuramoto_order", "mean_circular_variance", "mean_rmse",
+    "phase_locking", "rmse", "mean_relative_phase", "time_lag", "group_synchronisation",
+    "kuramoto_order", "mean_phase_locking", "mean_rmse",
 )  # fmt: skip
 """The columns of the table of several sessions (those that apply to each)."""
 

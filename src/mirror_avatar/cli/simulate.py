@@ -20,7 +20,7 @@ from mirror_avatar.specs import load_player
 from mirror_avatar.trials import Trial
 
 METRIC_ROWS = (
-    ("circular_variance", "CV (phase locking, 0-1)", ""),
+    ("phase_locking", "CV (phase locking, 0-1)", ""),
     ("rmse", "RMSE", "units"),
     ("mean_relative_phase", "mean relative phase (player 0 - player 1)", "rad"),
     ("sd_relative_phase", "circular SD of relative phase", "rad"),
@@ -57,7 +57,7 @@ def format_metrics(metrics: dict[str, Any]) -> str:
 GROUP_COLUMNS = (
     ("synchronisation", "rho_k"),
     ("relative_phase_to_group", "phase"),
-    ("circular_variance", "CV"),
+    ("phase_locking", "CV"),
     ("rmse", "RMSE"),
     ("time_lag", "lag"),
     ("max_cross_correlation", "xcorr"),

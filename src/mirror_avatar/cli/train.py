@@ -41,7 +41,8 @@ def training_options(command: Callable[..., None]) -> Callable[..., None]:
         click.option("--scheduler", default=None, help="Dask scheduler address (tcp://host:port)."),
         click.option("--jobs", type=int, default=2, show_default=True, help="Local processes."),
         click.option(
-            "--checkpoint-every", type=int, default=None, help="Also save the policy every N."
+            "--checkpoint-every", type=int, default=None,
+            help="Also save the policy to OUT every N sessions: a stopped run leaves a usable one.",
         ),
         click.option(
             "--out", "out_path", required=True, type=click.Path(path_type=Path),
@@ -56,13 +57,18 @@ def training_options(command: Callable[..., None]) -> Callable[..., None]:
 def check_training(
     out_path: Path, sessions: int, jobs: int, checkpoint_every: int | None, duration: float
 ) -> None:
-    """Refuse a training run's bad options in one line, before any work."""
+    """Refuse a training run's bad options in one line, before any work; announce checkpoints."""
     if out_path.suffix.lower() != ".npz":
         raise InputError(out_path, "the policy file must end in .npz")
     if sessions < 1 or jobs < 1 or (checkpoint_every is not None and checkpoint_every < 1):
         raise InputError("--sessions", "--sessions, --jobs and --checkpoint-every must be >= 1")
     if not duration > 0.0:
         raise InputError("--duration", f"must be positive, got {duration:g} s")
+    if checkpoint_every is not None:
+        click.echo(
+            f"checkpoints: {out_path.resolve()} is saved every {checkpoint_every} sessions",
+            err=True,
+        )
 
 
 def write_learning_curve(curve: LearningCurve, policy: Path, name: str) -> Path:

@@ -1,14 +1,15 @@
 """Validation of the cyber player (paper Tables I-II, figures 8-9; METHODS section 7).
 
-A cyber player is trained to imitate VT5 as a follower and as a leader
-(`mirror_avatar.learning.imitation`), then replaces VT5 and plays closed-loop (in the compiled
-loop, `mirror_avatar.engine.batch.play_compiled`) with VT1..VT4 (seen in training) and VT6
-(unseen). Each partner plays the same seeded sessions with VT5 and with the
-cyber player, so CV and RMS can be compared by paired t-tests (the paper finds no significant
+A cyber player is trained to imitate a target virtual trainer (VT5 of the bundled data, see
+`mirror_avatar.learning.imitation.cast_virtual_trainers`) as a follower and as a leader, then
+replaces it and plays closed-loop (in the compiled loop,
+`mirror_avatar.engine.batch.play_compiled`) with the training partners and one partner never met
+in training. Each partner plays the same seeded sessions with the target and with the cyber
+player, so CV and RMS can be compared by paired t-tests (the paper finds no significant
 difference, all p > 0.05). Also reported: EMD of each player's velocity signature to the
-partner's, the similarity-space regions of VT5, the cyber player and the partners with their
-overlaps, example position time series, learning curves, and a baseline comparison on held-out
-virtual-trainer sessions: RMS to VT5 of the trained player, of an untrained one (random Q) and of
+partner's, the similarity-space regions of the target, the cyber player and the partners with
+their overlaps, example position time series, learning curves, and a baseline comparison on
+held-out sessions: RMS to the target of the trained player, of an untrained one (random Q) and of
 simply copying the partner. One module for one experiment: its runs, tables and text.
 """
 
@@ -29,16 +30,13 @@ from mirror_avatar.engine.loop import count_samples
 from mirror_avatar.figures import plot_learning_curves, plot_positions, plot_similarity_space
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.imitation import (
-    SEEN_PARTNERS,
-    TARGET,
     TRAINING_ROLES,
-    UNSEEN_PARTNER,
+    Cast,
     Role,
-    VirtualTrainerSpec,
+    cast_virtual_trainers,
     derive_seeds,
     make_cyber_player,
     make_pairs,
-    make_virtual_trainers,
     train_cyber_player,
 )
 from mirror_avatar.learning.training import LearningCurve, score_imitation
@@ -57,8 +55,8 @@ from mirror_avatar.signature import (
 from mirror_avatar.trials import Trial
 
 TRAINING_SESSIONS = 4000
-"""Training sessions per role by default (**choice**: enough for both roles to match VT5 while
-keeping ``make demo`` to a few minutes; the paper used about 24 000)."""
+"""Training sessions per role by default (**choice**: enough for both roles to match the target
+while keeping ``make demo`` to a few minutes; the paper used about 24 000)."""
 
 QUICK_TRAINING_SESSIONS = 300
 VALIDATION_SESSIONS = 20
@@ -76,10 +74,11 @@ SESSION_SECONDS = 60.0
 PAPER = {"cv": (0.74, 0.90), "rms": (0.10, 0.12), "emd": (0.002, 0.008)}
 """The paper's Table I ranges."""
 
-CRITERIA = {"max_difference": 0.05, "min_cv": 0.75, "max_rms": 0.15, "max_emd_to_vt5": 0.01}
+CRITERIA = {"max_difference": 0.05, "min_cv": 0.75, "max_rms": 0.15, "max_emd_to_target": 0.01}
 """The reproduction criteria checked per partner: the cyber player's mean CV and RMS each
-within ``max_difference`` of VT5's, its CV at least ``min_cv`` and RMS at most ``max_rms``, and
-its velocity IMS within EMD ``max_emd_to_vt5`` of VT5's (over all sessions of the role)."""
+within ``max_difference`` of the target's, its CV at least ``min_cv`` and RMS at most
+``max_rms``, and its velocity IMS within EMD ``max_emd_to_target`` of the target's (over all
+sessions of the role)."""
 
 
 @dataclass
@@ -87,6 +86,8 @@ class RoleResult:
     """Everything measured for one role: training, closed-loop validation and baselines."""
 
     role: Role
+    target: str
+    unseen: str
     curve: LearningCurve
     train_seconds: float
     records: pd.DataFrame
@@ -103,12 +104,13 @@ def run(
     n_validation: int | None = None,
     n_jobs: int = 2,
 ) -> Section:
-    """Train the cyber player as follower and leader and validate it against VT5.
+    """Train the cyber player as follower and leader and validate it against its target.
 
     Parameters
     ----------
     trials
-        Solo trials; six virtual trainers are made from them (`make_virtual_trainers`).
+        Solo trials; the virtual trainers are made from them (`cast_virtual_trainers`: VT5 of
+        six blocks for the bundled data, one per person for three people or more).
     quick
         Fewer training sessions (`QUICK_TRAINING_SESSIONS`) and validation sessions.
     seed
@@ -126,9 +128,10 @@ def run(
     n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else TRAINING_SESSIONS)
     n_valid = n_validation or (QUICK_VALIDATION_SESSIONS if quick else VALIDATION_SESSIONS)
     n_base = QUICK_BASELINE_SESSIONS if quick else BASELINE_SESSIONS
-    trainers = make_virtual_trainers(trials, seed=seed)
+    cast = cast_virtual_trainers(trials, seed=seed)
+    target = cast.trainers[cast.target].label
     results = [
-        run_role(trainers, role, n_train, n_valid, n_base, seed, n_jobs) for role in TRAINING_ROLES
+        run_role(cast, role, n_train, n_valid, n_base, seed, n_jobs) for role in TRAINING_ROLES
     ]
     table_one = pd.concat([make_table_one(r) for r in results])
     table_two = pd.concat([make_table_two(r) for r in results])
@@ -136,7 +139,7 @@ def run(
     baselines = pd.DataFrame({r.role: r.baselines for r in results}).T
     regions = {r.role: compute_regions(r.velocities) for r in results}
     overlaps = pd.concat({role: reg[2] for role, reg in regions.items()})
-    metrics = _metrics(results, table_one, table_two, overlaps, trainers, seed, n_train, n_valid)
+    metrics = _metrics(results, table_one, table_two, overlaps, cast, seed, n_train, n_valid)
     for role, checks in criteria.items():
         metrics[role]["criteria"] = checks.to_dict(orient="index")
     figures: dict[str, Any] = {}
@@ -147,23 +150,25 @@ def run(
                 plot_learning_curves(
                     {"trained cyber player": (result.curve.sessions, result.curve.rms)},
                     {f"{k} (held out)": v for k, v in result.baselines.items()},
-                    title=f"Learning to imitate VT5 as {result.role}",
+                    title=f"Learning to imitate {target} as {result.role}",
                 )
             ),
-            f"Similarity space, {result.role}: 70% regions of VT5, cyber player, partners": (
+            f"Similarity space, {result.role}: 70% regions of {target}, cyber player, partners": (
                 plot_similarity_space(points, ellipses)
             ),
-            f"Example positions, {result.role}, partner VT1 (first 20 s)": _plot_example(result),
+            f"Example positions, {result.role}, the first partner (first 20 s)": _plot_example(
+                result, cast.trainers[cast.seen[0]].label
+            ),
         }
     return Section(
         key="cyber_player",
-        title="Cyber player: learning to move like VT5 (Tables I-II)",
-        text=_describe(results, table_two, n_train, n_valid),
+        title=f"Cyber player: learning to move like {target} (Tables I-II)",
+        text=_describe(results, table_two, cast, n_train, n_valid),
         tables={
-            "Table I: VT5 and the cyber player against each partner (mean +- SD)": table_one,
-            "Table II: paired t-tests, VT5 vs cyber player": table_two,
-            "Reproduction criteria: cyber player vs VT5, per partner": pd.concat(criteria),
-            "RMS to VT5 on held-out VT sessions (units): trained, untrained, copy partner": (
+            f"Table I: {target} and the cyber player against each partner (mean +- SD)": table_one,
+            f"Table II: paired t-tests, {target} vs cyber player": table_two,
+            f"Reproduction criteria: cyber player vs {target}, per partner": pd.concat(criteria),
+            f"RMS to {target} on held-out sessions (units): trained, untrained, copy partner": (
                 baselines
             ),
             "Overlap of the similarity-space regions (intersection / union)": overlaps,
@@ -174,74 +179,70 @@ def run(
 
 
 def run_role(
-    trainers: Sequence[VirtualTrainerSpec],
-    role: Role,
-    n_train: int,
-    n_valid: int,
-    n_base: int,
-    seed: int,
-    n_jobs: int,
+    cast: Cast, role: Role, n_train: int, n_valid: int, n_base: int, seed: int, n_jobs: int
 ) -> RoleResult:
     """Train for ``role``, then validate closed-loop and against the baselines."""
-    target = trainers[TARGET]
+    target = cast.trainers[cast.target]
     start = time.perf_counter()
     player, curve = train_cyber_player(
         target.generator,
-        [trainers[i].generator for i in SEEN_PARTNERS],
+        [cast.trainers[i].generator for i in cast.seen],
         role=role,
         n_sessions=n_train,
         seed=seed,
         n_jobs=n_jobs,
     )
     seconds = time.perf_counter() - start
-    records, velocities, example = validate(player, trainers, role, n_valid, seed)
-    baselines = compare_baselines(player, trainers, role, n_base, seed, n_jobs)
-    return RoleResult(role, curve, seconds, records, velocities, example, baselines)
+    records, velocities, example = validate(player, cast, role, n_valid, seed)
+    baselines = compare_baselines(player, cast, role, n_base, seed, n_jobs)
+    unseen = cast.trainers[cast.unseen].label
+    return RoleResult(
+        role, target.label, unseen, curve, seconds, records, velocities, example, baselines
+    )
 
 
 def validate(
-    player: CyberPlayer,
-    trainers: Sequence[VirtualTrainerSpec],
-    role: Role,
-    n_sessions: int,
-    seed: int,
+    player: CyberPlayer, cast: Cast, role: Role, n_sessions: int, seed: int
 ) -> tuple[pd.DataFrame, dict[str, list[np.ndarray]], tuple[Session, Session]]:
-    """Play each partner against VT5 and against the cyber player, the same seeds for both.
+    """Play each partner against the target and against the cyber player, the same seeds for both.
 
-    The partner (player 0) takes the other role's preset; VT5 or the cyber player is player 1.
+    The partner (player 0) takes the other role's preset; the target or the cyber player is
+    player 1.
 
     Returns
     -------
     records : DataFrame
-        One row per session: partner, player (``"VT5"`` or ``"cyber player"``), session index,
-        ``cv``, ``rms`` (to the partner, units), ``emd`` (velocity IMS to the partner's).
+        One row per session: partner, player (the target's label or ``"cyber player"``),
+        session index, ``cv``, ``rms`` (to the partner, units), ``emd`` (velocity IMS to the
+        partner's).
     velocities : dict
-        ``"VT5"``, ``"cyber player"``, ``"partners"`` -> each session's velocity (units/s) after
-        the transient (partners: from the VT5 sessions).
+        The target's label, ``"cyber player"``, ``"partners"`` -> each session's velocity
+        (units/s) after the transient (partners: from the target's sessions).
     example : tuple of Session
-        The first session with VT1: with VT5, with the cyber player.
+        The first session with the first partner: with the target, with the cyber player.
     """
     other = "leader" if role == "follower" else "follower"
     roles = (other, role)
+    target = cast.trainers[cast.target]
     seeds = draw_seeds([seed, 1], n_sessions)
     rows: list[dict[str, Any]] = []
-    velocities: dict[str, list[np.ndarray]] = {"VT5": [], "cyber player": [], "partners": []}
+    velocities: dict[str, list[np.ndarray]] = {target.label: [], "cyber player": [], "partners": []}
     n_samples = count_samples(SESSION_SECONDS, player.period)
     sessions: list[Session] = []
-    for index in (*SEEN_PARTNERS, UNSEEN_PARTNER):
-        partner = trainers[index].player(other)
+    for index in (*cast.seen, cast.unseen):
+        partner = cast.trainers[index].player(other)
         for k, s in enumerate(seeds):
-            for name, avatar in (("VT5", trainers[TARGET].player(role)), ("cyber player", player)):
+            for name, avatar in ((target.label, target.player(role)), ("cyber player", player)):
                 session = play_compiled([partner, avatar], n_samples, s, roles=roles)
                 trimmed = session.trimmed(TRIM)
                 rows.append(
-                    {"partner": trainers[index].label, "player": name, "session": k}
+                    {"partner": cast.trainers[index].label, "player": name, "session": k}
                     | measure(trimmed)
                 )
                 velocities[name].append(trimmed.velocities[1])
-                if name == "VT5":
+                if name == target.label:
                     velocities["partners"].append(trimmed.velocities[0])
-                if index == SEEN_PARTNERS[0] and k == 0:
+                if index == cast.seen[0] and k == 0:
                     sessions.append(session)
     return pd.DataFrame(rows), velocities, (sessions[0], sessions[1])
 
@@ -254,33 +255,29 @@ def measure(session: Session) -> dict[str, float]:
     """
     metrics = session_metrics(session)
     return {
-        "cv": metrics["circular_variance"],
+        "cv": metrics["phase_locking"],
         "rms": metrics["rmse"],
         "emd": metrics["emd_players"],
     }
 
 
 def compare_baselines(
-    player: CyberPlayer,
-    trainers: Sequence[VirtualTrainerSpec],
-    role: Role,
-    n_sessions: int,
-    seed: int,
-    n_jobs: int = 2,
+    player: CyberPlayer, cast: Cast, role: Role, n_sessions: int, seed: int, n_jobs: int = 2
 ) -> dict[str, float]:
-    """RMS to VT5 (units) on held-out VT sessions: trained, untrained, copy the partner.
+    """RMS to the target (units) on held-out sessions: trained, untrained, copy the partner.
 
-    The sessions are VT5 playing ``role`` with VT1..VT4 and VT6, seeded apart from training; the
-    trained and untrained (seeded random Q-table) players replay each session open-loop in
-    VT5's place (`mirror_avatar.learning.training.score_imitation`), and "copy the partner" is
-    the RMS between the partner's and VT5's positions.
+    The sessions are the target playing ``role`` with every partner, seen and unseen, seeded
+    apart from training; the trained and untrained (seeded random Q-table) players replay each
+    session open-loop in the target's place (`mirror_avatar.learning.training.score_imitation`),
+    and "copy the partner" is the RMS between the partner's and the target's positions.
     """
-    partners = [trainers[i].generator for i in (*SEEN_PARTNERS, UNSEEN_PARTNER)]
-    pairs = make_pairs(trainers[TARGET].generator, partners, role)
+    generator = cast.trainers[cast.target].generator
+    partners = [cast.trainers[i].generator for i in (*cast.seen, cast.unseen)]
+    pairs = make_pairs(generator, partners, role)
     held_out = derive_seeds(seed + 1)[0]
     chunks = run_sessions(pairs, n_sessions, seed=held_out, n_jobs=n_jobs, progress=False)
     sessions = list(itertools.chain.from_iterable(chunks))
-    untrained = make_cyber_player(role, trainers[TARGET].generator)
+    untrained = make_cyber_player(role, generator)
     untrained.initialise_q(seed, 1e-3)
     copy = [np.sqrt(np.mean((s.positions[0, 1:] - s.positions[1, 1:]) ** 2)) for s in sessions]
     return {
@@ -291,72 +288,73 @@ def compare_baselines(
 
 
 def make_table_one(result: RoleResult) -> pd.DataFrame:
-    """Paper Table I: per partner, EMD to the partner and CV, RMS mean +- SD, VT5 and cyber."""
+    """Paper Table I: per partner, EMD to the partner and CV, RMS mean +- SD, target and cyber."""
     rows = {}
     for partner, block in result.records.groupby("partner", sort=False):
         row: dict[str, str] = {}
-        for name in ("VT5", "cyber player"):
+        for name in (result.target, "cyber player"):
             own = block[block["player"] == name]
             row[f"EMD {name}"] = f"{own['emd'].mean():.4f}"
             row[f"CV {name}"] = _mean_sd(own["cv"])
             row[f"RMS {name}"] = _mean_sd(own["rms"])
-        rows[(result.role, _partner_name(str(partner)))] = row
+        rows[(result.role, _partner_name(str(partner), result))] = row
     return pd.DataFrame.from_dict(rows, orient="index")
 
 
 def compute_emd_to_target(result: RoleResult) -> float:
-    """EMD between the cyber player's and VT5's velocity IMS, each pooled over all sessions."""
+    """EMD between the cyber player's and the target's velocity IMS, pooled over all sessions."""
     return compute_emd(
         compute_ims(np.concatenate(result.velocities["cyber player"])),
-        compute_ims(np.concatenate(result.velocities["VT5"])),
+        compute_ims(np.concatenate(result.velocities[result.target])),
     )
 
 
 def check_criteria(result: RoleResult) -> pd.DataFrame:
-    """Per partner (the index): mean CV and RMS of VT5 and the cyber player, `CRITERIA` met.
+    """Per partner (the index): mean CV and RMS of the target and the cyber player, `CRITERIA`.
 
-    Columns ``cv VT5``, ``cv cyber``, ``rms VT5``, ``rms cyber`` (means over the sessions),
-    ``emd to VT5`` (the cyber player's pooled velocity IMS against VT5's, same for every
-    partner), then booleans ``cv within``, ``rms within`` (difference at most
-    ``max_difference``), ``cv >= min``, ``rms <= max``, ``emd <= max`` and ``all``.
+    Columns ``cv TARGET``, ``cv cyber``, ``rms TARGET``, ``rms cyber`` (means over the sessions,
+    TARGET the target's label), ``emd to TARGET`` (the cyber player's pooled velocity IMS
+    against the target's, same for every partner), then booleans ``cv within``, ``rms within``
+    (difference at most ``max_difference``), ``cv >= min``, ``rms <= max``, ``emd <= max`` and
+    ``all``.
     """
     emd = compute_emd_to_target(result)
     limit = CRITERIA["max_difference"]
     rows = {}
     for partner, block in result.records.groupby("partner", sort=False):
-        vt5 = block[block["player"] == "VT5"][["cv", "rms"]].mean()
+        target = block[block["player"] == result.target][["cv", "rms"]].mean()
         cyber = block[block["player"] == "cyber player"][["cv", "rms"]].mean()
         passed = {
-            "cv within": abs(cyber["cv"] - vt5["cv"]) <= limit,
-            "rms within": abs(cyber["rms"] - vt5["rms"]) <= limit,
+            "cv within": abs(cyber["cv"] - target["cv"]) <= limit,
+            "rms within": abs(cyber["rms"] - target["rms"]) <= limit,
             "cv >= min": cyber["cv"] >= CRITERIA["min_cv"],
             "rms <= max": cyber["rms"] <= CRITERIA["max_rms"],
-            "emd <= max": emd <= CRITERIA["max_emd_to_vt5"],
+            "emd <= max": emd <= CRITERIA["max_emd_to_target"],
         }
         row = {
-            "cv VT5": float(vt5["cv"]),
+            f"cv {result.target}": float(target["cv"]),
             "cv cyber": float(cyber["cv"]),
-            "rms VT5": float(vt5["rms"]),
+            f"rms {result.target}": float(target["rms"]),
             "rms cyber": float(cyber["rms"]),
-            "emd to VT5": emd,
+            f"emd to {result.target}": emd,
         } | {key: bool(value) for key, value in passed.items()}
         row["all"] = all(passed.values())
-        rows[_partner_name(str(partner))] = row
+        rows[_partner_name(str(partner), result)] = row
     return pd.DataFrame.from_dict(rows, orient="index")
 
 
 def make_table_two(result: RoleResult) -> pd.DataFrame:
-    """Paper Table II: paired t-tests of CV and RMS, VT5 against the cyber player, per partner.
+    """Paper Table II: paired t-tests of CV and RMS, target against cyber player, per partner.
 
     Sessions where either player has no CV (it did not move) are left out of the CV test.
     """
     rows = {}
     for partner, block in result.records.groupby("partner", sort=False):
-        vt5 = block[block["player"] == "VT5"].sort_values("session")
+        target = block[block["player"] == result.target].sort_values("session")
         cyber = block[block["player"] == "cyber player"].sort_values("session")
         row: dict[str, Any] = {}
         for key in ("cv", "rms"):
-            a, b = vt5[key].to_numpy(), cyber[key].to_numpy()
+            a, b = target[key].to_numpy(), cyber[key].to_numpy()
             both = np.isfinite(a) & np.isfinite(b)
             if both.sum() < 2:
                 row[f"{key.upper()} t(df)"], row[f"{key.upper()} p"] = "undefined", math.nan
@@ -364,7 +362,7 @@ def make_table_two(result: RoleResult) -> pd.DataFrame:
             test = paired_ttest(a[both], b[both])
             row[f"{key.upper()} t(df)"] = f"t({test.df}) = {test.t:.2f}"
             row[f"{key.upper()} p"] = test.p
-        rows[(result.role, _partner_name(str(partner)))] = row
+        rows[(result.role, _partner_name(str(partner), result))] = row
     return pd.DataFrame.from_dict(rows, orient="index")
 
 
@@ -393,14 +391,14 @@ def compute_regions(
     return groups, ellipses, table
 
 
-def _plot_example(result: RoleResult) -> Any:
-    with_vt5, with_cyber = result.example
-    keep = with_vt5.times <= 20.0
+def _plot_example(result: RoleResult, partner: str) -> Any:
+    with_target, with_cyber = result.example
+    keep = with_target.times <= 20.0
     return plot_positions(
-        with_vt5.times[keep],
+        with_target.times[keep],
         {
-            "partner VT1 (with VT5)": with_vt5.positions[0, keep],
-            "VT5": with_vt5.positions[1, keep],
+            f"partner {partner} (with {result.target})": with_target.positions[0, keep],
+            result.target: with_target.positions[1, keep],
             "cyber player": with_cyber.positions[1, keep],
         },
         title=f"Cyber player as {result.role}",
@@ -411,8 +409,8 @@ def _mean_sd(values: pd.Series) -> str:
     return f"{values.mean():.3f} +- {values.std(ddof=1):.3f}"
 
 
-def _partner_name(label: str) -> str:
-    return f"{label} (unseen)" if label == f"VT{UNSEEN_PARTNER + 1}" else label
+def _partner_name(label: str, result: RoleResult) -> str:
+    return f"{label} (unseen)" if label == result.unseen else label
 
 
 def _metrics(
@@ -420,7 +418,7 @@ def _metrics(
     table_one: pd.DataFrame,
     table_two: pd.DataFrame,
     overlaps: pd.DataFrame,
-    trainers: Sequence[VirtualTrainerSpec],
+    cast: Cast,
     seed: int,
     n_train: int,
     n_valid: int,
@@ -430,8 +428,8 @@ def _metrics(
         "training_sessions": n_train,
         "validation_sessions_per_partner": n_valid,
         "trim_s": TRIM,
-        "virtual_trainers": {t.label: list(t.trial_labels) for t in trainers},
-        "target": trainers[TARGET].label,
+        "virtual_trainers": {t.label: list(t.trial_labels) for t in cast.trainers},
+        "target": cast.trainers[cast.target].label,
         "paper_table_one": {k: list(v) for k, v in PAPER.items()},
     }
     for r in results:
@@ -444,7 +442,7 @@ def _metrics(
             "cyber_cv_mean": float(cyber["cv"].mean()),
             "cyber_rms_mean": float(cyber["rms"].mean()),
             "cyber_emd_to_partner_mean": float(cyber["emd"].mean()),
-            "emd_cyber_to_vt5": compute_emd_to_target(r),
+            "emd_cyber_to_target": compute_emd_to_target(r),
             "records": r.records.to_dict(orient="records"),
             "table_one": pd.DataFrame(table_one.loc[r.role]).to_dict(orient="index"),
             "table_two": pd.DataFrame(table_two.loc[r.role]).to_dict(orient="index"),
@@ -458,17 +456,17 @@ def _metrics(
 
 
 def _describe(
-    results: list[RoleResult], table_two: pd.DataFrame, n_train: int, n_valid: int
+    results: list[RoleResult], table_two: pd.DataFrame, cast: Cast, n_train: int, n_valid: int
 ) -> list[str]:
+    target = cast.trainers[cast.target].label
     text = [
-        f"Six virtual trainers were fitted on disjoint groups of three bundled trials (VT1-VT3 "
-        f"fast, VT4-VT6 slow); the target is VT5 (slow-4..6). For each role a cyber player was "
-        f"trained on {n_train} sessions of 60 s with partners VT1-VT4 (the paper: about 24 000), "
-        f"then replaced VT5 in {n_valid} closed-loop sessions per partner (VT6 unseen). Metrics "
-        f"leave out the first {TRIM:g} s. The leader's state is [x - x_p, x' - r_s, x, r_s], "
-        f"with r_s its own reference velocity drawn from VT5's IMS generator as VT5 draws it "
-        f"(a departure from METHODS' [x, x', x_p, x_p']: a leader's motion comes from its own "
-        f"motion source, which the partner's state cannot predict).",
+        f"Virtual trainers: {cast.describe()} For each role a cyber player was trained on "
+        f"{n_train} sessions of 60 s with the training partners (the paper: about 24 000), then "
+        f"replaced {target} in {n_valid} closed-loop sessions per partner. Metrics leave out the "
+        f"first {TRIM:g} s. The leader's state is [x - x_p, x' - r_s, x, r_s], with r_s its own "
+        f"reference velocity drawn from {target}'s IMS generator as {target} draws it (a "
+        "departure from METHODS' [x, x', x_p, x_p']: a leader's motion comes from its own "
+        "motion source, which the partner's state cannot predict).",
         f"Paper Table I: CV {PAPER['cv'][0]}-{PAPER['cv'][1]}, RMS {PAPER['rms'][0]}-"
         f"{PAPER['rms'][1]}, EMD {PAPER['emd'][0]}-{PAPER['emd'][1]}; Table II: all p > 0.05.",
     ]
@@ -480,13 +478,13 @@ def _describe(
             f"As {r.role}: trained in {r.train_seconds:.0f} s; the cyber player's CV "
             f"{cyber['cv'].mean():.3f}, RMS to the partner {cyber['rms'].mean():.3f}, EMD to the "
             f"partner {cyber['emd'].mean():.4f}; {int((p > 0.05).sum())} of {p.size} t-tests "
-            f"with p > 0.05. RMS to VT5 on held-out sessions: trained {b['trained']:.3f}, "
+            f"with p > 0.05. RMS to {r.target} on held-out sessions: trained {b['trained']:.3f}, "
             f"untrained {b['untrained (random Q)']:.3f}, copy the partner "
             f"{b['copy the partner']:.3f} units"
             + (
                 "."
                 if b["trained"] < b["copy the partner"]
-                else " - copying the partner imitates VT5 better than the trained player."
+                else f" - copying the partner imitates {r.target} better than the trained player."
             )
         )
         text.append(_describe_criteria(r))
@@ -497,23 +495,24 @@ def _describe(
 
 def _describe_criteria(result: RoleResult) -> str:
     checks = check_criteria(result)
+    target = result.target
     speeds = {
         name: float(np.abs(np.concatenate(result.velocities[name])).mean())
-        for name in ("VT5", "cyber player")
+        for name in (target, "cyber player")
     }
     text = (
-        f"Reproduction criteria (CV and RMS within {CRITERIA['max_difference']} of VT5's, CV >= "
-        f"{CRITERIA['min_cv']}, RMS <= {CRITERIA['max_rms']}, IMS within EMD "
-        f"{CRITERIA['max_emd_to_vt5']} of VT5's) met as {result.role} against "
-        f"{int(checks['all'].sum())} of {len(checks)} partners; mean speed VT5 "
-        f"{speeds['VT5']:.3f}, cyber player {speeds['cyber player']:.3f} units/s."
+        f"Reproduction criteria (CV and RMS within {CRITERIA['max_difference']} of {target}'s, "
+        f"CV >= {CRITERIA['min_cv']}, RMS <= {CRITERIA['max_rms']}, IMS within EMD "
+        f"{CRITERIA['max_emd_to_target']} of {target}'s) met as {result.role} against "
+        f"{int(checks['all'].sum())} of {len(checks)} partners; mean speed {target} "
+        f"{speeds[target]:.3f}, cyber player {speeds['cyber player']:.3f} units/s."
     )
-    below = checks[(checks["cv VT5"] < CRITERIA["min_cv"]) & checks["cv within"]].index
+    below = checks[(checks[f"cv {target}"] < CRITERIA["min_cv"]) & checks["cv within"]].index
     if len(below):
         text += (
-            f" Against {', '.join(below)} VT5's own CV is below {CRITERIA['min_cv']}, so a "
-            f"cyber player within {CRITERIA['max_difference']} of VT5 cannot reach that bound: "
-            "these partners' fast-style follower presets superimpose their own ~1 Hz reference "
-            "motion on a slow leader (METHODS section 5 with the bundled fast trials)."
+            f" Against {', '.join(below)} {target}'s own CV is below {CRITERIA['min_cv']}, so a "
+            f"cyber player within {CRITERIA['max_difference']} of {target} cannot reach that "
+            "bound: those partners' follower presets superimpose their own reference motion on "
+            "the leader (METHODS section 5)."
         )
     return text

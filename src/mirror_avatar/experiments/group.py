@@ -1,16 +1,17 @@
-"""A cyber player in a group of four on random graphs (METHODS section 8).
+"""A cyber player in a group on random graphs (METHODS section 8).
 
-Four virtual trainers improvise together with the `mirror_avatar.dynamics.GROUP` parameters, each
-with the signature of one of the paper's virtual "persons" (`GROUP_MEMBERS`: VT1 from the fast
-bundled trials, VT4, VT6 and VT5 from the slow ones; VT5, the last, is the target). A tabular
-cyber player is trained to take VT5's place on sessions with a new random connected graph each
-(`mirror_avatar.learning.imitation.train_group_cyber_player`), then plays closed-loop in VT5's
-place on new random graphs, each session paired with the same session played by VT5 (same seed:
-same graph, same partners' references). Reported in the layout of the group's published example:
-the target's CV, RMS, time lag and maximum cross-correlation against the mean of its neighbours,
-and the group synchronisation, each mean ± SD, with paired t-tests; the same on fixed topologies;
-baselines on held-out sessions; figures of positions, rho_g(t), the graph and each player's rho_k
-on a complete graph and on a path.
+Virtual trainers improvise together with the `mirror_avatar.dynamics.GROUP` parameters, each with
+the signature of one of the cyber-player experiment's virtual "persons" (`choose_members`: with
+the bundled data VT1 from the fast trials, VT4, VT6 and VT5 from the slow ones, a group of four;
+the target, VT5, is the last player). A tabular cyber player is trained to take the target's
+place on sessions with a new random connected graph each
+(`mirror_avatar.learning.imitation.train_group_cyber_player`), then plays closed-loop in its
+place on new random graphs, each session paired with the same session played by the target (same
+seed: same graph, same partners' references). Reported in the layout of the group's published
+example: the target's CV, RMS, time lag and maximum cross-correlation against the mean of its
+neighbours, and the group synchronisation, each mean ± SD, with paired t-tests; the same on fixed
+topologies; baselines on held-out sessions; figures of positions, rho_g(t), the graph and each
+player's rho_k on a complete graph and on a path.
 """
 
 from __future__ import annotations
@@ -28,11 +29,12 @@ from mirror_avatar.figures import plot_bars, plot_graph, plot_learning_curves, p
 from mirror_avatar.graphs import GraphSource, make_graph, random_connected_graph
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.imitation import (
+    Cast,
     VirtualTrainerSpec,
+    cast_virtual_trainers,
     derive_seeds,
     make_group,
     make_group_cyber_player,
-    make_virtual_trainers,
     train_group_cyber_player,
 )
 from mirror_avatar.learning.training import score_imitation
@@ -49,11 +51,8 @@ from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.session import Session
 from mirror_avatar.trials import Trial
 
-GROUP_MEMBERS = (0, 3, 5, 4)
-"""Which virtual "persons" (`make_virtual_trainers`) play: VT1 (fast), VT4, VT6 and VT5 (slow)."""
-
-TARGET = len(GROUP_MEMBERS) - 1
-"""Index of the target (VT5) in the group."""
+CYBER = "cyber player"
+"""The cyber player's name in the records (the target's is its label)."""
 
 TRAINING_SESSIONS = 4000
 QUICK_TRAINING_SESSIONS = 300
@@ -69,12 +68,12 @@ DURATION = 60.0
 
 TOPOLOGIES = ("complete", "ring", "path", "star")
 
-MEASURES = ("circular_variance", "group_synchronisation", "rmse", "time_lag",
+MEASURES = ("phase_locking", "group_synchronisation", "rmse", "time_lag",
             "max_cross_correlation")  # fmt: skip
 """What is compared, in the published table's order."""
 
 PUBLISHED = {
-    "circular_variance": ((0.818, 0.092), (0.803, 0.053)),
+    "phase_locking": ((0.818, 0.092), (0.803, 0.053)),
     "group_synchronisation": ((0.850, 0.051), (0.843, 0.046)),
     "rmse": ((0.063, 0.023), (0.054, 0.006)),
     "time_lag": ((-0.021, None), (-0.035, None)),
@@ -95,12 +94,13 @@ def run(
     n_sessions: int | None = None,
     n_jobs: int = 2,
 ) -> Section:
-    """Train a cyber player in a group of four and validate it against the target VT.
+    """Train a cyber player in a group and validate it against the target VT.
 
     Parameters
     ----------
     trials
-        Solo trials; the virtual trainers are made from them (`make_virtual_trainers`).
+        Solo trials; the virtual trainers are made from them (`cast_virtual_trainers`) and the
+        group chosen among them (`choose_members`).
     quick
         Fewer training, validation and topology sessions.
     seed
@@ -114,21 +114,21 @@ def run(
     n_valid = QUICK_VALIDATION_SESSIONS if quick else VALIDATION_SESSIONS
     n_topology = QUICK_TOPOLOGY_SESSIONS if quick else TOPOLOGY_SESSIONS
     n_base = QUICK_BASELINE_SESSIONS if quick else BASELINE_SESSIONS
-    people = make_virtual_trainers(trials, seed=seed)
-    members = [people[i] for i in GROUP_MEMBERS]
-    generators = [m.generator for m in members]
+    cast = cast_virtual_trainers(trials, seed=seed)
+    members = [cast.trainers[i] for i in choose_members(cast)]
+    *partners, target = [m.generator for m in members]
     start = time.perf_counter()
     player, curve = train_group_cyber_player(
-        generators[TARGET], generators[:TARGET], n_sessions=n_train, seed=seed, n_jobs=n_jobs,
-        progress=False,
-    )  # fmt: skip
+        target, partners, n_sessions=n_train, seed=seed, n_jobs=n_jobs, progress=False
+    )
     train_seconds = time.perf_counter() - start
-    group = make_group(generators[TARGET], generators[:TARGET])
+    group = make_group(target, partners)
     seeds = draw_seeds([seed, 2], n_valid + n_topology)
-    records, examples = compare(group, player, seeds[:n_valid], random_connected_graph)
+    label = members[-1].label
+    records, examples = compare(group, label, player, seeds[:n_valid], random_connected_graph)
     table = summarise(records)
     topology_records = pd.concat(
-        {name: compare(group, player, seeds[n_valid:], make_graph(name, len(group)))[0]
+        {name: compare(group, label, player, seeds[n_valid:], make_graph(name, len(group)))[0]
          for name in TOPOLOGIES}
     )  # fmt: skip
     baselines = compare_baselines(player, group, n_base, seed)
@@ -143,7 +143,7 @@ def run(
         "trim_s": TRIM,
         "members": {f"player {i}": m.label for i, m in enumerate(members)},
         "member_trials": {m.label: list(m.trial_labels) for m in members},
-        "target": members[TARGET].label,
+        "target": label,
         "table": table.to_dict(orient="index"),
         "criteria": checks,
         "topologies": topology_table(topology_records).to_dict(orient="index"),
@@ -153,16 +153,19 @@ def run(
         "records": records.to_dict(orient="records"),
         "published": {k: {"cyber": v[0], "virtual trainer": v[1]} for k, v in PUBLISHED.items()},
     }
-    labels = [f"{m.label}{' (target)' if i == TARGET else ''}" for i, m in enumerate(members)]
+    labels = [m.label for m in members[:-1]] + [f"{label} (target)"]
     return Section(
         key="group",
-        title="Groups: a cyber player among four on random graphs (METHODS section 8)",
+        title=f"Groups: a cyber player in a group of {len(group)} on random graphs (METHODS "
+        "section 8)",
         text=_describe(members, table, checks, baselines, synchrony, n_train, n_valid),
         tables={
-            "Target VT5 and the cyber player in its place, random graphs (mean +- SD; CV, RMS, "
-            "lag and cross-correlation against the mean of the target's neighbours)": table,
+            f"Target {label} and the cyber player in its place, random graphs (mean +- SD; CV, "
+            "RMS, lag and cross-correlation against the mean of the target's neighbours)": table,
             "Fixed topologies (means)": topology_table(topology_records),
-            "RMS to VT5 on held-out group sessions (units)": pd.DataFrame(baselines, index=["RMS"]),
+            f"RMS to {label} on held-out group sessions (units)": pd.DataFrame(
+                baselines, index=["RMS"]
+            ),
             "Each player's synchronisation to the group (rho_k), virtual trainers only": (
                 pd.DataFrame(synchrony)
             ),
@@ -172,25 +175,39 @@ def run(
     )
 
 
+def choose_members(cast: Cast) -> tuple[int, ...]:
+    """Pick the group from the cast (**choice**): indices into ``cast.trainers``.
+
+    The first and the last training partners, the unseen partner, then the target, each once:
+    four for the bundled data and for four people or more, three for three people.
+    """
+    first, last = cast.seen[0], cast.seen[-1]
+    return tuple(dict.fromkeys((first, last, cast.unseen, cast.target)))
+
+
 def compare(
-    group: Sequence[Player], player: CyberPlayer, seeds: Sequence[int], graph: GraphSource
+    group: Sequence[Player],
+    label: str,
+    player: CyberPlayer,
+    seeds: Sequence[int],
+    graph: GraphSource,
 ) -> tuple[pd.DataFrame, tuple[Session, Session]]:
-    """Play each seed with the target VT and with the cyber player in its place.
+    """Play each seed with the target VT (the last of ``group``) and the cyber player in its place.
 
     Returns
     -------
     records : DataFrame
-        One row per session and player (``"VT5"`` or ``"cyber player"``): the target's
-        ``circular_variance``, ``rmse``, ``time_lag`` and ``max_cross_correlation`` against its
+        One row per session and player (``label``, the target's, or `CYBER`): the target's
+        ``phase_locking``, ``rmse``, ``time_lag`` and ``max_cross_correlation`` against its
         neighbours' mean, and the ``group_synchronisation``.
     examples : tuple of Session
-        The first session with VT5 and with the cyber player.
+        The first session with the target and with the cyber player.
     """
-    with_cyber = [*group[:TARGET], player]
+    with_cyber = [*group[:-1], player]
     rows, examples = [], []
     n_samples = count_samples(DURATION, player.period)
     for k, seed in enumerate(seeds):
-        for name, lineup in (("VT5", group), ("cyber player", with_cyber)):
+        for name, lineup in ((label, group), (CYBER, with_cyber)):
             session = play_compiled(lineup, n_samples, seed, graph)
             rows.append({"session": k, "player": name} | measure(session))
             if k == 0:
@@ -199,25 +216,28 @@ def compare(
 
 
 def measure(session: Session) -> dict[str, float]:
-    """Return the target's coordination with its neighbours and the group synchronisation."""
+    """Return the target's (last player's) coordination with its neighbours and group synchrony."""
     metrics = session_metrics(session, TRIM)
-    target = metrics["players"][TARGET]
+    target = metrics["players"][-1]
     return {key: float(target[key]) for key in MEASURES if key in target} | {
         "group_synchronisation": metrics["group_synchronisation"]
     }
 
 
 def summarise(records: pd.DataFrame) -> pd.DataFrame:
-    """Tabulate per measure the mean +- SD of VT5 and the cyber player, and a paired t-test."""
-    vt = records[records["player"] == "VT5"].sort_values("session")
-    cyber = records[records["player"] == "cyber player"].sort_values("session")
+    """Tabulate per measure the mean +- SD of the target and the cyber player, and a paired t-test.
+
+    The target's columns are named by its label (the records' other player).
+    """
+    vt, cyber = _split_players(records)
+    label = vt["player"].iloc[0]
     rows = {}
     for key in MEASURES:
         test = paired_ttest(vt[key].to_numpy(), cyber[key].to_numpy())
         published_cyber, published_vt = PUBLISHED[key]
         rows[key] = {
-            "VT5 mean": vt[key].mean(),
-            "VT5 SD": vt[key].std(ddof=1),
+            f"{label} mean": vt[key].mean(),
+            f"{label} SD": vt[key].std(ddof=1),
             "cyber mean": cyber[key].mean(),
             "cyber SD": cyber[key].std(ddof=1),
             "t(df)": f"t({test.df}) = {test.t:.2f}",
@@ -228,6 +248,12 @@ def summarise(records: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame.from_dict(rows, orient="index")
 
 
+def _split_players(records: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Split the records into the target's and the cyber player's, each in session order."""
+    is_cyber = records["player"] == CYBER
+    return records[~is_cyber].sort_values("session"), records[is_cyber].sort_values("session")
+
+
 def _published(value: tuple[float, float | None]) -> str:
     mean, sd = value
     return f"{mean:.3f}" if sd is None else f"{mean:.3f} +- {sd:.3f}"
@@ -235,10 +261,9 @@ def _published(value: tuple[float, float | None]) -> str:
 
 def check_criteria(records: pd.DataFrame) -> dict[str, Any]:
     """`CRITERIA` on the random-graph sessions: differences of the means and the RMS SD ratio."""
-    vt = records[records["player"] == "VT5"]
-    cyber = records[records["player"] == "cyber player"]
+    vt, cyber = _split_players(records)
     out: dict[str, Any] = {}
-    for key in ("circular_variance", "group_synchronisation", "rmse"):
+    for key in ("phase_locking", "group_synchronisation", "rmse"):
         difference = float(cyber[key].mean() - vt[key].mean())
         out[f"{key} difference"] = difference
         out[f"{key} within"] = abs(difference) <= CRITERIA["max_difference"]
@@ -250,12 +275,12 @@ def check_criteria(records: pd.DataFrame) -> dict[str, Any]:
 
 
 def topology_table(records: pd.DataFrame) -> pd.DataFrame:
-    """Means of CV, group synchronisation and RMS per topology (rows), VT5 and cyber player."""
+    """Means of CV, group synchronisation and RMS per topology (rows), target and cyber player."""
     frame = records.reset_index(level=0).rename(columns={"level_0": "topology"})
     means = frame.pivot_table(
         index="topology",
         columns="player",
-        values=["circular_variance", "group_synchronisation", "rmse"],
+        values=["phase_locking", "group_synchronisation", "rmse"],
         aggfunc="mean",
         sort=False,
     )
@@ -266,12 +291,13 @@ def topology_table(records: pd.DataFrame) -> pd.DataFrame:
 def compare_baselines(
     player: CyberPlayer, group: Sequence[Player], n_sessions: int, seed: int
 ) -> dict[str, float]:
-    """RMS to VT5 (units) on held-out group sessions: trained, untrained, copy the neighbours.
+    """RMS to the target (units) on held-out group sessions: trained, untrained, copy neighbours.
 
     The sessions are the virtual-trainer group on new random graphs; the players replay each
-    open-loop in VT5's place (`score_imitation`); "copy the neighbours" is the RMS between the
-    mean position of VT5's neighbours and VT5's.
+    open-loop in the target's place (the last player, `score_imitation`); "copy the neighbours"
+    is the RMS between the mean position of the target's neighbours and the target's.
     """
+    target = len(group) - 1
     held_out = derive_seeds(seed + 1)[0]
     n_samples = count_samples(DURATION, player.period)
     sessions = [
@@ -282,12 +308,12 @@ def compare_baselines(
     untrained.initialise_q(seed, 1e-3)
     copies = []
     for session in sessions:
-        neighbours = np.flatnonzero(session.graph[TARGET])
+        neighbours = np.flatnonzero(session.graph[target])
         mean = session.positions[neighbours, 1:].mean(axis=0)
-        copies.append(np.sqrt(np.mean((mean - session.positions[TARGET, 1:]) ** 2)))
+        copies.append(np.sqrt(np.mean((mean - session.positions[target, 1:]) ** 2)))
     return {
-        "trained": float(score_imitation(player, sessions, TARGET)[1].mean()),
-        "untrained (random Q)": float(score_imitation(untrained, sessions, TARGET)[1].mean()),
+        "trained": float(score_imitation(player, sessions, target)[1].mean()),
+        "untrained (random Q)": float(score_imitation(untrained, sessions, target)[1].mean()),
         "copy the neighbours' mean": float(np.mean(copies)),
     }
 
@@ -315,28 +341,31 @@ def _figures(
     with_vt, with_cyber = (s.trimmed(TRIM) for s in examples)
     keep = with_vt.times <= 20.0
     positions = {label: x[keep] for label, x in zip(labels, with_vt.positions, strict=True)}
-    positions["cyber player (in VT5's place)"] = with_cyber.positions[TARGET, keep]
+    target = labels[-1].removesuffix(" (target)")
+    positions[f"cyber player (in {target}'s place)"] = with_cyber.positions[-1, keep]
     rho = {}
-    for name, session in (("with VT5", with_vt), ("with the cyber player", with_cyber)):
+    for name, session in ((f"with {target}", with_vt), ("with the cyber player", with_cyber)):
         phases = np.array([compute_phase(x) for x in session.positions])
         rho[name] = compute_cluster_phase(phases).group
     bars = {name: {k: v for k, v in values.items() if k.startswith("player")}
             for name, values in synchrony.items()}  # fmt: skip
     return {
-        "Positions of the four players, first random-graph session (first 20 s)": plot_series(
-            with_vt.times[keep], positions, "position (units)", "A group of four"
+        "Positions of the players, first random-graph session (first 20 s)": plot_series(
+            with_vt.times[keep], positions, "position (units)", f"A group of {len(labels)}"
         ),
         "Group synchronisation rho_g(t) in that session": plot_series(
             with_vt.times, rho, "rho_g", "Group synchronisation"
         ),
         "That session's graph (drawn from its seed)": plot_graph(with_vt.graph, labels),
         "Each player's synchronisation to the group, complete graph and path": plot_bars(
-            bars, "rho_k", "Synchronisation to the group (path: players 0 and 3 are the ends)"
+            bars,
+            "rho_k",
+            f"Synchronisation to the group (path: players 0 and {len(labels) - 1} are the ends)",
         ),
         "Learning curve (dashed: baselines on held-out sessions)": plot_learning_curves(
             {"trained cyber player": (curve.sessions, curve.rms)},
             baselines,
-            title="Learning to imitate VT5 in a group",
+            title=f"Learning to imitate {target} in a group",
         ),  # fmt: skip
     }
 
@@ -353,18 +382,21 @@ def _describe(
     who = ", ".join(f"{m.label} ({', '.join(m.trial_labels)})" for m in members)
     path, complete = synchrony["path"], synchrony["complete"]["group (mean rho_g)"]
     copy = baselines["copy the neighbours' mean"]
+    ends = f"{path['player 0']:.3f} and {path[f'player {len(members) - 1}']:.3f}"
+    middle = " and ".join(f"{path[f'player {i}']:.3f}" for i in range(1, len(members) - 1))
     return [
-        f"Four virtual trainers improvise together with the group parameters of METHODS section "
-        f"8 (theta_p 0.85, theta_s 0.1, theta_v 0.05, omega 0.75): {who}; the last is the "
-        f"target. A tabular cyber player was trained on {n_train} sessions of {DURATION:g} s in "
-        f"the target's place, each on a new random connected graph, then replaced it in "
-        f"{n_valid} sessions on new random graphs, each paired with the same session (same "
-        f"seed and graph) played by the target. The first {TRIM:g} s are left out. CV, RMS, "
-        "time lag and cross-correlation are the target's against the mean of its neighbours.",
+        f"{len(members)} virtual trainers improvise together with the group parameters of "
+        f"METHODS section 8 (theta_p 0.85, theta_s 0.1, theta_v 0.05, omega 0.75): {who}; "
+        f"the last is the target. A tabular cyber player was trained on {n_train} sessions of "
+        f"{DURATION:g} s in the target's place, each on a new random connected graph, then "
+        f"replaced it in {n_valid} sessions on new random graphs, each paired with the same "
+        f"session (same seed and graph) played by the target. The first {TRIM:g} s are left "
+        "out. CV, RMS, time lag and cross-correlation are the target's against the mean of its "
+        "neighbours.",
         f"Criteria: mean CV, group synchronisation and RMS within {CRITERIA['max_difference']} "
         f"of the target's, RMS SD at most {CRITERIA['max_rms_sd_ratio']} x the target's: "
         + ("all met" if checks["all"] else "not all met")
-        + f" (differences CV {checks['circular_variance difference']:+.3f}, group "
+        + f" (differences CV {checks['phase_locking difference']:+.3f}, group "
         f"synchronisation {checks['group_synchronisation difference']:+.3f}, RMS "
         f"{checks['rmse difference']:+.3f}; RMS SD ratio {checks['rmse SD ratio']:.2f}; the "
         "published DQN's was 3.8).",
@@ -372,7 +404,6 @@ def _describe(
         f"{baselines['untrained (random Q)']:.3f}, copying the neighbours' mean "
         f"{copy:.3f} units.",
         f"Virtual trainers alone: group synchronisation {complete:.3f} on a complete graph; "
-        f"on a path the ends synchronise to the group with rho_k {path['player 0']:.3f} and "
-        f"{path['player 3']:.3f}, the middle with {path['player 1']:.3f} and "
-        f"{path['player 2']:.3f}.",
+        f"on a path the ends synchronise to the group with rho_k {ends}, the middle with "
+        f"{middle}.",
     ]

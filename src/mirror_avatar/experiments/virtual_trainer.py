@@ -1,7 +1,8 @@
 """Validation of the virtual trainer (paper section VI-B; METHODS sections 5 and 6).
 
 A virtual trainer (VT) whose IMS generator is fitted on one movement style (the reference style,
-"slow" by default: a **choice**, the paper used one person's recordings) plays two conditions:
+"slow" when the data have it, else the first group: a **choice**, the paper used one person's
+recordings) plays two conditions:
 
 - *VT follows*: every recorded solo trial, of every style, is replayed open-loop as the leader
   (`mirror_avatar.players.RecordedPlayer`) and the VT with the follower preset follows it;
@@ -40,10 +41,10 @@ from mirror_avatar.signature import DEFAULT_BINS, compute_emd, compute_ims
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 REFERENCE_STYLE = "slow"
-"""Style the VT under test learns its signature from (**choice**)."""
+"""Style the VT under test learns its signature from when the data have it (**choice**)."""
 
 PARTNER_STYLE = "fast"
-"""Style of the VT follower it leads (**choice**)."""
+"""Style of the VT follower it leads when the data have it (**choice**)."""
 
 
 LEAD_SESSIONS = 20
@@ -53,8 +54,8 @@ LEAD_DURATION = 60.0
 """Length (s) of a session of the VT leading, as the recorded trials."""
 
 PAPER = {
-    "follows": {"circular_variance": 0.933, "rmse": 0.112, "mean_relative_phase": 0.394},
-    "leads": {"circular_variance": 0.868, "rmse": 0.122, "mean_relative_phase": -0.664},
+    "follows": {"phase_locking": 0.933, "rmse": 0.112, "mean_relative_phase": 0.394},
+    "leads": {"phase_locking": 0.868, "rmse": 0.122, "mean_relative_phase": -0.664},
 }
 """The paper's numbers (section VI-B): VT following a person, VT leading."""
 
@@ -80,22 +81,21 @@ def run(
     trials: Sequence[Trial],
     quick: bool = False,
     seed: int = 0,
-    reference_style: str = REFERENCE_STYLE,
-    partner_style: str = PARTNER_STYLE,
+    reference_style: str | None = None,
+    partner_style: str | None = None,
 ) -> Section:
     """Validate the virtual trainer against recorded people and against another VT.
 
     Parameters
     ----------
     trials
-        Solo trials with groups including ``reference_style`` and ``partner_style`` (any rate;
-        resampled to 100 Hz).
+        Solo trials of at least two groups (styles or people; any rate, resampled to 100 Hz).
     quick
         Play `LEAD_SESSIONS` // 4 leading sessions per partner instead of `LEAD_SESSIONS`.
     seed
         Seeds the generators' k-means and every session (spawned with `numpy.random.SeedSequence`).
     reference_style, partner_style
-        The VT's own style and its VT follower's style.
+        The VT's own group and its VT follower's; by default `choose_styles`.
 
     Returns
     -------
@@ -106,8 +106,9 @@ def run(
     Raises
     ------
     InputError
-        When a style has no trials.
+        When a style has no trials, or the trials form only one group.
     """
+    reference_style, partner_style = choose_styles(trials, reference_style, partner_style)
     by_style = _split_styles(trials, (reference_style, partner_style))
     generators = {
         style: IMSGenerator(rate=DEFAULT_RATE, random_state=seed).fit(group)
@@ -141,6 +142,36 @@ def run(
         figures=_figures(follows, leads, by_style, reference_style),
         metrics=metrics,
     )
+
+
+def choose_styles(
+    trials: Sequence[Trial], reference: str | None = None, partner: str | None = None
+) -> tuple[str, str]:
+    """Resolve the reference and partner groups left as None (**choice**).
+
+    `REFERENCE_STYLE` and `PARTNER_STYLE` when the trials have those groups (the bundled data),
+    otherwise the first two groups in order of appearance (for example two people).
+
+    Raises
+    ------
+    InputError
+        When the trials form fewer than two groups.
+    """
+    groups = list(dict.fromkeys(str(t.group) for t in trials))
+    if reference is None and partner is None and {REFERENCE_STYLE, PARTNER_STYLE} <= set(groups):
+        return REFERENCE_STYLE, PARTNER_STYLE
+    others = [g for g in groups if g not in (reference, partner)]
+    if len(others) < (reference is None) + (partner is None):
+        raise InputError(
+            "trials",
+            f"the virtual-trainer validation needs two groups of trials, found {groups}; "
+            "give trials of two people or styles (--group-by)",
+        )
+    if reference is None:
+        reference = others.pop(0)
+    if partner is None:
+        partner = others.pop(0)
+    return reference, partner
 
 
 def _split_styles(trials: Sequence[Trial], styles: tuple[str, str]) -> dict[str, list[Trial]]:
@@ -234,8 +265,8 @@ def _row(
     paper = PAPER[condition.paper]
     row: dict[str, Any] = {
         "sessions": len(selected),
-        "cv": values("circular_variance").mean(),
-        "cv_sd": values("circular_variance").std(ddof=1) if len(selected) > 1 else np.nan,
+        "cv": values("phase_locking").mean(),
+        "cv_sd": values("phase_locking").std(ddof=1) if len(selected) > 1 else np.nan,
         "rmse": values("rmse").mean(),
         "rmse_sd": values("rmse").std(ddof=1) if len(selected) > 1 else np.nan,
         "phase": values("mean_relative_phase").mean(),
@@ -263,7 +294,7 @@ def _session_table(condition: Condition) -> pd.DataFrame:
             {
                 "leader": session.labels[0],
                 "style": style,
-                "cv": m["circular_variance"],
+                "cv": m["phase_locking"],
                 "rmse": m["rmse"],
                 "phase": m["mean_relative_phase"],
                 "lag": m["time_lag"],

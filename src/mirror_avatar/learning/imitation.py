@@ -63,9 +63,6 @@ SEEN_PARTNERS = (0, 1, 2, 3)
 UNSEEN_PARTNER = 5
 """Index of VT6, the partner never met in training."""
 
-TRIALS_PER_TRAINER = 3
-"""Trials each virtual trainer's generator is fitted on (**choice**, see the module docstring)."""
-
 CURVE_POINTS = 100
 """About how many points a learning curve has (sessions per point = n_sessions / CURVE_POINTS)."""
 
@@ -157,17 +154,85 @@ def make_virtual_trainers(
         if size < 1:
             raise InputError("trials", f"group {name!r} has {len(members)} trials for {per_group}")
         blocks += [members[i * size : (i + 1) * size] for i in range(per_group)]
-    seeds = draw_seeds(seed, n)
+    return fit_trainers([f"VT{i + 1}" for i in range(n)], blocks, seed, n_symbols)
+
+
+def fit_trainers(
+    labels: Sequence[str], blocks: Sequence[Sequence[Trial]], seed: int, n_symbols: int
+) -> list[VirtualTrainerSpec]:
+    """Fit one IMS generator per block of trials (k-means seeds drawn from ``seed``)."""
+    seeds = draw_seeds(seed, len(blocks))
     return [
         VirtualTrainerSpec(
-            f"VT{i + 1}",
+            label,
             tuple(t.label for t in block),
             IMSGenerator(n_symbols=n_symbols, rate=DEFAULT_RATE, random_state=int(s)).fit(
                 [t.resampled(DEFAULT_RATE) for t in block]
             ),
         )
-        for i, (block, s) in enumerate(zip(blocks, seeds, strict=True))
+        for label, block, s in zip(labels, blocks, seeds, strict=True)
     ]
+
+
+@dataclass(frozen=True, eq=False)
+class Cast:
+    """Who plays what in the paper's cyber-player experiments (METHODS section 7).
+
+    Attributes
+    ----------
+    trainers
+        The virtual "persons".
+    target
+        Index of the person the cyber player imitates.
+    seen
+        Indices of the training partners.
+    unseen
+        Index of the partner never met in training.
+    whole_people
+        True when each virtual trainer is one person of the data (a group of trials); False
+        for the bundled set-up of six blocks of two styles (`make_virtual_trainers`).
+    """
+
+    trainers: list[VirtualTrainerSpec]
+    target: int
+    seen: tuple[int, ...]
+    unseen: int
+    whole_people: bool
+
+    def describe(self) -> str:
+        """One sentence saying how the virtual trainers were made and who plays what."""
+        made = "; ".join(f"{t.label}: {', '.join(t.trial_labels)}" for t in self.trainers)
+        how = (
+            "one virtual trainer per person of the data"
+            if self.whole_people
+            else f"{len(self.trainers)} virtual trainers from disjoint blocks of trials of each "
+            "style (the data hold styles, not enough people)"
+        )
+        seen = ", ".join(self.trainers[i].label for i in self.seen)
+        return (
+            f"{how} ({made}). The target is {self.trainers[self.target].label}; the training "
+            f"partners are {seen}; {self.trainers[self.unseen].label} is never met in training."
+        )
+
+
+def cast_virtual_trainers(trials: Sequence[Trial], seed: int = 0, n_symbols: int = 256) -> Cast:
+    """Make the virtual trainers of the cyber-player experiments from the data (**choice**).
+
+    With three or more groups (people) each is one virtual trainer, made from all its trials, in
+    order of appearance; the second-to-last is the target, the last the unseen partner and the
+    others the training partners (six people give the paper's VT5 target and VT6 unseen). With
+    one or two groups (styles, as the bundled data), `make_virtual_trainers` makes six from
+    blocks of trials: VT5 the target, VT1..VT4 the training partners and VT6 unseen.
+    """
+    groups: dict[str, list[Trial]] = {}
+    for trial in trials:
+        groups.setdefault(str(trial.group), []).append(trial)
+    if len(groups) >= 3:
+        trainers = fit_trainers(list(groups), list(groups.values()), seed, n_symbols)
+        n = len(trainers)
+        return Cast(trainers, n - 2, tuple(range(n - 2)), n - 1, True)
+    trainers = make_virtual_trainers(trials, seed=seed, n_symbols=n_symbols)
+    return Cast(trainers, TARGET, SEEN_PARTNERS, UNSEEN_PARTNER, False)
 
 
 def make_role_discretisation(role: Role) -> Discretisation:

@@ -228,8 +228,8 @@ def compute_trial_metrics(session: Session) -> dict[str, Any]:
     Returns
     -------
     dict
-        `mirror_avatar.metrics.session_metrics` of the session (with an avatar: ``rmse``, the
-        paper's CV ``circular_variance``, ``mean_relative_phase`` person minus avatar, positive
+        `mirror_avatar.metrics.session_metrics` of the session (with an avatar: ``rmse``,
+        ``phase_locking`` (the paper's CV), ``mean_relative_phase`` person minus avatar, positive
         = person ahead, ``emd_players``...), plus for the plot ``velocity_bins`` (bin centres,
         units/s), ``person_ims`` / ``avatar_ims`` (velocity PDFs) and ``person_speed`` /
         ``avatar_speed`` (mean |velocity|, units/s). Empty when the trial is too short.

@@ -112,7 +112,7 @@ def _check_phase(phase_difference: ArrayLike) -> NDArray[np.float64]:
     return d
 
 
-def compute_circular_variance(phase_difference: ArrayLike) -> float:
+def compute_phase_locking(phase_difference: ArrayLike) -> float:
     """Compute the paper's "circular variance", ``|mean(exp(i dphi))|`` in [0, 1].
 
     It is the mean resultant length of the relative phase.
@@ -138,7 +138,8 @@ def compute_circular_sd(resultant_length: float) -> float:
 def compute_time_lag(x1: ArrayLike, x2: ArrayLike, rate: float, max_lag: float = MAX_LAG) -> float:
     """Lag (s) maximising the normalised cross-correlation within +-``max_lag``.
 
-    Positive lag = player 1 leads: ``x2(t) ~ x1(t - lag)``, consistent with the relative phase.
+    Positive lag = ``x1`` leads: ``x2(t) ~ x1(t - lag)``, the sign of the relative phase
+    ``phase(x1) - phase(x2)`` (`compute_relative_phase`) for the same delay.
     """
     return compute_cross_correlation_peak(x1, x2, rate, max_lag)[0]
 
@@ -149,7 +150,7 @@ def compute_cross_correlation_peak(
     """Lag (s) and value of the largest normalised cross-correlation within +-``max_lag``.
 
     The correlation is ``sum(a(t) b(t + lag)) / sqrt(sum a² sum b²)`` of the mean-removed series
-    (1 for identical shapes). Positive lag = player 1 leads, as in `compute_time_lag`.
+    (1 for identical shapes). Positive lag = ``x1`` leads, as in `compute_time_lag`.
     """
     a, b = _check_pair(x1, x2)
     if not (np.isfinite(rate) and rate > 0 and np.isfinite(max_lag) and max_lag >= 0):

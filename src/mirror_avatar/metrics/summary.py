@@ -6,14 +6,14 @@ Its keys depend on the number of players:
 - every session: ``emd_reference_<i>``, each player's velocity IMS against the IMS of its own
   reference velocities (None for a player without references);
 - two players (METHODS section 6; relative phase and time lag of player 0 with respect to player
-  1, positive when player 0 is ahead): ``rmse`` (units), ``circular_variance`` (the paper's
-  name for the mean resultant length of the relative phase: 1 = phase locked),
+  1, positive when player 0 is ahead): ``rmse`` (units), ``phase_locking`` (the mean
+  resultant length of the relative phase, 1 = phase locked: the paper's "circular variance", CV),
   ``mean_relative_phase`` and ``sd_relative_phase`` (circular SD) (rad), ``time_lag`` (s) and
   ``emd_players`` (between the two players' velocity IMS);
 - three or more (METHODS section 8): ``group_synchronisation`` (time mean of rho_g) and its SD,
   ``kuramoto_order`` (time mean of r), and ``players``: for each, ``synchronisation`` (rho_k),
   ``relative_phase_to_group`` (phibar_k, rad) and, against the mean position of its neighbours,
-  ``circular_variance``, ``rmse``, ``time_lag`` and ``max_cross_correlation``.
+  ``phase_locking``, ``rmse``, ``time_lag`` and ``max_cross_correlation``.
 
 A player that does not move has no phase: its phase-based metrics are NaN.
 """
@@ -27,10 +27,10 @@ from numpy.typing import NDArray
 
 from mirror_avatar.metrics.coordination import (
     compute_circular_sd,
-    compute_circular_variance,
     compute_cross_correlation_peak,
     compute_mean_relative_phase,
     compute_phase,
+    compute_phase_locking,
     compute_relative_phase,
     compute_rmse,
 )
@@ -85,17 +85,17 @@ def _pair_metrics(x0: Array, x1: Array, rate: float) -> dict[str, float]:
     if not (_moves(x0) and _moves(x1)):
         nan = float("nan")
         return out | {
-            "circular_variance": nan,
+            "phase_locking": nan,
             "mean_relative_phase": nan,
             "sd_relative_phase": nan,
             "time_lag": nan,
             "max_cross_correlation": nan,
         }
     dphi = compute_relative_phase(x0, x1)
-    cv = compute_circular_variance(dphi)
+    cv = compute_phase_locking(dphi)
     lag, peak = compute_cross_correlation_peak(x0, x1, rate)
     return out | {
-        "circular_variance": cv,
+        "phase_locking": cv,
         "mean_relative_phase": compute_mean_relative_phase(dphi),
         "sd_relative_phase": compute_circular_sd(cv),
         "time_lag": lag,
@@ -106,7 +106,7 @@ def _pair_metrics(x0: Array, x1: Array, rate: float) -> dict[str, float]:
 def _dyad_metrics(session: Session) -> dict[str, Any]:
     x, v = session.positions, session.velocities
     pair = _pair_metrics(x[0], x[1], _rate(session))
-    keys = ("rmse", "circular_variance", "mean_relative_phase", "sd_relative_phase", "time_lag")
+    keys = ("rmse", "phase_locking", "mean_relative_phase", "sd_relative_phase", "time_lag")
     return {key: pair[key] for key in keys} | {
         "emd_players": compute_emd(compute_ims(v[0]), compute_ims(v[1]))
     }
@@ -120,7 +120,7 @@ def _group_metrics(session: Session) -> dict[str, Any]:
         row: dict[str, Any] = {"label": session.labels[k], "neighbours": neighbours.tolist()}
         if neighbours.size:
             pair = _pair_metrics(x[k], x[neighbours].mean(axis=0), rate)
-            keys = ("circular_variance", "rmse", "time_lag", "max_cross_correlation")
+            keys = ("phase_locking", "rmse", "time_lag", "max_cross_correlation")
             row |= {key: pair[key] for key in keys}
         players.append(row)
     nan = float("nan")
@@ -140,7 +140,7 @@ def _group_metrics(session: Session) -> dict[str, Any]:
             players, cluster.individual, cluster.mean_relative_phases, strict=True
         ):
             row |= {"synchronisation": float(rho), "relative_phase_to_group": float(phase)}
-    for key in ("circular_variance", "rmse"):
+    for key in ("phase_locking", "rmse"):
         values = [row[key] for row in players if key in row]
         out[f"mean_{key}"] = float(np.mean(values)) if values else nan
     return out | {"players": players}

@@ -105,7 +105,7 @@
       body.append(
         row("Avatar mean speed", fixed(m.avatar_speed, 3, " units/s")),
         row("RMSE", fixed(m.rmse, 3, " units")),
-        row("CV (phase locking)", fixed(m.circular_variance, 3)),
+        row("CV (phase locking)", fixed(m.phase_locking, 3)),
         row("Relative phase (you − avatar)", fixed(m.mean_relative_phase, 3, " rad")),
         row("EMD between velocity profiles", fixed(m.emd_players, 4)),
       );
