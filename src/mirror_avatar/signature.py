@@ -65,13 +65,34 @@ def compute_ims(velocity: ArrayLike, bins: Bins = DEFAULT_BINS) -> Array:
     velocity
         Velocity samples (units/s), any shape; all samples are pooled.
     bins
+        The histogram bins (see `count_velocities`).
+
+    Returns
+    -------
+    numpy.ndarray
+        Probability of each bin, shape (bins.n,), summing to 1.
+    """
+    counts = count_velocities(velocity, bins)
+    return counts / counts.sum()
+
+
+def count_velocities(velocity: ArrayLike, bins: Bins = DEFAULT_BINS) -> Array:
+    """Histogram counts of velocity samples, the signature before normalising.
+
+    Counts of several batches add up to the counts of the batches pooled.
+
+    Parameters
+    ----------
+    velocity
+        Velocity samples (units/s), any shape; all samples are pooled.
+    bins
         The histogram bins. A sample is counted in the bin whose centre is nearest; samples
         beyond the end centres go to the end bins.
 
     Returns
     -------
     numpy.ndarray
-        Probability of each bin, shape (bins.n,), summing to 1.
+        Samples per bin, shape (bins.n,), as floats.
     """
     v = np.asarray(velocity, dtype=np.float64).ravel()
     if v.size == 0:
@@ -79,8 +100,7 @@ def compute_ims(velocity: ArrayLike, bins: Bins = DEFAULT_BINS) -> Array:
     if not np.all(np.isfinite(v)):
         raise InputError(None, "velocity has NaN or infinite values")
     index = np.clip(np.rint((v - bins.lo) / bins.width), 0, bins.n - 1).astype(np.intp)
-    counts = np.bincount(index, minlength=bins.n).astype(np.float64)
-    return counts / counts.sum()
+    return np.bincount(index, minlength=bins.n).astype(np.float64)
 
 
 def compute_emd(p: ArrayLike, q: ArrayLike, bins: Bins = DEFAULT_BINS) -> float:

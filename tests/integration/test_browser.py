@@ -123,6 +123,28 @@ def finish(page: Any, name: str, tmp_path: Path) -> dict[str, Any]:
     return summary
 
 
+PIXELS_OF = """([id, rgb]) => {
+  const canvas = document.getElementById(id);
+  const data = canvas.getContext("2d").getImageData(0, 0, canvas.width, canvas.height).data;
+  let n = 0;
+  for (let i = 0; i < data.length; i += 4) {
+    const near = Math.abs(data[i] - rgb[0]) + Math.abs(data[i + 1] - rgb[1]) +
+      Math.abs(data[i + 2] - rgb[2]) < 40;
+    if (near && data[i + 3] > 200) n += 1;
+  }
+  return n;
+}"""
+"""Count a canvas's opaque pixels within a small distance of a colour."""
+
+PERSON_RGB, AVATAR_RGB, PHASE_RGB = (37, 99, 235), (234, 122, 18), (75, 85, 99)
+"""The line colours of game.js: the person, the avatar, the relative phase."""
+
+
+def drawn(page: Any, canvas: str, rgb: tuple[int, int, int]) -> int:
+    """Pixels of ``canvas`` drawn in ``rgb`` (a line of the results screen's figures)."""
+    return int(page.evaluate(PIXELS_OF, [canvas, list(rgb)]))
+
+
 def load_csv(path: Path) -> np.ndarray:
     assert path.read_text().splitlines()[0] == "time,position"
     return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
@@ -158,6 +180,8 @@ def test_solo_trial_records_the_driven_trajectory(chromium, server, tmp_path):
     assert data.shape[0] == summary["n_samples"] == round(4 / 0.03) + 1
     assert_matches(data, driven)
     assert page.locator("#metrics").inner_text().count("units/s") == 1
+    assert drawn(page, "positions", PERSON_RGB) > 200 and drawn(page, "positions", AVATAR_RGB) == 0
+    assert page.locator("#phase-figure").is_hidden()
     page.close()
 
 
@@ -191,6 +215,12 @@ def test_avatar_follows_the_driven_mouse(chromium, server, tmp_path):
     table = page.locator("#metrics").inner_text()
     for label in ("RMSE", "CV", "Relative phase", "Round trip"):
         assert label in table
+    traces = summary["traces"]
+    step = int(np.ceil(session.n_samples / 600))
+    np.testing.assert_allclose(traces["positions"], session.positions[:, ::step])
+    assert len(traces["relative_phase"]) == len(traces["times"])
+    assert drawn(page, "positions", PERSON_RGB) > 200 and drawn(page, "positions", AVATAR_RGB) > 200
+    assert page.locator("#phase-figure").is_visible() and drawn(page, "phase", PHASE_RGB) > 200
     page.close()
 
 

@@ -80,7 +80,7 @@ def test_bad_groups_are_one_line(tmp_path, models, capsys, players, extra, probl
     assert problem in error and error.count("\n") == 1
 
 
-def test_group_train_writes_a_policy_that_plays_anywhere(tmp_path, models) -> None:
+def test_group_train_writes_a_policy_that_plays_anywhere(tmp_path, models, capsys) -> None:
     fast, slow = models
     policy = tmp_path / "member.npz"
     arguments = ["group", "train", "--target", slow, "--player", fast, "--player", slow]
@@ -90,9 +90,13 @@ def test_group_train_writes_a_policy_that_plays_anywhere(tmp_path, models) -> No
     assert player.training_["role"] == "group" and player.training_["n_sessions"] == 6
     assert (tmp_path / "member.learning_curve.csv").is_file()
     assert (tmp_path / "member.learning_curve.png").is_file()
+    capsys.readouterr()
     assert simulate(tmp_path / "with", fast, slow, str(policy), extra=("--graph", "random")) == 0
+    assert "player 2: EMD to its target's IMS" in capsys.readouterr().out
     session = load_session(tmp_path / "with" / "session.parquet")
     assert np.all(np.isfinite(session.controls[2, :-1]))  # the cyber player reports controls
+    assert main(["evaluate", str(tmp_path / "with"), "--out", str(tmp_path / "table")]) == 0
+    assert "emd_target_2" in (tmp_path / "table" / "sessions.csv").read_text().splitlines()[0]
     dyad = ["simulate", "--leader", fast, "--follower", str(policy), "--duration", "5",
             "--out", str(tmp_path / "dyad")]  # fmt: skip
     assert main(dyad) == 2  # trained in a group, not as a follower

@@ -7,6 +7,8 @@ import json
 import numpy as np
 import pytest
 
+from mirror_avatar.engine.batch import play_compiled
+from mirror_avatar.engine.loop import count_samples, play
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import star_graph
 from mirror_avatar.learning.agent import CyberPlayer, load_cyber_player
@@ -17,8 +19,12 @@ from mirror_avatar.learning.training import (
     QLearner,
     score_imitation,
 )
+from mirror_avatar.metrics import session_metrics
+from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.session import Session
+from mirror_avatar.signature import compute_emd, compute_ims
 from mirror_avatar.testing import make_follower_sessions
+from mirror_avatar.trials import make_trial
 
 
 @pytest.fixture(scope="module")
@@ -184,3 +190,36 @@ def test_epsilon_must_not_increase(slow_sessions):
         learner.fit(repeat(slow_sessions[0], 3))
     with pytest.raises(InputError, match="half_life"):
         ExponentialEpsilon(start=0.1, end=0.2)
+
+
+def test_the_target_signature_is_learned_saved_and_scored(slow_sessions, tmp_path):
+    """The player keeps its target's velocity counts; its sessions score its IMS against them."""
+    sessions = slow_sessions[0]
+    player = CyberPlayer()
+    QLearner(player, random_state=0, progress=False).fit(repeat(sessions, 9))
+    targets = [sessions[i % len(sessions)].velocities[1] for i in range(9)]
+    np.testing.assert_array_equal(player.target_ims(), compute_ims(np.concatenate(targets)))
+    assert CyberPlayer().target_ims() is None and "target_ims" not in CyberPlayer().describe()
+    loaded = load_cyber_player(player.save(tmp_path / "p.npz"))
+    np.testing.assert_array_equal(loaded.target_counts_, player.target_counts_)
+    partner = RecordedPlayer(make_trial(sessions[0].times, sessions[0].positions[0]))
+    lineup = [partner, loaded]
+    n_samples = count_samples(6.0, loaded.period)
+    for session in (play(lineup, 6.0, 1), play_compiled(lineup, n_samples, 1)):
+        own = compute_ims(session.trimmed(1.0).velocities[1])
+        metrics = session_metrics(session, trim=1.0)
+        assert metrics["emd_target_1"] == pytest.approx(compute_emd(own, player.target_ims()))
+        assert "emd_target_0" not in metrics
+
+
+@pytest.mark.parametrize(
+    ("counts", "problem"),
+    [(np.ones(5), "must be 200 numbers"), (-np.ones(200), "non-negative")],
+)
+def test_bad_target_counts_in_a_file_are_refused(slow_sessions, tmp_path, counts, problem):
+    player = CyberPlayer()
+    QLearner(player, random_state=0, progress=False).fit(slow_sessions[0][:1])
+    player.target_counts_ = counts
+    path = player.save(tmp_path / "bad.npz")
+    with pytest.raises(InputError, match=problem):
+        load_cyber_player(path)

@@ -11,7 +11,12 @@ import pytest
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.live.protocol import StartRequest
-from mirror_avatar.live.session import RoundTrips, compute_trial_metrics, start_trial
+from mirror_avatar.live.session import (
+    RoundTrips,
+    compute_trial_metrics,
+    compute_trial_traces,
+    start_trial,
+)
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.players import Player
 from mirror_avatar.session import Session, load_session
@@ -60,7 +65,7 @@ def test_samples_are_on_the_control_clock_and_the_avatar_sees_the_person(tmp_pat
     assert summary["complete"] and summary["n_samples"] == 11 and summary["seed"] == 5
     assert summary["round_trip_ms"]["n"] == 10  # the first report precedes any sample
     assert summary["avatar_role"] == "follower" and summary["avatar"] == "echo"
-    assert sidecar(trial)["metadata"] | {"n_samples": 11} == summary
+    assert sidecar(trial)["metadata"] | {"n_samples": 11, "traces": {}} == summary  # too short
     assert load_session(trial.session_path).roles == ("leader", "follower")
 
 
@@ -160,3 +165,15 @@ def test_solo_metrics_of_a_sine():
     assert metrics["person_speed"] == pytest.approx(4 * 0.3 * 0.5, rel=0.01)
     assert sum(metrics["person_ims"]) == pytest.approx(1.0)
     assert len(metrics["velocity_bins"]) == len(metrics["person_ims"])
+
+
+def test_traces_are_decimated_for_the_results_screen():
+    t = np.arange(1500) * T
+    x = np.vstack([0.3 * np.sin(t), 0.3 * np.sin(t - 0.2)])
+    nan = np.full_like(x, np.nan)
+    traces = compute_trial_traces(Session(t, x, np.gradient(x, T, axis=1), nan, nan))
+    assert len(traces["times"]) == 500 and traces["times"][1] == pytest.approx(3 * T)
+    np.testing.assert_array_equal(traces["positions"], x[:, ::3])
+    assert np.median(traces["relative_phase"]) == pytest.approx(0.2, abs=0.01)  # person ahead
+    still = np.vstack([x[0], np.zeros_like(t)])
+    assert "relative_phase" not in compute_trial_traces(Session(t, still, still, nan, nan))

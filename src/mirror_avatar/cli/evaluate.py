@@ -51,10 +51,14 @@ def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], 
 
 
 def summary_row(path: Path, session: Session, metrics: dict[str, Any]) -> dict[str, Any]:
-    """One row of the table of sessions: the file, its players and the metrics that apply."""
+    """One row of the table of sessions: the file, its players and the metrics that apply.
+
+    A cyber player's ``emd_target_<i>`` (its IMS against its target's) gets a column too.
+    """
     row: dict[str, Any] = {"session": str(path), "players": session.n_players,
                            "seconds": round(session.duration, 3)}  # fmt: skip
-    return row | {key: metrics[key] for key in SUMMARY_KEYS if key in metrics}
+    targets = {key: value for key, value in metrics.items() if key.startswith("emd_target_")}
+    return row | {key: metrics[key] for key in SUMMARY_KEYS if key in metrics} | targets
 
 
 @click.command()

@@ -28,6 +28,8 @@ METRIC_ROWS = (
     ("emd_players", "EMD between the players' IMS", ""),
     ("emd_reference_0", "EMD player 0 to its reference IMS", ""),
     ("emd_reference_1", "EMD player 1 to its reference IMS", ""),
+    ("emd_target_0", "EMD player 0 to its target's IMS (cyber player)", ""),
+    ("emd_target_1", "EMD player 1 to its target's IMS (cyber player)", ""),
 )
 """(key, description, unit) of the metrics `evaluate` prints, in order."""
 
@@ -81,6 +83,9 @@ def format_group_metrics(metrics: dict[str, Any]) -> str:
         )
         lines.append(f"{k:<6}  {cells}  {player['neighbours']} {player['label']}")
     lines.append("(CV, RMSE in units, lag in s and cross-correlation against the neighbours' mean)")
+    for k in range(len(metrics["players"])):
+        if f"emd_target_{k}" in metrics:
+            lines.append(f"player {k}: EMD to its target's IMS {metrics[f'emd_target_{k}']:.4f}")
     return "\n".join(lines)
 
 

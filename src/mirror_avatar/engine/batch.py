@@ -60,7 +60,11 @@ def play_compiled(
         labels=tuple(p.label or f"player {i}" for i, p in enumerate(players)),
         roles=tuple(roles) if roles is not None else default_roles(len(players)),
         graph=adjacency,
-        metadata={"seed": seed, "player_seeds": seeds},
+        metadata={
+            "seed": seed,
+            "player_seeds": seeds,
+            "players": [p.describe() for p in players],
+        },
     )
 
 

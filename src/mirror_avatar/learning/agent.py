@@ -48,6 +48,7 @@ from mirror_avatar.model_files import load_model, save_model
 from mirror_avatar.players.base import CYBER, Observation, Player, PlayerPlan, partner_state
 from mirror_avatar.players.reference import ReferenceTrack, draw_reference
 from mirror_avatar.seeds import entropy_of
+from mirror_avatar.signature import DEFAULT_BINS
 from mirror_avatar.trials import Trial
 
 if TYPE_CHECKING:
@@ -159,10 +160,15 @@ class CyberPlayer(Player):
         The learned action values; set by `initialise_q` or a learner, or by loading a file.
     training_ : dict
         Summary of how the Q-table was trained (seed, sessions, hyper-parameters, last scores).
+    target_counts_ : ndarray, shape (DEFAULT_BINS.n,)
+        Velocity samples of the player it learned to imitate, per bin of the velocity signature
+        (`mirror_avatar.signature.count_velocities`), summed over the training sessions; its
+        signature is `target_ims`.
     """
 
     q_table_: Array
     training_: dict[str, Any]
+    target_counts_: Array
 
     def __init__(
         self,
@@ -282,12 +288,25 @@ class CyberPlayer(Player):
             "initial_position": float(self.initial_position),
         }
 
+    def target_ims(self) -> Array | None:
+        """Velocity signature (IMS) of the player it learned to imitate; None before training."""
+        counts = getattr(self, "target_counts_", None)
+        if counts is None or not counts.sum() > 0:
+            return None
+        return counts / counts.sum()
+
     def describe(self) -> dict[str, Any]:
-        """Class, label, parameters and feature set."""
-        return super().describe() | {
-            "params": self.parameters(),
-            "features": self.discretisation_.features,
-        }
+        """Class, label, parameters, feature set and, once trained, its target's IMS.
+
+        ``target_ims`` lets `mirror_avatar.metrics.session_metrics` score how close the player's
+        own velocity signature stays to its target's in any session it plays.
+        """
+        target = self.target_ims()
+        return (
+            super().describe()
+            | {"params": self.parameters(), "features": self.discretisation_.features}
+            | ({} if target is None else {"target_ims": target.tolist()})
+        )
 
     def plan(self, seed: int, n_steps: int) -> PlayerPlan:
         """Return the start, end effector, policy and the reference `reset(seed)` draws."""
@@ -314,7 +333,8 @@ def save_cyber_player(player: CyberPlayer, path: str | os.PathLike[str]) -> Path
     The file holds arrays ``q_table`` (n_states, n_actions), ``edges`` (all interior bin edges),
     ``edge_counts`` (4,), ``actions`` (n_actions,) and the JSON metadata of
     `mirror_avatar.model_files.save_model`: format name and version, the dynamics parameters, the
-    discretisation, the training summary and its seed. A player with ``"reference"`` features
+    discretisation, the training summary and its seed; once trained, ``target_counts``
+    (DEFAULT_BINS.n,), its target's velocity counts. A player with ``"reference"`` features
     also stores its reference generator (arrays prefixed ``reference_``, metadata
     ``reference``), so the file alone plays.
 
@@ -337,6 +357,8 @@ def save_cyber_player(player: CyberPlayer, path: str | os.PathLike[str]) -> Path
         "edge_counts": np.array([e.size for e in disc.edges], dtype=np.int64),
         "actions": player.actions_,
     }
+    if hasattr(player, "target_counts_"):
+        arrays["target_counts"] = player.target_counts_
     if disc.needs_reference:
         if not isinstance(player.reference, IMSGenerator):
             raise InputError(path, "only a reference IMS generator can be saved with the player")
@@ -379,6 +401,8 @@ def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
         raise InputError(path, "Q-table must hold finite floating-point values")
     player.q_table_ = q.astype(np.float64)
     player.training_ = metadata.get("training", {})
+    if "target_counts" in arrays:
+        player.target_counts_ = _check_counts(arrays["target_counts"], path)
     if disc.needs_reference:
         if not isinstance(metadata.get("reference"), dict):
             raise InputError(path, "reference features but no reference generator in the file")
@@ -389,6 +413,16 @@ def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
         }
         player.reference = IMSGenerator.from_arrays(prefixed, metadata["reference"], path)
     return player
+
+
+def _check_counts(counts: NDArray[Any], path: str | os.PathLike[str]) -> Array:
+    """Return a file's target velocity counts as floats, or refuse them in one line."""
+    if counts.shape != (DEFAULT_BINS.n,) or counts.dtype.kind not in "fiu":
+        raise InputError(path, f"target_counts must be {DEFAULT_BINS.n} numbers")
+    counts = counts.astype(np.float64)
+    if not (np.all(np.isfinite(counts)) and np.all(counts >= 0)):
+        raise InputError(path, "target_counts must be finite and non-negative")
+    return counts
 
 
 def _player_from_parameters(

@@ -31,6 +31,7 @@ from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.discretisation import REFERENCE
 from mirror_avatar.learning.kernels import learn_session, mean_track
 from mirror_avatar.session import Session
+from mirror_avatar.signature import DEFAULT_BINS, count_velocities
 
 Array = NDArray[np.float64]
 
@@ -361,6 +362,7 @@ class QLearner:
         task = ImitationTask.from_session(session, self.target, self.player.period)
         eps = self._epsilon(self.epsilon or ExponentialEpsilon())
         scores = play_task(self._policy, task, self.learning_rate, self.discount, eps, self.rng_)
+        self.player.target_counts_ += count_velocities(session.velocities[self.target])
         self.n_sessions_ += 1
         return scores
 
@@ -405,6 +407,8 @@ class QLearner:
         q_seed, explore_seed = sequence.spawn(2)
         if not hasattr(self.player, "q_table_"):
             self.player.initialise_q(np.random.default_rng(q_seed), self.q_init_scale)
+        if not hasattr(self.player, "target_counts_"):
+            self.player.target_counts_ = np.zeros(DEFAULT_BINS.n)
         self.rng_ = np.random.default_rng(explore_seed)
         self.n_sessions_ = int(getattr(self.player, "training_", {}).get("n_sessions", 0))
         self.epsilon_ = 1.0

@@ -23,6 +23,7 @@ import asyncio
 import contextlib
 import hmac
 import ipaddress
+import json
 import logging
 import secrets
 import time
@@ -40,6 +41,7 @@ from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Receive, Scope, Send
 from starlette.websockets import WebSocket, WebSocketClose, WebSocketDisconnect
 
+from mirror_avatar.atomic import json_safe
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
 from mirror_avatar.live.protocol import (
@@ -337,9 +339,10 @@ class Connection:
         return True
 
     async def send(self, message: dict[str, Any]) -> None:
-        """Send a JSON message; a connection that is already gone is not an error."""
+        """Send a message as strict JSON (NaN as null); a connection already gone is no error."""
+        text = json.dumps(json_safe(message), allow_nan=False)
         with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
-            await self.websocket.send_json(message)
+            await self.websocket.send_text(text)
 
     async def close(self, code: int, reason: str) -> None:
         """Close the connection with ``code`` unless it is already closed."""

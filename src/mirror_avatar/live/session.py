@@ -39,7 +39,7 @@ from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.engine.loop import Engine, Sink
 from mirror_avatar.graphs import complete_graph
 from mirror_avatar.live.protocol import StartRequest
-from mirror_avatar.metrics import session_metrics
+from mirror_avatar.metrics import compute_relative_phase, session_metrics
 from mirror_avatar.players.base import ExternalPlayer, Observation, Player
 from mirror_avatar.session import Session, SessionWriter
 from mirror_avatar.signature import DEFAULT_BINS, compute_ims
@@ -217,6 +217,33 @@ class RoundTrips:
         }
 
 
+PLOT_POINTS = 600
+"""Most samples per series the results screen draws (longer trials are decimated)."""
+
+
+def compute_trial_traces(session: Session, max_points: int = PLOT_POINTS) -> dict[str, Any]:
+    """Decimated series for the results screen's figures (not stored: the session file is).
+
+    Returns
+    -------
+    dict
+        ``times`` (s) and ``positions`` (one list per player, units), every ``step``-th
+        sample so that at most ``max_points`` remain, and with an avatar ``relative_phase``
+        (person minus avatar, rad) when both moved; empty when the trial is too short.
+    """
+    if session.n_samples < MIN_SAMPLES:
+        return {}
+    step = max(1, math.ceil(session.n_samples / max_points))
+    traces: dict[str, Any] = {
+        "times": session.times[::step].tolist(),
+        "positions": [x[::step].tolist() for x in session.positions],
+    }
+    x = session.positions
+    if session.n_players == 2 and np.ptp(x[0]) > 0 and np.ptp(x[1]) > 0:
+        traces["relative_phase"] = compute_relative_phase(x[0], x[1])[::step].tolist()
+    return traces
+
+
 def compute_trial_metrics(session: Session) -> dict[str, Any]:
     """Compute the end-of-trial numbers shown to the participant and stored in the sidecar.
 
@@ -352,7 +379,8 @@ class LiveTrial:
         Returns
         -------
         dict
-            The trial's metadata as the sidecar records it, with ``metrics`` and ``n_samples``.
+            The trial's metadata as the sidecar records it, with ``metrics`` and ``n_samples``,
+            and the figures' ``traces`` (`compute_trial_traces`).
         """
         self.person_writer.close()
         lateness = np.asarray(self._lateness) * 1000.0
@@ -367,10 +395,13 @@ class LiveTrial:
             },
             "rejected_messages": self.rejected_messages,
         }
+        traces: dict[str, Any] = {}
         try:
-            extra["metrics"] = compute_trial_metrics(self.engine.session())
+            session = self.engine.session()
+            extra["metrics"] = compute_trial_metrics(session)
+            traces = compute_trial_traces(session)
         except Exception as error:  # the recording is kept whatever the analysis does
             logger.exception("metrics of %s failed", self.session_path)
             extra["metrics"] = {"error": f"{type(error).__name__}: {error}"}
         sidecar = self.writer.close(complete, extra)
-        return sidecar["metadata"] | {"n_samples": sidecar["n_samples"]}
+        return sidecar["metadata"] | {"n_samples": sidecar["n_samples"], "traces": traces}

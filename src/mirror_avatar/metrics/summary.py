@@ -4,7 +4,9 @@
 Its keys depend on the number of players:
 
 - every session: ``emd_reference_<i>``, each player's velocity IMS against the IMS of its own
-  reference velocities (None for a player without references);
+  reference velocities (None for a player without references), and ``emd_target_<i>`` for each
+  player trained to imitate someone (a cyber player: ``target_ims`` in its description in the
+  session's metadata), its velocity IMS against its target's;
 - two players (METHODS section 6; relative phase and time lag of player 0 with respect to player
   1, positive when player 0 is ahead): ``rmse`` (units), ``phase_locking`` (the mean
   resultant length of the relative phase, 1 = phase locked: the paper's "circular variance", CV),
@@ -68,6 +70,10 @@ def session_metrics(session: Session, trim: float = 0.0) -> dict[str, Any]:
         metrics[f"emd_reference_{i}"] = (
             compute_emd(ims[i], compute_ims(finite)) if finite.size else None
         )
+    for i, description in enumerate(session.metadata.get("players", [])[: session.n_players]):
+        if isinstance(description, dict) and "target_ims" in description:
+            target = np.asarray(description["target_ims"], dtype=np.float64)
+            metrics[f"emd_target_{i}"] = compute_emd(ims[i], target)
     return metrics
 
 

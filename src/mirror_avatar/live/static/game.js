@@ -11,6 +11,7 @@
     duration: $("duration"), start: $("start"), stop: $("stop"), track: $("track"),
     person: $("person-dot"), avatar: $("avatar-dot"), countdown: $("countdown"),
     progress: $("progress"), results: $("results"), metrics: $("metrics"), plot: $("plot"),
+    positions: $("positions"), phase: $("phase"), phaseFigure: $("phase-figure"),
     saved: $("saved"), avatarLegend: $("avatar-legend"),
   };
   const game = {
@@ -109,6 +110,9 @@
         row("Relative phase (you − avatar)", fixed(m.mean_relative_phase, 3, " rad")),
         row("EMD between velocity profiles", fixed(m.emd_players, 4)),
       );
+      if (m.emd_target_1 !== undefined) {
+        body.append(row("EMD avatar to its target's profile", fixed(m.emd_target_1, 4)));
+      }
     }
     body.append(row("Round trip (median)", fixed(rtt.median, 1, " ms")));
     const complete = summary.complete ? "complete" : `incomplete (${summary.end_reason})`;
@@ -117,10 +121,15 @@
     ui.saved.classList.toggle("incomplete", !summary.complete);
     ui.results.hidden = false;
     drawDistributions(m);
+    drawTraces(summary.traces);
   }
 
-  function drawDistributions(m) {
-    const canvas = ui.plot;
+  const PERSON_COLOUR = "#2563eb";
+  const AVATAR_COLOUR = "#ea7a12";
+  const PAD = { left: 34, right: 12, top: 10, bottom: 24 };
+
+  // A canvas sized to its box at the screen's pixel density, cleared.
+  function prepare(canvas) {
     const scale = window.devicePixelRatio || 1;
     const width = canvas.clientWidth, height = canvas.clientHeight;
     canvas.width = width * scale;
@@ -128,6 +137,46 @@
     const ctx = canvas.getContext("2d");
     ctx.scale(scale, scale);
     ctx.clearRect(0, 0, width, height);
+    return { ctx, width, height };
+  }
+
+  // Axes of a plot: a baseline with x ticks, y tick labels; returns the data-to-pixel maps.
+  function axes({ ctx, width, height }, [x0, x1], [y0, y1], xTicks, yTicks) {
+    const px = (x) => PAD.left + ((x - x0) / (x1 - x0)) * (width - PAD.left - PAD.right);
+    const py = (y) =>
+      height - PAD.bottom - ((y - y0) / (y1 - y0)) * (height - PAD.top - PAD.bottom);
+    ctx.strokeStyle = "#d8dde6";
+    ctx.fillStyle = "#667085";
+    ctx.font = "11px system-ui, sans-serif";
+    ctx.beginPath();
+    ctx.moveTo(PAD.left, height - PAD.bottom);
+    ctx.lineTo(width - PAD.right, height - PAD.bottom);
+    ctx.stroke();
+    ctx.textAlign = "center";
+    for (const x of xTicks) ctx.fillText(String(x), px(x), height - 8);
+    ctx.textAlign = "right";
+    for (const y of yTicks) ctx.fillText(String(y), PAD.left - 6, py(y) + 4);
+    return { px, py };
+  }
+
+  // At most about six round ticks from 0 to xmax.
+  function ticksTo(xmax) {
+    const step = [1, 2, 5, 10, 20, 30, 60, 120].find((s) => xmax / s <= 6) || 300;
+    const ticks = [];
+    for (let x = 0; x <= xmax + 1e-9; x += step) ticks.push(x);
+    return ticks;
+  }
+
+  function stroke(ctx, xs, ys, px, py, colour) {
+    ctx.beginPath();
+    xs.forEach((x, i) => (i ? ctx.lineTo(px(x), py(ys[i])) : ctx.moveTo(px(x), py(ys[i]))));
+    ctx.strokeStyle = colour;
+    ctx.lineWidth = 1.5;
+    ctx.stroke();
+  }
+
+  function drawDistributions(m) {
+    const plot = prepare(ui.plot);
     if (!m.velocity_bins) return;
     // four neighbouring bins merged: a short trial's 200-bin histogram is too ragged to read
     const merge = (values, mean) => values.reduce((out, value, i) => {
@@ -135,36 +184,43 @@
       return out;
     }, []);
     const bins = merge(m.velocity_bins, true);
-    const series = [[m.person_ims, "#2563eb"], [m.avatar_ims, "#ea7a12"]]
+    const series = [[m.person_ims, PERSON_COLOUR], [m.avatar_ims, AVATAR_COLOUR]]
       .filter((s) => s[0])
       .map(([p, colour]) => [merge(p, false), colour]);
     const vmax = 2;
-    const pad = { left: 12, right: 12, top: 10, bottom: 24 };
     const peak = Math.max(...series.flatMap(([p]) => p)) || 1;
-    const px = (v) => pad.left + ((v + vmax) / (2 * vmax)) * (width - pad.left - pad.right);
-    const py = (p) => height - pad.bottom - (p / peak) * (height - pad.top - pad.bottom);
-    ctx.strokeStyle = "#d8dde6";
-    ctx.fillStyle = "#667085";
-    ctx.font = "11px system-ui, sans-serif";
-    ctx.textAlign = "center";
-    ctx.beginPath();
-    ctx.moveTo(pad.left, height - pad.bottom);
-    ctx.lineTo(width - pad.right, height - pad.bottom);
-    ctx.stroke();
-    for (let v = -vmax; v <= vmax; v += 1) ctx.fillText(String(v), px(v), height - 8);
+    const { px, py } = axes(plot, [-vmax, vmax], [0, peak], [-2, -1, 0, 1, 2], []);
+    const ctx = plot.ctx;
     for (const [p, colour] of series) {
-      ctx.beginPath();
-      ctx.moveTo(px(bins[0]), py(0));
-      bins.forEach((v, i) => { if (Math.abs(v) <= vmax) ctx.lineTo(px(v), py(p[i])); });
+      const keep = bins.map((v, i) => [v, p[i]]).filter(([v]) => Math.abs(v) <= vmax);
+      stroke(ctx, keep.map(([v]) => v), keep.map(([, q]) => q), px, py, colour);
       ctx.lineTo(px(vmax), py(0));
+      ctx.lineTo(px(-vmax), py(0));
       ctx.globalAlpha = 0.18;
       ctx.fillStyle = colour;
       ctx.fill();
       ctx.globalAlpha = 1;
-      ctx.strokeStyle = colour;
-      ctx.lineWidth = 1.5;
-      ctx.stroke();
     }
+  }
+
+  // Positions over time (both players) and the relative phase, from the summary's traces.
+  function drawTraces(traces) {
+    const positions = prepare(ui.positions);
+    const phase = prepare(ui.phase);
+    ui.phaseFigure.hidden = !(traces && traces.relative_phase);
+    if (!traces || !traces.times) return;
+    const t = traces.times;
+    const span = [t[0], t[t.length - 1]];
+    const ticks = ticksTo(span[1]);
+    const colours = [PERSON_COLOUR, AVATAR_COLOUR];
+    const onTrack = axes(positions, span, [-0.5, 0.5], ticks, [-0.5, 0, 0.5]);
+    traces.positions.forEach((x, k) => stroke(positions.ctx, t, x, onTrack.px, onTrack.py, colours[k]));
+    if (!traces.relative_phase) return;
+    const onCircle = axes(phase, span, [-Math.PI, Math.PI], ticks, [-3, 0, 3]);
+    phase.ctx.setLineDash([3, 3]);
+    stroke(phase.ctx, span, [0, 0], onCircle.px, onCircle.py, "#d8dde6");
+    phase.ctx.setLineDash([]);
+    stroke(phase.ctx, t, traces.relative_phase, onCircle.px, onCircle.py, "#4b5563");
   }
 
   socket.addEventListener("message", (event) => {
