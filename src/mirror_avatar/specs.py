@@ -100,6 +100,12 @@ def load_player(spec: str, role: str | HKBParams) -> Player:
         return player
     if not path.exists():
         raise InputError(spec, f"no such file, and not a player spec ({SPEC_FORMS})")
+    if path.is_dir():
+        raise InputError(
+            spec,
+            f"is a folder, a player is one file: fit a model on its trials (mirror-avatar "
+            f"generator fit {spec} --out MODEL.npz) and give MODEL.npz, or give one trial file",
+        )
     return RecordedPlayer(_read_recording(spec))
 
 

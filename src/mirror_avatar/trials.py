@@ -96,7 +96,9 @@ class Trial:
     def velocity(self, cutoff: float | None = 10.0) -> Array:
         """Velocity (units/s), shape (n,); the trial must be uniformly sampled (see `resample`)."""
         if not self.is_uniform:
-            raise InputError(self.label or None, "velocity needs uniform sampling: resample first")
+            raise InputError(
+                self.label or None, "velocity needs uniform sampling: use trial.resampled() first"
+            )
         return compute_velocity(self.positions, self.rate, cutoff=cutoff)
 
 

@@ -15,6 +15,7 @@ from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.specs import bundled_generator
+from mirror_avatar.trial_io import write_csv_trial
 from mirror_avatar.trials import DEFAULT_RATE
 
 
@@ -107,4 +108,20 @@ def test_cyber_player_model_is_not_a_training_partner(tmp_path: Path, models: li
         capture_output=True, text=True, check=False,
     )  # fmt: skip
     assert result.returncode == 2, result.stderr
-    assert "CyberPlayer" in result.stderr and "Traceback" not in result.stderr
+    assert "is a cyber-player policy; training needs a virtual trainer" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_a_folder_or_a_recording_as_a_model_says_what_to_give(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A folder of trials and a trial file are not models: the line says which command helps."""
+    folder = tmp_path / "alice"
+    folder.mkdir()
+    write_csv_trial(load_zhai2017()[0], folder / "t.csv")
+    assert _train(tmp_path / "p.npz", folder, "bundled:fast") == 2
+    assert f"generator fit {folder} --out MODEL.npz" in capsys.readouterr().err
+    assert _train(tmp_path / "p.npz", Path("bundled:slow"), str(folder / "t.csv")) == 2
+    err = capsys.readouterr().err
+    assert f"give vt:{folder / 't.csv'}" in err and len(err.strip().splitlines()) == 1
+    assert _train(tmp_path / "p.npz", Path("bundled:slow"), f"vt:{folder / 't.csv'}") == 0

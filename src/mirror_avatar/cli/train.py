@@ -16,17 +16,32 @@ from mirror_avatar.learning.imitation import (
     train_cyber_player,
 )
 from mirror_avatar.learning.training import LearningCurve
-from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.specs import load_player
 
 MODEL_HELP = "An IMS generator .npz, bundled:fast, bundled:slow or vt:TRIAL_FILE."
 
 
 def load_reference(spec: str) -> Reference:
-    """Return the generator (or recorded trial) a model spec names; InputError for other players."""
+    """Return the generator (or recorded trial) a model spec names; InputError for other players.
+
+    The error says what to give instead: ``vt:FILE`` or a fitted model for a recording, a
+    virtual-trainer model for a cyber-player policy.
+    """
     player = load_player(spec, "follower")
+    if isinstance(player, RecordedPlayer):
+        raise InputError(
+            spec,
+            f"is a recording, which can only replay itself: give vt:{spec} (a virtual trainer "
+            f"moving like it) or a model fitted on it (mirror-avatar generator fit {spec} "
+            "--out MODEL.npz)",
+        )
     if not isinstance(player, VirtualTrainer):
-        raise InputError(spec, f"names a {type(player).__name__}, not a virtual trainer model")
+        raise InputError(
+            spec,
+            "is a cyber-player policy; training needs a virtual trainer: an IMS generator .npz, "
+            "bundled:fast, bundled:slow or vt:TRIAL_FILE",
+        )
     return player.reference
 
 
