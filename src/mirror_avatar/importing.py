@@ -99,6 +99,10 @@ class ImportOptions:
         return positions * length_cm / self.playing_range
 
 
+DEFAULT_IMPORT = ImportOptions()
+"""The exchange format: ``time`` in seconds and ``position`` in normalised units."""
+
+
 def parse_number(text: str) -> float:
     """Read a cell as a number; a blank cell (or ``NaN``, ``NA``) is a missing sample (NaN)."""
     stripped = text.strip()

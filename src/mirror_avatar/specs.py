@@ -33,6 +33,7 @@ from mirror_avatar.dynamics import HKBParams, preset
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import FORMAT_NAME as GENERATOR_FORMAT
 from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
 from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
 from mirror_avatar.learning.agent import CyberPlayer, load_cyber_player
 from mirror_avatar.model_files import read_archive
@@ -58,7 +59,9 @@ POLICY_ROLES = {"follower": ("follower",), "leader": ("leader",), "group": ("gro
 """The roles a cyber player trained in each role (``training_["role"]``) may play."""
 
 
-def load_player(spec: str, role: str | HKBParams) -> Player:
+def load_player(
+    spec: str, role: str | HKBParams, options: ImportOptions = DEFAULT_IMPORT
+) -> Player:
     """Build the player a spec names.
 
     Parameters
@@ -69,6 +72,8 @@ def load_player(spec: str, role: str | HKBParams) -> Player:
         A role preset name (`mirror_avatar.dynamics.ROLES`) or the parameters of the virtual
         trainer. A recorded player ignores it; a cyber player refuses a role it was not trained
         for (`POLICY_ROLES`).
+    options
+        How a recorded trial file is read (columns, units, gaps).
 
     Returns
     -------
@@ -90,7 +95,7 @@ def load_player(spec: str, role: str | HKBParams) -> Player:
             )
         return VirtualTrainer(params, bundled_generator(style), label=label)
     if spec.startswith("vt:"):
-        trial = _read_recording(spec.removeprefix("vt:"))
+        trial = _read_recording(spec.removeprefix("vt:"), options)
         return VirtualTrainer(params, trial, label=label)
     path = Path(spec)
     if path.suffix.lower() == ".npz":
@@ -106,11 +111,11 @@ def load_player(spec: str, role: str | HKBParams) -> Player:
             f"is a folder, a player is one file: fit a model on its trials (mirror-avatar "
             f"generator fit {spec} --out MODEL.npz) and give MODEL.npz, or give one trial file",
         )
-    return RecordedPlayer(_read_recording(spec))
+    return RecordedPlayer(_read_recording(spec, options))
 
 
-def _read_recording(path: str) -> Trial:
-    return read_trial(path).resampled(DEFAULT_RATE)
+def _read_recording(path: str, options: ImportOptions) -> Trial:
+    return read_trial(path, options).resampled(DEFAULT_RATE)
 
 
 def _load_model(path: Path, params: HKBParams, label: str) -> Player:

@@ -22,7 +22,13 @@ from numpy.typing import NDArray
 
 from mirror_avatar.atomic import atomic_path, write_atomic_json, write_atomic_text
 from mirror_avatar.errors import InputError
-from mirror_avatar.importing import POSITION_UNITS, ImportOptions, fill_gaps, parse_number
+from mirror_avatar.importing import (
+    DEFAULT_IMPORT,
+    POSITION_UNITS,
+    ImportOptions,
+    fill_gaps,
+    parse_number,
+)
 from mirror_avatar.trials import Trial, make_trial
 
 
@@ -97,8 +103,6 @@ def write_mat_struct(trials: list[Trial], path: str | Path, variable: str) -> No
         scipy.io.savemat(handle, {variable: struct})
 
 
-DEFAULT_IMPORT = ImportOptions()
-"""The exchange format: ``time`` in seconds and ``position`` in normalised units."""
 MAT_DURATION = 60.0
 """Seconds spanned by each trial of a ``.mat`` file read through `read_trial` (**choice**)."""
 SUPPORTED = (".csv", ".mat", ".parquet", "_motion.tsv")

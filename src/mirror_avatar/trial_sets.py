@@ -23,8 +23,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.importing import ImportOptions
-from mirror_avatar.trial_io import DEFAULT_IMPORT, SUPPORTED, read_trial_file
+from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
+from mirror_avatar.trial_io import SUPPORTED, read_trial_file
 from mirror_avatar.trials import Trial
 
 GROUPINGS = ("directory", "bids", "file", "none", "pattern:REGEX", "map:FILE.csv")

@@ -159,3 +159,21 @@ def test_bad_import_options_are_one_line(zhai_trials, tmp_path, capsys, argument
     status, _, error = run(capsys, "convert", str(tmp_path / "P01"), "--out", str(tmp_path / "o"),
                            *LEAP, *arguments)  # fmt: skip
     assert status == 2 and problem in error and error.count("\n") == 1
+
+
+def test_a_recording_given_as_a_player_takes_the_import_options(zhai_trials, tmp_path, capsys):
+    """simulate and train read a Leap file named as a SPEC with the same options."""
+    leap = tmp_path / "leap.csv"
+    write_leap(leap, zhai_trials[9], rate=50.0)
+    arguments = ["simulate", "--leader", str(leap), "--follower", "bundled:slow", "--duration",
+                 "20", "--seed", "1", "--out", str(tmp_path / "sim")]  # fmt: skip
+    status, _, error = run(capsys, *arguments)
+    assert status == 2 and "--position-column" in error
+    status, out, _ = run(capsys, *arguments, *LEAP)
+    assert status == 0 and "CV" in out
+    replayed = json.loads((tmp_path / "sim" / "metrics.json").read_text())
+    assert replayed["metrics"]["rmse"] < 0.2
+    status, _, _ = run(capsys, "train", "--target", f"vt:{leap}", "--partners", "bundled:fast",
+                       "--sessions", "2", "--duration", "5", "--jobs", "1", "--out",
+                       str(tmp_path / "p.npz"), *LEAP)  # fmt: skip
+    assert status == 0 and (tmp_path / "p.npz").is_file()

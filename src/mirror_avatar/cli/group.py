@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from mirror_avatar.cli.reading import import_options
 from mirror_avatar.cli.simulate import (
     EXTEND_HELP,
     SPEC_HELP,
@@ -24,6 +25,7 @@ from mirror_avatar.cli.train import (
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import TOPOLOGIES, graph_source
+from mirror_avatar.importing import ImportOptions
 from mirror_avatar.learning.imitation import train_group_cyber_player
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.specs import load_player
@@ -51,6 +53,7 @@ def group() -> None:
 @click.option("--graph", "graph_spec", default="complete", show_default=True, help=GRAPH_HELP)
 @session_options
 @click.option("--extend-recordings", is_flag=True, help=EXTEND_HELP)
+@import_options
 def simulate(
     player_specs: tuple[str, ...],
     leaders: tuple[int, ...],
@@ -60,6 +63,7 @@ def simulate(
     trim: float,
     out_dir: Path,
     extend_recordings: bool,
+    options: ImportOptions,
 ) -> None:
     """Play a group session of the --player SPECs (player 0, 1, ...) and write it with metrics.
 
@@ -76,7 +80,9 @@ def simulate(
     if not 0.0 <= trim < duration:
         raise InputError("--trim", f"must lie in [0, --duration) = [0, {duration:g}) s")
     roles = ["group_leader" if k in leaders else "group" for k in range(n)]
-    players = [load_player(spec, role) for spec, role in zip(player_specs, roles, strict=True)]
+    players = [
+        load_player(spec, role, options) for spec, role in zip(player_specs, roles, strict=True)
+    ]
     check_recordings(players, player_specs, duration, extend_recordings)
     session = play(players, duration, seed, roles, graph_source(graph_spec, n))
     session.metadata["specs"] = list(player_specs)
@@ -109,6 +115,7 @@ def simulate(
 )
 @click.option("--graph", "graph_spec", default="random", show_default=True, help=GRAPH_HELP)
 @training_options
+@import_options
 def train(
     target_spec: str,
     player_specs: tuple[str, ...],
@@ -120,6 +127,7 @@ def train(
     jobs: int,
     checkpoint_every: int | None,
     out_path: Path,
+    options: ImportOptions,
 ) -> None:
     """Train a cyber player to take the target's place in a group.
 
@@ -129,8 +137,8 @@ def train(
     in groups and dyads) and OUT.learning_curve.csv and .png.
     """
     check_training(out_path, sessions, jobs, checkpoint_every, duration)
-    target = load_reference(target_spec)
-    partners = [load_reference(spec) for spec in player_specs]
+    target = load_reference(target_spec, options)
+    partners = [load_reference(spec, options) for spec in player_specs]
     player, curve = train_group_cyber_player(
         target,
         partners,

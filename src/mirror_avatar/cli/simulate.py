@@ -9,9 +9,11 @@ from typing import Any
 import click
 
 from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json
+from mirror_avatar.cli.reading import import_options
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_session
+from mirror_avatar.importing import ImportOptions
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import render_png
@@ -168,6 +170,7 @@ def write_outputs(session: Session, out_dir: Path, summary: dict[str, Any]) -> P
 )
 @session_options
 @click.option("--extend-recordings", is_flag=True, help=EXTEND_HELP)
+@import_options
 def simulate(
     leader_spec: str,
     follower_spec: str,
@@ -177,6 +180,7 @@ def simulate(
     trim: float,
     out_dir: Path,
     extend_recordings: bool,
+    options: ImportOptions,
 ) -> None:
     """Play a session between two players and write it with its metrics.
 
@@ -191,7 +195,7 @@ def simulate(
         raise InputError("--trim", f"must lie in [0, duration) = [0, {duration:g}) s, got {trim:g}")
     roles = ("joint", "joint") if joint else ("leader", "follower")
     players = [
-        load_player(spec, role)
+        load_player(spec, role, options)
         for spec, role in zip((leader_spec, follower_spec), roles, strict=True)
     ]
     check_recordings(players, (leader_spec, follower_spec), duration, extend_recordings)

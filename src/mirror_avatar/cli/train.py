@@ -7,8 +7,10 @@ from pathlib import Path
 
 import click
 
+from mirror_avatar.cli.reading import import_options
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_learning_curves
+from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
 from mirror_avatar.learning.imitation import (
     TRAINING_ROLES,
     Reference,
@@ -22,13 +24,13 @@ from mirror_avatar.specs import load_player
 MODEL_HELP = "An IMS generator .npz, bundled:fast, bundled:slow or vt:TRIAL_FILE."
 
 
-def load_reference(spec: str) -> Reference:
+def load_reference(spec: str, options: ImportOptions = DEFAULT_IMPORT) -> Reference:
     """Return the generator (or recorded trial) a model spec names; InputError for other players.
 
     The error says what to give instead: ``vt:FILE`` or a fitted model for a recording, a
     virtual-trainer model for a cyber-player policy.
     """
-    player = load_player(spec, "follower")
+    player = load_player(spec, "follower", options)
     if isinstance(player, RecordedPlayer):
         raise InputError(
             spec,
@@ -108,6 +110,7 @@ def write_learning_curve(curve: LearningCurve, policy: Path, name: str) -> Path:
     help="The role the cyber player learns; the partners take the other one.",
 )  # fmt: skip
 @training_options
+@import_options
 def train(
     target_spec: str,
     partner_specs: tuple[str, ...],
@@ -119,6 +122,7 @@ def train(
     jobs: int,
     checkpoint_every: int | None,
     out_path: Path,
+    options: ImportOptions,
 ) -> None:
     """Train a cyber player on virtual-trainer sessions and write the policy.
 
@@ -128,8 +132,8 @@ def train(
     """
     check_training(out_path, sessions, jobs, checkpoint_every, duration)
     specs = [s.strip() for spec in partner_specs for s in spec.split(",") if s.strip()]
-    target = load_reference(target_spec)
-    partners = [load_reference(spec) for spec in specs]
+    target = load_reference(target_spec, options)
+    partners = [load_reference(spec, options) for spec in specs]
     player, curve = train_cyber_player(
         target,
         partners,
