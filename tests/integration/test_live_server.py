@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import base64
 import json
 import math
 import os
@@ -226,8 +227,15 @@ def test_idle_connections_are_closed_and_free_their_place(live):
     idle = live.open(server)
     with pytest.raises(ConnectionClosed) as closed:
         idle.receive()
-    assert closed.value.rcvd.code == 4408
+    assert closed.value.rcvd.code == 4000 and "press Start" in closed.value.rcvd.reason
     assert live.open(server).ready["type"] == "ready"
+
+
+def answer(browser: Browser) -> dict[str, Any]:
+    """The next message that answers one the browser sent (not the trial's own go)."""
+    while (message := browser.receive())["type"] == "go":
+        pass
+    return message
 
 
 def test_bad_messages_are_answered_and_ignored(live, tmp_path):
@@ -241,9 +249,9 @@ def test_bad_messages_are_answered_and_ignored(live, tmp_path):
     bad += [position % x for x in ("0.7", "NaN", '"0.1"', "1" + "0" * 400)]
     for message in bad:
         player.send(message)
-        assert player.receive()["type"] == "error"
+        assert answer(player)["type"] == "error"
     player.ws.send(b"\x00\x01")
-    assert "text" in player.receive()["message"]
+    assert "text" in answer(player)["message"]
     player.send({"type": "start", "mode": "solo", "participant": "../etc", "duration": 1})
     assert "participant" in player.receive()["message"]
     assert player.play(lambda t: -0.2)["complete"]
@@ -368,3 +376,150 @@ def test_play_command_rejects_a_bad_avatar_in_one_line(tmp_path):
     out, err = process.communicate(timeout=60)
     assert process.returncode == 2
     assert len(err.strip().splitlines()) == 1 and err.startswith("mirror-avatar: error:")
+
+
+def test_requests_for_other_host_names_are_refused_without_a_token(live):
+    """DNS rebinding: a page of another site whose name resolves to 127.0.0.1 gets nothing."""
+    server = live.serve()
+    port = server.url.rsplit(":", 1)[1]
+    web = live.stack.enter_context(httpx.Client(trust_env=False))
+    assert web.get(server.url + "/").status_code == 200
+    for host in (f"localhost:{port}", f"[::1]:{port}", f"127.0.0.1:{port}"):
+        assert web.get(server.url + "/", headers={"Host": host}).status_code == 200
+    forged = {"Host": f"attacker.example:{port}"}
+    refused = web.get(server.url + "/", headers=forged)
+    assert refused.status_code == 403 and "--allow-host" in refused.text
+    rebound = socket.create_connection(("127.0.0.1", int(port)))
+    with pytest.raises(InvalidStatus) as handshake:
+        connect(f"ws://attacker.example:{port}/ws", sock=rebound, proxy=None,
+                origin=f"http://attacker.example:{port}")  # fmt: skip
+    assert handshake.value.response.status_code == 403
+    named = live.serve(allowed_hosts=frozenset({"labpc.local"}))
+    assert web.get(named.url + "/", headers={"Host": f"labpc.local:{port}"}).status_code == 200
+    with_token = live.serve(token="t0ken")
+    assert web.get(with_token.url + "/?token=t0ken", headers=forged).status_code == 200
+
+
+def test_idle_connections_make_room_for_a_newcomer_but_players_keep_theirs(live):
+    """Connections that never play are evicted for newcomers; one with a trial never is."""
+    server = live.serve(max_sessions=2, evict_after=0.2)
+    player, idle = live.open(server), live.open(server)
+    player.start("solo", 3.0)
+    time.sleep(0.3)
+    newcomer = live.open(server)
+    assert newcomer.ready["type"] == "ready"
+    with pytest.raises(ConnectionClosed) as closed:
+        idle.receive()
+    assert closed.value.rcvd.code == 4000
+    late = live.open(server)
+    assert late.ready["type"] == "error" and "busy" in late.ready["message"]
+    assert player.play(sway)["complete"]
+
+
+def test_one_address_cannot_take_every_place(live):
+    server = live.serve(max_sessions=3, max_per_address=2, evict_after=60.0)
+    live.open(server), live.open(server)
+    third = live.open(server)
+    assert third.ready["type"] == "error" and "this address" in third.ready["message"]
+
+
+def test_connection_churn_from_one_address_is_slowed(live):
+    server = live.serve(connects_per_second=0.5)
+    answers = [live.open(server).ready for _ in range(12)]
+    refused = [a for a in answers if a["type"] == "error" and "wait" in a["message"]]
+    assert len(refused) >= 2  # a burst of 10 then one every 2 s
+
+
+def test_trial_start_churn_is_rate_limited(live, tmp_path):
+    """Start/stop as fast as possible: a few trials, then refusals; the files stay few."""
+    server = live.serve(starts_per_second=0.5)
+    churner = live.open(server)
+    refusals = 0
+    for _ in range(40):
+        churner.start("solo", 5.0)
+        churner.send({"type": "stop"})  # answered by done, or by nothing after a refusal
+        while (message := churner.receive())["type"] not in ("done", "error"):
+            pass
+        refusals += message["type"] == "error" and "too many trials" in message["message"]
+    assert refusals >= 30
+    assert len(list((tmp_path / "recordings").rglob("*"))) < 3 * 10 + 2
+
+
+def test_a_message_flood_closes_only_the_flooding_connection(live):
+    server = live.serve(max_message_rate=100.0)
+    flooder, player = live.open(server), live.open(server)
+    player.start("solo", 1.0)
+    message = json.dumps({"type": "position", "seq": 1, "x": 0.0})
+    with pytest.raises(ConnectionClosed) as closed:
+        for _ in range(5000):
+            flooder.ws.send(message)
+        while True:
+            flooder.receive()
+    assert closed.value.rcvd is not None and closed.value.rcvd.code == 1008
+    assert player.play(sway)["complete"]
+
+
+def deaf_client(port: int) -> socket.socket:
+    """A WebSocket client that never reads: a raw socket with a small receive window."""
+    sock = socket.socket()
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    sock.connect(("127.0.0.1", port))
+    key = base64.b64encode(os.urandom(16)).decode()
+    sock.sendall(
+        f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+        f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
+        "Sec-WebSocket-Version: 13\r\n\r\n".encode()
+    )
+    response = b""
+    while b"\r\n\r\n" not in response:
+        response += sock.recv(1)
+    assert b" 101 " in response.split(b"\r\n")[0]
+    return sock
+
+
+def text_frame(text: str) -> bytes:
+    """A masked (with a zero key) WebSocket text frame of fewer than 126 bytes."""
+    data = text.encode()
+    return bytes([0x81, 0x80 | len(data)]) + bytes(4) + data
+
+
+def test_a_client_that_stops_reading_is_dropped(live):
+    """Its replies cannot be delivered: the server resets it and its place is free again."""
+    server = live.serve(max_sessions=1, max_message_rate=1e6, send_timeout=0.5)
+    deaf = deaf_client(int(server.url.rsplit(":", 1)[1]))
+    live.stack.callback(deaf.close)
+    deaf.settimeout(10.0)
+    frame = text_frame(json.dumps({"type": "position", "seq": 1, "x": 0.0}))
+    with pytest.raises(ConnectionResetError):
+        for _ in range(10_000_000):
+            deaf.sendall(frame)
+    assert live.open(server).ready["type"] == "ready"
+
+
+class Sleepy(Replay):
+    """An avatar whose steps take a second each (sleeping, as a slow compiled step would)."""
+
+    def step(self, observation: Any) -> tuple[float, float]:
+        time.sleep(1.0)
+        return super().step(observation)
+
+
+def test_a_too_slow_avatar_ends_its_trial_and_stalls_no_one_else(live):
+    server = live.serve(factory=lambda mode: Sleepy())
+    slow, other = live.open(server), live.open(server)
+    slow.start("avatar_follows", 5.0)
+    slow.position(0.0)
+    began = time.monotonic()
+    answers = [other.position(0.0) for _ in range(20)]
+    assert all(a["type"] == "avatar" for a in answers)
+    assert time.monotonic() - began < 0.9  # answered while the slow avatar's tick runs
+    summary = slow.play(sway)
+    assert not summary["complete"]
+    assert summary["end_reason"] == "the avatar is too slow for real time"
+
+
+def test_participant_ids_may_not_start_with_a_dash(live):
+    server = live.serve()
+    player = live.open(server)
+    player.send({"type": "start", "mode": "solo", "participant": "-rf", "duration": 1})
+    assert "starting with a letter or digit" in player.receive()["message"]

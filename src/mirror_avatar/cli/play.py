@@ -32,7 +32,23 @@ from mirror_avatar.errors import InputError
     is_flag=True,
     help="Require the access token even on loopback (always required on other addresses).",
 )
-@click.option("--max-sessions", default=4, show_default=True, type=click.IntRange(1, 64))
+@click.option(
+    "--max-sessions",
+    default=8,
+    show_default=True,
+    type=click.IntRange(1, 64),
+    help="Most players connected at once.",
+)
+@click.option(
+    "--max-per-address",
+    default=4,
+    show_default=True,
+    type=click.IntRange(1, 64),
+    help="Most players connected from one computer (address).",
+)
+@click.option("--allow-host", "allowed_hosts", multiple=True, metavar="NAME",
+              help="Without a token, also answer requests addressed to NAME (repeatable); "
+              "loopback names always work.")  # fmt: skip
 def play(
     avatar_spec: str | None,
     host: str,
@@ -40,6 +56,8 @@ def play(
     out_dir: Path,
     require_token: bool,
     max_sessions: int,
+    max_per_address: int,
+    allowed_hosts: tuple[str, ...],
 ) -> None:
     """Serve the mirror game on http://HOST:PORT and record every trial to OUT.
 
@@ -47,13 +65,8 @@ def play(
     is played: the person's trial as CSV (time,position), a session CSV with both players in the
     avatar modes, and a JSON sidecar; an interrupted trial is kept and marked incomplete.
     """
-    from mirror_avatar.live.server import (
-        LiveSettings,
-        create_app,
-        is_loopback,
-        make_server,
-        make_token,
-    )
+    from mirror_avatar.live.admission import is_loopback
+    from mirror_avatar.live.server import LiveSettings, create_app, make_server, make_token
     from mirror_avatar.live.session import DEFAULT_AVATAR, make_avatar_factory
 
     spec = avatar_spec or DEFAULT_AVATAR
@@ -65,7 +78,12 @@ def play(
     factory = make_avatar_factory(spec)
     factory("avatar_follows")  # a bad spec fails here, before the server starts
     settings = LiveSettings(
-        out_dir=out_dir, avatar_spec=spec, token=token, max_sessions=max_sessions
+        out_dir=out_dir,
+        avatar_spec=spec,
+        token=token,
+        allowed_hosts=frozenset(name.lower() for name in allowed_hosts),
+        max_sessions=max_sessions,
+        max_per_address=max_per_address,
     )
     server = make_server(create_app(settings, factory), host, port, "info")
     shown = "localhost" if host in ("0.0.0.0", "::") else host

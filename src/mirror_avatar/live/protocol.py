@@ -38,8 +38,9 @@ DURATION_RANGE = (1.0, 600.0)
 MAX_RTT_MS = 60_000.0
 """Largest round trip (ms) accepted from a browser's report."""
 
-PARTICIPANT_PATTERN = re.compile(r"[A-Za-z0-9_-]{1,32}")
-"""Participant ids: they become file names, so only letters, digits, ``_`` and ``-``."""
+PARTICIPANT_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,31}")
+"""Participant ids: they become file and folder names, so only letters, digits, ``_`` and ``-``,
+starting with a letter or digit (a leading ``-`` reads as an option to shell commands)."""
 
 
 class ProtocolError(ValueError):
@@ -133,7 +134,10 @@ def _parse_start(data: dict[str, Any]) -> StartRequest:
         raise ProtocolError(f"start: mode must be one of {', '.join(MODES)}")
     participant = data.get("participant")
     if not isinstance(participant, str) or not PARTICIPANT_PATTERN.fullmatch(participant):
-        raise ProtocolError("start: participant id must be 1-32 letters, digits, '_' or '-'")
+        raise ProtocolError(
+            "start: participant id must be 1-32 letters, digits, '_' or '-', starting with a "
+            "letter or digit"
+        )
     duration = _number(data, "duration", "start")
     low, high = DURATION_RANGE
     if not low <= duration <= high:

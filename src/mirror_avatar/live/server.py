@@ -7,14 +7,23 @@ task ticks it every control period on absolute deadlines, while the receive loop
 pointer's latest position and answers each one at once with the avatar's position.
 
 Robustness: a malformed, oversized or out-of-range message is answered with an ``error`` and
-ignored (a connection sending more than ``max_rejected`` of them is closed); connections beyond
-``max_sessions`` are refused with close code 1013; a trial whose browser stops sending for
-``stale_timeout`` seconds is saved as incomplete and its connection closed (code 4408); a dropped
-connection saves its trial as incomplete. No connection's failure touches another's files.
+ignored, as are messages beyond ``max_message_rate`` (a connection sending more than
+``max_rejected`` of them is closed); connections are admitted by
+`mirror_avatar.live.admission.Admission` (global and per-address limits, idle connections
+evicted for newcomers, close code 1013 when there is no room) and trial starts are rate-limited
+per connection and per address; a connection without a trial that sends nothing for
+``idle_timeout`` seconds is closed (code 4000); a trial whose browser stops sending for
+``stale_timeout`` seconds is saved as incomplete and its connection closed (code 4408); a client
+that stops reading, so that a message cannot be delivered within ``send_timeout``, is dropped; a
+dropped connection saves its trial as incomplete. Each tick of a trial runs in a worker thread
+(the compiled steps release the GIL), so a slow avatar delays only its own trial, which is ended
+when a tick takes longer than ``max_tick``. No connection's failure touches another's files.
 
 Access: when the settings hold a token, every HTTP request and WebSocket handshake must carry it,
 as the ``token`` query parameter or the cookie the page sets; ``serve`` generates one whenever
-the server binds to a non-loopback address. WebSocket handshakes from another origin are refused.
+the server binds to a non-loopback address. Without a token, only requests addressed to a
+loopback name or address, or to a name in ``allowed_hosts``, are answered (DNS rebinding).
+WebSocket handshakes from another origin are refused.
 """
 
 from __future__ import annotations
@@ -22,7 +31,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import hmac
-import ipaddress
 import json
 import logging
 import secrets
@@ -44,6 +52,7 @@ from starlette.websockets import WebSocket, WebSocketClose, WebSocketDisconnect
 from mirror_avatar.atomic import json_safe
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
+from mirror_avatar.live.admission import Admission, TokenBucket, host_allowed
 from mirror_avatar.live.protocol import (
     DURATION_RANGE,
     MODES,
@@ -61,7 +70,9 @@ TOKEN_COOKIE = "mirror_avatar_token"
 MAX_FRAME_BYTES = 16 * 1024
 """Largest WebSocket frame the server reads at all (bytes); larger ones close the connection."""
 
-CLOSE_BUSY, CLOSE_POLICY, CLOSE_STALE = 1013, 1008, 4408
+CLOSE_BUSY, CLOSE_POLICY, CLOSE_STALE, CLOSE_IDLE = 1013, 1008, 4408, 4000
+SERVER_SEND = "mirror_avatar.server_send"
+"""Scope key of the ASGI server's own ``send`` callable (see `abort_transport`)."""
 
 
 @dataclass(frozen=True)
@@ -76,16 +87,33 @@ class LiveSettings:
         The avatar's spec, recorded in every sidecar.
     token
         Access token required on every connection, or None for none.
+    allowed_hosts
+        Host names, besides loopback ones, that requests may be addressed to when there is no
+        token.
     max_sessions
         Most simultaneous WebSocket connections.
+    max_per_address
+        Most simultaneous connections from one client address.
+    evict_after
+        Seconds a connection without a trial is protected from eviction by a newcomer.
     stale_timeout
         Seconds without a position message after which a running trial is ended (incomplete).
     idle_timeout
-        Seconds without any message after which an idle connection is closed.
+        Seconds without any message after which a connection without a trial is closed.
+    send_timeout
+        Seconds a message may wait for a client that does not read before it is dropped.
+    max_tick
+        Seconds one tick of a trial may take before the trial is ended (a too slow avatar).
     countdown
         Seconds of countdown before a trial starts.
     max_rejected
         Bad messages tolerated on one connection before it is closed.
+    max_message_rate
+        Messages per second one connection may send (sustained; bursts of a second's worth).
+    connects_per_second, starts_per_second
+        New connections and trial starts per second from one address (sustained; bursts of
+        `ADDRESS_BURST`); each connection may also start a trial at most every
+        ``1 / starts_per_second`` seconds after a burst of two.
     period
         Control period T (s).
     """
@@ -93,22 +121,24 @@ class LiveSettings:
     out_dir: Path
     avatar_spec: str | None = None
     token: str | None = None
-    max_sessions: int = 4
+    allowed_hosts: frozenset[str] = frozenset()
+    max_sessions: int = 8
+    max_per_address: int = 4
+    evict_after: float = 3.0
     stale_timeout: float = 2.0
-    idle_timeout: float = 1800.0
+    idle_timeout: float = 60.0
+    send_timeout: float = 2.0
+    max_tick: float = 0.5
     countdown: int = 3
     max_rejected: int = 100
+    max_message_rate: float = 250.0
+    connects_per_second: float = 2.0
+    starts_per_second: float = 0.5
     period: float = CONTROL_PERIOD
 
 
-def is_loopback(host: str) -> bool:
-    """Whether ``host`` (an address or ``localhost``) only accepts connections from this machine."""
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
+ADDRESS_BURST = 10
+"""Connections and trial starts one address may make at once before its rate applies."""
 
 
 def create_app(settings: LiveSettings, avatar_factory: AvatarFactory | None) -> ASGIApp:
@@ -122,7 +152,15 @@ def create_app(settings: LiveSettings, avatar_factory: AvatarFactory | None) -> 
         Builds the avatar of each trial (`mirror_avatar.live.session.make_avatar_factory`);
         None allows solo trials only.
     """
-    state = {"active": 0}
+    admission = Admission(
+        settings.max_sessions,
+        settings.max_per_address,
+        settings.evict_after,
+        settings.connects_per_second,
+        ADDRESS_BURST,
+        settings.starts_per_second,
+        ADDRESS_BURST,
+    )
 
     async def index(request: Request) -> Response:
         response = FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-store"})
@@ -132,15 +170,16 @@ def create_app(settings: LiveSettings, avatar_factory: AvatarFactory | None) -> 
 
     async def socket(websocket: WebSocket) -> None:
         await websocket.accept()
-        if state["active"] >= settings.max_sessions:
-            await websocket.send_json({"type": "error", "message": "server busy: too many players"})
-            await websocket.close(CLOSE_BUSY)
+        connection = Connection(websocket, settings, avatar_factory, admission)
+        refused = admission.admit(connection)
+        if refused is not None:
+            await connection.send({"type": "error", "message": refused})
+            await connection.close(CLOSE_BUSY, refused)
             return
-        state["active"] += 1
         try:
-            await Connection(websocket, settings, avatar_factory).run()
+            await connection.run()
         finally:
-            state["active"] -= 1
+            admission.release(connection)
 
     app = Starlette(
         routes=[
@@ -149,11 +188,11 @@ def create_app(settings: LiveSettings, avatar_factory: AvatarFactory | None) -> 
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ]
     )
-    return AccessGate(app, settings.token)
+    return AccessGate(app, settings.token, settings.allowed_hosts)
 
 
 class AccessGate:
-    """ASGI middleware: check the access token and the WebSocket origin on every connection.
+    """ASGI middleware: check the access token, the host and the WebSocket origin.
 
     Parameters
     ----------
@@ -161,11 +200,16 @@ class AccessGate:
         The application behind the gate.
     token
         The token every HTTP request and WebSocket handshake must carry, or None.
+    allowed_hosts
+        Without a token, the host names besides loopback ones requests may be addressed to.
     """
 
-    def __init__(self, app: ASGIApp, token: str | None) -> None:
+    def __init__(
+        self, app: ASGIApp, token: str | None, allowed_hosts: frozenset[str] = frozenset()
+    ) -> None:
         self.app = app
         self.token = token
+        self.allowed_hosts = allowed_hosts
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         """Pass allowed connections through; refuse the others (HTTP 403 or WebSocket close)."""
@@ -175,6 +219,7 @@ class AccessGate:
         connection = HTTPConnection(scope)
         problem = self._problem(connection)
         if problem is None:
+            scope[SERVER_SEND] = send
             await self.app(scope, receive, send)
         elif scope["type"] == "http":
             await PlainTextResponse(problem, status_code=403)(scope, receive, send)
@@ -186,6 +231,8 @@ class AccessGate:
             given = connection.query_params.get("token") or connection.cookies.get(TOKEN_COOKIE)
             if given is None or not hmac.compare_digest(given.encode(), self.token.encode()):
                 return "missing or wrong access token"
+        elif not host_allowed(connection.headers.get("host"), self.allowed_hosts):
+            return "this server answers only requests addressed to this machine (see --allow-host)"
         origin = connection.headers.get("origin")
         if (
             connection.scope["type"] == "websocket"
@@ -197,17 +244,41 @@ class AccessGate:
 
 
 class Connection:
-    """One browser tab's WebSocket: its messages, its running trial and that trial's ticker."""
+    """One browser tab's WebSocket: its messages, its running trial and that trial's ticker.
+
+    Attributes
+    ----------
+    address
+        The client's address (host of the peer).
+    opened, last_active
+        When it connected and when it last sent a message (monotonic seconds).
+    """
 
     def __init__(
-        self, websocket: WebSocket, settings: LiveSettings, avatar_factory: AvatarFactory | None
+        self,
+        websocket: WebSocket,
+        settings: LiveSettings,
+        avatar_factory: AvatarFactory | None,
+        admission: Admission,
     ) -> None:
         self.websocket = websocket
         self.settings = settings
         self.avatar_factory = avatar_factory
+        self.admission = admission
+        self.address = websocket.client.host if websocket.client else ""
+        self.opened = self.last_active = time.monotonic()
         self.trial: LiveTrial | None = None
         self.ticker: asyncio.Task[None] | None = None
+        self.receiver: asyncio.Task[None] | None = None
+        self.dropped = False
         self.rejected = 0
+        self.messages = TokenBucket(settings.max_message_rate, settings.max_message_rate)
+        self.starts = TokenBucket(settings.starts_per_second, 2)
+
+    @property
+    def playing(self) -> bool:
+        """Whether a trial is running on this connection."""
+        return self.trial is not None
 
     async def run(self) -> None:
         """Serve the connection until it closes; a trial still running is saved as incomplete."""
@@ -221,24 +292,48 @@ class Connection:
                 "duration_range": list(DURATION_RANGE),
             }
         )
+        self.receiver = asyncio.create_task(self._receive_loop())
         try:
-            await self._receive_loop()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self.receiver
         finally:
             if self.ticker is not None:
                 self.ticker.cancel()
             self.end_trial(False, "connection closed")
 
+    def evict(self) -> None:
+        """Close this idle connection to make room for a newcomer (close code 4000)."""
+        asyncio.get_running_loop().create_task(
+            self.close(CLOSE_IDLE, "closed while idle to make room: press Start to reconnect")
+        )
+        self.drop()
+
+    def drop(self) -> None:
+        """Stop serving this connection (its trial, if any, is saved as incomplete).
+
+        The receive loop is cancelled and also checks `dropped`, because a cancellation that
+        arrives while a message is ready can be absorbed by `asyncio.wait_for`.
+        """
+        self.dropped = True
+        if self.receiver is not None:
+            self.receiver.cancel()
+
     async def _receive_loop(self) -> None:
-        while True:
+        while not self.dropped:
+            timeout = self.settings.idle_timeout if self.trial is None else None
             try:
-                message = await asyncio.wait_for(
-                    self.websocket.receive(), self.settings.idle_timeout
-                )
+                message = await asyncio.wait_for(self.websocket.receive(), timeout)
             except TimeoutError:
-                await self.close(CLOSE_STALE, "idle for too long")
+                await self.close(CLOSE_IDLE, "idle for too long: press Start to reconnect")
                 return
             if message["type"] == "websocket.disconnect":
                 return
+            self.last_active = time.monotonic()
+            if self.messages.take() > 0.0:
+                problem = f"too many messages: at most {self.settings.max_message_rate:g} per s"
+                if not await self.reject(problem):
+                    return
+                continue
             try:
                 request = parse_message(message.get("text", message.get("bytes")))
             except ProtocolError as error:
@@ -273,9 +368,17 @@ class Connection:
             await self.start(request)
 
     async def start(self, request: StartRequest) -> None:
-        """Build the trial (in a worker thread: loading an avatar may take a while) and tick it."""
+        """Build the trial (in a worker thread: loading an avatar may take a while) and tick it.
+
+        Refused when the mode needs an avatar the server lacks, or when this connection or its
+        address started too many trials lately.
+        """
         if request.mode != "solo" and self.avatar_factory is None:
             await self.reject(f"mode {request.mode} needs an avatar; this server has none")
+            return
+        wait = max(self.starts.take(), self.admission.start_wait(self.address))
+        if wait > 0.0:
+            await self.reject(f"too many trials started: wait {wait:.1f} s")
             return
         try:
             self.trial = await asyncio.to_thread(
@@ -318,7 +421,12 @@ class Connection:
                 self.end_trial(False, "the browser stopped sending")
                 await self.close(CLOSE_STALE, "no position received: trial saved as incomplete")
                 return
-            trial.tick(max(0.0, -delay))
+            began = loop.time()
+            await asyncio.to_thread(trial.tick, max(0.0, -delay))
+            if loop.time() - began > self.settings.max_tick and self.trial is trial:
+                summary = self.end_trial(False, "the avatar is too slow for real time")
+                await self.send({"type": "done", "summary": summary})
+                return
         if self.trial is trial:
             await self.send({"type": "done", "summary": self.end_trial(True, "completed")})
 
@@ -339,15 +447,38 @@ class Connection:
         return True
 
     async def send(self, message: dict[str, Any]) -> None:
-        """Send a message as strict JSON (NaN as null); a connection already gone is no error."""
+        """Send a message as strict JSON (NaN as null); a connection already gone is no error.
+
+        A client that does not take the message within ``send_timeout`` is dropped.
+        """
         text = json.dumps(json_safe(message), allow_nan=False)
-        with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
-            await self.websocket.send_text(text)
+        try:
+            await asyncio.wait_for(self.websocket.send_text(text), self.settings.send_timeout)
+        except TimeoutError:
+            logger.warning("dropping %s: it stopped reading", self.address)
+            abort_transport(self.websocket)
+            self.drop()
+        except (WebSocketDisconnect, RuntimeError, OSError):
+            return
 
     async def close(self, code: int, reason: str) -> None:
-        """Close the connection with ``code`` unless it is already closed."""
-        with contextlib.suppress(RuntimeError, OSError):
-            await self.websocket.close(code, reason)
+        """Close the connection with ``code`` unless it is closed or stopped reading."""
+        with contextlib.suppress(RuntimeError, OSError, TimeoutError):
+            await asyncio.wait_for(self.websocket.close(code, reason), self.settings.send_timeout)
+
+
+def abort_transport(websocket: WebSocket) -> None:
+    """Close a connection's socket at once, discarding what it could not deliver.
+
+    A graceful close would wait for a client that stopped reading to take the queued data, so
+    its socket would stay open. The transport is reached through the server's own ASGI ``send``
+    callable, which `AccessGate` keeps in the scope (uvicorn's is a method of its protocol
+    object); under a server that does not expose it the connection is left to its own close.
+    """
+    protocol = getattr(websocket.scope.get(SERVER_SEND), "__self__", None)
+    transport = getattr(protocol, "transport", None)
+    if isinstance(transport, asyncio.Transport):
+        transport.abort()
 
 
 def make_token() -> str:

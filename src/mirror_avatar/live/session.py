@@ -24,6 +24,7 @@ from __future__ import annotations
 import logging
 import math
 import secrets
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -322,6 +323,8 @@ class LiveTrial:
         self.engine.reset(seed, self.n_ticks)
         self._lateness: list[float] = []
         self.last_heard = time.monotonic()
+        self._lock = threading.Lock()
+        self._closed = False
 
     @property
     def k(self) -> int:
@@ -355,16 +358,22 @@ class LiveTrial:
     def tick(self, lateness: float = 0.0) -> None:
         """Take sample k (the person's latest position) and advance the avatar to t_{k+1}.
 
+        Safe to call from a worker thread: a tick and `finish` never overlap, and a tick after
+        `finish` does nothing.
+
         Parameters
         ----------
         lateness
             How late (s) the server called this tick compared with its schedule.
         """
-        self._lateness.append(lateness)
-        if self.k < self.n_ticks - 1:
-            self.engine.step()
-        else:
-            self.engine.finish()
+        with self._lock:
+            if self._closed:
+                return
+            self._lateness.append(lateness)
+            if self.k < self.n_ticks - 1:
+                self.engine.step()
+            else:
+                self.engine.finish()
 
     def finish(self, complete: bool, reason: str) -> dict[str, Any]:
         """Close the files, compute the metrics and write the final sidecar.
@@ -382,6 +391,8 @@ class LiveTrial:
             The trial's metadata as the sidecar records it, with ``metrics`` and ``n_samples``,
             and the figures' ``traces`` (`compute_trial_traces`).
         """
+        with self._lock:
+            self._closed = True
         self.person_writer.close()
         lateness = np.asarray(self._lateness) * 1000.0
         extra: dict[str, Any] = {

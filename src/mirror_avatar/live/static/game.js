@@ -15,7 +15,7 @@
     saved: $("saved"), avatarLegend: $("avatar-legend"),
   };
   const game = {
-    phase: "connecting", // connecting | idle | countdown | running | closed
+    phase: "connecting", // connecting | idle | asleep | countdown | running | closed
     x: 0, avatarX: null, seq: 0, sent: new Map(), rtt: null, keys: new Set(), lastFrame: null,
     summary: null,
   };
@@ -25,7 +25,9 @@
   const wsUrl = new URL("ws", location.href);
   wsUrl.protocol = location.protocol === "https:" ? "wss:" : "ws:";
   wsUrl.search = token ? `?token=${encodeURIComponent(token)}` : "";
-  const socket = new WebSocket(wsUrl);
+  const CLOSE_IDLE = 4000; // the server closed an idle connection: reconnect on Start
+  let socket = null;
+  let pendingStart = null; // a start request waiting for the reconnection's "ready"
 
   const clip = (x) => Math.max(-0.5, Math.min(0.5, x));
   const toPixels = (x) => (x + 0.5) * ui.track.clientWidth;
@@ -37,7 +39,7 @@
   }
 
   function send(message) {
-    if (socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify(message));
+    if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify(message));
   }
 
   function active() { return game.phase === "countdown" || game.phase === "running"; }
@@ -223,7 +225,7 @@
     stroke(phase.ctx, t, traces.relative_phase, onCircle.px, onCircle.py, "#4b5563");
   }
 
-  socket.addEventListener("message", (event) => {
+  function onMessage(event) {
     const message = JSON.parse(event.data);
     switch (message.type) {
       case "ready": {
@@ -231,6 +233,11 @@
         if (ui.mode.selectedOptions[0].disabled) ui.mode.value = "solo";
         setPhase("idle");
         setStatus(message.avatar ? `Avatar: ${message.avatar}` : "Solo recording only");
+        if (pendingStart) {
+          setPhase("countdown");
+          send(pendingStart);
+          pendingStart = null;
+        }
         break;
       }
       case "avatar": onAvatar(message); break;
@@ -262,11 +269,24 @@
       default:
         break;
     }
-  });
-  socket.addEventListener("close", () => {
+  }
+
+  function onClose(event) {
+    pendingStart = null;
+    if (event.code === CLOSE_IDLE && !active()) {
+      setPhase("asleep");
+      setStatus("Disconnected while idle; press Start to reconnect.");
+      return;
+    }
     setPhase("closed");
     setStatus("Disconnected from the server; reload the page to play again.");
-  });
+  }
+
+  function connect() {
+    socket = new WebSocket(wsUrl);
+    socket.addEventListener("message", onMessage);
+    socket.addEventListener("close", onClose);
+  }
 
   ui.form.addEventListener("submit", (event) => {
     event.preventDefault();
@@ -277,11 +297,19 @@
     ui.avatarLegend.hidden = ui.mode.value === "solo";
     game.sent.clear();
     game.rtt = null;
-    setPhase("countdown");
-    send({
+    const start = {
       type: "start", mode: ui.mode.value, participant: ui.participant.value,
       duration: Number(ui.duration.value),
-    });
+    };
+    if (game.phase === "asleep") {
+      pendingStart = start;
+      setPhase("connecting");
+      setStatus("Reconnecting…");
+      connect();
+      return;
+    }
+    setPhase("countdown");
+    send(start);
   });
   ui.stop.addEventListener("click", () => send({ type: "stop" }));
 
@@ -296,5 +324,6 @@
   });
   window.addEventListener("keyup", (event) => game.keys.delete(KEYS[event.key]));
   window.addEventListener("blur", () => game.keys.clear());
+  connect();
   requestAnimationFrame(frame);
 })();
