@@ -44,6 +44,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from mirror_avatar.errors import InputError
+from mirror_avatar.model_files import check_real
 from mirror_avatar.trials import PLAYING_RANGE
 
 CONTROL_PERIOD = 0.03
@@ -54,6 +55,11 @@ N_SUBSTEPS = 4
 
 STEP_STIFFNESS = 0.5
 """Largest RK4 step times the interval's fastest rate: more substeps are taken when needed."""
+
+MAX_RK4_SUBSTEPS = 4096
+"""Most RK4 steps per control period (**choice**), whatever the state and parameters: it bounds
+the cost of one step. Within the playing range at the paper's parameters, `count_substeps` asks
+for at most a few hundred (a partner crossing the whole range in one period)."""
 
 MAX_NEWTON = 8
 """Most Newton iterations on the initial costates per control interval."""
@@ -76,6 +82,25 @@ PARAMS_DTYPE = np.dtype(
     ]
 )
 """The fields of `HKBParams` as compiled code reads them (a numpy record, by name)."""
+
+PARAMETER_RANGES: dict[str, tuple[float, float]] = {
+    "omega": (0.0, 100.0),
+    "theta_p": (0.0, 1.0),
+    "theta_v": (0.0, 1.0),
+    "alpha": (0.0, 1000.0),
+    "beta": (0.0, 1000.0),
+    "gamma": (-1000.0, 1000.0),
+    "eta": (1e-8, 1e4),
+    "period": (1e-3, 1.0),
+}
+"""The range, inclusive, of each `HKBParams` field; anything else (NaN, inf, a string) is refused.
+
+The weights theta_p and theta_v lie in [0, 1] by definition; the other bounds are a **choice**:
+generous physical bounds around the paper's values (omega 0.1-0.8 rad/s, alpha 1, beta 2,
+gamma -1, eta 1e-4, period 0.03 s). omega up to 100 rad/s (16 Hz, beyond any hand); non-negative
+nonlinear damping alpha, beta up to 1000; |gamma| up to 1000 (1/s); eta from 1e-8, which keeps the
+costate-control rate sqrt((1 - theta_p) / eta) and so `count_substeps` bounded (at most 2e4 RK4
+steps per period from that rate); period from 1 ms to 1 s."""
 
 _LOW, _HIGH = PLAYING_RANGE
 Record = Any
@@ -102,6 +127,11 @@ class HKBParams:
         Weight of the control effort (paper: 1e-4).
     period
         Control period T (s).
+
+    Raises
+    ------
+    InputError
+        A field outside its `PARAMETER_RANGES`, or theta_p + theta_v above 1.
     """
 
     omega: float
@@ -114,12 +144,10 @@ class HKBParams:
     period: float = CONTROL_PERIOD
 
     def __post_init__(self) -> None:
-        if not (0.0 <= self.theta_p <= 1.0 and 0.0 <= self.theta_v <= 1.0):
-            raise InputError("HKBParams", "theta_p and theta_v must lie in [0, 1]")
+        for name, (low, high) in PARAMETER_RANGES.items():
+            check_real("HKBParams", name, getattr(self, name), low, high)
         if self.theta_s < 0.0:
             raise InputError("HKBParams", "theta_p + theta_v must not exceed 1")
-        if not (self.eta > 0.0 and self.period > 0.0):
-            raise InputError("HKBParams", "eta and period must be positive")
 
     @property
     def theta_s(self) -> float:
@@ -306,6 +334,9 @@ def count_substeps(
 ) -> int:
     """RK4 steps for one interval: at least ``n_min``, and enough that step x rate <= 0.5.
 
+    At most `MAX_RK4_SUBSTEPS`, so that no state (a hostile partner's jumps included) and no
+    parameters within `PARAMETER_RANGES` make one step arbitrarily slow.
+
     The fastest rates (1/s) of the state-costate system are the costate-control coupling
     ``sqrt((theta_s + theta_v) / eta)`` (about 95/s for the leader) and the HKB damping
     ``alpha x² + 3 beta y² - gamma``, bounded with the largest of the current, reference and
@@ -316,7 +347,7 @@ def count_substeps(
     damping = p.alpha * x * x + 3.0 * p.beta * speed * speed - p.gamma
     coupling = np.sqrt((1.0 - theta_p) / p.eta)
     rate = max(damping, coupling)
-    return max(n_min, int(np.ceil(rate * p.period / STEP_STIFFNESS)))
+    return min(MAX_RK4_SUBSTEPS, max(n_min, int(np.ceil(rate * p.period / STEP_STIFFNESS))))
 
 
 @njit(cache=True)

@@ -26,6 +26,7 @@ compiled chain walk plus a compiled overlap-add.
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -38,7 +39,16 @@ from numpy.typing import NDArray
 from sklearn.cluster import KMeans
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.model_files import load_model, save_model
+from mirror_avatar.importing import excerpt
+from mirror_avatar.model_files import (
+    check_array,
+    check_integer,
+    check_object,
+    check_real,
+    load_model,
+    require_arrays,
+    save_model,
+)
 from mirror_avatar.signature import compute_emd, compute_ims
 from mirror_avatar.stft import (
     compute_stft,
@@ -49,6 +59,9 @@ from mirror_avatar.stft import (
     synthesis_frames,
 )
 from mirror_avatar.trials import (
+    MAX_ABS_POSITION,
+    MAX_RATE,
+    MIN_RATE,
     PLAYING_RANGE,
     Trial,
     compute_velocity,
@@ -58,6 +71,22 @@ from mirror_avatar.trials import (
 MIN_FRAMES_PER_SYMBOL = 4
 """Fewest STFT frames per code vector a codebook is fitted on (**choice**: with fewer, most code
 vectors are single frames and the chain only replays the training trials)."""
+
+PARAMETER_RANGES: dict[str, tuple[float, float]] = {
+    "n_symbols": (2, 4096),
+    "window": (4, 4096),
+    "rate": (MIN_RATE, MAX_RATE),
+    "pseudo_count": (1e-12, 1e6),
+    "n_init": (1, 1000),
+    "random_state": (0, 2**32 - 1),
+}
+"""The range, inclusive, of each hyper-parameter, given to the constructor or read from a file.
+
+A **choice**, generous around the paper's values (256 symbols, a 60-sample window at 100 Hz):
+up to 4096 symbols and a 4096-sample window; the rate within `mirror_avatar.trials.MIN_RATE` to
+`MAX_RATE` (1 Hz to 10 kHz, as recordings); a pseudo-count from 1e-12 to 1e6; 1 to 1000 k-means
+restarts; a seed as k-means takes it (0 to 2^32 - 1, or None). The window must also be even and
+the hop lie in 1..window / 2 (not a choice: the features need both)."""
 
 FORMAT_NAME = "mirror-avatar/ims-generator"
 FORMAT_VERSION = 1
@@ -215,14 +244,22 @@ class IMSGenerator:
         return self
 
     def _check_parameters(self) -> None:
-        if not (isinstance(self.n_symbols, int | np.integer) and self.n_symbols >= 2):
-            raise InputError(
-                "generator", f"n_symbols must be an integer >= 2, got {self.n_symbols}"
+        """Refuse hyper-parameters outside `PARAMETER_RANGES`; keep them as Python numbers."""
+        ranges, source = PARAMETER_RANGES, "generator"
+        self.n_symbols = check_integer(source, "n_symbols", self.n_symbols, *ranges["n_symbols"])
+        self.window = check_integer(source, "window", self.window, *ranges["window"])
+        if self.window % 2:
+            raise InputError(source, f"window {self.window} must be even")
+        self.hop = check_integer(source, "hop", self.hop, 1, self.window // 2)
+        self.rate = check_real(source, "rate", self.rate, *ranges["rate"])
+        self.pseudo_count = check_real(
+            source, "pseudo_count", self.pseudo_count, *ranges["pseudo_count"]
+        )
+        self.n_init = check_integer(source, "n_init", self.n_init, *ranges["n_init"])
+        if self.random_state is not None:
+            self.random_state = check_integer(
+                source, "random_state", self.random_state, *ranges["random_state"]
             )
-        if self.window % 2 or self.window < 4 or not 0 < self.hop <= self.window // 2:
-            raise InputError("generator", "window must be even (>= 4) and hop in (0, window / 2]")
-        if not (self.rate > 0 and self.pseudo_count > 0):
-            raise InputError("generator", "rate and pseudo_count must be positive")
 
     def _signal(self, trial: Trial) -> Array:
         if trial.is_uniform and math.isclose(trial.rate, self.rate, rel_tol=1e-6):
@@ -371,37 +408,48 @@ class IMSGenerator:
         metadata: Mapping[str, Any],
         source: str | os.PathLike[str] | None,
     ) -> IMSGenerator:
-        """Rebuild a fitted model from `to_arrays` output, checking every array.
+        """Rebuild a fitted model from `to_arrays` output, checking every value it reads.
+
+        The parameters must lie in `PARAMETER_RANGES`; the training summary must name its
+        groups; the code vectors must be finite floats within ±``MAX_ABS_POSITION * window``
+        (the largest feature of a frame of positions within
+        `mirror_avatar.trials.MAX_ABS_POSITION`); the transition and initial probabilities
+        must be distributions.
 
         Raises
         ------
         InputError
             ``source: problem`` when the parameters are invalid or an array is missing, of the
-            wrong shape, non-finite or not a probability distribution.
+            wrong dtype or shape, non-finite, too large or not a probability distribution.
         """
+        parameters = check_object(source, "parameters", metadata.get("parameters"))
+        unknown = sorted(parameters.keys() - inspect.signature(cls).parameters.keys())
+        if unknown:
+            raise InputError(source, f"unknown generator parameter {excerpt(unknown[0])}")
+        training = check_object(source, "training", metadata.get("training"))
+        groups = training.get("groups")
+        if not (isinstance(groups, list) and all(isinstance(g, str) for g in groups)):
+            raise InputError(source, f"training groups {excerpt(groups)} are not a list of names")
+        model = cls(**parameters)
         try:
-            model = cls(**metadata["parameters"])
             model._check_parameters()
-            model.training_summary_ = dict(metadata["training"])
-        except (KeyError, TypeError, InputError) as error:
-            raise InputError(source, f"invalid model parameters ({error})") from None
+        except InputError as error:
+            raise InputError(source, error.problem) from None
+        model.training_summary_ = training
+        require_arrays(source, arrays, ("codebook", "transmat", "startprob"))
         n, width = model.n_symbols, model.window
-        expected = {"codebook": (n, width), "transmat": (n, n), "startprob": (n,)}
-        for name, shape in expected.items():
-            array = arrays.get(name)
-            if (
-                array is None
-                or array.shape != shape
-                or array.dtype.kind != "f"
-                or not np.all(np.isfinite(array))
-            ):
-                raise InputError(source, f"{name} must be finite floats of shape {shape}")
-        rows = np.concatenate([arrays["transmat"].sum(axis=1), [arrays["startprob"].sum()]])
-        if np.any(arrays["transmat"] < 0) or not np.allclose(rows, 1.0, atol=1e-9):
+        bound = MAX_ABS_POSITION * width
+        codebook = check_array(
+            source, "codebook", arrays["codebook"], "float", (n, width), -bound, bound
+        )
+        transmat = check_array(source, "transmat", arrays["transmat"], "float", (n, n))
+        startprob = check_array(source, "startprob", arrays["startprob"], "float", (n,))
+        rows = np.concatenate([transmat.sum(axis=1), [startprob.sum()]])
+        if np.any(transmat < 0) or np.any(startprob < 0) or not np.allclose(rows, 1.0, atol=1e-9):
             raise InputError(source, "transition probabilities are not valid distributions")
-        model.codebook_ = arrays["codebook"].astype(np.float64)
-        model.transmat_ = arrays["transmat"].astype(np.float64)
-        model.startprob_ = arrays["startprob"].astype(np.float64)
+        model.codebook_ = codebook.astype(np.float64)
+        model.transmat_ = transmat.astype(np.float64)
+        model.startprob_ = startprob.astype(np.float64)
         model._prepare_sampling()
         return model
 

@@ -7,7 +7,8 @@ seconds, milliseconds or Unix-epoch seconds or milliseconds, positions normalise
 m with the playing range as a setting. Nothing is guessed: a file that does not fit the options
 is refused with one line naming the option that would read it. Short drop-outs (blank cells or
 NaN, where tracking was lost) are interpolated linearly up to `ImportOptions.max_gap` seconds and
-reported; longer ones are refused.
+reported; longer ones are refused. Values quoted from a file in an error line are cut to
+`ECHO_CHARS` characters (`excerpt`).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
+import pandas as pd
 from numpy.typing import NDArray
 
 from mirror_avatar.errors import InputError
@@ -36,6 +38,12 @@ MAX_GAP = 0.2
 
 LATEST_PLAUSIBLE_START = 1e5
 """A first time stamp later than this (s, about a day) is a clock, not a trial's time axis."""
+
+MISSING_CELLS = ("", "nan", "na", "n/a")
+"""Cells that are a missing sample (compared after stripping spaces, in any letter case)."""
+
+ECHO_CHARS = 40
+"""Most characters of a value from a file quoted in an error line (**choice**)."""
 
 
 @dataclass(frozen=True)
@@ -81,6 +89,8 @@ class ImportOptions:
     def seconds(self, times: Array, source: str) -> Array:
         """Convert a time column to seconds (epoch units: from the first sample)."""
         seconds = times * TIME_UNITS[self.time_unit]
+        if seconds.size == 0:
+            return seconds
         if self.time_unit.startswith("epoch"):
             return seconds - seconds[0]
         if abs(seconds[0]) > LATEST_PLAUSIBLE_START:
@@ -103,12 +113,40 @@ DEFAULT_IMPORT = ImportOptions()
 """The exchange format: ``time`` in seconds and ``position`` in normalised units."""
 
 
-def parse_number(text: str) -> float:
-    """Read a cell as a number; a blank cell (or ``NaN``, ``NA``) is a missing sample (NaN)."""
-    stripped = text.strip()
-    if stripped == "" or stripped.lower() in ("nan", "na", "n/a"):
-        return float("nan")
-    return float(stripped)
+def excerpt(value: object, quote: bool = True) -> str:
+    """Show a value from a user's file in an error line, cut to `ECHO_CHARS` characters.
+
+    Text is escaped as ``repr`` does (so control characters cannot garble the line) and, with
+    ``quote``, quoted; anything else is shown with ``str``. A longer value ends in ``...`` and
+    its length in characters.
+    """
+    text = value if isinstance(value, str) else str(value)
+    shown = text[:ECHO_CHARS]
+    if isinstance(value, str):
+        shown = repr(shown) if quote else repr(shown)[1:-1]
+    return shown if len(text) <= ECHO_CHARS else f"{shown}... ({len(text)} characters)"
+
+
+def parse_cells(cells: pd.Series) -> tuple[Array, int | None]:
+    """Read text cells as numbers; a blank or `MISSING_CELLS` cell is a missing sample (NaN).
+
+    Parameters
+    ----------
+    cells
+        Text cells, shape (n,); a NaN entry is a blank cell.
+
+    Returns
+    -------
+    values : ndarray
+        The numbers, shape (n,), NaN where missing.
+    bad : int or None
+        Position of the first cell that is neither a number nor missing; None if there is none.
+    """
+    text = cells.fillna("").astype(str).str.strip()
+    missing = text.str.lower().isin(MISSING_CELLS).to_numpy()
+    values = pd.to_numeric(text.mask(missing), errors="coerce").to_numpy(np.float64)
+    bad = np.flatnonzero(np.isnan(values) & ~missing)
+    return values, (int(bad[0]) if bad.size else None)
 
 
 def fill_gaps(
@@ -116,7 +154,8 @@ def fill_gaps(
 ) -> tuple[Array, Array, int]:
     """Interpolate missing positions (NaN) over gaps of at most ``max_gap`` seconds.
 
-    Missing samples at the start or end cannot be interpolated and are dropped.
+    Missing samples at the start or end cannot be interpolated and are dropped. Infinite
+    positions are not missing: `mirror_avatar.trials.make_trial` refuses them.
 
     Returns
     -------
@@ -131,7 +170,7 @@ def fill_gaps(
         A gap longer than ``max_gap`` (naming its times and length, and ``--max-gap``), or fewer
         than two positions.
     """
-    missing = ~np.isfinite(positions)
+    missing = np.isnan(positions)
     if not missing.any():
         return times, positions, 0
     valid = np.flatnonzero(~missing)

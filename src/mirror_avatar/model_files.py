@@ -2,18 +2,41 @@
 
 Every saved model (IMS generator, cyber player) is written atomically by `save_model` and read
 back by `load_model`, which checks the format name and version in the metadata and turns every
-way a file can be wrong (missing, truncated, not an archive, another format, bad JSON) into one
-`InputError` line naming the file.
+way a file can be wrong (missing, truncated, not an archive, another format, bad JSON, hostile
+content) into one `InputError` line naming the file.
+
+A model file may come from anyone, so `read_archive` reads nothing it has not bounded first
+(every limit is a **choice**, far above what a real model needs; see each constant):
+
+- the zip's central directory may declare at most `MAX_DIRECTORY_BYTES`, checked on the end
+  records before `zipfile` lists the members, and it may list at most `MAX_MEMBERS` members;
+- each member must be a ``.npy`` array, stored or deflated (as numpy writes them; other
+  compression methods can expand a small read without bound) and not encrypted; its declared
+  uncompressed size may be at most `MAX_MEMBER_BYTES`, and all members together at most
+  `MAX_TOTAL_BYTES`;
+- each member's ``.npy`` header is read before its data: the dtype must be integer or floating
+  point (the ``metadata`` member: one unicode string of at most `MAX_METADATA_CHARS`
+  characters), and the shape times the item size must equal the declared size;
+- the metadata JSON may nest at most `MAX_METADATA_DEPTH` arrays and objects deep.
+
+The loaders then check every value they read with `check_integer`, `check_real`, `check_array`
+and `check_object`; a value quoted in a message is cut by `mirror_avatar.importing.excerpt`.
 """
 
 from __future__ import annotations
 
 import io
 import json
+import math
+import numbers
 import os
+import re
+import struct
 import zipfile
+import zlib
+from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import IO, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,10 +44,55 @@ from numpy.typing import NDArray
 from mirror_avatar import __version__
 from mirror_avatar.atomic import write_atomic_bytes
 from mirror_avatar.errors import InputError
+from mirror_avatar.importing import excerpt
 
 PathLike = str | os.PathLike[str]
+Source = str | os.PathLike[str] | None
 ZIP_MAGIC = b"PK\x03\x04"
 """The first bytes of every ``.npz`` archive (a zip file)."""
+
+MAX_MEMBERS = 32
+"""Most members a model archive may hold (**choice**: a cyber player with its reference
+generator has 9)."""
+
+MAX_DIRECTORY_BYTES = 256 * 1024
+"""Largest central directory (the zip's list of members) a model archive may declare, in bytes
+(**choice**: a model's few members take well under 4 KiB; this bounds the work of listing a
+crafted archive before `MAX_MEMBERS` can be checked)."""
+
+MAX_MEMBER_BYTES = 256 * 1024**2
+"""Largest declared uncompressed size of one member, in bytes (**choice**: the largest default
+Q-table takes 0.7 MB)."""
+
+MAX_TOTAL_BYTES = 512 * 1024**2
+"""Largest declared uncompressed size of all members together, in bytes (**choice**)."""
+
+MAX_METADATA_CHARS = 1_000_000
+"""Longest metadata JSON string, in characters (**choice**: a model's metadata takes a few
+kilobytes)."""
+
+MAX_METADATA_DEPTH = 32
+"""Deepest nesting of arrays and objects in the metadata JSON (**choice**: a model's metadata
+nests 3 deep)."""
+
+Kind = Literal["float", "integer", "number"]
+_KINDS: dict[Kind, str] = {"float": "f", "integer": "iu", "number": "iuf"}
+"""numpy dtype kinds of each kind of array; members of any other kind are refused."""
+
+_END = struct.Struct("<4s4H2LH")
+_END_SIGNATURE = b"PK\x05\x06"
+_ZIP64_LOCATOR_SIGNATURE = b"PK\x06\x07"
+_ZIP64_END_SIGNATURE = b"PK\x06\x06"
+_ZIP64_LOCATOR = struct.Struct("<4sLQL")
+_ZIP64_END = struct.Struct("<4sQ2H2L4Q")
+_TAIL_BYTES = _ZIP64_END.size + _ZIP64_LOCATOR.size + _END.size + 0xFFFF
+"""Bytes at the end of an archive that hold its end records (the end record may be followed by
+a comment of up to 64 KiB and preceded by the zip64 locator and record)."""
+
+_CHAR_BYTES = np.dtype("U1").itemsize
+"""Bytes per character of a numpy unicode string."""
+_JSON_STRING = re.compile(r'"[^"\\]*+(?:\\.[^"\\]*+)*+"', re.DOTALL)
+_NOT_BRACKET = re.compile(r"[^\[\]{}]")
 
 
 def save_model(
@@ -65,35 +133,175 @@ def save_model(
 def read_archive(path: PathLike) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
     """Read any model archive: its arrays and its metadata, without checking the format.
 
+    Every limit of the module docstring is checked before the data it bounds is read.
+
     Raises
     ------
     InputError
-        Missing file, not a readable ``.npz`` archive, or metadata that is not a JSON object.
+        Missing file, not a readable ``.npz`` archive, an archive beyond the limits, or
+        metadata that is not a JSON object.
     """
     try:
         with open(path, "rb") as file:
             if file.read(4) != ZIP_MAGIC:
                 raise InputError(path, "not a readable .npz model file (not a zip archive)")
-            file.seek(0)
-            with np.load(file, allow_pickle=False) as archive:
-                arrays = {key: archive[key] for key in archive.files}
+            directory = _declared_directory_size(file)
+            if directory > MAX_DIRECTORY_BYTES:
+                raise InputError(
+                    path,
+                    f"the zip directory declares {directory} bytes, more than the limit of "
+                    f"{MAX_DIRECTORY_BYTES}",
+                )
+            with zipfile.ZipFile(file) as archive:
+                arrays = _read_members(path, archive)
     except InputError:
         raise
     except FileNotFoundError:
         raise InputError(path, "no such file") from None
     except IsADirectoryError:
         raise InputError(path, "is a directory, not a model file") from None
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
-        raise InputError(path, f"not a readable .npz model file ({error})") from None
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as error:
+        raise InputError(
+            path, f"not a readable .npz model file ({excerpt(str(error), quote=False)})"
+        ) from None
     if "metadata" not in arrays:
         raise InputError(path, "not a mirror-avatar model file (no metadata)")
+    text = str(arrays.pop("metadata")[()])
+    if _nesting_exceeds(text, MAX_METADATA_DEPTH):
+        raise InputError(
+            path, f"metadata nests deeper than the limit of {MAX_METADATA_DEPTH} levels"
+        )
     try:
-        metadata = json.loads(str(arrays.pop("metadata")[()]))
-    except (ValueError, TypeError, IndexError):
+        metadata = json.loads(text)
+    except ValueError:
         raise InputError(path, "metadata is not valid JSON") from None
     if not isinstance(metadata, dict):
         raise InputError(path, "metadata is not a JSON object")
     return arrays, metadata
+
+
+def _declared_directory_size(file: IO[bytes]) -> int:
+    """Size (bytes) of the central directory an archive's end records declare.
+
+    The end record is found as `zipfile` finds it (at the very end of the file, else the last
+    one in the final 64 KiB); the largest of its size and those of any zip64 end record it
+    points to is returned, so `zipfile` never reads a larger directory.
+
+    Raises
+    ------
+    zipfile.BadZipFile
+        No end record.
+    """
+    end = file.seek(0, os.SEEK_END)
+    start = file.seek(max(end - _TAIL_BYTES, 0))
+    tail = file.read()
+    at = len(tail) - _END.size
+    if not (at >= 0 and tail.startswith(_END_SIGNATURE, at) and tail.endswith(b"\0\0")):
+        at = tail.rfind(_END_SIGNATURE)
+    if at < 0 or at + _END.size > len(tail):
+        raise zipfile.BadZipFile("no end of central directory record")
+    sizes = [_END.unpack_from(tail, at)[5]]
+    locator = at - _ZIP64_LOCATOR.size
+    if locator >= 0 and tail.startswith(_ZIP64_LOCATOR_SIGNATURE, locator):
+        offset = _ZIP64_LOCATOR.unpack_from(tail, locator)[2]
+        for position in (max(start + locator - _ZIP64_END.size, 0), min(offset, end)):
+            file.seek(position)
+            record = file.read(_ZIP64_END.size)
+            if len(record) == _ZIP64_END.size and record.startswith(_ZIP64_END_SIGNATURE):
+                sizes.append(_ZIP64_END.unpack(record)[8])
+    return max(sizes)
+
+
+def _read_members(path: PathLike, archive: zipfile.ZipFile) -> dict[str, NDArray[Any]]:
+    """Check the members' number, names and declared sizes, then each header, then read."""
+    members = archive.infolist()
+    if len(members) > MAX_MEMBERS:
+        raise InputError(path, f"{len(members)} members, more than the limit of {MAX_MEMBERS}")
+    names = [_member_name(path, member) for member in members]
+    total = sum(member.file_size for member in members)
+    if total > MAX_TOTAL_BYTES:
+        raise InputError(
+            path, f"members declare {total} bytes in all, more than the limit of {MAX_TOTAL_BYTES}"
+        )
+    duplicate = next((name for name in names if names.count(name) > 1), None)
+    if duplicate is not None:
+        raise InputError(path, f"member {excerpt(duplicate, quote=False)} appears more than once")
+    arrays = {}
+    for name, member in zip(names, members, strict=True):
+        with archive.open(member) as stream:
+            _check_header(path, name, member.file_size, stream)
+            stream.seek(0)
+            arrays[name] = np.lib.format.read_array(stream, allow_pickle=False)
+    return arrays
+
+
+def _member_name(path: PathLike, member: zipfile.ZipInfo) -> str:
+    """Return the array name of a member (without ``.npy``) once its zip entry is acceptable."""
+    name = excerpt(member.filename, quote=False)
+    if not member.filename.endswith(".npy"):
+        raise InputError(path, f"member {name} is not a .npy array")
+    if member.flag_bits & 0x1:
+        raise InputError(path, f"member {name} is encrypted")
+    if member.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
+        method = member.compress_type
+        raise InputError(
+            path, f"member {name} uses compression method {method}, not stored or deflated"
+        )
+    if member.file_size > MAX_MEMBER_BYTES:
+        raise InputError(
+            path,
+            f"member {name} declares {member.file_size} bytes, more than the limit of "
+            f"{MAX_MEMBER_BYTES}",
+        )
+    return member.filename.removesuffix(".npy")
+
+
+def _check_header(path: PathLike, name: str, declared: int, stream: IO[bytes]) -> None:
+    """Refuse a member whose ``.npy`` header is not a numeric array of its declared size."""
+    shown = excerpt(name, quote=False)
+    version = np.lib.format.read_magic(stream)
+    if version == (1, 0):
+        shape, _, dtype = np.lib.format.read_array_header_1_0(stream)
+    elif version == (2, 0):
+        shape, _, dtype = np.lib.format.read_array_header_2_0(stream)
+    else:
+        raise InputError(path, f"member {shown} has unsupported .npy version {version}")
+    if name == "metadata":
+        if dtype.kind != "U" or shape != ():
+            raise InputError(path, "metadata is not one JSON string")
+        length = dtype.itemsize // _CHAR_BYTES
+        if length > MAX_METADATA_CHARS:
+            raise InputError(
+                path,
+                f"metadata of {length} characters is longer than the limit of {MAX_METADATA_CHARS}",
+            )
+    elif dtype.kind not in _KINDS["number"]:
+        raise InputError(
+            path, f"{shown} has dtype {excerpt(dtype)}; model arrays hold integers or floats"
+        )
+    size = math.prod(shape) * dtype.itemsize
+    if size > MAX_MEMBER_BYTES:
+        raise InputError(
+            path,
+            f"{shown} has a header claiming {excerpt(size)} bytes, more than the limit of "
+            f"{MAX_MEMBER_BYTES}",
+        )
+    if stream.tell() + size != declared:
+        raise InputError(
+            path,
+            f"{shown} has a header claiming {size} bytes of data but holds "
+            f"{declared - stream.tell()}",
+        )
+
+
+def _nesting_exceeds(text: str, limit: int) -> bool:
+    """Return True when the arrays and objects of a JSON text nest more than ``limit`` deep."""
+    depth = 0
+    for bracket in _NOT_BRACKET.sub("", _JSON_STRING.sub("", text)):
+        depth += 1 if bracket in "[{" else -1
+        if depth > limit:
+            return True
+    return False
 
 
 def load_model(
@@ -122,10 +330,127 @@ def load_model(
     """
     arrays, metadata = read_archive(path)
     if metadata.get("format") != format_name:
-        raise InputError(path, f"not a {format_name} file (format {metadata.get('format')!r})")
+        raise InputError(
+            path, f"not a {format_name} file (format {excerpt(metadata.get('format'))})"
+        )
     if metadata.get("version") != version:
-        raise InputError(path, f"unsupported {format_name} version {metadata.get('version')!r}")
-    missing = sorted(set(required) - arrays.keys())
-    if missing:
-        raise InputError(path, f"missing array(s) {', '.join(missing)}")
+        raise InputError(
+            path, f"unsupported {format_name} version {excerpt(metadata.get('version'))}"
+        )
+    require_arrays(path, arrays, required)
     return arrays, metadata
+
+
+def require_arrays(source: Source, arrays: Mapping[str, Any], names: Iterable[str]) -> None:
+    """Refuse ``arrays`` if some of ``names`` are missing."""
+    missing = sorted(set(names) - arrays.keys())
+    if missing:
+        raise InputError(source, f"missing array(s) {', '.join(missing)}")
+
+
+def _bounds(low: float, high: float) -> str:
+    return "..".join(str(b) if isinstance(b, int) else f"{b:g}" for b in (low, high))
+
+
+def check_integer(source: Source, name: str, value: object, low: float, high: float) -> int:
+    """Return ``value`` as an int if it is a whole number in [low, high].
+
+    Parameters
+    ----------
+    source
+        What the value was read from (a file path), named by the message.
+    name
+        The value's name in the message.
+    value
+        Anything read from input; an integral float (3.0) counts as a whole number.
+    low, high
+        The accepted range, inclusive.
+
+    Raises
+    ------
+    InputError
+        ``source: name VALUE is outside LOW..HIGH``, or ``name must be an integer``.
+    """
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise InputError(source, f"{name} must be an integer, not {excerpt(value)}")
+    number = int(value)
+    _check_within(source, name, number, low, high)
+    return number
+
+
+def check_real(source: Source, name: str, value: object, low: float, high: float) -> float:
+    """Return ``value`` as a float if it is a number in [low, high] (NaN never is).
+
+    Parameters are those of `check_integer`.
+
+    Raises
+    ------
+    InputError
+        ``source: name VALUE is outside LOW..HIGH``, or ``name must be a number``.
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InputError(source, f"{name} must be a number, not {excerpt(value)}")
+    number = value if isinstance(value, int) else float(value)
+    _check_within(source, name, number, low, high)
+    return float(number)
+
+
+def _check_within(source: Source, name: str, number: float, low: float, high: float) -> None:
+    """Refuse ``number`` unless it lies in [low, high] (a huge int is compared exactly)."""
+    if not low <= number <= high:
+        raise InputError(source, f"{name} {excerpt(number)} is outside {_bounds(low, high)}")
+
+
+def check_array(
+    source: Source,
+    name: str,
+    array: NDArray[Any],
+    kind: Kind,
+    shape: tuple[int | None, ...],
+    low: float = -math.inf,
+    high: float = math.inf,
+) -> NDArray[Any]:
+    """Return ``array`` if its dtype kind, shape and values are as expected.
+
+    Parameters
+    ----------
+    source
+        What the array was read from (a file path), named by the message.
+    name
+        The array's name in the message.
+    array
+        The array read.
+    kind
+        ``"float"``, ``"integer"`` or ``"number"`` (either); other dtypes are refused.
+    shape
+        The expected shape; None matches any length along that axis.
+    low, high
+        Every value must be finite and lie in [low, high].
+
+    Raises
+    ------
+    InputError
+        One line naming the array and what is wrong with it.
+    """
+    if array.dtype.kind not in _KINDS[kind]:
+        raise InputError(source, f"{name} has dtype {array.dtype}, expected {kind}s")
+    if array.ndim != len(shape) or any(
+        want is not None and want != got for want, got in zip(shape, array.shape, strict=True)
+    ):
+        wanted = f"{len(shape)}-D" if None in shape else str(shape)
+        raise InputError(source, f"{name} has shape {excerpt(array.shape)}, expected {wanted}")
+    bad = ~np.isfinite(array) | (array < low) | (array > high)
+    if np.any(bad):
+        value = array.flat[int(np.argmax(bad))]
+        span = "" if (low, high) == (-math.inf, math.inf) else f" and within {_bounds(low, high)}"
+        raise InputError(source, f"{name} holds {excerpt(value)}; its values must be finite{span}")
+    return array
+
+
+def check_object(source: Source, name: str, value: object) -> dict[str, Any]:
+    """Return ``value`` if it is a JSON object (a dict), else refuse it naming ``name``."""
+    if not isinstance(value, dict):
+        raise InputError(source, f"{name} must be a JSON object, not {excerpt(value)}")
+    return value

@@ -33,7 +33,7 @@ from mirror_avatar.dynamics import HKBParams, preset
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import FORMAT_NAME as GENERATOR_FORMAT
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
+from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions, excerpt
 from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
 from mirror_avatar.learning.agent import CyberPlayer, load_cyber_player
 from mirror_avatar.model_files import read_archive
@@ -91,7 +91,7 @@ def load_player(
         style = spec.removeprefix("bundled:")
         if style not in BUNDLED_STYLES:
             raise InputError(
-                spec, f"unknown bundled style {style!r}; expected one of {BUNDLED_STYLES}"
+                spec, f"unknown bundled style {excerpt(style)}; expected one of {BUNDLED_STYLES}"
             )
         return VirtualTrainer(params, bundled_generator(style), label=label)
     if spec.startswith("vt:"):
@@ -126,7 +126,7 @@ def _load_model(path: Path, params: HKBParams, label: str) -> Player:
     if kind == CYBER_FORMAT:
         return load_cyber_player(path)
     raise InputError(
-        path, f"model format {kind!r} is neither {GENERATOR_FORMAT!r} nor {CYBER_FORMAT!r}"
+        path, f"model format {excerpt(kind)} is neither {GENERATOR_FORMAT!r} nor {CYBER_FORMAT!r}"
     )
 
 

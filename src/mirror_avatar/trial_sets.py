@@ -3,7 +3,8 @@
 A path given is a trial file or a folder searched recursively (a BIDS dataset root included).
 Inside folders, files that cannot be read as trials (a session beside the solo trials, a CSV of
 something else) are skipped with a note rather than failing the whole folder; a file named
-explicitly must be a trial.
+explicitly must be a trial. Files are read within the limits of `mirror_avatar.trial_io`; a
+``--group-by`` map, like a sidecar, up to `mirror_avatar.trial_io.MAX_SIDECAR_BYTES`.
 
 Trials are grouped (the person, or style, each belongs to) by one rule (`GROUPINGS`):
 ``directory`` (the folder a file is in, relative to the folder given: ``sub-01/motion`` and
@@ -23,8 +24,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
-from mirror_avatar.trial_io import SUPPORTED, read_trial_file
+from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions, excerpt
+from mirror_avatar.trial_io import SUPPORTED, read_sidecar_text, read_trial_file
 from mirror_avatar.trials import Trial
 
 GROUPINGS = ("directory", "bids", "file", "none", "pattern:REGEX", "map:FILE.csv")
@@ -131,7 +132,9 @@ def _grouping(group_by: str) -> _Rule:
         "none": _Everyone(),
     }
     if group_by not in rules:
-        raise InputError("--group-by", f"unknown grouping {group_by!r}; use {', '.join(GROUPINGS)}")
+        raise InputError(
+            "--group-by", f"unknown grouping {excerpt(group_by)}; use {', '.join(GROUPINGS)}"
+        )
     return rules[group_by]
 
 
@@ -173,14 +176,14 @@ class _Pattern(_Rule):
             self.pattern = re.compile(pattern)
         except re.error as error:
             raise InputError(
-                "--group-by", f"pattern {pattern[:40]!r} is not valid ({error})"
+                "--group-by", f"pattern {excerpt(pattern)} is not valid ({error})"
             ) from None
 
     def __call__(self, trial: Trial, file: Path, root: Path) -> str:
         match = self.pattern.search(file.name)
         if match is None:
             raise InputError(
-                file, f"the --group-by pattern {self.pattern.pattern!r} does not match"
+                file, f"the --group-by pattern {excerpt(self.pattern.pattern)} does not match"
             )
         return match.group(1) if match.groups() else match.group(0)
 
@@ -188,13 +191,14 @@ class _Pattern(_Rule):
 class _Map(_Rule):
     def __init__(self, table: Path) -> None:
         try:
-            text = table.read_text(encoding="utf-8").removeprefix("\ufeff")
-        except (OSError, UnicodeDecodeError):
-            raise InputError(table, "cannot read the --group-by map") from None
-        rows = list(csv.DictReader(io.StringIO(text)))
+            rows = list(csv.DictReader(io.StringIO(read_sidecar_text(table))))
+        except csv.Error as error:
+            raise InputError(
+                table, f"the --group-by map is not a valid CSV file ({error})"
+            ) from None
         if not rows or not {"file", "group"} <= set(rows[0]):
             raise InputError(table, "the --group-by map needs columns file,group")
-        self.groups = {row["file"].strip(): row["group"].strip() for row in rows}
+        self.groups = {(row["file"] or "").strip(): (row["group"] or "").strip() for row in rows}
 
     def __call__(self, trial: Trial, file: Path, root: Path) -> str:
         for key in (file.name, file.stem, file.as_posix()):

@@ -135,11 +135,14 @@ def make_trial(
         raise InputError(source, f"{t.size} times but {x.size} positions")
     if t.size < MIN_SAMPLES:
         raise InputError(source, f"only {t.size} samples; at least {MIN_SAMPLES} are needed")
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        i = int(np.argmax(steps <= 0))
-        raise InputError(source, f"time does not increase at sample {i + 1} (t = {t[i + 1]:g} s)")
-    rate = (t.size - 1) / (t[-1] - t[0])
+    with np.errstate(over="ignore"):  # a span beyond float range gives an absurd rate below
+        steps = np.diff(t)
+        if np.any(steps <= 0):
+            i = int(np.argmax(steps <= 0))
+            raise InputError(
+                source, f"time does not increase at sample {i + 1} (t = {t[i + 1]:g} s)"
+            )
+        rate = (t.size - 1) / (t[-1] - t[0])
     if not MIN_RATE <= rate <= MAX_RATE:
         raise InputError(
             source,

@@ -174,7 +174,7 @@ def run_plans(plans: Sequence[PlayerPlan], graph: Graph, n_samples: int) -> Arra
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_packed(
     kinds: Ints,
     params: NDArray[np.void],

@@ -19,14 +19,17 @@ Follows METHODS section 7; the **choice**s it leaves open, all configurable:
 `cyber_step` is the compiled step, called by `CyberPlayer.step` and by the compiled batch loop.
 
 A trained player is saved as one ``.npz`` file holding the Q-table, the bin edges, the action set
-and a JSON metadata string (format name ``mirror-avatar/cyber-player``), loaded with
-``allow_pickle=False`` (`save_cyber_player`, `load_cyber_player`).
+and a JSON metadata string (format name ``mirror-avatar/cyber-player``), read without unpickling
+and with every value it holds checked against its range (`save_cyber_player`,
+`load_cyber_player`; the limits are `MAX_SUBSTEPS`, `MAX_ACTIONS`, `MAX_ACCELERATION`,
+`MAX_Q_CELLS`, `MAX_TRAINING_SESSIONS`, `mirror_avatar.dynamics.PARAMETER_RANGES` and those of
+`mirror_avatar.model_files`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -38,18 +41,27 @@ from numpy.typing import ArrayLike, NDArray
 from mirror_avatar.dynamics import FOLLOWER, HKBParams, Record, integrate_hkb
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.importing import excerpt
 from mirror_avatar.learning.discretisation import (
+    FEATURES,
     N_FEATURES,
     Discretisation,
     make_default_discretisation,
     state_index,
 )
-from mirror_avatar.model_files import load_model, save_model
+from mirror_avatar.model_files import (
+    check_array,
+    check_integer,
+    check_object,
+    check_real,
+    load_model,
+    save_model,
+)
 from mirror_avatar.players.base import CYBER, Observation, Player, PlayerPlan, partner_state
 from mirror_avatar.players.reference import ReferenceTrack, draw_reference
 from mirror_avatar.seeds import entropy_of
 from mirror_avatar.signature import DEFAULT_BINS
-from mirror_avatar.trials import Trial
+from mirror_avatar.trials import PLAYING_RANGE, Trial
 
 if TYPE_CHECKING:
     import os
@@ -62,13 +74,31 @@ DEFAULT_ACTIONS = (-4.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 4.0)
 DEFAULT_SUBSTEPS = 3
 """RK4 substeps per control period of the avatar's end effector (**choice**)."""
 
+MAX_SUBSTEPS = 64
+"""Most RK4 substeps per control period (**choice**: 20 times the default; each step's cost grows
+with them, and a model file asking for 10^9 would stall every step for most of a minute)."""
+
+MAX_ACTIONS = 64
+"""Most actions a player may choose from (**choice**: the default set has 9)."""
+
+MAX_ACCELERATION = 100.0
+"""Largest |action| (units/s²) (**choice**: 25 times the default set's largest, 4)."""
+
+MAX_Q_CELLS = 2**24
+"""Most Q-table entries (states x actions) a model file may hold (**choice**: the largest default,
+``"reference"`` features with the default actions, has 9600 x 9 = 86 400; 2^24 take 128 MiB)."""
+
+MAX_TRAINING_SESSIONS = 10**9
+"""Most training sessions a model file may record having played (**choice**: 950 years of 30 s
+sessions)."""
+
 FORMAT_NAME = "mirror-avatar/cyber-player"
 FORMAT_VERSION = 1
 REFERENCE_PREFIX = "reference_"
 """Prefix of the reference generator's arrays in a model file."""
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def cyber_step(
     q: Array,
     mode: int,
@@ -203,10 +233,17 @@ class CyberPlayer(Player):
 
     @property
     def actions_(self) -> Array:
-        """The action set as a float array, shape (n_actions,)."""
+        """The action set as a float array, shape (n_actions,).
+
+        Raises
+        ------
+        InputError
+            Not 1 to `MAX_ACTIONS` finite accelerations within ±`MAX_ACCELERATION`.
+        """
         actions = np.asarray(self.actions, dtype=np.float64)
-        if actions.ndim != 1 or actions.size == 0 or not np.all(np.isfinite(actions)):
-            raise InputError("actions", "must be a non-empty list of finite accelerations")
+        limit = MAX_ACCELERATION
+        check_array("cyber player", "actions", actions, "float", (None,), -limit, limit)
+        check_integer("cyber player", "number of actions", actions.size, 1, MAX_ACTIONS)
         return actions
 
     @property
@@ -214,9 +251,8 @@ class CyberPlayer(Player):
         """The greedy policy of the current Q-table."""
         if not hasattr(self, "q_table_"):
             raise InputError("cyber player", "has no Q-table: train it or load one first")
-        if self.n_substeps < 1:
-            raise InputError("cyber player", "n_substeps must be >= 1")
-        return GreedyPolicy(self.q_table_, self.discretisation_, self.actions_, self.n_substeps)
+        n_substeps = check_integer("cyber player", "n_substeps", self.n_substeps, 1, MAX_SUBSTEPS)
+        return GreedyPolicy(self.q_table_, self.discretisation_, self.actions_, n_substeps)
 
     def initialise_q(self, random_state: int | np.random.Generator | None, scale: float) -> None:
         """Fill `q_table_` with independent uniform values in [-scale, 0] (seeded)."""
@@ -368,41 +404,57 @@ def save_cyber_player(player: CyberPlayer, path: str | os.PathLike[str]) -> Path
 
 
 def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
-    """Read a player written by `save_cyber_player`.
+    """Read a player written by `save_cyber_player`, checking every value it reads.
+
+    The dynamics parameters must lie in `mirror_avatar.dynamics.PARAMETER_RANGES`, n_substeps
+    in 1..`MAX_SUBSTEPS` and the initial position in the playing range; the actions as
+    `CyberPlayer.actions_` requires; the bin edges finite and strictly increasing per feature;
+    the Q-table finite, of at most `MAX_Q_CELLS` entries; a reference generator as
+    `IMSGenerator.from_arrays` requires.
 
     Raises
     ------
     InputError
         ``path: problem`` when the file is missing, not a readable ``.npz`` (corrupt or
-        truncated), of another format or version, or internally inconsistent (for instance a
-        Q-table whose shape does not match the discretisation and action set).
+        truncated), of another format or version, holds a value out of its range, or is
+        internally inconsistent (for instance a Q-table whose shape does not match the
+        discretisation and action set).
     """
     arrays, metadata = load_model(
         path, FORMAT_NAME, FORMAT_VERSION, ("q_table", "edges", "edge_counts", "actions")
     )
-    counts = arrays["edge_counts"]
-    if counts.shape != (N_FEATURES,) or np.any(counts < 0) or counts.sum() != arrays["edges"].size:
-        raise InputError(path, "bin edge counts do not match the bin edges")
-    edges = np.split(arrays["edges"].astype(np.float64), np.cumsum(counts)[:-1])
+    edges = check_array(path, "edges", arrays["edges"], "float", (None,))
+    counts = check_array(
+        path, "edge_counts", arrays["edge_counts"], "integer", (N_FEATURES,), 0, edges.size
+    ).tolist()
+    if sum(counts) != edges.size:
+        raise InputError(path, f"edge_counts add up to {sum(counts)}, not the {edges.size} edges")
+    features = check_object(path, "discretisation", metadata.get("discretisation")).get("features")
+    if features not in FEATURES:
+        raise InputError(path, f"features {excerpt(features)} are not one of {', '.join(FEATURES)}")
+    actions = check_array(path, "actions", arrays["actions"], "float", (None,))
+    parameters = check_object(path, "parameters", metadata.get("parameters"))
     try:
-        disc = Discretisation(metadata["discretisation"]["features"], tuple(edges))
-        player = _player_from_parameters(disc, arrays["actions"], dict(metadata["parameters"]))
-        actions = player.actions_
-    except (InputError, KeyError, TypeError) as error:
-        raise InputError(path, f"invalid model description ({error})") from None
-    q = arrays["q_table"]
-    if q.shape != (disc.n_states, actions.size):
+        disc = Discretisation(features, tuple(np.split(edges, np.cumsum(counts)[:-1])))
+        player = _player_from_parameters(path, disc, actions, parameters)
+        n_actions = player.actions_.size
+    except InputError as error:
+        raise InputError(path, error.problem) from None
+    check_integer(path, "Q-table size", disc.n_states * n_actions, 1, MAX_Q_CELLS)
+    q = check_array(path, "q_table", arrays["q_table"], "float", (None, None))
+    if q.shape != (disc.n_states, n_actions):
         raise InputError(
             path,
-            f"Q-table shape {q.shape} does not match {disc.n_states} states x "
-            f"{actions.size} actions",
+            f"Q-table shape {q.shape} does not match {disc.n_states} states x {n_actions} actions",
         )
-    if q.dtype.kind != "f" or not np.all(np.isfinite(q)):
-        raise InputError(path, "Q-table must hold finite floating-point values")
     player.q_table_ = q.astype(np.float64)
-    player.training_ = metadata.get("training", {})
+    player.training_ = _check_training(path, metadata.get("training", {}))
     if "target_counts" in arrays:
-        player.target_counts_ = _check_counts(arrays["target_counts"], path)
+        counts_shape = (DEFAULT_BINS.n,)
+        target = check_array(
+            path, "target_counts", arrays["target_counts"], "number", counts_shape, 0
+        )
+        player.target_counts_ = target.astype(np.float64)
     if disc.needs_reference:
         if not isinstance(metadata.get("reference"), dict):
             raise InputError(path, "reference features but no reference generator in the file")
@@ -415,27 +467,44 @@ def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
     return player
 
 
-def _check_counts(counts: NDArray[Any], path: str | os.PathLike[str]) -> Array:
-    """Return a file's target velocity counts as floats, or refuse them in one line."""
-    if counts.shape != (DEFAULT_BINS.n,) or counts.dtype.kind not in "fiu":
-        raise InputError(path, f"target_counts must be {DEFAULT_BINS.n} numbers")
-    counts = counts.astype(np.float64)
-    if not (np.all(np.isfinite(counts)) and np.all(counts >= 0)):
-        raise InputError(path, "target_counts must be finite and non-negative")
-    return counts
+def _check_training(path: str | os.PathLike[str], training: object) -> dict[str, Any]:
+    """Return a file's training summary once the entries play and training read are valid."""
+    summary = check_object(path, "training", training)
+    role = summary.get("role")
+    if not (role is None or isinstance(role, str)):
+        raise InputError(path, f"training role {excerpt(role)} is not a name")
+    if "n_sessions" in summary:
+        check_integer(path, "n_sessions", summary["n_sessions"], 0, MAX_TRAINING_SESSIONS)
+    return summary
 
 
 def _player_from_parameters(
-    disc: Discretisation, actions: ArrayLike, parameters: dict[str, Any]
+    path: str | os.PathLike[str],
+    disc: Discretisation,
+    actions: ArrayLike,
+    parameters: dict[str, Any],
 ) -> CyberPlayer:
-    """Build the player a file's ``parameters`` describe (version 1 files lack theta_p)."""
-    n_substeps = int(parameters.pop("n_substeps"))
-    initial_position = float(parameters.pop("initial_position"))
-    parameters.setdefault("theta_p", 0.0)
+    """Build the player a file's ``parameters`` describe (version 1 files lack theta_p).
+
+    Raises
+    ------
+    InputError
+        An unknown or missing parameter, or one out of its range (`HKBParams` checks its own).
+    """
+    own = ("n_substeps", "initial_position")
+    unknown = sorted(parameters.keys() - {f.name for f in fields(HKBParams)} - set(own))
+    if unknown:
+        raise InputError(path, f"unknown parameter {excerpt(unknown[0])}")
+    missing = [name for name in ("omega", *own) if name not in parameters]
+    if missing:
+        raise InputError(path, f"parameters lack {missing[0]}")
+    dynamics = {"theta_p": 0.0} | {k: v for k, v in parameters.items() if k not in own}
     return CyberPlayer(
         disc,
         actions,
-        params=HKBParams(**parameters),
-        n_substeps=n_substeps,
-        initial_position=initial_position,
+        params=HKBParams(**dynamics),
+        n_substeps=check_integer(path, "n_substeps", parameters["n_substeps"], 1, MAX_SUBSTEPS),
+        initial_position=check_real(
+            path, "initial_position", parameters["initial_position"], *PLAYING_RANGE
+        ),
     )

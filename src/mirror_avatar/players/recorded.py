@@ -20,7 +20,7 @@ from mirror_avatar.trials import PLAYING_RANGE, Trial
 Array = NDArray[np.float64]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def recorded_step(track: Array, k: int) -> tuple[float, float]:
     """Return the recording at sample k + 1; past its end, the last position at rest.
 
