@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -60,7 +62,9 @@ def test_train_writes_policy_and_curve(
     assert status == 0
     printed = capsys.readouterr()
     assert str(out.resolve()) in printed.out
-    assert f"checkpoints: {out.resolve()} is saved every 2 sessions" in printed.err
+    checkpoint = tmp_path / "policies" / "vt5.checkpoint.npz"
+    assert f"checkpoints: {checkpoint.resolve()} is saved every 2 sessions" in printed.err
+    assert not checkpoint.exists(), "the finished run removes its checkpoint"
     assert out.stat().st_mode & 0o777 == 0o666 & ~_umask()
     player = load_cyber_player(out)
     assert player.training_["role"] == "leader" and player.training_["run_seed"] == 4
@@ -125,3 +129,44 @@ def test_a_folder_or_a_recording_as_a_model_says_what_to_give(
     err = capsys.readouterr().err
     assert f"give vt:{folder / 't.csv'}" in err and len(err.strip().splitlines()) == 1
     assert _train(tmp_path / "p.npz", Path("bundled:slow"), f"vt:{folder / 't.csv'}") == 0
+
+
+def test_sigterm_keeps_the_finished_policy_and_stops_the_workers(
+    tmp_path: Path, models: list[Path]
+) -> None:
+    """SIGTERM mid-training: exit 130, the earlier policy and its curve untouched, the
+    checkpoint beside them loadable, and no worker process left behind."""
+    out = tmp_path / "vt.npz"
+    assert _train(out, models[0], str(models[1])) == 0
+    before = {path: path.read_bytes() for path in tmp_path.glob("vt.*")}
+    command = [sys.executable, "-c", "from mirror_avatar.cli import run; run()", "train",
+               "--target", str(models[0]), "--partners", str(models[1]), "--sessions", "5000",
+               "--duration", "20", "--jobs", "2", "--checkpoint-every", "4",
+               "--out", str(out)]  # fmt: skip
+    process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    checkpoint = tmp_path / "vt.checkpoint.npz"
+    try:
+        for _ in range(1200):
+            if checkpoint.exists() or process.poll() is not None:
+                break
+            time.sleep(0.1)
+        assert checkpoint.exists(), "no checkpoint was written"
+        process.send_signal(signal.SIGTERM)
+        _, error = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert process.returncode == 130, error
+    assert "Traceback" not in error
+    assert {path: path.read_bytes() for path in tmp_path.glob("vt.*")} == before | {
+        checkpoint: checkpoint.read_bytes()
+    }
+    assert load_cyber_player(checkpoint).training_["n_sessions"] >= 4
+    for _ in range(50):
+        try:
+            os.killpg(process.pid, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.1)
+    else:
+        pytest.fail("worker processes outlived the command")

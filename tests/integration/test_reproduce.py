@@ -24,7 +24,7 @@ def test_reproduce_refuses_a_file_as_output(tmp_path, capsys):
     target = tmp_path / "taken"
     target.write_text("x")
     assert main(["reproduce", "--out", str(target), "--quick"]) == 2
-    assert "not a directory" in capsys.readouterr().err
+    assert "not a folder" in capsys.readouterr().err
 
 
 def test_signature_experiment_tells_styles_apart_for_any_seed(zhai_trials):

@@ -1,13 +1,19 @@
 """The ``mirror-avatar`` command line.
 
 Each command lives in its own module of this package and is registered on `cli` below. Bad input
-(an `InputError`, or a usage error such as an unknown option) is printed as one line on standard
-error and ends the program with exit code 2, never with a traceback.
+(an `InputError`, a usage error such as an unknown option, or a file the system refuses) is
+printed as one line on standard error and ends the program with exit code 2; anything else that
+goes wrong is one line too, with exit code 1 (``MIRROR_AVATAR_DEBUG=1`` shows the traceback).
+Interrupted (Ctrl+C, or SIGTERM and SIGHUP, which `run` turns into an interruption), a command
+stops its worker processes and exits with code 130.
 """
 
 from __future__ import annotations
 
+import os
+import signal
 import sys
+from types import FrameType
 
 import click
 
@@ -21,6 +27,7 @@ from mirror_avatar.cli.reproduce import reproduce
 from mirror_avatar.cli.signature import signature
 from mirror_avatar.cli.simulate import simulate
 from mirror_avatar.cli.train import train
+from mirror_avatar.engine.batch import stop_worker_processes
 from mirror_avatar.errors import InputError
 
 
@@ -43,23 +50,53 @@ cli.add_command(train)
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line and return its exit code (0 success, 2 bad input)."""
+    """Run the command line and return its exit code (0 success, 2 bad input, 1 failure)."""
     try:
         cli.main(args=argv, prog_name="mirror-avatar", standalone_mode=False)
     except InputError as error:
-        click.echo(f"mirror-avatar: error: {error}", err=True)
-        return 2
+        return fail(str(error))
     except click.exceptions.Exit as done:
         return int(done.exit_code)
-    except click.Abort:
+    except (click.Abort, KeyboardInterrupt):
+        stop_worker_processes()
         click.echo("mirror-avatar: aborted", err=True)
         return 130
     except click.ClickException as error:
-        click.echo(f"mirror-avatar: error: {error.format_message()}", err=True)
-        return 2
+        return fail(error.format_message())
+    except OSError as error:
+        return fail(str(InputError(error.filename, error.strerror or type(error).__name__)))
+    except MemoryError:
+        return fail("out of memory: give smaller inputs or fewer sessions at once")
+    except Exception as error:
+        if os.environ.get("MIRROR_AVATAR_DEBUG"):
+            raise
+        words = " ".join(str(error).split())
+        click.echo(
+            f"mirror-avatar: internal error: {type(error).__name__}: {words[:200]} "
+            "(MIRROR_AVATAR_DEBUG=1 shows where)",
+            err=True,
+        )
+        return 1
     return 0
 
 
+def fail(problem: str) -> int:
+    """Print ``problem`` as the one error line and return the bad-input exit code, 2."""
+    click.echo(f"mirror-avatar: error: {problem}", err=True)
+    return 2
+
+
+def interrupt(signum: int, frame: FrameType | None) -> None:
+    """Signal handler: stop the program as Ctrl+C would, so its clean-up runs."""
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
 def run() -> None:
-    """Console-script entry point: `main` with the process's arguments, then exit."""
+    """Console-script entry point: `main` with the process's arguments, then exit.
+
+    SIGTERM and SIGHUP interrupt the command like Ctrl+C, so that workers are stopped and
+    files being written are left whole.
+    """
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, interrupt)
     sys.exit(main())

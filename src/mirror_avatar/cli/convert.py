@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from mirror_avatar.atomic import write_atomic_json
+from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import ImportOptions
@@ -23,7 +24,7 @@ UNSAFE = re.compile(r"[^A-Za-z0-9_.-]+")
     "--out",
     "out_dir",
     required=True,
-    type=click.Path(file_okay=False, path_type=Path),
+    type=click.Path(path_type=Path),
     help="Folder for one sub-folder of CSV trials per group, and convert.json.",
 )
 @group_option()
@@ -35,8 +36,7 @@ def convert(paths: tuple[Path, ...], out_dir: Path, group_by: str, options: Impo
     (--group-by) gets a folder OUT/GROUP of ``<trial>.csv`` files in seconds and normalised
     units, ready for every other command; convert.json records the sources and options.
     """
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(out_dir, "exists and is not a folder")
+    check_output_dir(out_dir)
     trials = read_and_report(paths, group_by, options)
     written: list[dict[str, object]] = []
     targets: set[Path] = set()

@@ -10,6 +10,7 @@ import click
 import pandas as pd
 
 from mirror_avatar.atomic import json_safe, write_atomic_text
+from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.simulate import format_metrics
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_session
@@ -72,7 +73,7 @@ def summary_row(path: Path, session: Session, metrics: dict[str, Any]) -> dict[s
 @click.option(
     "--out",
     "out_dir",
-    type=click.Path(file_okay=False, path_type=Path),
+    type=click.Path(path_type=Path),
     default=None,
     help="Also write sessions.csv, report.html (with figures) and metrics.json here.",
 )
@@ -84,8 +85,8 @@ def evaluate(paths: tuple[Path, ...], trim: float, as_json: bool, out_dir: Path 
     player 0 minus player 1 (positive when player 0 is ahead); for a group, its synchronisation
     and each player against the mean of its neighbours. Several sessions give one table.
     """
-    if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
-        raise InputError(out_dir, "exists and is not a folder")
+    if out_dir is not None:
+        check_output_dir(out_dir)
     sessions, notes = find_sessions(paths)
     for note in notes:
         click.echo(note)

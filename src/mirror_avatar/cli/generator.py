@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from mirror_avatar.atomic import write_atomic_json, write_atomic_text
+from mirror_avatar.cli.outputs import check_output_dir, check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.errors import InputError
@@ -52,8 +53,7 @@ def fit(
     options: ImportOptions,
 ) -> None:
     """Fit a generator on the trials in FILE_OR_DIR... (CSV, MAT, Parquet, BIDS motion)."""
-    if out_path.suffix != ".npz":
-        raise InputError(out_path, "the model file must end in .npz")
+    check_output_file(out_path, ".npz")
     if not paths and bundled is None:
         raise InputError(None, "give trial files or directories, or --bundled fast|slow")
     trials = read_and_report(paths, "none", options) if paths else []
@@ -93,8 +93,7 @@ def sample(
     """
     if not (duration > 0 and count >= 1 and rate > 0):
         raise InputError(None, "--duration, --count and --rate must be positive")
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(out_dir, "not a directory")
+    check_output_dir(out_dir)
     model = IMSGenerator.load(model_path)
     trials = model.sample(duration, n=count, random_state=seed)
     out_dir.mkdir(parents=True, exist_ok=True)

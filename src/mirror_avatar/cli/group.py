@@ -6,11 +6,11 @@ from pathlib import Path
 
 import click
 
+from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import import_options
 from mirror_avatar.cli.simulate import (
     EXTEND_HELP,
     SPEC_HELP,
-    check_out_dir,
     check_recordings,
     format_metrics,
     session_options,
@@ -18,15 +18,15 @@ from mirror_avatar.cli.simulate import (
 )
 from mirror_avatar.cli.train import (
     check_training,
+    finish_training,
     load_reference,
     training_options,
-    write_learning_curve,
 )
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import TOPOLOGIES, graph_source
 from mirror_avatar.importing import ImportOptions
-from mirror_avatar.learning.imitation import train_group_cyber_player
+from mirror_avatar.learning.imitation import checkpoint_path, train_group_cyber_player
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.specs import load_player
 
@@ -71,7 +71,7 @@ def simulate(
     theta_v 0.05), leaders the group-leader preset (theta_p 0.2, theta_s 0.8); each responds to
     the mean of the players it observes.
     """
-    check_out_dir(out_dir)
+    check_output_dir(out_dir)
     n = len(player_specs)
     if n < 2:
         raise InputError("--player", "a group needs at least two players")
@@ -149,10 +149,11 @@ def train(
         backend="dask" if scheduler else "local",
         scheduler=scheduler,
         n_jobs=jobs,
-        checkpoint=out_path,
+        checkpoint=checkpoint_path(out_path),
         checkpoint_every=checkpoint_every,
     )
-    curve_path = write_learning_curve(curve, out_path, f"group of {len(partners) + 1}, seed {seed}")
+    name = f"group of {len(partners) + 1}, seed {seed}"
+    curve_path = finish_training(player, curve, out_path, name)
     click.echo(
         f"trained a group member on {sessions} sessions (seed {seed}): RMS to the target "
         f"{curve.rms[0]:.4f} -> {curve.rms[-1]:.4f} units"

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.cli.outputs import check_output_dir
 
 
 @click.command()
@@ -24,7 +24,7 @@ from mirror_avatar.errors import InputError
     "out_dir",
     default=Path("recordings"),
     show_default=True,
-    type=click.Path(file_okay=False, path_type=Path),
+    type=click.Path(path_type=Path),
     help="Where trials are recorded (one folder per participant).",
 )
 @click.option(
@@ -71,10 +71,8 @@ def play(
 
     spec = avatar_spec or DEFAULT_AVATAR
     token = make_token() if require_token or not is_loopback(host) else None
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise InputError(out_dir, f"cannot create the output folder ({error.strerror})") from None
+    check_output_dir(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
     factory = make_avatar_factory(spec)
     factory("avatar_follows")  # a bad spec fails here, before the server starts
     settings = LiveSettings(

@@ -10,9 +10,9 @@ from pathlib import Path
 
 import click
 
+from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.errors import InputError
 from mirror_avatar.experiments import EXPERIMENTS
 from mirror_avatar.importing import ImportOptions
 from mirror_avatar.report import write_report
@@ -55,8 +55,7 @@ def reproduce(
 
     Trials given with --data are grouped by --group-by (default: the folder they are in).
     """
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(out_dir, "exists and is not a directory")
+    check_output_dir(out_dir)
     trials = read_and_report(data, group_by, options) if data else load_zhai2017()
     started = time.perf_counter()
     sections, timings = [], {}

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import click
 
-from mirror_avatar.atomic import write_atomic_json
+from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json
+from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
@@ -66,6 +67,7 @@ def signature(
         raise InputError("--rate", f"must be positive, got {rate}")
     if not paths and not bundled:
         raise InputError(None, "give trial files or directories, or --bundled")
+    check_output_dir(out_dir)
     trials = read_and_report(paths, group_by, options) if paths else []
     trials += load_zhai2017() if bundled else []
     analysis = analyse_signatures(trials, level=level, rate=rate)
@@ -85,7 +87,7 @@ def signature(
         "strokes.png": plot_skew_kurtosis(analysis.strokes_by_group(), analysis.stroke_ellipses),
     }
     for name, figure in figures.items():
-        (out_dir / name).write_bytes(render_png(figure))
+        write_atomic_bytes(out_dir / name, render_png(figure))
     table = compute_group_emd(analysis)
     click.echo("mean EMD between the trials of each pair of groups (diagonal: within a group)")
     click.echo(table.to_string(float_format=lambda v: f"{v:.4f}", na_rep="-"))

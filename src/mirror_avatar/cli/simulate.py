@@ -9,6 +9,7 @@ from typing import Any
 import click
 
 from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json
+from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import import_options
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
@@ -139,12 +140,6 @@ def check_recordings(
             )
 
 
-def check_out_dir(out_dir: Path) -> None:
-    """Refuse an output path that is a file."""
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(out_dir, "exists and is not a directory")
-
-
 def write_outputs(session: Session, out_dir: Path, summary: dict[str, Any]) -> Path:
     """Write the session (Parquet, CSV, sidecar), ``metrics.json`` and its figures (PNG).
 
@@ -188,7 +183,7 @@ def simulate(
     follower presets (both the joint preset with --joint). Relative phase and time lag are
     player 0 minus player 1: positive when player 0 is ahead.
     """
-    check_out_dir(out_dir)
+    check_output_dir(out_dir)
     if not duration > 0.0:
         raise InputError("--duration", f"must be positive, got {duration:g} s")
     if not 0.0 <= trim < duration:

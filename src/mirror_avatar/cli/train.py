@@ -7,18 +7,23 @@ from pathlib import Path
 
 import click
 
+from mirror_avatar.atomic import write_atomic_bytes
+from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_learning_curves
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
+from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.imitation import (
     TRAINING_ROLES,
     Reference,
+    checkpoint_path,
     learning_curve_path,
     train_cyber_player,
 )
 from mirror_avatar.learning.training import LearningCurve
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
+from mirror_avatar.report import render_png
 from mirror_avatar.specs import load_player
 
 MODEL_HELP = "An IMS generator .npz, bundled:fast, bundled:slow or vt:TRIAL_FILE."
@@ -75,24 +80,29 @@ def check_training(
     out_path: Path, sessions: int, jobs: int, checkpoint_every: int | None, duration: float
 ) -> None:
     """Refuse a training run's bad options in one line, before any work; announce checkpoints."""
-    if out_path.suffix.lower() != ".npz":
-        raise InputError(out_path, "the policy file must end in .npz")
+    check_output_file(out_path, ".npz")
     if sessions < 1 or jobs < 1 or (checkpoint_every is not None and checkpoint_every < 1):
         raise InputError("--sessions", "--sessions, --jobs and --checkpoint-every must be >= 1")
     if not duration > 0.0:
         raise InputError("--duration", f"must be positive, got {duration:g} s")
     if checkpoint_every is not None:
         click.echo(
-            f"checkpoints: {out_path.resolve()} is saved every {checkpoint_every} sessions",
+            f"checkpoints: {checkpoint_path(out_path).resolve()} is saved every "
+            f"{checkpoint_every} sessions",
             err=True,
         )
 
 
-def write_learning_curve(curve: LearningCurve, policy: Path, name: str) -> Path:
-    """Write a policy's learning curve beside it, as CSV and PNG; return the CSV's path."""
+def finish_training(player: CyberPlayer, curve: LearningCurve, policy: Path, name: str) -> Path:
+    """Write the trained policy and its learning curve (CSV and PNG), drop the checkpoint.
+
+    Returns the learning curve's path.
+    """
     curve_path = curve.save(learning_curve_path(policy))
     figure = plot_learning_curves({name: (curve.sessions, curve.rms)})
-    figure.savefig(curve_path.with_suffix(".png"), dpi=120)
+    write_atomic_bytes(curve_path.with_suffix(".png"), render_png(figure))
+    player.save(policy)
+    checkpoint_path(policy).unlink(missing_ok=True)
     return curve_path
 
 
@@ -144,10 +154,10 @@ def train(
         backend="dask" if scheduler else "local",
         scheduler=scheduler,
         n_jobs=jobs,
-        checkpoint=out_path,
+        checkpoint=checkpoint_path(out_path),
         checkpoint_every=checkpoint_every,
     )
-    curve_path = write_learning_curve(curve, out_path, f"{role}, seed {seed}")
+    curve_path = finish_training(player, curve, out_path, f"{role}, seed {seed}")
     click.echo(
         f"trained a {role} on {sessions} sessions (seed {seed}): RMS to the target "
         f"{curve.rms[0]:.4f} -> {curve.rms[-1]:.4f} units"

@@ -86,6 +86,19 @@ def run_chunk(
     return sessions
 
 
+def stop_worker_processes() -> None:
+    """Kill the local worker processes `run_sessions` started, if any (an interrupted run).
+
+    joblib keeps its worker processes for reuse after a run; a program that is stopped must
+    not leave them behind. Reaches loky's reusable executor (joblib's default local backend).
+    """
+    from joblib.externals.loky import reusable_executor
+
+    executor = getattr(reusable_executor, "_executor", None)
+    if executor is not None:
+        executor.shutdown(wait=False, kill_workers=True)
+
+
 def run_sessions(
     lineups: Sequence[Lineup],
     n_sessions: int,

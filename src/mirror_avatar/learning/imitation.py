@@ -573,6 +573,16 @@ def train_group_cyber_player(
     return player, curve
 
 
+def checkpoint_path(policy: str | os.PathLike[str]) -> Path:
+    """Where a training run toward ``POLICY.npz`` keeps its checkpoints: ``POLICY.checkpoint.npz``.
+
+    Beside the policy, never over it: an interrupted run leaves an earlier finished policy and
+    its learning curve as they were.
+    """
+    path = Path(policy)
+    return path.with_name(f"{path.stem}.checkpoint.npz")
+
+
 def learning_curve_path(policy: str | os.PathLike[str]) -> Path:
     """Where the learning curve of a policy file goes: ``POLICY.learning_curve.csv``."""
     path = Path(policy)
