@@ -8,7 +8,8 @@ pointer's latest position and answers each one at once with the avatar's positio
 
 Robustness: a malformed, oversized or out-of-range message is answered with an ``error`` and
 ignored, as are messages beyond ``max_message_rate`` (a connection sending more than
-``max_rejected`` of them is closed); connections are admitted by
+``max_rejected`` of them is closed with code 1008, and nothing more it sends is read: its
+socket is aborted ``send_timeout`` seconds later); connections are admitted by
 `mirror_avatar.live.admission.Admission` (global and per-address limits, idle connections
 evicted for newcomers, close code 1013 when there is no room) and trial starts are rate-limited
 per connection and per address; a connection without a trial that sends nothing for
@@ -441,7 +442,9 @@ class Connection:
         if self.trial is not None:
             self.trial.rejected_messages += 1
         if self.rejected > self.settings.max_rejected:
+            stop_reading(self.websocket)
             await self.close(CLOSE_POLICY, "too many bad messages")
+            abort_transport(self.websocket, self.settings.send_timeout)
             return False
         await self.send({"type": "error", "message": problem})
         return True
@@ -467,18 +470,31 @@ class Connection:
             await asyncio.wait_for(self.websocket.close(code, reason), self.settings.send_timeout)
 
 
-def abort_transport(websocket: WebSocket) -> None:
-    """Close a connection's socket at once, discarding what it could not deliver.
+def abort_transport(websocket: WebSocket, delay: float = 0.0) -> None:
+    """Close a connection's socket at once, or after ``delay`` seconds, discarding the rest.
 
     A graceful close would wait for a client that stopped reading to take the queued data, so
     its socket would stay open. The transport is reached through the server's own ASGI ``send``
     callable, which `AccessGate` keeps in the scope (uvicorn's is a method of its protocol
     object); under a server that does not expose it the connection is left to its own close.
     """
+    transport = _transport(websocket)
+    if transport is not None:
+        asyncio.get_running_loop().call_later(delay, transport.abort)
+
+
+def stop_reading(websocket: WebSocket) -> None:
+    """Read nothing more from a connection's socket (a flooding client's data stays unread)."""
+    transport = _transport(websocket)
+    if transport is not None:
+        transport.pause_reading()
+
+
+def _transport(websocket: WebSocket) -> asyncio.Transport | None:
+    """Return the socket transport under ``websocket``, if the server exposes it (`AccessGate`)."""
     protocol = getattr(websocket.scope.get(SERVER_SEND), "__self__", None)
     transport = getattr(protocol, "transport", None)
-    if isinstance(transport, asyncio.Transport):
-        transport.abort()
+    return transport if isinstance(transport, asyncio.Transport) else None
 
 
 def make_token() -> str:
