@@ -8,7 +8,6 @@ and a real live server on a loopback port (`ServerThread`). Nothing else in the 
 from __future__ import annotations
 
 import math
-import socket
 import threading
 import time
 from collections.abc import Iterable
@@ -22,7 +21,7 @@ from mirror_avatar.dynamics import CONTROL_PERIOD, HKBParams
 from mirror_avatar.errors import InputError
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.kernels import VELOCITY_WEIGHT
-from mirror_avatar.live.server import make_server
+from mirror_avatar.live.server import listening_socket, make_server
 from mirror_avatar.session import Session
 from mirror_avatar.trials import Trial
 
@@ -176,9 +175,7 @@ class ServerThread:
     """
 
     def __init__(self, app: ASGIApp, host: str = "127.0.0.1") -> None:
-        self.socket = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        self.socket.bind((host, 0))
+        self.socket = listening_socket(host, 0)
         self.host, self.port = self.socket.getsockname()[:2]
         self.server = make_server(app, self.host, self.port)
         self.thread = threading.Thread(

@@ -21,8 +21,11 @@ Limits, each refused in one line before the file is parsed further:
 - `MAX_NAME_CHARS` (100): a label or group a file names for its trial.
 
 Memory: the numeric columns are parsed straight into float64 arrays (pandas' C parser for CSV
-and TSV, Arrow for Parquet; only the two columns needed), so reading a file peaks at a small
-multiple of its size (``benchmarks/bench_reading.py`` measures the multiple). A text file with
+and TSV, Arrow for Parquet; only the two columns needed), so reading a text file peaks at a small
+multiple of its size (``benchmarks/bench_reading.py`` measures the multiple). Compressed formats
+can hold far more than their size on disk: a Parquet file is bounded by `MAX_SAMPLES` rows, a
+MATLAB file by what its variables inflate to (`MAX_FILE_BYTES`), both checked from the file's own
+metadata before its data are read. A text file with
 cells that the fast parser refuses (a value that is not a number, a missing-value spelling it
 does not know) is parsed again in chunks of `PARSE_CHUNK_ROWS` rows to name the row.
 """
@@ -493,6 +496,7 @@ def read_parquet_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT
             times, positions = (
                 table.column(name).cast(pa.float64(), safe=False).to_numpy() for name in names
             )
+            del table
     except (pa.ArrowException, OSError, UnicodeDecodeError) as error:
         raise InputError(path, f"not a readable Parquet file ({type(error).__name__})") from None
     stored = (schema.metadata or {}).get(b"mirror_avatar")

@@ -22,7 +22,12 @@ from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.live.server import LiveSettings, create_app
+from mirror_avatar.live.server import (
+    RECEIVE_BUFFER_BYTES,
+    LiveSettings,
+    create_app,
+    listening_socket,
+)
 from mirror_avatar.live.session import AvatarFactory, make_avatar_factory
 from mirror_avatar.players import Player
 from mirror_avatar.session import load_session
@@ -494,6 +499,32 @@ def test_a_client_that_stops_reading_is_dropped(live):
         for _ in range(10_000_000):
             deaf.sendall(frame)
     assert live.open(server).ready["type"] == "ready"
+
+
+def test_a_flooding_client_is_read_no_more_and_reset(live):
+    """Over the message rate and deaf to the close: the server stops reading it (its sends
+    stall within a few buffers' worth) and resets it after the send timeout."""
+    server = live.serve(max_message_rate=50.0, max_rejected=20, send_timeout=0.5)
+    flooder = deaf_client(int(server.url.rsplit(":", 1)[1]))
+    live.stack.callback(flooder.close)
+    flooder.settimeout(10.0)
+    frame = text_frame(json.dumps({"type": "position", "seq": 1, "x": 0.0}))
+    sent, began = 0, time.monotonic()
+    with pytest.raises(ConnectionResetError):
+        while True:
+            flooder.sendall(frame)
+            sent += 1
+    assert time.monotonic() - began < 5.0
+    assert sent * len(frame) < 16 * 2**20, "the server kept reading the flood"
+    assert live.open(server).ready["type"] == "ready"
+
+
+def test_the_server_socket_bounds_what_one_read_takes():
+    sock = listening_socket("127.0.0.1", 0)
+    try:
+        assert sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF) <= 4 * RECEIVE_BUFFER_BYTES
+    finally:
+        sock.close()
 
 
 class Sleepy(Replay):

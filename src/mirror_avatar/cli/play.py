@@ -66,7 +66,13 @@ def play(
     avatar modes, and a JSON sidecar; an interrupted trial is kept and marked incomplete.
     """
     from mirror_avatar.live.admission import is_loopback
-    from mirror_avatar.live.server import LiveSettings, create_app, make_server, make_token
+    from mirror_avatar.live.server import (
+        LiveSettings,
+        create_app,
+        listening_socket,
+        make_server,
+        make_token,
+    )
     from mirror_avatar.live.session import DEFAULT_AVATAR, make_avatar_factory
 
     spec = avatar_spec or DEFAULT_AVATAR
@@ -83,6 +89,8 @@ def play(
         max_sessions=max_sessions,
         max_per_address=max_per_address,
     )
+    sock = listening_socket(host, port)
+    port = sock.getsockname()[1]
     server = make_server(create_app(settings, factory), host, port, "info")
     shown = "localhost" if host in ("0.0.0.0", "::") else host
     url = f"http://{shown}:{port}/" + (f"?token={token}" if token else "")
@@ -90,4 +98,4 @@ def play(
     if token:
         click.echo(f"access token: {token} (needed by every connection)")
     click.echo(f"open {url}  (Ctrl+C to stop)")
-    server.run()
+    server.run(sockets=[sock])

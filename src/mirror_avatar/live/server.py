@@ -35,6 +35,7 @@ import hmac
 import json
 import logging
 import secrets
+import socket
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -169,13 +170,13 @@ def create_app(settings: LiveSettings, avatar_factory: AvatarFactory | None) -> 
             response.set_cookie(TOKEN_COOKIE, settings.token, httponly=True, samesite="strict")
         return response
 
-    async def socket(websocket: WebSocket) -> None:
+    async def game_socket(websocket: WebSocket) -> None:
         await websocket.accept()
         connection = Connection(websocket, settings, avatar_factory, admission)
         refused = admission.admit(connection)
         if refused is not None:
             await connection.send({"type": "error", "message": refused})
-            await connection.close(CLOSE_BUSY, refused)
+            await connection.close(CLOSE_BUSY, refused, read_more=False)
             return
         try:
             await connection.run()
@@ -185,7 +186,7 @@ def create_app(settings: LiveSettings, avatar_factory: AvatarFactory | None) -> 
     app = Starlette(
         routes=[
             Route("/", index),
-            WebSocketRoute("/ws", socket),
+            WebSocketRoute("/ws", game_socket),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ]
     )
@@ -442,9 +443,7 @@ class Connection:
         if self.trial is not None:
             self.trial.rejected_messages += 1
         if self.rejected > self.settings.max_rejected:
-            stop_reading(self.websocket)
-            await self.close(CLOSE_POLICY, "too many bad messages")
-            abort_transport(self.websocket, self.settings.send_timeout)
+            await self.close(CLOSE_POLICY, "too many bad messages", read_more=False)
             return False
         await self.send({"type": "error", "message": problem})
         return True
@@ -464,10 +463,18 @@ class Connection:
         except (WebSocketDisconnect, RuntimeError, OSError):
             return
 
-    async def close(self, code: int, reason: str) -> None:
-        """Close the connection with ``code`` unless it is closed or stopped reading."""
+    async def close(self, code: int, reason: str, read_more: bool = True) -> None:
+        """Close the connection with ``code`` unless it is closed or stopped reading.
+
+        With ``read_more`` False (a refused or flooding client) nothing more it sends is read -
+        the server would otherwise parse whatever it sends while waiting for its close reply -
+        and its socket is aborted ``send_timeout`` seconds later.
+        """
         with contextlib.suppress(RuntimeError, OSError, TimeoutError):
             await asyncio.wait_for(self.websocket.close(code, reason), self.settings.send_timeout)
+        if not read_more:  # after the close: the server resumes reading when it sends one
+            stop_reading(self.websocket)
+            abort_transport(self.websocket, self.settings.send_timeout)
 
 
 def abort_transport(websocket: WebSocket, delay: float = 0.0) -> None:
@@ -500,6 +507,26 @@ def _transport(websocket: WebSocket) -> asyncio.Transport | None:
 def make_token() -> str:
     """Generate a fresh random access token (URL-safe, 128 bits)."""
     return secrets.token_urlsafe(16)
+
+
+RECEIVE_BUFFER_BYTES = 8192
+"""Kernel receive buffer of each connection (bytes; Linux doubles it; **choice**). One read
+of a client's data is parsed whole before the event loop moves on, so the buffer bounds the
+frames a flooding client can make the server parse at once (a few hundred), while a browser
+sends a few kilobytes per second."""
+
+
+def listening_socket(host: str, port: int) -> socket.socket:
+    """Bind the server's socket (IPv4 or IPv6 by ``host``; port 0: any free port).
+
+    Accepted connections inherit its `RECEIVE_BUFFER_BYTES` receive buffer.
+    """
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
+    sock.bind((host, port))
+    return sock
 
 
 def make_server(app: ASGIApp, host: str, port: int, log_level: str = "warning") -> uvicorn.Server:
