@@ -30,6 +30,7 @@ import inspect
 import math
 import os
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from typing import Any, Self
 
 import numpy as np
@@ -88,6 +89,15 @@ up to 4096 symbols and a 4096-sample window; the rate within `mirror_avatar.tria
 restarts; a seed as k-means takes it (0 to 2^32 - 1, or None). The window must also be even and
 the hop lie in 1..window / 2 (not a choice: the features need both)."""
 
+PAPER_SYMBOLS = 256
+"""The paper's codebook size (after a sweep over 32-256 on 30 trials per person)."""
+
+SYMBOL_CANDIDATES = (8, 16, 32, 64, 128, 256)
+"""Codebook sizes `choose_n_symbols` tries (**choice**: powers of two up to the paper's 256)."""
+
+CV_SAMPLES = 3
+"""Generated trials compared with each held-out trial when cross-validating (**choice**)."""
+
 FORMAT_NAME = "mirror-avatar/ims-generator"
 FORMAT_VERSION = 1
 Array = NDArray[np.float64]
@@ -144,7 +154,11 @@ class IMSGenerator:
     Parameters
     ----------
     n_symbols
-        Codebook size N (paper: 256, after a sweep over 32-256).
+        Codebook size N, or ``"auto"``: chosen from the training trials by `choose_n_symbols`
+        (cross-validation; the choice and its evidence go into ``training_summary_``). The
+        paper used 256 (`PAPER_SYMBOLS`) with 30 trials per person; on a few trials that many
+        symbols make the chain replay its training frames, and "auto" is the default
+        (**departure**: METHODS section 4 fixes N after a sweep).
     window
         Frame length in samples (even; paper: 60 at 100 Hz).
     hop
@@ -166,18 +180,22 @@ class IMSGenerator:
         Transition probabilities, rows sum to 1.
     startprob_ : ndarray, shape (n_symbols,)
         Initial-symbol probabilities.
+    n_symbols_ : int
+        The codebook size fitted (``n_symbols``, or the size "auto" chose).
     training_summary_ : dict
-        Labels, groups and durations of the training trials, frames, distortion, seed.
+        Labels, groups and durations of the training trials, frames, distortion, seed, and how
+        the codebook size was chosen (``complexity``).
     """
 
     codebook_: Array
     transmat_: Array
     startprob_: Array
+    n_symbols_: int
     training_summary_: dict[str, Any]
 
     def __init__(
         self,
-        n_symbols: int = 256,
+        n_symbols: int | str = "auto",
         window: int = 60,
         hop: int = 15,
         rate: float = 100.0,
@@ -208,18 +226,23 @@ class IMSGenerator:
         signals = [self._signal(trial) for trial in trials]
         if not signals:
             raise InputError("trials", "no trials to fit the generator on")
+        if self.n_symbols == "auto":
+            complexity = choose_n_symbols(trials, self.get_params())
+        else:
+            complexity = {"rule": "fixed", "chosen": self.n_symbols}
+        self.n_symbols_ = int(complexity["chosen"])
         features = [self._features(signal) for signal in signals]
         n_frames = sum(f.shape[0] for f in features)
-        if n_frames < MIN_FRAMES_PER_SYMBOL * self.n_symbols:
+        if n_frames < MIN_FRAMES_PER_SYMBOL * self.n_symbols_:
             most = max(n_frames // MIN_FRAMES_PER_SYMBOL, 1)
             raise InputError(
                 "trials",
-                f"{n_frames} frames are too few for {self.n_symbols} symbols (a codebook needs "
+                f"{n_frames} frames are too few for {self.n_symbols_} symbols (a codebook needs "
                 f"{MIN_FRAMES_PER_SYMBOL} frames per symbol): give --symbols {most} or fewer, "
-                "or more trials",
+                "--symbols auto, or more trials",
             )
         kmeans = KMeans(
-            n_clusters=self.n_symbols,
+            n_clusters=self.n_symbols_,
             n_init=self.n_init,
             algorithm="lloyd",
             random_state=self.random_state,
@@ -227,9 +250,9 @@ class IMSGenerator:
         self.codebook_ = kmeans.cluster_centers_.astype(np.float64)
         sequences = [self._quantise(f) for f in features]
         self.transmat_ = estimate_transitions(
-            count_transitions(sequences, self.n_symbols), self.pseudo_count
+            count_transitions(sequences, self.n_symbols_), self.pseudo_count
         )
-        frequency = np.bincount(np.concatenate(sequences), minlength=self.n_symbols) + 0.0
+        frequency = np.bincount(np.concatenate(sequences), minlength=self.n_symbols_) + 0.0
         self.startprob_ = frequency / frequency.sum()
         self.training_summary_ = {
             "labels": [t.label for t in trials],
@@ -239,6 +262,7 @@ class IMSGenerator:
             "distortion": float(kmeans.inertia_ / (n_frames * self.window)),
             "symbols_used": float(np.mean(frequency > 0)),
             "random_state": self.random_state,
+            "complexity": complexity,
         }
         self._prepare_sampling()
         return self
@@ -246,7 +270,10 @@ class IMSGenerator:
     def _check_parameters(self) -> None:
         """Refuse hyper-parameters outside `PARAMETER_RANGES`; keep them as Python numbers."""
         ranges, source = PARAMETER_RANGES, "generator"
-        self.n_symbols = check_integer(source, "n_symbols", self.n_symbols, *ranges["n_symbols"])
+        if self.n_symbols != "auto":
+            self.n_symbols = check_integer(
+                source, "n_symbols", self.n_symbols, *ranges["n_symbols"]
+            )
         self.window = check_integer(source, "window", self.window, *ranges["window"])
         if self.window % 2:
             raise InputError(source, f"window {self.window} must be even")
@@ -310,7 +337,7 @@ class IMSGenerator:
         log_p = [np.log(self.transmat_[s[:-1], s[1:]]) for s in sequences if s.size > 1]
         return {
             "distortion": float(error),
-            "symbols_used": float(np.unique(symbols).size / self.n_symbols),
+            "symbols_used": float(np.unique(symbols).size / self.n_symbols_),
             "log_likelihood": float(np.mean(np.concatenate(log_p))) if log_p else math.nan,
         }
 
@@ -379,7 +406,7 @@ class IMSGenerator:
     def get_params(self) -> dict[str, Any]:
         """Hyper-parameters, as given to the constructor."""
         return {
-            "n_symbols": int(self.n_symbols),
+            "n_symbols": self.n_symbols if self.n_symbols == "auto" else int(self.n_symbols),
             "window": int(self.window),
             "hop": int(self.hop),
             "rate": float(self.rate),
@@ -391,7 +418,9 @@ class IMSGenerator:
     def to_arrays(self) -> tuple[dict[str, NDArray[np.float64]], dict[str, Any]]:
         """Return the fitted model's arrays and metadata, as `save` writes them.
 
-        Arrays ``codebook``, ``transmat``, ``startprob``; metadata ``parameters``, ``training``.
+        Arrays ``codebook``, ``transmat``, ``startprob``; metadata ``parameters`` (with the
+        codebook size fitted: a model fitted with "auto" is saved with the size it chose, the
+        choice recorded in ``training``), ``training``.
         """
         self._check_fitted()
         arrays = {
@@ -399,7 +428,8 @@ class IMSGenerator:
             "transmat": self.transmat_,
             "startprob": self.startprob_,
         }
-        return arrays, {"parameters": self.get_params(), "training": self.training_summary_}
+        parameters = self.get_params() | {"n_symbols": self.n_symbols_}
+        return arrays, {"parameters": parameters, "training": self.training_summary_}
 
     @classmethod
     def from_arrays(
@@ -435,9 +465,12 @@ class IMSGenerator:
             model._check_parameters()
         except InputError as error:
             raise InputError(source, error.problem) from None
+        if model.n_symbols == "auto":
+            raise InputError(source, "a fitted model must name its codebook size, not auto")
+        model.n_symbols_ = int(model.n_symbols)
         model.training_summary_ = training
         require_arrays(source, arrays, ("codebook", "transmat", "startprob"))
-        n, width = model.n_symbols, model.window
+        n, width = model.n_symbols_, model.window
         bound = MAX_ABS_POSITION * width
         codebook = check_array(
             source, "codebook", arrays["codebook"], "float", (n, width), -bound, bound
@@ -525,3 +558,131 @@ def sweep_codebook(
             }
         )
     return pd.DataFrame(rows).set_index("n_symbols")
+
+
+def choose_n_symbols(
+    trials: Sequence[Trial],
+    parameters: Mapping[str, Any],
+    candidates: Sequence[int] = SYMBOL_CANDIDATES,
+) -> dict[str, Any]:
+    """Choose a codebook size for ``trials`` by leave-one-trial-out cross-validation.
+
+    Each trial is held out in turn (a single trial is split into two halves); a generator of
+    each candidate size is fitted on the others and generates `CV_SAMPLES` trials as long as
+    the held-out one, and the score of a size is the mean EMD between their IMS and the
+    held-out trial's. The smallest size whose score lies within one standard error of the best
+    is chosen (the one-standard-error rule, Hastie, Tibshirani & Friedman, *The Elements of
+    Statistical Learning*, section 7.10): the simplest chain that generates motion as close to
+    the person's unseen trials as the best one. Sizes for which some fold has fewer than
+    `MIN_FRAMES_PER_SYMBOL` frames per symbol, or fewer distinct frames than symbols (motion
+    that repeats exactly), are not tried. **Choice** (the paper fixed 256
+    after a sweep on 30 trials per person; METHODS section 4).
+
+    Parameters
+    ----------
+    trials
+        The person's solo trials.
+    parameters
+        The generator's other hyper-parameters (`IMSGenerator.get_params`); ``random_state``
+        seeds every fit and every generated trial.
+    candidates
+        Codebook sizes to try.
+
+    Returns
+    -------
+    dict
+        ``rule``, ``chosen``, ``candidates`` (the sizes tried), ``emd_mean`` and ``emd_se``
+        (per size), ``folds`` and ``human_emd`` (mean EMD between the IMS of two of the
+        person's trials: the scale a score is to be read against; NaN for a single trial).
+
+    Raises
+    ------
+    InputError
+        Too few frames for the smallest candidate.
+    """
+    folds = _folds(trials)
+    settings = {k: v for k, v in parameters.items() if k != "n_symbols"}
+    seed = settings.get("random_state")
+    fitted = IMSGenerator(n_symbols=min(candidates), **settings)
+    frames = [_frame_counts(fitted, train) for train, _ in folds]
+    feasible = [
+        int(n)
+        for n in sorted(candidates)
+        if all(MIN_FRAMES_PER_SYMBOL * n <= total and n <= distinct for total, distinct in frames)
+    ]
+    if not feasible:
+        raise InputError(
+            "trials",
+            f"{min(total for total, _ in frames)} frames per cross-validation fold are too few "
+            f"for {min(candidates)} symbols: give more or longer trials",
+        )
+    human = [_trial_ims(fitted, t) for t in trials]
+    scores = np.empty((len(feasible), len(folds)))
+    for j, (train, held_out) in enumerate(folds):
+        target = _trial_ims(fitted, held_out)
+        for i, size in enumerate(feasible):
+            model = IMSGenerator(n_symbols=size, **settings).fit(train)
+            generated = model.sample(held_out.duration, n=CV_SAMPLES, random_state=seed)
+            scores[i, j] = np.mean([compute_emd(_trial_ims(model, g), target) for g in generated])
+    mean = scores.mean(axis=1)
+    se = scores.std(axis=1, ddof=1) / math.sqrt(len(folds))
+    chosen = feasible[one_standard_error_rule(scores)]
+    pairs = [compute_emd(a, b) for k, a in enumerate(human) for b in human[k + 1 :]]
+    return {
+        "rule": "cross-validation, one standard error",
+        "chosen": chosen,
+        "candidates": feasible,
+        "emd_mean": [round(float(m), 6) for m in mean],
+        "emd_se": [round(float(e), 6) for e in se],
+        "folds": len(folds),
+        "human_emd": round(float(np.mean(pairs)), 6) if pairs else math.nan,
+    }
+
+
+def one_standard_error_rule(scores: Array) -> int:
+    """Pick the simplest model whose mean score is within one standard error of the best.
+
+    Parameters
+    ----------
+    scores
+        Cross-validation scores (lower is better), shape (models, folds), models ordered from
+        the simplest; at least two folds.
+
+    Returns
+    -------
+    int
+        The index of the first model whose mean is at most the best mean plus the best
+        model's standard error of the mean (Hastie, Tibshirani & Friedman, section 7.10).
+    """
+    mean = scores.mean(axis=1)
+    se = scores.std(axis=1, ddof=1) / math.sqrt(scores.shape[1])
+    best = int(np.argmin(mean))
+    return int(np.argmax(mean <= mean[best] + se[best]))
+
+
+def _frame_counts(model: IMSGenerator, trials: Sequence[Trial]) -> tuple[int, int]:
+    """Count the STFT frames of ``trials``, and the distinct ones (a codebook's most).
+
+    Frames equal to 9 decimals (units) count as one: motion that repeats exactly repeats its
+    frames up to rounding.
+    """
+    features = np.vstack([model._features(model._signal(t)) for t in trials])
+    return len(features), len(np.unique(np.round(features, 9), axis=0))
+
+
+def _folds(trials: Sequence[Trial]) -> list[tuple[list[Trial], Trial]]:
+    """Training trials and the held-out trial of each fold (one trial: its two halves)."""
+    if len(trials) == 1:
+        (trial,) = trials
+        middle = trial.n_samples // 2
+        halves = [
+            replace(trial, times=trial.times[part], positions=trial.positions[part])
+            for part in (slice(None, middle), slice(middle, None))
+        ]
+        return [([halves[0]], halves[1]), ([halves[1]], halves[0])]
+    return [([t for k, t in enumerate(trials) if k != j], trials[j]) for j in range(len(trials))]
+
+
+def _trial_ims(model: IMSGenerator, trial: Trial) -> Array:
+    """Compute the IMS of ``trial`` at the model's rate."""
+    return compute_ims(compute_velocity(model._signal(trial), model.rate))

@@ -463,7 +463,9 @@ def analyse_signatures(
     Parameters
     ----------
     trials
-        At least 3 trials; each is resampled to ``rate`` before its velocity is computed.
+        At least 2 trials (an EMD matrix needs two); each is resampled to ``rate`` before its
+        velocity is computed. A group with fewer than 3 trials, or with fewer than 3 strokes,
+        gets no ellipse (None), and its overlaps are NaN.
     bins
         Bins of the signatures.
     level
@@ -473,8 +475,8 @@ def analyse_signatures(
     min_samples
         Minimum stroke length in samples.
     """
-    if len(trials) < 3:
-        raise InputError(None, f"the signature analysis needs at least 3 trials, got {len(trials)}")
+    if len(trials) < 2:
+        raise InputError(None, f"the signature analysis needs at least 2 trials, got {len(trials)}")
     velocities = [trial.resampled(rate).velocity() for trial in trials]
     groups = [trial.group for trial in trials]
     names = list(dict.fromkeys(groups))

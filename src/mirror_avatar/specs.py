@@ -32,7 +32,7 @@ from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.dynamics import HKBParams, preset
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import FORMAT_NAME as GENERATOR_FORMAT
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.generator import PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions, excerpt
 from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
 from mirror_avatar.learning.agent import CyberPlayer, load_cyber_player
@@ -160,7 +160,7 @@ def bundled_generator(style: str) -> IMSGenerator:
     style
         One of `BUNDLED_STYLES`.
     """
-    model = IMSGenerator(rate=DEFAULT_RATE, random_state=BUNDLED_SEED)
+    model = IMSGenerator(n_symbols=PAPER_SYMBOLS, rate=DEFAULT_RATE, random_state=BUNDLED_SEED)
     key = json.dumps(
         {"style": style, "parameters": model.get_params(), "version": __version__}, sort_keys=True
     )

@@ -71,3 +71,24 @@ def test_group_by_none_and_file(zhai_trials, tmp_path, capsys, group_by, expecte
     if group_by == "file":
         assert result["ellipses"]["fast-1"] is None
         assert result["overlaps"][0][1] is None
+
+
+def test_two_trials_give_an_emd_and_a_note_for_the_ellipse(zhai_trials, tmp_path, capsys):
+    """Two trials make an EMD matrix; only the ellipse, which needs three, is skipped."""
+    write_csvs(zhai_trials[:2], tmp_path / "data")
+    out = tmp_path / "out"
+    assert main(["signature", str(tmp_path / "data" / "fast"), "--out", str(out)]) == 0
+    result = json.loads((out / "signature.json").read_text())
+    emd = np.array(result["emd"])
+    assert emd.shape == (2, 2) and emd[0, 1] == emd[1, 0] > 0.0
+    assert result["ellipses"] == {"fast": None}
+    printed = capsys.readouterr()
+    assert "group 'fast' has 2 trial(s): no confidence ellipse" in printed.err
+    for name in FIGURES:
+        assert (out / name).read_bytes().startswith(b"\x89PNG")
+
+
+def test_one_trial_is_refused_in_one_line(zhai_trials, tmp_path, capsys):
+    write_csvs(zhai_trials[:1], tmp_path / "data")
+    assert main(["signature", str(tmp_path / "data"), "--out", str(tmp_path / "out")]) == 2
+    assert "needs at least 2 trials, got 1" in capsys.readouterr().err

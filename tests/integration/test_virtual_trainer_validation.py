@@ -72,7 +72,7 @@ def test_registered_after_the_generator() -> None:
     names = [name for name, _ in EXPERIMENTS]
     assert "virtual_trainer" in names
     earlier = "generator" if "generator" in names else "signature"
-    assert names.index("virtual_trainer") == names.index(earlier) + 1
+    assert names.index("virtual_trainer") > names.index(earlier)
 
 
 def test_needs_two_groups(zhai_trials: list[Trial]) -> None:

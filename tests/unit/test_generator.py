@@ -8,14 +8,17 @@ from scipy.signal import butter, sosfilt_zi, sosfiltfilt
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import (
+    PAPER_SYMBOLS,
     IMSGenerator,
+    choose_n_symbols,
     count_transitions,
     estimate_transitions,
+    one_standard_error_rule,
     sample_chain,
     sweep_codebook,
 )
 from mirror_avatar.signature import compute_emd, compute_ims, stroke_moments
-from mirror_avatar.trials import compute_velocity, zero_phase_filter
+from mirror_avatar.trials import compute_velocity, make_trial, zero_phase_filter
 
 
 @pytest.fixture(scope="module")
@@ -183,3 +186,65 @@ def test_low_rate_model_skips_the_filter(zhai_trials: list) -> None:
 def test_a_codebook_needs_frames_for_every_symbol(zhai_trials_100hz) -> None:
     with pytest.raises(InputError, match=r"too few for 256 symbols .* give --symbols 99 or fewer"):
         IMSGenerator(n_symbols=256).fit(zhai_trials_100hz[:1])
+
+
+def sine_trials(n: int, frequency: float = 0.5) -> list:
+    """Solo trials of a pure sine (60 s at 100 Hz, random phases): one stroke shape only."""
+    rng = np.random.default_rng(3)
+    times = np.arange(6001) / 100.0
+    return [
+        make_trial(times, 0.3 * np.sin(2 * np.pi * frequency * times + rng.uniform(0, 6.3)))
+        for _ in range(n)
+    ]
+
+
+def test_the_one_standard_error_rule_prefers_the_simplest_close_model() -> None:
+    """Hand-made scores: the best mean is model 2 (0.10, SE 0.02); model 1 (0.11) lies within
+    one SE of it, model 0 (0.20) does not."""
+    scores = np.array([[0.18, 0.22], [0.10, 0.12], [0.08, 0.12], [0.13, 0.13]])
+    assert one_standard_error_rule(scores) == 1
+    assert one_standard_error_rule(scores[[0, 2, 3]]) == 1
+    assert one_standard_error_rule(np.array([[0.3, 0.3], [0.1, 0.1]])) == 1
+
+
+def test_auto_never_asks_for_more_symbols_than_distinct_frames() -> None:
+    """A pure sine repeats its frames exactly (40 distinct per trial): sizes above the
+    distinct frames of a fold are not tried, so k-means never runs out of points."""
+    model = IMSGenerator(random_state=0).fit(sine_trials(4))
+    complexity = model.training_summary_["complexity"]
+    assert complexity["rule"] == "cross-validation, one standard error"
+    assert complexity["folds"] == 4 and complexity["candidates"] == [8, 16, 32, 64]
+    assert model.n_symbols_ == complexity["chosen"] == model.codebook_.shape[0]
+    assert len(complexity["emd_mean"]) == len(complexity["emd_se"]) == 4
+
+
+def test_auto_tries_only_sizes_every_fold_can_fit(zhai_trials_100hz) -> None:
+    """Two 60 s trials: each fold trains on one trial (about 400 frames, so at most 99
+    symbols); one trial alone is split into halves."""
+    two = choose_n_symbols(zhai_trials_100hz[:2], IMSGenerator(random_state=0).get_params())
+    assert two["candidates"] == [8, 16, 32, 64] and two["folds"] == 2
+    assert two["human_emd"] == pytest.approx(
+        compute_emd(*(compute_ims(t.velocity()) for t in zhai_trials_100hz[:2])), abs=1e-6
+    )
+    one = choose_n_symbols(zhai_trials_100hz[:1], IMSGenerator(random_state=0).get_params())
+    assert one["candidates"] == [8, 16, 32] and one["folds"] == 2
+    assert np.isnan(one["human_emd"])
+
+
+def test_auto_is_reproducible_and_saved_with_its_choice(zhai_trials_100hz, tmp_path) -> None:
+    trials = zhai_trials_100hz[9:12]
+    first = IMSGenerator(random_state=5).fit(trials)
+    again = IMSGenerator(random_state=5).fit(trials)
+    assert first.training_summary_["complexity"] == again.training_summary_["complexity"]
+    np.testing.assert_array_equal(first.codebook_, again.codebook_)
+    first.save(tmp_path / "m.npz")
+    loaded = IMSGenerator.load(tmp_path / "m.npz")
+    assert loaded.n_symbols == loaded.n_symbols_ == first.n_symbols_
+    assert loaded.training_summary_["complexity"]["chosen"] == first.n_symbols_
+    np.testing.assert_array_equal(loaded.sample_positions(500, 1), first.sample_positions(500, 1))
+
+
+def test_a_fixed_size_is_still_available(zhai_trials_100hz) -> None:
+    model = IMSGenerator(n_symbols=PAPER_SYMBOLS, random_state=0).fit(zhai_trials_100hz[:6])
+    assert model.n_symbols_ == 256
+    assert model.training_summary_["complexity"] == {"rule": "fixed", "chosen": 256}

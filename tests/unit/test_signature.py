@@ -281,6 +281,9 @@ def test_analysis_shapes_and_json(analysis):
     assert json.loads(text)["labels"][0] == "fast-1"
 
 
-def test_analysis_needs_three_trials(zhai_trials):
-    with pytest.raises(InputError):
-        analyse_signatures(zhai_trials[:2])
+def test_analysis_needs_two_trials_and_skips_ellipses_below_three(zhai_trials):
+    with pytest.raises(InputError, match="at least 2 trials"):
+        analyse_signatures(zhai_trials[:1])
+    analysis = analyse_signatures(zhai_trials[:2])
+    assert analysis.emd.shape == (2, 2) and analysis.ellipses == {"fast": None}
+    assert np.isnan(analysis.overlaps).all()

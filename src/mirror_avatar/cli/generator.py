@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import click
 import numpy as np
@@ -14,7 +15,7 @@ from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator, sweep_codebook
-from mirror_avatar.importing import ImportOptions
+from mirror_avatar.importing import ImportOptions, excerpt
 from mirror_avatar.trial_io import write_csv_trial
 from mirror_avatar.trials import Trial
 
@@ -29,7 +30,12 @@ def generator() -> None:
 @click.option(
     "--out", "out_path", required=True, type=click.Path(path_type=Path), help="Model file (.npz)."
 )
-@click.option("--symbols", type=int, default=256, show_default=True, help="Codebook size N.")
+@click.option(
+    "--symbols",
+    default="auto",
+    show_default=True,
+    help="Codebook size N, or auto: chosen by cross-validation on the trials (the paper: 256).",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of k-means.")
 @click.option(
     "--bundled",
@@ -46,7 +52,7 @@ def generator() -> None:
 def fit(
     paths: tuple[Path, ...],
     out_path: Path,
-    symbols: int,
+    symbols: str,
     seed: int,
     bundled: str | None,
     sweep: bool,
@@ -58,12 +64,14 @@ def fit(
         raise InputError(None, "give trial files or directories, or --bundled fast|slow")
     trials = read_and_report(paths, "none", options) if paths else []
     trials += [t for t in load_zhai2017() if t.group == bundled] if bundled else []
-    model = IMSGenerator(n_symbols=symbols, random_state=seed).fit(trials)
+    model = IMSGenerator(n_symbols=_codebook_size(symbols), random_state=seed).fit(trials)
     model.save(out_path)
     summary = model.training_summary_
+    if symbols == "auto":
+        click.echo(_describe_choice(summary["complexity"]))
     click.echo(
-        f"{len(trials)} trials, {summary['n_frames']} frames, {symbols} symbols, distortion "
-        f"{summary['distortion']:.4g} -> {out_path}"
+        f"{len(trials)} trials, {summary['n_frames']} frames, {model.n_symbols_} symbols, "
+        f"distortion {summary['distortion']:.4g} -> {out_path}"
     )
     if sweep:
         table = _sweep(trials, seed)
@@ -71,6 +79,31 @@ def fit(
         write_atomic_text(sweep_path, table.to_csv())
         click.echo(table.to_string())
         click.echo(f"sweep -> {sweep_path}")
+
+
+def _codebook_size(symbols: str) -> int | str:
+    """Read ``--symbols``: ``auto`` or a whole number."""
+    if symbols == "auto":
+        return symbols
+    try:
+        return int(symbols)
+    except ValueError:
+        raise InputError("--symbols", f"{excerpt(symbols)} is neither auto nor a number") from None
+
+
+def _describe_choice(complexity: dict[str, Any]) -> str:
+    """One line per codebook size tried: its cross-validated EMD, and which was chosen."""
+    lines = [
+        f"codebook size by {complexity['rule']} over {complexity['folds']} folds (EMD of "
+        "generated to held-out IMS; between the person's own trials: "
+        f"{complexity['human_emd']:.4f})"
+    ]
+    for size, mean, se in zip(
+        complexity["candidates"], complexity["emd_mean"], complexity["emd_se"], strict=True
+    ):
+        chosen = "  <- chosen" if size == complexity["chosen"] else ""
+        lines.append(f"  {size:4d} symbols: {mean:.4f} +- {se:.4f}{chosen}")
+    return "\n".join(lines)
 
 
 @generator.command()

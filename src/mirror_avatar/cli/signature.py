@@ -91,4 +91,11 @@ def signature(
     table = compute_group_emd(analysis)
     click.echo("mean EMD between the trials of each pair of groups (diagonal: within a group)")
     click.echo(table.to_string(float_format=lambda v: f"{v:.4f}", na_rep="-"))
+    for group, ellipse in analysis.ellipses.items():
+        if ellipse is None:
+            click.echo(
+                f"note: group {group!r} has {len(analysis.members(group))} trial(s): no confidence "
+                "ellipse in the similarity space (it needs 3)",
+                err=True,
+            )
     click.echo(f"{len(trials)} trials in {len(analysis.group_names)} groups -> {out_dir}")

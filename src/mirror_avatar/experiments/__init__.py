@@ -8,12 +8,20 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from mirror_avatar.experiments import cyber_player, generator, group, signature, virtual_trainer
+from mirror_avatar.experiments import (
+    cyber_player,
+    generator,
+    generator_complexity,
+    group,
+    signature,
+    virtual_trainer,
+)
 from mirror_avatar.report import Section
 
 EXPERIMENTS: list[tuple[str, Callable[..., Section]]] = [
     ("signature", signature.run),
     ("generator", generator.run),
+    ("generator_complexity", generator_complexity.run),
     ("virtual_trainer", virtual_trainer.run),
     ("cyber_player", cyber_player.run),
     ("group", group.run),

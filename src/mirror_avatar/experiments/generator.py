@@ -19,7 +19,7 @@ import pandas as pd
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_ims, plot_similarity_space, plot_skew_kurtosis
-from mirror_avatar.generator import IMSGenerator, sweep_codebook
+from mirror_avatar.generator import PAPER_SYMBOLS, IMSGenerator, sweep_codebook
 from mirror_avatar.report import Section
 from mirror_avatar.signature import SignatureAnalysis, analyse_signatures
 from mirror_avatar.trials import Trial, finite_difference
@@ -160,7 +160,7 @@ def split_and_generate(trials: Sequence[Trial], seed: int) -> dict[str, StyleSpl
         n_train = round(TRAIN_FRACTION * len(members))
         train = [members[i] for i in order[:n_train]]
         held_out = [members[i] for i in order[n_train:]]
-        model = IMSGenerator(rate=RATE, random_state=seed).fit(train)
+        model = IMSGenerator(n_symbols=PAPER_SYMBOLS, rate=RATE, random_state=seed).fit(train)
         generated = [
             replace(t, label=f"{style} generated {k + 1}", group=_generated_group(style))
             for k, t in enumerate(model.sample(DURATION, n=len(held_out), random_state=seed))
