@@ -87,14 +87,20 @@ def write_report(
     out.mkdir(parents=True, exist_ok=True)
     metrics = {s.key: s.metrics for s in sections} | {"metadata": metadata}
     write_atomic_json(out / "metrics.json", metrics)
-    html = _template().render(
+    path = out / "report.html"
+    write_atomic_text(path, render_report(sections, title, metadata))
+    return path
+
+
+def render_report(
+    sections: Sequence[Section], title: str, metadata: Mapping[str, Any] | None = None
+) -> str:
+    """Render sections as one self-contained HTML page (see `write_report`)."""
+    return _template().render(
         title=title,
-        metadata=metadata,
+        metadata=dict(metadata or {}),
         sections=[_render_section(section) for section in sections],
     )
-    path = out / "report.html"
-    write_atomic_text(path, html)
-    return path
 
 
 def render_png(figure: Figure, dpi: int = 110) -> bytes:

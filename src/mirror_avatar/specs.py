@@ -9,6 +9,9 @@ A SPEC is one of:
   signature;
 - a cyber-player policy ``.npz`` (format ``mirror-avatar/cyber-player``): the trained player (its
   dynamics are its own, so the role is not used);
+- a personal avatar ``.npz`` (format ``mirror-avatar/avatar``,
+  `mirror_avatar.learning.avatar`): its cyber player for the role (follower or leader), or for
+  other roles the person's virtual trainer;
 - a recorded trial file (CSV, Parquet, MAT or BIDS-Motion, `mirror_avatar.trial_io.read_trial`):
   the recording replayed open-loop (`RecordedPlayer`, the role is not used);
 - ``vt:FILE`` with FILE a recorded trial: a virtual trainer whose reference velocity is that
@@ -36,6 +39,8 @@ from mirror_avatar.generator import PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions, excerpt
 from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
 from mirror_avatar.learning.agent import CyberPlayer, load_cyber_player
+from mirror_avatar.learning.avatar import FORMAT_NAME as AVATAR_FORMAT
+from mirror_avatar.learning.avatar import load_avatar
 from mirror_avatar.model_files import read_archive
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.trial_io import read_trial
@@ -99,7 +104,7 @@ def load_player(
         return VirtualTrainer(params, trial, label=label)
     path = Path(spec)
     if path.suffix.lower() == ".npz":
-        player = _load_model(path, params, label)
+        player = _load_model(path, role, label)
         if isinstance(player, CyberPlayer) and isinstance(role, str):
             _check_policy_role(path, player, role)
         return player
@@ -118,16 +123,18 @@ def _read_recording(path: str, options: ImportOptions) -> Trial:
     return read_trial(path, options).resampled(DEFAULT_RATE)
 
 
-def _load_model(path: Path, params: HKBParams, label: str) -> Player:
+def _load_model(path: Path, role: str | HKBParams, label: str) -> Player:
     _, metadata = read_archive(path)
     kind = metadata.get("format")
     if kind == GENERATOR_FORMAT:
+        params = preset(role) if isinstance(role, str) else role
         return VirtualTrainer(params, IMSGenerator.load(path), label=label)
     if kind == CYBER_FORMAT:
         return load_cyber_player(path)
-    raise InputError(
-        path, f"model format {excerpt(kind)} is neither {GENERATOR_FORMAT!r} nor {CYBER_FORMAT!r}"
-    )
+    if kind == AVATAR_FORMAT:
+        return load_avatar(path).player(role)
+    known = ", ".join(repr(k) for k in (GENERATOR_FORMAT, CYBER_FORMAT, AVATAR_FORMAT))
+    raise InputError(path, f"model format {excerpt(kind)} is none of {known}")
 
 
 def _check_policy_role(path: Path, player: CyberPlayer, role: str) -> None:

@@ -11,6 +11,7 @@ import pytest
 
 from mirror_avatar.experiments import EXPERIMENTS
 from mirror_avatar.experiments.cyber_player import RoleResult, check_criteria, measure, run
+from mirror_avatar.learning.imitation import make_cyber_player
 from mirror_avatar.learning.training import LearningCurve
 from mirror_avatar.report import write_report
 from mirror_avatar.session import Session
@@ -90,6 +91,7 @@ def test_check_criteria_by_hand() -> None:
         "leader",
         "VT5",
         "VT6",
+        make_cyber_player("leader"),
         LearningCurve(),
         0.0,
         pd.DataFrame(rows),

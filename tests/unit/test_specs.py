@@ -145,7 +145,7 @@ def test_bad_specs(spec: str, problem: str) -> None:
 def test_npz_of_another_format(tmp_path: Path) -> None:
     path = tmp_path / "other.npz"
     np.savez(path, metadata=np.array('{"format": "someone-else/model"}'))
-    with pytest.raises(InputError, match="neither"):
+    with pytest.raises(InputError, match="is none of"):
         load_player(str(path), "leader")
     np.savez(path, values=np.zeros(3))
     with pytest.raises(InputError, match="no metadata"):

@@ -17,6 +17,7 @@ from types import FrameType
 
 import click
 
+from mirror_avatar.cli.avatar import avatar
 from mirror_avatar.cli.convert import convert
 from mirror_avatar.cli.evaluate import evaluate
 from mirror_avatar.cli.generator import generator
@@ -37,6 +38,7 @@ def cli() -> None:
     """Build avatars that move like a specific person and play the mirror game."""
 
 
+cli.add_command(avatar)
 cli.add_command(convert)
 cli.add_command(generator)
 cli.add_command(group)

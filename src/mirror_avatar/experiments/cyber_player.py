@@ -88,6 +88,7 @@ class RoleResult:
     role: Role
     target: str
     unseen: str
+    player: CyberPlayer
     curve: LearningCurve
     train_seconds: float
     records: pd.DataFrame
@@ -197,7 +198,7 @@ def run_role(
     baselines = compare_baselines(player, cast, role, n_base, seed, n_jobs)
     unseen = cast.trainers[cast.unseen].label
     return RoleResult(
-        role, target.label, unseen, curve, seconds, records, velocities, example, baselines
+        role, target.label, unseen, player, curve, seconds, records, velocities, example, baselines
     )
 
 

@@ -29,6 +29,7 @@ and with every value it holds checked against its range (`save_cyber_player`,
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from functools import cached_property
 from pathlib import Path
@@ -50,11 +51,13 @@ from mirror_avatar.learning.discretisation import (
     state_index,
 )
 from mirror_avatar.model_files import (
+    Source,
     check_array,
     check_integer,
     check_object,
     check_real,
     load_model,
+    require_arrays,
     save_model,
 )
 from mirror_avatar.players.base import CYBER, Observation, Player, PlayerPlan, partner_state
@@ -364,7 +367,14 @@ class CyberPlayer(Player):
 
 
 def save_cyber_player(player: CyberPlayer, path: str | os.PathLike[str]) -> Path:
-    """Write a trained player to ``path`` (one ``.npz``), atomically.
+    """Write a trained player to ``path`` (one ``.npz``), atomically (`cyber_player_arrays`)."""
+    return save_model(path, FORMAT_NAME, FORMAT_VERSION, *cyber_player_arrays(player, path))
+
+
+def cyber_player_arrays(
+    player: CyberPlayer, source: Source
+) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
+    """Return a trained player's arrays and JSON metadata, as its file holds them.
 
     The file holds arrays ``q_table`` (n_states, n_actions), ``edges`` (all interior bin edges),
     ``edge_counts`` (4,), ``actions`` (n_actions,) and the JSON metadata of
@@ -377,7 +387,8 @@ def save_cyber_player(player: CyberPlayer, path: str | os.PathLike[str]) -> Path
     Raises
     ------
     InputError
-        If a player with ``"reference"`` features has no `IMSGenerator` as its reference.
+        ``source: problem`` if a player with ``"reference"`` features has no `IMSGenerator` as
+        its reference.
     """
     disc = player.discretisation_
     training = getattr(player, "training_", {})
@@ -397,14 +408,26 @@ def save_cyber_player(player: CyberPlayer, path: str | os.PathLike[str]) -> Path
         arrays["target_counts"] = player.target_counts_
     if disc.needs_reference:
         if not isinstance(player.reference, IMSGenerator):
-            raise InputError(path, "only a reference IMS generator can be saved with the player")
+            raise InputError(source, "only a reference IMS generator can be saved with the player")
         reference_arrays, metadata["reference"] = player.reference.to_arrays()
         arrays |= {f"{REFERENCE_PREFIX}{k}": a for k, a in reference_arrays.items()}
-    return save_model(path, FORMAT_NAME, FORMAT_VERSION, arrays, metadata)
+    return arrays, metadata
 
 
 def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
-    """Read a player written by `save_cyber_player`, checking every value it reads.
+    """Read a player written by `save_cyber_player` (see `cyber_player_from_arrays`)."""
+    arrays, metadata = load_model(path, FORMAT_NAME, FORMAT_VERSION, CYBER_PLAYER_ARRAYS)
+    return cyber_player_from_arrays(arrays, metadata, path)
+
+
+CYBER_PLAYER_ARRAYS = ("q_table", "edges", "edge_counts", "actions")
+"""The arrays every cyber player's file holds."""
+
+
+def cyber_player_from_arrays(
+    arrays: Mapping[str, NDArray[Any]], metadata: Mapping[str, Any], path: Source
+) -> CyberPlayer:
+    """Rebuild a player from `cyber_player_arrays` output, checking every value it reads.
 
     The dynamics parameters must lie in `mirror_avatar.dynamics.PARAMETER_RANGES`, n_substeps
     in 1..`MAX_SUBSTEPS` and the initial position in the playing range; the actions as
@@ -420,9 +443,7 @@ def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
         internally inconsistent (for instance a Q-table whose shape does not match the
         discretisation and action set).
     """
-    arrays, metadata = load_model(
-        path, FORMAT_NAME, FORMAT_VERSION, ("q_table", "edges", "edge_counts", "actions")
-    )
+    require_arrays(path, arrays, CYBER_PLAYER_ARRAYS)
     edges = check_array(path, "edges", arrays["edges"], "float", (None,))
     counts = check_array(
         path, "edge_counts", arrays["edge_counts"], "integer", (N_FEATURES,), 0, edges.size
@@ -467,7 +488,7 @@ def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
     return player
 
 
-def _check_training(path: str | os.PathLike[str], training: object) -> dict[str, Any]:
+def _check_training(path: Source, training: object) -> dict[str, Any]:
     """Return a file's training summary once the entries play and training read are valid."""
     summary = check_object(path, "training", training)
     role = summary.get("role")
@@ -479,7 +500,7 @@ def _check_training(path: str | os.PathLike[str], training: object) -> dict[str,
 
 
 def _player_from_parameters(
-    path: str | os.PathLike[str],
+    path: Source,
     disc: Discretisation,
     actions: ArrayLike,
     parameters: dict[str, Any],

@@ -1,0 +1,112 @@
+"""``mirror-avatar avatar create``: a person's avatar from their solo trials, in one step."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import click
+
+from mirror_avatar import __version__
+from mirror_avatar.atomic import write_atomic_text
+from mirror_avatar.cli.outputs import check_output_file
+from mirror_avatar.cli.reading import import_options, read_and_report
+from mirror_avatar.cli.train import load_reference
+from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.errors import InputError
+from mirror_avatar.experiments.personal_avatar import DEFAULT_SESSIONS, create_avatar
+from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.importing import ImportOptions, excerpt
+from mirror_avatar.learning.avatar import MAX_NAME_CHARS
+from mirror_avatar.learning.imitation import make_virtual_trainers
+from mirror_avatar.report import render_report
+
+
+def default_partners(seed: int) -> list[tuple[str, IMSGenerator]]:
+    """Make the bundled library of partners: VT1..VT6, each fitted on 3 trials of a style.
+
+    VT1..VT5 train the avatar and VT6 is kept unseen, as in the paper's set-up
+    (`mirror_avatar.learning.imitation.make_virtual_trainers`).
+    """
+    trainers = make_virtual_trainers(load_zhai2017(), seed=seed)
+    return [(f"{t.label} ({', '.join(t.trial_labels)})", t.generator) for t in trainers]
+
+
+@click.group()
+def avatar() -> None:
+    """Personal avatars: a person's motor signature and cyber players in one file."""
+
+
+@avatar.command()
+@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--name", required=True, help="Whom the avatar stands for.")
+@click.option(
+    "--partners",
+    "partner_specs",
+    multiple=True,
+    help="Partners (generator .npz or bundled:STYLE; repeat or separate with commas): all but "
+    "the last train the avatar, the last is kept for validation. [default: six virtual "
+    "trainers of the bundled trials, three trials each; the sixth unseen]",
+)
+@click.option(
+    "--sessions", type=int, default=DEFAULT_SESSIONS, show_default=True,
+    help="Training sessions per role.",
+)  # fmt: skip
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of everything.")
+@click.option("--jobs", type=int, default=2, show_default=True, help="Local processes.")
+@click.option(
+    "--out", "out_path", required=True, type=click.Path(path_type=Path),
+    help="The avatar file (.npz); its card is written beside it (.html).",
+)  # fmt: skip
+@import_options
+def create(
+    paths: tuple[Path, ...],
+    name: str,
+    partner_specs: tuple[str, ...],
+    sessions: int,
+    seed: int,
+    jobs: int,
+    out_path: Path,
+    options: ImportOptions,
+) -> None:
+    """Build a person's avatar from their solo trials in FILE_OR_DIR....
+
+    Fits their IMS generator, trains their cyber player as follower and as leader against the
+    partners, validates it against their own virtual trainer (the last partner unseen) and
+    writes OUT (playable as a SPEC: the session's role picks the player) and OUT's card, the
+    same name with .html.
+    """
+    check_output_file(out_path, ".npz")
+    if not 0 < len(name.strip()) <= MAX_NAME_CHARS:
+        raise InputError(
+            "--name", f"{excerpt(name)} is not a name of 1-{MAX_NAME_CHARS} characters"
+        )
+    if sessions < 1 or jobs < 1:
+        raise InputError("--sessions", "--sessions and --jobs must be >= 1")
+    specs = [s.strip() for spec in partner_specs for s in spec.split(",") if s.strip()]
+    partners = [(spec, _partner_generator(spec, options)) for spec in specs]
+    partners = partners or default_partners(seed)
+    trials = read_and_report(paths, "none", options)
+    began = time.perf_counter()
+    built, card = create_avatar(trials, name, partners, sessions, seed=seed, n_jobs=jobs)
+    built.summary["build_seconds"] = round(time.perf_counter() - began, 3)
+    built.save(out_path)
+    card_path = out_path.with_suffix(".html")
+    metadata = {"version": __version__, "seed": seed, "seconds": built.summary["build_seconds"]}
+    write_atomic_text(card_path, render_report([card], f"Avatar of {name}", metadata))
+    for role, result in built.summary["roles"].items():
+        click.echo(
+            f"{role}: against the unseen partner, CV {result['unseen_cv_difference']:+.3f} and "
+            f"RMS {result['unseen_rms_difference']:+.3f} from {name}'s virtual trainer; EMD to "
+            f"{name} {result['emd_to_person']:.4f}; the paper's criteria "
+            f"{'met' if result['criteria_met'] else 'not all met'} (see the card)"
+        )
+    click.echo(f"wrote {out_path.resolve()} and {card_path.resolve()}")
+
+
+def _partner_generator(spec: str, options: ImportOptions) -> IMSGenerator:
+    """Return the IMS generator a partner spec names."""
+    reference = load_reference(spec, options)
+    if not isinstance(reference, IMSGenerator):
+        raise InputError(spec, "a partner must be a generator model .npz or bundled:STYLE")
+    return reference

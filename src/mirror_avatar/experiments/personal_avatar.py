@@ -1,0 +1,171 @@
+"""A person's avatar from their solo trials, validated as the paper's Table I (METHODS 10).
+
+`create_avatar` fits the person's IMS generator (codebook size chosen from their trials), makes
+their virtual trainer, trains a cyber player to imitate it as follower and as leader on sessions
+it plays with the training partners (`mirror_avatar.experiments.cyber_player.run_role`, the
+paper's set-up with the person as the target), and validates each closed-loop against the
+person's own virtual trainer with every partner, the last one never met in training: CV, RMS and
+EMD per partner, the reproduction criteria, and the baselines. The result is one `Avatar` and a
+report `Section` (the avatar's card).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.experiments.cyber_player import (
+    BASELINE_SESSIONS,
+    VALIDATION_SESSIONS,
+    RoleResult,
+    check_criteria,
+    compute_emd_to_target,
+    make_table_one,
+    run_role,
+)
+from mirror_avatar.figures import plot_ims, plot_learning_curves
+from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.learning.avatar import Avatar
+from mirror_avatar.learning.imitation import Cast, Role, VirtualTrainerSpec
+from mirror_avatar.report import Section
+from mirror_avatar.signature import DEFAULT_BINS, compute_ims
+from mirror_avatar.trials import DEFAULT_RATE, Trial
+
+ROLES: tuple[Role, ...] = ("follower", "leader")
+"""The roles trained, those of `mirror_avatar.learning.avatar.TRAINED_ROLES`."""
+
+DEFAULT_SESSIONS = 8000
+"""Training sessions per role (**choice**, twice the paper's 4000: with fewer, a follower's CV
+against a partner unseen in training stayed well below its person's; ``make bench``, ``avatar``,
+measures the time and the validation at this default)."""
+
+
+def create_avatar(
+    trials: Sequence[Trial],
+    name: str,
+    partners: Sequence[tuple[str, IMSGenerator]],
+    n_sessions: int = DEFAULT_SESSIONS,
+    n_validation: int = VALIDATION_SESSIONS,
+    n_baseline: int = BASELINE_SESSIONS,
+    seed: int = 0,
+    n_jobs: int = 2,
+) -> tuple[Avatar, Section]:
+    """Build and validate a person's avatar.
+
+    Parameters
+    ----------
+    trials
+        The person's solo trials (any rate; at least one).
+    name
+        Whom the avatar stands for.
+    partners
+        (label, generator) of the partners: all but the last train the avatar, the last is
+        met only in validation (at least two).
+    n_sessions, n_validation, n_baseline
+        Training sessions per role; validation sessions per partner and role; held-out
+        sessions of the baselines.
+    seed
+        Seeds the generator, training, validation and baselines (recorded in the avatar).
+    n_jobs
+        Local processes generating training sessions.
+
+    Raises
+    ------
+    InputError
+        Fewer than two partners, or trials the generator cannot be fitted on.
+    """
+    if len(partners) < 2:
+        raise InputError("--partners", "give at least two partners: the last is kept unseen")
+    generator = IMSGenerator(rate=DEFAULT_RATE, random_state=seed).fit(trials)
+    trainers = [VirtualTrainerSpec(label, (), model) for label, model in partners]
+    person = VirtualTrainerSpec(name, tuple(t.label for t in trials), generator)
+    n = len(trainers)
+    cast = Cast([*trainers, person], n, tuple(range(n - 1)), n - 1, True)
+    results = [
+        run_role(cast, role, n_sessions, n_validation, n_baseline, seed, n_jobs) for role in ROLES
+    ]
+    summary = _summary(results, cast, generator, n_sessions, n_validation, seed)
+    avatar = Avatar(name, generator, {r.role: r.player for r in results}, summary)
+    return avatar, make_card(avatar, results)
+
+
+def make_card(avatar: Avatar, results: Sequence[RoleResult]) -> Section:
+    """Make the avatar's card: IMS, validation tables, criteria, baselines, learning curves."""
+    person_ims = compute_ims(np.concatenate([v for r in results for v in r.velocities[r.target]]))
+    avatar_ims = compute_ims(
+        np.concatenate([v for r in results for v in r.velocities["cyber player"]])
+    )
+    complexity = avatar.generator.training_summary_["complexity"]
+    criteria = pd.concat({r.role: check_criteria(r) for r in results})
+    passed = bool(criteria["all"].all())
+    text = [
+        __doc__.split("\n\n", 1)[1].replace("\n", " ").strip(),
+        f"{avatar.name}: {len(avatar.generator.training_summary_['labels'])} trials, "
+        f"{avatar.generator.n_symbols_} symbols ({complexity['rule']}). Trained against "
+        f"{', '.join(avatar.summary['partners'][:-1])}; {avatar.summary['partners'][-1]} unseen. "
+        f"Reproduction criteria {'met' if passed else 'NOT met'} for every partner and role.",
+    ]
+    figures: dict[str, Any] = {
+        f"Velocity IMS of {avatar.name}'s virtual trainer and of the avatar (validation)": plot_ims(
+            {f"{avatar.name} (virtual trainer)": person_ims, "avatar": avatar_ims}, DEFAULT_BINS
+        ),
+    }
+    for result in results:
+        figures[f"Learning curve, {result.role}"] = plot_learning_curves(
+            {"cyber player": (result.curve.sessions, result.curve.rms)},
+            {f"{k} (held out)": v for k, v in result.baselines.items()},
+            title=f"Learning to imitate {avatar.name} as {result.role}",
+        )
+    return Section(
+        key="avatar",
+        title=f"Avatar of {avatar.name}",
+        text=text,
+        tables={
+            f"Table I: {avatar.name}'s virtual trainer and the avatar against each partner": (
+                pd.concat([make_table_one(r) for r in results])
+            ),
+            "Reproduction criteria per role and partner": criteria,
+            "RMS to the person on held-out sessions (units)": pd.DataFrame(
+                {r.role: r.baselines for r in results}
+            ).T,
+        },
+        figures=figures,
+        metrics=avatar.summary,
+    )
+
+
+def _summary(
+    results: Sequence[RoleResult],
+    cast: Cast,
+    generator: IMSGenerator,
+    n_sessions: int,
+    n_validation: int,
+    seed: int,
+) -> dict[str, Any]:
+    """How the avatar was made and how it validated, for its file and its card."""
+    roles = {}
+    for result in results:
+        criteria = check_criteria(result)
+        unseen = criteria.iloc[-1]
+        roles[result.role] = {
+            "train_seconds": round(result.train_seconds, 3),
+            "emd_to_person": compute_emd_to_target(result),
+            "unseen_cv_difference": float(unseen["cv cyber"] - unseen[f"cv {result.target}"]),
+            "unseen_rms_difference": float(unseen["rms cyber"] - unseen[f"rms {result.target}"]),
+            "criteria_met": bool(criteria["all"].all()),
+            "per_partner": criteria.drop(columns="all").to_dict(orient="index"),
+        }
+    return {
+        "partners": [t.label for t in cast.trainers[:-1]],
+        "unseen_partner": cast.trainers[cast.unseen].label,
+        "trials": generator.training_summary_["labels"],
+        "n_symbols": generator.n_symbols_,
+        "n_sessions": n_sessions,
+        "n_validation": n_validation,
+        "seed": seed,
+        "roles": roles,
+    }

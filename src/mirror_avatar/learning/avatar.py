@@ -1,0 +1,134 @@
+"""A personal avatar: one file holding a person's motor signature and their trained cyber players.
+
+METHODS section 10: a person's solo trials -> their IMS generator -> their virtual trainer -> cyber
+players trained, as follower and as leader, on sessions their virtual trainer plays with partners.
+The file (``.npz`` + JSON, `mirror_avatar.model_files`) holds the generator and both players;
+which one plays is chosen by the role a session gives it (`Avatar.player`): the trained follower
+or leader, or, in joint improvisation and groups, where no policy was trained, the person's own
+virtual trainer (their generator with that role's preset).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from mirror_avatar.dynamics import HKBParams, preset
+from mirror_avatar.errors import InputError
+from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.importing import excerpt
+from mirror_avatar.learning.agent import (
+    CYBER_PLAYER_ARRAYS,
+    CyberPlayer,
+    cyber_player_arrays,
+    cyber_player_from_arrays,
+)
+from mirror_avatar.model_files import check_object, load_model, save_model
+from mirror_avatar.players import Player, VirtualTrainer
+
+FORMAT_NAME = "mirror-avatar/avatar"
+FORMAT_VERSION = 1
+TRAINED_ROLES = ("follower", "leader")
+"""The roles an avatar holds a trained cyber player for."""
+
+MAX_NAME_CHARS = 100
+"""Longest avatar name (it names files and reports)."""
+
+SEPARATOR = "__"
+"""Joins a part's name (``generator``, ``follower``, ``leader``) and its array names."""
+
+
+@dataclass
+class Avatar:
+    """A person's avatar: their generator and their cyber players as follower and leader.
+
+    Attributes
+    ----------
+    name
+        Whom the avatar stands for.
+    generator
+        The person's IMS generator.
+    players
+        ``"follower"`` and ``"leader"`` -> the trained `CyberPlayer`.
+    summary
+        How it was made and validated (JSON-serialisable).
+    """
+
+    name: str
+    generator: IMSGenerator
+    players: dict[str, CyberPlayer]
+    summary: dict[str, Any] = field(default_factory=dict)
+
+    def player(self, role: str | HKBParams) -> Player:
+        """Return the player for a session role: its policy, else the person's virtual trainer.
+
+        Parameters
+        ----------
+        role
+            A role preset name (`mirror_avatar.dynamics.ROLES`) or virtual-trainer parameters.
+        """
+        if isinstance(role, str) and role in self.players:
+            return self.players[role]
+        params = preset(role) if isinstance(role, str) else role
+        return VirtualTrainer(params, self.generator, label=f"{self.name} (virtual trainer)")
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the avatar to one ``.npz`` file, atomically."""
+        arrays, generator_metadata = self.generator.to_arrays()
+        parts = {"generator": arrays}
+        metadata: dict[str, Any] = {
+            "name": self.name,
+            "summary": self.summary,
+            "generator": generator_metadata,
+        }
+        for role in TRAINED_ROLES:
+            parts[role], metadata[role] = cyber_player_arrays(self.players[role], path)
+        joined = {
+            f"{part}{SEPARATOR}{k}": a for part, named in parts.items() for k, a in named.items()
+        }
+        return save_model(path, FORMAT_NAME, FORMAT_VERSION, joined, metadata)
+
+
+def load_avatar(path: str | os.PathLike[str]) -> Avatar:
+    """Read an avatar written by `Avatar.save`, checking every part as its own loader does.
+
+    Raises
+    ------
+    InputError
+        ``path: problem`` for a missing, corrupt or inconsistent file, or a part that its own
+        loader (`IMSGenerator.from_arrays`, `mirror_avatar.learning.agent.cyber_player_from_arrays`)
+        refuses.
+    """
+    needed = tuple(
+        f"{role}{SEPARATOR}{name}" for role in TRAINED_ROLES for name in CYBER_PLAYER_ARRAYS
+    )
+    arrays, metadata = load_model(path, FORMAT_NAME, FORMAT_VERSION, needed)
+    name = metadata.get("name")
+    if not isinstance(name, str) or not 0 < len(name) <= MAX_NAME_CHARS:
+        raise InputError(path, f"avatar name {excerpt(name)} is not a name")
+    part = {
+        prefix: {
+            k.removeprefix(f"{prefix}{SEPARATOR}"): a
+            for k, a in arrays.items()
+            if k.startswith(f"{prefix}{SEPARATOR}")
+        }
+        for prefix in ("generator", *TRAINED_ROLES)
+    }
+    generator = IMSGenerator.from_arrays(
+        part["generator"], check_object(path, "generator", metadata.get("generator")), path
+    )
+    players = {
+        role: cyber_player_from_arrays(
+            part[role], check_object(path, role, metadata.get(role)), path
+        )
+        for role in TRAINED_ROLES
+    }
+    for role, player in players.items():
+        if player.training_.get("role") != role:
+            raise InputError(
+                path, f"its {role} was trained as {excerpt(player.training_.get('role'))}"
+            )
+    summary = check_object(path, "summary", metadata.get("summary", {}))
+    return Avatar(name, generator, players, summary)
