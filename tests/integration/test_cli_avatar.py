@@ -14,6 +14,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.avatar import load_avatar
+from mirror_avatar.live.session import make_avatar_factory
 from mirror_avatar.model_files import load_model, save_model
 from mirror_avatar.players import VirtualTrainer
 from mirror_avatar.specs import bundled_generator, load_player
@@ -106,3 +107,10 @@ def test_bad_options_are_one_line_before_any_work(tmp_path, capsys, extra, messa
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and message in error
     assert not (tmp_path / "a.npz").exists()
+
+
+def test_live_play_takes_the_avatar_in_every_mode(built: Path) -> None:
+    factory = make_avatar_factory(str(built))
+    assert factory("avatar_follows").training_["role"] == "follower"  # type: ignore[attr-defined]
+    assert factory("avatar_leads").training_["role"] == "leader"  # type: ignore[attr-defined]
+    assert isinstance(factory("joint"), VirtualTrainer)

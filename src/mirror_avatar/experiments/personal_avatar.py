@@ -20,6 +20,7 @@ import pandas as pd
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.cyber_player import (
     BASELINE_SESSIONS,
+    CRITERIA,
     VALIDATION_SESSIONS,
     RoleResult,
     check_criteria,
@@ -101,13 +102,25 @@ def make_card(avatar: Avatar, results: Sequence[RoleResult]) -> Section:
     )
     complexity = avatar.generator.training_summary_["complexity"]
     criteria = pd.concat({r.role: check_criteria(r) for r in results})
-    passed = bool(criteria["all"].all())
+    partners = avatar.summary["partners"]
+    unseen = ", ".join(
+        f"{role} CV {r['unseen_cv_difference']:+.3f}, RMS {r['unseen_rms_difference']:+.3f}, "
+        f"EMD to {avatar.name} {r['emd_to_person']:.4f}"
+        for role, r in avatar.summary["roles"].items()
+    )
     text = [
-        __doc__.split("\n\n", 1)[1].replace("\n", " ").strip(),
-        f"{avatar.name}: {len(avatar.generator.training_summary_['labels'])} trials, "
-        f"{avatar.generator.n_symbols_} symbols ({complexity['rule']}). Trained against "
-        f"{', '.join(avatar.summary['partners'][:-1])}; {avatar.summary['partners'][-1]} unseen. "
-        f"Reproduction criteria {'met' if passed else 'NOT met'} for every partner and role.",
+        f"{avatar.name}'s IMS generator was fitted on "
+        f"{len(avatar.generator.training_summary_['labels'])} trials with "
+        f"{avatar.generator.n_symbols_} symbols ({complexity['rule']}); their cyber player "
+        f"learned to move like their virtual trainer as follower and as leader, playing with "
+        f"{', '.join(partners[:-1])}. Each partner then played the same seeded sessions with "
+        f"the person's virtual trainer and with the avatar; {partners[-1]} was never met in "
+        "training.",
+        f"Against the unseen partner, the avatar's difference from the person's virtual "
+        f"trainer: {unseen}. The paper's reproduction criteria (CV and RMS within "
+        f"{CRITERIA['max_difference']:g} of the person's, CV at least {CRITERIA['min_cv']:g}, "
+        f"RMS at most {CRITERIA['max_rms']:g}, EMD at most {CRITERIA['max_emd_to_target']:g}) "
+        f"are met for {int(criteria['all'].sum())} of {len(criteria)} role and partner pairs.",
     ]
     figures: dict[str, Any] = {
         f"Velocity IMS of {avatar.name}'s virtual trainer and of the avatar (validation)": plot_ims(
