@@ -94,5 +94,6 @@ def test_criteria_by_hand() -> None:
     assert not checks["all"]
 
 
-def test_registered_last() -> None:
-    assert [name for name, _ in EXPERIMENTS][-1] == "group"
+def test_registered_after_the_dyads() -> None:
+    names = [name for name, _ in EXPERIMENTS]
+    assert names.index("group") == names.index("cyber_player") + 1

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from mirror_avatar.experiments import (
+    curriculum,
     cyber_player,
     generator,
     generator_complexity,
@@ -25,5 +26,6 @@ EXPERIMENTS: list[tuple[str, Callable[..., Section]]] = [
     ("virtual_trainer", virtual_trainer.run),
     ("cyber_player", cyber_player.run),
     ("group", group.run),
+    ("curriculum", curriculum.run),
 ]
 """(name, run) pairs in report order; ``run(trials, quick=False, seed=0) -> Section``."""
