@@ -18,18 +18,30 @@ as a virtual trainer's reference (it has ``rate`` and ``sample_velocity``). Two 
 
 The quantile functions are estimated from `QUANTILE_SECONDS` of each generator's motion drawn
 from a fixed seed, on `N_QUANTILES` probabilities.
+
+A stage is saved as one ``.npz`` + JSON file (`save_stage`, `load_stage`; format
+``mirror-avatar/curriculum-stage``): both generators, the weight and the method. As a player SPEC it
+is a virtual trainer with the stage's motion; `StageMotion.sample` gives trials of the stage moving
+alone (a virtual trainer without partners, the leader preset), as ``generator sample`` writes them.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Literal
+import os
+from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
+from mirror_avatar.dynamics import preset
+from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator, Seed
+from mirror_avatar.model_files import check_object, check_real, load_model, save_model
+from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.trials import Trial, make_trial
 
 Method = Literal["mixture", "displacement"]
 METHODS: tuple[Method, ...] = ("mixture", "displacement")
@@ -45,6 +57,11 @@ N_QUANTILES = 2001
 
 QUANTILE_SEED = 0
 """Seed of the motion the quantile functions are estimated from."""
+
+FORMAT_NAME = "mirror-avatar/curriculum-stage"
+FORMAT_VERSION = 1
+PEOPLE = ("patient", "target")
+SEPARATOR = "__"
 
 Array = NDArray[np.float64]
 
@@ -94,6 +111,28 @@ class StageMotion:
         moved = np.interp(rank, probabilities, self._target_quantiles)
         return (1.0 - self.weight) * velocity + self.weight * moved
 
+    def sample(self, duration: float, n: int = 1, random_state: Seed = None) -> list[Trial]:
+        """Generate trials of the stage moving alone, ``duration`` s each.
+
+        A virtual trainer (leader preset, no partner) tracks the stage's velocity; its positions
+        are sampled at the control period's rate.
+        """
+        seeds = np.random.default_rng(random_state).integers(0, 2**63 - 1, size=n)
+        trials = []
+        for k, seed in enumerate(seeds):
+            player = VirtualTrainer(preset("leader"), self, label="stage")
+            session = play([player], duration, int(seed))
+            trials.append(
+                make_trial(
+                    session.times,
+                    session.positions[0],
+                    label=f"generated-{k + 1}",
+                    group="stage",
+                    metadata={"seed": int(seed), "index": k},
+                )  # fmt: skip
+            )
+        return trials
+
     def _mixture(self, n_samples: int, rng: np.random.Generator) -> Array:
         block = max(1, int(round(BLOCK_SECONDS * self.rate)))
         blocks = []
@@ -108,3 +147,30 @@ def _quantiles(generator: IMSGenerator) -> Array:
     n_samples = int(round(QUANTILE_SECONDS * generator.rate))
     velocity = generator.sample_velocity(n_samples, QUANTILE_SEED)
     return np.quantile(velocity, np.linspace(0.0, 1.0, N_QUANTILES))
+
+
+def save_stage(motion: StageMotion, path: str | os.PathLike[str], metadata: dict[str, Any]) -> Path:
+    """Write a stage to one ``.npz`` file, atomically, with ``metadata`` (stage, plan...)."""
+    arrays: dict[str, Any] = {}
+    info: dict[str, Any] = {"weight": motion.weight, "method": motion.method, "stage": metadata}
+    for name, generator in zip(PEOPLE, (motion.patient, motion.target), strict=True):
+        named, info[name] = generator.to_arrays()
+        arrays |= {f"{name}{SEPARATOR}{k}": a for k, a in named.items()}
+    return save_model(path, FORMAT_NAME, FORMAT_VERSION, arrays, info)
+
+
+def load_stage(path: str | os.PathLike[str]) -> StageMotion:
+    """Read a stage written by `save_stage`, checking both generators and the weight."""
+    arrays, info = load_model(path, FORMAT_NAME, FORMAT_VERSION, ())
+    generators = []
+    for name in PEOPLE:
+        prefix = f"{name}{SEPARATOR}"
+        named = {k.removeprefix(prefix): a for k, a in arrays.items() if k.startswith(prefix)}
+        generators.append(
+            IMSGenerator.from_arrays(named, check_object(path, name, info.get(name)), path)
+        )
+    weight = check_real(path, "weight", info.get("weight"), 0.0, 1.0)
+    method = info.get("method")
+    if method not in METHODS:
+        raise InputError(path, f"method is not one of {', '.join(METHODS)}")
+    return StageMotion(generators[0], generators[1], weight, method)

@@ -12,6 +12,8 @@ A SPEC is one of:
 - a personal avatar ``.npz`` (format ``mirror-avatar/avatar``,
   `mirror_avatar.learning.avatar`): its cyber player for the role (follower or leader), or for
   other roles the person's virtual trainer;
+- a curriculum stage ``.npz`` (format ``mirror-avatar/curriculum-stage``,
+  `mirror_avatar.curriculum`): a virtual trainer moving with the stage's motion;
 - a recorded trial file (CSV, Parquet, MAT or BIDS-Motion, `mirror_avatar.trial_io.read_trial`):
   the recording replayed open-loop (`RecordedPlayer`, the role is not used);
 - ``vt:FILE`` with FILE a recorded trial: a virtual trainer whose reference velocity is that
@@ -31,6 +33,8 @@ from functools import lru_cache
 from pathlib import Path
 
 from mirror_avatar import __version__
+from mirror_avatar.curriculum import FORMAT_NAME as STAGE_FORMAT
+from mirror_avatar.curriculum import load_stage
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.dynamics import HKBParams, preset
 from mirror_avatar.errors import InputError
@@ -133,7 +137,11 @@ def _load_model(path: Path, role: str | HKBParams, label: str) -> Player:
         return load_cyber_player(path)
     if kind == AVATAR_FORMAT:
         return load_avatar(path).player(role)
-    known = ", ".join(repr(k) for k in (GENERATOR_FORMAT, CYBER_FORMAT, AVATAR_FORMAT))
+    if kind == STAGE_FORMAT:
+        params = preset(role) if isinstance(role, str) else role
+        return VirtualTrainer(params, load_stage(path), label=label)
+    formats = (GENERATOR_FORMAT, CYBER_FORMAT, AVATAR_FORMAT, STAGE_FORMAT)
+    known = ", ".join(repr(k) for k in formats)
     raise InputError(path, f"model format {excerpt(kind)} is none of {known}")
 
 

@@ -6,6 +6,7 @@ import numpy as np
 
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.experiments.curriculum import measure_stages, own_emd
+from mirror_avatar.generator import IMSGenerator
 
 
 def test_stages_move_from_the_patient_to_the_target() -> None:
@@ -15,7 +16,9 @@ def test_stages_move_from_the_patient_to_the_target() -> None:
     trials = load_zhai2017()
     patient = [t for t in trials if t.group == "slow"]
     target = [t for t in trials if t.group == "fast"]
-    table = measure_stages(patient, target, stages=3, n_draws=4, n_sessions=4, seed=0)
+    models = [IMSGenerator(random_state=0).fit(t) for t in (patient, target)]
+    people = {"patient": patient, "target": target}
+    table = measure_stages(models[0], models[1], people, 3, n_draws=4, n_sessions=4, seed=0)
     for method in ("mixture", "displacement"):
         rows = table.loc[method]
         assert np.all(np.diff(rows["EMD to patient"]) > 0), rows

@@ -19,6 +19,7 @@ import click
 
 from mirror_avatar.cli.avatar import avatar
 from mirror_avatar.cli.convert import convert
+from mirror_avatar.cli.curriculum import curriculum
 from mirror_avatar.cli.evaluate import evaluate
 from mirror_avatar.cli.generator import generator
 from mirror_avatar.cli.group import group
@@ -40,6 +41,7 @@ def cli() -> None:
 
 cli.add_command(avatar)
 cli.add_command(convert)
+cli.add_command(curriculum)
 cli.add_command(generator)
 cli.add_command(group)
 cli.add_command(info)

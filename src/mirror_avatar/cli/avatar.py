@@ -11,7 +11,7 @@ from mirror_avatar import __version__
 from mirror_avatar.atomic import write_atomic_text
 from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
-from mirror_avatar.cli.train import load_reference
+from mirror_avatar.cli.train import load_generator
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.personal_avatar import DEFAULT_SESSIONS, create_avatar
@@ -84,7 +84,7 @@ def create(
     if sessions < 1 or jobs < 1:
         raise InputError("--sessions", "--sessions and --jobs must be >= 1")
     specs = [s.strip() for spec in partner_specs for s in spec.split(",") if s.strip()]
-    partners = [(spec, _partner_generator(spec, options)) for spec in specs]
+    partners = [(spec, load_generator(spec, options)) for spec in specs]
     partners = partners or default_partners(seed)
     trials = read_and_report(paths, "none", options)
     began = time.perf_counter()
@@ -102,11 +102,3 @@ def create(
             f"{'met' if result['criteria_met'] else 'not all met'} (see the card)"
         )
     click.echo(f"wrote {out_path.resolve()} and {card_path.resolve()}")
-
-
-def _partner_generator(spec: str, options: ImportOptions) -> IMSGenerator:
-    """Return the IMS generator a partner spec names."""
-    reference = load_reference(spec, options)
-    if not isinstance(reference, IMSGenerator):
-        raise InputError(spec, "a partner must be a generator model .npz or bundled:STYLE")
-    return reference

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -12,10 +13,13 @@ import pandas as pd
 from mirror_avatar.atomic import write_atomic_json, write_atomic_text
 from mirror_avatar.cli.outputs import check_output_dir, check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
+from mirror_avatar.curriculum import FORMAT_NAME as STAGE_FORMAT
+from mirror_avatar.curriculum import StageMotion, load_stage
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator, sweep_codebook
 from mirror_avatar.importing import ImportOptions, excerpt
+from mirror_avatar.model_files import read_archive
 from mirror_avatar.trial_io import write_csv_trial
 from mirror_avatar.trials import Trial
 
@@ -120,19 +124,20 @@ def _describe_choice(complexity: dict[str, Any]) -> str:
 def sample(
     model_path: Path, duration: float, count: int, out_dir: Path, seed: int, rate: float
 ) -> None:
-    """Generate COUNT trials with the generator in MODEL_PATH, as CSV files time,position.
+    """Generate COUNT trials with the generator (or curriculum stage) in MODEL_PATH, as CSV files.
 
     Also writes ``samples.json`` (model, seed, duration, rate and file names).
     """
     if not (duration > 0 and count >= 1 and rate > 0):
         raise InputError(None, "--duration, --count and --rate must be positive")
     check_output_dir(out_dir)
-    model = IMSGenerator.load(model_path)
+    model = _load_sampler(model_path)
     trials = model.sample(duration, n=count, random_state=seed)
     out_dir.mkdir(parents=True, exist_ok=True)
     names = [f"generated-{k + 1:03d}.csv" for k in range(count)]
     for trial, name in zip(trials, names, strict=True):
-        write_csv_trial(trial if rate == model.rate else trial.resampled(rate), out_dir / name)
+        same = math.isclose(trial.rate, rate, rel_tol=1e-6) and trial.is_uniform
+        write_csv_trial(trial if same else trial.resampled(rate), out_dir / name)
     manifest = {
         "model": str(model_path),
         "seed": seed,
@@ -142,6 +147,12 @@ def sample(
     }
     write_atomic_json(out_dir / "samples.json", manifest)
     click.echo(f"{count} trials of {duration:g} s -> {out_dir}")
+
+
+def _load_sampler(path: Path) -> IMSGenerator | StageMotion:
+    """Load a generator, or a curriculum stage (its motion sampled alone), by the file's format."""
+    _, metadata = read_archive(path)
+    return load_stage(path) if metadata.get("format") == STAGE_FORMAT else IMSGenerator.load(path)
 
 
 def _sweep(trials: list[Trial], seed: int) -> pd.DataFrame:

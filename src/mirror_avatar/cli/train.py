@@ -12,6 +12,7 @@ from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_learning_curves
+from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.imitation import (
@@ -25,6 +26,7 @@ from mirror_avatar.learning.training import LearningCurve
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import render_png
 from mirror_avatar.specs import load_player
+from mirror_avatar.trials import Trial
 
 MODEL_HELP = "An IMS generator .npz, bundled:fast, bundled:slow or vt:TRIAL_FILE."
 
@@ -49,7 +51,17 @@ def load_reference(spec: str, options: ImportOptions = DEFAULT_IMPORT) -> Refere
             "is a cyber-player policy; training needs a virtual trainer: an IMS generator .npz, "
             "bundled:fast, bundled:slow or vt:TRIAL_FILE",
         )
+    if not isinstance(player.reference, IMSGenerator | Trial):
+        raise InputError(spec, "is a curriculum stage; training needs a person's generator")
     return player.reference
+
+
+def load_generator(spec: str, options: ImportOptions = DEFAULT_IMPORT) -> IMSGenerator:
+    """Return the IMS generator a model spec names (a generator .npz or bundled:STYLE)."""
+    reference = load_reference(spec, options)
+    if not isinstance(reference, IMSGenerator):
+        raise InputError(spec, "give a generator model .npz or bundled:STYLE, not a recording")
+    return reference
 
 
 def training_options(command: Callable[..., None]) -> Callable[..., None]:

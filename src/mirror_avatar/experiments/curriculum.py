@@ -11,7 +11,7 @@ the patient cannot coordinate with is no use however its IMS looks.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -35,6 +35,7 @@ DURATION = 60.0
 N_DRAWS, QUICK_DRAWS = 6, 2
 N_SESSIONS, QUICK_SESSIONS = 6, 2
 STAGES, QUICK_STAGES = 5, 3
+TITLE = "Rehabilitation curriculum: moving from a patient's motion to a target's"
 
 
 def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
@@ -54,15 +55,23 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
     for trial in trials:
         groups.setdefault(trial.group, []).append(trial)
     people = [name for name, members in groups.items() if len(members) >= 2][:2]
-    title = "Rehabilitation curriculum: moving from a patient's motion to a target's"
     if len(people) < 2:
-        return Section("curriculum", title, ["Skipped: it needs two groups of two trials."])
+        return Section("curriculum", TITLE, ["Skipped: it needs two groups of two trials."])
     patient, target = (groups[name] for name in people)
     sizes = (QUICK_STAGES, QUICK_DRAWS, QUICK_SESSIONS) if quick else (STAGES, N_DRAWS, N_SESSIONS)
-    table = measure_stages(patient, target, *sizes, seed=seed)
+    fitted = [IMSGenerator(rate=DEFAULT_RATE, random_state=seed).fit(t) for t in (patient, target)]
+    by_role: dict[str, Sequence[Trial]] = {"patient": patient, "target": target}
+    table = measure_stages(fitted[0], fitted[1], by_role, *sizes, seed=seed)
     own = {"patient": own_emd(patient), "target": own_emd(target)}
+    return curriculum_section(table, own, people[0], people[1])
+
+
+def curriculum_section(
+    table: pd.DataFrame, own: dict[str, float], patient: str, target: str
+) -> Section:
+    """Describe a `measure_stages` table, and the people's own trial-to-trial EMD, as a section."""
     text = [
-        f"Patient: {people[0]}; target: {people[1]}. Stage k moves with weight w = (k - 1) / "
+        f"Patient: {patient}; target: {target}. Stage k moves with weight w = (k - 1) / "
         "(K - 1) between them: stage 1 as the patient, stage K as the target. Mixture: the "
         f"velocity in blocks of {BLOCK_SECONDS:g} s, each from the target's generator with "
         "probability w, else from the patient's. Displacement interpolation: the patient's "
@@ -76,7 +85,7 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
     ]
     return Section(
         key="curriculum",
-        title=title,
+        title=TITLE,
         text=text,
         tables={"Stages of each method": table.round(4)},
         metrics={"own_emd": own, "stages": table.reset_index().to_dict(orient="records")},
@@ -84,8 +93,9 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
 
 
 def measure_stages(
-    patient_trials: Sequence[Trial],
-    target_trials: Sequence[Trial],
+    patient: IMSGenerator,
+    target: IMSGenerator,
+    trials: Mapping[str, Sequence[Trial]],
     stages: int = STAGES,
     n_draws: int = N_DRAWS,
     n_sessions: int = N_SESSIONS,
@@ -95,19 +105,18 @@ def measure_stages(
 
     Parameters
     ----------
-    patient_trials, target_trials
-        Solo trials of the patient and of the target person.
+    patient, target
+        The two people's generators.
+    trials
+        ``"patient"`` and ``"target"`` -> their trials, which the stages' IMS are compared with.
     stages
         K, at least 2: stage 1 is the patient's motion (w = 0), stage K the target's (w = 1).
     n_draws, n_sessions
         Draws of `DURATION` s of each stage's motion; sessions with the patient-like follower.
     seed
-        Seeds the generators, the drawn motion and the sessions.
+        Seeds the drawn motion and the sessions.
     """
-    patient = IMSGenerator(rate=DEFAULT_RATE, random_state=seed).fit(patient_trials)
-    target = IMSGenerator(rate=DEFAULT_RATE, random_state=seed).fit(target_trials)
-    people = {name: _pooled_ims(trials) for name, trials in
-              (("patient", patient_trials), ("target", target_trials))}  # fmt: skip
+    people = {name: _pooled_ims(trials[name]) for name in ("patient", "target")}
     rows = []
     for method in METHODS:
         for k in range(1, stages + 1):
@@ -158,7 +167,7 @@ def _coordination(
     patient: IMSGenerator, motion: StageMotion, n_sessions: int, seed: int
 ) -> dict[str, float]:
     """CV and RMS of a patient-like follower with a leader moving as the stage."""
-    leader = VirtualTrainer(preset("leader"), motion, label="stage")  # type: ignore[arg-type]
+    leader = VirtualTrainer(preset("leader"), motion, label="stage")
     follower = VirtualTrainer(preset("follower"), patient, label="patient")
     n_samples = count_samples(DURATION, leader.period)
     results = [

@@ -7,7 +7,7 @@ from an IMS generator or a recorded trial, on the control grid ``k * period``.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,17 +15,30 @@ from numpy.typing import NDArray
 from mirror_avatar.seeds import entropy_of
 from mirror_avatar.trials import Trial
 
-if TYPE_CHECKING:
-    from mirror_avatar.generator import IMSGenerator
-
 REFERENCE_BLOCK = 65.0
 """Seconds of reference velocity a player draws from its generator at a time."""
 
 Array = NDArray[np.float64]
 
 
+class VelocitySource(Protocol):
+    """Anything a reference velocity is drawn from.
+
+    An `mirror_avatar.generator.IMSGenerator`, or a curriculum stage's motion
+    (`mirror_avatar.curriculum.StageMotion`).
+    """
+
+    rate: float
+
+    def sample_velocity(
+        self, n_samples: int, random_state: int | np.random.Generator | None = None
+    ) -> Array:
+        """Generate ``n_samples`` of velocity (units/s) at `rate`."""
+        ...
+
+
 def draw_reference(
-    reference: IMSGenerator | Trial,
+    reference: VelocitySource | Trial,
     n_steps: int,
     period: float,
     rng: np.random.Generator,
@@ -77,7 +90,7 @@ class ReferenceTrack:
         The entropy actually used (replays the same reference).
     """
 
-    def __init__(self, reference: IMSGenerator | Trial, period: float, seed: int | None) -> None:
+    def __init__(self, reference: VelocitySource | Trial, period: float, seed: int | None) -> None:
         self.reference = reference
         self.period = period
         self.seed = entropy_of(seed)

@@ -31,11 +31,11 @@ from mirror_avatar.players.base import (
     PlayerPlan,
     partner_state,
 )
-from mirror_avatar.players.reference import ReferenceTrack, draw_reference
+from mirror_avatar.players.reference import ReferenceTrack, VelocitySource, draw_reference
 from mirror_avatar.trials import Trial
 
 if TYPE_CHECKING:
-    from mirror_avatar.generator import IMSGenerator
+    pass
 
 Array = NDArray[np.float64]
 
@@ -82,7 +82,8 @@ class VirtualTrainer(Player):
         End-effector and cost parameters (`mirror_avatar.dynamics.LEADER`, ``FOLLOWER``,
         ``JOINT``...).
     reference
-        An `IMSGenerator` (a fresh reference is drawn at each `reset` from its seed) or a recorded
+        An `IMSGenerator` or another `VelocitySource` (a fresh reference is drawn at each
+        `reset` from its seed) or a recorded
         `Trial` (its velocity, the same at every reset).
     start
         Initial position (units) and velocity (units/s).
@@ -93,7 +94,7 @@ class VirtualTrainer(Player):
     def __init__(
         self,
         params: HKBParams,
-        reference: IMSGenerator | Trial,
+        reference: VelocitySource | Trial,
         start: tuple[float, float] = (0.0, 0.0),
         label: str = "virtual trainer",
     ) -> None:

@@ -1,0 +1,95 @@
+"""``mirror-avatar curriculum``: stage avatars moving from a patient's motion to a target's."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+import pandas as pd
+
+from mirror_avatar import __version__
+from mirror_avatar.atomic import write_atomic_json
+from mirror_avatar.cli.outputs import check_output_dir
+from mirror_avatar.cli.reading import import_options
+from mirror_avatar.cli.train import load_generator
+from mirror_avatar.curriculum import METHODS, StageMotion, save_stage
+from mirror_avatar.errors import InputError
+from mirror_avatar.experiments.curriculum import (
+    DURATION,
+    N_DRAWS,
+    N_SESSIONS,
+    STAGES,
+    curriculum_section,
+    measure_stages,
+    own_emd,
+)
+from mirror_avatar.importing import ImportOptions
+from mirror_avatar.report import write_report
+
+MAX_STAGES = 50
+PERSON_HELP = "A generator model .npz or bundled:STYLE."
+
+
+@click.command()
+@click.option(
+    "--patient",
+    "patient_spec",
+    required=True,
+    help="The patient: a generator .npz or bundled:STYLE.",
+)
+@click.option(
+    "--target",
+    "target_spec",
+    required=True,
+    help="The target person: a generator .npz or bundled:STYLE.",
+)
+@click.option("--stages", type=int, default=STAGES, show_default=True, help="Stages K (2 or more).")
+@click.option(
+    "--method", type=click.Choice(METHODS), default="displacement", show_default=True,
+    help="How the stages move between the two people (METHODS section 10).",
+)  # fmt: skip
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the measurements.")
+@click.option("--out", "out_dir", required=True, type=click.Path(path_type=Path), help="Folder.")
+@import_options
+def curriculum(
+    patient_spec: str,
+    target_spec: str,
+    stages: int,
+    method: str,
+    seed: int,
+    out_dir: Path,
+    options: ImportOptions,
+) -> None:
+    """Write K stage avatars from the patient's motion (stage 1) to the target's (stage K).
+
+    Writes OUT/stage-1.npz ... stage-K.npz (each a player SPEC, and a model generator sample
+    takes), plan.json (weights and, per stage, the EMD to both people, strokes and how a
+    patient-like virtual trainer coordinates with it) and report.html with both methods.
+    """
+    check_output_dir(out_dir)
+    if not 2 <= stages <= MAX_STAGES:
+        raise InputError("--stages", f"give 2 to {MAX_STAGES} stages")
+    patient, target = (load_generator(spec, options) for spec in (patient_spec, target_spec))
+    people = {
+        name: model.sample(DURATION, N_DRAWS, random_state=seed)
+        for name, model in (("patient", patient), ("target", target))
+    }
+    table = measure_stages(patient, target, people, stages, N_DRAWS, N_SESSIONS, seed)
+    own = {name: own_emd(trials) for name, trials in people.items()}
+    out_dir.mkdir(parents=True, exist_ok=True)
+    plan = []
+    for k, row in enumerate(pd.DataFrame(table.loc[method]).to_dict(orient="records"), start=1):
+        name = f"stage-{k}.npz"
+        info = {"index": k, "of": stages, "patient": patient_spec, "target": target_spec}
+        motion = StageMotion(patient, target, row["weight"], method)  # type: ignore[arg-type]
+        save_stage(motion, out_dir / name, info)
+        plan.append({"file": name, "stage": k} | row)
+    write_atomic_json(
+        out_dir / "plan.json",
+        {"patient": patient_spec, "target": target_spec, "method": method, "seed": seed,
+         "own_emd": own, "stages": plan},
+    )  # fmt: skip
+    section = curriculum_section(table, own, patient_spec, target_spec)
+    report = write_report([section], out_dir, "Curriculum", {"version": __version__, "seed": seed})
+    click.echo(table.loc[method].round(4).to_string())
+    click.echo(f"{stages} stages ({method}) -> {out_dir}; report {report}")
