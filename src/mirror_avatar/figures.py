@@ -7,9 +7,10 @@ global state: each builds a `matplotlib.figure.Figure` rendered with the Agg can
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
+import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -215,6 +216,17 @@ def plot_series(
     for name, values in series.items():
         axes.plot(t, np.asarray(values, dtype=np.float64), color=colours[name], lw=1.2, label=name)
     axes.set(xlabel="time (s)", ylabel=ylabel, title=title)
+    axes.legend(frameon=False)
+    return figure
+
+
+def plot_progress(table: pd.DataFrame, columns: Sequence[str], title: str) -> Figure:
+    """Columns of a per-session table against the session number, one line with markers each."""
+    figure, axes = _new_figure()
+    colours = _colours(list(columns))
+    for column in columns:
+        axes.plot(table.index, table[column], "o-", color=colours[column], lw=1.2, label=column)
+    axes.set(xlabel="session", title=title)
     axes.legend(frameon=False)
     return figure
 

@@ -13,8 +13,9 @@ from mirror_avatar.atomic import json_safe, write_atomic_text
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.simulate import format_metrics
 from mirror_avatar.errors import InputError
-from mirror_avatar.figures import plot_session
+from mirror_avatar.figures import plot_progress, plot_session
 from mirror_avatar.metrics import TRIM, session_metrics
+from mirror_avatar.metrics.progress import progress_table
 from mirror_avatar.report import Section, write_report
 from mirror_avatar.session import Session, load_session
 
@@ -77,7 +78,16 @@ def summary_row(path: Path, session: Session, metrics: dict[str, Any]) -> dict[s
     default=None,
     help="Also write sessions.csv, report.html (with figures) and metrics.json here.",
 )
-def evaluate(paths: tuple[Path, ...], trim: float, as_json: bool, out_dir: Path | None) -> None:
+@click.option(
+    "--progress",
+    is_flag=True,
+    help="Also follow player 0 through the sessions in the order given (folders: by file "
+    "name, which for live trials is by time): drift of their IMS from the first session, EMD "
+    "to the partner, CV and RMS.",
+)
+def evaluate(
+    paths: tuple[Path, ...], trim: float, as_json: bool, out_dir: Path | None, progress: bool
+) -> None:
     """Print the coordination metrics of saved sessions (.parquet or .csv, or folders of them).
 
     Any session the toolkit writes (simulations, groups, live trials) or a plain CSV with
@@ -99,14 +109,41 @@ def evaluate(paths: tuple[Path, ...], trim: float, as_json: bool, out_dir: Path 
         click.echo(format_metrics(results[0][2]))
     else:
         click.echo(rows.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
+    extra = []
+    if progress:
+        names = [f"{path.parent.name}/{path.name}" for path, _, _ in results]
+        table = progress_table([(n, s) for n, (_, s, _) in zip(names, results, strict=True)], trim)
+        click.echo("progress of player 0 across the sessions:")
+        click.echo(table.to_string(float_format=lambda v: f"{v:.4f}"))
+        extra.append(progress_section(table))
     if out_dir is not None:
-        write_evaluation(out_dir, results, rows, trim)
+        write_evaluation(out_dir, results, rows, trim, extra)
         click.echo(f"wrote {out_dir.resolve()}")
+
+
+def progress_section(table: pd.DataFrame) -> Section:
+    """Make the report section of a `progress_table`: the table and two figures."""
+    return Section(
+        key="progress",
+        title="Progress of player 0 across the sessions",
+        text=["Sessions in the order given. EMD to first session: how far player 0's velocity "
+              "IMS has moved from their first session's; CV and RMS: their coordination."],
+        tables={"Per session": table},
+        figures={
+            "Player 0's IMS against their first session's, and against the partner's": (
+                plot_progress(table, ["EMD to first session", "EMD to partner"], "Motion")
+            ),
+            "Coordination (CV 0-1, RMS in units)": (
+                plot_progress(table, ["CV", "RMS"], "Coordination")
+            ),
+        },
+        metrics={"progress": table.reset_index().to_dict(orient="records")},
+    )  # fmt: skip
 
 
 def write_evaluation(
     out_dir: Path, results: list[tuple[Path, Session, dict[str, Any]]], rows: pd.DataFrame,
-    trim: float,
+    trim: float, extra: list[Section] | None = None,
 ) -> None:  # fmt: skip
     """Write the table (CSV), every session's metrics (JSON) and an HTML page with figures."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -124,4 +161,4 @@ def write_evaluation(
         figures=figures,
         metrics={"trim": trim} | {str(path): metrics for path, _, metrics in results},
     )
-    write_report([section], out_dir, title="mirror-avatar: sessions evaluated")
+    write_report([section, *(extra or [])], out_dir, title="mirror-avatar: sessions evaluated")
