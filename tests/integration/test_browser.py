@@ -289,3 +289,42 @@ def test_token_protected_server_refuses_pages_without_it(chromium, tmp_path):
         assert page.goto(local + "?token=letmein").status == 200
         page.wait_for_function("window.mirrorGame.phase === 'idle'")
         page.close()
+
+
+def test_record_solo_trials_build_your_avatar_and_play_with_it(chromium, avatar_factory, tmp_path):
+    """The whole personal-avatar loop on one page: two solo trials, "Build my avatar" (with
+    its stages shown), then a trial with the avatar just built (small training for the test)."""
+    settings = LiveSettings(out_dir=tmp_path, avatar_spec="bundled:slow", countdown=1,
+                            build_sessions=(30, 1, 4))  # fmt: skip
+    with ServerThread(create_app(settings, avatar_factory)) as server:
+        page = chromium.new_page()
+        for k in range(2):
+            start_trial(page, server.url, "solo", 8)
+            drive(page, 9)
+            finish(page, f"own-avatar-solo-{k + 1}", tmp_path)
+        page.click("#build")
+        page.wait_for_function("window.mirrorGame.phase === 'building'")
+        page.wait_for_function("window.mirrorGame.personalAvatar !== null", timeout=180_000)
+        assert "Your avatar is ready (B01_avatar.npz)" in page.text_content("#status")
+        SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+        page.screenshot(path=SCREENSHOTS / "own-avatar-ready.png")
+        page.select_option("#mode", "avatar_follows")
+        page.fill("#duration", "4")
+        page.click("#start")
+        page.wait_for_function("window.mirrorGame.phase === 'running'", timeout=15_000)
+        drive(page, 5)
+        summary = finish(page, "own-avatar-trial", tmp_path)
+    assert summary["complete"] and summary["avatar"].endswith("B01_avatar.npz")
+    assert (tmp_path / "B01" / "B01_avatar.npz").is_file()
+    assert "Avatar of B01" in (tmp_path / "B01" / "B01_avatar.html").read_text()
+
+
+def test_building_without_solo_trials_is_refused(chromium, server):
+    page = chromium.new_page()
+    page.goto(server.url)
+    page.wait_for_function("window.mirrorGame && window.mirrorGame.phase === 'idle'")
+    page.fill("#participant", "NEW1")
+    page.click("#build")
+    page.wait_for_function("window.mirrorGame.phase === 'idle'")
+    assert "play at least 2 solo trials first (0 so far)" in page.text_content("#status")
+    page.close()

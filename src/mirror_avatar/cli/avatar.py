@@ -12,24 +12,15 @@ from mirror_avatar.atomic import write_atomic_text
 from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.cli.train import load_generator
-from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
-from mirror_avatar.experiments.personal_avatar import DEFAULT_SESSIONS, create_avatar
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.experiments.personal_avatar import (
+    DEFAULT_SESSIONS,
+    create_avatar,
+    default_partners,
+)
 from mirror_avatar.importing import ImportOptions, excerpt
 from mirror_avatar.learning.avatar import MAX_NAME_CHARS
-from mirror_avatar.learning.imitation import make_virtual_trainers
 from mirror_avatar.report import render_report
-
-
-def default_partners(seed: int) -> list[tuple[str, IMSGenerator]]:
-    """Make the bundled library of partners: VT1..VT6, each fitted on 3 trials of a style.
-
-    VT1..VT5 train the avatar and VT6 is kept unseen, as in the paper's set-up
-    (`mirror_avatar.learning.imitation.make_virtual_trainers`).
-    """
-    trainers = make_virtual_trainers(load_zhai2017(), seed=seed)
-    return [(f"{t.label} ({', '.join(t.trial_labels)})", t.generator) for t in trainers]
 
 
 @click.group()

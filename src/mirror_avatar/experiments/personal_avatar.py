@@ -11,12 +11,13 @@ report `Section` (the avatar's card).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.cyber_player import (
     BASELINE_SESSIONS,
@@ -31,7 +32,7 @@ from mirror_avatar.experiments.cyber_player import (
 from mirror_avatar.figures import plot_ims, plot_learning_curves
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.avatar import Avatar
-from mirror_avatar.learning.imitation import Cast, Role, VirtualTrainerSpec
+from mirror_avatar.learning.imitation import Cast, Role, VirtualTrainerSpec, make_virtual_trainers
 from mirror_avatar.report import Section
 from mirror_avatar.signature import DEFAULT_BINS, compute_ims
 from mirror_avatar.trials import DEFAULT_RATE, Trial
@@ -54,6 +55,7 @@ def create_avatar(
     n_baseline: int = BASELINE_SESSIONS,
     seed: int = 0,
     n_jobs: int = 2,
+    progress: Callable[[str], None] | None = None,
 ) -> tuple[Avatar, Section]:
     """Build and validate a person's avatar.
 
@@ -73,6 +75,8 @@ def create_avatar(
         Seeds the generator, training, validation and baselines (recorded in the avatar).
     n_jobs
         Local processes generating training sessions.
+    progress
+        Called with the name of each stage as it begins.
 
     Raises
     ------
@@ -81,17 +85,30 @@ def create_avatar(
     """
     if len(partners) < 2:
         raise InputError("--partners", "give at least two partners: the last is kept unseen")
+    report = progress or (lambda stage: None)
+    report("fitting the generator")
     generator = IMSGenerator(rate=DEFAULT_RATE, random_state=seed).fit(trials)
     trainers = [VirtualTrainerSpec(label, (), model) for label, model in partners]
     person = VirtualTrainerSpec(name, tuple(t.label for t in trials), generator)
     n = len(trainers)
     cast = Cast([*trainers, person], n, tuple(range(n - 1)), n - 1, True)
-    results = [
-        run_role(cast, role, n_sessions, n_validation, n_baseline, seed, n_jobs) for role in ROLES
-    ]
+    results = []
+    for role in ROLES:
+        report(f"training and validating the {role}")
+        results.append(run_role(cast, role, n_sessions, n_validation, n_baseline, seed, n_jobs))
     summary = _summary(results, cast, generator, n_sessions, n_validation, seed)
     avatar = Avatar(name, generator, {r.role: r.player for r in results}, summary)
     return avatar, make_card(avatar, results)
+
+
+def default_partners(seed: int) -> list[tuple[str, IMSGenerator]]:
+    """Make the bundled library of partners: VT1..VT6, each fitted on 3 trials of a style.
+
+    VT1..VT5 train the avatar and VT6 is kept unseen, as in the paper's set-up
+    (`mirror_avatar.learning.imitation.make_virtual_trainers`).
+    """
+    trainers = make_virtual_trainers(load_zhai2017(), seed=seed)
+    return [(f"{t.label} ({', '.join(t.trial_labels)})", t.generator) for t in trainers]
 
 
 def make_card(avatar: Avatar, results: Sequence[RoleResult]) -> Section:

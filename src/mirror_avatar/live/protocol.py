@@ -9,10 +9,13 @@ The browser sends JSON text messages, one object each, with a ``type`` field:
   (units, within the playing range) sent once per animation frame, numbered ``n``; ``r`` is the
   last round trip the browser measured (ms), or ``null`` before the first.
 - ``{"type": "stop"}`` ends the running trial early (it is saved, marked incomplete).
+- ``{"type": "build", "participant": P}`` builds P's personal avatar from their recorded solo
+  trials (`mirror_avatar.live.avatar_build`); it then plays this connection's trials.
 
 The server replies with ``ready``, ``countdown``, ``go``, ``avatar`` (one per ``position``:
 ``{"type": "avatar", "seq": n, "x": avatar position, "progress": fraction of the trial}``),
-``done`` (metrics and file names) and ``error`` messages. Anything malformed raises
+``done`` (metrics and file names), ``building`` (a build's stage), ``built`` (the avatar's file
+and the modes it plays) and ``error`` messages. Anything malformed raises
 `ProtocolError`, whose message is sent back to the browser as an ``error``.
 """
 
@@ -71,7 +74,14 @@ class StopRequest:
     """A request to end the running trial now."""
 
 
-Message = StartRequest | PositionUpdate | StopRequest
+@dataclass(frozen=True)
+class BuildRequest:
+    """A request to build a participant's avatar from their recorded solo trials."""
+
+    participant: str
+
+
+Message = StartRequest | PositionUpdate | StopRequest | BuildRequest
 
 
 def parse_message(text: str | bytes | None) -> Message:
@@ -84,7 +94,7 @@ def parse_message(text: str | bytes | None) -> Message:
 
     Returns
     -------
-    StartRequest or PositionUpdate or StopRequest
+    StartRequest or PositionUpdate or StopRequest or BuildRequest
 
     Raises
     ------
@@ -109,6 +119,8 @@ def parse_message(text: str | bytes | None) -> Message:
         return _parse_start(data)
     if kind == "stop":
         return StopRequest()
+    if kind == "build":
+        return BuildRequest(participant=_participant(data, "build"))
     raise ProtocolError(f"unknown message type {kind!r}")
 
 
@@ -132,12 +144,7 @@ def _parse_start(data: dict[str, Any]) -> StartRequest:
     mode = data.get("mode")
     if mode not in MODES:
         raise ProtocolError(f"start: mode must be one of {', '.join(MODES)}")
-    participant = data.get("participant")
-    if not isinstance(participant, str) or not PARTICIPANT_PATTERN.fullmatch(participant):
-        raise ProtocolError(
-            "start: participant id must be 1-32 letters, digits, '_' or '-', starting with a "
-            "letter or digit"
-        )
+    participant = _participant(data, "start")
     duration = _number(data, "duration", "start")
     low, high = DURATION_RANGE
     if not low <= duration <= high:
@@ -146,6 +153,16 @@ def _parse_start(data: dict[str, Any]) -> StartRequest:
     if seed is not None and (not _is_int(seed) or not 0 <= seed < 2**63):
         raise ProtocolError("start: seed must be a non-negative integer")
     return StartRequest(mode=mode, participant=participant, duration=duration, seed=seed)
+
+
+def _participant(data: dict[str, Any], kind: str) -> str:
+    participant = data.get("participant")
+    if not isinstance(participant, str) or not PARTICIPANT_PATTERN.fullmatch(participant):
+        raise ProtocolError(
+            f"{kind}: participant id must be 1-32 letters, digits, '_' or '-', starting with a "
+            "letter or digit"
+        )
+    return participant
 
 
 def _is_int(value: object) -> bool:

@@ -54,17 +54,27 @@ from starlette.websockets import WebSocket, WebSocketClose, WebSocketDisconnect
 from mirror_avatar.atomic import json_safe
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
+from mirror_avatar.experiments.cyber_player import BASELINE_SESSIONS, VALIDATION_SESSIONS
+from mirror_avatar.experiments.personal_avatar import DEFAULT_SESSIONS
 from mirror_avatar.live.admission import Admission, TokenBucket, host_allowed
+from mirror_avatar.live.avatar_build import build_avatar
 from mirror_avatar.live.protocol import (
     DURATION_RANGE,
     MODES,
+    BuildRequest,
+    Message,
     PositionUpdate,
     ProtocolError,
     StartRequest,
     StopRequest,
     parse_message,
 )
-from mirror_avatar.live.session import AvatarFactory, LiveTrial, start_trial
+from mirror_avatar.live.session import (
+    AvatarFactory,
+    LiveTrial,
+    make_avatar_factory,
+    start_trial,
+)
 
 logger = logging.getLogger(__name__)
 STATIC = Path(__file__).parent / "static"
@@ -75,6 +85,10 @@ MAX_FRAME_BYTES = 16 * 1024
 CLOSE_BUSY, CLOSE_POLICY, CLOSE_STALE, CLOSE_IDLE = 1013, 1008, 4408, 4000
 SERVER_SEND = "mirror_avatar.server_send"
 """Scope key of the ASGI server's own ``send`` callable (see `abort_transport`)."""
+
+
+BUILD_SESSIONS = (DEFAULT_SESSIONS, VALIDATION_SESSIONS, BASELINE_SESSIONS)
+"""A built avatar's training, validation and baseline sessions: `avatar create`'s defaults."""
 
 
 @dataclass(frozen=True)
@@ -118,6 +132,9 @@ class LiveSettings:
         ``1 / starts_per_second`` seconds after a burst of two.
     period
         Control period T (s).
+    build_sessions
+        A participant's avatar built from the page: training sessions per role, validation
+        sessions per partner and baseline sessions (`mirror_avatar.live.avatar_build`).
     """
 
     out_dir: Path
@@ -137,6 +154,11 @@ class LiveSettings:
     connects_per_second: float = 2.0
     starts_per_second: float = 0.5
     period: float = CONTROL_PERIOD
+    build_sessions: tuple[int, int, int] = (
+        DEFAULT_SESSIONS,
+        VALIDATION_SESSIONS,
+        BASELINE_SESSIONS,
+    )
 
 
 ADDRESS_BURST = 10
@@ -266,6 +288,8 @@ class Connection:
         self.websocket = websocket
         self.settings = settings
         self.avatar_factory = avatar_factory
+        self.avatar_spec = settings.avatar_spec
+        self.building = False
         self.admission = admission
         self.address = websocket.client.host if websocket.client else ""
         self.opened = self.last_active = time.monotonic()
@@ -279,8 +303,8 @@ class Connection:
 
     @property
     def playing(self) -> bool:
-        """Whether a trial is running on this connection."""
-        return self.trial is not None
+        """Whether a trial is running, or an avatar is being built, on this connection."""
+        return self.trial is not None or self.building
 
     async def run(self) -> None:
         """Serve the connection until it closes; a trial still running is saved as incomplete."""
@@ -322,7 +346,7 @@ class Connection:
 
     async def _receive_loop(self) -> None:
         while not self.dropped:
-            timeout = self.settings.idle_timeout if self.trial is None else None
+            timeout = None if self.playing else self.settings.idle_timeout
             try:
                 message = await asyncio.wait_for(self.websocket.receive(), timeout)
             except TimeoutError:
@@ -344,9 +368,12 @@ class Connection:
                 continue
             await self.handle(request)
 
-    async def handle(self, request: PositionUpdate | StartRequest | StopRequest) -> None:
+    async def handle(self, request: Message) -> None:
         """Act on one valid message."""
         trial = self.trial
+        if isinstance(request, BuildRequest):
+            await self.build(request)
+            return
         if isinstance(request, PositionUpdate):
             if trial is not None:
                 trial.update_person(request.x, request.rtt_ms)
@@ -388,7 +415,7 @@ class Connection:
                 self.settings.out_dir,
                 request,
                 self.avatar_factory,
-                self.settings.avatar_spec,
+                self.avatar_spec,
                 self.settings.period,
             )
         except (InputError, OSError) as error:
@@ -431,6 +458,35 @@ class Connection:
                 return
         if self.trial is trial:
             await self.send({"type": "done", "summary": self.end_trial(True, "completed")})
+
+    async def build(self, request: BuildRequest) -> None:
+        """Build the participant's avatar in a worker thread, reporting each stage.
+
+        Then this connection's trials play with it.
+        """
+        if self.playing:
+            await self.reject("a trial or an avatar build is running")
+            return
+        self.building = True
+        loop = asyncio.get_running_loop()
+
+        def report(stage: str) -> None:
+            message = {"type": "building", "stage": stage}
+            asyncio.run_coroutine_threadsafe(self.send(message), loop)
+
+        folder = self.settings.out_dir / request.participant
+        try:
+            path = await asyncio.to_thread(
+                build_avatar, folder, request.participant, self.settings.build_sessions, report
+            )
+        except (InputError, OSError) as error:
+            await self.send({"type": "error", "message": f"cannot build the avatar: {error}"})
+            return
+        finally:
+            self.building = False
+        self.avatar_factory = make_avatar_factory(str(path))
+        self.avatar_spec = str(path)
+        await self.send({"type": "built", "avatar": path.name, "modes": list(MODES)})
 
     def end_trial(self, complete: bool, reason: str) -> dict[str, Any] | None:
         """Finish and save the running trial, if any, and return its sidecar."""

@@ -12,12 +12,12 @@
     person: $("person-dot"), avatar: $("avatar-dot"), countdown: $("countdown"),
     progress: $("progress"), results: $("results"), metrics: $("metrics"), plot: $("plot"),
     positions: $("positions"), phase: $("phase"), phaseFigure: $("phase-figure"),
-    saved: $("saved"), avatarLegend: $("avatar-legend"),
+    saved: $("saved"), avatarLegend: $("avatar-legend"), build: $("build"),
   };
   const game = {
-    phase: "connecting", // connecting | idle | asleep | countdown | running | closed
+    phase: "connecting", // connecting | idle | asleep | countdown | running | building | closed
     x: 0, avatarX: null, seq: 0, sent: new Map(), rtt: null, keys: new Set(), lastFrame: null,
-    summary: null,
+    summary: null, personalAvatar: null,
   };
   window.mirrorGame = game; // inspected by the browser tests
 
@@ -76,10 +76,16 @@
 
   function setPhase(phase) {
     game.phase = phase;
-    const busy = active();
+    const busy = active() || phase === "building";
     ui.start.disabled = busy || phase === "connecting" || phase === "closed";
-    ui.stop.disabled = !busy;
+    ui.build.disabled = busy || phase !== "idle";
+    ui.stop.disabled = !active();
     for (const input of [ui.participant, ui.mode, ui.duration]) input.disabled = busy;
+  }
+
+  function enableModes(modes) {
+    for (const option of ui.mode.options) option.disabled = !modes.includes(option.value);
+    if (ui.mode.selectedOptions[0].disabled) ui.mode.value = "solo";
   }
 
   function row(label, value) {
@@ -229,8 +235,7 @@
     const message = JSON.parse(event.data);
     switch (message.type) {
       case "ready": {
-        for (const option of ui.mode.options) option.disabled = !message.modes.includes(option.value);
-        if (ui.mode.selectedOptions[0].disabled) ui.mode.value = "solo";
+        enableModes(message.modes);
         setPhase("idle");
         setStatus(message.avatar ? `Avatar: ${message.avatar}` : "Solo recording only");
         if (pendingStart) {
@@ -262,9 +267,20 @@
         showResults(message.summary);
         setStatus(message.summary.complete ? "Trial saved" : "Trial stopped and saved");
         break;
+      case "building":
+        setStatus(`Building your avatar: ${message.stage}…`);
+        break;
+      case "built":
+        game.personalAvatar = message.avatar;
+        enableModes(message.modes);
+        setPhase("idle");
+        setStatus(`Your avatar is ready (${message.avatar}): choose a mode and press Start`);
+        break;
       case "error":
         setStatus(`Server: ${message.message}`);
-        if (game.phase === "countdown" && ui.countdown.hidden) setPhase("idle");
+        if (game.phase === "building" || (game.phase === "countdown" && ui.countdown.hidden)) {
+          setPhase("idle");
+        }
         break;
       default:
         break;
@@ -312,6 +328,12 @@
     send(start);
   });
   ui.stop.addEventListener("click", () => send({ type: "stop" }));
+  ui.build.addEventListener("click", () => {
+    if (!ui.participant.reportValidity()) return;
+    setPhase("building");
+    setStatus("Building your avatar from your solo trials…");
+    send({ type: "build", participant: ui.participant.value });
+  });
 
   window.addEventListener("pointermove", (event) => pointerTo(event.clientX));
   ui.track.addEventListener("pointerdown", (event) => pointerTo(event.clientX));

@@ -1,0 +1,86 @@
+"""A participant's avatar built on the live server from the solo trials they just recorded.
+
+The page's "Build my avatar" asks for it (`mirror_avatar.live.protocol.BuildRequest`): the
+participant's solo trial files in their folder (``P_solo_*.csv``, the person's own trial of each
+solo recording) are read, `mirror_avatar.experiments.personal_avatar.create_avatar` builds and
+validates the avatar (with the default partners), and it is written beside them as
+``P_avatar.npz`` with its card ``P_avatar.html``. The server then plays the connection's trials
+with it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from mirror_avatar import __version__
+from mirror_avatar.atomic import write_atomic_text
+from mirror_avatar.errors import InputError
+from mirror_avatar.experiments.personal_avatar import create_avatar, default_partners
+from mirror_avatar.report import render_report
+from mirror_avatar.trial_io import read_trial
+
+MIN_SOLO_TRIALS = 2
+"""Fewest solo trials a build starts from (**choice**: cross-validation needs two)."""
+
+
+def solo_trial_files(folder: Path, participant: str) -> list[Path]:
+    """List the participant's recorded solo trials (their ``time,position`` files), oldest first."""
+    return sorted(
+        path
+        for path in folder.glob(f"{participant}_solo_*.csv")
+        if not path.name.endswith("_session.csv")
+    )
+
+
+def build_avatar(
+    folder: Path,
+    participant: str,
+    sessions: tuple[int, int, int],
+    progress: Callable[[str], None],
+    seed: int = 0,
+) -> Path:
+    """Build, validate and save ``participant``'s avatar from their solo trials in ``folder``.
+
+    Parameters
+    ----------
+    folder
+        The participant's recording folder.
+    participant
+        Their id (the avatar's name).
+    sessions
+        Training sessions per role, validation sessions per partner, baseline sessions.
+    progress
+        Called with each stage's name as it begins.
+    seed
+        Seeds the build.
+
+    Returns
+    -------
+    pathlib.Path
+        The avatar file (its card is beside it, ``.html``).
+
+    Raises
+    ------
+    InputError
+        Fewer than `MIN_SOLO_TRIALS` solo trials, or trials the generator cannot be fitted on.
+    """
+    files = solo_trial_files(folder, participant)
+    if len(files) < MIN_SOLO_TRIALS:
+        raise InputError(
+            participant, f"play at least {MIN_SOLO_TRIALS} solo trials first ({len(files)} so far)"
+        )
+    trials = [read_trial(path) for path in files]
+    progress("preparing the partners")
+    partners = default_partners(seed)
+    n_train, n_validation, n_baseline = sessions
+    avatar, card = create_avatar(
+        trials, participant, partners, n_train, n_validation, n_baseline, seed, progress=progress
+    )
+    path = folder / f"{participant}_avatar.npz"
+    avatar.save(path)
+    title = f"Avatar of {participant}"
+    write_atomic_text(
+        path.with_suffix(".html"), render_report([card], title, {"version": __version__})
+    )
+    return path
