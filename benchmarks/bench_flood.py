@@ -21,7 +21,6 @@ baseline measured in the same run.
 
 from __future__ import annotations
 
-import base64
 import json
 import multiprocessing as mp
 import os
@@ -38,6 +37,8 @@ from typing import Any
 import numpy as np
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import ClientConnection, connect
+
+from mirror_avatar.testing import raw_websocket, text_frame
 
 FLOOD_ADDRESS = "127.0.0.2"
 CROWD = 50
@@ -111,30 +112,18 @@ def slot_waits(url: str, count: int) -> list[float]:
 
 
 def flood_unpaced(url: str, port: int) -> None:
-    """Start a trial, then send positions unpaced; return the messages sent."""
-    sent = 0
+    """Start a trial, then send positions unpaced."""
     with open_player(url, FLOOD_ADDRESS) as ws:
         ws.send(json.dumps(START))
-        message = json.dumps({"type": "position", "seq": 1, "x": 0.0})
-        while True:
-            ws.send(message)
-            sent += 1
-            if sent % 1000 == 0:
-                _report(1000)
+        _send_forever(ws.send, json.dumps({"type": "position", "seq": 1, "x": 0.0}))
 
 
 def flood_deaf(url: str, port: int) -> None:
     """Start a trial from a raw client and send positions, never reading."""
-    sock = _raw_websocket(port)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-    sock.sendall(_frame(json.dumps(START)))
-    message, sent = _frame(json.dumps({"type": "position", "seq": 1, "x": 0.0})), 0
+    sock = raw_websocket(port, FLOOD_ADDRESS, receive_buffer=4096)
+    sock.sendall(text_frame(json.dumps(START)))
     sock.settimeout(10)
-    while True:
-        sock.sendall(message)
-        sent += 1
-        if sent % 1000 == 0:
-            _report(1000)
+    _send_forever(sock.sendall, text_frame(json.dumps({"type": "position", "seq": 1, "x": 0.0})))
 
 
 def flood_churn(url: str, port: int) -> None:
@@ -153,7 +142,7 @@ def flood_crowd(url: str, port: int) -> None:
     while True:
         held = [sock for sock in held if _still_open(sock)]
         while len(held) < CROWD:
-            sock = _raw_websocket(port)
+            sock = raw_websocket(port, FLOOD_ADDRESS)
             sock.setblocking(False)
             held.append(sock)
             _report(1)
@@ -166,19 +155,6 @@ FLOODERS: dict[str, Callable[[str, int], None]] = {
     "churn": flood_churn,
     "crowd": flood_crowd,
 }
-
-
-def _raw_websocket(port: int) -> socket.socket:
-    """Open a WebSocket from `FLOOD_ADDRESS` by hand, without reading the server's answer."""
-    sock = socket.create_connection(("127.0.0.1", port), source_address=(FLOOD_ADDRESS, 0))
-    key = base64.b64encode(os.urandom(16)).decode()
-    sock.sendall(
-        (
-            f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
-            f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n"
-        ).encode()
-    )
-    return sock
 
 
 def _still_open(sock: socket.socket) -> bool:
@@ -195,10 +171,14 @@ def _still_open(sock: socket.socket) -> bool:
         return False
 
 
-def _frame(text: str) -> bytes:
-    """Make a masked WebSocket text frame of fewer than 126 bytes (zero mask)."""
-    data = text.encode()
-    return bytes([0x81, 0x80 | len(data)]) + b"\0\0\0\0" + data
+def _send_forever(send: Callable[[Any], Any], message: Any) -> None:
+    """Send ``message`` as fast as ``send`` takes it, counting every thousand."""
+    sent = 0
+    while True:
+        send(message)
+        sent += 1
+        if sent % 1000 == 0:
+            _report(1000)
 
 
 _counter: Any = None

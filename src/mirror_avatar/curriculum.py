@@ -39,7 +39,14 @@ from mirror_avatar.dynamics import preset
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator, Seed
-from mirror_avatar.model_files import check_object, check_real, load_model, save_model
+from mirror_avatar.model_files import (
+    check_object,
+    check_real,
+    join_parts,
+    load_model,
+    part_arrays,
+    save_model,
+)
 from mirror_avatar.players import VirtualTrainer
 from mirror_avatar.trials import Trial, make_trial
 
@@ -55,13 +62,15 @@ QUANTILE_SECONDS = 600.0
 N_QUANTILES = 2001
 """Probabilities, evenly spaced on [0, 1], the quantile functions are tabulated at."""
 
+PROBABILITIES = np.linspace(0.0, 1.0, N_QUANTILES)
+"""The probabilities the quantile functions are tabulated at."""
+
 QUANTILE_SEED = 0
 """Seed of the motion the quantile functions are estimated from."""
 
 FORMAT_NAME = "mirror-avatar/curriculum-stage"
 FORMAT_VERSION = 1
 PEOPLE = ("patient", "target")
-SEPARATOR = "__"
 
 Array = NDArray[np.float64]
 
@@ -106,9 +115,8 @@ class StageMotion:
         if self.method == "mixture":
             return self._mixture(n_samples, rng)
         velocity = self.patient.sample_velocity(n_samples, rng)
-        probabilities = np.linspace(0.0, 1.0, N_QUANTILES)
-        rank = np.interp(velocity, self._patient_quantiles, probabilities)
-        moved = np.interp(rank, probabilities, self._target_quantiles)
+        rank = np.interp(velocity, self._patient_quantiles, PROBABILITIES)
+        moved = np.interp(rank, PROBABILITIES, self._target_quantiles)
         return (1.0 - self.weight) * velocity + self.weight * moved
 
     def sample(self, duration: float, n: int = 1, random_state: Seed = None) -> list[Trial]:
@@ -146,17 +154,16 @@ def _quantiles(generator: IMSGenerator) -> Array:
     """Tabulate a generator's velocity quantile function at `N_QUANTILES` probabilities."""
     n_samples = int(round(QUANTILE_SECONDS * generator.rate))
     velocity = generator.sample_velocity(n_samples, QUANTILE_SEED)
-    return np.quantile(velocity, np.linspace(0.0, 1.0, N_QUANTILES))
+    return np.quantile(velocity, PROBABILITIES)
 
 
 def save_stage(motion: StageMotion, path: str | os.PathLike[str], metadata: dict[str, Any]) -> Path:
     """Write a stage to one ``.npz`` file, atomically, with ``metadata`` (stage, plan...)."""
-    arrays: dict[str, Any] = {}
+    parts: dict[str, Any] = {}
     info: dict[str, Any] = {"weight": motion.weight, "method": motion.method, "stage": metadata}
     for name, generator in zip(PEOPLE, (motion.patient, motion.target), strict=True):
-        named, info[name] = generator.to_arrays()
-        arrays |= {f"{name}{SEPARATOR}{k}": a for k, a in named.items()}
-    return save_model(path, FORMAT_NAME, FORMAT_VERSION, arrays, info)
+        parts[name], info[name] = generator.to_arrays()
+    return save_model(path, FORMAT_NAME, FORMAT_VERSION, join_parts(parts), info)
 
 
 def load_stage(path: str | os.PathLike[str]) -> StageMotion:
@@ -164,11 +171,8 @@ def load_stage(path: str | os.PathLike[str]) -> StageMotion:
     arrays, info = load_model(path, FORMAT_NAME, FORMAT_VERSION, ())
     generators = []
     for name in PEOPLE:
-        prefix = f"{name}{SEPARATOR}"
-        named = {k.removeprefix(prefix): a for k, a in arrays.items() if k.startswith(prefix)}
-        generators.append(
-            IMSGenerator.from_arrays(named, check_object(path, name, info.get(name)), path)
-        )
+        metadata = check_object(path, name, info.get(name))
+        generators.append(IMSGenerator.from_arrays(part_arrays(arrays, name), metadata, path))
     weight = check_real(path, "weight", info.get("weight"), 0.0, 1.0)
     method = info.get("method")
     if method not in METHODS:

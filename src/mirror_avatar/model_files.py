@@ -341,6 +341,25 @@ def load_model(
     return arrays, metadata
 
 
+PART_SEPARATOR = "__"
+"""Joins a part's name and an array's name in an archive of several models (`join_parts`)."""
+
+
+def join_parts(parts: Mapping[str, Mapping[str, NDArray[Any]]]) -> dict[str, NDArray[Any]]:
+    """Merge several models' arrays into one archive: ``PART__NAME`` for each part's array."""
+    return {
+        f"{part}{PART_SEPARATOR}{name}": array
+        for part, arrays in parts.items()
+        for name, array in arrays.items()
+    }
+
+
+def part_arrays(arrays: Mapping[str, NDArray[Any]], part: str) -> dict[str, NDArray[Any]]:
+    """Return one part's arrays of an archive written with `join_parts`, by their own names."""
+    prefix = f"{part}{PART_SEPARATOR}"
+    return {k.removeprefix(prefix): a for k, a in arrays.items() if k.startswith(prefix)}
+
+
 def require_arrays(source: Source, arrays: Mapping[str, Any], names: Iterable[str]) -> None:
     """Refuse ``arrays`` if some of ``names`` are missing."""
     missing = sorted(set(names) - arrays.keys())

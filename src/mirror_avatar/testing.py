@@ -7,7 +7,10 @@ and a real live server on a loopback port (`ServerThread`). Nothing else in the 
 
 from __future__ import annotations
 
+import base64
 import math
+import os
+import socket
 import threading
 import time
 from collections.abc import Iterable
@@ -200,3 +203,32 @@ class ServerThread:
         self.server.should_exit = True
         self.thread.join(10.0)
         self.socket.close()
+
+
+def raw_websocket(
+    port: int, source: str = "127.0.0.1", receive_buffer: int | None = None
+) -> socket.socket:
+    """Open a WebSocket to ``/ws`` of a loopback server by hand, as a hostile client would.
+
+    The handshake is sent from ``source`` (any loopback address) and the server's answer is
+    left unread. ``receive_buffer`` (bytes) sets a small receive window before connecting: a
+    client that stops reading then fills it quickly.
+    """
+    sock = socket.socket()
+    if receive_buffer is not None:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
+    sock.bind((source, 0))
+    sock.connect(("127.0.0.1", port))
+    key = base64.b64encode(os.urandom(16)).decode()
+    sock.sendall(
+        f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+        f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
+        "Sec-WebSocket-Version: 13\r\n\r\n".encode()
+    )
+    return sock
+
+
+def text_frame(text: str) -> bytes:
+    """Make a masked (with a zero key) WebSocket text frame of fewer than 126 bytes."""
+    data = text.encode()
+    return bytes([0x81, 0x80 | len(data)]) + bytes(4) + data

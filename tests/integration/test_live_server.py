@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import base64
 import json
 import math
 import os
@@ -31,7 +30,7 @@ from mirror_avatar.live.server import (
 from mirror_avatar.live.session import AvatarFactory, make_avatar_factory
 from mirror_avatar.players import Player
 from mirror_avatar.session import load_session
-from mirror_avatar.testing import ServerThread
+from mirror_avatar.testing import ServerThread, raw_websocket, text_frame
 from mirror_avatar.trials import make_trial
 
 FRAME = 1 / 60
@@ -466,26 +465,12 @@ def test_a_message_flood_closes_only_the_flooding_connection(live):
 
 def deaf_client(port: int) -> socket.socket:
     """A WebSocket client that never reads: a raw socket with a small receive window."""
-    sock = socket.socket()
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-    sock.connect(("127.0.0.1", port))
-    key = base64.b64encode(os.urandom(16)).decode()
-    sock.sendall(
-        f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
-        f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
-        "Sec-WebSocket-Version: 13\r\n\r\n".encode()
-    )
+    sock = raw_websocket(port, receive_buffer=4096)
     response = b""
     while b"\r\n\r\n" not in response:
         response += sock.recv(1)
     assert b" 101 " in response.split(b"\r\n")[0]
     return sock
-
-
-def text_frame(text: str) -> bytes:
-    """A masked (with a zero key) WebSocket text frame of fewer than 126 bytes."""
-    data = text.encode()
-    return bytes([0x81, 0x80 | len(data)]) + bytes(4) + data
 
 
 def test_a_client_that_stops_reading_is_dropped(live):

@@ -8,7 +8,6 @@ from pathlib import Path
 import click
 
 from mirror_avatar import __version__
-from mirror_avatar.atomic import write_atomic_text
 from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.cli.train import load_generator
@@ -17,10 +16,10 @@ from mirror_avatar.experiments.personal_avatar import (
     DEFAULT_SESSIONS,
     create_avatar,
     default_partners,
+    save_avatar,
 )
 from mirror_avatar.importing import ImportOptions, excerpt
 from mirror_avatar.learning.avatar import MAX_NAME_CHARS
-from mirror_avatar.report import render_report
 
 
 @click.group()
@@ -81,10 +80,8 @@ def create(
     began = time.perf_counter()
     built, card = create_avatar(trials, name, partners, sessions, seed=seed, n_jobs=jobs)
     built.summary["build_seconds"] = round(time.perf_counter() - began, 3)
-    built.save(out_path)
-    card_path = out_path.with_suffix(".html")
     metadata = {"version": __version__, "seed": seed, "seconds": built.summary["build_seconds"]}
-    write_atomic_text(card_path, render_report([card], f"Avatar of {name}", metadata))
+    card_path = save_avatar(built, card, out_path, metadata)
     for role, result in built.summary["roles"].items():
         click.echo(
             f"{role}: against the unseen partner, CV {result['unseen_cv_difference']:+.3f} and "

@@ -12,11 +12,13 @@ report `Section` (the avatar's card).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from mirror_avatar.atomic import write_atomic_text
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.cyber_player import (
@@ -25,7 +27,6 @@ from mirror_avatar.experiments.cyber_player import (
     VALIDATION_SESSIONS,
     RoleResult,
     check_criteria,
-    compute_emd_to_target,
     make_table_one,
     run_role,
 )
@@ -33,7 +34,7 @@ from mirror_avatar.figures import plot_ims, plot_learning_curves
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.avatar import Avatar
 from mirror_avatar.learning.imitation import Cast, Role, VirtualTrainerSpec, make_virtual_trainers
-from mirror_avatar.report import Section
+from mirror_avatar.report import Section, render_report
 from mirror_avatar.signature import DEFAULT_BINS, compute_ims
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 
@@ -96,9 +97,21 @@ def create_avatar(
     for role in ROLES:
         report(f"training and validating the {role}")
         results.append(run_role(cast, role, n_sessions, n_validation, n_baseline, seed, n_jobs))
-    summary = _summary(results, cast, generator, n_sessions, n_validation, seed)
+    criteria: dict[str, pd.DataFrame] = {r.role: check_criteria(r) for r in results}
+    summary = _summary(results, criteria, cast, generator, n_sessions, n_validation, seed)
     avatar = Avatar(name, generator, {r.role: r.player for r in results}, summary)
-    return avatar, make_card(avatar, results)
+    return avatar, make_card(avatar, results, criteria)
+
+
+def save_avatar(avatar: Avatar, card: Section, path: Path, metadata: dict[str, Any]) -> Path:
+    """Write the avatar file and its card beside it (``.html``, with ``metadata``).
+
+    Returns the card's path.
+    """
+    avatar.save(path)
+    card_path = path.with_suffix(".html")
+    write_atomic_text(card_path, render_report([card], f"Avatar of {avatar.name}", metadata))
+    return card_path
 
 
 def default_partners(seed: int) -> list[tuple[str, IMSGenerator]]:
@@ -111,14 +124,19 @@ def default_partners(seed: int) -> list[tuple[str, IMSGenerator]]:
     return [(f"{t.label} ({', '.join(t.trial_labels)})", t.generator) for t in trainers]
 
 
-def make_card(avatar: Avatar, results: Sequence[RoleResult]) -> Section:
-    """Make the avatar's card: IMS, validation tables, criteria, baselines, learning curves."""
+def make_card(
+    avatar: Avatar, results: Sequence[RoleResult], per_role: dict[str, pd.DataFrame]
+) -> Section:
+    """Make the avatar's card: IMS, validation tables, criteria, baselines, learning curves.
+
+    ``per_role`` holds each role's `check_criteria` table.
+    """
     person_ims = compute_ims(np.concatenate([v for r in results for v in r.velocities[r.target]]))
     avatar_ims = compute_ims(
         np.concatenate([v for r in results for v in r.velocities["cyber player"]])
     )
     complexity = avatar.generator.training_summary_["complexity"]
-    criteria = pd.concat({r.role: check_criteria(r) for r in results})
+    criteria = pd.concat(per_role)
     partners = avatar.summary["partners"]
     unseen = ", ".join(
         f"{role} CV {r['unseen_cv_difference']:+.3f}, RMS {r['unseen_rms_difference']:+.3f}, "
@@ -170,6 +188,7 @@ def make_card(avatar: Avatar, results: Sequence[RoleResult]) -> Section:
 
 def _summary(
     results: Sequence[RoleResult],
+    per_role: dict[str, pd.DataFrame],
     cast: Cast,
     generator: IMSGenerator,
     n_sessions: int,
@@ -179,11 +198,11 @@ def _summary(
     """How the avatar was made and how it validated, for its file and its card."""
     roles = {}
     for result in results:
-        criteria = check_criteria(result)
+        criteria = per_role[result.role]
         unseen = criteria.iloc[-1]
         roles[result.role] = {
             "train_seconds": round(result.train_seconds, 3),
-            "emd_to_person": compute_emd_to_target(result),
+            "emd_to_person": float(unseen[f"emd to {result.target}"]),
             "unseen_cv_difference": float(unseen["cv cyber"] - unseen[f"cv {result.target}"]),
             "unseen_rms_difference": float(unseen["rms cyber"] - unseen[f"rms {result.target}"]),
             "criteria_met": bool(criteria["all"].all()),

@@ -25,7 +25,14 @@ from mirror_avatar.learning.agent import (
     cyber_player_arrays,
     cyber_player_from_arrays,
 )
-from mirror_avatar.model_files import check_object, load_model, save_model
+from mirror_avatar.model_files import (
+    PART_SEPARATOR,
+    check_object,
+    join_parts,
+    load_model,
+    part_arrays,
+    save_model,
+)
 from mirror_avatar.players import Player, VirtualTrainer
 
 FORMAT_NAME = "mirror-avatar/avatar"
@@ -35,9 +42,6 @@ TRAINED_ROLES = ("follower", "leader")
 
 MAX_NAME_CHARS = 100
 """Longest avatar name (it names files and reports)."""
-
-SEPARATOR = "__"
-"""Joins a part's name (``generator``, ``follower``, ``leader``) and its array names."""
 
 
 @dataclass
@@ -85,10 +89,7 @@ class Avatar:
         }
         for role in TRAINED_ROLES:
             parts[role], metadata[role] = cyber_player_arrays(self.players[role], path)
-        joined = {
-            f"{part}{SEPARATOR}{k}": a for part, named in parts.items() for k, a in named.items()
-        }
-        return save_model(path, FORMAT_NAME, FORMAT_VERSION, joined, metadata)
+        return save_model(path, FORMAT_NAME, FORMAT_VERSION, join_parts(parts), metadata)
 
 
 def load_avatar(path: str | os.PathLike[str]) -> Avatar:
@@ -102,20 +103,13 @@ def load_avatar(path: str | os.PathLike[str]) -> Avatar:
         refuses.
     """
     needed = tuple(
-        f"{role}{SEPARATOR}{name}" for role in TRAINED_ROLES for name in CYBER_PLAYER_ARRAYS
+        f"{role}{PART_SEPARATOR}{name}" for role in TRAINED_ROLES for name in CYBER_PLAYER_ARRAYS
     )
     arrays, metadata = load_model(path, FORMAT_NAME, FORMAT_VERSION, needed)
     name = metadata.get("name")
     if not isinstance(name, str) or not 0 < len(name) <= MAX_NAME_CHARS:
         raise InputError(path, f"avatar name {excerpt(name)} is not a name")
-    part = {
-        prefix: {
-            k.removeprefix(f"{prefix}{SEPARATOR}"): a
-            for k, a in arrays.items()
-            if k.startswith(f"{prefix}{SEPARATOR}")
-        }
-        for prefix in ("generator", *TRAINED_ROLES)
-    }
+    part = {name: part_arrays(arrays, name) for name in ("generator", *TRAINED_ROLES)}
     generator = IMSGenerator.from_arrays(
         part["generator"], check_object(path, "generator", metadata.get("generator")), path
     )

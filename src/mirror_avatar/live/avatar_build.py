@@ -14,10 +14,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 from mirror_avatar import __version__
-from mirror_avatar.atomic import write_atomic_text
 from mirror_avatar.errors import InputError
-from mirror_avatar.experiments.personal_avatar import create_avatar, default_partners
-from mirror_avatar.report import render_report
+from mirror_avatar.experiments.personal_avatar import (
+    create_avatar,
+    default_partners,
+    save_avatar,
+)
 from mirror_avatar.trial_io import read_trial
 
 MIN_SOLO_TRIALS = 2
@@ -78,9 +80,5 @@ def build_avatar(
         trials, participant, partners, n_train, n_validation, n_baseline, seed, progress=progress
     )
     path = folder / f"{participant}_avatar.npz"
-    avatar.save(path)
-    title = f"Avatar of {participant}"
-    write_atomic_text(
-        path.with_suffix(".html"), render_report([card], title, {"version": __version__})
-    )
+    save_avatar(avatar, card, path, {"version": __version__, "seed": seed})
     return path
