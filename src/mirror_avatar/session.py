@@ -293,25 +293,28 @@ class SessionWriter:
         self._file.flush()
         self.n_samples += 1
 
+    def annotate(self, extra: dict[str, Any]) -> None:
+        """Add ``extra`` to the sidecar's metadata now (rewritten atomically), file still open."""
+        self.sidecar["metadata"].update(extra)
+        write_atomic_json(self.sidecar_path, self.sidecar)
+
     def close(self, complete: bool, extra: dict[str, Any] | None = None) -> dict[str, Any]:
         """Close the file and rewrite the sidecar with ``complete`` and ``extra`` metadata."""
         if not self._file.closed:
             self._file.close()
-        metadata = self.sidecar["metadata"]
-        metadata.update(extra or {})
-        metadata["complete"] = complete
         self.sidecar["n_samples"] = self.n_samples
-        write_atomic_json(self.sidecar_path, self.sidecar)
+        self.annotate((extra or {}) | {"complete": complete})
         return self.sidecar
 
 
 def load_session(path: str | os.PathLike[str]) -> Session:
     """Read a session: any file `Session.save`, `Session.save_csv` or `SessionWriter` wrote.
 
-    Also reads plain CSV or Parquet files with a ``time`` column and ``position_0``,
-    ``position_1``... (velocities are then computed from the positions as for a trial; controls
-    and references are NaN). A last CSV line without its newline (a recording cut short) is
-    ignored. The sidecar (``.json`` beside the file) is optional.
+    A lab trial exported as BIDS-Motion (a ``_motion.tsv`` of `mirror_avatar.lab.bids`) is
+    read as its whole N-player session. Also reads plain CSV or Parquet files with a ``time``
+    column and ``position_0``, ``position_1``... (velocities are then computed from the
+    positions as for a trial; controls and references are NaN). A last CSV line without its
+    newline (a recording cut short) is ignored. The sidecar (``.json`` beside the file) is optional.
 
     Raises
     ------
@@ -322,6 +325,10 @@ def load_session(path: str | os.PathLike[str]) -> Session:
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "no such file")
+    if path.name.endswith("_motion.tsv"):
+        from mirror_avatar.lab.bids import read_bids_session
+
+        return read_bids_session(path)
     columns = _read_columns(path)
     n_players = _count_players(path, columns)
     times = columns["time"]

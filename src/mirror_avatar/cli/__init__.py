@@ -24,6 +24,7 @@ from mirror_avatar.cli.evaluate import evaluate
 from mirror_avatar.cli.generator import generator
 from mirror_avatar.cli.group import group
 from mirror_avatar.cli.info import info
+from mirror_avatar.cli.lab import lab
 from mirror_avatar.cli.play import play
 from mirror_avatar.cli.reproduce import reproduce
 from mirror_avatar.cli.signature import signature
@@ -45,6 +46,7 @@ cli.add_command(curriculum)
 cli.add_command(generator)
 cli.add_command(group)
 cli.add_command(info)
+cli.add_command(lab)
 cli.add_command(play)
 cli.add_command(reproduce)
 cli.add_command(signature)

@@ -102,6 +102,27 @@ def parse_message(text: str | bytes | None) -> Message:
         If the frame is binary, longer than `MAX_MESSAGE_BYTES`, not a JSON object, of an
         unknown type, or has a missing, mistyped or out-of-range field.
     """
+    data = parse_json_object(text)
+    kind = data.get("type")
+    if kind == "position":
+        return parse_position(data)
+    if kind == "start":
+        return _parse_start(data)
+    if kind == "stop":
+        return StopRequest()
+    if kind == "build":
+        return BuildRequest(participant=_participant(data, "build"))
+    raise ProtocolError(f"unknown message type {kind!r}")
+
+
+def parse_json_object(text: str | bytes | None) -> dict[str, Any]:
+    """Decode one text frame holding a JSON object of at most `MAX_MESSAGE_BYTES` bytes.
+
+    Raises
+    ------
+    ProtocolError
+        If the frame is binary, too long, not JSON or not an object.
+    """
     if not isinstance(text, str):
         raise ProtocolError("only text messages are accepted")
     if len(text.encode()) > MAX_MESSAGE_BYTES:
@@ -112,19 +133,11 @@ def parse_message(text: str | bytes | None) -> Message:
         raise ProtocolError("message is not valid JSON") from None
     if not isinstance(data, dict):
         raise ProtocolError("message is not a JSON object")
-    kind = data.get("type")
-    if kind == "position":
-        return _parse_position(data)
-    if kind == "start":
-        return _parse_start(data)
-    if kind == "stop":
-        return StopRequest()
-    if kind == "build":
-        return BuildRequest(participant=_participant(data, "build"))
-    raise ProtocolError(f"unknown message type {kind!r}")
+    return data
 
 
-def _parse_position(data: dict[str, Any]) -> PositionUpdate:
+def parse_position(data: dict[str, Any]) -> PositionUpdate:
+    """Validate a ``position`` message's fields (``seq``, ``x``, optional ``rtt``)."""
     seq = data.get("seq")
     if not isinstance(seq, int) or isinstance(seq, bool) or seq < 0:
         raise ProtocolError("position: 'seq' must be a non-negative integer")

@@ -1,0 +1,90 @@
+"""``mirror-avatar lab``: lab sessions with a researcher's console (METHODS section 9)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from mirror_avatar.cli.outputs import check_output_dir
+
+
+@click.group(invoke_without_command=True)
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on.")
+@click.option("--port", default=8766, show_default=True, type=click.IntRange(0, 65535))
+@click.option(
+    "--out",
+    "out_dir",
+    default=Path("lab"),
+    show_default=True,
+    type=click.Path(path_type=Path),
+    help="Where sessions are recorded (one folder per session).",
+)
+@click.option(
+    "--lsl/--no-lsl",
+    default=None,
+    help="Publish each session as an LSL stream and accept LSL input devices "
+    "(default: when pylsl is installed).",
+)
+@click.pass_context
+def lab(ctx: click.Context, host: str, port: int, out_dir: Path, lsl: bool | None) -> None:
+    """Run lab sessions: people at their own screens and avatars, from a researcher's console.
+
+    Serves on http://HOST:PORT and prints the console's URL with the researcher's token (the
+    console always needs it). From the console, or its HTTP/JSON API, create a session
+    (condition, people and avatars, graph, trials), hand each person their join link or QR
+    code, then start, stop or abort; every sample is written to OUT/<session>/ as it is taken.
+    `mirror-avatar lab export` turns a session into a BIDS-Motion dataset.
+    """
+    if ctx.invoked_subcommand is not None:
+        return
+    from mirror_avatar.lab.server import LabSettings, create_lab_app
+    from mirror_avatar.live.server import listening_socket, make_server, make_token
+
+    check_output_dir(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    use_lsl = _lsl_available() if lsl is None else lsl
+    if use_lsl and not _lsl_available():
+        raise click.UsageError("--lsl needs pylsl: pip install 'mirror-avatar[lsl]'")
+    token = make_token()
+    settings = LabSettings(out_dir=out_dir, token=token, lsl=use_lsl)
+    sock = listening_socket(host, port)
+    port = sock.getsockname()[1]
+    server = make_server(create_lab_app(settings), host, port, "info")
+    shown = "localhost" if host in ("0.0.0.0", "::") else host
+    click.echo(
+        f"mirror-avatar lab: recording to {out_dir.resolve()}; LSL {'on' if use_lsl else 'off'}"
+    )
+    click.echo(f"researcher's token: {token}")
+    click.echo(f"console: http://{shown}:{port}/console?token={token}  (Ctrl+C to stop)")
+    server.run(sockets=[sock])
+
+
+def _lsl_available() -> bool:
+    try:
+        import pylsl  # noqa: F401
+    except (ImportError, RuntimeError):
+        return False
+    return True
+
+
+@lab.command()
+@click.argument("session_dir", type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "out_dir",
+    required=True,
+    type=click.Path(path_type=Path),
+    help="The BIDS dataset folder (created, or merged into).",
+)
+def export(session_dir: Path, out_dir: Path) -> None:
+    """Export the lab session in SESSION_DIR as BIDS-Motion (one file set per person and trial).
+
+    Every exported _motion.tsv is read back by `mirror-avatar evaluate` (the whole trial) and by
+    `signature` or `generator fit` (that person's own motion).
+    """
+    from mirror_avatar.lab.bids import export_bids
+
+    check_output_dir(out_dir)
+    written = export_bids(session_dir, out_dir)
+    click.echo(f"wrote {len(written)} motion files to {out_dir.resolve()}")

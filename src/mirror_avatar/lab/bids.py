@@ -1,0 +1,688 @@
+"""BIDS-Motion export of lab sessions (BIDS 1.9.0, motion modality), and reading a trial back.
+
+A lab session folder holds, per trial n, ``trial-NN_session.csv`` and its sidecar
+``trial-NN_session.json`` (`mirror_avatar.session.SessionWriter`), whose ``metadata`` describes
+the trial (``lab``: session id, trial, condition, slots; ``complete``, ``dropped``, ``held``).
+`export_bids` writes, for every trial and every human slot, one motion recording holding the
+whole trial as that participant played it::
+
+    <out>/dataset_description.json, README, participants.tsv, participants.json
+    <out>/sub-<sub>/motion/sub-<sub>_task-mirrorgame_tracksys-<device>_acq-<acq>_run-<n>_motion.tsv
+    <out>/sub-<sub>/motion/sub-<sub>_task-mirrorgame_tracksys-<device>_acq-<acq>_run-<n>_channels.tsv
+    <out>/sub-<sub>/motion/sub-<sub>_task-mirrorgame_tracksys-<device>_acq-<acq>_run-<n>_motion.json
+    <out>/sourcedata/<session id>/trial-NN_session.csv, trial-NN_session.json (and plan.json)
+
+Entities follow the order of the specification (sub, task, tracksys, acq, run). ``<sub>`` is the
+slot's label, ``<acq>`` the session id and ``<device>`` the slot's input device (``pointer`` or
+``lsl``), each with its non-alphanumeric characters removed (`bids_label`); ``<n>`` is the trial
+number. Channels are the participant's own ``position`` and ``velocity``, then
+``position_<label>`` and ``velocity_<label>`` of every other player in player order, in playing
+range units (-0.5..0.5; per second for velocities). The non-standard ``MirrorGame`` key of each
+``_motion.json`` describes the trial so that `read_bids_session` rebuilds the N-player session;
+the participant's own file stays readable as their solo trial by
+`mirror_avatar.trial_io.read_trial` (it reads the channel named ``position``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mirror_avatar import __version__
+from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.errors import InputError
+from mirror_avatar.session import MIN_SESSION_SAMPLES, Session, load_session
+from mirror_avatar.trial_io import MAX_FILE_BYTES, read_sidecar_text
+
+Array = NDArray[np.float64]
+
+BIDS_VERSION = "1.9.0"
+"""Version of the BIDS specification the export follows."""
+
+TASK = "mirrorgame"
+"""The ``task-`` label and ``TaskName`` of every recording."""
+
+TRIAL_PATTERN = "trial-*_session.csv"
+"""Trial files of a lab session folder."""
+
+GAME_KEY = "MirrorGame"
+"""Non-standard ``_motion.json`` key describing the trial (players, graph, drops)."""
+
+GAME_FORMAT, GAME_VERSION = "mirror-avatar/lab-bids", 1
+"""Format name and version written under `GAME_KEY`."""
+
+CHANNEL_COLUMNS = ("name", "component", "type", "tracked_point", "units", "description")
+"""Columns of a ``_channels.tsv``."""
+
+PARTICIPANT_COLUMNS = ("participant_id", "label", "device")
+"""Columns `export_bids` fills in ``participants.tsv`` (others already there are kept)."""
+
+MISSING = "n/a"
+"""How BIDS writes a missing value."""
+
+CONDITIONS = {
+    "solo": "one player moves alone",
+    "leader_follower": "one player leads and the other follows",
+    "joint": "the players improvise motion together, with no designated leader",
+    "group": "several players move together, coupled on a graph",
+}
+"""What each lab condition asks of the players, for ``TaskDescription``."""
+
+
+@dataclass(frozen=True)
+class _LabTrial:
+    """One recorded trial of a lab session with its lab description.
+
+    ``slots`` are the sidecar's slot dictionaries (one per player, in player order) and
+    ``period`` the control period (s).
+    """
+
+    path: Path
+    session: Session
+    session_id: str
+    trial: int
+    condition: str
+    created_utc: str | None
+    slots: tuple[dict[str, Any], ...]
+    period: float
+
+    def humans(self) -> list[int]:
+        """Return the indices of the human slots."""
+        return [k for k, slot in enumerate(self.slots) if slot["kind"] == "human"]
+
+
+def bids_label(text: str, source: str | os.PathLike[str] | None = None) -> str:
+    """Return ``text`` as a BIDS label: its letters and digits, other characters removed.
+
+    Raises
+    ------
+    InputError
+        If nothing is left (naming ``source``).
+    """
+    label = re.sub(r"[^A-Za-z0-9]", "", text)
+    if not label:
+        raise InputError(source, f"{text!r} has no letter or digit to make a BIDS label")
+    return label
+
+
+def motion_stem(subject: str, device: str, acquisition: str, run: int) -> str:
+    """Return ``sub-<subject>_task-mirrorgame_tracksys-<device>_acq-<acquisition>_run-<run>``."""
+    return f"sub-{subject}_task-{TASK}_tracksys-{device}_acq-{acquisition}_run-{run}"
+
+
+def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> list[Path]:
+    """Export a lab session folder to a BIDS-Motion dataset (BIDS 1.9.0), merging into it.
+
+    Every trial file ``trial-*_session.csv`` of ``session_dir`` (sorted) gives one recording per
+    human slot, in ``out_dir/sub-<label>/motion/`` (layout in the module docstring); avatars get
+    none but appear as channels of every human's recording. BIDS labels must be alphanumeric:
+    the participant label is the slot's label with every other character removed (``P_1``
+    becomes ``sub-P1``), and likewise the ``acq-`` label from the session id. An incomplete
+    trial (a crash) is exported as far as it was recorded, ``complete`` being false in its
+    ``MirrorGame`` key. ``participants.tsv`` gains the session's participants (one row each,
+    existing rows kept); ``dataset_description.json`` and ``README`` are written only when
+    absent; ``sourcedata/<session id>/`` receives copies of the trial files and ``plan.json``.
+    Every file is written atomically, and nothing is written before every trial has been read.
+
+    Parameters
+    ----------
+    session_dir
+        A lab session folder ``<out>/<session_id>/``.
+    out_dir
+        The BIDS dataset root, created if needed.
+
+    Returns
+    -------
+    list of Path
+        The ``_motion.tsv`` files written, by trial then slot.
+
+    Raises
+    ------
+    InputError
+        No such folder, no trial file in it, a trial without lab metadata (or with slots that
+        do not match its players), trials of different sessions, a human slot without a device,
+        two players with one label, two participants mapping to one BIDS label (also against
+        ``participants.tsv``), or a session id already exported under the same ``acq-`` label.
+    """
+    session_dir, out_dir = Path(session_dir), Path(out_dir)
+    files = _trial_files(session_dir)
+    trials = [_read_lab_trial(path) for path in files]
+    session_id = _one_session(session_dir, trials)
+    _check_acquisition(out_dir, session_id)
+    columns, participants = _read_participants(out_dir / "participants.tsv")
+    for trial in trials:
+        _add_participants(participants, trial, out_dir / "participants.tsv")
+    described = _read_column_info(out_dir / "participants.json")
+    written = [_write_recording(trial, k, out_dir) for trial in trials for k in trial.humans()]
+    _copy_sources(session_dir, files, out_dir / "sourcedata" / session_id)
+    _write_participants(out_dir, columns, participants, described)
+    _write_description(out_dir)
+    return written
+
+
+def _trial_files(session_dir: Path) -> list[Path]:
+    """Return the trial files of a lab session folder, sorted."""
+    if not session_dir.is_dir():
+        raise InputError(session_dir, "no such folder")
+    files = sorted(path for path in session_dir.glob(TRIAL_PATTERN) if path.is_file())
+    if not files:
+        raise InputError(
+            session_dir, "no trial file (trial-NN_session.csv) in it: not a lab session folder"
+        )
+    return files
+
+
+def _read_lab_trial(path: Path) -> _LabTrial:
+    """Read a trial file and check its lab metadata against its players."""
+    session = load_session(path)
+    lab = session.metadata.get("lab")
+    if not isinstance(lab, dict):
+        raise InputError(path, "no lab metadata in its sidecar: not a lab trial")
+    slots = _slots(path, lab.get("slots"), session)
+    session_id = lab.get("session_id")
+    if not isinstance(session_id, str) or not _is_folder_name(session_id):
+        raise InputError(path, f"lab session_id {session_id!r} is not a usable folder name")
+    trial = lab.get("trial")
+    if isinstance(trial, bool) or not isinstance(trial, int) or trial < 0:
+        raise InputError(path, f"lab trial {trial!r} is not a trial number")
+    created = lab.get("created_utc")
+    return _LabTrial(
+        path=path,
+        session=session,
+        session_id=session_id,
+        trial=trial,
+        condition=str(lab.get("condition", "")),
+        created_utc=created if isinstance(created, str) else None,
+        slots=slots,
+        period=_nominal_period(path, session),
+    )
+
+
+def _slots(path: Path, slots: object, session: Session) -> tuple[dict[str, Any], ...]:
+    """Check the lab slots: one per player, labels as the session's, unique, devices named."""
+    if not isinstance(slots, list) or len(slots) != session.n_players:
+        raise InputError(path, f"lab slots must be a list of {session.n_players} (one per player)")
+    checked = []
+    for k, slot in enumerate(slots):
+        if not isinstance(slot, dict) or slot.get("kind") not in ("human", "avatar"):
+            raise InputError(path, f"lab slot {k} is not a human or avatar slot")
+        if slot.get("label") != session.labels[k]:
+            raise InputError(
+                path,
+                f"lab slot {k} is {slot.get('label')!r} but player {k} is {session.labels[k]!r}",
+            )
+        role = slot.get("role", session.roles[k])
+        checked.append(dict(slot) | {"label": session.labels[k], "role": str(role)})
+        if slot["kind"] == "human":
+            device = slot.get("device")
+            if not isinstance(device, str) or not device:
+                raise InputError(path, f"human slot {session.labels[k]!r} names no input device")
+            bids_label(device, path)
+            bids_label(session.labels[k], path)
+    if len(set(session.labels)) != len(session.labels):
+        raise InputError(path, f"two players share a label in {list(session.labels)}")
+    return tuple(checked)
+
+
+def _nominal_period(path: Path, session: Session) -> float:
+    """Return the sidecar's control period (s), or the one the sample times give."""
+    try:
+        period = json.loads(path.with_suffix(".json").read_text(encoding="utf-8")).get("period")
+    except (OSError, ValueError, AttributeError):
+        period = None
+    if isinstance(period, int | float) and not isinstance(period, bool) and period > 0:
+        return float(period)
+    return session.period
+
+
+def _is_folder_name(text: str) -> bool:
+    """Whether ``text`` can name one folder: not empty, no separator, not hidden."""
+    return bool(text) and not text.startswith(".") and not re.search(r"[/\\\x00-\x1f]", text)
+
+
+def _one_session(session_dir: Path, trials: list[_LabTrial]) -> str:
+    """Return the session id the trials share."""
+    ids = sorted({trial.session_id for trial in trials})
+    if len(ids) != 1:
+        raise InputError(session_dir, f"trials of several sessions in one folder: {ids}")
+    return ids[0]
+
+
+def _check_acquisition(out_dir: Path, session_id: str) -> None:
+    """Refuse a session id whose ``acq-`` label another exported session already has."""
+    acquisition = bids_label(session_id, out_dir)
+    sources = out_dir / "sourcedata"
+    others = [p.name for p in sources.iterdir() if p.is_dir()] if sources.is_dir() else []
+    for other in others:
+        if other != session_id and re.sub(r"[^A-Za-z0-9]", "", other) == acquisition:
+            raise InputError(
+                out_dir,
+                f"session {session_id!r} and the exported session {other!r} both map to "
+                f"acq-{acquisition}",
+            )
+
+
+def _read_participants(path: Path) -> tuple[list[str], dict[str, dict[str, str]]]:
+    """Read ``participants.tsv`` (columns and rows by participant id); empty if absent."""
+    if not path.is_file():
+        return list(PARTICIPANT_COLUMNS), {}
+    lines = [line for line in read_sidecar_text(path).splitlines() if line.strip()]
+    header = lines[0].split("\t") if lines else []
+    if "participant_id" not in header:
+        raise InputError(path, "no participant_id column")
+    rows: dict[str, dict[str, str]] = {}
+    for number, line in enumerate(lines[1:], start=2):
+        cells = line.split("\t")
+        if len(cells) != len(header):
+            raise InputError(path, f"row {number} has {len(cells)} cells for {len(header)} columns")
+        row = dict(zip(header, cells, strict=True))
+        rows[row["participant_id"]] = row
+    columns = header + [c for c in PARTICIPANT_COLUMNS if c not in header]
+    return columns, rows
+
+
+def _add_participants(rows: dict[str, dict[str, str]], trial: _LabTrial, path: Path) -> None:
+    """Add a trial's human slots to the participants rows, refusing two labels for one id."""
+    for k in trial.humans():
+        label, device = trial.slots[k]["label"], trial.slots[k]["device"]
+        subject = f"sub-{bids_label(label, trial.path)}"
+        row = rows.setdefault(subject, {"participant_id": subject, "label": label})
+        if row.get("label", MISSING) not in (label, MISSING):
+            raise InputError(
+                path,
+                f"slot {label!r} of {trial.path.name} and participant {row['label']!r} both map "
+                f"to {subject}",
+            )
+        devices = set(row.get("device", MISSING).split(",")) - {MISSING, ""}
+        row |= {"label": label, "device": ",".join(sorted(devices | {device}))}
+
+
+def _write_recording(trial: _LabTrial, slot: int, out_dir: Path) -> Path:
+    """Write slot ``slot``'s motion, channels and sidecar files; return the motion file."""
+    label = trial.slots[slot]["label"]
+    subject = bids_label(label)
+    device = bids_label(trial.slots[slot]["device"])
+    stem = motion_stem(subject, device, bids_label(trial.session_id), trial.trial)
+    folder = out_dir / f"sub-{subject}" / "motion"
+    folder.mkdir(parents=True, exist_ok=True)
+    order = _player_order(slot, trial.session.n_players)
+    channels = [row for j in order for row in _channel_rows(trial, j, own=j == slot)]
+    session = trial.session
+    values = np.vstack(
+        [array[j] for j in order for array in (session.positions, session.velocities)]
+    )
+    motion = folder / f"{stem}_motion.tsv"
+    write_atomic_text(motion, _tsv_values(values.T))
+    write_atomic_text(folder / f"{stem}_channels.tsv", _tsv_table(CHANNEL_COLUMNS, channels))
+    write_atomic_json(folder / f"{stem}_motion.json", _motion_sidecar(trial, slot, len(channels)))
+    return motion
+
+
+def _player_order(slot: int, n_players: int) -> list[int]:
+    """Order the players: the participant at ``slot`` first, then the others in order."""
+    return [slot, *(j for j in range(n_players) if j != slot)]
+
+
+def _channel_names(label: str, own: bool) -> tuple[str, str]:
+    """Names of a player's position and velocity channels in a participant's file."""
+    suffix = "" if own else f"_{label}"
+    return f"position{suffix}", f"velocity{suffix}"
+
+
+def _channel_rows(trial: _LabTrial, player: int, own: bool) -> list[dict[str, str]]:
+    """Make a player's ``_channels.tsv`` rows: position (POS), then velocity (VEL)."""
+    slot = trial.slots[player]
+    who = _one_line(f"{slot['label']} ({slot['kind']}, {slot['role']})")
+    position, velocity = _channel_names(slot["label"], own)
+    common = {"component": "x", "tracked_point": slot["label"], "units": MISSING}
+    return [
+        common | {"name": position, "type": "POS",
+                  "description": f"position of {who} in playing range units: -0.5..0.5"},
+        common | {"name": velocity, "type": "VEL",
+                  "description": f"velocity of {who} in playing range units per second "
+                  "(playing range units: -0.5..0.5)"},
+    ]  # fmt: skip
+
+
+def _one_line(text: str) -> str:
+    """``text`` without tabs or line breaks, so that it fits one TSV cell."""
+    return " ".join(text.split())
+
+
+def _tsv_values(rows: Array) -> str:
+    """Rows of numbers as headerless TSV: each value exactly (``repr``), NaN as ``n/a``."""
+    return "".join(
+        "\t".join(MISSING if math.isnan(v) else repr(v) for v in row) + "\n"
+        for row in rows.tolist()
+    )
+
+
+def _tsv_table(columns: Iterable[str], rows: Iterable[dict[str, str]]) -> str:
+    """Write a TSV table with a header; cells missing from a row are ``n/a``."""
+    columns = list(columns)
+    lines = ["\t".join(columns)]
+    lines += ["\t".join(_one_line(row.get(c, MISSING)) or MISSING for c in columns) for row in rows]
+    return "\n".join(lines) + "\n"
+
+
+def _motion_sidecar(trial: _LabTrial, slot: int, n_channels: int) -> dict[str, Any]:
+    """Make the ``_motion.json`` of slot ``slot``'s recording of ``trial``."""
+    n_players, n_samples = trial.session.n_players, trial.session.n_samples
+    return {
+        "TaskName": TASK,
+        "TaskDescription": _task_description(trial),
+        "SamplingFrequency": 1.0 / trial.period,
+        "TrackingSystemName": trial.slots[slot]["device"],
+        "MotionChannelCount": n_channels,
+        "POSChannelCount": n_players,
+        "VELChannelCount": n_players,
+        "TrackedPointsCount": n_players,
+        "RecordingDuration": n_samples * trial.period,
+        "RecordingType": "continuous",
+        "MissingValues": MISSING,
+        "SubjectArtefactDescription": _artefacts(trial, slot),
+        GAME_KEY: _game_info(trial, slot),
+    }
+
+
+def _task_description(trial: _LabTrial) -> str:
+    """Describe the mirror game and the trial's condition."""
+    what = CONDITIONS.get(trial.condition, "the players move together")
+    return (
+        f"Mirror game, condition {trial.condition or MISSING} ({what}): each player moves a point "
+        "along a line and sees the points of the players they are coupled to. Positions are in "
+        f"playing range units (-0.5..0.5), sampled every {trial.period:g} s."
+    )
+
+
+def _artefacts(trial: _LabTrial, slot: int) -> str:
+    """Name the trial's connection drops and an early end, or return ``n/a``."""
+    metadata = trial.session.metadata
+    notes = []
+    for who, sample in _mapping(metadata.get("dropped")).items():
+        whose = "this participant" if who == trial.slots[slot]["label"] else "another participant"
+        when = f" ({sample * trial.period:.3f} s)" if isinstance(sample, int | float) else ""
+        notes.append(f"The connection of {who} ({whose}) dropped at sample {sample}{when}.")
+    if metadata.get("complete") is not True:
+        notes.append("The recording stopped before the end of the trial (incomplete).")
+    return " ".join(notes) or MISSING
+
+
+def _game_info(trial: _LabTrial, slot: int) -> dict[str, Any]:
+    """Make the ``MirrorGame`` key: what `read_bids_session` needs to rebuild the trial."""
+    metadata = trial.session.metadata
+    info: dict[str, Any] = {
+        "format": GAME_FORMAT,
+        "version": GAME_VERSION,
+        "library_version": __version__,
+        "session_id": trial.session_id,
+        "trial": trial.trial,
+        "condition": trial.condition,
+        "created_utc": trial.created_utc,
+        "participant": trial.slots[slot]["label"],
+        "slot": slot,
+        "slots": list(trial.slots),
+        "graph": trial.session.graph.tolist(),
+        "start_time": float(trial.session.times[0]),
+        "complete": metadata.get("complete") is True,
+        "dropped": _mapping(metadata.get("dropped")),
+        "held": _mapping(metadata.get("held")),
+    }
+    seed = metadata.get("seed", metadata["lab"].get("seed"))
+    return info if seed is None else info | {"seed": seed}
+
+
+def _mapping(value: object) -> dict[str, Any]:
+    """Copy ``value`` if it is a JSON object, else return an empty one."""
+    return dict(value) if isinstance(value, dict) else {}
+
+
+def _copy_sources(session_dir: Path, files: list[Path], target: Path) -> None:
+    """Copy the trial files, their sidecars and ``plan.json`` to ``target``."""
+    target.mkdir(parents=True, exist_ok=True)
+    sources = [p for f in files for p in (f, f.with_suffix(".json"))]
+    sources.append(session_dir / "plan.json")
+    for source in sources:
+        if source.is_file():
+            write_atomic_bytes(target / source.name, source.read_bytes())
+
+
+def _read_column_info(path: Path) -> dict[str, Any]:
+    """Read an existing ``participants.json`` (its other columns are kept); empty if absent."""
+    if not path.is_file():
+        return {}
+    try:
+        described = json.loads(read_sidecar_text(path))
+    except ValueError:
+        raise InputError(path, "not valid JSON") from None
+    if not isinstance(described, dict):
+        raise InputError(path, "not a JSON object")
+    return described
+
+
+def _write_participants(
+    out_dir: Path, columns: list[str], rows: dict[str, dict[str, str]], described: dict[str, Any]
+) -> None:
+    """Write ``participants.tsv`` (sorted by id) and ``participants.json``."""
+    ordered = [rows[key] for key in sorted(rows)]
+    write_atomic_text(out_dir / "participants.tsv", _tsv_table(columns, ordered))
+    write_atomic_json(out_dir / "participants.json", described | _COLUMN_INFO)
+
+
+_COLUMN_INFO = {
+    "participant_id": {
+        "Description": "Participant: sub- and the slot label without non-alphanumeric characters"
+    },
+    "label": {"Description": "The participant's slot label in the lab sessions, as recorded"},
+    "device": {
+        "Description": "Input device(s) the participant used, separated by commas: pointer (the "
+        "browser page's pointer) or lsl (a Lab Streaming Layer stream)"
+    },
+}
+
+
+def _write_description(out_dir: Path) -> None:
+    """Write ``dataset_description.json`` and ``README`` unless the dataset already has them."""
+    description = out_dir / "dataset_description.json"
+    if not description.exists():
+        write_atomic_json(
+            description,
+            {
+                "Name": "Mirror game lab sessions",
+                "BIDSVersion": BIDS_VERSION,
+                "DatasetType": "raw",
+                "GeneratedBy": [{"Name": "mirror-avatar", "Version": __version__}],
+            },
+        )
+    readme = out_dir / "README"
+    if not readme.exists():
+        write_atomic_text(readme, _README)
+
+
+_README = """Mirror game lab sessions (BIDS-Motion), exported by mirror-avatar.
+
+In the mirror game, players move a point along a line, each seeing the players they are coupled
+to; some players may be avatars (computer-controlled). Each human participant (sub-<label>) has,
+per session (acq-<session id>) and trial (run-<trial>), one motion recording holding the whole
+trial as they played it: their own position and velocity, then those of every other player.
+Positions are in playing range units (-0.5..0.5), velocities in playing range units per second,
+sampled at the control period. The MirrorGame key of each _motion.json describes the trial
+(condition, players, coupling graph, connection drops). sourcedata/<session id>/ holds the
+original recordings.
+"""
+
+
+def read_bids_session(path: str | os.PathLike[str]) -> Session:
+    """Read a ``_motion.tsv`` `export_bids` wrote back as its trial's N-player session.
+
+    Players are in the original order (from the ``MirrorGame`` key of the ``_motion.json``),
+    with their positions and velocities exactly as recorded; controls and references are NaN.
+    Sample times are ``start_time + k T`` (s), T = 1 / ``SamplingFrequency`` the period. The
+    metadata holds ``lab`` (session id, trial, condition, creation time, slots), ``complete``,
+    ``dropped``, ``held``, ``seed`` when known, and ``bids`` (this file, its participant and
+    their slot index).
+
+    Raises
+    ------
+    InputError
+        Not a ``_motion.tsv``, a missing or unreadable sidecar or ``_channels.tsv``, no
+        ``MirrorGame`` key (not a lab export), a malformed one, missing channels, rows of the
+        wrong width, values that are not numbers, or too few samples.
+    """
+    path = Path(path)
+    if not path.name.endswith("_motion.tsv"):
+        raise InputError(path, "not a BIDS-Motion file (names end in _motion.tsv)")
+    stem = path.name.removesuffix("_motion.tsv")
+    sidecar = path.with_name(f"{stem}_motion.json")
+    game, rate = _read_game(sidecar)
+    names = _read_channel_names(path.with_name(f"{stem}_channels.tsv"))
+    values = _read_values(path, len(names))
+    slots, slot = game["slots"], game["slot"]
+    columns = {name: k for k, name in enumerate(names)}
+    arrays = [_player_channels(path, values, columns, s["label"], j == slot)
+              for j, s in enumerate(slots)]  # fmt: skip
+    positions = np.vstack([p for p, _ in arrays])
+    velocities = np.vstack([v for _, v in arrays])
+    start = float(game.get("start_time", 0.0))
+    times = np.asarray(start + np.arange(values.shape[0]) * (1.0 / rate), dtype=np.float64)
+    try:
+        return Session(
+            times,
+            positions,
+            velocities,
+            np.full_like(positions, np.nan),
+            np.full_like(positions, np.nan),
+            labels=tuple(s["label"] for s in slots),
+            roles=tuple(s["role"] for s in slots),
+            graph=np.asarray(game["graph"]),
+            metadata=_read_metadata(path, game),
+        )
+    except (InputError, ValueError, TypeError) as error:
+        problem = error.problem if isinstance(error, InputError) else "malformed graph"
+        raise InputError(sidecar, f"{GAME_KEY}: {problem}") from None
+
+
+def _read_game(sidecar: Path) -> tuple[dict[str, Any], float]:
+    """Return the checked ``MirrorGame`` key and the sampling frequency (Hz) of a sidecar."""
+    if not sidecar.is_file():
+        raise InputError(sidecar, "no such file (the sidecar of the motion file)")
+    try:
+        info = json.loads(read_sidecar_text(sidecar))
+    except ValueError:
+        raise InputError(sidecar, "not valid JSON") from None
+    if not isinstance(info, dict):
+        raise InputError(sidecar, "not a JSON object")
+    if GAME_KEY not in info:
+        raise InputError(
+            sidecar,
+            f"no {GAME_KEY} key: not a mirror-avatar lab export (`mirror-avatar signature` and "
+            "`mirror-avatar generator fit` read single-participant motion files)",
+        )
+    rate = info.get("SamplingFrequency")
+    if isinstance(rate, bool) or not isinstance(rate, int | float) or not rate > 0:
+        raise InputError(sidecar, f"SamplingFrequency {rate!r} is not a positive number of Hz")
+    return _check_game(sidecar, info[GAME_KEY]), float(rate)
+
+
+def _check_game(sidecar: Path, game: object) -> dict[str, Any]:
+    """Check the slots, slot index and graph of a ``MirrorGame`` key."""
+    if not isinstance(game, dict):
+        raise InputError(sidecar, f"{GAME_KEY} is not a JSON object")
+    slots = game.get("slots")
+    if not isinstance(slots, list) or not slots:
+        raise InputError(sidecar, f"{GAME_KEY}: slots must be a non-empty list")
+    for k, slot in enumerate(slots):
+        if not (isinstance(slot, dict) and isinstance(slot.get("label"), str)
+                and isinstance(slot.get("role"), str)):  # fmt: skip
+            raise InputError(sidecar, f"{GAME_KEY}: slot {k} has no text label and role")
+    slot = game.get("slot")
+    if isinstance(slot, bool) or not isinstance(slot, int) or not 0 <= slot < len(slots):
+        raise InputError(sidecar, f"{GAME_KEY}: slot {slot!r} is not one of {len(slots)} slots")
+    if not isinstance(game.get("graph"), list):
+        raise InputError(sidecar, f"{GAME_KEY}: graph must be a list of lists")
+    start = game.get("start_time", 0.0)
+    if isinstance(start, bool) or not isinstance(start, int | float) or not math.isfinite(start):
+        raise InputError(sidecar, f"{GAME_KEY}: start_time {start!r} is not a number of seconds")
+    return game
+
+
+def _read_channel_names(channels: Path) -> list[str]:
+    """Return the channel names of a ``_channels.tsv``, in column order."""
+    if not channels.is_file():
+        raise InputError(channels, "no such file (the channels of the motion file)")
+    lines = [line for line in read_sidecar_text(channels).splitlines() if line.strip()]
+    header = [cell.strip() for cell in lines[0].split("\t")] if lines else []
+    if "name" not in header:
+        raise InputError(channels, "no 'name' column")
+    column = header.index("name")
+    names = []
+    for number, line in enumerate(lines[1:], start=2):
+        cells = line.split("\t")
+        if len(cells) != len(header):
+            raise InputError(channels, f"row {number} has {len(cells)} cells for {len(header)}")
+        names.append(cells[column].strip())
+    if len(set(names)) != len(names):
+        raise InputError(channels, "two channels share a name")
+    return names
+
+
+def _read_values(path: Path, width: int) -> Array:
+    """Read a headerless motion TSV of ``width`` columns, shape (n, width); ``n/a`` is NaN."""
+    if not path.is_file():
+        raise InputError(path, "no such file")
+    if path.stat().st_size > MAX_FILE_BYTES:
+        raise InputError(path, f"over the limit of {MAX_FILE_BYTES:,} bytes for files read")
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError:
+        raise InputError(path, "not UTF-8 text") from None
+    rows = [_parse_row(path, number, line, width) for number, line in enumerate(lines, start=1)]
+    if len(rows) < MIN_SESSION_SAMPLES:
+        raise InputError(path, f"{len(rows)} samples, fewer than {MIN_SESSION_SAMPLES}")
+    return np.array(rows, dtype=np.float64)
+
+
+def _parse_row(path: Path, number: int, line: str, width: int) -> list[float]:
+    """Parse one motion TSV row of ``width`` values (``n/a`` is NaN)."""
+    cells = line.split("\t")
+    if len(cells) != width:
+        raise InputError(
+            path, f"row {number} has {len(cells)} values but the channels file names {width}"
+        )
+    try:
+        return [math.nan if cell.strip() == MISSING else float(cell) for cell in cells]
+    except ValueError:
+        raise InputError(path, f"row {number} holds a value that is not a number") from None
+
+
+def _player_channels(
+    path: Path, values: Array, columns: dict[str, int], label: str, own: bool
+) -> tuple[Array, Array]:
+    """Return a player's positions and velocities, shape (n,) each."""
+    names = _channel_names(label, own)
+    missing = [name for name in names if name not in columns]
+    if missing:
+        raise InputError(path, f"missing channel(s) {', '.join(missing)} of player {label!r}")
+    return values[:, columns[names[0]]], values[:, columns[names[1]]]
+
+
+def _read_metadata(path: Path, game: dict[str, Any]) -> dict[str, Any]:
+    """Make the session metadata from a ``MirrorGame`` key."""
+    lab_keys = ("session_id", "trial", "condition", "created_utc", "slots")
+    metadata: dict[str, Any] = {
+        "lab": {key: game.get(key) for key in lab_keys},
+        "complete": game.get("complete") is True,
+        "dropped": _mapping(game.get("dropped")),
+        "held": _mapping(game.get("held")),
+        "bids": {"path": str(path), "participant": game.get("participant"), "slot": game["slot"]},
+    }
+    return metadata if "seed" not in game else metadata | {"seed": game["seed"]}

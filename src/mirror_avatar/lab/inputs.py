@@ -1,0 +1,139 @@
+"""Where a person's position comes from: a browser page or a device, sampled by the server's clock.
+
+An `InputSource` holds the latest sample a device delivered (`Sample`: position in units, a
+sequence number that grows with every new sample, and when it arrived). The server's clock reads
+it once per control period through a `HumanPlayer`, which never invents a position: when no new
+sample has arrived since the previous tick it holds the last one and counts the tick as held,
+and before the first sample it holds the centre of the playing range (also counted).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+from typing import Protocol
+
+from mirror_avatar.dynamics import CONTROL_PERIOD
+from mirror_avatar.players.base import ExternalPlayer
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One position delivered by an input device.
+
+    Attributes
+    ----------
+    x
+        Position (units, within the playing range).
+    seq
+        Sequence number, larger for every newer sample of the same source.
+    received
+        When the server received it (`time.monotonic`, s).
+    """
+
+    x: float
+    seq: int
+    received: float
+
+
+class InputSource(Protocol):
+    """A person's input device as the server's clock sees it."""
+
+    def latest(self) -> Sample | None:
+        """Return the newest sample delivered, or None before the first."""
+        ...
+
+
+class BrowserInput:
+    """The latest pointer position a participant's page sent (thread-safe).
+
+    A page numbers its positions from 0 on each connection; `reconnected` makes a new
+    connection's numbers continue after the last sample's, so ``seq`` keeps growing.
+    """
+
+    def __init__(self) -> None:
+        self._latest: Sample | None = None
+        self._base = 0
+        self._lock = threading.Lock()
+
+    def reconnected(self) -> None:
+        """Start numbering the next connection's positions after the newest sample."""
+        with self._lock:
+            self._base = 0 if self._latest is None else self._latest.seq + 1
+
+    def put(self, x: float, seq: int) -> None:
+        """Store a position (units) numbered ``seq``; an older or repeated ``seq`` is ignored."""
+        with self._lock:
+            seq += self._base
+            if self._latest is None or seq > self._latest.seq:
+                self._latest = Sample(x, seq, time.monotonic())
+
+    def latest(self) -> Sample | None:
+        """Return the newest position received, or None before the first."""
+        with self._lock:
+            return self._latest
+
+
+@dataclass(frozen=True)
+class TickInput:
+    """What a `HumanPlayer` used at one tick.
+
+    Attributes
+    ----------
+    seq
+        The sample's sequence number (-1 before any).
+    age
+        Its age when read (s; NaN before any).
+    held
+        Whether no new sample had arrived since the previous tick.
+    """
+
+    seq: int
+    age: float
+    held: bool
+
+
+class HumanPlayer(ExternalPlayer):
+    """A person on the server's clock: the newest sample of its `InputSource` at each tick.
+
+    Parameters
+    ----------
+    source
+        The person's input device.
+    label
+        The person's name in the session.
+    period
+        Control period T (s), for the finite-difference velocity ``(x_k - x_{k-1}) / T``.
+    """
+
+    def __init__(self, source: InputSource, label: str, period: float = CONTROL_PERIOD) -> None:
+        self.source = source
+        self.label = label
+        self.period = period
+        self.held = 0
+        self.last_input = TickInput(-1, float("nan"), True)
+        self._previous: float | None = None
+
+    def reset(self, seed: int | None = None) -> tuple[float, float]:
+        """Start a trial: forget the previous sample and the held count."""
+        self._previous = None
+        self.held = 0
+        self.last_input = TickInput(-1, float("nan"), True)
+        sample = self.source.latest()
+        return (0.0 if sample is None else sample.x), 0.0
+
+    def current_state(self) -> tuple[float, float]:
+        """Read the newest sample: its position (units) and the finite-difference velocity."""
+        sample = self.source.latest()
+        previous_seq = self.last_input.seq
+        if sample is None:
+            x, tick = 0.0, TickInput(-1, float("nan"), True)
+        else:
+            age = time.monotonic() - sample.received
+            x, tick = sample.x, TickInput(sample.seq, age, sample.seq == previous_seq)
+        self.held += int(tick.held)
+        self.last_input = tick
+        before = x if self._previous is None else self._previous
+        self._previous = x
+        return x, (x - before) / self.period

@@ -1,0 +1,520 @@
+"""A lab session on the server: its participants' connections, its trials, one clock for all.
+
+A `LabSession` runs the trials of a `mirror_avatar.lab.plan.SessionPlan` one after another
+(countdown, trial, end screen, pause) when the researcher starts it. Its clock ticks every
+control period T on absolute deadlines: each tick advances the `mirror_avatar.lab.trial.
+LabTrial` in a worker thread from the positions last received, then sends every connected
+participant a frame with the players it sees. Frames go through each connection's `Outbox`,
+which keeps only the newest undelivered frame (a superseded frame is counted as dropped), so a
+slow page never delays the clock or the others.
+
+A participant whose connection closes mid-trial is marked in the trial's sidecar at once; the
+trial goes on with their position held, unless the plan says ``on_drop: "stop"``; the
+researcher may stop it from the console either way. Opening the link again rejoins.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import contextlib
+import json
+import logging
+import secrets
+import time
+from collections.abc import Awaitable, Callable
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mirror_avatar.atomic import json_safe, write_atomic_json
+from mirror_avatar.errors import InputError
+from mirror_avatar.lab.inputs import BrowserInput, InputSource
+from mirror_avatar.lab.plan import SessionPlan
+from mirror_avatar.lab.trial import Array, Clock, LabTrial, build_avatars
+from mirror_avatar.players.base import Player
+
+logger = logging.getLogger(__name__)
+
+STATES = ("waiting", "countdown", "running", "pause", "finished", "aborted")
+"""A session's states: waiting for the researcher's start, counting down, a trial running,
+pausing between trials, all trials done, aborted."""
+
+ENDED = ("finished", "aborted")
+"""States in which the session's links have expired."""
+
+COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b",
+           "#e377c2", "#7f7f7f", "#bcbd22", "#393b79", "#637939", "#8c6d31", "#843c39",
+           "#7b4173", "#3182bd")  # fmt: skip
+"""Player k's colour on every page (the console's plots included)."""
+
+Send = Callable[[str], Awaitable[None]]
+Close = Callable[[int, str], Awaitable[None]]
+
+CLOSE_ENDED = 4001
+"""WebSocket close code telling a page its session has ended (its link has expired)."""
+
+
+class Outbox:
+    """Messages to one participant's page, sent in order by one task.
+
+    Control messages (countdown, end...) are all delivered; of the frames only the newest
+    undelivered one is kept (`superseded` counts the others).
+    """
+
+    def __init__(self, send: Send, close: Close) -> None:
+        self._send = send
+        self._close = close
+        self._control: collections.deque[str] = collections.deque(maxlen=64)
+        self._frame: str | None = None
+        self._ending: tuple[int, str] | None = None
+        self.superseded = 0
+        self._ready = asyncio.Event()
+        self.task = asyncio.get_running_loop().create_task(self._run())
+
+    def put(self, message: dict[str, Any]) -> None:
+        """Queue a control message."""
+        self._control.append(_text(message))
+        self._ready.set()
+
+    def put_frame(self, message: dict[str, Any]) -> None:
+        """Queue a frame, replacing an undelivered one."""
+        if self._frame is not None:
+            self.superseded += 1
+        self._frame = _text(message)
+        self._ready.set()
+
+    async def _run(self) -> None:
+        while True:
+            await self._ready.wait()
+            self._ready.clear()
+            while self._control or self._frame is not None:
+                if self._control:
+                    await self._send(self._control.popleft())
+                elif self._frame is not None:
+                    frame, self._frame = self._frame, None
+                    await self._send(frame)
+            if self._ending is not None:
+                await self._close(*self._ending)
+                return
+
+    def end(self, code: int, reason: str) -> None:
+        """Close the connection with ``code`` once the queued messages are sent."""
+        self._ending = (code, reason)
+        self._ready.set()
+
+    def close(self) -> None:
+        """Stop sending."""
+        self.task.cancel()
+
+
+def _text(message: dict[str, Any]) -> str:
+    return json.dumps(json_safe(message), allow_nan=False)
+
+
+class Participant:
+    """A person's slot: its link key, its input device and its page's connection, if any.
+
+    Attributes
+    ----------
+    index, label, key
+        Player index, label and the secret of the slot's join link.
+    source
+        The input device (`BrowserInput` for the pointer; an LSL input once opened).
+    outbox
+        The connected page's `Outbox`, or None when no page is connected.
+    round_trips
+        The last 100 ping round trips (ms).
+    """
+
+    def __init__(self, index: int, label: str, device: str) -> None:
+        self.index = index
+        self.label = label
+        self.device = device
+        self.key = secrets.token_urlsafe(16)
+        self.source: InputSource | None = BrowserInput() if device == "pointer" else None
+        self.outbox: Outbox | None = None
+        self.connection: object | None = None
+        self.joined = False
+        self.round_trips: collections.deque[float] = collections.deque(maxlen=100)
+        self.late_frames = 0
+        self.frames_dropped = 0
+        self.last_heard: float | None = None
+        self.pings: dict[int, float] = {}
+
+    @property
+    def connected(self) -> bool:
+        """Whether a page is connected (an LSL device counts once its stream is open)."""
+        return self.outbox is not None or (self.device == "lsl" and self.source is not None)
+
+    def quality(self) -> dict[str, Any]:
+        """Return round trip median and 95th percentile (ms), frames dropped and late."""
+        values = np.asarray(self.round_trips)
+        dropped = self.frames_dropped + (0 if self.outbox is None else self.outbox.superseded)
+        return {
+            "rtt_median_ms": float(np.median(values)) if values.size else None,
+            "rtt_p95_ms": float(np.percentile(values, 95)) if values.size else None,
+            "frames_dropped": dropped,
+            "late_frames": self.late_frames,
+            "last_heard_s": None if self.last_heard is None else time.monotonic() - self.last_heard,
+        }
+
+
+class LabSession:
+    """One lab session: its plan, folder, participants, trials and clock.
+
+    Parameters
+    ----------
+    session_id
+        The session's name (its folder under the output folder).
+    plan
+        What it plays.
+    directory
+        Its folder (created).
+    clock
+        Stamps each sample (the LSL clock when pylsl is installed).
+    countdown
+        Seconds of countdown before each trial.
+    max_tick
+        Seconds one tick may take before the trial is ended (a too slow avatar).
+    publisher
+        The session's LSL outlet as a callable ``(positions, clock time)``, or None.
+    open_device
+        Opens an LSL input device from a slot (`mirror_avatar.lab.lsl.LslInput`).
+    """
+
+    def __init__(
+        self,
+        session_id: str,
+        plan: SessionPlan,
+        directory: Path,
+        clock: Clock,
+        countdown: int = 3,
+        max_tick: float = 0.5,
+        publisher: Callable[[Array, float], None] | None = None,
+        open_device: Callable[[Any], InputSource] | None = None,
+    ) -> None:
+        self.id = session_id
+        self.plan = plan
+        self.directory = directory
+        self.clock = clock
+        self.countdown = countdown
+        self.max_tick = max_tick
+        self.publisher = publisher
+        self.open_device = open_device
+        self.created_utc = datetime.now(UTC).isoformat()
+        self.participants = {
+            k: Participant(k, plan.slots[k].label, plan.slots[k].device or "pointer")
+            for k in plan.humans
+        }
+        self.state = "waiting"
+        self.trial: LabTrial | None = None
+        self.next_trial = 1
+        self.results: list[dict[str, Any]] = []
+        self.events: collections.deque[str] = collections.deque(maxlen=50)
+        self.error: str | None = None
+        self.avatars: dict[int, Player] | None = None
+        self.runner: asyncio.Task[None] | None = None
+        self._stop_reason: str | None = None
+        directory.mkdir(parents=True, exist_ok=False)
+        write_atomic_json(directory / "plan.json", self.describe())
+
+    def describe(self) -> dict[str, Any]:
+        """Return the session's id, creation time and plan (as ``plan.json`` records them)."""
+        return {"id": self.id, "created_utc": self.created_utc, "plan": self.plan.to_json()}
+
+    @property
+    def ended(self) -> bool:
+        """Whether the session is over (its links have expired)."""
+        return self.state in ENDED
+
+    def log(self, event: str) -> None:
+        """Record an event for the console."""
+        stamp = datetime.now(UTC).strftime("%H:%M:%S")
+        self.events.append(f"{stamp} {event}")
+        logger.info("session %s: %s", self.id, event)
+
+    def welcome(self, participant: Participant) -> dict[str, Any]:
+        """Return what a participant's page is told on joining: its slot and the players it sees."""
+        k = participant.index
+        visible = [k, *self.plan.neighbours(k)]
+        return {
+            "type": "welcome",
+            "label": participant.label,
+            "index": k,
+            "role": self.plan.roles[k],
+            "condition": self.plan.condition,
+            "device": participant.device,
+            "visible": [
+                {"index": j, "label": self.plan.slots[j].label, "colour": COLOURS[j]}
+                for j in visible
+            ],
+            "trials": self.plan.trials,
+            "duration": self.plan.duration,
+            "state": self.state,
+        }
+
+    def attach(self, participant: Participant, outbox: Outbox, connection: object) -> None:
+        """Register a participant's page (a previous page of the same slot was closed)."""
+        participant.outbox = outbox
+        participant.connection = connection
+        participant.joined = True
+        if isinstance(participant.source, BrowserInput):
+            participant.source.reconnected()
+        outbox.put(self.welcome(participant))
+        self.log(f"{participant.label} joined")
+
+    def detach(self, participant: Participant, outbox: Outbox) -> None:
+        """Forget a participant's page; a running trial marks them dropped."""
+        if participant.outbox is not outbox:
+            return
+        participant.frames_dropped += outbox.superseded
+        participant.outbox = None
+        participant.connection = None
+        outbox.close()
+        trial = self.trial
+        if trial is not None and self.state == "running":
+            trial.mark_dropped(participant.label)
+            self.log(f"{participant.label} dropped at sample {trial.k} of trial {trial.n}")
+            if self.plan.on_drop == "stop":
+                self._stop_reason = f"{participant.label} dropped"
+        else:
+            self.log(f"{participant.label} left")
+
+    def missing(self) -> list[str]:
+        """Labels of the people whose page has not joined (LSL devices are opened at start)."""
+        return [
+            p.label for p in self.participants.values() if p.device == "pointer" and not p.connected
+        ]
+
+    def start(self, force: bool = False) -> str | None:
+        """Start (or resume) the trials; return why not, or None.
+
+        Without ``force``, every person with a pointer must have joined.
+        """
+        if self.state != "waiting":
+            return f"the session is {self.state}"
+        if self.next_trial > self.plan.trials:
+            return "every trial has been played"
+        missing = self.missing()
+        if missing and not force:
+            return f"not joined yet: {', '.join(missing)} (start anyway with force)"
+        self.error = None
+        self.state = "countdown"
+        self.runner = asyncio.get_running_loop().create_task(self._run())
+        return None
+
+    async def stop(self, reason: str = "stopped by the researcher") -> None:
+        """End the running trial (saved, incomplete) and wait for the researcher's start."""
+        if self.runner is not None:
+            self.runner.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self.runner
+            self.runner = None
+        if self.trial is not None:
+            self._end_trial(self.trial, False, reason)
+            self.next_trial += 1
+        if not self.ended:
+            self.state = "waiting"
+            self.broadcast({"type": "state", "state": "waiting", "message": "Please wait."})
+
+    async def abort(self) -> None:
+        """End the session: a running trial is saved (incomplete) and every link expires."""
+        await self.stop("session aborted")
+        self.state = "aborted"
+        self.log("session aborted")
+        self.close()
+
+    def close(self) -> None:
+        """Tell every page the session ended and close the input devices."""
+        self.broadcast({"type": "state", "state": self.state, "message": "The session has ended."})
+        for participant in self.participants.values():
+            if participant.outbox is not None:
+                participant.outbox.end(CLOSE_ENDED, "the session has ended")
+            closer = getattr(participant.source, "close", None)
+            if participant.device == "lsl" and closer is not None:
+                closer()
+
+    def broadcast(self, message: dict[str, Any]) -> None:
+        """Queue a control message to every connected page."""
+        for participant in self.participants.values():
+            if participant.outbox is not None:
+                participant.outbox.put(message)
+
+    async def _run(self) -> None:
+        try:
+            if self.avatars is None:
+                self.avatars = await asyncio.to_thread(build_avatars, self.plan)
+            await asyncio.to_thread(self._open_devices)
+            while self.next_trial <= self.plan.trials:
+                await self._play(self.next_trial)
+                self.next_trial += 1
+                if self.next_trial <= self.plan.trials:
+                    self.state = "pause"
+                    await asyncio.sleep(self.plan.pause)
+            self.state = "finished"
+            self.log("all trials played")
+            self.close()
+        except (InputError, OSError) as error:
+            self.error = str(error)
+            self.state = "waiting"
+            self.log(f"cannot run: {error}")
+
+    def _open_devices(self) -> None:
+        for k, participant in self.participants.items():
+            lsl = self.plan.slots[k].lsl
+            if lsl is not None and participant.source is None:
+                if self.open_device is None:
+                    raise InputError(participant.label, "LSL input needs pylsl")
+                participant.source = self.open_device(lsl)
+                participant.joined = True
+                self.log(f"{participant.label}: LSL stream {lsl.stream!r} open")
+
+    async def _play(self, n: int) -> None:
+        self.state = "countdown"
+        for remaining in range(self.countdown, 0, -1):
+            self.broadcast({"type": "countdown", "remaining": remaining, "trial": n})
+            await asyncio.sleep(1.0)
+        trial = await asyncio.to_thread(self._new_trial, n)
+        self.trial, self.state, self._stop_reason = trial, "running", None
+        self.log(f"trial {n} started")
+        self.broadcast({"type": "go", "trial": n, "duration": self.plan.duration})
+        complete, reason = await self._tick(trial)
+        self._end_trial(trial, complete, reason)
+
+    def _new_trial(self, n: int) -> LabTrial:
+        inputs = {k: p.source for k, p in self.participants.items() if p.source is not None}
+        lab = {"session_id": self.id, "condition": self.plan.condition}
+        assert self.avatars is not None
+        return LabTrial(
+            self.plan, n, self.directory, inputs, self.avatars, self.clock, lab, self.publisher
+        )
+
+    async def _tick(self, trial: LabTrial) -> tuple[bool, str]:
+        loop = asyncio.get_running_loop()
+        start = loop.time()
+        while not trial.finished:
+            delay = start + trial.k * trial.period - loop.time()
+            if delay > 0:
+                await asyncio.sleep(delay)
+            if self._stop_reason is not None:
+                return False, self._stop_reason
+            began = loop.time()
+            await asyncio.to_thread(trial.tick)
+            if loop.time() - began > self.max_tick:
+                return False, "an avatar is too slow for real time"
+            self._send_frames(trial)
+        return True, "completed"
+
+    def _send_frames(self, trial: LabTrial) -> None:
+        positions = trial.positions()
+        progress = trial.progress
+        for k, participant in self.participants.items():
+            if participant.outbox is None:
+                continue
+            visible = [k, *self.plan.neighbours(k)]
+            participant.outbox.put_frame(
+                {
+                    "type": "frame",
+                    "k": trial.k - 1,
+                    "x": [positions[j] for j in visible],
+                    "progress": progress,
+                }
+            )
+
+    def _end_trial(self, trial: LabTrial, complete: bool, reason: str) -> None:
+        self.trial = None
+        summary = trial.finish(complete, reason)
+        self.results.append(summary)
+        self.log(f"trial {trial.n} ended: {reason}")
+        for k, participant in self.participants.items():
+            if participant.outbox is None:
+                continue
+            message: dict[str, Any] = {"type": "end", "trial": trial.n, "reason": reason}
+            if self.plan.show_metrics:
+                message["metrics"] = participant_metrics(summary.get("metrics", {}), k)
+            more = trial.n < self.plan.trials and complete
+            message["next_in"] = self.plan.pause if more else None
+            participant.outbox.put(message)
+
+    def status(self) -> dict[str, Any]:
+        """Return what the console shows: state, slots with their connection quality, trials."""
+        trial = self.trial
+        slots = []
+        for k, slot in enumerate(self.plan.slots):
+            row: dict[str, Any] = {
+                "index": k,
+                "label": slot.label,
+                "kind": slot.kind,
+                "role": self.plan.roles[k],
+                "spec": slot.spec,
+                "device": slot.device,
+                "colour": COLOURS[k],
+            }
+            participant = self.participants.get(k)
+            if participant is not None:
+                row |= {"joined": participant.joined, "connected": participant.connected}
+                row |= participant.quality()
+                if trial is not None:
+                    row["held"] = trial.held().get(slot.label, 0)
+                    row["dropped_at"] = trial.dropped.get(slot.label)
+            slots.append(row)
+        return {
+            "id": self.id,
+            "state": self.state,
+            "error": self.error,
+            "plan": self.plan.to_json(),
+            "trial": None if trial is None else {"n": trial.n, "progress": trial.progress},
+            "next_trial": self.next_trial,
+            "slots": slots,
+            "trials": [trial_row(summary) for summary in self.results],
+            "events": list(self.events),
+        }
+
+
+def participant_metrics(metrics: dict[str, Any], k: int) -> dict[str, Any]:
+    """Select the numbers participant k's end screen shows.
+
+    CV and RMS for a dyad; for a group, the group synchronisation and the participant's own
+    synchronisation, CV and RMS to its neighbours.
+    """
+    if "players" not in metrics:
+        return {key: metrics[key] for key in ("phase_locking", "rmse") if key in metrics}
+    own = metrics["players"][k]
+    shown = {"group_synchronisation": metrics.get("group_synchronisation")}
+    keys = ("synchronisation", "phase_locking", "rmse")
+    return shown | {key: own[key] for key in keys if key in own}
+
+
+TRIAL_SUMMARY_KEYS = (
+    "phase_locking",
+    "rmse",
+    "time_lag",
+    "emd_players",
+    "group_synchronisation",
+    "kuramoto_order",
+    "mean_phase_locking",
+    "mean_rmse",
+)
+"""The metrics listed per trial on the console."""
+
+
+def trial_row(summary: dict[str, Any]) -> dict[str, Any]:
+    """Return a finished trial as the console lists it: number, outcome, metrics and file names."""
+    metrics = summary.get("metrics", {})
+    return {
+        "n": summary["lab"]["trial"],
+        "complete": summary["complete"],
+        "end_reason": summary.get("end_reason"),
+        "n_samples": summary.get("n_samples"),
+        "dropped": summary.get("dropped", {}),
+        "held": summary.get("held", {}),
+        "metrics": {key: metrics[key] for key in TRIAL_SUMMARY_KEYS if key in metrics},
+        "files": [
+            summary["files"]["session"],
+            summary["files"]["session"].removesuffix(".csv") + ".json",
+            summary["files"]["inputs"],
+        ],
+    }

@@ -1,0 +1,526 @@
+"""The lab server: the researcher's console, its HTTP/JSON API and the participants' pages.
+
+Routes (`create_lab_app`):
+
+- ``GET /console``: the researcher's console (a page using the API below).
+- ``GET /api/sessions``: every session's status; ``POST /api/sessions`` with a plan
+  (`mirror_avatar.lab.plan.parse_plan`) creates one and answers its status and its join links.
+- ``GET /api/sessions/{id}``: a session's status (`mirror_avatar.lab.runner.LabSession.status`)
+  with its join links; ``GET /api/sessions/{id}/live``: the last 10 s of positions and ρ_g.
+- ``POST /api/sessions/{id}/start`` (body ``{"force": true}`` starts without everyone),
+  ``/stop`` and ``/abort``.
+- ``GET /api/sessions/{id}/files/{name}``: a file of the session (plan, trials' recordings);
+  ``GET /api/sessions/{id}/qr/{label}.svg``: the QR code of a person's join link.
+- ``GET /join/{key}``: a participant's page; ``/ws/join/{key}``: its WebSocket
+  (`mirror_avatar.lab.messages`).
+
+Access: ``/console`` and ``/api`` need the researcher's token always, even on loopback: as the
+``token`` query parameter (the console's URL), the cookie the console sets, or an
+``Authorization: Bearer`` header (scripts). POSTs must be JSON (a cross-site form cannot send
+one). A join link holds the secret key of one person's slot in one session: it shows that
+session only, moves that person's point only, and expires when the session ends. WebSocket
+handshakes from another origin are refused. Rates are limited per client address (API
+requests, connections) and per connection (messages). Clients never name a path: files are
+written by the server into ``OUT/<session id>/`` under names it makes, and served only from the
+session's own folder by the names it lists.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import functools
+import hmac
+import logging
+import re
+import time
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+from starlette.applications import Starlette
+from starlette.requests import HTTPConnection, Request
+from starlette.responses import (
+    FileResponse,
+    JSONResponse,
+    PlainTextResponse,
+    RedirectResponse,
+    Response,
+)
+from starlette.routing import Mount, Route, WebSocketRoute
+from starlette.staticfiles import StaticFiles
+from starlette.types import ASGIApp, Receive, Scope, Send
+from starlette.websockets import WebSocket, WebSocketClose, WebSocketDisconnect
+
+from mirror_avatar.atomic import json_safe
+from mirror_avatar.errors import InputError
+from mirror_avatar.lab.inputs import BrowserInput
+from mirror_avatar.lab.messages import Pong, parse_participant_message
+from mirror_avatar.lab.plan import LslDevice, parse_plan
+from mirror_avatar.lab.runner import LabSession, Outbox, Participant
+from mirror_avatar.lab.trial import Array, Clock
+from mirror_avatar.live.admission import TokenBucket
+from mirror_avatar.live.protocol import PositionUpdate, ProtocolError
+from mirror_avatar.live.server import SERVER_SEND, abort_transport
+
+logger = logging.getLogger(__name__)
+STATIC = Path(__file__).parent / "static"
+TOKEN_COOKIE = "mirror_avatar_lab_token"
+CLOSE_POLICY, CLOSE_REPLACED, CLOSE_UNKNOWN = 1008, 4002, 4004
+FILE_NAME = re.compile(r"plan\.json|trial-\d{2,3}_(session\.csv|session\.json|inputs\.csv)")
+"""Names of the files a session's folder may serve."""
+
+MAX_BODY_BYTES = 64 * 1024
+"""Largest API request body (bytes)."""
+
+
+@dataclass(frozen=True)
+class LabSettings:
+    """How the lab server runs.
+
+    Parameters
+    ----------
+    out_dir
+        Where sessions are recorded (one folder each).
+    token
+        The researcher's token.
+    max_sessions
+        Most sessions that have not ended at once.
+    countdown
+        Seconds of countdown before each trial.
+    max_tick
+        Seconds a tick may take before the trial is ended.
+    ping_interval
+        Seconds between the round-trip pings sent to each page.
+    send_timeout
+        Seconds a message may wait for a page that does not read before it is dropped.
+    max_message_rate
+        Messages per second a page may send (sustained; bursts of a second's worth).
+    max_rejected
+        Bad messages tolerated on one connection before it is closed.
+    requests_per_second
+        API requests and WebSocket connections per second from one address (bursts of 4 s).
+    lsl
+        Whether sessions publish an LSL outlet and take LSL input devices (needs pylsl).
+    """
+
+    out_dir: Path
+    token: str
+    max_sessions: int = 16
+    countdown: int = 3
+    max_tick: float = 0.5
+    ping_interval: float = 0.5
+    send_timeout: float = 2.0
+    max_message_rate: float = 250.0
+    max_rejected: int = 100
+    requests_per_second: float = 40.0
+    lsl: bool = False
+
+
+@dataclass
+class Lab:
+    """The server's sessions and the keys of their join links."""
+
+    settings: LabSettings
+    sessions: dict[str, LabSession] = field(default_factory=dict)
+    keys: dict[str, tuple[LabSession, Participant]] = field(default_factory=dict)
+    rates: dict[str, TokenBucket] = field(default_factory=dict)
+
+    def allow(self, address: str) -> bool:
+        """Take one request from ``address``'s rate limit; False when it is exhausted."""
+        if address not in self.rates:
+            if len(self.rates) > 10_000:
+                self.rates.clear()
+            rate = self.settings.requests_per_second
+            self.rates[address] = TokenBucket(rate, 4 * rate)
+        return self.rates[address].take() == 0.0
+
+    def create(self, data: object) -> LabSession:
+        """Create a session from a plan sent by the console."""
+        plan = parse_plan(data)
+        active = [s for s in self.sessions.values() if not s.ended]
+        if len(active) >= self.settings.max_sessions:
+            raise InputError("plan", f"{len(active)} sessions are open: end one first")
+        stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
+        session_id = f"{stamp}-{len(self.sessions) + 1:03d}"
+        publisher, open_device, clock = lsl_hooks(self.settings.lsl, session_id, plan)
+        session = LabSession(
+            session_id,
+            plan,
+            self.settings.out_dir / session_id,
+            clock,
+            self.settings.countdown,
+            self.settings.max_tick,
+            publisher,
+            open_device,
+        )
+        self.sessions[session_id] = session
+        for participant in session.participants.values():
+            self.keys[participant.key] = (session, participant)
+        return session
+
+    def find(self, key: str) -> tuple[LabSession, Participant] | None:
+        """Return the session and slot of a join key, while the session lasts."""
+        found = self.keys.get(key)
+        if found is None or found[0].ended:
+            return None
+        return found
+
+
+def lsl_hooks(enabled: bool, session_id: str, plan: Any) -> tuple[Any, Any, Clock]:
+    """Return a session's LSL publisher, LSL device opener and clock (without LSL: monotonic)."""
+    if not enabled:
+        return None, None, time.monotonic
+    import pylsl
+
+    from mirror_avatar.lab.lsl import LslInput, SessionOutlet
+
+    outlet = SessionOutlet(
+        f"mirror-avatar {session_id}",
+        f"mirror-avatar-{session_id}",
+        [slot.label for slot in plan.slots],
+        list(plan.roles),
+        [slot.kind for slot in plan.slots],
+        0.03,
+    )
+
+    def publish(positions: Array, stamp: float) -> None:
+        outlet.push_positions(positions, stamp)
+
+    def open_device(device: LslDevice) -> LslInput:
+        return LslInput(device.stream, device.channel, device.scale, device.offset)
+
+    return publish, open_device, pylsl.local_clock
+
+
+def create_lab_app(settings: LabSettings) -> ASGIApp:
+    """Build the lab server's ASGI application (see the module docstring)."""
+    lab = Lab(settings)
+    api = LabApi(lab)
+    app = Starlette(
+        routes=[
+            Route("/", index_page),
+            Route("/console", console_page),
+            Route("/join/{key}", functools.partial(join_page, lab)),
+            Route("/api/sessions", api.sessions, methods=["GET", "POST"]),
+            Route("/api/sessions/{sid}", api.session),
+            Route("/api/sessions/{sid}/live", api.live),
+            Route("/api/sessions/{sid}/{action:str}", api.command, methods=["POST"]),
+            Route("/api/sessions/{sid}/files/{name}", api.file),
+            Route("/api/sessions/{sid}/qr/{label}.svg", api.qr),
+            WebSocketRoute("/ws/join/{key}", functools.partial(join_socket, lab)),
+            Mount("/static", StaticFiles(directory=STATIC), name="static"),
+        ]
+    )
+    app.state.lab = lab
+    return LabGate(app, lab)
+
+
+async def index_page(request: Request) -> Response:
+    """Where to go: the console's link or a join link."""
+    return PlainTextResponse("mirror-avatar lab: open the console link it printed, or a join link.")
+
+
+async def console_page(request: Request) -> Response:
+    """Serve the console; a token in its URL goes into a cookie and out of the URL."""
+    token = request.query_params.get("token")
+    if token is not None:
+        response: Response = RedirectResponse("/console", status_code=303)
+        response.set_cookie(TOKEN_COOKIE, token, httponly=True, samesite="strict")
+        return response
+    return FileResponse(STATIC / "console.html", headers={"Cache-Control": "no-store"})
+
+
+async def join_page(lab: Lab, request: Request) -> Response:
+    """Serve a participant's page while its link is valid."""
+    if lab.find(request.path_params["key"]) is None:
+        return PlainTextResponse("this link is not valid or its session has ended", 404)
+    return FileResponse(STATIC / "participant.html", headers={"Cache-Control": "no-store"})
+
+
+class LabGate:
+    """ASGI middleware: the researcher's token on the console and the API, rates, origins."""
+
+    def __init__(self, app: ASGIApp, lab: Lab) -> None:
+        self.app = app
+        self.lab = lab
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        """Pass allowed requests through; refuse the others (HTTP 403/429 or a close)."""
+        if scope["type"] not in ("http", "websocket"):
+            await self.app(scope, receive, send)
+            return
+        connection = HTTPConnection(scope)
+        problem, status = self._problem(connection)
+        if problem is None:
+            scope[SERVER_SEND] = send
+            await self.app(scope, receive, send)
+        elif scope["type"] == "http":
+            await PlainTextResponse(problem, status_code=status)(scope, receive, send)
+        else:
+            await WebSocketClose(CLOSE_POLICY, problem)(scope, receive, send)
+
+    def _problem(self, connection: HTTPConnection) -> tuple[str | None, int]:
+        path = connection.url.path
+        address = connection.client.host if connection.client else ""
+        if (path.startswith("/api") or path.startswith("/ws")) and not self.lab.allow(address):
+            return "too many requests: slow down", 429
+        researcher_only = path.startswith("/api") or (
+            path == "/console" and "token" not in connection.query_params
+        )
+        if researcher_only and not self._researcher(connection):
+            return "the console needs the researcher's token (printed by mirror-avatar lab)", 403
+        if connection.scope["type"] == "websocket":
+            origin = connection.headers.get("origin")
+            if origin is not None and urlsplit(origin).netloc != connection.headers.get("host"):
+                return "cross-origin WebSocket refused", 403
+        if connection.scope["type"] == "http" and connection.scope["method"] == "POST":
+            kind = connection.headers.get("content-type", "")
+            if not kind.startswith("application/json"):
+                return "API requests must be JSON (Content-Type: application/json)", 415
+        return None, 200
+
+    def _researcher(self, connection: HTTPConnection) -> bool:
+        header = connection.headers.get("authorization", "")
+        given = (
+            header.removeprefix("Bearer ").strip()
+            if header.startswith("Bearer ")
+            else connection.cookies.get(TOKEN_COOKIE)
+        )
+        token = self.lab.settings.token
+        return given is not None and hmac.compare_digest(given.encode(), token.encode())
+
+
+class LabApi:
+    """The researcher's HTTP/JSON API (every answer is JSON; errors ``{"error": text}``)."""
+
+    def __init__(self, lab: Lab) -> None:
+        self.lab = lab
+
+    def _session(self, request: Request) -> LabSession:
+        session = self.lab.sessions.get(request.path_params["sid"])
+        if session is None:
+            raise LookupError("no such session")
+        return session
+
+    async def sessions(self, request: Request) -> Response:
+        """List the sessions, or create one from the plan in the body."""
+        if request.method == "GET":
+            return _json(
+                {"sessions": [self._status(s, request) for s in self.lab.sessions.values()]}
+            )
+        try:
+            data = await _body(request)
+            session = self.lab.create(data)
+        except (InputError, ValueError) as error:
+            return _json({"error": str(error)}, 400)
+        return _json(self._status(session, request), 201)
+
+    async def session(self, request: Request) -> Response:
+        """One session's status and join links."""
+        return await self._with_session(request, lambda s: self._status(s, request))
+
+    async def live(self, request: Request) -> Response:
+        """Answer the running trial's last 10 s of positions and group synchronisation."""
+
+        async def recent(session: LabSession) -> dict[str, Any]:
+            trial = session.trial
+            if trial is None:
+                return {"state": session.state, "trial": None}
+            data = await asyncio.to_thread(trial.recent, 10.0)
+            return {"state": session.state, "trial": trial.n, "progress": trial.progress} | data
+
+        try:
+            session = self._session(request)
+        except LookupError as error:
+            return _json({"error": str(error)}, 404)
+        return _json(await recent(session))
+
+    async def command(self, request: Request) -> Response:
+        """Start, stop or abort a session."""
+        action = request.path_params["action"]
+        try:
+            session = self._session(request)
+            data = await _body(request, allow_empty=True)
+        except LookupError as error:
+            return _json({"error": str(error)}, 404)
+        except ValueError as error:
+            return _json({"error": str(error)}, 400)
+        if action == "start":
+            problem = session.start(force=bool(isinstance(data, dict) and data.get("force")))
+            if problem is not None:
+                return _json({"error": problem}, 409)
+        elif action == "stop":
+            await session.stop()
+        elif action == "abort":
+            await session.abort()
+        else:
+            return _json({"error": f"unknown action {action!r}: start, stop or abort"}, 404)
+        return _json(self._status(session, request))
+
+    async def file(self, request: Request) -> Response:
+        """Serve a file of the session's folder, by one of the names the session lists."""
+        name = request.path_params["name"]
+        try:
+            session = self._session(request)
+        except LookupError as error:
+            return _json({"error": str(error)}, 404)
+        path = session.directory / name
+        if not FILE_NAME.fullmatch(name) or not path.is_file():
+            return _json({"error": "no such file in this session"}, 404)
+        return FileResponse(path, headers={"Cache-Control": "no-store"})
+
+    async def qr(self, request: Request) -> Response:
+        """Serve the QR code (SVG) of a person's join link."""
+        import segno
+
+        try:
+            session = self._session(request)
+        except LookupError as error:
+            return _json({"error": str(error)}, 404)
+        links = join_links(session, request)
+        label = request.path_params["label"]
+        if label not in links:
+            return _json({"error": "no such person in this session"}, 404)
+        svg = segno.make(links[label], error="m").svg_inline(scale=4)
+        return Response(svg, media_type="image/svg+xml", headers={"Cache-Control": "no-store"})
+
+    async def _with_session(self, request: Request, answer: Any) -> Response:
+        try:
+            session = self._session(request)
+        except LookupError as error:
+            return _json({"error": str(error)}, 404)
+        return _json(answer(session))
+
+    def _status(self, session: LabSession, request: Request) -> dict[str, Any]:
+        links = {} if session.ended else join_links(session, request)
+        return session.status() | {"links": links}
+
+
+def join_links(session: LabSession, request: Request) -> dict[str, str]:
+    """Each person's join link, on the address the researcher reached the server by."""
+    base = str(request.base_url).rstrip("/")
+    return {p.label: f"{base}/join/{p.key}" for p in session.participants.values()}
+
+
+async def _body(request: Request, allow_empty: bool = False) -> Any:
+    raw = await request.body()
+    if len(raw) > MAX_BODY_BYTES:
+        raise ValueError(f"request body over {MAX_BODY_BYTES} bytes")
+    if not raw and allow_empty:
+        return {}
+    import json
+
+    try:
+        return json.loads(raw)
+    except ValueError:
+        raise ValueError("the request body is not valid JSON") from None
+
+
+def _json(data: dict[str, Any], status: int = 200) -> JSONResponse:
+    return JSONResponse(json_safe(data), status_code=status, headers={"Cache-Control": "no-store"})
+
+
+async def join_socket(lab: Lab, websocket: WebSocket) -> None:
+    """Serve a participant's page: its position in, the frames of the players it sees out."""
+    found = lab.find(websocket.path_params["key"])
+    if found is None:
+        await websocket.close(CLOSE_UNKNOWN, "this link is not valid or its session has ended")
+        return
+    session, participant = found
+    await websocket.accept()
+    previous = participant.connection
+    if isinstance(previous, WebSocket):
+        with contextlib.suppress(RuntimeError, OSError):
+            await previous.close(CLOSE_REPLACED, "this link was opened on another page")
+    page = ParticipantPage(lab.settings, session, participant, websocket)
+    await page.run()
+
+
+class ParticipantPage:
+    """One participant page's connection: receive positions and pongs, ping, send frames."""
+
+    def __init__(
+        self,
+        settings: LabSettings,
+        session: LabSession,
+        participant: Participant,
+        websocket: WebSocket,
+    ) -> None:
+        self.settings = settings
+        self.session = session
+        self.participant = participant
+        self.websocket = websocket
+        self.messages = TokenBucket(settings.max_message_rate, settings.max_message_rate)
+        self.rejected = 0
+        self.outbox = Outbox(self._send, self._close)
+
+    async def run(self) -> None:
+        """Serve the page until it closes or the session ends."""
+        self.session.attach(self.participant, self.outbox, self.websocket)
+        pinger = asyncio.get_running_loop().create_task(self._ping())
+        try:
+            await self._receive()
+        finally:
+            pinger.cancel()
+            self.session.detach(self.participant, self.outbox)
+
+    async def _send(self, text: str) -> None:
+        try:
+            await asyncio.wait_for(self.websocket.send_text(text), self.settings.send_timeout)
+        except TimeoutError:
+            logger.warning("dropping %s: it stopped reading", self.participant.label)
+            abort_transport(self.websocket)
+        except (WebSocketDisconnect, RuntimeError, OSError):
+            return
+
+    async def _close(self, code: int, reason: str) -> None:
+        with contextlib.suppress(RuntimeError, OSError, TimeoutError):
+            await asyncio.wait_for(self.websocket.close(code, reason), self.settings.send_timeout)
+
+    async def _ping(self) -> None:
+        ping_id = 0
+        while True:
+            ping_id += 1
+            self.participant.pings = {ping_id: time.monotonic()}
+            self.outbox.put({"type": "ping", "id": ping_id})
+            await asyncio.sleep(self.settings.ping_interval)
+
+    async def _receive(self) -> None:
+        while True:
+            message = await self.websocket.receive()
+            if message["type"] == "websocket.disconnect":
+                return
+            if self.messages.take() > 0.0:
+                if not await self._reject("too many messages"):
+                    return
+                continue
+            try:
+                parsed = parse_participant_message(message.get("text", message.get("bytes")))
+            except ProtocolError as error:
+                if not await self._reject(str(error)):
+                    return
+                continue
+            self._handle(parsed)
+
+    def _handle(self, message: PositionUpdate | Pong) -> None:
+        participant = self.participant
+        participant.last_heard = time.monotonic()
+        if isinstance(message, Pong):
+            sent = participant.pings.get(message.id)
+            if sent is not None:
+                participant.round_trips.append((time.monotonic() - sent) * 1000.0)
+            participant.late_frames = message.late_frames
+        elif isinstance(participant.source, BrowserInput):
+            participant.source.put(message.x, message.seq)
+
+    async def _reject(self, problem: str) -> bool:
+        self.rejected += 1
+        if self.rejected > self.settings.max_rejected:
+            with contextlib.suppress(RuntimeError, OSError):
+                await self.websocket.close(CLOSE_POLICY, "too many bad messages")
+            return False
+        self.outbox.put({"type": "error", "message": problem})
+        return True

@@ -1,0 +1,271 @@
+// The researcher's console: a thin page over the lab server's HTTP/JSON API (see lab/server.py).
+(() => {
+  "use strict";
+  const $ = (id) => document.getElementById(id);
+  const POLL_MS = 250;
+  const PRESETS = {
+    dyad: { condition: "leader_follower", leaders: "0", players: [
+      { label: "A1", kind: "avatar", spec: "bundled:slow" }, { label: "P1", kind: "human" }] },
+    people: { condition: "leader_follower", leaders: "0", players: [
+      { label: "P1", kind: "human" }, { label: "P2", kind: "human" }] },
+    joint: { condition: "joint", leaders: "", players: [
+      { label: "P1", kind: "human" }, { label: "A1", kind: "avatar", spec: "bundled:slow" }] },
+    ring: { condition: "group", graph: "ring", leaders: "", players: [
+      { label: "P1", kind: "human" }, { label: "A1", kind: "avatar", spec: "bundled:slow" },
+      { label: "P2", kind: "human" }, { label: "A2", kind: "avatar", spec: "bundled:fast" }] },
+    solo: { condition: "solo", leaders: "", players: [
+      { label: "P1", kind: "human" }, { label: "P2", kind: "human" }] },
+  };
+  let current = null;   // the session shown
+  let lastStatus = null;
+
+  async function api(path, options = {}) {
+    const response = await fetch(path, {
+      credentials: "same-origin",
+      headers: { "Content-Type": "application/json" },
+      ...options,
+    });
+    const data = await response.json().catch(() => ({ error: response.statusText }));
+    if (!response.ok) throw new Error(data.error || response.statusText);
+    return data;
+  }
+
+  function cell(row, content) {
+    const td = document.createElement("td");
+    if (content instanceof Node) td.append(content); else td.textContent = content ?? "";
+    row.append(td);
+    return td;
+  }
+
+  function playerRow(player = { label: "", kind: "human" }) {
+    const body = $("players-form").querySelector("tbody");
+    const row = document.createElement("tr");
+    const index = body.children.length;
+    cell(row, String(index));
+    const label = Object.assign(document.createElement("input"), { value: player.label, size: 8, className: "label" });
+    cell(row, label);
+    const kind = document.createElement("select");
+    kind.className = "kind";
+    ["human", "avatar"].forEach((k) => kind.append(new Option(k, k, false, k === player.kind)));
+    cell(row, kind);
+    const spec = Object.assign(document.createElement("input"), { value: player.spec || "", size: 22, className: "spec" });
+    const device = document.createElement("select");
+    device.className = "device";
+    ["pointer", "lsl"].forEach((d) => device.append(new Option(d, d, false, d === (player.device || "pointer"))));
+    const which = document.createElement("span");
+    which.append(spec, device);
+    cell(row, which);
+    const lsl = Object.assign(document.createElement("input"), { placeholder: "stream, 0, 1", size: 18, className: "lsl" });
+    cell(row, lsl);
+    const remove = Object.assign(document.createElement("button"), { textContent: "×", className: "secondary small", type: "button" });
+    remove.addEventListener("click", () => { row.remove(); renumber(); });
+    cell(row, remove);
+    const sync = () => { spec.hidden = kind.value !== "avatar"; device.hidden = kind.value !== "human"; lsl.hidden = kind.value !== "human" || device.value !== "lsl"; };
+    kind.addEventListener("change", sync);
+    device.addEventListener("change", sync);
+    sync();
+    body.append(row);
+  }
+
+  function renumber() {
+    [...$("players-form").querySelectorAll("tbody tr")].forEach((row, i) => { row.firstChild.textContent = String(i); });
+  }
+
+  function applyPreset(name) {
+    const preset = PRESETS[name];
+    if (!preset) return;
+    $("condition").value = preset.condition;
+    $("graph").value = preset.graph || "complete";
+    $("leaders").value = preset.leaders;
+    $("players-form").querySelector("tbody").innerHTML = "";
+    preset.players.forEach(playerRow);
+  }
+
+  function readPlan() {
+    const players = [...$("players-form").querySelectorAll("tbody tr")].map((row) => {
+      const kind = row.querySelector(".kind").value;
+      const player = { label: row.querySelector(".label").value.trim(), kind };
+      if (kind === "avatar") player.spec = row.querySelector(".spec").value.trim();
+      else {
+        player.device = row.querySelector(".device").value;
+        if (player.device === "lsl") {
+          const [stream, channel, scale] = row.querySelector(".lsl").value.split(",").map((s) => s.trim());
+          player.lsl = { stream, channel: Number(channel || 0), scale: Number(scale || 1) };
+        }
+      }
+      return player;
+    });
+    const leaders = $("leaders").value.split(",").map((s) => s.trim()).filter(Boolean).map(Number);
+    return {
+      condition: $("condition").value,
+      graph: $("graph").value,
+      leaders,
+      duration: Number($("duration").value),
+      trials: Number($("trials").value),
+      pause: Number($("pause").value),
+      show_metrics: $("show-metrics").checked,
+      on_drop: $("on-drop").value,
+      players,
+    };
+  }
+
+  async function create() {
+    $("create-error").textContent = "";
+    try {
+      const status = await api("/api/sessions", { method: "POST", body: JSON.stringify(readPlan()) });
+      show(status.id);
+    } catch (error) {
+      $("create-error").textContent = error.message;
+    }
+  }
+
+  function show(id) {
+    current = id;
+    $("session").hidden = false;
+    $("session-id").textContent = id;
+  }
+
+  async function command(action, body = {}) {
+    $("session-error").textContent = "";
+    try {
+      await api(`/api/sessions/${current}/${action}`, { method: "POST", body: JSON.stringify(body) });
+    } catch (error) {
+      $("session-error").textContent = error.message;
+    }
+  }
+
+  function fmt(value, digits = 1) { return value === null || value === undefined ? "-" : Number(value).toFixed(digits); }
+
+  function renderSlots(status) {
+    const body = $("slots").querySelector("tbody");
+    body.innerHTML = "";
+    status.slots.forEach((slot) => {
+      const row = document.createElement("tr");
+      row.dataset.label = slot.label;
+      const swatch = document.createElement("span");
+      swatch.className = "dot";
+      swatch.style.background = slot.colour;
+      cell(row, swatch);
+      cell(row, slot.label);
+      cell(row, slot.role);
+      cell(row, slot.kind === "avatar" ? `avatar: ${slot.spec}` : `person (${slot.device})`);
+      let state = "ready";
+      if (slot.kind === "human") {
+        state = slot.connected ? "connected" : slot.joined ? "disconnected" : "not joined";
+        if (slot.dropped_at !== null && slot.dropped_at !== undefined) state += ` · dropped at sample ${slot.dropped_at}`;
+      }
+      cell(row, state).className = `state ${state.split(" ")[0]}`;
+      cell(row, slot.kind === "human" ? `${fmt(slot.rtt_median_ms)} / ${fmt(slot.rtt_p95_ms)}` : "");
+      cell(row, slot.kind === "human" ? `${slot.frames_dropped} / ${slot.late_frames}` : "");
+      cell(row, slot.kind === "human" ? String(slot.held ?? "-") : "");
+      const link = status.links[slot.label];
+      if (link) {
+        const box = document.createElement("span");
+        box.className = "link";
+        const anchor = Object.assign(document.createElement("a"), { href: link, textContent: "join link", target: "_blank", className: "join" });
+        anchor.dataset.label = slot.label;
+        const qr = Object.assign(document.createElement("img"), { src: `/api/sessions/${status.id}/qr/${slot.label}.svg`, alt: `QR code of ${slot.label}'s link`, className: "qr" });
+        box.append(anchor, qr);
+        cell(row, box);
+      } else cell(row, "");
+      body.append(row);
+    });
+  }
+
+  function renderTrials(status) {
+    const body = $("trials").querySelector("tbody");
+    body.innerHTML = "";
+    const names = { phase_locking: "CV", rmse: "RMS", time_lag: "lag (s)", group_synchronisation: "ρg", mean_phase_locking: "mean CV", mean_rmse: "mean RMS", kuramoto_order: "r" };
+    status.trials.forEach((trial) => {
+      const row = document.createElement("tr");
+      cell(row, String(trial.n));
+      cell(row, trial.complete ? "complete" : `incomplete: ${trial.end_reason}`);
+      cell(row, String(trial.n_samples));
+      cell(row, Object.entries(trial.metrics).filter(([k]) => names[k]).map(([k, v]) => `${names[k]} ${fmt(v, 3)}`).join(" · ")).className = "metrics";
+      const dropped = Object.entries(trial.dropped).map(([k, v]) => `${k} dropped at ${v}`);
+      cell(row, [Object.entries(trial.held).map(([k, v]) => `${k}: ${v}`).join(", "), ...dropped].join("; "));
+      const files = document.createElement("span");
+      trial.files.forEach((name) => files.append(Object.assign(document.createElement("a"), { href: `/api/sessions/${status.id}/files/${name}`, textContent: name }), " "));
+      cell(row, files);
+      body.append(row);
+    });
+  }
+
+  function render(status) {
+    lastStatus = status;
+    $("state").textContent = status.state;
+    $("state").className = `badge ${status.state}`;
+    const plan = status.plan;
+    $("session-summary").textContent = `${plan.condition.replace("_", "-")} · ${plan.slots.length} players · ${plan.trials} trial(s) of ${plan.duration} s · seed ${plan.seed}` + (status.trial ? ` · trial ${status.trial.n} running` : ` · next trial ${Math.min(status.next_trial, plan.trials)}`);
+    $("session-error").textContent = status.error || $("session-error").textContent;
+    renderSlots(status);
+    renderTrials(status);
+    $("events").textContent = status.events.join("\n");
+    const running = ["countdown", "running", "pause"].includes(status.state);
+    $("start").disabled = status.state !== "waiting";
+    $("start-force").disabled = status.state !== "waiting";
+    $("stop").disabled = !running;
+    $("abort").disabled = ["finished", "aborted"].includes(status.state);
+    $("sync-box").hidden = plan.slots.length < 3;
+  }
+
+  function drawLive(live) {
+    const canvas = $("live-plot");
+    const ctx = canvas.getContext("2d");
+    const { width, height } = canvas;
+    ctx.clearRect(0, 0, width, height);
+    ctx.strokeStyle = "#d8dde6";
+    ctx.strokeRect(0.5, 0.5, width - 1, height - 1);
+    $("live-trial").textContent = live.trial ? `trial ${live.trial}` : "(no trial running)";
+    $("live-progress").style.width = `${(100 * (live.progress || 0)).toFixed(1)}%`;
+    $("sync").textContent = live.group_sync === null || live.group_sync === undefined ? "-" : live.group_sync.toFixed(3);
+    if (!live.times || live.times.length < 2 || !lastStatus) return;
+    const t0 = live.times[0];
+    const span = Math.max(10, live.times[live.times.length - 1] - t0);
+    const px = (t) => ((t - t0) / span) * (width - 20) + 10;
+    const py = (x) => height / 2 - x * (height - 20);
+    live.positions.forEach((series, k) => {
+      ctx.strokeStyle = lastStatus.slots[k].colour;
+      ctx.lineWidth = 2;
+      ctx.beginPath();
+      series.forEach((x, i) => { if (i === 0) ctx.moveTo(px(live.times[i]), py(x)); else ctx.lineTo(px(live.times[i]), py(x)); });
+      ctx.stroke();
+      ctx.fillStyle = lastStatus.slots[k].colour;
+      ctx.fillText(lastStatus.slots[k].label, width - 40, 14 + 14 * k);
+    });
+  }
+
+  async function poll() {
+    try {
+      const listing = await api("/api/sessions");
+      renderSessionList(listing.sessions);
+      if (current) {
+        render(await api(`/api/sessions/${current}`));
+        drawLive(await api(`/api/sessions/${current}/live`));
+      }
+    } catch (error) {
+      $("session-error").textContent = error.message;
+    }
+    setTimeout(poll, POLL_MS);
+  }
+
+  function renderSessionList(sessions) {
+    const box = $("sessions-list");
+    box.innerHTML = "";
+    sessions.forEach((s) => {
+      const link = Object.assign(document.createElement("a"), { href: "#", textContent: `${s.id} (${s.state})` });
+      link.addEventListener("click", (event) => { event.preventDefault(); show(s.id); });
+      box.append(link, " ");
+    });
+  }
+
+  $("preset").addEventListener("change", (event) => applyPreset(event.target.value));
+  $("add-player").addEventListener("click", () => playerRow());
+  $("create-session").addEventListener("click", create);
+  $("start").addEventListener("click", () => command("start"));
+  $("start-force").addEventListener("click", () => command("start", { force: true }));
+  $("stop").addEventListener("click", () => command("stop"));
+  $("abort").addEventListener("click", () => { if (confirm("Abort the session? Its links expire.")) command("abort"); });
+  applyPreset("dyad");
+  poll();
+})();

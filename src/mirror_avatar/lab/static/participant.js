@@ -1,0 +1,166 @@
+// A participant's page: their own point follows the pointer (mouse, touch) or the arrow keys;
+// the points of the players they are coupled to come from the server's clock, one frame per tick.
+(() => {
+  "use strict";
+  const RANGE = 0.5;            // positions lie in [-RANGE, RANGE] (playing range units)
+  const KEY_SPEED = 0.6;        // units per second while an arrow key is held
+  const LATE_FRAME_MS = 50;     // an animation frame drawn later than this counts as late
+  const ENDED_CODES = new Set([4001, 4002, 4004, 1008]);
+  const canvas = document.getElementById("field");
+  const ctx = canvas.getContext("2d");
+  const ui = {
+    who: document.getElementById("who"),
+    trial: document.getElementById("trial"),
+    overlay: document.getElementById("overlay"),
+    message: document.getElementById("message"),
+    bar: document.getElementById("progress-bar"),
+  };
+  const key = location.pathname.split("/").pop();
+  const me = { x: 0, seq: 0, keys: new Set(), lastFrame: null, lateFrames: 0 };
+  let socket = null;
+  let welcome = null;
+  let others = new Map();      // player index -> latest position from the server
+  let ended = false;
+
+  function resize() {
+    const ratio = window.devicePixelRatio || 1;
+    canvas.width = canvas.clientWidth * ratio;
+    canvas.height = canvas.clientHeight * ratio;
+  }
+
+  function toPixels(x) { return ((x + RANGE) / (2 * RANGE)) * canvas.width * 0.9 + canvas.width * 0.05; }
+  function fromClient(clientX) {
+    const rect = canvas.getBoundingClientRect();
+    const fraction = ((clientX - rect.left) / rect.width - 0.05) / 0.9;
+    return Math.max(-RANGE, Math.min(RANGE, (fraction - 0.5) * 2 * RANGE));
+  }
+
+  function say(text) {
+    ui.message.textContent = text;
+    ui.overlay.hidden = !text;
+  }
+
+  function send(message) {
+    if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify(message));
+  }
+
+  function draw() {
+    const { width, height } = canvas;
+    ctx.clearRect(0, 0, width, height);
+    ctx.strokeStyle = "#c5ccd8";
+    ctx.lineWidth = Math.max(2, height * 0.01);
+    ctx.beginPath();
+    ctx.moveTo(toPixels(-RANGE), height / 2);
+    ctx.lineTo(toPixels(RANGE), height / 2);
+    ctx.stroke();
+    if (!welcome) return;
+    const radius = Math.max(10, Math.min(width, height) * 0.04);
+    welcome.visible.forEach((player, i) => {
+      const own = i === 0;
+      const x = own ? me.x : others.get(player.index);
+      if (x === undefined) return;
+      const y = height / 2 + (own ? 0 : (i % 2 ? -1 : 1) * radius * 1.6 * Math.ceil(i / 2));
+      ctx.fillStyle = player.colour;
+      ctx.globalAlpha = own ? 1 : 0.85;
+      ctx.beginPath();
+      ctx.arc(toPixels(x), y, own ? radius * 1.2 : radius, 0, 2 * Math.PI);
+      ctx.fill();
+      ctx.globalAlpha = 1;
+      ctx.font = `${Math.round(radius)}px system-ui, sans-serif`;
+      ctx.textAlign = "center";
+      ctx.fillText(own ? "you" : player.label, toPixels(x), y - radius * 1.5);
+    });
+  }
+
+  function animate(now) {
+    if (me.lastFrame !== null) {
+      const dt = (now - me.lastFrame) / 1000;
+      if (dt * 1000 > LATE_FRAME_MS) me.lateFrames += 1;
+      const direction = (me.keys.has("right") ? 1 : 0) - (me.keys.has("left") ? 1 : 0);
+      if (direction) me.x = Math.max(-RANGE, Math.min(RANGE, me.x + direction * KEY_SPEED * dt));
+    }
+    me.lastFrame = now;
+    if (welcome && welcome.device === "pointer") send({ type: "position", seq: me.seq++, x: me.x });
+    draw();
+    requestAnimationFrame(animate);
+  }
+
+  function metricsText(metrics) {
+    const names = {
+      phase_locking: "Coordination (CV)",
+      rmse: "Distance (RMS)",
+      group_synchronisation: "Group synchronisation",
+      synchronisation: "Your synchronisation",
+    };
+    return Object.entries(metrics || {})
+      .filter(([name, value]) => names[name] && value !== null)
+      .map(([name, value]) => `${names[name]}: ${Number(value).toFixed(2)}`)
+      .join("\n");
+  }
+
+  function onMessage(event) {
+    const message = JSON.parse(event.data);
+    switch (message.type) {
+      case "welcome": {
+        welcome = message;
+        const colour = message.visible[0].colour;
+        ui.who.innerHTML = "";
+        const dot = document.createElement("span");
+        dot.className = "dot";
+        dot.style.background = colour;
+        ui.who.append(dot, ` You are ${message.label}`);
+        say(message.state === "running" ? "" : "Please wait: the researcher will start soon.");
+        break;
+      }
+      case "ping": send({ type: "pong", id: message.id, late_frames: me.lateFrames }); break;
+      case "countdown":
+        ui.trial.textContent = `Trial ${message.trial} of ${welcome ? welcome.trials : "?"}`;
+        others = new Map();
+        say(String(message.remaining));
+        break;
+      case "go": say(""); ui.bar.style.width = "0%"; break;
+      case "frame":
+        welcome.visible.forEach((player, i) => { if (i > 0) others.set(player.index, message.x[i]); });
+        ui.bar.style.width = `${(100 * message.progress).toFixed(1)}%`;
+        break;
+      case "end": {
+        const lines = [`Trial ${message.trial} done.`];
+        const text = metricsText(message.metrics);
+        if (text) lines.push(text);
+        lines.push(message.next_in === null ? "Please wait." : `Next trial in ${Math.round(message.next_in)} s.`);
+        say(lines.join("\n"));
+        break;
+      }
+      case "state": say(message.message); if (message.state === "finished" || message.state === "aborted") ended = true; break;
+      case "error": console.warn(message.message); break;
+      default: break;
+    }
+  }
+
+  function connect() {
+    const scheme = location.protocol === "https:" ? "wss" : "ws";
+    socket = new WebSocket(`${scheme}://${location.host}/ws/join/${key}`);
+    me.seq = 0;
+    socket.addEventListener("message", onMessage);
+    socket.addEventListener("close", (event) => {
+      if (ended || ENDED_CODES.has(event.code)) {
+        say(event.code === 4002 ? "This link was opened on another page." : "The session has ended. Thank you!");
+        ended = true;
+        return;
+      }
+      say("Connection lost: reconnecting…");
+      setTimeout(connect, 1000);
+    });
+  }
+
+  const KEYS = { ArrowLeft: "left", ArrowRight: "right", a: "left", d: "right" };
+  window.addEventListener("resize", resize);
+  canvas.addEventListener("pointermove", (event) => { me.x = fromClient(event.clientX); });
+  canvas.addEventListener("pointerdown", (event) => { me.x = fromClient(event.clientX); });
+  window.addEventListener("keydown", (event) => { if (KEYS[event.key]) { me.keys.add(KEYS[event.key]); event.preventDefault(); } });
+  window.addEventListener("keyup", (event) => me.keys.delete(KEYS[event.key]));
+  window.addEventListener("blur", () => me.keys.clear());
+  resize();
+  connect();
+  requestAnimationFrame(animate);
+})();
