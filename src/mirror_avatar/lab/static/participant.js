@@ -21,6 +21,7 @@
   let welcome = null;
   let others = new Map();      // player index -> latest position from the server
   let ended = false;
+  window.mirrorLab = { get welcome() { return welcome; }, get others() { return others; }, me };
 
   function resize() {
     const ratio = window.devicePixelRatio || 1;
