@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import psutil
 import pytest
+from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains
 
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import make_avatar_factory
@@ -26,40 +27,10 @@ from mirror_avatar.testing import ServerThread
 
 pytestmark = pytest.mark.browser
 
-CHROMIUM = Path("/usr/bin/chromium")
-ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
-SCREENSHOTS = Path(__file__).parents[2] / "output" / "screenshots"
-
 
 def sway(t: Any) -> Any:
     """The driven pointer trajectory (units): a 0.4 Hz sine of amplitude 0.3."""
     return 0.3 * np.sin(2 * np.pi * 0.4 * t)
-
-
-@pytest.fixture(scope="module")
-def playwright() -> Iterator[Any]:
-    if not CHROMIUM.exists():
-        if os.environ.get("CI") == "true":
-            pytest.fail(f"{CHROMIUM} is missing: install Debian's chromium package")
-        pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)")
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as running:
-        yield running
-
-
-@pytest.fixture(scope="module")
-def chromium(playwright: Any) -> Iterator[Any]:
-    browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
-    yield browser
-    browser.close()
 
 
 @pytest.fixture(scope="module")
@@ -150,27 +121,6 @@ def load_csv(path: Path) -> np.ndarray:
     return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
 
 
-def mismatch(recorded: np.ndarray, driven: np.ndarray) -> np.ndarray:
-    """|recorded - driven| (units) at the clock offset that fits best; driven positions hold
-    until the next move, the first one from time 0 (the pointer is parked there beforehand)."""
-
-    def errors(offset: float) -> np.ndarray:
-        index = np.searchsorted(driven[:, 0], recorded[:, 0] + offset, side="right") - 1
-        return np.abs(recorded[:, 1] - driven[np.maximum(index, 0), 1])
-
-    offsets = np.arange(-0.3, 0.3, 0.002)
-    return min((errors(offset) for offset in offsets), key=lambda e: float(np.mean(e)))
-
-
-def assert_matches(recorded: np.ndarray, driven: np.ndarray) -> None:
-    error = mismatch(recorded[recorded[:, 0] <= driven[-1, 0]], driven)
-    step = np.abs(np.diff(driven[:, 1])).max()
-    # exact (sub-pixel) for most samples; a sample taken as the pointer moves is one step off,
-    # and a few may be further off when the machine is busy and a mouse move arrives late
-    assert np.median(error) < 0.001
-    assert np.mean(error < step + 0.002) > 0.9
-
-
 def test_solo_trial_records_the_driven_trajectory(chromium, server, tmp_path):
     page = chromium.new_page(viewport={"width": 1100, "height": 760})
     start_trial(page, server.url, "solo", 4)
@@ -223,21 +173,6 @@ def test_avatar_follows_the_driven_mouse(chromium, server, tmp_path):
     assert drawn(page, "positions", PERSON_RGB) > 200 and drawn(page, "positions", AVATAR_RGB) > 200
     assert page.locator("#phase-figure").is_visible() and drawn(page, "phase", PHASE_RGB) > 200
     page.close()
-
-
-def chromium_mains() -> set[int]:
-    """Process ids of the running Chromium browsers this test process started (no helpers).
-
-    Browsers that already exited but are not reaped yet (zombies) are left out.
-    """
-    mains = set()
-    for child in psutil.Process().children(recursive=True):
-        try:
-            if CHROMIUM.name in child.name() and "--type=" not in " ".join(child.cmdline()):
-                mains.add(child.pid)
-        except (psutil.ZombieProcess, psutil.NoSuchProcess):
-            continue
-    return mains
 
 
 def test_killing_the_browser_mid_trial_leaves_an_incomplete_trial(playwright, server, tmp_path):

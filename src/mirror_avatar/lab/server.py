@@ -31,6 +31,7 @@ import asyncio
 import contextlib
 import functools
 import hmac
+import io
 import logging
 import re
 import time
@@ -384,8 +385,11 @@ class LabApi:
         label = request.path_params["label"]
         if label not in links:
             return _json({"error": "no such person in this session"}, 404)
-        svg = segno.make(links[label], error="m").svg_inline(scale=4)
-        return Response(svg, media_type="image/svg+xml", headers={"Cache-Control": "no-store"})
+        svg = io.BytesIO()
+        segno.make(links[label], error="m").save(svg, kind="svg", scale=4, border=2)
+        return Response(
+            svg.getvalue(), media_type="image/svg+xml", headers={"Cache-Control": "no-store"}
+        )
 
     async def _with_session(self, request: Request, answer: Any) -> Response:
         try:

@@ -173,7 +173,7 @@
   }
 
   function renderTrials(status) {
-    const body = $("trials").querySelector("tbody");
+    const body = $("trial-list").querySelector("tbody");
     body.innerHTML = "";
     const names = { phase_locking: "CV", rmse: "RMS", time_lag: "lag (s)", group_synchronisation: "ρg", mean_phase_locking: "mean CV", mean_rmse: "mean RMS", kuramoto_order: "r" };
     status.trials.forEach((trial) => {

@@ -21,6 +21,7 @@
   let welcome = null;
   let others = new Map();      // player index -> latest position from the server
   let ended = false;
+  let lastEnd = [];            // the last end screen's lines (trial and metrics)
   window.mirrorLab = { get welcome() { return welcome; }, get others() { return others; }, me };
 
   function resize() {
@@ -99,6 +100,11 @@
       .join("\n");
   }
 
+  function finish() {
+    ended = true;
+    say([...lastEnd, "The session has ended. Thank you!"].join("\n"));
+  }
+
   function onMessage(event) {
     const message = JSON.parse(event.data);
     switch (message.type) {
@@ -125,14 +131,17 @@
         ui.bar.style.width = `${(100 * message.progress).toFixed(1)}%`;
         break;
       case "end": {
-        const lines = [`Trial ${message.trial} done.`];
+        lastEnd = [`Trial ${message.trial} done.`];
         const text = metricsText(message.metrics);
-        if (text) lines.push(text);
-        lines.push(message.next_in === null ? "Please wait." : `Next trial in ${Math.round(message.next_in)} s.`);
-        say(lines.join("\n"));
+        if (text) lastEnd.push(text);
+        const next = message.next_in === null ? "Please wait." : `Next trial in ${Math.round(message.next_in)} s.`;
+        say([...lastEnd, next].join("\n"));
         break;
       }
-      case "state": say(message.message); if (message.state === "finished" || message.state === "aborted") ended = true; break;
+      case "state":
+        if (message.state === "finished" || message.state === "aborted") finish();
+        else say(message.message);
+        break;
       case "error": console.warn(message.message); break;
       default: break;
     }
@@ -144,11 +153,11 @@
     me.seq = 0;
     socket.addEventListener("message", onMessage);
     socket.addEventListener("close", (event) => {
-      if (ended || ENDED_CODES.has(event.code)) {
-        say(event.code === 4002 ? "This link was opened on another page." : "The session has ended. Thank you!");
+      if (event.code === 4002) {
+        say("This link was opened on another page.");
         ended = true;
-        return;
-      }
+      } else if (ended || ENDED_CODES.has(event.code)) finish();
+      if (ended) return;
       say("Connection lost: reconnecting…");
       setTimeout(connect, 1000);
     });

@@ -1,0 +1,201 @@
+"""Lab sessions in real browsers: the researcher's console and two participants' pages at once
+(three Chromium pages, each in its own browser context), against a real lab server."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import psutil
+import pytest
+from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains
+
+from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.session import load_session
+from mirror_avatar.testing import ServerThread
+
+pytestmark = pytest.mark.browser
+
+TOKEN = "lab-browser-token"
+
+
+@pytest.fixture
+def lab(tmp_path: Path) -> Iterator[ServerThread]:
+    settings = LabSettings(out_dir=tmp_path, token=TOKEN, countdown=1)
+    with ServerThread(create_lab_app(settings)) as running:
+        yield running
+
+
+def open_console(browser: Any, url: str) -> Any:
+    console = browser.new_context(viewport={"width": 1280, "height": 1000}).new_page()
+    console.goto(f"{url}/console?token={TOKEN}")
+    console.wait_for_selector("#create")
+    return console
+
+
+def create_session(console: Any, preset: str, duration: float) -> dict[str, str]:
+    """Create a session from a preset on the console; return the people's join links."""
+    console.select_option("#preset", preset)
+    console.fill("#duration", str(duration))
+    console.click("#create-session")
+    console.wait_for_selector("a.join")
+    return dict(
+        console.eval_on_selector_all("a.join", "links => links.map(a => [a.dataset.label, a.href])")
+    )
+
+
+def join(browser: Any, link: str) -> Any:
+    page = browser.new_context(viewport={"width": 900, "height": 500}).new_page()
+    page.goto(link)
+    page.wait_for_function("window.mirrorLab && window.mirrorLab.welcome !== null")
+    return page
+
+
+def pointer_at(page: Any, x: float) -> None:
+    """Move the page's mouse to position ``x`` (units) of its playing field."""
+    box = page.locator("#field").bounding_box()
+    page.mouse.move(box["x"] + box["width"] * (0.05 + 0.9 * (x + 0.5)), box["y"] + 100)
+
+
+def sway(t: float, lag: float = 0.0) -> float:
+    return float(0.3 * np.sin(2 * np.pi * 0.4 * (t - lag)))
+
+
+def drive(pages: dict[str, Any], lags: dict[str, float], seconds: float, shoot: Any = None):
+    """Move every page's mouse along `sway` (each with its lag) at 60 Hz for ``seconds``.
+
+    Returns the (time, position) pairs driven per page; ``shoot`` is called once halfway.
+    """
+    began = time.monotonic()
+    driven: dict[str, list[tuple[float, float]]] = {label: [] for label in pages}
+    n = 0
+    while (t := time.monotonic() - began) < seconds:
+        for label, page in pages.items():
+            x = sway(t, lags[label])
+            pointer_at(page, x)
+            driven[label].append((t, x))
+        n += 1
+        if shoot is not None and t > seconds / 2:
+            shoot()
+            shoot = None
+        time.sleep(max(0.0, began + n / 60 - time.monotonic()))
+    return {label: np.asarray(rows) for label, rows in driven.items()}
+
+
+def start_when_joined(console: Any, n_people: int) -> None:
+    console.wait_for_function(
+        f"document.querySelectorAll('#slots td.state.connected').length === {n_people}"
+    )
+    console.click("#start")
+
+
+def wait_trial_listed(console: Any, n: int) -> str:
+    console.wait_for_function(
+        f"document.querySelectorAll('#trial-list tbody tr').length === {n}", timeout=30_000
+    )
+    return console.locator("#trial-list tbody tr").nth(n - 1).inner_text()
+
+
+def screenshot(page: Any, name: str) -> None:
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=SCREENSHOTS / f"{name}.png", full_page=True)
+
+
+def session_dir(tmp_path: Path) -> Path:
+    (directory,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    return directory
+
+
+def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
+    console = open_console(chromium, lab.url)
+    links = create_session(console, "people", 6)
+    pages = {label: join(chromium, link) for label, link in links.items()}
+    assert pages["P1"].evaluate("window.mirrorLab.welcome.role") == "leader"
+    assert pages["P2"].evaluate("window.mirrorLab.welcome.role") == "follower"
+    for page in pages.values():
+        pointer_at(page, 0.0)
+    start_when_joined(console, 2)
+    pages["P2"].wait_for_function("window.mirrorLab.others.size === 1", timeout=15_000)
+
+    def shoot() -> None:
+        screenshot(console, "lab-console-dyad")
+        screenshot(pages["P2"], "lab-participant-follower")
+
+    driven = drive(pages, {"P1": 0.0, "P2": 0.25}, 7.5, shoot)
+    row = wait_trial_listed(console, 1)
+    assert "complete" in row and "CV" in row and "RMS" in row
+    session = load_session(session_dir(tmp_path) / "trial-01_session.csv")
+    assert session.roles == ("leader", "follower") and session.n_samples == 201
+    assert session.metadata["complete"]
+    for k, label in enumerate(("P1", "P2")):
+        recorded = np.column_stack([session.times, session.positions[k]])
+        assert_matches(recorded, driven[label])
+    assert session.metadata["metrics"]["phase_locking"] > 0.8
+    pages["P2"].wait_for_function("document.getElementById('message').textContent.includes('CV')")
+    screenshot(pages["P2"], "lab-participant-end")
+
+
+def test_group_of_four_on_a_ring_two_people_two_avatars(chromium, lab, tmp_path):
+    console = open_console(chromium, lab.url)
+    links = create_session(console, "ring", 6)
+    assert set(links) == {"P1", "P2"}
+    pages = {label: join(chromium, link) for label, link in links.items()}
+    seen = pages["P1"].evaluate("window.mirrorLab.welcome.visible.map(v => v.label)")
+    assert seen == ["P1", "A1", "A2"]  # itself and its ring neighbours, not P2
+    for page in pages.values():
+        pointer_at(page, 0.0)
+    start_when_joined(console, 2)
+    pages["P1"].wait_for_function("window.mirrorLab.others.size === 2", timeout=15_000)
+    group_sync: list[str] = []
+
+    def shoot() -> None:
+        console.wait_for_function("document.getElementById('sync').textContent !== '-'")
+        group_sync.append(console.locator("#sync").inner_text())
+        screenshot(console, "lab-console-group")
+        screenshot(pages["P1"], "lab-participant-group")
+
+    driven = drive(pages, {"P1": 0.0, "P2": 0.1}, 7.5, shoot)
+    assert 0.0 <= float(group_sync[0]) <= 1.0
+    row = wait_trial_listed(console, 1)
+    assert "complete" in row and "ρg" in row
+    session = load_session(session_dir(tmp_path) / "trial-01_session.csv")
+    assert session.labels == ("P1", "A1", "P2", "A2") and session.n_players == 4
+    assert session.graph.tolist() == [[0, 1, 0, 1], [1, 0, 1, 0], [0, 1, 0, 1], [1, 0, 1, 0]]
+    for k, label in ((0, "P1"), (2, "P2")):
+        assert_matches(np.column_stack([session.times, session.positions[k]]), driven[label])
+    assert np.ptp(session.positions[1]) > 0.1 and np.ptp(session.positions[3]) > 0.1
+    assert 0 < session.metadata["metrics"]["group_synchronisation"] <= 1
+    links_shown = console.eval_on_selector_all("img.qr", "imgs => imgs.map(i => i.naturalWidth)")
+    assert links_shown == [] or all(width > 0 for width in links_shown)
+
+
+def test_killing_a_participants_browser_marks_them_dropped(playwright, chromium, lab, tmp_path):
+    console = open_console(chromium, lab.url)
+    links = create_session(console, "people", 8)
+    staying = join(chromium, links["P1"])
+    before = chromium_mains()
+    doomed = playwright.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+    (main,) = chromium_mains() - before
+    leaving = join(doomed, links["P2"])
+    start_when_joined(console, 2)
+    staying.wait_for_function("window.mirrorLab.others.size === 1", timeout=15_000)
+    drive({"P1": staying, "P2": leaving}, {"P1": 0.0, "P2": 0.2}, 2.0)
+    os.kill(main, signal.SIGKILL)
+    psutil.Process(main).wait(10)
+    console.wait_for_function(
+        "[...document.querySelectorAll('#slots td.state')].some(td => td.textContent.includes('dropped'))"
+    )
+    screenshot(console, "lab-console-dropped")
+    row = wait_trial_listed(console, 1)
+    assert "P2 dropped at" in row
+    sidecar = session_dir(tmp_path) / "trial-01_session.json"
+    record = json.loads(sidecar.read_text())["metadata"]
+    session = load_session(sidecar.with_suffix(".csv"))
+    assert session.n_samples == round(8 / 0.03) + 1 and "P2" in record["dropped"]
+    assert record["held"]["P2"] >= session.n_samples - record["dropped"]["P2"] - 10
