@@ -189,7 +189,8 @@ def test_killing_a_participants_browser_marks_them_dropped(playwright, chromium,
     os.kill(main, signal.SIGKILL)
     psutil.Process(main).wait(10)
     console.wait_for_function(
-        "[...document.querySelectorAll('#slots td.state')].some(td => td.textContent.includes('dropped'))"
+        "[...document.querySelectorAll('#slots td.state')]"
+        ".some(td => td.textContent.includes('dropped'))"
     )
     screenshot(console, "lab-console-dropped")
     row = wait_trial_listed(console, 1)
