@@ -67,10 +67,17 @@ def sway(t: float, lag: float = 0.0) -> float:
     return float(0.3 * np.sin(2 * np.pi * 0.4 * (t - lag)))
 
 
-def drive(pages: dict[str, Any], lags: dict[str, float], seconds: float, shoot: Any = None):
+def drive(
+    pages: dict[str, Any],
+    lags: dict[str, float],
+    seconds: float,
+    shoot: Any = None,
+    watch: Any = None,
+) -> dict[str, np.ndarray]:
     """Move every page's mouse along `sway` (each with its lag) at 60 Hz for ``seconds``.
 
-    Returns the (time, position) pairs driven per page; ``shoot`` is called once halfway.
+    Returns the (time, position) pairs driven per page; ``shoot`` is called once halfway and
+    ``watch(t)`` every quarter of a second.
     """
     began = time.monotonic()
     driven: dict[str, list[tuple[float, float]]] = {label: [] for label in pages}
@@ -84,6 +91,8 @@ def drive(pages: dict[str, Any], lags: dict[str, float], seconds: float, shoot: 
         if shoot is not None and t > seconds / 2:
             shoot()
             shoot = None
+        if watch is not None and n % 15 == 0:
+            watch(t)
         time.sleep(max(0.0, began + n / 60 - time.monotonic()))
     return {label: np.asarray(rows) for label, rows in driven.items()}
 
@@ -123,11 +132,20 @@ def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
     start_when_joined(console, 2)
     pages["P2"].wait_for_function("window.mirrorLab.others.size === 1", timeout=15_000)
 
+    leader_seen: list[tuple[float, Any]] = []
+
     def shoot() -> None:
         screenshot(console, "lab-console-dyad")
         screenshot(pages["P2"], "lab-participant-follower")
 
-    driven = drive(pages, {"P1": 0.0, "P2": 0.25}, 7.5, shoot)
+    def watch(t: float) -> None:
+        if pages["P2"].evaluate("window.mirrorLab.others.size") == 1:
+            leader_seen.append((t, pages["P2"].evaluate("window.mirrorLab.others.get(0)")))
+
+    driven = drive(pages, {"P1": 0.0, "P2": 0.25}, 7.5, shoot, watch)
+    seen = np.array([(t, x) for t, x in leader_seen if t < 6.0], dtype=float)
+    assert len(seen) >= 5 and np.ptp(seen[:, 1]) > 0.3  # the follower sees the leader move
+    assert np.median(np.abs(seen[:, 1] - [sway(t) for t in seen[:, 0]])) < 0.1
     row = wait_trial_listed(console, 1)
     assert "complete" in row and "CV" in row and "RMS" in row
     session = load_session(session_dir(tmp_path) / "trial-01_session.csv")

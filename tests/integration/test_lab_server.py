@@ -200,7 +200,9 @@ def test_a_dyad_of_two_people_plays_on_one_clock(lab, tmp_path):
         sent = {x for page in pages[:1] for _, x in page.sent}
         assert set(np.round(session.positions[0, 5:], 6)) <= sent
     frames = pages[0].of_type("frame")
-    assert len(frames) == 2 * 101 and all(len(f["x"]) == 2 for f in frames)
+    assert len(frames) == 2 * 101 and [f["k"] for f in frames[:101]] == list(range(101))
+    first = load_session(tmp_path / sid / "trial-01_session.csv")
+    np.testing.assert_array_equal([f["x"] for f in frames[:101]], first.positions.T)
     row = next(s for s in final["slots"] if s["label"] == "P1")
     assert row["rtt_median_ms"] is not None and row["rtt_median_ms"] < 100
 

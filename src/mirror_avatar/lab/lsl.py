@@ -229,6 +229,9 @@ class LslInput:
     Thread-safe: the pulling thread and readers share a lock. `last_timestamp` is in the local LSL
     clock: the sender's time stamp plus the inlet's `time_correction` (which, between two
     programs on one computer, is a small estimation error of some microseconds, not zero).
+    When a stream that has a source id goes away, liblsl waits for it to come back: `latest`
+    keeps the last sample meanwhile (a `HumanPlayer` counts those ticks as held). A stream
+    without one is lost for good, and `error` says so.
     """
 
     def __init__(
@@ -289,13 +292,13 @@ class LslInput:
 
     @property
     def last_timestamp(self) -> float:
-        """LSL time stamp of the newest sample in the local LSL clock (s); NaN before any."""
+        """LSL time stamp of the `latest` sample in the local LSL clock (s); NaN before any."""
         with self._lock:
             return self._timestamp
 
     @property
     def time_correction(self) -> float:
-        """Clock offset (s) added to the sender's time stamp to give `last_timestamp`."""
+        """Clock offset (s) that was added to the sender's time stamp to give `last_timestamp`."""
         with self._lock:
             return self._correction
 
@@ -351,7 +354,7 @@ class LslInput:
                     self._error = f"{_where(self.stream)}: {error or type(error).__name__}"
                 return
             if stamps:
-                self._store(values, stamps[-1], self._current_correction())
+                self._store(values, np.asarray(stamps), self._current_correction())
 
     def _pull(self) -> tuple[NDArray[np.float64], list[float]]:
         """Wait for one sample, then take every sample already there (the channel's values)."""
@@ -369,22 +372,25 @@ class LslInput:
         except RuntimeError:
             return self.time_correction
 
-    def _store(self, values: NDArray[np.float64], stamp: float, correction: float) -> None:
+    def _store(
+        self, values: NDArray[np.float64], stamps: NDArray[np.float64], correction: float
+    ) -> None:
+        """Keep the newest valid sample of a chunk: values (stream units), stamps (sender's s)."""
         received = time.monotonic()
         low, high = PLAYING_RANGE
         x = self.offset + self.scale * values
         valid = np.isfinite(x)
-        x = x[valid]
+        x, stamps = x[valid], stamps[valid]
         with self._lock:
             self._n_received += len(values)
             self._invalid += len(values) - len(x)
-            self._timestamp = stamp + correction
-            self._correction = correction
             if not len(x):
                 return
             self._clipped += int(np.count_nonzero((x < low) | (x > high)))
             seq = (0 if self._latest is None else self._latest.seq) + len(x)
             self._latest = Sample(float(np.clip(x[-1], low, high)), seq, received)
+            self._timestamp = float(stamps[-1]) + correction
+            self._correction = correction
 
 
 def _check_mapping(stream: str, scale: float, offset: float, timeout: float) -> None:

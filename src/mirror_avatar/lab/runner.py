@@ -25,7 +25,7 @@ import time
 from collections.abc import Awaitable, Callable
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -51,6 +51,20 @@ COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8
 """Player k's colour on every page (the console's plots included)."""
 
 Send = Callable[[str], Awaitable[None]]
+
+
+class Outlet(Protocol):
+    """Where a session publishes each sample's positions (an LSL outlet)."""
+
+    def push_positions(self, positions: Array, timestamp: float) -> None:
+        """Publish the players' positions (units) taken at ``timestamp`` (s, the clock's)."""
+        ...
+
+    def close(self) -> None:
+        """Stop publishing."""
+        ...
+
+
 Close = Callable[[int, str], Awaitable[None]]
 
 CLOSE_ENDED = 4001
@@ -179,8 +193,8 @@ class LabSession:
         Seconds of countdown before each trial.
     max_tick
         Seconds one tick may take before the trial is ended (a too slow avatar).
-    publisher
-        The session's LSL outlet as a callable ``(positions, clock time)``, or None.
+    outlet
+        The session's LSL outlet (`mirror_avatar.lab.lsl.SessionOutlet`), or None.
     open_device
         Opens an LSL input device from a slot (`mirror_avatar.lab.lsl.LslInput`).
     """
@@ -193,7 +207,7 @@ class LabSession:
         clock: Clock,
         countdown: int = 3,
         max_tick: float = 0.5,
-        publisher: Callable[[Array, float], None] | None = None,
+        outlet: Outlet | None = None,
         open_device: Callable[[Any], InputSource] | None = None,
     ) -> None:
         self.id = session_id
@@ -202,7 +216,7 @@ class LabSession:
         self.clock = clock
         self.countdown = countdown
         self.max_tick = max_tick
-        self.publisher = publisher
+        self.outlet = outlet
         self.open_device = open_device
         self.created_utc = datetime.now(UTC).isoformat()
         self.participants = {
@@ -314,7 +328,7 @@ class LabSession:
                 await self.runner
             self.runner = None
         if self.trial is not None:
-            self._end_trial(self.trial, False, reason)
+            await self._end_trial(self.trial, False, reason)
             self.next_trial += 1
         if not self.ended:
             self.state = "waiting"
@@ -328,7 +342,7 @@ class LabSession:
         self.close()
 
     def close(self) -> None:
-        """Tell every page the session ended and close the input devices."""
+        """Tell every page the session ended; close the input devices and the LSL outlet."""
         self.broadcast({"type": "state", "state": self.state, "message": "The session has ended."})
         for participant in self.participants.values():
             if participant.outbox is not None:
@@ -336,6 +350,8 @@ class LabSession:
             closer = getattr(participant.source, "close", None)
             if participant.device == "lsl" and closer is not None:
                 closer()
+        if self.outlet is not None:
+            self.outlet.close()
 
     def broadcast(self, message: dict[str, Any]) -> None:
         """Queue a control message to every connected page."""
@@ -382,14 +398,15 @@ class LabSession:
         self.log(f"trial {n} started")
         self.broadcast({"type": "go", "trial": n, "duration": self.plan.duration})
         complete, reason = await self._tick(trial)
-        self._end_trial(trial, complete, reason)
+        await self._end_trial(trial, complete, reason)
 
     def _new_trial(self, n: int) -> LabTrial:
         inputs = {k: p.source for k, p in self.participants.items() if p.source is not None}
         lab = {"session_id": self.id, "condition": self.plan.condition}
         assert self.avatars is not None
+        publish = None if self.outlet is None else self.outlet.push_positions
         return LabTrial(
-            self.plan, n, self.directory, inputs, self.avatars, self.clock, lab, self.publisher
+            self.plan, n, self.directory, inputs, self.avatars, self.clock, lab, publish
         )
 
     async def _tick(self, trial: LabTrial) -> tuple[bool, str]:
@@ -424,9 +441,18 @@ class LabSession:
                 }
             )
 
-    def _end_trial(self, trial: LabTrial, complete: bool, reason: str) -> None:
+    async def _end_trial(self, trial: LabTrial, complete: bool, reason: str) -> None:
+        """Finish the trial in a worker thread (its metrics) and tell the pages.
+
+        A stop arriving meanwhile waits for the trial to be saved and listed.
+        """
         self.trial = None
-        summary = trial.finish(complete, reason)
+        finishing = asyncio.ensure_future(asyncio.to_thread(trial.finish, complete, reason))
+        try:
+            summary = await asyncio.shield(finishing)
+        except asyncio.CancelledError:
+            self.results.append(await finishing)
+            raise
         self.results.append(summary)
         self.log(f"trial {trial.n} ended: {reason}")
         for k, participant in self.participants.items():

@@ -35,6 +35,7 @@ import io
 import logging
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -56,12 +57,13 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 from starlette.websockets import WebSocket, WebSocketClose, WebSocketDisconnect
 
 from mirror_avatar.atomic import json_safe
+from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.inputs import BrowserInput
+from mirror_avatar.lab.inputs import BrowserInput, InputSource
 from mirror_avatar.lab.messages import Pong, parse_participant_message
-from mirror_avatar.lab.plan import LslDevice, parse_plan
-from mirror_avatar.lab.runner import LabSession, Outbox, Participant
-from mirror_avatar.lab.trial import Array, Clock
+from mirror_avatar.lab.plan import LslDevice, SessionPlan, parse_plan
+from mirror_avatar.lab.runner import LabSession, Outbox, Outlet, Participant
+from mirror_avatar.lab.trial import Clock
 from mirror_avatar.live.admission import TokenBucket
 from mirror_avatar.live.protocol import PositionUpdate, ProtocolError
 from mirror_avatar.live.server import SERVER_SEND, abort_transport
@@ -146,7 +148,7 @@ class Lab:
             raise InputError("plan", f"{len(active)} sessions are open: end one first")
         stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
         session_id = f"{stamp}-{len(self.sessions) + 1:03d}"
-        publisher, open_device, clock = lsl_hooks(self.settings.lsl, session_id, plan)
+        outlet, open_device, clock = lsl_hooks(self.settings.lsl, session_id, plan)
         session = LabSession(
             session_id,
             plan,
@@ -154,7 +156,7 @@ class Lab:
             clock,
             self.settings.countdown,
             self.settings.max_tick,
-            publisher,
+            outlet,
             open_device,
         )
         self.sessions[session_id] = session
@@ -170,8 +172,10 @@ class Lab:
         return found
 
 
-def lsl_hooks(enabled: bool, session_id: str, plan: Any) -> tuple[Any, Any, Clock]:
-    """Return a session's LSL publisher, LSL device opener and clock (without LSL: monotonic)."""
+def lsl_hooks(
+    enabled: bool, session_id: str, plan: SessionPlan
+) -> tuple[Outlet | None, Callable[[LslDevice], InputSource] | None, Clock]:
+    """Return a session's LSL outlet, LSL device opener and clock (without LSL: monotonic)."""
     if not enabled:
         return None, None, time.monotonic
     import pylsl
@@ -184,16 +188,13 @@ def lsl_hooks(enabled: bool, session_id: str, plan: Any) -> tuple[Any, Any, Cloc
         [slot.label for slot in plan.slots],
         list(plan.roles),
         [slot.kind for slot in plan.slots],
-        0.03,
+        CONTROL_PERIOD,
     )
 
-    def publish(positions: Array, stamp: float) -> None:
-        outlet.push_positions(positions, stamp)
-
-    def open_device(device: LslDevice) -> LslInput:
+    def open_device(device: LslDevice) -> InputSource:
         return LslInput(device.stream, device.channel, device.scale, device.offset)
 
-    return publish, open_device, pylsl.local_clock
+    return outlet, open_device, pylsl.local_clock
 
 
 def create_lab_app(settings: LabSettings) -> ASGIApp:

@@ -187,9 +187,9 @@ class LabTrial:
             self._metadata(lab, clock),
         )
         self.input_log = InputLog(self.inputs_path, self.people, clock, publish)
-        self.engine = Engine(
-            players, plan.graph, self.roles, self.labels, [self.writer.append, self.input_log]
-        )
+        self._taken = np.full(len(players), np.nan)
+        sinks = [self.writer.append, self.input_log, self._remember]
+        self.engine = Engine(players, plan.graph, self.roles, self.labels, sinks)
         self.engine.reset(self.seed, self.n_ticks)
         self.writer.annotate(
             {"player_seeds": self.engine.player_seeds, "players": _describe(players)}
@@ -237,9 +237,12 @@ class LabTrial:
         """Fraction of the trial recorded, in [0, 1]."""
         return min(1.0, self.k / self.n_ticks)
 
+    def _remember(self, row: Array) -> None:
+        self._taken = row[1::4].copy()
+
     def positions(self) -> list[float]:
-        """Every player's position (units) at the engine's current sample."""
-        return [self.engine.state(i)[0] for i in range(len(self.players))]
+        """Return every player's position (units) at the last sample taken (NaN before)."""
+        return self._taken.tolist()
 
     def held(self) -> dict[str, int]:
         """Ticks at which each person's position was held (no new sample), by label."""

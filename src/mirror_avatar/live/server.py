@@ -575,10 +575,13 @@ sends a few kilobytes per second."""
 def listening_socket(host: str, port: int) -> socket.socket:
     """Bind the server's socket (IPv4 or IPv6 by ``host``; port 0: any free port).
 
-    Accepted connections inherit its `RECEIVE_BUFFER_BYTES` receive buffer.
+    Accepted connections inherit its `RECEIVE_BUFFER_BYTES` receive buffer, and its protocol
+    (TCP by name), from which asyncio turns Nagle's algorithm off on each (``TCP_NODELAY``): a
+    small message is sent at once instead of waiting for the client's acknowledgement of the
+    previous one.
     """
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
     sock.bind((host, port))

@@ -60,7 +60,7 @@
     welcome.visible.forEach((player, i) => {
       const own = i === 0;
       const x = own ? me.x : others.get(player.index);
-      if (x === undefined) return;
+      if (x === undefined || x === null) return;
       const y = height / 2 + (own ? 0 : (i % 2 ? -1 : 1) * radius * 1.6 * Math.ceil(i / 2));
       ctx.fillStyle = player.colour;
       ctx.globalAlpha = own ? 1 : 0.85;
