@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mirror_avatar import __version__
-from mirror_avatar.engine.loop import Engine, count_samples
+from mirror_avatar.engine.loop import Engine, Sink, count_samples
 from mirror_avatar.lab.inputs import HumanPlayer, InputSource
 from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.metrics import compute_phase, session_metrics
@@ -188,7 +188,7 @@ class LabTrial:
         )
         self.input_log = InputLog(self.inputs_path, self.people, clock, publish)
         self._taken = np.full(len(players), np.nan)
-        sinks = [self.writer.append, self.input_log, self._remember]
+        sinks: list[Sink] = [self.writer.append, self.input_log, self._remember]
         self.engine = Engine(players, plan.graph, self.roles, self.labels, sinks)
         self.engine.reset(self.seed, self.n_ticks)
         self.writer.annotate(
