@@ -49,7 +49,7 @@ from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.engine.loop import Engine, count_samples
 from mirror_avatar.lab.inputs import BrowserInput, HumanPlayer
 from mirror_avatar.lab.plan import SessionPlan, parse_plan
-from mirror_avatar.lab.runner import _text
+from mirror_avatar.lab.runner import encode_message
 from mirror_avatar.lab.trial import LabTrial, build_avatars
 from mirror_avatar.players.base import Player
 
@@ -103,7 +103,7 @@ def frames(plan: SessionPlan, trial: LabTrial) -> list[str]:
         visible = [k, *plan.neighbours(k)]
         message = {"type": "frame", "k": trial.k - 1, "x": [positions[j] for j in visible],
                    "progress": progress}  # fmt: skip
-        texts.append(_text(message))
+        texts.append(encode_message(message))
     return texts
 
 

@@ -34,6 +34,9 @@ FOLDER_OUTPUTS: dict[str, Arguments] = {
     "signature": lambda inputs, out: ["signature", str(inputs / "trial.csv"),
                                       str(inputs / "trial2.csv"), "--out", str(out)],
     "play": lambda inputs, out: ["play", "--port", "0", "--out", str(out)],
+    "lab": lambda inputs, out: ["lab", "--port", "0", "--out", str(out)],
+    "lab export": lambda inputs, out: ["lab", "export", str(inputs / "session"), "--out",
+                                       str(out)],
 }  # fmt: skip
 FILE_OUTPUTS: dict[str, Arguments] = {
     "train": lambda inputs, out: ["train", "--target", "bundled:slow", "--partners",

@@ -325,3 +325,30 @@ def test_killing_the_server_leaves_every_sample_on_disk(tmp_path):
             os.killpg(server.pid, signal.SIGKILL)
         server.wait(10)
         server.stdout.close()  # type: ignore[union-attr]
+
+
+def test_hidden_metrics_and_a_participant_who_rejoins(lab, tmp_path):
+    created = create(lab, DYAD | {"duration": 5.0, "show_metrics": False})
+    sid = created["id"]
+    steady = Page(created["links"]["P1"])
+    first, again = Page(created["links"]["P2"]), Page(created["links"]["P2"], phase=1.0)
+
+    async def scenario() -> None:
+        staying = asyncio.create_task(steady.play(10.0))
+        leaving = asyncio.create_task(first.play(2.5))
+        await asyncio.sleep(0.5)
+        await asyncio.to_thread(lambda: command(lab, sid, "start").raise_for_status())
+        await leaving
+        await asyncio.sleep(0.5)
+        await again.play(7.0)
+        await staying
+
+    asyncio.run(scenario())
+    trial = status(lab, sid)["trials"][0]
+    assert trial["complete"] and "P2" in trial["dropped"]
+    (end,) = again.of_type("end")
+    assert "metrics" not in end and again.of_type("frame")
+    session = load_session(tmp_path / sid / "trial-01_session.csv")
+    rejoined = again.sent[0][1]
+    later = session.positions[1, trial["dropped"]["P2"] + 40 :]
+    assert rejoined in set(np.round(later, 6)) or np.ptp(later) > 0.1  # moving again

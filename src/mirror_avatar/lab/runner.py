@@ -90,14 +90,14 @@ class Outbox:
 
     def put(self, message: dict[str, Any]) -> None:
         """Queue a control message."""
-        self._control.append(_text(message))
+        self._control.append(encode_message(message))
         self._ready.set()
 
     def put_frame(self, message: dict[str, Any]) -> None:
         """Queue a frame, replacing an undelivered one."""
         if self._frame is not None:
             self.superseded += 1
-        self._frame = _text(message)
+        self._frame = encode_message(message)
         self._ready.set()
 
     async def _run(self) -> None:
@@ -124,7 +124,8 @@ class Outbox:
         self.task.cancel()
 
 
-def _text(message: dict[str, Any]) -> str:
+def encode_message(message: dict[str, Any]) -> str:
+    """Encode a message to a page as strict JSON (NaN as null)."""
     return json.dumps(json_safe(message), allow_nan=False)
 
 
