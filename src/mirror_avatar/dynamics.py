@@ -15,11 +15,13 @@ only), all held constant over the interval, and ``theta_s = 1 - theta_p - theta_
 How it is solved (follows METHODS section 5; departs from the original implementation, which
 called MATLAB's bvp4c at every step): Pontryagin's principle gives the nonlinear two-point boundary
 value problem of the section, solved here **exactly up to integration error** by shooting on the
-two initial costates. The state-costate system and its sensitivities with respect to the initial
-costates are integrated with fixed-step RK4 (at least `N_SUBSTEPS` steps per interval, more when
-the interval is stiff, see `count_substeps`), and Newton's method on the two terminal conditions
-converges in two or three iterations from the exact solution of the problem with frozen damping
-(the problem is nearly linear over 0.03 s). The published closed-form quadratic-in-time
+two initial costates (`solve_interval`). The state and costates are integrated with fixed-step
+RK4 (at least `N_SUBSTEPS` steps per interval, more when the interval is stiff, see
+`count_substeps`). Newton's method on the two terminal conditions starts from the exact solution
+of the problem with frozen damping, a linear problem whose solution map is tabulated once per
+parameter set (the record's ``linear`` field), and converges in two or three chord iterations
+(the problem is nearly linear over 0.03 s); at fast hand speeds, where it is not, a continuation
+from the linear to the full problem takes over. The published closed-form quadratic-in-time
 approximation is **not** used: it gets velocity and control wrong by tens of percent. After the
 interval, the position is clipped to the playing range [-0.5, 0.5] and an outward velocity at the
 wall is set to zero (a hand stopped at the edge of the range).
@@ -35,6 +37,7 @@ The parameters, both steps and the solver's pieces stay in one module: they are 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
 from typing import Any
@@ -54,7 +57,10 @@ N_SUBSTEPS = 4
 """Fewest RK4 steps per control interval in the shooting solve."""
 
 STEP_STIFFNESS = 0.5
-"""Largest RK4 step times the interval's fastest rate: more substeps are taken when needed."""
+"""Largest RK4 step times the costate-control coupling rate: more substeps when needed."""
+
+DAMPING_STIFFNESS = 0.4
+"""Largest RK4 step times the HKB damping rate (at fast hand speeds the problem's stiffest)."""
 
 MAX_RK4_SUBSTEPS = 4096
 """Most RK4 steps per control period (**choice**), whatever the state and parameters: it bounds
@@ -62,12 +68,35 @@ the cost of one step. Within the playing range at the paper's parameters, `count
 for at most a few hundred (a partner crossing the whole range in one period)."""
 
 MAX_NEWTON = 8
-"""Most Newton iterations on the initial costates per control interval."""
+"""Most chord iterations on the initial costates per control interval (two or three suffice at
+human speeds); a continuation stage allows three times as many Newton iterations, halved steps
+included."""
 
 NEWTON_TOLERANCE = 1e-3
 """Newton stops when the control at t_k and the end velocity change by less than this fraction
 (the end state, extrapolated to first order in the last update, is then accurate to about its
 square)."""
+
+CONTINUATION_STAGES = 8
+"""Steps of the continuation from the linear to the full problem when Newton alone fails."""
+
+MIN_STEP_SCALE = 1.0 / 1024.0
+"""Smallest fraction of a Newton step tried when the full step overshoots (backtracking)."""
+
+LINEAR_GRID = 257
+"""Frozen damping values at which the linear problem's solution map is tabulated."""
+
+LINEAR_MAX_DAMPING = 64.0
+"""Largest tabulated frozen damping (1/s): a hand at about 5.6 units/s with the paper's beta;
+beyond it the frozen problem is integrated at each step."""
+
+LINEAR_SUBSTEPS = 64
+"""RK4 steps per interval when tabulating the linear problem (its solution to about 1e-12)."""
+
+LINEAR_COLUMNS = 20
+"""Numbers per tabulated map: the end state-costate (x, y, l1, l2) for unit initial x, y, l1, l2
+(4 x 4) and for a unit forcing (4)."""
+
 
 PARAMS_DTYPE = np.dtype(
     [
@@ -79,9 +108,12 @@ PARAMS_DTYPE = np.dtype(
         ("theta_p", np.float64),
         ("theta_v", np.float64),
         ("period", np.float64),
+        ("linear", np.float64, (2, LINEAR_GRID, LINEAR_COLUMNS)),
     ]
 )
-"""The fields of `HKBParams` as compiled code reads them (a numpy record, by name)."""
+"""The fields of `HKBParams` as compiled code reads them (a numpy record, by name), and the
+tabulated frozen-damping solution maps of its optimal-control problem (``linear``: coupled,
+then alone; `_tabulate_linear`)."""
 
 PARAMETER_RANGES: dict[str, tuple[float, float]] = {
     "omega": (0.0, 100.0),
@@ -189,8 +221,32 @@ def records(params: Sequence[HKBParams | None]) -> NDArray[np.void]:
     table = np.zeros(len(params), dtype=PARAMS_DTYPE)
     for i, p in enumerate(params):
         if p is not None:
-            table[i] = tuple(getattr(p, name) for name in PARAMS_DTYPE.names or ())
+            for name in HKB_FIELDS:
+                table[i][name] = getattr(p, name)
+            table[i]["linear"] = linear_tables(p)
     return table
+
+
+HKB_FIELDS = ("alpha", "beta", "gamma", "omega", "eta", "theta_p", "theta_v", "period")
+"""The fields of `PARAMS_DTYPE` that are `HKBParams` fields."""
+
+
+@functools.cache
+def linear_tables(p: HKBParams) -> NDArray[np.float64]:
+    """Tabulate the frozen-damping solution maps of ``p``'s problem, coupled and alone.
+
+    See `_tabulate_linear`.
+
+    Returns
+    -------
+    ndarray
+        Shape (2, `LINEAR_GRID`, `LINEAR_COLUMNS`); computed once per parameter set.
+    """
+    tables = np.empty((2, LINEAR_GRID, LINEAR_COLUMNS))
+    for index, tracking in enumerate((1.0 - p.theta_p, 1.0)):
+        _tabulate_linear(p.omega, p.eta, tracking, p.period, tables[index])
+    tables.flags.writeable = False
+    return tables
 
 
 GROUP = HKBParams(omega=0.75, theta_p=0.85, theta_v=0.05)
@@ -228,97 +284,211 @@ def hkb_acceleration(
     return -(alpha * x * x + beta * v * v - gamma) * v - omega * omega * x + u
 
 
-@njit(cache=True)
-def _derivatives(
-    w: NDArray[np.float64],
-    p: Record,
-    theta_p: float,
-    theta_v: float,
-    reference_velocity: float,
-    partner_velocity: float,
-    frozen: float,
-    size: int,
-    dw: NDArray[np.float64],
-) -> None:
-    """Right-hand side of the state-costate system and of its costate sensitivities.
+@njit(cache=True, nogil=True)
+def _costate_rates(
+    x: float,
+    y: float,
+    l1: float,
+    l2: float,
+    alpha: float,
+    beta: float,
+    gamma: float,
+    omega: float,
+    eta: float,
+    tracking: float,
+    forcing: float,
+) -> tuple[float, float, float, float, float, float]:
+    """Rates of the state-costate system, and the two coefficients its sensitivities share.
 
-    ``w = [x, y, l1, l2, s]`` with ``s[i, j] = w[4 + 2 i + j]`` = d z_i / d(l1(0), l2(0))_j.
-    Writes the derivative of the first ``size`` entries of ``w`` (4: state and costates only,
-    12: with the sensitivities) into ``dw``, shape (12,). With ``frozen`` >= 0 (a damping
-    coefficient, 1/s) the HKB damping ``alpha x² + beta y² - gamma`` is frozen at that value,
-    which makes the system linear; with ``frozen`` < 0 it is the full nonlinear system.
-    ``theta_p`` and ``theta_v`` are the partner weights in use (see `partner_weights`).
+    ``tracking = theta_s + theta_v`` and ``forcing = theta_s r_s + theta_v r_v`` (the velocity
+    terms of the cost). Returns ``(x', y', l1', l2', coupling, damping)`` with ``coupling =
+    2 alpha x y + omega²`` and ``damping = alpha x² + 3 beta y² - gamma``, the derivatives of
+    the HKB acceleration with respect to -x and -y.
     """
-    alpha, beta, gamma, omega, eta = p.alpha, p.beta, p.gamma, p.omega, p.eta
-    theta_s = 1.0 - theta_p - theta_v
-    x, y, l1, l2 = w[0], w[1], w[2], w[3]
-    w2 = omega * omega
-    if frozen >= 0.0:
-        alpha = beta = 0.0
-        gamma = -frozen
+    coupling = 2.0 * alpha * x * y + omega * omega
     damping = alpha * x * x + 3.0 * beta * y * y - gamma
-    coupling = 2.0 * alpha * x * y + w2
-    dw[0] = y
-    dw[1] = hkb_acceleration(x, y, -l2 / eta, alpha, beta, gamma, omega)
-    dw[2] = l2 * coupling
-    dw[3] = (
-        l2 * damping - l1 - theta_s * (y - reference_velocity) - theta_v * (y - partner_velocity)
+    return (
+        y,
+        hkb_acceleration(x, y, -l2 / eta, alpha, beta, gamma, omega),
+        l2 * coupling,
+        l2 * damping - l1 - tracking * y + forcing,
+        coupling,
+        damping,
     )
-    for j in range(2 if size == 12 else 0):
-        sx, sy, s1, s2 = w[4 + j], w[6 + j], w[8 + j], w[10 + j]
-        dw[4 + j] = sy
-        dw[6 + j] = -coupling * sx - damping * sy - s2 / eta
-        dw[8 + j] = 2.0 * alpha * l2 * (y * sx + x * sy) + coupling * s2
-        dw[10 + j] = (
-            2.0 * alpha * l2 * x * sx
-            + (6.0 * beta * l2 * y - theta_s - theta_v) * sy
-            - s1
-            + damping * s2
-        )
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _shoot(
     x: float,
     y: float,
     l1: float,
     l2: float,
-    p: Record,
-    theta_p: float,
-    theta_v: float,
-    reference_velocity: float,
-    partner_velocity: float,
-    frozen: float,
+    alpha: float,
+    beta: float,
+    gamma: float,
+    omega: float,
+    eta: float,
+    tracking: float,
+    forcing: float,
+    period: float,
     n_substeps: int,
-    size: int,
-    work: NDArray[np.float64],
-) -> None:
-    """Integrate state and costates (``size`` 4), and sensitivities (12), with RK4, in place.
+) -> tuple[float, float, float, float]:
+    """Integrate state and costates over one interval with ``n_substeps`` RK4 steps.
 
-    ``work`` (4, 12): row 0 receives the solution at the end of the interval (layout of
-    `_derivatives`), rows 1-3 are scratch.
+    Returns ``(x(T), y(T), l1(T), l2(T))``; the arguments are those of `_costate_rates`.
     """
-    h = p.period / n_substeps
-    state, stage, k, acc = work[0], work[1], work[2], work[3]
-    state[:] = 0.0
-    state[0], state[1], state[2], state[3] = x, y, l1, l2
-    state[8] = 1.0
-    state[11] = 1.0
+    h = period / n_substeps
     for _ in range(n_substeps):
-        for i in range(size):
-            acc[i] = 0.0
-            stage[i] = state[i]
+        a0, a1, a2, a3, _, _ = _costate_rates(
+            x, y, l1, l2, alpha, beta, gamma, omega, eta, tracking, forcing
+        )
+        b0, b1, b2, b3, _, _ = _costate_rates(
+            x + 0.5 * h * a0, y + 0.5 * h * a1, l1 + 0.5 * h * a2, l2 + 0.5 * h * a3,
+            alpha, beta, gamma, omega, eta, tracking, forcing,
+        )  # fmt: skip
+        c0, c1, c2, c3, _, _ = _costate_rates(
+            x + 0.5 * h * b0, y + 0.5 * h * b1, l1 + 0.5 * h * b2, l2 + 0.5 * h * b3,
+            alpha, beta, gamma, omega, eta, tracking, forcing,
+        )  # fmt: skip
+        d0, d1, d2, d3, _, _ = _costate_rates(
+            x + h * c0, y + h * c1, l1 + h * c2, l2 + h * c3,
+            alpha, beta, gamma, omega, eta, tracking, forcing,
+        )  # fmt: skip
+        x += h / 6.0 * (a0 + 2.0 * b0 + 2.0 * c0 + d0)
+        y += h / 6.0 * (a1 + 2.0 * b1 + 2.0 * c1 + d1)
+        l1 += h / 6.0 * (a2 + 2.0 * b2 + 2.0 * c2 + d2)
+        l2 += h / 6.0 * (a3 + 2.0 * b3 + 2.0 * c3 + d3)
+    return x, y, l1, l2
+
+
+@njit(cache=True, nogil=True)
+def _sensitivity_rates(
+    z: NDArray[np.float64],
+    alpha: float,
+    beta: float,
+    gamma: float,
+    omega: float,
+    eta: float,
+    tracking: float,
+    forcing: float,
+    dz: NDArray[np.float64],
+) -> None:
+    """Rates of ``z = [x, y, l1, l2, s]`` into ``dz`` (12,), ``s`` the sensitivities.
+
+    ``z[4 + 4 j : 8 + 4 j]`` = d(x, y, l1, l2) / d(initial costate j), j = 0 (l1) and 1 (l2).
+    """
+    x, y, l1, l2 = z[0], z[1], z[2], z[3]
+    dz[0], dz[1], dz[2], dz[3], coupling, damping = _costate_rates(
+        x, y, l1, l2, alpha, beta, gamma, omega, eta, tracking, forcing
+    )
+    for j in range(2):
+        sx, sy, s1, s2 = z[4 + 4 * j], z[5 + 4 * j], z[6 + 4 * j], z[7 + 4 * j]
+        dz[4 + 4 * j] = sy
+        dz[5 + 4 * j] = -coupling * sx - damping * sy - s2 / eta
+        dz[6 + 4 * j] = 2.0 * alpha * l2 * (y * sx + x * sy) + coupling * s2
+        dz[7 + 4 * j] = (
+            2.0 * alpha * l2 * x * sx + (6.0 * beta * l2 * y - tracking) * sy - s1 + damping * s2
+        )
+
+
+@njit(cache=True, nogil=True)
+def _shoot_with_sensitivities(
+    x: float,
+    y: float,
+    l1: float,
+    l2: float,
+    alpha: float,
+    beta: float,
+    gamma: float,
+    omega: float,
+    eta: float,
+    tracking: float,
+    forcing: float,
+    period: float,
+    n_substeps: int,
+    z: NDArray[np.float64],
+) -> None:
+    """`_shoot` with the sensitivities to the initial costates, into ``z`` (12,) in place.
+
+    ``z`` receives the layout of `_sensitivity_rates` at the end of the interval.
+    """
+    h = period / n_substeps
+    z[:] = 0.0
+    z[0], z[1], z[2], z[3], z[6], z[11] = x, y, l1, l2, 1.0, 1.0
+    stage, rate, total = np.empty(12), np.empty(12), np.empty(12)
+    for _ in range(n_substeps):
+        total[:] = 0.0
+        stage[:] = z
         for stage_index in range(4):
-            _derivatives(
-                stage, p, theta_p, theta_v, reference_velocity, partner_velocity, frozen, size, k
-            )
+            _sensitivity_rates(stage, alpha, beta, gamma, omega, eta, tracking, forcing, rate)
             weight = 1.0 if stage_index == 0 or stage_index == 3 else 2.0
             step = h if stage_index == 2 else 0.5 * h
-            for i in range(size):
-                acc[i] += weight * k[i]
-                stage[i] = state[i] + step * k[i]
-        for i in range(size):
-            state[i] += h / 6.0 * acc[i]
+            for i in range(12):
+                total[i] += weight * rate[i]
+                stage[i] = z[i] + step * rate[i]
+        for i in range(12):
+            z[i] += h / 6.0 * total[i]
+
+
+@njit(cache=True, nogil=True)
+def _tabulate_linear(
+    omega: float, eta: float, tracking: float, period: float, out: NDArray[np.float64]
+) -> None:
+    """Fill ``out`` (`LINEAR_GRID`, `LINEAR_COLUMNS`) with the frozen-damping solution maps.
+
+    With the damping frozen at ``c`` the state-costate system is linear with constant
+    coefficients, so its end value is ``M(c) [x, y, l1, l2](0) + g(c) forcing``; row ``i`` holds
+    ``M`` column by column, then ``g``, at ``c = i LINEAR_MAX_DAMPING / (LINEAR_GRID - 1)``.
+    """
+    for i in range(LINEAR_GRID):
+        gamma = -LINEAR_MAX_DAMPING * i / (LINEAR_GRID - 1)
+        for column in range(5):
+            start = np.zeros(4)
+            if column < 4:
+                start[column] = 1.0
+            forcing = 1.0 if column == 4 else 0.0
+            end = _shoot(
+                start[0], start[1], start[2], start[3], 0.0, 0.0, gamma, omega, eta, tracking,
+                forcing, period, LINEAR_SUBSTEPS,
+            )  # fmt: skip
+            for r in range(4):
+                out[i, 4 * column + r] = end[r]
+
+
+@njit(cache=True, nogil=True)
+def _frozen_solution(
+    x: float,
+    y: float,
+    frozen: float,
+    p: Record,
+    table: int,
+    tracking: float,
+    forcing: float,
+    n_substeps: int,
+    z: NDArray[np.float64],
+) -> None:
+    """Solve the frozen-damping problem from costates (0, 0), with sensitivities, into ``z``.
+
+    Interpolated (linearly in the damping) from the record's table ``p.linear[table]`` within
+    `LINEAR_MAX_DAMPING`; integrated (`_shoot_with_sensitivities`) beyond it.
+    """
+    where = frozen / LINEAR_MAX_DAMPING * (LINEAR_GRID - 1)
+    if where >= LINEAR_GRID - 1:
+        _shoot_with_sensitivities(
+            x, y, 0.0, 0.0, 0.0, 0.0, -frozen, p.omega, p.eta, tracking, forcing, p.period,
+            n_substeps, z,
+        )  # fmt: skip
+        return
+    i = int(where)
+    w = where - i
+    low, high = p.linear[table, i], p.linear[table, i + 1]
+    for r in range(4):
+        free = x * (low[r] * (1.0 - w) + high[r] * w)
+        free += y * (low[4 + r] * (1.0 - w) + high[4 + r] * w)
+        free += forcing * (low[16 + r] * (1.0 - w) + high[16 + r] * w)
+        z[r] = free
+        z[4 + r] = low[8 + r] * (1.0 - w) + high[8 + r] * w
+        z[8 + r] = low[12 + r] * (1.0 - w) + high[12 + r] * w
 
 
 @njit(cache=True)
@@ -332,7 +502,7 @@ def count_substeps(
     theta_v: float,
     n_min: int,
 ) -> int:
-    """RK4 steps for one interval: at least ``n_min``, and enough that step x rate <= 0.5.
+    """RK4 steps for one interval: at least ``n_min``, and enough for the interval's rates.
 
     At most `MAX_RK4_SUBSTEPS`, so that no state (a hostile partner's jumps included) and no
     parameters within `PARAMETER_RANGES` make one step arbitrarily slow.
@@ -341,16 +511,75 @@ def count_substeps(
     ``sqrt((theta_s + theta_v) / eta)`` (about 95/s for the leader) and the HKB damping
     ``alpha x² + 3 beta y² - gamma``, bounded with the largest of the current, reference and
     partner speeds (at 9 units/s the damping is about 490/s, and RK4 with the minimum steps
-    would be unstable); `STEP_STIFFNESS` keeps RK4 accurate to well under 1 % at both.
+    would be unstable). A step times the coupling rate stays within `STEP_STIFFNESS`, times the
+    damping within `DAMPING_STIFFNESS`: the control at t_k is then within 0.1 % of the exact
+    solution at hand speeds up to about 6 units/s.
     """
     speed = max(abs(y), abs(reference_velocity), abs(partner_velocity) if theta_v > 0.0 else 0.0)
     damping = p.alpha * x * x + 3.0 * p.beta * speed * speed - p.gamma
     coupling = np.sqrt((1.0 - theta_p) / p.eta)
-    rate = max(damping, coupling)
-    return min(MAX_RK4_SUBSTEPS, max(n_min, int(np.ceil(rate * p.period / STEP_STIFFNESS))))
+    steps = max(damping / DAMPING_STIFFNESS, coupling / STEP_STIFFNESS) * p.period
+    return min(MAX_RK4_SUBSTEPS, max(n_min, int(np.ceil(steps))))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _newton(
+    x: float,
+    y: float,
+    partner_prediction: float,
+    l1: float,
+    l2: float,
+    alpha: float,
+    beta: float,
+    p: Record,
+    theta_p: float,
+    tracking: float,
+    forcing: float,
+    n: int,
+    tolerance: float,
+    z: NDArray[np.float64],
+) -> tuple[bool, float, float, float, float]:
+    """Full Newton on the initial costates from ``(l1, l2)``, halving steps that overshoot.
+
+    Every iteration integrates the sensitivities (`_shoot_with_sensitivities`, scratch ``z``);
+    a step that makes the terminal residual larger or the shooting overflow is halved (down to
+    `MIN_STEP_SCALE`). ``alpha`` and ``beta`` are the nonlinear damping coefficients in use
+    (`solve_interval` scales them for its continuation). Returns ``(converged, l1, l2, x(T),
+    y(T))``, the end state extrapolated to first order in the last update.
+    """
+    gamma, omega, eta, period = p.gamma, p.omega, p.eta, p.period
+    residual, scale, d1, d2 = np.inf, 1.0, 0.0, 0.0
+    for _ in range(3 * MAX_NEWTON):
+        _shoot_with_sensitivities(
+            x, y, l1, l2, alpha, beta, gamma, omega, eta, tracking, forcing, period, n, z
+        )
+        r1 = z[2] - theta_p * (z[0] - partner_prediction)
+        r2 = z[3]
+        size = abs(r1) + abs(r2)
+        if not size <= residual:  # larger, or not a number
+            if scale <= MIN_STEP_SCALE:
+                break
+            scale *= 0.5
+            l1 -= scale * d1
+            l2 -= scale * d2
+            continue
+        j11, j12 = z[6] - theta_p * z[4], z[10] - theta_p * z[8]
+        j21, j22 = z[7], z[11]
+        det = j11 * j22 - j12 * j21
+        d1 = -(j22 * r1 - j12 * r2) / det
+        d2 = -(j11 * r2 - j21 * r1) / det
+        l1 += d1
+        l2 += d2
+        scale, residual = 1.0, size
+        y_end = z[1] + z[5] * d1 + z[9] * d2
+        if abs(d2) <= tolerance * (abs(l2) + eta) and abs(y_end - z[1]) <= tolerance * (
+            abs(y_end) + 1.0
+        ):
+            return True, l1, l2, z[0] + z[4] * d1 + z[8] * d2, y_end
+    return False, l1, l2, np.nan, np.nan
+
+
+@njit(cache=True, nogil=True)
 def solve_interval(
     x: float,
     y: float,
@@ -365,16 +594,28 @@ def solve_interval(
 ) -> tuple[float, float, float, float, bool]:
     """Solve one interval's optimal-control problem without clipping.
 
-    The initial guess is the exact solution of the problem with the HKB damping frozen at its
-    mean along a velocity ramp from ``y`` to ``r_s`` (linear, so one Newton step solves it); then
-    Newton iterations on the full nonlinear problem: the first with sensitivities, the next
-    as chord iterations (shooting state and costates only, with the last Jacobian and end-state
-    sensitivities) while each shrinks the update at least fourfold, until the control at t_k
-    changes by less than ``tolerance`` (relative) and the last update moves the end velocity by
-    less than ``tolerance`` (relative, floor 1 unit/s). If it has not converged after
-    ``max_newton`` iterations or the shooting overflows (speeds of several units/s, where the
-    HKB damping ``3 beta y²`` makes forward shooting ill-conditioned), the frozen-damping
-    solution is returned instead.
+    Shooting on the two initial costates, Newton's method on the two terminal conditions:
+
+    1. The initial guess is the exact solution of the problem with the HKB damping frozen at
+       its mean along a velocity ramp from ``y`` to ``r_s`` (a linear problem, tabulated per
+       parameter set in the record's ``linear`` field, `_frozen_solution`); its Jacobian (the
+       sensitivities of the end state-costate to the initial costates) starts the iterations.
+    2. Chord iterations: each shoots the full nonlinear state and costates (`_shoot`, 4
+       numbers) and updates the costates with the last Jacobian; when an update fails to
+       shrink at least twofold, the next iteration also integrates the sensitivities
+       (`_shoot_with_sensitivities`), a full Newton step. It stops when the control at t_k
+       changes by less than ``tolerance`` (relative) and the last update moves the end
+       velocity by less than ``tolerance`` (relative, floor 1 unit/s); the end state is
+       extrapolated to first order in that last update.
+    3. At fast hand speeds the damping ``3 beta y²`` makes the problem strongly nonlinear and
+       forward shooting sensitive: when the first nonlinear residual exceeds the frozen
+       problem's residual at costates (0, 0), the shooting overflows, or the chord iterations
+       have not converged after ``max_newton`` iterations, the problem is solved by
+       continuation instead: full Newton (`_newton`, with step halving) on the problem with
+       the nonlinear damping coefficients scaled by 0, 1/8, ..., 1, each from the last.
+
+    If the continuation fails too, the frozen-damping solution is returned, flagged as not
+    converged.
 
     Parameters
     ----------
@@ -392,7 +633,7 @@ def solve_interval(
         False for a player alone: the partner terms are dropped (see `partner_weights`).
     n_substeps, max_newton
         Fewest RK4 steps per interval (`count_substeps` adds more where the interval is stiff)
-        and the most chord-Newton iterations on the nonlinear problem.
+        and the most chord iterations before the continuation takes over.
     tolerance
         Convergence threshold (`NEWTON_TOLERANCE` in `optimal_control_step`).
 
@@ -402,62 +643,61 @@ def solve_interval(
         ``(x(T), y(T), lambda1(0), lambda2(0), converged)``; the optimal control at t_k is
         ``-lambda2(0) / eta``; ``converged`` is False when the frozen-damping fallback is used.
     """
-    work = np.empty((4, 12))
-    state = work[0]
     theta_p, theta_v = partner_weights(p, coupled)
-    n_substeps = count_substeps(
-        x, y, reference_velocity, partner_velocity, p, theta_p, theta_v, n_substeps
-    )
+    tracking = 1.0 - theta_p
+    forcing = (tracking - theta_v) * reference_velocity + theta_v * partner_velocity
+    n = count_substeps(x, y, reference_velocity, partner_velocity, p, theta_p, theta_v, n_substeps)
+    alpha, beta, gamma, omega, eta, period = p.alpha, p.beta, p.gamma, p.omega, p.eta, p.period
     mean_square = (y * y + y * reference_velocity + reference_velocity * reference_velocity) / 3.0
-    frozen = max(p.alpha * x * x + p.beta * mean_square - p.gamma, 0.0)
-    l1, l2 = 0.0, 0.0
+    frozen = max(alpha * x * x + beta * mean_square - gamma, 0.0)
+    z = np.empty(12)
+    _frozen_solution(x, y, frozen, p, 0 if coupled else 1, tracking, forcing, n, z)
+    end = (z[0], z[1], z[2], z[3])
+    l1 = l2 = 0.0
     fallback = (x, y, 0.0, 0.0)
-    j11 = j12 = j21 = j22 = det = sx1 = sx2 = sy1 = sy2 = 0.0
-    size, previous = 12, np.inf
+    refresh, previous, residual = False, np.inf, np.inf
     for iteration in range(max_newton + 1):
-        damping = frozen if iteration == 0 else -1.0
-        _shoot(
-            x,
-            y,
-            l1,
-            l2,
-            p,
-            theta_p,
-            theta_v,
-            reference_velocity,
-            partner_velocity,
-            damping,
-            n_substeps,
-            size,
-            work,
-        )
-        if size == 12:
-            # Jacobian of the terminal residual in (l1(0), l2(0)), and end-state sensitivities.
-            j11 = state[8] - theta_p * state[4]
-            j12 = state[9] - theta_p * state[5]
-            j21, j22 = state[10], state[11]
-            det = j11 * j22 - j12 * j21
-            sx1, sx2, sy1, sy2 = state[4], state[5], state[6], state[7]
-        r1 = state[2] - theta_p * (state[0] - partner_prediction)
-        r2 = state[3]
+        if refresh:
+            _shoot_with_sensitivities(
+                x, y, l1, l2, alpha, beta, gamma, omega, eta, tracking, forcing, period, n, z
+            )
+            end = (z[0], z[1], z[2], z[3])
+        elif iteration > 0:
+            end = _shoot(x, y, l1, l2, alpha, beta, gamma, omega, eta, tracking, forcing, period, n)
+        r1 = end[2] - theta_p * (end[0] - partner_prediction)
+        r2 = end[3]
+        if iteration == 1 and not abs(r1) + abs(r2) <= residual:
+            break  # far from linear (or overflowing): continuation
+        j11, j12 = z[6] - theta_p * z[4], z[10] - theta_p * z[8]
+        j21, j22 = z[7], z[11]
+        det = j11 * j22 - j12 * j21
         d1 = -(j22 * r1 - j12 * r2) / det
         d2 = -(j11 * r2 - j21 * r1) / det
         l1 += d1
         l2 += d2
-        size = 12 if iteration == 0 or abs(d2) > 0.25 * previous else 4
-        previous = abs(d2)
         # End state to first order in the update (exact once the iteration has converged).
-        x_end = state[0] + sx1 * d1 + sx2 * d2
-        y_end = state[1] + sy1 * d1 + sy2 * d2
+        x_end = end[0] + z[4] * d1 + z[8] * d2
+        y_end = end[1] + z[5] * d1 + z[9] * d2
         if not (np.isfinite(x_end) and np.isfinite(y_end) and np.isfinite(l2)):
             break
         if iteration == 0:
             fallback = (x_end, y_end, l1, l2)
-        elif abs(d2) <= tolerance * (abs(l2) + p.eta) and abs(y_end - state[1]) <= tolerance * (
+        elif abs(d2) <= tolerance * (abs(l2) + eta) and abs(y_end - end[1]) <= tolerance * (
             abs(y_end) + 1.0
         ):
             return x_end, y_end, l1, l2, True
-    return fallback[0], fallback[1], fallback[2], fallback[3], False
+        refresh = iteration > 0 and abs(d2) > 0.5 * previous
+        previous, residual = abs(d2), abs(r1) + abs(r2)
+    l1 = l2 = 0.0
+    for stage in range(CONTINUATION_STAGES + 1):
+        share = stage / CONTINUATION_STAGES
+        converged, l1, l2, x_end, y_end = _newton(
+            x, y, partner_prediction, l1, l2, alpha * share, beta * share, p, theta_p,
+            tracking, forcing, n, tolerance, z,
+        )  # fmt: skip
+        if not converged:
+            return fallback[0], fallback[1], fallback[2], fallback[3], False
+    return x_end, y_end, l1, l2, True
 
 
 @njit(cache=True)

@@ -5,6 +5,7 @@ In CI (``CI=true``) these tests fail when Chromium is missing; elsewhere they sk
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -183,7 +184,8 @@ def test_killing_the_browser_mid_trial_leaves_an_incomplete_trial(playwright, se
     start_trial(page, server.url, "avatar_follows", 30)
     driven = drive(page, 1.5)
     os.kill(main, signal.SIGKILL)
-    psutil.Process(main).wait(10)
+    with contextlib.suppress(psutil.NoSuchProcess):  # already reaped
+        psutil.Process(main).wait(10)
     sidecar = next((tmp_path / "B01").glob("*_session.json"))
     deadline = time.monotonic() + 10
     while "ended_utc" not in (record := json.loads(sidecar.read_text())["metadata"]):

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -205,7 +206,8 @@ def test_killing_a_participants_browser_marks_them_dropped(playwright, chromium,
     staying.wait_for_function("window.mirrorLab.others.size === 1", timeout=15_000)
     drive({"P1": staying, "P2": leaving}, {"P1": 0.0, "P2": 0.2}, 2.0)
     os.kill(main, signal.SIGKILL)
-    psutil.Process(main).wait(10)
+    with contextlib.suppress(psutil.NoSuchProcess):  # already reaped
+        psutil.Process(main).wait(10)
     console.wait_for_function(
         "[...document.querySelectorAll('#slots td.state')]"
         ".some(td => td.textContent.includes('dropped'))"

@@ -1,10 +1,13 @@
-"""Two-player sessions are bit-identical to those of the engine before the N-player engine.
+"""Two-player sessions replayed against those recorded before the N-player engine.
 
 `tests/fixtures/engine_before/` holds sessions, the generators they used and the training
 results recorded with commit c9581d4 (see its ``make.py``); here the current engine replays them.
+The N-player engine reproduced them bit for bit; the optimal-control step solved from the
+tabulated linear problem (`mirror_avatar.dynamics.solve_interval`) converges to the same
+solutions within its tolerance, so the sessions now stay within `TOLERANCES` of them, while the
+Python step loop, the compiled loop and the batch engine still agree bit for bit.
 """
 
-import hashlib
 import json
 from pathlib import Path
 
@@ -23,6 +26,14 @@ from mirror_avatar.session import Session
 FIXTURES = Path(__file__).parents[1] / "fixtures" / "engine_before"
 CHANNELS = ("positions", "velocities", "controls", "references")
 DURATION = 10.0
+TOLERANCES = {
+    "positions": (0.0, 1e-4),
+    "velocities": (0.0, 1e-3),
+    "controls": (5e-3, 0.05),
+    "references": (0.0, 0.0),
+}
+"""Largest relative and absolute difference from the recorded sessions per channel (units,
+units/s, units/s²): the step's Newton tolerance is 1e-3 on the control."""
 
 
 @pytest.fixture(scope="module")
@@ -38,8 +49,16 @@ def trials() -> list:
 def assert_recorded(name: str, session: Session, channels=CHANNELS) -> None:
     with np.load(FIXTURES / f"{name}.npz") as recorded:
         for channel in channels:
-            np.testing.assert_array_equal(getattr(session, channel), recorded[channel])
+            rtol, atol = TOLERANCES[channel]
+            np.testing.assert_allclose(
+                getattr(session, channel), recorded[channel], rtol=rtol, atol=atol
+            )
         np.testing.assert_array_equal(session.times, recorded["times"])
+
+
+def assert_identical(first: Session, second: Session) -> None:
+    for channel in CHANNELS:
+        np.testing.assert_array_equal(getattr(first, channel), getattr(second, channel))
 
 
 def lineups(generators, trials) -> dict[str, tuple[list, int]]:
@@ -62,11 +81,12 @@ def lineups(generators, trials) -> dict[str, tuple[list, int]]:
 )
 def test_sessions_are_bit_identical_in_both_loops(generators, trials, name) -> None:
     players, seed = lineups(generators, trials)[name]
-    assert_recorded(name, play(players, DURATION, seed))
-    assert_recorded(name, play_compiled(players, 334, seed))
+    looped = play(players, DURATION, seed)
+    assert_recorded(name, looped)
+    assert_identical(looped, play_compiled(players, 334, seed))
 
 
-def test_batch_run_is_bit_identical(generators, trials) -> None:
+def test_batch_run_stays_close(generators, trials) -> None:
     fast, slow = generators
     pairs = [
         (VirtualTrainer(LEADER, fast), VirtualTrainer(FOLLOWER, slow)),
@@ -77,31 +97,28 @@ def test_batch_run_is_bit_identical(generators, trials) -> None:
     with np.load(FIXTURES / "batch.npz") as recorded:
         for channel in CHANNELS:
             stacked = np.stack([getattr(s, channel) for s in sessions])
-            np.testing.assert_array_equal(stacked, recorded[channel])
+            rtol, atol = TOLERANCES[channel]
+            np.testing.assert_allclose(stacked, recorded[channel], rtol=rtol, atol=atol)
         assert [s.metadata["seed"] for s in sessions] == recorded["seeds"].tolist()
 
 
 @pytest.mark.parametrize(("role", "partner_params"), [("follower", LEADER), ("leader", FOLLOWER)])
-def test_training_and_cyber_sessions_are_bit_identical(generators, role, partner_params) -> None:
-    """The same Q-table and learning curve; the same closed-loop session.
-
-    The cyber player now reports its controls (they were NaN before): only they differ.
-    """
+def test_training_learns_as_before(generators, role, partner_params) -> None:
+    """Q-learning on sessions within the step's tolerance of the recorded ones: the learning
+    curve's mean over the last half is within 10 % of the recorded one (which cells a session
+    visits, and so the Q-table, may differ); the trained player's closed-loop session is played
+    identically by both loops."""
     fast, slow = generators
     expected = json.loads((FIXTURES / "training.json").read_text())[role]
     player, curve = train_cyber_player(
         slow, [fast, slow], role=role, n_sessions=40, seed=0, duration=DURATION, n_jobs=1
     )
-    assert hashlib.sha256(player.q_table_.tobytes()).hexdigest() == expected["q_table_sha256"]
-    assert curve.rms == expected["learning_curve_rms"]
+    recorded = np.mean(expected["learning_curve_rms"][20:])
+    assert np.mean(curve.rms[20:]) == pytest.approx(recorded, rel=0.1)
     partner = VirtualTrainer(partner_params, fast)
     players = [partner, player] if role == "follower" else [player, partner]
     cyber = players.index(player)
-    for session in (play(players, DURATION, 9), play_compiled(players, 334, 9)):
-        assert_recorded(f"cyber_{role}", session, ("positions", "velocities", "references"))
-        with np.load(FIXTURES / f"cyber_{role}.npz") as recorded:
-            np.testing.assert_array_equal(
-                session.controls[1 - cyber], recorded["controls"][1 - cyber]
-            )
-        assert np.all(np.isfinite(session.controls[cyber, :-1]))
-        assert set(np.unique(session.controls[cyber, :-1])) <= set(player.actions_)
+    looped = play(players, DURATION, 9)
+    assert_identical(looped, play_compiled(players, 334, 9))
+    assert np.all(np.isfinite(looped.controls[cyber, :-1]))
+    assert set(np.unique(looped.controls[cyber, :-1])) <= set(player.actions_)
