@@ -113,8 +113,8 @@ def solve_all(problems: np.ndarray, params: np.ndarray, previous: bool) -> np.nd
                 x, y, prediction, reference, partner, p, True, N_SUBSTEPS, MAX_NEWTON,
                 NEWTON_TOLERANCE,
             )  # fmt: skip
-        for c in range(5):
-            out[i, c] = result[c]
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = result[0], result[1], result[2], result[3]
+        out[i, 4] = 1.0 if result[4] else 0.0
     return out
 
 
