@@ -168,7 +168,7 @@ def step_rows() -> list[dict]:
 
 def run_child(source: Path, n_sessions: int, n_group: int) -> dict:
     """Run `CHILD` with the package imported from ``source`` (a tree's ``src``)."""
-    environment = dict(os.environ, PYTHONPATH=str(source), NUMBA_CACHE_DIR=str(source / ".numba"))
+    environment = dict(os.environ, PYTHONPATH=str(source))
     output = subprocess.run(
         [sys.executable, "-c", CHILD, str(n_sessions), str(n_group)],
         capture_output=True, text=True, check=True, env=environment, cwd=source,
