@@ -523,6 +523,36 @@ def count_substeps(
 
 
 @njit(cache=True, nogil=True)
+def _newton_update(
+    z: NDArray[np.float64], theta_p: float, r1: float, r2: float
+) -> tuple[float, float]:
+    """Return the costate update that solves the terminal residual ``(r1, r2)`` to first order.
+
+    The Jacobian of ``(l1(T) - theta_p (x(T) - r_p), l2(T))`` in the initial costates comes
+    from the sensitivities in ``z`` (layout of `_sensitivity_rates`).
+    """
+    j11, j12 = z[6] - theta_p * z[4], z[10] - theta_p * z[8]
+    j21, j22 = z[7], z[11]
+    det = j11 * j22 - j12 * j21
+    return -(j22 * r1 - j12 * r2) / det, -(j11 * r2 - j21 * r1) / det
+
+
+@njit(cache=True, nogil=True)
+def _converged(
+    d2: float, l2: float, eta: float, y_end: float, y_shot: float, tolerance: float
+) -> bool:
+    """Check whether Newton has converged.
+
+    True when the control changed by less than ``tolerance`` (relative) and the last update
+    moved the end velocity (from the shot's ``y_shot``) by less than ``tolerance`` (relative,
+    floor 1 unit/s).
+    """
+    return abs(d2) <= tolerance * (abs(l2) + eta) and abs(y_end - y_shot) <= tolerance * (
+        abs(y_end) + 1.0
+    )
+
+
+@njit(cache=True, nogil=True)
 def _newton(
     x: float,
     y: float,
@@ -563,18 +593,12 @@ def _newton(
             l1 -= scale * d1
             l2 -= scale * d2
             continue
-        j11, j12 = z[6] - theta_p * z[4], z[10] - theta_p * z[8]
-        j21, j22 = z[7], z[11]
-        det = j11 * j22 - j12 * j21
-        d1 = -(j22 * r1 - j12 * r2) / det
-        d2 = -(j11 * r2 - j21 * r1) / det
+        d1, d2 = _newton_update(z, theta_p, r1, r2)
         l1 += d1
         l2 += d2
         scale, residual = 1.0, size
         y_end = z[1] + z[5] * d1 + z[9] * d2
-        if abs(d2) <= tolerance * (abs(l2) + eta) and abs(y_end - z[1]) <= tolerance * (
-            abs(y_end) + 1.0
-        ):
+        if _converged(d2, l2, eta, y_end, z[1], tolerance):
             return True, l1, l2, z[0] + z[4] * d1 + z[8] * d2, y_end
     return False, l1, l2, np.nan, np.nan
 
@@ -668,11 +692,7 @@ def solve_interval(
         r2 = end[3]
         if iteration == 1 and not abs(r1) + abs(r2) <= residual:
             break  # far from linear (or overflowing): continuation
-        j11, j12 = z[6] - theta_p * z[4], z[10] - theta_p * z[8]
-        j21, j22 = z[7], z[11]
-        det = j11 * j22 - j12 * j21
-        d1 = -(j22 * r1 - j12 * r2) / det
-        d2 = -(j11 * r2 - j21 * r1) / det
+        d1, d2 = _newton_update(z, theta_p, r1, r2)
         l1 += d1
         l2 += d2
         # End state to first order in the update (exact once the iteration has converged).
@@ -682,9 +702,7 @@ def solve_interval(
             break
         if iteration == 0:
             fallback = (x_end, y_end, l1, l2)
-        elif abs(d2) <= tolerance * (abs(l2) + eta) and abs(y_end - end[1]) <= tolerance * (
-            abs(y_end) + 1.0
-        ):
+        elif _converged(d2, l2, eta, y_end, end[1], tolerance):
             return x_end, y_end, l1, l2, True
         refresh = iteration > 0 and abs(d2) > 0.5 * previous
         previous, residual = abs(d2), abs(r1) + abs(r2)

@@ -37,6 +37,7 @@ from mirror_avatar import __version__
 from mirror_avatar.engine.loop import Engine, Sink, count_samples
 from mirror_avatar.lab.inputs import HumanPlayer, InputSource
 from mirror_avatar.lab.plan import SessionPlan
+from mirror_avatar.live.session import RecordedTrial
 from mirror_avatar.metrics import compute_phase, session_metrics
 from mirror_avatar.metrics.group import compute_cluster_phase
 from mirror_avatar.players.base import Observation, Player
@@ -124,7 +125,7 @@ class InputLog:
         self._file.close()
 
 
-class LabTrial:
+class LabTrial(RecordedTrial):
     """Trial n of a lab session in progress: its engine, its files and its people's state.
 
     Parameters
@@ -221,21 +222,6 @@ class LabTrial:
             "held": {},
             "files": {"session": self.session_path.name, "inputs": self.inputs_path.name},
         }
-
-    @property
-    def k(self) -> int:
-        """Samples recorded so far."""
-        return self.writer.n_samples
-
-    @property
-    def finished(self) -> bool:
-        """Whether every sample of the trial has been recorded."""
-        return self.k >= self.n_ticks
-
-    @property
-    def progress(self) -> float:
-        """Fraction of the trial recorded, in [0, 1]."""
-        return min(1.0, self.k / self.n_ticks)
 
     def _remember(self, row: Array) -> None:
         self._taken = row[1::4].copy()

@@ -272,7 +272,37 @@ def compute_trial_metrics(session: Session) -> dict[str, Any]:
     return metrics
 
 
-class LiveTrial:
+class RecordedTrial:
+    """A trial recorded sample by sample: its progress from its ``writer`` and ``n_ticks``.
+
+    Attributes
+    ----------
+    writer
+        The session file being written (`mirror_avatar.session.SessionWriter`).
+    n_ticks
+        Samples the whole trial takes.
+    """
+
+    writer: SessionWriter
+    n_ticks: int
+
+    @property
+    def k(self) -> int:
+        """Samples recorded so far."""
+        return self.writer.n_samples
+
+    @property
+    def finished(self) -> bool:
+        """Whether every sample of the trial has been recorded."""
+        return self.k >= self.n_ticks
+
+    @property
+    def progress(self) -> float:
+        """Fraction of the trial recorded, in [0, 1]."""
+        return min(1.0, self.k / self.n_ticks)
+
+
+class LiveTrial(RecordedTrial):
     """A trial in progress: the engine playing the person and the avatar, and its recordings.
 
     Parameters
@@ -325,21 +355,6 @@ class LiveTrial:
         self.last_heard = time.monotonic()
         self._lock = threading.Lock()
         self._closed = False
-
-    @property
-    def k(self) -> int:
-        """Samples recorded so far."""
-        return self.writer.n_samples
-
-    @property
-    def finished(self) -> bool:
-        """Whether every sample of the trial has been recorded."""
-        return self.k >= self.n_ticks
-
-    @property
-    def progress(self) -> float:
-        """Fraction of the trial recorded, in [0, 1]."""
-        return min(1.0, self.k / self.n_ticks)
 
     @property
     def avatar_x(self) -> float | None:
