@@ -51,13 +51,25 @@ def lab(ctx: click.Context, host: str, port: int, out_dir: Path, lsl: bool | Non
     sock = listening_socket(host, port)
     port = sock.getsockname()[1]
     server = make_server(create_lab_app(settings), host, port, "info")
-    shown = "localhost" if host in ("0.0.0.0", "::") else host
+    shown = _reachable_name() if host in ("0.0.0.0", "::") else host
     click.echo(
         f"mirror-avatar lab: recording to {out_dir.resolve()}; LSL {'on' if use_lsl else 'off'}"
     )
     click.echo(f"researcher's token: {token}")
     click.echo(f"console: http://{shown}:{port}/console?token={token}  (Ctrl+C to stop)")
+    click.echo("join links use the address the console is opened at: open it at one the "
+               "participants' devices reach")  # fmt: skip
     server.run(sockets=[sock])
+
+
+def _reachable_name() -> str:
+    """Return this machine's address on the network (for a server on every address)."""
+    import socket
+
+    try:
+        return socket.gethostbyname(socket.gethostname())
+    except OSError:
+        return "localhost"
 
 
 def _lsl_available() -> bool:
