@@ -116,6 +116,10 @@ def test_the_sessions_outlet_carries_every_sample_of_every_player(lab, tmp_path)
     inlet = pylsl.StreamInlet(info, max_buflen=60)
     inlet.open_stream(timeout=5)
     correction = inlet.time_correction(timeout=5)  # it would wait forever once the stream ends
+    (marker_info,) = pylsl.resolve_byprop("source_id", f"mirror-avatar-{sid}-markers", timeout=5)
+    markers = pylsl.StreamInlet(marker_info)
+    markers.open_stream(timeout=5)
+    assert markers.info().type() == "Markers"
     described = inlet.info()
     assert described.channel_count() == 3
     assert described.nominal_srate() == pytest.approx(1 / 0.03)
@@ -150,3 +154,6 @@ def test_the_sessions_outlet_carries_every_sample_of_every_player(lab, tmp_path)
     with (tmp_path / sid / "trial-01_inputs.csv").open() as file:
         clock = [float(row["clock_s"]) for row in csv.DictReader(file)]
     np.testing.assert_allclose(np.asarray(stamps) + correction, clock, atol=1e-3)
+    events, times = markers.pull_chunk(timeout=1.0)
+    assert [event for (event,) in events] == ["trial 1 start", "trial 1 end: completed"]
+    np.testing.assert_allclose(np.asarray(times) + correction, [clock[0], clock[-1]], atol=1e-3)

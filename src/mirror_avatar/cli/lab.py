@@ -46,6 +46,8 @@ def lab(ctx: click.Context, host: str, port: int, out_dir: Path, lsl: bool | Non
     use_lsl = _lsl_available() if lsl is None else lsl
     if use_lsl and not _lsl_available():
         raise click.UsageError("--lsl needs pylsl: pip install 'mirror-avatar[lsl]'")
+    if use_lsl:
+        _quiet_lsl()
     token = make_token()
     settings = LabSettings(out_dir=out_dir, token=token, lsl=use_lsl)
     sock = listening_socket(host, port)
@@ -57,9 +59,22 @@ def lab(ctx: click.Context, host: str, port: int, out_dir: Path, lsl: bool | Non
     )
     click.echo(f"researcher's token: {token}")
     click.echo(f"console: http://{shown}:{port}/console?token={token}  (Ctrl+C to stop)")
-    click.echo("join links use the address the console is opened at: open it at one the "
-               "participants' devices reach")  # fmt: skip
+    if host in ("0.0.0.0", "::"):
+        click.echo("join links use the address the console is opened at: open it at one the "
+                   "participants' devices reach")  # fmt: skip
     server.run(sockets=[sock])
+
+
+LSL_LOG_LEVEL = -1
+"""liblsl's log level under ``mirror-avatar lab``: warnings and errors (its INFO lines about
+configuration and versions would fill the console)."""
+
+
+def _quiet_lsl() -> None:
+    """Keep liblsl to warnings and errors (before any other LSL call)."""
+    import pylsl
+
+    pylsl.set_config_content(f"[log]\nlevel = {LSL_LOG_LEVEL}\n")
 
 
 def _reachable_name() -> str:

@@ -2,9 +2,12 @@
 
 `SessionOutlet` publishes every player's position of a lab trial as one LSL stream (type
 ``"Position"``, one float64 channel per player, in playing range units), so a recorder such as
-LabRecorder stores it next to EEG or motion capture on the same clock. `LslInput` reads one channel
-of another LSL stream (a hand tracker, a slider) as a person's input device: a background thread
-keeps the newest sample, mapped to the playing range, for the session's clock to read.
+LabRecorder stores it next to EEG or motion capture on the same clock, and the session's events
+(a trial's first and last sample, a participant's drop) as a second stream of string markers
+(type ``"Markers"``, named as the positions with `` markers`` appended), for epoching.
+`LslInput` reads one channel of another LSL stream (a hand tracker, a slider) as a person's input
+device: a background thread keeps the newest sample, mapped to the playing range, for the
+session's clock to read.
 
 Time stamps are LSL time (`pylsl.local_clock`, s). pylsl is an optional dependency (the ``lsl``
 extra); it is imported when an outlet or an input is made.
@@ -27,6 +30,9 @@ from mirror_avatar.trials import PLAYING_RANGE
 
 STREAM_TYPE = "Position"
 """LSL content type of the session's outlet."""
+
+MARKER_TYPE = "Markers"
+"""LSL content type of the session's event stream."""
 
 UNIT = "playing range units (-0.5..0.5)"
 """Unit of the outlet's channels, as written in its metadata."""
@@ -98,10 +104,15 @@ class SessionOutlet:
             name, STREAM_TYPE, len(labels), 1.0 / period, pylsl.cf_double64, source_id
         )
         _describe(info.desc(), labels, roles, kinds, period)
+        markers = pylsl.StreamInfo(
+            f"{name} markers", MARKER_TYPE, 1, pylsl.IRREGULAR_RATE, pylsl.cf_string,
+            f"{source_id}-markers",
+        )  # fmt: skip
         self.name = name
         self.n_players = len(labels)
         self._clock = pylsl.local_clock
         self._outlet: Any = pylsl.StreamOutlet(info)
+        self._markers: Any = pylsl.StreamOutlet(markers)
 
     def push(self, row: NDArray[np.float64]) -> None:
         """Publish one engine row, time-stamped with the LSL clock now.
@@ -136,6 +147,20 @@ class SessionOutlet:
         stamp = self._clock() if timestamp is None else float(timestamp)
         self._open().push_sample(values.tolist(), stamp)
 
+    def mark(self, event: str, timestamp: float | None = None) -> None:
+        """Publish an event on the marker stream.
+
+        Parameters
+        ----------
+        event
+            What happened, for instance ``"trial 1 start"``.
+        timestamp
+            LSL time of the event (s); None stamps it with the clock now.
+        """
+        stamp = self._clock() if timestamp is None else float(timestamp)
+        self._open()
+        self._markers.push_sample([event], stamp)
+
     def wait_for_consumers(self, timeout: float) -> bool:
         """Wait up to ``timeout`` (s) for a consumer (a recorder's inlet); return whether one is."""
         return bool(self._open().wait_for_consumers(timeout))
@@ -146,6 +171,7 @@ class SessionOutlet:
         pylsl's outlet has no close method: dropping the last reference destroys it.
         """
         self._outlet = None
+        self._markers = None
 
     def __enter__(self) -> SessionOutlet:
         return self

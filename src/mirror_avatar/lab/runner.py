@@ -60,6 +60,10 @@ class Outlet(Protocol):
         """Publish the players' positions (units) taken at ``timestamp`` (s, the clock's)."""
         ...
 
+    def mark(self, event: str, timestamp: float | None = None) -> None:
+        """Publish an event that happened at ``timestamp`` (s, the clock's; None: now)."""
+        ...
+
     def close(self) -> None:
         """Stop publishing."""
         ...
@@ -293,6 +297,7 @@ class LabSession:
         if trial is not None and self.state == "running":
             trial.mark_dropped(participant.label)
             self.log(f"{participant.label} dropped at sample {trial.k} of trial {trial.n}")
+            self._mark(f"{participant.label} dropped")
             if self.plan.on_drop == "stop":
                 self._stop_reason = f"{participant.label} dropped"
         else:
@@ -423,6 +428,8 @@ class LabSession:
             await asyncio.to_thread(trial.tick)
             if loop.time() - began > self.max_tick:
                 return False, "an avatar is too slow for real time"
+            if trial.k == 1:
+                self._mark(f"trial {trial.n} start", trial.input_log.first_stamp)
             self._send_frames(trial)
         return True, "completed"
 
@@ -442,6 +449,10 @@ class LabSession:
                 }
             )
 
+    def _mark(self, event: str, timestamp: float | None = None) -> None:
+        if self.outlet is not None:
+            self.outlet.mark(event, timestamp)
+
     async def _end_trial(self, trial: LabTrial, complete: bool, reason: str) -> None:
         """Finish the trial in a worker thread (its metrics) and tell the pages.
 
@@ -456,6 +467,7 @@ class LabSession:
             raise
         self.results.append(summary)
         self.log(f"trial {trial.n} ended: {reason}")
+        self._mark(f"trial {trial.n} end: {reason}", trial.input_log.last_stamp)
         for k, participant in self.participants.items():
             if participant.outbox is None:
                 continue

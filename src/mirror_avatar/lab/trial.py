@@ -88,6 +88,11 @@ class InputLog:
         Stamps each sample (s).
     publish
         Receives each sample's positions (N,) and its clock time (the LSL outlet), or None.
+
+    Attributes
+    ----------
+    first_stamp, last_stamp
+        Clock times of the first and the latest sample written (NaN before any).
     """
 
     def __init__(
@@ -100,6 +105,7 @@ class InputLog:
         self.people = people
         self.clock = clock
         self.publish = publish
+        self.first_stamp = self.last_stamp = math.nan
         self._file: IO[str] = path.open("x", encoding="utf-8", newline="\n")
         columns = ["time", "clock_s"]
         for _, player in people:
@@ -110,6 +116,9 @@ class InputLog:
     def __call__(self, row: Array) -> None:
         """Write the sample's time, clock time and inputs; publish its positions."""
         stamp = self.clock()
+        if math.isnan(self.first_stamp):
+            self.first_stamp = stamp
+        self.last_stamp = stamp
         fields = [repr(float(row[0])), repr(stamp)]
         for _, player in self.people:
             tick = player.last_input
