@@ -220,3 +220,27 @@ def test_killing_a_participants_browser_marks_them_dropped(playwright, chromium,
     session = load_session(sidecar.with_suffix(".csv"))
     assert session.n_samples == round(8 / 0.03) + 1 and "P2" in record["dropped"]
     assert record["held"]["P2"] >= session.n_samples - record["dropped"]["P2"] - 10
+
+
+def test_a_phone_plays_by_touch(chromium, lab, tmp_path):
+    """A participant on a phone (touch screen, small viewport) opens the link from the QR code
+    and moves by tapping; the taps are recorded where they landed."""
+    console = open_console(chromium, lab.url)
+    links = create_session(console, "joint", 4)
+    phone = chromium.new_context(
+        viewport={"width": 390, "height": 700}, has_touch=True, is_mobile=True
+    ).new_page()
+    phone.goto(links["P1"])
+    phone.wait_for_function("window.mirrorLab && window.mirrorLab.welcome !== null")
+    start_when_joined(console, 1)
+    phone.wait_for_function("window.mirrorLab.others.size === 1", timeout=15_000)
+    box = phone.locator("#field").bounding_box()
+    taps = (-0.3, 0.25, 0.0)
+    for x in taps:
+        phone.touchscreen.tap(box["x"] + box["width"] * (0.05 + 0.9 * (x + 0.5)), box["y"] + 80)
+        time.sleep(0.8)
+    screenshot(phone, "lab-participant-phone")
+    wait_trial_listed(console, 1)
+    session = load_session(session_dir(tmp_path) / "trial-01_session.csv")
+    recorded = set(np.round(session.positions[0], 2))
+    assert all(round(x, 2) in recorded for x in taps)

@@ -61,7 +61,7 @@
       const own = i === 0;
       const x = own ? me.x : others.get(player.index);
       if (x === undefined || x === null) return;
-      const y = height / 2 + (own ? 0 : (i % 2 ? -1 : 1) * radius * 1.6 * Math.ceil(i / 2));
+      const y = height / 2 - (own ? 0 : radius * 2.2 * i);  // the others stacked above the line
       ctx.fillStyle = player.colour;
       ctx.globalAlpha = own ? 1 : 0.85;
       ctx.beginPath();
@@ -70,7 +70,7 @@
       ctx.globalAlpha = 1;
       ctx.font = `${Math.round(radius)}px system-ui, sans-serif`;
       ctx.textAlign = "center";
-      ctx.fillText(own ? "you" : player.label, toPixels(x), y - radius * 1.5);
+      ctx.fillText(own ? "you" : player.label, toPixels(x), own ? y + radius * 2.6 : y - radius * 1.5);
     });
   }
 
