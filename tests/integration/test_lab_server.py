@@ -352,3 +352,19 @@ def test_hidden_metrics_and_a_participant_who_rejoins(lab, tmp_path):
     rejoined = again.sent[0][1]
     later = session.positions[1, trial["dropped"]["P2"] + 40 :]
     assert rejoined in set(np.round(later, 6)) or np.ptp(later) > 0.1  # moving again
+
+
+def test_api_errors_are_one_json_line(lab):
+    bad_plan = httpx.post(f"{lab.url}/api/sessions", json={"condition": "x"}, headers=BEARER)
+    assert bad_plan.status_code == 400 and bad_plan.json()["error"].startswith("plan:")
+    not_json = httpx.post(
+        f"{lab.url}/api/sessions",
+        content=b"{nope",
+        headers=BEARER | {"Content-Type": "application/json"},
+    )
+    assert not_json.status_code == 400 and "not valid JSON" in not_json.json()["error"]
+    missing = httpx.get(f"{lab.url}/api/sessions/nope/live", headers=BEARER)
+    assert missing.status_code == 404 and missing.json() == {"error": "no such session"}
+    sid = create(lab, DYAD)["id"]
+    unknown = command(lab, sid, "dance")
+    assert unknown.status_code == 404 and "start, stop or abort" in unknown.json()["error"]

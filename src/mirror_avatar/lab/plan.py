@@ -168,13 +168,11 @@ class SessionPlan:
         data = asdict(self)
         data["graph"] = self.graph.tolist()
         data["leaders"] = list(self.leaders)
-        data["slots"] = [_slot_json(slot) for slot in self.slots]
+        data["slots"] = [
+            {key: value for key, value in asdict(slot).items() if value is not None}
+            for slot in self.slots
+        ]
         return data
-
-
-def _slot_json(slot: Slot) -> dict[str, Any]:
-    data = {key: value for key, value in asdict(slot).items() if value is not None}
-    return data
 
 
 def parse_plan(data: object) -> SessionPlan:

@@ -32,6 +32,7 @@ import contextlib
 import functools
 import hmac
 import io
+import json
 import logging
 import re
 import time
@@ -214,7 +215,8 @@ def create_lab_app(settings: LabSettings) -> ASGIApp:
             Route("/api/sessions/{sid}/qr/{label}.svg", api.qr),
             WebSocketRoute("/ws/join/{key}", functools.partial(join_socket, lab)),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
-        ]
+        ],
+        exception_handlers={ApiError: api_error},
     )
     app.state.lab = lab
     return LabGate(app, lab)
@@ -304,7 +306,7 @@ class LabApi:
     def _session(self, request: Request) -> LabSession:
         session = self.lab.sessions.get(request.path_params["sid"])
         if session is None:
-            raise LookupError("no such session")
+            raise ApiError(404, "no such session")
         return session
 
     async def sessions(self, request: Request) -> Response:
@@ -314,42 +316,29 @@ class LabApi:
                 {"sessions": [self._status(s, request) for s in self.lab.sessions.values()]}
             )
         try:
-            data = await _body(request)
-            session = self.lab.create(data)
-        except (InputError, ValueError) as error:
-            return _json({"error": str(error)}, 400)
+            session = self.lab.create(await _body(request))
+        except InputError as error:
+            raise ApiError(400, str(error)) from None
         return _json(self._status(session, request), 201)
 
     async def session(self, request: Request) -> Response:
         """One session's status and join links."""
-        return await self._with_session(request, lambda s: self._status(s, request))
+        return _json(self._status(self._session(request), request))
 
     async def live(self, request: Request) -> Response:
         """Answer the running trial's last 10 s of positions and group synchronisation."""
-
-        async def recent(session: LabSession) -> dict[str, Any]:
-            trial = session.trial
-            if trial is None:
-                return {"state": session.state, "trial": None}
-            data = await asyncio.to_thread(trial.recent, 10.0)
-            return {"state": session.state, "trial": trial.n, "progress": trial.progress} | data
-
-        try:
-            session = self._session(request)
-        except LookupError as error:
-            return _json({"error": str(error)}, 404)
-        return _json(await recent(session))
+        session = self._session(request)
+        trial = session.trial
+        if trial is None:
+            return _json({"state": session.state, "trial": None})
+        data = await asyncio.to_thread(trial.recent, 10.0)
+        return _json({"state": session.state, "trial": trial.n, "progress": trial.progress} | data)
 
     async def command(self, request: Request) -> Response:
         """Start, stop or abort a session."""
         action = request.path_params["action"]
-        try:
-            session = self._session(request)
-            data = await _body(request, allow_empty=True)
-        except LookupError as error:
-            return _json({"error": str(error)}, 404)
-        except ValueError as error:
-            return _json({"error": str(error)}, 400)
+        session = self._session(request)
+        data = await _body(request, allow_empty=True)
         if action == "start":
             problem = session.start(force=bool(isinstance(data, dict) and data.get("force")))
             if problem is not None:
@@ -365,11 +354,7 @@ class LabApi:
     async def file(self, request: Request) -> Response:
         """Serve a file of the session's folder, by one of the names the session lists."""
         name = request.path_params["name"]
-        try:
-            session = self._session(request)
-        except LookupError as error:
-            return _json({"error": str(error)}, 404)
-        path = session.directory / name
+        path = self._session(request).directory / name
         if not FILE_NAME.fullmatch(name) or not path.is_file():
             return _json({"error": "no such file in this session"}, 404)
         return FileResponse(path, headers={"Cache-Control": "no-store"})
@@ -378,11 +363,7 @@ class LabApi:
         """Serve the QR code (SVG) of a person's join link."""
         import segno
 
-        try:
-            session = self._session(request)
-        except LookupError as error:
-            return _json({"error": str(error)}, 404)
-        links = join_links(session, request)
+        links = join_links(self._session(request), request)
         label = request.path_params["label"]
         if label not in links:
             return _json({"error": "no such person in this session"}, 404)
@@ -391,13 +372,6 @@ class LabApi:
         return Response(
             svg.getvalue(), media_type="image/svg+xml", headers={"Cache-Control": "no-store"}
         )
-
-    async def _with_session(self, request: Request, answer: Any) -> Response:
-        try:
-            session = self._session(request)
-        except LookupError as error:
-            return _json({"error": str(error)}, 404)
-        return _json(answer(session))
 
     def _status(self, session: LabSession, request: Request) -> dict[str, Any]:
         links = {} if session.ended else join_links(session, request)
@@ -410,18 +384,30 @@ def join_links(session: LabSession, request: Request) -> dict[str, str]:
     return {p.label: f"{base}/join/{p.key}" for p in session.participants.values()}
 
 
+class ApiError(Exception):
+    """An API request that cannot be served: answered as ``{"error": message}`` with ``status``."""
+
+    def __init__(self, status: int, message: str) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+async def api_error(request: Request, error: Exception) -> Response:
+    """Answer an `ApiError` as JSON."""
+    assert isinstance(error, ApiError)
+    return _json({"error": str(error)}, error.status)
+
+
 async def _body(request: Request, allow_empty: bool = False) -> Any:
     raw = await request.body()
     if len(raw) > MAX_BODY_BYTES:
-        raise ValueError(f"request body over {MAX_BODY_BYTES} bytes")
+        raise ApiError(400, f"request body over {MAX_BODY_BYTES} bytes")
     if not raw and allow_empty:
         return {}
-    import json
-
     try:
         return json.loads(raw)
     except ValueError:
-        raise ValueError("the request body is not valid JSON") from None
+        raise ApiError(400, "the request body is not valid JSON") from None
 
 
 def _json(data: dict[str, Any], status: int = 200) -> JSONResponse:
