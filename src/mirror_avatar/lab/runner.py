@@ -399,7 +399,12 @@ class LabSession:
         for remaining in range(self.countdown, 0, -1):
             self.broadcast({"type": "countdown", "remaining": remaining, "trial": n})
             await asyncio.sleep(1.0)
-        trial = await asyncio.to_thread(self._new_trial, n)
+        opening = asyncio.ensure_future(asyncio.to_thread(self._new_trial, n))
+        try:
+            trial = await asyncio.shield(opening)
+        except asyncio.CancelledError:  # stopped while its files were opening: `stop` closes them
+            self.trial = await opening
+            raise
         self.trial, self.state, self._stop_reason = trial, "running", None
         self.log(f"trial {n} started")
         self.broadcast({"type": "go", "trial": n, "duration": self.plan.duration})
