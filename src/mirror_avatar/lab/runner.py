@@ -144,8 +144,20 @@ class Participant:
         The input device (`BrowserInput` for the pointer; an LSL input once opened).
     outbox
         The connected page's `Outbox`, or None when no page is connected.
+    connection
+        The connected page's transport (the server's WebSocket), which a page opening the same
+        link replaces; the runner only holds it.
+    joined
+        Whether a page (or the LSL device) has ever joined.
     round_trips
         The last 100 ping round trips (ms).
+    late_frames, frames_dropped
+        Animation frames the page drew late (its own count) and frames superseded before they
+        could be sent, over the page's earlier connections.
+    last_heard
+        When the page last sent a message (`time.monotonic`, s), or None.
+    pings
+        The outstanding ping's id and when it was sent.
     """
 
     def __init__(self, index: int, label: str, device: str) -> None:
