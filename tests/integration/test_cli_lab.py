@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import math
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -70,3 +73,26 @@ def test_export_of_a_folder_without_trials_is_one_line(tmp_path, capsys):
     assert main(["lab", "export", str(tmp_path / "empty"), "--out", str(tmp_path / "b")]) == 2
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "empty" in error
+
+
+def test_the_export_passes_the_bids_validator(lab_session, tmp_path):
+    """The official BIDS validator (its deno build) finds no error in the exported dataset."""
+    bids = tmp_path / "bids"
+    assert main(["lab", "export", str(lab_session), "--out", str(bids)]) == 0
+    validator = Path(sys.executable).parent / "bids-validator-deno"
+    report = subprocess.run(
+        [validator, str(bids), "--format", "json"], capture_output=True, text=True, timeout=300
+    )
+    issues = json.loads(report.stdout)["issues"]["issues"]
+    errors = [issue for issue in issues if issue["severity"] == "error"]
+    assert errors == [], errors[:3]
+    warnings = {issue["code"] for issue in issues}
+    # only what a researcher adds (authors) or optional keys the game has no value for
+    assert warnings <= {"NO_AUTHORS", "TOO_FEW_AUTHORS", "JSON_KEY_RECOMMENDED",
+                        "SIDECAR_KEY_RECOMMENDED"}  # fmt: skip
+    assert json.loads(report.stdout)["summary"]["dataTypes"] == ["motion"]
+    (events,) = bids.glob("sub-P1/motion/*run-1_events.tsv")
+    assert events.read_text().splitlines() == [
+        "onset\tduration\ttrial_type\tsample",
+        f"0.0\t{repr(668 * 0.03)}\ttrial\t0",
+    ]

@@ -25,12 +25,15 @@ MOTION_FILE = re.compile(
     r"sub-(?P<sub>[A-Za-z0-9]+)/motion/"
     r"sub-(?P=sub)(_ses-[A-Za-z0-9]+)?_task-(?P<task>[A-Za-z0-9]+)"
     r"_tracksys-(?P<tracksys>[A-Za-z0-9]+)(_acq-(?P<acq>[A-Za-z0-9]+))?(_run-(?P<run>[0-9]+))?"
-    r"_(?P<suffix>motion|channels)\.(?P<ext>tsv|json)"
+    r"_(?P<suffix>motion|channels|events)\.(?P<ext>tsv|json)"
 )
 """BIDS 1.9 motion: sub-<label>[_ses-<label>]_task-<label>_tracksys-<label>[_acq-<label>]
 [_run-<index>]_<motion.tsv|motion.json|channels.tsv>, in sub-<label>/motion/."""
 
-TOP_LEVEL = {"dataset_description.json", "README", "participants.tsv", "participants.json"}
+TOP_LEVEL = {
+    "dataset_description.json", "README", "participants.tsv", "participants.json",
+    "task-mirrorgame_events.json",
+}  # fmt: skip
 REQUIRED_SIDECAR = {
     "TaskName", "TaskDescription", "SamplingFrequency", "TrackingSystemName",
     "MotionChannelCount", "POSChannelCount", "VELChannelCount", "RecordingDuration",
@@ -169,7 +172,7 @@ def test_the_dataset_holds_only_bids_files_and_the_source_data(exported: Exporte
         p.as_posix() for p in files if p.parts[0] not in ("sourcedata",) and len(p.parts) > 1
     }
     assert all(MOTION_FILE.fullmatch(name) for name in outside), sorted(outside)
-    assert len(outside) == 3 * 6
+    assert len(outside) == 4 * 6
     assert {p.name for p in files if len(p.parts) == 1} == TOP_LEVEL
     assert sorted(p.name for p in exported.root.iterdir() if p.is_dir()) == [
         "sourcedata", "sub-P1", "sub-P2"

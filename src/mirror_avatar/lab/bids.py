@@ -166,6 +166,7 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     _copy_sources(session_dir, files, out_dir / "sourcedata" / session_id)
     _write_participants(out_dir, columns, participants, described)
     _write_description(out_dir)
+    write_atomic_json(out_dir / f"task-{TASK}_events.json", EVENT_COLUMN_INFO)
     return written
 
 
@@ -324,7 +325,42 @@ def _write_recording(trial: _LabTrial, slot: int, out_dir: Path) -> Path:
     write_atomic_text(motion, _tsv_values(values.T))
     write_atomic_text(folder / f"{stem}_channels.tsv", _tsv_table(CHANNEL_COLUMNS, channels))
     write_atomic_json(folder / f"{stem}_motion.json", _motion_sidecar(trial, slot, len(channels)))
+    write_atomic_text(folder / f"{stem}_events.tsv", _tsv_table(EVENT_COLUMNS, _events(trial)))
     return motion
+
+
+EVENT_COLUMNS = ("onset", "duration", "trial_type", "sample")
+"""Columns of a recording's ``_events.tsv``."""
+
+EVENT_COLUMN_INFO = {
+    "trial_type": {
+        "Description": "What happened",
+        "Levels": {
+            "trial": "The trial, from its first recorded sample to its last",
+            "dropped LABEL": "The connection of participant LABEL dropped; their position is "
+            "held from here on",
+        },
+    },
+    "sample": {"Description": "Index of the motion sample at the onset (0-based)"},
+}
+"""The events' columns, described once for the dataset (``task-mirrorgame_events.json``)."""
+
+
+def _events(trial: _LabTrial) -> list[dict[str, str]]:
+    """List the trial (from its first sample, as long as it was recorded) and each drop.
+
+    Onsets and durations in seconds from the recording's first sample; ``sample`` its index.
+    """
+    duration = trial.session.n_samples * trial.period
+    rows = [{"onset": "0.0", "duration": repr(duration), "trial_type": "trial", "sample": "0"}]
+    for who, sample in sorted(_mapping(trial.session.metadata.get("dropped")).items()):
+        if isinstance(sample, int) and not isinstance(sample, bool):
+            onset = repr(sample * trial.period)
+            rows.append(
+                {"onset": onset, "duration": "0.0", "trial_type": f"dropped {who}",
+                 "sample": str(sample)}
+            )  # fmt: skip
+    return rows
 
 
 def _player_order(slot: int, n_players: int) -> list[int]:
