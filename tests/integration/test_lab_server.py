@@ -363,6 +363,10 @@ def test_api_errors_are_one_json_line(lab):
         headers=BEARER | {"Content-Type": "application/json"},
     )
     assert not_json.status_code == 400 and "not valid JSON" in not_json.json()["error"]
+    typo = RING | {"players": [*RING["players"][:3], {**RING["players"][3], "spec": "bundled:slw"}]}
+    refused = httpx.post(f"{lab.url}/api/sessions", json=typo, headers=BEARER)
+    assert refused.status_code == 400 and "unknown bundled style" in refused.json()["error"]
+    assert httpx.get(f"{lab.url}/api/sessions", headers=BEARER).json() == {"sessions": []}
     missing = httpx.get(f"{lab.url}/api/sessions/nope/live", headers=BEARER)
     assert missing.status_code == 404 and missing.json() == {"error": "no such session"}
     sid = create(lab, DYAD)["id"]

@@ -4,7 +4,8 @@ Routes (`create_lab_app`):
 
 - ``GET /console``: the researcher's console (a page using the API below).
 - ``GET /api/sessions``: every session's status; ``POST /api/sessions`` with a plan
-  (`mirror_avatar.lab.plan.parse_plan`) creates one and answers its status and its join links.
+  (`mirror_avatar.lab.plan.parse_plan`) builds its avatars (a bad spec is refused here, 400),
+  creates the session and answers its status and its join links.
 - ``GET /api/sessions/{id}``: a session's status (`mirror_avatar.lab.runner.LabSession.status`)
   with its join links; ``GET /api/sessions/{id}/live``: the last 10 s of positions and ρ_g.
 - ``POST /api/sessions/{id}/start`` (body ``{"force": true}`` starts without everyone),
@@ -64,10 +65,11 @@ from mirror_avatar.lab.inputs import BrowserInput, InputSource
 from mirror_avatar.lab.messages import Pong, parse_participant_message
 from mirror_avatar.lab.plan import LslDevice, SessionPlan, parse_plan
 from mirror_avatar.lab.runner import LabSession, Outbox, Outlet, Participant
-from mirror_avatar.lab.trial import Clock
+from mirror_avatar.lab.trial import Clock, build_avatars
 from mirror_avatar.live.admission import TokenBucket
 from mirror_avatar.live.protocol import PositionUpdate, ProtocolError
 from mirror_avatar.live.server import SERVER_SEND, abort_transport
+from mirror_avatar.players.base import Player
 
 logger = logging.getLogger(__name__)
 STATIC = Path(__file__).parent / "static"
@@ -141,9 +143,8 @@ class Lab:
             self.rates[address] = TokenBucket(rate, 4 * rate)
         return self.rates[address].take() == 0.0
 
-    def create(self, data: object) -> LabSession:
-        """Create a session from a plan sent by the console."""
-        plan = parse_plan(data)
+    def create(self, plan: SessionPlan, avatars: dict[int, Player]) -> LabSession:
+        """Create a session of ``plan`` with its avatars, built (`build_avatars`)."""
         active = [s for s in self.sessions.values() if not s.ended]
         if len(active) >= self.settings.max_sessions:
             raise InputError("plan", f"{len(active)} sessions are open: end one first")
@@ -160,6 +161,7 @@ class Lab:
             outlet,
             open_device,
         )
+        session.avatars = avatars
         self.sessions[session_id] = session
         for participant in session.participants.values():
             self.keys[participant.key] = (session, participant)
@@ -316,7 +318,9 @@ class LabApi:
                 {"sessions": [self._status(s, request) for s in self.lab.sessions.values()]}
             )
         try:
-            session = self.lab.create(await _body(request))
+            plan = parse_plan(await _body(request))
+            avatars = await asyncio.to_thread(build_avatars, plan)
+            session = self.lab.create(plan, avatars)
         except InputError as error:
             raise ApiError(400, str(error)) from None
         return _json(self._status(session, request), 201)
