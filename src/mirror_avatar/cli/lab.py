@@ -7,19 +7,11 @@ from pathlib import Path
 import click
 
 from mirror_avatar.cli.outputs import check_output_dir
+from mirror_avatar.cli.play import server_options
 
 
 @click.group(invoke_without_command=True)
-@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on.")
-@click.option("--port", default=8766, show_default=True, type=click.IntRange(0, 65535))
-@click.option(
-    "--out",
-    "out_dir",
-    default=Path("lab"),
-    show_default=True,
-    type=click.Path(path_type=Path),
-    help="Where sessions are recorded (one folder per session).",
-)
+@server_options(8766, "lab", "Where sessions are recorded (one folder per session).")
 @click.option(
     "--lsl/--no-lsl",
     default=None,

@@ -2,11 +2,48 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, TypeVar
 
 import click
 
 from mirror_avatar.cli.outputs import check_output_dir
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def server_options(port: int, out: str, out_help: str) -> Callable[[F], F]:
+    """Add the options of a command that serves pages: ``--host``, ``--port``, ``--out``.
+
+    Parameters
+    ----------
+    port, out
+        The default port and output folder.
+    out_help
+        What the output folder holds.
+    """
+
+    def decorate(command: F) -> F:
+        options = (
+            click.option(
+                "--host", default="127.0.0.1", show_default=True, help="Address to listen on."
+            ),
+            click.option("--port", default=port, show_default=True, type=click.IntRange(0, 65535)),
+            click.option(
+                "--out",
+                "out_dir",
+                default=Path(out),
+                show_default=True,
+                type=click.Path(path_type=Path),
+                help=out_help,
+            ),
+        )
+        for option in reversed(options):
+            command = option(command)
+        return command
+
+    return decorate
 
 
 @click.command()
@@ -17,16 +54,7 @@ from mirror_avatar.cli.outputs import check_output_dir
     metavar="SPEC",
     help="The avatar (a player spec); default: a virtual trainer learned from the bundled data.",
 )
-@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on.")
-@click.option("--port", default=8765, show_default=True, type=click.IntRange(0, 65535))
-@click.option(
-    "--out",
-    "out_dir",
-    default=Path("recordings"),
-    show_default=True,
-    type=click.Path(path_type=Path),
-    help="Where trials are recorded (one folder per participant).",
-)
+@server_options(8765, "recordings", "Where trials are recorded (one folder per participant).")
 @click.option(
     "--require-token",
     is_flag=True,

@@ -140,6 +140,8 @@ class Participant:
     ----------
     index, label, key
         Player index, label and the secret of the slot's join link.
+    visible
+        The players its page shows: itself, then those it observes (the graph), by index.
     source
         The input device (`BrowserInput` for the pointer; an LSL input once opened).
     outbox
@@ -160,10 +162,11 @@ class Participant:
         The outstanding ping's id and when it was sent.
     """
 
-    def __init__(self, index: int, label: str, device: str) -> None:
+    def __init__(self, index: int, label: str, device: str, visible: list[int]) -> None:
         self.index = index
         self.label = label
         self.device = device
+        self.visible = visible
         self.key = secrets.token_urlsafe(16)
         self.source: InputSource | None = BrowserInput() if device == "pointer" else None
         self.outbox: Outbox | None = None
@@ -237,9 +240,10 @@ class LabSession:
         self.open_device = open_device
         self.created_utc = datetime.now(UTC).isoformat()
         self.participants = {
-            k: Participant(k, plan.slots[k].label, plan.slots[k].device or "pointer")
+            k: Participant(k, plan.slots[k].label, plan.slots[k].device or "pointer",
+                           [k, *plan.neighbours(k)])
             for k in plan.humans
-        }
+        }  # fmt: skip
         self.state = "waiting"
         self.trial: LabTrial | None = None
         self.next_trial = 1
@@ -270,7 +274,6 @@ class LabSession:
     def welcome(self, participant: Participant) -> dict[str, Any]:
         """Return what a participant's page is told on joining: its slot and the players it sees."""
         k = participant.index
-        visible = [k, *self.plan.neighbours(k)]
         return {
             "type": "welcome",
             "label": participant.label,
@@ -280,7 +283,7 @@ class LabSession:
             "device": participant.device,
             "visible": [
                 {"index": j, "label": self.plan.slots[j].label, "colour": COLOURS[j]}
-                for j in visible
+                for j in participant.visible
             ],
             "trials": self.plan.trials,
             "duration": self.plan.duration,
@@ -453,15 +456,14 @@ class LabSession:
     def _send_frames(self, trial: LabTrial) -> None:
         positions = trial.positions()
         progress = trial.progress
-        for k, participant in self.participants.items():
+        for participant in self.participants.values():
             if participant.outbox is None:
                 continue
-            visible = [k, *self.plan.neighbours(k)]
             participant.outbox.put_frame(
                 {
                     "type": "frame",
                     "k": trial.k - 1,
-                    "x": [positions[j] for j in visible],
+                    "x": [positions[j] for j in participant.visible],
                     "progress": progress,
                 }
             )
@@ -499,6 +501,7 @@ class LabSession:
         """Return what the console shows: state, slots with their connection quality, trials."""
         trial = self.trial
         slots = []
+        held = {} if trial is None else trial.held()
         for k, slot in enumerate(self.plan.slots):
             row: dict[str, Any] = {
                 "index": k,
@@ -514,7 +517,7 @@ class LabSession:
                 row |= {"joined": participant.joined, "connected": participant.connected}
                 row |= participant.quality()
                 if trial is not None:
-                    row["held"] = trial.held().get(slot.label, 0)
+                    row["held"] = held.get(slot.label, 0)
                     row["dropped_at"] = trial.dropped.get(slot.label)
             slots.append(row)
         return {

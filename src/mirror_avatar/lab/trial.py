@@ -202,7 +202,7 @@ class LabTrial(RecordedTrial):
         self.engine = Engine(players, plan.graph, self.roles, self.labels, sinks)
         self.engine.reset(self.seed, self.n_ticks)
         self.writer.annotate(
-            {"player_seeds": self.engine.player_seeds, "players": _describe(players)}
+            {"player_seeds": self.engine.player_seeds, "players": [p.describe() for p in players]}
         )
         self._lock = threading.Lock()
         self._closed = False
@@ -312,10 +312,6 @@ class LabTrial(RecordedTrial):
             extra["metrics"] = {"error": f"{type(error).__name__}: {error}"}
         sidecar = self.writer.close(complete, extra)
         return sidecar["metadata"] | {"n_samples": sidecar["n_samples"]}
-
-
-def _describe(players: list[Player]) -> list[dict[str, Any]]:
-    return [player.describe() for player in players]
 
 
 def _group_sync(x: Array) -> float | None:
