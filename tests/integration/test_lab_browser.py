@@ -82,7 +82,7 @@ def drive(
     """
     began = time.monotonic()
     driven: dict[str, list[tuple[float, float]]] = {label: [] for label in pages}
-    n = 0
+    n, watched = 0, 0.0
     while (t := time.monotonic() - began) < seconds:
         for label, page in pages.items():
             x = sway(t, lags[label])
@@ -92,8 +92,9 @@ def drive(
         if shoot is not None and t > seconds / 2:
             shoot()
             shoot = None
-        if watch is not None and n % 15 == 0:
+        if watch is not None and t >= watched + 0.25:
             watch(t)
+            watched = t
         time.sleep(max(0.0, began + n / 60 - time.monotonic()))
     return {label: np.asarray(rows) for label, rows in driven.items()}
 
