@@ -19,8 +19,8 @@ two initial costates (`solve_interval`). The state and costates are integrated w
 RK4 (at least `N_SUBSTEPS` steps per interval, more when the interval is stiff, see
 `count_substeps`). Newton's method on the two terminal conditions starts from the exact solution
 of the problem with frozen damping, a linear problem whose solution map is tabulated once per
-parameter set (the record's ``linear`` field), and converges in two or three chord iterations
-(the problem is nearly linear over 0.03 s); at fast hand speeds, where it is not, a continuation
+parameter set (the record's ``linear`` field), and continues with chord iterations (the
+problem is nearly linear over 0.03 s); at fast hand speeds, where it is not, a continuation
 from the linear to the full problem takes over. The published closed-form quadratic-in-time
 approximation is **not** used: it gets velocity and control wrong by tens of percent. After the
 interval, the position is clipped to the playing range [-0.5, 0.5] and an outward velocity at the
@@ -68,9 +68,8 @@ the cost of one step. Within the playing range at the paper's parameters, `count
 for at most a few hundred (a partner crossing the whole range in one period)."""
 
 MAX_NEWTON = 8
-"""Most chord iterations on the initial costates per control interval (two or three suffice at
-human speeds); a continuation stage allows three times as many Newton iterations, halved steps
-included."""
+"""Most chord iterations on the initial costates per control interval; a continuation stage
+allows three times as many Newton iterations, halved steps included."""
 
 NEWTON_TOLERANCE = 1e-3
 """Newton stops when the control at t_k and the end velocity change by less than this fraction
@@ -512,8 +511,8 @@ def count_substeps(
     ``alpha x² + 3 beta y² - gamma``, bounded with the largest of the current, reference and
     partner speeds (at 9 units/s the damping is about 490/s, and RK4 with the minimum steps
     would be unstable). A step times the coupling rate stays within `STEP_STIFFNESS`, times the
-    damping within `DAMPING_STIFFNESS`: the control at t_k is then within 0.1 % of the exact
-    solution at hand speeds up to about 6 units/s.
+    damping within `DAMPING_STIFFNESS` (the tests check the resulting accuracy against a tight
+    solution of the problem).
     """
     speed = max(abs(y), abs(reference_velocity), abs(partner_velocity) if theta_v > 0.0 else 0.0)
     damping = p.alpha * x * x + 3.0 * p.beta * speed * speed - p.gamma
