@@ -3,7 +3,8 @@
 Every control period T the avatar observes its own state and its partner's (the mean of its
 neighbours), finds the cell of that state (`mirror_avatar.learning.discretisation`), applies the
 acceleration of the best action of that cell, held over T, to its own Haken-Kelso-Bunz end
-effector (`mirror_avatar.dynamics.integrate_hkb`, a few RK4 substeps), and reports that control.
+effector (`mirror_avatar.dynamics.integrate_hkb`, a few RK4 substeps), and reports that control
+(what it shares with the deep avatar is `mirror_avatar.learning.acceleration_player`).
 At play time the policy is greedy; `mirror_avatar.learning.training.QLearner` fills the Q-table.
 
 Follows METHODS section 7; the **choice**s it leaves open, all configurable:
@@ -21,16 +22,15 @@ Follows METHODS section 7; the **choice**s it leaves open, all configurable:
 A trained player is saved as one ``.npz`` file holding the Q-table, the bin edges, the action set
 and a JSON metadata string (format name ``mirror-avatar/cyber-player``), read without unpickling
 and with every value it holds checked against its range (`save_cyber_player`,
-`load_cyber_player`; the limits are `MAX_SUBSTEPS`, `MAX_ACTIONS`, `MAX_ACCELERATION`,
-`MAX_Q_CELLS`, `MAX_TRAINING_SESSIONS`, `mirror_avatar.dynamics.PARAMETER_RANGES` and those of
+`load_cyber_player`; the limits are `MAX_Q_CELLS`, `MAX_TRAINING_SESSIONS`, those of
+`mirror_avatar.learning.acceleration_player`, `mirror_avatar.dynamics.PARAMETER_RANGES` and
 `mirror_avatar.model_files`).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -43,6 +43,15 @@ from mirror_avatar.dynamics import FOLLOWER, HKBParams, Record, integrate_hkb
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import excerpt
+from mirror_avatar.learning.acceleration_player import (
+    DEFAULT_ACTIONS,
+    DEFAULT_SUBSTEPS,
+    AccelerationPlayer,
+    read_parameters,
+    read_reference,
+    read_target_counts,
+    reference_arrays,
+)
 from mirror_avatar.learning.discretisation import (
     FEATURES,
     N_FEATURES,
@@ -55,37 +64,17 @@ from mirror_avatar.model_files import (
     check_array,
     check_integer,
     check_object,
-    check_real,
     load_model,
     require_arrays,
     save_model,
 )
-from mirror_avatar.players.base import CYBER, Observation, Player, PlayerPlan, partner_state
-from mirror_avatar.players.reference import ReferenceTrack, draw_reference
-from mirror_avatar.seeds import entropy_of
-from mirror_avatar.signature import DEFAULT_BINS
-from mirror_avatar.trials import PLAYING_RANGE, Trial
+from mirror_avatar.players.base import CYBER, Observation, PlayerPlan, partner_state
+from mirror_avatar.trials import Trial
 
 if TYPE_CHECKING:
     import os
 
 Array = NDArray[np.float64]
-
-DEFAULT_ACTIONS = (-4.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 4.0)
-"""The 9 accelerations (units/s²) the avatar can choose from (**choice**, METHODS section 7)."""
-
-DEFAULT_SUBSTEPS = 3
-"""RK4 substeps per control period of the avatar's end effector (**choice**)."""
-
-MAX_SUBSTEPS = 64
-"""Most RK4 substeps per control period (**choice**: 20 times the default; each step's cost grows
-with them, and a model file asking for 10^9 would stall every step for most of a minute)."""
-
-MAX_ACTIONS = 64
-"""Most actions a player may choose from (**choice**: the default set has 9)."""
-
-MAX_ACCELERATION = 100.0
-"""Largest |action| (units/s²) (**choice**: 25 times the default set's largest, 4)."""
 
 MAX_Q_CELLS = 2**24
 """Most Q-table entries (states x actions) a model file may hold (**choice**: the largest default,
@@ -97,8 +86,6 @@ sessions)."""
 
 FORMAT_NAME = "mirror-avatar/cyber-player"
 FORMAT_VERSION = 1
-REFERENCE_PREFIX = "reference_"
-"""Prefix of the reference generator's arrays in a model file."""
 
 
 @njit(cache=True, nogil=True)
@@ -164,44 +151,25 @@ class GreedyPolicy:
     n_substeps: int
 
 
-class CyberPlayer(Player):
+class CyberPlayer(AccelerationPlayer):
     """A Q-learning avatar (see the module docstring).
 
     Parameters
     ----------
     discretisation
         State discretisation; default `make_default_discretisation()` (relative features).
-    actions
-        Accelerations (units/s²) to choose from, default `DEFAULT_ACTIONS`.
-    params
-        The avatar's own end effector (alpha, beta, gamma, omega, eta and period are used; eta
-        weighs the control effort in the reward).
-    n_substeps
-        RK4 substeps per period.
-    initial_position
-        Position (units) returned by `reset`; the avatar starts at rest.
-    reference
-        The avatar's own motion source for ``"reference"`` features: an `IMSGenerator` (a
-        reference velocity is drawn at each `reset` from its seed, as a virtual trainer does) or
-        a recorded `Trial`. Unused by the other feature sets.
-    label
-        A name for the player (recorded in sessions).
+    actions, params, n_substeps, initial_position, reference, label
+        As in `AccelerationPlayer`; ``reference`` is used by ``"reference"`` features only.
 
     Attributes
     ----------
     q_table_ : ndarray, shape (n_states, n_actions)
         The learned action values; set by `initialise_q` or a learner, or by loading a file.
-    training_ : dict
-        Summary of how the Q-table was trained (seed, sessions, hyper-parameters, last scores).
-    target_counts_ : ndarray, shape (DEFAULT_BINS.n,)
-        Velocity samples of the player it learned to imitate, per bin of the velocity signature
-        (`mirror_avatar.signature.count_velocities`), summed over the training sessions; its
-        signature is `target_ims`.
+    training_, target_counts_
+        As in `AccelerationPlayer`.
     """
 
     q_table_: Array
-    training_: dict[str, Any]
-    target_counts_: Array
 
     def __init__(
         self,
@@ -213,21 +181,13 @@ class CyberPlayer(Player):
         reference: IMSGenerator | Trial | None = None,
         label: str = "cyber player",
     ) -> None:
+        super().__init__(actions, params, n_substeps, initial_position, reference, label)
         self.discretisation = discretisation
-        self.actions = actions
-        self.params = params
-        self.n_substeps = n_substeps
-        self.initial_position = initial_position
-        self.reference = reference
-        self.label = label
-        self.period = params.period
-        self.last_control = math.nan
-        self.last_reference = math.nan
 
     @property
-    def stochastic(self) -> bool:  # type: ignore[override]
-        """True when every `reset` draws a fresh reference from a generator."""
-        return self.discretisation_.needs_reference and isinstance(self.reference, IMSGenerator)
+    def needs_reference(self) -> bool:
+        """True with ``"reference"`` features."""
+        return self.discretisation_.needs_reference
 
     @cached_property
     def discretisation_(self) -> Discretisation:
@@ -235,27 +195,11 @@ class CyberPlayer(Player):
         return self.discretisation or make_default_discretisation()
 
     @property
-    def actions_(self) -> Array:
-        """The action set as a float array, shape (n_actions,).
-
-        Raises
-        ------
-        InputError
-            Not 1 to `MAX_ACTIONS` finite accelerations within ±`MAX_ACCELERATION`.
-        """
-        actions = np.asarray(self.actions, dtype=np.float64)
-        limit = MAX_ACCELERATION
-        check_array("cyber player", "actions", actions, "float", (None,), -limit, limit)
-        check_integer("cyber player", "number of actions", actions.size, 1, MAX_ACTIONS)
-        return actions
-
-    @property
     def policy_(self) -> GreedyPolicy:
         """The greedy policy of the current Q-table."""
         if not hasattr(self, "q_table_"):
             raise InputError("cyber player", "has no Q-table: train it or load one first")
-        n_substeps = check_integer("cyber player", "n_substeps", self.n_substeps, 1, MAX_SUBSTEPS)
-        return GreedyPolicy(self.q_table_, self.discretisation_, self.actions_, n_substeps)
+        return GreedyPolicy(self.q_table_, self.discretisation_, self.actions_, self.substeps_)
 
     def initialise_q(self, random_state: int | np.random.Generator | None, scale: float) -> None:
         """Fill `q_table_` with independent uniform values in [-scale, 0] (seeded)."""
@@ -263,97 +207,41 @@ class CyberPlayer(Player):
         shape = (self.discretisation_.n_states, self.actions_.size)
         self.q_table_ = -scale * rng.random(shape)
 
-    def reset(self, seed: int | None = None) -> tuple[float, float]:
-        """Start a trial at rest at `initial_position`.
-
-        The greedy policy is deterministic; with ``"reference"`` features the reference velocity
-        is drawn from ``seed`` (fresh entropy if None), otherwise ``seed`` changes nothing.
-        """
+    def _prepare(self) -> None:
         policy = self.policy_
+        disc = policy.discretisation
         self._policy = (
             policy.q_table,
-            policy.discretisation.mode,
-            policy.discretisation.flat_edges,
-            policy.discretisation.offsets,
+            disc.mode,
+            disc.flat_edges,
+            disc.offsets,
             policy.actions,
-            self.params.record(),
             policy.n_substeps,
         )
-        self._references = self._reference_track(seed)
-        self._k = 0
-        self._state = (float(self.initial_position), 0.0)
-        self.last_control = self.last_reference = math.nan
-        return self._state
 
-    def _reference_track(self, seed: int | None) -> ReferenceTrack | None:
-        if not self.discretisation_.needs_reference:
-            return None
-        return ReferenceTrack(self._motion_source(), float(self.period), seed)
-
-    def _motion_source(self) -> IMSGenerator | Trial:
-        if self.reference is None:
-            raise InputError("cyber player", "reference features need a reference generator")
-        return self.reference
-
-    def step(self, observation: Observation) -> tuple[float, float]:
-        """Observe the neighbours, apply the greedy acceleration for one period, return (x, x')."""
-        q, mode, edges, offsets, actions, record, n_substeps = self._policy
-        if self._references is None:
-            r = 0.0
-        else:
-            r = self.last_reference = self._references[self._k]
-        self._k += 1
-        x, v, self.last_control = cyber_step(
+    def _advance(self, observation: Observation, reference: float) -> tuple[float, float, float]:
+        q, mode, edges, offsets, actions, n_substeps = self._policy
+        x, v = self._state
+        return cyber_step(
             q,
             mode,
             edges,
             offsets,
             actions,
-            record[0],
+            self._record[0],
             n_substeps,
-            self._state[0],
-            self._state[1],
+            x,
+            v,
             observation.positions,
             observation.velocities,
-            r,
+            reference,
         )
-        self._state = (x, v)
-        return self._state
-
-    def parameters(self) -> dict[str, float | int]:
-        """Return the dynamics parameters, as saved in a model file."""
-        return self.params.to_dict() | {
-            "n_substeps": int(self.n_substeps),
-            "initial_position": float(self.initial_position),
-        }
-
-    def target_ims(self) -> Array | None:
-        """Velocity signature (IMS) of the player it learned to imitate; None before training."""
-        counts = getattr(self, "target_counts_", None)
-        if counts is None or not counts.sum() > 0:
-            return None
-        return counts / counts.sum()
 
     def describe(self) -> dict[str, Any]:
-        """Class, label, parameters, feature set and, once trained, its target's IMS.
+        """Class, label, parameters, feature set and, once trained, its target's IMS."""
+        return super().describe() | {"features": self.discretisation_.features}
 
-        ``target_ims`` lets `mirror_avatar.metrics.session_metrics` score how close the player's
-        own velocity signature stays to its target's in any session it plays.
-        """
-        target = self.target_ims()
-        return (
-            super().describe()
-            | {"params": self.parameters(), "features": self.discretisation_.features}
-            | ({} if target is None else {"target_ims": target.tolist()})
-        )
-
-    def plan(self, seed: int, n_steps: int) -> PlayerPlan:
-        """Return the start, end effector, policy and the reference `reset(seed)` draws."""
-        reference = None
-        if self.discretisation_.needs_reference:
-            rng = np.random.default_rng(entropy_of(seed))
-            reference = draw_reference(self._motion_source(), n_steps, self.period, rng)
-        start = (float(self.initial_position), 0.0)
+    def _policy_plan(self, start: tuple[float, float], reference: Array | None) -> PlayerPlan:
         return PlayerPlan(CYBER, start, self.params, reference=reference, policy=self.policy_)
 
     def save(self, path: str | os.PathLike[str]) -> Path:
@@ -406,12 +294,8 @@ def cyber_player_arrays(
     }
     if hasattr(player, "target_counts_"):
         arrays["target_counts"] = player.target_counts_
-    if disc.needs_reference:
-        if not isinstance(player.reference, IMSGenerator):
-            raise InputError(source, "only a reference IMS generator can be saved with the player")
-        reference_arrays, metadata["reference"] = player.reference.to_arrays()
-        arrays |= {f"{REFERENCE_PREFIX}{k}": a for k, a in reference_arrays.items()}
-    return arrays, metadata
+    motion_arrays, motion_metadata = reference_arrays(player, source)
+    return arrays | motion_arrays, metadata | motion_metadata
 
 
 def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
@@ -457,7 +341,7 @@ def cyber_player_from_arrays(
     parameters = check_object(path, "parameters", metadata.get("parameters"))
     try:
         disc = Discretisation(features, tuple(np.split(edges, np.cumsum(counts)[:-1])))
-        player = _player_from_parameters(path, disc, actions, parameters)
+        player = CyberPlayer(disc, actions, **read_parameters(path, parameters))
         n_actions = player.actions_.size
     except InputError as error:
         raise InputError(path, error.problem) from None
@@ -469,26 +353,16 @@ def cyber_player_from_arrays(
             f"Q-table shape {q.shape} does not match {disc.n_states} states x {n_actions} actions",
         )
     player.q_table_ = q.astype(np.float64)
-    player.training_ = _check_training(path, metadata.get("training", {}))
-    if "target_counts" in arrays:
-        counts_shape = (DEFAULT_BINS.n,)
-        target = check_array(
-            path, "target_counts", arrays["target_counts"], "number", counts_shape, 0
-        )
-        player.target_counts_ = target.astype(np.float64)
+    player.training_ = check_training(path, metadata.get("training", {}))
+    target = read_target_counts(path, arrays)
+    if target is not None:
+        player.target_counts_ = target
     if disc.needs_reference:
-        if not isinstance(metadata.get("reference"), dict):
-            raise InputError(path, "reference features but no reference generator in the file")
-        prefixed = {
-            k.removeprefix(REFERENCE_PREFIX): a
-            for k, a in arrays.items()
-            if k.startswith(REFERENCE_PREFIX)
-        }
-        player.reference = IMSGenerator.from_arrays(prefixed, metadata["reference"], path)
+        player.reference = read_reference(path, arrays, metadata)
     return player
 
 
-def _check_training(path: Source, training: object) -> dict[str, Any]:
+def check_training(path: Source, training: object) -> dict[str, Any]:
     """Return a file's training summary once the entries play and training read are valid."""
     summary = check_object(path, "training", training)
     role = summary.get("role")
@@ -497,35 +371,3 @@ def _check_training(path: Source, training: object) -> dict[str, Any]:
     if "n_sessions" in summary:
         check_integer(path, "n_sessions", summary["n_sessions"], 0, MAX_TRAINING_SESSIONS)
     return summary
-
-
-def _player_from_parameters(
-    path: Source,
-    disc: Discretisation,
-    actions: ArrayLike,
-    parameters: dict[str, Any],
-) -> CyberPlayer:
-    """Build the player a file's ``parameters`` describe (version 1 files lack theta_p).
-
-    Raises
-    ------
-    InputError
-        An unknown or missing parameter, or one out of its range (`HKBParams` checks its own).
-    """
-    own = ("n_substeps", "initial_position")
-    unknown = sorted(parameters.keys() - {f.name for f in fields(HKBParams)} - set(own))
-    if unknown:
-        raise InputError(path, f"unknown parameter {excerpt(unknown[0])}")
-    missing = [name for name in ("omega", *own) if name not in parameters]
-    if missing:
-        raise InputError(path, f"parameters lack {missing[0]}")
-    dynamics = {"theta_p": 0.0} | {k: v for k, v in parameters.items() if k not in own}
-    return CyberPlayer(
-        disc,
-        actions,
-        params=HKBParams(**dynamics),
-        n_substeps=check_integer(path, "n_substeps", parameters["n_substeps"], 1, MAX_SUBSTEPS),
-        initial_position=check_real(
-            path, "initial_position", parameters["initial_position"], *PLAYING_RANGE
-        ),
-    )
