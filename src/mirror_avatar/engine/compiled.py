@@ -1,10 +1,10 @@
-"""One compiled loop for a whole session of built-in players (virtual trainer, recording, cyber).
+"""One compiled loop for a whole session of built-in players (virtual trainer, recording, avatars).
 
 Each player's `mirror_avatar.players.base.PlayerPlan` is packed into arrays (`pack_session`);
 `run_packed` then advances all players sample by sample in compiled code, calling each kind's own
-step kernel (`virtual_trainer_step`, `recorded_step`, `cyber_step`, the kernels the players'
-Python ``step`` methods call) with the neighbours gathered by `gather_neighbours`, and records
-into one array exactly what `mirror_avatar.engine.loop.Engine` records.
+step kernel (`virtual_trainer_step`, `recorded_step`, `cyber_step`, `deep_step`: the kernels the
+players' Python ``step`` methods call) with the neighbours gathered by `gather_neighbours`, and
+records into one array exactly what `mirror_avatar.engine.loop.Engine` records.
 """
 
 from __future__ import annotations
@@ -16,12 +16,14 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from mirror_avatar.deep.player import NetworkPolicy, deep_step
 from mirror_avatar.dynamics import records
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import Graph
 from mirror_avatar.learning.agent import GreedyPolicy, cyber_step
 from mirror_avatar.players.base import (
     CYBER,
+    DEEP,
     RECORDED,
     VIRTUAL_TRAINER,
     PlayerPlan,
@@ -36,7 +38,7 @@ Ints = NDArray[np.int64]
 
 @dataclass(frozen=True, eq=False)
 class PackedSession:
-    """A session's players as the arrays `run_packed` reads (N players, C cyber players).
+    """A session's players as the arrays `run_packed` reads (N players, C cyber, D deep players).
 
     Attributes
     ----------
@@ -49,11 +51,13 @@ class PackedSession:
     tracks, track_lengths
         Recordings on the control grid, shape (N, 2, L), and each one's length, shape (N,).
     slots
-        Each player's row in the cyber tables (-1 for the others), shape (N,).
+        Each player's row in its kind's tables (cyber or deep; -1 for the others), shape (N,).
     q_tables, modes, edges, offsets, actions, n_actions, substeps
         The cyber policies: Q-tables padded with -inf to shape (C, S, A), feature codes (C,),
         bin edges (C, E), edge offsets (C, 5), actions (C, A), action counts (C,) and RK4
         substeps (C,).
+    networks
+        The deep policies (`pack_networks`).
     neighbour_index, neighbour_count
         Row k lists player k's neighbours in its first ``neighbour_count[k]`` entries, (N, N).
     starts
@@ -73,6 +77,7 @@ class PackedSession:
     actions: Array
     n_actions: Ints
     substeps: Ints
+    networks: PackedNetworks
     neighbour_index: Ints
     neighbour_count: Ints
     starts: Array
@@ -86,8 +91,12 @@ def pack_session(plans: Sequence[PlayerPlan], graph: Graph, n_steps: int) -> Pac
         if plan.reference is not None:
             references[i] = plan.reference[:n_steps]
     tracks, lengths = _pack_tracks(plans)
-    policies = [plan.policy for plan in plans if plan.kind == CYBER and plan.policy is not None]
-    slots = np.cumsum([plan.kind == CYBER for plan in plans]) - 1
+    policies = [plan.policy for plan in plans if plan.kind == CYBER]
+    networks = [plan.policy for plan in plans if plan.kind == DEEP]
+    slots = np.full(n, -1, dtype=np.int64)
+    for kind in (CYBER, DEEP):
+        of_kind = [i for i, plan in enumerate(plans) if plan.kind == kind]
+        slots[of_kind] = np.arange(len(of_kind))
     neighbour_index = np.zeros((n, n), dtype=np.int64)
     neighbour_count = np.zeros(n, dtype=np.int64)
     for k in range(n):
@@ -100,8 +109,9 @@ def pack_session(plans: Sequence[PlayerPlan], graph: Graph, n_steps: int) -> Pac
         references,
         tracks,
         lengths,
-        np.where([plan.kind == CYBER for plan in plans], slots, -1).astype(np.int64),
-        *_pack_policies(policies),
+        slots,
+        *_pack_policies(policies),  # type: ignore[arg-type]
+        pack_networks(networks),  # type: ignore[arg-type]
         neighbour_index,
         neighbour_count,
         np.array([plan.start for plan in plans], dtype=np.float64),
@@ -142,6 +152,37 @@ def _pack_policies(
     return q_tables, modes, edges, offsets, actions, n_actions, substeps
 
 
+PackedNetworks = tuple[Array, Ints, Ints, Ints, Ints, Array, Ints, Ints]
+"""The deep policies of a session (D of them) as `pack_networks` returns them."""
+
+
+def pack_networks(networks: Sequence[NetworkPolicy]) -> PackedNetworks:
+    """Pack deep policies for `run_packed`, each row padded past its own length.
+
+    Returns parameters (D, P), layer widths (D, L), width counts (D,), neighbour slots (D,),
+    reference flags (D,), actions (D, A), action counts (D,) and RK4 substeps (D,).
+    """
+    count = len(networks)
+    weights = np.zeros((count, max([n.weights.size for n in networks], default=1)))
+    sizes = np.zeros((count, max([n.sizes.size for n in networks], default=1)), dtype=np.int64)
+    n_actions = np.array([n.actions.size for n in networks], dtype=np.int64)
+    actions = np.zeros((count, max(n_actions, default=1)))
+    for d, network in enumerate(networks):
+        weights[d, : network.weights.size] = network.weights
+        sizes[d, : network.sizes.size] = network.sizes
+        actions[d, : network.actions.size] = network.actions
+    return (
+        weights,
+        sizes,
+        np.array([n.sizes.size for n in networks], dtype=np.int64),
+        np.array([n.n_slots for n in networks], dtype=np.int64),
+        np.array([n.use_reference for n in networks], dtype=np.int64),
+        actions,
+        n_actions,
+        np.array([n.n_substeps for n in networks], dtype=np.int64),
+    )
+
+
 def run_plans(plans: Sequence[PlayerPlan], graph: Graph, n_samples: int) -> Array:
     """Play a session of ``n_samples`` samples; return its channels, shape (4, N, n_samples).
 
@@ -166,6 +207,7 @@ def run_plans(plans: Sequence[PlayerPlan], graph: Graph, n_samples: int) -> Arra
         packed.actions,
         packed.n_actions,
         packed.substeps,
+        packed.networks,
         packed.neighbour_index,
         packed.neighbour_count,
         packed.starts,
@@ -189,6 +231,7 @@ def run_packed(
     actions: Array,
     n_actions: Ints,
     substeps: Ints,
+    networks: PackedNetworks,
     neighbour_index: Ints,
     neighbour_count: Ints,
     starts: Array,
@@ -217,6 +260,10 @@ def run_packed(
                 )
             elif kinds[i] == RECORDED:
                 x, v = recorded_step(tracks[i, :, : track_lengths[i]], k)
+            elif kinds[i] == DEEP:
+                x, v, u = _deep_player_step(
+                    networks, slots[i], params[i], x, v, xs[:m], vs[:m], reference
+                )
             else:
                 c = slots[i]
                 x, v, u = cyber_step(
@@ -237,3 +284,32 @@ def run_packed(
             out[1, i, k + 1] = v
             out[2, i, k] = u
             out[3, i, k] = reference
+
+
+@njit(cache=True, nogil=True)
+def _deep_player_step(
+    networks: PackedNetworks,
+    d: int,
+    p: NDArray[np.void],
+    x: float,
+    v: float,
+    positions: Array,
+    velocities: Array,
+    reference: float,
+) -> tuple[float, float, float]:
+    """`deep_step` of deep player ``d`` of the packed networks."""
+    weights, sizes, n_sizes, n_slots, use_reference, actions, n_actions, substeps = networks
+    return deep_step(
+        weights[d],
+        sizes[d, : n_sizes[d]],
+        n_slots[d],
+        use_reference[d] != 0,
+        actions[d, : n_actions[d]],
+        p,
+        substeps[d],
+        x,
+        v,
+        positions,
+        velocities,
+        reference,
+    )

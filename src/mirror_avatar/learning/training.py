@@ -111,6 +111,8 @@ class ImitationTask:
     ----------
     partner_x, partner_v
         Mean position (units) and velocity (units/s) of the target's neighbours, shape (n,).
+    neighbour_x, neighbour_v
+        The neighbours' own positions and velocities, shape (m, n).
     target_x, target_v, target_r
         The target's positions, velocities and reference velocities (units/s; its last,
         undefined reference repeats the one before; NaN throughout when it has none).
@@ -118,6 +120,8 @@ class ImitationTask:
 
     partner_x: Array
     partner_v: Array
+    neighbour_x: Array
+    neighbour_v: Array
     target_x: Array
     target_v: Array
     target_r: Array
@@ -146,7 +150,8 @@ class ImitationTask:
         reference = session.references[target].copy()
         if reference.size > 1 and np.isnan(reference[-1]):
             reference[-1] = reference[-2]
-        return cls(mean_track(x[:-1]), mean_track(v[:-1]), x[-1], v[-1], reference)
+        x_seen, v_seen = np.ascontiguousarray(x[:-1]), np.ascontiguousarray(v[:-1])
+        return cls(mean_track(x_seen), mean_track(v_seen), x_seen, v_seen, x[-1], v[-1], reference)
 
 
 PolicyArguments = tuple[Array, int, Array, NDArray[np.int64], Array, Any, int]
@@ -241,26 +246,23 @@ def score_imitation(
     return np.array([r for r, _ in scores]), np.array([e for _, e in scores])
 
 
-class QLearner:
-    """Tabular Q-learning of a `CyberPlayer` from a stream of sessions.
+class SessionLearner:
+    """What every learner from a stream of sessions shares (the tabular and the deep one).
+
+    A subclass gives the policy's own steps: `_initialise` (a fresh policy, seeded),
+    `_begin` (before a batch of sessions), `_play` (learn from one session in the target's
+    place), `_hyperparameters` (recorded in the summary) and `_check` (its own options).
 
     Parameters
     ----------
     player
-        The cyber player to train, in place. Its Q-table is created (seeded) when training
-        starts unless it has one (a loaded checkpoint: training then continues from it,
-        counting sessions, and so epsilon, from its ``training_["n_sessions"]``).
+        The avatar to train, in place. Its policy is created (seeded) when training starts
+        unless it has one (a loaded checkpoint: training then continues from it, counting
+        sessions, and so epsilon, from its ``training_["n_sessions"]``).
     target
         Index of the target player in every session: the one the avatar learns to imitate.
-    learning_rate
-        Step size alpha of the Q update (**choice**).
-    discount
-        Discount factor gamma (**choice**; 0.95 looks about 20 periods = 0.6 s ahead).
     epsilon
         Callable giving the exploration probability of session i; must not increase with i.
-        Default `ExponentialEpsilon()`.
-    q_init_scale
-        Initial Q values are uniform in [-q_init_scale, 0] (**choice**).
     block_size
         Sessions per point of the learning curve.
     checkpoint_every, checkpoint_path
@@ -268,8 +270,8 @@ class QLearner:
     progress
         Show a tqdm progress bar: True, False, or None (only on a terminal).
     random_state
-        Seed of the initial Q-table and of exploration; the same seed and sessions give the same
-        Q-table. None draws fresh entropy (recorded in ``player.training_["seed"]``).
+        Seed of the initial policy and of exploration; the same seed and sessions give the same
+        policy. None draws fresh entropy (recorded in ``player.training_["seed"]``).
 
     Attributes
     ----------
@@ -291,37 +293,31 @@ class QLearner:
 
     def __init__(
         self,
-        player: CyberPlayer,
-        target: int = 1,
-        learning_rate: float = 0.1,
-        discount: float = 0.95,
-        epsilon: Callable[[int], float] | None = None,
-        q_init_scale: float = 1e-3,
-        block_size: int = 10,
-        checkpoint_every: int | None = None,
-        checkpoint_path: str | os.PathLike[str] | None = None,
-        progress: bool | None = None,
-        random_state: int | None = None,
+        player: Any,
+        target: int,
+        epsilon: Callable[[int], float],
+        block_size: int,
+        checkpoint_every: int | None,
+        checkpoint_path: str | os.PathLike[str] | None,
+        progress: bool | None,
+        random_state: int | None,
     ) -> None:
         self.player = player
         self.target = target
-        self.learning_rate = learning_rate
-        self.discount = discount
         self.epsilon = epsilon
-        self.q_init_scale = q_init_scale
         self.block_size = block_size
         self.checkpoint_every = checkpoint_every
         self.checkpoint_path = checkpoint_path
         self.progress = progress
         self.random_state = random_state
 
-    def fit(self, sessions: Iterable[Session], total: int | None = None) -> QLearner:
+    def fit(self, sessions: Iterable[Session], total: int | None = None) -> Any:
         """Start training afresh (seeded) and learn from ``sessions``; see `partial_fit`."""
         self._validate()
         self._start()
         return self.partial_fit(sessions, total)
 
-    def partial_fit(self, sessions: Iterable[Session], total: int | None = None) -> QLearner:
+    def partial_fit(self, sessions: Iterable[Session], total: int | None = None) -> Any:
         """Learn from more sessions, continuing where the last call stopped.
 
         Parameters
@@ -333,14 +329,14 @@ class QLearner:
 
         Returns
         -------
-        QLearner
+        SessionLearner
             ``self``, with `learning_curve_` and `n_sessions_` updated and ``player.training_``
             summarising the training.
         """
         self._validate()
         if not hasattr(self, "n_sessions_"):
             self._start()
-        self._policy = policy_arguments(self.player)
+        self._begin()
         block: list[tuple[float, float]] = []
         disable = None if self.progress is None else not self.progress
         with tqdm(total=total, disable=disable, unit="session") as bar:
@@ -360,8 +356,7 @@ class QLearner:
     def _learn(self, session: Session) -> tuple[float, float]:
         """Learn from one session: the step `fit` and `partial_fit` share."""
         task = ImitationTask.from_session(session, self.target, self.player.period)
-        eps = self._epsilon(self.epsilon or ExponentialEpsilon())
-        scores = play_task(self._policy, task, self.learning_rate, self.discount, eps, self.rng_)
+        scores = self._play(task, self._epsilon(self.epsilon))
         self.player.target_counts_ += count_velocities(session.velocities[self.target])
         self.n_sessions_ += 1
         return scores
@@ -369,16 +364,15 @@ class QLearner:
     def summary(self) -> dict[str, Any]:
         """JSON-serialisable summary of the training so far (saved with the model)."""
         curve = self.learning_curve_
-        return {
-            "seed": self.seed_,
-            "n_sessions": self.n_sessions_,
-            "learning_rate": self.learning_rate,
-            "discount": self.discount,
-            "epsilon": repr(self.epsilon or ExponentialEpsilon()),
-            "q_init_scale": self.q_init_scale,
-            "final_mean_reward": curve.mean_reward[-1] if curve.mean_reward else None,
-            "final_rms": curve.rms[-1] if curve.rms else None,
-        }
+        return (
+            {"seed": self.seed_, "n_sessions": self.n_sessions_}
+            | self._hyperparameters()
+            | {
+                "epsilon": repr(self.epsilon),
+                "final_mean_reward": curve.mean_reward[-1] if curve.mean_reward else None,
+                "final_rms": curve.rms[-1] if curve.rms else None,
+            }
+        )
 
     def _epsilon(self, schedule: Callable[[int], float]) -> float:
         eps = float(schedule(self.n_sessions_))
@@ -392,10 +386,7 @@ class QLearner:
         return eps
 
     def _validate(self) -> None:
-        if not 0.0 < self.learning_rate <= 1.0:
-            raise InputError("learning_rate", f"must be in (0, 1], got {self.learning_rate}")
-        if not 0.0 <= self.discount < 1.0:
-            raise InputError("discount", f"must be in [0, 1), got {self.discount}")
+        self._check()
         if self.block_size < 1:
             raise InputError("block_size", f"must be at least 1, got {self.block_size}")
         if self.checkpoint_every is not None and self.checkpoint_path is None:
@@ -404,9 +395,8 @@ class QLearner:
     def _start(self) -> None:
         sequence = np.random.SeedSequence(self.random_state)
         self.seed_ = int(sequence.entropy)  # type: ignore[arg-type]
-        q_seed, explore_seed = sequence.spawn(2)
-        if not hasattr(self.player, "q_table_"):
-            self.player.initialise_q(np.random.default_rng(q_seed), self.q_init_scale)
+        policy_seed, explore_seed = sequence.spawn(2)
+        self._initialise(policy_seed)
         if not hasattr(self.player, "target_counts_"):
             self.player.target_counts_ = np.zeros(DEFAULT_BINS.n)
         self.rng_ = np.random.default_rng(explore_seed)
@@ -426,4 +416,102 @@ class QLearner:
     def _maybe_checkpoint(self) -> None:
         if self.checkpoint_every and self.n_sessions_ % self.checkpoint_every == 0:
             self.player.training_ = self.summary()
-            self.player.save(self.checkpoint_path)  # type: ignore[arg-type]
+            self.player.save(self.checkpoint_path)
+
+    def _check(self) -> None:
+        """Refuse options out of range (raise `InputError`)."""
+        raise NotImplementedError
+
+    def _initialise(self, seed: np.random.SeedSequence) -> None:
+        """Give the player a fresh policy from ``seed`` unless it has one."""
+        raise NotImplementedError
+
+    def _begin(self) -> None:
+        """Prepare to learn from a batch of sessions."""
+        raise NotImplementedError
+
+    def _play(self, task: ImitationTask, epsilon: float) -> tuple[float, float]:
+        """Learn from one session; return its mean reward per step and RMS to the target."""
+        raise NotImplementedError
+
+    def _hyperparameters(self) -> dict[str, Any]:
+        """Return the learner's own settings, recorded in `summary`."""
+        raise NotImplementedError
+
+
+class QLearner(SessionLearner):
+    """Tabular Q-learning of a `CyberPlayer` from a stream of sessions.
+
+    Parameters
+    ----------
+    player
+        The cyber player to train, in place (its Q-table is its policy).
+    target
+        Index of the target player in every session.
+    learning_rate
+        Step size alpha of the Q update (**choice**).
+    discount
+        Discount factor gamma (**choice**; 0.95 looks about 20 periods = 0.6 s ahead).
+    epsilon
+        Exploration schedule; default `ExponentialEpsilon()`.
+    q_init_scale
+        Initial Q values are uniform in [-q_init_scale, 0] (**choice**).
+    block_size, checkpoint_every, checkpoint_path, progress, random_state
+        As in `SessionLearner`.
+
+    Attributes
+    ----------
+    learning_curve_, n_sessions_, epsilon_, seed_
+        As in `SessionLearner`.
+    """
+
+    def __init__(
+        self,
+        player: CyberPlayer,
+        target: int = 1,
+        learning_rate: float = 0.1,
+        discount: float = 0.95,
+        epsilon: Callable[[int], float] | None = None,
+        q_init_scale: float = 1e-3,
+        block_size: int = 10,
+        checkpoint_every: int | None = None,
+        checkpoint_path: str | os.PathLike[str] | None = None,
+        progress: bool | None = None,
+        random_state: int | None = None,
+    ) -> None:
+        super().__init__(
+            player,
+            target,
+            epsilon or ExponentialEpsilon(),
+            block_size,
+            checkpoint_every,
+            checkpoint_path,
+            progress,
+            random_state,
+        )
+        self.learning_rate = learning_rate
+        self.discount = discount
+        self.q_init_scale = q_init_scale
+
+    def _check(self) -> None:
+        if not 0.0 < self.learning_rate <= 1.0:
+            raise InputError("learning_rate", f"must be in (0, 1], got {self.learning_rate}")
+        if not 0.0 <= self.discount < 1.0:
+            raise InputError("discount", f"must be in [0, 1), got {self.discount}")
+
+    def _initialise(self, seed: np.random.SeedSequence) -> None:
+        if not hasattr(self.player, "q_table_"):
+            self.player.initialise_q(np.random.default_rng(seed), self.q_init_scale)
+
+    def _begin(self) -> None:
+        self._policy = policy_arguments(self.player)
+
+    def _play(self, task: ImitationTask, epsilon: float) -> tuple[float, float]:
+        return play_task(self._policy, task, self.learning_rate, self.discount, epsilon, self.rng_)
+
+    def _hyperparameters(self) -> dict[str, Any]:
+        return {
+            "learning_rate": self.learning_rate,
+            "discount": self.discount,
+            "q_init_scale": self.q_init_scale,
+        }

@@ -33,11 +33,12 @@ from mirror_avatar.dynamics import CONTROL_PERIOD, HKBParams
 from mirror_avatar.trials import PLAYING_RANGE
 
 if TYPE_CHECKING:
+    from mirror_avatar.deep.player import NetworkPolicy
     from mirror_avatar.learning.agent import GreedyPolicy
 
 Array = NDArray[np.float64]
 
-VIRTUAL_TRAINER, RECORDED, CYBER = range(3)
+VIRTUAL_TRAINER, RECORDED, CYBER, DEEP = range(4)
 """Codes of the player kinds the compiled batch loop runs (`PlayerPlan.kind`)."""
 
 
@@ -74,7 +75,7 @@ class PlayerPlan:
     Attributes
     ----------
     kind
-        `VIRTUAL_TRAINER`, `RECORDED` or `CYBER`.
+        `VIRTUAL_TRAINER`, `RECORDED`, `CYBER` or `DEEP`.
     start
         Initial position (units) and velocity (units/s).
     params
@@ -84,7 +85,7 @@ class PlayerPlan:
     track
         A recording's positions and velocities on the control grid, shape (2, L), else None.
     policy
-        A cyber player's greedy policy, else None.
+        A cyber player's greedy policy (`CYBER`: a Q-table; `DEEP`: a network), else None.
     """
 
     kind: int
@@ -92,7 +93,7 @@ class PlayerPlan:
     params: HKBParams | None = None
     reference: Array | None = None
     track: Array | None = None
-    policy: GreedyPolicy | None = None
+    policy: GreedyPolicy | NetworkPolicy | None = None
 
 
 class Player:

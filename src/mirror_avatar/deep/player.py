@@ -1,0 +1,338 @@
+"""The deep cyber player: a Q-network chooses the acceleration of its HKB end effector.
+
+Follows METHODS section 8's deep cyber player: every period T the avatar encodes its own state
+and its neighbours' (`mirror_avatar.deep.features.encode`: "dynamic input", padded slots), takes
+the action of highest value under its network (`mirror_avatar.deep.network`; hidden layers
+100-50-50 by default) and holds that acceleration over T on its own end effector, exactly as
+the tabular `mirror_avatar.learning.agent.CyberPlayer` does with its Q-table (what they share is
+`mirror_avatar.learning.acceleration_player.AccelerationPlayer`). `deep_step` is the compiled
+step, called by `DeepCyberPlayer.step` and by the compiled batch loop; the DQN learner is
+`mirror_avatar.deep.training.DQNLearner`.
+
+A trained player is one ``.npz`` file (format ``mirror-avatar/deep-cyber-player``): the flat
+network parameters, the layer widths, the action set and JSON metadata (dynamics, input
+layout, training summary and seed), read without unpickling and checked value by value
+(`load_deep_cyber_player`; limits `MAX_UNITS`, `MAX_LAYERS`, `MAX_SLOTS`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numba import njit
+from numpy.typing import ArrayLike, NDArray
+
+from mirror_avatar.deep.features import count_features, encode
+from mirror_avatar.deep.network import count_parameters, greedy_action, initial_parameters
+from mirror_avatar.dynamics import FOLLOWER, HKBParams, Record, integrate_hkb
+from mirror_avatar.errors import InputError
+from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.learning.acceleration_player import (
+    DEFAULT_ACTIONS,
+    DEFAULT_SUBSTEPS,
+    AccelerationPlayer,
+    read_parameters,
+    read_reference,
+    read_target_counts,
+    reference_arrays,
+)
+from mirror_avatar.learning.agent import check_training
+from mirror_avatar.model_files import (
+    Source,
+    check_array,
+    check_integer,
+    check_object,
+    load_model,
+    save_model,
+)
+from mirror_avatar.players.base import DEEP, Observation, PlayerPlan
+from mirror_avatar.trials import Trial
+
+Array = NDArray[np.float64]
+Ints = NDArray[np.int64]
+
+HIDDEN_LAYERS = (100, 50, 50)
+"""Widths of the hidden layers (METHODS section 8)."""
+
+MAX_UNITS = 1024
+"""Widest layer a model file may declare (**choice**: 10 times the default's widest)."""
+
+MAX_LAYERS = 8
+"""Most hidden layers a model file may declare (**choice**)."""
+
+MAX_SLOTS = 32
+"""Most neighbour slots a model file may declare (**choice**: a group of 33)."""
+
+FORMAT_NAME = "mirror-avatar/deep-cyber-player"
+FORMAT_VERSION = 1
+
+
+@njit(cache=True, nogil=True)
+def deep_step(
+    weights: Array,
+    sizes: Ints,
+    n_slots: int,
+    use_reference: bool,
+    actions: Array,
+    p: Record,
+    n_substeps: int,
+    x: float,
+    v: float,
+    positions: Array,
+    velocities: Array,
+    reference: float,
+) -> tuple[float, float, float]:
+    """Apply the greedy action of the network for one period given the neighbours at t_k.
+
+    Parameters
+    ----------
+    weights, sizes
+        The network (`mirror_avatar.deep.network`).
+    n_slots, use_reference
+        The input layout (`mirror_avatar.deep.features`).
+    actions
+        Accelerations (units/s²), shape (sizes[-1],).
+    p, n_substeps
+        The end effector, a record of `mirror_avatar.dynamics.PARAMS_DTYPE`, and its RK4 substeps.
+    x, v
+        Own position (units) and velocity (units/s) at t_k.
+    positions, velocities
+        The neighbours' positions and velocities at t_k, shape (m,).
+    reference
+        Own reference velocity (units/s), read when ``use_reference``.
+
+    Returns
+    -------
+    tuple of float
+        Position and velocity at t_k + T, and the acceleration applied (units/s²).
+    """
+    features = np.empty(sizes[0])
+    encode(x, v, reference, positions, velocities, n_slots, use_reference, features)
+    u = actions[greedy_action(weights, sizes, features)]
+    x, v = integrate_hkb(x, v, u, p, n_substeps)
+    return x, v, u
+
+
+@dataclass(frozen=True, eq=False)
+class NetworkPolicy:
+    """What a trained deep cyber player plays: its network, input layout and actions.
+
+    Attributes
+    ----------
+    weights
+        Flat network parameters (`mirror_avatar.deep.network`).
+    sizes
+        Layer widths from input to output, shape (n_layers + 1,).
+    n_slots, use_reference
+        The input layout (`mirror_avatar.deep.features`).
+    actions
+        Accelerations (units/s²), shape (sizes[-1],).
+    n_substeps
+        RK4 substeps per period.
+    """
+
+    weights: Array
+    sizes: Ints
+    n_slots: int
+    use_reference: bool
+    actions: Array
+    n_substeps: int
+
+
+class DeepCyberPlayer(AccelerationPlayer):
+    """A deep Q-network avatar (see the module docstring).
+
+    Parameters
+    ----------
+    hidden
+        Widths of the hidden layers, default `HIDDEN_LAYERS`.
+    n_slots
+        Neighbour slots of the input (0 for a dyad; N - 1 in a group of N).
+    use_reference
+        Whether the input holds the avatar's own reference velocity (an avatar that leads); it
+        is drawn from ``reference``.
+    actions, params, n_substeps, initial_position, reference, label
+        As in `AccelerationPlayer`.
+
+    Attributes
+    ----------
+    weights_ : ndarray
+        The network's flat parameters; set by `initialise_network`, a learner or a file.
+    training_, target_counts_
+        As in `AccelerationPlayer`.
+    """
+
+    weights_: Array
+
+    def __init__(
+        self,
+        hidden: Sequence[int] = HIDDEN_LAYERS,
+        n_slots: int = 0,
+        use_reference: bool = False,
+        actions: ArrayLike = DEFAULT_ACTIONS,
+        params: HKBParams = FOLLOWER,
+        n_substeps: int = DEFAULT_SUBSTEPS,
+        initial_position: float = 0.0,
+        reference: IMSGenerator | Trial | None = None,
+        label: str = "deep cyber player",
+    ) -> None:
+        super().__init__(actions, params, n_substeps, initial_position, reference, label)
+        self.hidden = tuple(hidden)
+        self.n_slots = n_slots
+        self.use_reference = use_reference
+
+    @property
+    def needs_reference(self) -> bool:
+        """True when the input holds the avatar's own reference velocity."""
+        return bool(self.use_reference)
+
+    @property
+    def sizes_(self) -> Ints:
+        """Layer widths from input to output, shape (len(hidden) + 2,)."""
+        n_inputs = count_features(self.n_slots, self.use_reference)
+        return np.array([n_inputs, *self.hidden, self.actions_.size], dtype=np.int64)
+
+    @property
+    def policy_(self) -> NetworkPolicy:
+        """The greedy policy of the current network."""
+        if not hasattr(self, "weights_"):
+            raise InputError("deep cyber player", "has no network: train it or load one first")
+        return NetworkPolicy(
+            self.weights_,
+            self.sizes_,
+            int(self.n_slots),
+            self.needs_reference,
+            self.actions_,
+            self.substeps_,
+        )
+
+    def initialise_network(self, random_state: int | np.random.Generator | None) -> None:
+        """Draw `weights_` afresh (`mirror_avatar.deep.network.initial_parameters`, seeded)."""
+        self.weights_ = initial_parameters(self.sizes_, np.random.default_rng(random_state))
+
+    def _prepare(self) -> None:
+        self._policy = self.policy_
+
+    def _advance(self, observation: Observation, reference: float) -> tuple[float, float, float]:
+        policy = self._policy
+        x, v = self._state
+        return deep_step(
+            policy.weights,
+            policy.sizes,
+            policy.n_slots,
+            policy.use_reference,
+            policy.actions,
+            self._record[0],
+            policy.n_substeps,
+            x,
+            v,
+            observation.positions,
+            observation.velocities,
+            reference,
+        )
+
+    def describe(self) -> dict[str, Any]:
+        """Class, label, parameters, network layout and, once trained, its target's IMS."""
+        return super().describe() | {"network": self._layout()}
+
+    def _layout(self) -> dict[str, Any]:
+        return {
+            "hidden": list(self.hidden),
+            "n_slots": int(self.n_slots),
+            "use_reference": self.needs_reference,
+        }
+
+    def _policy_plan(self, start: tuple[float, float], reference: Array | None) -> PlayerPlan:
+        return PlayerPlan(DEEP, start, self.params, reference=reference, policy=self.policy_)
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the model to one ``.npz`` file atomically (see `save_deep_cyber_player`)."""
+        return save_deep_cyber_player(self, path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> DeepCyberPlayer:
+        """Read a model written by `save` (see `load_deep_cyber_player`)."""
+        return load_deep_cyber_player(path)
+
+
+def save_deep_cyber_player(player: DeepCyberPlayer, path: str | os.PathLike[str]) -> Path:
+    """Write a trained deep player to ``path`` (one ``.npz``), atomically.
+
+    The file holds arrays ``weights``, ``sizes``, ``actions`` and, once trained,
+    ``target_counts``; its metadata holds the dynamics parameters, the network layout, the
+    training summary and its seed. An avatar whose input holds its reference velocity also
+    stores its reference generator, so the file alone plays.
+    """
+    training = getattr(player, "training_", {})
+    arrays = {"weights": player.weights_, "sizes": player.sizes_, "actions": player.actions_}
+    if hasattr(player, "target_counts_"):
+        arrays["target_counts"] = player.target_counts_
+    metadata = {
+        "parameters": player.parameters(),
+        "network": player._layout(),
+        "training": training,
+        "seed": training.get("seed"),
+    }
+    motion_arrays, motion_metadata = reference_arrays(player, path)
+    return save_model(
+        path, FORMAT_NAME, FORMAT_VERSION, arrays | motion_arrays, metadata | motion_metadata
+    )
+
+
+DEEP_PLAYER_ARRAYS = ("weights", "sizes", "actions")
+"""The arrays every deep player's file holds."""
+
+
+def load_deep_cyber_player(path: str | os.PathLike[str]) -> DeepCyberPlayer:
+    """Read a player written by `save_deep_cyber_player`, checking every value it reads.
+
+    Raises
+    ------
+    InputError
+        ``path: problem`` when the file is missing, corrupt, of another format or version,
+        holds a value out of its range, or does not fit together (layer widths that do not
+        match the input layout, the action set or the number of parameters).
+    """
+    arrays, metadata = load_model(path, FORMAT_NAME, FORMAT_VERSION, DEEP_PLAYER_ARRAYS)
+    return deep_player_from_arrays(arrays, metadata, path)
+
+
+def deep_player_from_arrays(
+    arrays: Mapping[str, NDArray[Any]], metadata: Mapping[str, Any], path: Source
+) -> DeepCyberPlayer:
+    """Rebuild a deep player from a file's arrays and metadata (see `load_deep_cyber_player`)."""
+    layout = check_object(path, "network", metadata.get("network"))
+    hidden = layout.get("hidden")
+    if not isinstance(hidden, list) or not 1 <= len(hidden) <= MAX_LAYERS:
+        raise InputError(path, f"network hidden must list 1 to {MAX_LAYERS} layer widths")
+    widths = [check_integer(path, "hidden layer width", w, 1, MAX_UNITS) for w in hidden]
+    n_slots = check_integer(path, "n_slots", layout.get("n_slots"), 0, MAX_SLOTS)
+    use_reference = layout.get("use_reference")
+    if not isinstance(use_reference, bool):
+        raise InputError(path, "network use_reference must be true or false")
+    actions = check_array(path, "actions", arrays["actions"], "float", (None,))
+    parameters = check_object(path, "parameters", metadata.get("parameters"))
+    player = DeepCyberPlayer(
+        widths, n_slots, use_reference, actions, **read_parameters(path, parameters)
+    )
+    try:
+        sizes = player.sizes_
+    except InputError as error:
+        raise InputError(path, error.problem) from None
+    stored = check_array(path, "sizes", arrays["sizes"], "integer", (None,), 1, MAX_UNITS)
+    if not np.array_equal(stored, sizes):
+        raise InputError(path, f"layer widths {stored.tolist()} do not match {sizes.tolist()}")
+    weights = check_array(path, "weights", arrays["weights"], "float", (count_parameters(sizes),))
+    player.weights_ = weights.astype(np.float64)
+    player.training_ = check_training(path, metadata.get("training", {}))
+    target = read_target_counts(path, arrays)
+    if target is not None:
+        player.target_counts_ = target
+    if use_reference:
+        player.reference = read_reference(path, arrays, metadata)
+    return player
