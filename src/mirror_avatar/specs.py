@@ -7,8 +7,9 @@ A SPEC is one of:
   seed `BUNDLED_SEED`). Fitted generators are cached in-process and on disk (`cache_dir`).
 - a generator model ``.npz`` (format ``mirror-avatar/ims-generator``): a virtual trainer with that
   signature;
-- a cyber-player policy ``.npz`` (format ``mirror-avatar/cyber-player``): the trained player (its
-  dynamics are its own, so the role is not used);
+- a cyber-player policy ``.npz`` (format ``mirror-avatar/cyber-player``, or
+  ``mirror-avatar/deep-cyber-player`` for a deep one): the trained player (its dynamics are its
+  own, so the role is not used);
 - a personal avatar ``.npz`` (format ``mirror-avatar/avatar``,
   `mirror_avatar.learning.avatar`): its cyber player for the role (follower or leader), or for
   other roles the person's virtual trainer;
@@ -36,13 +37,16 @@ from mirror_avatar import __version__
 from mirror_avatar.curriculum import FORMAT_NAME as STAGE_FORMAT
 from mirror_avatar.curriculum import load_stage
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
+from mirror_avatar.deep.player import FORMAT_NAME as DEEP_FORMAT
+from mirror_avatar.deep.player import load_deep_cyber_player
 from mirror_avatar.dynamics import HKBParams, preset
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import FORMAT_NAME as GENERATOR_FORMAT
 from mirror_avatar.generator import PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions, excerpt
+from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
-from mirror_avatar.learning.agent import CyberPlayer, load_cyber_player
+from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.learning.avatar import FORMAT_NAME as AVATAR_FORMAT
 from mirror_avatar.learning.avatar import load_avatar
 from mirror_avatar.model_files import read_archive
@@ -109,7 +113,7 @@ def load_player(
     path = Path(spec)
     if path.suffix.lower() == ".npz":
         player = _load_model(path, role, label)
-        if isinstance(player, CyberPlayer) and isinstance(role, str):
+        if isinstance(player, AccelerationPlayer) and isinstance(role, str):
             _check_policy_role(path, player, role)
         return player
     if not path.exists():
@@ -135,17 +139,19 @@ def _load_model(path: Path, role: str | HKBParams, label: str) -> Player:
         return VirtualTrainer(params, IMSGenerator.load(path), label=label)
     if kind == CYBER_FORMAT:
         return load_cyber_player(path)
+    if kind == DEEP_FORMAT:
+        return load_deep_cyber_player(path)
     if kind == AVATAR_FORMAT:
         return load_avatar(path).player(role)
     if kind == STAGE_FORMAT:
         params = preset(role) if isinstance(role, str) else role
         return VirtualTrainer(params, load_stage(path), label=label)
-    formats = (GENERATOR_FORMAT, CYBER_FORMAT, AVATAR_FORMAT, STAGE_FORMAT)
+    formats = (GENERATOR_FORMAT, CYBER_FORMAT, DEEP_FORMAT, AVATAR_FORMAT, STAGE_FORMAT)
     known = ", ".join(repr(k) for k in formats)
     raise InputError(path, f"model format {excerpt(kind)} is none of {known}")
 
 
-def _check_policy_role(path: Path, player: CyberPlayer, role: str) -> None:
+def _check_policy_role(path: Path, player: AccelerationPlayer, role: str) -> None:
     trained = player.training_.get("role")
     if trained in POLICY_ROLES and role not in POLICY_ROLES[trained]:
         raise InputError(

@@ -26,7 +26,7 @@ from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import TOPOLOGIES, graph_source
 from mirror_avatar.importing import ImportOptions
-from mirror_avatar.learning.imitation import checkpoint_path, train_group_cyber_player
+from mirror_avatar.learning.imitation import Agent, checkpoint_path, train_group_cyber_player
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.specs import load_player
 
@@ -125,6 +125,7 @@ def train(
     seed: int,
     scheduler: str | None,
     jobs: int,
+    agent: Agent,
     checkpoint_every: int | None,
     out_path: Path,
     options: ImportOptions,
@@ -151,11 +152,12 @@ def train(
         n_jobs=jobs,
         checkpoint=checkpoint_path(out_path),
         checkpoint_every=checkpoint_every,
+        agent=agent,
     )
     name = f"group of {len(partners) + 1}, seed {seed}"
     curve_path = finish_training(player, curve, out_path, name)
     click.echo(
-        f"trained a group member on {sessions} sessions (seed {seed}): RMS to the target "
+        f"trained a {agent} group member on {sessions} sessions (seed {seed}): RMS to the target "
         f"{curve.rms[0]:.4f} -> {curve.rms[-1]:.4f} units"
     )
     click.echo(f"wrote {out_path.resolve()} and {curve_path.resolve()} (.png)")

@@ -14,9 +14,11 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_learning_curves
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
-from mirror_avatar.learning.agent import CyberPlayer
+from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.imitation import (
+    AGENTS,
     TRAINING_ROLES,
+    Agent,
     Reference,
     checkpoint_path,
     learning_curve_path,
@@ -65,7 +67,7 @@ def load_generator(spec: str, options: ImportOptions = DEFAULT_IMPORT) -> IMSGen
 
 
 def training_options(command: Callable[..., None]) -> Callable[..., None]:
-    """Add the options of a training run: sessions, duration, seed, where to run, output."""
+    """Add the options of a training run: sessions, duration, seed, where to run, agent, output."""
     options = [
         click.option("--sessions", type=int, required=True, help="Training sessions."),
         click.option(
@@ -74,6 +76,10 @@ def training_options(command: Callable[..., None]) -> Callable[..., None]:
         click.option("--seed", type=int, default=0, show_default=True, help="Run seed (recorded)."),
         click.option("--scheduler", default=None, help="Dask scheduler address (tcp://host:port)."),
         click.option("--jobs", type=int, default=2, show_default=True, help="Local processes."),
+        click.option(
+            "--agent", type=click.Choice(AGENTS), default="tabular", show_default=True,
+            help="tabular: the paper's Q-table; dqn: a deep Q-network (METHODS section 8).",
+        ),
         click.option(
             "--checkpoint-every", type=int, default=None,
             help="Also save the policy to OUT every N sessions: a stopped run leaves a usable one.",
@@ -105,7 +111,9 @@ def check_training(
         )
 
 
-def finish_training(player: CyberPlayer, curve: LearningCurve, policy: Path, name: str) -> Path:
+def finish_training(
+    player: AccelerationPlayer, curve: LearningCurve, policy: Path, name: str
+) -> Path:
     """Write the trained policy and its learning curve (CSV and PNG), drop the checkpoint.
 
     Returns the learning curve's path.
@@ -142,6 +150,7 @@ def train(
     seed: int,
     scheduler: str | None,
     jobs: int,
+    agent: Agent,
     checkpoint_every: int | None,
     out_path: Path,
     options: ImportOptions,
@@ -168,10 +177,11 @@ def train(
         n_jobs=jobs,
         checkpoint=checkpoint_path(out_path),
         checkpoint_every=checkpoint_every,
+        agent=agent,
     )
     curve_path = finish_training(player, curve, out_path, f"{role}, seed {seed}")
     click.echo(
-        f"trained a {role} on {sessions} sessions (seed {seed}): RMS to the target "
+        f"trained a {agent} {role} on {sessions} sessions (seed {seed}): RMS to the target "
         f"{curve.rms[0]:.4f} -> {curve.rms[-1]:.4f} units"
     )
     click.echo(f"wrote {out_path.resolve()} and {curve_path.resolve()} (.png)")

@@ -162,7 +162,7 @@ class DeepCyberPlayer(AccelerationPlayer):
     Attributes
     ----------
     weights_ : ndarray
-        The network's flat parameters; set by `initialise_network`, a learner or a file.
+        The network's flat parameters; set by `initialise_policy`, a learner or a file.
     training_, target_counts_
         As in `AccelerationPlayer`.
     """
@@ -211,7 +211,7 @@ class DeepCyberPlayer(AccelerationPlayer):
             self.substeps_,
         )
 
-    def initialise_network(self, random_state: int | np.random.Generator | None) -> None:
+    def initialise_policy(self, random_state: int | np.random.Generator | None) -> None:
         """Draw `weights_` afresh (`mirror_avatar.deep.network.initial_parameters`, seeded)."""
         self.weights_ = initial_parameters(self.sizes_, np.random.default_rng(random_state))
 

@@ -337,7 +337,7 @@ class DQNLearner(SessionLearner):
     def partial_fit(self, sessions: Iterable[Session], total: int | None = None) -> DQNLearner:
         """Learn from more sessions (see `SessionLearner.partial_fit`), single-threaded."""
         with threadpool_limits(1):
-            return super().partial_fit(sessions, total)  # type: ignore[no-any-return]
+            return super().partial_fit(sessions, total)
 
     def _check(self) -> None:
         if not 0.0 < self.learning_rate <= 1.0:
@@ -354,7 +354,7 @@ class DQNLearner(SessionLearner):
 
     def _initialise(self, seed: np.random.SeedSequence) -> None:
         if not hasattr(self.player, "weights_"):
-            self.player.initialise_network(np.random.default_rng(seed))
+            self.player.initialise_policy(np.random.default_rng(seed))
         self.target_weights_ = self.player.weights_.copy()
         self.replay_ = ReplayBuffer.empty(self.buffer_size, int(self.player.sizes_[0]))
         weights = self.player.weights_
@@ -417,3 +417,24 @@ def play_deep_task(
         learner.rng_,
     )
     return total / max(task.target_x.size - 1, 1), rms
+
+
+def score_deep_imitation(
+    player: DeepCyberPlayer, sessions: Iterable[Session], target: int = 1
+) -> tuple[Array, Array]:
+    """Play each session greedily in the target's place (no learning, open loop).
+
+    Returns
+    -------
+    mean_reward, rms : ndarray, shape (n_sessions,)
+        Mean reward per step and RMS position error to the target (units) per session.
+    """
+    learner = DQNLearner(player, target, batch_size=1, buffer_size=1, learning_starts=1)
+    learner._initialise(np.random.SeedSequence(0))
+    learner.rng_ = np.random.default_rng(0)
+    learner._begin()
+    scores = [
+        play_deep_task(learner, ImitationTask.from_session(s, target, player.period), 0.0, False)
+        for s in sessions
+    ]
+    return np.array([r for r, _ in scores]), np.array([e for _, e in scores])

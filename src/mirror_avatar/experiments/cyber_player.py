@@ -28,18 +28,21 @@ import pandas as pd
 from mirror_avatar.engine.batch import play_compiled, run_sessions
 from mirror_avatar.engine.loop import count_samples
 from mirror_avatar.figures import plot_learning_curves, plot_positions, plot_similarity_space
-from mirror_avatar.learning.agent import CyberPlayer
+from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.imitation import (
     TRAINING_ROLES,
+    Agent,
     Cast,
     Role,
+    agent_of,
     cast_virtual_trainers,
     derive_seeds,
     make_cyber_player,
     make_pairs,
+    score_avatar,
     train_cyber_player,
 )
-from mirror_avatar.learning.training import LearningCurve, score_imitation
+from mirror_avatar.learning.training import LearningCurve
 from mirror_avatar.metrics import TRIM, paired_ttest, session_metrics
 from mirror_avatar.report import Section
 from mirror_avatar.seeds import draw_seeds
@@ -88,7 +91,7 @@ class RoleResult:
     role: Role
     target: str
     unseen: str
-    player: CyberPlayer
+    player: AccelerationPlayer
     curve: LearningCurve
     train_seconds: float
     records: pd.DataFrame
@@ -104,6 +107,7 @@ def run(
     n_sessions: int | None = None,
     n_validation: int | None = None,
     n_jobs: int = 2,
+    agent: Agent = "tabular",
 ) -> Section:
     """Train the cyber player as follower and leader and validate it against its target.
 
@@ -120,6 +124,8 @@ def run(
         Override the number of training sessions per role and validation sessions per partner.
     n_jobs
         Local processes generating training sessions.
+    agent
+        ``"tabular"`` (the paper's Q-table) or ``"dqn"`` (a deep Q-network).
 
     Returns
     -------
@@ -132,7 +138,8 @@ def run(
     cast = cast_virtual_trainers(trials, seed=seed)
     target = cast.trainers[cast.target].label
     results = [
-        run_role(cast, role, n_train, n_valid, n_base, seed, n_jobs) for role in TRAINING_ROLES
+        run_role(cast, role, n_train, n_valid, n_base, seed, n_jobs, agent)
+        for role in TRAINING_ROLES
     ]
     table_one = pd.concat([make_table_one(r) for r in results])
     table_two = pd.concat([make_table_two(r) for r in results])
@@ -180,7 +187,14 @@ def run(
 
 
 def run_role(
-    cast: Cast, role: Role, n_train: int, n_valid: int, n_base: int, seed: int, n_jobs: int
+    cast: Cast,
+    role: Role,
+    n_train: int,
+    n_valid: int,
+    n_base: int,
+    seed: int,
+    n_jobs: int,
+    agent: Agent = "tabular",
 ) -> RoleResult:
     """Train for ``role``, then validate closed-loop and against the baselines."""
     target = cast.trainers[cast.target]
@@ -192,6 +206,7 @@ def run_role(
         n_sessions=n_train,
         seed=seed,
         n_jobs=n_jobs,
+        agent=agent,
     )
     seconds = time.perf_counter() - start
     records, velocities, example = validate(player, cast, role, n_valid, seed)
@@ -203,7 +218,7 @@ def run_role(
 
 
 def validate(
-    player: CyberPlayer, cast: Cast, role: Role, n_sessions: int, seed: int
+    player: AccelerationPlayer, cast: Cast, role: Role, n_sessions: int, seed: int
 ) -> tuple[pd.DataFrame, dict[str, list[np.ndarray]], tuple[Session, Session]]:
     """Play each partner against the target and against the cyber player, the same seeds for both.
 
@@ -263,13 +278,18 @@ def measure(session: Session) -> dict[str, float]:
 
 
 def compare_baselines(
-    player: CyberPlayer, cast: Cast, role: Role, n_sessions: int, seed: int, n_jobs: int = 2
+    player: AccelerationPlayer,
+    cast: Cast,
+    role: Role,
+    n_sessions: int,
+    seed: int,
+    n_jobs: int = 2,
 ) -> dict[str, float]:
     """RMS to the target (units) on held-out sessions: trained, untrained, copy the partner.
 
     The sessions are the target playing ``role`` with every partner, seen and unseen, seeded
-    apart from training; the trained and untrained (seeded random Q-table) players replay each
-    session open-loop in the target's place (`mirror_avatar.learning.training.score_imitation`),
+    apart from training; the trained and untrained (seeded random policy) players replay each
+    session open-loop in the target's place (`mirror_avatar.learning.imitation.score_avatar`),
     and "copy the partner" is the RMS between the partner's and the target's positions.
     """
     generator = cast.trainers[cast.target].generator
@@ -278,12 +298,12 @@ def compare_baselines(
     held_out = derive_seeds(seed + 1)[0]
     chunks = run_sessions(pairs, n_sessions, seed=held_out, n_jobs=n_jobs, progress=False)
     sessions = list(itertools.chain.from_iterable(chunks))
-    untrained = make_cyber_player(role, generator)
-    untrained.initialise_q(seed, 1e-3)
+    untrained = make_cyber_player(role, generator, agent=agent_of(player))
+    untrained.initialise_policy(seed)
     copy = [np.sqrt(np.mean((s.positions[0, 1:] - s.positions[1, 1:]) ** 2)) for s in sessions]
     return {
-        "trained": float(score_imitation(player, sessions)[1].mean()),
-        "untrained (random Q)": float(score_imitation(untrained, sessions)[1].mean()),
+        "trained": float(score_avatar(player, sessions)[1].mean()),
+        "untrained (random Q)": float(score_avatar(untrained, sessions)[1].mean()),
         "copy the partner": float(np.mean(copy)),
     }
 

@@ -27,17 +27,19 @@ from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.engine.loop import count_samples
 from mirror_avatar.figures import plot_bars, plot_graph, plot_learning_curves, plot_series
 from mirror_avatar.graphs import GraphSource, make_graph, random_connected_graph
-from mirror_avatar.learning.agent import CyberPlayer
+from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.imitation import (
+    Agent,
     Cast,
     VirtualTrainerSpec,
+    agent_of,
     cast_virtual_trainers,
     derive_seeds,
     make_group,
     make_group_cyber_player,
+    score_avatar,
     train_group_cyber_player,
 )
-from mirror_avatar.learning.training import score_imitation
 from mirror_avatar.metrics import (
     TRIM,
     compute_cluster_phase,
@@ -93,6 +95,7 @@ def run(
     seed: int = 0,
     n_sessions: int | None = None,
     n_jobs: int = 2,
+    agent: Agent = "tabular",
 ) -> Section:
     """Train a cyber player in a group and validate it against the target VT.
 
@@ -109,6 +112,8 @@ def run(
         Override the number of training sessions.
     n_jobs
         Local processes generating training sessions.
+    agent
+        ``"tabular"`` (a Q-table) or ``"dqn"`` (a deep Q-network with dynamic input).
     """
     n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else TRAINING_SESSIONS)
     n_valid = QUICK_VALIDATION_SESSIONS if quick else VALIDATION_SESSIONS
@@ -119,7 +124,7 @@ def run(
     *partners, target = [m.generator for m in members]
     start = time.perf_counter()
     player, curve = train_group_cyber_player(
-        target, partners, n_sessions=n_train, seed=seed, n_jobs=n_jobs, progress=False
+        target, partners, n_sessions=n_train, seed=seed, n_jobs=n_jobs, progress=False, agent=agent
     )
     train_seconds = time.perf_counter() - start
     group = make_group(target, partners)
@@ -188,7 +193,7 @@ def choose_members(cast: Cast) -> tuple[int, ...]:
 def compare(
     group: Sequence[Player],
     label: str,
-    player: CyberPlayer,
+    player: AccelerationPlayer,
     seeds: Sequence[int],
     graph: GraphSource,
 ) -> tuple[pd.DataFrame, tuple[Session, Session]]:
@@ -289,12 +294,12 @@ def topology_table(records: pd.DataFrame) -> pd.DataFrame:
 
 
 def compare_baselines(
-    player: CyberPlayer, group: Sequence[Player], n_sessions: int, seed: int
+    player: AccelerationPlayer, group: Sequence[Player], n_sessions: int, seed: int
 ) -> dict[str, float]:
     """RMS to the target (units) on held-out group sessions: trained, untrained, copy neighbours.
 
     The sessions are the virtual-trainer group on new random graphs; the players replay each
-    open-loop in the target's place (the last player, `score_imitation`); "copy the neighbours"
+    open-loop in the target's place (the last player, `score_avatar`); "copy the neighbours"
     is the RMS between the mean position of the target's neighbours and the target's.
     """
     target = len(group) - 1
@@ -304,16 +309,18 @@ def compare_baselines(
         play_compiled(group, n_samples, s, random_connected_graph)
         for s in draw_seeds(held_out, n_sessions)
     ]
-    untrained = make_group_cyber_player(player.reference)
-    untrained.initialise_q(seed, 1e-3)
+    untrained = make_group_cyber_player(
+        player.reference, agent=agent_of(player), n_players=len(group)
+    )
+    untrained.initialise_policy(seed)
     copies = []
     for session in sessions:
         neighbours = np.flatnonzero(session.graph[target])
         mean = session.positions[neighbours, 1:].mean(axis=0)
         copies.append(np.sqrt(np.mean((mean - session.positions[target, 1:]) ** 2)))
     return {
-        "trained": float(score_imitation(player, sessions, target)[1].mean()),
-        "untrained (random Q)": float(score_imitation(untrained, sessions, target)[1].mean()),
+        "trained": float(score_avatar(player, sessions, target)[1].mean()),
+        "untrained (random Q)": float(score_avatar(untrained, sessions, target)[1].mean()),
         "copy the neighbours' mean": float(np.mean(copies)),
     }
 

@@ -32,6 +32,7 @@ from mirror_avatar.experiments.cyber_player import (
 )
 from mirror_avatar.figures import plot_ims, plot_learning_curves
 from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.avatar import Avatar
 from mirror_avatar.learning.imitation import Cast, Role, VirtualTrainerSpec, make_virtual_trainers
 from mirror_avatar.report import Section, render_report
@@ -99,7 +100,10 @@ def create_avatar(
         results.append(run_role(cast, role, n_sessions, n_validation, n_baseline, seed, n_jobs))
     criteria: dict[str, pd.DataFrame] = {r.role: check_criteria(r) for r in results}
     summary = _summary(results, criteria, cast, generator, n_sessions, n_validation, seed)
-    avatar = Avatar(name, generator, {r.role: r.player for r in results}, summary)
+    players: dict[str, CyberPlayer] = {
+        r.role: r.player for r in results if isinstance(r.player, CyberPlayer)
+    }
+    avatar = Avatar(name, generator, players, summary)
     return avatar, make_card(avatar, results, criteria)
 
 

@@ -16,8 +16,10 @@ The shared parts of their model files are here too: the dynamics parameters
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import fields
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -139,6 +141,10 @@ class AccelerationPlayer(Player):
         """RK4 substeps per period, checked against `MAX_SUBSTEPS`."""
         return check_integer("cyber player", "n_substeps", self.n_substeps, 1, MAX_SUBSTEPS)
 
+    def initialise_policy(self, random_state: int | np.random.Generator | None) -> None:
+        """Give the avatar a fresh, untrained policy drawn from ``random_state``."""
+        raise NotImplementedError
+
     def reset(self, seed: int | None = None) -> tuple[float, float]:
         """Start a trial at rest at `initial_position`.
 
@@ -217,6 +223,10 @@ class AccelerationPlayer(Player):
             reference = draw_reference(self._motion_source(), n_steps, self.period, rng)
         start = (float(self.initial_position), 0.0)
         return self._policy_plan(start, reference)
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the trained avatar to one model file, atomically."""
+        raise NotImplementedError
 
     def _policy_plan(self, start: tuple[float, float], reference: Array | None) -> PlayerPlan:
         """Return the `PlayerPlan` of this policy from the start and reference `plan` drew."""

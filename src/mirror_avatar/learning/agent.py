@@ -76,6 +76,9 @@ if TYPE_CHECKING:
 
 Array = NDArray[np.float64]
 
+Q_INIT_SCALE = 1e-3
+"""Scale of an untrained Q-table's random values (`CyberPlayer.initialise_policy`, **choice**)."""
+
 MAX_Q_CELLS = 2**24
 """Most Q-table entries (states x actions) a model file may hold (**choice**: the largest default,
 ``"reference"`` features with the default actions, has 9600 x 9 = 86 400; 2^24 take 128 MiB)."""
@@ -206,6 +209,10 @@ class CyberPlayer(AccelerationPlayer):
         rng = np.random.default_rng(random_state)
         shape = (self.discretisation_.n_states, self.actions_.size)
         self.q_table_ = -scale * rng.random(shape)
+
+    def initialise_policy(self, random_state: int | np.random.Generator | None) -> None:
+        """Fill the Q-table with uniform values in [-`Q_INIT_SCALE`, 0] (`initialise_q`)."""
+        self.initialise_q(random_state, Q_INIT_SCALE)
 
     def _prepare(self) -> None:
         policy = self.policy_

@@ -13,10 +13,13 @@ target VT5 is then slow-4..6, a slow player, with seen partners VT1..VT3 (fast) 
 and the unseen partner VT6 (slow).
 
 `train_cyber_player` streams the batch engine's sessions (`mirror_avatar.engine.batch.run_sessions`)
-straight into `mirror_avatar.learning.training.QLearner.fit`: sessions are generated and learnt
-from chunk by chunk, never all held in memory. Player 0 of every session is the partner, player 1
-the target. `train_group_cyber_player` does the same in a group (METHODS section 8): the target is
-the last member, and every session has a new random graph. Both go through `imitate`.
+straight into a learner's ``fit``: sessions are generated and learnt from chunk by chunk, never
+all held in memory. The ``agent`` is ``"tabular"`` (a Q-table,
+`mirror_avatar.learning.training.QLearner`) or ``"dqn"`` (a Q-network,
+`mirror_avatar.deep.training.DQNLearner`); both play the same roles from the same sessions.
+Player 0 of every session is the partner, player 1 the target. `train_group_cyber_player` does
+the same in a group (METHODS section 8): the target is the last member, and every session has a
+new random graph. Both go through `imitate`.
 
 The module is longer than most: it is the one place that says how the paper's cyber players are
 set up (persons, roles, cells, actions, learners) for dyads and groups alike.
@@ -26,7 +29,7 @@ from __future__ import annotations
 
 import itertools
 import os
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -34,22 +37,34 @@ from typing import Any, Literal
 import numpy as np
 
 from mirror_avatar import dynamics
+from mirror_avatar.deep.player import DeepCyberPlayer
+from mirror_avatar.deep.training import DQNLearner, score_deep_imitation
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.graphs import GraphSource, random_connected_graph
+from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.agent import DEFAULT_ACTIONS, CyberPlayer
 from mirror_avatar.learning.discretisation import (
     Discretisation,
     make_default_discretisation,
     symmetric_edges,
 )
-from mirror_avatar.learning.training import ExponentialEpsilon, LearningCurve, QLearner
+from mirror_avatar.learning.training import (
+    ExponentialEpsilon,
+    LearningCurve,
+    QLearner,
+    SessionLearner,
+    score_imitation,
+)
 from mirror_avatar.players.virtual_trainer import VirtualTrainer
 from mirror_avatar.seeds import draw_seeds
+from mirror_avatar.session import Session
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 Role = Literal["follower", "leader"]
+Agent = Literal["tabular", "dqn"]
+AGENTS: tuple[Agent, ...] = ("tabular", "dqn")
 Reference = IMSGenerator | Trial
 """What a virtual trainer draws its reference velocity from: a generator or a recorded trial."""
 TRAINING_ROLES: tuple[Role, ...] = ("follower", "leader")
@@ -271,52 +286,66 @@ def make_group_discretisation() -> Discretisation:
 
 
 def make_cyber_player(
-    role: Role, reference: Reference | None = None, action_scale: float = ACTION_SCALE
-) -> CyberPlayer:
+    role: Role,
+    reference: Reference | None = None,
+    action_scale: float = ACTION_SCALE,
+    agent: Agent = "tabular",
+) -> AccelerationPlayer:
     """Make an untrained cyber player whose HKB end effector has the role preset's parameters.
 
     Follows METHODS section 7 with the virtual trainer's end-effector parameters of the same role
     (`mirror_avatar.dynamics.FOLLOWER` or ``LEADER``: omega 0.1 or 0.8 rad/s, alpha 1, beta 2,
-    gamma -1, eta 1e-4), the role's discretisation (`make_role_discretisation`) and the
-    accelerations ``action_scale * DEFAULT_ACTIONS`` (units/s²; departs from METHODS' ±4
-    maximum, see `ACTION_SCALE`). ``reference`` is the motion source of a leader's
-    ``"reference"`` features: the generator (or trial) of the person it imitates.
+    gamma -1, eta 1e-4) and the accelerations ``action_scale * DEFAULT_ACTIONS`` (units/s²;
+    departs from METHODS' ±4 maximum, see `ACTION_SCALE`). A tabular player cuts its state as
+    `make_role_discretisation` says; a deep one (``agent="dqn"``) sees its own state and its
+    partner's, and a leader also its own reference velocity (the input that corresponds to the
+    tabular leader's ``"reference"`` features). ``reference`` is a leader's motion source: the
+    generator (or trial) of the person it imitates.
     """
+    role = _check_role(role)
+    actions = tuple(action_scale * a for a in DEFAULT_ACTIONS)
+    params = dynamics.preset(role)
+    if _check_agent(agent) == "dqn":
+        leads = role == "leader"
+        return DeepCyberPlayer(
+            use_reference=leads, actions=actions, params=params, reference=reference
+        )
     return CyberPlayer(
-        make_role_discretisation(role),
-        actions=tuple(action_scale * a for a in DEFAULT_ACTIONS),
-        params=dynamics.preset(_check_role(role)),
-        reference=reference,
+        make_role_discretisation(role), actions=actions, params=params, reference=reference
     )
 
 
 def make_learner(
-    player: CyberPlayer,
+    player: AccelerationPlayer,
     n_sessions: int,
     random_state: int | None,
     checkpoint: str | os.PathLike[str] | None = None,
     checkpoint_every: int | None = None,
     progress: bool | None = None,
     target: int = 1,
-) -> QLearner:
-    """Make the `QLearner` for a run of ``n_sessions`` (**choice**s scaled to the run's length).
+) -> SessionLearner:
+    """Make the learner for a run of ``n_sessions`` that imitates player ``target``.
 
-    It learns to imitate player ``target`` of the sessions.
-
-    Exploration decays from 0.5 to 0.01 with a half-life of ``n_sessions / EPSILON_HALF_LIVES``
-    sessions, and the learning curve has about `CURVE_POINTS` points; learning rate 0.1 and
-    discount 0.95 are `QLearner`'s defaults.
+    The learning curve has about `CURVE_POINTS` points. A tabular player gets a `QLearner`
+    whose exploration decays from 0.5 to 0.01 with a half-life of ``n_sessions /
+    EPSILON_HALF_LIVES`` sessions (**choice**s scaled to the run's length; learning rate 0.1
+    and discount 0.95 are `QLearner`'s defaults); a deep player a `DQNLearner` with METHODS
+    section 8's defaults.
     """
-    return QLearner(
-        player,
-        target=target,
-        epsilon=ExponentialEpsilon(half_life=max(n_sessions / EPSILON_HALF_LIVES, 1.0)),
-        block_size=max(n_sessions // CURVE_POINTS, 1),
-        checkpoint_every=checkpoint_every,
-        checkpoint_path=checkpoint,
-        progress=progress,
-        random_state=random_state,
-    )
+    common: dict[str, Any] = {
+        "target": target,
+        "block_size": max(n_sessions // CURVE_POINTS, 1),
+        "checkpoint_every": checkpoint_every,
+        "checkpoint_path": checkpoint,
+        "progress": progress,
+        "random_state": random_state,
+    }
+    if isinstance(player, DeepCyberPlayer):
+        return DQNLearner(player, **common)
+    if not isinstance(player, CyberPlayer):
+        raise InputError("player", f"cannot train a {type(player).__name__}")
+    half_life = max(n_sessions / EPSILON_HALF_LIVES, 1.0)
+    return QLearner(player, epsilon=ExponentialEpsilon(half_life=half_life), **common)
 
 
 def make_pairs(
@@ -364,7 +393,8 @@ def train_cyber_player(
     checkpoint: str | os.PathLike[str] | None = None,
     checkpoint_every: int | None = None,
     progress: bool | None = None,
-) -> tuple[CyberPlayer, LearningCurve]:
+    agent: Agent = "tabular",
+) -> tuple[AccelerationPlayer, LearningCurve]:
     """Train a cyber player to imitate ``target`` in ``role`` with virtual-trainer sessions.
 
     Session i is played by ``partners[i % len(partners)]`` (player 0, the other role's preset)
@@ -382,20 +412,18 @@ def train_cyber_player(
     checkpoint_every, progress
         As in `imitate`. A leader's file holds its motion source, so with a ``checkpoint``
         ``target`` must be an `IMSGenerator` (checked before training).
+    agent
+        ``"tabular"`` or ``"dqn"`` (`make_cyber_player`).
 
     Returns
     -------
-    player : CyberPlayer
+    player : CyberPlayer or DeepCyberPlayer
         The trained player (greedy at play time).
     curve : LearningCurve
         Mean reward per step and RMS to the target (units) per block of sessions.
     """
-    player = make_cyber_player(role, target)
-    if (
-        checkpoint is not None
-        and player.discretisation_.needs_reference
-        and not isinstance(target, IMSGenerator)
-    ):
+    player = make_cyber_player(role, target, agent=agent)
+    if checkpoint is not None and player.needs_reference and not isinstance(target, IMSGenerator):
         raise InputError("target", "a leader saved to a file needs an IMS generator, not a trial")
     player.label = f"cyber player ({role})"
     curve = imitate(
@@ -412,13 +440,13 @@ def train_cyber_player(
         checkpoint=checkpoint,
         checkpoint_every=checkpoint_every,
         progress=progress,
-        summary={"role": role, "n_partners": len(partners)},
+        summary={"role": role, "n_partners": len(partners), "agent": agent},
     )
     return player, curve
 
 
 def imitate(
-    player: CyberPlayer,
+    player: AccelerationPlayer,
     lineups: Sequence[Sequence[VirtualTrainer]],
     target: int,
     n_sessions: int = 4000,
@@ -437,13 +465,13 @@ def imitate(
     """Teach ``player`` to move like player ``target`` of sessions the batch engine streams.
 
     Session i is played by ``lineups[i % len(lineups)]`` on ``graph``; the cyber player takes
-    the target's place and Q-learns from it as the chunks arrive (`QLearner.fit`), so memory
+    the target's place and learns from it as the chunks arrive (`make_learner`), so memory
     stays flat whatever ``n_sessions``.
 
     Parameters
     ----------
     player
-        The cyber player, trained in place.
+        The cyber player (tabular or deep), trained in place.
     lineups
         The virtual trainers of each kind of session.
     target
@@ -452,7 +480,7 @@ def imitate(
         Number of training sessions (the paper: about 24 000).
     seed
         Run seed; the sessions' and the learner's seeds are derived from it (`derive_seeds`), so
-        the same seed gives the same Q-table. Recorded in ``player.training_``.
+        the same seed gives the same policy. Recorded in ``player.training_``.
     duration
         Session length (s).
     graph
@@ -506,20 +534,35 @@ def make_group(
 
 
 def make_group_cyber_player(
-    reference: Reference | None = None, action_scale: float = ACTION_SCALE
-) -> CyberPlayer:
-    """Make an untrained cyber player for a group (**choice**).
+    reference: Reference | None = None,
+    action_scale: float = ACTION_SCALE,
+    agent: Agent = "tabular",
+    n_players: int = 4,
+) -> AccelerationPlayer:
+    """Make an untrained cyber player for a group of ``n_players`` (**choice**).
 
-    Its end effector is `mirror_avatar.dynamics.GROUP`'s; its state is built from its own state
-    and its neighbours' mean, cut as `make_group_discretisation` says; the accelerations are
-    ``action_scale * DEFAULT_ACTIONS``.
+    Its end effector is `mirror_avatar.dynamics.GROUP`'s and its accelerations ``action_scale *
+    DEFAULT_ACTIONS``. A tabular player's state is built from its own state and its neighbours'
+    mean, cut as `make_group_discretisation` says; a deep player (``agent="dqn"``) sees its
+    neighbours one by one in ``n_players - 1`` slots (METHODS section 8's dynamic input,
+    `mirror_avatar.deep.features`).
     """
+    actions = tuple(action_scale * a for a in DEFAULT_ACTIONS)
+    label = "cyber player (group)"
+    if _check_agent(agent) == "dqn":
+        return DeepCyberPlayer(
+            n_slots=n_players - 1,
+            actions=actions,
+            params=dynamics.GROUP,
+            reference=reference,
+            label=label,
+        )
     return CyberPlayer(
         make_group_discretisation(),
-        actions=tuple(action_scale * a for a in DEFAULT_ACTIONS),
+        actions=actions,
         params=dynamics.GROUP,
         reference=reference,
-        label="cyber player (group)",
+        label=label,
     )
 
 
@@ -530,8 +573,9 @@ def train_group_cyber_player(
     seed: int | None = 0,
     duration: float = 60.0,
     graph: GraphSource = random_connected_graph,
+    agent: Agent = "tabular",
     **options: Any,
-) -> tuple[CyberPlayer, LearningCurve]:
+) -> tuple[AccelerationPlayer, LearningCurve]:
     """Train a cyber player to imitate ``target`` in a group with ``partners`` (METHODS 8).
 
     Every session the partners and the target (the last player), all with the
@@ -545,20 +589,22 @@ def train_group_cyber_player(
         IMS generators (or recorded trials) of the person to imitate and of the others.
     n_sessions, seed, duration, graph
         As in `imitate`.
+    agent
+        ``"tabular"`` or ``"dqn"`` (`make_group_cyber_player`).
     **options
         ``backend``, ``scheduler``, ``n_jobs``, ``chunk_size``, ``checkpoint``,
         ``checkpoint_every``, ``progress`` of `imitate`.
 
     Returns
     -------
-    player : CyberPlayer
+    player : CyberPlayer or DeepCyberPlayer
         The trained player.
     curve : LearningCurve
         Mean reward per step and RMS to the target (units) per block of sessions.
     """
-    player = make_group_cyber_player(target)
     group = make_group(target, partners)
-    summary = {"role": "group", "n_players": len(group)}
+    player = make_group_cyber_player(target, agent=agent, n_players=len(group))
+    summary = {"role": "group", "n_players": len(group), "agent": agent}
     curve = imitate(
         player,
         [group],
@@ -571,6 +617,31 @@ def train_group_cyber_player(
         **options,
     )
     return player, curve
+
+
+def agent_of(player: AccelerationPlayer) -> Agent:
+    """Return the agent a cyber player is: ``"dqn"`` for a deep one, else ``"tabular"``."""
+    return "dqn" if isinstance(player, DeepCyberPlayer) else "tabular"
+
+
+def score_avatar(
+    player: AccelerationPlayer, sessions: Iterable[Session], target: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
+    """Play each session greedily in player ``target``'s place (open loop, no learning).
+
+    Tabular players through `mirror_avatar.learning.training.score_imitation`, deep ones
+    through `mirror_avatar.deep.training.score_deep_imitation`.
+
+    Returns
+    -------
+    mean_reward, rms : ndarray, shape (n_sessions,)
+        Mean reward per step and RMS position error to the target (units) per session.
+    """
+    if isinstance(player, DeepCyberPlayer):
+        return score_deep_imitation(player, sessions, target)
+    if not isinstance(player, CyberPlayer):
+        raise InputError("player", f"cannot score a {type(player).__name__}")
+    return score_imitation(player, sessions, target)
 
 
 def checkpoint_path(policy: str | os.PathLike[str]) -> Path:
@@ -587,6 +658,12 @@ def learning_curve_path(policy: str | os.PathLike[str]) -> Path:
     """Where the learning curve of a policy file goes: ``POLICY.learning_curve.csv``."""
     path = Path(policy)
     return path.with_name(f"{path.stem}.learning_curve.csv")
+
+
+def _check_agent(agent: str) -> Agent:
+    if agent not in AGENTS:
+        raise InputError("agent", f"must be 'tabular' or 'dqn', not {agent!r}")
+    return agent
 
 
 def _check_role(role: str) -> Role:
