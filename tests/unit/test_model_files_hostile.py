@@ -1,8 +1,8 @@
 """Crafted model files: each is refused in one `InputError` line before it can do harm.
 
-Every hostile file is made here from a small valid model (an IMS generator, a cyber player and a
-cyber player carrying its reference generator), by editing its metadata, its arrays or the zip
-archive itself.
+Every hostile file is made here from a small valid model (an IMS generator, a cyber player, a
+cyber player carrying its reference generator and a deep cyber player), by editing its metadata,
+its arrays or the zip archive itself.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
+from mirror_avatar.deep.player import DeepCyberPlayer, load_deep_cyber_player
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import ECHO_CHARS
@@ -41,6 +42,7 @@ LOADERS: dict[str, Loader] = {
     "generator": IMSGenerator.load,
     "cyber": load_cyber_player,
     "reference": load_cyber_player,
+    "deep": load_deep_cyber_player,
 }
 """How each kind of file is loaded; ``reference`` is a cyber player holding a generator."""
 
@@ -78,10 +80,13 @@ def files(tmp_path: Path) -> dict[str, Path]:
     cyber.target_counts_ = np.ones(DEFAULT_BINS.n)
     reference = CyberPlayer(make_default_discretisation("reference"), reference=tiny_generator())
     reference.initialise_q(0, 1.0)
+    deep = DeepCyberPlayer(hidden=(8, 4), n_slots=2)
+    deep.initialise_policy(0)
     return {
         "generator": tmp_path / "generator.npz",
         "cyber": cyber.save(tmp_path / "cyber.npz"),
         "reference": reference.save(tmp_path / "reference.npz"),
+        "deep": deep.save(tmp_path / "deep.npz"),
     }
 
 
@@ -562,6 +567,53 @@ def test_malformed_metadata_is_refused(files, kind, keys, value, fragment) -> No
     assert len(message) < len(str(files[kind])) + 120
 
 
+@pytest.mark.parametrize(
+    ("keys", "value", "fragment"),
+    [
+        (("network",), None, "network must be a JSON object, not None"),
+        (("network", "hidden"), [], "network hidden must list 1 to 8 layer widths"),
+        (("network", "hidden"), "100", "network hidden must list 1 to 8 layer widths"),
+        (("network", "hidden"), [10**9], "hidden layer width 1000000000 is outside 1..1024"),
+        (("network", "hidden"), [8, 2.5], "hidden layer width must be an integer, not 2.5"),
+        (("network", "hidden"), [8, 5], "layer widths [10, 8, 4, 9] do not match [10, 8, 5, 9]"),
+        (("network", "n_slots"), 10**6, "n_slots 1000000 is outside 0..32"),
+        (("network", "n_slots"), 1, "layer widths [10, 8, 4, 9] do not match [7, 8, 4, 9]"),
+        (("network", "use_reference"), "yes", "use_reference must be true or false"),
+        (("network", "use_reference"), True, "do not match"),
+        (("parameters", "n_substeps"), 1e9, "n_substeps 1000000000 is outside 1..64"),
+        (("parameters", "omega"), float("nan"), "omega"),
+        (("training", "n_sessions"), -1, "n_sessions -1 is outside 0..1000000000"),
+    ],
+)
+def test_malformed_deep_metadata_is_refused(files, keys, value, fragment) -> None:
+    set_value(files["deep"], keys, value)
+    refused(files["deep"], "deep", fragment)
+
+
+@pytest.mark.parametrize(
+    ("name", "array", "fragment"),
+    [
+        ("weights", np.zeros(3), "weights has shape (3,), expected (169,)"),
+        ("weights", np.full(169, np.nan), "weights holds nan; its values must be finite"),
+        ("weights", np.zeros(169, dtype=np.int64), "weights has dtype int64, expected floats"),
+        ("sizes", np.array([7, 8, 4, 9]), "layer widths [7, 8, 4, 9] do not match [10, 8, 4, 9]"),
+        ("sizes", np.array([10, 8, 4, -9]), "sizes holds -9"),
+        ("actions", np.array([1e9]), "actions holds 1000000000.0"),
+        ("actions", np.array([1.0, 2.0]), "layer widths [10, 8, 4, 9] do not match [10, 8, 4, 2]"),
+        ("target_counts", np.ones(3), "target_counts has shape (3,)"),
+    ],
+)
+def test_deep_arrays_out_of_their_range_are_refused(files, name, array, fragment) -> None:
+    set_array(files["deep"], name, array)
+    refused(files["deep"], "deep", fragment)
+
+
+def test_a_truncated_deep_file_is_refused(files) -> None:
+    data = files["deep"].read_bytes()
+    files["deep"].write_bytes(data[: len(data) // 2])
+    refused(files["deep"], "deep", "")
+
+
 @pytest.mark.parametrize("kind", ["generator", "cyber"])
 @pytest.mark.parametrize(
     ("text", "fragment"),
@@ -586,6 +638,7 @@ def test_metadata_that_is_no_json_object_is_refused(files, kind, text, fragment)
         ("cyber", ("parameters", "n_substeps"), 1e9, "n_substeps 1000000000 is outside 1..64"),
         ("generator", ("parameters", "rate"), 1e308, "rate 1e+308 is outside 1..10000"),
         ("reference", ("reference", "parameters", "rate"), 1e308, "rate 1e+308 is outside"),
+        ("deep", ("network", "hidden"), [10**9], "hidden layer width 1000000000 is outside"),
     ],
 )
 def test_the_cli_refuses_a_crafted_model_in_one_line(
