@@ -5,8 +5,9 @@ the **target player**: the other players replay what they did (`RecordedPlayer.o
 agent drives the same HKB end effector as `mirror_avatar.learning.agent.CyberPlayer` with the same
 action set, and is rewarded for matching what the target did, with the same compiled reward.
 Episodes run on the engine's own step loop (`mirror_avatar.engine.loop.Engine`) with the session's
-graph, so the agent observes the mean of the target's neighbours as every player does. Any
-Gymnasium agent can thus be compared with the tabular Q-learner. Needs the ``rl`` extra.
+graph, so the agent observes the mean of the target's neighbours as every player does, or, in a
+group, each neighbour ("dynamic input", the deep cyber player's input). Any Gymnasium agent can
+thus be compared with the tabular and the deep cyber players. Needs the ``rl`` extra.
 
 Seeding follows Gymnasium: ``reset(seed=s)`` reseeds ``self.np_random``, which picks the session
 (from a given list) or is passed to a session-making callable.
@@ -21,9 +22,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from mirror_avatar.deep.features import count_features, encode
 from mirror_avatar.dynamics import integrate_hkb
 from mirror_avatar.engine.loop import Engine
 from mirror_avatar.errors import InputError
+from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.kernels import compute_reward
 from mirror_avatar.players.base import Observation, Player, partner_state
@@ -33,6 +36,9 @@ from mirror_avatar.trials import PLAYING_RANGE
 
 VELOCITY_BOUND = 5.0
 """Velocities (units/s) in continuous observations are clipped to ±VELOCITY_BOUND."""
+
+DYNAMIC_BOUND = 100.0
+"""``"dynamic"`` observations (scaled features of order 1) are clipped to ±DYNAMIC_BOUND."""
 
 SessionSource = Sequence[Session] | Callable[[np.random.Generator], Session] | Iterator[Session]
 
@@ -46,7 +52,7 @@ class ActionPlayer(Player):
         Supplies the end effector, the action set and the period.
     """
 
-    def __init__(self, player: CyberPlayer) -> None:
+    def __init__(self, player: AccelerationPlayer) -> None:
         self.period = player.period
         self.label = "agent"
         self.actions = player.actions_
@@ -79,15 +85,19 @@ class MirrorGameEnv(gym.Env[Any, Any]):
         ``self.np_random``), a callable taking ``self.np_random`` and returning a session, or an
         iterator of sessions, advanced at each reset. Sessions are sampled at the control period.
     player
-        Supplies the dynamics, actions, reward weight and discretisation; default
-        ``CyberPlayer()``.
+        Supplies the dynamics, actions and reward weight (and, for ``"discrete"``
+        observations, the tabular player's discretisation); default ``CyberPlayer()``.
     observation
         ``"continuous"``: ``[x, x', x_p, x_p']`` as float32 (the partner is the mean of the
         target's neighbours; velocities clipped to ±`VELOCITY_BOUND`); ``"discrete"``: the
         Q-table cell of that state (with the target's reference velocity as the avatar's own for
-        ``"reference"`` features).
+        ``"reference"`` features); ``"dynamic"``: the deep cyber player's input
+        (`mirror_avatar.deep.features.encode`: own state, the neighbours' mean and ``n_slots``
+        neighbour slots) as float32, for groups whose graph changes from session to session.
     target
         Index of the target player in the sessions.
+    n_slots
+        Neighbour slots of ``"dynamic"`` observations (the most neighbours the target has).
 
     Notes
     -----
@@ -102,13 +112,15 @@ class MirrorGameEnv(gym.Env[Any, Any]):
     def __init__(
         self,
         sessions: SessionSource,
-        player: CyberPlayer | None = None,
-        observation: Literal["continuous", "discrete"] = "continuous",
+        player: AccelerationPlayer | None = None,
+        observation: Literal["continuous", "discrete", "dynamic"] = "continuous",
         target: int = 1,
+        n_slots: int = 3,
     ) -> None:
         self.player = player or CyberPlayer()
         self.observation = observation
         self.target = target
+        self.n_slots = n_slots
         self._source = sessions
         self._fixed = [] if callable(sessions) or isinstance(sessions, Iterator) else sessions
         if not (self._fixed or callable(sessions) or isinstance(sessions, Iterator)):
@@ -122,11 +134,17 @@ class MirrorGameEnv(gym.Env[Any, Any]):
                 np.array([high, VELOCITY_BOUND, high, VELOCITY_BOUND], dtype=np.float32),
                 dtype=np.float32,
             )
-        elif observation == "discrete":
+        elif observation == "discrete" and isinstance(self.player, CyberPlayer):
             self.observation_space = spaces.Discrete(self.player.discretisation_.n_states)
+        elif observation == "dynamic":
+            size = count_features(n_slots, False)
+            bound = DYNAMIC_BOUND
+            self.observation_space = spaces.Box(-bound, bound, (size,), dtype=np.float32)
         else:
             raise InputError(
-                "observation", f"must be 'continuous' or 'discrete', not {observation!r}"
+                "observation",
+                f"must be 'continuous', 'discrete' (for a tabular player) or 'dynamic', not "
+                f"{observation!r}",
             )
 
     def reset(
@@ -189,7 +207,11 @@ class MirrorGameEnv(gym.Env[Any, Any]):
             reference = float(
                 self._session.references[self.target, min(k, self._session.n_samples - 2)]
             )
-            return self.player.discretisation_.index(x, v, xp, vp, reference)
+            return self.player.discretisation_.index(x, v, xp, vp, reference)  # type: ignore[attr-defined]
+        if self.observation == "dynamic":
+            features = np.empty(count_features(self.n_slots, False))
+            encode(x, v, 0.0, seen.positions, seen.velocities, self.n_slots, False, features)
+            return np.clip(features, -DYNAMIC_BOUND, DYNAMIC_BOUND).astype(np.float32)
         box = self.observation_space
         assert isinstance(box, spaces.Box)
         return np.clip(np.array([x, v, xp, vp], dtype=np.float32), box.low, box.high)

@@ -4,14 +4,19 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
+from mirror_avatar.deep.features import encode
+from mirror_avatar.deep.network import greedy_action
+from mirror_avatar.deep.player import DeepCyberPlayer
 from mirror_avatar.dynamics import FOLLOWER, integrate_hkb
+from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.env import MirrorGameEnv
 from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import star_graph
+from mirror_avatar.graphs import random_connected_graph, star_graph
 from mirror_avatar.learning.agent import DEFAULT_ACTIONS, CyberPlayer
 from mirror_avatar.learning.kernels import compute_reward
 from mirror_avatar.learning.training import score_imitation
 from mirror_avatar.session import Session
+from mirror_avatar.specs import load_player
 
 
 def sine_sessions(k: int = 3, n: int = 50, lag: int = 5) -> list[Session]:
@@ -125,3 +130,42 @@ def test_greedy_policy_through_the_env_scores_as_the_compiled_session():
     mean_reward, _ = score_imitation(player, sessions)
     assert len(rewards) == 199
     assert np.mean(rewards) == pytest.approx(mean_reward[0], rel=1e-12)
+
+
+@pytest.fixture(scope="module")
+def group_sessions() -> list[Session]:
+    """Virtual-trainer groups of four on a new random connected graph each."""
+    group = [load_player(spec, "group") for spec in ("bundled:fast", "bundled:slow") * 2]
+    return [play_compiled(group, 100, seed, random_connected_graph) for seed in range(4)]
+
+
+def test_dynamic_observations_pass_check_env_on_random_graphs(group_sessions):
+    check_env(
+        MirrorGameEnv(group_sessions, observation="dynamic", target=3), skip_render_check=True
+    )
+
+
+def test_dynamic_observations_are_the_deep_players_input(group_sessions):
+    player = DeepCyberPlayer(n_slots=3)
+    player.initialise_policy(0)
+    env = MirrorGameEnv(group_sessions, player, observation="dynamic", target=3)
+    obs, _ = env.reset(seed=1)
+    session = env._session
+    neighbours = np.flatnonzero(session.graph[3])
+    for k in range(1, 30):
+        x, v = env._agent.state
+        expected = np.empty(13)
+        encode(
+            x,
+            v,
+            0.0,
+            session.positions[neighbours, k - 1],
+            session.velocities[neighbours, k - 1],
+            3,
+            False,
+            expected,
+        )
+        np.testing.assert_array_equal(obs, expected.astype(np.float32))
+        obs, *_ = env.step(greedy_action(player.weights_, player.sizes_, obs.astype(np.float64)))
+    with pytest.raises(InputError, match="'discrete' \\(for a tabular player\\)"):
+        MirrorGameEnv(group_sessions, player, observation="discrete")
