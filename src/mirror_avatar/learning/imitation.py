@@ -543,15 +543,19 @@ def make_group_cyber_player(
 
     Its end effector is `mirror_avatar.dynamics.GROUP`'s and its accelerations ``action_scale *
     DEFAULT_ACTIONS``. A tabular player's state is built from its own state and its neighbours'
-    mean, cut as `make_group_discretisation` says; a deep player (``agent="dqn"``) sees its
+    mean, cut as `make_group_discretisation` says. A deep player (``agent="dqn"``) sees its
     neighbours one by one in ``n_players - 1`` slots (METHODS section 8's dynamic input,
-    `mirror_avatar.deep.features`).
+    `mirror_avatar.deep.features`) and also its own reference velocity, drawn from
+    ``reference`` (a **departure**, as the tabular leader's features: the target moves partly
+    with its own motion, theta_s 0.1, and without it the deep player followed its neighbours'
+    mean more closely than the target does, CV 0.92 against 0.81 after 200 sessions).
     """
     actions = tuple(action_scale * a for a in DEFAULT_ACTIONS)
     label = "cyber player (group)"
     if _check_agent(agent) == "dqn":
         return DeepCyberPlayer(
             n_slots=n_players - 1,
+            use_reference=True,
             actions=actions,
             params=dynamics.GROUP,
             reference=reference,
