@@ -61,6 +61,10 @@ TRAINING_SESSIONS = 4000
 """Training sessions per role by default (**choice**: enough for both roles to match the target
 while keeping ``make demo`` to a few minutes; the paper used about 24 000)."""
 
+DQN_TRAINING_SESSIONS = 300
+"""Training sessions per role of a deep cyber player (**choice**: a DQN update every step learns
+from far fewer sessions than the table; ``benchmarks/bench_deep.py`` measures both)."""
+
 QUICK_TRAINING_SESSIONS = 300
 VALIDATION_SESSIONS = 20
 """Sessions per partner and role in validation (the paper's 20)."""
@@ -132,7 +136,8 @@ def run(
     Section
         Tables I-II in the paper's layout, baselines, figures and metrics.
     """
-    n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else TRAINING_SESSIONS)
+    full = DQN_TRAINING_SESSIONS if agent == "dqn" else TRAINING_SESSIONS
+    n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else full)
     n_valid = n_validation or (QUICK_VALIDATION_SESSIONS if quick else VALIDATION_SESSIONS)
     n_base = QUICK_BASELINE_SESSIONS if quick else BASELINE_SESSIONS
     cast = cast_virtual_trainers(trials, seed=seed)

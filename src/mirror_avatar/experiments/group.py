@@ -57,6 +57,9 @@ CYBER = "cyber player"
 """The cyber player's name in the records (the target's is its label)."""
 
 TRAINING_SESSIONS = 4000
+DQN_TRAINING_SESSIONS = 300
+"""Training sessions of a deep cyber player (**choice**, see the dyad's
+`mirror_avatar.experiments.cyber_player.DQN_TRAINING_SESSIONS`)."""
 QUICK_TRAINING_SESSIONS = 300
 VALIDATION_SESSIONS = 60
 """Sessions of the validation on random graphs (the published example's 60)."""
@@ -115,7 +118,8 @@ def run(
     agent
         ``"tabular"`` (a Q-table) or ``"dqn"`` (a deep Q-network with dynamic input).
     """
-    n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else TRAINING_SESSIONS)
+    full = DQN_TRAINING_SESSIONS if agent == "dqn" else TRAINING_SESSIONS
+    n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else full)
     n_valid = QUICK_VALIDATION_SESSIONS if quick else VALIDATION_SESSIONS
     n_topology = QUICK_TOPOLOGY_SESSIONS if quick else TOPOLOGY_SESSIONS
     n_base = QUICK_BASELINE_SESSIONS if quick else BASELINE_SESSIONS

@@ -548,7 +548,7 @@ def make_group_cyber_player(
     `mirror_avatar.deep.features`) and also its own reference velocity, drawn from
     ``reference`` (a **departure**, as the tabular leader's features: the target moves partly
     with its own motion, theta_s 0.1, and without it the deep player followed its neighbours'
-    mean more closely than the target does, CV 0.92 against 0.81 after 200 sessions).
+    mean more closely than the target does; `benchmarks/results.md`, section deep).
     """
     actions = tuple(action_scale * a for a in DEFAULT_ACTIONS)
     label = "cyber player (group)"
