@@ -90,9 +90,9 @@ def update_rows(trials) -> list[dict]:
     seconds = time.perf_counter() - start
     updates = int(learner.replay_.counters[1])
     steps = int(learner.replay_.counters[0])
+    note = f"{steps} steps, {updates} updates, {len(sessions)} real sessions"
     return [{"name": "DQN learning step (act, store, one minibatch update), 100-50-50",
-             "value": seconds / steps * 1e6, "unit": "µs",
-             "note": f"{steps} steps, {updates} updates, {len(sessions)} real sessions"}]  # fmt: skip
+             "value": seconds / steps * 1e6, "unit": "µs", "note": note}]  # fmt: skip
 
 
 def dyad_rows(trials, quick: bool) -> list[dict]:
@@ -110,7 +110,8 @@ def dyad_rows(trials, quick: bool) -> list[dict]:
             results[agent] = cyber_player.run_role(
                 cast, role, n_train, n_valid, n_base, 0, 2, agent
             )
-            rows.append({"name": f"training, {role}, {agent}", "value": results[agent].train_seconds,
+            seconds = results[agent].train_seconds
+            rows.append({"name": f"training, {role}, {agent}", "value": seconds,
                          "unit": "s", "note": f"{n_train} sessions of 60 s"})  # fmt: skip
         rows += _table_one_rows(role, results)
     return rows
@@ -124,19 +125,20 @@ def _table_one_rows(role: str, results: dict) -> list[dict]:
     for partner in checks["tabular"].index:
         tabular, deep = checks["tabular"].loc[partner], checks["dqn"].loc[partner]
         for measure in ("cv", "rms"):
+            mine, theirs = deep[f"{measure} cyber"], deep[f"{measure} {target}"]
+            verdict = "within" if deep[f"{measure} within"] else "NOT within"
             rows.append({
                 "name": f"{role} with {partner}: {measure.upper()}",
-                "value": float(deep[f"{measure} cyber"]),
-                "baseline": float(deep[f"{measure} {target}"]),
-                "note": f"deep - {target} {deep[f'{measure} cyber'] - deep[f'{measure} {target}']:+.3f}"
-                f" ({'within' if deep[f'{measure} within'] else 'NOT within'} {limit}); tabular "
+                "value": float(mine),
+                "baseline": float(theirs),
+                "note": f"deep - {target} {mine - theirs:+.3f} ({verdict} {limit}); tabular "
                 f"{tabular[f'{measure} cyber']:.3f}",
             })  # fmt: skip
     return rows
 
 
 def group_rows(trials, quick: bool) -> list[dict]:
-    """The group experiment for each agent: CV, group synchronisation, RMS against VT5's."""
+    """Run the group experiment for each agent: CV, group synchronisation, RMS against VT5's."""
     rows = []
     for agent in AGENTS:
         full = group.DQN_TRAINING_SESSIONS if agent == "dqn" else group.TRAINING_SESSIONS
@@ -158,7 +160,7 @@ def group_rows(trials, quick: bool) -> list[dict]:
                 f"difference {criteria[f'{measure} difference']:+.4f} "
                 f"({'within' if within else 'NOT within'} {group.CRITERIA['max_difference']})",
             })  # fmt: skip
+        bound = "at most 1.5" if criteria["rmse SD within"] else "ABOVE 1.5"
         rows.append({"name": f"group, {agent}: RMS SD ratio to the target's",
-                     "value": criteria["rmse SD ratio"],
-                     "note": "at most 1.5" if criteria["rmse SD within"] else "ABOVE 1.5"})  # fmt: skip
+                     "value": criteria["rmse SD ratio"], "note": bound})  # fmt: skip
     return rows
