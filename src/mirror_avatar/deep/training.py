@@ -35,7 +35,7 @@ from mirror_avatar.deep.player import DeepCyberPlayer
 from mirror_avatar.dynamics import Record, advance_hkb
 from mirror_avatar.errors import InputError
 from mirror_avatar.learning.kernels import compute_reward
-from mirror_avatar.learning.training import ImitationTask, SessionLearner
+from mirror_avatar.learning.training import ImitationTask, SessionLearner, score_tasks
 from mirror_avatar.session import Session
 
 Array = NDArray[np.float64]
@@ -433,8 +433,9 @@ def score_deep_imitation(
     learner._initialise(np.random.SeedSequence(0))
     learner.rng_ = np.random.default_rng(0)
     learner._begin()
-    scores = [
-        play_deep_task(learner, ImitationTask.from_session(s, target, player.period), 0.0, False)
-        for s in sessions
-    ]
-    return np.array([r for r, _ in scores]), np.array([e for _, e in scores])
+    return score_tasks(
+        lambda task: play_deep_task(learner, task, 0.0, learn=False),
+        sessions,
+        target,
+        player.period,
+    )

@@ -239,10 +239,24 @@ def score_imitation(
     """
     rng = np.random.default_rng(0)
     policy = policy_arguments(player)
-    scores = [
-        play_task(policy, ImitationTask.from_session(s, target, player.period), 0.0, 0.0, 0.0, rng)
-        for s in sessions
-    ]
+    return score_tasks(
+        lambda task: play_task(policy, task, 0.0, 0.0, 0.0, rng), sessions, target, player.period
+    )
+
+
+def score_tasks(
+    play: Callable[[ImitationTask], tuple[float, float]],
+    sessions: Iterable[Session],
+    target: int,
+    period: float,
+) -> tuple[Array, Array]:
+    """Score ``play`` (mean reward and RMS of one task) on each session in ``target``'s place.
+
+    Returns
+    -------
+    mean_reward, rms : ndarray, shape (n_sessions,)
+    """
+    scores = [play(ImitationTask.from_session(s, target, period)) for s in sessions]
     return np.array([r for r, _ in scores]), np.array([e for _, e in scores])
 
 
