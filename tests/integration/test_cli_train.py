@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -139,7 +140,8 @@ def test_sigterm_keeps_the_finished_policy_and_stops_the_workers(
     out = tmp_path / "vt.npz"
     assert _train(out, models[0], str(models[1])) == 0
     before = {path: path.read_bytes() for path in tmp_path.glob("vt.*")}
-    command = [sys.executable, "-c", "from mirror_avatar.cli import run; run()", "train",
+    command = [sys.executable, "-X", "faulthandler", "-c",
+               "from mirror_avatar.cli import run; run()", "train",
                "--target", str(models[0]), "--partners", str(models[1]), "--sessions", "5000",
                "--duration", "20", "--jobs", "2", "--checkpoint-every", "4",
                "--out", str(out)]  # fmt: skip
@@ -154,8 +156,10 @@ def test_sigterm_keeps_the_finished_policy_and_stops_the_workers(
         process.send_signal(signal.SIGTERM)
         _, error = process.communicate(timeout=60)
     finally:
-        if process.poll() is None:
-            os.killpg(process.pid, signal.SIGKILL)
+        if process.poll() is None or process.returncode != 130:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(process.pid, signal.SIGKILL)
+            _, error = process.communicate()
     assert process.returncode == 130, error
     assert "Traceback" not in error
     assert {path: path.read_bytes() for path in tmp_path.glob("vt.*")} == before | {
