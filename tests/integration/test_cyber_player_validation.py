@@ -57,6 +57,16 @@ def test_quick_validation_runs_end_to_end(zhai_trials: list[Trial], tmp_path) ->
     json.loads((tmp_path / "metrics.json").read_text())
 
 
+def test_the_deep_agent_runs_the_same_validation(zhai_trials: list[Trial]) -> None:
+    section = run(zhai_trials, quick=True, seed=2, n_sessions=6, n_validation=2, agent="dqn")
+    assert section.metrics["agent"] == "dqn" and section.metrics["training_sessions"] == 6
+    assert "deep cyber player (a Q-network trained by DQN) was trained on 6" in section.text[0]
+    for role in ("follower", "leader"):
+        baselines = section.metrics[role]["baselines_rms"]
+        assert baselines["trained"] < baselines["untrained (random Q)"]
+        assert len(section.metrics[role]["records"]) == 2 * 5 * 2
+
+
 def test_measure_against_direct_computation() -> None:
     """Two sinusoids a quarter period apart: CV 1, RMS sqrt(2) A / sqrt(2) = A, EMD 0."""
     t = np.arange(0, 60, 0.03)

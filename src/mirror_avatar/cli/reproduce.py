@@ -13,8 +13,9 @@ import click
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.experiments import EXPERIMENTS
+from mirror_avatar.experiments import AGENT_EXPERIMENTS, EXPERIMENTS
 from mirror_avatar.importing import ImportOptions
+from mirror_avatar.learning.imitation import AGENTS, Agent
 from mirror_avatar.report import write_report
 
 
@@ -41,6 +42,13 @@ from mirror_avatar.report import write_report
     type=click.Path(path_type=Path),
     help="Trial file or directory to use instead of the bundled data (repeatable).",
 )
+@click.option(
+    "--agent",
+    type=click.Choice(AGENTS),
+    default="tabular",
+    show_default=True,
+    help="The cyber players of the dyad and group experiments: the paper's Q-table or a DQN.",
+)
 @group_option()
 @import_options
 def reproduce(
@@ -48,6 +56,7 @@ def reproduce(
     quick: bool,
     seed: int,
     data: tuple[Path, ...],
+    agent: Agent,
     group_by: str,
     options: ImportOptions,
 ) -> None:
@@ -62,13 +71,15 @@ def reproduce(
     for number, (name, run) in enumerate(EXPERIMENTS, start=1):
         click.echo(f"reproduce: {name} ({number}/{len(EXPERIMENTS)}) ...", err=True)
         begun = time.perf_counter()
-        sections.append(run(trials, quick=quick, seed=seed))
+        choice = {"agent": agent} if name in AGENT_EXPERIMENTS else {}
+        sections.append(run(trials, quick=quick, seed=seed, **choice))
         timings[name] = round(time.perf_counter() - begun, 3)
         click.echo(f"reproduce: {name} done in {timings[name]:.0f} s", err=True)
     metadata = {
         "version": version("mirror-avatar"),
-        "command": _command_line(out_dir, quick, seed, data),
+        "command": _command_line(out_dir, quick, seed, data, agent),
         "seed": seed,
+        "agent": agent,
         "quick": quick,
         "data": [str(path) for path in data] or "bundled zhai2017",
         "n_trials": len(trials),
@@ -82,9 +93,9 @@ def reproduce(
     click.echo(str(path))
 
 
-def _command_line(out_dir: Path, quick: bool, seed: int, data: tuple[Path, ...]) -> str:
+def _command_line(out_dir: Path, quick: bool, seed: int, data: tuple[Path, ...], agent: str) -> str:
     words = ["mirror-avatar", "reproduce", "--out", str(out_dir), "--seed", str(seed)]
-    words += ["--quick"] * quick
+    words += ["--quick"] * quick + ["--agent", agent] * (agent != "tabular")
     for path in data:
         words += ["--data", str(path)]
     return shlex.join(words)

@@ -29,3 +29,7 @@ EXPERIMENTS: list[tuple[str, Callable[..., Section]]] = [
     ("curriculum", curriculum.run),
 ]
 """(name, run) pairs in report order; ``run(trials, quick=False, seed=0) -> Section``."""
+
+AGENT_EXPERIMENTS = frozenset({"cyber_player", "group"})
+"""The experiments that train a cyber player; their ``run`` also takes ``agent`` ("tabular" or
+"dqn")."""

@@ -30,6 +30,7 @@ from mirror_avatar.engine.loop import count_samples
 from mirror_avatar.figures import plot_learning_curves, plot_positions, plot_similarity_space
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.imitation import (
+    AGENT_NAMES,
     TRAINING_ROLES,
     Agent,
     Cast,
@@ -66,6 +67,7 @@ DQN_TRAINING_SESSIONS = 300
 from far fewer sessions than the table; ``benchmarks/bench_deep.py`` measures both)."""
 
 QUICK_TRAINING_SESSIONS = 300
+QUICK_DQN_TRAINING_SESSIONS = 40
 VALIDATION_SESSIONS = 20
 """Sessions per partner and role in validation (the paper's 20)."""
 
@@ -136,8 +138,10 @@ def run(
     Section
         Tables I-II in the paper's layout, baselines, figures and metrics.
     """
-    full = DQN_TRAINING_SESSIONS if agent == "dqn" else TRAINING_SESSIONS
-    n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else full)
+    dqn = agent == "dqn"
+    full = DQN_TRAINING_SESSIONS if dqn else TRAINING_SESSIONS
+    short = QUICK_DQN_TRAINING_SESSIONS if dqn else QUICK_TRAINING_SESSIONS
+    n_train = n_sessions or (short if quick else full)
     n_valid = n_validation or (QUICK_VALIDATION_SESSIONS if quick else VALIDATION_SESSIONS)
     n_base = QUICK_BASELINE_SESSIONS if quick else BASELINE_SESSIONS
     cast = cast_virtual_trainers(trials, seed=seed)
@@ -153,6 +157,7 @@ def run(
     regions = {r.role: compute_regions(r.velocities) for r in results}
     overlaps = pd.concat({role: reg[2] for role, reg in regions.items()})
     metrics = _metrics(results, table_one, table_two, overlaps, cast, seed, n_train, n_valid)
+    metrics["agent"] = agent
     for role, checks in criteria.items():
         metrics[role]["criteria"] = checks.to_dict(orient="index")
     figures: dict[str, Any] = {}
@@ -176,7 +181,7 @@ def run(
     return Section(
         key="cyber_player",
         title=f"Cyber player: learning to move like {target} (Tables I-II)",
-        text=_describe(results, table_two, cast, n_train, n_valid),
+        text=_describe(results, table_two, cast, n_train, n_valid, agent),
         tables={
             f"Table I: {target} and the cyber player against each partner (mean +- SD)": table_one,
             f"Table II: paired t-tests, {target} vs cyber player": table_two,
@@ -482,17 +487,27 @@ def _metrics(
 
 
 def _describe(
-    results: list[RoleResult], table_two: pd.DataFrame, cast: Cast, n_train: int, n_valid: int
+    results: list[RoleResult],
+    table_two: pd.DataFrame,
+    cast: Cast,
+    n_train: int,
+    n_valid: int,
+    agent: Agent,
 ) -> list[str]:
     target = cast.trainers[cast.target].label
+    leader_input = (
+        "The leader's state is [x - x_p, x' - r_s, x, r_s]"
+        if agent == "tabular"
+        else "The leader's input also holds r_s"
+    )
     text = [
-        f"Virtual trainers: {cast.describe()} For each role a cyber player was trained on "
-        f"{n_train} sessions of 60 s with the training partners (the paper: about 24 000), then "
-        f"replaced {target} in {n_valid} closed-loop sessions per partner. Metrics leave out the "
-        f"first {TRIM:g} s. The leader's state is [x - x_p, x' - r_s, x, r_s], with r_s its own "
-        f"reference velocity drawn from {target}'s IMS generator as {target} draws it (a "
-        "departure from METHODS' [x, x', x_p, x_p']: a leader's motion comes from its own "
-        "motion source, which the partner's state cannot predict).",
+        f"Virtual trainers: {cast.describe()} For each role a {AGENT_NAMES[agent]} was trained "
+        f"on {n_train} sessions of 60 s with the training partners (the paper: about 24 000), "
+        f"then replaced {target} in {n_valid} closed-loop sessions per partner. Metrics leave "
+        f"out the first {TRIM:g} s. {leader_input}, with r_s its own reference velocity drawn "
+        f"from {target}'s IMS generator as {target} draws it (a departure from METHODS' [x, x', "
+        "x_p, x_p']: a leader's motion comes from its own motion source, which the partner's "
+        "state cannot predict).",
         f"Paper Table I: CV {PAPER['cv'][0]}-{PAPER['cv'][1]}, RMS {PAPER['rms'][0]}-"
         f"{PAPER['rms'][1]}, EMD {PAPER['emd'][0]}-{PAPER['emd'][1]}; Table II: all p > 0.05.",
     ]

@@ -29,6 +29,7 @@ from mirror_avatar.figures import plot_bars, plot_graph, plot_learning_curves, p
 from mirror_avatar.graphs import GraphSource, make_graph, random_connected_graph
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.imitation import (
+    AGENT_NAMES,
     Agent,
     Cast,
     VirtualTrainerSpec,
@@ -61,6 +62,7 @@ DQN_TRAINING_SESSIONS = 300
 """Training sessions of a deep cyber player (**choice**, see the dyad's
 `mirror_avatar.experiments.cyber_player.DQN_TRAINING_SESSIONS`)."""
 QUICK_TRAINING_SESSIONS = 300
+QUICK_DQN_TRAINING_SESSIONS = 40
 VALIDATION_SESSIONS = 60
 """Sessions of the validation on random graphs (the published example's 60)."""
 
@@ -118,8 +120,10 @@ def run(
     agent
         ``"tabular"`` (a Q-table) or ``"dqn"`` (a deep Q-network with dynamic input).
     """
-    full = DQN_TRAINING_SESSIONS if agent == "dqn" else TRAINING_SESSIONS
-    n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else full)
+    dqn = agent == "dqn"
+    full = DQN_TRAINING_SESSIONS if dqn else TRAINING_SESSIONS
+    short = QUICK_DQN_TRAINING_SESSIONS if dqn else QUICK_TRAINING_SESSIONS
+    n_train = n_sessions or (short if quick else full)
     n_valid = QUICK_VALIDATION_SESSIONS if quick else VALIDATION_SESSIONS
     n_topology = QUICK_TOPOLOGY_SESSIONS if quick else TOPOLOGY_SESSIONS
     n_base = QUICK_BASELINE_SESSIONS if quick else BASELINE_SESSIONS
@@ -145,6 +149,7 @@ def run(
     checks = check_criteria(records)
     metrics = {
         "seed": seed,
+        "agent": agent,
         "training_sessions": n_train,
         "training_seconds": train_seconds,
         "validation_sessions": n_valid,
@@ -167,7 +172,7 @@ def run(
         key="group",
         title=f"Groups: a cyber player in a group of {len(group)} on random graphs (METHODS "
         "section 8)",
-        text=_describe(members, table, checks, baselines, synchrony, n_train, n_valid),
+        text=_describe(members, table, checks, baselines, synchrony, n_train, n_valid, agent),
         tables={
             f"Target {label} and the cyber player in its place, random graphs (mean +- SD; CV, "
             "RMS, lag and cross-correlation against the mean of the target's neighbours)": table,
@@ -389,6 +394,7 @@ def _describe(
     synchrony: dict[str, dict[str, float]],
     n_train: int,
     n_valid: int,
+    agent: Agent,
 ) -> list[str]:
     who = ", ".join(f"{m.label} ({', '.join(m.trial_labels)})" for m in members)
     path, complete = synchrony["path"], synchrony["complete"]["group (mean rho_g)"]
@@ -398,7 +404,7 @@ def _describe(
     return [
         f"{len(members)} virtual trainers improvise together with the group parameters of "
         f"METHODS section 8 (theta_p 0.85, theta_s 0.1, theta_v 0.05, omega 0.75): {who}; "
-        f"the last is the target. A tabular cyber player was trained on {n_train} sessions of "
+        f"the last is the target. A {AGENT_NAMES[agent]} was trained on {n_train} sessions of "
         f"{DURATION:g} s in the target's place, each on a new random connected graph, then "
         f"replaced it in {n_valid} sessions on new random graphs, each paired with the same "
         f"session (same seed and graph) played by the target. The first {TRIM:g} s are left "

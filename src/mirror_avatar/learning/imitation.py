@@ -65,6 +65,11 @@ from mirror_avatar.trials import DEFAULT_RATE, Trial
 Role = Literal["follower", "leader"]
 Agent = Literal["tabular", "dqn"]
 AGENTS: tuple[Agent, ...] = ("tabular", "dqn")
+AGENT_NAMES: dict[Agent, str] = {
+    "tabular": "tabular cyber player (a Q-table)",
+    "dqn": "deep cyber player (a Q-network trained by DQN)",
+}
+"""How reports name the cyber player each agent trains."""
 Reference = IMSGenerator | Trial
 """What a virtual trainer draws its reference velocity from: a generator or a recorded trial."""
 TRAINING_ROLES: tuple[Role, ...] = ("follower", "leader")
