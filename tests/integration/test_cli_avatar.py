@@ -10,6 +10,7 @@ import pytest
 
 from mirror_avatar.cli import main
 from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.deep.player import DeepCyberPlayer
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.agent import CyberPlayer
@@ -114,3 +115,28 @@ def test_live_play_takes_the_avatar_in_every_mode(built: Path) -> None:
     assert factory("avatar_follows").training_["role"] == "follower"  # type: ignore[attr-defined]
     assert factory("avatar_leads").training_["role"] == "leader"  # type: ignore[attr-defined]
     assert isinstance(factory("joint"), VirtualTrainer)
+
+
+def test_a_deep_avatar_is_built_saved_and_played(built: Path, tmp_path: Path) -> None:
+    folder = built.parent
+    out = tmp_path / "P01-deep.npz"
+    status = main(["avatar", "create", str(folder / "trials"), "--name", "P01", "--partners",
+                   f"{folder / 'fast.npz'},{folder / 'slow.npz'}", "--agent", "dqn",
+                   "--sessions", "3", "--jobs", "1", "--out", str(out)])  # fmt: skip
+    assert status == 0
+    avatar = load_avatar(out)
+    assert avatar.summary["agent"] == "dqn" and avatar.summary["n_sessions"] == 3
+    for role in ("follower", "leader"):
+        player = load_player(str(out), role)
+        assert isinstance(player, DeepCyberPlayer) and player.training_["role"] == role
+        np.testing.assert_array_equal(player.weights_, avatar.players[role].weights_)
+    assert avatar.players["leader"].needs_reference and avatar.players["leader"].stochastic
+    assert "deep cyber player" in out.with_suffix(".html").read_text()
+    arrays, metadata = load_model(out, "mirror-avatar/avatar", 1, ())
+    metadata["leader"]["agent"] = "transformer"
+    for key in ("format", "version", "library_version"):
+        metadata.pop(key, None)
+    unknown = tmp_path / "unknown.npz"
+    save_model(unknown, "mirror-avatar/avatar", 1, arrays, metadata)
+    with pytest.raises(InputError, match="agent 'transformer' is neither 'tabular' nor 'dqn'"):
+        load_avatar(unknown)

@@ -13,6 +13,7 @@ from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.cli.train import load_generator
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.personal_avatar import (
+    DEFAULT_DQN_SESSIONS,
     DEFAULT_SESSIONS,
     create_avatar,
     default_partners,
@@ -20,6 +21,7 @@ from mirror_avatar.experiments.personal_avatar import (
 )
 from mirror_avatar.importing import ImportOptions, excerpt
 from mirror_avatar.learning.avatar import MAX_NAME_CHARS
+from mirror_avatar.learning.imitation import AGENTS, Agent
 
 
 @click.group()
@@ -39,8 +41,13 @@ def avatar() -> None:
     "trainers of the bundled trials, three trials each; the sixth unseen]",
 )
 @click.option(
-    "--sessions", type=int, default=DEFAULT_SESSIONS, show_default=True,
-    help="Training sessions per role.",
+    "--sessions", type=int, default=None,
+    help=f"Training sessions per role. [default: {DEFAULT_SESSIONS}; {DEFAULT_DQN_SESSIONS} "
+    "with --agent dqn]",
+)  # fmt: skip
+@click.option(
+    "--agent", type=click.Choice(AGENTS), default="tabular", show_default=True,
+    help="tabular: the paper's Q-tables; dqn: deep Q-networks (METHODS section 8).",
 )  # fmt: skip
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of everything.")
 @click.option("--jobs", type=int, default=2, show_default=True, help="Local processes.")
@@ -53,7 +60,8 @@ def create(
     paths: tuple[Path, ...],
     name: str,
     partner_specs: tuple[str, ...],
-    sessions: int,
+    sessions: int | None,
+    agent: Agent,
     seed: int,
     jobs: int,
     out_path: Path,
@@ -71,14 +79,16 @@ def create(
         raise InputError(
             "--name", f"{excerpt(name)} is not a name of 1-{MAX_NAME_CHARS} characters"
         )
-    if sessions < 1 or jobs < 1:
+    if (sessions is not None and sessions < 1) or jobs < 1:
         raise InputError("--sessions", "--sessions and --jobs must be >= 1")
     specs = [s.strip() for spec in partner_specs for s in spec.split(",") if s.strip()]
     partners = [(spec, load_generator(spec, options)) for spec in specs]
     partners = partners or default_partners(seed)
     trials = read_and_report(paths, "none", options)
     began = time.perf_counter()
-    built, card = create_avatar(trials, name, partners, sessions, seed=seed, n_jobs=jobs)
+    built, card = create_avatar(
+        trials, name, partners, sessions, seed=seed, n_jobs=jobs, agent=agent
+    )
     built.summary["build_seconds"] = round(time.perf_counter() - began, 3)
     metadata = {"version": __version__, "seed": seed, "seconds": built.summary["build_seconds"]}
     card_path = save_avatar(built, card, out_path, metadata)

@@ -48,6 +48,7 @@ from mirror_avatar.model_files import (
     check_integer,
     check_object,
     load_model,
+    require_arrays,
     save_model,
 )
 from mirror_avatar.players.base import DEEP, Observation, PlayerPlan
@@ -261,12 +262,19 @@ class DeepCyberPlayer(AccelerationPlayer):
 
 
 def save_deep_cyber_player(player: DeepCyberPlayer, path: str | os.PathLike[str]) -> Path:
-    """Write a trained deep player to ``path`` (one ``.npz``), atomically.
+    """Write a trained deep player to ``path`` (one ``.npz``), atomically (`deep_player_arrays`)."""
+    return save_model(path, FORMAT_NAME, FORMAT_VERSION, *deep_player_arrays(player, path))
 
-    The file holds arrays ``weights``, ``sizes``, ``actions`` and, once trained,
-    ``target_counts``; its metadata holds the dynamics parameters, the network layout, the
-    training summary and its seed. An avatar whose input holds its reference velocity also
-    stores its reference generator, so the file alone plays.
+
+def deep_player_arrays(
+    player: DeepCyberPlayer, source: Source
+) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
+    """Return a trained deep player's arrays and JSON metadata, as its file holds them.
+
+    The arrays are ``weights``, ``sizes``, ``actions`` and, once trained, ``target_counts``; the
+    metadata holds the dynamics parameters, the network layout, the training summary and its
+    seed. An avatar whose input holds its reference velocity also stores its reference
+    generator, so the file alone plays.
     """
     training = getattr(player, "training_", {})
     arrays = {"weights": player.weights_, "sizes": player.sizes_, "actions": player.actions_}
@@ -278,10 +286,8 @@ def save_deep_cyber_player(player: DeepCyberPlayer, path: str | os.PathLike[str]
         "training": training,
         "seed": training.get("seed"),
     }
-    motion_arrays, motion_metadata = reference_arrays(player, path)
-    return save_model(
-        path, FORMAT_NAME, FORMAT_VERSION, arrays | motion_arrays, metadata | motion_metadata
-    )
+    motion_arrays, motion_metadata = reference_arrays(player, source)
+    return arrays | motion_arrays, metadata | motion_metadata
 
 
 DEEP_PLAYER_ARRAYS = ("weights", "sizes", "actions")
@@ -306,6 +312,7 @@ def deep_player_from_arrays(
     arrays: Mapping[str, NDArray[Any]], metadata: Mapping[str, Any], path: Source
 ) -> DeepCyberPlayer:
     """Rebuild a deep player from a file's arrays and metadata (see `load_deep_cyber_player`)."""
+    require_arrays(path, arrays, DEEP_PLAYER_ARRAYS)
     layout = check_object(path, "network", metadata.get("network"))
     hidden = layout.get("hidden")
     if not isinstance(hidden, list) or not 1 <= len(hidden) <= MAX_LAYERS:

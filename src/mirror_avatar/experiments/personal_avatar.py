@@ -32,9 +32,15 @@ from mirror_avatar.experiments.cyber_player import (
 )
 from mirror_avatar.figures import plot_ims, plot_learning_curves
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.avatar import Avatar
-from mirror_avatar.learning.imitation import Cast, Role, VirtualTrainerSpec, make_virtual_trainers
+from mirror_avatar.learning.imitation import (
+    AGENT_NAMES,
+    Agent,
+    Cast,
+    Role,
+    VirtualTrainerSpec,
+    make_virtual_trainers,
+)
 from mirror_avatar.report import Section, render_report
 from mirror_avatar.signature import DEFAULT_BINS, compute_ims
 from mirror_avatar.trials import DEFAULT_RATE, Trial
@@ -43,21 +49,26 @@ ROLES: tuple[Role, ...] = ("follower", "leader")
 """The roles trained, those of `mirror_avatar.learning.avatar.TRAINED_ROLES`."""
 
 DEFAULT_SESSIONS = 8000
-"""Training sessions per role (**choice**, twice the paper's 4000: with fewer, a follower's CV
-against a partner unseen in training stayed well below its person's; ``make bench``, ``avatar``,
-measures the time and the validation at this default)."""
+"""Training sessions per role of tabular players (**choice**, twice the paper's 4000: with fewer,
+a follower's CV against a partner unseen in training stayed well below its person's; ``make
+bench``, ``avatar``, measures the time and the validation at this default)."""
+
+DEFAULT_DQN_SESSIONS = 300
+"""Training sessions per role of deep players (**choice**: those of the Table I experiment,
+`mirror_avatar.experiments.cyber_player.DQN_TRAINING_SESSIONS`)."""
 
 
 def create_avatar(
     trials: Sequence[Trial],
     name: str,
     partners: Sequence[tuple[str, IMSGenerator]],
-    n_sessions: int = DEFAULT_SESSIONS,
+    n_sessions: int | None = None,
     n_validation: int = VALIDATION_SESSIONS,
     n_baseline: int = BASELINE_SESSIONS,
     seed: int = 0,
     n_jobs: int = 2,
     progress: Callable[[str], None] | None = None,
+    agent: Agent = "tabular",
 ) -> tuple[Avatar, Section]:
     """Build and validate a person's avatar.
 
@@ -71,14 +82,17 @@ def create_avatar(
         (label, generator) of the partners: all but the last train the avatar, the last is
         met only in validation (at least two).
     n_sessions, n_validation, n_baseline
-        Training sessions per role; validation sessions per partner and role; held-out
-        sessions of the baselines.
+        Training sessions per role (default `DEFAULT_SESSIONS`, or `DEFAULT_DQN_SESSIONS`
+        for deep players); validation sessions per partner and role; held-out sessions of the
+        baselines.
     seed
         Seeds the generator, training, validation and baselines (recorded in the avatar).
     n_jobs
         Local processes generating training sessions.
     progress
         Called with the name of each stage as it begins.
+    agent
+        ``"tabular"`` (Q-tables) or ``"dqn"`` (deep Q-networks) for both roles.
 
     Raises
     ------
@@ -88,6 +102,8 @@ def create_avatar(
     if len(partners) < 2:
         raise InputError("--partners", "give at least two partners: the last is kept unseen")
     report = progress or (lambda stage: None)
+    if n_sessions is None:
+        n_sessions = DEFAULT_DQN_SESSIONS if agent == "dqn" else DEFAULT_SESSIONS
     report("fitting the generator")
     generator = IMSGenerator(rate=DEFAULT_RATE, random_state=seed).fit(trials)
     trainers = [VirtualTrainerSpec(label, (), model) for label, model in partners]
@@ -97,13 +113,13 @@ def create_avatar(
     results = []
     for role in ROLES:
         report(f"training and validating the {role}")
-        results.append(run_role(cast, role, n_sessions, n_validation, n_baseline, seed, n_jobs))
+        results.append(
+            run_role(cast, role, n_sessions, n_validation, n_baseline, seed, n_jobs, agent)
+        )
     criteria: dict[str, pd.DataFrame] = {r.role: check_criteria(r) for r in results}
     summary = _summary(results, criteria, cast, generator, n_sessions, n_validation, seed)
-    players: dict[str, CyberPlayer] = {
-        r.role: r.player for r in results if isinstance(r.player, CyberPlayer)
-    }
-    avatar = Avatar(name, generator, players, summary)
+    summary["agent"] = agent
+    avatar = Avatar(name, generator, {r.role: r.player for r in results}, summary)
     return avatar, make_card(avatar, results, criteria)
 
 
@@ -150,7 +166,8 @@ def make_card(
     text = [
         f"{avatar.name}'s IMS generator was fitted on "
         f"{len(avatar.generator.training_summary_['labels'])} trials with "
-        f"{avatar.generator.n_symbols_} symbols ({complexity['rule']}); their cyber player "
+        f"{avatar.generator.n_symbols_} symbols ({complexity['rule']}); their "
+        f"{AGENT_NAMES[avatar.summary.get('agent', 'tabular')]} "
         f"learned to move like their virtual trainer as follower and as leader, playing with "
         f"{', '.join(partners[:-1])}. Each partner then played the same seeded sessions with "
         f"the person's virtual trainer and with the avatar; {partners[-1]} was never met in "

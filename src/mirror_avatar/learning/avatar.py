@@ -2,7 +2,8 @@
 
 METHODS section 10: a person's solo trials -> their IMS generator -> their virtual trainer -> cyber
 players trained, as follower and as leader, on sessions their virtual trainer plays with partners.
-The file (``.npz`` + JSON, `mirror_avatar.model_files`) holds the generator and both players;
+The file (``.npz`` + JSON, `mirror_avatar.model_files`) holds the generator and both players
+(tabular or deep: each role's metadata names its ``agent``, tabular when absent);
 which one plays is chosen by the role a session gives it (`Avatar.player`): the trained follower
 or leader, or, in joint improvisation and groups, where no policy was trained, the person's own
 virtual trainer (their generator with that role's preset).
@@ -15,18 +16,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from mirror_avatar.deep.player import DeepCyberPlayer, deep_player_arrays, deep_player_from_arrays
 from mirror_avatar.dynamics import HKBParams, preset
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import excerpt
+from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.agent import (
-    CYBER_PLAYER_ARRAYS,
     CyberPlayer,
     cyber_player_arrays,
     cyber_player_from_arrays,
 )
 from mirror_avatar.model_files import (
-    PART_SEPARATOR,
     check_object,
     join_parts,
     load_model,
@@ -55,14 +56,14 @@ class Avatar:
     generator
         The person's IMS generator.
     players
-        ``"follower"`` and ``"leader"`` -> the trained `CyberPlayer`.
+        ``"follower"`` and ``"leader"`` -> the trained `CyberPlayer` or `DeepCyberPlayer`.
     summary
         How it was made and validated (JSON-serialisable).
     """
 
     name: str
     generator: IMSGenerator
-    players: dict[str, CyberPlayer]
+    players: dict[str, AccelerationPlayer]
     summary: dict[str, Any] = field(default_factory=dict)
 
     def player(self, role: str | HKBParams) -> Player:
@@ -88,7 +89,7 @@ class Avatar:
             "generator": generator_metadata,
         }
         for role in TRAINED_ROLES:
-            parts[role], metadata[role] = cyber_player_arrays(self.players[role], path)
+            parts[role], metadata[role] = _player_arrays(self.players[role], path)
         return save_model(path, FORMAT_NAME, FORMAT_VERSION, join_parts(parts), metadata)
 
 
@@ -99,13 +100,10 @@ def load_avatar(path: str | os.PathLike[str]) -> Avatar:
     ------
     InputError
         ``path: problem`` for a missing, corrupt or inconsistent file, or a part that its own
-        loader (`IMSGenerator.from_arrays`, `mirror_avatar.learning.agent.cyber_player_from_arrays`)
-        refuses.
+        loader (`IMSGenerator.from_arrays`, `mirror_avatar.learning.agent.cyber_player_from_arrays`,
+        `mirror_avatar.deep.player.deep_player_from_arrays`) refuses.
     """
-    needed = tuple(
-        f"{role}{PART_SEPARATOR}{name}" for role in TRAINED_ROLES for name in CYBER_PLAYER_ARRAYS
-    )
-    arrays, metadata = load_model(path, FORMAT_NAME, FORMAT_VERSION, needed)
+    arrays, metadata = load_model(path, FORMAT_NAME, FORMAT_VERSION, ())
     name = metadata.get("name")
     if not isinstance(name, str) or not 0 < len(name) <= MAX_NAME_CHARS:
         raise InputError(path, f"avatar name {excerpt(name)} is not a name")
@@ -114,9 +112,7 @@ def load_avatar(path: str | os.PathLike[str]) -> Avatar:
         part["generator"], check_object(path, "generator", metadata.get("generator")), path
     )
     players = {
-        role: cyber_player_from_arrays(
-            part[role], check_object(path, role, metadata.get(role)), path
-        )
+        role: _player_from_arrays(part[role], check_object(path, role, metadata.get(role)), path)
         for role in TRAINED_ROLES
     }
     for role, player in players.items():
@@ -126,3 +122,28 @@ def load_avatar(path: str | os.PathLike[str]) -> Avatar:
             )
     summary = check_object(path, "summary", metadata.get("summary", {}))
     return Avatar(name, generator, players, summary)
+
+
+def _player_arrays(
+    player: AccelerationPlayer, path: str | os.PathLike[str]
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Return one role's arrays and metadata, its ``agent`` named in the metadata."""
+    if isinstance(player, DeepCyberPlayer):
+        arrays, metadata = deep_player_arrays(player, path)
+        return arrays, metadata | {"agent": "dqn"}
+    if not isinstance(player, CyberPlayer):
+        raise InputError(path, f"an avatar cannot hold a {type(player).__name__}")
+    arrays, metadata = cyber_player_arrays(player, path)
+    return arrays, metadata | {"agent": "tabular"}
+
+
+def _player_from_arrays(
+    arrays: dict[str, Any], metadata: dict[str, Any], path: str | os.PathLike[str]
+) -> AccelerationPlayer:
+    """Rebuild one role's player with the loader its ``agent`` names."""
+    agent = metadata.get("agent", "tabular")
+    if agent == "dqn":
+        return deep_player_from_arrays(arrays, metadata, path)
+    if agent != "tabular":
+        raise InputError(path, f"agent {excerpt(agent)} is neither 'tabular' nor 'dqn'")
+    return cyber_player_from_arrays(arrays, metadata, path)
