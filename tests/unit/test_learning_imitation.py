@@ -190,7 +190,7 @@ def test_leader_plays_from_its_own_reference(
 def test_a_saved_leader_needs_a_generator_target(
     trainers: list[VirtualTrainerSpec], zhai_trials: list[Trial], tmp_path: Path
 ) -> None:
-    with pytest.raises(InputError, match="target: a leader saved to a file needs an IMS"):
+    with pytest.raises(InputError, match="target: a leader or a deep player saved to a file needs"):
         train_cyber_player(
             zhai_trials[12], [trainers[0].generator], "leader", checkpoint=tmp_path / "p.npz"
         )

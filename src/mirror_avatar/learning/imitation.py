@@ -302,18 +302,19 @@ def make_cyber_player(
     (`mirror_avatar.dynamics.FOLLOWER` or ``LEADER``: omega 0.1 or 0.8 rad/s, alpha 1, beta 2,
     gamma -1, eta 1e-4) and the accelerations ``action_scale * DEFAULT_ACTIONS`` (units/s²;
     departs from METHODS' ±4 maximum, see `ACTION_SCALE`). A tabular player cuts its state as
-    `make_role_discretisation` says; a deep one (``agent="dqn"``) sees its own state and its
-    partner's, and a leader also its own reference velocity (the input that corresponds to the
-    tabular leader's ``"reference"`` features). ``reference`` is a leader's motion source: the
-    generator (or trial) of the person it imitates.
+    `make_role_discretisation` says; a deep one (``agent="dqn"``) sees its own state, its
+    partner's and, in both roles, its own reference velocity (a **departure**, as the tabular
+    leader's ``"reference"`` features: the virtual trainer it imitates moves partly with its own
+    motion, theta_s > 0, and without it the deep follower was more tightly coordinated with
+    slow partners than its target). ``reference`` is the motion source of a tabular leader and
+    of a deep player: the generator (or trial) of the person it imitates.
     """
     role = _check_role(role)
     actions = tuple(action_scale * a for a in DEFAULT_ACTIONS)
     params = dynamics.preset(role)
     if _check_agent(agent) == "dqn":
-        leads = role == "leader"
         return DeepCyberPlayer(
-            use_reference=leads, actions=actions, params=params, reference=reference
+            use_reference=True, actions=actions, params=params, reference=reference
         )
     return CyberPlayer(
         make_role_discretisation(role), actions=actions, params=params, reference=reference
@@ -429,7 +430,10 @@ def train_cyber_player(
     """
     player = make_cyber_player(role, target, agent=agent)
     if checkpoint is not None and player.needs_reference and not isinstance(target, IMSGenerator):
-        raise InputError("target", "a leader saved to a file needs an IMS generator, not a trial")
+        raise InputError(
+            "target",
+            "a leader or a deep player saved to a file needs an IMS generator, not a trial",
+        )
     player.label = f"cyber player ({role})"
     curve = imitate(
         player,
