@@ -45,11 +45,12 @@ def decision_rows() -> list[dict]:
     """One greedy decision of each player (dyad follower, group member of four)."""
     seen = Observation(0, np.array([0.1, -0.2, 0.3]), np.array([0.2, 0.0, -0.1]), np.zeros(3))
     rows = []
+    reference = load_zhai2017()[0]
     for name, player in (
         ("tabular follower", make_cyber_player("follower")),
-        ("deep follower", make_cyber_player("follower", agent="dqn")),
+        ("deep follower (own reference)", make_cyber_player("follower", reference, agent="dqn")),
         ("deep group member (3 slots, own reference)", make_group_cyber_player(
-            load_zhai2017()[0], agent="dqn")),
+            reference, agent="dqn")),
     ):  # fmt: skip
         player.initialise_policy(0)
         player.reset(seed=0)
@@ -80,10 +81,14 @@ def _kernel_call(player, seen: Observation):  # noqa: ANN202 - a closure
 
 
 def update_rows(trials) -> list[dict]:
-    """DQN updates per second on real follower sessions (one per step, minibatch 32)."""
+    """DQN updates per second on real follower sessions (one per step, minibatch 32).
+
+    The sessions are recordings (no reference velocity), so the player sees its own and its
+    partner's state only.
+    """
     sessions = make_follower_sessions([t for t in trials if t.group == "slow"])
-    player = make_cyber_player("follower", agent="dqn")
-    DQNLearner(make_cyber_player("follower", agent="dqn"), progress=False).fit(sessions[:1])
+    player = DeepCyberPlayer(actions=make_cyber_player("follower").actions)
+    DQNLearner(DeepCyberPlayer(), progress=False).fit(sessions[:1])
     learner = DQNLearner(player, random_state=0, progress=False)
     start = time.perf_counter()
     learner.fit(sessions)
