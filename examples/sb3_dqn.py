@@ -3,8 +3,9 @@
 The agent takes the place of virtual trainer VT5 following a leader (the paper's follower task):
 each episode is one 60 s session that the virtual trainers played on the batch engine, and the
 agent is rewarded for moving like VT5 did (`mirror_avatar.env.MirrorGameEnv`). After training it
-replays held-out sessions greedily; its RMS to VT5 is printed beside an untrained agent's and
-mirror-avatar's own DQN player's, trained on the same number of sessions.
+replays held-out sessions greedily; its RMS to VT5 is printed beside that of a player that never
+accelerates and that of mirror-avatar's own DQN player trained on the same sessions (which also
+sees its own reference velocity, here VT5's, which the Gymnasium observation does not hold).
 
 Needs stable-baselines3 and PyTorch (``pip install stable-baselines3``; from PyPI, PyTorch's
 Linux wheels pull the CUDA libraries, several GB), which mirror-avatar itself does not use.
@@ -79,7 +80,7 @@ def main() -> None:
     ours, _ = train_cyber_player(target, partners, n_sessions=args.sessions, agent="dqn")
     print(f"stable-baselines3 DQN: {args.steps} steps in {seconds:.0f} s")
     print(f"held-out RMS to VT5 (units): SB3 DQN {trained:.4f}, no acceleration {untrained:.4f}, "
-          f"mirror-avatar DQN on {args.sessions} sessions "
+          f"mirror-avatar DQN on {args.sessions} sessions (sees VT5's reference) "
           f"{score_avatar(ours, held_out)[1].mean():.4f}")  # fmt: skip
 
 
