@@ -109,9 +109,7 @@ def dyad_rows(trials, quick: bool) -> list[dict]:
     for role in TRAINING_ROLES:
         results = {}
         for agent in AGENTS:
-            full = cyber_player.DQN_TRAINING_SESSIONS if agent == "dqn" else (
-                cyber_player.TRAINING_SESSIONS)  # fmt: skip
-            n_train = 30 if quick else full
+            n_train = 30 if quick else cyber_player.TRAINING_SESSIONS[agent]
             results[agent] = cyber_player.run_role(
                 cast, role, n_train, n_valid, n_base, 0, 2, agent
             )
@@ -146,8 +144,7 @@ def group_rows(trials, quick: bool) -> list[dict]:
     """Run the group experiment for each agent: CV, group synchronisation, RMS against VT5's."""
     rows = []
     for agent in AGENTS:
-        full = group.DQN_TRAINING_SESSIONS if agent == "dqn" else group.TRAINING_SESSIONS
-        section = group.run(trials, quick=quick, n_sessions=30 if quick else full, agent=agent)
+        section = group.run(trials, quick=quick, n_sessions=30 if quick else None, agent=agent)
         metrics = section.metrics
         rows.append({"name": f"training, group of 4, {agent}", "value": metrics["training_seconds"],
                      "unit": "s", "note": f"{metrics['training_sessions']} sessions of 60 s, "

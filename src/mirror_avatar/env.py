@@ -135,7 +135,8 @@ class MirrorGameEnv(gym.Env[Any, Any]):
                 dtype=np.float32,
             )
         elif observation == "discrete" and isinstance(self.player, CyberPlayer):
-            self.observation_space = spaces.Discrete(self.player.discretisation_.n_states)
+            self._cells = self.player.discretisation_
+            self.observation_space = spaces.Discrete(self._cells.n_states)
         elif observation == "dynamic":
             size = count_features(n_slots, False)
             bound = DYNAMIC_BOUND
@@ -207,7 +208,7 @@ class MirrorGameEnv(gym.Env[Any, Any]):
             reference = float(
                 self._session.references[self.target, min(k, self._session.n_samples - 2)]
             )
-            return self.player.discretisation_.index(x, v, xp, vp, reference)  # type: ignore[attr-defined]
+            return self._cells.index(x, v, xp, vp, reference)
         if self.observation == "dynamic":
             features = np.empty(count_features(self.n_slots, False))
             encode(x, v, 0.0, seen.positions, seen.velocities, self.n_slots, False, features)

@@ -47,6 +47,13 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+def rewrite_avatar(path: Path, arrays: dict, metadata: dict) -> Path:
+    """Write an avatar file with edited arrays and metadata (its format header made afresh)."""
+    for key in ("format", "version", "library_version"):
+        metadata.pop(key, None)
+    return save_model(path, "mirror-avatar/avatar", 1, arrays, metadata)
+
+
 def test_the_avatar_file_holds_both_roles_and_its_card(built: Path) -> None:
     avatar = load_avatar(built)
     assert avatar.name == "P01" and set(avatar.players) == {"follower", "leader"}
@@ -83,10 +90,7 @@ def test_a_damaged_avatar_is_refused_in_one_line(built: Path, tmp_path: Path) ->
     leader = {k.removeprefix("leader__"): a for k, a in arrays.items() if k.startswith("leader__")}
     swapped |= {f"follower__{k}": a for k, a in leader.items()}
     metadata["follower"] = metadata["leader"]
-    for key in ("format", "version", "library_version"):
-        metadata.pop(key, None)
-    damaged = tmp_path / "damaged.npz"
-    save_model(damaged, "mirror-avatar/avatar", 1, swapped, metadata)
+    damaged = rewrite_avatar(tmp_path / "damaged.npz", swapped, metadata)
     with pytest.raises(InputError, match="its follower was trained as 'leader'"):
         load_avatar(damaged)
 
@@ -134,9 +138,6 @@ def test_a_deep_avatar_is_built_saved_and_played(built: Path, tmp_path: Path) ->
     assert "deep cyber player" in out.with_suffix(".html").read_text()
     arrays, metadata = load_model(out, "mirror-avatar/avatar", 1, ())
     metadata["leader"]["agent"] = "transformer"
-    for key in ("format", "version", "library_version"):
-        metadata.pop(key, None)
-    unknown = tmp_path / "unknown.npz"
-    save_model(unknown, "mirror-avatar/avatar", 1, arrays, metadata)
+    unknown = rewrite_avatar(tmp_path / "unknown.npz", arrays, metadata)
     with pytest.raises(InputError, match="agent 'transformer' is neither 'tabular' nor 'dqn'"):
         load_avatar(unknown)

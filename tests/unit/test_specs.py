@@ -11,7 +11,7 @@ import pytest
 from mirror_avatar import dynamics, specs
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.learning.agent import CyberPlayer, save_cyber_player
+from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.players import Observation, Player, RecordedPlayer, VirtualTrainer, check_player
 from mirror_avatar.specs import bundled_generator, cache_dir, load_player
 from mirror_avatar.trial_io import write_trial
@@ -94,7 +94,7 @@ def test_generator_model_file(tmp_path: Path, zhai_trials_100hz: list[Trial]) ->
 def test_cyber_player_file(tmp_path: Path, rng: np.random.Generator) -> None:
     trained = CyberPlayer()
     trained.initialise_q(rng, scale=1.0)
-    path = save_cyber_player(trained, tmp_path / "policy.npz")
+    path = trained.save(tmp_path / "policy.npz")
     player = load_player(str(path), "follower")
     assert isinstance(player, CyberPlayer)
     np.testing.assert_array_equal(player.q_table_, trained.q_table_)
@@ -169,7 +169,7 @@ def test_a_policy_plays_only_the_role_it_was_trained_for(tmp_path, trained, allo
     player = CyberPlayer()
     player.initialise_q(0, 1.0)
     player.training_ = {"role": trained}
-    path = save_cyber_player(player, tmp_path / "policy.npz")
+    path = player.save(tmp_path / "policy.npz")
     assert isinstance(load_player(str(path), allowed), CyberPlayer)
     with pytest.raises(InputError, match=f"trained as {trained} cannot play {refused}"):
         load_player(str(path), refused)

@@ -20,7 +20,6 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -49,7 +48,6 @@ from mirror_avatar.model_files import (
     check_object,
     load_model,
     require_arrays,
-    save_model,
 )
 from mirror_avatar.players.base import DEEP, Observation, PlayerPlan
 from mirror_avatar.trials import Trial
@@ -168,6 +166,10 @@ class DeepCyberPlayer(AccelerationPlayer):
         As in `AccelerationPlayer`.
     """
 
+    agent = "dqn"
+    format_name = FORMAT_NAME
+    format_version = FORMAT_VERSION
+
     weights_: Array
 
     def __init__(
@@ -251,19 +253,14 @@ class DeepCyberPlayer(AccelerationPlayer):
     def _policy_plan(self, start: tuple[float, float], reference: Array | None) -> PlayerPlan:
         return PlayerPlan(DEEP, start, self.params, reference=reference, policy=self.policy_)
 
-    def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write the model to one ``.npz`` file atomically (see `save_deep_cyber_player`)."""
-        return save_deep_cyber_player(self, path)
+    def model_arrays(self, source: Source) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
+        """Return the arrays and metadata of its file (`deep_player_arrays`)."""
+        return deep_player_arrays(self, source)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> DeepCyberPlayer:
         """Read a model written by `save` (see `load_deep_cyber_player`)."""
         return load_deep_cyber_player(path)
-
-
-def save_deep_cyber_player(player: DeepCyberPlayer, path: str | os.PathLike[str]) -> Path:
-    """Write a trained deep player to ``path`` (one ``.npz``), atomically (`deep_player_arrays`)."""
-    return save_model(path, FORMAT_NAME, FORMAT_VERSION, *deep_player_arrays(player, path))
 
 
 def deep_player_arrays(
@@ -295,7 +292,7 @@ DEEP_PLAYER_ARRAYS = ("weights", "sizes", "actions")
 
 
 def load_deep_cyber_player(path: str | os.PathLike[str]) -> DeepCyberPlayer:
-    """Read a player written by `save_deep_cyber_player`, checking every value it reads.
+    """Read a player written by `DeepCyberPlayer.save`, checking every value it reads.
 
     Raises
     ------

@@ -365,7 +365,29 @@ class DQNLearner(SessionLearner):
         self._record = self.player.params.record()
 
     def _play(self, task: ImitationTask, epsilon: float) -> tuple[float, float]:
-        return play_deep_task(self, task, epsilon, learn=True)
+        return play_deep_task(self, task, epsilon, True, self.rng_)
+
+    def score(self, sessions: Iterable[Session]) -> tuple[Array, Array]:
+        """Play each session greedily in the target's place with the player's network.
+
+        Learns nothing: the replay buffer and the networks are left as they are (a learner
+        that has not trained yet makes them, keeping the player's network).
+
+        Returns
+        -------
+        mean_reward, rms : ndarray, shape (n_sessions,)
+            Mean reward per step and RMS position error to the target (units) per session.
+        """
+        if not hasattr(self, "replay_"):
+            self._initialise(np.random.SeedSequence(self.random_state))
+        self._begin()
+        rng = np.random.default_rng(0)
+        return score_tasks(
+            lambda task: play_deep_task(self, task, 0.0, False, rng),
+            sessions,
+            self.target,
+            self.player.period,
+        )
 
     def _hyperparameters(self) -> dict[str, Any]:
         return {
@@ -383,9 +405,15 @@ class DQNLearner(SessionLearner):
 
 
 def play_deep_task(
-    learner: DQNLearner, task: ImitationTask, epsilon: float, learn: bool
+    learner: DQNLearner,
+    task: ImitationTask,
+    epsilon: float,
+    learn: bool,
+    rng: np.random.Generator,
 ) -> tuple[float, float]:
     """Run `dqn_session` on one task with the learner's networks, buffer and settings.
+
+    ``rng`` draws the exploration and the minibatches.
 
     Returns
     -------
@@ -414,7 +442,7 @@ def play_deep_task(
         (epsilon, learner.discount, learner.learning_rate, learner.reward_scale),
         (learner.batch_size, learner.train_every, learner.target_every, learner.learning_starts),
         learn,
-        learner.rng_,
+        rng,
     )
     return total / max(task.target_x.size - 1, 1), rms
 
@@ -429,13 +457,6 @@ def score_deep_imitation(
     mean_reward, rms : ndarray, shape (n_sessions,)
         Mean reward per step and RMS position error to the target (units) per session.
     """
-    learner = DQNLearner(player, target, batch_size=1, buffer_size=1, learning_starts=1)
-    learner._initialise(np.random.SeedSequence(0))
-    learner.rng_ = np.random.default_rng(0)
-    learner._begin()
-    return score_tasks(
-        lambda task: play_deep_task(learner, task, 0.0, learn=False),
-        sessions,
-        target,
-        player.period,
+    return DQNLearner(player, target, batch_size=1, buffer_size=1, learning_starts=1).score(
+        sessions
     )

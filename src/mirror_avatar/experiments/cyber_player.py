@@ -35,7 +35,6 @@ from mirror_avatar.learning.imitation import (
     Agent,
     Cast,
     Role,
-    agent_of,
     cast_virtual_trainers,
     derive_seeds,
     make_cyber_player,
@@ -58,16 +57,13 @@ from mirror_avatar.signature import (
 )
 from mirror_avatar.trials import Trial
 
-TRAINING_SESSIONS = 4000
-"""Training sessions per role by default (**choice**: enough for both roles to match the target
-while keeping ``make demo`` to a few minutes; the paper used about 24 000)."""
+TRAINING_SESSIONS: dict[Agent, int] = {"tabular": 4000, "dqn": 300}
+"""Training sessions per role by default, per agent (**choice**: enough for both roles to match
+the target while keeping ``make demo`` to a few minutes, the paper used about 24 000; a DQN
+update every step learns from far fewer sessions than the table, ``benchmarks/bench_deep.py``
+measures both)."""
 
-DQN_TRAINING_SESSIONS = 300
-"""Training sessions per role of a deep cyber player (**choice**: a DQN update every step learns
-from far fewer sessions than the table; ``benchmarks/bench_deep.py`` measures both)."""
-
-QUICK_TRAINING_SESSIONS = 300
-QUICK_DQN_TRAINING_SESSIONS = 40
+QUICK_TRAINING_SESSIONS: dict[Agent, int] = {"tabular": 300, "dqn": 40}
 VALIDATION_SESSIONS = 20
 """Sessions per partner and role in validation (the paper's 20)."""
 
@@ -138,10 +134,7 @@ def run(
     Section
         Tables I-II in the paper's layout, baselines, figures and metrics.
     """
-    dqn = agent == "dqn"
-    full = DQN_TRAINING_SESSIONS if dqn else TRAINING_SESSIONS
-    short = QUICK_DQN_TRAINING_SESSIONS if dqn else QUICK_TRAINING_SESSIONS
-    n_train = n_sessions or (short if quick else full)
+    n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else TRAINING_SESSIONS)[agent]
     n_valid = n_validation or (QUICK_VALIDATION_SESSIONS if quick else VALIDATION_SESSIONS)
     n_base = QUICK_BASELINE_SESSIONS if quick else BASELINE_SESSIONS
     cast = cast_virtual_trainers(trials, seed=seed)
@@ -308,7 +301,7 @@ def compare_baselines(
     held_out = derive_seeds(seed + 1)[0]
     chunks = run_sessions(pairs, n_sessions, seed=held_out, n_jobs=n_jobs, progress=False)
     sessions = list(itertools.chain.from_iterable(chunks))
-    untrained = make_cyber_player(role, generator, agent=agent_of(player))
+    untrained = make_cyber_player(role, generator, agent=player.agent)
     untrained.initialise_policy(seed)
     copy = [np.sqrt(np.mean((s.positions[0, 1:] - s.positions[1, 1:]) ** 2)) for s in sessions]
     return {

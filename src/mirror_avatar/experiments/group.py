@@ -33,7 +33,6 @@ from mirror_avatar.learning.imitation import (
     Agent,
     Cast,
     VirtualTrainerSpec,
-    agent_of,
     cast_virtual_trainers,
     derive_seeds,
     make_group,
@@ -57,12 +56,10 @@ from mirror_avatar.trials import Trial
 CYBER = "cyber player"
 """The cyber player's name in the records (the target's is its label)."""
 
-TRAINING_SESSIONS = 4000
-DQN_TRAINING_SESSIONS = 300
-"""Training sessions of a deep cyber player (**choice**, see the dyad's
-`mirror_avatar.experiments.cyber_player.DQN_TRAINING_SESSIONS`)."""
-QUICK_TRAINING_SESSIONS = 300
-QUICK_DQN_TRAINING_SESSIONS = 40
+TRAINING_SESSIONS: dict[Agent, int] = {"tabular": 4000, "dqn": 300}
+"""Training sessions by default, per agent (**choice**, as the dyad's
+`mirror_avatar.experiments.cyber_player.TRAINING_SESSIONS`)."""
+QUICK_TRAINING_SESSIONS: dict[Agent, int] = {"tabular": 300, "dqn": 40}
 VALIDATION_SESSIONS = 60
 """Sessions of the validation on random graphs (the published example's 60)."""
 
@@ -120,10 +117,7 @@ def run(
     agent
         ``"tabular"`` (a Q-table) or ``"dqn"`` (a deep Q-network with dynamic input).
     """
-    dqn = agent == "dqn"
-    full = DQN_TRAINING_SESSIONS if dqn else TRAINING_SESSIONS
-    short = QUICK_DQN_TRAINING_SESSIONS if dqn else QUICK_TRAINING_SESSIONS
-    n_train = n_sessions or (short if quick else full)
+    n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else TRAINING_SESSIONS)[agent]
     n_valid = QUICK_VALIDATION_SESSIONS if quick else VALIDATION_SESSIONS
     n_topology = QUICK_TOPOLOGY_SESSIONS if quick else TOPOLOGY_SESSIONS
     n_base = QUICK_BASELINE_SESSIONS if quick else BASELINE_SESSIONS
@@ -318,9 +312,7 @@ def compare_baselines(
         play_compiled(group, n_samples, s, random_connected_graph)
         for s in draw_seeds(held_out, n_sessions)
     ]
-    untrained = make_group_cyber_player(
-        player.reference, agent=agent_of(player), n_players=len(group)
-    )
+    untrained = make_group_cyber_player(player.reference, agent=player.agent, n_players=len(group))
     untrained.initialise_policy(seed)
     copies = []
     for session in sessions:

@@ -55,7 +55,7 @@ bench``, ``avatar``, measures the time and the validation at this default)."""
 
 DEFAULT_DQN_SESSIONS = 300
 """Training sessions per role of deep players (**choice**: those of the Table I experiment,
-`mirror_avatar.experiments.cyber_player.DQN_TRAINING_SESSIONS`)."""
+`mirror_avatar.experiments.cyber_player.TRAINING_SESSIONS`)."""
 
 
 def create_avatar(

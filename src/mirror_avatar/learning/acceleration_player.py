@@ -20,7 +20,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import fields
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -29,7 +29,7 @@ from mirror_avatar.dynamics import FOLLOWER, HKBParams
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import excerpt
-from mirror_avatar.model_files import Source, check_array, check_integer, check_real
+from mirror_avatar.model_files import Source, check_array, check_integer, check_real, save_model
 from mirror_avatar.players.base import Observation, Player, PlayerPlan
 from mirror_avatar.players.reference import ReferenceTrack, draw_reference
 from mirror_avatar.seeds import entropy_of
@@ -37,6 +37,8 @@ from mirror_avatar.signature import DEFAULT_BINS
 from mirror_avatar.trials import PLAYING_RANGE, Trial
 
 Array = NDArray[np.float64]
+Agent = Literal["tabular", "dqn"]
+"""How a learned avatar chooses: a Q-table or a deep Q-network."""
 
 DEFAULT_ACTIONS = (-4.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 4.0)
 """The 9 accelerations (units/s²) the avatar can choose from (**choice**, METHODS section 7)."""
@@ -88,6 +90,12 @@ class AccelerationPlayer(Player):
         (`mirror_avatar.signature.count_velocities`), summed over the training sessions; its
         signature is `target_ims`.
     """
+
+    agent: ClassVar[Agent]
+    """How the subclass chooses its action (recorded with it in an avatar's file)."""
+    format_name: ClassVar[str]
+    format_version: ClassVar[int]
+    """Its model file's format (`mirror_avatar.model_files`)."""
 
     training_: dict[str, Any]
     target_counts_: Array
@@ -224,9 +232,13 @@ class AccelerationPlayer(Player):
         start = (float(self.initial_position), 0.0)
         return self._policy_plan(start, reference)
 
-    def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write the trained avatar to one model file, atomically."""
+    def model_arrays(self, source: Source) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
+        """Return the arrays and JSON metadata of the trained avatar's model file."""
         raise NotImplementedError
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the trained avatar to one ``.npz`` model file (`model_arrays`), atomically."""
+        return save_model(path, self.format_name, self.format_version, *self.model_arrays(path))
 
     def _policy_plan(self, start: tuple[float, float], reference: Array | None) -> PlayerPlan:
         """Return the `PlayerPlan` of this policy from the start and reference `plan` drew."""

@@ -21,7 +21,7 @@ Follows METHODS section 7; the **choice**s it leaves open, all configurable:
 
 A trained player is saved as one ``.npz`` file holding the Q-table, the bin edges, the action set
 and a JSON metadata string (format name ``mirror-avatar/cyber-player``), read without unpickling
-and with every value it holds checked against its range (`save_cyber_player`,
+and with every value it holds checked against its range (`CyberPlayer.save`,
 `load_cyber_player`; the limits are `MAX_Q_CELLS`, `MAX_TRAINING_SESSIONS`, those of
 `mirror_avatar.learning.acceleration_player`, `mirror_avatar.dynamics.PARAMETER_RANGES` and
 `mirror_avatar.model_files`).
@@ -32,7 +32,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -66,7 +65,6 @@ from mirror_avatar.model_files import (
     check_object,
     load_model,
     require_arrays,
-    save_model,
 )
 from mirror_avatar.players.base import CYBER, Observation, PlayerPlan, partner_state
 from mirror_avatar.trials import Trial
@@ -172,6 +170,10 @@ class CyberPlayer(AccelerationPlayer):
         As in `AccelerationPlayer`.
     """
 
+    agent = "tabular"
+    format_name = FORMAT_NAME
+    format_version = FORMAT_VERSION
+
     q_table_: Array
 
     def __init__(
@@ -251,19 +253,14 @@ class CyberPlayer(AccelerationPlayer):
     def _policy_plan(self, start: tuple[float, float], reference: Array | None) -> PlayerPlan:
         return PlayerPlan(CYBER, start, self.params, reference=reference, policy=self.policy_)
 
-    def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write the model to one ``.npz`` file atomically (see `save_cyber_player`)."""
-        return save_cyber_player(self, path)
+    def model_arrays(self, source: Source) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
+        """Return the arrays and metadata of its file (`cyber_player_arrays`)."""
+        return cyber_player_arrays(self, source)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> CyberPlayer:
         """Read a model written by `save` (see `load_cyber_player`)."""
         return load_cyber_player(path)
-
-
-def save_cyber_player(player: CyberPlayer, path: str | os.PathLike[str]) -> Path:
-    """Write a trained player to ``path`` (one ``.npz``), atomically (`cyber_player_arrays`)."""
-    return save_model(path, FORMAT_NAME, FORMAT_VERSION, *cyber_player_arrays(player, path))
 
 
 def cyber_player_arrays(
@@ -306,7 +303,7 @@ def cyber_player_arrays(
 
 
 def load_cyber_player(path: str | os.PathLike[str]) -> CyberPlayer:
-    """Read a player written by `save_cyber_player` (see `cyber_player_from_arrays`)."""
+    """Read a player written by `CyberPlayer.save` (see `cyber_player_from_arrays`)."""
     arrays, metadata = load_model(path, FORMAT_NAME, FORMAT_VERSION, CYBER_PLAYER_ARRAYS)
     return cyber_player_from_arrays(arrays, metadata, path)
 

@@ -16,17 +16,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mirror_avatar.deep.player import DeepCyberPlayer, deep_player_arrays, deep_player_from_arrays
+from mirror_avatar.deep.player import deep_player_from_arrays
 from mirror_avatar.dynamics import HKBParams, preset
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import excerpt
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
-from mirror_avatar.learning.agent import (
-    CyberPlayer,
-    cyber_player_arrays,
-    cyber_player_from_arrays,
-)
+from mirror_avatar.learning.agent import cyber_player_from_arrays
 from mirror_avatar.model_files import (
     check_object,
     join_parts,
@@ -89,7 +85,9 @@ class Avatar:
             "generator": generator_metadata,
         }
         for role in TRAINED_ROLES:
-            parts[role], metadata[role] = _player_arrays(self.players[role], path)
+            player = self.players[role]
+            parts[role], metadata[role] = player.model_arrays(path)
+            metadata[role]["agent"] = player.agent
         return save_model(path, FORMAT_NAME, FORMAT_VERSION, join_parts(parts), metadata)
 
 
@@ -122,19 +120,6 @@ def load_avatar(path: str | os.PathLike[str]) -> Avatar:
             )
     summary = check_object(path, "summary", metadata.get("summary", {}))
     return Avatar(name, generator, players, summary)
-
-
-def _player_arrays(
-    player: AccelerationPlayer, path: str | os.PathLike[str]
-) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Return one role's arrays and metadata, its ``agent`` named in the metadata."""
-    if isinstance(player, DeepCyberPlayer):
-        arrays, metadata = deep_player_arrays(player, path)
-        return arrays, metadata | {"agent": "dqn"}
-    if not isinstance(player, CyberPlayer):
-        raise InputError(path, f"an avatar cannot hold a {type(player).__name__}")
-    arrays, metadata = cyber_player_arrays(player, path)
-    return arrays, metadata | {"agent": "tabular"}
 
 
 def _player_from_arrays(

@@ -43,7 +43,7 @@ from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.graphs import GraphSource, random_connected_graph
-from mirror_avatar.learning.acceleration_player import AccelerationPlayer
+from mirror_avatar.learning.acceleration_player import AccelerationPlayer, Agent
 from mirror_avatar.learning.agent import DEFAULT_ACTIONS, CyberPlayer
 from mirror_avatar.learning.discretisation import (
     Discretisation,
@@ -63,7 +63,6 @@ from mirror_avatar.session import Session
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 Role = Literal["follower", "leader"]
-Agent = Literal["tabular", "dqn"]
 AGENTS: tuple[Agent, ...] = ("tabular", "dqn")
 AGENT_NAMES: dict[Agent, str] = {
     "tabular": "tabular cyber player (a Q-table)",
@@ -630,11 +629,6 @@ def train_group_cyber_player(
         **options,
     )
     return player, curve
-
-
-def agent_of(player: AccelerationPlayer) -> Agent:
-    """Return the agent a cyber player is: ``"dqn"`` for a deep one, else ``"tabular"``."""
-    return "dqn" if isinstance(player, DeepCyberPlayer) else "tabular"
 
 
 def score_avatar(
