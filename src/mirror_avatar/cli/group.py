@@ -154,7 +154,7 @@ def train(
         checkpoint_every=checkpoint_every,
         agent=agent,
     )
-    name = f"group of {len(partners) + 1}, seed {seed}"
+    name = f"{agent} member of a group of {len(partners) + 1}, seed {seed}"
     curve_path = finish_training(player, curve, out_path, name)
     click.echo(
         f"trained a {agent} group member on {sessions} sessions (seed {seed}): RMS to the target "

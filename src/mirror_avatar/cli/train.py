@@ -179,7 +179,7 @@ def train(
         checkpoint_every=checkpoint_every,
         agent=agent,
     )
-    curve_path = finish_training(player, curve, out_path, f"{role}, seed {seed}")
+    curve_path = finish_training(player, curve, out_path, f"{agent} {role}, seed {seed}")
     click.echo(
         f"trained a {agent} {role} on {sessions} sessions (seed {seed}): RMS to the target "
         f"{curve.rms[0]:.4f} -> {curve.rms[-1]:.4f} units"
