@@ -512,6 +512,15 @@ def test_the_server_socket_bounds_what_one_read_takes():
         sock.close()
 
 
+def test_the_server_socket_queues_a_client_that_connects_before_the_server_runs():
+    sock = listening_socket("127.0.0.1", 0)
+    try:
+        client = socket.create_connection(sock.getsockname(), timeout=5.0)
+        client.close()
+    finally:
+        sock.close()
+
+
 class Sleepy(Replay):
     """An avatar whose steps take a second each (sleeping, as a slow compiled step would)."""
 

@@ -565,6 +565,9 @@ def make_token() -> str:
     return secrets.token_urlsafe(16)
 
 
+LISTEN_BACKLOG = 2048
+"""Connections the kernel queues for the server before it accepts them (uvicorn's default)."""
+
 RECEIVE_BUFFER_BYTES = 8192
 """Kernel receive buffer of each connection (bytes; Linux doubles it; **choice**). One read
 of a client's data is parsed whole before the event loop moves on, so the buffer bounds the
@@ -573,8 +576,11 @@ sends a few kilobytes per second."""
 
 
 def listening_socket(host: str, port: int) -> socket.socket:
-    """Bind the server's socket (IPv4 or IPv6 by ``host``; port 0: any free port).
+    """Bind the server's socket and listen (IPv4 or IPv6 by ``host``; port 0: any free port).
 
+    The socket listens before the server runs, so a client that connects as soon as the address
+    is printed waits in the kernel's queue (`LISTEN_BACKLOG` connections) instead of being
+    refused.
     Accepted connections inherit its `RECEIVE_BUFFER_BYTES` receive buffer, and its protocol
     (TCP by name), from which asyncio turns Nagle's algorithm off on each (``TCP_NODELAY``): a
     small message is sent at once instead of waiting for the client's acknowledgement of the
@@ -585,6 +591,7 @@ def listening_socket(host: str, port: int) -> socket.socket:
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
     sock.bind((host, port))
+    sock.listen(LISTEN_BACKLOG)
     return sock
 
 
@@ -598,5 +605,6 @@ def make_server(app: ASGIApp, host: str, port: int, log_level: str = "warning") 
         ws_max_size=MAX_FRAME_BYTES,
         log_level=log_level,
         lifespan="off",
+        backlog=LISTEN_BACKLOG,
     )
     return uvicorn.Server(config)
