@@ -2,9 +2,10 @@
 
 - Step: every optimal-control problem a leader and a follower virtual trainer solve in two
   60 s sessions (their states, partner predictions and references, 8000 problems) is solved in
-  one compiled loop by the step of the package (`mirror_avatar.dynamics.solve_interval`) and by
-  the previous one (`previous_step.previous_solve_interval`, kept in this folder), in the same
-  process: time per step, the share of problems each leaves unconverged (frozen-damping
+  one compiled loop by the step of the package (`mirror_avatar.dynamics.solve_intervals`, in
+  lockstep batches of `LOCKSTEP_WIDTH` as the batch loop solves a chunk's virtual trainers) and by
+  the previous one (`previous_step.previous_solve_interval`, kept in this folder, one by one), in
+  the same process: time per step, the share of problems each leaves unconverged (frozen-damping
   fallback), and the largest difference between their controls where both converged.
 - Pipeline: the same script runs in two child processes, one importing the package from this
   tree and one from a git worktree of `BASELINE_COMMIT` (the commit before the new step):
@@ -34,7 +35,7 @@ from mirror_avatar.dynamics import (
     NEWTON_TOLERANCE,
     preset,
     records,
-    solve_interval,
+    solve_intervals,
 )
 from mirror_avatar.engine.loop import play
 from mirror_avatar.specs import load_player
@@ -84,30 +85,46 @@ def session_problems() -> np.ndarray:
         players = [load_player(leader, "leader"), load_player(follower, "follower")]
         session = play(players, 60.0, seed)
         x, v, r = session.positions, session.velocities, session.references
-        for i in (0, 1):
-            j = 1 - i
-            for k in range(1, session.n_samples - 1):
+        for k in range(1, session.n_samples - 1):
+            for i in (0, 1):
+                j = 1 - i
                 prediction = 2 * x[j, k] - x[j, k - 1]
                 rows.append((i, x[i, k], v[i, k], prediction, r[i, k], v[j, k]))
     return np.asarray(rows)
 
 
+LOCKSTEP_WIDTH = 100
+"""Problems the new step solves together: the virtual trainers of a 50-session chunk."""
+
+
 @njit
 def solve_all(problems: np.ndarray, params: np.ndarray, previous: bool) -> np.ndarray:
-    """Solve every problem with the new or the previous step: (x(T), y(T), l1, l2, converged)."""
-    out = np.empty((problems.shape[0], 5))
-    for i in range(problems.shape[0]):
-        role, x, y, prediction, reference, partner = problems[i]
-        p = params[int(role)]
-        if previous:
-            result = previous_solve_interval(
-                x, y, prediction, reference, partner, p, True, N_SUBSTEPS, 8, NEWTON_TOLERANCE
-            )
-        else:
-            result = solve_interval(
-                x, y, prediction, reference, partner, p, True, N_SUBSTEPS, MAX_NEWTON,
-                NEWTON_TOLERANCE,
+    """Solve every problem with the new or the previous step: (x(T), y(T), l1, l2, converged).
+
+    The new step solves `LOCKSTEP_WIDTH` consecutive problems together, as the batch loop
+    does (the rows alternate leader and follower, so every batch has the same parameters); the
+    previous one solves them one by one.
+    """
+    n = problems.shape[0]
+    out = np.empty((n, 5))
+    roles = problems[:, 0].astype(np.int64)
+    if not previous:
+        lane_params = params[roles[:LOCKSTEP_WIDTH]]
+        coupled = np.ones(n, np.bool_)
+        rows = np.ascontiguousarray(problems[:, 1:])
+        for start in range(0, n, LOCKSTEP_WIDTH):
+            stop = min(start + LOCKSTEP_WIDTH, n)
+            solve_intervals(
+                rows[start:stop], coupled[start:stop], lane_params[: stop - start], N_SUBSTEPS,
+                MAX_NEWTON, NEWTON_TOLERANCE, out[start:stop],
             )  # fmt: skip
+        return out
+    for i in range(n):
+        _, x, y, prediction, reference, partner = problems[i]
+        result = previous_solve_interval(
+            x, y, prediction, reference, partner, params[roles[i]], True, N_SUBSTEPS, 8,
+            NEWTON_TOLERANCE,
+        )  # fmt: skip
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = result[0], result[1], result[2], result[3]
         out[i, 4] = 1.0 if result[4] else 0.0
     return out
@@ -135,7 +152,10 @@ def step_rows() -> list[dict]:
     eta = params[0]["eta"]
     control_new, control_old = -new[both, 3] / eta, -old[both, 3] / eta
     difference = np.abs(control_new - control_old) / np.maximum(np.abs(control_old), 1.0)
-    note = f"{len(problems)} problems of two 60 s leader-follower sessions, best of 5 passes"
+    note = (
+        f"{len(problems)} problems of two 60 s leader-follower sessions, best of 5 passes; the "
+        f"new step solves {LOCKSTEP_WIDTH} at a time in lockstep, as a 50-session chunk does"
+    )
     return [
         {
             "name": "optimal-control step (compiled loop)",

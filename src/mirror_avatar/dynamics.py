@@ -283,7 +283,7 @@ def hkb_acceleration(
     return -(alpha * x * x + beta * v * v - gamma) * v - omega * omega * x + u
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _costate_rates(
     x: float,
     y: float,
@@ -316,48 +316,56 @@ def _costate_rates(
     )
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _shoot(
-    x: float,
-    y: float,
-    l1: float,
-    l2: float,
-    alpha: float,
-    beta: float,
-    gamma: float,
-    omega: float,
-    eta: float,
-    tracking: float,
-    forcing: float,
-    period: float,
-    n_substeps: int,
-) -> tuple[float, float, float, float]:
-    """Integrate state and costates over one interval with ``n_substeps`` RK4 steps.
+    n_lanes: int,
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    l1: NDArray[np.float64],
+    l2: NDArray[np.float64],
+    alpha: NDArray[np.float64],
+    beta: NDArray[np.float64],
+    gamma: NDArray[np.float64],
+    omega: NDArray[np.float64],
+    eta: NDArray[np.float64],
+    tracking: NDArray[np.float64],
+    forcing: NDArray[np.float64],
+    h: NDArray[np.float64],
+    n_substeps: NDArray[np.int64],
+) -> None:
+    """Integrate the state and costates of ``n_lanes`` problems over one interval, in place.
 
-    Returns ``(x(T), y(T), l1(T), l2(T))``; the arguments are those of `_costate_rates`.
+    Problem ``j`` (lane ``j``: the first ``n_lanes`` entries of every array, shape (L,)) starts
+    from ``(x, y, l1, l2)[j]`` and takes ``n_substeps[j]`` RK4 steps of ``h[j]`` seconds; the
+    other arguments are those of `_costate_rates`, one per lane. The lanes advance in lockstep
+    (a lane that has taken its steps keeps its end value), so the compiler vectorises the lane
+    loop; each lane's arithmetic is that of a problem integrated alone.
     """
-    h = period / n_substeps
-    for _ in range(n_substeps):
-        a0, a1, a2, a3, _, _ = _costate_rates(
-            x, y, l1, l2, alpha, beta, gamma, omega, eta, tracking, forcing
-        )
-        b0, b1, b2, b3, _, _ = _costate_rates(
-            x + 0.5 * h * a0, y + 0.5 * h * a1, l1 + 0.5 * h * a2, l2 + 0.5 * h * a3,
-            alpha, beta, gamma, omega, eta, tracking, forcing,
-        )  # fmt: skip
-        c0, c1, c2, c3, _, _ = _costate_rates(
-            x + 0.5 * h * b0, y + 0.5 * h * b1, l1 + 0.5 * h * b2, l2 + 0.5 * h * b3,
-            alpha, beta, gamma, omega, eta, tracking, forcing,
-        )  # fmt: skip
-        d0, d1, d2, d3, _, _ = _costate_rates(
-            x + h * c0, y + h * c1, l1 + h * c2, l2 + h * c3,
-            alpha, beta, gamma, omega, eta, tracking, forcing,
-        )  # fmt: skip
-        x += h / 6.0 * (a0 + 2.0 * b0 + 2.0 * c0 + d0)
-        y += h / 6.0 * (a1 + 2.0 * b1 + 2.0 * c1 + d1)
-        l1 += h / 6.0 * (a2 + 2.0 * b2 + 2.0 * c2 + d2)
-        l2 += h / 6.0 * (a3 + 2.0 * b3 + 2.0 * c3 + d3)
-    return x, y, l1, l2
+    n_max = 0
+    for j in range(n_lanes):
+        n_max = max(n_max, n_substeps[j])
+    for step in range(n_max):
+        for j in range(n_lanes):
+            x0, y0, m0, k0, hj = x[j], y[j], l1[j], l2[j], h[j]
+            a, b, g, w = alpha[j], beta[j], gamma[j], omega[j]
+            e, t, f = eta[j], tracking[j], forcing[j]
+            a0, a1, a2, a3, _, _ = _costate_rates(x0, y0, m0, k0, a, b, g, w, e, t, f)
+            b0, b1, b2, b3, _, _ = _costate_rates(
+                x0 + 0.5 * hj * a0, y0 + 0.5 * hj * a1, m0 + 0.5 * hj * a2, k0 + 0.5 * hj * a3,
+                a, b, g, w, e, t, f,
+            )  # fmt: skip
+            c0, c1, c2, c3, _, _ = _costate_rates(
+                x0 + 0.5 * hj * b0, y0 + 0.5 * hj * b1, m0 + 0.5 * hj * b2, k0 + 0.5 * hj * b3,
+                a, b, g, w, e, t, f,
+            )  # fmt: skip
+            d0, d1, d2, d3, _, _ = _costate_rates(
+                x0 + hj * c0, y0 + hj * c1, m0 + hj * c2, k0 + hj * c3, a, b, g, w, e, t, f
+            )
+            going = step < n_substeps[j]
+            x[j] = x0 + hj / 6.0 * (a0 + 2.0 * b0 + 2.0 * c0 + d0) if going else x0
+            y[j] = y0 + hj / 6.0 * (a1 + 2.0 * b1 + 2.0 * c1 + d1) if going else y0
+            l1[j] = m0 + hj / 6.0 * (a2 + 2.0 * b2 + 2.0 * c2 + d2) if going else m0
+            l2[j] = k0 + hj / 6.0 * (a3 + 2.0 * b3 + 2.0 * c3 + d3) if going else k0
 
 
 @njit(cache=True, nogil=True)
@@ -439,19 +447,25 @@ def _tabulate_linear(
     coefficients, so its end value is ``M(c) [x, y, l1, l2](0) + g(c) forcing``; row ``i`` holds
     ``M`` column by column, then ``g``, at ``c = i LINEAR_MAX_DAMPING / (LINEAR_GRID - 1)``.
     """
+    lanes = np.zeros((4, 5))
+    ones = np.ones(5)
+    zeros = np.zeros(5)
+    forcing = np.zeros(5)
+    forcing[4] = 1.0
+    steps = np.full(5, LINEAR_SUBSTEPS)
+    h = np.full(5, period / LINEAR_SUBSTEPS)
     for i in range(LINEAR_GRID):
-        gamma = -LINEAR_MAX_DAMPING * i / (LINEAR_GRID - 1)
+        lanes[:, :] = 0.0
+        for column in range(4):
+            lanes[column, column] = 1.0
+        gamma = -LINEAR_MAX_DAMPING * i / (LINEAR_GRID - 1) * ones
+        _shoot(
+            5, lanes[0], lanes[1], lanes[2], lanes[3], zeros, zeros, gamma, omega * ones,
+            eta * ones, tracking * ones, forcing, h, steps,
+        )  # fmt: skip
         for column in range(5):
-            start = np.zeros(4)
-            if column < 4:
-                start[column] = 1.0
-            forcing = 1.0 if column == 4 else 0.0
-            end = _shoot(
-                start[0], start[1], start[2], start[3], 0.0, 0.0, gamma, omega, eta, tracking,
-                forcing, period, LINEAR_SUBSTEPS,
-            )  # fmt: skip
             for r in range(4):
-                out[i, 4 * column + r] = end[r]
+                out[i, 4 * column + r] = lanes[r, column]
 
 
 @njit(cache=True, nogil=True)
@@ -521,7 +535,7 @@ def count_substeps(
     return min(MAX_RK4_SUBSTEPS, max(n_min, int(np.ceil(steps))))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _newton_update(
     z: NDArray[np.float64], theta_p: float, r1: float, r2: float
 ) -> tuple[float, float]:
@@ -536,7 +550,7 @@ def _newton_update(
     return -(j22 * r1 - j12 * r2) / det, -(j11 * r2 - j21 * r1) / det
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _converged(
     d2: float, l2: float, eta: float, y_end: float, y_shot: float, tolerance: float
 ) -> bool:
@@ -602,20 +616,46 @@ def _newton(
     return False, l1, l2, np.nan, np.nan
 
 
+LANE_DTYPE = np.dtype(
+    [
+        ("theta_p", np.float64),
+        ("tracking", np.float64),
+        ("forcing", np.float64),
+        ("n_substeps", np.int64),
+        ("l1", np.float64),
+        ("l2", np.float64),
+        ("previous", np.float64),
+        ("residual", np.float64),
+        ("refresh", np.bool_),
+        ("status", np.int64),
+    ]
+)
+"""The state of one problem (lane) in `solve_intervals`: its cost weights and RK4 steps, its
+costates, the last update's size and residual, whether the next shot integrates sensitivities,
+and its status (`ITERATING`, `SOLVED`, `CONTINUING`). Its vectors are rows of arrays beside it:
+the last shot's end state-costate and sensitivities (``z``, layout of `_sensitivity_rates`) and
+the frozen-damping fallback."""
+
+ITERATING, SOLVED, CONTINUING = 0, 1, 2
+"""A lane's status in `solve_intervals`: in the chord iterations, solved, or left to the
+continuation."""
+
+PROBLEM_COLUMNS = 5
+"""Numbers per problem in `solve_intervals`: position and velocity at t_k, the partner's
+predicted position, the reference velocity and the partner's velocity."""
+
+
 @njit(cache=True, nogil=True)
-def solve_interval(
-    x: float,
-    y: float,
-    partner_prediction: float,
-    reference_velocity: float,
-    partner_velocity: float,
-    p: Record,
-    coupled: bool,
-    n_substeps: int,
+def solve_intervals(
+    problems: NDArray[np.float64],
+    coupled: NDArray[np.bool_],
+    params: NDArray[np.void],
+    n_min: int,
     max_newton: int,
     tolerance: float,
-) -> tuple[float, float, float, float, bool]:
-    """Solve one interval's optimal-control problem without clipping.
+    out: NDArray[np.float64],
+) -> None:
+    """Solve many intervals' optimal-control problems without clipping, in lockstep.
 
     Shooting on the two initial costates, Newton's method on the two terminal conditions:
 
@@ -640,81 +680,224 @@ def solve_interval(
     If the continuation fails too, the frozen-damping solution is returned, flagged as not
     converged.
 
+    The problems are independent: the plain shots of every problem still iterating are taken
+    together by one call of `_shoot` (vectorised across them), the rest problem by problem. A
+    problem's result does not depend on the others solved with it.
+
     Parameters
     ----------
-    x, y
-        Position (units) and velocity (units/s) at t_k.
-    partner_prediction
-        Predicted partner position at t_k + T (units).
-    reference_velocity
-        Reference velocity r_s (units/s).
-    partner_velocity
-        Estimated partner velocity r_v (units/s), used when theta_v > 0.
-    p
-        The parameters, a record of `PARAMS_DTYPE` (`HKBParams.record`).
+    problems
+        One row per problem, shape (L, `PROBLEM_COLUMNS`): position (units) and velocity
+        (units/s) at t_k, the partner's predicted position at t_k + T (units), the reference
+        velocity r_s (units/s) and the partner's estimated velocity r_v (units/s, used when
+        theta_v > 0).
     coupled
-        False for a player alone: the partner terms are dropped (see `partner_weights`).
-    n_substeps, max_newton
+        False for a player alone: the partner terms are dropped (see `partner_weights`),
+        shape (L,).
+    params
+        Each problem's parameters, records of `PARAMS_DTYPE` (`records`), shape (L,).
+    n_min, max_newton
         Fewest RK4 steps per interval (`count_substeps` adds more where the interval is stiff)
         and the most chord iterations before the continuation takes over.
     tolerance
-        Convergence threshold (`NEWTON_TOLERANCE` in `optimal_control_step`).
-
-    Returns
-    -------
-    tuple
-        ``(x(T), y(T), lambda1(0), lambda2(0), converged)``; the optimal control at t_k is
-        ``-lambda2(0) / eta``; ``converged`` is False when the frozen-damping fallback is used.
+        Convergence threshold (`NEWTON_TOLERANCE` in `optimal_control_steps`).
+    out
+        Receives, shape (L, 5): ``x(T), y(T), lambda1(0), lambda2(0)`` and 1.0 where
+        converged, 0.0 where the frozen-damping fallback is used. The optimal control at t_k is
+        ``-lambda2(0) / eta``.
     """
+    n_lanes = problems.shape[0]
+    lanes = np.empty(n_lanes, LANE_DTYPE)
+    ends, z, fallbacks = np.empty((n_lanes, 4)), np.empty((n_lanes, 12)), np.empty((n_lanes, 4))
+    for j in range(n_lanes):
+        _start_lane(problems[j], coupled[j], params[j], n_min, lanes[j], z[j], fallbacks[j])
+        ends[j] = z[j, :4]
+    batch = np.empty((12, n_lanes))
+    steps = np.empty(n_lanes, np.int64)
+    where = np.empty(n_lanes, np.int64)
+    for iteration in range(max_newton + 1):
+        if iteration > 0:
+            _shoot_lanes(problems, params, lanes, ends, z, batch, steps, where)
+        iterating = False
+        for j in range(n_lanes):
+            lane = lanes[j]
+            if lane.status == ITERATING:
+                _chord_update(
+                    problems[j], lane, ends[j], z[j], fallbacks[j], iteration, params[j].eta,
+                    tolerance, out[j],
+                )  # fmt: skip
+                iterating |= lane.status == ITERATING
+        if not iterating:
+            break
+    for j in range(n_lanes):
+        if lanes[j].status != SOLVED:
+            _continuation(problems[j], params[j], lanes[j], z[j], fallbacks[j], tolerance, out[j])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _start_lane(
+    problem: NDArray[np.float64],
+    coupled: bool,
+    p: Record,
+    n_min: int,
+    lane: Record,
+    z: NDArray[np.float64],
+    fallback: NDArray[np.float64],
+) -> None:
+    """Set up a problem's lane: weights, RK4 steps and the frozen-damping solution (into ``z``)."""
+    x, y, _, reference_velocity, partner_velocity = problem
     theta_p, theta_v = partner_weights(p, coupled)
     tracking = 1.0 - theta_p
     forcing = (tracking - theta_v) * reference_velocity + theta_v * partner_velocity
-    n = count_substeps(x, y, reference_velocity, partner_velocity, p, theta_p, theta_v, n_substeps)
-    alpha, beta, gamma, omega, eta, period = p.alpha, p.beta, p.gamma, p.omega, p.eta, p.period
+    n = count_substeps(x, y, reference_velocity, partner_velocity, p, theta_p, theta_v, n_min)
     mean_square = (y * y + y * reference_velocity + reference_velocity * reference_velocity) / 3.0
-    frozen = max(alpha * x * x + beta * mean_square - gamma, 0.0)
-    z = np.empty(12)
+    frozen = max(p.alpha * x * x + p.beta * mean_square - p.gamma, 0.0)
     _frozen_solution(x, y, frozen, p, 0 if coupled else 1, tracking, forcing, n, z)
-    end = (z[0], z[1], z[2], z[3])
-    l1 = l2 = 0.0
-    fallback = (x, y, 0.0, 0.0)
-    refresh, previous, residual = False, np.inf, np.inf
-    for iteration in range(max_newton + 1):
-        if refresh:
+    lane.theta_p, lane.tracking, lane.forcing, lane.n_substeps = theta_p, tracking, forcing, n
+    lane.l1 = lane.l2 = 0.0
+    lane.refresh, lane.previous, lane.residual = False, np.inf, np.inf
+    lane.status = ITERATING
+    fallback[0], fallback[1], fallback[2], fallback[3] = x, y, 0.0, 0.0
+
+
+@njit(cache=True, nogil=True)
+def _shoot_lanes(
+    problems: NDArray[np.float64],
+    params: NDArray[np.void],
+    lanes: NDArray[np.void],
+    ends: NDArray[np.float64],
+    z: NDArray[np.float64],
+    batch: NDArray[np.float64],
+    steps: NDArray[np.int64],
+    where: NDArray[np.int64],
+) -> None:
+    """Shoot every iterating lane from its costates, into its row of ``ends`` (L, 4).
+
+    Lanes due a Newton step integrate their sensitivities too (into their row of ``z``), one
+    by one; the rest are gathered into the rows of ``batch`` (12, L: the arguments of
+    `_shoot`), ``steps`` and ``where`` (their lanes) and shot together.
+    """
+    count = 0
+    for j in range(problems.shape[0]):
+        lane, p = lanes[j], params[j]
+        if lane.status != ITERATING:
+            continue
+        x, y = problems[j, 0], problems[j, 1]
+        if lane.refresh:
             _shoot_with_sensitivities(
-                x, y, l1, l2, alpha, beta, gamma, omega, eta, tracking, forcing, period, n, z
-            )
-            end = (z[0], z[1], z[2], z[3])
-        elif iteration > 0:
-            end = _shoot(x, y, l1, l2, alpha, beta, gamma, omega, eta, tracking, forcing, period, n)
-        r1 = end[2] - theta_p * (end[0] - partner_prediction)
-        r2 = end[3]
-        if iteration == 1 and not abs(r1) + abs(r2) <= residual:
-            break  # far from linear (or overflowing): continuation
-        d1, d2 = _newton_update(z, theta_p, r1, r2)
-        l1 += d1
-        l2 += d2
-        # End state to first order in the update (exact once the iteration has converged).
-        x_end = end[0] + z[4] * d1 + z[8] * d2
-        y_end = end[1] + z[5] * d1 + z[9] * d2
-        if not (np.isfinite(x_end) and np.isfinite(y_end) and np.isfinite(l2)):
-            break
-        if iteration == 0:
-            fallback = (x_end, y_end, l1, l2)
-        elif _converged(d2, l2, eta, y_end, end[1], tolerance):
-            return x_end, y_end, l1, l2, True
-        refresh = iteration > 0 and abs(d2) > 0.5 * previous
-        previous, residual = abs(d2), abs(r1) + abs(r2)
-    l1 = l2 = 0.0
+                x, y, lane.l1, lane.l2, p.alpha, p.beta, p.gamma, p.omega, p.eta, lane.tracking,
+                lane.forcing, p.period, lane.n_substeps, z[j],
+            )  # fmt: skip
+            ends[j] = z[j, :4]
+            continue
+        batch[0, count], batch[1, count], batch[2, count], batch[3, count] = x, y, lane.l1, lane.l2
+        batch[4, count], batch[5, count], batch[6, count] = p.alpha, p.beta, p.gamma
+        batch[7, count], batch[8, count], batch[9, count] = p.omega, p.eta, lane.tracking
+        batch[10, count], batch[11, count] = lane.forcing, p.period / lane.n_substeps
+        steps[count], where[count] = lane.n_substeps, j
+        count += 1
+    _shoot(
+        count, batch[0], batch[1], batch[2], batch[3], batch[4], batch[5], batch[6], batch[7],
+        batch[8], batch[9], batch[10], batch[11], steps,
+    )  # fmt: skip
+    for i in range(count):
+        end = ends[where[i]]
+        end[0], end[1], end[2], end[3] = batch[0, i], batch[1, i], batch[2, i], batch[3, i]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _chord_update(
+    problem: NDArray[np.float64],
+    lane: Record,
+    end: NDArray[np.float64],
+    z: NDArray[np.float64],
+    fallback: NDArray[np.float64],
+    iteration: int,
+    eta: float,
+    tolerance: float,
+    out: NDArray[np.float64],
+) -> None:
+    """Update a lane's costates from its last shot ``end`` (chord or Newton step), in place.
+
+    Sets its status: `SOLVED` (``out`` written) once converged, `CONTINUING` when the first
+    nonlinear residual exceeds the frozen problem's or the shooting overflows. ``z`` holds the
+    Jacobian's sensitivities; ``fallback`` receives the first update's extrapolated solution.
+    """
+    theta_p = lane.theta_p
+    r1 = end[2] - theta_p * (end[0] - problem[2])
+    r2 = end[3]
+    if iteration == 1 and not abs(r1) + abs(r2) <= lane.residual:
+        lane.status = CONTINUING  # far from linear (or overflowing)
+        return
+    d1, d2 = _newton_update(z, theta_p, r1, r2)
+    l1, l2 = lane.l1 + d1, lane.l2 + d2
+    lane.l1, lane.l2 = l1, l2
+    # End state to first order in the update (exact once the iteration has converged).
+    x_end = end[0] + z[4] * d1 + z[8] * d2
+    y_end = end[1] + z[5] * d1 + z[9] * d2
+    if not (np.isfinite(x_end) and np.isfinite(y_end) and np.isfinite(l2)):
+        lane.status = CONTINUING
+        return
+    if iteration == 0:
+        fallback[0], fallback[1], fallback[2], fallback[3] = x_end, y_end, l1, l2
+    elif _converged(d2, l2, eta, y_end, end[1], tolerance):
+        out[0], out[1], out[2], out[3], out[4] = x_end, y_end, l1, l2, 1.0
+        lane.status = SOLVED
+        return
+    lane.refresh = iteration > 0 and abs(d2) > 0.5 * lane.previous
+    lane.previous, lane.residual = abs(d2), abs(r1) + abs(r2)
+
+
+@njit(cache=True, nogil=True)
+def _continuation(
+    problem: NDArray[np.float64],
+    p: Record,
+    lane: Record,
+    z: NDArray[np.float64],
+    fallback: NDArray[np.float64],
+    tolerance: float,
+    out: NDArray[np.float64],
+) -> None:
+    """Solve a lane's problem by continuation in the nonlinear damping, into ``out``.
+
+    Falls back to ``fallback`` (flagged 0.0) if a stage fails to converge; ``z`` is scratch.
+    """
+    x, y, partner_prediction = problem[0], problem[1], problem[2]
+    l1 = l2 = x_end = y_end = 0.0
     for stage in range(CONTINUATION_STAGES + 1):
         share = stage / CONTINUATION_STAGES
         converged, l1, l2, x_end, y_end = _newton(
-            x, y, partner_prediction, l1, l2, alpha * share, beta * share, p, theta_p,
-            tracking, forcing, n, tolerance, z,
+            x, y, partner_prediction, l1, l2, p.alpha * share, p.beta * share, p, lane.theta_p,
+            lane.tracking, lane.forcing, lane.n_substeps, tolerance, z,
         )  # fmt: skip
         if not converged:
-            return fallback[0], fallback[1], fallback[2], fallback[3], False
-    return x_end, y_end, l1, l2, True
+            out[:4] = fallback
+            out[4] = 0.0
+            return
+    out[0], out[1], out[2], out[3], out[4] = x_end, y_end, l1, l2, 1.0
+
+
+@njit(cache=True, nogil=True)
+def solve_interval(
+    x: float,
+    y: float,
+    partner_prediction: float,
+    reference_velocity: float,
+    partner_velocity: float,
+    params: NDArray[np.void],
+    coupled: bool,
+    n_substeps: int,
+    max_newton: int,
+    tolerance: float,
+) -> tuple[float, float, float, float, bool]:
+    """`solve_intervals` of one problem; ``params`` holds its record, shape (1,).
+
+    Returns ``(x(T), y(T), lambda1(0), lambda2(0), converged)``.
+    """
+    problems = np.array([[x, y, partner_prediction, reference_velocity, partner_velocity]])
+    out = np.empty((1, 5))
+    solve_intervals(problems, np.array([coupled]), params, n_substeps, max_newton, tolerance, out)
+    return out[0, 0], out[0, 1], out[0, 2], out[0, 3], out[0, 4] != 0.0
 
 
 @njit(cache=True)
@@ -727,40 +910,25 @@ def clip_to_range(x: float, v: float) -> tuple[float, float]:
     return x, v
 
 
-@njit(cache=True)
-def optimal_control_step(
-    x: float,
-    y: float,
-    partner_prediction: float,
-    reference_velocity: float,
-    partner_velocity: float,
-    p: Record,
-    coupled: bool = True,
-) -> tuple[float, float, float]:
-    """Advance the virtual trainer by one control period under its optimal control.
+@njit(cache=True, nogil=True)
+def optimal_control_steps(
+    problems: NDArray[np.float64],
+    coupled: NDArray[np.bool_],
+    params: NDArray[np.void],
+    out: NDArray[np.float64],
+) -> None:
+    """Advance virtual trainers by one control period under their optimal controls.
 
-    Parameters are those of `solve_interval`; ``coupled`` is False for a player with no partner.
-
-    Returns
-    -------
-    tuple of float
-        Position (units, clipped to [-0.5, 0.5]) and velocity (units/s) at t_k + T, and the
-        optimal control at t_k (units/s²).
+    Parameters are those of `solve_intervals`: one problem per row of ``problems`` (L, 5).
+    ``out`` (L, 3) receives each one's position (units, clipped to [-0.5, 0.5]) and velocity
+    (units/s) at t_k + T, and its optimal control at t_k (units/s²).
     """
-    x_next, y_next, _, l2, _ = solve_interval(
-        x,
-        y,
-        partner_prediction,
-        reference_velocity,
-        partner_velocity,
-        p,
-        coupled,
-        N_SUBSTEPS,
-        MAX_NEWTON,
-        NEWTON_TOLERANCE,
-    )
-    x_next, y_next = clip_to_range(x_next, y_next)
-    return x_next, y_next, -l2 / p.eta
+    n_lanes = problems.shape[0]
+    solved = np.empty((n_lanes, 5))
+    solve_intervals(problems, coupled, params, N_SUBSTEPS, MAX_NEWTON, NEWTON_TOLERANCE, solved)
+    for j in range(n_lanes):
+        out[j, 0], out[j, 1] = clip_to_range(solved[j, 0], solved[j, 1])
+        out[j, 2] = -solved[j, 3] / params[j].eta
 
 
 @njit(cache=True)

@@ -22,10 +22,11 @@ from mirror_avatar.dynamics import (
     clip_to_range,
     hkb_acceleration,
     integrate_hkb,
-    optimal_control_step,
+    optimal_control_steps,
     preset,
     records,
     solve_interval,
+    solve_intervals,
 )
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
@@ -39,7 +40,10 @@ def solve_reference(params: HKBParams, x0, y0, rp, rs, rv) -> tuple[float, float
 
 
 def step(params: HKBParams, x0, y0, rp, rs, rv, coupled=True) -> tuple[float, float, float]:
-    return optimal_control_step(x0, y0, rp, rs, rv, params.record()[0], coupled)
+    out = np.empty((1, 3))
+    problem = np.array([[x0, y0, rp, rs, rv]])
+    optimal_control_steps(problem, np.array([coupled]), params.record(), out)
+    return out[0, 0], out[0, 1], out[0, 2]
 
 
 @cache
@@ -63,7 +67,7 @@ def relative_error(value: float, truth: float, floor: float = 0.05) -> float:
 def solve(params: HKBParams, x0, y0, rp, rs, rv, coupled=True):
     """The step's solver, unclipped: ``(x(T), y(T), u(0), converged)``."""
     x, y, _, l2, converged = solve_interval(
-        x0, y0, rp, rs, rv, params.record()[0], coupled, N_SUBSTEPS, MAX_NEWTON, NEWTON_TOLERANCE
+        x0, y0, rp, rs, rv, params.record(), coupled, N_SUBSTEPS, MAX_NEWTON, NEWTON_TOLERANCE
     )
     return x, y, -l2 / params.eta, converged
 
@@ -85,6 +89,22 @@ def test_step_matches_tight_bvp_solution(case: int) -> None:
     x_true, y_true, _ = solve_reference(preset(role), x0, y0, rp, rs, rv)
     x_end, y_end, _ = step(preset(role), x0, y0, rp, rs, rv)
     assert (x_end, y_end) == pytest.approx(clip_to_range(x_true, y_true), abs=1e-3)
+
+
+def test_problems_solved_together_are_each_solved_as_alone() -> None:
+    """Lockstep solving (vectorised shots, lanes finishing at different iterations, Newton
+    refreshes, continuations at fast speeds) gives every problem its result alone, bit for bit."""
+    cases = list(grid()) + [("leader", 0.0, y0, 0.0, rs, 0.0) for y0, rs in FAST_STATES]
+    problems = np.array([case[1:] for case in cases])
+    params = records([preset(case[0]) for case in cases])
+    coupled = np.arange(len(cases)) % 4 != 3
+    together = np.empty((len(cases), 5))
+    solve_intervals(problems, coupled, params, N_SUBSTEPS, MAX_NEWTON, NEWTON_TOLERANCE, together)
+    for j, case in enumerate(cases):
+        alone = solve_interval(
+            *case[1:], params[j : j + 1], coupled[j], N_SUBSTEPS, MAX_NEWTON, NEWTON_TOLERANCE
+        )
+        assert tuple(together[j]) == (*alone[:4], float(alone[4]))
 
 
 def quadratic_in_time_step(params: HKBParams, x0, y0, rp, rs) -> tuple[float, float]:
@@ -177,10 +197,12 @@ def test_presets_and_overrides() -> None:
         HKBParams(omega=1.0, theta_p=0.8, theta_v=0.5)
 
 
+FAST_STATES = [(3.0, 3.0), (4.0, 5.0), (2.0, 6.0), (5.0, 0.0), (-3.0, -4.0), (1.91, 4.48)]
+"""Start velocities and references (units/s) where the problem is strongly nonlinear."""
+
+
 @pytest.mark.parametrize("role", ["leader", "follower", "joint"])
-@pytest.mark.parametrize(
-    ("y0", "rs"), [(3.0, 3.0), (4.0, 5.0), (2.0, 6.0), (5.0, 0.0), (-3.0, -4.0), (1.91, 4.48)]
-)
+@pytest.mark.parametrize(("y0", "rs"), FAST_STATES)
 def test_fast_steps_converge_to_the_tight_solution(role: str, y0: float, rs: float) -> None:
     """Above about 3 units/s the damping 3 beta y² makes the problem strongly nonlinear: the
     chord iterations give way to the continuation, which still meets the tight tolerances."""

@@ -24,8 +24,8 @@ from tqdm.auto import tqdm
 from mirror_avatar.engine.compiled import run_plans
 from mirror_avatar.engine.loop import check_lineup, count_samples, spawn_session_seeds
 from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import GraphSource, draw_graph
-from mirror_avatar.players.base import Player
+from mirror_avatar.graphs import Graph, GraphSource, draw_graph
+from mirror_avatar.players.base import Player, PlayerPlan
 from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.session import Session, default_roles
 
@@ -43,29 +43,70 @@ def play_compiled(
     roles: Sequence[str] | None = None,
 ) -> Session:
     """Play one session in the compiled loop, as `mirror_avatar.engine.loop.play` would."""
-    period = check_lineup(players)
+    return play_compiled_together([players], [seed], n_samples, graph, roles)[0]
+
+
+def play_compiled_together(
+    lineups: Sequence[Lineup],
+    seeds: Sequence[int],
+    n_samples: int,
+    graph: GraphSource = None,
+    roles: Sequence[str] | None = None,
+) -> list[Session]:
+    """Play sessions side by side in one call of the compiled loop; session i: ``lineups[i]``.
+
+    The sessions are the blocks of one block-diagonal graph, so every period the virtual
+    trainers of all of them are solved together (`mirror_avatar.dynamics.optimal_control_steps`,
+    vectorised across problems); each session is the one `play_compiled` gives alone.
+    """
+    period = check_lineup(lineups[0])
+    blocks = [
+        _plan_session(players, n_samples, seed, graph)
+        for players, seed in zip(lineups, seeds, strict=True)
+    ]
+    plans = [plan for session_plans, _, _ in blocks for plan in session_plans]
+    together = np.zeros((len(plans), len(plans)), dtype=np.int8)
+    rows: list[slice] = []
+    for _, adjacency, player_seeds in blocks:
+        first = rows[-1].stop if rows else 0
+        rows.append(slice(first, first + len(player_seeds)))
+        together[rows[-1], rows[-1]] = adjacency
+    out = run_plans(plans, together, n_samples)
+    times = np.arange(n_samples, dtype=np.float64) * period
+    return [
+        Session(
+            times,
+            out[0, block],
+            out[1, block],
+            out[2, block],
+            out[3, block],
+            labels=tuple(p.label or f"player {i}" for i, p in enumerate(players)),
+            roles=tuple(roles) if roles is not None else default_roles(len(players)),
+            graph=adjacency,
+            metadata={
+                "seed": seed,
+                "player_seeds": player_seeds,
+                "players": [p.describe() for p in players],
+            },
+        )
+        for players, seed, (_, adjacency, player_seeds), block in zip(
+            lineups, seeds, blocks, rows, strict=True
+        )
+    ]
+
+
+def _plan_session(
+    players: Lineup, n_samples: int, seed: int, graph: GraphSource
+) -> tuple[list[PlayerPlan], Graph, list[int]]:
+    """Return a session's player plans, graph and player seeds, as `play` draws them."""
+    check_lineup(players)
     seeds, graph_seed = spawn_session_seeds(seed, len(players))
     adjacency = draw_graph(graph, len(players), graph_seed)
     plans = [p.plan(s, n_samples - 1) for p, s in zip(players, seeds, strict=True)]
     missing = [type(p).__name__ for p, plan in zip(players, plans, strict=True) if plan is None]
     if missing:
         raise InputError("players", f"the compiled engine cannot run {', '.join(missing)}")
-    out = run_plans(plans, adjacency, n_samples)  # type: ignore[arg-type]
-    return Session(
-        np.arange(n_samples, dtype=np.float64) * period,
-        out[0],
-        out[1],
-        out[2],
-        out[3],
-        labels=tuple(p.label or f"player {i}" for i, p in enumerate(players)),
-        roles=tuple(roles) if roles is not None else default_roles(len(players)),
-        graph=adjacency,
-        metadata={
-            "seed": seed,
-            "player_seeds": seeds,
-            "players": [p.describe() for p in players],
-        },
-    )
+    return plans, adjacency, seeds  # type: ignore[return-value]
 
 
 def run_chunk(
@@ -76,13 +117,13 @@ def run_chunk(
     graph: GraphSource = None,
     roles: Sequence[str] | None = None,
 ) -> list[Session]:
-    """Play sessions ``start .. start + len(seeds) - 1`` of a run (in the calling process)."""
-    sessions = []
-    for offset, seed in enumerate(seeds):
-        index = (start + offset) % len(lineups)
-        session = play_compiled(lineups[index], n_samples, int(seed), graph, roles)
+    """Play sessions ``start .. start + len(seeds) - 1`` of a run together (in this process)."""
+    indices = [(start + offset) % len(lineups) for offset in range(len(seeds))]
+    sessions = play_compiled_together(
+        [lineups[i] for i in indices], [int(s) for s in seeds], n_samples, graph, roles
+    )
+    for offset, (session, index) in enumerate(zip(sessions, indices, strict=True)):
         session.metadata |= {"session": start + offset, "lineup": index}
-        sessions.append(session)
     return sessions
 
 

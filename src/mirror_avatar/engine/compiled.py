@@ -2,9 +2,12 @@
 
 Each player's `mirror_avatar.players.base.PlayerPlan` is packed into arrays (`pack_session`);
 `run_packed` then advances all players sample by sample in compiled code, calling each kind's own
-step kernel (`virtual_trainer_step`, `recorded_step`, `cyber_step`, `deep_step`: the kernels the
-players' Python ``step`` methods call) with the neighbours gathered by `gather_neighbours`, and
-records into one array exactly what `mirror_avatar.engine.loop.Engine` records.
+step kernel (`recorded_step`, `cyber_step`, `deep_step`: the kernels the players' Python ``step``
+methods call) with the neighbours gathered by `gather_neighbours`. The virtual trainers' problems
+of a period (`virtual_trainer_problem`) are solved together, in lockstep
+(`mirror_avatar.dynamics.optimal_control_steps`, the solver `VirtualTrainer.step` calls for one),
+which gives each the result it would have alone. The loop records into one array exactly what
+`mirror_avatar.engine.loop.Engine` records.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from mirror_avatar.deep.player import NetworkPolicy, deep_step
-from mirror_avatar.dynamics import records
+from mirror_avatar.dynamics import PROBLEM_COLUMNS, optimal_control_steps, records
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import Graph
 from mirror_avatar.learning.agent import GreedyPolicy, cyber_step
@@ -30,7 +33,7 @@ from mirror_avatar.players.base import (
     gather_neighbours,
 )
 from mirror_avatar.players.recorded import recorded_step
-from mirror_avatar.players.virtual_trainer import virtual_trainer_step
+from mirror_avatar.players.virtual_trainer import virtual_trainer_problem
 
 Array = NDArray[np.float64]
 Ints = NDArray[np.int64]
@@ -248,17 +251,26 @@ def run_packed(
         out[0, i, 0] = starts[i, 0]
         out[1, i, 0] = starts[i, 1]
     xs, vs, previous = np.empty(n_players), np.empty(n_players), np.empty(n_players)
+    trainers = np.flatnonzero(kinds == VIRTUAL_TRAINER)
+    trainer_params = params[trainers]
+    problems = np.empty((trainers.size, PROBLEM_COLUMNS))
+    coupled = np.empty(trainers.size, np.bool_)
+    solved = np.empty((trainers.size, 3))
     for k in range(n - 1):
+        t = 0
         for i in range(n_players):
             m = neighbour_count[i]
             gather_neighbours(out[0], out[1], k, neighbour_index[i, :m], xs, vs, previous)
             x, v, reference = out[0, i, k], out[1, i, k], references[i, k]
-            u = np.nan
+            out[3, i, k] = reference
             if kinds[i] == VIRTUAL_TRAINER:
-                x, v, u = virtual_trainer_step(
-                    params[i], x, v, xs[:m], vs[:m], previous[:m], reference
+                coupled[t] = virtual_trainer_problem(
+                    x, v, xs[:m], vs[:m], previous[:m], reference, problems[t]
                 )
-            elif kinds[i] == RECORDED:
+                t += 1
+                continue
+            u = np.nan
+            if kinds[i] == RECORDED:
                 x, v = recorded_step(tracks[i, :, : track_lengths[i]], k)
             elif kinds[i] == DEEP:
                 x, v, u = _deep_player_step(
@@ -283,7 +295,11 @@ def run_packed(
             out[0, i, k + 1] = x
             out[1, i, k + 1] = v
             out[2, i, k] = u
-            out[3, i, k] = reference
+        optimal_control_steps(problems, coupled, trainer_params, solved)
+        for t in range(trainers.size):
+            out[0, trainers[t], k + 1] = solved[t, 0]
+            out[1, trainers[t], k + 1] = solved[t, 1]
+            out[2, trainers[t], k] = solved[t, 2]
 
 
 @njit(cache=True, nogil=True)

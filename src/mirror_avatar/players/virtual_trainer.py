@@ -5,25 +5,26 @@ in a group): it predicts their mean position at the end of the interval by const
 the last two samples, ``2 m(t_k) - m(t_k - T)`` (``m(t_k)`` at the first step), takes their mean
 velocity as r_v (joint improvisation) and its reference velocity r_s from its IMS generator (or a
 recorded trial), held over the interval, and applies
-`mirror_avatar.dynamics.optimal_control_step`. For a dyad this is METHODS section 5 exactly; in a
+`mirror_avatar.dynamics.optimal_control_steps`. For a dyad this is METHODS section 5 exactly; in a
 group it **departs** from section 8's velocity prediction ``m + T mean x'_j`` so that a dyad is
 the group of two. Alone (no neighbour) it tracks its reference with the whole weight
 (`mirror_avatar.dynamics.partner_weights`).
 
-`virtual_trainer_step` is the compiled step, called by `VirtualTrainer.step` and by the compiled
-batch loop.
+`virtual_trainer_problem` states a trainer's problem for one period; `virtual_trainer_step` solves
+it for `VirtualTrainer.step`, and the compiled batch loop solves all its trainers' problems of a
+period together (`mirror_avatar.dynamics.optimal_control_steps`, the same solver).
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from mirror_avatar.dynamics import HKBParams, Record, optimal_control_step
+from mirror_avatar.dynamics import PROBLEM_COLUMNS, HKBParams, optimal_control_steps
 from mirror_avatar.players.base import (
     VIRTUAL_TRAINER,
     Observation,
@@ -34,15 +35,47 @@ from mirror_avatar.players.base import (
 from mirror_avatar.players.reference import ReferenceTrack, VelocitySource, draw_reference
 from mirror_avatar.trials import Trial
 
-if TYPE_CHECKING:
-    pass
-
 Array = NDArray[np.float64]
 
 
 @njit(cache=True, nogil=True)
+def virtual_trainer_problem(
+    x: float,
+    v: float,
+    positions: Array,
+    velocities: Array,
+    previous: Array,
+    reference: float,
+    problem: Array,
+) -> bool:
+    """Write a virtual trainer's optimal-control problem given its neighbours into ``problem``.
+
+    Parameters
+    ----------
+    x, v
+        Its position (units) and velocity (units/s) at t_k.
+    positions, velocities, previous
+        The neighbours' positions and velocities at t_k and positions at t_{k-1}, shape (m,).
+    reference
+        Its reference velocity r_s over the interval (units/s).
+    problem
+        Receives the row of `mirror_avatar.dynamics.solve_intervals`, shape (5,): the state,
+        the predicted mean position of the neighbours, the reference and their mean velocity.
+
+    Returns
+    -------
+    bool
+        Whether it has a neighbour (``coupled``).
+    """
+    mean_x, mean_v, mean_previous = partner_state(positions, velocities, previous, x, v)
+    problem[0], problem[1], problem[2] = x, v, 2.0 * mean_x - mean_previous
+    problem[3], problem[4] = reference, mean_v
+    return positions.size > 0
+
+
+@njit(cache=True, nogil=True)
 def virtual_trainer_step(
-    p: Record,
+    params: NDArray[np.void],
     x: float,
     v: float,
     positions: Array,
@@ -50,27 +83,19 @@ def virtual_trainer_step(
     previous: Array,
     reference: float,
 ) -> tuple[float, float, float]:
-    """Advance a virtual trainer by one period given its neighbours (see the module docstring).
+    """Advance one virtual trainer by one period given its neighbours (see the module docstring).
 
-    Parameters
-    ----------
-    p
-        Its parameters, a record of `mirror_avatar.dynamics.PARAMS_DTYPE`.
-    x, v
-        Its position (units) and velocity (units/s) at t_k.
-    positions, velocities, previous
-        The neighbours' positions and velocities at t_k and positions at t_{k-1}, shape (m,).
-    reference
-        Its reference velocity r_s over the interval (units/s).
-
-    Returns
-    -------
-    tuple of float
-        Position and velocity at t_k + T and the control at t_k (units/s²).
+    ``params`` holds its record of `mirror_avatar.dynamics.PARAMS_DTYPE`, shape (1,); the other
+    arguments are those of `virtual_trainer_problem`. Returns its position and velocity at
+    t_k + T and its control at t_k (units/s²).
     """
-    mean_x, mean_v, mean_previous = partner_state(positions, velocities, previous, x, v)
-    prediction = 2.0 * mean_x - mean_previous
-    return optimal_control_step(x, v, prediction, reference, mean_v, p, positions.size > 0)
+    problems = np.empty((1, PROBLEM_COLUMNS))
+    coupled = np.array(
+        [virtual_trainer_problem(x, v, positions, velocities, previous, reference, problems[0])]
+    )
+    out = np.empty((1, 3))
+    optimal_control_steps(problems, coupled, params, out)
+    return out[0, 0], out[0, 1], out[0, 2]
 
 
 class VirtualTrainer(Player):
@@ -132,7 +157,7 @@ class VirtualTrainer(Player):
         """Observe the neighbours at t_k and advance to t_k + T under the optimal control."""
         reference = self._references[self._k]
         self._x, self._v, self.last_control = virtual_trainer_step(
-            self._record[0],
+            self._record,
             self._x,
             self._v,
             observation.positions,
