@@ -102,20 +102,18 @@ def solve_all(problems: np.ndarray, params: np.ndarray, previous: bool) -> np.nd
     """Solve every problem with the new or the previous step: (x(T), y(T), l1, l2, converged).
 
     The new step solves `LOCKSTEP_WIDTH` consecutive problems together, as the batch loop
-    does (the rows alternate leader and follower, so every batch has the same parameters); the
-    previous one solves them one by one.
+    does; the previous one solves them one by one.
     """
     n = problems.shape[0]
     out = np.empty((n, 5))
     roles = problems[:, 0].astype(np.int64)
     if not previous:
-        lane_params = params[roles[:LOCKSTEP_WIDTH]]
         coupled = np.ones(n, np.bool_)
         rows = np.ascontiguousarray(problems[:, 1:])
         for start in range(0, n, LOCKSTEP_WIDTH):
             stop = min(start + LOCKSTEP_WIDTH, n)
             solve_intervals(
-                rows[start:stop], coupled[start:stop], lane_params[: stop - start], N_SUBSTEPS,
+                rows[start:stop], coupled[start:stop], params, roles[start:stop], N_SUBSTEPS,
                 MAX_NEWTON, NEWTON_TOLERANCE, out[start:stop],
             )  # fmt: skip
         return out

@@ -338,13 +338,16 @@ def _shoot(
     Problem ``j`` (lane ``j``: the first ``n_lanes`` entries of every array, shape (L,)) starts
     from ``(x, y, l1, l2)[j]`` and takes ``n_substeps[j]`` RK4 steps of ``h[j]`` seconds; the
     other arguments are those of `_costate_rates`, one per lane. The lanes advance in lockstep
-    (a lane that has taken its steps keeps its end value), so the compiler vectorises the lane
-    loop; each lane's arithmetic is that of a problem integrated alone.
+    (a lane that has taken its steps keeps its end value, and the loop stops at the last lanes
+    once they are done), so the compiler vectorises the lane loop; each lane's arithmetic is
+    that of a problem integrated alone.
     """
     n_max = 0
     for j in range(n_lanes):
         n_max = max(n_max, n_substeps[j])
     for step in range(n_max):
+        while n_lanes > 0 and n_substeps[n_lanes - 1] <= step:
+            n_lanes -= 1  # the last lanes are done
         for j in range(n_lanes):
             x0, y0, m0, k0, hj = x[j], y[j], l1[j], l2[j], h[j]
             a, b, g, w = alpha[j], beta[j], gamma[j], omega[j]
@@ -650,6 +653,7 @@ def solve_intervals(
     problems: NDArray[np.float64],
     coupled: NDArray[np.bool_],
     params: NDArray[np.void],
+    which: NDArray[np.int64],
     n_min: int,
     max_newton: int,
     tolerance: float,
@@ -694,8 +698,9 @@ def solve_intervals(
     coupled
         False for a player alone: the partner terms are dropped (see `partner_weights`),
         shape (L,).
-    params
-        Each problem's parameters, records of `PARAMS_DTYPE` (`records`), shape (L,).
+    params, which
+        The parameter sets, records of `PARAMS_DTYPE` (`records`), shape (P,), and each
+        problem's row in them, shape (L,).
     n_min, max_newton
         Fewest RK4 steps per interval (`count_substeps` adds more where the interval is stiff)
         and the most chord iterations before the continuation takes over.
@@ -710,20 +715,20 @@ def solve_intervals(
     lanes = np.empty(n_lanes, LANE_DTYPE)
     ends, z, fallbacks = np.empty((n_lanes, 4)), np.empty((n_lanes, 12)), np.empty((n_lanes, 4))
     for j in range(n_lanes):
-        _start_lane(problems[j], coupled[j], params[j], n_min, lanes[j], z[j], fallbacks[j])
+        _start_lane(problems[j], coupled[j], params[which[j]], n_min, lanes[j], z[j], fallbacks[j])
         ends[j] = z[j, :4]
     batch = np.empty((12, n_lanes))
     steps = np.empty(n_lanes, np.int64)
     where = np.empty(n_lanes, np.int64)
     for iteration in range(max_newton + 1):
         if iteration > 0:
-            _shoot_lanes(problems, params, lanes, ends, z, batch, steps, where)
+            _shoot_lanes(problems, params, which, n_min, lanes, ends, z, batch, steps, where)
         iterating = False
         for j in range(n_lanes):
             lane = lanes[j]
             if lane.status == ITERATING:
                 _chord_update(
-                    problems[j], lane, ends[j], z[j], fallbacks[j], iteration, params[j].eta,
+                    problems[j], lane, ends[j], z[j], fallbacks[j], iteration, params[which[j]].eta,
                     tolerance, out[j],
                 )  # fmt: skip
                 iterating |= lane.status == ITERATING
@@ -731,7 +736,8 @@ def solve_intervals(
             break
     for j in range(n_lanes):
         if lanes[j].status != SOLVED:
-            _continuation(problems[j], params[j], lanes[j], z[j], fallbacks[j], tolerance, out[j])
+            p = params[which[j]]
+            _continuation(problems[j], p, lanes[j], z[j], fallbacks[j], tolerance, out[j])
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -764,6 +770,8 @@ def _start_lane(
 def _shoot_lanes(
     problems: NDArray[np.float64],
     params: NDArray[np.void],
+    which: NDArray[np.int64],
+    n_min: int,
     lanes: NDArray[np.void],
     ends: NDArray[np.float64],
     z: NDArray[np.float64],
@@ -775,27 +783,33 @@ def _shoot_lanes(
 
     Lanes due a Newton step integrate their sensitivities too (into their row of ``z``), one
     by one; the rest are gathered into the rows of ``batch`` (12, L: the arguments of
-    `_shoot`), ``steps`` and ``where`` (their lanes) and shot together.
+    `_shoot`), ``steps`` and ``where`` (their lanes) and shot together, those taking more than
+    ``n_min`` RK4 steps first (so `_shoot` drops the others once they are done).
     """
     count = 0
-    for j in range(problems.shape[0]):
-        lane, p = lanes[j], params[j]
-        if lane.status != ITERATING:
-            continue
-        x, y = problems[j, 0], problems[j, 1]
-        if lane.refresh:
-            _shoot_with_sensitivities(
-                x, y, lane.l1, lane.l2, p.alpha, p.beta, p.gamma, p.omega, p.eta, lane.tracking,
-                lane.forcing, p.period, lane.n_substeps, z[j],
-            )  # fmt: skip
-            ends[j] = z[j, :4]
-            continue
-        batch[0, count], batch[1, count], batch[2, count], batch[3, count] = x, y, lane.l1, lane.l2
-        batch[4, count], batch[5, count], batch[6, count] = p.alpha, p.beta, p.gamma
-        batch[7, count], batch[8, count], batch[9, count] = p.omega, p.eta, lane.tracking
-        batch[10, count], batch[11, count] = lane.forcing, p.period / lane.n_substeps
-        steps[count], where[count] = lane.n_substeps, j
-        count += 1
+    for longer in (True, False):
+        for j in range(problems.shape[0]):
+            lane, p = lanes[j], params[which[j]]
+            if lane.status != ITERATING or (
+                not lane.refresh and (lane.n_substeps > n_min) != longer
+            ):
+                continue
+            x, y = problems[j, 0], problems[j, 1]
+            if lane.refresh:
+                if longer:
+                    _shoot_with_sensitivities(
+                        x, y, lane.l1, lane.l2, p.alpha, p.beta, p.gamma, p.omega, p.eta,
+                        lane.tracking, lane.forcing, p.period, lane.n_substeps, z[j],
+                    )  # fmt: skip
+                    ends[j] = z[j, :4]
+                continue
+            batch[0, count], batch[1, count], batch[2, count] = x, y, lane.l1
+            batch[3, count], batch[4, count], batch[5, count] = lane.l2, p.alpha, p.beta
+            batch[6, count], batch[7, count], batch[8, count] = p.gamma, p.omega, p.eta
+            batch[9, count], batch[10, count] = lane.tracking, lane.forcing
+            batch[11, count] = p.period / lane.n_substeps
+            steps[count], where[count] = lane.n_substeps, j
+            count += 1
     _shoot(
         count, batch[0], batch[1], batch[2], batch[3], batch[4], batch[5], batch[6], batch[7],
         batch[8], batch[9], batch[10], batch[11], steps,
@@ -890,7 +904,7 @@ def solve_interval(
     max_newton: int,
     tolerance: float,
 ) -> tuple[float, float, float, float, bool]:
-    """`solve_intervals` of one problem; ``params`` holds its record, shape (1,).
+    """`solve_intervals` of one problem; ``params`` holds its parameters' record, shape (1,).
 
     Returns ``(x(T), y(T), lambda1(0), lambda2(0), converged)``.
     """
@@ -915,6 +929,7 @@ def optimal_control_steps(
     problems: NDArray[np.float64],
     coupled: NDArray[np.bool_],
     params: NDArray[np.void],
+    which: NDArray[np.int64],
     out: NDArray[np.float64],
 ) -> None:
     """Advance virtual trainers by one control period under their optimal controls.
@@ -925,10 +940,12 @@ def optimal_control_steps(
     """
     n_lanes = problems.shape[0]
     solved = np.empty((n_lanes, 5))
-    solve_intervals(problems, coupled, params, N_SUBSTEPS, MAX_NEWTON, NEWTON_TOLERANCE, solved)
+    solve_intervals(
+        problems, coupled, params, which, N_SUBSTEPS, MAX_NEWTON, NEWTON_TOLERANCE, solved
+    )
     for j in range(n_lanes):
         out[j, 0], out[j, 1] = clip_to_range(solved[j, 0], solved[j, 1])
-        out[j, 2] = -solved[j, 3] / params[j].eta
+        out[j, 2] = -solved[j, 3] / params[which[j]].eta
 
 
 @njit(cache=True)

@@ -99,7 +99,10 @@ def test_problems_solved_together_are_each_solved_as_alone() -> None:
     params = records([preset(case[0]) for case in cases])
     coupled = np.arange(len(cases)) % 4 != 3
     together = np.empty((len(cases), 5))
-    solve_intervals(problems, coupled, params, N_SUBSTEPS, MAX_NEWTON, NEWTON_TOLERANCE, together)
+    which = np.arange(len(cases))
+    solve_intervals(
+        problems, coupled, params, which, N_SUBSTEPS, MAX_NEWTON, NEWTON_TOLERANCE, together
+    )
     for j, case in enumerate(cases):
         alone = solve_interval(
             *case[1:], params[j : j + 1], coupled[j], N_SUBSTEPS, MAX_NEWTON, NEWTON_TOLERANCE

@@ -12,6 +12,8 @@ neither on the chunk size nor on the backend. The graph may be fixed or drawn fo
 
 from __future__ import annotations
 
+import pickle
+import uuid
 from collections import deque
 from collections.abc import Iterator, Sequence
 from typing import Any, Literal
@@ -198,12 +200,49 @@ def run_sessions(
     elif n_jobs == 1:
         results = (run_chunk(*task) for task in tasks)
     else:
+        shipped = ShippedOnce(list(lineups))
         parallel = Parallel(n_jobs=n_jobs, return_as="generator", pre_dispatch="2*n_jobs")
-        results = parallel(delayed(run_chunk)(*task) for task in tasks)
+        results = parallel(delayed(run_chunk)(shipped, *rest) for _, *rest in tasks)
     with tqdm(total=n_sessions, disable=_quiet(progress), unit="session") as bar:
         for chunk in results:
             bar.update(len(chunk))
             yield chunk
+
+
+class ShippedOnce(Sequence[Lineup]):
+    """Players pickled once for all the chunks sent to worker processes, unpickled once there.
+
+    Every chunk of a local run carries the same lineups (the players' generators are megabytes);
+    this wrapper pickles them once in this process and carries the bytes, and a worker that has
+    unpickled them for an earlier chunk of the run reuses its copy (`_unpickle_shipped`).
+    """
+
+    def __init__(self, lineups: list[Lineup]) -> None:
+        self.lineups = lineups
+        self._token = uuid.uuid4().hex
+        self._data = pickle.dumps(lineups, protocol=pickle.HIGHEST_PROTOCOL)
+
+    def __reduce__(self) -> tuple[Any, tuple[str, bytes]]:
+        return _unpickle_shipped, (self._token, self._data)
+
+    def __len__(self) -> int:
+        return len(self.lineups)
+
+    def __getitem__(self, index: Any) -> Any:
+        return self.lineups[index]
+
+
+_SHIPPED: dict[str, ShippedOnce] = {}
+"""The lineups of the run this worker process is serving, by token (`ShippedOnce`)."""
+
+
+def _unpickle_shipped(token: str, data: bytes) -> ShippedOnce:
+    if token not in _SHIPPED:
+        _SHIPPED.clear()
+        shipped = ShippedOnce.__new__(ShippedOnce)
+        shipped.lineups, shipped._token, shipped._data = pickle.loads(data), token, data
+        _SHIPPED[token] = shipped
+    return _SHIPPED[token]
 
 
 def _check_run(

@@ -47,8 +47,9 @@ class PackedSession:
     ----------
     kinds
         Each player's kind code, shape (N,).
-    params
-        HKB parameters, a record array of `mirror_avatar.dynamics.PARAMS_DTYPE`, shape (N,).
+    params, param_rows
+        The distinct HKB parameter sets, a record array of
+        `mirror_avatar.dynamics.PARAMS_DTYPE`, shape (P,), and each player's row in it (N,).
     references
         Reference velocity per step (units/s), shape (N, n - 1); NaN for players without.
     tracks, track_lengths
@@ -69,6 +70,7 @@ class PackedSession:
 
     kinds: Ints
     params: NDArray[np.void]
+    param_rows: Ints
     references: Array
     tracks: Array
     track_lengths: Ints
@@ -100,6 +102,7 @@ def pack_session(plans: Sequence[PlayerPlan], graph: Graph, n_steps: int) -> Pac
     for kind in (CYBER, DEEP):
         of_kind = [i for i, plan in enumerate(plans) if plan.kind == kind]
         slots[of_kind] = np.arange(len(of_kind))
+    distinct = list(dict.fromkeys(plan.params for plan in plans))
     neighbour_index = np.zeros((n, n), dtype=np.int64)
     neighbour_count = np.zeros(n, dtype=np.int64)
     for k in range(n):
@@ -108,7 +111,8 @@ def pack_session(plans: Sequence[PlayerPlan], graph: Graph, n_steps: int) -> Pac
         neighbour_count[k] = found.size
     return PackedSession(
         np.array([plan.kind for plan in plans], dtype=np.int64),
-        records([plan.params for plan in plans]),
+        records(distinct),
+        np.array([distinct.index(plan.params) for plan in plans], dtype=np.int64),
         references,
         tracks,
         lengths,
@@ -199,6 +203,7 @@ def run_plans(plans: Sequence[PlayerPlan], graph: Graph, n_samples: int) -> Arra
     run_packed(
         packed.kinds,
         packed.params,
+        packed.param_rows,
         packed.references,
         packed.tracks,
         packed.track_lengths,
@@ -223,6 +228,7 @@ def run_plans(plans: Sequence[PlayerPlan], graph: Graph, n_samples: int) -> Arra
 def run_packed(
     kinds: Ints,
     params: NDArray[np.void],
+    param_rows: Ints,
     references: Array,
     tracks: Array,
     track_lengths: Ints,
@@ -252,7 +258,7 @@ def run_packed(
         out[1, i, 0] = starts[i, 1]
     xs, vs, previous = np.empty(n_players), np.empty(n_players), np.empty(n_players)
     trainers = np.flatnonzero(kinds == VIRTUAL_TRAINER)
-    trainer_params = params[trainers]
+    trainer_rows = param_rows[trainers]
     problems = np.empty((trainers.size, PROBLEM_COLUMNS))
     coupled = np.empty(trainers.size, np.bool_)
     solved = np.empty((trainers.size, 3))
@@ -274,7 +280,7 @@ def run_packed(
                 x, v = recorded_step(tracks[i, :, : track_lengths[i]], k)
             elif kinds[i] == DEEP:
                 x, v, u = _deep_player_step(
-                    networks, slots[i], params[i], x, v, xs[:m], vs[:m], reference
+                    networks, slots[i], params[param_rows[i]], x, v, xs[:m], vs[:m], reference
                 )
             else:
                 c = slots[i]
@@ -284,7 +290,7 @@ def run_packed(
                     edges[c],
                     offsets[c],
                     actions[c, : n_actions[c]],
-                    params[i],
+                    params[param_rows[i]],
                     substeps[c],
                     x,
                     v,
@@ -295,7 +301,7 @@ def run_packed(
             out[0, i, k + 1] = x
             out[1, i, k + 1] = v
             out[2, i, k] = u
-        optimal_control_steps(problems, coupled, trainer_params, solved)
+        optimal_control_steps(problems, coupled, params, trainer_rows, solved)
         for t in range(trainers.size):
             out[0, trainers[t], k + 1] = solved[t, 0]
             out[1, trainers[t], k + 1] = solved[t, 1]

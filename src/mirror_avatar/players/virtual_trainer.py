@@ -94,7 +94,7 @@ def virtual_trainer_step(
         [virtual_trainer_problem(x, v, positions, velocities, previous, reference, problems[0])]
     )
     out = np.empty((1, 3))
-    optimal_control_steps(problems, coupled, params, out)
+    optimal_control_steps(problems, coupled, params, np.zeros(1, np.int64), out)
     return out[0, 0], out[0, 1], out[0, 2]
 
 
