@@ -910,7 +910,10 @@ def solve_interval(
     """
     problems = np.array([[x, y, partner_prediction, reference_velocity, partner_velocity]])
     out = np.empty((1, 5))
-    solve_intervals(problems, np.array([coupled]), params, n_substeps, max_newton, tolerance, out)
+    first = np.zeros(1, np.int64)
+    solve_intervals(
+        problems, np.array([coupled]), params, first, n_substeps, max_newton, tolerance, out
+    )
     return out[0, 0], out[0, 1], out[0, 2], out[0, 3], out[0, 4] != 0.0
 
 

@@ -104,7 +104,7 @@ Array = NDArray[np.float64]
 Seed = int | np.random.Generator | None
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def sample_chain(cumulative: Array, start_cumulative: Array, uniforms: Array) -> NDArray[np.int64]:
     """Walk a Markov chain by inverse-CDF sampling.
 

@@ -58,7 +58,7 @@ def synthesis_frames(spectra: NDArray[np.complex128], window: int) -> Array:
     return np.fft.irfft(spectra, n=window, axis=1) * hamming_window(window)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def overlap_add(
     frames: Array, sequence: NDArray[np.int64], hop: int, window_squared: Array
 ) -> Array:

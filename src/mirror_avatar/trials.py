@@ -228,7 +228,7 @@ def butterworth_lowpass(order: int, cutoff: float, rate: float) -> tuple[Array, 
     return sos, np.asarray(sosfilt_zi(sos), dtype=np.float64)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _cascade(sos: Array, signal: Array, initial: Array, scale: float) -> None:
     """Second-order sections in direct form II transposed, in place (as `scipy.signal.sosfilt`).
 
@@ -245,7 +245,7 @@ def _cascade(sos: Array, signal: Array, initial: Array, scale: float) -> None:
             signal[i] = y
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def zero_phase_filter(sos: Array, initial: Array, signal: Array, padlen: int) -> Array:
     """Forward-backward filtering with odd extension, as `scipy.signal.sosfiltfilt`.
 

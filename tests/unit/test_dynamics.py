@@ -42,7 +42,7 @@ def solve_reference(params: HKBParams, x0, y0, rp, rs, rv) -> tuple[float, float
 def step(params: HKBParams, x0, y0, rp, rs, rv, coupled=True) -> tuple[float, float, float]:
     out = np.empty((1, 3))
     problem = np.array([[x0, y0, rp, rs, rv]])
-    optimal_control_steps(problem, np.array([coupled]), params.record(), out)
+    optimal_control_steps(problem, np.array([coupled]), params.record(), np.zeros(1, int), out)
     return out[0, 0], out[0, 1], out[0, 2]
 
 

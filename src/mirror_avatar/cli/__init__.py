@@ -5,7 +5,7 @@ Each command lives in its own module of this package and is registered on `cli` 
 printed as one line on standard error and ends the program with exit code 2; anything else that
 goes wrong is one line too, with exit code 1 (``MIRROR_AVATAR_DEBUG=1`` shows the traceback).
 Interrupted (Ctrl+C, or SIGTERM and SIGHUP, which `run` turns into an interruption), a command
-stops its worker processes and exits with code 130.
+stops its batch workers and exits with code 130.
 """
 
 from __future__ import annotations
@@ -30,7 +30,6 @@ from mirror_avatar.cli.reproduce import reproduce
 from mirror_avatar.cli.signature import signature
 from mirror_avatar.cli.simulate import simulate
 from mirror_avatar.cli.train import train
-from mirror_avatar.engine.batch import stop_worker_processes
 from mirror_avatar.errors import InputError
 
 
@@ -64,7 +63,6 @@ def main(argv: list[str] | None = None) -> int:
     except click.exceptions.Exit as done:
         return int(done.exit_code)
     except (click.Abort, KeyboardInterrupt):
-        stop_worker_processes()
         click.echo("mirror-avatar: aborted", err=True)
         return 130
     except click.ClickException as error:

@@ -50,7 +50,7 @@ def avatar() -> None:
     help="tabular: the paper's Q-tables; dqn: deep Q-networks (METHODS section 8).",
 )  # fmt: skip
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of everything.")
-@click.option("--jobs", type=int, default=2, show_default=True, help="Local processes.")
+@click.option("--jobs", type=int, default=2, show_default=True, help="Local threads.")
 @click.option(
     "--out", "out_path", required=True, type=click.Path(path_type=Path),
     help="The avatar file (.npz); its card is written beside it (.html).",

@@ -9,7 +9,7 @@ import click
 
 DEPENDENCIES = (
     "numpy", "scipy", "scikit-learn", "numba", "shapely", "pandas", "pyarrow", "matplotlib",
-    "click", "joblib", "dask", "distributed", "gymnasium", "starlette", "uvicorn", "websockets",
+    "click", "dask", "distributed", "gymnasium", "starlette", "uvicorn", "websockets",
     "segno", "pylsl",
 )  # fmt: skip
 

@@ -75,7 +75,7 @@ def training_options(command: Callable[..., None]) -> Callable[..., None]:
         ),
         click.option("--seed", type=int, default=0, show_default=True, help="Run seed (recorded)."),
         click.option("--scheduler", default=None, help="Dask scheduler address (tcp://host:port)."),
-        click.option("--jobs", type=int, default=2, show_default=True, help="Local processes."),
+        click.option("--jobs", type=int, default=2, show_default=True, help="Local threads."),
         click.option(
             "--agent", type=click.Choice(AGENTS), default="tabular", show_default=True,
             help="tabular: the paper's Q-table; dqn: a deep Q-network (METHODS section 8).",

@@ -1,10 +1,11 @@
-"""The batch engine: many sessions in the compiled loop, streamed in chunks from many processes.
+"""The batch engine: many sessions in the compiled loop, streamed in chunks from many workers.
 
-A session of built-in players (`mirror_avatar.players.base.Player.plan`) is one call of the
-compiled loop (`mirror_avatar.engine.compiled.run_plans`), which calls the same step kernels as
-the players' own ``step``, so a batch session is identical to `mirror_avatar.engine.loop.play`
-of the same players with the same seed. Sessions are grouped in chunks run on local processes
-(joblib) or on a Dask cluster, and yielded in order as lists of `mirror_avatar.session.Session`:
+A chunk of sessions of built-in players (`mirror_avatar.players.base.Player.plan`) is one call
+of the compiled loop (`mirror_avatar.engine.compiled.run_plans`), the sessions side by side, and
+the loop calls the same step kernels as the players' own ``step``, so a batch session is
+identical to `mirror_avatar.engine.loop.play` of the same players with the same seed. Chunks run
+on threads of this process (the compiled code releases the GIL, and nothing is pickled) or on a
+Dask cluster, and are yielded in order as lists of `mirror_avatar.session.Session`:
 a 24 000-session run never holds more than a few chunks in memory. Session ``i`` uses
 ``lineups[i % len(lineups)]`` and the seed ``spawn_seeds(seed, n, bits=64)[i]``, so results depend
 neither on the chunk size nor on the backend. The graph may be fixed or drawn for each session.
@@ -12,14 +13,12 @@ neither on the chunk size nor on the backend. The graph may be fixed or drawn fo
 
 from __future__ import annotations
 
-import pickle
-import uuid
 from collections import deque
 from collections.abc import Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, Literal
 
 import numpy as np
-from joblib import Parallel, delayed
 from numpy.typing import NDArray
 from tqdm.auto import tqdm
 
@@ -129,19 +128,6 @@ def run_chunk(
     return sessions
 
 
-def stop_worker_processes() -> None:
-    """Kill the local worker processes `run_sessions` started, if any (an interrupted run).
-
-    joblib keeps its worker processes for reuse after a run; a program that is stopped must
-    not leave them behind. Reaches loky's reusable executor (joblib's default local backend).
-    """
-    from joblib.externals.loky import reusable_executor
-
-    executor = getattr(reusable_executor, "_executor", None)
-    if executor is not None:
-        executor.shutdown(wait=False, kill_workers=True)
-
-
 def run_sessions(
     lineups: Sequence[Lineup],
     n_sessions: int,
@@ -169,12 +155,12 @@ def run_sessions(
     seed
         Seed of the run (session seeds are spawned from it).
     backend
-        ``"local"``: joblib processes on this machine (``n_jobs=1`` runs in this process);
+        ``"local"``: threads of this process (``n_jobs=1`` runs in the calling thread);
         ``"dask"``: the Dask cluster at ``scheduler``.
     scheduler
         Address of a Dask scheduler (``tcp://host:port``); required for ``backend="dask"``.
     n_jobs
-        Local worker processes.
+        Local worker threads.
     chunk_size
         Sessions per chunk (the unit of work and of memory: about 2 MB per 50 dyads of 60 s).
     progress
@@ -200,49 +186,11 @@ def run_sessions(
     elif n_jobs == 1:
         results = (run_chunk(*task) for task in tasks)
     else:
-        shipped = ShippedOnce(list(lineups))
-        parallel = Parallel(n_jobs=n_jobs, return_as="generator", pre_dispatch="2*n_jobs")
-        results = parallel(delayed(run_chunk)(shipped, *rest) for _, *rest in tasks)
+        results = _run_on_threads(tasks, n_jobs)
     with tqdm(total=n_sessions, disable=_quiet(progress), unit="session") as bar:
         for chunk in results:
             bar.update(len(chunk))
             yield chunk
-
-
-class ShippedOnce(Sequence[Lineup]):
-    """Players pickled once for all the chunks sent to worker processes, unpickled once there.
-
-    Every chunk of a local run carries the same lineups (the players' generators are megabytes);
-    this wrapper pickles them once in this process and carries the bytes, and a worker that has
-    unpickled them for an earlier chunk of the run reuses its copy (`_unpickle_shipped`).
-    """
-
-    def __init__(self, lineups: list[Lineup]) -> None:
-        self.lineups = lineups
-        self._token = uuid.uuid4().hex
-        self._data = pickle.dumps(lineups, protocol=pickle.HIGHEST_PROTOCOL)
-
-    def __reduce__(self) -> tuple[Any, tuple[str, bytes]]:
-        return _unpickle_shipped, (self._token, self._data)
-
-    def __len__(self) -> int:
-        return len(self.lineups)
-
-    def __getitem__(self, index: Any) -> Any:
-        return self.lineups[index]
-
-
-_SHIPPED: dict[str, ShippedOnce] = {}
-"""The lineups of the run this worker process is serving, by token (`ShippedOnce`)."""
-
-
-def _unpickle_shipped(token: str, data: bytes) -> ShippedOnce:
-    if token not in _SHIPPED:
-        _SHIPPED.clear()
-        shipped = ShippedOnce.__new__(ShippedOnce)
-        shipped.lineups, shipped._token, shipped._data = pickle.loads(data), token, data
-        _SHIPPED[token] = shipped
-    return _SHIPPED[token]
 
 
 def _check_run(
@@ -276,6 +224,19 @@ def _check_run(
     return periods.pop()
 
 
+def _run_on_threads(tasks: Iterator[tuple[Any, ...]], n_jobs: int) -> Iterator[list[Session]]:
+    """Run chunks on ``n_jobs`` threads of this process and yield them in order.
+
+    The compiled loop and the reference kernels release the GIL, so the threads run in
+    parallel, with nothing pickled between them and the consumer of the chunks.
+    """
+    pool = ThreadPoolExecutor(n_jobs, thread_name_prefix="mirror-avatar-batch")
+    try:
+        yield from _in_order((pool.submit(run_chunk, *task) for task in tasks), 2 * n_jobs)
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
+
+
 def _run_on_dask(tasks: Iterator[tuple[Any, ...]], scheduler: str) -> Iterator[list[Session]]:
     """Submit chunks to a Dask cluster, keeping a few in flight, and yield them in order."""
     from distributed import Client
@@ -285,17 +246,26 @@ def _run_on_dask(tasks: Iterator[tuple[Any, ...]], scheduler: str) -> Iterator[l
     except (OSError, TimeoutError) as error:
         raise InputError(scheduler, f"cannot reach the Dask scheduler ({error})") from None
     with client:
-        in_flight: deque[Any] = deque()
+        scattered: list[Any] = []
+
+        def submit(lineups: Sequence[Lineup], *rest: Any) -> Any:
+            if not scattered:
+                scattered.append(client.scatter(lineups, broadcast=True))
+            return client.submit(run_chunk, scattered[0], *rest)
+
         window = 2 * max(sum(client.nthreads().values()), 1)
-        lineups_future = None
-        for lineups, *rest in tasks:
-            if lineups_future is None:
-                lineups_future = client.scatter(lineups, broadcast=True)
-            in_flight.append(client.submit(run_chunk, lineups_future, *rest))
-            if len(in_flight) >= window:
-                yield in_flight.popleft().result()
-        while in_flight:
+        yield from _in_order((submit(*task) for task in tasks), window)
+
+
+def _in_order(submitted: Iterator[Future[list[Session]]], window: int) -> Iterator[list[Session]]:
+    """Yield the results of submitted chunks in order, keeping ``window`` of them in flight."""
+    in_flight: deque[Future[list[Session]]] = deque()
+    for future in submitted:
+        in_flight.append(future)
+        if len(in_flight) >= window:
             yield in_flight.popleft().result()
+    while in_flight:
+        yield in_flight.popleft().result()
 
 
 def _quiet(progress: bool | None) -> bool | None:

@@ -125,7 +125,7 @@ def run(
     n_sessions, n_validation
         Override the number of training sessions per role and validation sessions per partner.
     n_jobs
-        Local processes generating training sessions.
+        Local threads generating training sessions.
     agent
         ``"tabular"`` (the paper's Q-table) or ``"dqn"`` (a deep Q-network).
 

@@ -113,7 +113,7 @@ def run(
     n_sessions
         Override the number of training sessions.
     n_jobs
-        Local processes generating training sessions.
+        Local threads generating training sessions.
     agent
         ``"tabular"`` (a Q-table) or ``"dqn"`` (a deep Q-network with dynamic input).
     """

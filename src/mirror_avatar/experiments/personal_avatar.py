@@ -88,7 +88,7 @@ def create_avatar(
     seed
         Seeds the generator, training, validation and baselines (recorded in the avatar).
     n_jobs
-        Local processes generating training sessions.
+        Local threads generating training sessions.
     progress
         Called with the name of each stage as it begins.
     agent

@@ -83,7 +83,7 @@ def mean_track(neighbours: Array) -> Array:
     return means / neighbours.shape[0]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def learn_session(
     q: Array,
     partner_x: Array,
