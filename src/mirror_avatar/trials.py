@@ -229,19 +229,33 @@ def butterworth_lowpass(order: int, cutoff: float, rate: float) -> tuple[Array, 
 
 
 @njit(cache=True, nogil=True)
-def _cascade(sos: Array, signal: Array, initial: Array, scale: float) -> None:
+def _cascade(sos: Array, signal: Array, initial: Array, scale: float, backward: bool) -> None:
     """Second-order sections in direct form II transposed, in place (as `scipy.signal.sosfilt`).
 
-    ``initial`` (n_sections, 2) times ``scale`` is the initial state.
+    ``initial`` (n_sections, 2) times ``scale`` is the initial state. With ``backward`` the
+    signal is filtered from its last sample to its first. Sections are applied two at a time
+    in one pass over the signal (their recursions overlap in the processor); each section's
+    arithmetic is that of a pass of its own.
     """
-    for s in range(sos.shape[0]):
+    n = signal.size
+    for s in range(0, sos.shape[0], 2):
+        pair = s + 1 < sos.shape[0]
         b0, b1, b2, a1, a2 = sos[s, 0], sos[s, 1], sos[s, 2], sos[s, 4], sos[s, 5]
         z0, z1 = initial[s, 0] * scale, initial[s, 1] * scale
-        for i in range(signal.size):
+        t = s + 1 if pair else s
+        c0, c1, c2, e1, e2 = sos[t, 0], sos[t, 1], sos[t, 2], sos[t, 4], sos[t, 5]
+        w0, w1 = initial[t, 0] * scale, initial[t, 1] * scale
+        for k in range(n):
+            i = n - 1 - k if backward else k
             x = signal[i]
             y = b0 * x + z0
             z0 = b1 * x - a1 * y + z1
             z1 = b2 * x - a2 * y
+            if pair:
+                x = y
+                y = c0 * x + w0
+                w0 = c1 * x - e1 * y + w1
+                w1 = c2 * x - e2 * y
             signal[i] = y
 
 
@@ -272,10 +286,9 @@ def zero_phase_filter(sos: Array, initial: Array, signal: Array, padlen: int) ->
         extended[i] = 2.0 * signal[0] - signal[padlen - i]
         extended[n + padlen + i] = 2.0 * signal[n - 1] - signal[n - 2 - i]
     extended[padlen : padlen + n] = signal
-    _cascade(sos, extended, initial, extended[0])
-    backward = extended[::-1].copy()
-    _cascade(sos, backward, initial, backward[0])
-    return backward[::-1][padlen : padlen + n].copy()
+    _cascade(sos, extended, initial, extended[0], False)
+    _cascade(sos, extended, initial, extended[-1], True)
+    return extended[padlen : padlen + n].copy()
 
 
 def lowpass(signal: ArrayLike, rate: float, cutoff: float = 10.0, order: int = 4) -> Array:
@@ -323,8 +336,16 @@ def finite_difference(signal: ArrayLike, step: float) -> Array:
     x = np.asarray(signal, dtype=np.float64)
     if x.size < 5:
         raise InputError(None, f"finite difference needs at least 5 samples, got {x.size}")
-    d = np.empty_like(x)
-    d[2:-2] = (x[:-4] / 12 - 2 * x[1:-3] / 3 + 2 * x[3:-1] / 3 - x[4:] / 12) / step
+    return _differences(x, step)
+
+
+@njit(cache=True, nogil=True)
+def _differences(x: Array, step: float) -> Array:
+    """`finite_difference` of ``x`` (n >= 5), compiled."""
+    n = x.size
+    d = np.empty(n)
+    for i in range(2, n - 2):
+        d[i] = (x[i - 2] / 12 - 2 * x[i - 1] / 3 + 2 * x[i + 1] / 3 - x[i + 2] / 12) / step
     d[0] = (-25 * x[0] + 48 * x[1] - 36 * x[2] + 16 * x[3] - 3 * x[4]) / (12 * step)
     d[1] = (-3 * x[0] - 10 * x[1] + 18 * x[2] - 6 * x[3] + x[4]) / (12 * step)
     d[-1] = (25 * x[-1] - 48 * x[-2] + 36 * x[-3] - 16 * x[-4] + 3 * x[-5]) / (12 * step)
