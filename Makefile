@@ -32,3 +32,4 @@ bench: $(STAMP)
 
 clean:
 	rm -rf $(VENV) output .pytest_cache .ruff_cache .mypy_cache
+	find src -name '*.nbi' -delete -o -name '*.nbc' -delete

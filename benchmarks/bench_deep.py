@@ -6,7 +6,7 @@ VT5 in closed loop (`mirror_avatar.experiments.cyber_player.run_role`,
 `mirror_avatar.experiments.group.run`); the rows give, per partner, the target's, the tabular
 player's and the deep player's mean CV and RMS, and whether each is within the criterion of
 the target (0.05 for dyads, 0.03 for groups). Training times are wall-clock on this machine
-(2 processes generate sessions while one learns). Decision time is one greedy step of each
+(2 threads generate sessions while the main one learns). Decision time is one greedy step of each
 player's compiled kernel, called from Python, and of its Python ``step``.
 """
 

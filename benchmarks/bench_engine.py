@@ -1,6 +1,6 @@
 """Game engine: virtual-trainer sessions per second, against a per-step solve_bvp baseline.
 
-The batch engine (`mirror_avatar.engine.batch.run_sessions`, the compiled loop on local processes)
+The batch engine (`mirror_avatar.engine.batch.run_sessions`, the compiled loop on local threads)
 plays
 60 s leader-vs-follower sessions between virtual trainers driven by the bundled "fast" and "slow"
 IMS generators. The baseline solves the same optimal-control step the straightforward way, as the
@@ -105,7 +105,7 @@ def control_step(
 def run(quick: bool) -> list[dict]:
     pairs = make_pairs()
     n_jobs = 2
-    for jobs in (1, n_jobs):  # load the compiled code in this process and in the workers
+    for jobs in (1, n_jobs):  # load the compiled code
         list(run_sessions(pairs, 2 * jobs, 1.0, n_jobs=jobs, chunk_size=1, progress=False))
     n_sessions = 200 if quick else 2000
     elapsed, peak_mb, positions = measure_batch(pairs, n_sessions, n_jobs)
@@ -149,7 +149,7 @@ def run(quick: bool) -> list[dict]:
             "baseline": bvp_sessions_per_s,
             "ratio": sessions_per_s / bvp_sessions_per_s,
             "peak_memory_mb": peak_mb,
-            "note": f"{n_sessions} sessions, {n_jobs} processes (cores: {os.cpu_count()}), "
+            "note": f"{n_sessions} sessions, {n_jobs} threads (cores: {os.cpu_count()}), "
             "chunks of 25; baseline = solve_bvp per step (1 core), projected from "
             f"{len(inputs)} steps",
         },
@@ -186,7 +186,7 @@ def run(quick: bool) -> list[dict]:
             "name": "compiled step inside the batch loop (derived)",
             "value": 1e6 * n_jobs / (sessions_per_s * steps_per_session),
             "unit": "us per step per core",
-            "note": "batch wall time x processes / steps, incl. reference drawing and IPC",
+            "note": "batch wall time x threads / steps, incl. reference drawing",
         },
         {
             "name": "live VirtualTrainer.step",

@@ -2,7 +2,7 @@
 
 Groups of virtual trainers with the group preset (METHODS section 8, signatures of the two bundled
 styles in turn) play 60 s sessions on a new random connected graph each, on the batch engine (2
-local processes). The baseline is dyads of the same players and length in the same run: a group
+local threads). The baseline is dyads of the same players and length in the same run: a group
 of N does the work of N / 2 dyads, so the ratio says what the coupling graph costs per player.
 Group training (`train_group_cyber_player`, a group of four) is timed, and its peak traced memory
 compared between a short and a longer run (streaming keeps it flat).
@@ -68,7 +68,7 @@ def run(quick: bool) -> list[dict]:
                 "baseline": per_dyad,
                 "ratio": groups / per_dyad,
                 "note": f"baseline: {size // 2} dyads of 60 s per group ({dyads:.1f} dyads/s, "
-                "same run); ratio 1 = the graph costs nothing per player; 2 processes",
+                "same run); ratio 1 = the graph costs nothing per player; 2 threads",
             }
         )
     short, long = (40, 120) if quick else (200, 800)

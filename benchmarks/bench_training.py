@@ -1,7 +1,7 @@
 """Paper-scale cyber-player training: wall time, throughput and memory of the streamed pipeline.
 
 The paper trained for about 24 000 sessions of 60 s (about 5 days). Here a training run generates
-the virtual-trainer sessions with the batch engine (2 local processes) and Q-learns from them as
+the virtual-trainer sessions with the batch engine (2 local threads) and Q-learns from them as
 they arrive (`mirror_avatar.learning.imitation.train_cyber_player`, follower role, target VT5,
 partners VT1..VT4). The full benchmark runs the 24 000 sessions; quick mode runs a scaled-down
 run and projects. Peak traced memory is measured for two run lengths: streaming keeps it flat.
@@ -66,7 +66,7 @@ def run(quick: bool) -> list[dict]:
             "value": large_s,
             "unit": "s",
             "peak_memory_mb": large_mb,
-            "note": f"{rate:.0f} sessions/s; final RMS to VT5 {rms:.3f} units; 2 processes",
+            "note": f"{rate:.0f} sessions/s; final RMS to VT5 {rms:.3f} units; 2 threads",
         },
         {
             "name": f"paper scale ({PAPER_SESSIONS} sessions), projected from {large}"
@@ -121,7 +121,7 @@ def _stage_rows(target: Reference, partners: Sequence[Reference], n_sessions: in
             "name": "VT session generation (batch engine)",
             "value": generate,
             "unit": "sessions/s",
-            "note": f"{n_sessions} sessions of 60 s, 2 processes, held in memory for this row",
+            "note": f"{n_sessions} sessions of 60 s, 2 threads, held in memory for this row",
         },
         {
             "name": "Q-learning on generated sessions",

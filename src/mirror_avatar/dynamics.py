@@ -15,7 +15,7 @@ only), all held constant over the interval, and ``theta_s = 1 - theta_p - theta_
 How it is solved (follows METHODS section 5; departs from the original implementation, which
 called MATLAB's bvp4c at every step): Pontryagin's principle gives the nonlinear two-point boundary
 value problem of the section, solved here **exactly up to integration error** by shooting on the
-two initial costates (`solve_interval`). The state and costates are integrated with fixed-step
+two initial costates (`solve_intervals`). The state and costates are integrated with fixed-step
 RK4 (at least `N_SUBSTEPS` steps per interval, more when the interval is stiff, see
 `count_substeps`). Newton's method on the two terminal conditions starts from the exact solution
 of the problem with frozen damping, a linear problem whose solution map is tabulated once per
@@ -26,12 +26,18 @@ approximation is **not** used: it gets velocity and control wrong by tens of per
 interval, the position is clipped to the playing range [-0.5, 0.5] and an outward velocity at the
 wall is set to zero (a hand stopped at the edge of the range).
 
+The problems of many virtual trainers (all those of a batch chunk's sessions in one period) are
+solved together, in lockstep: their plain shots are integrated by one loop over the problems that
+the compiler vectorises, while each problem's iterations stop on its own test, so every problem
+gets the result it gets alone, bit for bit; one problem is the case of one.
+
 The cyber player's end effector is the same oscillator with a control chosen from a finite set and
 held over the period (`integrate_hkb`, METHODS section 7).
 
 Everything numerical is compiled with numba. Compiled functions read the parameters by name from a
-record of `PARAMS_DTYPE` (`HKBParams.record`), so `optimal_control_step` and `integrate_hkb` are the
-single steps used by every player, in the Python step loop and in the compiled batch loop alike.
+record of `PARAMS_DTYPE` (`HKBParams.record`), so `optimal_control_steps` and `integrate_hkb` are
+the single steps used by every player, in the Python step loop and in the compiled batch loop
+alike.
 The parameters, both steps and the solver's pieces stay in one module: they are read together.
 """
 
@@ -590,8 +596,8 @@ def _newton(
     Every iteration integrates the sensitivities (`_shoot_with_sensitivities`, scratch ``z``);
     a step that makes the terminal residual larger or the shooting overflow is halved (down to
     `MIN_STEP_SCALE`). ``alpha`` and ``beta`` are the nonlinear damping coefficients in use
-    (`solve_interval` scales them for its continuation). Returns ``(converged, l1, l2, x(T),
-    y(T))``, the end state extrapolated to first order in the last update.
+    (`_continuation` scales them). Returns ``(converged, l1, l2, x(T), y(T))``, the end state
+    extrapolated to first order in the last update.
     """
     gamma, omega, eta, period = p.gamma, p.omega, p.eta, p.period
     residual, scale, d1, d2 = np.inf, 1.0, 0.0, 0.0
@@ -619,25 +625,25 @@ def _newton(
     return False, l1, l2, np.nan, np.nan
 
 
-LANE_DTYPE = np.dtype(
-    [
-        ("theta_p", np.float64),
-        ("tracking", np.float64),
-        ("forcing", np.float64),
-        ("n_substeps", np.int64),
-        ("l1", np.float64),
-        ("l2", np.float64),
-        ("previous", np.float64),
-        ("residual", np.float64),
-        ("refresh", np.bool_),
-        ("status", np.int64),
-    ]
-)
-"""The state of one problem (lane) in `solve_intervals`: its cost weights and RK4 steps, its
-costates, the last update's size and residual, whether the next shot integrates sensitivities,
-and its status (`ITERATING`, `SOLVED`, `CONTINUING`). Its vectors are rows of arrays beside it:
-the last shot's end state-costate and sensitivities (``z``, layout of `_sensitivity_rates`) and
-the frozen-damping fallback."""
+X, Y, L1, L2 = 0, 1, 2, 3
+END = 4
+"""Rows END .. END + 3: the last shot's end state-costate (x, y, l1, l2), then the update's
+extrapolated end state (x, y) once a lane is solved."""
+COEFFICIENTS = 8
+"""Rows COEFFICIENTS .. COEFFICIENTS + 7: alpha, beta, gamma, omega, eta, tracking, forcing and
+the RK4 step (the per-lane arguments of `_shoot`)."""
+PREDICTION, THETA_P, PREVIOUS, RESIDUAL = 16, 17, 18, 19
+SENSITIVITY = 20
+"""Rows SENSITIVITY .. SENSITIVITY + 3: d x(T) / d l1(0), d y(T) / d l1(0), d x(T) / d l2(0),
+d y(T) / d l2(0) (the end state's first-order response to the costate update)."""
+JACOBIAN = 24
+"""Rows JACOBIAN .. JACOBIAN + 3: j11, j12, j21, j22 of the terminal residual in the initial
+costates (`_newton_update`)."""
+FALLBACK = 28
+"""Rows FALLBACK .. FALLBACK + 3: the frozen-damping solution (x(T), y(T), l1(0), l2(0))."""
+LANE_ROWS = 32
+"""Rows of the lane array of `solve_intervals`, shape (LANE_ROWS, L): one column per problem,
+the rows named by the constants above (X, Y, L1, L2: the start state and current costates)."""
 
 ITERATING, SOLVED, CONTINUING = 0, 1, 2
 """A lane's status in `solve_intervals`: in the chord iterations, solved, or left to the
@@ -712,46 +718,45 @@ def solve_intervals(
         ``-lambda2(0) / eta``.
     """
     n_lanes = problems.shape[0]
-    lanes = np.empty(n_lanes, LANE_DTYPE)
-    ends, z, fallbacks = np.empty((n_lanes, 4)), np.empty((n_lanes, 12)), np.empty((n_lanes, 4))
-    for j in range(n_lanes):
-        _start_lane(problems[j], coupled[j], params[which[j]], n_min, lanes[j], z[j], fallbacks[j])
-        ends[j] = z[j, :4]
-    batch = np.empty((12, n_lanes))
+    lanes = np.empty((LANE_ROWS, n_lanes))
     steps = np.empty(n_lanes, np.int64)
-    where = np.empty(n_lanes, np.int64)
+    index = np.arange(n_lanes)
+    refresh = np.zeros(n_lanes, np.bool_)
+    status = np.empty(n_lanes, np.int64)
+    z = np.empty(12)
+    for j in range(n_lanes):
+        steps[j] = _start_lane(problems[j], coupled[j], params[which[j]], n_min, lanes[:, j], z)
+    active = n_lanes
     for iteration in range(max_newton + 1):
         if iteration > 0:
-            _shoot_lanes(problems, params, which, n_min, lanes, ends, z, batch, steps, where)
-        iterating = False
-        for j in range(n_lanes):
-            lane = lanes[j]
-            if lane.status == ITERATING:
-                _chord_update(
-                    problems[j], lane, ends[j], z[j], fallbacks[j], iteration, params[which[j]].eta,
-                    tolerance, out[j],
-                )  # fmt: skip
-                iterating |= lane.status == ITERATING
-        if not iterating:
-            break
-    for j in range(n_lanes):
-        if lanes[j].status != SOLVED:
-            p = params[which[j]]
-            _continuation(problems[j], p, lanes[j], z[j], fallbacks[j], tolerance, out[j])
+            _shoot_lanes(lanes, steps, refresh, params, which, index, active, z)
+        _chord_updates(lanes, refresh, status, active, iteration, tolerance)
+        active = _retire(
+            lanes, steps, index, refresh, status, active, problems, params, which, tolerance,
+            z, out,
+        )  # fmt: skip
+        if active == 0:
+            return
+    status[:active] = CONTINUING
+    _retire(
+        lanes, steps, index, refresh, status, active, problems, params, which, tolerance, z, out
+    )
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _start_lane(
     problem: NDArray[np.float64],
     coupled: bool,
     p: Record,
     n_min: int,
-    lane: Record,
+    lane: NDArray[np.float64],
     z: NDArray[np.float64],
-    fallback: NDArray[np.float64],
-) -> None:
-    """Set up a problem's lane: weights, RK4 steps and the frozen-damping solution (into ``z``)."""
-    x, y, _, reference_velocity, partner_velocity = problem
+) -> int:
+    """Fill a problem's lane (a column of the lane array) and return its RK4 steps.
+
+    The costates start at 0 with the frozen-damping solution's sensitivities (``z`` scratch).
+    """
+    x, y, prediction, reference_velocity, partner_velocity = problem
     theta_p, theta_v = partner_weights(p, coupled)
     tracking = 1.0 - theta_p
     forcing = (tracking - theta_v) * reference_velocity + theta_v * partner_velocity
@@ -759,133 +764,183 @@ def _start_lane(
     mean_square = (y * y + y * reference_velocity + reference_velocity * reference_velocity) / 3.0
     frozen = max(p.alpha * x * x + p.beta * mean_square - p.gamma, 0.0)
     _frozen_solution(x, y, frozen, p, 0 if coupled else 1, tracking, forcing, n, z)
-    lane.theta_p, lane.tracking, lane.forcing, lane.n_substeps = theta_p, tracking, forcing, n
-    lane.l1 = lane.l2 = 0.0
-    lane.refresh, lane.previous, lane.residual = False, np.inf, np.inf
-    lane.status = ITERATING
-    fallback[0], fallback[1], fallback[2], fallback[3] = x, y, 0.0, 0.0
+    lane[X], lane[Y], lane[L1], lane[L2] = x, y, 0.0, 0.0
+    lane[END : END + 4] = z[:4]
+    c = COEFFICIENTS
+    lane[c], lane[c + 1], lane[c + 2], lane[c + 3] = p.alpha, p.beta, p.gamma, p.omega
+    lane[c + 4], lane[c + 5], lane[c + 6], lane[c + 7] = p.eta, tracking, forcing, p.period / n
+    lane[PREDICTION], lane[THETA_P], lane[PREVIOUS], lane[RESIDUAL] = (
+        prediction,
+        theta_p,
+        np.inf,
+        np.inf,
+    )
+    _keep_sensitivities(z, theta_p, lane)
+    lane[FALLBACK], lane[FALLBACK + 1], lane[FALLBACK + 2], lane[FALLBACK + 3] = x, y, 0.0, 0.0
+    return n
+
+
+@njit(cache=True, nogil=True)
+def _keep_sensitivities(z: NDArray[np.float64], theta_p: float, lane: NDArray[np.float64]) -> None:
+    """Store the sensitivities in ``z`` (layout of `_sensitivity_rates`) that the updates use."""
+    s = SENSITIVITY
+    lane[s], lane[s + 1], lane[s + 2], lane[s + 3] = z[4], z[5], z[8], z[9]
+    j = JACOBIAN
+    lane[j], lane[j + 1] = z[6] - theta_p * z[4], z[10] - theta_p * z[8]
+    lane[j + 2], lane[j + 3] = z[7], z[11]
 
 
 @njit(cache=True, nogil=True)
 def _shoot_lanes(
+    lanes: NDArray[np.float64],
+    steps: NDArray[np.int64],
+    refresh: NDArray[np.bool_],
+    params: NDArray[np.void],
+    which: NDArray[np.int64],
+    index: NDArray[np.int64],
+    active: int,
+    z: NDArray[np.float64],
+) -> None:
+    """Shoot the first ``active`` lanes from their costates, into their END rows.
+
+    All are shot together (`_shoot`); those due a Newton step are then shot again one by one
+    with their sensitivities (`_shoot_with_sensitivities`, ``z`` scratch).
+    """
+    for row in range(4):
+        lanes[END + row, :active] = lanes[X + row, :active]
+    c = COEFFICIENTS
+    _shoot(
+        active, lanes[END], lanes[END + 1], lanes[END + 2], lanes[END + 3], lanes[c],
+        lanes[c + 1], lanes[c + 2], lanes[c + 3], lanes[c + 4], lanes[c + 5], lanes[c + 6],
+        lanes[c + 7], steps,
+    )  # fmt: skip
+    for j in range(active):
+        if refresh[j]:
+            lane, p = lanes[:, j], params[which[index[j]]]
+            _shoot_with_sensitivities(
+                lane[X], lane[Y], lane[L1], lane[L2], p.alpha, p.beta, p.gamma, p.omega, p.eta,
+                lane[c + 5], lane[c + 6], p.period, steps[j], z,
+            )  # fmt: skip
+            lane[END : END + 4] = z[:4]
+            _keep_sensitivities(z, lane[THETA_P], lane)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _chord_updates(
+    lanes: NDArray[np.float64],
+    refresh: NDArray[np.bool_],
+    status: NDArray[np.int64],
+    active: int,
+    iteration: int,
+    tolerance: float,
+) -> None:
+    """Update the first ``active`` lanes' costates from their last shots (chord or Newton steps).
+
+    Sets each one's status: `SOLVED` once converged (its END rows then hold the extrapolated
+    end state), `CONTINUING` when the first nonlinear residual exceeds the frozen problem's
+    or the shooting overflows; and whether its next shot integrates sensitivities.
+    """
+    s, jac = SENSITIVITY, JACOBIAN
+    for j in range(active):
+        theta_p, x_shot, y_shot = lanes[THETA_P, j], lanes[END, j], lanes[END + 1, j]
+        r1 = lanes[END + 2, j] - theta_p * (x_shot - lanes[PREDICTION, j])
+        r2 = lanes[END + 3, j]
+        j11, j12, j21, j22 = lanes[jac, j], lanes[jac + 1, j], lanes[jac + 2, j], lanes[jac + 3, j]
+        det = j11 * j22 - j12 * j21
+        d1, d2 = -(j22 * r1 - j12 * r2) / det, -(j11 * r2 - j21 * r1) / det
+        l1, l2 = lanes[L1, j] + d1, lanes[L2, j] + d2
+        # End state to first order in the update (exact once the iteration has converged).
+        x_end = x_shot + lanes[s, j] * d1 + lanes[s + 2, j] * d2
+        y_end = y_shot + lanes[s + 1, j] * d1 + lanes[s + 3, j] * d2
+        size = abs(r1) + abs(r2)
+        finite = np.isfinite(x_end) and np.isfinite(y_end) and np.isfinite(l2)
+        diverging = iteration == 1 and not size <= lanes[RESIDUAL, j]
+        done = iteration > 0 and _converged(
+            d2, l2, lanes[COEFFICIENTS + 4, j], y_end, y_shot, tolerance
+        )
+        status[j] = CONTINUING if diverging or not finite else (SOLVED if done else ITERATING)
+        if iteration == 0 and finite:
+            lanes[FALLBACK, j], lanes[FALLBACK + 1, j] = x_end, y_end
+            lanes[FALLBACK + 2, j], lanes[FALLBACK + 3, j] = l1, l2
+        lanes[L1, j], lanes[L2, j], lanes[END, j], lanes[END + 1, j] = l1, l2, x_end, y_end
+        refresh[j] = iteration > 0 and abs(d2) > 0.5 * lanes[PREVIOUS, j]
+        lanes[PREVIOUS, j], lanes[RESIDUAL, j] = abs(d2), size
+
+
+@njit(cache=True, nogil=True)
+def _retire(
+    lanes: NDArray[np.float64],
+    steps: NDArray[np.int64],
+    index: NDArray[np.int64],
+    refresh: NDArray[np.bool_],
+    status: NDArray[np.int64],
+    active: int,
     problems: NDArray[np.float64],
     params: NDArray[np.void],
     which: NDArray[np.int64],
-    n_min: int,
-    lanes: NDArray[np.void],
-    ends: NDArray[np.float64],
-    z: NDArray[np.float64],
-    batch: NDArray[np.float64],
-    steps: NDArray[np.int64],
-    where: NDArray[np.int64],
-) -> None:
-    """Shoot every iterating lane from its costates, into its row of ``ends`` (L, 4).
-
-    Lanes due a Newton step integrate their sensitivities too (into their row of ``z``), one
-    by one; the rest are gathered into the rows of ``batch`` (12, L: the arguments of
-    `_shoot`), ``steps`` and ``where`` (their lanes) and shot together, those taking more than
-    ``n_min`` RK4 steps first (so `_shoot` drops the others once they are done).
-    """
-    count = 0
-    for longer in (True, False):
-        for j in range(problems.shape[0]):
-            lane, p = lanes[j], params[which[j]]
-            if lane.status != ITERATING or (
-                not lane.refresh and (lane.n_substeps > n_min) != longer
-            ):
-                continue
-            x, y = problems[j, 0], problems[j, 1]
-            if lane.refresh:
-                if longer:
-                    _shoot_with_sensitivities(
-                        x, y, lane.l1, lane.l2, p.alpha, p.beta, p.gamma, p.omega, p.eta,
-                        lane.tracking, lane.forcing, p.period, lane.n_substeps, z[j],
-                    )  # fmt: skip
-                    ends[j] = z[j, :4]
-                continue
-            batch[0, count], batch[1, count], batch[2, count] = x, y, lane.l1
-            batch[3, count], batch[4, count], batch[5, count] = lane.l2, p.alpha, p.beta
-            batch[6, count], batch[7, count], batch[8, count] = p.gamma, p.omega, p.eta
-            batch[9, count], batch[10, count] = lane.tracking, lane.forcing
-            batch[11, count] = p.period / lane.n_substeps
-            steps[count], where[count] = lane.n_substeps, j
-            count += 1
-    _shoot(
-        count, batch[0], batch[1], batch[2], batch[3], batch[4], batch[5], batch[6], batch[7],
-        batch[8], batch[9], batch[10], batch[11], steps,
-    )  # fmt: skip
-    for i in range(count):
-        end = ends[where[i]]
-        end[0], end[1], end[2], end[3] = batch[0, i], batch[1, i], batch[2, i], batch[3, i]
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _chord_update(
-    problem: NDArray[np.float64],
-    lane: Record,
-    end: NDArray[np.float64],
-    z: NDArray[np.float64],
-    fallback: NDArray[np.float64],
-    iteration: int,
-    eta: float,
     tolerance: float,
+    z: NDArray[np.float64],
     out: NDArray[np.float64],
-) -> None:
-    """Update a lane's costates from its last shot ``end`` (chord or Newton step), in place.
+) -> int:
+    """Write out the first ``active`` lanes that are solved or left to the continuation.
 
-    Sets its status: `SOLVED` (``out`` written) once converged, `CONTINUING` when the first
-    nonlinear residual exceeds the frozen problem's or the shooting overflows. ``z`` holds the
-    Jacobian's sensitivities; ``fallback`` receives the first update's extrapolated solution.
+    A solved lane's result goes to its row of ``out``; a lane left to the continuation is
+    solved by it (`_continuation`) now. Each is swapped with the last active lane; returns the
+    number of lanes still iterating (the first ones).
     """
-    theta_p = lane.theta_p
-    r1 = end[2] - theta_p * (end[0] - problem[2])
-    r2 = end[3]
-    if iteration == 1 and not abs(r1) + abs(r2) <= lane.residual:
-        lane.status = CONTINUING  # far from linear (or overflowing)
-        return
-    d1, d2 = _newton_update(z, theta_p, r1, r2)
-    l1, l2 = lane.l1 + d1, lane.l2 + d2
-    lane.l1, lane.l2 = l1, l2
-    # End state to first order in the update (exact once the iteration has converged).
-    x_end = end[0] + z[4] * d1 + z[8] * d2
-    y_end = end[1] + z[5] * d1 + z[9] * d2
-    if not (np.isfinite(x_end) and np.isfinite(y_end) and np.isfinite(l2)):
-        lane.status = CONTINUING
-        return
-    if iteration == 0:
-        fallback[0], fallback[1], fallback[2], fallback[3] = x_end, y_end, l1, l2
-    elif _converged(d2, l2, eta, y_end, end[1], tolerance):
-        out[0], out[1], out[2], out[3], out[4] = x_end, y_end, l1, l2, 1.0
-        lane.status = SOLVED
-        return
-    lane.refresh = iteration > 0 and abs(d2) > 0.5 * lane.previous
-    lane.previous, lane.residual = abs(d2), abs(r1) + abs(r2)
+    j = 0
+    while j < active:
+        if status[j] == ITERATING:
+            j += 1
+            continue
+        lane, row = lanes[:, j], out[index[j]]
+        if status[j] == SOLVED:
+            row[0], row[1], row[2], row[3], row[4] = (
+                lane[END],
+                lane[END + 1],
+                lane[L1],
+                lane[L2],
+                1.0,
+            )
+        else:
+            p = params[which[index[j]]]
+            _continuation(problems[index[j]], p, lane, steps[j], z, tolerance, row)
+        active -= 1
+        for r in range(LANE_ROWS):
+            lanes[r, j], lanes[r, active] = lanes[r, active], lanes[r, j]
+        steps[j], steps[active] = steps[active], steps[j]
+        index[j], index[active] = index[active], index[j]
+        refresh[j], refresh[active] = refresh[active], refresh[j]
+        status[j], status[active] = status[active], status[j]
+    return active
 
 
 @njit(cache=True, nogil=True)
 def _continuation(
     problem: NDArray[np.float64],
     p: Record,
-    lane: Record,
+    lane: NDArray[np.float64],
+    n_substeps: int,
     z: NDArray[np.float64],
-    fallback: NDArray[np.float64],
     tolerance: float,
     out: NDArray[np.float64],
 ) -> None:
     """Solve a lane's problem by continuation in the nonlinear damping, into ``out``.
 
-    Falls back to ``fallback`` (flagged 0.0) if a stage fails to converge; ``z`` is scratch.
+    Falls back to the lane's frozen-damping solution (flagged 0.0) if a stage fails to
+    converge; ``z`` is scratch.
     """
     x, y, partner_prediction = problem[0], problem[1], problem[2]
+    theta_p, tracking, forcing = lane[THETA_P], lane[COEFFICIENTS + 5], lane[COEFFICIENTS + 6]
     l1 = l2 = x_end = y_end = 0.0
     for stage in range(CONTINUATION_STAGES + 1):
         share = stage / CONTINUATION_STAGES
         converged, l1, l2, x_end, y_end = _newton(
-            x, y, partner_prediction, l1, l2, p.alpha * share, p.beta * share, p, lane.theta_p,
-            lane.tracking, lane.forcing, lane.n_substeps, tolerance, z,
+            x, y, partner_prediction, l1, l2, p.alpha * share, p.beta * share, p, theta_p,
+            tracking, forcing, n_substeps, tolerance, z,
         )  # fmt: skip
         if not converged:
-            out[:4] = fallback
+            out[:4] = lane[FALLBACK : FALLBACK + 4]
             out[4] = 0.0
             return
     out[0], out[1], out[2], out[3], out[4] = x_end, y_end, l1, l2, 1.0
