@@ -82,7 +82,7 @@ NEWTON_TOLERANCE = 1e-3
 (the end state, extrapolated to first order in the last update, is then accurate to about its
 square)."""
 
-CONTINUATION_STAGES = 8
+CONTINUATION_STAGES = 4
 """Steps of the continuation from the linear to the full problem when Newton alone fails."""
 
 MIN_STEP_SCALE = 1.0 / 1024.0
@@ -685,7 +685,7 @@ def solve_intervals(
        problem's residual at costates (0, 0), the shooting overflows, or the chord iterations
        have not converged after ``max_newton`` iterations, the problem is solved by
        continuation instead: full Newton (`_newton`, with step halving) on the problem with
-       the nonlinear damping coefficients scaled by 0, 1/8, ..., 1, each from the last.
+       the nonlinear damping coefficients scaled by 0, 1/4, ..., 1, each from the last.
 
     If the continuation fails too, the frozen-damping solution is returned, flagged as not
     converged.

@@ -154,7 +154,7 @@ class ExternalPlayer(Player):
         return self.current_state()
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def neighbour_mean(values: Array) -> float:
     """Mean of the neighbours' values, summed in order (exactly the value for one neighbour)."""
     total = values[0]
@@ -163,7 +163,7 @@ def neighbour_mean(values: Array) -> float:
     return total / values.size
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def partner_state(
     positions: Array, velocities: Array, previous: Array, x: float, v: float
 ) -> tuple[float, float, float]:
@@ -186,7 +186,7 @@ def partner_state(
     return neighbour_mean(positions), neighbour_mean(velocities), neighbour_mean(previous)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def gather_neighbours(
     positions: Array,
     velocities: Array,

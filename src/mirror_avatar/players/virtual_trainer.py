@@ -38,7 +38,7 @@ from mirror_avatar.trials import Trial
 Array = NDArray[np.float64]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def virtual_trainer_problem(
     x: float,
     v: float,
