@@ -1,21 +1,22 @@
 """Game engine: virtual-trainer sessions per second, against a per-step solve_bvp baseline.
 
 The batch engine (`mirror_avatar.engine.batch.run_sessions`, the compiled loop on local threads)
-plays
-60 s leader-vs-follower sessions between virtual trainers driven by the bundled "fast" and "slow"
-IMS generators. The baseline solves the same optimal-control step the straightforward way, as the
-original MATLAB implementation did with bvp4c: scipy's ``solve_bvp`` on the nonlinear two-point
-boundary value problem at every step, timed on a few steps in the same run. Also: the compiled
-step alone, one live `VirtualTrainer.step` call, peak memory, and the projected time of the
-paper's 24 000 training sessions.
+plays 60 s leader-vs-follower sessions between virtual trainers driven by the bundled "fast" and
+"slow" IMS generators. The baseline solves the same optimal-control step the straightforward way,
+as the original MATLAB implementation did with bvp4c: scipy's ``solve_bvp`` on the nonlinear
+two-point boundary value problem at every step, timed on a few steps in the same run. Also: the
+compiled step alone, one live `VirtualTrainer.step` call, peak memory, and the projected time of
+the paper's 24 000 training sessions.
 """
 
 from __future__ import annotations
 
 import os
 import resource
+import sys
 import time
-import tracemalloc
+from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 
@@ -31,8 +32,12 @@ from mirror_avatar.dynamics import (
 )
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.players import Observation, VirtualTrainer
+from mirror_avatar.session import Session
 from mirror_avatar.specs import bundled_generator
 from mirror_avatar.testing import solve_step_bvp
+
+sys.path.insert(0, str(Path(__file__).parent))
+from traced import peak_traced_mb  # noqa: E402
 
 PAPER_SESSIONS = 24_000
 SESSION_SECONDS = 60.0
@@ -58,20 +63,24 @@ def make_pairs() -> list[tuple[VirtualTrainer, VirtualTrainer]]:
 
 def measure_batch(
     pairs: list[tuple[VirtualTrainer, VirtualTrainer]], n_sessions: int, n_jobs: int
-) -> tuple[float, float, np.ndarray]:
-    """Seconds for ``n_sessions`` of 60 s, peak traced memory (MB) of this process, 1st chunk."""
-    tracemalloc.start()
+) -> tuple[float, np.ndarray]:
+    """Seconds for ``n_sessions`` of 60 s (untraced) and the first session's positions."""
     start = time.perf_counter()
     first = None
-    for chunk in run_sessions(
-        pairs, n_sessions, SESSION_SECONDS, seed=0, n_jobs=n_jobs, chunk_size=25, progress=False
-    ):
+    for chunk in run_batch(pairs, n_sessions, n_jobs):
         first = chunk[0].positions if first is None else first
     elapsed = time.perf_counter() - start
-    _, peak = tracemalloc.get_traced_memory()
-    tracemalloc.stop()
     assert first is not None
-    return elapsed, peak / 2**20, first
+    return elapsed, first
+
+
+def run_batch(
+    pairs: list[tuple[VirtualTrainer, VirtualTrainer]], n_sessions: int, n_jobs: int
+) -> Iterator[list[Session]]:
+    """Start the benchmark's batch run: sessions of 60 s in chunks of 25."""
+    return run_sessions(
+        pairs, n_sessions, SESSION_SECONDS, seed=0, n_jobs=n_jobs, chunk_size=25, progress=False
+    )
 
 
 def step_inputs(positions: np.ndarray, n: int) -> list[tuple[float, float, float, float, float]]:
@@ -108,9 +117,10 @@ def run(quick: bool) -> list[dict]:
     for jobs in (1, n_jobs):  # load the compiled code
         list(run_sessions(pairs, 2 * jobs, 1.0, n_jobs=jobs, chunk_size=1, progress=False))
     n_sessions = 200 if quick else 2000
-    elapsed, peak_mb, positions = measure_batch(pairs, n_sessions, n_jobs)
+    elapsed, positions = measure_batch(pairs, n_sessions, n_jobs)
     sessions_per_s = n_sessions / elapsed
-    inline, _, _ = measure_batch(pairs, n_sessions // 10, 1)
+    peak_mb = peak_traced_mb(lambda: list(run_batch(pairs, n_sessions // 4, n_jobs)))
+    inline, _ = measure_batch(pairs, n_sessions // 10, 1)
     inline_per_s = n_sessions // 10 / inline
     steps_per_session = 2 * int(round(SESSION_SECONDS / LEADER.period))
 
@@ -151,7 +161,7 @@ def run(quick: bool) -> list[dict]:
             "peak_memory_mb": peak_mb,
             "note": f"{n_sessions} sessions, {n_jobs} threads (cores: {os.cpu_count()}), "
             "chunks of 25; baseline = solve_bvp per step (1 core), projected from "
-            f"{len(inputs)} steps",
+            f"{len(inputs)} steps; memory: a traced run of {n_sessions // 4} sessions",
         },
         {
             "name": "batch engine in this process (n_jobs=1)",
