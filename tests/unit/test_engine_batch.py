@@ -1,5 +1,8 @@
 """Tests of the batch engine: identical to one-at-a-time play, whatever the chunking or backend."""
 
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -48,12 +51,24 @@ def test_batch_sessions_equal_played_sessions(pairs) -> None:
             np.testing.assert_array_equal(getattr(session, channel), getattr(played, channel))
 
 
-def test_chunking_and_processes_do_not_change_results(pairs) -> None:
+def test_chunking_and_threads_do_not_change_results(pairs) -> None:
     inline = collect(run_sessions(pairs, 7, duration=4.0, seed=2, n_jobs=1, chunk_size=7))
-    processes = collect(run_sessions(pairs, 7, duration=4.0, seed=2, n_jobs=2, chunk_size=2))
-    for a, b in zip(inline, processes, strict=True):
+    threads = collect(run_sessions(pairs, 7, duration=4.0, seed=2, n_jobs=2, chunk_size=2))
+    for a, b in zip(inline, threads, strict=True):
         for channel in CHANNELS:
             np.testing.assert_array_equal(getattr(a, channel), getattr(b, channel))
+
+
+def test_a_run_stopped_early_leaves_no_worker_thread_behind(pairs) -> None:
+    chunks = run_sessions(pairs, 200, duration=4.0, n_jobs=2, chunk_size=2)
+    assert len(next(chunks)) == 2
+    chunks.close()
+    for _ in range(100):
+        if not any(t.name.startswith("mirror-avatar-batch") for t in threading.enumerate()):
+            break
+        time.sleep(0.05)
+    else:
+        pytest.fail("batch threads outlived the run")
 
 
 def test_chunks_stream_in_order(pairs) -> None:
