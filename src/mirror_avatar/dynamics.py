@@ -765,7 +765,7 @@ def _start_lane(
     frozen = max(p.alpha * x * x + p.beta * mean_square - p.gamma, 0.0)
     _frozen_solution(x, y, frozen, p, 0 if coupled else 1, tracking, forcing, n, z)
     lane[X], lane[Y], lane[L1], lane[L2] = x, y, 0.0, 0.0
-    lane[END : END + 4] = z[:4]
+    lane[END], lane[END + 1], lane[END + 2], lane[END + 3] = z[0], z[1], z[2], z[3]
     c = COEFFICIENTS
     lane[c], lane[c + 1], lane[c + 2], lane[c + 3] = p.alpha, p.beta, p.gamma, p.omega
     lane[c + 4], lane[c + 5], lane[c + 6], lane[c + 7] = p.eta, tracking, forcing, p.period / n
