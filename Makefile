@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 OUT ?= output/demo
 
-.PHONY: demo test test-all bench lint clean
+.PHONY: demo test test-all bench lint clean clean-cache
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,8 @@ test-all: lint
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py --out benchmarks/results.md
 
-clean:
+clean: clean-cache
 	rm -rf $(VENV) output .pytest_cache .ruff_cache .mypy_cache
-	find src -name '*.nbi' -delete -o -name '*.nbc' -delete
+
+clean-cache:
+	find src benchmarks -name '*.nbi' -delete -o -name '*.nbc' -delete
