@@ -58,7 +58,8 @@ def play_compiled_together(
 
     The sessions are the blocks of one block-diagonal graph, so every period the virtual
     trainers of all of them are solved together (`mirror_avatar.dynamics.optimal_control_steps`,
-    vectorised across problems); each session is the one `play_compiled` gives alone.
+    vectorised across problems); each session is the one `play_compiled` gives alone, and owns
+    its arrays (a session kept alone does not hold the whole chunk's).
     """
     period = check_lineup(lineups[0])
     blocks = [
@@ -77,10 +78,10 @@ def play_compiled_together(
     return [
         Session(
             times,
-            out[0, block],
-            out[1, block],
-            out[2, block],
-            out[3, block],
+            out[0, block].copy(),
+            out[1, block].copy(),
+            out[2, block].copy(),
+            out[3, block].copy(),
             labels=tuple(p.label or f"player {i}" for i, p in enumerate(players)),
             roles=tuple(roles) if roles is not None else default_roles(len(players)),
             graph=adjacency,
