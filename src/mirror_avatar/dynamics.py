@@ -545,18 +545,31 @@ def count_substeps(
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _jacobian(z: NDArray[np.float64], theta_p: float) -> tuple[float, float, float, float]:
+    """Return ``(j11, j12, j21, j22)``, the Jacobian of the terminal residual.
+
+    The residual is ``(l1(T) - theta_p (x(T) - r_p), l2(T))``; its derivatives in the initial
+    costates come from the sensitivities in ``z`` (layout of `_sensitivity_rates`).
+    """
+    return z[6] - theta_p * z[4], z[10] - theta_p * z[8], z[7], z[11]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _costate_update(
+    j11: float, j12: float, j21: float, j22: float, r1: float, r2: float
+) -> tuple[float, float]:
+    """Return the costate update that solves the terminal residual ``(r1, r2)`` to first order."""
+    det = j11 * j22 - j12 * j21
+    return -(j22 * r1 - j12 * r2) / det, -(j11 * r2 - j21 * r1) / det
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _newton_update(
     z: NDArray[np.float64], theta_p: float, r1: float, r2: float
 ) -> tuple[float, float]:
-    """Return the costate update that solves the terminal residual ``(r1, r2)`` to first order.
-
-    The Jacobian of ``(l1(T) - theta_p (x(T) - r_p), l2(T))`` in the initial costates comes
-    from the sensitivities in ``z`` (layout of `_sensitivity_rates`).
-    """
-    j11, j12 = z[6] - theta_p * z[4], z[10] - theta_p * z[8]
-    j21, j22 = z[7], z[11]
-    det = j11 * j22 - j12 * j21
-    return -(j22 * r1 - j12 * r2) / det, -(j11 * r2 - j21 * r1) / det
+    """`_costate_update` with the Jacobian from the sensitivities in ``z`` (`_jacobian`)."""
+    j11, j12, j21, j22 = _jacobian(z, theta_p)
+    return _costate_update(j11, j12, j21, j22, r1, r2)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -629,16 +642,15 @@ X, Y, L1, L2 = 0, 1, 2, 3
 END = 4
 """Rows END .. END + 3: the last shot's end state-costate (x, y, l1, l2), then the update's
 extrapolated end state (x, y) once a lane is solved."""
-COEFFICIENTS = 8
-"""Rows COEFFICIENTS .. COEFFICIENTS + 7: alpha, beta, gamma, omega, eta, tracking, forcing and
-the RK4 step (the per-lane arguments of `_shoot`)."""
+ALPHA, BETA, GAMMA, OMEGA, ETA, TRACKING, FORCING, STEP = range(8, 16)
+"""Rows of the per-lane arguments of `_shoot`, in its order (STEP: the RK4 step, s)."""
 PREDICTION, THETA_P, PREVIOUS, RESIDUAL = 16, 17, 18, 19
 SENSITIVITY = 20
 """Rows SENSITIVITY .. SENSITIVITY + 3: d x(T) / d l1(0), d y(T) / d l1(0), d x(T) / d l2(0),
 d y(T) / d l2(0) (the end state's first-order response to the costate update)."""
 JACOBIAN = 24
 """Rows JACOBIAN .. JACOBIAN + 3: j11, j12, j21, j22 of the terminal residual in the initial
-costates (`_newton_update`)."""
+costates (`_jacobian`)."""
 FALLBACK = 28
 """Rows FALLBACK .. FALLBACK + 3: the frozen-damping solution (x(T), y(T), l1(0), l2(0))."""
 LANE_ROWS = 32
@@ -765,29 +777,26 @@ def _start_lane(
     frozen = max(p.alpha * x * x + p.beta * mean_square - p.gamma, 0.0)
     _frozen_solution(x, y, frozen, p, 0 if coupled else 1, tracking, forcing, n, z)
     lane[X], lane[Y], lane[L1], lane[L2] = x, y, 0.0, 0.0
-    lane[END], lane[END + 1], lane[END + 2], lane[END + 3] = z[0], z[1], z[2], z[3]
-    c = COEFFICIENTS
-    lane[c], lane[c + 1], lane[c + 2], lane[c + 3] = p.alpha, p.beta, p.gamma, p.omega
-    lane[c + 4], lane[c + 5], lane[c + 6], lane[c + 7] = p.eta, tracking, forcing, p.period / n
-    lane[PREDICTION], lane[THETA_P], lane[PREVIOUS], lane[RESIDUAL] = (
-        prediction,
-        theta_p,
-        np.inf,
-        np.inf,
-    )
-    _keep_sensitivities(z, theta_p, lane)
+    lane[ALPHA], lane[BETA], lane[GAMMA], lane[OMEGA] = p.alpha, p.beta, p.gamma, p.omega
+    lane[ETA], lane[TRACKING], lane[FORCING], lane[STEP] = p.eta, tracking, forcing, p.period / n
+    lane[PREDICTION], lane[THETA_P] = prediction, theta_p
+    lane[PREVIOUS] = lane[RESIDUAL] = np.inf
+    _keep_shot(z, theta_p, lane)
     lane[FALLBACK], lane[FALLBACK + 1], lane[FALLBACK + 2], lane[FALLBACK + 3] = x, y, 0.0, 0.0
     return n
 
 
 @njit(cache=True, nogil=True)
-def _keep_sensitivities(z: NDArray[np.float64], theta_p: float, lane: NDArray[np.float64]) -> None:
-    """Store the sensitivities in ``z`` (layout of `_sensitivity_rates`) that the updates use."""
+def _keep_shot(z: NDArray[np.float64], theta_p: float, lane: NDArray[np.float64]) -> None:
+    """Store a shot with sensitivities ``z`` (layout of `_sensitivity_rates`) in a lane.
+
+    Its end state-costate, the sensitivities the updates extrapolate with and the Jacobian.
+    """
+    lane[END], lane[END + 1], lane[END + 2], lane[END + 3] = z[0], z[1], z[2], z[3]
     s = SENSITIVITY
     lane[s], lane[s + 1], lane[s + 2], lane[s + 3] = z[4], z[5], z[8], z[9]
     j = JACOBIAN
-    lane[j], lane[j + 1] = z[6] - theta_p * z[4], z[10] - theta_p * z[8]
-    lane[j + 2], lane[j + 3] = z[7], z[11]
+    lane[j], lane[j + 1], lane[j + 2], lane[j + 3] = _jacobian(z, theta_p)
 
 
 @njit(cache=True, nogil=True)
@@ -808,21 +817,19 @@ def _shoot_lanes(
     """
     for row in range(4):
         lanes[END + row, :active] = lanes[X + row, :active]
-    c = COEFFICIENTS
     _shoot(
-        active, lanes[END], lanes[END + 1], lanes[END + 2], lanes[END + 3], lanes[c],
-        lanes[c + 1], lanes[c + 2], lanes[c + 3], lanes[c + 4], lanes[c + 5], lanes[c + 6],
-        lanes[c + 7], steps,
+        active, lanes[END], lanes[END + 1], lanes[END + 2], lanes[END + 3], lanes[ALPHA],
+        lanes[BETA], lanes[GAMMA], lanes[OMEGA], lanes[ETA], lanes[TRACKING], lanes[FORCING],
+        lanes[STEP], steps,
     )  # fmt: skip
     for j in range(active):
         if refresh[j]:
             lane, p = lanes[:, j], params[which[index[j]]]
             _shoot_with_sensitivities(
                 lane[X], lane[Y], lane[L1], lane[L2], p.alpha, p.beta, p.gamma, p.omega, p.eta,
-                lane[c + 5], lane[c + 6], p.period, steps[j], z,
+                lane[TRACKING], lane[FORCING], p.period, steps[j], z,
             )  # fmt: skip
-            lane[END : END + 4] = z[:4]
-            _keep_sensitivities(z, lane[THETA_P], lane)
+            _keep_shot(z, lane[THETA_P], lane)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -846,8 +853,7 @@ def _chord_updates(
         r1 = lanes[END + 2, j] - theta_p * (x_shot - lanes[PREDICTION, j])
         r2 = lanes[END + 3, j]
         j11, j12, j21, j22 = lanes[jac, j], lanes[jac + 1, j], lanes[jac + 2, j], lanes[jac + 3, j]
-        det = j11 * j22 - j12 * j21
-        d1, d2 = -(j22 * r1 - j12 * r2) / det, -(j11 * r2 - j21 * r1) / det
+        d1, d2 = _costate_update(j11, j12, j21, j22, r1, r2)
         l1, l2 = lanes[L1, j] + d1, lanes[L2, j] + d2
         # End state to first order in the update (exact once the iteration has converged).
         x_end = x_shot + lanes[s, j] * d1 + lanes[s + 2, j] * d2
@@ -855,9 +861,7 @@ def _chord_updates(
         size = abs(r1) + abs(r2)
         finite = np.isfinite(x_end) and np.isfinite(y_end) and np.isfinite(l2)
         diverging = iteration == 1 and not size <= lanes[RESIDUAL, j]
-        done = iteration > 0 and _converged(
-            d2, l2, lanes[COEFFICIENTS + 4, j], y_end, y_shot, tolerance
-        )
+        done = iteration > 0 and _converged(d2, l2, lanes[ETA, j], y_end, y_shot, tolerance)
         status[j] = CONTINUING if diverging or not finite else (SOLVED if done else ITERATING)
         if iteration == 0 and finite:
             lanes[FALLBACK, j], lanes[FALLBACK + 1, j] = x_end, y_end
@@ -931,7 +935,7 @@ def _continuation(
     converge; ``z`` is scratch.
     """
     x, y, partner_prediction = problem[0], problem[1], problem[2]
-    theta_p, tracking, forcing = lane[THETA_P], lane[COEFFICIENTS + 5], lane[COEFFICIENTS + 6]
+    theta_p, tracking, forcing = lane[THETA_P], lane[TRACKING], lane[FORCING]
     l1 = l2 = x_end = y_end = 0.0
     for stage in range(CONTINUATION_STAGES + 1):
         share = stage / CONTINUATION_STAGES
