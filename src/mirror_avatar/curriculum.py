@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -118,6 +119,10 @@ class StageMotion:
         rank = np.interp(velocity, self._patient_quantiles, PROBABILITIES)
         moved = np.interp(rank, PROBABILITIES, self._target_quantiles)
         return (1.0 - self.weight) * velocity + self.weight * moved
+
+    def sample_velocities(self, n_samples: int, random_states: Sequence[Seed]) -> Array:
+        """`sample_velocity` from each random state, shape (len(random_states), n_samples)."""
+        return np.array([self.sample_velocity(n_samples, r) for r in random_states])
 
     def sample(self, duration: float, n: int = 1, random_state: Seed = None) -> list[Trial]:
         """Generate trials of the stage moving alone, ``duration`` s each.

@@ -98,6 +98,10 @@ SYMBOL_CANDIDATES = (8, 16, 32, 64, 128, 256)
 CV_SAMPLES = 3
 """Generated trials compared with each held-out trial when cross-validating (**choice**)."""
 
+SIDE_BY_SIDE = 8
+"""Velocity signals `IMSGenerator.sample_velocities` filters together (**choice**: enough to
+overlap the filter's recursions; 8 references of a minute stay within the processor's cache)."""
+
 FORMAT_NAME = "mirror-avatar/ims-generator"
 FORMAT_VERSION = 1
 Array = NDArray[np.float64]
@@ -345,7 +349,14 @@ class IMSGenerator:
 
     def sample_positions(self, n_samples: int, random_state: Seed = None) -> Array:
         """Generate ``n_samples`` positions at `rate` (units, clipped to [-0.5, 0.5])."""
+        positions = np.empty(n_samples)
+        self._sample_positions_into(positions, random_state)
+        return positions
+
+    def _sample_positions_into(self, positions: Array, random_state: Seed) -> None:
+        """`sample_positions` of ``positions.size`` samples, written into ``positions``."""
         self._check_fitted()
+        n_samples = positions.size
         if n_samples < 1:
             raise InputError("generator", f"n_samples must be positive, got {n_samples}")
         rng = np.random.default_rng(self.random_state if random_state is None else random_state)
@@ -354,7 +365,7 @@ class IMSGenerator:
         sequence = sample_chain(self._cumulative, self._start_cumulative, rng.random(n_frames))
         signal = overlap_add(self._frames, sequence, self.hop, self._window_squared)
         start = pad * self.hop
-        return np.clip(signal[start : start + n_samples], *PLAYING_RANGE)
+        np.clip(signal[start : start + n_samples], *PLAYING_RANGE, out=positions)
 
     def sample_velocity(self, n_samples: int, random_state: Seed = None) -> Array:
         """Generate a velocity signal of ``n_samples`` at `rate` (units/s).
@@ -363,7 +374,28 @@ class IMSGenerator:
         `mirror_avatar.trials.compute_velocity`); this is what a virtual trainer uses as its
         reference r_s.
         """
-        return compute_velocity(self.sample_positions(n_samples, random_state), self.rate)
+        return self.sample_velocities(n_samples, [random_state])[0]
+
+    def sample_velocities(self, n_samples: int, random_states: Sequence[Seed]) -> Array:
+        """Generate one velocity signal of ``n_samples`` per random state (units/s).
+
+        Row j is ``sample_velocity(n_samples, random_states[j])``. The signals are filtered
+        `SIDE_BY_SIDE` at a time (`mirror_avatar.trials.compute_velocity` of their columns), so
+        the filter's recursions overlap while a group's signals stay in the processor's cache.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (len(random_states), n_samples).
+        """
+        velocities = np.empty((len(random_states), n_samples))
+        for first in range(0, len(random_states), SIDE_BY_SIDE):
+            group = random_states[first : first + SIDE_BY_SIDE]
+            positions = np.empty((n_samples, len(group)))
+            for column, random_state in enumerate(group):
+                self._sample_positions_into(positions[:, column], random_state)
+            velocities[first : first + len(group)] = compute_velocity(positions, self.rate).T
+        return velocities
 
     def sample(self, duration: float, n: int = 1, random_state: Seed = None) -> list[Trial]:
         """Generate ``n`` new trials of ``duration`` seconds at `rate`.

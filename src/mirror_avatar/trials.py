@@ -229,37 +229,41 @@ def butterworth_lowpass(order: int, cutoff: float, rate: float) -> tuple[Array, 
 
 
 @njit(cache=True, nogil=True)
-def _cascade(sos: Array, signal: Array, initial: Array, scale: float, backward: bool) -> None:
+def _cascade(sos: Array, signals: Array, initial: Array, scale: Array, backward: bool) -> None:
     """Second-order sections in direct form II transposed, in place (as `scipy.signal.sosfilt`).
 
-    ``initial`` (n_sections, 2) times ``scale`` is the initial state. With ``backward`` the
-    signal is filtered from its last sample to its first. Sections are applied two at a time
-    in one pass over the signal (their recursions overlap in the processor); each section's
-    arithmetic is that of a pass of its own.
+    ``signals`` (n, L) holds L signals as columns, filtered side by side (the loop over them
+    vectorises; each one's arithmetic is that of a signal filtered alone). ``initial``
+    (n_sections, 2) times ``scale[j]`` is signal j's initial state. With ``backward`` the
+    signals are filtered from their last sample to their first. Sections are applied two at a
+    time in one pass (their recursions overlap in the processor).
     """
-    n = signal.size
+    n, n_signals = signals.shape
+    z0, z1 = np.empty(n_signals), np.empty(n_signals)
+    w0, w1 = np.empty(n_signals), np.empty(n_signals)
     for s in range(0, sos.shape[0], 2):
         pair = s + 1 < sos.shape[0]
         b0, b1, b2, a1, a2 = sos[s, 0], sos[s, 1], sos[s, 2], sos[s, 4], sos[s, 5]
-        z0, z1 = initial[s, 0] * scale, initial[s, 1] * scale
         t = s + 1 if pair else s
         c0, c1, c2, e1, e2 = sos[t, 0], sos[t, 1], sos[t, 2], sos[t, 4], sos[t, 5]
-        w0, w1 = initial[t, 0] * scale, initial[t, 1] * scale
+        for j in range(n_signals):
+            z0[j], z1[j] = initial[s, 0] * scale[j], initial[s, 1] * scale[j]
+            w0[j], w1[j] = initial[t, 0] * scale[j], initial[t, 1] * scale[j]
         for k in range(n):
-            i = n - 1 - k if backward else k
-            x = signal[i]
-            y = b0 * x + z0
-            z0 = b1 * x - a1 * y + z1
-            z1 = b2 * x - a2 * y
-            if pair:
-                x = y
-                y = c0 * x + w0
-                w0 = c1 * x - e1 * y + w1
-                w1 = c2 * x - e2 * y
-            signal[i] = y
+            row = signals[n - 1 - k if backward else k]
+            for j in range(n_signals):
+                x = row[j]
+                y = b0 * x + z0[j]
+                z0[j] = b1 * x - a1 * y + z1[j]
+                z1[j] = b2 * x - a2 * y
+                if pair:
+                    x = y
+                    y = c0 * x + w0[j]
+                    w0[j] = c1 * x - e1 * y + w1[j]
+                    w1[j] = c2 * x - e2 * y
+                row[j] = y
 
 
-@njit(cache=True, nogil=True)
 def zero_phase_filter(sos: Array, initial: Array, signal: Array, padlen: int) -> Array:
     """Forward-backward filtering with odd extension, as `scipy.signal.sosfiltfilt`.
 
@@ -271,23 +275,33 @@ def zero_phase_filter(sos: Array, initial: Array, signal: Array, padlen: int) ->
         Steady-state initial conditions for a unit step (`scipy.signal.sosfilt_zi`),
         shape (n_sections, 2).
     signal
-        Signal, shape (n,), n > padlen.
+        Signal, shape (n,), or signals as columns, shape (n, L), filtered side by side;
+        n > padlen.
     padlen
         Samples of odd extension at each end.
 
     Returns
     -------
     numpy.ndarray
-        Filtered signal, shape (n,).
+        Filtered signal(s), the shape of ``signal``.
     """
-    n = signal.size
-    extended = np.empty(n + 2 * padlen)
+    signals = np.asarray(signal, dtype=np.float64)
+    filtered = _zero_phase_columns(sos, initial, signals.reshape(signals.shape[0], -1), padlen)
+    return filtered.reshape(signals.shape)
+
+
+@njit(cache=True, nogil=True)
+def _zero_phase_columns(sos: Array, initial: Array, signals: Array, padlen: int) -> Array:
+    """`zero_phase_filter` of the columns of ``signals`` (n, L)."""
+    n = signals.shape[0]
+    extended = np.empty((n + 2 * padlen, signals.shape[1]))
     for i in range(padlen):
-        extended[i] = 2.0 * signal[0] - signal[padlen - i]
-        extended[n + padlen + i] = 2.0 * signal[n - 1] - signal[n - 2 - i]
-    extended[padlen : padlen + n] = signal
-    _cascade(sos, extended, initial, extended[0], False)
-    _cascade(sos, extended, initial, extended[-1], True)
+        for j in range(signals.shape[1]):
+            extended[i, j] = 2.0 * signals[0, j] - signals[padlen - i, j]
+            extended[n + padlen + i, j] = 2.0 * signals[n - 1, j] - signals[n - 2 - i, j]
+    extended[padlen : padlen + n] = signals
+    _cascade(sos, extended, initial, extended[0].copy(), False)
+    _cascade(sos, extended, initial, extended[-1].copy(), True)
     return extended[padlen : padlen + n].copy()
 
 
@@ -297,7 +311,7 @@ def lowpass(signal: ArrayLike, rate: float, cutoff: float = 10.0, order: int = 4
     Parameters
     ----------
     signal
-        Uniformly sampled signal, shape (n,).
+        Uniformly sampled signal, shape (n,), or signals as columns, shape (n, L).
     rate
         Sampling rate (Hz).
     cutoff
@@ -310,7 +324,7 @@ def lowpass(signal: ArrayLike, rate: float, cutoff: float = 10.0, order: int = 4
     if cutoff >= rate / 2:
         return x.copy()
     sos, initial = butterworth_lowpass(order, cutoff, rate)
-    padlen = min(3 * (2 * len(sos) + 1), x.size - 1)
+    padlen = min(3 * (2 * len(sos) + 1), x.shape[0] - 1)
     return zero_phase_filter(sos, initial, x, padlen)
 
 
@@ -324,32 +338,38 @@ def finite_difference(signal: ArrayLike, step: float) -> Array:
     Parameters
     ----------
     signal
-        Uniformly sampled signal, shape (n,), n >= 5.
+        Uniformly sampled signal, shape (n,), or signals as columns, shape (n, L); n >= 5.
     step
         Sample spacing h (s).
 
     Returns
     -------
     numpy.ndarray
-        Derivative, shape (n,), in signal units per second.
+        Derivative, the shape of ``signal``, in signal units per second.
     """
     x = np.asarray(signal, dtype=np.float64)
-    if x.size < 5:
-        raise InputError(None, f"finite difference needs at least 5 samples, got {x.size}")
-    return _differences(x, step)
+    if x.shape[0] < 5:
+        raise InputError(None, f"finite difference needs at least 5 samples, got {x.shape[0]}")
+    return _differences(x.reshape(x.shape[0], -1), step).reshape(x.shape)
 
 
 @njit(cache=True, nogil=True)
 def _differences(x: Array, step: float) -> Array:
-    """`finite_difference` of ``x`` (n >= 5), compiled."""
-    n = x.size
-    d = np.empty(n)
+    """`finite_difference` of the columns of ``x`` (n, L), n >= 5, compiled."""
+    n, n_signals = x.shape
+    d = np.empty_like(x)
     for i in range(2, n - 2):
-        d[i] = (x[i - 2] / 12 - 2 * x[i - 1] / 3 + 2 * x[i + 1] / 3 - x[i + 2] / 12) / step
-    d[0] = (-25 * x[0] + 48 * x[1] - 36 * x[2] + 16 * x[3] - 3 * x[4]) / (12 * step)
-    d[1] = (-3 * x[0] - 10 * x[1] + 18 * x[2] - 6 * x[3] + x[4]) / (12 * step)
-    d[-1] = (25 * x[-1] - 48 * x[-2] + 36 * x[-3] - 16 * x[-4] + 3 * x[-5]) / (12 * step)
-    d[-2] = (3 * x[-1] + 10 * x[-2] - 18 * x[-3] + 6 * x[-4] - x[-5]) / (12 * step)
+        for j in range(n_signals):
+            d[i, j] = (
+                x[i - 2, j] / 12 - 2 * x[i - 1, j] / 3 + 2 * x[i + 1, j] / 3 - x[i + 2, j] / 12
+            ) / step
+    for j in range(n_signals):
+        a, b, c, e, f = x[0, j], x[1, j], x[2, j], x[3, j], x[4, j]
+        d[0, j] = (-25 * a + 48 * b - 36 * c + 16 * e - 3 * f) / (12 * step)
+        d[1, j] = (-3 * a - 10 * b + 18 * c - 6 * e + f) / (12 * step)
+        a, b, c, e, f = x[n - 1, j], x[n - 2, j], x[n - 3, j], x[n - 4, j], x[n - 5, j]
+        d[n - 1, j] = (25 * a - 48 * b + 36 * c - 16 * e + 3 * f) / (12 * step)
+        d[n - 2, j] = (3 * a + 10 * b - 18 * c + 6 * e - f) / (12 * step)
     return d
 
 
@@ -361,7 +381,8 @@ def compute_velocity(
     Parameters
     ----------
     positions
-        Positions, shape (n,), units, sampled at ``rate``.
+        Positions, shape (n,), units, sampled at ``rate``; or several signals as columns,
+        shape (n, L), filtered side by side.
     rate
         Sampling rate (Hz).
     cutoff
@@ -372,7 +393,7 @@ def compute_velocity(
     Returns
     -------
     numpy.ndarray
-        Velocity, shape (n,), units/s.
+        Velocity, the shape of ``positions``, units/s.
     """
     x = np.asarray(positions, dtype=np.float64)
     if cutoff is not None:

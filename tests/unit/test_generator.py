@@ -166,6 +166,23 @@ def test_fast_velocity_equals_compute_velocity(small_model: IMSGenerator, n_samp
     np.testing.assert_allclose(fast, compute_velocity(positions, 100.0), rtol=0, atol=1e-12)
 
 
+def test_velocities_drawn_together_are_each_drawn_alone(small_model: IMSGenerator) -> None:
+    seeds = list(range(11))
+    together = small_model.sample_velocities(3000, seeds)
+    assert together.shape == (11, 3000)
+    for seed, velocity in zip(seeds, together, strict=True):
+        np.testing.assert_array_equal(velocity, small_model.sample_velocity(3000, seed))
+
+
+def test_filtering_signals_side_by_side_is_filtering_each(rng: np.random.Generator) -> None:
+    signals = np.cumsum(rng.normal(size=(400, 5)), axis=0)
+    together = compute_velocity(signals, 100.0)
+    for column in range(5):
+        np.testing.assert_array_equal(
+            together[:, column], compute_velocity(signals[:, column], 100.0)
+        )
+
+
 def test_zero_phase_filter_matches_scipy(rng: np.random.Generator) -> None:
     sos = butter(4, 7.0, fs=100.0, output="sos")
     signal = np.cumsum(rng.normal(size=500))

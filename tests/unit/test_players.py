@@ -16,6 +16,7 @@ from mirror_avatar.players import (
     check_player,
     draw_reference,
 )
+from mirror_avatar.players.reference import ReferenceDraw, draw_references, interpolate_on_grid
 
 STILL = Observation.of_partner(0, 0.0, 0.0, 0.0)
 
@@ -104,6 +105,36 @@ def test_references_extend_consistently(generator) -> None:
     trainer.reset(seed=4)
     steps = [trainer.step(STILL) and trainer.last_reference for _ in range(2500)]
     np.testing.assert_array_equal(steps, long[:2500])
+
+
+def test_references_drawn_together_equal_each_drawn_alone(generator, zhai_trials_100hz) -> None:
+    other = IMSGenerator(n_symbols=16, random_state=1).fit(zhai_trials_100hz[3:5])
+    draws = [
+        ReferenceDraw(source, n_steps, period, seed)
+        for seed, (source, n_steps, period) in enumerate(
+            [(generator, 2000, 0.03)] * 11
+            + [(other, 2000, 0.03)] * 3
+            + [(generator, 2500, 0.03), (generator, 700, 0.01), (zhai_trials_100hz[0], 900, 0.03)]
+        )
+    ]
+    together = draw_references(draws)
+    for draw, reference in zip(draws, together, strict=True):
+        alone = draw_reference(
+            draw.source, draw.n_steps, draw.period, np.random.default_rng(draw.random_state)
+        )
+        np.testing.assert_array_equal(reference, alone)
+        assert reference.shape == (draw.n_steps,)
+
+
+@pytest.mark.parametrize(
+    ("rate", "period", "n", "m"),
+    [(100.0, 0.03, 650, 300), (15.0, 0.03, 100, 400), (60.0, 1 / 60, 200, 120)],
+)
+def test_interpolation_on_a_uniform_grid_is_numpys(rate, period, n, m, rng) -> None:
+    values, times = rng.normal(size=n), np.arange(m) * period
+    grid = np.arange(n) / rate
+    expected = np.interp(times, grid, values)
+    np.testing.assert_array_equal(interpolate_on_grid(times, grid, rate, values), expected)
 
 
 def test_recorded_reference_is_the_trial_velocity(zhai_trials_100hz) -> None:

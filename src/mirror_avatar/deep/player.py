@@ -50,6 +50,7 @@ from mirror_avatar.model_files import (
     require_arrays,
 )
 from mirror_avatar.players.base import DEEP, Observation, PlayerPlan
+from mirror_avatar.players.reference import ReferenceDraw
 from mirror_avatar.trials import Trial
 
 Array = NDArray[np.float64]
@@ -250,7 +251,9 @@ class DeepCyberPlayer(AccelerationPlayer):
             "use_reference": self.needs_reference,
         }
 
-    def _policy_plan(self, start: tuple[float, float], reference: Array | None) -> PlayerPlan:
+    def _policy_plan(
+        self, start: tuple[float, float], reference: ReferenceDraw | None
+    ) -> PlayerPlan:
         return PlayerPlan(DEEP, start, self.params, reference=reference, policy=self.policy_)
 
     def model_arrays(self, source: Source) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:

@@ -33,6 +33,7 @@ from mirror_avatar.players.base import (
     gather_neighbours,
 )
 from mirror_avatar.players.recorded import recorded_step
+from mirror_avatar.players.reference import draw_references
 from mirror_avatar.players.virtual_trainer import virtual_trainer_problem
 
 Array = NDArray[np.float64]
@@ -89,12 +90,16 @@ class PackedSession:
 
 
 def pack_session(plans: Sequence[PlayerPlan], graph: Graph, n_steps: int) -> PackedSession:
-    """Pack the players' plans and the graph for `run_packed` (``n_steps`` = samples - 1)."""
+    """Pack the players' plans and the graph for `run_packed` (``n_steps`` = samples - 1).
+
+    The plans' references are drawn here, all together (`draw_references`).
+    """
     n = len(plans)
     references = np.full((n, n_steps), np.nan)
-    for i, plan in enumerate(plans):
-        if plan.reference is not None:
-            references[i] = plan.reference[:n_steps]
+    drawing = [i for i, plan in enumerate(plans) if plan.reference is not None]
+    drawn = draw_references([plans[i].reference for i in drawing])  # type: ignore[misc]
+    for i, reference in zip(drawing, drawn, strict=True):
+        references[i] = reference[:n_steps]
     tracks, lengths = _pack_tracks(plans)
     policies = [plan.policy for plan in plans if plan.kind == CYBER]
     networks = [plan.policy for plan in plans if plan.kind == DEEP]

@@ -31,7 +31,7 @@ from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import excerpt
 from mirror_avatar.model_files import Source, check_array, check_integer, check_real, save_model
 from mirror_avatar.players.base import Observation, Player, PlayerPlan
-from mirror_avatar.players.reference import ReferenceTrack, draw_reference
+from mirror_avatar.players.reference import ReferenceDraw, ReferenceTrack
 from mirror_avatar.seeds import entropy_of
 from mirror_avatar.signature import DEFAULT_BINS
 from mirror_avatar.trials import PLAYING_RANGE, Trial
@@ -224,11 +224,10 @@ class AccelerationPlayer(Player):
         )
 
     def plan(self, seed: int, n_steps: int) -> PlayerPlan:
-        """Return the start, end effector, policy and the reference `reset(seed)` draws."""
+        """Return the start, end effector, policy and the reference draw `reset(seed)` uses."""
         reference = None
         if self.needs_reference:
-            rng = np.random.default_rng(entropy_of(seed))
-            reference = draw_reference(self._motion_source(), n_steps, self.period, rng)
+            reference = ReferenceDraw(self._motion_source(), n_steps, self.period, entropy_of(seed))
         start = (float(self.initial_position), 0.0)
         return self._policy_plan(start, reference)
 
@@ -240,8 +239,10 @@ class AccelerationPlayer(Player):
         """Write the trained avatar to one ``.npz`` model file (`model_arrays`), atomically."""
         return save_model(path, self.format_name, self.format_version, *self.model_arrays(path))
 
-    def _policy_plan(self, start: tuple[float, float], reference: Array | None) -> PlayerPlan:
-        """Return the `PlayerPlan` of this policy from the start and reference `plan` drew."""
+    def _policy_plan(
+        self, start: tuple[float, float], reference: ReferenceDraw | None
+    ) -> PlayerPlan:
+        """Return the `PlayerPlan` of this policy from the start and reference draw of `plan`."""
         raise NotImplementedError
 
 

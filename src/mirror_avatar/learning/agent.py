@@ -67,6 +67,7 @@ from mirror_avatar.model_files import (
     require_arrays,
 )
 from mirror_avatar.players.base import CYBER, Observation, PlayerPlan, partner_state
+from mirror_avatar.players.reference import ReferenceDraw
 from mirror_avatar.trials import Trial
 
 if TYPE_CHECKING:
@@ -250,7 +251,9 @@ class CyberPlayer(AccelerationPlayer):
         """Class, label, parameters, feature set and, once trained, its target's IMS."""
         return super().describe() | {"features": self.discretisation_.features}
 
-    def _policy_plan(self, start: tuple[float, float], reference: Array | None) -> PlayerPlan:
+    def _policy_plan(
+        self, start: tuple[float, float], reference: ReferenceDraw | None
+    ) -> PlayerPlan:
         return PlayerPlan(CYBER, start, self.params, reference=reference, policy=self.policy_)
 
     def model_arrays(self, source: Source) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:

@@ -35,6 +35,7 @@ from mirror_avatar.trials import PLAYING_RANGE
 if TYPE_CHECKING:
     from mirror_avatar.deep.player import NetworkPolicy
     from mirror_avatar.learning.agent import GreedyPolicy
+    from mirror_avatar.players.reference import ReferenceDraw
 
 Array = NDArray[np.float64]
 
@@ -81,7 +82,9 @@ class PlayerPlan:
     params
         The HKB end effector and its costs (virtual trainer and cyber player), else None.
     reference
-        Reference velocity at each control step (units/s), shape (n_steps,), else None.
+        The draw of the reference velocity at each control step (a virtual trainer, a cyber
+        player with reference features), else None; the batch engine draws a chunk's
+        references together (`mirror_avatar.players.reference.draw_references`).
     track
         A recording's positions and velocities on the control grid, shape (2, L), else None.
     policy
@@ -91,7 +94,7 @@ class PlayerPlan:
     kind: int
     start: tuple[float, float]
     params: HKBParams | None = None
-    reference: Array | None = None
+    reference: ReferenceDraw | None = None
     track: Array | None = None
     policy: GreedyPolicy | NetworkPolicy | None = None
 

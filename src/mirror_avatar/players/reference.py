@@ -7,9 +7,12 @@ from an IMS generator or a recorded trial, on the control grid ``k * period``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from mirror_avatar.seeds import entropy_of
@@ -30,11 +33,43 @@ class VelocitySource(Protocol):
 
     rate: float
 
-    def sample_velocity(
-        self, n_samples: int, random_state: int | np.random.Generator | None = None
+    def sample_velocities(
+        self, n_samples: int, random_states: Sequence[np.random.Generator]
     ) -> Array:
-        """Generate ``n_samples`` of velocity (units/s) at `rate`."""
+        """Generate ``n_samples`` of velocity (units/s) at `rate` from each random state.
+
+        Returns shape (len(random_states), n_samples); row j draws only from
+        ``random_states[j]``.
+        """
         ...
+
+
+RandomState = int | np.random.Generator | None
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceDraw:
+    """A reference velocity to draw: what `draw_reference` would be called with.
+
+    Player plans hold draws rather than drawn references, so that the batch engine draws all
+    of a chunk's references together (`draw_references`).
+
+    Attributes
+    ----------
+    source
+        An IMS generator (any `VelocitySource`) or a recorded `Trial`.
+    n_steps
+        Control steps to draw.
+    period
+        Control period (s).
+    random_state
+        Seed or generator of the draw (as `numpy.random.default_rng` takes it).
+    """
+
+    source: VelocitySource | Trial
+    n_steps: int
+    period: float
+    random_state: RandomState
 
 
 def draw_reference(
@@ -55,17 +90,102 @@ def draw_reference(
     numpy.ndarray
         Reference velocity (units/s), shape (n_steps,).
     """
+    return draw_references([ReferenceDraw(reference, n_steps, period, rng)])[0]
+
+
+def draw_references(draws: Sequence[ReferenceDraw]) -> list[Array]:
+    """Draw many references, each as `draw_reference` draws it alone.
+
+    The draws from one source with the same steps and period are drawn together: the source
+    generates their velocity blocks side by side (`VelocitySource.sample_velocities`, which
+    filters them in one pass), each from its own random state.
+
+    Returns
+    -------
+    list of numpy.ndarray
+        One reference velocity (units/s) per draw, shape (draw.n_steps,).
+    """
+    drawn: list[Array] = [np.empty(0)] * len(draws)
+    together: dict[tuple[int, int, float], list[int]] = {}
+    sources: dict[int, VelocitySource] = {}
+    for i, draw in enumerate(draws):
+        if isinstance(draw.source, Trial):
+            drawn[i] = _trial_reference(draw.source, draw.n_steps, draw.period)
+        else:
+            sources[id(draw.source)] = draw.source
+            together.setdefault((id(draw.source), draw.n_steps, draw.period), []).append(i)
+    for (source, n_steps, period), indices in together.items():
+        rngs = [np.random.default_rng(draws[i].random_state) for i in indices]
+        references = _generated_references(sources[source], n_steps, period, rngs)
+        for i, reference in zip(indices, references, strict=True):
+            drawn[i] = reference
+    return drawn
+
+
+def _trial_reference(trial: Trial, n_steps: int, period: float) -> Array:
     times = np.arange(n_steps) * period
-    if isinstance(reference, Trial):
-        trial = reference
-        offsets = trial.times - trial.times[0]
-        return np.interp(np.mod(times, offsets[-1]), offsets, trial.velocity())
-    rate = float(reference.rate)
+    offsets = trial.times - trial.times[0]
+    return np.interp(np.mod(times, offsets[-1]), offsets, trial.velocity())
+
+
+def _generated_references(
+    source: VelocitySource, n_steps: int, period: float, rngs: Sequence[np.random.Generator]
+) -> list[Array]:
+    times: Array = np.arange(n_steps, dtype=np.float64) * period
+    rate = float(source.rate)
     block = int(round(REFERENCE_BLOCK * rate))
     n_samples = int(math.ceil(times[-1] * rate)) + 2 if n_steps > 1 else 2
-    blocks = [reference.sample_velocity(block, rng) for _ in range(-(-n_samples // block))]
-    velocity = np.concatenate(blocks)
-    return np.interp(times, np.arange(velocity.size) / rate, velocity)
+    blocks = [source.sample_velocities(block, rngs) for _ in range(-(-n_samples // block))]
+    velocities = np.concatenate(blocks, axis=1)
+    grid = np.arange(velocities.shape[1], dtype=np.float64) / rate
+    return [interpolate_on_grid(times, grid, rate, velocity) for velocity in velocities]
+
+
+@njit(cache=True, nogil=True)
+def interpolate_on_grid(times: Array, grid: Array, rate: float, values: Array) -> Array:
+    """`numpy.interp` of ``values`` sampled on the uniform ``grid`` (``i / rate``), compiled.
+
+    Each time's interval is found from ``time * rate`` and checked against ``grid``, then
+    interpolated with `numpy.interp`'s arithmetic (bit for bit); times beyond the grid take
+    the end values.
+
+    Parameters
+    ----------
+    times
+        Where to interpolate (s), shape (m,).
+    grid
+        The sample times ``arange(n) / rate`` (s), shape (n,), n >= 2.
+    rate
+        Sampling rate of ``values`` (Hz).
+    values
+        Samples, shape (n,).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (m,).
+    """
+    n = grid.size
+    out = np.empty(times.size)
+    for i in range(times.size):
+        t = times[i]
+        if t >= grid[n - 1]:
+            out[i] = values[n - 1]
+            continue
+        if t < grid[0]:
+            out[i] = values[0]
+            continue
+        j = min(max(int(t * rate), 0), n - 2)
+        while grid[j] > t:
+            j -= 1
+        while grid[j + 1] <= t:
+            j += 1
+        if grid[j] == t:
+            out[i] = values[j]
+            continue
+        slope = (values[j + 1] - values[j]) / (grid[j + 1] - grid[j])
+        out[i] = slope * (t - grid[j]) + values[j]
+    return out
 
 
 class ReferenceTrack:

@@ -32,7 +32,12 @@ from mirror_avatar.players.base import (
     PlayerPlan,
     partner_state,
 )
-from mirror_avatar.players.reference import ReferenceTrack, VelocitySource, draw_reference
+from mirror_avatar.players.reference import (
+    ReferenceDraw,
+    ReferenceTrack,
+    VelocitySource,
+    draw_reference,
+)
 from mirror_avatar.trials import Trial
 
 Array = NDArray[np.float64]
@@ -174,8 +179,7 @@ class VirtualTrainer(Player):
         return super().describe() | {"params": self.params.to_dict()}
 
     def plan(self, seed: int, n_steps: int) -> PlayerPlan:
-        """Return the start, parameters and the reference `reset(seed)` draws for ``n_steps``."""
+        """Return the start, parameters and the draw of the reference `reset(seed)` uses."""
         start = (float(self.start[0]), float(self.start[1]))
-        return PlayerPlan(
-            VIRTUAL_TRAINER, start, self.params, reference=self.draw_reference(seed, n_steps)
-        )
+        draw = ReferenceDraw(self.reference, n_steps, self.period, seed)
+        return PlayerPlan(VIRTUAL_TRAINER, start, self.params, reference=draw)
