@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -200,7 +200,7 @@ class HKBParams:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable parameters."""
-        return asdict(self)
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
     def with_(self, **changes: float) -> HKBParams:
         """Return a copy with some parameters overridden."""
