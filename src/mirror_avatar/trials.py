@@ -228,15 +228,24 @@ def butterworth_lowpass(order: int, cutoff: float, rate: float) -> tuple[Array, 
     return sos, np.asarray(sosfilt_zi(sos), dtype=np.float64)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _section(
+    x: float, z0: float, z1: float, b0: float, b1: float, b2: float, a1: float, a2: float
+) -> tuple[float, float, float]:
+    """One sample through a second-order section (direct form II transposed): ``(y, z0, z1)``."""
+    y = b0 * x + z0
+    return y, b1 * x - a1 * y + z1, b2 * x - a2 * y
+
+
 @njit(cache=True, nogil=True)
 def _cascade(sos: Array, signals: Array, initial: Array, scale: Array, backward: bool) -> None:
     """Second-order sections in direct form II transposed, in place (as `scipy.signal.sosfilt`).
 
     ``signals`` (n, L) holds L signals as columns, filtered side by side (the loop over them
-    vectorises; each one's arithmetic is that of a signal filtered alone). ``initial``
-    (n_sections, 2) times ``scale[j]`` is signal j's initial state. With ``backward`` the
-    signals are filtered from their last sample to their first. Sections are applied two at a
-    time in one pass (their recursions overlap in the processor).
+    vectorises; each one's arithmetic is that of a signal filtered alone; one signal keeps its
+    state in registers). ``initial`` (n_sections, 2) times ``scale[j]`` is signal j's initial
+    state. With ``backward`` the signals are filtered from their last sample to their first.
+    Sections are applied two at a time in one pass (their recursions overlap in the processor).
     """
     n, n_signals = signals.shape
     z0, z1 = np.empty(n_signals), np.empty(n_signals)
@@ -249,18 +258,21 @@ def _cascade(sos: Array, signals: Array, initial: Array, scale: Array, backward:
         for j in range(n_signals):
             z0[j], z1[j] = initial[s, 0] * scale[j], initial[s, 1] * scale[j]
             w0[j], w1[j] = initial[t, 0] * scale[j], initial[t, 1] * scale[j]
+        if n_signals == 1:
+            signal, u0, u1, v0, v1 = signals.reshape(n), z0[0], z1[0], w0[0], w1[0]
+            for k in range(n):
+                i = n - 1 - k if backward else k
+                y, u0, u1 = _section(signal[i], u0, u1, b0, b1, b2, a1, a2)
+                if pair:
+                    y, v0, v1 = _section(y, v0, v1, c0, c1, c2, e1, e2)
+                signal[i] = y
+            continue
         for k in range(n):
             row = signals[n - 1 - k if backward else k]
             for j in range(n_signals):
-                x = row[j]
-                y = b0 * x + z0[j]
-                z0[j] = b1 * x - a1 * y + z1[j]
-                z1[j] = b2 * x - a2 * y
+                y, z0[j], z1[j] = _section(row[j], z0[j], z1[j], b0, b1, b2, a1, a2)
                 if pair:
-                    x = y
-                    y = c0 * x + w0[j]
-                    w0[j] = c1 * x - e1 * y + w1[j]
-                    w1[j] = c2 * x - e2 * y
+                    y, w0[j], w1[j] = _section(y, w0[j], w1[j], c0, c1, c2, e1, e2)
                 row[j] = y
 
 
@@ -285,7 +297,7 @@ def zero_phase_filter(sos: Array, initial: Array, signal: Array, padlen: int) ->
     numpy.ndarray
         Filtered signal(s), the shape of ``signal``.
     """
-    signals = np.asarray(signal, dtype=np.float64)
+    signals = np.ascontiguousarray(signal, dtype=np.float64)
     filtered = _zero_phase_columns(sos, initial, signals.reshape(signals.shape[0], -1), padlen)
     return filtered.reshape(signals.shape)
 
@@ -299,10 +311,11 @@ def _zero_phase_columns(sos: Array, initial: Array, signals: Array, padlen: int)
         for j in range(signals.shape[1]):
             extended[i, j] = 2.0 * signals[0, j] - signals[padlen - i, j]
             extended[n + padlen + i, j] = 2.0 * signals[n - 1, j] - signals[n - 2 - i, j]
-    extended[padlen : padlen + n] = signals
+    width = signals.shape[1]
+    extended.reshape(-1)[padlen * width : (padlen + n) * width] = signals.reshape(-1)
     _cascade(sos, extended, initial, extended[0].copy(), False)
     _cascade(sos, extended, initial, extended[-1].copy(), True)
-    return extended[padlen : padlen + n].copy()
+    return extended[padlen : padlen + n]
 
 
 def lowpass(signal: ArrayLike, rate: float, cutoff: float = 10.0, order: int = 4) -> Array:
@@ -353,16 +366,31 @@ def finite_difference(signal: ArrayLike, step: float) -> Array:
     return _differences(x.reshape(x.shape[0], -1), step).reshape(x.shape)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _central(before2: float, before: float, after: float, after2: float, step: float) -> float:
+    """Return the fourth-order central difference from the two samples on each side."""
+    return (before2 / 12 - 2 * before / 3 + 2 * after / 3 - after2 / 12) / step
+
+
 @njit(cache=True, nogil=True)
 def _differences(x: Array, step: float) -> Array:
-    """`finite_difference` of the columns of ``x`` (n, L), n >= 5, compiled."""
+    """`finite_difference` of the columns of ``x`` (n, L), n >= 5, compiled.
+
+    The interior loop runs along the samples for one signal and across the signals for several,
+    so it vectorises either way.
+    """
     n, n_signals = x.shape
     d = np.empty_like(x)
-    for i in range(2, n - 2):
-        for j in range(n_signals):
-            d[i, j] = (
-                x[i - 2, j] / 12 - 2 * x[i - 1, j] / 3 + 2 * x[i + 1, j] / 3 - x[i + 2, j] / 12
-            ) / step
+    if n_signals == 1:
+        signal, derivative = x.reshape(n), d.reshape(n)
+        for i in range(2, n - 2):
+            derivative[i] = _central(
+                signal[i - 2], signal[i - 1], signal[i + 1], signal[i + 2], step
+            )
+    else:
+        for i in range(2, n - 2):
+            for j in range(n_signals):
+                d[i, j] = _central(x[i - 2, j], x[i - 1, j], x[i + 1, j], x[i + 2, j], step)
     for j in range(n_signals):
         a, b, c, e, f = x[0, j], x[1, j], x[2, j], x[3, j], x[4, j]
         d[0, j] = (-25 * a + 48 * b - 36 * c + 16 * e - 3 * f) / (12 * step)
