@@ -55,7 +55,8 @@ from mirror_avatar.stft import (
     compute_stft,
     features_to_spectra,
     hamming_window,
-    overlap_add,
+    overlap_add_into,
+    overlap_norm,
     spectra_to_features,
     synthesis_frames,
 )
@@ -312,6 +313,7 @@ class IMSGenerator:
         spectra = features_to_spectra(self.codebook_, self.window)
         self._frames = synthesis_frames(spectra, self.window)
         self._window_squared = hamming_window(self.window) ** 2
+        self._norms: dict[int, Array] = {}
         self._cumulative = np.cumsum(self.transmat_, axis=1)
         self._cumulative[:, -1] = 1.0
         self._start_cumulative = np.cumsum(self.startprob_)
@@ -349,23 +351,30 @@ class IMSGenerator:
 
     def sample_positions(self, n_samples: int, random_state: Seed = None) -> Array:
         """Generate ``n_samples`` positions at `rate` (units, clipped to [-0.5, 0.5])."""
+        self._check_sampling(n_samples)
         positions = np.empty(n_samples)
         self._sample_positions_into(positions, random_state)
         return positions
 
-    def _sample_positions_into(self, positions: Array, random_state: Seed) -> None:
-        """`sample_positions` of ``positions.size`` samples, written into ``positions``."""
+    def _check_sampling(self, n_samples: int) -> None:
         self._check_fitted()
-        n_samples = positions.size
         if n_samples < 1:
             raise InputError("generator", f"n_samples must be positive, got {n_samples}")
+
+    def _sample_positions_into(self, positions: Array, random_state: Seed) -> None:
+        """`sample_positions` of ``positions.size`` samples, written into ``positions``."""
+        n_samples = positions.size
         rng = np.random.default_rng(self.random_state if random_state is None else random_state)
         pad = self.window // self.hop
         n_frames = math.ceil(max(n_samples - self.window, 0) / self.hop) + 1 + 2 * pad
         sequence = sample_chain(self._cumulative, self._start_cumulative, rng.random(n_frames))
-        signal = overlap_add(self._frames, sequence, self.hop, self._window_squared)
-        start = pad * self.hop
-        np.clip(signal[start : start + n_samples], *PLAYING_RANGE, out=positions)
+        norm = self._norms.get(n_frames)
+        if norm is None:
+            norm = self._norms[n_frames] = overlap_norm(n_frames, self.hop, self._window_squared)
+        low, high = PLAYING_RANGE
+        overlap_add_into(
+            self._frames, sequence, self.hop, norm, pad * self.hop, low, high, positions
+        )
 
     def sample_velocity(self, n_samples: int, random_state: Seed = None) -> Array:
         """Generate a velocity signal of ``n_samples`` at `rate` (units/s).
@@ -388,6 +397,7 @@ class IMSGenerator:
         numpy.ndarray
             Shape (len(random_states), n_samples).
         """
+        self._check_sampling(n_samples)
         velocities = np.empty((len(random_states), n_samples))
         for first in range(0, len(random_states), SIDE_BY_SIDE):
             group = random_states[first : first + SIDE_BY_SIDE]

@@ -58,7 +58,6 @@ def synthesis_frames(spectra: NDArray[np.complex128], window: int) -> Array:
     return np.fft.irfft(spectra, n=window, axis=1) * hamming_window(window)
 
 
-@njit(cache=True, nogil=True)
 def overlap_add(
     frames: Array, sequence: NDArray[np.int64], hop: int, window_squared: Array
 ) -> Array:
@@ -80,20 +79,53 @@ def overlap_add(
     numpy.ndarray
         Signal of ``hop * (n_frames - 1) + window`` samples; samples no frame covers are 0.
     """
-    window = frames.shape[1]
-    n = hop * (sequence.size - 1) + window
-    out = np.zeros(n)
-    norm = np.zeros(n)
+    norm = overlap_norm(sequence.size, hop, window_squared)
+    signal = np.empty(norm.size)
+    overlap_add_into(frames, sequence, hop, norm, 0, -np.inf, np.inf, signal)
+    return signal
+
+
+@njit(cache=True, nogil=True)
+def overlap_norm(n_frames: int, hop: int, window_squared: Array) -> Array:
+    """Return the overlapped sum of squared windows of ``n_frames`` frames every ``hop`` samples.
+
+    Shape ``(hop * (n_frames - 1) + window,)``: what `overlap_add` divides by.
+    """
+    norm = np.zeros(hop * (n_frames - 1) + window_squared.size)
+    for m in range(n_frames):
+        _add_at(norm, m * hop, window_squared)
+    return norm
+
+
+@njit(cache=True, nogil=True)
+def overlap_add_into(
+    frames: Array,
+    sequence: NDArray[np.int64],
+    hop: int,
+    norm: Array,
+    start: int,
+    low: float,
+    high: float,
+    out: Array,
+) -> None:
+    """Write samples ``start .. start + out.size - 1`` of `overlap_add`, clipped, into ``out``.
+
+    ``norm`` is `overlap_norm` of the sequence; ``low`` and ``high`` clip as `numpy.clip`.
+    """
+    total = np.zeros(norm.size)
     for m in range(sequence.size):
-        start = m * hop
-        frame = frames[sequence[m]]
-        for i in range(window):
-            out[start + i] += frame[i]
-            norm[start + i] += window_squared[i]
-    for i in range(n):
-        if norm[i] > 1e-12:
-            out[i] /= norm[i]
-    return out
+        _add_at(total, m * hop, frames[sequence[m]])
+    for i in range(out.size):
+        value = total[start + i]
+        value = value / norm[start + i] if norm[start + i] > 1e-12 else value
+        out[i] = low if value < low else (high if value > high else value)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _add_at(signal: Array, start: int, frame: Array) -> None:
+    """Add ``frame`` to ``signal`` from sample ``start`` on, in place."""
+    for i in range(frame.size):
+        signal[start + i] += frame[i]
 
 
 def resynthesise(spectra: NDArray[np.complex128], window: int, hop: int) -> Array:
