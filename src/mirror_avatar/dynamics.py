@@ -281,7 +281,7 @@ def preset(role: str) -> HKBParams:
         raise InputError("role", f"unknown role {role!r}; expected one of {ROLES}") from None
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def hkb_acceleration(
     x: float, v: float, u: float, alpha: float, beta: float, gamma: float, omega: float
 ) -> float:
@@ -289,7 +289,7 @@ def hkb_acceleration(
     return -(alpha * x * x + beta * v * v - gamma) * v - omega * omega * x + u
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def _costate_rates(
     x: float,
     y: float,
@@ -322,7 +322,7 @@ def _costate_rates(
     )
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def _shoot(
     n_lanes: int,
     x: NDArray[np.float64],
@@ -377,7 +377,7 @@ def _shoot(
             l2[j] = k0 + hj / 6.0 * (a3 + 2.0 * b3 + 2.0 * c3 + d3) if going else k0
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath={"contract"})
 def _sensitivity_rates(
     z: NDArray[np.float64],
     alpha: float,
@@ -407,7 +407,7 @@ def _sensitivity_rates(
         )
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath={"contract"})
 def _shoot_with_sensitivities(
     x: float,
     y: float,
@@ -1048,7 +1048,7 @@ def integrate_hkb(x: float, v: float, u: float, p: Record, n_substeps: int) -> t
     return advance_hkb(x, v, u, p.alpha, p.beta, p.gamma, p.omega, p.period, n_substeps)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def advance_hkb(
     x: float,
     v: float,
