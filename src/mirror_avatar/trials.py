@@ -304,7 +304,11 @@ def zero_phase_filter(sos: Array, initial: Array, signal: Array, padlen: int) ->
 
 @njit(cache=True, nogil=True)
 def _zero_phase_columns(sos: Array, initial: Array, signals: Array, padlen: int) -> Array:
-    """`zero_phase_filter` of the columns of ``signals`` (n, L)."""
+    """`zero_phase_filter` of the columns of ``signals`` (n, L), C-contiguous.
+
+    The signals are copied into the extended array as one flat block (numba copies a 2-D slice
+    element by element), and the filtered signals are returned as a view of it.
+    """
     n = signals.shape[0]
     extended = np.empty((n + 2 * padlen, signals.shape[1]))
     for i in range(padlen):

@@ -96,9 +96,9 @@ def pack_session(plans: Sequence[PlayerPlan], graph: Graph, n_steps: int) -> Pac
     """
     n = len(plans)
     references = np.full((n, n_steps), np.nan)
-    drawing = [i for i, plan in enumerate(plans) if plan.reference is not None]
-    drawn = draw_references([plans[i].reference for i in drawing])  # type: ignore[misc]
-    for i, reference in zip(drawing, drawn, strict=True):
+    drawing = [(i, plan.reference) for i, plan in enumerate(plans) if plan.reference is not None]
+    drawn = draw_references([draw for _, draw in drawing])
+    for (i, _), reference in zip(drawing, drawn, strict=True):
         references[i] = reference[:n_steps]
     tracks, lengths = _pack_tracks(plans)
     policies = [plan.policy for plan in plans if plan.kind == CYBER]

@@ -106,17 +106,16 @@ def draw_references(draws: Sequence[ReferenceDraw]) -> list[Array]:
         One reference velocity (units/s) per draw, shape (draw.n_steps,).
     """
     drawn: list[Array] = [np.empty(0)] * len(draws)
-    together: dict[tuple[int, int, float], list[int]] = {}
-    sources: dict[int, VelocitySource] = {}
+    together: dict[tuple[int, int, float], tuple[VelocitySource, list[int]]] = {}
     for i, draw in enumerate(draws):
         if isinstance(draw.source, Trial):
             drawn[i] = _trial_reference(draw.source, draw.n_steps, draw.period)
         else:
-            sources[id(draw.source)] = draw.source
-            together.setdefault((id(draw.source), draw.n_steps, draw.period), []).append(i)
-    for (source, n_steps, period), indices in together.items():
+            key = (id(draw.source), draw.n_steps, draw.period)
+            together.setdefault(key, (draw.source, []))[1].append(i)
+    for (_, n_steps, period), (source, indices) in together.items():
         rngs = [np.random.default_rng(draws[i].random_state) for i in indices]
-        references = _generated_references(sources[source], n_steps, period, rngs)
+        references = _generated_references(source, n_steps, period, rngs)
         for i, reference in zip(indices, references, strict=True):
             drawn[i] = reference
     return drawn
