@@ -477,40 +477,51 @@ def _tabulate_linear(
                 out[i, 4 * column + r] = lanes[r, column]
 
 
-@njit(cache=True, nogil=True)
-def _frozen_solution(
-    x: float,
-    y: float,
-    frozen: float,
+@njit(cache=True, nogil=True, inline="always")
+def _frozen_guess(
+    lanes: NDArray[np.float64],
+    j: int,
     p: Record,
     table: int,
-    tracking: float,
-    forcing: float,
     n_substeps: int,
     z: NDArray[np.float64],
 ) -> None:
-    """Solve the frozen-damping problem from costates (0, 0), with sensitivities, into ``z``.
+    """Solve lane ``j``'s frozen-damping problem from costates (0, 0) into its shot rows.
 
-    Interpolated (linearly in the damping) from the record's table ``p.linear[table]`` within
-    `LINEAR_MAX_DAMPING`; integrated (`_shoot_with_sensitivities`) beyond it.
+    The damping is frozen at the lane's `FROZEN` row; the solution's end state-costate and
+    sensitivities are stored as `_keep_shot` stores a shot. They are interpolated (linearly in
+    the damping) from the record's table ``p.linear[table]`` within `LINEAR_MAX_DAMPING`, and
+    integrated (`_shoot_with_sensitivities`, ``z`` scratch) beyond it.
     """
+    x, y, frozen = lanes[X, j], lanes[Y, j], lanes[FROZEN, j]
+    tracking, forcing, theta_p = lanes[TRACKING, j], lanes[FORCING, j], lanes[THETA_P, j]
     where = frozen / LINEAR_MAX_DAMPING * (LINEAR_GRID - 1)
     if where >= LINEAR_GRID - 1:
         _shoot_with_sensitivities(
             x, y, 0.0, 0.0, 0.0, 0.0, -frozen, p.omega, p.eta, tracking, forcing, p.period,
             n_substeps, z,
         )  # fmt: skip
+        _keep_shot(z, theta_p, lanes, j)
         return
     i = int(where)
     w = where - i
     low, high = p.linear[table, i], p.linear[table, i + 1]
     for r in range(4):
-        free = x * (low[r] * (1.0 - w) + high[r] * w)
-        free += y * (low[4 + r] * (1.0 - w) + high[4 + r] * w)
-        free += forcing * (low[16 + r] * (1.0 - w) + high[16 + r] * w)
-        z[r] = free
-        z[4 + r] = low[8 + r] * (1.0 - w) + high[8 + r] * w
-        z[8 + r] = low[12 + r] * (1.0 - w) + high[12 + r] * w
+        free = x * _lerp(low, high, r, w)
+        free += y * _lerp(low, high, 4 + r, w)
+        free += forcing * _lerp(low, high, 16 + r, w)
+        lanes[END + r, j] = free
+    _keep_sensitivities(
+        _lerp(low, high, 8, w), _lerp(low, high, 9, w), _lerp(low, high, 10, w),
+        _lerp(low, high, 11, w), _lerp(low, high, 12, w), _lerp(low, high, 13, w),
+        _lerp(low, high, 14, w), _lerp(low, high, 15, w), theta_p, lanes, j,
+    )  # fmt: skip
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _lerp(low: NDArray[np.float64], high: NDArray[np.float64], column: int, w: float) -> float:
+    """Interpolate a column of two table rows: weight ``w`` on ``high``."""
+    return low[column] * (1.0 - w) + high[column] * w
 
 
 @njit(cache=True)
@@ -546,12 +557,20 @@ def count_substeps(
 
 @njit(cache=True, nogil=True, inline="always")
 def _jacobian(z: NDArray[np.float64], theta_p: float) -> tuple[float, float, float, float]:
+    """`_residual_jacobian` from the sensitivities in ``z`` (layout of `_sensitivity_rates`)."""
+    return _residual_jacobian(z[4], z[6], z[7], z[8], z[10], z[11], theta_p)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _residual_jacobian(
+    x_l1: float, l1_l1: float, l2_l1: float, x_l2: float, l1_l2: float, l2_l2: float, theta_p: float
+) -> tuple[float, float, float, float]:
     """Return ``(j11, j12, j21, j22)``, the Jacobian of the terminal residual.
 
-    The residual is ``(l1(T) - theta_p (x(T) - r_p), l2(T))``; its derivatives in the initial
-    costates come from the sensitivities in ``z`` (layout of `_sensitivity_rates`).
+    The residual is ``(l1(T) - theta_p (x(T) - r_p), l2(T))``; ``a_b`` is the derivative of
+    ``a(T)`` in the initial costate ``b(0)``.
     """
-    return z[6] - theta_p * z[4], z[10] - theta_p * z[8], z[7], z[11]
+    return l1_l1 - theta_p * x_l1, l1_l2 - theta_p * x_l2, l2_l1, l2_l2
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -653,7 +672,9 @@ JACOBIAN = 24
 costates (`_jacobian`)."""
 FALLBACK = 28
 """Rows FALLBACK .. FALLBACK + 3: the frozen-damping solution (x(T), y(T), l1(0), l2(0))."""
-LANE_ROWS = 32
+FROZEN = 32
+"""Row of the damping (1/s) frozen in the initial guess's linear problem."""
+LANE_ROWS = 33
 """Rows of the lane array of `solve_intervals`, shape (LANE_ROWS, L): one column per problem,
 the rows named by the constants above (X, Y, L1, L2: the start state and current costates)."""
 
@@ -683,7 +704,7 @@ def solve_intervals(
 
     1. The initial guess is the exact solution of the problem with the HKB damping frozen at
        its mean along a velocity ramp from ``y`` to ``r_s`` (a linear problem, tabulated per
-       parameter set in the record's ``linear`` field, `_frozen_solution`); its Jacobian (the
+       parameter set in the record's ``linear`` field, `_frozen_guess`); its Jacobian (the
        sensitivities of the end state-costate to the initial costates) starts the iterations.
     2. Chord iterations: each shoots the full nonlinear state and costates (`_shoot`, 4
        numbers) and updates the costates with the last Jacobian; when an update fails to
@@ -736,8 +757,7 @@ def solve_intervals(
     refresh = np.zeros(n_lanes, np.bool_)
     status = np.empty(n_lanes, np.int64)
     z = np.empty(12)
-    for j in range(n_lanes):
-        steps[j] = _start_lane(problems[j], coupled[j], params[which[j]], n_min, lanes[:, j], z)
+    _start_lanes(problems, coupled, params, which, n_min, lanes, steps, z)
     active = n_lanes
     for iteration in range(max_newton + 1):
         if iteration > 0:
@@ -756,47 +776,96 @@ def solve_intervals(
 
 
 @njit(cache=True, nogil=True)
-def _start_lane(
+def _start_lanes(
+    problems: NDArray[np.float64],
+    coupled: NDArray[np.bool_],
+    params: NDArray[np.void],
+    which: NDArray[np.int64],
+    n_min: int,
+    lanes: NDArray[np.float64],
+    steps: NDArray[np.int64],
+    z: NDArray[np.float64],
+) -> None:
+    """Fill the problems' lanes (one column of the lane array each) and their RK4 steps.
+
+    The costates start at 0 with the frozen-damping solution's end state and sensitivities
+    (`_frozen_guess`, ``z`` scratch). The problems' coefficients are computed in a first pass
+    over them all, which the compiler vectorises, and the guesses, read from the tables, in a
+    second.
+    """
+    for j in range(problems.shape[0]):
+        steps[j] = _lane_coefficients(problems[j], coupled[j], params[which[j]], n_min, lanes, j)
+    for j in range(problems.shape[0]):
+        _frozen_guess(lanes, j, params[which[j]], 0 if coupled[j] else 1, steps[j], z)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _lane_coefficients(
     problem: NDArray[np.float64],
     coupled: bool,
     p: Record,
     n_min: int,
-    lane: NDArray[np.float64],
-    z: NDArray[np.float64],
+    lanes: NDArray[np.float64],
+    j: int,
 ) -> int:
-    """Fill a problem's lane (a column of the lane array) and return its RK4 steps.
+    """Fill lane ``j`` but for its shot rows; return its RK4 steps (`count_substeps`).
 
-    The costates start at 0 with the frozen-damping solution's sensitivities (``z`` scratch).
+    The damping frozen for the initial guess (row `FROZEN`) is the HKB damping's mean along a
+    velocity ramp from ``y`` to ``r_s``.
     """
-    x, y, prediction, reference_velocity, partner_velocity = problem
+    x, y, prediction, reference_velocity, partner_velocity = (
+        problem[0], problem[1], problem[2], problem[3], problem[4]
+    )  # fmt: skip
     theta_p, theta_v = partner_weights(p, coupled)
     tracking = 1.0 - theta_p
     forcing = (tracking - theta_v) * reference_velocity + theta_v * partner_velocity
     n = count_substeps(x, y, reference_velocity, partner_velocity, p, theta_p, theta_v, n_min)
     mean_square = (y * y + y * reference_velocity + reference_velocity * reference_velocity) / 3.0
-    frozen = max(p.alpha * x * x + p.beta * mean_square - p.gamma, 0.0)
-    _frozen_solution(x, y, frozen, p, 0 if coupled else 1, tracking, forcing, n, z)
-    lane[X], lane[Y], lane[L1], lane[L2] = x, y, 0.0, 0.0
-    lane[ALPHA], lane[BETA], lane[GAMMA], lane[OMEGA] = p.alpha, p.beta, p.gamma, p.omega
-    lane[ETA], lane[TRACKING], lane[FORCING], lane[STEP] = p.eta, tracking, forcing, p.period / n
-    lane[PREDICTION], lane[THETA_P] = prediction, theta_p
-    lane[PREVIOUS] = lane[RESIDUAL] = np.inf
-    _keep_shot(z, theta_p, lane)
-    lane[FALLBACK], lane[FALLBACK + 1], lane[FALLBACK + 2], lane[FALLBACK + 3] = x, y, 0.0, 0.0
+    lanes[FROZEN, j] = max(p.alpha * x * x + p.beta * mean_square - p.gamma, 0.0)
+    lanes[X, j], lanes[Y, j], lanes[L1, j], lanes[L2, j] = x, y, 0.0, 0.0
+    lanes[ALPHA, j], lanes[BETA, j], lanes[GAMMA, j], lanes[OMEGA, j] = (
+        p.alpha, p.beta, p.gamma, p.omega
+    )  # fmt: skip
+    lanes[ETA, j], lanes[TRACKING, j], lanes[FORCING, j] = p.eta, tracking, forcing
+    lanes[STEP, j], lanes[PREDICTION, j], lanes[THETA_P, j] = p.period / n, prediction, theta_p
+    lanes[PREVIOUS, j] = lanes[RESIDUAL, j] = np.inf
+    lanes[FALLBACK, j], lanes[FALLBACK + 1, j] = x, y
+    lanes[FALLBACK + 2, j], lanes[FALLBACK + 3, j] = 0.0, 0.0
     return n
 
 
-@njit(cache=True, nogil=True)
-def _keep_shot(z: NDArray[np.float64], theta_p: float, lane: NDArray[np.float64]) -> None:
-    """Store a shot with sensitivities ``z`` (layout of `_sensitivity_rates`) in a lane.
+@njit(cache=True, nogil=True, inline="always")
+def _keep_shot(z: NDArray[np.float64], theta_p: float, lanes: NDArray[np.float64], j: int) -> None:
+    """Store a shot with sensitivities ``z`` (layout of `_sensitivity_rates`) in lane ``j``."""
+    lanes[END, j], lanes[END + 1, j], lanes[END + 2, j], lanes[END + 3, j] = z[0], z[1], z[2], z[3]
+    _keep_sensitivities(z[4], z[5], z[6], z[7], z[8], z[9], z[10], z[11], theta_p, lanes, j)
 
-    Its end state-costate, the sensitivities the updates extrapolate with and the Jacobian.
+
+@njit(cache=True, nogil=True, inline="always")
+def _keep_sensitivities(
+    x_l1: float,
+    y_l1: float,
+    l1_l1: float,
+    l2_l1: float,
+    x_l2: float,
+    y_l2: float,
+    l1_l2: float,
+    l2_l2: float,
+    theta_p: float,
+    lanes: NDArray[np.float64],
+    j: int,
+) -> None:
+    """Store the end state-costate's sensitivities in lane ``j``.
+
+    ``a_b`` is the derivative of ``a(T)`` in the initial costate ``b(0)``. The lane keeps those
+    of the end state, which the updates extrapolate with, and the Jacobian of the terminal
+    residual (`_residual_jacobian`).
     """
-    lane[END], lane[END + 1], lane[END + 2], lane[END + 3] = z[0], z[1], z[2], z[3]
-    s = SENSITIVITY
-    lane[s], lane[s + 1], lane[s + 2], lane[s + 3] = z[4], z[5], z[8], z[9]
-    j = JACOBIAN
-    lane[j], lane[j + 1], lane[j + 2], lane[j + 3] = _jacobian(z, theta_p)
+    s, jac = SENSITIVITY, JACOBIAN
+    lanes[s, j], lanes[s + 1, j], lanes[s + 2, j], lanes[s + 3, j] = x_l1, y_l1, x_l2, y_l2
+    lanes[jac, j], lanes[jac + 1, j], lanes[jac + 2, j], lanes[jac + 3, j] = _residual_jacobian(
+        x_l1, l1_l1, l2_l1, x_l2, l1_l2, l2_l2, theta_p
+    )
 
 
 @njit(cache=True, nogil=True)
@@ -829,7 +898,7 @@ def _shoot_lanes(
                 lane[X], lane[Y], lane[L1], lane[L2], p.alpha, p.beta, p.gamma, p.omega, p.eta,
                 lane[TRACKING], lane[FORCING], p.period, steps[j], z,
             )  # fmt: skip
-            _keep_shot(z, lane[THETA_P], lane)
+            _keep_shot(z, lane[THETA_P], lanes, j)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -9,15 +9,23 @@ from scipy.integrate import solve_ivp
 
 from mirror_avatar.dynamics import (
     FOLLOWER,
+    FORCING,
+    FROZEN,
     HKB_FIELDS,
     JOINT,
+    LANE_ROWS,
     LEADER,
     MAX_NEWTON,
     N_SUBSTEPS,
     NEWTON_TOLERANCE,
     PARAMS_DTYPE,
+    THETA_P,
+    TRACKING,
     HKBParams,
-    _frozen_solution,
+    X,
+    Y,
+    _frozen_guess,
+    _keep_shot,
     _shoot_with_sensitivities,
     clip_to_range,
     hkb_acceleration,
@@ -215,19 +223,23 @@ def test_fast_steps_converge_to_the_tight_solution(role: str, y0: float, rs: flo
 @pytest.mark.parametrize("coupled", [True, False])
 @pytest.mark.parametrize("damping", [0.0, 3.3, 17.1, 63.9, 80.0])
 def test_tabulated_linear_problem_matches_its_integration(coupled: bool, damping: float) -> None:
-    """The frozen-damping solution from the table equals the same problem integrated finely."""
+    """The frozen-damping guess from the table equals the same problem integrated finely."""
     p = JOINT.record()[0]
     theta_p = JOINT.theta_p if coupled else 0.0
     theta_v = JOINT.theta_v if coupled else 0.0
     tracking, forcing = 1.0 - theta_p, (1.0 - theta_p - theta_v) * 1.3 + theta_v * -0.4
-    tabulated, integrated = np.empty(12), np.empty(12)
-    _frozen_solution(0.2, 0.7, damping, p, 0 if coupled else 1, tracking, forcing, 64, tabulated)
+    lanes, z = np.zeros((LANE_ROWS, 2)), np.empty(12)
+    for row, value in [(X, 0.2), (Y, 0.7), (FROZEN, damping), (TRACKING, tracking)]:
+        lanes[row] = value
+    lanes[FORCING], lanes[THETA_P] = forcing, theta_p
+    _frozen_guess(lanes, 0, p, 0 if coupled else 1, 64, z)
     _shoot_with_sensitivities(
         0.2, 0.7, 0.0, 0.0, 0.0, 0.0, -damping, JOINT.omega, JOINT.eta, tracking, forcing,
         JOINT.period, 64,
-        integrated,
+        z,
     )  # fmt: skip
-    np.testing.assert_allclose(tabulated, integrated, rtol=1e-4, atol=1e-9)
+    _keep_shot(z, theta_p, lanes, 1)
+    np.testing.assert_allclose(lanes[:, 0], lanes[:, 1], rtol=1e-4, atol=1e-9)
 
 
 def test_sessions_on_recorded_references_never_run_away(zhai_trials_100hz) -> None:
