@@ -958,33 +958,27 @@ def _retire(
     """Write out the first ``active`` lanes that are solved or left to the continuation.
 
     A solved lane's result goes to its row of ``out``; a lane left to the continuation is
-    solved by it (`_continuation`) now. Each is swapped with the last active lane; returns the
-    number of lanes still iterating (the first ones).
+    solved by it (`_continuation`) now. The last active lane moves into each one's place (a
+    written-out lane is not read again); returns the number of lanes still iterating (the first
+    ones).
     """
     j = 0
     while j < active:
         if status[j] == ITERATING:
             j += 1
             continue
-        lane, row = lanes[:, j], out[index[j]]
+        row = index[j]
         if status[j] == SOLVED:
-            row[0], row[1], row[2], row[3], row[4] = (
-                lane[END],
-                lane[END + 1],
-                lane[L1],
-                lane[L2],
-                1.0,
-            )
+            out[row, 0], out[row, 1] = lanes[END, j], lanes[END + 1, j]
+            out[row, 2], out[row, 3], out[row, 4] = lanes[L1, j], lanes[L2, j], 1.0
         else:
-            p = params[which[index[j]]]
-            _continuation(problems[index[j]], p, lane, steps[j], z, tolerance, row)
+            p = params[which[row]]
+            _continuation(problems[row], p, lanes[:, j], steps[j], z, tolerance, out[row])
         active -= 1
         for r in range(LANE_ROWS):
-            lanes[r, j], lanes[r, active] = lanes[r, active], lanes[r, j]
-        steps[j], steps[active] = steps[active], steps[j]
-        index[j], index[active] = index[active], index[j]
-        refresh[j], refresh[active] = refresh[active], refresh[j]
-        status[j], status[active] = status[active], status[j]
+            lanes[r, j] = lanes[r, active]
+        steps[j], index[j] = steps[active], index[active]
+        refresh[j], status[j] = refresh[active], status[active]
     return active
 
 
