@@ -212,9 +212,9 @@ def check_graph(
         raise InputError("graph", f"the adjacency matrix must be square, got shape {matrix.shape}")
     if n_players is not None and matrix.shape[0] != n_players:
         raise InputError("graph", f"{matrix.shape[0]} rows for {n_players} players")
-    if not np.all((matrix == 0) | (matrix == 1)):
+    if not ((matrix == 0) | (matrix == 1)).all():
         raise InputError("graph", "adjacency entries must be 0 or 1")
-    if np.any(np.diag(matrix) != 0):
+    if matrix.diagonal().any():
         raise InputError("graph", "a player cannot observe itself: the diagonal must be 0")
     graph = matrix.astype(np.int8)
     if connected and not is_connected(graph):

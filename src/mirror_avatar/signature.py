@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 import scipy.stats
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from shapely.geometry import Polygon
 
@@ -97,10 +98,25 @@ def count_velocities(velocity: ArrayLike, bins: Bins = DEFAULT_BINS) -> Array:
     v = np.asarray(velocity, dtype=np.float64).ravel()
     if v.size == 0:
         raise InputError(None, "a signature needs at least one velocity sample")
-    if not np.all(np.isfinite(v)):
+    counts = np.zeros(bins.n)
+    if not _count_into(counts, v, bins.lo, bins.width):
         raise InputError(None, "velocity has NaN or infinite values")
-    index = np.clip(np.rint((v - bins.lo) / bins.width), 0, bins.n - 1).astype(np.intp)
-    return np.bincount(index, minlength=bins.n).astype(np.float64)
+    return counts
+
+
+@njit(cache=True, nogil=True)
+def _count_into(counts: Array, velocity: Array, lo: float, width: float) -> bool:
+    """Add each sample to the bin of the nearest centre (`count_velocities`), in one pass.
+
+    The nearest centre is ``rint((v - lo) / width)`` (ties to even), clipped to the end bins.
+    Returns False, with ``counts`` partly filled, at the first sample that is not finite.
+    """
+    last = counts.size - 1
+    for v in velocity:
+        if not np.isfinite(v):
+            return False
+        counts[min(max(int(np.rint((v - lo) / width)), 0), last)] += 1.0
+    return True
 
 
 def compute_emd(p: ArrayLike, q: ArrayLike, bins: Bins = DEFAULT_BINS) -> float:

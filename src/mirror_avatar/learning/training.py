@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from tqdm.auto import tqdm
 
@@ -143,15 +144,47 @@ class ImitationTask:
         neighbours = np.flatnonzero(session.graph[target])
         if neighbours.size == 0:
             raise InputError("sessions", f"the target (player {target}) observes no one")
-        involved = np.append(neighbours, target)
-        x, v = session.positions[involved], session.velocities[involved]
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
+        m, n = neighbours.size, session.n_samples
+        rows = np.empty((2 * m + 5, n))
+        if not _fill_task(
+            rows, session.positions, session.velocities, session.references, neighbours, target
+        ):
             raise InputError("sessions", "positions and velocities must be finite")
-        reference = session.references[target].copy()
-        if reference.size > 1 and np.isnan(reference[-1]):
-            reference[-1] = reference[-2]
-        x_seen, v_seen = np.ascontiguousarray(x[:-1]), np.ascontiguousarray(v[:-1])
-        return cls(mean_track(x_seen), mean_track(v_seen), x_seen, v_seen, x[-1], v[-1], reference)
+        return cls(rows[0], rows[1], rows[2 : 2 + m], rows[2 + m : 2 + 2 * m], *rows[2 + 2 * m :])
+
+
+@njit(cache=True, nogil=True)
+def _fill_task(
+    rows: Array,
+    positions: Array,
+    velocities: Array,
+    references: Array,
+    neighbours: NDArray[np.int64],
+    target: int,
+) -> bool:
+    """Fill ``rows`` (2 m + 5, n) with the fields of `ImitationTask`, in their order.
+
+    ``positions``, ``velocities`` and ``references`` are a session's, shape (N, n), and
+    ``neighbours`` the target's (m,); the neighbours' means are taken by `mean_track`. One
+    block of rows rather than seven arrays, because arrays returned from compiled code cost
+    more to hand back than to fill. Returns False if a position or velocity is not finite.
+    """
+    m = neighbours.size
+    for j in range(m):
+        rows[2 + j] = positions[neighbours[j]]
+        rows[2 + m + j] = velocities[neighbours[j]]
+    rows[2 + 2 * m] = positions[target]
+    rows[3 + 2 * m] = velocities[target]
+    for value in rows[2 : 4 + 2 * m].ravel():
+        if not np.isfinite(value):
+            return False
+    rows[0] = mean_track(rows[2 : 2 + m])
+    rows[1] = mean_track(rows[2 + m : 2 + 2 * m])
+    reference = rows[4 + 2 * m]
+    reference[:] = references[target]
+    if reference.size > 1 and np.isnan(reference[-1]):
+        reference[-1] = reference[-2]
+    return True
 
 
 PolicyArguments = tuple[Array, int, Array, NDArray[np.int64], Array, Any, int]
