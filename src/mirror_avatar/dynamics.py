@@ -377,9 +377,14 @@ def _shoot(
             l2[j] = k0 + hj / 6.0 * (a3 + 2.0 * b3 + 2.0 * c3 + d3) if going else k0
 
 
-@njit(cache=True, nogil=True, fastmath={"contract"})
+Twelve = tuple[float, float, float, float, float, float, float, float, float, float, float, float]
+"""``[x, y, l1, l2, s]``: the state, costates and sensitivities of `_sensitivity_rates`."""
+_ZEROS: Twelve = (0.0,) * 12
+
+
+@njit(cache=True, nogil=True, fastmath={"contract"}, inline="always")
 def _sensitivity_rates(
-    z: NDArray[np.float64],
+    z: Twelve,
     alpha: float,
     beta: float,
     gamma: float,
@@ -387,24 +392,37 @@ def _sensitivity_rates(
     eta: float,
     tracking: float,
     forcing: float,
-    dz: NDArray[np.float64],
-) -> None:
-    """Rates of ``z = [x, y, l1, l2, s]`` into ``dz`` (12,), ``s`` the sensitivities.
+) -> Twelve:
+    """Rates of ``z = [x, y, l1, l2, s]``, ``s`` the sensitivities, in the same layout.
 
     ``z[4 + 4 j : 8 + 4 j]`` = d(x, y, l1, l2) / d(initial costate j), j = 0 (l1) and 1 (l2).
+    Tuples rather than arrays: the RK4 steps of `_shoot_with_sensitivities` keep them in
+    registers.
     """
     x, y, l1, l2 = z[0], z[1], z[2], z[3]
-    dz[0], dz[1], dz[2], dz[3], coupling, damping = _costate_rates(
+    r0, r1, r2, r3, coupling, damping = _costate_rates(
         x, y, l1, l2, alpha, beta, gamma, omega, eta, tracking, forcing
     )
-    for j in range(2):
-        sx, sy, s1, s2 = z[4 + 4 * j], z[5 + 4 * j], z[6 + 4 * j], z[7 + 4 * j]
-        dz[4 + 4 * j] = sy
-        dz[5 + 4 * j] = -coupling * sx - damping * sy - s2 / eta
-        dz[6 + 4 * j] = 2.0 * alpha * l2 * (y * sx + x * sy) + coupling * s2
-        dz[7 + 4 * j] = (
-            2.0 * alpha * l2 * x * sx + (6.0 * beta * l2 * y - tracking) * sy - s1 + damping * s2
-        )
+    a, b = 2.0 * alpha * l2, 6.0 * beta * l2 * y - tracking
+    return (
+        r0, r1, r2, r3,
+        z[5], -coupling * z[4] - damping * z[5] - z[7] / eta,
+        a * (y * z[4] + x * z[5]) + coupling * z[7],
+        a * x * z[4] + b * z[5] - z[6] + damping * z[7],
+        z[9], -coupling * z[8] - damping * z[9] - z[11] / eta,
+        a * (y * z[8] + x * z[9]) + coupling * z[11],
+        a * x * z[8] + b * z[9] - z[10] + damping * z[11],
+    )  # fmt: skip
+
+
+@njit(cache=True, nogil=True, fastmath={"contract"}, inline="always")
+def _step_to(z: Twelve, h: float, rate: Twelve) -> Twelve:
+    """Return ``z + h rate``, element by element."""
+    return (
+        z[0] + h * rate[0], z[1] + h * rate[1], z[2] + h * rate[2], z[3] + h * rate[3],
+        z[4] + h * rate[4], z[5] + h * rate[5], z[6] + h * rate[6], z[7] + h * rate[7],
+        z[8] + h * rate[8], z[9] + h * rate[9], z[10] + h * rate[10], z[11] + h * rate[11],
+    )  # fmt: skip
 
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
@@ -426,24 +444,29 @@ def _shoot_with_sensitivities(
 ) -> None:
     """`_shoot` with the sensitivities to the initial costates, into ``z`` (12,) in place.
 
-    ``z`` receives the layout of `_sensitivity_rates` at the end of the interval.
+    ``z`` receives the layout of `_sensitivity_rates` at the end of the interval. Each RK4
+    step sums its stages' rates as ``((k1 + 2 k2) + 2 k3) + k4`` from zero.
     """
     h = period / n_substeps
-    z[:] = 0.0
-    z[0], z[1], z[2], z[3], z[6], z[11] = x, y, l1, l2, 1.0, 1.0
-    stage, rate, total = np.empty(12), np.empty(12), np.empty(12)
+    state = (x, y, l1, l2, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0)
     for _ in range(n_substeps):
-        total[:] = 0.0
-        stage[:] = z
-        for stage_index in range(4):
-            _sensitivity_rates(stage, alpha, beta, gamma, omega, eta, tracking, forcing, rate)
-            weight = 1.0 if stage_index == 0 or stage_index == 3 else 2.0
-            step = h if stage_index == 2 else 0.5 * h
-            for i in range(12):
-                total[i] += weight * rate[i]
-                stage[i] = z[i] + step * rate[i]
-        for i in range(12):
-            z[i] += h / 6.0 * total[i]
+        k1 = _sensitivity_rates(state, alpha, beta, gamma, omega, eta, tracking, forcing)
+        total = _step_to(_ZEROS, 1.0, k1)
+        k2 = _sensitivity_rates(
+            _step_to(state, 0.5 * h, k1), alpha, beta, gamma, omega, eta, tracking, forcing
+        )
+        total = _step_to(total, 2.0, k2)
+        k3 = _sensitivity_rates(
+            _step_to(state, 0.5 * h, k2), alpha, beta, gamma, omega, eta, tracking, forcing
+        )
+        total = _step_to(total, 2.0, k3)
+        k4 = _sensitivity_rates(
+            _step_to(state, h, k3), alpha, beta, gamma, omega, eta, tracking, forcing
+        )
+        total = _step_to(total, 1.0, k4)
+        state = _step_to(state, h / 6.0, total)
+    for i in range(12):
+        z[i] = state[i]
 
 
 @njit(cache=True, nogil=True)
