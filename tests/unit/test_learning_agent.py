@@ -48,6 +48,17 @@ def test_discretisation_index_matches_digitize(rng):
     assert reference.index(x, v, xp, 9.0, r) == np.ravel_multi_index(bins, reference.shape)
 
 
+def test_discretisation_index_on_the_edges_and_beyond():
+    """A value on an edge lies above it, infinities in the end bins, as numpy.digitize says."""
+    disc = make_default_discretisation("absolute")
+    for d, edges in enumerate(disc.edges):
+        for value in [*edges, -np.inf, np.inf, edges[0] - 1e-12, edges[-1] + 1e-12]:
+            state = [0.0] * 4
+            state[d] = value
+            bins = [np.digitize(f, e) for f, e in zip(state, disc.edges, strict=True)]
+            assert disc.index(*state) == np.ravel_multi_index(bins, disc.shape)
+
+
 def test_discretisation_rejects_bad_edges():
     with pytest.raises(InputError, match="increasing"):
         Discretisation("absolute", ([0.0, 0.0], [], [], []))
