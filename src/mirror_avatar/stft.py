@@ -97,7 +97,7 @@ def overlap_norm(n_frames: int, hop: int, window_squared: Array) -> Array:
     return norm
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def overlap_add_into(
     frames: Array,
     sequence: NDArray[np.int64],
@@ -123,9 +123,14 @@ def overlap_add_into(
 
 @njit(cache=True, nogil=True, inline="always")
 def _add_at(signal: Array, start: int, frame: Array) -> None:
-    """Add ``frame`` to ``signal`` from sample ``start`` on, in place."""
+    """Add ``frame`` to ``signal`` from sample ``start`` on, in place.
+
+    Through a view of the segment, which the compiler vectorises (indexing ``signal`` at
+    ``start + i`` it does not).
+    """
+    segment = signal[start : start + frame.size]
     for i in range(frame.size):
-        signal[start + i] += frame[i]
+        segment[i] += frame[i]
 
 
 def resynthesise(spectra: NDArray[np.complex128], window: int, hop: int) -> Array:
