@@ -257,7 +257,7 @@ def run_packed(
     controls and references (the last two NaN at the last sample and for players without).
     """
     n_players, n = kinds.size, out.shape[2]
-    out[:, :, :] = np.nan
+    out[2:, :, n - 1] = np.nan  # every other sample is written below
     for i in range(n_players):
         out[0, i, 0] = starts[i, 0]
         out[1, i, 0] = starts[i, 1]
