@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -199,8 +199,8 @@ class HKBParams:
         return records([self])
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-serialisable parameters."""
-        return {f.name: getattr(self, f.name) for f in fields(self)}
+        """JSON-serialisable parameters, in the order of the fields (an instance holds no more)."""
+        return dict(vars(self))
 
     def with_(self, **changes: float) -> HKBParams:
         """Return a copy with some parameters overridden."""

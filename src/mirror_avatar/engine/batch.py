@@ -59,7 +59,8 @@ def play_compiled_together(
     The sessions are the blocks of one block-diagonal graph, so every period the virtual
     trainers of all of them are solved together (`mirror_avatar.dynamics.optimal_control_steps`,
     vectorised across problems); each session is the one `play_compiled` gives alone, and owns
-    its arrays (a session kept alone does not hold the whole chunk's).
+    its arrays (a session kept alone does not hold the whole chunk's): its four channels are
+    the rows of one copy of its block.
     """
     period = check_lineup(lineups[0])
     blocks = [
@@ -76,25 +77,39 @@ def play_compiled_together(
     out = run_plans(plans, together, n_samples)
     times = np.arange(n_samples, dtype=np.float64) * period
     return [
-        Session(
-            times,
-            out[0, block].copy(),
-            out[1, block].copy(),
-            out[2, block].copy(),
-            out[3, block].copy(),
-            labels=tuple(p.label or f"player {i}" for i, p in enumerate(players)),
-            roles=tuple(roles) if roles is not None else default_roles(len(players)),
-            graph=adjacency,
-            metadata={
-                "seed": seed,
-                "player_seeds": player_seeds,
-                "players": [p.describe() for p in players],
-            },
-        )
+        _session(out[:, block].copy(), times, players, roles, adjacency, seed, player_seeds)
         for players, seed, (_, adjacency, player_seeds), block in zip(
             lineups, seeds, blocks, rows, strict=True
         )
     ]
+
+
+def _session(
+    channels: NDArray[np.float64],
+    times: NDArray[np.float64],
+    players: Lineup,
+    roles: Sequence[str] | None,
+    graph: Graph,
+    seed: int,
+    player_seeds: list[int],
+) -> Session:
+    """Make a session of its channels (4, N, n): positions, velocities, controls, references."""
+    positions, velocities, controls, references = channels
+    return Session(
+        times,
+        positions,
+        velocities,
+        controls,
+        references,
+        labels=tuple(p.label or f"player {i}" for i, p in enumerate(players)),
+        roles=tuple(roles) if roles is not None else default_roles(len(players)),
+        graph=graph,
+        metadata={
+            "seed": seed,
+            "player_seeds": player_seeds,
+            "players": [p.describe() for p in players],
+        },
+    )
 
 
 def _plan_session(
