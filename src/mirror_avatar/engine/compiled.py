@@ -322,11 +322,11 @@ def _stiffest_first(trainers: Ints, params: NDArray[np.void], param_rows: Ints) 
     the lockstep shots stop at the last problem still stepping: problems with as many steps
     side by side waste none. Each problem's solution does not depend on the order.
     """
-    rates = np.empty(trainers.size)
+    squared_rates = np.empty(trainers.size)
     for t in range(trainers.size):
         p = params[param_rows[trainers[t]]]
-        rates[t] = -(1.0 - p.theta_p) / p.eta
-    return trainers[np.argsort(rates, kind="mergesort")]
+        squared_rates[t] = (1.0 - p.theta_p) / p.eta
+    return trainers[np.argsort(-squared_rates, kind="mergesort")]
 
 
 @njit(cache=True, nogil=True)
