@@ -166,8 +166,8 @@ def _fill_task(
 
     ``positions``, ``velocities`` and ``references`` are a session's, shape (N, n), and
     ``neighbours`` the target's (m,); the neighbours' means are taken by `mean_track`. One
-    block of rows rather than seven arrays, because arrays returned from compiled code cost
-    more to hand back than to fill. Returns False if a position or velocity is not finite.
+    block of rows filled in place, not seven arrays returned: each array handed back from
+    compiled code costs a conversion. Returns False if a position or velocity is not finite.
     """
     m = neighbours.size
     for j in range(m):
