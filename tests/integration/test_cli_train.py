@@ -12,8 +12,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from numba.core.compiler_lock import global_compiler_lock
 
-from mirror_avatar.cli import main
+from mirror_avatar.cli import interrupt, main
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.agent import load_cyber_player
@@ -174,3 +175,48 @@ def test_sigterm_keeps_the_finished_policy_and_stops_the_workers(
         time.sleep(0.1)
     else:
         pytest.fail("worker processes outlived the command")
+
+
+def test_an_interruption_while_compiling_waits_for_the_compiler() -> None:
+    """Raised inside numba's compiler, KeyboardInterrupt can leave LLVM objects that crash the
+    process when freed: the handler sends the signal again once compiling is done."""
+    received: list[int] = []
+    previous = signal.signal(signal.SIGUSR1, lambda signum, frame: received.append(signum))
+    try:
+        with global_compiler_lock:
+            interrupt(signal.SIGUSR1, None)  # no exception while the lock is held
+        for _ in range(100):
+            if received:
+                break
+            time.sleep(0.01)
+    finally:
+        signal.signal(signal.SIGUSR1, previous)
+    assert received == [signal.SIGUSR1]
+    with pytest.raises(KeyboardInterrupt, match="SIGTERM"):
+        interrupt(signal.SIGTERM, None)
+
+
+@pytest.mark.slow
+def test_sigterm_while_compiling_exits_130(tmp_path: Path, models: list[Path]) -> None:
+    """A command stopped during its first compilation (an empty numba cache) exits cleanly,
+    once compiling is done (about 45 s)."""
+    environment = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+    command = [sys.executable, "-X", "faulthandler", "-c",
+               "from mirror_avatar.cli import run; run()", "train",
+               "--target", str(models[0]), "--partners", str(models[1]), "--sessions", "50",
+               "--jobs", "1", "--out", str(tmp_path / "vt.npz")]  # fmt: skip
+    process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, env=environment)
+    try:
+        for _ in range(600):  # until the first compiled function is cached
+            if any((tmp_path / "numba").rglob("*.nbi")) or process.poll() is not None:
+                break
+            time.sleep(0.05)
+        process.send_signal(signal.SIGTERM)
+        _, error = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    assert process.returncode == 130, error
+    assert "Traceback" not in error and "Fatal Python error" not in error
+    assert not (tmp_path / "vt.npz").exists()
