@@ -573,9 +573,15 @@ def count_substeps(
     """
     speed = max(abs(y), abs(reference_velocity), abs(partner_velocity) if theta_v > 0.0 else 0.0)
     damping = p.alpha * x * x + 3.0 * p.beta * speed * speed - p.gamma
-    coupling = np.sqrt((1.0 - theta_p) / p.eta)
+    coupling = coupling_rate(p, theta_p)
     steps = max(damping / DAMPING_STIFFNESS, coupling / STEP_STIFFNESS) * p.period
     return min(MAX_RK4_SUBSTEPS, max(n_min, int(np.ceil(steps))))
+
+
+@njit(cache=True, inline="always")
+def coupling_rate(p: Record, theta_p: float) -> float:
+    """Return the costate-control coupling rate ``sqrt((1 - theta_p) / eta)`` (1/s)."""
+    return np.sqrt((1.0 - theta_p) / p.eta)
 
 
 @njit(cache=True, nogil=True, inline="always")

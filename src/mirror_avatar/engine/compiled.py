@@ -20,7 +20,12 @@ from numba import njit
 from numpy.typing import NDArray
 
 from mirror_avatar.deep.player import NetworkPolicy, deep_step
-from mirror_avatar.dynamics import PROBLEM_COLUMNS, optimal_control_steps, records
+from mirror_avatar.dynamics import (
+    PROBLEM_COLUMNS,
+    coupling_rate,
+    optimal_control_steps,
+    records,
+)
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import Graph
 from mirror_avatar.learning.agent import GreedyPolicy, cyber_step
@@ -318,15 +323,15 @@ def run_packed(
 def _stiffest_first(trainers: Ints, params: NDArray[np.void], param_rows: Ints) -> Ints:
     """Order the virtual trainers by their costate-control rate, fastest first (stable).
 
-    The rate sets a problem's fewest RK4 steps (`mirror_avatar.dynamics.count_substeps`), and
+    The rate (`mirror_avatar.dynamics.coupling_rate`) sets a problem's fewest RK4 steps, and
     the lockstep shots stop at the last problem still stepping: problems with as many steps
     side by side waste none. Each problem's solution does not depend on the order.
     """
-    squared_rates = np.empty(trainers.size)
+    rates = np.empty(trainers.size)
     for t in range(trainers.size):
         p = params[param_rows[trainers[t]]]
-        squared_rates[t] = (1.0 - p.theta_p) / p.eta
-    return trainers[np.argsort(-squared_rates, kind="mergesort")]
+        rates[t] = coupling_rate(p, p.theta_p)
+    return trainers[np.argsort(-rates, kind="mergesort")]
 
 
 @njit(cache=True, nogil=True)
