@@ -11,6 +11,7 @@ and velocity strokes, composed by `analyse_signatures`; one module because they 
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -382,7 +383,7 @@ class SignatureAnalysis:
     Parameters
     ----------
     labels, groups
-        Label and group of each trial, length m.
+        Label and group of each trial, length m; labels are distinct (`distinct_labels`).
     group_names
         The distinct groups in order of first appearance, length g.
     bins
@@ -505,7 +506,7 @@ def analyse_signatures(
     coordinates = classical_mds(emd, 2)
     strokes = [stroke_moments(v, min_samples) for v in velocities]
     analysis = SignatureAnalysis(
-        labels=[trial.label for trial in trials],
+        labels=distinct_labels(trials),
         groups=groups,
         group_names=names,
         bins=bins,
@@ -528,6 +529,27 @@ def analyse_signatures(
     }
     analysis.overlaps = compute_overlap_matrix([analysis.ellipses[g] for g in names])
     return analysis
+
+
+def distinct_labels(trials: Sequence[Trial]) -> list[str]:
+    """Return the trials' labels, those that repeat qualified until each names one trial.
+
+    Trials are told apart by their source (`mirror_avatar.trial_sets` labels them by path), but
+    trials from elsewhere may share a label: a repeated label gets its group in front
+    (``person1/trial_00``), and one still repeated its place among its twins (``trial_00 (2)``).
+    """
+    labels = [trial.label or "trial" for trial in trials]
+    counts = Counter(labels)
+    labels = [
+        f"{trial.group}/{label}" if counts[label] > 1 and trial.group else label
+        for label, trial in zip(labels, trials, strict=True)
+    ]
+    counts, seen = Counter(labels), Counter[str]()
+    distinct = []
+    for label in labels:
+        seen[label] += 1
+        distinct.append(label if counts[label] == 1 else f"{label} ({seen[label]})")
+    return distinct
 
 
 def compute_overlap_matrix(ellipses: Sequence[Ellipse | None]) -> Array:

@@ -58,7 +58,7 @@ def test_bad_input_is_one_line_exit_2(tmp_path, capsys, arguments):
 
 
 @pytest.mark.parametrize(
-    ("group_by", "expected"), [("none", {"all"}), ("file", {"fast-1", "slow-9"})]
+    ("group_by", "expected"), [("none", {"all"}), ("file", {"fast/fast-1", "slow/slow-9"})]
 )
 def test_group_by_none_and_file(zhai_trials, tmp_path, capsys, group_by, expected):
     folders = write_csvs(zhai_trials, tmp_path / "data")
@@ -69,7 +69,7 @@ def test_group_by_none_and_file(zhai_trials, tmp_path, capsys, group_by, expecte
     assert expected <= set(result["groups"])
     assert len(result["group_names"]) == (1 if group_by == "none" else 18)
     if group_by == "file":
-        assert result["ellipses"]["fast-1"] is None
+        assert result["ellipses"]["fast/fast-1"] is None
         assert result["overlaps"][0][1] is None
 
 

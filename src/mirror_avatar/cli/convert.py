@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from collections import Counter
 from pathlib import Path
 
 import click
@@ -13,6 +14,7 @@ from mirror_avatar.cli.reading import group_option, import_options, read_and_rep
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import ImportOptions
 from mirror_avatar.trial_io import write_csv_trial
+from mirror_avatar.trials import Trial
 
 UNSAFE = re.compile(r"[^A-Za-z0-9_.-]+")
 """Characters replaced in folder and file names written."""
@@ -34,23 +36,22 @@ def convert(paths: tuple[Path, ...], out_dir: Path, group_by: str, options: Impo
 
     Columns and units are read as the options say and short drop-outs interpolated; each group
     (--group-by) gets a folder OUT/GROUP of ``<trial>.csv`` files in seconds and normalised
-    units, ready for every other command; convert.json records the sources and options.
+    units, named by each trial's identity (its path below the folders given, ``/`` written
+    as ``_``; a BIDS file's entities), ready for every other command; convert.json records the
+    sources and options. Every name is checked before anything is written.
     """
     check_output_dir(out_dir)
     trials = read_and_report(paths, group_by, options)
+    targets = [_target(out_dir, trial) for trial in trials]
+    _check_targets(targets)
     written: list[dict[str, object]] = []
-    targets: set[Path] = set()
-    for trial in trials:
-        folder = out_dir / (UNSAFE.sub("_", trial.group) or "trials")
-        target = folder / f"{UNSAFE.sub('_', trial.label) or 'trial'}.csv"
-        if target in targets:
-            raise InputError(target, "two trials of one group would share this name")
-        targets.add(target)
-        folder.mkdir(parents=True, exist_ok=True)
+    for trial, target in zip(trials, targets, strict=True):
+        target.parent.mkdir(parents=True, exist_ok=True)
         write_csv_trial(trial, target)
         written.append(
             {
                 "file": target.relative_to(out_dir).as_posix(),
+                "trial": trial.label,
                 "source": trial.metadata.get("source"),
                 "group": trial.group,
                 "interpolated_samples": trial.metadata["import"]["interpolated_samples"]
@@ -61,3 +62,22 @@ def convert(paths: tuple[Path, ...], out_dir: Path, group_by: str, options: Impo
     manifest = {"options": options.describe(), "group_by": group_by, "trials": written}
     write_atomic_json(out_dir / "convert.json", manifest)
     click.echo(f"{len(written)} trials -> {out_dir}")
+
+
+def _target(out_dir: Path, trial: Trial) -> Path:
+    """Return where ``trial`` is written: OUT/GROUP/<its identity, one file name>.csv."""
+    folder = out_dir / (UNSAFE.sub("_", trial.group) or "trials")
+    return folder / f"{UNSAFE.sub('_', trial.label) or 'trial'}.csv"
+
+
+def _check_targets(targets: list[Path]) -> None:
+    """Refuse two trials written to one file, or a file name taken by a folder."""
+    for target, count in Counter(targets).items():
+        if count > 1:
+            raise InputError(
+                target,
+                f"{count} trials of one group would share this name (trials whose paths differ "
+                "only in characters other than letters, digits, '_', '.' and '-'); rename them",
+            )
+        if target.is_dir():
+            raise InputError(target, "is a folder; choose another --out")

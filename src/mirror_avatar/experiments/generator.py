@@ -66,11 +66,9 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
     """
     splits = split_and_generate(trials, seed)
     styles = list(splits)
-    humans = [t for style in styles for t in splits[style].train + splits[style].held_out]
-    generated = [t for style in styles for t in splits[style].generated]
-    analysis = analyse_signatures(humans + generated, rate=RATE)
-    emd_table = compute_style_emd(analysis, splits)
-    identified = identify_styles(analysis, splits)
+    analysis, rows = analyse_splits(splits)
+    emd_table = compute_style_emd(analysis, rows)
+    identified = identify_styles(analysis, splits, rows)
     strokes = compare_strokes(analysis, styles)
     smoothing = measure_smoothing(splits)
     overlaps = {s: _overlap(analysis, s, _generated_group(s)) for s in styles}
@@ -169,25 +167,53 @@ def split_and_generate(trials: Sequence[Trial], seed: int) -> dict[str, StyleSpl
     return splits
 
 
-def compute_style_emd(analysis: SignatureAnalysis, splits: dict[str, StyleSplit]) -> pd.DataFrame:
+def analyse_splits(
+    splits: dict[str, StyleSplit],
+) -> tuple[SignatureAnalysis, dict[str, dict[str, list[int]]]]:
+    """Analyse the human then the generated trials of every style together.
+
+    Returns
+    -------
+    analysis : SignatureAnalysis
+        Of every style's human trials (training then held out), then every style's generated.
+    rows : dict
+        Style -> ``"human"``, ``"held_out"``, ``"generated"`` -> the trials' rows in ``analysis``
+        (by position in the analysis, never by label: two people's trials may share a name).
+    """
+    rows: dict[str, dict[str, list[int]]] = {}
+    ordered: list[Trial] = []
+    for style, split in splits.items():
+        start, middle = len(ordered), len(ordered) + len(split.train)
+        ordered += split.train + split.held_out
+        rows[style] = {
+            "human": list(range(start, len(ordered))),
+            "held_out": list(range(middle, len(ordered))),
+        }
+    for style, split in splits.items():
+        rows[style]["generated"] = list(range(len(ordered), len(ordered) + len(split.generated)))
+        ordered += split.generated
+    return analyse_signatures(ordered, rate=RATE), rows
+
+
+def compute_style_emd(
+    analysis: SignatureAnalysis, rows: dict[str, dict[str, list[int]]]
+) -> pd.DataFrame:
     """Mean EMDs per style: generated vs held-out human, human within style and between styles.
 
     ``human_within`` averages distinct pairs of the style's human trials (all of them),
-    ``between`` every pair of human trials of two different styles.
+    ``between`` every pair of human trials of two different styles. ``rows`` as
+    `analyse_splits` returns them.
     """
-    index = {label: i for i, label in enumerate(analysis.labels)}
-    human = {s: [index[t.label] for t in sp.train + sp.held_out] for s, sp in splits.items()}
-    all_human = [i for members in human.values() for i in members]
-    rows = {}
-    for style, split in splits.items():
-        own = [index[t.label] for t in split.generated]
-        held = [index[t.label] for t in split.held_out]
-        others = [i for i in all_human if i not in human[style]]
-        block = analysis.emd[np.ix_(human[style], human[style])]
+    all_human = [i for style in rows.values() for i in style["human"]]
+    table = {}
+    for style, own_rows in rows.items():
+        human, own, held = own_rows["human"], own_rows["generated"], own_rows["held_out"]
+        others = [i for i in all_human if i not in human]
+        block = analysis.emd[np.ix_(human, human)]
         within = float(block[~np.eye(len(block), dtype=bool)].mean())
-        between = float(analysis.emd[np.ix_(human[style], others)].mean())
+        between = float(analysis.emd[np.ix_(human, others)].mean())
         generated = float(analysis.emd[np.ix_(own, held)].mean())
-        rows[style] = {
+        table[style] = {
             "generated_vs_held_out": generated,
             "generated_vs_other_styles": float(analysis.emd[np.ix_(own, others)].mean()),
             "human_within": within,
@@ -195,27 +221,27 @@ def compute_style_emd(analysis: SignatureAnalysis, splits: dict[str, StyleSplit]
             "ratio_to_human_within": generated / within,
             "ratio_to_between": generated / between,
         }
-    return pd.DataFrame.from_dict(rows, orient="index")
+    return pd.DataFrame.from_dict(table, orient="index")
 
 
-def identify_styles(analysis: SignatureAnalysis, splits: dict[str, StyleSplit]) -> pd.DataFrame:
+def identify_styles(
+    analysis: SignatureAnalysis,
+    splits: dict[str, StyleSplit],
+    rows: dict[str, dict[str, list[int]]],
+) -> pd.DataFrame:
     """Assign each generated trial to the style whose held-out trials are nearest in mean EMD."""
-    index = {label: i for i, label in enumerate(analysis.labels)}
-    held = {s: [index[t.label] for t in sp.held_out] for s, sp in splits.items()}
-    rows = {}
+    table = {}
     for style, split in splits.items():
-        for trial in split.generated:
-            distance = {
-                s: float(analysis.emd[index[trial.label], h].mean()) for s, h in held.items()
-            }
+        for trial, row in zip(split.generated, rows[style]["generated"], strict=True):
+            distance = {s: float(analysis.emd[row, r["held_out"]].mean()) for s, r in rows.items()}
             nearest = min(distance, key=distance.__getitem__)
-            rows[trial.label] = {
+            table[trial.label] = {
                 "style": style,
                 "identified_as": nearest,
                 "correct": nearest == style,
                 **{f"mean_emd_to_{s}": d for s, d in distance.items()},
             }
-    return pd.DataFrame.from_dict(rows, orient="index")
+    return pd.DataFrame.from_dict(table, orient="index")
 
 
 def compare_strokes(analysis: SignatureAnalysis, styles: Sequence[str]) -> pd.DataFrame:
