@@ -31,6 +31,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from mirror_avatar import __version__
 from mirror_avatar.atomic import atomic_path, write_atomic_json
+from mirror_avatar.bids.names import MOTION_SUFFIX
+from mirror_avatar.bids.reading import LabRecording, read_lab_recording
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import Graph, check_graph, complete_graph
 from mirror_avatar.trials import compute_velocity
@@ -311,7 +313,8 @@ def load_session(path: str | os.PathLike[str]) -> Session:
     """Read a session: any file `Session.save`, `Session.save_csv` or `SessionWriter` wrote.
 
     A lab trial exported as BIDS-Motion (a ``_motion.tsv`` of `mirror_avatar.lab.bids`) is
-    read as its whole N-player session. Also reads plain CSV or Parquet files with a ``time``
+    read as its whole N-player session (`mirror_avatar.bids.reading.read_lab_recording`;
+    controls and references NaN). Also reads plain CSV or Parquet files with a ``time``
     column and ``position_0``, ``position_1``... (velocities are then computed from the
     positions as for a trial; controls and references are NaN). A last CSV line without its
     newline (a recording cut short) is ignored. The sidecar (``.json`` beside the file) is optional.
@@ -325,10 +328,8 @@ def load_session(path: str | os.PathLike[str]) -> Session:
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "no such file")
-    if path.name.endswith("_motion.tsv"):
-        from mirror_avatar.lab.bids import read_bids_session
-
-        return read_bids_session(path)
+    if path.name.endswith(MOTION_SUFFIX):
+        return _lab_recording_session(read_lab_recording(path))
     columns = _read_columns(path)
     n_players = _count_players(path, columns)
     times = columns["time"]
@@ -351,6 +352,28 @@ def load_session(path: str | os.PathLike[str]) -> Session:
         )
     except InputError as error:
         raise InputError(path, error.problem) from None
+
+
+def _lab_recording_session(recording: LabRecording) -> Session:
+    """Make the N-player session of a lab export's recording."""
+    path = recording.metadata["bids"]["path"]
+    if recording.times.size < MIN_SESSION_SAMPLES:
+        raise InputError(path, f"{recording.times.size} samples, fewer than {MIN_SESSION_SAMPLES}")
+    try:
+        return Session(
+            recording.times,
+            recording.positions,
+            recording.velocities,
+            np.full_like(recording.positions, np.nan),
+            np.full_like(recording.positions, np.nan),
+            labels=recording.labels,
+            roles=recording.roles,
+            graph=np.asarray(recording.graph),
+            metadata=recording.metadata,
+        )
+    except (InputError, ValueError, TypeError) as error:
+        problem = error.problem if isinstance(error, InputError) else "malformed graph"
+        raise InputError(path, f"MirrorGame: {problem}") from None
 
 
 def _count_players(path: Path, columns: dict[str, Array]) -> int:

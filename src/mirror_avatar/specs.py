@@ -15,7 +15,7 @@ A SPEC is one of:
   other roles the person's virtual trainer;
 - a curriculum stage ``.npz`` (format ``mirror-avatar/curriculum-stage``,
   `mirror_avatar.curriculum`): a virtual trainer moving with the stage's motion;
-- a recorded trial file (CSV, Parquet, MAT or BIDS-Motion, `mirror_avatar.trial_io.read_trial`):
+- a recorded trial file (CSV, Parquet, MAT or BIDS-Motion, `mirror_avatar.trial_files.read_trial`):
   the recording replayed open-loop (`RecordedPlayer`, the role is not used);
 - ``vt:FILE`` with FILE a recorded trial: a virtual trainer whose reference velocity is that
   recording's.
@@ -51,7 +51,7 @@ from mirror_avatar.learning.avatar import FORMAT_NAME as AVATAR_FORMAT
 from mirror_avatar.learning.avatar import load_avatar
 from mirror_avatar.model_files import read_archive
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
-from mirror_avatar.trial_io import read_trial
+from mirror_avatar.trial_files import read_trial
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 __all__ = [

@@ -1,14 +1,14 @@
-"""Reading and writing trial files.
+"""Reading and writing trial files, and the checked reading every trial reader shares.
 
 Formats: CSV with header ``time,position`` (the exchange format; extra columns are ignored),
-Parquet, BIDS-Motion (``*_motion.tsv`` with its ``_motion.json`` and, if present,
-``_channels.tsv``), and the MATLAB struct format of the bundled data (a 1xK struct array with
-fields ``x`` and ``v``). Other columns and units are read as `mirror_avatar.importing.ImportOptions`
-say. Readers do not resample: irregular timestamps are kept (call ``trial.resampled``). Every
-reader validates its input and raises `InputError` with one line naming the file and the problem,
-whatever the file holds (binary junk, text that is not UTF-8, damaged or crafted contents, wrong
-types in JSON); values quoted from the file are cut to a few dozen characters
-(`mirror_avatar.importing.excerpt`).
+Parquet, and the MATLAB struct format of the bundled data (a 1xK struct array with fields ``x``
+and ``v``); BIDS-Motion is read by `mirror_avatar.bids.reading` with the checks of this module,
+and `mirror_avatar.trial_files` reads and writes any of them by name. Other columns and units
+are read as `mirror_avatar.importing.ImportOptions` say. Readers do not resample: irregular
+timestamps are kept (call ``trial.resampled``). Every reader validates its input and raises
+`InputError` with one line naming the file and the problem, whatever the file holds (binary
+junk, text that is not UTF-8, damaged or crafted contents, wrong types in JSON); values quoted
+from the file are cut to a few dozen characters (`mirror_avatar.importing.excerpt`).
 
 Limits, each refused in one line before the file is parsed further:
 
@@ -46,19 +46,18 @@ import pandas as pd
 import scipy.io
 from numpy.typing import NDArray
 
-from mirror_avatar.atomic import atomic_path, write_atomic_json, write_atomic_text
+from mirror_avatar.atomic import atomic_path, write_atomic_text
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import (
     DEFAULT_IMPORT,
     MISSING_CELLS,
-    POSITION_UNITS,
     ImportOptions,
     excerpt,
     fill_gaps,
     parse_cells,
 )
 from mirror_avatar.mat_check import mat_problem
-from mirror_avatar.trials import MAX_RATE, MIN_RATE, Trial, make_trial
+from mirror_avatar.trials import Trial, make_trial
 
 MAX_FILE_BYTES = 2**30
 """Largest trial file read, and the most a MATLAB file's compressed variables may inflate to
@@ -365,11 +364,6 @@ def write_mat_struct(trials: list[Trial], path: str | Path, variable: str) -> No
         scipy.io.savemat(handle, {variable: struct})
 
 
-MAT_DURATION = 60.0
-"""Seconds spanned by each trial of a ``.mat`` file read through `read_trial` (**choice**)."""
-SUPPORTED = (".csv", ".mat", ".parquet", "_motion.tsv")
-
-
 def read_csv_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
     """Read a CSV trial: by default columns ``time,position`` (s, normalised units).
 
@@ -524,164 +518,3 @@ def write_parquet_trial(trial: Trial, path: str | Path) -> None:
     table = table.replace_schema_metadata({"mirror_avatar": json.dumps(info)})
     with atomic_path(path) as temporary:
         pq.write_table(table, temporary)
-
-
-def read_bids_motion(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
-    """Read a BIDS-Motion ``*_motion.tsv`` (no header) with its ``_motion.json`` sidecar.
-
-    Sample times are ``k / SamplingFrequency`` from the sidecar. With a ``*_channels.tsv`` beside
-    it, the position channel is the one ``options.position_column`` names, or the only one of
-    type ``POS``, and its ``units`` (mm, cm, m) convert it; without one, the file must hold one
-    column. Blank or ``n/a`` samples are missing (`mirror_avatar.importing.fill_gaps`). The
-    label is the sidecar's ``TaskName``.
-
-    Raises
-    ------
-    InputError
-        Sidecar missing, not a JSON object, without a ``SamplingFrequency`` that is a number
-        between `mirror_avatar.trials.MIN_RATE` and `mirror_avatar.trials.MAX_RATE` Hz, or with
-        a ``TaskName`` that is not a short text; several channels and none chosen (naming them
-        and ``--position-column``); a non-numeric value (naming the row); a size limit; or any
-        `import_trial` problem.
-    """
-    path = Path(path)
-    _check_file(path)
-    stem = path.name[: -len("_motion.tsv")]
-    sidecar = path.with_name(f"{stem}_motion.json")
-    if not sidecar.is_file():
-        raise InputError(path, f"no sidecar {sidecar.name}")
-    info = _json_object(read_sidecar_text(sidecar), sidecar, "the sidecar")
-    rate = _sampling_frequency(info, sidecar)
-    label = _name_in(info, "TaskName", sidecar, "")
-    width = len(_first_row(path, "\t"))
-    column, name, unit = _bids_channel(path, path.with_name(f"{stem}_channels.tsv"), options, width)
-    (positions,) = _read_numbers(path, [column], [name], "\t", 1)
-    times = np.arange(positions.size) / rate
-    trial = import_trial(times, positions, path, replace(options, time_unit="s"), unit)
-    return replace(trial, label=label or path.stem)
-
-
-def _sampling_frequency(info: dict[str, Any], sidecar: Path) -> float:
-    """Return the sidecar's ``SamplingFrequency`` (Hz) if it is a rate a trial can have."""
-    if "SamplingFrequency" not in info:
-        raise InputError(sidecar, "no SamplingFrequency (Hz)")
-    value = info["SamplingFrequency"]
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise InputError(sidecar, f"SamplingFrequency is {_json_kind(value)}, not a number of Hz")
-    if not MIN_RATE <= value <= MAX_RATE:
-        raise InputError(
-            sidecar,
-            f"SamplingFrequency {excerpt(value)} Hz is outside {MIN_RATE:g}-{MAX_RATE:g} Hz",
-        )
-    return float(value)
-
-
-def _bids_channel(
-    path: Path, channels: Path, options: ImportOptions, width: int
-) -> tuple[int, str, str | None]:
-    """Return the position channel's column, name and unit (None: as the options say).
-
-    ``width`` is the number of columns in the first row of the motion file ``path``.
-    """
-    if not channels.is_file():
-        if width > 1:
-            raise InputError(
-                path,
-                f"{width} columns and no {channels.name} naming them: give the channels "
-                "file, or keep one column",
-            )
-        return 0, "1", None
-    _check_file(channels, MAX_SIDECAR_BYTES)
-    with _reading(channels, "TSV"):
-        table = pd.read_csv(channels, sep="\t", dtype=str, na_filter=False, encoding="utf-8-sig")
-    rows = [{str(key).strip(): str(value).strip() for key, value in row.items()}
-            for row in table.to_dict("records")]  # fmt: skip
-    names = [row.get("name", "") for row in rows]
-    if options.position_column in names:
-        index = names.index(options.position_column)
-    else:
-        positional = [i for i, row in enumerate(rows) if row.get("type", "").upper() == "POS"]
-        if len(rows) == 1:
-            positional = [0]
-        if len(positional) != 1:
-            shown = ", ".join(excerpt(name, quote=False) for name in names[:8])
-            raise InputError(
-                path,
-                f"{len(rows)} channels ({shown}): choose the position channel "
-                "with --position-column NAME",
-            )
-        index = positional[0]
-    if index >= width:
-        raise InputError(
-            channels,
-            f"channel {excerpt(names[index])} is column {index + 1}, but {path.name} has {width}",
-        )
-    unit = rows[index].get("units", "")
-    if unit in ("", "n/a"):
-        return index, names[index], None
-    if unit not in POSITION_UNITS:
-        raise InputError(
-            channels, f"unit {excerpt(unit)} of channel {excerpt(names[index])} is not mm, cm or m"
-        )
-    return index, names[index], unit
-
-
-def write_bids_motion(trial: Trial, path: str | Path) -> None:
-    """Write a uniformly sampled ``trial`` as BIDS-Motion ``*_motion.tsv`` + ``*_motion.json``."""
-    path = Path(path)
-    if not path.name.endswith("_motion.tsv"):
-        raise InputError(path, "BIDS-Motion file names end in _motion.tsv")
-    steps = np.diff(trial.times)
-    if not np.allclose(steps, steps[0], rtol=1e-9, atol=0):
-        raise InputError(path, "BIDS-Motion needs uniform sampling; resample the trial first")
-    sidecar = {
-        "TaskName": trial.label or "mirror",
-        "SamplingFrequency": 1.0 / float(steps.mean()),
-        "MotionChannelCount": 1,
-    }
-    write_atomic_text(path, "".join(f"{x!r}\n" for x in trial.positions.tolist()))
-    json_path = path.with_name(path.name[: -len(".tsv")] + ".json")
-    write_atomic_json(json_path, sidecar)
-
-
-def read_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
-    """Read one trial by extension; a ``.mat`` file must hold exactly one trial."""
-    trials = read_trial_file(path, options)
-    if len(trials) != 1:
-        raise InputError(path, f"holds {len(trials)} trials, expected one")
-    return trials[0]
-
-
-def read_trial_file(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> list[Trial]:
-    """Read the trials of one file by its extension (a ``.mat`` file may hold several).
-
-    Folders of files are read by `mirror_avatar.trial_sets.read_trial_set`.
-    """
-    path = Path(path)
-    suffix = "_motion.tsv" if path.name.endswith("_motion.tsv") else path.suffix.lower()
-    if suffix not in SUPPORTED:
-        raise InputError(
-            path,
-            f"unknown extension {suffix!r}; trial files are {', '.join(SUPPORTED)}"
-            + (" (a folder name? it does not exist)" if not suffix else ""),
-        )
-    if suffix == ".csv":
-        return [read_csv_trial(path, options)]
-    if suffix == ".parquet":
-        return [read_parquet_trial(path, options)]
-    if suffix == "_motion.tsv":
-        return [read_bids_motion(path, options)]
-    return read_mat_struct(path, MAT_DURATION)
-
-
-def write_trial(trial: Trial, path: str | Path) -> None:
-    """Write one trial by extension (``.csv``, ``.parquet`` or ``_motion.tsv``)."""
-    suffix = Path(path).suffix.lower()
-    if Path(path).name.endswith("_motion.tsv"):
-        write_bids_motion(trial, path)
-    elif suffix == ".parquet":
-        write_parquet_trial(trial, path)
-    elif suffix == ".csv":
-        write_csv_trial(trial, path)
-    else:
-        raise InputError(path, "can only write .csv, .parquet or _motion.tsv")

@@ -38,7 +38,8 @@ from pathlib import Path
 from mirror_avatar.bids.names import folder_repeats_entities, recording_stem
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions, excerpt
-from mirror_avatar.trial_io import SUPPORTED, read_sidecar_text, read_trial_file
+from mirror_avatar.trial_files import SUPPORTED, read_trial_file
+from mirror_avatar.trial_io import read_sidecar_text
 from mirror_avatar.trials import Trial
 
 GROUPINGS = ("directory", "bids", "file", "none", "pattern:REGEX", "map:FILE.csv")

@@ -14,7 +14,7 @@ from mirror_avatar.cli import main
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.session import load_session
 from mirror_avatar.specs import bundled_generator
-from mirror_avatar.trial_io import write_trial
+from mirror_avatar.trial_files import write_trial
 from mirror_avatar.trials import Trial
 
 

@@ -27,7 +27,7 @@ from mirror_avatar import trial_io
 from mirror_avatar.cli import main
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import ECHO_CHARS
-from mirror_avatar.trial_io import read_trial, read_trial_file
+from mirror_avatar.trial_files import read_trial, read_trial_file
 
 N = 200
 TIMES = (np.arange(N) / 100.0).tolist()
@@ -207,7 +207,7 @@ CASES: dict[str, tuple[Callable[[Path], tuple[Path, Path]], str]] = {
     ),
     "bids channel beyond the columns": (
         bids_file(channels="name\ttype\tunits\na\tMISC\tmm\nb\tPOS\tmm\n", named="channels"),
-        "is column 2, but",
+        "2 channels, but the first row",
     ),
     "bids channels unnamed": (
         bids_file(motion="0\t0\n" * N, channels=f"name\ttype\n{LONG}\tMISC\ny\tMISC\n"),

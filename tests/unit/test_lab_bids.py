@@ -11,11 +11,12 @@ from typing import Any
 import numpy as np
 import pytest
 
+from mirror_avatar.bids.writing import write_bids_motion
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import complete_graph, ring_graph
-from mirror_avatar.lab.bids import export_bids, read_bids_session
+from mirror_avatar.lab.bids import export_bids
 from mirror_avatar.session import Session, SessionWriter, load_session
-from mirror_avatar.trial_io import read_trial, write_bids_motion
+from mirror_avatar.trial_files import read_trial
 from mirror_avatar.trials import make_trial
 
 T = 0.03
@@ -191,7 +192,7 @@ def test_source_data_are_copies_of_the_trial_files(exported: Exported) -> None:
 
 def test_round_trip_is_exact(exported: Exported) -> None:
     for motion in exported.written:
-        back = read_bids_session(motion)
+        back = load_session(motion)
         source = source_of(motion, exported)
         np.testing.assert_array_equal(back.positions, source.positions)
         np.testing.assert_array_equal(back.velocities, source.velocities)
@@ -233,7 +234,7 @@ def test_an_incomplete_trial_is_exported_as_recorded_with_its_drop(exported: Exp
         assert info["MirrorGame"]["dropped"] == {"P2": 150}
         assert "P2" in info["SubjectArtefactDescription"]
         assert "150" in info["SubjectArtefactDescription"]
-        assert read_bids_session(motion).metadata["complete"] is False
+        assert load_session(motion).metadata["complete"] is False
     complete = next(p for p in exported.written if "dyad_run-1" in p.name)
     info = json.loads(complete.with_name(complete.name.replace(".tsv", ".json")).read_text())
     assert info["SubjectArtefactDescription"] == "n/a"
@@ -339,7 +340,7 @@ def test_a_motion_file_without_the_mirror_game_key_is_refused(tmp_path: Path) ->
     path = tmp_path / "sub-01_task-mirror_tracksys-pointer_motion.tsv"
     write_bids_motion(make_trial(t, 0.2 * np.sin(t), label="mirror"), path)
     with pytest.raises(InputError, match="not a mirror-avatar lab export.*signature"):
-        read_bids_session(path)
+        load_session(path)
 
 
 @pytest.mark.parametrize(
@@ -360,7 +361,7 @@ def test_damaged_channels_are_refused(
         motion.write_text("".join("\t".join(r.split("\t")[:-2]) + "\n"
                                   for r in motion.read_text().splitlines()))  # fmt: skip
     with pytest.raises(InputError, match=problem):
-        read_bids_session(motion)
+        load_session(motion)
 
 
 def test_rows_of_the_wrong_width_are_refused(exported: Exported, tmp_path: Path) -> None:
@@ -369,7 +370,7 @@ def test_rows_of_the_wrong_width_are_refused(exported: Exported, tmp_path: Path)
     lines[4] += "\t0.5"
     motion.write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match="row 5 has 9 values"):
-        read_bids_session(motion)
+        load_session(motion)
 
 
 def copy_recording(exported: Exported, folder: Path) -> Path:

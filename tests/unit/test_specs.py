@@ -14,7 +14,7 @@ from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.players import Observation, Player, RecordedPlayer, VirtualTrainer, check_player
 from mirror_avatar.specs import bundled_generator, cache_dir, load_player
-from mirror_avatar.trial_io import write_trial
+from mirror_avatar.trial_files import write_trial
 from mirror_avatar.trials import Trial
 
 

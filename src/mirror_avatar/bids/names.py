@@ -78,3 +78,13 @@ def folder_repeats_entities(folder: str, name: str) -> bool:
     if match is not None:
         return found.get(match.group(1)) == match.group(2)
     return folder == DATATYPE
+
+
+def channel_names(label: str, own: bool) -> tuple[str, str]:
+    """Names of a player's position and velocity channels in a lab export's recording.
+
+    The participant's own are ``position`` and ``velocity`` (read as their solo trial); every
+    other player's carry its label: ``position_<label>``, ``velocity_<label>``.
+    """
+    suffix = "" if own else f"_{label}"
+    return f"position{suffix}", f"velocity{suffix}"

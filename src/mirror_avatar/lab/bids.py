@@ -1,4 +1,4 @@
-"""BIDS-Motion export of lab sessions (BIDS 1.9.0, motion modality), and reading a trial back.
+"""BIDS-Motion export of lab sessions (BIDS 1.9.0, motion modality).
 
 A lab session folder holds, per trial n, ``trial-NN_session.csv`` and its sidecar
 ``trial-NN_session.json`` (`mirror_avatar.session.SessionWriter`), whose ``metadata`` describes
@@ -18,18 +18,18 @@ slot's label, ``<acq>`` the session id and ``<device>`` the slot's input device 
 number. Channels are the participant's own ``position`` and ``velocity``, then
 ``position_<label>`` and ``velocity_<label>`` of every other player in player order, in playing
 range units (-0.5..0.5; per second for velocities). The non-standard ``MirrorGame`` key of each
-``_motion.json`` describes the trial so that `read_bids_session` rebuilds the N-player session;
-the participant's own file stays readable as their solo trial by
-`mirror_avatar.trial_io.read_trial` (it reads the channel named ``position``).
+``_motion.json`` describes the trial so that `mirror_avatar.session.load_session` rebuilds the
+N-player session (`mirror_avatar.bids.reading.read_lab_recording`); the participant's own file
+stays readable as their solo trial by `mirror_avatar.bids.reading.read_bids_motion` (it reads
+the channel named ``position``), so every command that reads trials reads the export. Names,
+values and tables follow the rules of `mirror_avatar.bids`.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import os
 import re
-from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -39,9 +39,12 @@ from numpy.typing import NDArray
 
 from mirror_avatar import __version__
 from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.bids.names import MISSING, bids_label, channel_names
+from mirror_avatar.bids.reading import GAME_KEY
+from mirror_avatar.bids.writing import one_line, tsv_table, tsv_values
 from mirror_avatar.errors import InputError
-from mirror_avatar.session import MIN_SESSION_SAMPLES, Session, load_session
-from mirror_avatar.trial_io import MAX_FILE_BYTES, read_sidecar_text
+from mirror_avatar.session import Session, load_session
+from mirror_avatar.trial_io import read_sidecar_text
 
 Array = NDArray[np.float64]
 
@@ -54,9 +57,6 @@ TASK = "mirrorgame"
 TRIAL_PATTERN = "trial-*_session.csv"
 """Trial files of a lab session folder."""
 
-GAME_KEY = "MirrorGame"
-"""Non-standard ``_motion.json`` key describing the trial (players, graph, drops)."""
-
 GAME_FORMAT, GAME_VERSION = "mirror-avatar/lab-bids", 1
 """Format name and version written under `GAME_KEY`."""
 
@@ -65,9 +65,6 @@ CHANNEL_COLUMNS = ("name", "component", "type", "tracked_point", "units", "descr
 
 PARTICIPANT_COLUMNS = ("participant_id", "label", "device")
 """Columns `export_bids` fills in ``participants.tsv`` (others already there are kept)."""
-
-MISSING = "n/a"
-"""How BIDS writes a missing value."""
 
 CONDITIONS = {
     "solo": "one player moves alone",
@@ -98,20 +95,6 @@ class _LabTrial:
     def humans(self) -> list[int]:
         """Return the indices of the human slots."""
         return [k for k, slot in enumerate(self.slots) if slot["kind"] == "human"]
-
-
-def bids_label(text: str, source: str | os.PathLike[str] | None = None) -> str:
-    """Return ``text`` as a BIDS label: its letters and digits, other characters removed.
-
-    Raises
-    ------
-    InputError
-        If nothing is left (naming ``source``).
-    """
-    label = re.sub(r"[^A-Za-z0-9]", "", text)
-    if not label:
-        raise InputError(source, f"{text!r} has no letter or digit to make a BIDS label")
-    return label
 
 
 def motion_stem(subject: str, device: str, acquisition: str, run: int) -> str:
@@ -322,10 +305,10 @@ def _write_recording(trial: _LabTrial, slot: int, out_dir: Path) -> Path:
         [array[j] for j in order for array in (session.positions, session.velocities)]
     )
     motion = folder / f"{stem}_motion.tsv"
-    write_atomic_text(motion, _tsv_values(values.T))
-    write_atomic_text(folder / f"{stem}_channels.tsv", _tsv_table(CHANNEL_COLUMNS, channels))
+    write_atomic_text(motion, tsv_values(values.T))
+    write_atomic_text(folder / f"{stem}_channels.tsv", tsv_table(CHANNEL_COLUMNS, channels))
     write_atomic_json(folder / f"{stem}_motion.json", _motion_sidecar(trial, slot, len(channels)))
-    write_atomic_text(folder / f"{stem}_events.tsv", _tsv_table(EVENT_COLUMNS, _events(trial)))
+    write_atomic_text(folder / f"{stem}_events.tsv", tsv_table(EVENT_COLUMNS, _events(trial)))
     return motion
 
 
@@ -368,17 +351,11 @@ def _player_order(slot: int, n_players: int) -> list[int]:
     return [slot, *(j for j in range(n_players) if j != slot)]
 
 
-def _channel_names(label: str, own: bool) -> tuple[str, str]:
-    """Names of a player's position and velocity channels in a participant's file."""
-    suffix = "" if own else f"_{label}"
-    return f"position{suffix}", f"velocity{suffix}"
-
-
 def _channel_rows(trial: _LabTrial, player: int, own: bool) -> list[dict[str, str]]:
     """Make a player's ``_channels.tsv`` rows: position (POS), then velocity (VEL)."""
     slot = trial.slots[player]
-    who = _one_line(f"{slot['label']} ({slot['kind']}, {slot['role']})")
-    position, velocity = _channel_names(slot["label"], own)
+    who = one_line(f"{slot['label']} ({slot['kind']}, {slot['role']})")
+    position, velocity = channel_names(slot["label"], own)
     common = {"component": "x", "tracked_point": slot["label"], "units": MISSING}
     return [
         common | {"name": position, "type": "POS",
@@ -387,27 +364,6 @@ def _channel_rows(trial: _LabTrial, player: int, own: bool) -> list[dict[str, st
                   "description": f"velocity of {who} in playing range units per second "
                   "(playing range units: -0.5..0.5)"},
     ]  # fmt: skip
-
-
-def _one_line(text: str) -> str:
-    """``text`` without tabs or line breaks, so that it fits one TSV cell."""
-    return " ".join(text.split())
-
-
-def _tsv_values(rows: Array) -> str:
-    """Rows of numbers as headerless TSV: each value exactly (``repr``), NaN as ``n/a``."""
-    return "".join(
-        "\t".join(MISSING if math.isnan(v) else repr(v) for v in row) + "\n"
-        for row in rows.tolist()
-    )
-
-
-def _tsv_table(columns: Iterable[str], rows: Iterable[dict[str, str]]) -> str:
-    """Write a TSV table with a header; cells missing from a row are ``n/a``."""
-    columns = list(columns)
-    lines = ["\t".join(columns)]
-    lines += ["\t".join(_one_line(row.get(c, MISSING)) or MISSING for c in columns) for row in rows]
-    return "\n".join(lines) + "\n"
 
 
 def _motion_sidecar(trial: _LabTrial, slot: int, n_channels: int) -> dict[str, Any]:
@@ -510,7 +466,7 @@ def _write_participants(
 ) -> None:
     """Write ``participants.tsv`` (sorted by id) and ``participants.json``."""
     ordered = [rows[key] for key in sorted(rows)]
-    write_atomic_text(out_dir / "participants.tsv", _tsv_table(columns, ordered))
+    write_atomic_text(out_dir / "participants.tsv", tsv_table(columns, ordered))
     write_atomic_json(out_dir / "participants.json", described | _COLUMN_INFO)
 
 
@@ -555,170 +511,3 @@ sampled at the control period. The MirrorGame key of each _motion.json describes
 (condition, players, coupling graph, connection drops). sourcedata/<session id>/ holds the
 original recordings.
 """
-
-
-def read_bids_session(path: str | os.PathLike[str]) -> Session:
-    """Read a ``_motion.tsv`` `export_bids` wrote back as its trial's N-player session.
-
-    Players are in the original order (from the ``MirrorGame`` key of the ``_motion.json``),
-    with their positions and velocities exactly as recorded; controls and references are NaN.
-    Sample times are ``start_time + k T`` (s), T = 1 / ``SamplingFrequency`` the period. The
-    metadata holds ``lab`` (session id, trial, condition, creation time, slots), ``complete``,
-    ``dropped``, ``held``, ``seed`` when known, and ``bids`` (this file, its participant and
-    their slot index).
-
-    Raises
-    ------
-    InputError
-        Not a ``_motion.tsv``, a missing or unreadable sidecar or ``_channels.tsv``, no
-        ``MirrorGame`` key (not a lab export), a malformed one, missing channels, rows of the
-        wrong width, values that are not numbers, or too few samples.
-    """
-    path = Path(path)
-    if not path.name.endswith("_motion.tsv"):
-        raise InputError(path, "not a BIDS-Motion file (names end in _motion.tsv)")
-    stem = path.name.removesuffix("_motion.tsv")
-    sidecar = path.with_name(f"{stem}_motion.json")
-    game, rate = _read_game(sidecar)
-    names = _read_channel_names(path.with_name(f"{stem}_channels.tsv"))
-    values = _read_values(path, len(names))
-    slots, slot = game["slots"], game["slot"]
-    columns = {name: k for k, name in enumerate(names)}
-    arrays = [_player_channels(path, values, columns, s["label"], j == slot)
-              for j, s in enumerate(slots)]  # fmt: skip
-    positions = np.vstack([p for p, _ in arrays])
-    velocities = np.vstack([v for _, v in arrays])
-    start = float(game.get("start_time", 0.0))
-    times = np.asarray(start + np.arange(values.shape[0]) * (1.0 / rate), dtype=np.float64)
-    try:
-        return Session(
-            times,
-            positions,
-            velocities,
-            np.full_like(positions, np.nan),
-            np.full_like(positions, np.nan),
-            labels=tuple(s["label"] for s in slots),
-            roles=tuple(s["role"] for s in slots),
-            graph=np.asarray(game["graph"]),
-            metadata=_read_metadata(path, game),
-        )
-    except (InputError, ValueError, TypeError) as error:
-        problem = error.problem if isinstance(error, InputError) else "malformed graph"
-        raise InputError(sidecar, f"{GAME_KEY}: {problem}") from None
-
-
-def _read_game(sidecar: Path) -> tuple[dict[str, Any], float]:
-    """Return the checked ``MirrorGame`` key and the sampling frequency (Hz) of a sidecar."""
-    if not sidecar.is_file():
-        raise InputError(sidecar, "no such file (the sidecar of the motion file)")
-    try:
-        info = json.loads(read_sidecar_text(sidecar))
-    except ValueError:
-        raise InputError(sidecar, "not valid JSON") from None
-    if not isinstance(info, dict):
-        raise InputError(sidecar, "not a JSON object")
-    if GAME_KEY not in info:
-        raise InputError(
-            sidecar,
-            f"no {GAME_KEY} key: not a mirror-avatar lab export (`mirror-avatar signature` and "
-            "`mirror-avatar generator fit` read single-participant motion files)",
-        )
-    rate = info.get("SamplingFrequency")
-    if isinstance(rate, bool) or not isinstance(rate, int | float) or not rate > 0:
-        raise InputError(sidecar, f"SamplingFrequency {rate!r} is not a positive number of Hz")
-    return _check_game(sidecar, info[GAME_KEY]), float(rate)
-
-
-def _check_game(sidecar: Path, game: object) -> dict[str, Any]:
-    """Check the slots, slot index and graph of a ``MirrorGame`` key."""
-    if not isinstance(game, dict):
-        raise InputError(sidecar, f"{GAME_KEY} is not a JSON object")
-    slots = game.get("slots")
-    if not isinstance(slots, list) or not slots:
-        raise InputError(sidecar, f"{GAME_KEY}: slots must be a non-empty list")
-    for k, slot in enumerate(slots):
-        if not (isinstance(slot, dict) and isinstance(slot.get("label"), str)
-                and isinstance(slot.get("role"), str)):  # fmt: skip
-            raise InputError(sidecar, f"{GAME_KEY}: slot {k} has no text label and role")
-    slot = game.get("slot")
-    if isinstance(slot, bool) or not isinstance(slot, int) or not 0 <= slot < len(slots):
-        raise InputError(sidecar, f"{GAME_KEY}: slot {slot!r} is not one of {len(slots)} slots")
-    if not isinstance(game.get("graph"), list):
-        raise InputError(sidecar, f"{GAME_KEY}: graph must be a list of lists")
-    start = game.get("start_time", 0.0)
-    if isinstance(start, bool) or not isinstance(start, int | float) or not math.isfinite(start):
-        raise InputError(sidecar, f"{GAME_KEY}: start_time {start!r} is not a number of seconds")
-    return game
-
-
-def _read_channel_names(channels: Path) -> list[str]:
-    """Return the channel names of a ``_channels.tsv``, in column order."""
-    if not channels.is_file():
-        raise InputError(channels, "no such file (the channels of the motion file)")
-    lines = [line for line in read_sidecar_text(channels).splitlines() if line.strip()]
-    header = [cell.strip() for cell in lines[0].split("\t")] if lines else []
-    if "name" not in header:
-        raise InputError(channels, "no 'name' column")
-    column = header.index("name")
-    names = []
-    for number, line in enumerate(lines[1:], start=2):
-        cells = line.split("\t")
-        if len(cells) != len(header):
-            raise InputError(channels, f"row {number} has {len(cells)} cells for {len(header)}")
-        names.append(cells[column].strip())
-    if len(set(names)) != len(names):
-        raise InputError(channels, "two channels share a name")
-    return names
-
-
-def _read_values(path: Path, width: int) -> Array:
-    """Read a headerless motion TSV of ``width`` columns, shape (n, width); ``n/a`` is NaN."""
-    if not path.is_file():
-        raise InputError(path, "no such file")
-    if path.stat().st_size > MAX_FILE_BYTES:
-        raise InputError(path, f"over the limit of {MAX_FILE_BYTES:,} bytes for files read")
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except UnicodeDecodeError:
-        raise InputError(path, "not UTF-8 text") from None
-    rows = [_parse_row(path, number, line, width) for number, line in enumerate(lines, start=1)]
-    if len(rows) < MIN_SESSION_SAMPLES:
-        raise InputError(path, f"{len(rows)} samples, fewer than {MIN_SESSION_SAMPLES}")
-    return np.array(rows, dtype=np.float64)
-
-
-def _parse_row(path: Path, number: int, line: str, width: int) -> list[float]:
-    """Parse one motion TSV row of ``width`` values (``n/a`` is NaN)."""
-    cells = line.split("\t")
-    if len(cells) != width:
-        raise InputError(
-            path, f"row {number} has {len(cells)} values but the channels file names {width}"
-        )
-    try:
-        return [math.nan if cell.strip() == MISSING else float(cell) for cell in cells]
-    except ValueError:
-        raise InputError(path, f"row {number} holds a value that is not a number") from None
-
-
-def _player_channels(
-    path: Path, values: Array, columns: dict[str, int], label: str, own: bool
-) -> tuple[Array, Array]:
-    """Return a player's positions and velocities, shape (n,) each."""
-    names = _channel_names(label, own)
-    missing = [name for name in names if name not in columns]
-    if missing:
-        raise InputError(path, f"missing channel(s) {', '.join(missing)} of player {label!r}")
-    return values[:, columns[names[0]]], values[:, columns[names[1]]]
-
-
-def _read_metadata(path: Path, game: dict[str, Any]) -> dict[str, Any]:
-    """Make the session metadata from a ``MirrorGame`` key."""
-    lab_keys = ("session_id", "trial", "condition", "created_utc", "slots")
-    metadata: dict[str, Any] = {
-        "lab": {key: game.get(key) for key in lab_keys},
-        "complete": game.get("complete") is True,
-        "dropped": _mapping(game.get("dropped")),
-        "held": _mapping(game.get("held")),
-        "bids": {"path": str(path), "participant": game.get("participant"), "slot": game["slot"]},
-    }
-    return metadata if "seed" not in game else metadata | {"seed": game["seed"]}

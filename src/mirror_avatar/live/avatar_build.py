@@ -20,7 +20,7 @@ from mirror_avatar.experiments.personal_avatar import (
     default_partners,
     save_avatar,
 )
-from mirror_avatar.trial_io import read_trial
+from mirror_avatar.trial_files import read_trial
 
 MIN_SOLO_TRIALS = 2
 """Fewest solo trials a build starts from (**choice**: cross-validation needs two)."""
