@@ -45,3 +45,39 @@ def test_evaluate_reports_progress(sessions: list[Path], tmp_path: Path, capsys)
     names = [row["session"] for row in metrics["progress"]["progress"]]
     assert names == [f"session-{k}/session.parquet" for k in (1, 2, 3)]
     assert "Progress of player 0 across the sessions" in (out / "report.html").read_text()
+
+
+def test_sessions_without_a_start_time_keep_the_order_given_and_say_so(
+    sessions: list[Path], capsys
+) -> None:
+    assert main(["evaluate", *map(str, reversed(sessions)), "--progress"]) == 0
+    printed = capsys.readouterr().out
+    assert "(in the order given: 3 record no start time (session.parquet" in printed
+    table = printed[printed.index("progress of player 0") :]
+    assert table.index("session-3/") < table.index("session-1/")
+
+
+def test_live_trials_are_followed_in_the_order_they_were_played(zhai_trials, tmp_path, capsys):
+    """File names that sort against time: the start times the trials recorded decide."""
+    from mirror_avatar.live.protocol import StartRequest
+    from mirror_avatar.live.session import start_trial
+
+    created = []
+    for k in range(3):
+        trial = start_trial(tmp_path, StartRequest("solo", "P01", 10.0), None, None)
+        for x in zhai_trials[9 + k].resampled(1 / 0.03).positions[: trial.n_ticks]:
+            trial.update_person(float(x), None)
+            trial.tick()
+        trial.finish(True, "completed")
+        (session,) = set((tmp_path / "P01").glob("*_session.csv")) - set(created)
+        created.append(session)
+    for k, session in enumerate(created):  # the first made was played last
+        sidecar = session.with_suffix(".json")
+        info = json.loads(sidecar.read_text())
+        info["metadata"]["started_utc"] = f"2026-01-0{3 - k}T09:00:00+00:00"
+        sidecar.write_text(json.dumps(info))
+    assert main(["evaluate", str(tmp_path / "P01"), "--progress"]) == 0
+    printed = capsys.readouterr().out
+    assert "(ordered by the start time each recorded)" in printed
+    table = printed[printed.index("progress of player 0") :].splitlines()[3:6]
+    assert [line.split()[1] for line in table] == [f"P01/{p.name}" for p in reversed(created)]

@@ -15,7 +15,7 @@ from mirror_avatar.cli.simulate import format_metrics
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_progress, plot_session
 from mirror_avatar.metrics import TRIM, session_metrics
-from mirror_avatar.metrics.progress import progress_table
+from mirror_avatar.metrics.progress import order_by_start, progress_table
 from mirror_avatar.report import Section, write_report
 from mirror_avatar.session import Session, load_session
 
@@ -81,9 +81,9 @@ def summary_row(path: Path, session: Session, metrics: dict[str, Any]) -> dict[s
 @click.option(
     "--progress",
     is_flag=True,
-    help="Also follow player 0 through the sessions in the order given (folders: by file "
-    "name, which for live trials is by time): drift of their IMS from the first session, EMD "
-    "to the partner, CV and RMS.",
+    help="Also follow player 0 through the sessions in the order they were played (by the start "
+    "time each recorded; in the order given when one has none, which the output says): drift "
+    "of their IMS from the first session, EMD to the partner, CV and RMS.",
 )
 def evaluate(
     paths: tuple[Path, ...], trim: float, as_json: bool, out_dir: Path | None, progress: bool
@@ -111,22 +111,35 @@ def evaluate(
         click.echo(rows.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
     extra = []
     if progress:
-        names = [f"{path.parent.name}/{path.name}" for path, _, _ in results]
-        table = progress_table([(n, s) for n, (_, s, _) in zip(names, results, strict=True)], trim)
-        click.echo("progress of player 0 across the sessions:")
+        ordered, untimed = order_by_start([(path, s) for path, s, _ in results])
+        order = _order_note(untimed)
+        names = [f"{path.parent.name}/{path.name}" for path, _ in ordered]
+        table = progress_table([(n, s) for n, (_, s) in zip(names, ordered, strict=True)], trim)
+        click.echo(f"progress of player 0 across the sessions ({order}):")
         click.echo(table.to_string(float_format=lambda v: f"{v:.4f}"))
-        extra.append(progress_section(table))
+        extra.append(progress_section(table, order))
     if out_dir is not None:
         write_evaluation(out_dir, results, rows, trim, extra)
         click.echo(f"wrote {out_dir.resolve()}")
 
 
-def progress_section(table: pd.DataFrame) -> Section:
-    """Make the report section of a `progress_table`: the table and two figures."""
+def _order_note(untimed: list[Path]) -> str:
+    """Say how the sessions were ordered (`order_by_start`'s ``untimed``)."""
+    if not untimed:
+        return "ordered by the start time each recorded"
+    shown = ", ".join(path.name for path in untimed[:3]) + (", ..." if len(untimed) > 3 else "")
+    return f"in the order given: {len(untimed)} record no start time ({shown})"
+
+
+def progress_section(table: pd.DataFrame, order: str) -> Section:
+    """Make the report section of a `progress_table`: the table and two figures.
+
+    ``order`` says how the sessions were ordered.
+    """
     return Section(
         key="progress",
         title="Progress of player 0 across the sessions",
-        text=["Sessions in the order given. EMD to first session: how far player 0's velocity "
+        text=[f"Sessions {order}. EMD to first session: how far player 0's velocity "
               "IMS has moved from their first session's; CV and RMS: their coordination."],
         tables={"Per session": table},
         figures={

@@ -1,21 +1,75 @@
 """A participant's progress over their sessions: their own motion drifting, their coordination.
 
 METHODS section 10: in a curriculum, a patient's own IMS should move and their coordination
-should hold or improve from session to session. `progress_table` follows one player (by index,
-player 0 by default: the person in a live trial) through sessions in the order given: the EMD of
-their velocity IMS to their first session's, to their partner's in the same session, and the
+should hold or improve from session to session. `order_by_start` puts sessions in the order
+they were played, by the start time each recorded; `progress_table` follows one player (by
+index, player 0 by default: the person in a live trial) through sessions in that order: the EMD
+of their velocity IMS to their first session's, to their partner's in the same session, and the
 session's CV and RMS (`mirror_avatar.metrics.summary.session_metrics`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from datetime import UTC, datetime
+from typing import Any, TypeVar
 
 import pandas as pd
 
 from mirror_avatar.metrics.summary import session_metrics
 from mirror_avatar.session import Session
 from mirror_avatar.signature import compute_emd, compute_ims
+
+START_KEYS = ("started_utc", "created_utc")
+"""Metadata keys of a session's start time (ISO 8601), in order of preference: a live trial's
+``started_utc`` (when its clock started), else the ``created_utc`` of a live or lab trial file;
+a lab export's is ``lab.created_utc`` with the trial number after it."""
+
+Item = TypeVar("Item")
+
+
+def recorded_start(session: Session) -> tuple[datetime, int] | None:
+    """Return when ``session`` was played, as it recorded it: (start time, lab trial number).
+
+    The trial number (0 when there is none) orders the trials of one lab session, which a lab
+    export stamps with the session's creation time. None when no readable time is recorded.
+    """
+    metadata = session.metadata
+    found = metadata.get("lab")
+    lab: dict[str, Any] = found if isinstance(found, dict) else {}
+    stamps = [metadata.get(key) for key in START_KEYS] + [lab.get("created_utc")]
+    trial = lab.get("trial")
+    number = trial if isinstance(trial, int) and not isinstance(trial, bool) else 0
+    for stamp in stamps:
+        if isinstance(stamp, str):
+            try:
+                moment = datetime.fromisoformat(stamp)
+            except ValueError:
+                continue
+            return (moment if moment.tzinfo else moment.replace(tzinfo=UTC)), number
+    return None
+
+
+def order_by_start(
+    sessions: Sequence[tuple[Item, Session]],
+) -> tuple[list[tuple[Item, Session]], list[Item]]:
+    """Order sessions by their recorded start (`recorded_start`), earliest first.
+
+    Returns
+    -------
+    ordered : list
+        The sessions by start time (ties in the order given) when every session recorded one;
+        otherwise in the order given.
+    untimed : list
+        The names of the sessions without a recorded start time (empty when ordered by time).
+    """
+    starts = [recorded_start(session) for _, session in sessions]
+    untimed = [name for (name, _), start in zip(sessions, starts, strict=True) if start is None]
+    if untimed:
+        return list(sessions), untimed
+    timed = [start for start in starts if start is not None]
+    order = sorted(range(len(sessions)), key=timed.__getitem__)
+    return [sessions[k] for k in order], []
 
 
 def progress_table(
