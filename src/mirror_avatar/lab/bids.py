@@ -410,7 +410,7 @@ def _artefacts(trial: _LabTrial, slot: int) -> str:
 
 
 def _game_info(trial: _LabTrial, slot: int) -> dict[str, Any]:
-    """Make the ``MirrorGame`` key: what `read_bids_session` needs to rebuild the trial."""
+    """Make the ``MirrorGame`` key: what `mirror_avatar.bids.reading` needs to rebuild the trial."""
     metadata = trial.session.metadata
     info: dict[str, Any] = {
         "format": GAME_FORMAT,
