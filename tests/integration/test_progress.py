@@ -44,7 +44,10 @@ def test_evaluate_reports_progress(sessions: list[Path], tmp_path: Path, capsys)
     metrics = json.loads((out / "metrics.json").read_text())
     names = [row["session"] for row in metrics["progress"]["progress"]]
     assert names == [f"session-{k}/session.parquet" for k in (1, 2, 3)]
-    assert "Progress of player 0 across the sessions" in (out / "report.html").read_text()
+    page = (out / "report.html").read_text()
+    assert "Progress of player 0 across the sessions" in page
+    for k in (1, 2, 3):  # three files named session.parquet: each session keeps its figures
+        assert f"session-{k}/session.parquet: positions" in page
 
 
 def test_sessions_without_a_start_time_keep_the_order_given_and_say_so(
@@ -80,4 +83,4 @@ def test_live_trials_are_followed_in_the_order_they_were_played(zhai_trials, tmp
     printed = capsys.readouterr().out
     assert "(ordered by the start time each recorded)" in printed
     table = printed[printed.index("progress of player 0") :].splitlines()[3:6]
-    assert [line.split()[1] for line in table] == [f"P01/{p.name}" for p in reversed(created)]
+    assert [line.split()[1] for line in table] == [p.name for p in reversed(created)]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +19,7 @@ from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.metrics.progress import order_by_start, progress_table
 from mirror_avatar.report import Section, write_report
 from mirror_avatar.session import Session, load_session
+from mirror_avatar.trial_sets import common_root
 
 SESSION_FILES = (".csv", ".parquet")
 SUMMARY_KEYS = (
@@ -50,6 +52,15 @@ def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], 
         if len(found) == before:
             raise InputError(path, "no session files in it (time, position_0, ... columns)")
     return found, notes
+
+
+def session_names(paths: list[Path]) -> list[str]:
+    """Name sessions by their paths below the folder they share (one file: its name).
+
+    Never by the file name alone: ``p1/session.parquet`` and ``p2/session.parquet`` stay apart.
+    """
+    root = common_root(paths)
+    return [Path(os.path.abspath(path)).relative_to(root).as_posix() for path in paths]
 
 
 def summary_row(path: Path, session: Session, metrics: dict[str, Any]) -> dict[str, Any]:
@@ -113,7 +124,7 @@ def evaluate(
     if progress:
         ordered, untimed = order_by_start([(path, s) for path, s, _ in results])
         order = _order_note(untimed)
-        names = [f"{path.parent.name}/{path.name}" for path, _ in ordered]
+        names = session_names([path for path, _ in ordered])
         table = progress_table([(n, s) for n, (_, s) in zip(names, ordered, strict=True)], trim)
         click.echo(f"progress of player 0 across the sessions ({order}):")
         click.echo(table.to_string(float_format=lambda v: f"{v:.4f}"))
@@ -161,9 +172,10 @@ def write_evaluation(
     """Write the table (CSV), every session's metrics (JSON) and an HTML page with figures."""
     out_dir.mkdir(parents=True, exist_ok=True)
     write_atomic_text(out_dir / "sessions.csv", rows.to_csv(index=False))
+    names = session_names([path for path, _, _ in results])
     figures = {
-        f"{path.name}: {name.replace('_', ' ')}": figure
-        for path, session, _ in results
+        f"{shown}: {name.replace('_', ' ')}": figure
+        for shown, (_, session, _) in zip(names, results, strict=True)
         for name, figure in plot_session(session, trim).items()
     }
     section = Section(
