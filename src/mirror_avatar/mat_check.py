@@ -14,7 +14,7 @@ import math
 import mmap
 import struct
 import zlib
-from pathlib import Path
+from typing import IO
 
 NUMBER_TYPES = frozenset({1, 2, 3, 4, 5, 6, 7, 9, 12, 13})
 """Data-type codes of numbers (miINT8 ... miUINT64): the values of numeric arrays."""
@@ -46,13 +46,14 @@ class DamagedFile(Exception):
     """A MATLAB file's structure is damaged; the message says how, for an error line."""
 
 
-def mat_problem(path: Path, limit: int) -> str:
+def mat_problem(handle: IO[bytes], limit: int) -> str:
     """Name the first structural problem of a MATLAB v5 file, or return ``""``.
 
     Parameters
     ----------
-    path
-        The file; one that is not a level-5 MAT-file (a v4 file, text) is left to SciPy (``""``).
+    handle
+        The file, open for reading in binary (`mirror_avatar.user_files.open_regular`); one that
+        is not a level-5 MAT-file (a v4 file, text) is left to SciPy (``""``).
     limit
         Most bytes all compressed variables may inflate to, together.
 
@@ -61,20 +62,20 @@ def mat_problem(path: Path, limit: int) -> str:
     OSError
         The file cannot be read.
     """
-    with path.open("rb") as handle:
-        header = handle.read(128)
-        order = {b"IM": "<", b"MI": ">"}.get(header[126:128])
-        if (
-            len(header) < 128
-            or order is None
-            or struct.unpack_from(order + "H", header, 124)[0] != 0x0100
-        ):
-            return ""
-        with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as data:
-            try:
-                _walk_variables(data, order, limit)
-            except (DamagedFile, zlib.error, struct.error) as error:
-                return str(error) or type(error).__name__
+    handle.seek(0)
+    header = handle.read(128)
+    order = {b"IM": "<", b"MI": ">"}.get(header[126:128])
+    if (
+        len(header) < 128
+        or order is None
+        or struct.unpack_from(order + "H", header, 124)[0] != 0x0100
+    ):
+        return ""
+    with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as data:
+        try:
+            _walk_variables(data, order, limit)
+        except (DamagedFile, zlib.error, struct.error) as error:
+            return str(error) or type(error).__name__
     return ""
 
 

@@ -33,7 +33,6 @@ does not know) is parsed again in chunks of `PARSE_CHUNK_ROWS` rows to name the 
 from __future__ import annotations
 
 import json
-import stat
 import warnings
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
@@ -59,6 +58,13 @@ from mirror_avatar.importing import (
 )
 from mirror_avatar.mat_check import mat_problem
 from mirror_avatar.trials import MAX_RATE, MIN_RATE, Trial, make_trial
+from mirror_avatar.user_files import (
+    check_regular,
+    open_regular,
+    parse_json,
+    read_text,
+    size_limit,
+)
 
 MAX_FILE_BYTES = 2**30
 """Largest trial file read, and the most a MATLAB file's compressed variables may inflate to
@@ -84,25 +90,6 @@ MISSING_SPELLINGS = (*MISSING_CELLS, *(cell.upper() for cell in MISSING_CELLS), 
 space) are read by `mirror_avatar.importing.parse_cells`."""
 
 Array = NDArray[np.float64]
-
-
-def _check_file(path: Path, limit: int = MAX_FILE_BYTES) -> None:
-    """Refuse a path that is not a readable regular file of at most ``limit`` bytes."""
-    try:
-        status = path.stat()
-    except FileNotFoundError:
-        raise InputError(path, "no such file") from None
-    except OSError as error:
-        raise InputError(path, f"cannot be read ({error.strerror})") from None
-    if not stat.S_ISREG(status.st_mode):
-        raise InputError(path, "not a regular file")
-    if status.st_size > limit:
-        raise InputError(path, f"{status.st_size:,} bytes, over the limit {_size(limit)}")
-
-
-def _size(limit: int) -> str:
-    """Describe a byte limit for an error line: exact, and in MiB."""
-    return f"of {limit:,} bytes ({limit / 2**20:g} MiB) for files read"
 
 
 @contextmanager
@@ -133,9 +120,7 @@ def read_sidecar_text(path: Path) -> str:
     InputError
         Missing, too large, unreadable or not UTF-8.
     """
-    _check_file(path, MAX_SIDECAR_BYTES)
-    with _reading(path, "text"):
-        return path.read_text(encoding="utf-8-sig")
+    return read_text(path, MAX_SIDECAR_BYTES)
 
 
 def _listing(values: Sequence[object], count: int = 8) -> str:
@@ -155,20 +140,9 @@ def _json_object(text: str | bytes, source: Path, what: str) -> dict[str, Any]:
     """Parse ``text`` (``what``, in ``source``) as a JSON object of at most `MAX_SIDECAR_BYTES`."""
     if len(text) > MAX_SIDECAR_BYTES:
         raise InputError(
-            source, f"{what} is {len(text):,} bytes, over the limit {_size(MAX_SIDECAR_BYTES)}"
+            source, f"{what} is {len(text):,} bytes, over the limit {size_limit(MAX_SIDECAR_BYTES)}"
         )
-    try:
-        value = json.loads(text)
-    except json.JSONDecodeError as error:
-        raise InputError(
-            source, f"{what} is not JSON ({error.msg} at line {error.lineno})"
-        ) from None
-    except (ValueError, RecursionError):
-        raise InputError(
-            source,
-            f"{what} is not JSON that can be read (not UTF-8, nested too deeply or a number "
-            "too long)",
-        ) from None
+    value = parse_json(text, source, what)
     if not isinstance(value, dict):
         raise InputError(source, f"{what} is {_json_kind(value)}, not a JSON object")
     return value
@@ -192,8 +166,8 @@ def _name_in(info: dict[str, Any], key: str, source: Path, what: str) -> str:
 
 def _first_row(path: Path, sep: str) -> list[str]:
     """Return the cells of the first non-blank row of a CSV or TSV file, stripped."""
-    with _reading(path, "CSV" if sep == "," else "TSV"):
-        frame = pd.read_csv(path, sep=sep, header=None, nrows=1, dtype=str, na_filter=False,
+    with _reading(path, "CSV" if sep == "," else "TSV"), open_regular(path, MAX_FILE_BYTES) as file:
+        frame = pd.read_csv(file, sep=sep, header=None, nrows=1, dtype=str, na_filter=False,
                             encoding="utf-8-sig", skipinitialspace=True)  # fmt: skip
     return [str(cell).strip() for cell in frame.iloc[0]]
 
@@ -227,16 +201,19 @@ def _read_numbers(
     }  # fmt: skip
     with _reading(path, "CSV" if sep == "," else "TSV"):
         try:
-            frame = pd.read_csv(path, dtype=np.float64, keep_default_na=False,
-                                na_values=list(MISSING_SPELLINGS), **common)  # fmt: skip
+            with open_regular(path, MAX_FILE_BYTES) as file:
+                frame = pd.read_csv(file, dtype=np.float64, keep_default_na=False,
+                                    na_values=list(MISSING_SPELLINGS), **common)  # fmt: skip
             values = [frame.iloc[:, k].to_numpy(np.float64) for k in range(len(usecols))]
         except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError):
             raise
         except ValueError:
             names = [labels[columns.index(column)] for column in usecols]
-            with pd.read_csv(path, dtype=str, na_filter=False, chunksize=PARSE_CHUNK_ROWS,
-                             **common) as chunks:  # fmt: skip
-                values = _parse_chunks(path, chunks, names, first_row)
+            with open_regular(path, MAX_FILE_BYTES) as file:
+                chunks = pd.read_csv(file, dtype=str, na_filter=False,
+                                     chunksize=PARSE_CHUNK_ROWS, **common)  # fmt: skip
+                with chunks:
+                    values = _parse_chunks(path, chunks, names, first_row)
     if values[0].size > MAX_SAMPLES:
         raise InputError(path, f"more than {MAX_SAMPLES:,} rows, the limit for trial files")
     return [values[usecols.index(column)] for column in columns]
@@ -293,17 +270,19 @@ def read_mat_struct(
         is not a vector of real numbers, or any `make_trial` problem.
     """
     path = Path(path)
-    _check_file(path)
-    with _reading(path, "MATLAB"):
-        problem = mat_problem(path, MAX_FILE_BYTES)
-    if problem:
-        raise InputError(path, f"not a readable MATLAB file ({problem})")
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            contents = scipy.io.loadmat(path)
-    except Exception as error:  # scipy raises many types (and warnings) for corrupt files
-        raise InputError(path, f"not a readable MATLAB file ({type(error).__name__})") from None
+    check_regular(path, MAX_FILE_BYTES)
+    with open_regular(path, MAX_FILE_BYTES) as file:
+        with _reading(path, "MATLAB"):
+            problem = mat_problem(file, MAX_FILE_BYTES)
+        if problem:
+            raise InputError(path, f"not a readable MATLAB file ({problem})")
+        try:
+            file.seek(0)
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                contents = scipy.io.loadmat(file)
+        except Exception as error:  # scipy raises many types (and warnings) for corrupt files
+            raise InputError(path, f"not a readable MATLAB file ({type(error).__name__})") from None
     names = [name for name in contents if not name.startswith("__")]
     if variable is None:
         if len(names) != 1:
@@ -385,7 +364,7 @@ def read_csv_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) ->
         row), or any `import_trial` problem.
     """
     path = Path(path)
-    _check_file(path)
+    check_regular(path, MAX_FILE_BYTES)
     header = _first_row(path, ",")
     names = (options.time_column, options.position_column)
     missing = [name for name in names if name not in header]
@@ -470,10 +449,10 @@ def read_parquet_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT
     import pyarrow.parquet as pq
 
     path = Path(path)
-    _check_file(path)
+    check_regular(path, MAX_FILE_BYTES)
     names = (options.time_column, options.position_column)
     try:
-        with pq.ParquetFile(path) as parquet:
+        with open_regular(path, MAX_FILE_BYTES) as file, pq.ParquetFile(file) as parquet:
             schema = parquet.schema_arrow
             missing = [name for name in names if name not in schema.names]
             if missing:
@@ -545,7 +524,7 @@ def read_bids_motion(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) 
         `import_trial` problem.
     """
     path = Path(path)
-    _check_file(path)
+    check_regular(path, MAX_FILE_BYTES)
     stem = path.name[: -len("_motion.tsv")]
     sidecar = path.with_name(f"{stem}_motion.json")
     if not sidecar.is_file():
@@ -591,9 +570,8 @@ def _bids_channel(
                 "file, or keep one column",
             )
         return 0, "1", None
-    _check_file(channels, MAX_SIDECAR_BYTES)
-    with _reading(channels, "TSV"):
-        table = pd.read_csv(channels, sep="\t", dtype=str, na_filter=False, encoding="utf-8-sig")
+    with _reading(channels, "TSV"), open_regular(channels, MAX_SIDECAR_BYTES) as file:
+        table = pd.read_csv(file, sep="\t", dtype=str, na_filter=False, encoding="utf-8-sig")
     rows = [{str(key).strip(): str(value).strip() for key, value in row.items()}
             for row in table.to_dict("records")]  # fmt: skip
     names = [row.get("name", "") for row in rows]

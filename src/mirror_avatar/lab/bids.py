@@ -25,7 +25,6 @@ the participant's own file stays readable as their solo trial by
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import re
@@ -42,6 +41,7 @@ from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_at
 from mirror_avatar.errors import InputError
 from mirror_avatar.session import MIN_SESSION_SAMPLES, Session, load_session
 from mirror_avatar.trial_io import MAX_FILE_BYTES, read_sidecar_text
+from mirror_avatar.user_files import parse_json, read_bytes
 
 Array = NDArray[np.float64]
 
@@ -237,8 +237,8 @@ def _slots(path: Path, slots: object, session: Session) -> tuple[dict[str, Any],
 def _nominal_period(path: Path, session: Session) -> float:
     """Return the sidecar's control period (s), or the one the sample times give."""
     try:
-        period = json.loads(path.with_suffix(".json").read_text(encoding="utf-8")).get("period")
-    except (OSError, ValueError, AttributeError):
+        period = parse_json(read_sidecar_text(path.with_suffix(".json")), path).get("period")
+    except (ValueError, AttributeError):
         period = None
     if isinstance(period, int | float) and not isinstance(period, bool) and period > 0:
         return float(period)
@@ -489,17 +489,14 @@ def _copy_sources(session_dir: Path, files: list[Path], target: Path) -> None:
     sources.append(session_dir / "plan.json")
     for source in sources:
         if source.is_file():
-            write_atomic_bytes(target / source.name, source.read_bytes())
+            write_atomic_bytes(target / source.name, read_bytes(source, MAX_FILE_BYTES))
 
 
 def _read_column_info(path: Path) -> dict[str, Any]:
     """Read an existing ``participants.json`` (its other columns are kept); empty if absent."""
     if not path.is_file():
         return {}
-    try:
-        described = json.loads(read_sidecar_text(path))
-    except ValueError:
-        raise InputError(path, "not valid JSON") from None
+    described = parse_json(read_sidecar_text(path), path)
     if not isinstance(described, dict):
         raise InputError(path, "not a JSON object")
     return described
@@ -611,10 +608,7 @@ def _read_game(sidecar: Path) -> tuple[dict[str, Any], float]:
     """Return the checked ``MirrorGame`` key and the sampling frequency (Hz) of a sidecar."""
     if not sidecar.is_file():
         raise InputError(sidecar, "no such file (the sidecar of the motion file)")
-    try:
-        info = json.loads(read_sidecar_text(sidecar))
-    except ValueError:
-        raise InputError(sidecar, "not valid JSON") from None
+    info = parse_json(read_sidecar_text(sidecar), sidecar)
     if not isinstance(info, dict):
         raise InputError(sidecar, "not a JSON object")
     if GAME_KEY not in info:
