@@ -15,6 +15,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.personal_avatar import (
     DEFAULT_DQN_SESSIONS,
     DEFAULT_SESSIONS,
+    avatar_card_path,
     create_avatar,
     default_partners,
     save_avatar,
@@ -74,7 +75,7 @@ def create(
     writes OUT (playable as a SPEC: the session's role picks the player) and OUT's card, the
     same name with .html.
     """
-    check_output_file(out_path, ".npz")
+    check_output_file(out_path, ".npz", beside=[avatar_card_path(out_path)])
     if not 0 < len(name.strip()) <= MAX_NAME_CHARS:
         raise InputError(
             "--name", f"{excerpt(name)} is not a name of 1-{MAX_NAME_CHARS} characters"

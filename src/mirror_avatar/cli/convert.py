@@ -39,14 +39,18 @@ def convert(paths: tuple[Path, ...], out_dir: Path, group_by: str, options: Impo
     check_output_dir(out_dir)
     trials = read_and_report(paths, group_by, options)
     written: list[dict[str, object]] = []
-    targets: set[Path] = set()
+    targets: list[Path] = []
+    seen: set[Path] = set()
     for trial in trials:
         folder = out_dir / (UNSAFE.sub("_", trial.group) or "trials")
         target = folder / f"{UNSAFE.sub('_', trial.label) or 'trial'}.csv"
-        if target in targets:
+        if target in seen:
             raise InputError(target, "two trials of one group would share this name")
-        targets.add(target)
-        folder.mkdir(parents=True, exist_ok=True)
+        seen.add(target)
+        targets.append(target)
+    check_output_dir(out_dir, files=[*(t.relative_to(out_dir) for t in targets), "convert.json"])
+    for trial, target in zip(trials, targets, strict=True):
+        target.parent.mkdir(parents=True, exist_ok=True)
         write_csv_trial(trial, target)
         written.append(
             {
