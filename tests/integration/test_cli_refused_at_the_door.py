@@ -10,6 +10,7 @@ only a safety net so that a regression fails instead of hanging the test run.
 
 from __future__ import annotations
 
+import json
 import os
 import socket
 import subprocess
@@ -17,10 +18,15 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
+from mirror_avatar.graphs import complete_graph
+from mirror_avatar.session import SessionWriter
 from mirror_avatar.specs import load_player
+from mirror_avatar.trial_io import write_bids_motion
 from mirror_avatar.user_files import MAX_PART_BYTES
 
 SAFETY_TIMEOUT = 300
@@ -132,3 +138,69 @@ def test_a_nul_byte_in_a_spec_is_one_line(spec: str) -> None:
     with pytest.raises(InputError, match="the path holds a NUL byte") as caught:
         load_player(spec, "leader")
     assert "\0" not in str(caught.value) and "\n" not in str(caught.value)
+
+
+DEEP = "[" * 100_000 + "]" * 100_000
+"""JSON nested far deeper than Python's recursion limit allows a reader to go."""
+
+
+def lab_session(folder: Path) -> Path:
+    """A lab session folder of one recorded dyad trial, written as the lab writes it."""
+    session = folder / "2025-03-01_dyad"
+    session.mkdir()
+    (session / "plan.json").write_text('{"session_id": "2025-03-01_dyad"}')
+    slots = [{"label": "P1", "kind": "human", "role": "leader", "spec": None, "device": "pointer"},
+             {"label": "av", "kind": "avatar", "role": "follower", "spec": "bundled:fast",
+              "device": None}]  # fmt: skip
+    lab = {"session_id": "2025-03-01_dyad", "trial": 1, "condition": "dyad", "slots": slots}
+    writer = SessionWriter(session / "trial-01_session.csv", ["P1", "av"], ["leader", "follower"],
+                           complete_graph(2), 0.03, {"lab": lab})  # fmt: skip
+    t = np.arange(200) * 0.03
+    for row in np.column_stack(
+        [t, *(f(t + k) for k in (0, 1) for f in (np.sin, np.cos, np.sin, np.cos))]
+    ):
+        writer.append(row)
+    writer.close(True, {"dropped": {}, "held": {"P1": 0}})
+    return session
+
+
+def test_deep_json_beside_a_session_is_one_line(tmp_path: Path) -> None:
+    session = lab_session(tmp_path)
+    (session / "trial-01_session.json").write_text(DEEP)
+    for arguments in (["evaluate", str(session / "trial-01_session.csv")],
+                      ["lab", "export", str(session), "--out", "bids"]):  # fmt: skip
+        result = run_cli(arguments, tmp_path)
+        one_line(result, "trial-01_session.json", "nested deeper than the limit of 32 levels")
+    assert not (tmp_path / "bids").exists()
+
+
+def test_deep_json_in_a_motion_sidecar_is_one_line(tmp_path: Path) -> None:
+    motion = tmp_path / "sub-1_task-mirror_motion.tsv"
+    write_bids_motion(load_zhai2017()[0].resampled(100.0), motion)
+    motion.with_name("sub-1_task-mirror_motion.json").write_text('{"a": ' + DEEP + "}")
+    for command in ("evaluate", "signature"):
+        result = run_cli([command, str(motion), "--out", "out"], tmp_path)
+        one_line(result, "_motion.json", "nested deeper than the limit of 32 levels")
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "problem"),
+    [("start_time", 1e300, "give samples no distinct times"),
+     ("start_time", "Infinity", "Infinity is not a JSON number"),
+     ("SamplingFrequency", "1" + "0" * 400, "is beyond the range of float64")],
+)  # fmt: skip
+def test_absurd_numbers_in_an_exported_trial_are_one_line(
+    tmp_path: Path, key: str, value: object, problem: str
+) -> None:
+    session = lab_session(tmp_path)
+    assert run_cli(["lab", "export", str(session), "--out", "bids"], tmp_path).returncode == 0
+    motion = next((tmp_path / "bids").rglob("*_motion.tsv"))
+    sidecar = motion.with_name(motion.name.replace(".tsv", ".json"))
+    info = json.loads(sidecar.read_text())
+    placeholder = "@@value@@"
+    if key == "start_time":
+        info["MirrorGame"][key] = placeholder
+    else:
+        info[key] = placeholder
+    sidecar.write_text(json.dumps(info).replace(f'"{placeholder}"', str(value)))
+    one_line(run_cli(["evaluate", str(motion)], tmp_path), sidecar.name, problem)

@@ -587,6 +587,12 @@ def read_bids_session(path: str | os.PathLike[str]) -> Session:
     velocities = np.vstack([v for _, v in arrays])
     start = float(game.get("start_time", 0.0))
     times = np.asarray(start + np.arange(values.shape[0]) * (1.0 / rate), dtype=np.float64)
+    if not np.all(np.diff(times) > 0):
+        raise InputError(
+            sidecar,
+            f"{GAME_KEY}: start_time {start:g} s and SamplingFrequency {rate:g} Hz give samples "
+            "no distinct times (float64 cannot tell them apart); give times from a nearer epoch",
+        )
     try:
         return Session(
             times,
