@@ -18,7 +18,9 @@ Limits, each refused in one line before the file is parsed further:
   or Parquet file;
 - `MAX_SIDECAR_BYTES` (16 MiB): a ``_motion.json``, a ``_channels.tsv``, a ``--group-by`` map
   and a Parquet file's schema metadata;
-- `MAX_NAME_CHARS` (100): a label or group a file names for its trial.
+- `MAX_NAME_CHARS` (100): a label or group a file names for its trial;
+- `MAX_MAT_TRIALS` (1000): the trials (struct elements) of a MATLAB file, counted from the
+  struct array's header before anything else of it is read (one when one trial is asked for).
 
 Memory: the numeric columns are parsed straight into float64 arrays (pandas' C parser for CSV
 and TSV, Arrow for Parquet; only the two columns needed), so reading a text file peaks at a small
@@ -56,7 +58,7 @@ from mirror_avatar.importing import (
     fill_gaps,
     parse_cells,
 )
-from mirror_avatar.mat_check import mat_problem
+from mirror_avatar.mat_check import TooManyElements, mat_problem
 from mirror_avatar.trials import MAX_RATE, MIN_RATE, Trial, make_trial
 from mirror_avatar.user_files import (
     check_regular,
@@ -81,6 +83,12 @@ MAX_SIDECAR_BYTES = 2**24
 MAX_NAME_CHARS = 100
 """Longest label or group a file may name for its trial (Parquet schema metadata, BIDS
 ``TaskName``; **choice**): they become file and folder names."""
+
+MAX_MAT_TRIALS = 1000
+"""Most trials (struct elements) read from one MATLAB file (**choice**: each of the bundled files
+holds 9). Every trial is spread over `MAT_DURATION` and commands resample it: at 100 Hz the
+trials of a file then take at most 1000 x 6001 samples, 48 MB per float64 array, whatever the
+file's size (a few bytes of a compressed file can be a trial)."""
 
 PARSE_CHUNK_ROWS = 2**18
 """Rows of text parsed at a time when a file's cells are read one by one to name a bad row."""
@@ -239,7 +247,11 @@ def _parse_chunks(
 
 
 def read_mat_struct(
-    path: str | Path, duration: float, variable: str | None = None, group: str = ""
+    path: str | Path,
+    duration: float,
+    variable: str | None = None,
+    group: str = "",
+    max_trials: int = MAX_MAT_TRIALS,
 ) -> list[Trial]:
     """Read every trial of a MATLAB struct array with a position field ``x``.
 
@@ -255,6 +267,9 @@ def read_mat_struct(
         The struct variable to read; by default the only non-private variable in the file.
     group
         Group given to every trial read.
+    max_trials
+        Most trials the file may hold (each struct or cell array's element count, read from its
+        header before the array is read).
 
     Returns
     -------
@@ -273,7 +288,10 @@ def read_mat_struct(
     check_regular(path, MAX_FILE_BYTES)
     with open_regular(path, MAX_FILE_BYTES) as file:
         with _reading(path, "MATLAB"):
-            problem = mat_problem(file, MAX_FILE_BYTES)
+            try:
+                problem = mat_problem(file, MAX_FILE_BYTES, max_trials)
+            except TooManyElements as many:
+                raise InputError(path, _too_many_trials(many.count, max_trials)) from None
         if problem:
             raise InputError(path, f"not a readable MATLAB file ({problem})")
         try:
@@ -312,6 +330,16 @@ def read_mat_struct(
             )
         )
     return trials
+
+
+def _too_many_trials(count: int, max_trials: int) -> str:
+    """Say that a MATLAB file holds ``count`` trials, more than ``max_trials``."""
+    if max_trials == 1:
+        return f"holds {count:,} trials, expected one"
+    return (
+        f"holds {count:,} trials (struct elements), more than the {max_trials:,} read from one "
+        "MATLAB file: split it into several files"
+    )
 
 
 MAT_KINDS = {"U": "text", "S": "text", "c": "complex numbers", "b": "logical values",
@@ -623,15 +651,20 @@ def write_bids_motion(trial: Trial, path: str | Path) -> None:
 
 
 def read_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
-    """Read one trial by extension; a ``.mat`` file must hold exactly one trial."""
-    trials = read_trial_file(path, options)
+    """Read one trial by extension; a ``.mat`` file must hold exactly one trial.
+
+    A MATLAB file of more is refused from its header, before its trials are read.
+    """
+    trials = read_trial_file(path, options, max_trials=1)
     if len(trials) != 1:
         raise InputError(path, f"holds {len(trials)} trials, expected one")
     return trials[0]
 
 
-def read_trial_file(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> list[Trial]:
-    """Read the trials of one file by its extension (a ``.mat`` file may hold several).
+def read_trial_file(
+    path: str | Path, options: ImportOptions = DEFAULT_IMPORT, max_trials: int = MAX_MAT_TRIALS
+) -> list[Trial]:
+    """Read the trials of one file by its extension (a ``.mat`` file may hold ``max_trials``).
 
     Folders of files are read by `mirror_avatar.trial_sets.read_trial_set`.
     """
@@ -649,7 +682,7 @@ def read_trial_file(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -
         return [read_parquet_trial(path, options)]
     if suffix == "_motion.tsv":
         return [read_bids_motion(path, options)]
-    return read_mat_struct(path, MAT_DURATION)
+    return read_mat_struct(path, MAT_DURATION, max_trials=max_trials)
 
 
 def write_trial(trial: Trial, path: str | Path) -> None:
