@@ -78,6 +78,9 @@ MAX_FILE_BYTES = MAX_TOTAL_BYTES + 2**24
 """Largest model archive read, in bytes: `MAX_TOTAL_BYTES` and 16 MiB for the zip's own records
 (**choice**)."""
 
+MEMBER_DATE = (1980, 1, 1, 0, 0, 0)
+"""Date and time given to every member of a saved archive (the earliest a zip file can hold)."""
+
 Kind = Literal["float", "integer", "number"]
 _KINDS: dict[Kind, str] = {"float": "f", "integer": "iu", "number": "iuf"}
 """numpy dtype kinds of each kind of array; members of any other kind are refused."""
@@ -105,6 +108,9 @@ def save_model(
 ) -> Path:
     """Write ``arrays`` and ``metadata`` to ``path`` atomically.
 
+    The archive is what `numpy.savez` writes, except that every member carries the same date
+    (`MEMBER_DATE`), so that one model saved twice gives the same bytes.
+
     Parameters
     ----------
     path
@@ -124,7 +130,12 @@ def save_model(
     header = {"format": format_name, "version": version, "library_version": __version__}
     buffer = io.BytesIO()
     contents = {"metadata": np.array(json.dumps({**header, **metadata})), **arrays}
-    np.savez(buffer, allow_pickle=False, **contents)
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_STORED) as archive:
+        for name, array in contents.items():
+            member = zipfile.ZipInfo(f"{name}.npy", date_time=MEMBER_DATE)
+            member.external_attr = 0o600 << 16
+            with archive.open(member, "w", force_zip64=True) as stream:
+                np.lib.format.write_array(stream, np.asanyarray(array), allow_pickle=False)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     write_atomic_bytes(path, buffer.getvalue())

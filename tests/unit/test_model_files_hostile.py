@@ -548,7 +548,9 @@ def test_arrays_of_another_dtype_are_refused(files, kind, name, array, fragment)
         ("generator", ("training",), None, "training must be a JSON object, not None"),
         ("generator", ("training", "groups"), "fast", "training groups 'fast' are not a list"),
         ("reference", ("reference", "training", "groups"), [1], "training groups [1] are not a"),
-        ("cyber", ("training", "role"), ["leader"], "training role ['leader'] is not a name"),
+        ("cyber", ("training", "role"), ["leader"], "training role ['leader'] is none of"),
+        ("cyber", ("training", "role"), "coach", "training role 'coach' is none of follower, "
+                                                  "leader, group"),
         ("cyber", ("training", "n_sessions"), "many", "n_sessions must be an integer, not 'many'"),
         ("cyber", ("training", "n_sessions"), -1, "n_sessions -1 is outside 0..1000000000"),
         ("cyber", ("discretisation",), None, "discretisation must be a JSON object, not None"),

@@ -90,8 +90,8 @@ def create(
     built, card = create_avatar(
         trials, name, partners, sessions, seed=seed, n_jobs=jobs, agent=agent
     )
-    built.summary["build_seconds"] = round(time.perf_counter() - began, 3)
-    metadata = {"version": __version__, "seed": seed, "seconds": built.summary["build_seconds"]}
+    seconds = round(time.perf_counter() - began, 3)
+    metadata = {"version": __version__, "seed": seed, "seconds": seconds}
     card_path = save_avatar(built, card, out_path, metadata)
     for role, result in built.summary["roles"].items():
         click.echo(

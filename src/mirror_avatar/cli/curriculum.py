@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -23,7 +24,7 @@ from mirror_avatar.experiments.curriculum import (
     measure_stages,
     own_emd,
 )
-from mirror_avatar.importing import ImportOptions
+from mirror_avatar.importing import ImportOptions, excerpt
 from mirror_avatar.report import REPORT_FILES, write_report
 
 MAX_STAGES = 50
@@ -71,6 +72,12 @@ def curriculum(
     names = [f"stage-{k}.npz" for k in range(1, stages + 1)]
     check_output_dir(out_dir, files=[*names, "plan.json", *REPORT_FILES])
     patient, target = (load_generator(spec, options) for spec in (patient_spec, target_spec))
+    if not math.isclose(patient.rate, target.rate):
+        raise InputError(
+            "--target",
+            f"{excerpt(target_spec)} moves at {target.rate:g} Hz and --patient "
+            f"{excerpt(patient_spec)} at {patient.rate:g} Hz: fit both at one rate",
+        )
     people = {
         name: model.sample(DURATION, N_DRAWS, random_state=seed)
         for name, model in (("patient", patient), ("target", target))

@@ -227,7 +227,6 @@ def _summary(
         criteria = per_role[result.role]
         unseen = criteria.iloc[-1]
         roles[result.role] = {
-            "train_seconds": round(result.train_seconds, 3),
             "emd_to_person": float(unseen[f"emd to {result.target}"]),
             "unseen_cv_difference": float(unseen["cv cyber"] - unseen[f"cv {result.target}"]),
             "unseen_rms_difference": float(unseen["rms cyber"] - unseen[f"rms {result.target}"]),
