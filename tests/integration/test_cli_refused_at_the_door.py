@@ -130,6 +130,9 @@ def test_a_path_part_longer_than_a_file_name_can_be_is_one_line(tmp_path: Path) 
     _, arguments = READERS["vt spec"]
     result = run_cli(with_out(arguments(tmp_path / long)), tmp_path)
     one_line(result, f"a part of the path is {len(long)} bytes, over the {MAX_PART_BYTES}")
+    result = run_cli(["simulate", "--leader", "bundled:fast", "--follower", "bundled:slow",
+                      "--duration", "5", "--out", long], tmp_path)  # fmt: skip
+    one_line(result, f"a part of the path is {len(long)} bytes, over the {MAX_PART_BYTES}")
 
 
 @pytest.mark.parametrize("spec", ["vt:trial\0.csv", "player\0.npz", "trial\0.csv"])

@@ -18,6 +18,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from mirror_avatar.errors import InputError
+from mirror_avatar.user_files import check_path
 
 
 def check_output_dir(
@@ -38,9 +39,11 @@ def check_output_dir(
     Raises
     ------
     InputError
-        When ``path`` or one of its parents is a file, the folder it would be made in cannot
+        When ``path`` or one of its parents is a file, the path cannot be a file's
+        (`mirror_avatar.user_files.check_path`), the folder it would be made in cannot
         be written to, or a file the command will write cannot be.
     """
+    check_path(path)
     if path.exists() and not path.is_dir():
         raise InputError(path, f"exists and is not a folder; give {option} a folder")
     existing = next(p for p in (path, *path.absolute().parents) if p.exists())
@@ -67,6 +70,7 @@ def check_output_file(
     ``beside`` are the other files the command writes with it (named from it: a learning curve,
     a card, a checkpoint), each checked with `check_written_file`.
     """
+    check_path(path)
     if suffix is not None and path.suffix.lower() != suffix:
         raise InputError(path, f"{option} must end in {suffix}")
     if path.is_dir():
@@ -89,6 +93,7 @@ def check_written_file(path: Path, option: str = "--out") -> Path:
     InputError
         ``path`` is a folder, or one of its parents is a file.
     """
+    check_path(path)
     if path.is_dir():
         raise InputError(
             path,
