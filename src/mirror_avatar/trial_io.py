@@ -8,7 +8,9 @@ say. Readers do not resample: irregular timestamps are kept (call ``trial.resamp
 reader validates its input and raises `InputError` with one line naming the file and the problem,
 whatever the file holds (binary junk, text that is not UTF-8, damaged or crafted contents, wrong
 types in JSON); values quoted from the file are cut to a few dozen characters
-(`mirror_avatar.importing.excerpt`).
+(`mirror_avatar.importing.excerpt`). Files are opened by `mirror_avatar.user_files.open_regular`
+(regular files only: a named pipe or a device is refused unopened) and JSON is parsed by
+`mirror_avatar.user_files.parse_json` (nesting bounded, finite numbers only).
 
 Limits, each refused in one line before the file is parsed further:
 
