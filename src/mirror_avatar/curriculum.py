@@ -102,7 +102,11 @@ class StageMotion:
         if method not in METHODS:
             raise InputError("stage", f"method {method!r} is not one of {', '.join(METHODS)}")
         if not math.isclose(patient.rate, target.rate):
-            raise InputError("stage", "the patient's and the target's generators differ in rate")
+            raise InputError(
+                "stage",
+                f"the patient's and the target's generators differ in rate ({patient.rate:g} Hz "
+                f"and {target.rate:g} Hz)",
+            )
         self.patient, self.target = patient, target
         self.weight, self.method = float(weight), method
         self.rate = float(patient.rate)
@@ -182,4 +186,7 @@ def load_stage(path: str | os.PathLike[str]) -> StageMotion:
     method = info.get("method")
     if method not in METHODS:
         raise InputError(path, f"method is not one of {', '.join(METHODS)}")
-    return StageMotion(generators[0], generators[1], weight, method)
+    try:
+        return StageMotion(generators[0], generators[1], weight, method)
+    except InputError as error:
+        raise InputError(path, error.problem) from None

@@ -340,6 +340,10 @@ def plot_relative_phase(
     return figure
 
 
+SESSION_FIGURES = ("positions", "relative_phase", "group_synchronisation")
+"""Every figure `plot_session` may draw, by file stem."""
+
+
 def plot_session(session: Session, trim: float = 0.0, seconds: float = 30.0) -> dict[str, Figure]:
     """Draw what people look at for one session: positions, and how the players lock.
 

@@ -6,6 +6,12 @@ and cell and struct arrays are built element by element as their dimensions stat
 walks a file's elements as SciPy will read them (MathWorks, *MAT-File Format*, level 5) and names
 the first problem, without keeping any variable's data. It checks the structure only; SciPy still
 reads the values and raises for problems this check leaves to it.
+
+Each top-level cell or struct array is a list of trials, and every trial read is later resampled
+over its whole duration (a few bytes in the file can become a minute of samples), so the number
+of its elements is bounded by the caller (``max_elements``). It is read from the array's header,
+first, before the variable is walked or inflated: a file of a hundred thousand trials is refused
+after reading a few hundred bytes of it.
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ import math
 import mmap
 import struct
 import zlib
-from pathlib import Path
+from typing import IO
 
 NUMBER_TYPES = frozenset({1, 2, 3, 4, 5, 6, 7, 9, 12, 13})
 """Data-type codes of numbers (miINT8 ... miUINT64): the values of numeric arrays."""
@@ -41,51 +47,86 @@ MAX_DIMS = 32
 INFLATE_CHUNK = 2**20
 """Bytes inflated at a time when counting what a compressed variable inflates to."""
 
+HEAD_BYTES = 256
+"""Bytes of a variable holding its array header (tag, flags and up to `MAX_DIMS` dimensions)."""
+
+HEAD_INPUT_BYTES = 2**16
+"""Most compressed bytes inflated to read a compressed variable's header."""
+
 
 class DamagedFile(Exception):
     """A MATLAB file's structure is damaged; the message says how, for an error line."""
 
 
-def mat_problem(path: Path, limit: int) -> str:
+class TooManyElements(Exception):
+    """A top-level cell or struct array has more elements than the caller reads.
+
+    Parameters
+    ----------
+    count
+        Its number of elements.
+    """
+
+    def __init__(self, count: int) -> None:
+        super().__init__(f"{count} elements")
+        self.count = count
+
+
+def mat_problem(handle: IO[bytes], limit: int, max_elements: int) -> str:
     """Name the first structural problem of a MATLAB v5 file, or return ``""``.
 
     Parameters
     ----------
-    path
-        The file; one that is not a level-5 MAT-file (a v4 file, text) is left to SciPy (``""``).
+    handle
+        The file, open for reading in binary (`mirror_avatar.user_files.open_regular`); one that
+        is not a level-5 MAT-file (a v4 file, text) is left to SciPy (``""``).
     limit
         Most bytes all compressed variables may inflate to, together.
+    max_elements
+        Most elements a top-level cell or struct array may have (trials).
 
     Raises
     ------
+    TooManyElements
+        A top-level cell or struct array has more than ``max_elements`` elements.
     OSError
         The file cannot be read.
     """
-    with path.open("rb") as handle:
-        header = handle.read(128)
-        order = {b"IM": "<", b"MI": ">"}.get(header[126:128])
-        if (
-            len(header) < 128
-            or order is None
-            or struct.unpack_from(order + "H", header, 124)[0] != 0x0100
-        ):
-            return ""
-        with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as data:
-            try:
-                _walk_variables(data, order, limit)
-            except (DamagedFile, zlib.error, struct.error) as error:
-                return str(error) or type(error).__name__
+    handle.seek(0)
+    header = handle.read(128)
+    order = {b"IM": "<", b"MI": ">"}.get(header[126:128])
+    if (
+        len(header) < 128
+        or order is None
+        or struct.unpack_from(order + "H", header, 124)[0] != 0x0100
+    ):
+        return ""
+    with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as data:
+        try:
+            _walk_variables(data, order, limit, max_elements)
+        except (DamagedFile, zlib.error, struct.error) as error:
+            return str(error) or type(error).__name__
     return ""
 
 
-def _walk_variables(data: mmap.mmap, order: str, limit: int) -> None:
-    """Walk every top-level variable of a v5 file, inflating compressed ones within ``limit``."""
+def _walk_variables(data: mmap.mmap, order: str, limit: int, max_elements: int) -> None:
+    """Walk every top-level variable of a v5 file, inflating compressed ones within ``limit``.
+
+    The element count of each is checked against ``max_elements`` (`_check_elements`) first.
+    """
     inflated, position = 0, 128
     while position + 8 <= len(data):
         kind, length = _tag(data, position, order)
         start, end = position + 8, position + 8 + length
         if end > len(data):
             raise DamagedFile("it is truncated")
+        if kind == COMPRESSED:
+            head = zlib.decompressobj().decompress(
+                data[start : min(end, start + HEAD_INPUT_BYTES)], HEAD_BYTES
+            )
+        else:
+            head = data[position : min(end, position + HEAD_BYTES)]
+        _check_elements(head, order, max_elements)
         if kind == COMPRESSED:
             inflated += _inflated_size(data, start, end, limit - inflated)
             if inflated > limit:
@@ -94,6 +135,47 @@ def _walk_variables(data: mmap.mmap, order: str, limit: int) -> None:
         else:
             _walk_array(data, position, order, 0)
         position = end + (-length % 8 if kind != COMPRESSED else 0)
+
+
+def _check_elements(head: bytes, order: str, max_elements: int) -> None:
+    """Refuse a top-level cell or struct array of more than ``max_elements`` elements.
+
+    ``head`` holds the start of the variable; a header it does not hold whole is left to the
+    walk, which names the damage.
+    """
+    try:
+        kind, _ = _tag(head, 0, order)
+        if kind != MATRIX:
+            return
+        array_class, _, count, _ = _array_header(head, 0, order)
+    except (DamagedFile, struct.error):
+        return
+    if array_class in (CELL, STRUCT) and count > max_elements:
+        raise TooManyElements(count)
+
+
+def _array_header(data: bytes | mmap.mmap, position: int, order: str) -> tuple[int, int, int, int]:
+    """Read the flags and dimensions of the array (miMATRIX) at ``position``.
+
+    Returns
+    -------
+    array_class, is_complex, count, name : int
+        Its class, 1 if complex, its number of elements, and where its name element starts.
+    """
+    payload, size, position = _element(data, position + 8, order)
+    if size != 8:
+        raise DamagedFile("damaged array flags")
+    flags = struct.unpack_from(order + "I", data, payload)[0]
+    array_class, is_complex = flags & 0xFF, flags >> 11 & 1
+    if array_class not in NUMERIC | {CELL, STRUCT, CHAR}:
+        raise DamagedFile(f"an array of class {array_class} (objects, sparse, handles...)")
+    payload, size, position = _element(data, position, order)
+    if size % 4 or not 0 < size <= 4 * MAX_DIMS:
+        raise DamagedFile(f"damaged array dimensions (at most {MAX_DIMS})")
+    dimensions = struct.unpack_from(f"{order}{size // 4}i", data, payload)
+    if min(dimensions) < 0:
+        raise DamagedFile("an array larger than the data that could fill it")
+    return array_class, is_complex, math.prod(dimensions), position
 
 
 def _inflated_size(data: mmap.mmap, start: int, end: int, budget: int) -> int:
@@ -158,19 +240,8 @@ def _walk_array(data: bytes | mmap.mmap, position: int, order: str, depth: int) 
         return end
     if depth > MAX_DEPTH:
         raise DamagedFile(f"arrays nested over {MAX_DEPTH} deep")
-    payload, size, position = _element(data, position + 8, order)
-    if size != 8:
-        raise DamagedFile("damaged array flags")
-    flags = struct.unpack_from(order + "I", data, payload)[0]
-    array_class, is_complex = flags & 0xFF, flags >> 11 & 1
-    if array_class not in NUMERIC | {CELL, STRUCT, CHAR}:
-        raise DamagedFile(f"an array of class {array_class} (objects, sparse, handles...)")
-    payload, size, position = _element(data, position, order)
-    if size % 4 or not 0 < size <= 4 * MAX_DIMS:
-        raise DamagedFile(f"damaged array dimensions (at most {MAX_DIMS})")
-    dimensions = struct.unpack_from(f"{order}{size // 4}i", data, payload)
-    count = math.prod(dimensions)
-    if min(dimensions) < 0 or count > end - position:
+    array_class, is_complex, count, position = _array_header(data, position, order)
+    if count > end - position:
         raise DamagedFile("an array larger than the data that could fill it")
     position = _element(data, position, order, TEXT_TYPES)[2]
     if array_class == CELL:

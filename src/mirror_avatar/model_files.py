@@ -17,7 +17,10 @@ A model file may come from anyone, so `read_archive` reads nothing it has not bo
 - each member's ``.npy`` header is read before its data: the dtype must be integer or floating
   point (the ``metadata`` member: one unicode string of at most `MAX_METADATA_CHARS`
   characters), and the shape times the item size must equal the declared size;
-- the metadata JSON may nest at most `MAX_METADATA_DEPTH` arrays and objects deep.
+- the archive must be a regular file of at most `MAX_FILE_BYTES`
+  (`mirror_avatar.user_files.open_regular`: a named pipe or a device is refused unopened);
+- the metadata JSON is parsed by `mirror_avatar.user_files.parse_json`: at most
+  `mirror_avatar.user_files.MAX_JSON_DEPTH` arrays and objects deep.
 
 The loaders then check every value they read with `check_integer`, `check_real`, `check_array`
 and `check_object`; a value quoted in a message is cut by `mirror_avatar.importing.excerpt`.
@@ -30,7 +33,6 @@ import json
 import math
 import numbers
 import os
-import re
 import struct
 import zipfile
 import zlib
@@ -45,6 +47,7 @@ from mirror_avatar import __version__
 from mirror_avatar.atomic import write_atomic_bytes
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import excerpt
+from mirror_avatar.user_files import open_regular, parse_json
 
 PathLike = str | os.PathLike[str]
 Source = str | os.PathLike[str] | None
@@ -71,9 +74,12 @@ MAX_METADATA_CHARS = 1_000_000
 """Longest metadata JSON string, in characters (**choice**: a model's metadata takes a few
 kilobytes)."""
 
-MAX_METADATA_DEPTH = 32
-"""Deepest nesting of arrays and objects in the metadata JSON (**choice**: a model's metadata
-nests 3 deep)."""
+MAX_FILE_BYTES = MAX_TOTAL_BYTES + 2**24
+"""Largest model archive read, in bytes: `MAX_TOTAL_BYTES` and 16 MiB for the zip's own records
+(**choice**)."""
+
+MEMBER_DATE = (1980, 1, 1, 0, 0, 0)
+"""Date and time given to every member of a saved archive (the earliest a zip file can hold)."""
 
 Kind = Literal["float", "integer", "number"]
 _KINDS: dict[Kind, str] = {"float": "f", "integer": "iu", "number": "iuf"}
@@ -91,8 +97,6 @@ a comment of up to 64 KiB and preceded by the zip64 locator and record)."""
 
 _CHAR_BYTES = np.dtype("U1").itemsize
 """Bytes per character of a numpy unicode string."""
-_JSON_STRING = re.compile(r'"[^"\\]*+(?:\\.[^"\\]*+)*+"', re.DOTALL)
-_NOT_BRACKET = re.compile(r"[^\[\]{}]")
 
 
 def save_model(
@@ -103,6 +107,9 @@ def save_model(
     metadata: dict[str, Any],
 ) -> Path:
     """Write ``arrays`` and ``metadata`` to ``path`` atomically.
+
+    The archive is what `numpy.savez` writes, except that every member carries the same date
+    (`MEMBER_DATE`), so that one model saved twice gives the same bytes.
 
     Parameters
     ----------
@@ -123,7 +130,12 @@ def save_model(
     header = {"format": format_name, "version": version, "library_version": __version__}
     buffer = io.BytesIO()
     contents = {"metadata": np.array(json.dumps({**header, **metadata})), **arrays}
-    np.savez(buffer, allow_pickle=False, **contents)
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_STORED) as archive:
+        for name, array in contents.items():
+            member = zipfile.ZipInfo(f"{name}.npy", date_time=MEMBER_DATE)
+            member.external_attr = 0o600 << 16
+            with archive.open(member, "w", force_zip64=True) as stream:
+                np.lib.format.write_array(stream, np.asanyarray(array), allow_pickle=False)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     write_atomic_bytes(path, buffer.getvalue())
@@ -142,7 +154,7 @@ def read_archive(path: PathLike) -> tuple[dict[str, NDArray[Any]], dict[str, Any
         metadata that is not a JSON object.
     """
     try:
-        with open(path, "rb") as file:
+        with open_regular(path, MAX_FILE_BYTES) as file:
             if file.read(4) != ZIP_MAGIC:
                 raise InputError(path, "not a readable .npz model file (not a zip archive)")
             directory = _declared_directory_size(file)
@@ -158,23 +170,13 @@ def read_archive(path: PathLike) -> tuple[dict[str, NDArray[Any]], dict[str, Any
         raise
     except FileNotFoundError:
         raise InputError(path, "no such file") from None
-    except IsADirectoryError:
-        raise InputError(path, "is a directory, not a model file") from None
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as error:
         raise InputError(
             path, f"not a readable .npz model file ({excerpt(str(error), quote=False)})"
         ) from None
     if "metadata" not in arrays:
         raise InputError(path, "not a mirror-avatar model file (no metadata)")
-    text = str(arrays.pop("metadata")[()])
-    if _nesting_exceeds(text, MAX_METADATA_DEPTH):
-        raise InputError(
-            path, f"metadata nests deeper than the limit of {MAX_METADATA_DEPTH} levels"
-        )
-    try:
-        metadata = json.loads(text)
-    except ValueError:
-        raise InputError(path, "metadata is not valid JSON") from None
+    metadata = parse_json(str(arrays.pop("metadata")[()]), path, "metadata", finite=False)
     if not isinstance(metadata, dict):
         raise InputError(path, "metadata is not a JSON object")
     return arrays, metadata
@@ -292,16 +294,6 @@ def _check_header(path: PathLike, name: str, declared: int, stream: IO[bytes]) -
             f"{shown} has a header claiming {size} bytes of data but holds "
             f"{declared - stream.tell()}",
         )
-
-
-def _nesting_exceeds(text: str, limit: int) -> bool:
-    """Return True when the arrays and objects of a JSON text nest more than ``limit`` deep."""
-    depth = 0
-    for bracket in _NOT_BRACKET.sub("", _JSON_STRING.sub("", text)):
-        depth += 1 if bracket in "[{" else -1
-        if depth > limit:
-            return True
-    return False
 
 
 def load_model(

@@ -49,6 +49,10 @@ class Section:
     metrics: dict[str, Any] = field(default_factory=dict)
 
 
+REPORT_FILES = ("metrics.json", "report.html")
+"""The files `write_report` writes in its folder."""
+
+
 def write_report(
     sections: Sequence[Section],
     out_dir: str | os.PathLike[str],
@@ -86,8 +90,9 @@ def write_report(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     metrics = {s.key: s.metrics for s in sections} | {"metadata": metadata}
-    write_atomic_json(out / "metrics.json", metrics)
-    path = out / "report.html"
+    metrics_name, report_name = REPORT_FILES
+    write_atomic_json(out / metrics_name, metrics)
+    path = out / report_name
     write_atomic_text(path, render_report(sections, title, metadata))
     return path
 

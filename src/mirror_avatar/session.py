@@ -18,7 +18,6 @@ for a trial, METHODS section 2).
 from __future__ import annotations
 
 import io
-import json
 import math
 import os
 from collections.abc import Sequence
@@ -35,7 +34,9 @@ from mirror_avatar.bids.names import MOTION_SUFFIX
 from mirror_avatar.bids.reading import LabRecording, read_lab_recording
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import Graph, check_graph, complete_graph
+from mirror_avatar.trial_io import MAX_FILE_BYTES, MAX_SIDECAR_BYTES
 from mirror_avatar.trials import compute_velocity
+from mirror_avatar.user_files import check_regular, open_regular, read_json, read_text
 
 Array = NDArray[np.float64]
 CHANNELS = ("position", "velocity", "control", "reference")
@@ -326,8 +327,7 @@ def load_session(path: str | os.PathLike[str]) -> Session:
         not increasing or too few samples.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "no such file")
+    check_regular(path, MAX_FILE_BYTES)
     if path.name.endswith(MOTION_SUFFIX):
         return _lab_recording_session(read_lab_recording(path))
     columns = _read_columns(path)
@@ -418,18 +418,19 @@ def _read_columns(path: Path) -> dict[str, Array]:
     if path.suffix.lower() == ".csv":
         import pandas as pd
 
+        text = read_text(path, MAX_FILE_BYTES)
+        complete = text if text.endswith("\n") else text[: text.rfind("\n") + 1]
         try:
-            text = path.read_text(encoding="utf-8")
-            complete = text if text.endswith("\n") else text[: text.rfind("\n") + 1]
             frame = pd.read_csv(io.StringIO(complete))
-        except (ValueError, OSError, UnicodeDecodeError) as error:
+        except (ValueError, OSError) as error:
             raise InputError(path, f"not a readable CSV file ({type(error).__name__})") from None
     else:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
         try:
-            frame = pq.read_table(path).to_pandas()
+            with open_regular(path, MAX_FILE_BYTES) as file:
+                frame = pq.read_table(file).to_pandas()
         except (pa.ArrowException, OSError) as error:
             raise InputError(
                 path, f"not a readable Parquet file ({type(error).__name__})"
@@ -444,10 +445,7 @@ def _read_sidecar(path: Path) -> dict[str, Any]:
     sidecar = path.with_suffix(".json")
     if not sidecar.is_file():
         return {}
-    try:
-        info = json.loads(sidecar.read_text(encoding="utf-8"))
-    except (ValueError, UnicodeDecodeError):
-        raise InputError(sidecar, "not valid JSON") from None
+    info = read_json(sidecar, MAX_SIDECAR_BYTES)
     if not isinstance(info, dict):
         raise InputError(sidecar, "not a JSON object")
     return info

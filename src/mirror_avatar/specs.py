@@ -53,6 +53,7 @@ from mirror_avatar.model_files import read_archive
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.trial_files import read_trial
 from mirror_avatar.trials import DEFAULT_RATE, Trial
+from mirror_avatar.user_files import check_path
 
 __all__ = [
     "BUNDLED_SEED",
@@ -110,7 +111,7 @@ def load_player(
     if spec.startswith("vt:"):
         trial = _read_recording(spec.removeprefix("vt:"), options)
         return VirtualTrainer(params, trial, label=label)
-    path = Path(spec)
+    path = check_path(spec)
     if path.suffix.lower() == ".npz":
         player = _load_model(path, role, label)
         if isinstance(player, AccelerationPlayer) and isinstance(role, str):

@@ -14,6 +14,7 @@ from mirror_avatar.bids.writing import write_bids_motion
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
 from mirror_avatar.trial_io import (
+    MAX_MAT_TRIALS,
     read_csv_trial,
     read_mat_struct,
     read_parquet_trial,
@@ -30,15 +31,20 @@ SUPPORTED = (".csv", ".mat", ".parquet", MOTION_SUFFIX)
 
 
 def read_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
-    """Read one trial by extension; a ``.mat`` file must hold exactly one trial."""
-    trials = read_trial_file(path, options)
+    """Read one trial by extension; a ``.mat`` file must hold exactly one trial.
+
+    A MATLAB file of more is refused from its header, before its trials are read.
+    """
+    trials = read_trial_file(path, options, max_trials=1)
     if len(trials) != 1:
         raise InputError(path, f"holds {len(trials)} trials, expected one")
     return trials[0]
 
 
-def read_trial_file(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> list[Trial]:
-    """Read the trials of one file by its extension (a ``.mat`` file may hold several).
+def read_trial_file(
+    path: str | Path, options: ImportOptions = DEFAULT_IMPORT, max_trials: int = MAX_MAT_TRIALS
+) -> list[Trial]:
+    """Read the trials of one file by its extension (a ``.mat`` file may hold ``max_trials``).
 
     Folders of files are read by `mirror_avatar.trial_sets.read_trial_set`.
     """
@@ -56,7 +62,7 @@ def read_trial_file(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -
         return [read_parquet_trial(path, options)]
     if suffix == MOTION_SUFFIX:
         return [read_bids_motion(path, options)]
-    return read_mat_struct(path, MAT_DURATION)
+    return read_mat_struct(path, MAT_DURATION, max_trials=max_trials)
 
 
 def write_trial(trial: Trial, path: str | Path) -> None:

@@ -8,7 +8,10 @@ are read as `mirror_avatar.importing.ImportOptions` say. Readers do not resample
 timestamps are kept (call ``trial.resampled``). Every reader validates its input and raises
 `InputError` with one line naming the file and the problem, whatever the file holds (binary
 junk, text that is not UTF-8, damaged or crafted contents, wrong types in JSON); values quoted
-from the file are cut to a few dozen characters (`mirror_avatar.importing.excerpt`).
+from the file are cut to a few dozen characters (`mirror_avatar.importing.excerpt`). Files
+are opened by `mirror_avatar.user_files.open_regular` (regular files only: a named pipe or a
+device is refused unopened) and JSON is parsed by `mirror_avatar.user_files.parse_json`
+(nesting bounded, finite numbers only).
 
 Limits, each refused in one line before the file is parsed further:
 
@@ -18,7 +21,9 @@ Limits, each refused in one line before the file is parsed further:
   or Parquet file;
 - `MAX_SIDECAR_BYTES` (16 MiB): a ``_motion.json``, a ``_channels.tsv``, a ``--group-by`` map
   and a Parquet file's schema metadata;
-- `MAX_NAME_CHARS` (100): a label or group a file names for its trial.
+- `MAX_NAME_CHARS` (100): a label or group a file names for its trial;
+- `MAX_MAT_TRIALS` (1000): the trials (struct elements) of a MATLAB file, counted from the
+  struct array's header before anything else of it is read (one when one trial is asked for).
 
 Memory: the numeric columns are parsed straight into float64 arrays (pandas' C parser for CSV
 and TSV, Arrow for Parquet; only the two columns needed), so reading a text file peaks at a small
@@ -33,7 +38,6 @@ does not know) is parsed again in chunks of `PARSE_CHUNK_ROWS` rows to name the 
 from __future__ import annotations
 
 import json
-import stat
 import warnings
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
@@ -56,8 +60,15 @@ from mirror_avatar.importing import (
     fill_gaps,
     parse_cells,
 )
-from mirror_avatar.mat_check import mat_problem
+from mirror_avatar.mat_check import TooManyElements, mat_problem
 from mirror_avatar.trials import Trial, make_trial
+from mirror_avatar.user_files import (
+    check_regular,
+    open_regular,
+    parse_json,
+    read_text,
+    size_limit,
+)
 
 MAX_FILE_BYTES = 2**30
 """Largest trial file read, and the most a MATLAB file's compressed variables may inflate to
@@ -75,6 +86,12 @@ MAX_NAME_CHARS = 100
 """Longest label or group a file may name for its trial (Parquet schema metadata, BIDS
 ``TaskName``; **choice**): they become file and folder names."""
 
+MAX_MAT_TRIALS = 1000
+"""Most trials (struct elements) read from one MATLAB file (**choice**: each of the bundled files
+holds 9). Every trial is spread over `MAT_DURATION` and commands resample it: at 100 Hz the
+trials of a file then take at most 1000 x 6001 samples, 48 MB per float64 array, whatever the
+file's size (a few bytes of a compressed file can be a trial)."""
+
 PARSE_CHUNK_ROWS = 2**18
 """Rows of text parsed at a time when a file's cells are read one by one to name a bad row."""
 
@@ -83,25 +100,6 @@ MISSING_SPELLINGS = (*MISSING_CELLS, *(cell.upper() for cell in MISSING_CELLS), 
 space) are read by `mirror_avatar.importing.parse_cells`."""
 
 Array = NDArray[np.float64]
-
-
-def _check_file(path: Path, limit: int = MAX_FILE_BYTES) -> None:
-    """Refuse a path that is not a readable regular file of at most ``limit`` bytes."""
-    try:
-        status = path.stat()
-    except FileNotFoundError:
-        raise InputError(path, "no such file") from None
-    except OSError as error:
-        raise InputError(path, f"cannot be read ({error.strerror})") from None
-    if not stat.S_ISREG(status.st_mode):
-        raise InputError(path, "not a regular file")
-    if status.st_size > limit:
-        raise InputError(path, f"{status.st_size:,} bytes, over the limit {_size(limit)}")
-
-
-def _size(limit: int) -> str:
-    """Describe a byte limit for an error line: exact, and in MiB."""
-    return f"of {limit:,} bytes ({limit / 2**20:g} MiB) for files read"
 
 
 @contextmanager
@@ -132,9 +130,7 @@ def read_sidecar_text(path: Path) -> str:
     InputError
         Missing, too large, unreadable or not UTF-8.
     """
-    _check_file(path, MAX_SIDECAR_BYTES)
-    with _reading(path, "text"):
-        return path.read_text(encoding="utf-8-sig")
+    return read_text(path, MAX_SIDECAR_BYTES)
 
 
 def _listing(values: Sequence[object], count: int = 8) -> str:
@@ -154,20 +150,9 @@ def _json_object(text: str | bytes, source: Path, what: str) -> dict[str, Any]:
     """Parse ``text`` (``what``, in ``source``) as a JSON object of at most `MAX_SIDECAR_BYTES`."""
     if len(text) > MAX_SIDECAR_BYTES:
         raise InputError(
-            source, f"{what} is {len(text):,} bytes, over the limit {_size(MAX_SIDECAR_BYTES)}"
+            source, f"{what} is {len(text):,} bytes, over the limit {size_limit(MAX_SIDECAR_BYTES)}"
         )
-    try:
-        value = json.loads(text)
-    except json.JSONDecodeError as error:
-        raise InputError(
-            source, f"{what} is not JSON ({error.msg} at line {error.lineno})"
-        ) from None
-    except (ValueError, RecursionError):
-        raise InputError(
-            source,
-            f"{what} is not JSON that can be read (not UTF-8, nested too deeply or a number "
-            "too long)",
-        ) from None
+    value = parse_json(text, source, what)
     if not isinstance(value, dict):
         raise InputError(source, f"{what} is {_json_kind(value)}, not a JSON object")
     return value
@@ -191,8 +176,8 @@ def _name_in(info: dict[str, Any], key: str, source: Path, what: str) -> str:
 
 def _first_row(path: Path, sep: str) -> list[str]:
     """Return the cells of the first non-blank row of a CSV or TSV file, stripped."""
-    with _reading(path, "CSV" if sep == "," else "TSV"):
-        frame = pd.read_csv(path, sep=sep, header=None, nrows=1, dtype=str, na_filter=False,
+    with _reading(path, "CSV" if sep == "," else "TSV"), open_regular(path, MAX_FILE_BYTES) as file:
+        frame = pd.read_csv(file, sep=sep, header=None, nrows=1, dtype=str, na_filter=False,
                             encoding="utf-8-sig", skipinitialspace=True)  # fmt: skip
     return [str(cell).strip() for cell in frame.iloc[0]]
 
@@ -226,16 +211,19 @@ def _read_numbers(
     }  # fmt: skip
     with _reading(path, "CSV" if sep == "," else "TSV"):
         try:
-            frame = pd.read_csv(path, dtype=np.float64, keep_default_na=False,
-                                na_values=list(MISSING_SPELLINGS), **common)  # fmt: skip
+            with open_regular(path, MAX_FILE_BYTES) as file:
+                frame = pd.read_csv(file, dtype=np.float64, keep_default_na=False,
+                                    na_values=list(MISSING_SPELLINGS), **common)  # fmt: skip
             values = [frame.iloc[:, k].to_numpy(np.float64) for k in range(len(usecols))]
         except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError):
             raise
         except ValueError:
             names = [labels[columns.index(column)] for column in usecols]
-            with pd.read_csv(path, dtype=str, na_filter=False, chunksize=PARSE_CHUNK_ROWS,
-                             **common) as chunks:  # fmt: skip
-                values = _parse_chunks(path, chunks, names, first_row)
+            with open_regular(path, MAX_FILE_BYTES) as file:
+                chunks = pd.read_csv(file, dtype=str, na_filter=False,
+                                     chunksize=PARSE_CHUNK_ROWS, **common)  # fmt: skip
+                with chunks:
+                    values = _parse_chunks(path, chunks, names, first_row)
     if values[0].size > MAX_SAMPLES:
         raise InputError(path, f"more than {MAX_SAMPLES:,} rows, the limit for trial files")
     return [values[usecols.index(column)] for column in columns]
@@ -261,7 +249,11 @@ def _parse_chunks(
 
 
 def read_mat_struct(
-    path: str | Path, duration: float, variable: str | None = None, group: str = ""
+    path: str | Path,
+    duration: float,
+    variable: str | None = None,
+    group: str = "",
+    max_trials: int = MAX_MAT_TRIALS,
 ) -> list[Trial]:
     """Read every trial of a MATLAB struct array with a position field ``x``.
 
@@ -277,6 +269,9 @@ def read_mat_struct(
         The struct variable to read; by default the only non-private variable in the file.
     group
         Group given to every trial read.
+    max_trials
+        Most trials the file may hold (each struct or cell array's element count, read from its
+        header before the array is read).
 
     Returns
     -------
@@ -292,17 +287,22 @@ def read_mat_struct(
         is not a vector of real numbers, or any `make_trial` problem.
     """
     path = Path(path)
-    _check_file(path)
-    with _reading(path, "MATLAB"):
-        problem = mat_problem(path, MAX_FILE_BYTES)
-    if problem:
-        raise InputError(path, f"not a readable MATLAB file ({problem})")
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            contents = scipy.io.loadmat(path)
-    except Exception as error:  # scipy raises many types (and warnings) for corrupt files
-        raise InputError(path, f"not a readable MATLAB file ({type(error).__name__})") from None
+    check_regular(path, MAX_FILE_BYTES)
+    with open_regular(path, MAX_FILE_BYTES) as file:
+        with _reading(path, "MATLAB"):
+            try:
+                problem = mat_problem(file, MAX_FILE_BYTES, max_trials)
+            except TooManyElements as many:
+                raise InputError(path, _too_many_trials(many.count, max_trials)) from None
+        if problem:
+            raise InputError(path, f"not a readable MATLAB file ({problem})")
+        try:
+            file.seek(0)
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                contents = scipy.io.loadmat(file)
+        except Exception as error:  # scipy raises many types (and warnings) for corrupt files
+            raise InputError(path, f"not a readable MATLAB file ({type(error).__name__})") from None
     names = [name for name in contents if not name.startswith("__")]
     if variable is None:
         if len(names) != 1:
@@ -332,6 +332,16 @@ def read_mat_struct(
             )
         )
     return trials
+
+
+def _too_many_trials(count: int, max_trials: int) -> str:
+    """Say that a MATLAB file holds ``count`` trials, more than ``max_trials``."""
+    if max_trials == 1:
+        return f"holds {count:,} trials, expected one"
+    return (
+        f"holds {count:,} trials (struct elements), more than the {max_trials:,} read from one "
+        "MATLAB file: split it into several files"
+    )
 
 
 MAT_KINDS = {"U": "text", "S": "text", "c": "complex numbers", "b": "logical values",
@@ -379,7 +389,7 @@ def read_csv_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) ->
         row), or any `import_trial` problem.
     """
     path = Path(path)
-    _check_file(path)
+    check_regular(path, MAX_FILE_BYTES)
     header = _first_row(path, ",")
     names = (options.time_column, options.position_column)
     missing = [name for name in names if name not in header]
@@ -464,10 +474,10 @@ def read_parquet_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT
     import pyarrow.parquet as pq
 
     path = Path(path)
-    _check_file(path)
+    check_regular(path, MAX_FILE_BYTES)
     names = (options.time_column, options.position_column)
     try:
-        with pq.ParquetFile(path) as parquet:
+        with open_regular(path, MAX_FILE_BYTES) as file, pq.ParquetFile(file) as parquet:
             schema = parquet.schema_arrow
             missing = [name for name in names if name not in schema.names]
             if missing:

@@ -32,10 +32,10 @@ from mirror_avatar.model_files import (
     MAX_MEMBER_BYTES,
     MAX_MEMBERS,
     MAX_METADATA_CHARS,
-    MAX_METADATA_DEPTH,
     MAX_TOTAL_BYTES,
 )
 from mirror_avatar.signature import DEFAULT_BINS
+from mirror_avatar.user_files import MAX_JSON_DEPTH
 
 Loader = Callable[[Path], object]
 LOADERS: dict[str, Loader] = {
@@ -484,13 +484,13 @@ def test_deeply_nested_metadata_is_refused(files, kind, brackets) -> None:
     opening, closing = ('{"a":', "}") if brackets == "{}" else ("[", "]")
     deep = opening * 100_000 + "1" + closing * 100_000
     write(files[kind], arrays, json.dumps(metadata)[:-1] + f', "deep": {deep}}}')
-    refused(files[kind], kind, f"metadata nests deeper than the limit of {MAX_METADATA_DEPTH}")
+    refused(files[kind], kind, f"metadata is JSON nested deeper than the limit of {MAX_JSON_DEPTH}")
 
 
 @pytest.mark.parametrize("kind", ["generator", "cyber"])
 def test_metadata_at_the_depth_limit_and_brackets_in_strings_still_load(files, kind) -> None:
     arrays, metadata = contents(files[kind])
-    deep = "[" * (MAX_METADATA_DEPTH - 1) + "]" * (MAX_METADATA_DEPTH - 1)
+    deep = "[" * (MAX_JSON_DEPTH - 1) + "]" * (MAX_JSON_DEPTH - 1)
     text = json.dumps(metadata | {"note": "[{" * 10_000 + '\\"[['})[:-1] + f', "deep": {deep}}}'
     write(files[kind], arrays, text)
     LOADERS[kind](files[kind])
@@ -548,7 +548,9 @@ def test_arrays_of_another_dtype_are_refused(files, kind, name, array, fragment)
         ("generator", ("training",), None, "training must be a JSON object, not None"),
         ("generator", ("training", "groups"), "fast", "training groups 'fast' are not a list"),
         ("reference", ("reference", "training", "groups"), [1], "training groups [1] are not a"),
-        ("cyber", ("training", "role"), ["leader"], "training role ['leader'] is not a name"),
+        ("cyber", ("training", "role"), ["leader"], "training role ['leader'] is none of"),
+        ("cyber", ("training", "role"), "coach", "training role 'coach' is none of follower, "
+                                                  "leader, group"),
         ("cyber", ("training", "n_sessions"), "many", "n_sessions must be an integer, not 'many'"),
         ("cyber", ("training", "n_sessions"), -1, "n_sessions -1 is outside 0..1000000000"),
         ("cyber", ("discretisation",), None, "discretisation must be a JSON object, not None"),

@@ -17,6 +17,7 @@ whose ``MirrorGame`` sidecar key describes the trial's players, back as arrays f
 
 from __future__ import annotations
 
+import io
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -36,8 +37,8 @@ from mirror_avatar.bids.names import (
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import DEFAULT_IMPORT, POSITION_UNITS, ImportOptions, excerpt
 from mirror_avatar.trial_io import (
+    MAX_FILE_BYTES,
     MAX_SIDECAR_BYTES,
-    _check_file,
     _first_row,
     _json_kind,
     _json_object,
@@ -48,6 +49,7 @@ from mirror_avatar.trial_io import (
     read_sidecar_text,
 )
 from mirror_avatar.trials import MAX_RATE, MIN_RATE, Trial
+from mirror_avatar.user_files import check_regular, open_regular
 
 Array = NDArray[np.float64]
 
@@ -103,7 +105,7 @@ def open_recording(path: str | Path) -> Recording:
     path = Path(path)
     if not path.name.endswith(MOTION_SUFFIX):
         raise InputError(path, f"not a BIDS-Motion file (names end in {MOTION_SUFFIX})")
-    _check_file(path)
+    check_regular(path, MAX_FILE_BYTES)
     stem = recording_stem(path.name)
     sidecar = path.with_name(f"{stem}_motion.json")
     if not sidecar.is_file():
@@ -122,9 +124,8 @@ def open_recording(path: str | Path) -> Recording:
 
 def _read_channels(path: Path) -> list[dict[str, str]]:
     """Read a ``_channels.tsv``: its rows, cells stripped, with unique names."""
-    _check_file(path, MAX_SIDECAR_BYTES)
-    with _reading(path, "TSV"):
-        table = pd.read_csv(path, sep="\t", dtype=str, na_filter=False, encoding="utf-8-sig")
+    with _reading(path, "TSV"), open_regular(path, MAX_SIDECAR_BYTES) as file:
+        table = pd.read_csv(file, sep="\t", dtype=str, na_filter=False, encoding="utf-8-sig")
     rows = [{str(key).strip(): str(value).strip() for key, value in row.items()}
             for row in table.to_dict("records")]  # fmt: skip
     if "name" not in (rows[0] if rows else {str(c).strip() for c in table.columns}):
@@ -276,9 +277,9 @@ def read_lab_recording(path: str | Path) -> LabRecording:
     pairs = [_player_channels(recording.motion, columns, s["label"], j == own)
              for j, s in enumerate(slots)]  # fmt: skip
     n = values[0].size
-    start = float(game.get("start_time", 0.0))
+    times = _sample_times(recording, float(game.get("start_time", 0.0)), n)
     return LabRecording(
-        times=np.asarray(start + np.arange(n) * (1.0 / recording.rate), dtype=np.float64),
+        times=times,
         positions=np.vstack([p for p, _ in pairs]) if n else np.empty((len(slots), 0)),
         velocities=np.vstack([v for _, v in pairs]) if n else np.empty((len(slots), 0)),
         labels=tuple(s["label"] for s in slots),
@@ -286,6 +287,19 @@ def read_lab_recording(path: str | Path) -> LabRecording:
         graph=game["graph"],
         metadata=_lab_metadata(recording.motion, game),
     )
+
+
+def _sample_times(recording: Recording, start: float, n: int) -> Array:
+    """Return ``start + k / rate`` (s), shape (n,), refusing times float64 cannot tell apart."""
+    times = np.asarray(start + np.arange(n) * (1.0 / recording.rate), dtype=np.float64)
+    if not np.all(np.diff(times) > 0):
+        raise InputError(
+            recording.sidecar,
+            f"{GAME_KEY}: start_time {start:g} s and SamplingFrequency {recording.rate:g} Hz give "
+            "samples no distinct times (float64 cannot tell them apart); give times from a "
+            "nearer epoch",
+        )
+    return times
 
 
 def _check_game(sidecar: Path, game: object) -> dict[str, Any]:
@@ -312,8 +326,8 @@ def _check_game(sidecar: Path, game: object) -> dict[str, Any]:
 
 def _check_widths(path: Path, width: int) -> None:
     """Refuse a row that does not hold ``width`` values (read line by line, in constant memory)."""
-    with _reading(path, "TSV"), path.open(encoding="utf-8-sig") as lines:
-        for number, line in enumerate(lines, start=1):
+    with _reading(path, "TSV"), open_regular(path, MAX_FILE_BYTES) as file:
+        for number, line in enumerate(io.TextIOWrapper(file, encoding="utf-8-sig"), start=1):
             cells = line.count("\t") + 1
             if cells != width:
                 raise InputError(

@@ -15,6 +15,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.personal_avatar import (
     DEFAULT_DQN_SESSIONS,
     DEFAULT_SESSIONS,
+    avatar_card_path,
     create_avatar,
     default_partners,
     save_avatar,
@@ -74,7 +75,7 @@ def create(
     writes OUT (playable as a SPEC: the session's role picks the player) and OUT's card, the
     same name with .html.
     """
-    check_output_file(out_path, ".npz")
+    check_output_file(out_path, ".npz", beside=[avatar_card_path(out_path)])
     if not 0 < len(name.strip()) <= MAX_NAME_CHARS:
         raise InputError(
             "--name", f"{excerpt(name)} is not a name of 1-{MAX_NAME_CHARS} characters"
@@ -89,8 +90,8 @@ def create(
     built, card = create_avatar(
         trials, name, partners, sessions, seed=seed, n_jobs=jobs, agent=agent
     )
-    built.summary["build_seconds"] = round(time.perf_counter() - began, 3)
-    metadata = {"version": __version__, "seed": seed, "seconds": built.summary["build_seconds"]}
+    seconds = round(time.perf_counter() - began, 3)
+    metadata = {"version": __version__, "seed": seed, "seconds": seconds}
     card_path = save_avatar(built, card, out_path, metadata)
     for role, result in built.summary["roles"].items():
         click.echo(

@@ -44,6 +44,7 @@ def convert(paths: tuple[Path, ...], out_dir: Path, group_by: str, options: Impo
     trials = read_and_report(paths, group_by, options)
     targets = [_target(out_dir, trial) for trial in trials]
     _check_targets(targets)
+    check_output_dir(out_dir, files=[*(t.relative_to(out_dir) for t in targets), "convert.json"])
     written: list[dict[str, object]] = []
     for trial, target in zip(trials, targets, strict=True):
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -71,7 +72,7 @@ def _target(out_dir: Path, trial: Trial) -> Path:
 
 
 def _check_targets(targets: list[Path]) -> None:
-    """Refuse two trials written to one file, or a file name taken by a folder."""
+    """Refuse two trials written to one file."""
     for target, count in Counter(targets).items():
         if count > 1:
             raise InputError(
@@ -79,5 +80,3 @@ def _check_targets(targets: list[Path]) -> None:
                 f"{count} trials of one group would share this name (trials whose paths differ "
                 "only in characters other than letters, digits, '_', '.' and '-'); rename them",
             )
-        if target.is_dir():
-            raise InputError(target, "is a folder; choose another --out")

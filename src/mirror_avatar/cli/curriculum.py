@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -23,8 +24,8 @@ from mirror_avatar.experiments.curriculum import (
     measure_stages,
     own_emd,
 )
-from mirror_avatar.importing import ImportOptions
-from mirror_avatar.report import write_report
+from mirror_avatar.importing import ImportOptions, excerpt
+from mirror_avatar.report import REPORT_FILES, write_report
 
 MAX_STAGES = 50
 PERSON_HELP = "A generator model .npz or bundled:STYLE."
@@ -66,10 +67,17 @@ def curriculum(
     takes), plan.json (weights and, per stage, the EMD to both people, strokes and how a
     patient-like virtual trainer coordinates with it) and report.html with both methods.
     """
-    check_output_dir(out_dir)
     if not 2 <= stages <= MAX_STAGES:
         raise InputError("--stages", f"give 2 to {MAX_STAGES} stages")
+    names = [f"stage-{k}.npz" for k in range(1, stages + 1)]
+    check_output_dir(out_dir, files=[*names, "plan.json", *REPORT_FILES])
     patient, target = (load_generator(spec, options) for spec in (patient_spec, target_spec))
+    if not math.isclose(patient.rate, target.rate):
+        raise InputError(
+            "--target",
+            f"{excerpt(target_spec)} moves at {target.rate:g} Hz and --patient "
+            f"{excerpt(patient_spec)} at {patient.rate:g} Hz: fit both at one rate",
+        )
     people = {
         name: model.sample(DURATION, N_DRAWS, random_state=seed)
         for name, model in (("patient", patient), ("target", target))
@@ -78,8 +86,8 @@ def curriculum(
     own = {name: own_emd(trials) for name, trials in people.items()}
     out_dir.mkdir(parents=True, exist_ok=True)
     plan = []
-    for k, row in enumerate(pd.DataFrame(table.loc[method]).to_dict(orient="records"), start=1):
-        name = f"stage-{k}.npz"
+    rows = pd.DataFrame(table.loc[method]).to_dict(orient="records")
+    for k, (name, row) in enumerate(zip(names, rows, strict=True), start=1):
         info = {"index": k, "of": stages, "patient": patient_spec, "target": target_spec}
         motion = StageMotion(patient, target, row["weight"], method)  # type: ignore[arg-type]
         save_stage(motion, out_dir / name, info)

@@ -17,7 +17,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_progress, plot_session
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.metrics.progress import order_by_start, progress_table
-from mirror_avatar.report import Section, write_report
+from mirror_avatar.report import REPORT_FILES, Section, write_report
 from mirror_avatar.session import Session, load_session
 from mirror_avatar.trial_sets import common_root
 
@@ -107,7 +107,7 @@ def evaluate(
     and each player against the mean of its neighbours. Several sessions give one table.
     """
     if out_dir is not None:
-        check_output_dir(out_dir)
+        check_output_dir(out_dir, files=["sessions.csv", *REPORT_FILES])
     sessions, notes = find_sessions(paths)
     for note in notes:
         click.echo(note)

@@ -63,7 +63,7 @@ def fit(
     options: ImportOptions,
 ) -> None:
     """Fit a generator on the trials in FILE_OR_DIR... (CSV, MAT, Parquet, BIDS motion)."""
-    check_output_file(out_path, ".npz")
+    check_output_file(out_path, ".npz", beside=[sweep_path(out_path)] if sweep else [])
     if not paths and bundled is None:
         raise InputError(None, "give trial files or directories, or --bundled fast|slow")
     trials = read_and_report(paths, "none", options) if paths else []
@@ -79,10 +79,14 @@ def fit(
     )
     if sweep:
         table = _sweep(trials, seed)
-        sweep_path = out_path.with_name(out_path.stem + ".sweep.csv")
-        write_atomic_text(sweep_path, table.to_csv())
+        write_atomic_text(sweep_path(out_path), table.to_csv())
         click.echo(table.to_string())
-        click.echo(f"sweep -> {sweep_path}")
+        click.echo(f"sweep -> {sweep_path(out_path)}")
+
+
+def sweep_path(model: Path) -> Path:
+    """Where ``generator fit --sweep`` writes its table: ``MODEL.sweep.csv``."""
+    return model.with_name(model.stem + ".sweep.csv")
 
 
 def _codebook_size(symbols: str) -> int | str:
@@ -130,11 +134,11 @@ def sample(
     """
     if not (duration > 0 and count >= 1 and rate > 0):
         raise InputError(None, "--duration, --count and --rate must be positive")
-    check_output_dir(out_dir)
+    names = [f"generated-{k + 1:03d}.csv" for k in range(count)]
+    check_output_dir(out_dir, files=[*names, "samples.json"])
     model = _load_sampler(model_path)
     trials = model.sample(duration, n=count, random_state=seed)
     out_dir.mkdir(parents=True, exist_ok=True)
-    names = [f"generated-{k + 1:03d}.csv" for k in range(count)]
     for trial, name in zip(trials, names, strict=True):
         same = math.isclose(trial.rate, rate, rel_tol=1e-6) and trial.is_uniform
         write_csv_trial(trial if same else trial.resampled(rate), out_dir / name)

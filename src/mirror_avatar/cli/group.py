@@ -10,6 +10,7 @@ from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import import_options
 from mirror_avatar.cli.simulate import (
     EXTEND_HELP,
+    SESSION_OUTPUTS,
     SPEC_HELP,
     check_recordings,
     format_metrics,
@@ -71,7 +72,7 @@ def simulate(
     theta_v 0.05), leaders the group-leader preset (theta_p 0.2, theta_s 0.8); each responds to
     the mean of the players it observes.
     """
-    check_output_dir(out_dir)
+    check_output_dir(out_dir, files=SESSION_OUTPUTS)
     n = len(player_specs)
     if n < 2:
         raise InputError("--player", "a group needs at least two players")

@@ -87,6 +87,11 @@ def _lsl_available() -> bool:
     return True
 
 
+DATASET_FILES = ("dataset_description.json", "README", "participants.tsv", "participants.json")
+"""The files `mirror_avatar.lab.bids.export_bids` writes at the top of a dataset (the
+recordings' own names are known once the session is read)."""
+
+
 @lab.command()
 @click.argument("session_dir", type=click.Path(path_type=Path))
 @click.option(
@@ -104,6 +109,6 @@ def export(session_dir: Path, out_dir: Path) -> None:
     """
     from mirror_avatar.lab.bids import export_bids
 
-    check_output_dir(out_dir)
+    check_output_dir(out_dir, files=DATASET_FILES)
     written = export_bids(session_dir, out_dir)
     click.echo(f"wrote {len(written)} motion files to {out_dir.resolve()}")

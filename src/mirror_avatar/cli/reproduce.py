@@ -16,7 +16,7 @@ from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.experiments import AGENT_EXPERIMENTS, EXPERIMENTS
 from mirror_avatar.importing import ImportOptions
 from mirror_avatar.learning.imitation import AGENTS, Agent
-from mirror_avatar.report import write_report
+from mirror_avatar.report import REPORT_FILES, write_report
 
 
 @click.command()
@@ -64,7 +64,7 @@ def reproduce(
 
     Trials given with --data are grouped by --group-by (default: the folder they are in).
     """
-    check_output_dir(out_dir)
+    check_output_dir(out_dir, files=REPORT_FILES)
     trials = read_and_report(data, group_by, options) if data else load_zhai2017()
     started = time.perf_counter()
     sections, timings = [], {}

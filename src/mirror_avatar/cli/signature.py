@@ -17,6 +17,9 @@ from mirror_avatar.importing import ImportOptions
 from mirror_avatar.report import render_png
 from mirror_avatar.signature import analyse_signatures
 
+FIGURES = ("ims.png", "similarity.png", "strokes.png")
+"""The figures written beside ``signature.json``."""
+
 
 @click.command()
 @click.argument("paths", nargs=-1, type=click.Path(path_type=Path))
@@ -67,24 +70,25 @@ def signature(
         raise InputError("--rate", f"must be positive, got {rate}")
     if not paths and not bundled:
         raise InputError(None, "give trial files or directories, or --bundled")
-    check_output_dir(out_dir)
+    check_output_dir(out_dir, files=["signature.json", *FIGURES])
     trials = read_and_report(paths, group_by, options) if paths else []
     trials += load_zhai2017() if bundled else []
     analysis = analyse_signatures(trials, level=level, rate=rate)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_atomic_json(out_dir / "signature.json", analysis.to_json_dict())
+    ims, similarity, strokes = FIGURES
     figures = {
-        "ims.png": plot_ims(
+        ims: plot_ims(
             dict(zip(analysis.group_names, analysis.group_ims, strict=True)), analysis.bins
         ),
-        "similarity.png": plot_similarity_space(
+        similarity: plot_similarity_space(
             analysis.points_by_group(),
             analysis.ellipses,
             labels={
                 g: [analysis.labels[i] for i in analysis.members(g)] for g in analysis.group_names
             },
         ),
-        "strokes.png": plot_skew_kurtosis(analysis.strokes_by_group(), analysis.stroke_ellipses),
+        strokes: plot_skew_kurtosis(analysis.strokes_by_group(), analysis.stroke_ellipses),
     }
     for name, figure in figures.items():
         write_atomic_bytes(out_dir / name, render_png(figure))

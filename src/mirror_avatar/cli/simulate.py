@@ -13,7 +13,7 @@ from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import import_options
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
-from mirror_avatar.figures import plot_session
+from mirror_avatar.figures import SESSION_FIGURES, plot_session
 from mirror_avatar.importing import ImportOptions
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
@@ -140,15 +140,26 @@ def check_recordings(
             )
 
 
+SESSION_OUTPUTS = (
+    "session.parquet",
+    "session.csv",
+    "session.json",
+    "metrics.json",
+    *(f"{name}.png" for name in SESSION_FIGURES),
+)
+"""Every file `write_outputs` may write in its folder (checked before a session is played)."""
+
+
 def write_outputs(session: Session, out_dir: Path, summary: dict[str, Any]) -> Path:
     """Write the session (Parquet, CSV, sidecar), ``metrics.json`` and its figures (PNG).
 
-    Returns the path of ``metrics.json``.
+    Every file is one of `SESSION_OUTPUTS`. Returns the path of ``metrics.json``.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
-    session.save(out_dir / "session.parquet")
-    session.save_csv(out_dir / "session.csv")
-    metrics_path = out_dir / "metrics.json"
+    parquet, csv, _, metrics = SESSION_OUTPUTS[:4]
+    session.save(out_dir / parquet)
+    session.save_csv(out_dir / csv)
+    metrics_path = out_dir / metrics
     write_atomic_json(metrics_path, summary)
     for name, figure in plot_session(session, summary["trim"]).items():
         write_atomic_bytes(out_dir / f"{name}.png", render_png(figure))
@@ -183,7 +194,7 @@ def simulate(
     follower presets (both the joint preset with --joint). Relative phase and time lag are
     player 0 minus player 1: positive when player 0 is ahead.
     """
-    check_output_dir(out_dir)
+    check_output_dir(out_dir, files=SESSION_OUTPUTS)
     if not duration > 0.0:
         raise InputError("--duration", f"must be positive, got {duration:g} s")
     if not 0.0 <= trim < duration:

@@ -98,7 +98,7 @@ def check_training(
     out_path: Path, sessions: int, jobs: int, checkpoint_every: int | None, duration: float
 ) -> None:
     """Refuse a training run's bad options in one line, before any work; announce checkpoints."""
-    check_output_file(out_path, ".npz")
+    check_output_file(out_path, ".npz", beside=training_files(out_path))
     if sessions < 1 or jobs < 1 or (checkpoint_every is not None and checkpoint_every < 1):
         raise InputError("--sessions", "--sessions, --jobs and --checkpoint-every must be >= 1")
     if not duration > 0.0:
@@ -111,6 +111,12 @@ def check_training(
         )
 
 
+def training_files(policy: Path) -> tuple[Path, Path, Path]:
+    """Return the files a training run writes beside its policy: curve CSV and PNG, checkpoint."""
+    curve = learning_curve_path(policy)
+    return curve, curve.with_suffix(".png"), checkpoint_path(policy)
+
+
 def finish_training(
     player: AccelerationPlayer, curve: LearningCurve, policy: Path, name: str
 ) -> Path:
@@ -118,9 +124,10 @@ def finish_training(
 
     Returns the learning curve's path.
     """
-    curve_path = curve.save(learning_curve_path(policy))
+    curve_path, figure_path, _ = training_files(policy)
+    curve.save(curve_path)
     figure = plot_learning_curves({name: (curve.sessions, curve.rms)})
-    write_atomic_bytes(curve_path.with_suffix(".png"), render_png(figure))
+    write_atomic_bytes(figure_path, render_png(figure))
     player.save(policy)
     checkpoint_path(policy).unlink(missing_ok=True)
     return curve_path

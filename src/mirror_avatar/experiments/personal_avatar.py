@@ -129,9 +129,14 @@ def save_avatar(avatar: Avatar, card: Section, path: Path, metadata: dict[str, A
     Returns the card's path.
     """
     avatar.save(path)
-    card_path = path.with_suffix(".html")
+    card_path = avatar_card_path(path)
     write_atomic_text(card_path, render_report([card], f"Avatar of {avatar.name}", metadata))
     return card_path
+
+
+def avatar_card_path(path: Path) -> Path:
+    """Where `save_avatar` writes the card of the avatar file ``path``: the same name, ``.html``."""
+    return path.with_suffix(".html")
 
 
 def default_partners(seed: int) -> list[tuple[str, IMSGenerator]]:
@@ -222,7 +227,6 @@ def _summary(
         criteria = per_role[result.role]
         unseen = criteria.iloc[-1]
         roles[result.role] = {
-            "train_seconds": round(result.train_seconds, 3),
             "emd_to_person": float(unseen[f"emd to {result.target}"]),
             "unseen_cv_difference": float(unseen["cv cyber"] - unseen[f"cv {result.target}"]),
             "unseen_rms_difference": float(unseen["rms cyber"] - unseen[f"rms {result.target}"]),

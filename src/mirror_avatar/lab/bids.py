@@ -27,7 +27,6 @@ values and tables follow the rules of `mirror_avatar.bids`.
 
 from __future__ import annotations
 
-import json
 import os
 import re
 from dataclasses import dataclass
@@ -44,7 +43,8 @@ from mirror_avatar.bids.reading import GAME_KEY
 from mirror_avatar.bids.writing import one_line, tsv_table, tsv_values
 from mirror_avatar.errors import InputError
 from mirror_avatar.session import Session, load_session
-from mirror_avatar.trial_io import read_sidecar_text
+from mirror_avatar.trial_io import MAX_FILE_BYTES, read_sidecar_text
+from mirror_avatar.user_files import parse_json, read_bytes
 
 Array = NDArray[np.float64]
 
@@ -220,8 +220,8 @@ def _slots(path: Path, slots: object, session: Session) -> tuple[dict[str, Any],
 def _nominal_period(path: Path, session: Session) -> float:
     """Return the sidecar's control period (s), or the one the sample times give."""
     try:
-        period = json.loads(path.with_suffix(".json").read_text(encoding="utf-8")).get("period")
-    except (OSError, ValueError, AttributeError):
+        period = parse_json(read_sidecar_text(path.with_suffix(".json")), path).get("period")
+    except (ValueError, AttributeError):
         period = None
     if isinstance(period, int | float) and not isinstance(period, bool) and period > 0:
         return float(period)
@@ -445,17 +445,14 @@ def _copy_sources(session_dir: Path, files: list[Path], target: Path) -> None:
     sources.append(session_dir / "plan.json")
     for source in sources:
         if source.is_file():
-            write_atomic_bytes(target / source.name, source.read_bytes())
+            write_atomic_bytes(target / source.name, read_bytes(source, MAX_FILE_BYTES))
 
 
 def _read_column_info(path: Path) -> dict[str, Any]:
     """Read an existing ``participants.json`` (its other columns are kept); empty if absent."""
     if not path.is_file():
         return {}
-    try:
-        described = json.loads(read_sidecar_text(path))
-    except ValueError:
-        raise InputError(path, "not valid JSON") from None
+    described = parse_json(read_sidecar_text(path), path)
     if not isinstance(described, dict):
         raise InputError(path, "not a JSON object")
     return described

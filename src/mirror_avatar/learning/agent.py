@@ -369,12 +369,19 @@ def cyber_player_from_arrays(
     return player
 
 
+POLICY_ROLE_NAMES = ("follower", "leader", "group")
+"""The roles a cyber player may have been trained in (``training.role`` of its file; absent for
+a player never trained)."""
+
+
 def check_training(path: Source, training: object) -> dict[str, Any]:
     """Return a file's training summary once the entries play and training read are valid."""
     summary = check_object(path, "training", training)
     role = summary.get("role")
-    if not (role is None or isinstance(role, str)):
-        raise InputError(path, f"training role {excerpt(role)} is not a name")
+    if not (role is None or role in POLICY_ROLE_NAMES):
+        raise InputError(
+            path, f"training role {excerpt(role)} is none of {', '.join(POLICY_ROLE_NAMES)}"
+        )
     if "n_sessions" in summary:
         check_integer(path, "n_sessions", summary["n_sessions"], 0, MAX_TRAINING_SESSIONS)
     return summary
