@@ -10,6 +10,8 @@ across the trial).
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
@@ -38,6 +40,11 @@ def _check_velocity(velocity: ArrayLike, rate: float, band: tuple[float, float])
     return v
 
 
+@lru_cache(maxsize=32)
+def _design(order: int, band: tuple[float, float], rate: float) -> Array:
+    return np.asarray(signal.butter(order, band, btype="bandpass", fs=rate, output="sos"))
+
+
 def band_pass(
     velocity: ArrayLike,
     rate: float,
@@ -58,8 +65,7 @@ def band_pass(
         Butterworth order of each pass (the forward-backward filter has twice the order).
     """
     v = _check_velocity(velocity, rate, band)
-    sos = signal.butter(order, band, btype="bandpass", fs=rate, output="sos")
-    return np.asarray(signal.sosfiltfilt(sos, v), dtype=np.float64)
+    return np.asarray(signal.sosfiltfilt(_design(order, band, rate), v), dtype=np.float64)
 
 
 def jitter_index(

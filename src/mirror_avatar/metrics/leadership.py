@@ -20,7 +20,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal
 
 from mirror_avatar.errors import InputError
 
@@ -127,17 +126,34 @@ def windowed_cross_correlation(
         )
     starts = np.arange(m, a.size - w - m + 1, h)
     views_a = _standardised(sliding_window_view(a, w)[starts])
-    views_b = _standardised(sliding_window_view(b, w))
-    lags = np.arange(-m, m + 1)
-    corr = np.einsum("iw,ilw->il", views_a, views_b[starts[:, None] + lags[None, :]]) / w
+    sd_b = _window_sd(b, w)[starts[:, None] + np.arange(-m, m + 1)[None, :]]
+    dot = (
+        np.array(
+            [
+                np.correlate(b[i - m : i + m + w], row, mode="valid")
+                for i, row in zip(starts, views_a, strict=True)
+            ]
+        )
+        / w
+    )
+    corr = np.divide(dot, sd_b, out=np.zeros_like(dot), where=sd_b > 1e-12 * (1 + np.abs(b).max()))
     times = np.asarray((starts + w / 2) / rate, dtype=np.float64)
-    return times, lags / rate, np.asarray(corr, dtype=np.float64)
+    return times, np.arange(-m, m + 1) / rate, np.asarray(corr, dtype=np.float64)
 
 
 def _standardised(windows: Array) -> Array:
     centred = windows - windows.mean(axis=-1, keepdims=True)
     sd = centred.std(axis=-1, keepdims=True)
     return np.asarray(np.divide(centred, sd, out=np.zeros_like(centred), where=sd > 0))
+
+
+def _window_sd(x: Array, w: int) -> Array:
+    """SD of every window of ``w`` samples, shape (n - w + 1,), from running sums."""
+    centred = x - x.mean()
+    c1 = np.concatenate(([0.0], np.cumsum(centred)))
+    c2 = np.concatenate(([0.0], np.cumsum(centred**2)))
+    mean = (c1[w:] - c1[:-w]) / w
+    return np.sqrt(np.maximum((c2[w:] - c2[:-w]) / w - mean**2, 0.0))
 
 
 def pick_peaks(lags: Array, correlations: Array, min_peak: float = MIN_PEAK) -> tuple[Array, Array]:
@@ -150,20 +166,23 @@ def pick_peaks(lags: Array, correlations: Array, min_peak: float = MIN_PEAK) -> 
     correlations
         Shape (w, m).
     min_peak
-        Smallest correlation of a peak; the ends of the lag range are never peaks.
+        Smallest correlation of a peak. A peak is larger than the value before it and at least
+        the value after it; the ends of the lag range are never peaks. Of two peaks equally
+        near lag zero, the negative lag's is taken.
 
     Returns
     -------
     peak_lags, peak_values
         Shape (w,); NaN for a window without a peak.
     """
-    peak_lags = np.full(correlations.shape[0], np.nan)
-    peak_values = np.full(correlations.shape[0], np.nan)
-    for i, row in enumerate(correlations):
-        found, _ = signal.find_peaks(row, height=min_peak)
-        if found.size:
-            best = found[np.argmin(np.abs(lags[found]))]
-            peak_lags[i], peak_values[i] = lags[best], row[best]
+    r = np.asarray(correlations, dtype=float)
+    inner = r[:, 1:-1]
+    is_peak = (inner > r[:, :-2]) & (inner >= r[:, 2:]) & (inner >= min_peak)
+    distance = np.where(is_peak, np.abs(lags[1:-1])[None, :], np.inf)
+    best = np.argmin(distance, axis=1)
+    found = np.isfinite(distance[np.arange(r.shape[0]), best])
+    peak_lags = np.where(found, lags[1:-1][best], np.nan)
+    peak_values = np.where(found, inner[np.arange(r.shape[0]), best], np.nan)
     return peak_lags, peak_values
 
 
