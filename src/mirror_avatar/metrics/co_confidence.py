@@ -11,13 +11,17 @@ smooth (jitter-free), synchronised joint motion. Here a sample is CC when, at on
   episode's peak), so 2-3 Hz motion both players share, as a follower matching a leader's
   quick strokes, is not jitter, and one player's jitter alone is;
 - they move together: the relative velocity difference over a centred window,
-  ``dV(t) = mean|v0 - v1| / mean((|v0| + |v1|) / 2)``, is below ``dv_threshold``;
-- they move: the pair's mean speed over that window is at least ``rest_fraction`` times the
-  pair's RMS speed over the trial (joint rest is not CC motion);
+  ``dV(t) = mean|u0 - u1| / mean((|u0| + |u1|) / 2)``, is below ``dv_threshold``, with
+  ``u`` the velocities without jitter (`mirror_avatar.metrics.jitter.smooth_part`: low-passed
+  below the jitter band), so that jitter, judged by the first criterion, does not spill over
+  the window into this one;
+- they move: the pair's mean speed ``(|u0| + |u1|) / 2`` over that window is at least
+  ``rest_fraction`` times the pair's RMS speed over the trial (joint rest is not CC motion);
 
 and a CC segment is a run of CC samples at least ``min_duration`` long. Each segment reports
-its dV and its dT, the mean gap (s) between each zero-velocity event of player 0 in the segment
-and the nearest zero-velocity event of player 1. The thresholds are a **choice** (the papers
+its dV (over the segment, of ``u``) and its dT, the mean gap (s) between each zero-velocity
+event of player 0 in the segment and the nearest zero-velocity event of player 1 (events of
+``u``). The thresholds are a **choice** (the papers
 name the criteria, not numbers that carry over between set-ups); all are options.
 """
 
@@ -30,7 +34,13 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import uniform_filter1d
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.metrics.jitter import FILTER_ORDER, JITTER_BAND, jitter_episodes, jitter_index
+from mirror_avatar.metrics.jitter import (
+    FILTER_ORDER,
+    JITTER_BAND,
+    jitter_episodes,
+    jitter_index,
+    smooth_part,
+)
 from mirror_avatar.metrics.runs import find_runs, keep_long_runs
 
 Array = NDArray[np.float64]
@@ -166,6 +176,7 @@ def find_co_confidence(
         raise InputError("co-confidence", "durations and thresholds must be positive")
     pair_rms = float(np.sqrt(np.mean((a**2 + b**2) / 2.0)))
     smooth = ~jitter_episodes(jitter_index(a - b, rate, band, order, pair_rms), jitter_threshold)
+    a, b = smooth_part(a, rate, band, order), smooth_part(b, rate, band, order)
     together = relative_velocity_difference(a, b, rate, dv_window) < dv_threshold
     size = max(1, round(dv_window * rate))
     speed = uniform_filter1d((np.abs(a) + np.abs(b)) / 2.0, size, mode="nearest")

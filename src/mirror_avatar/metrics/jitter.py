@@ -45,6 +45,26 @@ def _design(order: int, band: tuple[float, float], rate: float) -> Array:
     return np.asarray(signal.butter(order, band, btype="bandpass", fs=rate, output="sos"))
 
 
+@lru_cache(maxsize=32)
+def _low_pass_design(order: int, cutoff: float, rate: float) -> Array:
+    return np.asarray(signal.butter(order, cutoff, fs=rate, output="sos"))
+
+
+def smooth_part(
+    velocity: ArrayLike,
+    rate: float,
+    band: tuple[float, float] = JITTER_BAND,
+    order: int = FILTER_ORDER,
+) -> Array:
+    """Remove the jitter: zero-phase Butterworth low-pass at the band's low edge (units/s).
+
+    Parameters and shapes as in `band_pass`.
+    """
+    v = _check_velocity(velocity, rate, band)
+    sos = _low_pass_design(order, band[0], rate)
+    return np.asarray(signal.sosfiltfilt(sos, v), dtype=np.float64)
+
+
 def band_pass(
     velocity: ArrayLike,
     rate: float,

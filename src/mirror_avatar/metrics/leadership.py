@@ -38,7 +38,7 @@ MIN_PEAK = 0.5
 """Smallest correlation of a picked peak (**choice**); a window without one has no leader."""
 
 LEADER_SHARE = 0.6
-"""Share of the windows with a peak that a player must lead to lead the session (**choice**)."""
+"""Share of all windows that a player must lead to lead the session (**choice**)."""
 
 
 @dataclass(frozen=True)
@@ -74,18 +74,17 @@ class Leadership:
         return out
 
     def leader(self, rate: float, share: float = LEADER_SHARE) -> tuple[int | None, float]:
-        """Name the session's leader, and the share of the peaked windows it leads.
+        """Name the session's leader, and the share of all windows it leads.
 
-        The player leading most windows with a peak leads the session if it leads at least
-        ``share`` of them; otherwise None (no leader).
+        The player leading most windows leads the session if it leads at least ``share`` of
+        all windows (windows without a peak lead nobody); otherwise None (no leader).
         """
         each = self.leaders(rate)
-        peaked = int(np.sum(np.isfinite(self.peak_lags)))
-        if peaked == 0:
+        if each.size == 0:
             return None, float("nan")
         counts = [int(np.sum(each == k)) for k in (0, 1)]
         best = int(np.argmax(counts))
-        fraction = counts[best] / peaked
+        fraction = counts[best] / each.size
         return (best if fraction >= share else None), fraction
 
     def leader_lag(self, player: int, rate: float) -> float:
