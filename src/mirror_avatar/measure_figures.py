@@ -114,8 +114,9 @@ def plot_measures(session: Session, measures: Measures) -> dict[str, Figure]:
     ``timeline`` and ``leadership`` for a pair, ``surrogates`` when surrogates were drawn.
     """
     figures = {}
-    if "leadership" in measures.details:
+    if "co_confidence" in measures.details:
         figures["timeline"] = plot_timeline(session, measures)
+    if "leadership" in measures.details:
         figures["leadership"] = plot_leadership(measures)
     if measures.null:
         figures["surrogates"] = plot_surrogates(measures)

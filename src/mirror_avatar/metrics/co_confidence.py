@@ -173,7 +173,10 @@ def find_co_confidence(
     if a.shape != b.shape:
         raise InputError("velocities", f"need two series of equal length, got {a.shape}, {b.shape}")
     if min_duration <= 0 or dv_window <= 0 or jitter_threshold <= 0 or dv_threshold <= 0:
-        raise InputError("co-confidence", "durations and thresholds must be positive")
+        raise InputError(
+            "co-confidence",
+            "--cc-min-duration, --dv-window, --jitter-threshold and --dv-threshold must be > 0",
+        )
     pair_rms = float(np.sqrt(np.mean((a**2 + b**2) / 2.0)))
     smooth = ~jitter_episodes(jitter_index(a - b, rate, band, order, pair_rms), jitter_threshold)
     a, b = smooth_part(a, rate, band, order), smooth_part(b, rate, band, order)

@@ -121,7 +121,8 @@ def windowed_cross_correlation(
     w, h, m = round(window * rate), max(1, round(step * rate)), round(max_lag * rate)
     if a.ndim != 1 or a.shape != b.shape or w < 3 or a.size < w + 2 * m:
         raise InputError(
-            "leadership", f"need two equal series longer than window + 2 max_lag, got {a.shape}"
+            "leadership",
+            f"need two equal series longer than --lead-window + 2 --lead-max-lag, got {a.shape}",
         )
     starts = np.arange(m, a.size - w - m + 1, h)
     views_a = _standardised(sliding_window_view(a, w)[starts])

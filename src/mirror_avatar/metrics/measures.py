@@ -136,7 +136,10 @@ def _cc(v: Array, rate: float, o: MeasureOptions) -> co_confidence.CoConfidence:
     )  # fmt: skip
 
 
-def _leadership(x: Array, v: Array, rate: float, o: MeasureOptions) -> leadership.Leadership:
+def _leadership(x: Array, v: Array, rate: float, o: MeasureOptions) -> leadership.Leadership | None:
+    """Leadership of the pair; None when the session is shorter than a window and its lags."""
+    if x.shape[1] < round(o.lead_window * rate) + 2 * round(o.lead_max_lag * rate):
+        return None
     s = v if o.lead_signal == "velocity" else x
     return leadership.compute_leadership(
         s[0], s[1], rate, o.lead_window, o.lead_step, o.lead_max_lag, o.lead_min_peak
@@ -168,13 +171,16 @@ def coordination_statistics(x: Array, v: Array, rate: float, o: MeasureOptions) 
                     out[f"transfer_entropy_{i}_to_{j}"] = _te(v, i, j, rate, o)
         return out
     lead = _leadership(x, v, rate, o)
+    nan = float("nan")
     return {
         "phase_locking": compute_phase_locking(compute_relative_phase(x[0], x[1])),
         "rmse": compute_rmse(x[0], x[1]),
         "max_cross_correlation": compute_cross_correlation_peak(x[0], x[1], rate)[1],
         "co_confidence_rate": _cc(v, rate, o).rate,
-        "leadership_strength": float(np.nanmean(np.nan_to_num(lead.peak_values, nan=0.0))),
-        "leader_share": lead.leader(rate, o.leader_share)[1],
+        "leadership_strength": nan
+        if lead is None
+        else float(np.nan_to_num(lead.peak_values).mean()),
+        "leader_share": nan if lead is None else lead.leader(rate, o.leader_share)[1],
         "transfer_entropy_0_to_1": _te(v, 0, 1, rate, o),
         "transfer_entropy_1_to_0": _te(v, 1, 0, rate, o),
     }
@@ -259,8 +265,11 @@ def _dyad_values(
     sync = synchrony_episodes.find_synchrony_episodes(
         compute_relative_phase(x[0], x[1]), rate, o.sync_window, o.sync_threshold
     )
-    details |= {"co_confidence": cc, "leadership": lead, "synchrony": sync}
-    leader, _ = lead.leader(rate, o.leader_share)
+    details |= {"co_confidence": cc, "synchrony": sync}
+    leader = None
+    if lead is not None:
+        details["leadership"] = lead
+        leader, _ = lead.leader(rate, o.leader_share)
     segments = [
         {"start": s.start + start, "end": s.end + start, "dv": s.dv, "dt": s.dt}
         for s in cc.segments
@@ -275,7 +284,9 @@ def _dyad_values(
         "synchrony_mean_dwell": sync.mean_dwell,
         "synchrony_mean_gap": sync.mean_gap,
         "leader": "none" if leader is None else leader,
-        "leader_lag_s": float("nan") if leader is None else lead.leader_lag(leader, rate),
+        "leader_lag_s": float("nan")
+        if lead is None or leader is None
+        else lead.leader_lag(leader, rate),
     }
 
 
@@ -289,6 +300,10 @@ def _add_p_values(
     out: Measures, observed: dict[str, float], x: Array, v: Array, rate: float,
     o: MeasureOptions, partners: Sequence[Session],
 ) -> None:  # fmt: skip
+    if o.surrogates == "shift" and x.shape[1] - 2 * round(o.min_shift * rate) < 1:
+        out.values["surrogates"] = {"kind": o.surrogates, "n": 0, "min_shift": o.min_shift,
+                                    "seed": o.seed, "note": "too short for the shifts"}  # fmt: skip
+        return
     directions = tested_directions(x.shape[0])
     draws = [
         coordination_statistics(xs, vs, rate, o)

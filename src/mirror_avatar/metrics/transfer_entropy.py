@@ -69,10 +69,12 @@ def transfer_entropy(
     x, y = np.asarray(source, dtype=float), np.asarray(target, dtype=float)
     stride = max(1, round(step * rate))
     if x.ndim != 1 or x.shape != y.shape or x.size // stride <= history + 1:
-        raise InputError("transfer entropy", "need two equal series longer than the history")
+        raise InputError(
+            "transfer entropy", "series shorter than the history (--te-history, --te-step)"
+        )
     if bins < 2 or history < 1:
         raise InputError(
-            "transfer entropy", f"need bins >= 2 and history >= 1, got {bins}, {history}"
+            "transfer entropy", f"need --te-bins >= 2 and --te-history >= 1, got {bins}, {history}"
         )
     sx, sy = phases(discretise(x, bins), stride), phases(discretise(y, bins), stride)
     return float(pyinform.transfer_entropy(sx, sy, k=history))
