@@ -136,7 +136,7 @@ def measures_section(
     for (path, session), found in zip(sessions, measures, strict=True):
         kept = session.trimmed(trim) if trim > 0 else session
         for name, figure in plot_measures(kept, found).items():
-            figures[f"{path.name}: {name}"] = figure
+            figures[f"{path.parent.name}/{path.name}: {name}"] = figure
     text = [
         "Co-confidence (CC): stretches of at least "
         f"{options.min_duration:g} s in which the players move together (relative velocity "

@@ -76,8 +76,8 @@ def test_an_imported_pair_with_a_known_leader(tmp_path, rng, capsys):
     header = (out / "sessions.csv").read_text().splitlines()[0].split(",")
     assert {"co_confidence_rate", "leader", "leader_lag_s", "rmse_p_value"} <= set(header)
     report = (out / "report.html").read_text()
-    for caption in ("pair.csv: timeline", "pair.csv: leadership", "pair.csv: surrogates"):
-        assert caption in report
+    for figure in ("timeline", "leadership", "surrogates"):
+        assert f"{tmp_path.name}/pair.csv: {figure}" in report
 
 
 def test_the_seed_fixes_the_p_values_and_options_reach_the_measures(tmp_path, rng, capsys):
