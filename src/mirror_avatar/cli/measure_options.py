@@ -18,7 +18,8 @@ from mirror_avatar.metrics.measures import MeasureOptions
 F = TypeVar("F", bound=Callable[..., Any])
 
 OPTIONS = (
-    ("n_surrogates", "--surrogates", int, "Surrogates per session for the p-values (0: none)."),
+    ("n_surrogates", "--surrogates", click.IntRange(min=0),
+     "Surrogates per session for the p-values (0: none)."),
     ("surrogates", "--surrogate-kind", click.Choice(["shift", "pseudo"]),
      "shift: circular shifts of the partners; pseudo: player 0 with other sessions' partners."),
     ("seed", "--surrogate-seed", int, "Seed of the surrogate draws (recorded)."),
@@ -28,8 +29,12 @@ OPTIONS = (
      "Jitter index of the velocity difference above which motion is not smooth."),
     ("dv_threshold", "--dv-threshold", float, "Largest relative velocity difference of CC."),
     ("dv_window", "--dv-window", float, "Window of the velocity difference (s)."),
+    ("rest_fraction", "--rest-fraction", float,
+     "Share of the pair's RMS speed below which the pair rests (not CC)."),
     ("sync_threshold", "--sync-threshold", float, "Windowed CV of synchrony episodes."),
     ("sync_window", "--sync-window", float, "Window of the windowed CV (s)."),
+    ("lead_signal", "--lead-signal", click.Choice(["velocity", "position"]),
+     "Series the leadership windows correlate."),
     ("lead_window", "--lead-window", float, "Window of the lagged cross-correlation (s)."),
     ("lead_step", "--lead-step", float, "Step between windows (s)."),
     ("lead_max_lag", "--lead-max-lag", float, "Largest lag of the leadership search (s)."),
