@@ -67,8 +67,6 @@ MEASURE_ROWS = (
     ("co_confidence_rate", "CC rate (share of time in co-confidence)", ""),
     ("co_confidence_count", "CC segments", ""),
     ("co_confidence_mean_length", "CC mean segment length", "s"),
-    ("jitter_index_player_0", "jitter index player 0 (2-3 Hz share)", ""),
-    ("jitter_index_player_1", "jitter index player 1 (2-3 Hz share)", ""),
     ("synchrony_share", "share of time in synchrony", ""),
     ("synchrony_entries", "entries into synchrony", ""),
     ("synchrony_mean_dwell", "mean dwell in synchrony", "s"),
@@ -76,18 +74,30 @@ MEASURE_ROWS = (
     ("leader_share", "share of windows the leader leads", ""),
     ("leader_lag_s", "leader's lag", "s"),
     ("leadership_strength", "leadership strength (mean peak correlation)", ""),
-    ("transfer_entropy_0_to_1", "transfer entropy 0 -> 1", "bits"),
-    ("transfer_entropy_1_to_0", "transfer entropy 1 -> 0", "bits"),
     ("group_synchronisation", "group synchronisation (rho_g)", ""),
 )
 """(key, description, unit) of the measures printed for one session."""
+
+
+FAMILIES = (("jitter_index_player_", ""), ("transfer_entropy_", "bits"), ("influence_", "bits"))
+"""Key prefixes of the measures with one value per player or pair, and their units."""
+
+
+def _family_label(key: str) -> str:
+    if key.startswith("jitter_index_player_"):
+        return f"jitter index player {key.rsplit('_', 1)[1]} (2-3 Hz share)"
+    if key.startswith("transfer_entropy_"):
+        source, target = key.removeprefix("transfer_entropy_").split("_to_")
+        return f"transfer entropy {source} -> {target}"
+    return key.replace("_", " ")
 
 
 def format_measures(values: dict[str, Any]) -> str:
     """Render the measures of one session as aligned text, each tested one with its p-value."""
     p_keys = {"max_cross_correlation": "time_lag_p_value"}
     rows = [row for row in MEASURE_ROWS if row[0] in values]
-    rows += [(k, k.replace("_", " "), "bits") for k in values if k.startswith("influence_")]
+    rows += [(k, _family_label(k), unit) for k in values for prefix, unit in FAMILIES
+             if k.startswith(prefix) and not k.endswith("_p_value")]  # fmt: skip
     if not rows:
         return ""
     width = max(len(description) for _, description, _ in rows)
