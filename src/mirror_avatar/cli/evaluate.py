@@ -126,7 +126,8 @@ def evaluate(
         click.echo(json.dumps(json_safe(shown), indent=2))
     elif len(results) == 1:
         click.echo(format_metrics(results[0][2]))
-        click.echo(format_measures(measures[0].values))
+        if text := format_measures(measures[0].values):
+            click.echo(text)
     else:
         click.echo(rows.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
     if weak_null is not None:

@@ -28,6 +28,11 @@ FILTER_ORDER = 4
 """Order of the Butterworth band-pass (**choice**; applied forward and backward)."""
 
 
+def shortest_series(order: int = FILTER_ORDER) -> int:
+    """Fewest samples the forward-backward filters of this module accept at ``order``."""
+    return 3 * (2 * order + 1) + 1
+
+
 def _check_velocity(velocity: ArrayLike, rate: float, band: tuple[float, float]) -> Array:
     v = np.asarray(velocity, dtype=float)
     if v.ndim != 1 or v.size < 2 or not np.all(np.isfinite(v)):

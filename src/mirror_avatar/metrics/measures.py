@@ -225,7 +225,8 @@ def session_measures(
     Parameters
     ----------
     session
-        Any session of two or more players (one player: only its jitter).
+        Any session of two or more players (one player: only its jitter; a session shorter
+        than `mirror_avatar.metrics.jitter.shortest_series` samples: none).
     trim
         Seconds left out at the start, as in `session_metrics`.
     options
@@ -238,6 +239,8 @@ def session_measures(
     x, v = kept.positions, kept.velocities
     rate = 1.0 / float(np.median(np.diff(kept.times)))
     out = Measures(details={"start": float(kept.times[0])})
+    if kept.n_samples < jitter.shortest_series():
+        return out
     index = [jitter.jitter_index(row, rate, o.jitter_band) for row in v]
     out.details["jitter"] = np.array(index)
     for k, row in enumerate(v):
