@@ -1,7 +1,8 @@
 """Test support, as ``numpy.testing`` is for numpy: what the tests and the benchmarks share.
 
 Slow, obvious reference implementations the compiled code is checked and timed against
-(`solve_step_bvp`, `python_learn_session`), tasks with known answers (`make_follower_sessions`),
+(`solve_step_bvp`, `python_learn_session`, `plug_in_transfer_entropy`), tasks with known answers
+(`make_follower_sessions`, `swapped_roles`),
 and a real live server on a loopback port (`ServerThread`). Nothing else in the package uses it.
 """
 
@@ -14,9 +15,10 @@ import socket
 import threading
 import time
 from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_bvp
 from starlette.types import ASGIApp
 
@@ -232,3 +234,52 @@ def text_frame(text: str) -> bytes:
     """Make a masked (with a zero key) WebSocket text frame of fewer than 126 bytes."""
     data = text.encode()
     return bytes([0x81, 0x80 | len(data)]) + bytes(4) + data
+
+
+def smooth_motion(rng: np.random.Generator, n: int, rate: float, cutoff: float = 1.0) -> Array:
+    """Band-limited random motion: white noise low-passed at ``cutoff`` (Hz), shape (n,)."""
+    from scipy import signal
+
+    sos = signal.butter(4, cutoff, fs=rate, output="sos")
+    return np.asarray(signal.sosfiltfilt(sos, rng.normal(size=n + 2000))[1000 : 1000 + n])
+
+
+def swapped_roles(rng: np.random.Generator, n: int, delay: int, rate: float) -> tuple[Array, Array]:
+    """Two positions whose leader swaps halfway: known leadership for its measures.
+
+    Player 1 repeats player 0's `smooth_motion` ``delay`` samples later for the first ``n // 2``
+    samples, then player 0 repeats player 1's; shape (n,) each.
+    """
+    s = smooth_motion(rng, n + delay, rate)
+    t = np.arange(n)
+    first = t < n // 2
+    return np.where(first, s[t + delay], s[t]), np.where(first, s[t], s[t + delay])
+
+
+def plug_in_transfer_entropy(source: ArrayLike, target: ArrayLike, k: int) -> float:
+    """Schreiber's transfer entropy (bits) of discrete series by counting states, slowly.
+
+    Rows of 2-D inputs are independent series of one process, pooled (as pyinform pools them).
+    """
+    from collections import Counter
+
+    joint: Counter[tuple[Any, ...]] = Counter()
+    past_source: Counter[tuple[Any, ...]] = Counter()
+    past: Counter[tuple[Any, ...]] = Counter()
+    past_next: Counter[tuple[Any, ...]] = Counter()
+    total = 0
+    rows = zip(np.atleast_2d(source).tolist(), np.atleast_2d(target).tolist(), strict=True)
+    for x, y in rows:
+        for t in range(k - 1, len(y) - 1):
+            history = tuple(y[t - k + 1 : t + 1])
+            joint[(y[t + 1], history, x[t])] += 1
+            past_source[(history, x[t])] += 1
+            past[history] += 1
+            past_next[(y[t + 1], history)] += 1
+            total += 1
+    te = 0.0
+    for (following, history, x_t), count in joint.items():
+        conditional = count / past_source[(history, x_t)]
+        marginal = past_next[(following, history)] / past[history]
+        te += count / total * math.log2(conditional / marginal)
+    return te

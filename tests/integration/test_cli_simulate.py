@@ -51,8 +51,10 @@ def test_simulate_writes_session_and_metrics(
     assert recomputed == pytest.approx(summary["metrics"])
     assert summary["metrics"]["emd_reference_0"] < summary["metrics"]["emd_reference_1"]
 
-    assert main(["evaluate", str(out / "session.parquet"), "--json"]) == 0
-    assert json.loads(capsys.readouterr().out) == pytest.approx(summary["metrics"])
+    assert main(["evaluate", str(out / "session.parquet"), "--json", "--surrogates", "0"]) == 0
+    evaluated = json.loads(capsys.readouterr().out)
+    assert {k: evaluated[k] for k in summary["metrics"]} == pytest.approx(summary["metrics"])
+    assert "co_confidence_rate" in evaluated  # and the field's measures beside them
     assert main(["evaluate", str(out / "session.csv")]) == 0
     table = capsys.readouterr().out
     cv = summary["metrics"]["phase_locking"]
@@ -163,7 +165,8 @@ def test_evaluate_a_folder_of_sessions(
     assert "skipped" in printed and "person.csv" in printed and "same session" in printed
     table = (tmp_path / "table" / "sessions.csv").read_text().splitlines()
     assert len(table) == 3 and table[0].startswith("session,players,seconds,phase_locking")
-    assert (tmp_path / "table" / "report.html").read_text().count("<img") == 4
+    # positions and relative phase, then timeline, leadership and surrogates, for each pair
+    assert (tmp_path / "table" / "report.html").read_text().count("<img") == 10
     metrics = json.loads((tmp_path / "table" / "metrics.json").read_text())["sessions"]
     plain = metrics[str(folder / "plain.csv")]
     assert plain["mean_relative_phase"] == pytest.approx(0.3, abs=0.02)

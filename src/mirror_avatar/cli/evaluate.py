@@ -11,11 +11,19 @@ import click
 import pandas as pd
 
 from mirror_avatar.atomic import json_safe, write_atomic_text
+from mirror_avatar.cli.measure_options import (
+    format_measures,
+    measure_options,
+    options_from,
+    scalar_measures,
+)
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.simulate import format_metrics
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_progress, plot_session
+from mirror_avatar.measure_figures import measures_section
 from mirror_avatar.metrics import TRIM, session_metrics
+from mirror_avatar.metrics.measures import evaluate_measures
 from mirror_avatar.metrics.progress import order_by_start, progress_table
 from mirror_avatar.report import REPORT_FILES, Section, write_report
 from mirror_avatar.session import Session, load_session
@@ -96,30 +104,45 @@ def summary_row(path: Path, session: Session, metrics: dict[str, Any]) -> dict[s
     "time each recorded; in the order given when one has none, which the output says): drift "
     "of their IMS from the first session, EMD to the partner, CV and RMS.",
 )
+@measure_options
 def evaluate(
-    paths: tuple[Path, ...], trim: float, as_json: bool, out_dir: Path | None, progress: bool
-) -> None:
+    paths: tuple[Path, ...], trim: float, as_json: bool, out_dir: Path | None, progress: bool,
+    **measure_kwargs: Any,
+) -> None:  # fmt: skip
     """Print the coordination metrics of saved sessions (.parquet or .csv, or folders of them).
 
     Any session the toolkit writes (simulations, groups, live trials) or a plain CSV with
     ``time, position_0, position_1, ...``. For two players, relative phase and time lag are
     player 0 minus player 1 (positive when player 0 is ahead); for a group, its synchronisation
     and each player against the mean of its neighbours. Several sessions give one table.
+    The field's measures (co-confidence, jitter, synchrony episodes, leadership, transfer
+    entropy) follow, each coordination measure with a p-value against surrogates.
     """
+    options = options_from(measure_kwargs)
     if out_dir is not None:
         check_output_dir(out_dir, files=["sessions.csv", *REPORT_FILES])
     sessions, notes = find_sessions(paths)
     for note in notes:
         click.echo(note)
     results = [(path, session, session_metrics(session, trim=trim)) for path, session in sessions]
-    rows = pd.DataFrame([summary_row(path, s, m) for path, s, m in results])
+    measures, weak_null = evaluate_measures([s for _, s in sessions], trim, options)
+    for (_, _, metrics), found in zip(results, measures, strict=True):
+        metrics |= found.values
+    rows = pd.DataFrame(
+        [summary_row(p, s, m) | scalar_measures(f.values)
+         for (p, s, m), f in zip(results, measures, strict=True)]
+    )  # fmt: skip
     if as_json:
         shown = results[0][2] if len(results) == 1 else {str(p): m for p, _, m in results}
         click.echo(json.dumps(json_safe(shown), indent=2))
     elif len(results) == 1:
         click.echo(format_metrics(results[0][2]))
+        if text := format_measures(measures[0].values):
+            click.echo(text)
     else:
         click.echo(rows.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
+    if weak_null is not None:
+        click.echo(f"weak-null test of synchrony over the sessions: {weak_null}")
     extra = []
     if progress:
         ordered, untimed = order_by_start([(path, s) for path, s, _ in results])
@@ -130,6 +153,7 @@ def evaluate(
         click.echo(table.to_string(float_format=lambda v: f"{v:.4f}"))
         extra.append(progress_section(table, order))
     if out_dir is not None:
+        extra.append(measures_section(sessions, measures, weak_null, trim, options))
         write_evaluation(out_dir, results, rows, trim, extra)
         click.echo(f"wrote {out_dir.resolve()}")
 

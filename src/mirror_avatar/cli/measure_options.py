@@ -1,0 +1,127 @@
+"""The command-line options of the field's measures, and their text table.
+
+`measure_options` adds to a command one option per open parameter of
+`mirror_avatar.metrics.measures.MeasureOptions` (each a **choice**, METHODS section 12), and
+`options_from` turns the command's keyword arguments back into that record.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import fields
+from typing import Any, TypeVar
+
+import click
+
+from mirror_avatar.metrics.measures import MeasureOptions
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+OPTIONS = (
+    ("n_surrogates", "--surrogates", click.IntRange(min=0),
+     "Surrogates per session for the p-values (0: none)."),
+    ("surrogates", "--surrogate-kind", click.Choice(["shift", "pseudo"]),
+     "shift: circular shifts of the partners; pseudo: player 0 with other sessions' partners."),
+    ("seed", "--surrogate-seed", int, "Seed of the surrogate draws (recorded)."),
+    ("min_shift", "--min-shift", float, "Smallest circular shift (s)."),
+    ("min_duration", "--cc-min-duration", float, "Shortest co-confidence segment (s)."),
+    ("jitter_threshold", "--jitter-threshold", float,
+     "Jitter index of the velocity difference above which motion is not smooth."),
+    ("dv_threshold", "--dv-threshold", float, "Largest relative velocity difference of CC."),
+    ("dv_window", "--dv-window", float, "Window of the velocity difference (s)."),
+    ("rest_fraction", "--rest-fraction", float,
+     "Share of the pair's RMS speed below which the pair rests (not CC)."),
+    ("sync_threshold", "--sync-threshold", float, "Windowed CV of synchrony episodes."),
+    ("sync_window", "--sync-window", float, "Window of the windowed CV (s)."),
+    ("lead_signal", "--lead-signal", click.Choice(["velocity", "position"]),
+     "Series the leadership windows correlate."),
+    ("lead_window", "--lead-window", float, "Window of the lagged cross-correlation (s)."),
+    ("lead_step", "--lead-step", float, "Step between windows (s)."),
+    ("lead_max_lag", "--lead-max-lag", float, "Largest lag of the leadership search (s)."),
+    ("lead_min_peak", "--lead-min-peak", float, "Smallest correlation of a picked peak."),
+    ("leader_share", "--leader-share", float, "Share of windows a session's leader must lead."),
+    ("te_bins", "--te-bins", int, "Equiprobable velocity bins of transfer entropy."),
+    ("te_history", "--te-history", int, "Target history of transfer entropy (steps)."),
+    ("te_step", "--te-step", float, "Time step of transfer entropy (s)."),
+)  # fmt: skip
+"""(field of MeasureOptions, option name, type, help)."""
+
+DEFAULTS = {f.name: f.default for f in fields(MeasureOptions)}
+
+
+def measure_options(command: F) -> F:
+    """Add the measures' options (`OPTIONS`) to a click command, defaults shown."""
+    for name, flag, kind, text in reversed(OPTIONS):
+        command = click.option(
+            flag, name, type=kind, default=DEFAULTS[name], show_default=True, help=text
+        )(command)
+    return command
+
+
+def options_from(kwargs: dict[str, Any]) -> MeasureOptions:
+    """Take the measures' options out of a command's keyword arguments (removed from it)."""
+    return MeasureOptions(**{name: kwargs.pop(name) for name, *_ in OPTIONS})
+
+
+MEASURE_ROWS = (
+    ("co_confidence_rate", "CC rate (share of time in co-confidence)", ""),
+    ("co_confidence_count", "CC segments", ""),
+    ("co_confidence_mean_length", "CC mean segment length", "s"),
+    ("synchrony_share", "share of time in synchrony", ""),
+    ("synchrony_entries", "entries into synchrony", ""),
+    ("synchrony_mean_dwell", "mean dwell in synchrony", "s"),
+    ("leader", "leader (windowed cross-correlation)", ""),
+    ("leader_share", "share of windows the leader leads", ""),
+    ("leader_lag_s", "leader's lag", "s"),
+    ("leadership_strength", "leadership strength (mean peak correlation)", ""),
+    ("group_synchronisation", "group synchronisation (rho_g)", ""),
+)
+"""(key, description, unit) of the measures printed for one session."""
+
+
+FAMILIES = (("jitter_index_player_", ""), ("transfer_entropy_", "bits"), ("influence_", "bits"))
+"""Key prefixes of the measures with one value per player or pair, and their units."""
+
+
+def _family_label(key: str) -> str:
+    if key.startswith("jitter_index_player_"):
+        return f"jitter index player {key.rsplit('_', 1)[1]} (2-3 Hz share)"
+    if key.startswith("transfer_entropy_"):
+        source, target = key.removeprefix("transfer_entropy_").split("_to_")
+        return f"transfer entropy {source} -> {target}"
+    return key.replace("_", " ")
+
+
+def format_measures(values: dict[str, Any]) -> str:
+    """Render the measures of one session as aligned text, each tested one with its p-value."""
+    p_keys = {"max_cross_correlation": "time_lag_p_value"}
+    rows = [row for row in MEASURE_ROWS if row[0] in values]
+    rows += [(k, _family_label(k), unit) for k in values for prefix, unit in FAMILIES
+             if k.startswith(prefix) and not k.endswith("_p_value")]  # fmt: skip
+    if not rows:
+        return ""
+    width = max(len(description) for _, description, _ in rows)
+    lines = []
+    for key, description, unit in rows:
+        value = values[key]
+        shown = str(value) if isinstance(value, str | int) else f"{value:.4f}"
+        p = values.get(p_keys.get(key, f"{key}_p_value"))
+        tail = "" if p is None else f"  p = {p:.3g}"
+        lines.append(f"{description:<{width}}  {shown:>8}  {unit:<4}{tail}".rstrip())
+    if "time_lag_p_value" in values:
+        lines.append(f"{'time lag (its cross-correlation peak)':<{width}}  p = "
+                     f"{values['time_lag_p_value']:.3g}")  # fmt: skip
+    for key in ("phase_locking", "rmse"):
+        if f"{key}_p_value" in values:
+            label = "CV" if key == "phase_locking" else "RMSE"
+            lines.append(f"{label + ' against surrogates':<{width}}  p = "
+                         f"{values[f'{key}_p_value']:.3g}")  # fmt: skip
+    if "surrogates" in values:
+        s = values["surrogates"]
+        lines.append(f"({s['n']} {s['kind']} surrogates, seed {s['seed']})")
+    return "\n".join(lines)
+
+
+def scalar_measures(values: dict[str, Any]) -> dict[str, Any]:
+    """Keep the measures that fit a table cell (numbers, the leader), for the table of sessions."""
+    return {k: v for k, v in values.items() if isinstance(v, int | float | str)}
