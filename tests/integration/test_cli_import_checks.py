@@ -1,0 +1,74 @@
+"""Checks of recordings on import, through the command line: epoch clocks with blank cells,
+the length of a drop-out, and what each trial looks like (rate, duration, range, centre)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mirror_avatar.cli import main
+from mirror_avatar.trial_io import read_csv_trial
+
+RATE = 10.0
+SAMPLES = 300
+EPOCH_S = 1_764_000_000
+
+
+def run(capsys: pytest.CaptureFixture[str], *arguments: str) -> tuple[int, str, str]:
+    status = main(list(arguments))
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def sway(n: int = SAMPLES, centre: float = 0.0, amplitude: float = 0.3) -> np.ndarray:
+    """Positions (units) of a slow sine at 10 Hz."""
+    return centre + amplitude * np.sin(2 * np.pi * 0.25 * np.arange(n) / RATE)
+
+
+def write_clock(path: Path, clock: str, blank: tuple[int, ...] = (40, 41)) -> None:
+    """A 10 Hz recording with Unix-epoch stamps (``epoch`` s or ``epoch_ms``), some cells blank."""
+    lines = ["stamp,position"]
+    for k, x in enumerate(sway()):
+        if clock == "epoch":
+            stamp = f"{EPOCH_S + k // 10}.{k % 10}"
+        else:
+            stamp = str(EPOCH_S * 1000 + 100 * k)
+        lines.append(f"{stamp},{'' if k in blank else repr(float(x))}")
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("clock", ["epoch", "epoch_ms"])
+def test_blank_cells_in_an_epoch_clock(clock: str, tmp_path: Path, capsys) -> None:
+    """Two blank cells at 10 Hz leave 0.3 s between the positions around them: the message
+    quotes that span, and --max-gap 0.3 interpolates it; times are exact multiples of 0.1 s."""
+    source = tmp_path / "rec.csv"
+    write_clock(source, clock)
+    arguments = ["convert", str(source), "--time-column", "stamp", "--time-unit", clock]
+    status, _, error = run(capsys, *arguments, "--out", str(tmp_path / "a"))
+    assert status == 2 and error.count("\n") == 1
+    found = re.search(r"between t = ([\d.]+) s and ([\d.]+) s \(([\d.]+) s of tracking lost", error)
+    assert found is not None, error
+    before, after, length = map(float, found.groups())
+    assert (before, after, length) == (3.9, 4.2, 0.3)
+    assert "2 sample(s) missing" in error and "--max-gap 0.2" in error
+    assert not (tmp_path / "a").exists()
+    status, out, error = run(capsys, *arguments, "--max-gap", "0.3", "--out", str(tmp_path / "b"))
+    assert status == 0, error
+    assert "2 missing sample(s) interpolated" in out
+    trial = read_csv_trial(next((tmp_path / "b").rglob("rec.csv")))
+    np.testing.assert_allclose(trial.times, np.arange(SAMPLES) / RATE, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(trial.positions[[40, 41]], np.interp([4.0, 4.1], [3.9, 4.2],
+                               sway()[[39, 42]]), atol=1e-12)  # fmt: skip
+
+
+def test_a_gap_just_over_the_limit_is_refused(tmp_path: Path, capsys) -> None:
+    """Three blank cells (0.4 s between positions) are refused at --max-gap 0.3."""
+    source = tmp_path / "rec.csv"
+    write_clock(source, "epoch", blank=(40, 41, 42))
+    status, _, error = run(capsys, "convert", str(source), "--time-column", "stamp",
+                           "--time-unit", "epoch", "--max-gap", "0.3",
+                           "--out", str(tmp_path / "a"))  # fmt: skip
+    assert status == 2 and "(0.4 s of tracking lost, 3 sample(s) missing)" in error
