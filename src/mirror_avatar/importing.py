@@ -67,7 +67,13 @@ class ImportOptions:
     playing_range
         Centimetres of hand travel that make one normalised unit.
     max_gap
-        Longest run of missing positions interpolated (s); 0 refuses every gap.
+        Longest drop-out interpolated (s): the time between the positions on either side of
+        missing ones (`fill_gaps`); 0 refuses every gap.
+    offset
+        Position (in ``position_unit``) subtracted from every position: where the tracker
+        reads the middle of the playing range.
+    centre
+        Move each trial so that the middle of its positions' span is 0 (after ``offset``).
     """
 
     time_column: str = "time"
@@ -76,6 +82,8 @@ class ImportOptions:
     position_unit: str = "normalised"
     playing_range: float = PLAYING_RANGE_CM
     max_gap: float = MAX_GAP
+    offset: float = 0.0
+    centre: bool = False
 
     def __post_init__(self) -> None:
         if self.time_unit not in TIME_UNITS:
@@ -86,6 +94,8 @@ class ImportOptions:
             raise InputError("--playing-range", "must be a positive number of centimetres")
         if not (np.isfinite(self.max_gap) and self.max_gap >= 0):
             raise InputError("--max-gap", "must be a non-negative number of seconds")
+        if not np.isfinite(self.offset):
+            raise InputError("--offset", "must be a finite number (in --position-unit)")
 
     def describe(self) -> dict[str, Any]:
         """Return the options as recorded in each trial's metadata."""
@@ -111,11 +121,18 @@ class ImportOptions:
         return seconds
 
     def normalised(self, positions: Array, unit: str | None = None) -> Array:
-        """Convert positions to normalised units (``unit`` overrides `position_unit`)."""
+        """Convert positions to normalised units (``unit`` overrides `position_unit`).
+
+        ``offset`` is subtracted first (in the file's unit); with ``centre`` the span of the
+        positions present (NaN: missing) is then centred on 0.
+        """
         length_cm = POSITION_UNITS[unit or self.position_unit]
-        if length_cm is None:
-            return positions
-        return positions * length_cm / self.playing_range
+        moved = positions - self.offset
+        normalised = moved if length_cm is None else moved * length_cm / self.playing_range
+        present = normalised[np.isfinite(normalised)]
+        if self.centre and present.size:
+            normalised = normalised - (present.min() + present.max()) / 2
+        return normalised
 
 
 DEFAULT_IMPORT = ImportOptions()

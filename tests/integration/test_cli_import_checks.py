@@ -72,3 +72,50 @@ def test_a_gap_just_over_the_limit_is_refused(tmp_path: Path, capsys) -> None:
                            "--time-unit", "epoch", "--max-gap", "0.3",
                            "--out", str(tmp_path / "a"))  # fmt: skip
     assert status == 2 and "(0.4 s of tracking lost, 3 sample(s) missing)" in error
+
+
+def write_millimetres(path: Path, positions_mm: np.ndarray) -> None:
+    """A 10 Hz recording in seconds and millimetres."""
+    lines = ["time,x_mm"] + [f"{k / RATE!r},{x:.3f}" for k, x in enumerate(positions_mm)]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")
+
+
+MM = ["--position-column", "x_mm", "--position-unit", "mm"]
+
+
+def test_an_off_centre_tracker_is_reported_and_can_be_centred(tmp_path: Path, capsys) -> None:
+    """A tracker reading 0-600 mm (its zero at one end) gives positions 0.07-0.91: the check
+    table says so and warns; --centre and --offset 300 bring them back into the range."""
+    wide = (sway(amplitude=0.42) + 0.49) * 600.0  # 0.07 to 0.91 units
+    write_millimetres(tmp_path / "lab" / "off.csv", wide)
+    write_millimetres(tmp_path / "lab" / "good.csv", sway() * 600.0)
+    status, out, error = run(capsys, "convert", str(tmp_path / "lab"), *MM,
+                             "--out", str(tmp_path / "a"))  # fmt: skip
+    assert status == 0
+    rows = {line.split()[0].rsplit("/", 1)[-1]: line for line in out.splitlines() if ".csv" in line}
+    assert rows["off.csv"].split()[1:7] == ["10", "29.9", "0.07", "to", "0.91", "+0.49"]
+    assert "outside [-0.5, 0.5]; off centre by +0.49" in rows["off.csv"]
+    assert rows["good.csv"].endswith("none")
+    assert "warning: 1 of 2 trial(s) have positions outside the playing range" in error
+    assert "--centre or --offset" in error
+    for option in (["--centre"], ["--offset", "300"]):
+        out_dir = tmp_path / option[0].strip("-")
+        status, out, error = run(capsys, "convert", str(tmp_path / "lab" / "off.csv"), *MM,
+                                 *option, "--out", str(out_dir))  # fmt: skip
+        assert status == 0 and error == "" and out.splitlines()[-2].endswith("none")
+        trial = read_csv_trial(next(out_dir.rglob("off.csv")))
+        expected = wide / 600.0 - (0.5 if option[0] == "--offset" else 0.49)
+        np.testing.assert_allclose(trial.positions, expected, atol=1e-5)
+        manifest = (out_dir / "convert.json").read_text()
+        assert '"offset": 300.0' in manifest or '"centre": true' in manifest
+
+
+def test_the_check_table_is_printed_wherever_trials_are_read(tmp_path: Path, capsys) -> None:
+    write_millimetres(tmp_path / "p1" / "off.csv", (sway() + 0.4) * 600.0)
+    write_millimetres(tmp_path / "p1" / "good.csv", sway(amplitude=0.2) * 600.0)
+    status, out, error = run(capsys, "signature", str(tmp_path / "p1"), *MM,
+                             "--out", str(tmp_path / "s"))  # fmt: skip
+    assert status == 0
+    assert "rate Hz" in out and "outside [-0.5, 0.5]" in out
+    assert "have positions outside the playing range" in error
