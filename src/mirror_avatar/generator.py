@@ -50,6 +50,7 @@ from mirror_avatar.model_files import (
     require_arrays,
     save_model,
 )
+from mirror_avatar.progress import counted
 from mirror_avatar.signature import compute_emd, compute_ims
 from mirror_avatar.stft import (
     compute_stft,
@@ -660,7 +661,7 @@ def choose_n_symbols(
         )
     human = [_trial_ims(fitted, t) for t in trials]
     scores = np.empty((len(feasible), len(folds)))
-    for j, (train, held_out) in enumerate(folds):
+    for j, (train, held_out) in counted(enumerate(folds), len(folds), "choosing symbols", "fold"):
         target = _trial_ims(fitted, held_out)
         for i, size in enumerate(feasible):
             model = IMSGenerator(n_symbols=size, **settings).fit(train)

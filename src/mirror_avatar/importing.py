@@ -14,6 +14,7 @@ reported; longer ones are refused. Values quoted from a file in an error line ar
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -39,6 +40,10 @@ MAX_GAP = 0.2
 LATEST_PLAUSIBLE_START = 1e5
 """A first time stamp later than this (s, about a day) is a clock, not a trial's time axis."""
 
+GAP_TOLERANCE = 1e-6
+"""Seconds by which a drop-out may exceed ``--max-gap`` and still be interpolated: a clock's
+rounding, finer than any tracker's sampling (**choice**)."""
+
 MISSING_CELLS = ("", "nan", "na", "n/a")
 """Cells that are a missing sample (compared after stripping spaces, in any letter case)."""
 
@@ -62,7 +67,13 @@ class ImportOptions:
     playing_range
         Centimetres of hand travel that make one normalised unit.
     max_gap
-        Longest run of missing positions interpolated (s); 0 refuses every gap.
+        Longest drop-out interpolated (s): the time between the positions on either side of
+        missing ones (`fill_gaps`); 0 refuses every gap.
+    offset
+        Position (in ``position_unit``) subtracted from every position: where the tracker
+        reads the middle of the playing range.
+    centre
+        Move each trial so that the middle of its positions' span is 0 (after ``offset``).
     """
 
     time_column: str = "time"
@@ -71,6 +82,8 @@ class ImportOptions:
     position_unit: str = "normalised"
     playing_range: float = PLAYING_RANGE_CM
     max_gap: float = MAX_GAP
+    offset: float = 0.0
+    centre: bool = False
 
     def __post_init__(self) -> None:
         if self.time_unit not in TIME_UNITS:
@@ -81,18 +94,24 @@ class ImportOptions:
             raise InputError("--playing-range", "must be a positive number of centimetres")
         if not (np.isfinite(self.max_gap) and self.max_gap >= 0):
             raise InputError("--max-gap", "must be a non-negative number of seconds")
+        if not np.isfinite(self.offset):
+            raise InputError("--offset", "must be a finite number (in --position-unit)")
 
     def describe(self) -> dict[str, Any]:
         """Return the options as recorded in each trial's metadata."""
         return asdict(self)
 
     def seconds(self, times: Array, source: str) -> Array:
-        """Convert a time column to seconds (epoch units: from the first sample)."""
+        """Convert a time column to seconds (epoch units: from the first sample).
+
+        An epoch clock's first stamp is subtracted in the clock's own unit before scaling, so
+        that whole milliseconds stay exact (`clock_offsets` reads a text column exactly).
+        """
+        if times.size and self.time_unit.startswith("epoch"):
+            return (times - times[0]) * TIME_UNITS[self.time_unit]
         seconds = times * TIME_UNITS[self.time_unit]
         if seconds.size == 0:
             return seconds
-        if self.time_unit.startswith("epoch"):
-            return seconds - seconds[0]
         if abs(seconds[0]) > LATEST_PLAUSIBLE_START:
             raise InputError(
                 source,
@@ -102,11 +121,18 @@ class ImportOptions:
         return seconds
 
     def normalised(self, positions: Array, unit: str | None = None) -> Array:
-        """Convert positions to normalised units (``unit`` overrides `position_unit`)."""
+        """Convert positions to normalised units (``unit`` overrides `position_unit`).
+
+        ``offset`` is subtracted first (in the file's unit); with ``centre`` the span of the
+        positions present (NaN: missing) is then centred on 0.
+        """
         length_cm = POSITION_UNITS[unit or self.position_unit]
-        if length_cm is None:
-            return positions
-        return positions * length_cm / self.playing_range
+        moved = positions - self.offset
+        normalised = moved if length_cm is None else moved * length_cm / self.playing_range
+        present = normalised[np.isfinite(normalised)]
+        if self.centre and present.size:
+            normalised = normalised - (present.min() + present.max()) / 2
+        return normalised
 
 
 DEFAULT_IMPORT = ImportOptions()
@@ -154,6 +180,9 @@ def fill_gaps(
 ) -> tuple[Array, Array, int]:
     """Interpolate missing positions (NaN) over gaps of at most ``max_gap`` seconds.
 
+    A gap's length is the time between the positions on either side of it (what interpolation
+    bridges: two missing samples at 10 Hz make 0.3 s), within `GAP_TOLERANCE`.
+
     Missing samples at the start or end cannot be interpolated and are dropped. Infinite
     positions are not missing: `mirror_avatar.trials.make_trial` refuses them.
 
@@ -181,13 +210,65 @@ def fill_gaps(
     starts = np.flatnonzero(np.diff(np.concatenate([[0], missing.astype(np.int8)])) == 1)
     ends = np.flatnonzero(np.diff(np.concatenate([missing.astype(np.int8), [0]])) == -1)
     for start, end in zip(starts, ends, strict=True):
-        length = times[end + 1] - times[start - 1]
-        if length > max_gap:
+        before, after = times[start - 1], times[end + 1]
+        if after - before > max_gap + GAP_TOLERANCE:
             raise InputError(
                 source,
-                f"no position from t = {times[start]:.3f} s to {times[end]:.3f} s ({length:.3g} s "
-                f"of tracking lost); gaps up to --max-gap {max_gap:g} s are interpolated",
+                f"no position between t = {before:.3f} s and {after:.3f} s ({after - before:.3g} "
+                f"s of tracking lost, {end - start + 1} sample(s) missing); drop-outs up to "
+                f"--max-gap {max_gap:g} s are interpolated",
             )
     good = ~missing
     positions[missing] = np.interp(times[missing], times[good], positions[good])
     return times, positions, int(missing.sum())
+
+
+def clock_offsets(cells: pd.Series) -> Array:
+    """Read clock stamps as text and return their offsets from the first stamp, exactly.
+
+    A Unix-epoch stamp such as ``1700000000.1`` has no float64 nearer than 1e-7 s, so parsed
+    as one number the offsets between stamps carry that error (0.1 reads as 0.0999999).
+    Each stamp is split at its decimal point and the whole and fractional parts are
+    subtracted separately, in float64.
+
+    Parameters
+    ----------
+    cells
+        Text cells, shape (n,), already checked to be numbers or missing (`parse_cells`).
+
+    Returns
+    -------
+    ndarray
+        Offsets from the first stamp present, in the stamps' unit, shape (n,); NaN where
+        missing. Stamps in exponent notation are parsed as single numbers.
+    """
+    text = cells.fillna("").astype(str).str.strip()
+    if text.str.contains("[eE]", regex=True).any():
+        values, _ = parse_cells(cells)
+        present = values[np.isfinite(values)]
+        return values - (present[0] if present.size else 0.0)
+    missing = text.str.lower().isin(MISSING_CELLS).to_numpy()
+    parts = text.mask(missing).str.partition(".")
+    whole_text = parts[0].str.replace(r"^([+-]?)$", r"\g<1>0", regex=True)
+    whole = pd.to_numeric(whole_text, errors="coerce").to_numpy(np.float64)
+    fraction = pd.to_numeric("0." + parts[2], errors="coerce").to_numpy(np.float64)
+    negative = parts[0].str.startswith("-", na=False).to_numpy(bool)
+    fraction = np.where(negative, -fraction, fraction)
+    stamped = np.flatnonzero(~missing)
+    if not stamped.size:
+        return np.full(text.size, np.nan)
+    first = stamped[0]
+    offsets = (whole - whole[first]) + (fraction - fraction[first])
+    offsets[missing] = np.nan
+    return offsets
+
+
+def read_clock_offsets(path: Path, column: int) -> Array:
+    """Read column ``column`` (from 0) of a CSV file with a header as clock stamps.
+
+    Returns `clock_offsets` of its cells: offsets from the first stamp (the stamps' unit),
+    shape (n,), one per row that the numeric reading of the same file gives.
+    """
+    cells = pd.read_csv(path, header=0, usecols=[column], dtype=str, na_filter=False,
+                        encoding="utf-8-sig", skipinitialspace=True).iloc[:, 0]  # fmt: skip
+    return clock_offsets(cells)

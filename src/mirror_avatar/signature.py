@@ -24,6 +24,7 @@ from shapely.geometry import Polygon
 
 from mirror_avatar.atomic import json_safe
 from mirror_avatar.errors import InputError
+from mirror_avatar.progress import counted
 from mirror_avatar.trials import Trial
 
 Array = NDArray[np.float64]
@@ -494,7 +495,10 @@ def analyse_signatures(
     """
     if len(trials) < 2:
         raise InputError(None, f"the signature analysis needs at least 2 trials, got {len(trials)}")
-    velocities = [trial.resampled(rate).velocity() for trial in trials]
+    velocities = [
+        trial.resampled(rate).velocity()
+        for trial in counted(trials, len(trials), "signatures", "trial")
+    ]
     groups = [trial.group for trial in trials]
     names = list(dict.fromkeys(groups))
     ims = np.stack([compute_ims(v, bins) for v in velocities])

@@ -59,6 +59,7 @@ from mirror_avatar.importing import (
     excerpt,
     fill_gaps,
     parse_cells,
+    read_clock_offsets,
 )
 from mirror_avatar.mat_check import TooManyElements, mat_problem
 from mirror_avatar.trials import Trial, make_trial
@@ -377,7 +378,8 @@ def write_mat_struct(trials: list[Trial], path: str | Path, variable: str) -> No
 def read_csv_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
     """Read a CSV trial: by default columns ``time,position`` (s, normalised units).
 
-    Other columns and units are read as ``options`` say; blank cells are missing samples
+    Other columns and units are read as ``options`` say (an epoch clock's stamps exactly, as
+    text: `mirror_avatar.importing.clock_offsets`); blank cells are missing samples
     (`mirror_avatar.importing.fill_gaps`). A byte-order mark is ignored, and so are blank rows.
     Rows are numbered in error lines as a spreadsheet would, without the blank ones.
 
@@ -400,6 +402,8 @@ def read_csv_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) ->
             "to read with --time-column and --position-column",
         )
     times, positions = _read_numbers(path, [header.index(name) for name in names], names, ",", 2)
+    if options.time_unit.startswith("epoch"):
+        times = read_clock_offsets(path, header.index(options.time_column))
     return import_trial(times, positions, path, options, None, first_row=2)
 
 

@@ -82,6 +82,11 @@ class Trial:
         return (self.n_samples - 1) / self.duration
 
     @property
+    def recorded_step(self) -> float:
+        """Mean sampling interval of the recording (s): before resampling, if resampled."""
+        return 1.0 / float(self.metadata.get("resampled_from", self.rate))
+
+    @property
     def is_uniform(self) -> bool:
         """Whether the samples are equally spaced (to 1e-6 of the mean step)."""
         steps = np.diff(self.times)
@@ -197,7 +202,8 @@ def resample(
     -------
     Trial
         A new trial with the same label, group and metadata, plus ``metadata["resampled_from"]``
-        (the original mean rate, Hz).
+        (the original mean rate, Hz: that of the recording, kept when a trial is resampled
+        again).
     """
     if not MIN_RATE <= rate <= MAX_RATE:
         raise InputError("rate", f"{rate:g} Hz is outside {MIN_RATE:g}-{MAX_RATE:g} Hz")
@@ -209,7 +215,7 @@ def resample(
         positions = np.interp(grid, trial.times, trial.positions)
     else:
         raise InputError("method", f"unknown interpolation {method!r}; use 'pchip' or 'linear'")
-    metadata = {**trial.metadata, "resampled_from": trial.rate}
+    metadata = {"resampled_from": trial.rate, **trial.metadata}
     return replace(trial, times=grid, positions=np.asarray(positions), metadata=metadata)
 
 

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
+from mirror_avatar.deep.player import load_deep_cyber_player
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.graphs import path_graph
 from mirror_avatar.learning.agent import load_cyber_player
@@ -84,8 +85,8 @@ def test_group_train_writes_a_policy_that_plays_anywhere(tmp_path, models, capsy
     fast, slow = models
     policy = tmp_path / "member.npz"
     arguments = ["group", "train", "--target", slow, "--player", fast, "--player", slow]
-    arguments += ["--sessions", "6", "--duration", "4", "--jobs", "1", "--out", str(policy)]
-    assert main(arguments) == 0
+    arguments += ["--sessions", "6", "--duration", "4", "--jobs", "1", "--agent", "tabular"]
+    assert main([*arguments, "--out", str(policy)]) == 0
     player = load_cyber_player(policy)
     assert player.training_["role"] == "group" and player.training_["n_sessions"] == 6
     assert (tmp_path / "member.learning_curve.csv").is_file()
@@ -101,3 +102,21 @@ def test_group_train_writes_a_policy_that_plays_anywhere(tmp_path, models, capsy
             "--out", str(tmp_path / "dyad")]  # fmt: skip
     assert main(dyad) == 2  # trained in a group, not as a follower
     assert main([*dyad, "--joint"]) == 0
+
+
+def test_group_train_trains_the_deep_player_by_default(tmp_path, models, capsys) -> None:
+    """The group cyber player is the DQN unless --agent tabular is given, whose help says that
+    it does not meet the group criteria; --sessions defaults to the agent's own length."""
+    fast, slow = models
+    assert main(["group", "train", "--help"]) == 0
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "[default: 4000 for tabular, 300 for dqn]" in help_text
+    assert "does not meet the group criteria. [default: dqn]" in help_text
+    policy = tmp_path / "member.npz"
+    arguments = ["group", "train", "--target", slow, "--player", fast, "--player", slow,
+                 "--sessions", "3", "--duration", "4", "--jobs", "1",
+                 "--out", str(policy)]  # fmt: skip
+    assert main(arguments) == 0
+    assert "trained a dqn group member on 3 sessions" in capsys.readouterr().out
+    player = load_deep_cyber_player(policy)
+    assert player.training_["agent"] == "dqn" and player.training_["n_sessions"] == 3

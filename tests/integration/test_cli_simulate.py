@@ -94,11 +94,30 @@ def test_a_recording_shorter_than_the_session_is_refused_unless_extended(
                  "90", "--out", str(tmp_path / "run")]  # fmt: skip
     assert main(arguments) == 2
     error = capsys.readouterr().err
-    assert "the recording lasts 60 s, the session 90 s" in error and "--extend-recordings" in error
+    assert "the recording lasts 60 s (12.97 Hz), the session 90 s" in error
+    assert "--extend-recordings" in error
     assert not (tmp_path / "run").exists()
     assert main([*arguments, "--extend-recordings"]) == 0
     session = load_session(tmp_path / "run" / "session.parquet")
     assert np.ptp(session.positions[0, session.times > 61]) == 0  # the leader holds still
+
+
+@pytest.mark.parametrize("spec", ["{}", "vt:{}"])
+def test_a_recording_short_by_one_sampling_interval_is_its_full_length(
+    spec: str, tmp_path: Path, zhai_trials: list[Trial], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """600 samples at 10 Hz span 59.9 s and make a 60 s recording; 598 (59.7 s) are short."""
+    uniform = zhai_trials[12].resampled(10.0)
+    for n, status in ((600, 0), (598, 2)):
+        person = tmp_path / f"person{n}.csv"
+        write_trial(Trial(uniform.times[:n], uniform.positions[:n]), person)
+        out = tmp_path / f"run{n}"
+        arguments = ["simulate", "--leader", spec.format(person), "--follower", "bundled:slow",
+                     "--seed", "1", "--out", str(out)]  # fmt: skip
+        assert main(arguments) == status, capsys.readouterr().err
+        error = capsys.readouterr().err
+        assert ("the recording lasts 59.7 s (10 Hz), the session 60 s" in error) == bool(status)
+        assert (out / "session.parquet").exists() != bool(status)
 
 
 @pytest.mark.parametrize(

@@ -4,20 +4,16 @@ Each command lives in its own module of this package and is registered on `cli` 
 (an `InputError`, a usage error such as an unknown option, or a file the system refuses) is
 printed as one line on standard error and ends the program with exit code 2; anything else that
 goes wrong is one line too, with exit code 1 (``MIRROR_AVATAR_DEBUG=1`` shows the traceback).
-Interrupted (Ctrl+C, SIGTERM or SIGHUP: `run` handles all three, and waits for compiling to
-finish), a command stops its batch workers and exits with code 130.
+Interrupted (Ctrl+C, SIGTERM or SIGHUP, unless ignored when the program started: the console
+script `mirror_avatar.console.run` handles them from its first instant, and waits for compiling
+to finish), a command stops its batch workers and exits with code 130, naming the signal.
 """
 
 from __future__ import annotations
 
 import os
-import signal
-import sys
-import threading
-from types import FrameType
 
 import click
-from numba.core.compiler_lock import global_compiler_lock
 
 from mirror_avatar.cli.avatar import avatar
 from mirror_avatar.cli.convert import convert
@@ -32,7 +28,10 @@ from mirror_avatar.cli.reproduce import reproduce
 from mirror_avatar.cli.signature import signature
 from mirror_avatar.cli.simulate import simulate
 from mirror_avatar.cli.train import train
+from mirror_avatar.console import aborted, interrupt, run
 from mirror_avatar.errors import InputError
+
+__all__ = ["cli", "fail", "interrupt", "main", "run"]
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -64,9 +63,8 @@ def main(argv: list[str] | None = None) -> int:
         return fail(str(error))
     except click.exceptions.Exit as done:
         return int(done.exit_code)
-    except (click.Abort, KeyboardInterrupt):
-        click.echo("mirror-avatar: aborted", err=True)
-        return 130
+    except (click.Abort, KeyboardInterrupt) as stop:
+        return aborted(stop)
     except click.ClickException as error:
         return fail(error.format_message())
     except OSError as error:
@@ -90,33 +88,3 @@ def fail(problem: str) -> int:
     """Print ``problem`` as the one error line and return the bad-input exit code, 2."""
     click.echo(f"mirror-avatar: error: {problem}", err=True)
     return 2
-
-
-INTERRUPT_RETRY = 0.05
-"""Seconds after which an interruption that arrived while compiling is delivered again."""
-
-
-def interrupt(signum: int, frame: FrameType | None) -> None:
-    """Signal handler: stop the program as Ctrl+C would, so its clean-up runs.
-
-    Not while this thread compiles (it holds numba's compiler lock): an exception raised
-    inside the compiler leaves LLVM objects half made, and the process crashes when they are
-    freed. The signal is then sent again after `INTERRUPT_RETRY`, until compiling is done.
-    """
-    if global_compiler_lock.is_locked():
-        again = threading.Timer(INTERRUPT_RETRY, os.kill, (os.getpid(), signum))
-        again.daemon = True
-        again.start()
-        return
-    raise KeyboardInterrupt(signal.Signals(signum).name)
-
-
-def run() -> None:
-    """Console-script entry point: `main` with the process's arguments, then exit.
-
-    Ctrl+C, SIGTERM and SIGHUP interrupt the command (`interrupt`), so that workers are
-    stopped and files being written are left whole.
-    """
-    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        signal.signal(signum, interrupt)
-    sys.exit(main())

@@ -88,8 +88,9 @@ def create(
     trials = read_and_report(paths, "none", options)
     began = time.perf_counter()
     built, card = create_avatar(
-        trials, name, partners, sessions, seed=seed, n_jobs=jobs, agent=agent
-    )
+        trials, name, partners, sessions, seed=seed, n_jobs=jobs, agent=agent,
+        progress=lambda stage: click.echo(f"avatar: {stage} ...", err=True),
+    )  # fmt: skip
     seconds = round(time.perf_counter() - began, 3)
     metadata = {"version": __version__, "seed": seed, "seconds": seconds}
     card_path = save_avatar(built, card, out_path, metadata)

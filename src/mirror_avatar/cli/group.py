@@ -25,6 +25,7 @@ from mirror_avatar.cli.train import (
 )
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
+from mirror_avatar.experiments.group import TRAINING_SESSIONS
 from mirror_avatar.graphs import TOPOLOGIES, graph_source
 from mirror_avatar.importing import ImportOptions
 from mirror_avatar.learning.imitation import Agent, checkpoint_path, train_group_cyber_player
@@ -34,6 +35,13 @@ from mirror_avatar.specs import load_player
 GRAPH_HELP = (
     f"Who observes whom: {', '.join(TOPOLOGIES)} (random: a new connected graph per session) "
     "or an adjacency matrix file (.csv rows of 0/1, or .json)."
+)
+
+
+GROUP_AGENT_HELP = (
+    "dqn: a deep Q-network with dynamic input, the group player of the published group system "
+    "(METHODS section 8); tabular: the paper's dyadic Q-table, which observes only the mean of "
+    "its neighbours and does not meet the group criteria."
 )
 
 
@@ -115,13 +123,13 @@ def simulate(
     help="The other members of the group (models); repeatable.",
 )
 @click.option("--graph", "graph_spec", default="random", show_default=True, help=GRAPH_HELP)
-@training_options
+@training_options("dqn", TRAINING_SESSIONS, GROUP_AGENT_HELP)
 @import_options
 def train(
     target_spec: str,
     player_specs: tuple[str, ...],
     graph_spec: str,
-    sessions: int,
+    sessions: int | None,
     duration: float,
     seed: int,
     scheduler: str | None,
@@ -138,6 +146,7 @@ def train(
     .npz, bundled:fast, bundled:slow or vt:TRIAL_FILE. Writes OUT (playable as a player SPEC,
     in groups and dyads) and OUT.learning_curve.csv and .png.
     """
+    sessions = TRAINING_SESSIONS[agent] if sessions is None else sessions
     check_training(out_path, sessions, jobs, checkpoint_every, duration)
     target = load_reference(target_spec, options)
     partners = [load_reference(spec, options) for spec in player_specs]

@@ -2,8 +2,10 @@
 
 `import_options` adds ``--time-column``, ``--time-unit``, ``--position-column``,
 ``--position-unit``, ``--playing-range`` and ``--max-gap`` and hands the command one
-`mirror_avatar.importing.ImportOptions`; `group_option` adds ``--group-by``; `read_and_report`
-reads the paths and prints the groups found and the files skipped before any analysis.
+`mirror_avatar.importing.ImportOptions` (with ``--offset`` and ``--centre`` to move positions);
+`group_option` adds ``--group-by``; `read_and_report` reads the paths and prints the groups
+found, the files skipped and a table of each trial's checks
+(`mirror_avatar.import_checks`) before any analysis, warnings on standard error.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from typing import Any
 
 import click
 
+from mirror_avatar.import_checks import check_table, check_trial
 from mirror_avatar.importing import (
     MAX_GAP,
     PLAYING_RANGE_CM,
@@ -38,11 +41,14 @@ def import_options(command: Callable[..., None]) -> Callable[..., None]:
         position_unit: str,
         playing_range: float,
         max_gap: float,
+        offset: float,
+        centre: bool,
         **kwargs: Any,
     ) -> None:
         options = ImportOptions(
-            time_column, time_unit, position_column, position_unit, playing_range, max_gap
-        )
+            time_column, time_unit, position_column, position_unit, playing_range, max_gap,
+            offset, centre,
+        )  # fmt: skip
         command(*args, options=options, **kwargs)
 
     decorators = [
@@ -59,7 +65,13 @@ def import_options(command: Callable[..., None]) -> Callable[..., None]:
         click.option("--playing-range", type=float, default=PLAYING_RANGE_CM, show_default=True,
                      help="Centimetres of hand travel that make one normalised unit."),
         click.option("--max-gap", type=float, default=MAX_GAP, show_default=True,
-                     help="Longest drop-out (s) of missing positions interpolated."),
+                     help="Longest drop-out interpolated: seconds between the positions on "
+                     "either side of missing ones."),
+        click.option("--offset", type=float, default=0.0, show_default=True,
+                     help="Subtract this from every position (in --position-unit): where the "
+                     "tracker reads the middle of the playing range."),
+        click.option("--centre", is_flag=True,
+                     help="Move each trial so that the middle of its positions' span is 0."),
     ]  # fmt: skip
     for decorate in reversed(decorators):
         wrapper = decorate(wrapper)
@@ -90,4 +102,6 @@ def read_and_report(paths: Sequence[Path], group_by: str, options: ImportOptions
     filled = sum(t.metadata.get("import", {}).get("interpolated_samples", 0) for t in found.trials)
     if filled:
         click.echo(f"{filled} missing sample(s) interpolated (gaps up to {options.max_gap:g} s)")
+    for line in check_table([check_trial(trial) for trial in found.trials]):
+        click.echo(line, err=line.startswith("warning:"))
     return found.trials

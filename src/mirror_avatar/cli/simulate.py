@@ -122,21 +122,26 @@ EXTEND_HELP = (
 def check_recordings(
     players: Sequence[Player], specs: Sequence[str], duration: float, extend: bool
 ) -> None:
-    """Refuse recordings shorter than the session unless ``extend`` (one line naming the spec)."""
+    """Refuse recordings shorter than the session unless ``extend`` (one line naming the spec).
+
+    A recording's length is the span of its samples, first to last; one short of the session
+    by at most one of its sampling intervals (or one control period) is its full length: 600
+    samples at 10 Hz span 59.9 s and make a 60 s recording.
+    """
     if extend:
         return
     for player, spec in zip(players, specs, strict=True):
         if isinstance(player, RecordedPlayer):
-            length = (player.track.shape[1] - 1) * player.period
+            length, step = player.recording
         elif isinstance(player, VirtualTrainer) and isinstance(player.reference, Trial):
-            length = player.reference.duration
+            length, step = player.reference.duration, player.reference.recorded_step
         else:
             continue
-        if length < duration - player.period:
+        if duration - length > max(step, player.period) * (1 + 1e-9):
             raise InputError(
                 spec,
-                f"the recording lasts {length:.4g} s, the session {duration:g} s: shorten "
-                "--duration, or give --extend-recordings",
+                f"the recording lasts {length:.4g} s ({1 / step:.4g} Hz), the session "
+                f"{duration:g} s: shorten --duration, or give --extend-recordings",
             )
 
 

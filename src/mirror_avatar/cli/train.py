@@ -66,10 +66,26 @@ def load_generator(spec: str, options: ImportOptions = DEFAULT_IMPORT) -> IMSGen
     return reference
 
 
-def training_options(command: Callable[..., None]) -> Callable[..., None]:
-    """Add the options of a training run: sessions, duration, seed, where to run, agent, output."""
+AGENT_HELP = "tabular: the paper's Q-table; dqn: a deep Q-network (METHODS section 8)."
+
+
+def training_options(
+    agent: Agent = "tabular", sessions: dict[Agent, int] | None = None, agent_help: str = AGENT_HELP
+) -> Callable[[Callable[..., None]], Callable[..., None]]:
+    """Make the decorator adding a training run's options (sessions, duration, seed, agent...).
+
+    ``agent`` is the default agent; ``sessions`` the default training sessions of each agent
+    (None: ``--sessions`` is required; else the command receives None and picks by agent).
+    """
+    if sessions is None:
+        count = click.option("--sessions", type=int, required=True, help="Training sessions.")
+    else:
+        defaults = ", ".join(f"{n} for {name}" for name, n in sessions.items())
+        count = click.option(
+            "--sessions", type=int, default=None, help=f"Training sessions. [default: {defaults}]"
+        )
     options = [
-        click.option("--sessions", type=int, required=True, help="Training sessions."),
+        count,
         click.option(
             "--duration", type=float, default=60.0, show_default=True, help="Session length (s)."
         ),
@@ -77,8 +93,8 @@ def training_options(command: Callable[..., None]) -> Callable[..., None]:
         click.option("--scheduler", default=None, help="Dask scheduler address (tcp://host:port)."),
         click.option("--jobs", type=int, default=2, show_default=True, help="Local threads."),
         click.option(
-            "--agent", type=click.Choice(AGENTS), default="tabular", show_default=True,
-            help="tabular: the paper's Q-table; dqn: a deep Q-network (METHODS section 8).",
+            "--agent", type=click.Choice(AGENTS), default=agent, show_default=True,
+            help=agent_help,
         ),
         click.option(
             "--checkpoint-every", type=int, default=None,
@@ -89,9 +105,13 @@ def training_options(command: Callable[..., None]) -> Callable[..., None]:
             help="Policy .npz file.",
         ),
     ]  # fmt: skip
-    for option in reversed(options):
-        command = option(command)
-    return command
+
+    def decorate(command: Callable[..., None]) -> Callable[..., None]:
+        for option in reversed(options):
+            command = option(command)
+        return command
+
+    return decorate
 
 
 def check_training(
@@ -146,7 +166,7 @@ def finish_training(
     "--role", type=click.Choice(TRAINING_ROLES), default="follower", show_default=True,
     help="The role the cyber player learns; the partners take the other one.",
 )  # fmt: skip
-@training_options
+@training_options()
 @import_options
 def train(
     target_spec: str,

@@ -20,13 +20,13 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from tqdm.auto import tqdm
 
 from mirror_avatar.engine.compiled import run_plans
 from mirror_avatar.engine.loop import check_lineup, count_samples, spawn_session_seeds
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import Graph, GraphSource, draw_graph
 from mirror_avatar.players.base import Player, PlayerPlan
+from mirror_avatar.progress import progress_bar
 from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.session import Session, default_roles
 
@@ -204,7 +204,7 @@ def run_sessions(
         results = (run_chunk(*task) for task in tasks)
     else:
         results = _run_on_threads(tasks, n_jobs)
-    with tqdm(total=n_sessions, disable=_quiet(progress), unit="session") as bar:
+    with progress_bar(n_sessions, "sessions", "session", progress) as bar:
         for chunk in results:
             bar.update(len(chunk))
             yield chunk
@@ -283,7 +283,3 @@ def _in_order(submitted: Iterator[Future[list[Session]]], window: int) -> Iterat
             yield in_flight.popleft().result()
     while in_flight:
         yield in_flight.popleft().result()
-
-
-def _quiet(progress: bool | None) -> bool | None:
-    return None if progress is None else not progress

@@ -26,6 +26,7 @@ from mirror_avatar.figures import HUMAN_KURTOSIS, HUMAN_SKEWNESS
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.metrics import TRIM
 from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.progress import counted
 from mirror_avatar.report import Section
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.signature import compute_emd, compute_ims, stroke_moments
@@ -118,15 +119,15 @@ def measure_stages(
     """
     people = {name: _pooled_ims(trials[name]) for name in ("patient", "target")}
     rows = []
-    for method in METHODS:
-        for k in range(1, stages + 1):
-            weight = (k - 1) / (stages - 1)
-            motion = StageMotion(patient, target, weight, method)
-            rows.append(
-                {"method": method, "stage": k, "weight": round(weight, 4)}
-                | _motion_row(motion, people, n_draws, seed)
-                | _coordination(patient, motion, n_sessions, seed)
-            )
+    plan = [(method, k) for method in METHODS for k in range(1, stages + 1)]
+    for method, k in counted(plan, len(plan), "curriculum stages", "stage"):
+        weight = (k - 1) / (stages - 1)
+        motion = StageMotion(patient, target, weight, method)
+        rows.append(
+            {"method": method, "stage": k, "weight": round(weight, 4)}
+            | _motion_row(motion, people, n_draws, seed)
+            | _coordination(patient, motion, n_sessions, seed)
+        )
     return pd.DataFrame(rows).set_index(["method", "stage"])
 
 

@@ -22,6 +22,7 @@ import pandas as pd
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import PAPER_SYMBOLS, IMSGenerator
+from mirror_avatar.progress import counted
 from mirror_avatar.report import Section
 from mirror_avatar.signature import compute_emd, compute_ims
 from mirror_avatar.trials import Trial
@@ -83,27 +84,32 @@ def evaluate_complexity(
     styles = _styles(trials, min(counts))
     ims = {style: [_ims(t) for t in group] for style, group in styles.items()}
     rng = np.random.default_rng(seed)
+    draws = [
+        (style, group, n, draw, held)
+        for style, group in styles.items()
+        for n in counts
+        if n <= len(group)
+        for draw, held in enumerate(_held_out_sets(len(group), n, repeats, rng))
+    ]
     rows = []
-    for style, group in styles.items():
-        for n in (n for n in counts if n <= len(group)):
-            for draw, held in enumerate(_held_out_sets(len(group), n, repeats, rng)):
-                given = [t for k, t in enumerate(group) if k not in held]
-                for method, symbols in METHODS.items():
-                    model = IMSGenerator(symbols, rate=RATE, random_state=seed + draw)
-                    model.fit(given)
-                    generated = [_ims(g) for g in model.sample(DURATION, len(held), seed + draw)]
-                    target = [ims[style][k] for k in held]
-                    own = [ims[style][k] for k in range(len(group)) if k not in held]
-                    rows.append(
-                        {
-                            "style": style,
-                            "trials given": _given(n, len(group)),
-                            "method": method,
-                            "n_symbols": model.n_symbols_,
-                            "ratio": _mean_emd(generated, target) / _mean_emd(own, target),
-                            "identified": _identified(generated, style, ims, held),
-                        }
-                    )
+    for style, group, n, draw, held in counted(draws, len(draws), "generator complexity", "draw"):
+        given = [t for k, t in enumerate(group) if k not in held]
+        for method, symbols in METHODS.items():
+            model = IMSGenerator(symbols, rate=RATE, random_state=seed + draw)
+            model.fit(given)
+            generated = [_ims(g) for g in model.sample(DURATION, len(held), seed + draw)]
+            target = [ims[style][k] for k in held]
+            own = [ims[style][k] for k in range(len(group)) if k not in held]
+            rows.append(
+                {
+                    "style": style,
+                    "trials given": _given(n, len(group)),
+                    "method": method,
+                    "n_symbols": model.n_symbols_,
+                    "ratio": _mean_emd(generated, target) / _mean_emd(own, target),
+                    "identified": _identified(generated, style, ims, held),
+                }
+            )
     return rows
 
 

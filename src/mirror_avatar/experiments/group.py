@@ -126,7 +126,7 @@ def run(
     *partners, target = [m.generator for m in members]
     start = time.perf_counter()
     player, curve = train_group_cyber_player(
-        target, partners, n_sessions=n_train, seed=seed, n_jobs=n_jobs, progress=False, agent=agent
+        target, partners, n_sessions=n_train, seed=seed, n_jobs=n_jobs, agent=agent
     )
     train_seconds = time.perf_counter() - start
     group = make_group(target, partners)

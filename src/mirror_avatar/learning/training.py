@@ -24,13 +24,13 @@ from typing import Any
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
-from tqdm.auto import tqdm
 
 from mirror_avatar.atomic import write_atomic_bytes
 from mirror_avatar.errors import InputError
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.discretisation import REFERENCE
 from mirror_avatar.learning.kernels import learn_session, mean_track
+from mirror_avatar.progress import progress_bar
 from mirror_avatar.session import Session
 from mirror_avatar.signature import DEFAULT_BINS, count_velocities
 
@@ -385,8 +385,7 @@ class SessionLearner:
             self._start()
         self._begin()
         block: list[tuple[float, float]] = []
-        disable = None if self.progress is None else not self.progress
-        with tqdm(total=total, disable=disable, unit="session") as bar:
+        with progress_bar(total, "training", "session", self.progress) as bar:
             for session in sessions:
                 block.append(self._learn(session))
                 if len(block) == self.block_size:

@@ -53,6 +53,9 @@ class RecordedPlayer(Player):
     ----------
     track : ndarray, shape (2, L)
         Positions (units) and velocities (units/s) on the control grid.
+    recording : tuple of float
+        The recording's span from first to last sample and its mean sampling interval as
+        recorded (s, `Trial.recorded_step`).
     """
 
     def __init__(self, trial: Trial, period: float = CONTROL_PERIOD) -> None:
@@ -62,6 +65,7 @@ class RecordedPlayer(Player):
         positions = np.clip(np.interp(grid, offsets, trial.positions), *PLAYING_RANGE)
         self.track = np.vstack([positions, np.interp(grid, offsets, trial.velocity())])
         self.period = period
+        self.recording = (float(offsets[-1]), trial.recorded_step)
         self.label = trial.label or "recorded trial"
         self.source = str(trial.metadata.get("source", ""))
 
@@ -73,6 +77,7 @@ class RecordedPlayer(Player):
         player = cls.__new__(cls)
         player.track = np.vstack([positions, velocities]).astype(np.float64)
         player.period = period
+        player.recording = ((player.track.shape[1] - 1) * period, period)
         player.label = label
         player.source = ""
         return player
