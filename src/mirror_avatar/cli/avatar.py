@@ -12,7 +12,11 @@ from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.cli.train import load_generator
 from mirror_avatar.errors import InputError
-from mirror_avatar.experiments.avatar_proof import HOLDOUT_EVERY, find_person
+from mirror_avatar.experiments.avatar_proof import (
+    HOLDOUT_EVERY,
+    MIN_TRIALS_TO_HOLD_OUT,
+    find_person,
+)
 from mirror_avatar.experiments.personal_avatar import (
     DEFAULT_DQN_SESSIONS,
     DEFAULT_SESSIONS,
@@ -54,7 +58,7 @@ def avatar() -> None:
 @click.option(
     "--holdout", type=int, default=None,
     help="Solo trials kept out of fitting, to check the avatar against (0: none). [default: "
-    f"one in {HOLDOUT_EVERY}, at least one]",
+    f"one in {HOLDOUT_EVERY}, at least one of {MIN_TRIALS_TO_HOLD_OUT} or more]",
 )  # fmt: skip
 @click.option(
     "--with-partner", "partner_paths", multiple=True, type=click.Path(path_type=Path),

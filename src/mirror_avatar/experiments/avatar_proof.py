@@ -44,7 +44,12 @@ Array = NDArray[np.float64]
 
 HOLDOUT_EVERY = 4
 """By default one solo trial in this many is held out of fitting, at least one when the person
-has two or more (**choice**)."""
+has `MIN_TRIALS_TO_HOLD_OUT` or more (**choice**)."""
+
+MIN_TRIALS_TO_HOLD_OUT = 3
+"""Fewest trials of which one is held out by default: two remain to fit, so the codebook size is
+still chosen by leaving out whole trials (**choice**: short trials split in halves are too
+few frames for it)."""
 
 PARTNER_SEEDS = 5
 """Sessions the avatar plays against each replayed partner, seeded apart (**choice**: the
@@ -60,9 +65,9 @@ OWN_RANGE = (5.0, 95.0)
 def count_held_out(n_trials: int) -> int:
     """Return the default number of held-out trials: one in `HOLDOUT_EVERY`, at least one.
 
-    None when the person has a single trial (it is needed for fitting).
+    None below `MIN_TRIALS_TO_HOLD_OUT` trials.
     """
-    return max(1, n_trials // HOLDOUT_EVERY) if n_trials >= 2 else 0
+    return max(1, n_trials // HOLDOUT_EVERY) if n_trials >= MIN_TRIALS_TO_HOLD_OUT else 0
 
 
 def split_held_out(trials: Sequence[Trial], n_held_out: int) -> tuple[list[Trial], list[Trial]]:
@@ -347,7 +352,10 @@ class Proof:
         """One line for the card and the live page."""
         parts = [p.verdict() for p in (self.held_out, self.partners) if p is not None]
         if not parts:
-            return "not checked against the person: no held-out trials (record two or more)"
+            return (
+                "is not checked against the person: no trial was held out of fitting (record "
+                f"{MIN_TRIALS_TO_HOLD_OUT} or more solo trials)"
+            )
         return "; ".join(parts)
 
     def to_json_dict(self) -> dict[str, Any]:
