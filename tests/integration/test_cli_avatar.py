@@ -19,6 +19,7 @@ from mirror_avatar.learning.avatar import load_avatar
 from mirror_avatar.live.session import make_avatar_factory
 from mirror_avatar.model_files import load_model, save_model
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
+from mirror_avatar.session import load_session
 from mirror_avatar.specs import bundled_generator, load_player
 from mirror_avatar.trial_io import write_csv_trial
 
@@ -204,7 +205,6 @@ def test_the_card_checks_the_avatar_against_held_out_trials(built: Path, capsys)
 def test_the_avatar_replays_the_persons_partner(proved: tuple[Path, Path]) -> None:
     """The person's CV, RMS and lag are the recorded session's; the avatar meets the same track."""
     from mirror_avatar.experiments.avatar_proof import find_person, replay_partner
-    from mirror_avatar.session import load_session
 
     out, dyad = proved
     avatar = load_avatar(out)
@@ -250,3 +250,50 @@ def test_bad_proof_options_are_one_line(built: Path, tmp_path, capsys, extra, me
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and message in error
     assert not (tmp_path / "a.npz").exists()
+
+
+@pytest.mark.parametrize(
+    ("leaders", "plays", "kind"),
+    [([], "avatar P01 (follower policy)", "CyberPlayer"),
+     (["--leader", "2"], "avatar P01 (leader policy)", "CyberPlayer")],
+)  # fmt: skip
+def test_an_avatar_in_a_group_plays_its_policy_and_says_so(
+    built: Path, tmp_path: Path, leaders: list[str], plays: str, kind: str
+) -> None:
+    """A group member is the avatar's follower policy, its leader policy as group leader."""
+    out = tmp_path / "group"
+    status = main(["group", "simulate", "--player", "bundled:fast", "--player", "bundled:slow",
+                   "--player", str(built), *leaders, "--duration", "5", "--seed", "1",
+                   "--out", str(out)])  # fmt: skip
+    assert status == 0
+    sidecar = json.loads((out / "session.json").read_text())
+    assert sidecar["labels"][2] == plays
+    described = sidecar["metadata"]["players"][2]
+    assert described["class"] == kind and described["label"] == plays
+    session = load_session(out / "session.parquet")
+    assert session.labels[2] == plays and np.ptp(session.positions[2]) > 0
+    role = "leader" if leaders else "follower"
+    policy = load_avatar(built).players[role]
+    assert np.isfinite(session.controls[2, :-1]).all()
+    player = load_player(str(built), "group_leader" if leaders else "group")
+    assert isinstance(player, CyberPlayer) and player.training_["role"] == role
+    np.testing.assert_array_equal(player.q_table_, policy.q_table_)
+
+
+def test_joint_improvisation_plays_the_virtual_trainer_and_says_so(
+    built: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "joint"
+    status = main(["simulate", "--leader", "bundled:fast", "--follower", str(built), "--joint",
+                   "--duration", "5", "--seed", "2", "--out", str(out)])  # fmt: skip
+    assert status == 0
+    sidecar = json.loads((out / "session.json").read_text())
+    assert sidecar["labels"][1] == "avatar P01 (virtual trainer)"
+    assert sidecar["metadata"]["players"][1]["class"] == "VirtualTrainer"
+
+
+def test_each_call_gives_a_player_of_its_own(built: Path) -> None:
+    avatar = load_avatar(built)
+    first, second = avatar.player("group"), avatar.player("group")
+    assert first is not second and first.label == second.label == "avatar P01 (follower policy)"
+    assert avatar.players["follower"].label != first.label  # the file's player is untouched

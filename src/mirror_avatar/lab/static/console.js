@@ -148,7 +148,8 @@
       cell(row, swatch);
       cell(row, slot.label);
       cell(row, slot.role);
-      cell(row, slot.kind === "avatar" ? `avatar: ${slot.spec}` : `person (${slot.device})`);
+      const avatar = `avatar: ${slot.spec}` + (slot.plays ? ` · plays ${slot.plays}` : "");
+      cell(row, slot.kind === "avatar" ? avatar : `person (${slot.device})`);
       let state = "ready";
       if (slot.kind === "human") {
         state = slot.connected ? "connected" : slot.joined ? "disconnected" : "not joined";
