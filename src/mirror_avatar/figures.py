@@ -91,7 +91,8 @@ def plot_similarity_space(
     ellipses
         Optional group name -> its confidence ellipse (``None`` or absent: not drawn).
     labels
-        Optional group name -> a text label for each of its points, length k.
+        Optional group name -> a text label for each of its points, length k; drawn as
+        ``GROUP/label`` (whose trial it is) unless it already starts so.
     title
         Axes title.
     """
@@ -101,7 +102,8 @@ def plot_similarity_space(
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         axes.scatter(xy[:, 0], xy[:, 1], s=22, color=colours[name], label=name, zorder=3)
         for text, (x, y) in zip((labels or {}).get(name, []), xy, strict=False):
-            axes.annotate(text, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
+            whose = text if text.startswith(f"{name}/") else f"{name}/{text}"
+            axes.annotate(whose, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
     _draw_ellipses(axes, ellipses or {}, colours)
     axes.set(xlabel="dimension 1 (EMD)", ylabel="dimension 2 (EMD)", title=title)
     axes.set_aspect("equal", adjustable="datalim")
