@@ -277,6 +277,7 @@ def test_record_solo_trials_build_your_avatar_and_play_with_it(chromium, avatar_
         assert page.locator("#phase-figure").is_visible() and drawn(page, "phase", PHASE_RGB) > 200
         assert_legends(page, avatar=True)
     assert summary["complete"] and summary["avatar"].endswith("B01_avatar.npz")
+    assert summary["avatar_plays"] == "avatar B01 (follower policy)"
     assert (tmp_path / "B01" / "B01_avatar.npz").is_file()
     assert "Avatar of B01" in (tmp_path / "B01" / "B01_avatar.html").read_text()
 
