@@ -195,7 +195,7 @@ def test_the_card_checks_the_avatar_against_held_out_trials(built: Path, capsys)
     verdict = avatar.summary["verdict"]
     word = "like" if held["emd_to_held_out"] <= hi else "unlike"
     assert verdict.startswith(f"The avatar moves {word} the person: EMD to held-out trials "
-                              f"{held['emd_to_held_out']:.4f}")  # fmt: skip
+                              f"{held['emd_to_held_out']:.4f} as leader")  # fmt: skip
     assert f"{lo:.4f}-{hi:.4f}" in verdict and "role and partner pairs" in verdict
     card = built.with_suffix(".html").read_text()
     assert verdict.replace("'", "&#39;") in card

@@ -4,9 +4,9 @@ Two checks, both against recordings the avatar never learned from:
 
 - **Held-out solo trials.** Some of the person's solo trials are kept out of fitting
   (`split_held_out`). The velocity IMS of each held-out trial is compared (EMD) with that of each
-  session the avatar played in validation, and that distance with the person's own trial-to-trial
-  EMD (every pair of their trials): an avatar that moves like the person is as far from a new
-  trial of theirs as their trials are from one another.
+  session the avatar played in validation, and that distance, as leader, with the person's own
+  trial-to-trial EMD (every pair of their trials): an avatar that moves like the person is as
+  far from a new trial of theirs as their trials are from one another.
 - **Recordings with a partner.** Where the person played a dyad session (a file
   `mirror_avatar.session.load_session` reads), the avatar plays that session again against the
   partner's recorded track replayed open-loop (`mirror_avatar.players.RecordedPlayer`), in the
@@ -57,6 +57,11 @@ avatar's reference and exploration are random, so one session would be one draw)
 
 TRACE_SECONDS = 30.0
 """Seconds of the person-against-avatar trace on the card."""
+
+JUDGED_MOTION = "played as leader"
+"""The avatar's motion the held-out verdict judges (**choice**: leading, the avatar moves in its
+own way, as in a solo trial; a follower's motion is mostly its leader's, so its EMD measures the
+partners and is shown, not judged)."""
 
 OWN_RANGE = (5.0, 95.0)
 """Percentiles of the person's trial-to-trial EMD shown as their own range (**choice**)."""
@@ -114,8 +119,8 @@ class HeldOutProof:
 
     @property
     def played(self) -> Array:
-        """EMDs to every session the avatar played, all roles."""
-        return np.concatenate([v for k, v in self.to_avatar.items() if k.startswith("played")])
+        """EMDs to the sessions the verdict judges (`JUDGED_MOTION`)."""
+        return self.to_avatar[JUDGED_MOTION]
 
     @property
     def own_range(self) -> tuple[float, float]:
@@ -135,12 +140,12 @@ class HeldOutProof:
         median = float(np.median(self.played))
         if self.moves_like:
             return (
-                f"moves like the person: EMD to held-out trials {median:.4f}, within the "
-                f"person's own {own}"
+                f"moves like the person: EMD to held-out trials {median:.4f} as leader, within "
+                f"the person's own {own}"
             )
         return (
-            f"moves unlike the person: EMD to held-out trials {median:.4f}, above the "
-            f"person's own {own}"
+            f"moves unlike the person: EMD to held-out trials {median:.4f} as leader, above "
+            f"the person's own {own}"
         )
 
     def table(self) -> pd.DataFrame:
@@ -285,6 +290,11 @@ class PartnerProof:
         """Mean CV, RMS and lag per session and player."""
         return self.records.groupby(["session", "player"], sort=False)[["cv", "rms", "lag"]].mean()
 
+    def table(self) -> pd.DataFrame:
+        """`means` with the card's column names."""
+        names = {"cv": "CV", "rms": "RMS (units)", "lag": "partner ahead by (s)"}
+        return self.means().rename(columns=names)
+
     def close_sessions(self) -> int:
         """Sessions where the avatar's mean CV and RMS are within the criteria's difference."""
         means = self.means()
@@ -374,8 +384,8 @@ class Proof:
                 f"Velocity IMS EMD to the held-out trials ({', '.join(self.held_out.held_out)})"
             ] = self.held_out.table()
         if self.partners is not None:
-            tables["The person and the avatar against their partner's recorded track"] = (
-                self.partners.means()
+            tables["The person and the avatar against their partner's recorded track (mean)"] = (
+                self.partners.table()
             )
         return tables
 
