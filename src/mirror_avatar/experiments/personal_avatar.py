@@ -219,8 +219,9 @@ def make_card(
         f"RMS at most {CRITERIA['max_rms']:g}, EMD at most {CRITERIA['max_emd_to_target']:g}) "
         f"are met for {int(criteria['all'].sum())} of {len(criteria)} role and partner pairs.",
         "Checked against the person themselves: held-out trials are solo trials kept out of "
-        "fitting, compared (EMD of velocity IMS) with each session the avatar played, beside "
-        "the person's own trial-to-trial EMD; sessions the person played with a partner are "
+        "fitting, compared (EMD of velocity IMS) with each session the avatar played (judged "
+        "as leader), beside the person's own trial-to-trial EMD; sessions the person played "
+        "with a partner are "
         "played again by the avatar in their place against the partner's recorded track.",
     ]
     figures: dict[str, Any] = {
