@@ -16,7 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon as PolygonPatch
 from matplotlib.patches import Rectangle
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from mirror_avatar.metrics import compute_cluster_phase, compute_phase, compute_relative_phase
 from mirror_avatar.session import Session
@@ -29,6 +29,11 @@ HUMAN_KURTOSIS = (1.5, 3.0)
 """Range of stroke kurtosis (Pearson) seen in people (METHODS section 3)."""
 
 FIGSIZE = (6.4, 4.4)
+
+SYNCHRONISATION_WINDOW = 2.0
+"""Seconds of the centred moving mean drawn over rho_g(t) (**choice**: rho_g swings from sample
+to sample as the players' phases cross; two seconds span about two cycles of the fast bundled
+style, so the line shows how synchronisation drifts over a session)."""
 
 
 def plot_ims(
@@ -86,7 +91,8 @@ def plot_similarity_space(
     ellipses
         Optional group name -> its confidence ellipse (``None`` or absent: not drawn).
     labels
-        Optional group name -> a text label for each of its points, length k.
+        Optional group name -> a text label for each of its points, length k; drawn as
+        ``GROUP/label`` (whose trial it is) unless it already starts so.
     title
         Axes title.
     """
@@ -96,7 +102,8 @@ def plot_similarity_space(
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         axes.scatter(xy[:, 0], xy[:, 1], s=22, color=colours[name], label=name, zorder=3)
         for text, (x, y) in zip((labels or {}).get(name, []), xy, strict=False):
-            axes.annotate(text, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
+            whose = text if text.startswith(f"{name}/") else f"{name}/{text}"
+            axes.annotate(whose, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
     _draw_ellipses(axes, ellipses or {}, colours)
     axes.set(xlabel="dimension 1 (EMD)", ylabel="dimension 2 (EMD)", title=title)
     axes.set_aspect("equal", adjustable="datalim")
@@ -218,6 +225,50 @@ def plot_series(
     axes.set(xlabel="time (s)", ylabel=ylabel, title=title)
     axes.legend(frameon=False)
     return figure
+
+
+def plot_group_synchronisation(
+    times: ArrayLike,
+    series: Mapping[str, ArrayLike],
+    title: str = "Group synchronisation",
+    window: float = SYNCHRONISATION_WINDOW,
+) -> Figure:
+    """Group synchronisation rho_g(t) of one or more sessions: each raw, faint, and its mean.
+
+    Parameters
+    ----------
+    times
+        Sample times (s), shape (n,), uniformly spaced.
+    series
+        Name -> rho_g at each sample, shape (n,), in [0, 1].
+    title
+        Axes title.
+    window
+        Length (s) of the centred moving mean drawn bold (`moving_mean`).
+    """
+    figure, axes = _new_figure()
+    colours = _colours(list(series))
+    t = np.asarray(times, dtype=np.float64)
+    n = max(1, round(window / float(np.median(np.diff(t))))) if t.size > 1 else 1
+    for name, values in series.items():
+        rho = np.asarray(values, dtype=np.float64)
+        axes.plot(t, rho, color=colours[name], lw=0.6, alpha=0.25)
+        axes.plot(t, moving_mean(rho, n), color=colours[name], lw=1.8, label=name)
+    axes.set(xlabel="time (s)", ylabel="rho_g (1 = synchronised)", ylim=(0.0, 1.02), title=title)
+    axes.legend(frameon=False, title=f"{window:g} s moving mean (faint: each sample)")
+    return figure
+
+
+def moving_mean(values: ArrayLike, n: int) -> NDArray[np.float64]:
+    """Return the centred moving mean over ``n`` samples, the shape of ``values``.
+
+    Sample k averages samples k - n // 2 to k + (n - 1) // 2; near the ends, those that exist.
+    """
+    x = np.asarray(values, dtype=np.float64)
+    sums = np.concatenate([[0.0], np.cumsum(x)])
+    k = np.arange(x.size)
+    lo, hi = np.maximum(k - n // 2, 0), np.minimum(k + (n - 1) // 2 + 1, x.size)
+    return (sums[hi] - sums[lo]) / (hi - lo)
 
 
 def plot_progress(table: pd.DataFrame, columns: Sequence[str], title: str) -> Figure:
@@ -380,10 +431,7 @@ def plot_session(session: Session, trim: float = 0.0, seconds: float = 30.0) -> 
         )
     elif kept.n_players > 2 and moving:
         cluster = compute_cluster_phase(np.array([compute_phase(x) for x in kept.positions]))
-        figures["group_synchronisation"] = plot_series(
-            kept.times,
-            {"rho_g": cluster.group},
-            "rho_g (1 = synchronised)",
-            "Group synchronisation",
+        figures["group_synchronisation"] = plot_group_synchronisation(
+            kept.times, {"rho_g": cluster.group}
         )
     return figures

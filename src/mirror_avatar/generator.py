@@ -576,8 +576,9 @@ def sweep_codebook(
     -------
     pandas.DataFrame
         Indexed by ``n_symbols``, columns ``train_distortion`` and ``test_distortion`` (mean
-        squared quantisation error per feature), ``symbols_used`` (fraction of code vectors the
-        training frames use), ``test_log_likelihood`` (mean log-probability per transition of the
+        squared quantisation error per feature), ``test_symbols_used`` (fraction of code vectors
+        the test frames use: the training frames use them all, k-means leaving no code vector
+        without one), ``test_log_likelihood`` (mean log-probability per transition of the
         test trials' symbols) and ``emd_to_test`` (mean EMD between the IMS of each generated
         trial and each test trial).
     """
@@ -595,7 +596,7 @@ def sweep_codebook(
                 "n_symbols": int(size),
                 "train_distortion": model.training_summary_["distortion"],
                 "test_distortion": test["distortion"],
-                "symbols_used": model.training_summary_["symbols_used"],
+                "test_symbols_used": test["symbols_used"],
                 "test_log_likelihood": test["log_likelihood"],
                 "emd_to_test": float(np.mean(emd)),
             }

@@ -11,8 +11,9 @@ A SPEC is one of:
   ``mirror-avatar/deep-cyber-player`` for a deep one): the trained player (its dynamics are its
   own, so the role is not used);
 - a personal avatar ``.npz`` (format ``mirror-avatar/avatar``,
-  `mirror_avatar.learning.avatar`): its cyber player for the role (follower or leader), or for
-  other roles the person's virtual trainer;
+  `mirror_avatar.learning.avatar`): its cyber player for the role (follower or leader; in a group
+  the follower, or the leader as group leader: `mirror_avatar.learning.avatar.POLICY_FOR_ROLE`),
+  or for joint improvisation the person's virtual trainer;
 - a curriculum stage ``.npz`` (format ``mirror-avatar/curriculum-stage``,
   `mirror_avatar.curriculum`): a virtual trainer moving with the stage's motion;
 - a recorded trial file (CSV, Parquet, MAT or BIDS-Motion, `mirror_avatar.trial_files.read_trial`):
@@ -113,10 +114,7 @@ def load_player(
         return VirtualTrainer(params, trial, label=label)
     path = check_path(spec)
     if path.suffix.lower() == ".npz":
-        player = _load_model(path, role, label)
-        if isinstance(player, AccelerationPlayer) and isinstance(role, str):
-            _check_policy_role(path, player, role)
-        return player
+        return _load_model(path, role, label)
     if not path.exists():
         raise InputError(spec, f"no such file, and not a player spec ({SPEC_FORMS})")
     if path.is_dir():
@@ -138,10 +136,11 @@ def _load_model(path: Path, role: str | HKBParams, label: str) -> Player:
     if kind == GENERATOR_FORMAT:
         params = preset(role) if isinstance(role, str) else role
         return VirtualTrainer(params, IMSGenerator.load(path), label=label)
-    if kind == CYBER_FORMAT:
-        return load_cyber_player(path)
-    if kind == DEEP_FORMAT:
-        return load_deep_cyber_player(path)
+    if kind in (CYBER_FORMAT, DEEP_FORMAT):
+        player = load_cyber_player(path) if kind == CYBER_FORMAT else load_deep_cyber_player(path)
+        if isinstance(role, str):
+            _check_policy_role(path, player, role)
+        return player
     if kind == AVATAR_FORMAT:
         return load_avatar(path).player(role)
     if kind == STAGE_FORMAT:

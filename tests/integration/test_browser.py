@@ -20,6 +20,7 @@ import psutil
 import pytest
 from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains
 
+from mirror_avatar.learning.avatar import load_avatar
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import make_avatar_factory
 from mirror_avatar.players import Observation
@@ -117,6 +118,16 @@ def drawn(page: Any, canvas: str, rgb: tuple[int, int, int]) -> int:
     return int(page.evaluate(PIXELS_OF, [canvas, list(rgb)]))
 
 
+def assert_legends(page: Any, avatar: bool) -> None:
+    """Each figure of the results names its lines: you, the avatar (with one), the phase."""
+    for figure in ("plot", "positions"):
+        caption = page.locator(f"figure:has(#{figure}) figcaption")
+        assert caption.locator(".key:not(.avatar-key)").inner_text() == "You"
+        assert caption.locator(".avatar-key").is_visible() == avatar
+    if avatar:
+        assert "You − avatar" in page.locator("#phase-figure figcaption").inner_text()
+
+
 def load_csv(path: Path) -> np.ndarray:
     assert path.read_text().splitlines()[0] == "time,position"
     return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
@@ -134,6 +145,7 @@ def test_solo_trial_records_the_driven_trajectory(chromium, server, tmp_path):
     assert page.locator("#metrics").inner_text().count("units/s") == 1
     assert drawn(page, "positions", PERSON_RGB) > 200 and drawn(page, "positions", AVATAR_RGB) == 0
     assert page.locator("#phase-figure").is_hidden()
+    assert_legends(page, avatar=False)
     page.close()
 
 
@@ -173,6 +185,7 @@ def test_avatar_follows_the_driven_mouse(chromium, server, tmp_path):
     assert len(traces["relative_phase"]) == len(traces["times"])
     assert drawn(page, "positions", PERSON_RGB) > 200 and drawn(page, "positions", AVATAR_RGB) > 200
     assert page.locator("#phase-figure").is_visible() and drawn(page, "phase", PHASE_RGB) > 200
+    assert_legends(page, avatar=True)
     page.close()
 
 
@@ -230,13 +243,14 @@ def test_token_protected_server_refuses_pages_without_it(chromium, tmp_path):
 
 
 def test_record_solo_trials_build_your_avatar_and_play_with_it(chromium, avatar_factory, tmp_path):
-    """The whole personal-avatar loop on one page: two solo trials, "Build my avatar" (with
-    its stages shown), then a trial with the avatar just built (small training for the test)."""
+    """The whole personal-avatar loop on one page: three solo trials, "Build my avatar" (with
+    its stages shown, then its verdict and card), then a trial with the avatar just built
+    (small training for the test)."""
     settings = LiveSettings(out_dir=tmp_path, avatar_spec="bundled:slow", countdown=1,
                             build_sessions=(30, 1, 4))  # fmt: skip
     with ServerThread(create_app(settings, avatar_factory)) as server:
         page = chromium.new_page()
-        for k in range(2):
+        for k in range(3):  # one is held out of fitting to check the avatar against
             start_trial(page, server.url, "solo", 8)
             drive(page, 9)
             finish(page, f"own-avatar-solo-{k + 1}", tmp_path)
@@ -244,6 +258,13 @@ def test_record_solo_trials_build_your_avatar_and_play_with_it(chromium, avatar_
         page.wait_for_function("window.mirrorGame.phase === 'building'")
         page.wait_for_function("window.mirrorGame.personalAvatar !== null", timeout=180_000)
         assert "Your avatar is ready (B01_avatar.npz)" in page.text_content("#status")
+        verdict = page.text_content("#verdict-text")
+        built = load_avatar(tmp_path / "B01" / "B01_avatar.npz")
+        assert verdict == built.summary["verdict"] and "role and partner pairs" in verdict
+        assert verdict.startswith("The avatar moves") and "held-out trials" in verdict
+        card = page.evaluate("fetch(document.getElementById('card-link').href).then(r => r.text())")
+        assert card == (tmp_path / "B01" / "B01_avatar.html").read_text()
+        assert page.locator("#card-link").is_visible()
         SCREENSHOTS.mkdir(parents=True, exist_ok=True)
         page.screenshot(path=SCREENSHOTS / "own-avatar-ready.png")
         page.select_option("#mode", "avatar_follows")
@@ -252,7 +273,11 @@ def test_record_solo_trials_build_your_avatar_and_play_with_it(chromium, avatar_
         page.wait_for_function("window.mirrorGame.phase === 'running'", timeout=15_000)
         drive(page, 5)
         summary = finish(page, "own-avatar-trial", tmp_path)
+        # after solo trials (no phase figure) the avatar trial's relative phase is drawn
+        assert page.locator("#phase-figure").is_visible() and drawn(page, "phase", PHASE_RGB) > 200
+        assert_legends(page, avatar=True)
     assert summary["complete"] and summary["avatar"].endswith("B01_avatar.npz")
+    assert summary["avatar_plays"] == "avatar B01 (follower policy)"
     assert (tmp_path / "B01" / "B01_avatar.npz").is_file()
     assert "Avatar of B01" in (tmp_path / "B01" / "B01_avatar.html").read_text()
 

@@ -11,13 +11,15 @@ import pytest
 from mirror_avatar.cli import main
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.deep.player import DeepCyberPlayer
+from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.avatar import load_avatar
 from mirror_avatar.live.session import make_avatar_factory
 from mirror_avatar.model_files import load_model, save_model
-from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.players import RecordedPlayer, VirtualTrainer
+from mirror_avatar.session import load_session
 from mirror_avatar.specs import bundled_generator, load_player
 from mirror_avatar.trial_io import write_csv_trial
 
@@ -141,3 +143,157 @@ def test_a_deep_avatar_is_built_saved_and_played(built: Path, tmp_path: Path) ->
     unknown = rewrite_avatar(tmp_path / "unknown.npz", arrays, metadata)
     with pytest.raises(InputError, match="agent 'transformer' is neither 'tabular' nor 'dqn'"):
         load_avatar(unknown)
+
+
+@pytest.fixture(scope="module")
+def proved(built: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """The person's avatar also checked against a session they played with a partner.
+
+    The dyad: the fast partner leads, the person follows as a virtual trainer driven by their
+    held-out trial (trial1 of three).
+    """
+    folder = built.parent
+    dyad = tmp_path_factory.mktemp("dyad")
+    status = main(["simulate", "--leader", str(folder / "fast.npz"), "--follower",
+                   f"vt:{folder / 'trials' / 'trial1.csv'}", "--duration", "20", "--seed", "5",
+                   "--out", str(dyad)])  # fmt: skip
+    assert status == 0
+    label = json.loads((dyad / "session.json").read_text())["labels"][1]
+    out = folder / "P01-proved.npz"
+    status = main(["avatar", "create", str(folder / "trials"), "--name", "P01", "--partners",
+                   f"{folder / 'fast.npz'},{folder / 'slow.npz'}", "--sessions", "40",
+                   "--jobs", "1", "--with-partner", str(dyad / "session.parquet"),
+                   "--person-label", label, "--out", str(out)])  # fmt: skip
+    assert status == 0
+    return out, dyad
+
+
+def ims_emd(a: np.ndarray, b: np.ndarray) -> float:
+    """EMD between two velocity series' IMS by scipy (the toolkit's normalised bins)."""
+    from scipy.stats import wasserstein_distance
+
+    from mirror_avatar.signature import DEFAULT_BINS, compute_ims
+
+    centres = DEFAULT_BINS.centres
+    span = centres[-1] - centres[0]
+    return wasserstein_distance(centres, centres, compute_ims(a), compute_ims(b)) / span
+
+
+def test_the_card_checks_the_avatar_against_held_out_trials(built: Path, capsys) -> None:
+    """One trial in four, at least one, is kept out of fitting and compared with the avatar."""
+    from mirror_avatar.trial_io import read_trial
+
+    avatar = load_avatar(built)
+    assert avatar.generator.training_summary_["labels"] == ["trial0", "trial2"]
+    held = avatar.summary["proof"]["held_out"]
+    assert held["held_out"] == ["trial1"]
+    trials = [read_trial(built.parent / "trials" / f"trial{k}.csv") for k in range(3)]
+    velocities = [t.resampled().velocity() for t in trials]
+    own = [ims_emd(velocities[i], velocities[j]) for i, j in ((0, 1), (0, 2), (1, 2))]
+    np.testing.assert_allclose(held["own_emd_range"], np.percentile(own, [5, 95]), rtol=1e-6)
+    lo, hi = held["own_emd_range"]
+    verdict = avatar.summary["verdict"]
+    word = "like" if held["emd_to_held_out"] <= hi else "unlike"
+    assert verdict.startswith(f"The avatar moves {word} the person: EMD to held-out trials "
+                              f"{held['emd_to_held_out']:.4f} as leader")  # fmt: skip
+    assert f"{lo:.4f}-{hi:.4f}" in verdict and "role and partner pairs" in verdict
+    card = built.with_suffix(".html").read_text()
+    assert verdict.replace("'", "&#39;") in card
+    assert "P01 against the avatar (positions)" in card and "held-out trials (trial1)" in card
+
+
+def test_the_avatar_replays_the_persons_partner(proved: tuple[Path, Path]) -> None:
+    """The person's CV, RMS and lag are the recorded session's; the avatar meets the same track."""
+    from mirror_avatar.experiments.avatar_proof import find_person, replay_partner
+
+    out, dyad = proved
+    avatar = load_avatar(out)
+    recorded = json.loads((dyad / "metrics.json").read_text())["metrics"]
+    sessions = avatar.summary["proof"]["partners"]["sessions"]
+    person = next(row for row in sessions if row["player"] == "person")
+    assert person["cv"] == pytest.approx(recorded["phase_locking"])
+    assert person["rms"] == pytest.approx(recorded["rmse"])
+    assert person["lag"] == pytest.approx(recorded["time_lag"])  # the partner is player 0
+    avatar_row = next(row for row in sessions if row["player"] == "avatar")
+    assert 0 < avatar_row["cv"] <= 1 and avatar_row["rms"] > 0
+    session = load_session(dyad / "session.parquet")
+    played = replay_partner(avatar, find_person("d", session, session.labels[1]), 2, seed=0)
+    for replay in played:
+        np.testing.assert_allclose(replay.positions[0], session.positions[0], atol=1e-12)
+        assert replay.roles == ("leader", "follower")
+    assert isinstance(avatar.player("follower"), CyberPlayer)
+    verdict = avatar.summary["verdict"]
+    assert f"CV {avatar_row['cv']:.2f} (person {person['cv']:.2f})" in verdict
+    card = out.with_suffix(".html").read_text()
+    assert "against their partner&#39;s recorded track" in card
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--holdout", "3"], "3 held-out trials of 3: keep at least one to fit"),
+        (["--holdout", "-1"], "give 0 or more"),
+        (["--with-partner", "SESSION", "--person-label", "nobody"], "no single player labelled"),
+    ],
+)
+def test_bad_proof_options_are_one_line(built: Path, tmp_path, capsys, extra, message) -> None:
+    folder = built.parent
+    extra = [str(folder / "dyad.csv") if a == "SESSION" else a for a in extra]
+    first, second = load_zhai2017()[:2]
+    play([RecordedPlayer(first), RecordedPlayer(second)], 10.0, seed=0).save_csv(
+        folder / "dyad.csv"
+    )
+    arguments = ["avatar", "create", str(folder / "trials"), "--name", "P", "--partners",
+                 f"{folder / 'fast.npz'},{folder / 'slow.npz'}", "--out",
+                 str(tmp_path / "a.npz"), *extra]  # fmt: skip
+    assert main(arguments) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and message in error
+    assert not (tmp_path / "a.npz").exists()
+
+
+@pytest.mark.parametrize(
+    ("leaders", "plays", "kind"),
+    [([], "avatar P01 (follower policy)", "CyberPlayer"),
+     (["--leader", "2"], "avatar P01 (leader policy)", "CyberPlayer")],
+)  # fmt: skip
+def test_an_avatar_in_a_group_plays_its_policy_and_says_so(
+    built: Path, tmp_path: Path, leaders: list[str], plays: str, kind: str
+) -> None:
+    """A group member is the avatar's follower policy, its leader policy as group leader."""
+    out = tmp_path / "group"
+    status = main(["group", "simulate", "--player", "bundled:fast", "--player", "bundled:slow",
+                   "--player", str(built), *leaders, "--duration", "5", "--seed", "1",
+                   "--out", str(out)])  # fmt: skip
+    assert status == 0
+    sidecar = json.loads((out / "session.json").read_text())
+    assert sidecar["labels"][2] == plays
+    described = sidecar["metadata"]["players"][2]
+    assert described["class"] == kind and described["label"] == plays
+    session = load_session(out / "session.parquet")
+    assert session.labels[2] == plays and np.ptp(session.positions[2]) > 0
+    role = "leader" if leaders else "follower"
+    policy = load_avatar(built).players[role]
+    assert np.isfinite(session.controls[2, :-1]).all()
+    player = load_player(str(built), "group_leader" if leaders else "group")
+    assert isinstance(player, CyberPlayer) and player.training_["role"] == role
+    np.testing.assert_array_equal(player.q_table_, policy.q_table_)
+
+
+def test_joint_improvisation_plays_the_virtual_trainer_and_says_so(
+    built: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "joint"
+    status = main(["simulate", "--leader", "bundled:fast", "--follower", str(built), "--joint",
+                   "--duration", "5", "--seed", "2", "--out", str(out)])  # fmt: skip
+    assert status == 0
+    sidecar = json.loads((out / "session.json").read_text())
+    assert sidecar["labels"][1] == "avatar P01 (virtual trainer)"
+    assert sidecar["metadata"]["players"][1]["class"] == "VirtualTrainer"
+
+
+def test_each_call_gives_a_player_of_its_own(built: Path) -> None:
+    avatar = load_avatar(built)
+    first, second = avatar.player("group"), avatar.player("group")
+    assert first is not second and first.label == second.label == "avatar P01 (follower policy)"
+    assert avatar.players["follower"].label != first.label  # the file's player is untouched

@@ -158,7 +158,18 @@ def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
         assert_matches(recorded, driven[label])
     assert session.metadata["metrics"]["phase_locking"] > 0.8
     pages["P2"].wait_for_function("document.getElementById('message').textContent.includes('CV')")
+    words = pages["P2"].locator("#message .words").all_inner_texts()
+    assert words == [
+        "how steadily your timing kept pace with the others': 0 no relation, 1 always in step",
+        "how far apart your points were on average, in track widths: 0 always together",
+    ]
     screenshot(pages["P2"], "lab-participant-end")
+    console.wait_for_function(
+        "document.getElementById('session-summary').textContent.includes('finished')"
+    )
+    summary = console.locator("#session-summary").inner_text()
+    assert summary.endswith("finished: 1 of 1 trial(s) played") and "next trial" not in summary
+    screenshot(console, "lab-console-finished")
 
 
 def test_group_of_four_on_a_ring_two_people_two_avatars(chromium, lab, tmp_path):
@@ -184,6 +195,8 @@ def test_group_of_four_on_a_ring_two_people_two_avatars(chromium, lab, tmp_path)
     assert 0.0 <= float(group_sync[0]) <= 1.0
     row = wait_trial_listed(console, 1)
     assert "complete" in row and "ρg" in row
+    slots = console.locator("#slots").inner_text()
+    assert "avatar: bundled:slow · plays virtual trainer (bundled:slow)" in slots
     session = load_session(session_dir(tmp_path) / "trial-01_session.csv")
     assert session.labels == ("P1", "A1", "P2", "A2") and session.n_players == 4
     assert session.graph.tolist() == [[0, 1, 0, 1], [1, 0, 1, 0], [0, 1, 0, 1], [1, 0, 1, 0]]

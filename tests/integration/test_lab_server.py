@@ -260,6 +260,9 @@ def test_abort_saves_the_trial_and_expires_the_links(lab, tmp_path):
     asyncio.run(play_all(pages, 8.0, start_then_abort))
     final = status(lab, sid)
     assert final["state"] == "aborted" and final["trials"][0]["end_reason"] == "session aborted"
+    plays = {row["label"]: row.get("plays") for row in final["slots"]}
+    assert plays == {"P1": None, "A1": "virtual trainer (bundled:slow)", "P2": None,
+                     "A2": "virtual trainer (bundled:fast)"}  # fmt: skip
     assert all(page.closed is not None and page.closed.rcvd.code == 4001 for page in pages)
     assert httpx.get(created["links"]["P1"]).status_code == 404
     assert command(lab, sid, "start").status_code == 409

@@ -64,3 +64,36 @@ def test_plot_relative_phase_draws_densities_and_circular_means(rng):
     assert means[0] == pytest.approx(0.5, abs=0.03)
     assert abs(means[1]) == pytest.approx(3.0, abs=0.03)
     assert render_png(figure).startswith(b"\x89PNG")
+
+
+def test_moving_mean_matches_a_slow_loop() -> None:
+    from mirror_avatar.figures import moving_mean
+
+    x = np.random.default_rng(3).random(57)
+    for n in (1, 4, 5, 200):
+        half_left, half_right = (n - 1) // 2, n // 2
+        expected = [x[max(0, i - half_right) : i + half_left + 1].mean() for i in range(x.size)]
+        np.testing.assert_allclose(moving_mean(x, n), expected, rtol=1e-12)
+
+
+def test_group_synchronisation_is_drawn_smoothed_with_a_legend() -> None:
+    from mirror_avatar.figures import moving_mean, plot_group_synchronisation
+
+    t = np.arange(0, 20, 0.01)
+    rho = 0.7 + 0.3 * np.sign(np.sin(2 * np.pi * 7 * t))  # flickers every sample or so
+    figure = plot_group_synchronisation(t, {"with VT5": rho})
+    (axes,) = figure.axes
+    raw, smooth = axes.lines
+    np.testing.assert_allclose(smooth.get_ydata(), moving_mean(rho, 200))
+    assert np.ptp(smooth.get_ydata()[300:-300]) < 0.1 * np.ptp(raw.get_ydata())
+    assert [text.get_text() for text in axes.get_legend().get_texts()] == ["with VT5"]
+
+
+def test_similarity_space_points_say_whose_trial_they_are() -> None:
+    from mirror_avatar.figures import plot_similarity_space
+
+    points = {"p1": np.array([[0.0, 0.0], [1.0, 0.0]]), "p2": np.array([[0.0, 1.0]])}
+    labels = {"p1": ["trial_05", "p1/trial_06"], "p2": ["trial_05"]}
+    figure = plot_similarity_space(points, labels=labels)
+    texts = sorted(text.get_text() for text in figure.axes[0].texts)
+    assert texts == ["p1/trial_05", "p1/trial_06", "p2/trial_05"]

@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.signal import butter, sosfilt_zi, sosfiltfilt
+from sklearn.metrics import pairwise_distances_argmin
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import (
@@ -155,6 +156,15 @@ def test_codebook_sweep_distortion_falls_with_size(zhai_trials_100hz: list) -> N
     assert sweep.loc[32, "test_distortion"] < sweep.loc[8, "test_distortion"]
     assert np.all(sweep["test_log_likelihood"] < 0)
     assert np.all((sweep["emd_to_test"] > 0) & (sweep["emd_to_test"] < 0.1))
+    # the share of code vectors the held-out frames are nearest to, counted by scikit-learn
+    for size in (8, 32):
+        model = IMSGenerator(n_symbols=size, random_state=0).fit(train)
+        assert model.training_summary_["symbols_used"] == 1.0  # k-means leaves none unused
+        frames = np.vstack([model._features(model._signal(t)) for t in test])
+        nearest = pairwise_distances_argmin(frames, model.codebook_)
+        expected = np.unique(nearest).size / size
+        assert sweep.loc[size, "test_symbols_used"] == pytest.approx(expected)
+    assert sweep.loc[32, "test_symbols_used"] < 1.0
     with pytest.raises(InputError, match="held-out"):
         sweep_codebook(train, [], sizes=(8,))
 

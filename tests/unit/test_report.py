@@ -51,3 +51,13 @@ def test_write_report_rejects_duplicate_keys(tmp_path):
 
 def test_render_png_is_a_png():
     assert render_png(small_figure()).startswith(b"\x89PNG")
+
+
+def test_a_mapping_in_the_metadata_is_a_table(tmp_path):
+    """Timings by experiment read as rows, not as a Python dict."""
+    timings = {"signature": 12.5, "virtual trainer": 3.25}
+    path = write_report([Section("a", "A")], tmp_path, "T", {"experiment_time_s": timings})
+    html = path.read_text()
+    assert "{&#39;" not in html and "{'" not in html
+    rows = re.findall(r"<tr><th>([^<]*)</th><td>([^<]*)</td></tr>", html)
+    assert rows == [("signature", "12.5"), ("virtual trainer", "3.25")]

@@ -12,6 +12,11 @@ from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.cli.train import load_generator
 from mirror_avatar.errors import InputError
+from mirror_avatar.experiments.avatar_proof import (
+    HOLDOUT_EVERY,
+    MIN_TRIALS_TO_HOLD_OUT,
+    find_person,
+)
 from mirror_avatar.experiments.personal_avatar import (
     DEFAULT_DQN_SESSIONS,
     DEFAULT_SESSIONS,
@@ -23,6 +28,7 @@ from mirror_avatar.experiments.personal_avatar import (
 from mirror_avatar.importing import ImportOptions, excerpt
 from mirror_avatar.learning.avatar import MAX_NAME_CHARS
 from mirror_avatar.learning.imitation import AGENTS, Agent
+from mirror_avatar.session import load_session
 
 
 @click.group()
@@ -50,6 +56,22 @@ def avatar() -> None:
     "--agent", type=click.Choice(AGENTS), default="tabular", show_default=True,
     help="tabular: the paper's Q-tables; dqn: deep Q-networks (METHODS section 8).",
 )  # fmt: skip
+@click.option(
+    "--holdout", type=int, default=None,
+    help="Solo trials kept out of fitting, to check the avatar against (0: none). [default: "
+    f"one in {HOLDOUT_EVERY}, at least one of {MIN_TRIALS_TO_HOLD_OUT} or more]",
+)  # fmt: skip
+@click.option(
+    "--with-partner", "partner_paths", multiple=True, type=click.Path(path_type=Path),
+    help="A dyad session file the person played (repeatable): the avatar plays it again in "
+    "their place against the partner's recorded track, and its CV, RMS and lag are set beside "
+    "theirs.",
+)  # fmt: skip
+@click.option(
+    "--person-label", default=None,
+    help="The person's label in the --with-partner sessions (LABEL or 'person LABEL'). "
+    "[default: --name]",
+)  # fmt: skip
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of everything.")
 @click.option("--jobs", type=int, default=2, show_default=True, help="Local threads.")
 @click.option(
@@ -63,6 +85,9 @@ def create(
     partner_specs: tuple[str, ...],
     sessions: int | None,
     agent: Agent,
+    holdout: int | None,
+    partner_paths: tuple[Path, ...],
+    person_label: str | None,
     seed: int,
     jobs: int,
     out_path: Path,
@@ -70,10 +95,11 @@ def create(
 ) -> None:
     """Build a person's avatar from their solo trials in FILE_OR_DIR....
 
-    Fits their IMS generator, trains their cyber player as follower and as leader against the
-    partners, validates it against their own virtual trainer (the last partner unseen) and
-    writes OUT (playable as a SPEC: the session's role picks the player) and OUT's card, the
-    same name with .html.
+    Fits their IMS generator on all but the held-out trials, trains their cyber player as
+    follower and as leader against the partners, validates it against their own virtual
+    trainer (the last partner unseen), checks it against the person (held-out trials, sessions
+    with a partner) and writes OUT (playable as a SPEC: the session's role picks the player)
+    and OUT's card, the same name with .html.
     """
     check_output_file(out_path, ".npz", beside=[avatar_card_path(out_path)])
     if not 0 < len(name.strip()) <= MAX_NAME_CHARS:
@@ -82,6 +108,11 @@ def create(
         )
     if (sessions is not None and sessions < 1) or jobs < 1:
         raise InputError("--sessions", "--sessions and --jobs must be >= 1")
+    if holdout is not None and holdout < 0:
+        raise InputError("--holdout", f"{holdout} held-out trials: give 0 or more")
+    dyads = [
+        find_person(str(path), load_session(path), person_label or name) for path in partner_paths
+    ]
     specs = [s.strip() for spec in partner_specs for s in spec.split(",") if s.strip()]
     partners = [(spec, load_generator(spec, options)) for spec in specs]
     partners = partners or default_partners(seed)
@@ -89,6 +120,7 @@ def create(
     began = time.perf_counter()
     built, card = create_avatar(
         trials, name, partners, sessions, seed=seed, n_jobs=jobs, agent=agent,
+        n_held_out=holdout, partner_sessions=dyads,
         progress=lambda stage: click.echo(f"avatar: {stage} ...", err=True),
     )  # fmt: skip
     seconds = round(time.perf_counter() - began, 3)
@@ -101,4 +133,5 @@ def create(
             f"{name} {result['emd_to_person']:.4f}; the paper's criteria "
             f"{'met' if result['criteria_met'] else 'not all met'} (see the card)"
         )
+    click.echo(built.summary["verdict"])
     click.echo(f"wrote {out_path.resolve()} and {card_path.resolve()}")

@@ -25,7 +25,13 @@ import pandas as pd
 
 from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.engine.loop import count_samples
-from mirror_avatar.figures import plot_bars, plot_graph, plot_learning_curves, plot_series
+from mirror_avatar.figures import (
+    plot_bars,
+    plot_graph,
+    plot_group_synchronisation,
+    plot_learning_curves,
+    plot_series,
+)
 from mirror_avatar.graphs import GraphSource, make_graph, random_connected_graph
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.imitation import (
@@ -361,8 +367,8 @@ def _figures(
         "Positions of the players, first random-graph session (first 20 s)": plot_series(
             with_vt.times[keep], positions, "position (units)", f"A group of {len(labels)}"
         ),
-        "Group synchronisation rho_g(t) in that session": plot_series(
-            with_vt.times, rho, "rho_g", "Group synchronisation"
+        "Group synchronisation rho_g(t) in that session": plot_group_synchronisation(
+            with_vt.times, rho
         ),
         "That session's graph (drawn from its seed)": plot_graph(with_vt.graph, labels),
         "Each player's synchronisation to the group, complete graph and path": plot_bars(

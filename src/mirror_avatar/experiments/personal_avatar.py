@@ -5,8 +5,10 @@ their virtual trainer, trains a cyber player to imitate it as follower and as le
 it plays with the training partners (`mirror_avatar.experiments.cyber_player.run_role`, the
 paper's set-up with the person as the target), and validates each closed-loop against the
 person's own virtual trainer with every partner, the last one never met in training: CV, RMS and
-EMD per partner, the reproduction criteria, and the baselines. The result is one `Avatar` and a
-report `Section` (the avatar's card).
+EMD per partner, the reproduction criteria, and the baselines. Then the avatar is checked against
+the person themselves (`mirror_avatar.experiments.avatar_proof`): trials held out of fitting, and
+the person's sessions with a partner replayed against the avatar. The result is one `Avatar` and a
+report `Section` (the avatar's card), its verdict in one line first.
 """
 
 from __future__ import annotations
@@ -21,6 +23,14 @@ import pandas as pd
 from mirror_avatar.atomic import write_atomic_text
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
+from mirror_avatar.experiments.avatar_proof import (
+    PartnerSession,
+    Proof,
+    count_held_out,
+    prove_held_out,
+    prove_with_partners,
+    split_held_out,
+)
 from mirror_avatar.experiments.cyber_player import (
     BASELINE_SESSIONS,
     CRITERIA,
@@ -69,13 +79,15 @@ def create_avatar(
     n_jobs: int = 2,
     progress: Callable[[str], None] | None = None,
     agent: Agent = "tabular",
+    n_held_out: int | None = None,
+    partner_sessions: Sequence[PartnerSession] = (),
 ) -> tuple[Avatar, Section]:
     """Build and validate a person's avatar.
 
     Parameters
     ----------
     trials
-        The person's solo trials (any rate; at least one).
+        The person's solo trials (any rate; at least one), held-out ones included.
     name
         Whom the avatar stands for.
     partners
@@ -93,21 +105,30 @@ def create_avatar(
         Called with the name of each stage as it begins.
     agent
         ``"tabular"`` (Q-tables) or ``"dqn"`` (deep Q-networks) for both roles.
+    n_held_out
+        Trials kept out of fitting for the proof (`split_held_out`; default
+        `count_held_out`).
+    partner_sessions
+        Dyad sessions the person played, replayed against the avatar for the proof.
 
     Raises
     ------
     InputError
-        Fewer than two partners, or trials the generator cannot be fitted on.
+        Fewer than two partners, a held-out count leaving nothing to fit, or trials the
+        generator cannot be fitted on.
     """
     if len(partners) < 2:
         raise InputError("--partners", "give at least two partners: the last is kept unseen")
     report = progress or (lambda stage: None)
     if n_sessions is None:
         n_sessions = DEFAULT_DQN_SESSIONS if agent == "dqn" else DEFAULT_SESSIONS
+    fitted, held_out = split_held_out(
+        trials, count_held_out(len(trials)) if n_held_out is None else n_held_out
+    )
     report("fitting the generator")
-    generator = IMSGenerator(rate=DEFAULT_RATE, random_state=seed).fit(trials)
+    generator = IMSGenerator(rate=DEFAULT_RATE, random_state=seed).fit(fitted)
     trainers = [VirtualTrainerSpec(label, (), model) for label, model in partners]
-    person = VirtualTrainerSpec(name, tuple(t.label for t in trials), generator)
+    person = VirtualTrainerSpec(name, tuple(t.label for t in fitted), generator)
     n = len(trainers)
     cast = Cast([*trainers, person], n, tuple(range(n - 1)), n - 1, True)
     results = []
@@ -120,7 +141,22 @@ def create_avatar(
     summary = _summary(results, criteria, cast, generator, n_sessions, n_validation, seed)
     summary["agent"] = agent
     avatar = Avatar(name, generator, {r.role: r.player for r in results}, summary)
-    return avatar, make_card(avatar, results, criteria)
+    report("checking the avatar against the person")
+    proof = Proof(
+        prove_held_out(fitted, held_out, _played_motion(results)) if held_out else None,
+        prove_with_partners(avatar, partner_sessions, seed=seed) if partner_sessions else None,
+        held_out,
+    )
+    summary["proof"] = proof.to_json_dict()
+    table = pd.concat(criteria)
+    met = f"criteria met for {int(table['all'].sum())} of {len(table)} role and partner pairs"
+    summary["verdict"] = f"The avatar {proof.verdict()}; {met}."
+    return avatar, make_card(avatar, results, criteria, proof)
+
+
+def _played_motion(results: Sequence[RoleResult]) -> dict[str, list[np.ndarray]]:
+    """Return the avatar's velocity in each validation session, by role."""
+    return {f"played as {r.role}": r.velocities["cyber player"] for r in results}
 
 
 def save_avatar(avatar: Avatar, card: Section, path: Path, metadata: dict[str, Any]) -> Path:
@@ -150,11 +186,15 @@ def default_partners(seed: int) -> list[tuple[str, IMSGenerator]]:
 
 
 def make_card(
-    avatar: Avatar, results: Sequence[RoleResult], per_role: dict[str, pd.DataFrame]
+    avatar: Avatar,
+    results: Sequence[RoleResult],
+    per_role: dict[str, pd.DataFrame],
+    proof: Proof,
 ) -> Section:
-    """Make the avatar's card: IMS, validation tables, criteria, baselines, learning curves.
+    """Make the avatar's card: its verdict, IMS, validation tables, criteria, baselines, curves.
 
-    ``per_role`` holds each role's `check_criteria` table.
+    ``per_role`` holds each role's `check_criteria` table; ``proof`` the check against the
+    person. The summary's ``verdict`` opens the card.
     """
     person_ims = compute_ims(np.concatenate([v for r in results for v in r.velocities[r.target]]))
     avatar_ims = compute_ims(
@@ -169,6 +209,7 @@ def make_card(
         for role, r in avatar.summary["roles"].items()
     )
     text = [
+        avatar.summary["verdict"],
         f"{avatar.name}'s IMS generator was fitted on "
         f"{len(avatar.generator.training_summary_['labels'])} trials with "
         f"{avatar.generator.n_symbols_} symbols ({complexity['rule']}); their "
@@ -182,12 +223,21 @@ def make_card(
         f"{CRITERIA['max_difference']:g} of the person's, CV at least {CRITERIA['min_cv']:g}, "
         f"RMS at most {CRITERIA['max_rms']:g}, EMD at most {CRITERIA['max_emd_to_target']:g}) "
         f"are met for {int(criteria['all'].sum())} of {len(criteria)} role and partner pairs.",
+        "Checked against the person themselves: held-out trials are solo trials kept out of "
+        "fitting, compared (EMD of velocity IMS) with each session the avatar played (judged "
+        "as leader), beside the person's own trial-to-trial EMD; sessions the person played "
+        "with a partner are "
+        "played again by the avatar in their place against the partner's recorded track.",
     ]
     figures: dict[str, Any] = {
         f"Velocity IMS of {avatar.name}'s virtual trainer and of the avatar (validation)": plot_ims(
             {f"{avatar.name} (virtual trainer)": person_ims, "avatar": avatar_ims}, DEFAULT_BINS
         ),
     }
+    leader = next(r for r in results if r.role == "leader")
+    trace = proof.plot_trace(leader.example[1], avatar.name)
+    if trace is not None:
+        figures[f"{avatar.name} against the avatar (positions)"] = trace
     for result in results:
         figures[f"Learning curve, {result.role}"] = plot_learning_curves(
             {"cyber player": (result.curve.sessions, result.curve.rms)},
@@ -198,7 +248,8 @@ def make_card(
         key="avatar",
         title=f"Avatar of {avatar.name}",
         text=text,
-        tables={
+        tables=proof.tables()
+        | {
             f"Table I: {avatar.name}'s virtual trainer and the avatar against each partner": (
                 pd.concat([make_table_one(r) for r in results])
             ),

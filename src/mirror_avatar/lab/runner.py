@@ -512,6 +512,8 @@ class LabSession:
                 "device": slot.device,
                 "colour": COLOURS[k],
             }
+            if self.avatars is not None and k in self.avatars:
+                row["plays"] = self.avatars[k].label  # which policy or virtual trainer
             participant = self.participants.get(k)
             if participant is not None:
                 row |= {"joined": participant.joined, "connected": participant.connected}

@@ -4,13 +4,15 @@ METHODS section 10: a person's solo trials -> their IMS generator -> their virtu
 players trained, as follower and as leader, on sessions their virtual trainer plays with partners.
 The file (``.npz`` + JSON, `mirror_avatar.model_files`) holds the generator and both players
 (tabular or deep: each role's metadata names its ``agent``, tabular when absent);
-which one plays is chosen by the role a session gives it (`Avatar.player`): the trained follower
-or leader, or, in joint improvisation and groups, where no policy was trained, the person's own
-virtual trainer (their generator with that role's preset).
+which one plays is chosen by the role a session gives it (`Avatar.player`, `POLICY_FOR_ROLE`):
+the trained follower or leader, in groups the one whose coupling the group role shares, or, in
+joint improvisation, where no policy fits, the person's own virtual trainer (their generator
+with that role's preset). The player's label says which plays.
 """
 
 from __future__ import annotations
 
+import copy
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,6 +38,16 @@ FORMAT_NAME = "mirror-avatar/avatar"
 FORMAT_VERSION = 1
 TRAINED_ROLES = ("follower", "leader")
 """The roles an avatar holds a trained cyber player for."""
+
+POLICY_FOR_ROLE = {
+    "follower": "follower",
+    "leader": "leader",
+    "group": "follower",
+    "group_leader": "leader",
+}
+"""The trained policy that plays each session role (**choice** for groups: a group member's
+preset couples to the others with theta_p 0.85, near the follower's 0.9; a group leader's with
+0.2, near the leader's 0.1). Roles not here (joint improvisation) play the virtual trainer."""
 
 MAX_NAME_CHARS = 100
 """Longest avatar name (it names files and reports)."""
@@ -65,15 +77,22 @@ class Avatar:
     def player(self, role: str | HKBParams) -> Player:
         """Return the player for a session role: its policy, else the person's virtual trainer.
 
+        The policy is the one `POLICY_FOR_ROLE` names, labelled ``avatar NAME (ROLE policy)``
+        (a copy: each call gives a player of its own); otherwise the virtual trainer, labelled
+        ``avatar NAME (virtual trainer)``.
+
         Parameters
         ----------
         role
             A role preset name (`mirror_avatar.dynamics.ROLES`) or virtual-trainer parameters.
         """
-        if isinstance(role, str) and role in self.players:
-            return self.players[role]
+        if isinstance(role, str) and role in POLICY_FOR_ROLE:
+            policy = POLICY_FOR_ROLE[role]
+            player = copy.copy(self.players[policy])
+            player.label = f"avatar {self.name} ({policy} policy)"
+            return player
         params = preset(role) if isinstance(role, str) else role
-        return VirtualTrainer(params, self.generator, label=f"{self.name} (virtual trainer)")
+        return VirtualTrainer(params, self.generator, label=f"avatar {self.name} (virtual trainer)")
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the avatar to one ``.npz`` file, atomically."""

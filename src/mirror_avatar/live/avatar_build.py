@@ -5,7 +5,7 @@ participant's solo trial files in their folder (``P_solo_*.csv``, the person's o
 solo recording) are read, `mirror_avatar.experiments.personal_avatar.create_avatar` builds and
 validates the avatar (with the default partners), and it is written beside them as
 ``P_avatar.npz`` with its card ``P_avatar.html``. The server then plays the connection's trials
-with it.
+with it, and the page shows the card's verdict and links the card (`describe_avatar`).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from mirror_avatar.experiments.personal_avatar import (
     default_partners,
     save_avatar,
 )
+from mirror_avatar.learning.avatar import load_avatar
 from mirror_avatar.trial_files import read_trial
 
 MIN_SOLO_TRIALS = 2
@@ -82,3 +83,15 @@ def build_avatar(
     path = folder / f"{participant}_avatar.npz"
     save_avatar(avatar, card, path, {"version": __version__, "seed": seed})
     return path
+
+
+def describe_avatar(path: Path) -> dict[str, str]:
+    """Return what the page shows of a built avatar: its card's ``verdict`` and the ``card`` (HTML).
+
+    The card travels in the message so that the page links it without the server serving the
+    participant's folder.
+    """
+    return {
+        "verdict": str(load_avatar(path).summary.get("verdict", "")),
+        "card": path.with_suffix(".html").read_text(encoding="utf-8"),
+    }

@@ -57,7 +57,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.cyber_player import BASELINE_SESSIONS, VALIDATION_SESSIONS
 from mirror_avatar.experiments.personal_avatar import DEFAULT_SESSIONS
 from mirror_avatar.live.admission import Admission, TokenBucket, host_allowed
-from mirror_avatar.live.avatar_build import build_avatar
+from mirror_avatar.live.avatar_build import build_avatar, describe_avatar
 from mirror_avatar.live.protocol import (
     DURATION_RANGE,
     MODES,
@@ -486,7 +486,8 @@ class Connection:
             self.building = False
         self.avatar_factory = make_avatar_factory(str(path))
         self.avatar_spec = str(path)
-        await self.send({"type": "built", "avatar": path.name, "modes": list(MODES)})
+        built = {"type": "built", "avatar": path.name, "modes": list(MODES)}
+        await self.send(built | describe_avatar(path))
 
     def end_trial(self, complete: bool, reason: str) -> dict[str, Any] | None:
         """Finish and save the running trial, if any, and return its sidecar."""

@@ -176,6 +176,7 @@ def start_trial(
         "avatar": avatar_spec if with_avatar else None,
         "avatar_role": AVATAR_ROLES.get(request.mode),
         "avatar_player": None if avatar is None else type(avatar).__name__,
+        "avatar_plays": None if avatar is None else avatar.label,
         "seed": seed,
         "duration_requested_s": request.duration,
         "period_s": period,

@@ -148,7 +148,8 @@
       cell(row, swatch);
       cell(row, slot.label);
       cell(row, slot.role);
-      cell(row, slot.kind === "avatar" ? `avatar: ${slot.spec}` : `person (${slot.device})`);
+      const avatar = `avatar: ${slot.spec}` + (slot.plays ? ` · plays ${slot.plays}` : "");
+      cell(row, slot.kind === "avatar" ? avatar : `person (${slot.device})`);
       let state = "ready";
       if (slot.kind === "human") {
         state = slot.connected ? "connected" : slot.joined ? "disconnected" : "not joined";
@@ -191,12 +192,21 @@
     });
   }
 
+  // Where the session stands: the trial running, the next one, or that it is over.
+  function whereNow(status) {
+    const done = status.trials.length;
+    if (status.trial) return `trial ${status.trial.n} running`;
+    if (status.state === "finished") return `finished: ${done} of ${status.plan.trials} trial(s) played`;
+    if (status.state === "aborted") return `aborted after ${done} trial(s)`;
+    return `next trial ${Math.min(status.next_trial, status.plan.trials)}`;
+  }
+
   function render(status) {
     lastStatus = status;
     $("state").textContent = status.state;
     $("state").className = `badge ${status.state}`;
     const plan = status.plan;
-    $("session-summary").textContent = `${plan.condition.replace("_", "-")} · ${plan.slots.length} players · ${plan.trials} trial(s) of ${plan.duration} s · seed ${plan.seed}` + (status.trial ? ` · trial ${status.trial.n} running` : ` · next trial ${Math.min(status.next_trial, plan.trials)}`);
+    $("session-summary").textContent = `${plan.condition.replace("_", "-")} · ${plan.slots.length} players · ${plan.trials} trial(s) of ${plan.duration} s · seed ${plan.seed} · ` + whereNow(status);
     $("session-error").textContent = status.error || $("session-error").textContent;
     renderSlots(status);
     renderTrials(status);

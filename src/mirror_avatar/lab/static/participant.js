@@ -37,9 +37,17 @@
     return Math.max(-RANGE, Math.min(RANGE, (fraction - 0.5) * 2 * RANGE));
   }
 
+  // Show a message: one text, or lines where a [number, words] pair puts the words in small
+  // type under its number.
   function say(text) {
-    ui.message.textContent = text;
-    ui.overlay.hidden = !text;
+    const lines = Array.isArray(text) ? text : text ? [text] : [];
+    ui.message.replaceChildren(...lines.flatMap((line, i) => {
+      const nodes = i ? ["\n"] : [];
+      if (!Array.isArray(line)) return [...nodes, line];
+      const words = Object.assign(document.createElement("small"), { className: "words", textContent: line[1] });
+      return [...nodes, line[0], "\n", words];
+    }));
+    ui.overlay.hidden = lines.length === 0;
   }
 
   function send(message) {
@@ -87,22 +95,27 @@
     requestAnimationFrame(animate);
   }
 
-  function metricsText(metrics) {
-    const names = {
-      phase_locking: "Coordination (CV)",
-      rmse: "Distance (RMS)",
-      group_synchronisation: "Group synchronisation",
-      synchronisation: "Your synchronisation",
-    };
+  // Each number of the end screen with what it means in plain words.
+  const METRIC_WORDS = {
+    phase_locking: ["Coordination (CV)",
+      "how steadily your timing kept pace with the others': 0 no relation, 1 always in step"],
+    rmse: ["Distance (RMS)",
+      "how far apart your points were on average, in track widths: 0 always together"],
+    group_synchronisation: ["Group synchronisation",
+      "how much the whole group moved in step: 0 not at all, 1 perfectly"],
+    synchronisation: ["Your synchronisation",
+      "how much you moved in step with the group: 0 not at all, 1 perfectly"],
+  };
+
+  function metricLines(metrics) {
     return Object.entries(metrics || {})
-      .filter(([name, value]) => names[name] && value !== null)
-      .map(([name, value]) => `${names[name]}: ${Number(value).toFixed(2)}`)
-      .join("\n");
+      .filter(([name, value]) => METRIC_WORDS[name] && value !== null)
+      .map(([name, value]) => [`${METRIC_WORDS[name][0]}: ${Number(value).toFixed(2)}`, METRIC_WORDS[name][1]]);
   }
 
   function finish() {
     ended = true;
-    say([...lastEnd, "The session has ended. Thank you!"].join("\n"));
+    say([...lastEnd, "The session has ended. Thank you!"]);
   }
 
   function onMessage(event) {
@@ -131,11 +144,9 @@
         ui.bar.style.width = `${(100 * message.progress).toFixed(1)}%`;
         break;
       case "end": {
-        lastEnd = [`Trial ${message.trial} done.`];
-        const text = metricsText(message.metrics);
-        if (text) lastEnd.push(text);
+        lastEnd = [`Trial ${message.trial} done.`, ...metricLines(message.metrics)];
         const next = message.next_in === null ? "Please wait." : `Next trial in ${Math.round(message.next_in)} s.`;
-        say([...lastEnd, next].join("\n"));
+        say([...lastEnd, next]);
         break;
       }
       case "state":

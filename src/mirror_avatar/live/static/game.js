@@ -13,11 +13,12 @@
     progress: $("progress"), results: $("results"), metrics: $("metrics"), plot: $("plot"),
     positions: $("positions"), phase: $("phase"), phaseFigure: $("phase-figure"),
     saved: $("saved"), avatarLegend: $("avatar-legend"), build: $("build"),
+    verdict: $("avatar-verdict"), verdictText: $("verdict-text"), cardLink: $("card-link"),
   };
   const game = {
     phase: "connecting", // connecting | idle | asleep | countdown | running | building | closed
     x: 0, avatarX: null, seq: 0, sent: new Map(), rtt: null, keys: new Set(), lastFrame: null,
-    summary: null, personalAvatar: null,
+    summary: null, personalAvatar: null, cardUrl: null,
   };
   window.mirrorGame = game; // inspected by the browser tests
 
@@ -128,6 +129,8 @@
       (summary.files.session ? ` and ${summary.files.session}` : "") + ` – ${complete}`;
     ui.saved.classList.toggle("incomplete", !summary.complete);
     ui.results.hidden = false;
+    const withAvatar = m.rmse !== undefined;
+    document.querySelectorAll(".avatar-key").forEach((key) => { key.hidden = !withAvatar; });
     drawDistributions(m);
     drawTraces(summary.traces);
   }
@@ -213,9 +216,10 @@
 
   // Positions over time (both players) and the relative phase, from the summary's traces.
   function drawTraces(traces) {
+    // shown before it is sized: a hidden canvas measures 0 x 0 and would stay blank
+    ui.phaseFigure.hidden = !(traces && traces.relative_phase);
     const positions = prepare(ui.positions);
     const phase = prepare(ui.phase);
-    ui.phaseFigure.hidden = !(traces && traces.relative_phase);
     if (!traces || !traces.times) return;
     const t = traces.times;
     const span = [t[0], t[t.length - 1]];
@@ -229,6 +233,17 @@
     stroke(phase.ctx, span, [0, 0], onCircle.px, onCircle.py, "#d8dde6");
     phase.ctx.setLineDash([]);
     stroke(phase.ctx, t, traces.relative_phase, onCircle.px, onCircle.py, "#4b5563");
+  }
+
+  // The built avatar's card: its verdict in words and a link to the whole card.
+  function showVerdict(message) {
+    if (!message.verdict) return;
+    ui.verdictText.textContent = message.verdict;
+    if (game.cardUrl) URL.revokeObjectURL(game.cardUrl);
+    game.cardUrl = URL.createObjectURL(new Blob([message.card], { type: "text/html" }));
+    ui.cardLink.href = game.cardUrl;
+    ui.cardLink.download = message.avatar.replace(/\.npz$/, ".html");
+    ui.verdict.hidden = false;
   }
 
   function onMessage(event) {
@@ -275,6 +290,7 @@
         enableModes(message.modes);
         setPhase("idle");
         setStatus(`Your avatar is ready (${message.avatar}): choose a mode and press Start`);
+        showVerdict(message);
         break;
       case "error":
         setStatus(`Server: ${message.message}`);
