@@ -43,7 +43,7 @@ from collections.abc import Mapping
 
 from numba import njit
 
-from mirror_avatar.dynamics import DAMPING_STIFFNESS, MAX_RK4_SUBSTEPS, N_SUBSTEPS, advance_hkb
+from mirror_avatar.dynamics import DAMPING_STIFFNESS, MAX_RK4_SUBSTEPS, advance_hkb
 from mirror_avatar.players.base import Observation, partner_state
 from mirror_avatar.players.dynamical import ModelPartner, Parameter
 
@@ -63,6 +63,9 @@ PARAMETERS: Mapping[str, Parameter] = {
     "sampling": Parameter(0.1, 0.0, 1.0, "controller sampling time (s), in whole periods"),
 }
 """The published parameters (Zhai et al. 2017, section 4; public code ``parametersHC.m``)."""
+
+MIN_SUBSTEPS = 16
+"""Fewest RK4 steps per control period (the HKB under the held control to about 1e-9)."""
 
 LEADER_ROLES = ("leader", "group_leader")
 """Roles in which the player takes the leader's gains."""
@@ -118,7 +121,7 @@ def adaptive_gains(
 def count_hkb_substeps(
     x: float, v: float, u: float, alpha: float, beta: float, period: float
 ) -> int:
-    """RK4 steps for one period of the HKB: at least `N_SUBSTEPS`, more when it is stiff.
+    """RK4 steps for one period of the HKB: at least `MIN_SUBSTEPS`, more when it is stiff.
 
     The damping rate ``alpha x² + 3 beta x'²`` (1/s), taken at the start and at the velocity the
     held control could add over the period, times the step stays below `DAMPING_STIFFNESS`.
@@ -126,7 +129,7 @@ def count_hkb_substeps(
     fastest = abs(v) + abs(u) * period
     rate = alpha * x * x + 3.0 * beta * fastest * fastest
     wanted = math.ceil(period * rate / DAMPING_STIFFNESS)
-    return int(min(max(wanted, N_SUBSTEPS), MAX_RK4_SUBSTEPS))
+    return int(min(max(wanted, MIN_SUBSTEPS), MAX_RK4_SUBSTEPS))
 
 
 class AdaptivePlayer(ModelPartner):
