@@ -1,0 +1,172 @@
+"""``mirror-avatar benchmark``: the partners from the literature follow recorded leaders."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import click
+import pandas as pd
+from matplotlib.figure import Figure
+
+from mirror_avatar.atomic import json_safe, write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.cli.outputs import check_output_dir
+from mirror_avatar.cli.reading import import_options
+from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.experiments.partner_benchmark import (
+    HUMAN,
+    MODELS,
+    PUBLISHED_ADAPTIVE_BOUNDS,
+    PUBLISHED_RPE,
+    TRIM,
+    BenchmarkResult,
+    check_models,
+    run_benchmark,
+)
+from mirror_avatar.figures import plot_positions
+from mirror_avatar.importing import ImportOptions
+from mirror_avatar.report import Section, render_png, render_report
+from mirror_avatar.session import Session
+from mirror_avatar.trial_sets import read_trial_set
+from mirror_avatar.trials import DEFAULT_RATE, Trial
+
+BUNDLED = "bundled"
+"""The --leader value naming the bundled recordings (`mirror_avatar.datasets.load_zhai2017`)."""
+
+FIGURE_SECONDS = 20.0
+"""Length of each model's figure (s), from the end of the trimmed start."""
+
+
+def read_leaders(paths: tuple[str, ...], options: ImportOptions) -> list[Trial]:
+    """Read the trials of ``paths`` (files, folders, or ``bundled``), resampled to 100 Hz."""
+    trials: list[Trial] = []
+    files = [path for path in paths if path != BUNDLED]
+    if BUNDLED in paths:
+        trials += load_zhai2017()
+    if files:
+        trials += read_trial_set(files, options=options).trials
+    return [trial.resampled(DEFAULT_RATE) for trial in trials]
+
+
+@click.command()
+@click.option(
+    "--leader",
+    "leader_paths",
+    multiple=True,
+    required=True,
+    help="Recorded leaders: trial files, folders of them, or 'bundled'; repeatable.",
+)
+@click.option(
+    "--human",
+    "human_paths",
+    multiple=True,
+    help="Recorded human followers, one per leader trial in the same order; repeatable.",
+)
+@click.option(
+    "--models",
+    default=",".join(MODELS),
+    show_default=True,
+    help="Comma-separated models (a partner may carry parameters: adaptive:cp=30).",
+)
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(path_type=Path),
+    required=True,
+    help="Output folder (table.csv, results.json, report.html, PNGs).",
+)
+@import_options
+def benchmark(
+    leader_paths: tuple[str, ...],
+    human_paths: tuple[str, ...],
+    models: str,
+    out_dir: Path,
+    options: ImportOptions,
+) -> None:
+    """Let each model follow each recorded leader and compare them as Zhai et al.'s Table 4.
+
+    Scores (the first second dropped): RMS and relative position error, CV, time lag and the
+    EMD of the velocity distributions to the leader's, and the largest errors; Zhai et al.'s
+    published relative position errors beside them.
+    """
+    check_output_dir(out_dir)
+    names = check_models([name.strip() for name in models.split(",") if name.strip()])
+    leaders = read_leaders(leader_paths, options)
+    humans = read_leaders(human_paths, options) if human_paths else []
+    result = run_benchmark(leaders, names, humans)
+    write_benchmark(result, out_dir, {"leaders": list(leader_paths), "humans": list(human_paths)})
+    table = result.summary()
+    click.echo(table.to_string(float_format=lambda value: f"{value:.4f}"))
+    click.echo(f"ranking (RPE nearest the human followers' first): {', '.join(result.ranking())}")
+    click.echo(f"wrote {out_dir.resolve()}")
+
+
+def write_benchmark(result: BenchmarkResult, out_dir: Path, inputs: dict[str, Any]) -> None:
+    """Write table.csv, trials.csv, results.json, one PNG per follower and report.html."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    table = result.summary()
+    write_atomic_text(out_dir / "table.csv", table.to_csv(index_label="follower"))
+    write_atomic_text(out_dir / "trials.csv", result.trials.to_csv(index=False))
+    results = {
+        "inputs": inputs,
+        "trim_s": TRIM,
+        "summary": json_safe(table.to_dict(orient="index")),
+        "trials": json_safe(result.trials.to_dict(orient="records")),
+        "ranking_by_rpe_nearest_human": result.ranking(),
+        "published": {"rpe": PUBLISHED_RPE, "adaptive_bounds": PUBLISHED_ADAPTIVE_BOUNDS},
+    }
+    write_atomic_json(out_dir / "results.json", results)
+    for name, session in result.sessions.items():
+        write_atomic_bytes(out_dir / f"{_file_name(name)}.png", render_png(_figure(name, session)))
+    figures = {name: _figure(name, session) for name, session in result.sessions.items()}
+    write_atomic_text(out_dir / "report.html", render_report([_section(result, figures)], TITLE))
+
+
+def _figure(name: str, session: Session) -> Figure:
+    """Draw the leader and the follower over `FIGURE_SECONDS` after the trimmed start."""
+    kept = session.trimmed(TRIM)
+    show = kept.times <= kept.times[0] + FIGURE_SECONDS
+    return plot_positions(
+        kept.times[show],
+        {"leader": kept.positions[0][show], name: kept.positions[1][show]},
+        title=f"{name} following {session.labels[0]}",
+    )
+
+
+TITLE = "Partners following recorded leaders"
+
+
+def _file_name(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
+
+
+def _section(result: BenchmarkResult, figures: dict[str, Figure]) -> Section:
+    table = result.summary()
+    human = "the recorded human followers" if HUMAN in table.index else "Zhai et al.'s 0.0914"
+    text = [
+        "Each model follows each recorded leader (replayed as recorded); the first "
+        f"{TRIM:g} s of every trial are dropped. RPE: ||x_follower - x_leader|| / ||x_leader||. "
+        "CV: phase locking of the relative phase (1 = locked). Time lag: leader ahead when "
+        "positive (s). EMD: normalised earth mover's distance between the follower's and the "
+        "leader's velocity distributions.",
+        "Zhai et al. (2017), Table 4, relative position error: OPC 0.0816, HKB 2.1767, RPC "
+        "0.3838, JKE 0.1467, human benchmark 0.0914 (column published_rpe; vt is our "
+        "optimal-control virtual trainer). Their adaptive player kept the position error under "
+        "0.2 and the velocity error under 0.62 where the RPC reached 0.8 and 3 (our largest "
+        "errors: max_position_error, max_velocity_error).",
+        f"Ranking by RPE nearest {human}: {', '.join(result.ranking())}.",
+    ]
+    captions = {f"{name} following the first leader": figure for name, figure in figures.items()}
+    return Section(
+        key="benchmark",
+        title="Benchmark",
+        text=text,
+        tables={"Mean over trials": table, "Every trial": _trial_table(result.trials)},
+        figures=captions,
+        metrics=json.loads(json.dumps(json_safe(table.to_dict(orient="index")))),
+    )
+
+
+def _trial_table(trials: pd.DataFrame) -> pd.DataFrame:
+    return trials.set_index(["follower", "trial"])
