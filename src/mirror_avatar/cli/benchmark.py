@@ -151,10 +151,11 @@ def _section(result: BenchmarkResult, figures: dict[str, Figure]) -> Section:
         "positive (s). EMD: normalised earth mover's distance between the follower's and the "
         "leader's velocity distributions.",
         "Zhai et al. (2017), Table 4, relative position error: OPC 0.0816, HKB 2.1767, RPC "
-        "0.3838, JKE 0.1467, human benchmark 0.0914 (column published_rpe; vt is our "
+        "0.3838, JKE 0.1467, human benchmark 0.0914 (column 'RPE, Zhai et al.'; vt is our "
         "optimal-control virtual trainer). Their adaptive player kept the position error under "
         "0.2 and the velocity error under 0.62 where the RPC reached 0.8 and 3 (our largest "
-        "errors: max_position_error, max_velocity_error).",
+        "errors: max |e|, max |e_v|). The RPE formula is ours (Zhai et al.'s could not be read), "
+        "so compare the published values by rank.",
         f"Ranking by RPE nearest {human}: {', '.join(result.ranking())}.",
     ]
     captions = {f"{name} following the first leader": figure for name, figure in figures.items()}
@@ -162,11 +163,29 @@ def _section(result: BenchmarkResult, figures: dict[str, Figure]) -> Section:
         key="benchmark",
         title="Benchmark",
         text=text,
-        tables={"Mean over trials": table, "Every trial": _trial_table(result.trials)},
+        tables={
+            "Mean over trials": _readable(table),
+            "Mean by leader group": _readable(result.by_group()),
+            "Every trial": _readable(result.trials.set_index(["follower", "trial", "group"])),
+        },
         figures=captions,
         metrics=json.loads(json.dumps(json_safe(table.to_dict(orient="index")))),
     )
 
 
-def _trial_table(trials: pd.DataFrame) -> pd.DataFrame:
-    return trials.set_index(["follower", "trial"])
+REPORT_COLUMNS = {
+    "rms": "RMS",
+    "rpe": "RPE",
+    "cv": "CV",
+    "time_lag": "lag (s)",
+    "emd": "EMD",
+    "max_position_error": "max |e|",
+    "max_velocity_error": "max |e_v|",
+    "rms_velocity_error": "RMS e_v",
+    "published_rpe": "RPE, Zhai et al.",
+}
+"""Column headings of the report's tables (the CSV and JSON keep the score names)."""
+
+
+def _readable(table: pd.DataFrame) -> pd.DataFrame:
+    return table.rename(columns=REPORT_COLUMNS)

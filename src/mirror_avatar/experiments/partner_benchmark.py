@@ -75,7 +75,7 @@ class BenchmarkResult:
     ----------
     trials
         One row per (follower, leader trial): the follower (a model name or `HUMAN`), the
-        trial's label and `SCORES`.
+        trial's label, the leader's group and `SCORES`.
     sessions
         The first trial's session of each follower, for the figures.
     """
@@ -90,6 +90,10 @@ class BenchmarkResult:
         table.insert(0, "trials", grouped.size())
         table["published_rpe"] = [PUBLISHED_RPE.get(name, math.nan) for name in table.index]
         return table
+
+    def by_group(self) -> pd.DataFrame:
+        """Mean of each score per leader group (a recording's group, as read) and follower."""
+        return self.trials.groupby(["group", "follower"], sort=False)[list(SCORES)].mean()
 
     def ranking(self) -> list[str]:
         """Followers from the RPE nearest the human followers' to the farthest.
@@ -197,6 +201,7 @@ def run_benchmark(
         if duration <= TRIM + 1.0:
             raise InputError(leaders[i].label or "leader", "too short to score (under 2 s)")
         session = play([leader, other], duration=duration, seed=0, roles=("leader", "follower"))
-        rows.append({"follower": name, "trial": leaders[i].label or f"trial {i}"} | score(session))
+        trial = {"follower": name, "trial": leaders[i].label or f"trial {i}"}
+        rows.append(trial | {"group": leaders[i].group or ""} | score(session))
         sessions.setdefault(name, session)
     return BenchmarkResult(pd.DataFrame(rows), sessions)

@@ -14,9 +14,11 @@ state that a push sends round one excursion: a discrete movement); with |a| < 1 
 
 Parameters: a = 1.05, b = 0 and tau = 1 (the excitable regime of the source's discrete
 movements); **choices** (the source couples excitators to stimuli, not to a person's position):
-the coupling c = 10 (1/s), time in seconds and the scale s = 0.25 units. The player starts at
-rest on u's rest state; at a wall the position is clipped and an outward velocity set to zero
-(u held at the wall).
+the coupling c = 10 (1/s), time in seconds and the scale s = 0.25 units. With b = 0 the
+recovery variable integrates a - u, so the follower's mean position is held at s a (0.26 units)
+whatever its partner does; a positive b lets it follow a partner centred elsewhere. The player
+starts at rest on u's rest state; at a wall the position is clipped and an outward velocity set to
+zero (u held at the wall).
 """
 
 from __future__ import annotations
