@@ -118,7 +118,9 @@ def rk4_held(
     ----------
     rates
         Compiled ``rates(t, y, params, inputs, out)`` writing dy/dt into ``out``. Pass it from
-        Python (a compiled caller naming it as a global could not be cached).
+        Python (a compiled caller naming it as a global could not be cached). The compiled
+        specialisations are cached under this file: after editing a model's rates, clear
+        numba's cache (``make clean-cache``).
     y
         The state at time ``t``, shape (n,); the state at ``t + period`` on return.
     params, inputs
