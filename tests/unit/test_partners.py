@@ -51,24 +51,28 @@ def integrate(rates, y0: np.ndarray, t0: float) -> np.ndarray:  # type: ignore[n
 
 
 def test_rpc_step_matches_solve_ivp() -> None:
+    """Zhai et al.'s equations (section 6.3.1) with their published parameters."""
     player = ReactivePredictivePlayer()
-    omegas = np.linspace(1.25, 6.25, 5)
+    omegas = np.array([0.025, 0.05, 0.075, 0.1, 0.125])
     k_gain, lam = 30.0, 0.01
 
-    def rates(t: float, y: np.ndarray, r_p: float, r_v: float) -> np.ndarray:
+    def rates(t: float, y: np.ndarray, r_v: float) -> np.ndarray:
         sines, cosines = np.sin(omegas * t), np.cos(omegas * t)
-        prediction = y[2:7] @ sines + y[7:12] @ cosines
-        error = r_v - prediction
+        amplitudes = y[3:8]
+        error = r_v - amplitudes @ sines
         return np.concatenate(
-            [[y[1] + prediction, k_gain * (r_p - y[0])], lam * error * sines, lam * error * cosines]
+            [
+                [y[1], amplitudes @ (omegas * cosines) + y[2], k_gain * (r_v - y[1])],
+                lam * error * sines,
+            ]
         )
 
-    y = np.zeros(12)
+    y = np.zeros(8)
     expected = []
     for k in range(N_STEPS):
-        r_p, r_v, _ = leader(k)
-        y = integrate(lambda t, z, a=r_p, b=r_v: rates(t, z, a, b), y, k * T)
-        expected.append([y[0], rates((k + 1) * T, y, r_p, r_v)[0]])
+        _, r_v, _ = leader(k)
+        y = integrate(lambda t, z, b=r_v: rates(t, z, b), y, k * T)
+        expected.append([y[0], y[1]])
     np.testing.assert_allclose(play_against_leader(player), expected, rtol=0, atol=1e-6)
 
 

@@ -1,27 +1,26 @@
-"""The reactive-predictive controller of Noy, Dekel & Alon (2011), as Zhai et al. (2017) compare it.
+"""The reactive-predictive controller of Noy, Dekel & Alon (2011) as Zhai et al. (2017) write it.
 
-A reactive unit (integral feedback of the position error) and a predictive unit (a sum of five
-sinusoids fitted online to the partner's velocity) drive the player's position x (units)::
+Zhai et al. (2017, section 6.3.1) write the controller they compare as (x the player's position,
+units)::
 
-    P(t)  = sum_i A_i sin(omega_i t) + B_i cos(omega_i t)     predicted partner velocity
-    x'    = w + P(t)
-    w'    = k (r_p - x)                                        reactive unit
-    A_i'  = lambda (r_v - P(t)) sin(omega_i t)                 least-mean-squares fit
-    B_i'  = lambda (r_v - P(t)) cos(omega_i t)
+    x''   = sum_i A_i omega_i cos(omega_i t) + f          predictive and reactive units
+    f'    = k (r_v - x')                                    reactive unit: integral feedback
+    A_i'  = lambda (r_v - sum_j A_j sin(omega_j t)) sin(omega_i t)
 
-with r_p and r_v the partner's position and velocity sampled at t_k and held over the control
-period, t the time since the start of the trial, all amplitudes zero at the start. The
-player's velocity is ``w + P``. Pure integral feedback makes the player oscillate around its
-partner at sqrt(k) rad/s until the predictor has learnt the partner's motion: the jitter of a
-follower that the paper describes.
+with r_v the partner's (estimated) velocity sampled at t_k and held over the control period, t
+the time since the start of the trial and A_i(0) = 0. The predictor sum_i A_i sin(omega_i t) is
+fitted online to the partner's velocity; the reactive unit compares the player's velocity with
+the partner's, as Noy et al.'s Fig. 4 describes ("integral feedback that compares v1 with v2").
+Nothing pulls the positions together: the player tracks its partner's velocity, its velocity
+error swings at sqrt(k) rad/s (the follower's jitter Noy et al. describe) and its position keeps
+whatever offset it has.
 
-Parameters (Zhai et al. 2017, after Noy et al. 2011): k = 30 (1/s²), lambda = 0.01 (1/s), five
-frequencies evenly spaced from 0.025 to 0.125. **Choice**: Noy et al.'s frequencies are per
-sample of their 50 Hz recordings, so here they are 1.25 to 6.25 rad/s (0.2 to 1 Hz); k and
-lambda are read per second. **Departure**: the source's exact equations were not available to
-us; this is the structure its Fig. 4 describes (integral feedback plus a sinusoidal
-predictor), integrated with RK4 (`rk4_held`). At a wall the position is clipped and the reactive
-velocity set so the player stops.
+Parameters (Zhai et al. 2017, "as suggested in" Noy et al. 2011): k = 30, lambda = 0.01,
+omega_i = 0.025, 0.05, 0.075, 0.1, 0.125, A_i(0) = 0. **Choice**: the sources give the
+frequencies without a unit; they are read in rad/s with t in seconds, as Zhai et al. simulate
+(``omega_low``, ``omega_high`` set other values). **Departures**: integrated with RK4
+(`rk4_held`) rather than Euler, the partner's velocity is the one observed, the player starts at
+rest at 0; at a wall the position is clipped and an outward velocity stopped.
 """
 
 from __future__ import annotations
@@ -45,42 +44,37 @@ N_SUBSTEPS = 8
 PARAMETERS: Mapping[str, Parameter] = {
     "k": Parameter(30.0, 0.0, 1e4, "reactive (integral) gain (1/s²)"),
     "lam": Parameter(0.01, 0.0, 1e3, "predictor learning rate lambda (1/s)"),
-    "omega_low": Parameter(1.25, 0.0, 100.0, "lowest predictor frequency (rad/s)"),
-    "omega_high": Parameter(6.25, 0.0, 100.0, "highest predictor frequency (rad/s)"),
+    "omega_low": Parameter(0.025, 0.0, 100.0, "lowest predictor frequency (rad/s)"),
+    "omega_high": Parameter(0.125, 0.0, 100.0, "highest predictor frequency (rad/s)"),
 }
-"""The parameters of Zhai et al.'s implementation (see the module docstring for the units)."""
+"""The parameters of Zhai et al.'s implementation (five frequencies evenly spaced)."""
 
 
 @njit(cache=True, nogil=True)
 def rpc_rates(t: float, y: Array, params: Array, inputs: Array, out: Array) -> None:
-    """Rates of the state ``(x, w, A_1..A_5, B_1..B_5)``; params ``(k, lambda, omega_1..5)``."""
-    n = N_FREQUENCIES
+    """Rates of the state ``(x, x', f, A_1..A_5)``; params ``(k, lambda, omega_1..5)``."""
     prediction = 0.0
-    for i in range(n):
-        prediction += y[2 + i] * math.sin(params[2 + i] * t) + y[2 + n + i] * math.cos(
-            params[2 + i] * t
-        )
+    drive = 0.0
+    for i in range(N_FREQUENCIES):
+        omega = params[2 + i]
+        prediction += y[3 + i] * math.sin(omega * t)
+        drive += y[3 + i] * omega * math.cos(omega * t)
     error = inputs[1] - prediction
-    out[0] = y[1] + prediction
-    out[1] = params[0] * (inputs[0] - y[0])
-    for i in range(n):
-        out[2 + i] = params[1] * error * math.sin(params[2 + i] * t)
-        out[2 + n + i] = params[1] * error * math.cos(params[2 + i] * t)
+    out[0] = y[1]
+    out[1] = drive + y[2]
+    out[2] = params[0] * (inputs[1] - y[1])
+    for i in range(N_FREQUENCIES):
+        out[3 + i] = params[1] * error * math.sin(params[2 + i] * t)
 
 
-def rpc_step(y: Array, params: Array, inputs: Array, t: float, period: float) -> float:
-    """Advance the state over one period in place, stop it at a wall; return the velocity."""
+def rpc_step(y: Array, params: Array, inputs: Array, t: float, period: float) -> None:
+    """Advance the state over one period in place and stop it at a wall."""
     rk4_held(rpc_rates, y, params, inputs, t, period, N_SUBSTEPS)
-    rates = np.empty_like(y)
-    rpc_rates(t + period, y, params, inputs, rates)
-    velocity = rates[0]
     low, high = PLAYING_RANGE
-    if y[0] > high or y[0] < low:
+    if y[0] >= high or y[0] <= low:
         y[0] = min(max(y[0], low), high)
-        if (y[0] == high and velocity > 0.0) or (y[0] == low and velocity < 0.0):
-            y[1] -= velocity
-            velocity = 0.0
-    return velocity
+        if (y[0] == high and y[1] > 0.0) or (y[0] == low and y[1] < 0.0):
+            y[1] = 0.0
 
 
 class ReactivePredictivePlayer(ModelPartner):
@@ -104,17 +98,17 @@ class ReactivePredictivePlayer(ModelPartner):
 
     def reset(self, seed: int | None = None) -> tuple[float, float]:
         """Start at rest at 0 with an empty predictor (``seed`` changes nothing)."""
-        self.state = np.zeros(2 + 2 * N_FREQUENCIES)
+        self.state = np.zeros(3 + N_FREQUENCIES)
         self._k = 0
         return 0.0, 0.0
 
     def step(self, observation: Observation) -> tuple[float, float]:
-        """Sample the partner at t_k and advance one period."""
-        x = float(self.state[0])
+        """Sample the partner's velocity at t_k and advance one period."""
+        x, v = float(self.state[0]), float(self.state[1])
         r_p, r_v, _ = partner_state(
-            observation.positions, observation.velocities, observation.previous_positions, x, 0.0
+            observation.positions, observation.velocities, observation.previous_positions, x, v
         )
         inputs = np.array([r_p, r_v])
-        velocity = rpc_step(self.state, self.params, inputs, self._k * self.period, self.period)
+        rpc_step(self.state, self.params, inputs, self._k * self.period, self.period)
         self._k += 1
-        return float(self.state[0]), float(velocity)
+        return float(self.state[0]), float(self.state[1])
