@@ -12,6 +12,8 @@ import pytest
 from mirror_avatar.cli import main
 from mirror_avatar.experiments.partner_benchmark import (
     PUBLISHED_ADAPTIVE_BOUNDS,
+    SCORES,
+    BenchmarkResult,
     relative_position_error,
     run_benchmark,
 )
@@ -48,11 +50,22 @@ def test_adaptive_player_keeps_the_published_bounds_on_slow_real_leaders(
     assert (table["max_position_error", "rpc"] > 0.5).all()
 
 
-def test_relative_position_error_is_the_relative_l2_error() -> None:
-    leader = np.array([3.0, 4.0])
-    assert relative_position_error(np.array([3.0, 4.0]), leader) == 0.0
-    assert relative_position_error(np.array([0.0, 4.0]), leader) == pytest.approx(3.0 / 5.0)
-    assert np.isnan(relative_position_error(leader, np.zeros(2)))
+def test_relative_position_error_follows_zhai_et_al_by_hand() -> None:
+    """Zhai et al. (2017), section 6.2: the signed gap where both move the same way, else |gap|."""
+    leader = np.array([0.3, 0.3, 0.3, 0.3, 0.3])
+    follower = np.array([0.1, 0.5, 0.1, 0.1, 0.5])
+    leader_velocity = np.array([1.0, 1.0, -1.0, 1.0, 0.0])
+    follower_velocity = np.array([2.0, 0.5, -0.5, -1.0, 0.0])
+    # moving right together, behind: +0.2; moving right together, ahead: -0.2; moving left
+    # together, follower on the left (ahead): -0.2; opposite ways: |0.2|; both still: |-0.2|
+    expected = (0.2 - 0.2 - 0.2 + 0.2 + 0.2) / 5
+    value = relative_position_error(leader, follower, leader_velocity, follower_velocity)
+    assert value == pytest.approx(expected)
+    t = np.linspace(0.0, 20.0, 2001)
+    # a follower 0.1 rad behind a sine: e(t) = 2 sin(0.05) |cos(t - 0.05)| up to the samples
+    # where the two move opposite ways, mean about 0.1 * 2 / pi
+    rpe = relative_position_error(np.sin(t), np.sin(t - 0.1), np.cos(t), np.cos(t - 0.1))
+    assert rpe == pytest.approx(0.2 / np.pi, rel=0.02)
 
 
 def test_benchmark_command_writes_table_results_report_and_figures(
@@ -73,6 +86,7 @@ def test_benchmark_command_writes_table_results_report_and_figures(
     assert list(table.index) == ["adaptive", "rpc", "hkb", "excitator", "kuramoto", "vt", "human"]
     assert (table["trials"] == 2).all()
     assert table.loc["rpc", "published_rpe"] == 0.3838
+    assert table.loc["excitator", "published_time_lag"] == -0.9674
     results = json.loads((out / "results.json").read_text())
     assert sorted(results["ranking_by_rpe_nearest_human"]) == sorted(table.index[:-1])
     assert results["published"]["rpe"]["human"] == 0.0914
@@ -103,3 +117,19 @@ def test_benchmark_refuses_bad_models_and_unpaired_humans(
     assert main([*base, "--models", "hkb:zeta=1"]) == 2
     assert "unknown parameter 'zeta'; hkb takes alpha" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_without_recorded_humans_the_human_row_is_zhai_et_als() -> None:
+    """The human row then has no trial of ours; the ranking measures from the published 0.0914."""
+    rows = [
+        {"follower": name, "trial": "t", "group": "slow"}
+        | dict.fromkeys(SCORES, 0.0)
+        | {"rpe": rpe}
+        for name, rpe in [("vt", 0.05), ("rpc", 0.095), ("hkb", 0.3)]
+    ]
+    result = BenchmarkResult(pd.DataFrame(rows), {})
+    table = result.summary()
+    assert table.loc["human", "trials"] == 0 and np.isnan(table.loc["human", "rpe"])
+    assert table.loc["human", "published_rpe"] == 0.0914
+    assert result.human_rpe() == 0.0914
+    assert result.ranking() == ["rpc", "vt", "hkb"]

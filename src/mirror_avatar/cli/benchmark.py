@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -17,8 +18,8 @@ from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.experiments.partner_benchmark import (
     HUMAN,
     MODELS,
+    PUBLISHED,
     PUBLISHED_ADAPTIVE_BOUNDS,
-    PUBLISHED_RPE,
     TRIM,
     BenchmarkResult,
     check_models,
@@ -98,7 +99,10 @@ def benchmark(
     write_benchmark(result, out_dir, {"leaders": list(leader_paths), "humans": list(human_paths)})
     table = result.summary()
     click.echo(table.to_string(float_format=lambda value: f"{value:.4f}"))
-    click.echo(f"ranking (RPE nearest the human followers' first): {', '.join(result.ranking())}")
+    click.echo(
+        f"ranking (RPE nearest the human followers' {result.human_rpe():.4g} first): "
+        f"{', '.join(result.ranking())}"
+    )
     click.echo(f"wrote {out_dir.resolve()}")
 
 
@@ -114,7 +118,7 @@ def write_benchmark(result: BenchmarkResult, out_dir: Path, inputs: dict[str, An
         "summary": json_safe(table.to_dict(orient="index")),
         "trials": json_safe(result.trials.to_dict(orient="records")),
         "ranking_by_rpe_nearest_human": result.ranking(),
-        "published": {"rpe": PUBLISHED_RPE, "adaptive_bounds": PUBLISHED_ADAPTIVE_BOUNDS},
+        "published": PUBLISHED | {"adaptive_bounds": PUBLISHED_ADAPTIVE_BOUNDS},
     }
     write_atomic_json(out_dir / "results.json", results)
     for name, session in result.sessions.items():
@@ -143,20 +147,29 @@ def _file_name(name: str) -> str:
 
 def _section(result: BenchmarkResult, figures: dict[str, Figure]) -> Section:
     table = result.summary()
-    human = "the recorded human followers" if HUMAN in table.index else "Zhai et al.'s 0.0914"
+    scored = table[table["trials"] > 0]
+    recorded = HUMAN in scored.index
+    human = "the recorded human followers'" if recorded else "Zhai et al.'s human benchmark,"
     text = [
         "Each model follows each recorded leader (replayed as recorded); the first "
-        f"{TRIM:g} s of every trial are dropped. RPE: ||x_follower - x_leader|| / ||x_leader||. "
-        "CV: phase locking of the relative phase (1 = locked). Time lag: leader ahead when "
-        "positive (s). EMD: normalised earth mover's distance between the follower's and the "
-        "leader's velocity distributions.",
-        "Zhai et al. (2017), Table 4, relative position error: OPC 0.0816, HKB 2.1767, RPC "
-        "0.3838, JKE 0.1467, human benchmark 0.0914 (column 'RPE, Zhai et al.'; vt is our "
-        "optimal-control virtual trainer). Their adaptive player kept the position error under "
-        "0.2 and the velocity error under 0.62 where the RPC reached 0.8 and 3 (our largest "
-        "errors: max |e|, max |e_v|). The RPE formula is ours (Zhai et al.'s could not be read), "
-        "so compare the published values by rank.",
-        f"Ranking by RPE nearest {human}: {', '.join(result.ranking())}.",
+        f"{TRIM:g} s of every trial are dropped. RPE, relative position error (Zhai et al. "
+        "2017): the mean over the samples of (x_leader - x_follower) sgn(v_leader) where both "
+        "move the same way, else |x_leader - x_follower|; positive when the follower is behind "
+        "(units). CV: phase locking of the relative phase (1 = locked). Time lag: leader ahead "
+        "when positive (s). EMD: normalised earth mover's distance between the follower's and "
+        "the leader's velocity distributions.",
+        "Beside ours, Zhai et al.'s Table 4: five people and their four models following one "
+        "prerecorded reference signal (ours follow every leader given). OPC is their "
+        "optimal-control player, our vt; JKE their Jirsa-Kelso excitator. Their adaptive "
+        "player kept the position error under 0.2 and the velocity error under 0.62 where the "
+        "RPC reached 0.8 and 3 (our largest errors: max |e|, max |e_v|).",
+        "The human row holds "
+        + (
+            "the recorded human followers."
+            if recorded
+            else "no recording of ours (none given: --human), only Zhai et al.'s values."
+        ),
+        f"Ranking by RPE nearest {human} {result.human_rpe():.4g}: {', '.join(result.ranking())}.",
     ]
     captions = {f"{name} following the first leader": figure for name, figure in figures.items()}
     return Section(
@@ -164,13 +177,38 @@ def _section(result: BenchmarkResult, figures: dict[str, Figure]) -> Section:
         title="Benchmark",
         text=text,
         tables={
-            "Mean over trials": _readable(table),
+            "Ours beside Zhai et al.'s Table 4": beside_published(table),
+            "Mean over trials": _readable(scored.drop(columns=PUBLISHED_COLUMNS)),
             "Mean by leader group": _readable(result.by_group()),
             "Every trial": _readable(result.trials.set_index(["follower", "trial", "group"])),
         },
         figures=captions,
         metrics=json.loads(json.dumps(json_safe(table.to_dict(orient="index")))),
     )
+
+
+PUBLISHED_NAMES = {"vt": "vt (OPC)", "excitator": "excitator (JKE)", HUMAN: "human (HP)"}
+"""Zhai et al.'s names of our followers, shown beside ours."""
+
+PUBLISHED_COLUMNS = [f"published_{key}" for key in PUBLISHED]
+"""The summary's columns of Zhai et al.'s values."""
+
+
+def beside_published(table: pd.DataFrame) -> pd.DataFrame:
+    """RPE, CV and time lag of each follower, ours beside Zhai et al.'s, with the trial count."""
+    columns = {"trials": "trials"}
+    for key in PUBLISHED:
+        heading = REPORT_COLUMNS[key]
+        columns |= {key: f"{heading}, ours", f"published_{key}": f"{heading}, Zhai et al."}
+    beside = table[list(columns)].copy()
+    for key in PUBLISHED:  # as printed in the paper, not rounded to the report's digits
+        beside[f"published_{key}"] = [_as_printed(value) for value in beside[f"published_{key}"]]
+    beside = beside.rename(columns=columns)
+    return beside.rename(index=lambda name: PUBLISHED_NAMES.get(name, name))
+
+
+def _as_printed(value: float) -> str:
+    return "-" if math.isnan(value) else f"{value:g}"
 
 
 REPORT_COLUMNS = {
@@ -182,7 +220,6 @@ REPORT_COLUMNS = {
     "max_position_error": "max |e|",
     "max_velocity_error": "max |e_v|",
     "rms_velocity_error": "RMS e_v",
-    "published_rpe": "RPE, Zhai et al.",
 }
 """Column headings of the report's tables (the CSV and JSON keep the score names)."""
 

@@ -46,9 +46,15 @@ MODELS = (*MODEL_PARTNERS, "vt")
 HUMAN = "human"
 """The row of the recorded human followers."""
 
-PUBLISHED_RPE = {"vt": 0.0816, "hkb": 2.1767, "rpc": 0.3838, "excitator": 0.1467, HUMAN: 0.0914}
-"""Relative position errors of Zhai et al. (2017), Table 4: their optimal-control player (OPC),
-HKB, reactive-predictive (RPC), Jirsa-Kelso excitator (JKE) and the human benchmark."""
+PUBLISHED = {
+    "rpe": {HUMAN: 0.0914, "vt": 0.0816, "hkb": 2.1767, "rpc": 0.3838, "excitator": 0.1467},
+    "cv": {HUMAN: 0.3011, "vt": 0.1002, "hkb": 0.9400, "rpc": 0.7602, "excitator": 0.4859},
+    "time_lag": {HUMAN: 0.2035, "vt": 0.1274, "hkb": 1.5192, "rpc": 0.0428, "excitator": -0.9674},
+}
+"""Zhai et al. (2017), Table 4, by score and follower: five people and four models tracking one
+prerecorded reference signal; their optimal-control player (OPC) is our ``vt``, the Jirsa-Kelso
+excitator (JKE) our ``excitator``, the human benchmark (HP) our `HUMAN`. Their CV is the norm of
+the mean of exp(i relative phase), our ``cv``."""
 
 PUBLISHED_ADAPTIVE_BOUNDS = {"position": 0.2, "velocity": 0.62}
 """Zhai et al. (2017): the adaptive player's position and velocity errors stay below these
@@ -84,11 +90,19 @@ class BenchmarkResult:
     sessions: dict[str, Session]
 
     def summary(self) -> pd.DataFrame:
-        """Mean of each score per follower, with the trial count and Zhai et al.'s RPE."""
+        """Mean of each score per follower, with the trial count and Zhai et al.'s values.
+
+        Without recorded human followers the `HUMAN` row has no trial and no score of ours,
+        only Zhai et al.'s human benchmark.
+        """
         grouped = self.trials.groupby("follower", sort=False)
         table = grouped[list(SCORES)].mean()
         table.insert(0, "trials", grouped.size())
-        table["published_rpe"] = [PUBLISHED_RPE.get(name, math.nan) for name in table.index]
+        if HUMAN not in table.index:
+            table.loc[HUMAN] = [0, *([math.nan] * len(SCORES))]
+            table["trials"] = table["trials"].astype(int)
+        for key, values in PUBLISHED.items():
+            table[f"published_{key}"] = [values.get(name, math.nan) for name in table.index]
         return table
 
     def by_group(self) -> pd.DataFrame:
@@ -101,21 +115,46 @@ class BenchmarkResult:
         The human RPE is the recorded followers' mean where there are any, else Zhai et al.'s.
         """
         table = self.summary()
-        human = table["rpe"].get(HUMAN, PUBLISHED_RPE[HUMAN])
-        models = table.drop(index=HUMAN, errors="ignore")
+        human = self.human_rpe()
+        models = table.drop(index=HUMAN)
         return list((models["rpe"] - human).abs().sort_values().index)
 
+    def human_rpe(self) -> float:
+        """Return the recorded human followers' mean RPE, else Zhai et al.'s human benchmark."""
+        recorded = self.trials.loc[self.trials["follower"] == HUMAN, "rpe"]
+        return float(recorded.mean()) if len(recorded) else PUBLISHED["rpe"][HUMAN]
 
-def relative_position_error(follower: Array, leader: Array) -> float:
-    """Relative position error ``||x_f - x_l||_2 / ||x_l||_2`` of two position series.
 
-    **Choice**: Zhai et al. (2017) report a relative position error without a formula we could
-    read; this is the usual relative L2 error of the follower's trajectory.
+def relative_position_error(
+    leader: Array, follower: Array, leader_velocity: Array, follower_velocity: Array
+) -> float:
+    """Zhai et al.'s relative position error of a follower: how far behind its leader it is.
+
+    Zhai et al. (2017, section 6.2, after Słowiński et al. 2016), with x_1, x_2 the positions
+    and v_1, v_2 the velocities of leader and follower::
+
+        e(t) = (x_1 - x_2) sgn(v_1)   if sgn(v_1) = sgn(v_2) != 0
+               |x_1 - x_2|            otherwise
+
+    positive when the follower is behind its leader. **Choice**: the paper defines e(t) and
+    reports one number per player; this is its mean over the samples.
+
+    Parameters
+    ----------
+    leader, follower
+        Positions (units), shape (n,).
+    leader_velocity, follower_velocity
+        Velocities (units/s), shape (n,).
+
+    Returns
+    -------
+    float
+        The mean of e(t) (units).
     """
-    norm = float(np.linalg.norm(leader))
-    if norm == 0.0:
-        return math.nan
-    return float(np.linalg.norm(follower - leader)) / norm
+    gap = leader - follower
+    direction = np.sign(leader_velocity)
+    same = (direction == np.sign(follower_velocity)) & (direction != 0.0)
+    return float(np.mean(np.where(same, gap * direction, np.abs(gap))))
 
 
 def score(session: Session, trim: float = TRIM) -> dict[str, float]:
@@ -125,7 +164,7 @@ def score(session: Session, trim: float = TRIM) -> dict[str, float]:
     x, v = kept.positions, kept.velocities
     return {
         "rms": metrics["rmse"],
-        "rpe": relative_position_error(x[1], x[0]),
+        "rpe": relative_position_error(x[0], x[1], v[0], v[1]),
         "cv": metrics["phase_locking"],
         "time_lag": metrics["time_lag"],
         "emd": metrics["emd_players"],
