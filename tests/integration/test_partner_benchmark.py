@@ -100,6 +100,7 @@ def test_benchmark_command_writes_table_results_report_and_figures(
         assert (out / f"{name}.png").read_bytes().startswith(b"\x89PNG")
     report = (out / "report.html").read_text()
     assert "0.0816" in report and "2.1767" in report and "<img" in report
+    assert "Ranking by RPE nearest the recorded human followers" in report
 
 
 def test_benchmark_refuses_bad_models_and_unpaired_humans(

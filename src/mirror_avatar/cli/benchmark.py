@@ -150,7 +150,17 @@ def _section(result: BenchmarkResult, figures: dict[str, Figure]) -> Section:
     scored = table[table["trials"] > 0]
     recorded = HUMAN in scored.index
     human = "the recorded human followers'" if recorded else "Zhai et al.'s human benchmark,"
+    rpe = scored["rpe"].drop(index=HUMAN, errors="ignore")
+    published = PUBLISHED["rpe"]
+    theirs = sorted((value, name) for name, value in published.items() if name != HUMAN)
     text = [
+        f"Ranking by RPE nearest {human} {result.human_rpe():.4g}: "
+        + ", ".join(f"{name} {rpe[name]:.3g}" for name in result.ranking())
+        + ". Smallest RPE first, ours: "
+        + ", ".join(f"{name} {value:.3g}" for name, value in rpe.sort_values().items())
+        + "; Zhai et al.'s: "
+        + ", ".join(f"{PUBLISHED_NAMES.get(name, name)} {value:g}" for value, name in theirs)
+        + f" (human {published[HUMAN]:g}).",
         "Each model follows each recorded leader (replayed as recorded); the first "
         f"{TRIM:g} s of every trial are dropped. RPE, relative position error (Zhai et al. "
         "2017): the mean over the samples of (x_leader - x_follower) sgn(v_leader) where both "
@@ -162,14 +172,12 @@ def _section(result: BenchmarkResult, figures: dict[str, Figure]) -> Section:
         "prerecorded reference signal (ours follow every leader given). OPC is their "
         "optimal-control player, our vt; JKE their Jirsa-Kelso excitator. Their adaptive "
         "player kept the position error under 0.2 and the velocity error under 0.62 where the "
-        "RPC reached 0.8 and 3 (our largest errors: max |e|, max |e_v|).",
-        "The human row holds "
+        "RPC reached 0.8 and 3 (our largest errors: max |e|, max |e_v|). The human row holds "
         + (
             "the recorded human followers."
             if recorded
             else "no recording of ours (none given: --human), only Zhai et al.'s values."
         ),
-        f"Ranking by RPE nearest {human} {result.human_rpe():.4g}: {', '.join(result.ranking())}.",
     ]
     captions = {f"{name} following the first leader": figure for name, figure in figures.items()}
     return Section(
