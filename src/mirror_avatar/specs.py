@@ -19,7 +19,11 @@ A SPEC is one of:
 - a recorded trial file (CSV, Parquet, MAT or BIDS-Motion, `mirror_avatar.trial_files.read_trial`):
   the recording replayed open-loop (`RecordedPlayer`, the role is not used);
 - ``vt:FILE`` with FILE a recorded trial: a virtual trainer whose reference velocity is that
-  recording's.
+  recording's;
+- a partner from the literature, ``NAME`` or ``NAME:key=value,...`` with NAME one of
+  `MODEL_PARTNERS` (``adaptive``, ``rpc``, ``hkb``, ``excitator``, ``kuramoto``) and keys from its
+  ``PARAMETERS`` (the published values by default; METHODS "Virtual partners from the
+  literature"). These names come first: a recording named like one is given as ``./NAME``.
 
 Virtual trainers take the end-effector and cost parameters of the role. The format of an ``.npz``
 file is read from its JSON metadata without unpickling.
@@ -52,6 +56,12 @@ from mirror_avatar.learning.avatar import FORMAT_NAME as AVATAR_FORMAT
 from mirror_avatar.learning.avatar import load_avatar
 from mirror_avatar.model_files import read_archive
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
+from mirror_avatar.players.adaptive import AdaptivePlayer
+from mirror_avatar.players.dynamical import ModelPartner, parse_options
+from mirror_avatar.players.excitator import ExcitatorPartner
+from mirror_avatar.players.hkb_partner import HKBPartner
+from mirror_avatar.players.kuramoto import KuramotoPlayer
+from mirror_avatar.players.rpc import ReactivePredictivePlayer
 from mirror_avatar.trial_files import read_trial
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 from mirror_avatar.user_files import check_path
@@ -59,15 +69,29 @@ from mirror_avatar.user_files import check_path
 __all__ = [
     "BUNDLED_SEED",
     "BUNDLED_STYLES",
+    "MODEL_PARTNERS",
     "bundled_generator",
     "cache_dir",
     "load_player",
+    "model_partner",
 ]
 
 BUNDLED_SEED = 0
 """k-means seed of the generators fitted on the bundled styles (**choice**)."""
 
-SPEC_FORMS = "bundled:fast, bundled:slow, vt:TRIAL_FILE, a model .npz or a trial file"
+MODEL_PARTNERS: dict[str, type[ModelPartner]] = {
+    "adaptive": AdaptivePlayer,
+    "rpc": ReactivePredictivePlayer,
+    "hkb": HKBPartner,
+    "excitator": ExcitatorPartner,
+    "kuramoto": KuramotoPlayer,
+}
+"""The partners from the literature by spec name."""
+
+SPEC_FORMS = (
+    "bundled:fast, bundled:slow, vt:TRIAL_FILE, a model .npz, a trial file or "
+    + ", ".join(f"{name}[:key=value,...]" for name in MODEL_PARTNERS)
+)
 
 
 POLICY_ROLES = {"follower": ("follower",), "leader": ("leader",), "group": ("group", "joint")}
@@ -100,6 +124,9 @@ def load_player(
         ``spec: problem`` for an unknown spec, an unknown role, a missing or unreadable file, or a
         cyber player asked to play a role it was not trained for.
     """
+    partner = spec.partition(":")[0]
+    if partner in MODEL_PARTNERS:
+        return model_partner(spec, role if isinstance(role, str) else "follower")
     params = preset(role) if isinstance(role, str) else role
     label = f"virtual trainer ({spec})"
     if spec.startswith("bundled:"):
@@ -124,6 +151,18 @@ def load_player(
             f"generator fit {spec} --out MODEL.npz) and give MODEL.npz, or give one trial file",
         )
     return RecordedPlayer(_read_recording(spec, options))
+
+
+def model_partner(spec: str, role: str = "follower") -> ModelPartner:
+    """Build the partner from the literature that ``NAME[:key=value,...]`` names.
+
+    The adaptive player takes the leader's gains in a leading role; the others ignore the role.
+    """
+    kind = MODEL_PARTNERS[spec.partition(":")[0]]
+    options = parse_options(spec, kind.PARAMETERS)
+    if kind is AdaptivePlayer:
+        return AdaptivePlayer(options, role)
+    return kind(options)
 
 
 def _read_recording(path: str, options: ImportOptions) -> Trial:

@@ -16,6 +16,7 @@ import os
 import click
 
 from mirror_avatar.cli.avatar import avatar
+from mirror_avatar.cli.benchmark import benchmark
 from mirror_avatar.cli.convert import convert
 from mirror_avatar.cli.curriculum import curriculum
 from mirror_avatar.cli.evaluate import evaluate
@@ -41,6 +42,7 @@ def cli() -> None:
 
 
 cli.add_command(avatar)
+cli.add_command(benchmark)
 cli.add_command(convert)
 cli.add_command(curriculum)
 cli.add_command(generator)

@@ -38,7 +38,8 @@ METRIC_ROWS = (
 
 SPEC_HELP = (
     "A player spec: bundled:fast, bundled:slow, a generator or cyber-player .npz, a recorded "
-    "trial file (replayed), or vt:TRIAL_FILE."
+    "trial file (replayed), vt:TRIAL_FILE, or a partner from the literature: adaptive, rpc, hkb, "
+    "excitator or kuramoto, with parameters as NAME:key=value,..."
 )
 
 

@@ -26,6 +26,7 @@ from mirror_avatar.learning.imitation import (
 )
 from mirror_avatar.learning.training import LearningCurve
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
+from mirror_avatar.players.dynamical import ModelPartner
 from mirror_avatar.report import render_png
 from mirror_avatar.specs import load_player
 from mirror_avatar.trials import Trial
@@ -48,9 +49,10 @@ def load_reference(spec: str, options: ImportOptions = DEFAULT_IMPORT) -> Refere
             "--out MODEL.npz)",
         )
     if not isinstance(player, VirtualTrainer):
+        kind = "a partner model" if isinstance(player, ModelPartner) else "a cyber-player policy"
         raise InputError(
             spec,
-            "is a cyber-player policy; training needs a virtual trainer: an IMS generator .npz, "
+            f"is {kind}; training needs a virtual trainer: an IMS generator .npz, "
             "bundled:fast, bundled:slow or vt:TRIAL_FILE",
         )
     if not isinstance(player.reference, IMSGenerator | Trial):
