@@ -326,8 +326,12 @@ def _check_game(sidecar: Path, game: object) -> dict[str, Any]:
 
 def _check_widths(path: Path, width: int) -> None:
     """Refuse a row that does not hold ``width`` values (read line by line, in constant memory)."""
-    with _reading(path, "TSV"), open_regular(path, MAX_FILE_BYTES) as file:
-        for number, line in enumerate(io.TextIOWrapper(file, encoding="utf-8-sig"), start=1):
+    with (
+        _reading(path, "TSV"),
+        open_regular(path, MAX_FILE_BYTES) as file,
+        io.TextIOWrapper(file, encoding="utf-8-sig") as lines,
+    ):
+        for number, line in enumerate(lines, start=1):
             cells = line.count("\t") + 1
             if cells != width:
                 raise InputError(
