@@ -181,7 +181,7 @@ def ims_emd(a: np.ndarray, b: np.ndarray) -> float:
 
 def test_the_card_checks_the_avatar_against_held_out_trials(built: Path, capsys) -> None:
     """One trial in four, at least one, is kept out of fitting and compared with the avatar."""
-    from mirror_avatar.trial_io import read_trial
+    from mirror_avatar.trial_files import read_trial
 
     avatar = load_avatar(built)
     assert avatar.generator.training_summary_["labels"] == ["trial0", "trial2"]
