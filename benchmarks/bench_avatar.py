@@ -22,7 +22,7 @@ from pathlib import Path
 
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.learning.avatar import load_avatar
+from mirror_avatar.training.avatar import load_avatar
 from mirror_avatar.trial_io import write_csv_trial
 
 TARGET_SECONDS = 300.0

@@ -310,8 +310,8 @@ class SessionWriter:
 def load_session(path: str | os.PathLike[str]) -> Session:
     """Read a session: any file `Session.save`, `Session.save_csv` or `SessionWriter` wrote.
 
-    A lab trial exported as BIDS-Motion (a ``_motion.tsv`` of `mirror_avatar.lab.bids`) is
-    read as its whole N-player session. Also reads plain CSV or Parquet files with a ``time``
+    (A lab trial exported as BIDS-Motion is read by `mirror_avatar.lab.bids.read_bids_session`,
+    which builds on this module.) Also reads plain CSV or Parquet files with a ``time``
     column and ``position_0``, ``position_1``... (velocities are then computed from the
     positions as for a trial; controls and references are NaN). A last CSV line without its
     newline (a recording cut short) is ignored. The sidecar (``.json`` beside the file) is optional.
@@ -325,10 +325,6 @@ def load_session(path: str | os.PathLike[str]) -> Session:
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "no such file")
-    if path.name.endswith("_motion.tsv"):
-        from mirror_avatar.lab.bids import read_bids_session
-
-        return read_bids_session(path)
     columns = _read_columns(path)
     n_players = _count_players(path, columns)
     times = columns["time"]

@@ -11,7 +11,7 @@ A SPEC is one of:
   ``mirror-avatar/deep-cyber-player`` for a deep one): the trained player (its dynamics are its
   own, so the role is not used);
 - a personal avatar ``.npz`` (format ``mirror-avatar/avatar``,
-  `mirror_avatar.learning.avatar`): its cyber player for the role (follower or leader), or for
+  `mirror_avatar.training.avatar`): its cyber player for the role (follower or leader), or for
   other roles the person's virtual trainer;
 - a curriculum stage ``.npz`` (format ``mirror-avatar/curriculum-stage``,
   `mirror_avatar.curriculum`): a virtual trainer moving with the stage's motion;
@@ -47,10 +47,10 @@ from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions, excerpt
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
 from mirror_avatar.learning.agent import load_cyber_player
-from mirror_avatar.learning.avatar import FORMAT_NAME as AVATAR_FORMAT
-from mirror_avatar.learning.avatar import load_avatar
 from mirror_avatar.model_files import read_archive
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
+from mirror_avatar.training.avatar import FORMAT_NAME as AVATAR_FORMAT
+from mirror_avatar.training.avatar import load_avatar
 from mirror_avatar.trial_io import read_trial
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 

@@ -20,8 +20,9 @@ from mirror_avatar.experiments.personal_avatar import (
     save_avatar,
 )
 from mirror_avatar.importing import ImportOptions, excerpt
-from mirror_avatar.learning.avatar import MAX_NAME_CHARS
-from mirror_avatar.learning.imitation import AGENTS, Agent
+from mirror_avatar.learning.acceleration_player import Agent
+from mirror_avatar.training.agents import AGENTS
+from mirror_avatar.training.avatar import MAX_NAME_CHARS
 
 
 @click.group()
@@ -52,6 +53,10 @@ def avatar() -> None:
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of everything.")
 @click.option("--jobs", type=int, default=2, show_default=True, help="Local threads.")
 @click.option(
+    "--scheduler", default=None,
+    help="Dask scheduler address (tcp://host:port): its workers play the sessions.",
+)  # fmt: skip
+@click.option(
     "--out", "out_path", required=True, type=click.Path(path_type=Path),
     help="The avatar file (.npz); its card is written beside it (.html).",
 )  # fmt: skip
@@ -64,6 +69,7 @@ def create(
     agent: Agent,
     seed: int,
     jobs: int,
+    scheduler: str | None,
     out_path: Path,
     options: ImportOptions,
 ) -> None:
@@ -87,7 +93,7 @@ def create(
     trials = read_and_report(paths, "none", options)
     began = time.perf_counter()
     built, card = create_avatar(
-        trials, name, partners, sessions, seed=seed, n_jobs=jobs, agent=agent
+        trials, name, partners, sessions, seed=seed, n_jobs=jobs, agent=agent, scheduler=scheduler
     )
     built.summary["build_seconds"] = round(time.perf_counter() - began, 3)
     metadata = {"version": __version__, "seed": seed, "seconds": built.summary["build_seconds"]}

@@ -14,6 +14,7 @@ from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.simulate import format_metrics
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_progress, plot_session
+from mirror_avatar.lab.bids import read_bids_session
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.metrics.progress import progress_table
 from mirror_avatar.report import Section, write_report
@@ -36,7 +37,7 @@ def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], 
     found, notes = [], []
     for path in paths:
         if not path.is_dir():
-            found.append((path, load_session(path)))
+            found.append((path, read_session(path)))
             continue
         before = len(found)
         for file in sorted(p for p in path.rglob("*") if p.suffix.lower() in SESSION_FILES):
@@ -50,6 +51,13 @@ def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], 
         if len(found) == before:
             raise InputError(path, "no session files in it (time, position_0, ... columns)")
     return found, notes
+
+
+def read_session(path: Path) -> Session:
+    """Read one session file: a lab BIDS-Motion ``_motion.tsv``, or what `load_session` reads."""
+    if path.name.endswith("_motion.tsv"):
+        return read_bids_session(path)
+    return load_session(path)
 
 
 def summary_row(path: Path, session: Session, metrics: dict[str, Any]) -> dict[str, Any]:
