@@ -74,7 +74,7 @@ def group_option(
         "--group-by",
         default=default,
         show_default=True,
-        help=f"Group trials by {', '.join(GROUPINGS)} (see the README).",
+        help=f"Group trials by {', '.join(GROUPINGS)} (see the user guide, Your data).",
     )
 
 
