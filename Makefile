@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 OUT ?= output/demo
 
-.PHONY: demo test test-all bench lint clean clean-cache
+.PHONY: demo test test-all bench lint docs clean clean-cache
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -20,18 +20,22 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples
 	$(BIN)/ruff format --check src tests benchmarks examples
 	$(BIN)/mypy
+	$(BIN)/lint-imports
 
-test: lint
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
+
+test: lint docs
 	$(BIN)/pytest -m "not slow" -n auto
 
-test-all: lint
+test-all: lint docs
 	$(BIN)/pytest -n auto
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py --out benchmarks/results.md
 
 clean: clean-cache
-	rm -rf $(VENV) output .pytest_cache .ruff_cache .mypy_cache
+	rm -rf $(VENV) output site .pytest_cache .ruff_cache .mypy_cache
 
 clean-cache:
 	find src benchmarks -name '*.nbi' -delete -o -name '*.nbc' -delete

@@ -22,13 +22,13 @@ from pathlib import Path
 
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.learning.avatar import load_avatar
+from mirror_avatar.training.avatar import load_avatar
 from mirror_avatar.trial_io import write_csv_trial
 
 TARGET_SECONDS = 300.0
 LAUNCHER = "import subprocess, sys; sys.exit(subprocess.call(sys.argv[1:]))"
 CHILD = (
-    "import atexit, resource, sys; from mirror_avatar.cli import run; "
+    "import atexit, resource, sys; from mirror_avatar.console import run; "
     "atexit.register(lambda: print('peak', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, "
     "file=sys.stderr)); run()"
 )

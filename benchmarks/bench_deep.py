@@ -22,15 +22,15 @@ from mirror_avatar.deep.player import DeepCyberPlayer, deep_step
 from mirror_avatar.deep.training import DQNLearner
 from mirror_avatar.experiments import cyber_player, group
 from mirror_avatar.learning.agent import CyberPlayer, cyber_step
-from mirror_avatar.learning.imitation import (
-    AGENTS,
+from mirror_avatar.players import Observation
+from mirror_avatar.testing import make_follower_sessions
+from mirror_avatar.training.agents import AGENTS
+from mirror_avatar.training.imitation import (
     TRAINING_ROLES,
     cast_virtual_trainers,
     make_cyber_player,
     make_group_cyber_player,
 )
-from mirror_avatar.players import Observation
-from mirror_avatar.testing import make_follower_sessions
 
 
 def run(quick: bool) -> list[dict]:

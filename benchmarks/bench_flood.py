@@ -54,7 +54,7 @@ def free_port() -> int:
 
 def start_server(out: Path, port: int) -> subprocess.Popen[bytes]:
     """Run ``mirror-avatar play`` on ``port`` and wait until it accepts connections."""
-    command = [sys.executable, "-c", "from mirror_avatar.cli import run; run()", "play",
+    command = [sys.executable, "-c", "from mirror_avatar.console import run; run()", "play",
                "--port", str(port), "--out", str(out)]  # fmt: skip
     server = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 60

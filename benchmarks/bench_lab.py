@@ -270,7 +270,7 @@ def stop_process(process: subprocess.Popen) -> float:
 
 def start_lab(out: Path, log: Path) -> tuple[subprocess.Popen, str, str]:
     """Run ``mirror-avatar lab --port 0``; return it, its base URL and the researcher's token."""
-    command = [sys.executable, "-c", "from mirror_avatar.cli import run; run()", "lab",
+    command = [sys.executable, "-c", "from mirror_avatar.console import run; run()", "lab",
                "--port", "0", "--out", str(out), "--no-lsl"]  # fmt: skip
     process, line = start_process(command, log, "console: ")
     url = line.split()[1]

@@ -103,7 +103,7 @@ scipy.io.savemat(sys.argv[1], {"trial": struct})
 CLI = """
 import atexit, resource
 atexit.register(lambda: print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss))
-from mirror_avatar.cli import run
+from mirror_avatar.console import run
 run()
 """
 """Child: the command line, printing its peak resident memory (kB) on exit."""

@@ -53,8 +53,12 @@ TARGET_SECONDS = 30.0
 CHILD = """
 import json, resource, sys, time
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.learning.imitation import (
-    SEEN_PARTNERS, TARGET, make_virtual_trainers, train_cyber_player, train_group_cyber_player)
+try:
+    from mirror_avatar.training.imitation import (
+        SEEN_PARTNERS, TARGET, make_virtual_trainers, train_cyber_player, train_group_cyber_player)
+except ImportError:  # a commit before the training package
+    from mirror_avatar.learning.imitation import (
+        SEEN_PARTNERS, TARGET, make_virtual_trainers, train_cyber_player, train_group_cyber_player)
 
 n_sessions, n_group = int(sys.argv[1]), int(sys.argv[2])
 trainers = make_virtual_trainers(load_zhai2017())

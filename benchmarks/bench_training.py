@@ -2,7 +2,7 @@
 
 The paper trained for about 24 000 sessions of 60 s (about 5 days). Here a training run generates
 the virtual-trainer sessions with the batch engine (2 local threads) and Q-learns from them as
-they arrive (`mirror_avatar.learning.imitation.train_cyber_player`, follower role, target VT5,
+they arrive (`mirror_avatar.training.imitation.train_cyber_player`, follower role, target VT5,
 partners VT1..VT4). The full benchmark runs the 24 000 sessions; quick mode runs a scaled-down
 run and projects. Runs are timed untraced; peak traced memory is measured in separate runs of
 two lengths (`traced.peak_traced_mb`): streaming keeps it flat.
@@ -24,7 +24,9 @@ import numpy as np
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.learning.agent import CyberPlayer
-from mirror_avatar.learning.imitation import (
+from mirror_avatar.learning.training import QLearner
+from mirror_avatar.testing import python_learn_session
+from mirror_avatar.training.imitation import (
     SEEN_PARTNERS,
     TARGET,
     Reference,
@@ -32,8 +34,6 @@ from mirror_avatar.learning.imitation import (
     make_virtual_trainers,
     train_cyber_player,
 )
-from mirror_avatar.learning.training import QLearner
-from mirror_avatar.testing import python_learn_session
 
 sys.path.insert(0, str(Path(__file__).parent))
 from traced import peak_traced_mb  # noqa: E402

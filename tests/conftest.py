@@ -10,8 +10,8 @@ from mirror_avatar.dynamics import FOLLOWER, LEADER
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.engine.loop import play
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.learning.imitation import train_cyber_player, train_group_cyber_player
 from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.training.imitation import train_cyber_player, train_group_cyber_player
 from mirror_avatar.trials import Trial
 
 

@@ -11,8 +11,8 @@ A SPEC is one of:
   ``mirror-avatar/deep-cyber-player`` for a deep one): the trained player (its dynamics are its
   own, so the role is not used);
 - a personal avatar ``.npz`` (format ``mirror-avatar/avatar``,
-  `mirror_avatar.learning.avatar`): its cyber player for the role (follower or leader; in a group
-  the follower, or the leader as group leader: `mirror_avatar.learning.avatar.POLICY_FOR_ROLE`),
+  `mirror_avatar.training.avatar`): its cyber player for the role (follower or leader; in a group
+  the follower, or the leader as group leader: `mirror_avatar.training.avatar.POLICY_FOR_ROLE`),
   or for joint improvisation the person's virtual trainer;
 - a curriculum stage ``.npz`` (format ``mirror-avatar/curriculum-stage``,
   `mirror_avatar.curriculum`): a virtual trainer moving with the stage's motion;
@@ -52,8 +52,6 @@ from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions, excerpt
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
 from mirror_avatar.learning.agent import load_cyber_player
-from mirror_avatar.learning.avatar import FORMAT_NAME as AVATAR_FORMAT
-from mirror_avatar.learning.avatar import load_avatar
 from mirror_avatar.model_files import read_archive
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.players.adaptive import AdaptivePlayer
@@ -62,6 +60,8 @@ from mirror_avatar.players.excitator import ExcitatorPartner
 from mirror_avatar.players.hkb_partner import HKBPartner
 from mirror_avatar.players.kuramoto import KuramotoPlayer
 from mirror_avatar.players.rpc import ReactivePredictivePlayer
+from mirror_avatar.training.avatar import FORMAT_NAME as AVATAR_FORMAT
+from mirror_avatar.training.avatar import load_avatar
 from mirror_avatar.trial_files import read_trial
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 from mirror_avatar.user_files import check_path

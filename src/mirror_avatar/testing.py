@@ -15,20 +15,21 @@ import socket
 import threading
 import time
 from collections.abc import Iterable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_bvp
-from starlette.types import ASGIApp
 
 from mirror_avatar.dynamics import CONTROL_PERIOD, HKBParams
 from mirror_avatar.errors import InputError
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.kernels import VELOCITY_WEIGHT
-from mirror_avatar.live.server import listening_socket, make_server
 from mirror_avatar.session import Session
 from mirror_avatar.trials import Trial
+
+if TYPE_CHECKING:
+    from starlette.types import ASGIApp
 
 Array = NDArray[np.float64]
 
@@ -180,6 +181,9 @@ class ServerThread:
     """
 
     def __init__(self, app: ASGIApp, host: str = "127.0.0.1") -> None:
+        # Imported here so that the rest of this module works without the live extra.
+        from mirror_avatar.live.server import listening_socket, make_server
+
         self.socket = listening_socket(host, 0)
         self.host, self.port = self.socket.getsockname()[:2]
         self.server = make_server(app, self.host, self.port)

@@ -15,12 +15,12 @@ from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.agent import CyberPlayer
-from mirror_avatar.learning.avatar import load_avatar
 from mirror_avatar.live.session import make_avatar_factory
 from mirror_avatar.model_files import load_model, save_model
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.session import load_session
 from mirror_avatar.specs import bundled_generator, load_player
+from mirror_avatar.training.avatar import load_avatar
 from mirror_avatar.trial_io import write_csv_trial
 
 
@@ -141,7 +141,7 @@ def test_a_deep_avatar_is_built_saved_and_played(built: Path, tmp_path: Path) ->
     arrays, metadata = load_model(out, "mirror-avatar/avatar", 1, ())
     metadata["leader"]["agent"] = "transformer"
     unknown = rewrite_avatar(tmp_path / "unknown.npz", arrays, metadata)
-    with pytest.raises(InputError, match="agent 'transformer' is neither 'tabular' nor 'dqn'"):
+    with pytest.raises(InputError, match="agent 'transformer' is not one of 'tabular' or 'dqn'"):
         load_avatar(unknown)
 
 

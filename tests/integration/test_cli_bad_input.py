@@ -23,7 +23,7 @@ def test_bad_file_is_one_line_exit_2(tmp_path: Path, name: str) -> None:
         path.write_bytes(BAD_FILES[name])
     elif name == "emptydir":
         path.mkdir()
-    command = "from mirror_avatar.cli import run; run()"
+    command = "from mirror_avatar.console import run; run()"
     arguments = ["signature", str(path), "--out", str(tmp_path / "out")]
     result = subprocess.run(
         [sys.executable, "-c", command, *arguments], capture_output=True, text=True, check=False

@@ -12,7 +12,7 @@ def test_info_lists_versions(capsys):
 
 def test_unknown_option_is_one_line_exit_2():
     done = subprocess.run(
-        [sys.executable, "-c", "from mirror_avatar.cli import run; run()", "info", "--bogus"],
+        [sys.executable, "-c", "from mirror_avatar.console import run; run()", "info", "--bogus"],
         capture_output=True,
         text=True,
     )

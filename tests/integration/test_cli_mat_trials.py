@@ -32,7 +32,7 @@ CHILD = (
     "    with open(os.environ['PEAK_FILE'], 'w') as out:\n"
     "        out.write(str(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss))\n"
     "atexit.register(peak)\n"
-    "from mirror_avatar.cli import run\n"
+    "from mirror_avatar.console import run\n"
     "run()\n"
 )
 """The console entry point, writing its peak resident memory (KiB) to ``$PEAK_FILE`` at exit."""

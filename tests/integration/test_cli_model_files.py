@@ -30,7 +30,7 @@ SAFETY_TIMEOUT = 900
 def run_cli(arguments: list[str], folder: Path) -> subprocess.CompletedProcess[str]:
     """Run the console entry point in a child process in ``folder`` (its own model cache)."""
     return subprocess.run(
-        [sys.executable, "-c", "from mirror_avatar.cli import run; run()", *arguments],
+        [sys.executable, "-c", "from mirror_avatar.console import run; run()", *arguments],
         capture_output=True,
         text=True,
         check=False,

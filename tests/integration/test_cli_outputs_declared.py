@@ -83,7 +83,7 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (folder / "trials").mkdir()
     for k, trial in enumerate(load_zhai2017()[:3]):
         write_csv_trial(trial, folder / "trials" / f"trial{k}.csv")
-    command = "from mirror_avatar.cli import run; run()"
+    command = "from mirror_avatar.console import run; run()"
     arguments = ["generator", "fit", str(folder / "trials"), "--symbols", "16"]
     subprocess.run(
         [sys.executable, "-c", command, *arguments, "--out", str(folder / "model.npz")],
@@ -103,7 +103,7 @@ def test_a_folder_in_the_way_of_any_output_is_refused_before_work(
     (tmp_path / blocked / "kept.txt").write_text("mine")
     before = sorted(tmp_path.rglob("*"))
     result = subprocess.run(
-        [sys.executable, "-c", "from mirror_avatar.cli import run; run()", *arguments(inputs)],
+        [sys.executable, "-c", "from mirror_avatar.console import run; run()", *arguments(inputs)],
         capture_output=True,
         text=True,
         check=False,

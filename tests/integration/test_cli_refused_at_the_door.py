@@ -67,7 +67,7 @@ def with_out(arguments: list[str]) -> list[str]:
 
 def run_cli(arguments: list[str], folder: Path) -> subprocess.CompletedProcess[str]:
     """Run the console entry point in a child process, in ``folder``."""
-    command = "from mirror_avatar.cli import run; run()"
+    command = "from mirror_avatar.console import run; run()"
     return subprocess.run(
         [sys.executable, "-c", command, *arguments],
         capture_output=True,

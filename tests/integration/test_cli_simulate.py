@@ -141,7 +141,7 @@ def test_simulate_bad_input(
 def test_bad_input_through_the_console_script(tmp_path: Path) -> None:
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    command = "from mirror_avatar.cli import run; run()"
+    command = "from mirror_avatar.console import run; run()"
     runs = [
         ["evaluate", str(tmp_path / "missing.parquet")],
         ["evaluate", str(blocker)],

@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 from numba.core.compiler_lock import global_compiler_lock
 
-from mirror_avatar.cli import interrupt, main
+from mirror_avatar.cli import main
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.interruptions import interrupt
 from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.specs import bundled_generator
 from mirror_avatar.trial_io import write_csv_trial
@@ -108,7 +109,7 @@ def test_cyber_player_model_is_not_a_training_partner(tmp_path: Path, models: li
     policy = tmp_path / "p.npz"
     assert _train(policy, models[0], str(models[1])) == 0
     result = subprocess.run(
-        [sys.executable, "-c", "from mirror_avatar.cli import run; run()", "train",
+        [sys.executable, "-c", "from mirror_avatar.console import run; run()", "train",
          "--target", str(models[0]),
          "--partners", str(policy), "--sessions", "2", "--out", str(tmp_path / "q.npz")],
         capture_output=True, text=True, check=False,
@@ -142,7 +143,7 @@ def test_sigterm_keeps_the_finished_policy_and_stops_the_workers(
     assert _train(out, models[0], str(models[1])) == 0
     before = {path: path.read_bytes() for path in tmp_path.glob("vt.*")}
     command = [sys.executable, "-X", "faulthandler", "-c",
-               "from mirror_avatar.cli import run; run()", "train",
+               "from mirror_avatar.console import run; run()", "train",
                "--target", str(models[0]), "--partners", str(models[1]), "--sessions", "5000",
                "--duration", "20", "--jobs", "2", "--checkpoint-every", "4",
                "--out", str(out)]  # fmt: skip
@@ -202,7 +203,7 @@ def test_sigterm_while_compiling_exits_130(tmp_path: Path, models: list[Path]) -
     once compiling is done (about 45 s)."""
     environment = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
     command = [sys.executable, "-X", "faulthandler", "-c",
-               "from mirror_avatar.cli import run; run()", "train",
+               "from mirror_avatar.console import run; run()", "train",
                "--target", str(models[0]), "--partners", str(models[1]), "--sessions", "50",
                "--jobs", "1", "--out", str(tmp_path / "vt.npz")]  # fmt: skip
     process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, env=environment)

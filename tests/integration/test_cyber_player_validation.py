@@ -11,10 +11,10 @@ import pytest
 
 from mirror_avatar.experiments import EXPERIMENTS
 from mirror_avatar.experiments.cyber_player import RoleResult, check_criteria, measure, run
-from mirror_avatar.learning.imitation import make_cyber_player
 from mirror_avatar.learning.training import LearningCurve
 from mirror_avatar.report import write_report
 from mirror_avatar.session import Session
+from mirror_avatar.training.imitation import make_cyber_player
 from mirror_avatar.trials import Trial
 
 

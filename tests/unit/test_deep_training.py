@@ -15,9 +15,9 @@ from mirror_avatar.deep.training import (
     score_deep_imitation,
 )
 from mirror_avatar.errors import InputError
-from mirror_avatar.learning.imitation import score_avatar, train_group_cyber_player
 from mirror_avatar.specs import bundled_generator
 from mirror_avatar.testing import make_follower_sessions
+from mirror_avatar.training.imitation import score_avatar, train_group_cyber_player
 
 ACTIONS = tuple(4.0 * a for a in (-4.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 4.0))
 

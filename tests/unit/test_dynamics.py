@@ -24,9 +24,6 @@ from mirror_avatar.dynamics import (
     HKBParams,
     X,
     Y,
-    _frozen_guess,
-    _keep_shot,
-    _shoot_with_sensitivities,
     clip_to_range,
     hkb_acceleration,
     integrate_hkb,
@@ -36,6 +33,8 @@ from mirror_avatar.dynamics import (
     solve_interval,
     solve_intervals,
 )
+from mirror_avatar.dynamics.lanes import _frozen_guess, _keep_shot
+from mirror_avatar.dynamics.optimal_control import _shoot_with_sensitivities
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.players import VirtualTrainer

@@ -12,12 +12,10 @@ from mirror_avatar.generator import (
     PAPER_SYMBOLS,
     IMSGenerator,
     choose_n_symbols,
-    count_transitions,
-    estimate_transitions,
     one_standard_error_rule,
-    sample_chain,
     sweep_codebook,
 )
+from mirror_avatar.markov import count_transitions, estimate_transitions, sample_chain
 from mirror_avatar.signature import compute_emd, compute_ims, stroke_moments
 from mirror_avatar.trials import compute_velocity, make_trial, zero_phase_filter
 

@@ -14,7 +14,15 @@ from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.learning.agent import DEFAULT_ACTIONS, load_cyber_player
 from mirror_avatar.learning.discretisation import make_default_discretisation
-from mirror_avatar.learning.imitation import (
+from mirror_avatar.learning.training import (
+    ImitationTask,
+    play_task,
+    policy_arguments,
+    score_imitation,
+)
+from mirror_avatar.model_files import read_archive, save_model
+from mirror_avatar.players import check_player
+from mirror_avatar.training.imitation import (
     SEEN_PARTNERS,
     TARGET,
     UNSEEN_PARTNER,
@@ -27,14 +35,6 @@ from mirror_avatar.learning.imitation import (
     make_virtual_trainers,
     train_cyber_player,
 )
-from mirror_avatar.learning.training import (
-    ImitationTask,
-    play_task,
-    policy_arguments,
-    score_imitation,
-)
-from mirror_avatar.model_files import read_archive, save_model
-from mirror_avatar.players import check_player
 from mirror_avatar.trials import Trial
 
 

@@ -29,10 +29,10 @@ from mirror_avatar.cli.reproduce import reproduce
 from mirror_avatar.cli.signature import signature
 from mirror_avatar.cli.simulate import simulate
 from mirror_avatar.cli.train import train
-from mirror_avatar.console import aborted, interrupt, run
 from mirror_avatar.errors import InputError
+from mirror_avatar.interruptions import aborted, interrupt
 
-__all__ = ["cli", "fail", "interrupt", "main", "run"]
+__all__ = ["cli", "fail", "interrupt", "main"]
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})

@@ -26,9 +26,10 @@ from mirror_avatar.experiments.personal_avatar import (
     save_avatar,
 )
 from mirror_avatar.importing import ImportOptions, excerpt
-from mirror_avatar.learning.avatar import MAX_NAME_CHARS
-from mirror_avatar.learning.imitation import AGENTS, Agent
+from mirror_avatar.learning.acceleration_player import Agent
 from mirror_avatar.session import load_session
+from mirror_avatar.training.agents import AGENTS
+from mirror_avatar.training.avatar import MAX_NAME_CHARS
 
 
 @click.group()
@@ -75,6 +76,10 @@ def avatar() -> None:
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of everything.")
 @click.option("--jobs", type=int, default=2, show_default=True, help="Local threads.")
 @click.option(
+    "--scheduler", default=None,
+    help="Dask scheduler address (tcp://host:port): its workers play the sessions.",
+)  # fmt: skip
+@click.option(
     "--out", "out_path", required=True, type=click.Path(path_type=Path),
     help="The avatar file (.npz); its card is written beside it (.html).",
 )  # fmt: skip
@@ -90,6 +95,7 @@ def create(
     person_label: str | None,
     seed: int,
     jobs: int,
+    scheduler: str | None,
     out_path: Path,
     options: ImportOptions,
 ) -> None:
@@ -119,7 +125,7 @@ def create(
     trials = read_and_report(paths, "none", options)
     began = time.perf_counter()
     built, card = create_avatar(
-        trials, name, partners, sessions, seed=seed, n_jobs=jobs, agent=agent,
+        trials, name, partners, sessions, seed=seed, n_jobs=jobs, agent=agent, scheduler=scheduler,
         n_held_out=holdout, partner_sessions=dyads,
         progress=lambda stage: click.echo(f"avatar: {stage} ...", err=True),
     )  # fmt: skip

@@ -28,9 +28,9 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.group import TRAINING_SESSIONS
 from mirror_avatar.graphs import TOPOLOGIES, graph_source
 from mirror_avatar.importing import ImportOptions
-from mirror_avatar.learning.imitation import Agent, checkpoint_path, train_group_cyber_player
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.specs import load_player
+from mirror_avatar.training.imitation import Agent, checkpoint_path, train_group_cyber_player
 
 GRAPH_HELP = (
     f"Who observes whom: {', '.join(TOPOLOGIES)} (random: a new connected graph per session) "

@@ -86,9 +86,9 @@ def group_option(
         "--group-by",
         default=default,
         show_default=True,
-        help=f"Group trials by {', '.join(GROUPINGS)} (see the README). A map's column file "
-        "holds paths relative to the map file's folder or as given on the command line (a bare "
-        "file name only while it names one file).",
+        help=f"Group trials by {', '.join(GROUPINGS)} (see the user guide, Your data). A "
+        "map's column file holds paths relative to the map file's folder or as given on the "
+        "command line (a bare file name only while it names one file).",
     )
 
 

@@ -15,8 +15,9 @@ from mirror_avatar.cli.reading import group_option, import_options, read_and_rep
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.experiments import AGENT_EXPERIMENTS, EXPERIMENTS
 from mirror_avatar.importing import ImportOptions
-from mirror_avatar.learning.imitation import AGENTS, Agent
+from mirror_avatar.learning.acceleration_player import Agent
 from mirror_avatar.report import REPORT_FILES, write_report
+from mirror_avatar.training.agents import AGENTS
 
 
 @click.command()
@@ -49,6 +50,11 @@ from mirror_avatar.report import REPORT_FILES, write_report
     show_default=True,
     help="The cyber players of the dyad and group experiments: the paper's Q-table or a DQN.",
 )
+@click.option(
+    "--scheduler",
+    default=None,
+    help="Dask scheduler address (tcp://host:port): its workers play the training sessions.",
+)
 @group_option()
 @import_options
 def reproduce(
@@ -57,6 +63,7 @@ def reproduce(
     seed: int,
     data: tuple[Path, ...],
     agent: Agent,
+    scheduler: str | None,
     group_by: str,
     options: ImportOptions,
 ) -> None:
@@ -71,7 +78,7 @@ def reproduce(
     for number, (name, run) in enumerate(EXPERIMENTS, start=1):
         click.echo(f"reproduce: {name} ({number}/{len(EXPERIMENTS)}) ...", err=True)
         begun = time.perf_counter()
-        choice = {"agent": agent} if name in AGENT_EXPERIMENTS else {}
+        choice = {"agent": agent, "scheduler": scheduler} if name in AGENT_EXPERIMENTS else {}
         sections.append(run(trials, quick=quick, seed=seed, **choice))
         timings[name] = round(time.perf_counter() - begun, 3)
         click.echo(f"reproduce: {name} done in {timings[name]:.0f} s", err=True)

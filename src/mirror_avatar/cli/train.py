@@ -15,8 +15,13 @@ from mirror_avatar.figures import plot_learning_curves
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
-from mirror_avatar.learning.imitation import (
-    AGENTS,
+from mirror_avatar.learning.training import LearningCurve
+from mirror_avatar.players import RecordedPlayer, VirtualTrainer
+from mirror_avatar.players.dynamical import ModelPartner
+from mirror_avatar.report import render_png
+from mirror_avatar.specs import load_player
+from mirror_avatar.training.agents import AGENTS
+from mirror_avatar.training.imitation import (
     TRAINING_ROLES,
     Agent,
     Reference,
@@ -24,11 +29,6 @@ from mirror_avatar.learning.imitation import (
     learning_curve_path,
     train_cyber_player,
 )
-from mirror_avatar.learning.training import LearningCurve
-from mirror_avatar.players import RecordedPlayer, VirtualTrainer
-from mirror_avatar.players.dynamical import ModelPartner
-from mirror_avatar.report import render_png
-from mirror_avatar.specs import load_player
 from mirror_avatar.trials import Trial
 
 MODEL_HELP = "An IMS generator .npz, bundled:fast, bundled:slow or vt:TRIAL_FILE."

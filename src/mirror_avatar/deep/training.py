@@ -22,7 +22,7 @@ import math
 import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 from numba import njit
@@ -334,7 +334,7 @@ class DQNLearner(SessionLearner):
         self.learning_starts = learning_starts
         self.reward_scale = reward_scale
 
-    def partial_fit(self, sessions: Iterable[Session], total: int | None = None) -> DQNLearner:
+    def partial_fit(self, sessions: Iterable[Session], total: int | None = None) -> Self:
         """Learn from more sessions (see `SessionLearner.partial_fit`), single-threaded."""
         with threadpool_limits(1):
             return super().partial_fit(sessions, total)

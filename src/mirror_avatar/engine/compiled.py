@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -127,8 +128,8 @@ def pack_session(plans: Sequence[PlayerPlan], graph: Graph, n_steps: int) -> Pac
         tracks,
         lengths,
         slots,
-        *_pack_policies(policies),  # type: ignore[arg-type]
-        pack_networks(networks),  # type: ignore[arg-type]
+        *_pack_policies(policies),
+        pack_networks(networks),
         neighbour_index,
         neighbour_count,
         np.array([plan.start for plan in plans], dtype=np.float64),
@@ -169,16 +170,32 @@ def _pack_policies(
     return q_tables, modes, edges, offsets, actions, n_actions, substeps
 
 
-PackedNetworks = tuple[Array, Ints, Ints, Ints, Ints, Array, Ints, Ints]
-"""The deep policies of a session (D of them) as `pack_networks` returns them."""
+class PackedNetworks(NamedTuple):
+    """The deep policies of a session (D of them), each row padded past its own length.
+
+    A named tuple, so compiled code takes it as one argument and unpacks it in this order.
+    """
+
+    weights: Array
+    """Flat network parameters, shape (D, P)."""
+    sizes: Ints
+    """Layer widths, shape (D, L)."""
+    n_sizes: Ints
+    """How many layer widths each network has, shape (D,)."""
+    n_slots: Ints
+    """Neighbour slots of each input, shape (D,)."""
+    use_reference: Ints
+    """1 where the input holds the player's reference velocity, shape (D,)."""
+    actions: Array
+    """Accelerations (units/s²), shape (D, A)."""
+    n_actions: Ints
+    """How many actions each network has, shape (D,)."""
+    substeps: Ints
+    """RK4 substeps per control period, shape (D,)."""
 
 
 def pack_networks(networks: Sequence[NetworkPolicy]) -> PackedNetworks:
-    """Pack deep policies for `run_packed`, each row padded past its own length.
-
-    Returns parameters (D, P), layer widths (D, L), width counts (D,), neighbour slots (D,),
-    reference flags (D,), actions (D, A), action counts (D,) and RK4 substeps (D,).
-    """
+    """Pack deep policies for `run_packed`, each row padded past its own length."""
     count = len(networks)
     weights = np.zeros((count, max([n.weights.size for n in networks], default=1)))
     sizes = np.zeros((count, max([n.sizes.size for n in networks], default=1)), dtype=np.int64)
@@ -188,7 +205,7 @@ def pack_networks(networks: Sequence[NetworkPolicy]) -> PackedNetworks:
         weights[d, : network.weights.size] = network.weights
         sizes[d, : network.sizes.size] = network.sizes
         actions[d, : network.actions.size] = network.actions
-    return (
+    return PackedNetworks(
         weights,
         sizes,
         np.array([n.sizes.size for n in networks], dtype=np.int64),

@@ -32,4 +32,4 @@ EXPERIMENTS: list[tuple[str, Callable[..., Section]]] = [
 
 AGENT_EXPERIMENTS = frozenset({"cyber_player", "group"})
 """The experiments that train a cyber player; their ``run`` also takes ``agent`` ("tabular" or
-"dqn")."""
+"dqn") and ``scheduler`` (a Dask scheduler's address, or None for local threads)."""

@@ -32,12 +32,12 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.cyber_player import CRITERIA
 from mirror_avatar.figures import plot_positions
 from mirror_avatar.importing import excerpt
-from mirror_avatar.learning.avatar import Avatar
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.session import Session
 from mirror_avatar.signature import compute_emd, compute_ims
+from mirror_avatar.training.avatar import Avatar
 from mirror_avatar.trials import DEFAULT_RATE, Trial, make_trial
 
 Array = NDArray[np.float64]

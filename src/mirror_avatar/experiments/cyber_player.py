@@ -1,7 +1,7 @@
 """Validation of the cyber player (paper Tables I-II, figures 8-9; METHODS section 7).
 
 A cyber player is trained to imitate a target virtual trainer (VT5 of the bundled data, see
-`mirror_avatar.learning.imitation.cast_virtual_trainers`) as a follower and as a leader, then
+`mirror_avatar.training.imitation.cast_virtual_trainers`) as a follower and as a leader, then
 replaces it and plays closed-loop (in the compiled loop,
 `mirror_avatar.engine.batch.play_compiled`) with the training partners and one partner never met
 in training. Each partner plays the same seeded sessions with the target and with the cyber
@@ -29,19 +29,6 @@ from mirror_avatar.engine.batch import play_compiled, run_sessions
 from mirror_avatar.engine.loop import count_samples
 from mirror_avatar.figures import plot_learning_curves, plot_positions, plot_similarity_space
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
-from mirror_avatar.learning.imitation import (
-    AGENT_NAMES,
-    TRAINING_ROLES,
-    Agent,
-    Cast,
-    Role,
-    cast_virtual_trainers,
-    derive_seeds,
-    make_cyber_player,
-    make_pairs,
-    score_avatar,
-    train_cyber_player,
-)
 from mirror_avatar.learning.training import LearningCurve
 from mirror_avatar.metrics import TRIM, paired_ttest, session_metrics
 from mirror_avatar.report import Section
@@ -54,6 +41,19 @@ from mirror_avatar.signature import (
     compute_ims,
     confidence_ellipse,
     ellipse_overlap,
+)
+from mirror_avatar.training.agents import AGENT_NAMES
+from mirror_avatar.training.imitation import (
+    TRAINING_ROLES,
+    Agent,
+    Cast,
+    Role,
+    cast_virtual_trainers,
+    derive_seeds,
+    make_cyber_player,
+    make_pairs,
+    score_avatar,
+    train_cyber_player,
 )
 from mirror_avatar.trials import Trial
 
@@ -110,6 +110,7 @@ def run(
     n_validation: int | None = None,
     n_jobs: int = 2,
     agent: Agent = "tabular",
+    scheduler: str | None = None,
 ) -> Section:
     """Train the cyber player as follower and leader and validate it against its target.
 
@@ -128,6 +129,9 @@ def run(
         Local threads generating training sessions.
     agent
         ``"tabular"`` (the paper's Q-table) or ``"dqn"`` (a deep Q-network).
+    scheduler
+        Address of a Dask scheduler (``tcp://host:port``) whose workers play the training and
+        baseline sessions instead of local threads (the same sessions either way).
 
     Returns
     -------
@@ -140,7 +144,7 @@ def run(
     cast = cast_virtual_trainers(trials, seed=seed)
     target = cast.trainers[cast.target].label
     results = [
-        run_role(cast, role, n_train, n_valid, n_base, seed, n_jobs, agent)
+        run_role(cast, role, n_train, n_valid, n_base, seed, n_jobs, agent, scheduler)
         for role in TRAINING_ROLES
     ]
     table_one = pd.concat([make_table_one(r) for r in results])
@@ -198,8 +202,12 @@ def run_role(
     seed: int,
     n_jobs: int,
     agent: Agent = "tabular",
+    scheduler: str | None = None,
 ) -> RoleResult:
-    """Train for ``role``, then validate closed-loop and against the baselines."""
+    """Train for ``role``, then validate closed-loop and against the baselines.
+
+    Sessions are played on the Dask cluster at ``scheduler`` when one is given.
+    """
     target = cast.trainers[cast.target]
     start = time.perf_counter()
     player, curve = train_cyber_player(
@@ -208,12 +216,14 @@ def run_role(
         role=role,
         n_sessions=n_train,
         seed=seed,
+        backend="dask" if scheduler else "local",
+        scheduler=scheduler,
         n_jobs=n_jobs,
         agent=agent,
     )
     seconds = time.perf_counter() - start
     records, velocities, example = validate(player, cast, role, n_valid, seed)
-    baselines = compare_baselines(player, cast, role, n_base, seed, n_jobs)
+    baselines = compare_baselines(player, cast, role, n_base, seed, n_jobs, scheduler)
     unseen = cast.trainers[cast.unseen].label
     return RoleResult(
         role, target.label, unseen, player, curve, seconds, records, velocities, example, baselines
@@ -287,19 +297,28 @@ def compare_baselines(
     n_sessions: int,
     seed: int,
     n_jobs: int = 2,
+    scheduler: str | None = None,
 ) -> dict[str, float]:
     """RMS to the target (units) on held-out sessions: trained, untrained, copy the partner.
 
     The sessions are the target playing ``role`` with every partner, seen and unseen, seeded
     apart from training; the trained and untrained (seeded random policy) players replay each
-    session open-loop in the target's place (`mirror_avatar.learning.imitation.score_avatar`),
+    session open-loop in the target's place (`mirror_avatar.training.imitation.score_avatar`),
     and "copy the partner" is the RMS between the partner's and the target's positions.
     """
     generator = cast.trainers[cast.target].generator
     partners = [cast.trainers[i].generator for i in (*cast.seen, cast.unseen)]
     pairs = make_pairs(generator, partners, role)
     held_out = derive_seeds(seed + 1)[0]
-    chunks = run_sessions(pairs, n_sessions, seed=held_out, n_jobs=n_jobs, progress=False)
+    chunks = run_sessions(
+        pairs,
+        n_sessions,
+        seed=held_out,
+        backend="dask" if scheduler else "local",
+        scheduler=scheduler,
+        n_jobs=n_jobs,
+        progress=False,
+    )
     sessions = list(itertools.chain.from_iterable(chunks))
     untrained = make_cyber_player(role, generator, agent=player.agent)
     untrained.initialise_policy(seed)

@@ -5,7 +5,7 @@ the signature of one of the cyber-player experiment's virtual "persons" (`choose
 the bundled data VT1 from the fast trials, VT4, VT6 and VT5 from the slow ones, a group of four;
 the target, VT5, is the last player). A tabular cyber player is trained to take the target's
 place on sessions with a new random connected graph each
-(`mirror_avatar.learning.imitation.train_group_cyber_player`), then plays closed-loop in its
+(`mirror_avatar.training.imitation.train_group_cyber_player`), then plays closed-loop in its
 place on new random graphs, each session paired with the same session played by the target (same
 seed: same graph, same partners' references). Reported in the layout of the group's published
 example: the target's CV, RMS, time lag and maximum cross-correlation against the mean of its
@@ -34,18 +34,6 @@ from mirror_avatar.figures import (
 )
 from mirror_avatar.graphs import GraphSource, make_graph, random_connected_graph
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
-from mirror_avatar.learning.imitation import (
-    AGENT_NAMES,
-    Agent,
-    Cast,
-    VirtualTrainerSpec,
-    cast_virtual_trainers,
-    derive_seeds,
-    make_group,
-    make_group_cyber_player,
-    score_avatar,
-    train_group_cyber_player,
-)
 from mirror_avatar.metrics import (
     TRIM,
     compute_cluster_phase,
@@ -57,6 +45,18 @@ from mirror_avatar.players import Player
 from mirror_avatar.report import Section
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.session import Session
+from mirror_avatar.training.agents import AGENT_NAMES
+from mirror_avatar.training.imitation import (
+    Agent,
+    Cast,
+    VirtualTrainerSpec,
+    cast_virtual_trainers,
+    derive_seeds,
+    make_group,
+    make_group_cyber_player,
+    score_avatar,
+    train_group_cyber_player,
+)
 from mirror_avatar.trials import Trial
 
 CYBER = "cyber player"
@@ -104,6 +104,7 @@ def run(
     n_sessions: int | None = None,
     n_jobs: int = 2,
     agent: Agent = "tabular",
+    scheduler: str | None = None,
 ) -> Section:
     """Train a cyber player in a group and validate it against the target VT.
 
@@ -122,6 +123,9 @@ def run(
         Local threads generating training sessions.
     agent
         ``"tabular"`` (a Q-table) or ``"dqn"`` (a deep Q-network with dynamic input).
+    scheduler
+        Address of a Dask scheduler (``tcp://host:port``) whose workers play the training
+        sessions instead of local threads (the same sessions either way).
     """
     n_train = n_sessions or (QUICK_TRAINING_SESSIONS if quick else TRAINING_SESSIONS)[agent]
     n_valid = QUICK_VALIDATION_SESSIONS if quick else VALIDATION_SESSIONS
@@ -132,7 +136,14 @@ def run(
     *partners, target = [m.generator for m in members]
     start = time.perf_counter()
     player, curve = train_group_cyber_player(
-        target, partners, n_sessions=n_train, seed=seed, n_jobs=n_jobs, agent=agent
+        target,
+        partners,
+        n_sessions=n_train,
+        seed=seed,
+        backend="dask" if scheduler else "local",
+        scheduler=scheduler,
+        n_jobs=n_jobs,
+        agent=agent,
     )
     train_seconds = time.perf_counter() - start
     group = make_group(target, partners)

@@ -42,21 +42,21 @@ from mirror_avatar.experiments.cyber_player import (
 )
 from mirror_avatar.figures import plot_ims, plot_learning_curves
 from mirror_avatar.generator import IMSGenerator
-from mirror_avatar.learning.avatar import Avatar
-from mirror_avatar.learning.imitation import (
-    AGENT_NAMES,
+from mirror_avatar.report import Section, render_report
+from mirror_avatar.signature import DEFAULT_BINS, compute_ims
+from mirror_avatar.training.agents import AGENT_NAMES
+from mirror_avatar.training.avatar import Avatar
+from mirror_avatar.training.imitation import (
     Agent,
     Cast,
     Role,
     VirtualTrainerSpec,
     make_virtual_trainers,
 )
-from mirror_avatar.report import Section, render_report
-from mirror_avatar.signature import DEFAULT_BINS, compute_ims
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 ROLES: tuple[Role, ...] = ("follower", "leader")
-"""The roles trained, those of `mirror_avatar.learning.avatar.TRAINED_ROLES`."""
+"""The roles trained, those of `mirror_avatar.training.avatar.TRAINED_ROLES`."""
 
 DEFAULT_SESSIONS = 8000
 """Training sessions per role of tabular players (**choice**, twice the paper's 4000: with fewer,
@@ -81,6 +81,7 @@ def create_avatar(
     agent: Agent = "tabular",
     n_held_out: int | None = None,
     partner_sessions: Sequence[PartnerSession] = (),
+    scheduler: str | None = None,
 ) -> tuple[Avatar, Section]:
     """Build and validate a person's avatar.
 
@@ -110,6 +111,9 @@ def create_avatar(
         `count_held_out`).
     partner_sessions
         Dyad sessions the person played, replayed against the avatar for the proof.
+    scheduler
+        Address of a Dask scheduler (``tcp://host:port``) whose workers play the training and
+        baseline sessions instead of local threads (the same avatar either way).
 
     Raises
     ------
@@ -135,7 +139,9 @@ def create_avatar(
     for role in ROLES:
         report(f"training and validating the {role}")
         results.append(
-            run_role(cast, role, n_sessions, n_validation, n_baseline, seed, n_jobs, agent)
+            run_role(
+                cast, role, n_sessions, n_validation, n_baseline, seed, n_jobs, agent, scheduler
+            )
         )
     criteria: dict[str, pd.DataFrame] = {r.role: check_criteria(r) for r in results}
     summary = _summary(results, criteria, cast, generator, n_sessions, n_validation, seed)
@@ -179,7 +185,7 @@ def default_partners(seed: int) -> list[tuple[str, IMSGenerator]]:
     """Make the bundled library of partners: VT1..VT6, each fitted on 3 trials of a style.
 
     VT1..VT5 train the avatar and VT6 is kept unseen, as in the paper's set-up
-    (`mirror_avatar.learning.imitation.make_virtual_trainers`).
+    (`mirror_avatar.training.imitation.make_virtual_trainers`).
     """
     trainers = make_virtual_trainers(load_zhai2017(), seed=seed)
     return [(f"{t.label} ({', '.join(t.trial_labels)})", t.generator) for t in trainers]

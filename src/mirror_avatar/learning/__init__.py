@@ -4,7 +4,6 @@ Modules, each one idea: `acceleration_player` (what every learned avatar shares,
 `mirror_avatar.deep` included), `discretisation` (the state cells of the Q-table), `kernels`
 (compiled reward, exploration, update and one learning session), `agent` (the `CyberPlayer`, its
 greedy policy and its file), `training` (the learning loop both agents share, the `QLearner`
-estimator, its exploration schedule and learning curve), `imitation` (the paper's set-up:
-virtual trainers VT1..VT6 and training a tabular or deep cyber player to imitate one of them)
-and `avatar` (a person's avatar file).
+estimator, its exploration schedule and learning curve). The paper's set-up and avatar files,
+which play sessions on the engine, are in `mirror_avatar.training`.
 """

@@ -8,7 +8,7 @@ velocity r_s. Three feature sets (**choice**, configurable):
 - ``"relative"``: ``[x - x_p, x' - x_p', x_p, x_p']`` (METHODS allows relative features);
 - ``"reference"``: ``[x - x_p, x' - r_s, x, r_s]``, a **departure**: the avatar has a motion
   source of its own, as the person it imitates does (used for the leader, see
-  `mirror_avatar.learning.imitation.make_role_discretisation`).
+  `mirror_avatar.training.imitation.make_role_discretisation`).
 
 Each feature is cut by its own increasing bin edges; `state_index` is the compiled cell lookup
 used by play and training alike.

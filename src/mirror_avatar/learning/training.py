@@ -19,7 +19,7 @@ import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple, Self
 
 import numpy as np
 from numba import njit
@@ -187,16 +187,30 @@ def _fill_task(
     return True
 
 
-PolicyArguments = tuple[Array, int, Array, NDArray[np.int64], Array, Any, int]
-"""A cyber player's arguments of `learn_session`: Q-table, feature code, bin edges, their
-offsets, actions, end-effector record and RK4 substeps."""
+class PolicyArguments(NamedTuple):
+    """A cyber player's arguments of `learn_session`, in its order."""
+
+    q_table: Array
+    """The Q-table, shape (cells, actions), updated in place."""
+    mode: int
+    """The feature code of its cells (`mirror_avatar.learning.discretisation`)."""
+    edges: Array
+    """The cells' bin edges, flat."""
+    offsets: NDArray[np.int64]
+    """Where each feature's edges start in ``edges``."""
+    actions: Array
+    """Accelerations (units/s²), shape (actions,)."""
+    record: Any
+    """The end effector, a record of `mirror_avatar.dynamics.PARAMS_DTYPE`."""
+    n_substeps: int
+    """RK4 substeps per control period."""
 
 
 def policy_arguments(player: CyberPlayer) -> PolicyArguments:
     """Return the player's arguments of `learn_session` (its Q-table is updated in place)."""
     policy = player.policy_
     disc = policy.discretisation
-    return (
+    return PolicyArguments(
         policy.q_table,
         disc.mode,
         disc.flat_edges,
@@ -358,13 +372,13 @@ class SessionLearner:
         self.progress = progress
         self.random_state = random_state
 
-    def fit(self, sessions: Iterable[Session], total: int | None = None) -> Any:
+    def fit(self, sessions: Iterable[Session], total: int | None = None) -> Self:
         """Start training afresh (seeded) and learn from ``sessions``; see `partial_fit`."""
         self._validate()
         self._start()
         return self.partial_fit(sessions, total)
 
-    def partial_fit(self, sessions: Iterable[Session], total: int | None = None) -> Any:
+    def partial_fit(self, sessions: Iterable[Session], total: int | None = None) -> Self:
         """Learn from more sessions, continuing where the last call stopped.
 
         Parameters

@@ -20,7 +20,7 @@ from mirror_avatar.experiments.personal_avatar import (
     default_partners,
     save_avatar,
 )
-from mirror_avatar.learning.avatar import load_avatar
+from mirror_avatar.training.avatar import load_avatar
 from mirror_avatar.trial_files import read_trial
 
 MIN_SOLO_TRIALS = 2

@@ -33,8 +33,6 @@ from mirror_avatar.dynamics import CONTROL_PERIOD, HKBParams
 from mirror_avatar.trials import PLAYING_RANGE
 
 if TYPE_CHECKING:
-    from mirror_avatar.deep.player import NetworkPolicy
-    from mirror_avatar.learning.agent import GreedyPolicy
     from mirror_avatar.players.reference import ReferenceDraw
 
 Array = NDArray[np.float64]
@@ -88,7 +86,10 @@ class PlayerPlan:
     track
         A recording's positions and velocities on the control grid, shape (2, L), else None.
     policy
-        A cyber player's greedy policy (`CYBER`: a Q-table; `DEEP`: a network), else None.
+        A learned player's greedy policy, the record its kind defines (`CYBER`: a Q-table,
+        `mirror_avatar.learning.agent.GreedyPolicy`; `DEEP`: a network,
+        `mirror_avatar.deep.player.NetworkPolicy`), else None. The players live above this
+        module, so it is not typed here.
     """
 
     kind: int
@@ -96,7 +97,7 @@ class PlayerPlan:
     params: HKBParams | None = None
     reference: ReferenceDraw | None = None
     track: Array | None = None
-    policy: GreedyPolicy | NetworkPolicy | None = None
+    policy: Any = None
 
 
 class Player:

@@ -16,7 +16,8 @@ and the unseen partner VT6 (slow).
 straight into a learner's ``fit``: sessions are generated and learnt from chunk by chunk, never
 all held in memory. The ``agent`` is ``"tabular"`` (a Q-table,
 `mirror_avatar.learning.training.QLearner`) or ``"dqn"`` (a Q-network,
-`mirror_avatar.deep.training.DQNLearner`); both play the same roles from the same sessions.
+`mirror_avatar.deep.training.DQNLearner`), chosen in `mirror_avatar.training.agents`; both play
+the same roles from the same sessions.
 Player 0 of every session is the partner, player 1 the target. `train_group_cyber_player` does
 the same in a group (METHODS section 8): the target is the last member, and every session has a
 new random graph. Both go through `imitate`.
@@ -37,38 +38,25 @@ from typing import Any, Literal
 import numpy as np
 
 from mirror_avatar import dynamics
-from mirror_avatar.deep.player import DeepCyberPlayer
-from mirror_avatar.deep.training import DQNLearner, score_deep_imitation
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.graphs import GraphSource, random_connected_graph
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer, Agent
-from mirror_avatar.learning.agent import DEFAULT_ACTIONS, CyberPlayer
+from mirror_avatar.learning.agent import DEFAULT_ACTIONS
 from mirror_avatar.learning.discretisation import (
     Discretisation,
     make_default_discretisation,
     symmetric_edges,
 )
-from mirror_avatar.learning.training import (
-    ExponentialEpsilon,
-    LearningCurve,
-    QLearner,
-    SessionLearner,
-    score_imitation,
-)
+from mirror_avatar.learning.training import LearningCurve, SessionLearner
 from mirror_avatar.players.virtual_trainer import VirtualTrainer
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.session import Session
+from mirror_avatar.training.agents import agent_kind, kind_of
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 Role = Literal["follower", "leader"]
-AGENTS: tuple[Agent, ...] = ("tabular", "dqn")
-AGENT_NAMES: dict[Agent, str] = {
-    "tabular": "tabular cyber player (a Q-table)",
-    "dqn": "deep cyber player (a Q-network trained by DQN)",
-}
-"""How reports name the cyber player each agent trains."""
 Reference = IMSGenerator | Trial
 """What a virtual trainer draws its reference velocity from: a generator or a recorded trial."""
 TRAINING_ROLES: tuple[Role, ...] = ("follower", "leader")
@@ -98,10 +86,6 @@ FOLLOWER_EDGES = (
 """Positive interior bin edges of the follower's own relative features ``x - x_p`` (units) and
 ``x' - x_p'`` (units/s); mirrored about an edge at 0 (**choice**, see
 `make_role_discretisation`)."""
-
-EPSILON_HALF_LIVES = 8.0
-"""Half-lives of exploration over a training run (**choice**): epsilon decays from 0.5 to about
-0.01 over the run, whatever its length."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -310,13 +294,12 @@ def make_cyber_player(
     """
     role = _check_role(role)
     actions = tuple(action_scale * a for a in DEFAULT_ACTIONS)
-    params = dynamics.preset(role)
-    if _check_agent(agent) == "dqn":
-        return DeepCyberPlayer(
-            use_reference=True, actions=actions, params=params, reference=reference
-        )
-    return CyberPlayer(
-        make_role_discretisation(role), actions=actions, params=params, reference=reference
+    return agent_kind(agent).make_player(
+        lambda: make_role_discretisation(role),
+        0,
+        actions=actions,
+        params=dynamics.preset(role),
+        reference=reference,
     )
 
 
@@ -331,11 +314,9 @@ def make_learner(
 ) -> SessionLearner:
     """Make the learner for a run of ``n_sessions`` that imitates player ``target``.
 
-    The learning curve has about `CURVE_POINTS` points. A tabular player gets a `QLearner`
-    whose exploration decays from 0.5 to 0.01 with a half-life of ``n_sessions /
-    EPSILON_HALF_LIVES`` sessions (**choice**s scaled to the run's length; learning rate 0.1
-    and discount 0.95 are `QLearner`'s defaults); a deep player a `DQNLearner` with METHODS
-    section 8's defaults.
+    The learning curve has about `CURVE_POINTS` points; the player's agent kind makes the
+    learner (`mirror_avatar.training.agents.AgentKind.make_learner`: a `QLearner` whose
+    exploration decays over the run, or a `DQNLearner`).
     """
     common: dict[str, Any] = {
         "target": target,
@@ -345,12 +326,7 @@ def make_learner(
         "progress": progress,
         "random_state": random_state,
     }
-    if isinstance(player, DeepCyberPlayer):
-        return DQNLearner(player, **common)
-    if not isinstance(player, CyberPlayer):
-        raise InputError("player", f"cannot train a {type(player).__name__}")
-    half_life = max(n_sessions / EPSILON_HALF_LIVES, 1.0)
-    return QLearner(player, epsilon=ExponentialEpsilon(half_life=half_life), **common)
+    return kind_of(player).make_learner(player, n_sessions, **common)
 
 
 def make_pairs(
@@ -558,23 +534,13 @@ def make_group_cyber_player(
     with its own motion, theta_s 0.1, and without it the deep player followed its neighbours'
     mean more closely than the target does; `benchmarks/results.md`, section deep).
     """
-    actions = tuple(action_scale * a for a in DEFAULT_ACTIONS)
-    label = "cyber player (group)"
-    if _check_agent(agent) == "dqn":
-        return DeepCyberPlayer(
-            n_slots=n_players - 1,
-            use_reference=True,
-            actions=actions,
-            params=dynamics.GROUP,
-            reference=reference,
-            label=label,
-        )
-    return CyberPlayer(
-        make_group_discretisation(),
-        actions=actions,
+    return agent_kind(agent).make_player(
+        make_group_discretisation,
+        n_players - 1,
+        actions=tuple(action_scale * a for a in DEFAULT_ACTIONS),
         params=dynamics.GROUP,
         reference=reference,
-        label=label,
+        label="cyber player (group)",
     )
 
 
@@ -636,19 +602,16 @@ def score_avatar(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Play each session greedily in player ``target``'s place (open loop, no learning).
 
-    Tabular players through `mirror_avatar.learning.training.score_imitation`, deep ones
-    through `mirror_avatar.deep.training.score_deep_imitation`.
+    Each through its agent kind's scores (`mirror_avatar.training.agents.AgentKind.score`:
+    `mirror_avatar.learning.training.score_imitation` for tabular players,
+    `mirror_avatar.deep.training.score_deep_imitation` for deep ones).
 
     Returns
     -------
     mean_reward, rms : ndarray, shape (n_sessions,)
         Mean reward per step and RMS position error to the target (units) per session.
     """
-    if isinstance(player, DeepCyberPlayer):
-        return score_deep_imitation(player, sessions, target)
-    if not isinstance(player, CyberPlayer):
-        raise InputError("player", f"cannot score a {type(player).__name__}")
-    return score_imitation(player, sessions, target)
+    return kind_of(player, "score").score(player, sessions, target)
 
 
 def checkpoint_path(policy: str | os.PathLike[str]) -> Path:
@@ -665,12 +628,6 @@ def learning_curve_path(policy: str | os.PathLike[str]) -> Path:
     """Where the learning curve of a policy file goes: ``POLICY.learning_curve.csv``."""
     path = Path(policy)
     return path.with_name(f"{path.stem}.learning_curve.csv")
-
-
-def _check_agent(agent: str) -> Agent:
-    if agent not in AGENTS:
-        raise InputError("agent", f"must be 'tabular' or 'dqn', not {agent!r}")
-    return agent
 
 
 def _check_role(role: str) -> Role:

@@ -18,13 +18,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mirror_avatar.deep.player import deep_player_from_arrays
 from mirror_avatar.dynamics import HKBParams, preset
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import excerpt
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
-from mirror_avatar.learning.agent import cyber_player_from_arrays
 from mirror_avatar.model_files import (
     check_object,
     join_parts,
@@ -33,6 +31,7 @@ from mirror_avatar.model_files import (
     save_model,
 )
 from mirror_avatar.players import Player, VirtualTrainer
+from mirror_avatar.training.agents import agent_kind
 
 FORMAT_NAME = "mirror-avatar/avatar"
 FORMAT_VERSION = 1
@@ -117,8 +116,8 @@ def load_avatar(path: str | os.PathLike[str]) -> Avatar:
     ------
     InputError
         ``path: problem`` for a missing, corrupt or inconsistent file, or a part that its own
-        loader (`IMSGenerator.from_arrays`, `mirror_avatar.learning.agent.cyber_player_from_arrays`,
-        `mirror_avatar.deep.player.deep_player_from_arrays`) refuses.
+        loader (`IMSGenerator.from_arrays`, the agent kind's
+        `mirror_avatar.training.agents.AgentKind.from_arrays`) refuses.
     """
     arrays, metadata = load_model(path, FORMAT_NAME, FORMAT_VERSION, ())
     name = metadata.get("name")
@@ -144,10 +143,5 @@ def load_avatar(path: str | os.PathLike[str]) -> Avatar:
 def _player_from_arrays(
     arrays: dict[str, Any], metadata: dict[str, Any], path: str | os.PathLike[str]
 ) -> AccelerationPlayer:
-    """Rebuild one role's player with the loader its ``agent`` names."""
-    agent = metadata.get("agent", "tabular")
-    if agent == "dqn":
-        return deep_player_from_arrays(arrays, metadata, path)
-    if agent != "tabular":
-        raise InputError(path, f"agent {excerpt(agent)} is neither 'tabular' nor 'dqn'")
-    return cyber_player_from_arrays(arrays, metadata, path)
+    """Rebuild one role's player with the loader its ``agent`` names (tabular when absent)."""
+    return agent_kind(metadata.get("agent", "tabular"), path).from_arrays(arrays, metadata, path)

@@ -1,0 +1,106 @@
+"""The multi-machine guide (docs/cluster.md) followed on one machine, over loopback.
+
+A scheduler and two workers are started as separate processes with the guide's commands
+(``dask scheduler``, ``dask worker``); ``avatar create --scheduler`` then builds the same avatar
+file as the local run: every array and every metadata value but the build timings.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from mirror_avatar.cli import main
+from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.model_files import load_model
+from mirror_avatar.trial_io import write_csv_trial
+
+distributed = pytest.importorskip("distributed")
+
+DASK = Path(sys.executable).with_name("dask")
+SOURCE = Path(__file__).parents[2] / "src"
+
+
+def _environment(cache: Path) -> dict[str, str]:
+    """The workers' environment: this tree's package first, a private numba cache."""
+    path = os.pathsep.join(filter(None, [str(SOURCE), os.environ.get("PYTHONPATH")]))
+    return os.environ | {"PYTHONPATH": path, "XDG_CACHE_HOME": str(cache)}
+
+
+@pytest.fixture(scope="module")
+def scheduler(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """Start ``dask scheduler`` and two ``dask worker`` processes; yield the scheduler address."""
+    folder = tmp_path_factory.mktemp("cluster")
+    address_file = folder / "scheduler.json"
+    environment = _environment(folder / "cache")
+    common = {"env": environment, "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    processes = [
+        subprocess.Popen(
+            [str(DASK), "scheduler", "--host", "127.0.0.1", "--port", "0",
+             "--dashboard-address", ":0", "--scheduler-file", str(address_file)],
+            **common,
+        )
+    ]  # fmt: skip
+    try:
+        deadline = time.monotonic() + 60.0
+        while not address_file.is_file():
+            assert time.monotonic() < deadline, "the scheduler did not start"
+            time.sleep(0.2)
+        for _ in range(2):
+            processes.append(
+                subprocess.Popen(
+                    [str(DASK), "worker", "--scheduler-file", str(address_file),
+                     "--nthreads", "1", "--dashboard-address", ":0"],
+                    **common,
+                )
+            )  # fmt: skip
+        with distributed.Client(scheduler_file=str(address_file), timeout=60) as client:
+            client.wait_for_workers(2, timeout=120)
+            yield client.scheduler.address
+    finally:
+        for process in reversed(processes):
+            process.terminate()
+        for process in processes:
+            process.wait(30)
+
+
+def _without_timings(value: Any) -> Any:
+    """Drop every key that holds a duration (its name says seconds)."""
+    if isinstance(value, dict):
+        return {k: _without_timings(v) for k, v in value.items() if "seconds" not in k}
+    if isinstance(value, list):
+        return [_without_timings(v) for v in value]
+    return value
+
+
+def test_avatar_create_on_the_cluster_gives_the_local_file(
+    scheduler: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    source = IMSGenerator(n_symbols=64, random_state=7).fit(load_zhai2017()[9:13])
+    (tmp_path / "trials").mkdir()
+    for k, trial in enumerate(source.sample(30.0, 3, random_state=11)):
+        write_csv_trial(trial, tmp_path / "trials" / f"trial{k}.csv")
+    fast, slow = tmp_path / "fast.npz", tmp_path / "slow.npz"
+    IMSGenerator(n_symbols=32, random_state=0).fit(load_zhai2017()[:3]).save(fast)
+    IMSGenerator(n_symbols=32, random_state=0).fit(load_zhai2017()[15:18]).save(slow)
+    command = ["avatar", "create", str(tmp_path / "trials"), "--name", "P01",
+               "--partners", f"{fast},{slow}", "--sessions", "20", "--jobs", "1"]  # fmt: skip
+    local, remote = tmp_path / "local.npz", tmp_path / "remote.npz"
+    assert main([*command, "--out", str(local)]) == 0
+    assert main([*command, "--scheduler", scheduler, "--out", str(remote)]) == 0
+    local_arrays, local_metadata = load_model(local, "mirror-avatar/avatar", 1, ())
+    remote_arrays, remote_metadata = load_model(remote, "mirror-avatar/avatar", 1, ())
+    assert local_arrays.keys() == remote_arrays.keys()
+    for name, array in local_arrays.items():
+        np.testing.assert_array_equal(remote_arrays[name], array, err_msg=name)
+    assert _without_timings(remote_metadata) == _without_timings(local_metadata)
