@@ -149,8 +149,10 @@ def rk4_held(
 class ModelPartner(Player):
     """A partner whose motion is a model's equations: its parameters, seed and description.
 
-    Subclasses set ``PARAMETERS`` (name -> `Parameter`) and implement `reset` and `step`; the
-    model is deterministic, so ``reset(seed)`` ignores the seed.
+    Subclasses set ``PARAMETERS`` (name -> `Parameter`) and ``NAME`` (the default label), and
+    implement `reset` and `step`, which read their kernel's parameters as ``params``
+    (`kernel_parameters`: every parameter in the order of ``PARAMETERS`` unless a subclass says
+    otherwise); the model is deterministic, so ``reset(seed)`` ignores the seed.
 
     Parameters
     ----------
@@ -162,6 +164,7 @@ class ModelPartner(Player):
     """
 
     PARAMETERS: Mapping[str, Parameter] = {}
+    NAME = "model partner"
 
     def __init__(self, options: Mapping[str, float] | None = None, label: str = "") -> None:
         given = dict(options or {})
@@ -175,9 +178,14 @@ class ModelPartner(Player):
             key: check_real(type(self).__name__, key, given.get(key, p.default), p.low, p.high)
             for key, p in self.PARAMETERS.items()
         }
-        self.label = label or type(self).__name__
+        self.label = label or self.NAME
         self.last_control = math.nan
         self.last_reference = math.nan
+        self.params = self.kernel_parameters()
+
+    def kernel_parameters(self) -> Array:
+        """Return the parameters the model's kernel reads, in its order (default: all)."""
+        return self.parameter_array(tuple(self.PARAMETERS))
 
     def parameter_array(self, names: tuple[str, ...]) -> Array:
         """Return the named parameters as a float array in that order (for the kernels)."""

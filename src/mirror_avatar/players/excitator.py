@@ -89,21 +89,10 @@ def rest_state(a: float, b: float) -> tuple[float, float]:
 
 
 class ExcitatorPartner(ModelPartner):
-    """A Jirsa-Kelso excitator partner (see the module docstring).
-
-    Parameters
-    ----------
-    options
-        Values of `PARAMETERS` by name; the others take their defaults.
-    label
-        Its name in sessions.
-    """
+    """A Jirsa-Kelso excitator partner (see the module docstring)."""
 
     PARAMETERS = PARAMETERS
-
-    def __init__(self, options: Mapping[str, float] | None = None, label: str = "") -> None:
-        super().__init__(options, label or "excitator (Jirsa & Kelso 2005)")
-        self.params = self.parameter_array(tuple(PARAMETERS))
+    NAME = "excitator (Jirsa & Kelso 2005)"
 
     def reset(self, seed: int | None = None) -> tuple[float, float]:
         """Start at rest on the rest state, clipped to the range (``seed`` changes nothing)."""

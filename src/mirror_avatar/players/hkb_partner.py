@@ -74,21 +74,10 @@ def hkb_partner_step(y: Array, params: Array, inputs: Array, period: float) -> N
 
 
 class HKBPartner(ModelPartner):
-    """A coupled HKB oscillator partner (see the module docstring).
-
-    Parameters
-    ----------
-    options
-        Values of `PARAMETERS` by name; the others take their defaults.
-    label
-        Its name in sessions.
-    """
+    """A coupled HKB oscillator partner (see the module docstring)."""
 
     PARAMETERS = PARAMETERS
-
-    def __init__(self, options: Mapping[str, float] | None = None, label: str = "") -> None:
-        super().__init__(options, label or "HKB oscillator (Haken, Kelso & Bunz 1985)")
-        self.params = self.parameter_array(tuple(PARAMETERS))
+    NAME = "HKB oscillator (Haken, Kelso & Bunz 1985)"
 
     def reset(self, seed: int | None = None) -> tuple[float, float]:
         """Start at rest at `START` (``seed`` changes nothing)."""

@@ -75,21 +75,14 @@ def kuramoto_step(
 
 
 class KuramotoPlayer(ModelPartner):
-    """A Kuramoto phase oscillator player (see the module docstring).
-
-    Parameters
-    ----------
-    options
-        Values of `PARAMETERS` by name; the others take their defaults.
-    label
-        Its name in sessions.
-    """
+    """A Kuramoto phase oscillator player (see the module docstring)."""
 
     PARAMETERS = PARAMETERS
+    NAME = "Kuramoto oscillator"
 
-    def __init__(self, options: Mapping[str, float] | None = None, label: str = "") -> None:
-        super().__init__(options, label or "Kuramoto oscillator")
-        self.params = self.parameter_array(("omega", "coupling", "amplitude"))
+    def kernel_parameters(self) -> Array:
+        """Return the natural frequency, coupling and amplitude, as the kernel reads them."""
+        return self.parameter_array(("omega", "coupling", "amplitude"))
 
     def reset(self, seed: int | None = None) -> tuple[float, float]:
         """Start at the initial phase, moving at the natural frequency (``seed`` unused)."""

@@ -78,23 +78,16 @@ def rpc_step(y: Array, params: Array, inputs: Array, t: float, period: float) ->
 
 
 class ReactivePredictivePlayer(ModelPartner):
-    """The reactive-predictive controller (see the module docstring).
-
-    Parameters
-    ----------
-    options
-        Values of `PARAMETERS` by name; the others take the published values.
-    label
-        Its name in sessions.
-    """
+    """The reactive-predictive controller (see the module docstring)."""
 
     PARAMETERS = PARAMETERS
+    NAME = "reactive-predictive (Noy et al. 2011)"
 
-    def __init__(self, options: Mapping[str, float] | None = None, label: str = "") -> None:
-        super().__init__(options, label or "reactive-predictive (Noy et al. 2011)")
+    def kernel_parameters(self) -> Array:
+        """Return the gain k, the learning rate lambda and the predictor's frequencies."""
         o = self.options
         omegas = np.linspace(o["omega_low"], o["omega_high"], N_FREQUENCIES)
-        self.params = np.concatenate([[o["k"], o["lam"]], omegas])
+        return np.concatenate([[o["k"], o["lam"]], omegas])
 
     def reset(self, seed: int | None = None) -> tuple[float, float]:
         """Start at rest at 0 with an empty predictor (``seed`` changes nothing)."""
