@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
-from mirror_avatar.lab.bids import read_bids_session
 from mirror_avatar.lab.inputs import BrowserInput
 from mirror_avatar.lab.plan import parse_plan
 from mirror_avatar.lab.trial import LabTrial, build_avatars
@@ -61,7 +60,7 @@ def test_export_then_evaluate_and_signature_read_it(lab_session, tmp_path, capsy
     motion = sorted(bids.glob("sub-*/motion/*_motion.tsv"))
     assert [p.parent.parent.name for p in motion] == ["sub-P1", "sub-P1", "sub-P2", "sub-P2"]
     recorded = load_session(lab_session / "trial-02_session.csv")
-    exported = read_bids_session(motion[1])
+    exported = load_session(motion[1])
     np.testing.assert_array_equal(exported.positions, recorded.positions)
     assert exported.labels == recorded.labels and exported.roles == recorded.roles
     assert main(["evaluate", str(motion[1]), "--out", str(tmp_path / "evaluated")]) == 0

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 import scipy.io
 
-from mirror_avatar.trial_io import MAT_DURATION, MAX_MAT_TRIALS
+from mirror_avatar.trial_files import MAT_DURATION
+from mirror_avatar.trial_io import MAX_MAT_TRIALS
 
 SAFETY_TIMEOUT = 300
 """Seconds after which a child that still runs is killed."""

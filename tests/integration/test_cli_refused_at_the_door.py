@@ -21,12 +21,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mirror_avatar.bids.writing import write_bids_motion
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import complete_graph
 from mirror_avatar.session import SessionWriter
 from mirror_avatar.specs import load_player
-from mirror_avatar.trial_io import write_bids_motion
 from mirror_avatar.user_files import MAX_PART_BYTES
 
 SAFETY_TIMEOUT = 300

@@ -18,7 +18,7 @@ from mirror_avatar.experiments.partner_benchmark import (
     run_benchmark,
 )
 from mirror_avatar.specs import bundled_generator
-from mirror_avatar.trial_io import write_trial
+from mirror_avatar.trial_files import write_trial
 from mirror_avatar.trials import Trial
 
 
