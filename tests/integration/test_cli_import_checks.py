@@ -119,3 +119,16 @@ def test_the_check_table_is_printed_wherever_trials_are_read(tmp_path: Path, cap
     assert status == 0
     assert "rate Hz" in out and "outside [-0.5, 0.5]" in out
     assert "have positions outside the playing range" in error
+
+
+def test_a_replayed_recording_off_the_range_is_warned_of(tmp_path: Path, capsys) -> None:
+    """A recording given as a player is clipped to the playing range: simulate says so."""
+    write_millimetres(tmp_path / "off.csv", (sway() + 0.4) * 600.0)
+    arguments = ["simulate", "--leader", str(tmp_path / "off.csv"), "--follower", "bundled:slow",
+                 "--duration", "20", "--seed", "1", *MM]  # fmt: skip
+    status, _, error = run(capsys, *arguments, "--out", str(tmp_path / "a"))
+    assert status == 0
+    assert "of the recording's positions lie outside the playing range [-0.5, 0.5]" in error
+    assert "--centre or --offset" in error
+    status, _, error = run(capsys, *arguments, "--centre", "--out", str(tmp_path / "b"))
+    assert status == 0 and "warning" not in error

@@ -31,7 +31,8 @@ MM_PER_UNIT = 600.0
 
 @pytest.fixture
 def lab(tmp_path: Path) -> Iterator[ServerThread]:
-    settings = LabSettings(out_dir=tmp_path, token=TOKEN, countdown=1, lsl=True)
+    # A tick of this busy test process may take long; ending the trial for it is not tested here.
+    settings = LabSettings(out_dir=tmp_path, token=TOKEN, countdown=1, lsl=True, max_tick=10.0)
     with ServerThread(create_lab_app(settings)) as running:
         yield running
 
@@ -41,15 +42,17 @@ def sine_mm(t: np.ndarray | float) -> np.ndarray | float:
     return AMPLITUDE_MM * np.sin(2 * np.pi * FREQUENCY_HZ * t + PHASE)
 
 
-def publish_sine(name: str, stop: threading.Event) -> None:
-    """A hand tracker: the sine in millimetres, two channels, at 250 Hz, LSL-time-stamped."""
+def publish_sine(name: str, stop: threading.Event, sent: list[tuple[float, float]]) -> None:
+    """A hand tracker: the sine in millimetres, two channels, at 250 Hz, LSL-time-stamped;
+    appends each sample's (LSL time, mm) to ``sent`` before pushing it."""
     info = pylsl.StreamInfo(name, "Position", 2, RATE_HZ, pylsl.cf_double64, name)
     outlet = pylsl.StreamOutlet(info)
     began = time.monotonic()
     n = 0
     while not stop.is_set():
         now = pylsl.local_clock()
-        outlet.push_sample([0.0, float(sine_mm(now))], now)
+        sent.append((now, float(sine_mm(now))))
+        outlet.push_sample([0.0, sent[-1][1]], now)
         n += 1
         time.sleep(max(0.0, began + n / RATE_HZ - time.monotonic()))
 
@@ -65,7 +68,8 @@ def fit_sine(t: np.ndarray, x: np.ndarray) -> tuple[float, float]:
 def test_an_lsl_stream_plays_a_participant(lab, tmp_path):
     name = f"tracker-{uuid.uuid4().hex[:8]}"
     stop = threading.Event()
-    tracker = threading.Thread(target=publish_sine, args=(name, stop), daemon=True)
+    sent: list[tuple[float, float]] = []
+    tracker = threading.Thread(target=publish_sine, args=(name, stop, sent), daemon=True)
     tracker.start()
     try:
         lsl_person = {"stream": name, "channel": 1, "scale": 1 / MM_PER_UNIT}
@@ -91,14 +95,23 @@ def test_an_lsl_stream_plays_a_participant(lab, tmp_path):
         rows = list(csv.DictReader(file))
     clock = np.array([float(row["clock_s"]) for row in rows])
     x = session.positions[0]
-    # The tracker is a Python thread of this busy test process: under load it can miss a few
-    # of the 30 ms ticks (held, the last sample kept), and the fit below still holds tightly.
-    assert session.n_samples == 134 and session.metadata["held"]["H1"] <= 0.1 * 134
+    # The tracker is a Python thread of this busy test process: under load it misses some of
+    # the 30 ms ticks (held, the last sample kept), as many as the load makes; the inputs log
+    # counts them as the session does, and the fit below still holds tightly.
+    held = [row["held_H1"] for row in rows]
+    assert session.n_samples == 134 and session.metadata["held"]["H1"] == held.count("1")
     amplitude, phase = fit_sine(clock, x)
     assert amplitude == pytest.approx(AMPLITUDE_MM / MM_PER_UNIT, rel=0.01)
     assert abs(np.angle(np.exp(1j * (phase - PHASE)))) < 0.01 * 2 * np.pi
+    # How far a tick's position is from the tracker's at the tick's clock depends on how late
+    # the busy test process published and pulled samples: not asserted. What holds on any
+    # clock: every position recorded is a sample the tracker published before the tick.
+    stamps, published = (np.array(column) for column in zip(*sent, strict=True))
+    for tick_clock, position in zip(clock, x, strict=True):
+        earlier = published[stamps <= tick_clock] / MM_PER_UNIT
+        assert np.min(np.abs(earlier - position)) < 1e-12, (tick_clock, position)
     error = np.abs(x - sine_mm(clock) / MM_PER_UNIT)  # at most 0.8 units/s: 0.003 per 4 ms
-    assert np.median(error) < 0.003 and error.max() < 0.03
+    assert np.median(error) < 0.003
 
 
 def test_the_sessions_outlet_carries_every_sample_of_every_player(lab, tmp_path):

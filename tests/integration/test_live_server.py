@@ -48,6 +48,8 @@ class Browser:
         self.ws = ws
         self.seq = 0
         self.messages: list[dict[str, Any]] = []
+        self.sent: list[float] = []  # when each position went out (monotonic s)
+        self.replies: list[tuple[float, float]] = []  # (monotonic s, the trial's progress)
         self.ready = self.receive()
 
     def receive(self, timeout: float = 5.0) -> dict[str, Any]:
@@ -65,9 +67,12 @@ class Browser:
     def position(self, x: float) -> dict[str, Any]:
         """Send one position and return the server's answer to it."""
         self.seq += 1
+        self.sent.append(time.monotonic())
         self.send({"type": "position", "seq": self.seq, "x": x, "rtt": 1.0})
         while True:
             message = self.receive()
+            if message["type"] == "avatar":
+                self.replies.append((time.monotonic(), message["progress"]))
             if message["type"] in ("avatar", "error"):
                 return message
 
@@ -143,6 +148,20 @@ def sidecars(tmp_path: Path) -> list[dict[str, Any]]:
     return [record["metadata"] | {"n_samples": record.get("n_samples")} for record in records]
 
 
+def observed_tolerance(player: Browser, n_ticks: int) -> float:
+    """How far (units) a recorded sample may be from `sway` at its time, from this run's clocks.
+
+    The server keeps the last position sent, at most the longest gap between two sends old;
+    and its ticks are late by an amount the lag search removes only where it is constant: its
+    spread is read from the replies (ticks done, from their progress, against the client's
+    clock; over-estimated by up to one tick). Both times the sway's top speed.
+    """
+    speed = 0.3 * 2 * math.pi * 0.5
+    replies = np.array([(t, p) for t, p in player.replies if 0.0 < p < 1.0])
+    late = replies[:, 0] - replies[:, 1] * n_ticks * CONTROL_PERIOD
+    return speed * (float(np.diff(player.sent).max()) + float(np.ptp(late)))
+
+
 def test_solo_trial_is_recorded_as_a_trial_csv(live, tmp_path):
     player = live.open(live.serve())
     assert player.ready["modes"] == ["solo", "avatar_leads", "avatar_follows", "joint"]
@@ -160,10 +179,14 @@ def test_solo_trial_is_recorded_as_a_trial_csv(live, tmp_path):
     # the recorded trace is the sent one, up to the delay between client and server clocks
     lags = np.arange(0.0, 0.2, 0.005)
     errors = [np.abs(data[:, 1] - [sway(t - lag) for t in data[:, 0]]).max() for lag in lags]
-    assert min(errors) < 0.04
+    assert min(errors) < observed_tolerance(player, data.shape[0])
     trial = make_trial(data[:, 0], data[:, 1])
     assert trial.rate == pytest.approx(1 / CONTROL_PERIOD)
-    assert summary["round_trip_ms"]["n"] > 40 and summary["seed"] >= 0
+    # one round trip per position the server received while the trial ran (as many as the
+    # client managed to send: fewer on a busy machine)
+    during = sum(0.0 < progress < 1.0 for _, progress in player.replies)
+    assert during > 0 and abs(summary["round_trip_ms"]["n"] - during) <= 1
+    assert summary["seed"] >= 0
     assert summary["metrics"]["person_speed"] == pytest.approx(0.6, rel=0.15)
 
 

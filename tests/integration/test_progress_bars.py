@@ -25,7 +25,12 @@ COMMANDS = {
     "train dqn": (["train", "--target", "bundled:fast", "--partners", "bundled:slow", "--agent",
                    "dqn", "--sessions", "6", "--duration", "10", "--jobs", "1",
                    "--out", "{out}/d.npz"], "training:", "6/6"),
+    "group train": (["group", "train", "--target", "bundled:slow", "--player", "bundled:fast",
+                     "--player", "bundled:slow", "--sessions", "3", "--duration", "5", "--jobs",
+                     "1", "--out", "{out}/g.npz"], "training:", "3/3"),
     "signature": (["signature", "--bundled", "--out", "{out}/s"], "signatures:", "18/18"),
+    "curriculum": (["curriculum", "--patient", "bundled:slow", "--target", "bundled:fast",
+                    "--stages", "2", "--out", "{out}/c"], "curriculum stages:", "4/4"),
 }  # fmt: skip
 """Command, the bar's label, and its last count."""
 

@@ -73,3 +73,9 @@ def test_reproduce_on_three_people_casts_them_by_name(tmp_path, zhai_trials):
     assert list(metrics["group"]["members"].values()) == ["alice", "carol", "bob"]
     html = (tmp_path / "report" / "report.html").read_text()
     assert "learning to move like bob" in html and "a group of 3" in html
+
+
+def test_quick_and_full_are_one_or_the_other(tmp_path, capsys):
+    assert main(["reproduce", "--out", str(tmp_path / "r"), "--quick", "--full"]) == 2
+    assert "give --quick or --full, not both" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()

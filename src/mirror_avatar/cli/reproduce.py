@@ -13,7 +13,8 @@ import click
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.experiments import AGENT_EXPERIMENTS, EXPERIMENTS
+from mirror_avatar.errors import InputError
+from mirror_avatar.experiments import AGENT_EXPERIMENTS, EXPERIMENTS, SWEEPS
 from mirror_avatar.importing import ImportOptions
 from mirror_avatar.learning.acceleration_player import Agent
 from mirror_avatar.report import REPORT_FILES, write_report
@@ -29,6 +30,12 @@ from mirror_avatar.training.agents import AGENTS
     help="Directory for report.html and metrics.json.",
 )
 @click.option("--quick", is_flag=True, help="Smaller runs, for a check in a few minutes.")
+@click.option(
+    "--full",
+    is_flag=True,
+    help=f"Also run the long sweeps ({', '.join(sorted(SWEEPS))}) at full size: tens of "
+    "minutes more.",
+)
 @click.option(
     "--seed",
     type=click.IntRange(min=0),
@@ -60,6 +67,7 @@ from mirror_avatar.training.agents import AGENTS
 def reproduce(
     out_dir: Path,
     quick: bool,
+    full: bool,
     seed: int,
     data: tuple[Path, ...],
     agent: Agent,
@@ -69,8 +77,11 @@ def reproduce(
 ) -> None:
     """Run the paper's validations on the bundled (or given) data and write the report.
 
-    Trials given with --data are grouped by --group-by (default: the folder they are in).
+    Trials given with --data are grouped by --group-by (default: the folder they are in). The
+    long sweeps run at their quick size unless --full is given.
     """
+    if quick and full:
+        raise InputError("--full", "give --quick or --full, not both")
     check_output_dir(out_dir, files=REPORT_FILES)
     trials = read_and_report(data, group_by, options) if data else load_zhai2017()
     started = time.perf_counter()
@@ -79,15 +90,17 @@ def reproduce(
         click.echo(f"reproduce: {name} ({number}/{len(EXPERIMENTS)}) ...", err=True)
         begun = time.perf_counter()
         choice = {"agent": agent, "scheduler": scheduler} if name in AGENT_EXPERIMENTS else {}
-        sections.append(run(trials, quick=quick, seed=seed, **choice))
+        small = quick or (name in SWEEPS and not full)
+        sections.append(run(trials, quick=small, seed=seed, **choice))
         timings[name] = round(time.perf_counter() - begun, 3)
         click.echo(f"reproduce: {name} done in {timings[name]:.0f} s", err=True)
     metadata = {
         "version": version("mirror-avatar"),
-        "command": _command_line(out_dir, quick, seed, data, agent),
+        "command": _command_line(out_dir, quick, full, seed, data, agent),
         "seed": seed,
         "agent": agent,
         "quick": quick,
+        "sweeps": "full" if full else "quick",
         "data": [str(path) for path in data] or "bundled zhai2017",
         "n_trials": len(trials),
         "date": datetime.now(UTC).isoformat(timespec="seconds"),
@@ -100,9 +113,11 @@ def reproduce(
     click.echo(str(path))
 
 
-def _command_line(out_dir: Path, quick: bool, seed: int, data: tuple[Path, ...], agent: str) -> str:
+def _command_line(
+    out_dir: Path, quick: bool, full: bool, seed: int, data: tuple[Path, ...], agent: str
+) -> str:
     words = ["mirror-avatar", "reproduce", "--out", str(out_dir), "--seed", str(seed)]
-    words += ["--quick"] * quick + ["--agent", agent] * (agent != "tabular")
+    words += ["--quick"] * quick + ["--full"] * full + ["--agent", agent] * (agent != "tabular")
     for path in data:
         words += ["--data", str(path)]
     return shlex.join(words)

@@ -20,7 +20,7 @@ from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import render_png
 from mirror_avatar.session import Session
 from mirror_avatar.specs import load_player
-from mirror_avatar.trials import Trial
+from mirror_avatar.trials import PLAYING_RANGE, Trial
 
 METRIC_ROWS = (
     ("phase_locking", "CV (phase locking, 0-1)", ""),
@@ -127,8 +127,17 @@ def check_recordings(
 
     A recording's length is the span of its samples, first to last; one short of the session
     by at most one of its sampling intervals (or one control period) is its full length: 600
-    samples at 10 Hz span 59.9 s and make a 60 s recording.
+    samples at 10 Hz span 59.9 s and make a 60 s recording. A replayed recording whose
+    positions leave the playing range (they are clipped) is warned of on standard error.
     """
+    for player, spec in zip(players, specs, strict=True):
+        if isinstance(player, RecordedPlayer) and player.outside > 0:
+            click.echo(
+                f"warning: {spec}: {player.outside:.1%} of the recording's positions lie outside "
+                f"the playing range [{PLAYING_RANGE[0]:g}, {PLAYING_RANGE[1]:g}] and are held at "
+                "its edge: move them with --centre or --offset",
+                err=True,
+            )
     if extend:
         return
     for player, spec in zip(players, specs, strict=True):

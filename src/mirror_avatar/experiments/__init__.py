@@ -30,6 +30,10 @@ EXPERIMENTS: list[tuple[str, Callable[..., Section]]] = [
 ]
 """(name, run) pairs in report order; ``run(trials, quick=False, seed=0) -> Section``."""
 
+SWEEPS = frozenset({"generator_complexity", "curriculum"})
+"""The long sweeps: ``reproduce`` runs them at their quick size unless ``--full`` is given (at full
+size they take most of a full run's time)."""
+
 AGENT_EXPERIMENTS = frozenset({"cyber_player", "group"})
 """The experiments that train a cyber player; their ``run`` also takes ``agent`` ("tabular" or
 "dqn") and ``scheduler`` (a Dask scheduler's address, or None for local threads)."""

@@ -23,7 +23,7 @@ from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.engine.loop import count_samples
 from mirror_avatar.experiments.cyber_player import measure
 from mirror_avatar.figures import HUMAN_KURTOSIS, HUMAN_SKEWNESS
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.generator import PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.metrics import TRIM
 from mirror_avatar.players import VirtualTrainer
 from mirror_avatar.progress import counted
@@ -48,7 +48,9 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
         Solo trials grouped by person or style (at least two groups of two trials; otherwise
         the section says it was skipped).
     quick
-        `QUICK_STAGES` stages, `QUICK_DRAWS` draws and `QUICK_SESSIONS` sessions.
+        `QUICK_STAGES` stages, `QUICK_DRAWS` draws and `QUICK_SESSIONS` sessions, and the
+        people's generators with the paper's fixed codebook (`PAPER_SYMBOLS`) instead of one
+        chosen by cross-validation (most of the section's time).
     seed
         Seeds the generators, the drawn motion and the sessions.
     """
@@ -60,11 +62,21 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
         return Section("curriculum", TITLE, ["Skipped: it needs two groups of two trials."])
     patient, target = (groups[name] for name in people)
     sizes = (QUICK_STAGES, QUICK_DRAWS, QUICK_SESSIONS) if quick else (STAGES, N_DRAWS, N_SESSIONS)
-    fitted = [IMSGenerator(rate=DEFAULT_RATE, random_state=seed).fit(t) for t in (patient, target)]
+    symbols = PAPER_SYMBOLS if quick else "auto"
+    fitted = [
+        IMSGenerator(symbols, rate=DEFAULT_RATE, random_state=seed).fit(t)
+        for t in (patient, target)
+    ]
     by_role: dict[str, Sequence[Trial]] = {"patient": patient, "target": target}
     table = measure_stages(fitted[0], fitted[1], by_role, *sizes, seed=seed)
     own = {"patient": own_emd(patient), "target": own_emd(target)}
-    return curriculum_section(table, own, people[0], people[1])
+    section = curriculum_section(table, own, people[0], people[1])
+    section.text.append(
+        f"The people's generators have the paper's {PAPER_SYMBOLS} symbols (a quick run)."
+        if quick
+        else "The people's generators have the codebook size chosen by cross-validation."
+    )
+    return section
 
 
 def curriculum_section(

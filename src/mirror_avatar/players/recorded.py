@@ -56,13 +56,18 @@ class RecordedPlayer(Player):
     recording : tuple of float
         The recording's span from first to last sample and its mean sampling interval as
         recorded (s, `Trial.recorded_step`).
+    outside : float
+        Share of the control grid's positions that lay outside `PLAYING_RANGE` and were
+        clipped to it.
     """
 
     def __init__(self, trial: Trial, period: float = CONTROL_PERIOD) -> None:
         offsets = trial.times - trial.times[0]
         n_steps = int(math.floor(offsets[-1] / period)) + 1
         grid = np.arange(n_steps) * period
-        positions = np.clip(np.interp(grid, offsets, trial.positions), *PLAYING_RANGE)
+        recorded = np.interp(grid, offsets, trial.positions)
+        positions = np.clip(recorded, *PLAYING_RANGE)
+        self.outside = float(np.mean(positions != recorded))
         self.track = np.vstack([positions, np.interp(grid, offsets, trial.velocity())])
         self.period = period
         self.recording = (float(offsets[-1]), trial.recorded_step)
@@ -78,6 +83,7 @@ class RecordedPlayer(Player):
         player.track = np.vstack([positions, velocities]).astype(np.float64)
         player.period = period
         player.recording = ((player.track.shape[1] - 1) * period, period)
+        player.outside = 0.0
         player.label = label
         player.source = ""
         return player
