@@ -24,7 +24,7 @@ from mirror_avatar.dynamics import CONTROL_PERIOD, HKBParams
 from mirror_avatar.errors import InputError
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.kernels import VELOCITY_WEIGHT
-from mirror_avatar.live.server import listening_socket, make_server
+from mirror_avatar.realtime.transport import listening_socket, make_server
 from mirror_avatar.session import Session
 from mirror_avatar.trials import Trial
 
