@@ -146,9 +146,15 @@ class LabTrial(ClockedTrial):
             clock,
             [self._remember],
         )
-        self.writer.annotate(
-            {"player_seeds": self.engine.player_seeds, "players": [p.describe() for p in players]}
-        )
+        players_now = {
+            "player_seeds": self.engine.player_seeds,
+            "players": [p.describe() for p in players],
+        }
+        try:
+            self.writer.annotate(players_now)
+        except OSError:
+            self.finish(False, "the trial's files could not be written")
+            raise
 
     def _metadata(self, lab: dict[str, Any], period: float) -> dict[str, Any]:
         slots = [
