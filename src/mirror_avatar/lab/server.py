@@ -276,6 +276,7 @@ class LabApi:
         self.lab = lab
 
     def _session(self, request: Request) -> LabSession:
+        self.lab.forget_ended()
         session = self.lab.sessions.get(request.path_params["sid"])
         if session is None:
             raise ApiError(404, "no such session")
@@ -284,6 +285,7 @@ class LabApi:
     async def sessions(self, request: Request) -> Response:
         """List the sessions, or create one from the plan in the body."""
         if request.method == "GET":
+            self.lab.forget_ended()
             return _json(
                 {"sessions": [self._status(s, request) for s in self.lab.sessions.values()]}
             )
