@@ -276,7 +276,7 @@ class Connection:
         finally:
             if self.ticker is not None:
                 self.ticker.cancel()
-            self.end_trial(False, "connection closed")
+            await self.end_trial(False, "connection closed")
             await self.close_outbox()
 
     def evict(self) -> None:
@@ -325,7 +325,7 @@ class Connection:
         elif isinstance(request, StopRequest):
             if self.ticker is not None:
                 self.ticker.cancel()
-            summary = self.end_trial(False, "stopped by the participant")
+            summary = await self.end_trial(False, "stopped by the participant")
             if summary is not None:
                 self.send({"type": "done", "summary": summary})
         elif trial is not None:
@@ -367,7 +367,7 @@ class Connection:
             logger.exception("trial failed")
             if self.trial is not trial:
                 return
-            self.end_trial(False, f"server error: {type(error).__name__}")
+            await self.end_trial(False, f"server error: {type(error).__name__}")
             self.send({"type": "error", "message": "server error: trial saved as incomplete"})
 
     async def _run_trial(self, trial: LiveTrial) -> None:
@@ -387,7 +387,7 @@ class Connection:
         complete, reason = await run_on_clock(trial, self.limits, stop_reason)
         if self.trial is not trial:
             return
-        summary = self.end_trial(complete, reason)
+        summary = await self.end_trial(complete, reason)
         if reason == stale:
             self.outbox.end(CLOSE_STALE, "no position received: trial saved as incomplete")
             self.drop()
@@ -422,10 +422,15 @@ class Connection:
         self.avatar_spec = str(path)
         self.send({"type": "built", "avatar": path.name, "modes": list(MODES)})
 
-    def end_trial(self, complete: bool, reason: str) -> dict[str, Any] | None:
-        """Finish and save the running trial, if any, and return its sidecar."""
+    async def end_trial(self, complete: bool, reason: str) -> dict[str, Any] | None:
+        """Finish and save the running trial, if any, and return its sidecar.
+
+        The metrics are computed in a worker thread: a long trial's end stalls no one else.
+        """
         trial, self.trial = self.trial, None
-        return None if trial is None else trial.finish(complete, reason)
+        if trial is None:
+            return None
+        return await asyncio.to_thread(trial.finish, complete, reason)
 
     def reject(self, problem: str) -> bool:
         """Answer a bad message with an error; return False once the connection is closing."""
