@@ -7,6 +7,7 @@ from __future__ import annotations
 import asyncio
 import csv
 import json
+import math
 import os
 import signal
 import subprocess
@@ -22,10 +23,14 @@ from test_lab_server import BEARER, DYAD, TOKEN, Page, command, create, status, 
 from websockets.sync.client import connect
 
 from mirror_avatar.deep.player import MAX_LAYERS, MAX_UNITS, DeepCyberPlayer
+from mirror_avatar.dynamics import CONTROL_PERIOD
+from mirror_avatar.lab.plan import MAX_PLAYERS
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.players import Player
+from mirror_avatar.realtime.clock import time_players
 from mirror_avatar.session import load_session
+from mirror_avatar.specs import load_player
 from mirror_avatar.testing import ServerThread
 
 
@@ -99,20 +104,21 @@ def slow_network(path: Path) -> str:
 
 
 def test_a_lab_session_whose_avatars_cannot_step_in_time_is_refused_at_creation(tmp_path):
+    """As many of the largest legal DQN avatars as need, on this machine, three times the control
+    period per step (measured here first): the plan is refused when the session is created."""
     spec = slow_network(tmp_path / "slow.npz")
+    (one,) = time_players([load_player(spec, "group")], steps=5)
+    n = min(MAX_PLAYERS - 1, max(2, math.ceil(3 * CONTROL_PERIOD / one)))
+    avatars = [{"label": f"A{k}", "kind": "avatar", "spec": spec} for k in range(n)]
     plan = {
         "condition": "group",
         "duration": 10.0,
-        "players": [
-            {"label": "P1", "kind": "human"},
-            {"label": "A1", "kind": "avatar", "spec": spec},
-            {"label": "A2", "kind": "avatar", "spec": spec},
-        ],
+        "players": [{"label": "P1", "kind": "human"}, *avatars],
     }
     settings = LabSettings(out_dir=tmp_path / "out", token=TOKEN)
     with ServerThread(create_lab_app(settings)) as lab:
-        refused = httpx.post(f"{lab.url}/api/sessions", json=plan, headers=BEARER, timeout=120)
-        assert refused.status_code == 400
+        refused = httpx.post(f"{lab.url}/api/sessions", json=plan, headers=BEARER, timeout=300)
+        assert refused.status_code == 400, refused.text
         error = refused.json()["error"]
         assert error.startswith("players[") and "ms per step on this machine" in error
         assert "over the control period of 30 ms" in error
