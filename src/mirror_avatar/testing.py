@@ -182,7 +182,7 @@ class ServerThread:
 
     def __init__(self, app: ASGIApp, host: str = "127.0.0.1") -> None:
         # Imported here so that the rest of this module works without the live extra.
-        from mirror_avatar.live.server import listening_socket, make_server
+        from mirror_avatar.realtime.transport import listening_socket, make_server
 
         self.socket = listening_socket(host, 0)
         self.host, self.port = self.socket.getsockname()[:2]

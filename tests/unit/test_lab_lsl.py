@@ -16,8 +16,8 @@ import pytest
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.inputs import HumanPlayer
 from mirror_avatar.lab.lsl import UNIT, LslInput, SessionOutlet
+from mirror_avatar.realtime.inputs import HumanPlayer
 
 pylsl = pytest.importorskip("pylsl")
 
@@ -263,6 +263,9 @@ def test_input_clips_to_the_playing_range_and_skips_invalid_values() -> None:
         "nominal_rate": 0.0,
         "scale": 1.0,
         "offset": 0.42,
+        "received": 6,
+        "invalid": 1,
+        "clipped": 3,
     }
     json.dumps(description)
 

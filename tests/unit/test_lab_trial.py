@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from mirror_avatar.engine.loop import Engine
-from mirror_avatar.lab.inputs import BrowserInput, HumanPlayer
 from mirror_avatar.lab.plan import parse_plan
 from mirror_avatar.lab.trial import LabTrial, build_avatars
+from mirror_avatar.realtime.inputs import BrowserInput, HumanPlayer
 from mirror_avatar.session import load_session
 from mirror_avatar.specs import load_player
 

@@ -10,13 +10,13 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from mirror_avatar.live.protocol import (
-    MAX_MESSAGE_BYTES,
     PositionUpdate,
     ProtocolError,
     StartRequest,
     StopRequest,
     parse_message,
 )
+from mirror_avatar.realtime.messages import MAX_MESSAGE_BYTES
 
 
 def test_valid_messages_are_parsed():

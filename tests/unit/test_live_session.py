@@ -12,13 +12,13 @@ import pytest
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.live.protocol import StartRequest
 from mirror_avatar.live.session import (
-    RoundTrips,
     compute_trial_metrics,
     compute_trial_traces,
     start_trial,
 )
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.players import Player
+from mirror_avatar.realtime.latency import RoundTrips
 from mirror_avatar.session import Session, load_session
 from mirror_avatar.trials import make_trial
 

@@ -31,7 +31,7 @@ def lab(ctx: click.Context, host: str, port: int, out_dir: Path, lsl: bool | Non
     if ctx.invoked_subcommand is not None:
         return
     from mirror_avatar.lab.server import LabSettings, create_lab_app
-    from mirror_avatar.live.server import listening_socket, make_server, make_token
+    from mirror_avatar.realtime.transport import listening_socket, make_server, make_token
 
     check_output_dir(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

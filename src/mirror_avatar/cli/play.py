@@ -93,15 +93,10 @@ def play(
     is played: the person's trial as CSV (time,position), a session CSV with both players in the
     avatar modes, and a JSON sidecar; an interrupted trial is kept and marked incomplete.
     """
-    from mirror_avatar.live.admission import is_loopback
-    from mirror_avatar.live.server import (
-        LiveSettings,
-        create_app,
-        listening_socket,
-        make_server,
-        make_token,
-    )
+    from mirror_avatar.live.server import LiveSettings, create_app
     from mirror_avatar.live.session import DEFAULT_AVATAR, make_avatar_factory
+    from mirror_avatar.realtime.gates import is_loopback
+    from mirror_avatar.realtime.transport import listening_socket, make_server, make_token
 
     spec = avatar_spec or DEFAULT_AVATAR
     token = make_token() if require_token or not is_loopback(host) else None

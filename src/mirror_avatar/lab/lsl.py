@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.inputs import Sample
+from mirror_avatar.realtime.inputs import Sample
 from mirror_avatar.trials import PLAYING_RANGE
 
 STREAM_TYPE = "Position"
@@ -238,6 +238,9 @@ class LslInput:
         Position (units) of the stream value 0.
     timeout
         Longest wait (s) to find the stream, open it and get its first clock offset.
+    source_id
+        The stream's source id, when several streams share its name (None: the name must be
+        unique on the network).
 
     Attributes
     ----------
@@ -247,8 +250,9 @@ class LslInput:
     Raises
     ------
     InputError
-        If pylsl is missing, no stream of that name is found within ``timeout``, ``channel`` is
-        not one of its channels, its channels are not numbers, or it cannot be opened.
+        If pylsl is missing, no stream of that name is found within ``timeout``, several are
+        and no ``source_id`` says which (the error lists them), ``channel`` is not one of its
+        channels, its channels are not numbers, or it cannot be opened.
 
     Notes
     -----
@@ -267,11 +271,12 @@ class LslInput:
         scale: float = 1.0,
         offset: float = 0.0,
         timeout: float = 5.0,
+        source_id: str | None = None,
     ) -> None:
         _check_mapping(stream, scale, offset, timeout)
         pylsl = _import_pylsl(_where(stream))
         self.stream, self.channel, self.scale, self.offset = stream, channel, scale, offset
-        info = _resolve(pylsl, stream, channel, timeout)
+        info = _resolve(pylsl, stream, channel, timeout, source_id)
         self._inlet: Any = pylsl.StreamInlet(info, max_buflen=10)
         self._info, correction = _open_inlet(self._inlet, stream, timeout)
         self._lock = threading.Lock()
@@ -341,10 +346,16 @@ class LslInput:
         -------
         dict
             ``stream``, ``type``, ``source_id``, ``hostname``, ``channel``, ``channel_count``,
-            ``nominal_rate`` (Hz, 0 for an irregular stream), ``scale`` (units per stream unit)
-            and ``offset`` (units).
+            ``nominal_rate`` (Hz, 0 for an irregular stream), ``scale`` (units per stream unit),
+            ``offset`` (units), and the samples ``received``, ``invalid`` and ``clipped`` so far.
         """
-        return {
+        with self._lock:
+            counts = {
+                "received": self._n_received,
+                "invalid": self._invalid,
+                "clipped": self._clipped,
+            }
+        return counts | {
             "stream": self.stream,
             "type": self._info.type(),
             "source_id": self._info.source_id(),
@@ -429,12 +440,36 @@ def _check_mapping(stream: str, scale: float, offset: float, timeout: float) -> 
         raise InputError(where, f"timeout must be positive (s), got {timeout}")
 
 
-def _resolve(pylsl: Any, stream: str, channel: int, timeout: float) -> Any:
-    """Find the stream by name and check that ``channel`` is one of its numeric channels."""
+RESOLVE_WAIT = 0.5
+"""Seconds the resolution keeps listening after the first stream of the name answers, so that
+a second stream of the same name is seen too."""
+
+
+def _resolve(
+    pylsl: Any, stream: str, channel: int, timeout: float, source_id: str | None = None
+) -> Any:
+    """Find the stream by name (and source id) and check that ``channel`` is a numeric one.
+
+    Several streams of the name without a ``source_id`` choosing one are refused, naming each
+    stream's source id and host.
+    """
     where = _where(stream)
     found = pylsl.resolve_byprop("name", stream, timeout=timeout)
     if not found:
         raise InputError(where, f"no stream of that name found on the network within {timeout} s")
+    found = (
+        pylsl.resolve_byprop("name", stream, minimum=len(found) + 1, timeout=RESOLVE_WAIT) or found
+    )
+    if source_id is not None:
+        found = [info for info in found if info.source_id() == source_id]
+        if not found:
+            raise InputError(where, f"no stream of that name has source id {source_id!r}")
+    if len(found) > 1:
+        listed = "; ".join(f"source id {i.source_id()!r} on {i.hostname()}" for i in found)
+        raise InputError(
+            where,
+            f"{len(found)} streams have this name ({listed}): give the plan's lsl.source_id",
+        )
     info = found[0]
     count = info.channel_count()
     if not 0 <= channel < count:

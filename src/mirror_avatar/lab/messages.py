@@ -1,6 +1,6 @@
 """Messages between a participant's page and the lab server, and their validation.
 
-The page sends JSON text messages (at most `mirror_avatar.live.protocol.MAX_MESSAGE_BYTES`):
+The page sends JSON text messages (at most `mirror_avatar.realtime.messages.MAX_MESSAGE_BYTES`):
 
 - ``{"type": "position", "seq": n, "x": x}``: the pointer's latest position (units), numbered
   ``n`` from 0 on each connection, sent once per animation frame while a trial runs;
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from mirror_avatar.live.protocol import (
+from mirror_avatar.realtime.messages import (
     PositionUpdate,
     ProtocolError,
     parse_json_object,

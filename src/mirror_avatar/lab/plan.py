@@ -26,7 +26,8 @@ import numpy as np
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import TOPOLOGIES, Graph, check_graph, complete_graph, make_graph
-from mirror_avatar.live.protocol import PARTICIPANT_PATTERN
+from mirror_avatar.realtime.clock import MAX_LATENESS
+from mirror_avatar.realtime.messages import PARTICIPANT_PATTERN
 
 CONDITIONS = ("solo", "leader_follower", "joint", "group")
 """Kinds of lab session."""
@@ -46,6 +47,9 @@ MAX_TRIALS = 100
 MAX_PAUSE = 600.0
 """Longest pause between trials (s)."""
 
+LATENESS_RANGE = (0.03, 10.0)
+"""Smallest and largest bound on a tick's lateness a plan may set (s)."""
+
 MAX_SPEC_CHARS = 1024
 """Longest avatar spec or LSL stream name (characters)."""
 
@@ -63,12 +67,16 @@ class LslDevice:
     scale, offset
         Unit mapping to the playing range: for a tracker in millimetres with 600 mm across the
         range, ``scale = 1/600``.
+    source_id
+        The stream's source id, to choose among streams of the same name (None: the name
+        must be unique on the network).
     """
 
     stream: str
     channel: int = 0
     scale: float = 1.0
     offset: float = 0.0
+    source_id: str | None = None
 
 
 @dataclass(frozen=True)
@@ -120,7 +128,11 @@ class SessionPlan:
         Whether participants see the trial's metrics on their end screen.
     on_drop
         What a trial does when a person's connection drops: ``"continue"`` (their position is
-        held, and the researcher may stop the trial) or ``"stop"``.
+        held, and the researcher may stop the trial) or ``"stop"``; an input that stops
+        delivering (`mirror_avatar.realtime.inputs.LIVENESS_TIMEOUT`) counts as dropped.
+    max_lateness
+        Seconds a tick may come after its deadline before the trial is ended as unable to keep
+        its clock (`mirror_avatar.realtime.clock.MAX_LATENESS` by default).
     seed
         The session's seed; trial n's seed is spawned from it.
     """
@@ -134,6 +146,7 @@ class SessionPlan:
     pause: float = 5.0
     show_metrics: bool = True
     on_drop: str = "continue"
+    max_lateness: float = MAX_LATENESS
     seed: int = field(default_factory=lambda: secrets.randbits(63))
 
     @property
@@ -182,9 +195,9 @@ def parse_plan(data: object) -> SessionPlan:
     ----------
     data
         ``{"condition", "players": [slot...], "graph", "leaders", "duration", "trials",
-        "pause", "show_metrics", "on_drop", "seed"}``; all but ``condition`` and ``players``
-        are optional (graph: complete; one 60 s trial; 5 s pauses; metrics shown; a drop
-        continues; a drawn seed).
+        "pause", "show_metrics", "on_drop", "max_lateness", "seed"}``; all but ``condition`` and
+        ``players`` are optional (graph: complete; one 60 s trial; 5 s pauses; metrics shown; a
+        drop continues; `MAX_LATENESS`; a drawn seed).
 
     Raises
     ------
@@ -214,6 +227,7 @@ def parse_plan(data: object) -> SessionPlan:
         pause=_number(data, "pause", 5.0, (0.0, MAX_PAUSE)),
         show_metrics=_flag(data, "show_metrics", True),
         on_drop=_choice(data, "on_drop", ("continue", "stop")),
+        max_lateness=_number(data, "max_lateness", MAX_LATENESS, LATENESS_RANGE),
         seed=int(_number(data, "seed", secrets.randbits(63), (0, 2**63 - 1), integer=True)),
     )
     return plan
@@ -259,7 +273,12 @@ def _parse_lsl(item: object, k: int) -> LslDevice:
     if scale == 0.0:
         raise _error(f"{where}.scale must not be 0")
     offset = _number(item, "offset", 0.0, (-1e6, 1e6), where=where)
-    return LslDevice(stream, channel, scale, offset)
+    source_id = item.get("source_id")
+    if source_id is not None and not (
+        isinstance(source_id, str) and 0 < len(source_id) <= MAX_SPEC_CHARS
+    ):
+        raise _error(f"{where}.source_id must be the stream's source id")
+    return LslDevice(stream, channel, scale, offset, source_id)
 
 
 def _check_labels(slots: tuple[Slot, ...]) -> None:

@@ -3,14 +3,19 @@
 A `LabSession` runs the trials of a `mirror_avatar.lab.plan.SessionPlan` one after another
 (countdown, trial, end screen, pause) when the researcher starts it. Its clock ticks every
 control period T on absolute deadlines: each tick advances the `mirror_avatar.lab.trial.
-LabTrial` in a worker thread from the positions last received, then sends every connected
-participant a frame with the players it sees. Frames go through each connection's `Outbox`,
-which keeps only the newest undelivered frame (a superseded frame is counted as dropped), so a
-slow page never delays the clock or the others.
+LabTrial` (`mirror_avatar.realtime.clock.run_on_clock`) from the positions last received, then
+sends every connected participant a frame with the players it sees. Frames go through each
+connection's `mirror_avatar.realtime.outbox.Outbox`, which keeps only the newest undelivered
+frame (a superseded frame is counted as dropped), so a slow page never delays the clock or the
+others. A trial that cannot keep its clock is ended, saying why (`mirror_avatar.realtime.clock.
+ClockLimits`: the plan's ``max_lateness``).
 
-A participant whose connection closes mid-trial is marked in the trial's sidecar at once; the
-trial goes on with their position held, unless the plan says ``on_drop: "stop"``; the
-researcher may stop it from the console either way. Opening the link again rejoins.
+A participant whose connection closes mid-trial, or whose input stops delivering (a frozen page,
+a vanished LSL stream: `mirror_avatar.realtime.inputs`), is marked in the trial's sidecar and
+the console's events at once; the trial goes on with their position held, unless the plan says
+``on_drop: "stop"``; the researcher may stop it from the console either way. Opening the link
+again rejoins. A trial whose recording cannot be written (a full disk) ends as ``"disk full"``:
+the samples written stay, the pages get their end message, and the next trial opens new files.
 """
 
 from __future__ import annotations
@@ -18,23 +23,26 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
-import json
 import logging
 import secrets
 import time
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 
-from mirror_avatar.atomic import json_safe, write_atomic_json
+from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.inputs import BrowserInput, InputSource
 from mirror_avatar.lab.plan import SessionPlan
-from mirror_avatar.lab.trial import Array, Clock, LabTrial, build_avatars
+from mirror_avatar.lab.trial import LabTrial, build_avatars
 from mirror_avatar.players.base import Player
+from mirror_avatar.realtime.clock import MAX_STEP, ClockLimits, run_on_clock
+from mirror_avatar.realtime.inputs import BrowserInput, InputSource
+from mirror_avatar.realtime.latency import Pings
+from mirror_avatar.realtime.outbox import Outbox
+from mirror_avatar.realtime.trial import DISK_FULL, Array, Clock
 
 logger = logging.getLogger(__name__)
 
@@ -49,8 +57,6 @@ COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8
            "#e377c2", "#7f7f7f", "#bcbd22", "#393b79", "#637939", "#8c6d31", "#843c39",
            "#7b4173", "#3182bd")  # fmt: skip
 """Player k's colour on every page (the console's plots included)."""
-
-Send = Callable[[str], Awaitable[None]]
 
 
 class Outlet(Protocol):
@@ -69,68 +75,8 @@ class Outlet(Protocol):
         ...
 
 
-Close = Callable[[int, str], Awaitable[None]]
-
 CLOSE_ENDED = 4001
 """WebSocket close code telling a page its session has ended (its link has expired)."""
-
-
-class Outbox:
-    """Messages to one participant's page, sent in order by one task.
-
-    Control messages (countdown, end...) are all delivered; of the frames only the newest
-    undelivered one is kept (`superseded` counts the others).
-    """
-
-    def __init__(self, send: Send, close: Close) -> None:
-        self._send = send
-        self._close = close
-        self._control: collections.deque[str] = collections.deque(maxlen=64)
-        self._frame: str | None = None
-        self._ending: tuple[int, str] | None = None
-        self.superseded = 0
-        self._ready = asyncio.Event()
-        self.task = asyncio.get_running_loop().create_task(self._run())
-
-    def put(self, message: dict[str, Any]) -> None:
-        """Queue a control message."""
-        self._control.append(encode_message(message))
-        self._ready.set()
-
-    def put_frame(self, message: dict[str, Any]) -> None:
-        """Queue a frame, replacing an undelivered one."""
-        if self._frame is not None:
-            self.superseded += 1
-        self._frame = encode_message(message)
-        self._ready.set()
-
-    async def _run(self) -> None:
-        while True:
-            await self._ready.wait()
-            self._ready.clear()
-            while self._control or self._frame is not None:
-                if self._control:
-                    await self._send(self._control.popleft())
-                elif self._frame is not None:
-                    frame, self._frame = self._frame, None
-                    await self._send(frame)
-            if self._ending is not None:
-                await self._close(*self._ending)
-                return
-
-    def end(self, code: int, reason: str) -> None:
-        """Close the connection with ``code`` once the queued messages are sent."""
-        self._ending = (code, reason)
-        self._ready.set()
-
-    def close(self) -> None:
-        """Stop sending."""
-        self.task.cancel()
-
-
-def encode_message(message: dict[str, Any]) -> str:
-    """Encode a message to a page as strict JSON (NaN as null)."""
-    return json.dumps(json_safe(message), allow_nan=False)
 
 
 class Participant:
@@ -151,15 +97,14 @@ class Participant:
         link replaces; the runner only holds it.
     joined
         Whether a page (or the LSL device) has ever joined.
-    round_trips
-        The last 100 ping round trips (ms).
+    pings
+        The current page's pings and their round trips
+        (`mirror_avatar.realtime.latency.Pings`), or None before a page joined.
     late_frames, frames_dropped
         Animation frames the page drew late (its own count) and frames superseded before they
         could be sent, over the page's earlier connections.
     last_heard
         When the page last sent a message (`time.monotonic`, s), or None.
-    pings
-        The outstanding ping's id and when it was sent.
     """
 
     def __init__(self, index: int, label: str, device: str, visible: list[int]) -> None:
@@ -172,11 +117,10 @@ class Participant:
         self.outbox: Outbox | None = None
         self.connection: object | None = None
         self.joined = False
-        self.round_trips: collections.deque[float] = collections.deque(maxlen=100)
+        self.pings: Pings | None = None
         self.late_frames = 0
         self.frames_dropped = 0
         self.last_heard: float | None = None
-        self.pings: dict[int, float] = {}
 
     @property
     def connected(self) -> bool:
@@ -184,12 +128,17 @@ class Participant:
         return self.outbox is not None or (self.device == "lsl" and self.source is not None)
 
     def quality(self) -> dict[str, Any]:
-        """Return round trip median and 95th percentile (ms), frames dropped and late."""
-        values = np.asarray(self.round_trips)
+        """Return the page's round trips, frames dropped and late, and when it was last heard.
+
+        Round trips in ms: median, 95th percentile and the oldest unanswered ping's age.
+        """
+        pings = self.pings
+        values = np.asarray([] if pings is None else pings.recent)
         dropped = self.frames_dropped + (0 if self.outbox is None else self.outbox.superseded)
         return {
             "rtt_median_ms": float(np.median(values)) if values.size else None,
             "rtt_p95_ms": float(np.percentile(values, 95)) if values.size else None,
+            "rtt_waiting_ms": None if pings is None else pings.waiting(),
             "frames_dropped": dropped,
             "late_frames": self.late_frames,
             "last_heard_s": None if self.last_heard is None else time.monotonic() - self.last_heard,
@@ -211,8 +160,8 @@ class LabSession:
         Stamps each sample (the LSL clock when pylsl is installed).
     countdown
         Seconds of countdown before each trial.
-    max_tick
-        Seconds one tick may take before the trial is ended (a too slow avatar).
+    max_step
+        Seconds one step of the avatars may take before the trial is ended.
     outlet
         The session's LSL outlet (`mirror_avatar.lab.lsl.SessionOutlet`), or None.
     open_device
@@ -226,7 +175,7 @@ class LabSession:
         directory: Path,
         clock: Clock,
         countdown: int = 3,
-        max_tick: float = 0.5,
+        max_step: float = MAX_STEP,
         outlet: Outlet | None = None,
         open_device: Callable[[Any], InputSource] | None = None,
     ) -> None:
@@ -235,7 +184,7 @@ class LabSession:
         self.directory = directory
         self.clock = clock
         self.countdown = countdown
-        self.max_tick = max_tick
+        self.limits = ClockLimits(max_step, plan.max_lateness)
         self.outlet = outlet
         self.open_device = open_device
         self.created_utc = datetime.now(UTC).isoformat()
@@ -253,6 +202,7 @@ class LabSession:
         self.avatars: dict[int, Player] | None = None
         self.runner: asyncio.Task[None] | None = None
         self._stop_reason: str | None = None
+        self._events_seen = 0
         directory.mkdir(parents=True, exist_ok=False)
         write_atomic_json(directory / "plan.json", self.describe())
 
@@ -386,8 +336,11 @@ class LabSession:
                 self.avatars = await asyncio.to_thread(build_avatars, self.plan)
             await asyncio.to_thread(self._open_devices)
             while self.next_trial <= self.plan.trials:
-                await self._play(self.next_trial)
+                reason = await self._play(self.next_trial)
                 self.next_trial += 1
+                if reason == DISK_FULL:
+                    self._wait(f"{DISK_FULL}: free some space, then start the next trial")
+                    return
                 if self.next_trial <= self.plan.trials:
                     self.state = "pause"
                     await asyncio.sleep(self.plan.pause)
@@ -395,9 +348,14 @@ class LabSession:
             self.log("all trials played")
             self.close()
         except (InputError, OSError) as error:
-            self.error = str(error)
-            self.state = "waiting"
-            self.log(f"cannot run: {error}")
+            self._wait(f"cannot run: {error}")
+
+    def _wait(self, problem: str) -> None:
+        """Wait for the researcher, saying why."""
+        self.error = problem
+        self.state = "waiting"
+        self.log(problem)
+        self.broadcast({"type": "state", "state": "waiting", "message": "Please wait."})
 
     def _open_devices(self) -> None:
         for k, participant in self.participants.items():
@@ -409,7 +367,8 @@ class LabSession:
                 participant.joined = True
                 self.log(f"{participant.label}: LSL stream {lsl.stream!r} open")
 
-    async def _play(self, n: int) -> None:
+    async def _play(self, n: int) -> str:
+        """Play trial n; return why it ended."""
         self.state = "countdown"
         for remaining in range(self.countdown, 0, -1):
             self.broadcast({"type": "countdown", "remaining": remaining, "trial": n})
@@ -420,11 +379,18 @@ class LabSession:
         except asyncio.CancelledError:  # stopped while its files were opening: `stop` closes them
             self.trial = await opening
             raise
+        except OSError:  # its number is taken by whatever files were made: the next is new
+            self.next_trial += 1
+            raise
         self.trial, self.state, self._stop_reason = trial, "running", None
+        self._events_seen = 0
         self.log(f"trial {n} started")
         self.broadcast({"type": "go", "trial": n, "duration": self.plan.duration})
-        complete, reason = await self._tick(trial)
+        complete, reason = await run_on_clock(
+            trial, self.limits, lambda: self._stop_reason, lambda: self._after_tick(trial)
+        )
         await self._end_trial(trial, complete, reason)
+        return reason
 
     def _new_trial(self, n: int) -> LabTrial:
         inputs = {k: p.source for k, p in self.participants.items() if p.source is not None}
@@ -435,23 +401,18 @@ class LabSession:
             self.plan, n, self.directory, inputs, self.avatars, self.clock, lab, publish
         )
 
-    async def _tick(self, trial: LabTrial) -> tuple[bool, str]:
-        loop = asyncio.get_running_loop()
-        start = loop.time()
-        while not trial.finished:
-            delay = start + trial.k * trial.period - loop.time()
-            if delay > 0:
-                await asyncio.sleep(delay)
-            if self._stop_reason is not None:
-                return False, self._stop_reason
-            began = loop.time()
-            await asyncio.to_thread(trial.tick)
-            if loop.time() - began > self.max_tick:
-                return False, "an avatar is too slow for real time"
-            if trial.k == 1:
-                self._mark(f"trial {trial.n} start", trial.input_log.first_stamp)
-            self._send_frames(trial)
-        return True, "completed"
+    def _after_tick(self, trial: LabTrial) -> None:
+        if trial.k == 1:
+            self._mark(f"trial {trial.n} start", trial.tick_log.first_stamp)
+        for event in trial.events[self._events_seen :]:
+            label, k = event["label"], event["sample"]
+            lost = event["event"] == "lost"
+            self.log(f"{label}: input {'lost' if lost else 'live again'} at sample {k}")
+            self._mark(f"{label} input {event['event']}")
+            if lost and event["seq"] >= 0 and self.plan.on_drop == "stop":
+                self._stop_reason = f"{label}'s input was lost"
+        self._events_seen = len(trial.events)
+        self._send_frames(trial)
 
     def _send_frames(self, trial: LabTrial) -> None:
         positions = trial.positions()
@@ -486,7 +447,7 @@ class LabSession:
             raise
         self.results.append(summary)
         self.log(f"trial {trial.n} ended: {reason}")
-        self._mark(f"trial {trial.n} end: {reason}", trial.input_log.last_stamp)
+        self._mark(f"trial {trial.n} end: {reason}", trial.tick_log.last_stamp)
         for k, participant in self.participants.items():
             if participant.outbox is None:
                 continue
@@ -502,6 +463,8 @@ class LabSession:
         trial = self.trial
         slots = []
         held = {} if trial is None else trial.held()
+        lost = {} if trial is None else trial.lost()
+        alive = {} if trial is None else trial.alive()
         for k, slot in enumerate(self.plan.slots):
             row: dict[str, Any] = {
                 "index": k,
@@ -520,6 +483,8 @@ class LabSession:
                 row |= participant.quality()
                 if trial is not None:
                     row["held"] = held.get(slot.label, 0)
+                    row["lost"] = lost.get(slot.label, 0)
+                    row["input_live"] = alive.get(slot.label)
                     row["dropped_at"] = trial.dropped.get(slot.label)
             slots.append(row)
         return {
@@ -527,12 +492,25 @@ class LabSession:
             "state": self.state,
             "error": self.error,
             "plan": self.plan.to_json(),
-            "trial": None if trial is None else {"n": trial.n, "progress": trial.progress},
+            "trial": None if trial is None else trial_clock(trial),
             "next_trial": self.next_trial,
             "slots": slots,
             "trials": [trial_row(summary) for summary in self.results],
             "events": list(self.events),
         }
+
+
+def trial_clock(trial: LabTrial) -> dict[str, Any]:
+    """Return the running trial as the console shows it: number, progress, lateness.
+
+    The lateness is the latest tick's and the largest so far (ms).
+    """
+    return {
+        "n": trial.n,
+        "progress": trial.progress,
+        "late_ms": trial.tick_log.lateness * 1000.0,
+        "max_late_ms": trial.max_lateness * 1000.0,
+    }
 
 
 def participant_metrics(metrics: dict[str, Any], k: int) -> dict[str, Any]:
@@ -572,6 +550,8 @@ def trial_row(summary: dict[str, Any]) -> dict[str, Any]:
         "n_samples": summary.get("n_samples"),
         "dropped": summary.get("dropped", {}),
         "held": summary.get("held", {}),
+        "lost": summary.get("lost", {}),
+        "late_ms": summary.get("tick_lateness_ms", {}),
         "metrics": {key: metrics[key] for key in TRIAL_SUMMARY_KEYS if key in metrics},
         "files": [
             summary["files"]["session"],

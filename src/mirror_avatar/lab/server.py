@@ -31,7 +31,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
-import hmac
 import io
 import json
 import logging
@@ -42,10 +41,10 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlsplit
 
 from starlette.applications import Starlette
-from starlette.requests import HTTPConnection, Request
+from starlette.middleware import Middleware
+from starlette.requests import Request
 from starlette.responses import (
     FileResponse,
     JSONResponse,
@@ -55,25 +54,33 @@ from starlette.responses import (
 )
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
-from starlette.types import ASGIApp, Receive, Scope, Send
-from starlette.websockets import WebSocket, WebSocketClose, WebSocketDisconnect
+from starlette.types import ASGIApp
+from starlette.websockets import WebSocket
 
 from mirror_avatar.atomic import json_safe
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.inputs import BrowserInput, InputSource
 from mirror_avatar.lab.messages import Pong, parse_participant_message
 from mirror_avatar.lab.plan import LslDevice, SessionPlan, parse_plan
-from mirror_avatar.lab.runner import LabSession, Outbox, Outlet, Participant
-from mirror_avatar.lab.trial import Clock, build_avatars
-from mirror_avatar.live.admission import TokenBucket
-from mirror_avatar.live.protocol import PositionUpdate, ProtocolError
-from mirror_avatar.live.server import SERVER_SEND, abort_transport
+from mirror_avatar.lab.runner import LabSession, Outlet, Participant
+from mirror_avatar.lab.trial import build_avatars
 from mirror_avatar.players.base import Player
+from mirror_avatar.realtime.gates import JsonGate, OriginGate, RateGate, TokenGate
+from mirror_avatar.realtime.inbox import Inbox
+from mirror_avatar.realtime.inputs import BrowserInput, InputSource
+from mirror_avatar.realtime.latency import Pings
+from mirror_avatar.realtime.messages import PositionUpdate
+from mirror_avatar.realtime.outbox import Outbox, Peer
+from mirror_avatar.realtime.settings import PageSettings
+from mirror_avatar.realtime.trial import Clock
+
+STATIC = Path(__file__).parent / "static"
+"""The console's and the participants' pages."""
+
+TOKEN_COOKIE = "mirror_avatar_lab_token"
+"""The cookie holding the researcher's token once the console's link was opened."""
 
 logger = logging.getLogger(__name__)
-STATIC = Path(__file__).parent / "static"
-TOKEN_COOKIE = "mirror_avatar_lab_token"
 CLOSE_POLICY, CLOSE_REPLACED, CLOSE_UNKNOWN = 1008, 4002, 4004
 FILE_NAME = re.compile(r"plan\.json|trial-\d{2,3}_(session\.csv|session\.json|inputs\.csv)")
 """Names of the files a session's folder may serve."""
@@ -82,9 +89,9 @@ MAX_BODY_BYTES = 64 * 1024
 """Largest API request body (bytes)."""
 
 
-@dataclass(frozen=True)
-class LabSettings:
-    """How the lab server runs.
+@dataclass(frozen=True, kw_only=True)
+class LabSettings(PageSettings):
+    """How the lab server runs (and the `mirror_avatar.realtime.settings.PageSettings`).
 
     Parameters
     ----------
@@ -94,18 +101,8 @@ class LabSettings:
         The researcher's token.
     max_sessions
         Most sessions that have not ended at once.
-    countdown
-        Seconds of countdown before each trial.
-    max_tick
-        Seconds a tick may take before the trial is ended.
     ping_interval
         Seconds between the round-trip pings sent to each page.
-    send_timeout
-        Seconds a message may wait for a page that does not read before it is dropped.
-    max_message_rate
-        Messages per second a page may send (sustained; bursts of a second's worth).
-    max_rejected
-        Bad messages tolerated on one connection before it is closed.
     requests_per_second
         API requests and WebSocket connections per second from one address (bursts of 4 s).
     lsl
@@ -115,41 +112,39 @@ class LabSettings:
     out_dir: Path
     token: str
     max_sessions: int = 16
-    countdown: int = 3
-    max_tick: float = 0.5
     ping_interval: float = 0.5
-    send_timeout: float = 2.0
-    max_message_rate: float = 250.0
-    max_rejected: int = 100
     requests_per_second: float = 40.0
     lsl: bool = False
 
 
+KEEP_ENDED = 8
+"""Ended sessions kept in memory for the console (the oldest beyond are forgotten; their
+files stay)."""
+
+
 @dataclass
 class Lab:
-    """The server's sessions and the keys of their join links."""
+    """The server's sessions and the keys of their join links.
+
+    A session that ends loses its join keys at once (its links stop); of the ended sessions
+    only the `KEEP_ENDED` most recent stay listed, so memory and the console's answers do not
+    grow with the sessions a server has run.
+    """
 
     settings: LabSettings
     sessions: dict[str, LabSession] = field(default_factory=dict)
     keys: dict[str, tuple[LabSession, Participant]] = field(default_factory=dict)
-    rates: dict[str, TokenBucket] = field(default_factory=dict)
-
-    def allow(self, address: str) -> bool:
-        """Take one request from ``address``'s rate limit; False when it is exhausted."""
-        if address not in self.rates:
-            if len(self.rates) > 10_000:
-                self.rates.clear()
-            rate = self.settings.requests_per_second
-            self.rates[address] = TokenBucket(rate, 4 * rate)
-        return self.rates[address].take() == 0.0
+    created: int = 0
 
     def create(self, plan: SessionPlan, avatars: dict[int, Player]) -> LabSession:
         """Create a session of ``plan`` with its avatars, built (`build_avatars`)."""
+        self.forget_ended()
         active = [s for s in self.sessions.values() if not s.ended]
         if len(active) >= self.settings.max_sessions:
             raise InputError("plan", f"{len(active)} sessions are open: end one first")
+        self.created += 1
         stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
-        session_id = f"{stamp}-{len(self.sessions) + 1:03d}"
+        session_id = f"{stamp}-{self.created:03d}"
         outlet, open_device, clock = lsl_hooks(self.settings.lsl, session_id, plan)
         session = LabSession(
             session_id,
@@ -169,10 +164,17 @@ class Lab:
 
     def find(self, key: str) -> tuple[LabSession, Participant] | None:
         """Return the session and slot of a join key, while the session lasts."""
-        found = self.keys.get(key)
-        if found is None or found[0].ended:
-            return None
-        return found
+        self.forget_ended()
+        return self.keys.get(key)
+
+    def forget_ended(self) -> None:
+        """Drop the keys of ended sessions, and the ended sessions beyond `KEEP_ENDED`."""
+        for key, (session, _) in list(self.keys.items()):
+            if session.ended:
+                del self.keys[key]
+        ended = [sid for sid, session in self.sessions.items() if session.ended]
+        for sid in ended[: max(0, len(ended) - KEEP_ENDED)]:
+            del self.sessions[sid]
 
 
 def lsl_hooks(
@@ -195,7 +197,10 @@ def lsl_hooks(
     )
 
     def open_device(device: LslDevice) -> InputSource:
-        return LslInput(device.stream, device.channel, device.scale, device.offset)
+        return LslInput(
+            device.stream, device.channel, device.scale, device.offset,
+            source_id=device.source_id,
+        )  # fmt: skip
 
     return outlet, open_device, pylsl.local_clock
 
@@ -204,6 +209,8 @@ def create_lab_app(settings: LabSettings) -> ASGIApp:
     """Build the lab server's ASGI application (see the module docstring)."""
     lab = Lab(settings)
     api = LabApi(lab)
+    rate = settings.requests_per_second
+    researcher = "the console needs the researcher's token (printed by mirror-avatar lab)"
     app = Starlette(
         routes=[
             Route("/", index_page),
@@ -219,9 +226,21 @@ def create_lab_app(settings: LabSettings) -> ASGIApp:
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],
         exception_handlers={ApiError: api_error},
+        middleware=[
+            Middleware(RateGate, rate=rate, burst=4 * rate, paths=("/api", "/ws")),
+            Middleware(
+                TokenGate,
+                token=settings.token,
+                cookie=TOKEN_COOKIE,
+                paths=("/api", "/console"),
+                problem=researcher,
+            ),
+            Middleware(OriginGate),
+            Middleware(JsonGate),
+        ],
     )
     app.state.lab = lab
-    return LabGate(app, lab)
+    return app
 
 
 async def index_page(request: Request) -> Response:
@@ -230,9 +249,13 @@ async def index_page(request: Request) -> Response:
 
 
 async def console_page(request: Request) -> Response:
-    """Serve the console; a token in its URL goes into a cookie and out of the URL."""
-    token = request.query_params.get("token")
-    if token is not None:
+    """Serve the console; the token in its URL goes into a cookie and out of the URL.
+
+    The gate checked the token: a wrong one never reaches here, so it cannot replace the
+    researcher's cookie.
+    """
+    if "token" in request.query_params:
+        token = request.query_params["token"]
         response: Response = RedirectResponse("/console", status_code=303)
         response.set_cookie(TOKEN_COOKIE, token, httponly=True, samesite="strict")
         return response
@@ -246,59 +269,6 @@ async def join_page(lab: Lab, request: Request) -> Response:
     return FileResponse(STATIC / "participant.html", headers={"Cache-Control": "no-store"})
 
 
-class LabGate:
-    """ASGI middleware: the researcher's token on the console and the API, rates, origins."""
-
-    def __init__(self, app: ASGIApp, lab: Lab) -> None:
-        self.app = app
-        self.lab = lab
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        """Pass allowed requests through; refuse the others (HTTP 403/429 or a close)."""
-        if scope["type"] not in ("http", "websocket"):
-            await self.app(scope, receive, send)
-            return
-        connection = HTTPConnection(scope)
-        problem, status = self._problem(connection)
-        if problem is None:
-            scope[SERVER_SEND] = send
-            await self.app(scope, receive, send)
-        elif scope["type"] == "http":
-            await PlainTextResponse(problem, status_code=status)(scope, receive, send)
-        else:
-            await WebSocketClose(CLOSE_POLICY, problem)(scope, receive, send)
-
-    def _problem(self, connection: HTTPConnection) -> tuple[str | None, int]:
-        path = connection.url.path
-        address = connection.client.host if connection.client else ""
-        if (path.startswith("/api") or path.startswith("/ws")) and not self.lab.allow(address):
-            return "too many requests: slow down", 429
-        researcher_only = path.startswith("/api") or (
-            path == "/console" and "token" not in connection.query_params
-        )
-        if researcher_only and not self._researcher(connection):
-            return "the console needs the researcher's token (printed by mirror-avatar lab)", 403
-        if connection.scope["type"] == "websocket":
-            origin = connection.headers.get("origin")
-            if origin is not None and urlsplit(origin).netloc != connection.headers.get("host"):
-                return "cross-origin WebSocket refused", 403
-        if connection.scope["type"] == "http" and connection.scope["method"] == "POST":
-            kind = connection.headers.get("content-type", "")
-            if not kind.startswith("application/json"):
-                return "API requests must be JSON (Content-Type: application/json)", 415
-        return None, 200
-
-    def _researcher(self, connection: HTTPConnection) -> bool:
-        header = connection.headers.get("authorization", "")
-        given = (
-            header.removeprefix("Bearer ").strip()
-            if header.startswith("Bearer ")
-            else connection.cookies.get(TOKEN_COOKIE)
-        )
-        token = self.lab.settings.token
-        return given is not None and hmac.compare_digest(given.encode(), token.encode())
-
-
 class LabApi:
     """The researcher's HTTP/JSON API (every answer is JSON; errors ``{"error": text}``)."""
 
@@ -306,6 +276,7 @@ class LabApi:
         self.lab = lab
 
     def _session(self, request: Request) -> LabSession:
+        self.lab.forget_ended()
         session = self.lab.sessions.get(request.path_params["sid"])
         if session is None:
             raise ApiError(404, "no such session")
@@ -314,6 +285,7 @@ class LabApi:
     async def sessions(self, request: Request) -> Response:
         """List the sessions, or create one from the plan in the body."""
         if request.method == "GET":
+            self.lab.forget_ended()
             return _json(
                 {"sessions": [self._status(s, request) for s in self.lab.sessions.values()]}
             )
@@ -448,74 +420,44 @@ class ParticipantPage:
         self.session = session
         self.participant = participant
         self.websocket = websocket
-        self.messages = TokenBucket(settings.max_message_rate, settings.max_message_rate)
-        self.rejected = 0
-        self.outbox = Outbox(self._send, self._close)
+        self.pings = Pings()
+        self.outbox = Outbox(Peer(websocket, settings.send_timeout, participant.label))
+        self.inbox = Inbox(
+            websocket,
+            parse_participant_message,
+            settings.max_message_rate,
+            settings.max_rejected,
+            lambda problem: self.outbox.put({"type": "error", "message": problem}),
+            lambda: self.outbox.end(CLOSE_POLICY, "too many bad messages"),
+        )
 
     async def run(self) -> None:
         """Serve the page until it closes or the session ends."""
+        self.participant.pings = self.pings
         self.session.attach(self.participant, self.outbox, self.websocket)
         pinger = asyncio.get_running_loop().create_task(self._ping())
         try:
             await self._receive()
         finally:
             pinger.cancel()
+            if self.outbox.ending:
+                await self.outbox.ended()
             self.session.detach(self.participant, self.outbox)
 
-    async def _send(self, text: str) -> None:
-        try:
-            await asyncio.wait_for(self.websocket.send_text(text), self.settings.send_timeout)
-        except TimeoutError:
-            logger.warning("dropping %s: it stopped reading", self.participant.label)
-            abort_transport(self.websocket)
-        except (WebSocketDisconnect, RuntimeError, OSError):
-            return
-
-    async def _close(self, code: int, reason: str) -> None:
-        with contextlib.suppress(RuntimeError, OSError, TimeoutError):
-            await asyncio.wait_for(self.websocket.close(code, reason), self.settings.send_timeout)
-
     async def _ping(self) -> None:
-        ping_id = 0
         while True:
-            ping_id += 1
-            self.participant.pings = {ping_id: time.monotonic()}
-            self.outbox.put({"type": "ping", "id": ping_id})
+            self.outbox.put({"type": "ping", "id": self.pings.send()})
             await asyncio.sleep(self.settings.ping_interval)
 
     async def _receive(self) -> None:
-        while True:
-            message = await self.websocket.receive()
-            if message["type"] == "websocket.disconnect":
-                return
-            if self.messages.take() > 0.0:
-                if not await self._reject("too many messages"):
-                    return
-                continue
-            try:
-                parsed = parse_participant_message(message.get("text", message.get("bytes")))
-            except ProtocolError as error:
-                if not await self._reject(str(error)):
-                    return
-                continue
-            self._handle(parsed)
+        async for message in self.inbox.messages():
+            self._handle(message)
 
     def _handle(self, message: PositionUpdate | Pong) -> None:
         participant = self.participant
         participant.last_heard = time.monotonic()
         if isinstance(message, Pong):
-            sent = participant.pings.get(message.id)
-            if sent is not None:
-                participant.round_trips.append((time.monotonic() - sent) * 1000.0)
+            self.pings.answer(message.id)
             participant.late_frames = message.late_frames
         elif isinstance(participant.source, BrowserInput):
             participant.source.put(message.x, message.seq)
-
-    async def _reject(self, problem: str) -> bool:
-        self.rejected += 1
-        if self.rejected > self.settings.max_rejected:
-            with contextlib.suppress(RuntimeError, OSError):
-                await self.websocket.close(CLOSE_POLICY, "too many bad messages")
-            return False
-        self.outbox.put({"type": "error", "message": problem})
-        return True

@@ -28,11 +28,14 @@ MIN_SOLO_TRIALS = 2
 
 
 def solo_trial_files(folder: Path, participant: str) -> list[Path]:
-    """List the participant's recorded solo trials (their ``time,position`` files), oldest first."""
+    """List the participant's recorded solo trials (their ``time,position`` files), oldest first.
+
+    A trial's session and input-log files (``_session.csv``, ``_inputs.csv``) are not trials.
+    """
     return sorted(
         path
         for path in folder.glob(f"{participant}_solo_*.csv")
-        if not path.name.endswith("_session.csv")
+        if not path.name.endswith(("_session.csv", "_inputs.csv"))
     )
 
 

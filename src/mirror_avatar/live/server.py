@@ -31,32 +31,26 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import hmac
-import json
 import logging
-import secrets
-import socket
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlsplit
 
-import uvicorn
 from starlette.applications import Starlette
-from starlette.requests import HTTPConnection, Request
-from starlette.responses import FileResponse, PlainTextResponse, Response
+from starlette.middleware import Middleware
+from starlette.requests import Request
+from starlette.responses import FileResponse, Response
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
-from starlette.types import ASGIApp, Receive, Scope, Send
-from starlette.websockets import WebSocket, WebSocketClose, WebSocketDisconnect
+from starlette.types import ASGIApp
+from starlette.websockets import WebSocket
 
-from mirror_avatar.atomic import json_safe
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.cyber_player import BASELINE_SESSIONS, VALIDATION_SESSIONS
 from mirror_avatar.experiments.personal_avatar import DEFAULT_SESSIONS
-from mirror_avatar.live.admission import Admission, TokenBucket, host_allowed
+from mirror_avatar.live.admission import Admission
 from mirror_avatar.live.avatar_build import build_avatar, describe_avatar
 from mirror_avatar.live.protocol import (
     DURATION_RANGE,
@@ -64,7 +58,6 @@ from mirror_avatar.live.protocol import (
     BuildRequest,
     Message,
     PositionUpdate,
-    ProtocolError,
     StartRequest,
     StopRequest,
     parse_message,
@@ -75,25 +68,26 @@ from mirror_avatar.live.session import (
     make_avatar_factory,
     start_trial,
 )
+from mirror_avatar.realtime.clock import MAX_LATENESS, ClockLimits, run_on_clock
+from mirror_avatar.realtime.gates import HostGate, OriginGate, TokenGate
+from mirror_avatar.realtime.inbox import Inbox
+from mirror_avatar.realtime.outbox import Outbox, Peer
+from mirror_avatar.realtime.rates import TokenBucket
+from mirror_avatar.realtime.settings import PageSettings
 
 logger = logging.getLogger(__name__)
 STATIC = Path(__file__).parent / "static"
 TOKEN_COOKIE = "mirror_avatar_token"
-MAX_FRAME_BYTES = 16 * 1024
-"""Largest WebSocket frame the server reads at all (bytes); larger ones close the connection."""
-
 CLOSE_BUSY, CLOSE_POLICY, CLOSE_STALE, CLOSE_IDLE = 1013, 1008, 4408, 4000
-SERVER_SEND = "mirror_avatar.server_send"
-"""Scope key of the ASGI server's own ``send`` callable (see `abort_transport`)."""
 
 
 BUILD_SESSIONS = (DEFAULT_SESSIONS, VALIDATION_SESSIONS, BASELINE_SESSIONS)
 """A built avatar's training, validation and baseline sessions: `avatar create`'s defaults."""
 
 
-@dataclass(frozen=True)
-class LiveSettings:
-    """How the live server runs.
+@dataclass(frozen=True, kw_only=True)
+class LiveSettings(PageSettings):
+    """How the live server runs (and the `mirror_avatar.realtime.settings.PageSettings`).
 
     Parameters
     ----------
@@ -116,16 +110,9 @@ class LiveSettings:
         Seconds without a position message after which a running trial is ended (incomplete).
     idle_timeout
         Seconds without any message after which a connection without a trial is closed.
-    send_timeout
-        Seconds a message may wait for a client that does not read before it is dropped.
-    max_tick
-        Seconds one tick of a trial may take before the trial is ended (a too slow avatar).
-    countdown
-        Seconds of countdown before a trial starts.
-    max_rejected
-        Bad messages tolerated on one connection before it is closed.
-    max_message_rate
-        Messages per second one connection may send (sustained; bursts of a second's worth).
+    max_lateness
+        Seconds a tick may come after its deadline before the trial is ended (the clock
+        cannot be kept; `mirror_avatar.realtime.clock.MAX_LATENESS`).
     connects_per_second, starts_per_second
         New connections and trial starts per second from one address (sustained; bursts of
         `ADDRESS_BURST`); each connection may also start a trial at most every
@@ -146,11 +133,7 @@ class LiveSettings:
     evict_after: float = 3.0
     stale_timeout: float = 2.0
     idle_timeout: float = 60.0
-    send_timeout: float = 2.0
-    max_tick: float = 0.5
-    countdown: int = 3
-    max_rejected: int = 100
-    max_message_rate: float = 250.0
+    max_lateness: float = MAX_LATENESS
     connects_per_second: float = 2.0
     starts_per_second: float = 0.5
     period: float = CONTROL_PERIOD
@@ -197,78 +180,35 @@ def create_app(settings: LiveSettings, avatar_factory: AvatarFactory | None) -> 
         connection = Connection(websocket, settings, avatar_factory, admission)
         refused = admission.admit(connection)
         if refused is not None:
-            await connection.send({"type": "error", "message": refused})
-            await connection.close(CLOSE_BUSY, refused, read_more=False)
+            connection.send({"type": "error", "message": refused})
+            connection.outbox.end(CLOSE_BUSY, refused, read_more=False)
+            await connection.close_outbox()
             return
         try:
             await connection.run()
         finally:
             admission.release(connection)
 
-    app = Starlette(
+    if settings.token is not None:
+        gates = [Middleware(TokenGate, token=settings.token, cookie=TOKEN_COOKIE)]
+    else:
+        gates = [Middleware(HostGate, allowed=settings.allowed_hosts)]
+    return Starlette(
         routes=[
             Route("/", index),
             WebSocketRoute("/ws", game_socket),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
-        ]
+        ],
+        middleware=[*gates, Middleware(OriginGate)],
     )
-    return AccessGate(app, settings.token, settings.allowed_hosts)
-
-
-class AccessGate:
-    """ASGI middleware: check the access token, the host and the WebSocket origin.
-
-    Parameters
-    ----------
-    app
-        The application behind the gate.
-    token
-        The token every HTTP request and WebSocket handshake must carry, or None.
-    allowed_hosts
-        Without a token, the host names besides loopback ones requests may be addressed to.
-    """
-
-    def __init__(
-        self, app: ASGIApp, token: str | None, allowed_hosts: frozenset[str] = frozenset()
-    ) -> None:
-        self.app = app
-        self.token = token
-        self.allowed_hosts = allowed_hosts
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        """Pass allowed connections through; refuse the others (HTTP 403 or WebSocket close)."""
-        if scope["type"] not in ("http", "websocket"):
-            await self.app(scope, receive, send)
-            return
-        connection = HTTPConnection(scope)
-        problem = self._problem(connection)
-        if problem is None:
-            scope[SERVER_SEND] = send
-            await self.app(scope, receive, send)
-        elif scope["type"] == "http":
-            await PlainTextResponse(problem, status_code=403)(scope, receive, send)
-        else:
-            await WebSocketClose(CLOSE_POLICY, problem)(scope, receive, send)
-
-    def _problem(self, connection: HTTPConnection) -> str | None:
-        if self.token is not None:
-            given = connection.query_params.get("token") or connection.cookies.get(TOKEN_COOKIE)
-            if given is None or not hmac.compare_digest(given.encode(), self.token.encode()):
-                return "missing or wrong access token"
-        elif not host_allowed(connection.headers.get("host"), self.allowed_hosts):
-            return "this server answers only requests addressed to this machine (see --allow-host)"
-        origin = connection.headers.get("origin")
-        if (
-            connection.scope["type"] == "websocket"
-            and origin is not None
-            and urlsplit(origin).netloc != connection.headers.get("host")
-        ):
-            return "cross-origin WebSocket refused"
-        return None
 
 
 class Connection:
-    """One browser tab's WebSocket: its messages, its running trial and that trial's ticker.
+    """One browser tab's WebSocket: its messages, its running trial and that trial's clock.
+
+    Everything it sends goes through its `mirror_avatar.realtime.outbox.Outbox`: control
+    messages in order, the avatar's answers to positions as frames (only the newest undelivered
+    one is kept), so a tab that reads slowly delays nothing.
 
     Attributes
     ----------
@@ -297,9 +237,20 @@ class Connection:
         self.ticker: asyncio.Task[None] | None = None
         self.receiver: asyncio.Task[None] | None = None
         self.dropped = False
-        self.rejected = 0
-        self.messages = TokenBucket(settings.max_message_rate, settings.max_message_rate)
+        self.inbox = Inbox(
+            websocket,
+            parse_message,
+            settings.max_message_rate,
+            settings.max_rejected,
+            self._answer_problem,
+            self._send_away,
+        )
         self.starts = TokenBucket(settings.starts_per_second, 2)
+        peer = Peer(websocket, settings.send_timeout, self.address, self.drop)
+        self.outbox = Outbox(peer)
+        self.limits = ClockLimits(
+            settings.max_tick, settings.max_lateness, "the avatar is too slow for real time"
+        )
 
     @property
     def playing(self) -> bool:
@@ -309,7 +260,7 @@ class Connection:
     async def run(self) -> None:
         """Serve the connection until it closes; a trial still running is saved as incomplete."""
         modes = MODES if self.avatar_factory is not None else ("solo",)
-        await self.send(
+        self.send(
             {
                 "type": "ready",
                 "modes": list(modes),
@@ -325,13 +276,12 @@ class Connection:
         finally:
             if self.ticker is not None:
                 self.ticker.cancel()
-            self.end_trial(False, "connection closed")
+            await self.end_trial(False, "connection closed")
+            await self.close_outbox()
 
     def evict(self) -> None:
         """Close this idle connection to make room for a newcomer (close code 4000)."""
-        asyncio.get_running_loop().create_task(
-            self.close(CLOSE_IDLE, "closed while idle to make room: press Start to reconnect")
-        )
+        self.outbox.end(CLOSE_IDLE, "closed while idle to make room: press Start to reconnect")
         self.drop()
 
     def drop(self) -> None:
@@ -345,28 +295,15 @@ class Connection:
             self.receiver.cancel()
 
     async def _receive_loop(self) -> None:
-        while not self.dropped:
-            timeout = None if self.playing else self.settings.idle_timeout
-            try:
-                message = await asyncio.wait_for(self.websocket.receive(), timeout)
-            except TimeoutError:
-                await self.close(CLOSE_IDLE, "idle for too long: press Start to reconnect")
-                return
-            if message["type"] == "websocket.disconnect":
-                return
-            self.last_active = time.monotonic()
-            if self.messages.take() > 0.0:
-                problem = f"too many messages: at most {self.settings.max_message_rate:g} per s"
-                if not await self.reject(problem):
-                    return
-                continue
-            try:
-                request = parse_message(message.get("text", message.get("bytes")))
-            except ProtocolError as error:
-                if not await self.reject(str(error)):
-                    return
-                continue
-            await self.handle(request)
+        messages = self.inbox.messages(
+            lambda: None if self.playing else self.settings.idle_timeout, lambda: self.dropped
+        )
+        try:
+            async for request in messages:
+                self.last_active = time.monotonic()
+                await self.handle(request)
+        except TimeoutError:
+            self.outbox.end(CLOSE_IDLE, "idle for too long: press Start to reconnect")
 
     async def handle(self, request: Message) -> None:
         """Act on one valid message."""
@@ -376,8 +313,8 @@ class Connection:
             return
         if isinstance(request, PositionUpdate):
             if trial is not None:
-                trial.update_person(request.x, request.rtt_ms)
-            await self.send(
+                trial.update_person(request.x, request.rtt_ms, request.seq)
+            self.outbox.put_frame(
                 {
                     "type": "avatar",
                     "seq": request.seq,
@@ -388,11 +325,11 @@ class Connection:
         elif isinstance(request, StopRequest):
             if self.ticker is not None:
                 self.ticker.cancel()
-            summary = self.end_trial(False, "stopped by the participant")
+            summary = await self.end_trial(False, "stopped by the participant")
             if summary is not None:
-                await self.send({"type": "done", "summary": summary})
+                self.send({"type": "done", "summary": summary})
         elif trial is not None:
-            await self.reject("a trial is already running")
+            self.reject("a trial is already running")
         else:
             await self.start(request)
 
@@ -403,11 +340,11 @@ class Connection:
         address started too many trials lately.
         """
         if request.mode != "solo" and self.avatar_factory is None:
-            await self.reject(f"mode {request.mode} needs an avatar; this server has none")
+            self.reject(f"mode {request.mode} needs an avatar; this server has none")
             return
         wait = max(self.starts.take(), self.admission.start_wait(self.address))
         if wait > 0.0:
-            await self.reject(f"too many trials started: wait {wait:.1f} s")
+            self.reject(f"too many trials started: wait {wait:.1f} s")
             return
         try:
             self.trial = await asyncio.to_thread(
@@ -419,7 +356,7 @@ class Connection:
                 self.settings.period,
             )
         except (InputError, OSError) as error:
-            await self.send({"type": "error", "message": f"cannot start the trial: {error}"})
+            self.send({"type": "error", "message": f"cannot start the trial: {error}"})
             return
         self.ticker = asyncio.create_task(self._tick(self.trial))
 
@@ -430,34 +367,32 @@ class Connection:
             logger.exception("trial failed")
             if self.trial is not trial:
                 return
-            self.end_trial(False, f"server error: {type(error).__name__}")
-            await self.send({"type": "error", "message": "server error: trial saved as incomplete"})
+            await self.end_trial(False, f"server error: {type(error).__name__}")
+            self.send({"type": "error", "message": "server error: trial saved as incomplete"})
 
     async def _run_trial(self, trial: LiveTrial) -> None:
         for remaining in range(self.settings.countdown, 0, -1):
-            await self.send({"type": "countdown", "remaining": remaining})
+            self.send({"type": "countdown", "remaining": remaining})
             await asyncio.sleep(1.0)
-        await self.send({"type": "go", "avatar": trial.avatar_x, "duration": trial.duration})
-        loop = asyncio.get_running_loop()
-        start = loop.time()
-        while not trial.finished and self.trial is trial:
-            delay = start + trial.k * trial.period - loop.time()
-            if delay > 0:
-                await asyncio.sleep(delay)
+        self.send({"type": "go", "avatar": trial.avatar_x, "duration": trial.duration})
+        stale = "the browser stopped sending"
+
+        def stop_reason() -> str | None:
             if self.trial is not trial:
-                return
+                return "replaced"
             if time.monotonic() - trial.last_heard > self.settings.stale_timeout:
-                self.end_trial(False, "the browser stopped sending")
-                await self.close(CLOSE_STALE, "no position received: trial saved as incomplete")
-                return
-            began = loop.time()
-            await asyncio.to_thread(trial.tick, max(0.0, -delay))
-            if loop.time() - began > self.settings.max_tick and self.trial is trial:
-                summary = self.end_trial(False, "the avatar is too slow for real time")
-                await self.send({"type": "done", "summary": summary})
-                return
-        if self.trial is trial:
-            await self.send({"type": "done", "summary": self.end_trial(True, "completed")})
+                return stale
+            return None
+
+        complete, reason = await run_on_clock(trial, self.limits, stop_reason)
+        if self.trial is not trial:
+            return
+        summary = await self.end_trial(complete, reason)
+        if reason == stale:
+            self.outbox.end(CLOSE_STALE, "no position received: trial saved as incomplete")
+            self.drop()
+        else:
+            self.send({"type": "done", "summary": summary})
 
     async def build(self, request: BuildRequest) -> None:
         """Build the participant's avatar in a worker thread, reporting each stage.
@@ -465,14 +400,13 @@ class Connection:
         Then this connection's trials play with it.
         """
         if self.playing:
-            await self.reject("a trial or an avatar build is running")
+            self.reject("a trial or an avatar build is running")
             return
         self.building = True
         loop = asyncio.get_running_loop()
 
         def report(stage: str) -> None:
-            message = {"type": "building", "stage": stage}
-            asyncio.run_coroutine_threadsafe(self.send(message), loop)
+            loop.call_soon_threadsafe(self.send, {"type": "building", "stage": stage})
 
         folder = self.settings.out_dir / request.participant
         try:
@@ -480,132 +414,49 @@ class Connection:
                 build_avatar, folder, request.participant, self.settings.build_sessions, report
             )
         except (InputError, OSError) as error:
-            await self.send({"type": "error", "message": f"cannot build the avatar: {error}"})
+            self.send({"type": "error", "message": f"cannot build the avatar: {error}"})
             return
         finally:
             self.building = False
         self.avatar_factory = make_avatar_factory(str(path))
         self.avatar_spec = str(path)
         built = {"type": "built", "avatar": path.name, "modes": list(MODES)}
-        await self.send(built | describe_avatar(path))
+        self.send(built | describe_avatar(path))
 
-    def end_trial(self, complete: bool, reason: str) -> dict[str, Any] | None:
-        """Finish and save the running trial, if any, and return its sidecar."""
+    async def end_trial(self, complete: bool, reason: str) -> dict[str, Any] | None:
+        """Finish and save the running trial, if any, and return its sidecar.
+
+        The metrics are computed in a worker thread: a long trial's end stalls no one else.
+        """
         trial, self.trial = self.trial, None
-        return None if trial is None else trial.finish(complete, reason)
+        if trial is None:
+            return None
+        return await asyncio.to_thread(trial.finish, complete, reason)
 
-    async def reject(self, problem: str) -> bool:
-        """Answer a bad message with an error; return False once the connection was closed."""
-        self.rejected += 1
+    def reject(self, problem: str) -> bool:
+        """Answer a bad message with an error; return False once the connection is closing."""
+        return self.inbox.reject(problem)
+
+    def _answer_problem(self, problem: str) -> None:
         if self.trial is not None:
             self.trial.rejected_messages += 1
-        if self.rejected > self.settings.max_rejected:
-            await self.close(CLOSE_POLICY, "too many bad messages", read_more=False)
-            return False
-        await self.send({"type": "error", "message": problem})
-        return True
+        self.send({"type": "error", "message": problem})
 
-    async def send(self, message: dict[str, Any]) -> None:
-        """Send a message as strict JSON (NaN as null); a connection already gone is no error.
+    def _send_away(self) -> None:
+        self.outbox.end(CLOSE_POLICY, "too many bad messages", read_more=False)
+        self.dropped = True
 
-        A client that does not take the message within ``send_timeout`` is dropped.
+    def send(self, message: dict[str, Any]) -> None:
+        """Queue a control message (strict JSON, NaN as null) in the connection's outbox."""
+        self.outbox.put(message)
+
+    async def close_outbox(self) -> None:
+        """Let the outbox send what it holds and close the connection, or stop it at once.
+
+        An outbox told to end (`Outbox.end`) closes the connection itself once its messages are
+        sent (within the send timeout per message); otherwise the connection is gone already.
         """
-        text = json.dumps(json_safe(message), allow_nan=False)
-        try:
-            await asyncio.wait_for(self.websocket.send_text(text), self.settings.send_timeout)
-        except TimeoutError:
-            logger.warning("dropping %s: it stopped reading", self.address)
-            abort_transport(self.websocket)
-            self.drop()
-        except (WebSocketDisconnect, RuntimeError, OSError):
-            return
-
-    async def close(self, code: int, reason: str, read_more: bool = True) -> None:
-        """Close the connection with ``code`` unless it is closed or stopped reading.
-
-        With ``read_more`` False (a refused or flooding client) nothing more it sends is read -
-        the server would otherwise parse whatever it sends while waiting for its close reply -
-        and its socket is aborted ``send_timeout`` seconds later.
-        """
-        with contextlib.suppress(RuntimeError, OSError, TimeoutError):
-            await asyncio.wait_for(self.websocket.close(code, reason), self.settings.send_timeout)
-        if not read_more:  # after the close: the server resumes reading when it sends one
-            stop_reading(self.websocket)
-            abort_transport(self.websocket, self.settings.send_timeout)
-
-
-def abort_transport(websocket: WebSocket, delay: float = 0.0) -> None:
-    """Close a connection's socket at once, or after ``delay`` seconds, discarding the rest.
-
-    A graceful close would wait for a client that stopped reading to take the queued data, so
-    its socket would stay open. The transport is reached through the server's own ASGI ``send``
-    callable, which `AccessGate` keeps in the scope (uvicorn's is a method of its protocol
-    object); under a server that does not expose it the connection is left to its own close.
-    """
-    transport = _transport(websocket)
-    if transport is not None:
-        asyncio.get_running_loop().call_later(delay, transport.abort)
-
-
-def stop_reading(websocket: WebSocket) -> None:
-    """Read nothing more from a connection's socket (a flooding client's data stays unread)."""
-    transport = _transport(websocket)
-    if transport is not None:
-        transport.pause_reading()
-
-
-def _transport(websocket: WebSocket) -> asyncio.Transport | None:
-    """Return the socket transport under ``websocket``, if the server exposes it (`AccessGate`)."""
-    protocol = getattr(websocket.scope.get(SERVER_SEND), "__self__", None)
-    transport = getattr(protocol, "transport", None)
-    return transport if isinstance(transport, asyncio.Transport) else None
-
-
-def make_token() -> str:
-    """Generate a fresh random access token (URL-safe, 128 bits)."""
-    return secrets.token_urlsafe(16)
-
-
-LISTEN_BACKLOG = 2048
-"""Connections the kernel queues for the server before it accepts them (uvicorn's default)."""
-
-RECEIVE_BUFFER_BYTES = 8192
-"""Kernel receive buffer of each connection (bytes; Linux doubles it; **choice**). One read
-of a client's data is parsed whole before the event loop moves on, so the buffer bounds the
-frames a flooding client can make the server parse at once (a few hundred), while a browser
-sends a few kilobytes per second."""
-
-
-def listening_socket(host: str, port: int) -> socket.socket:
-    """Bind the server's socket and listen (IPv4 or IPv6 by ``host``; port 0: any free port).
-
-    The socket listens before the server runs, so a client that connects as soon as the address
-    is printed waits in the kernel's queue (`LISTEN_BACKLOG` connections) instead of being
-    refused.
-    Accepted connections inherit its `RECEIVE_BUFFER_BYTES` receive buffer, and its protocol
-    (TCP by name), from which asyncio turns Nagle's algorithm off on each (``TCP_NODELAY``): a
-    small message is sent at once instead of waiting for the client's acknowledgement of the
-    previous one.
-    """
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
-    sock.bind((host, port))
-    sock.listen(LISTEN_BACKLOG)
-    return sock
-
-
-def make_server(app: ASGIApp, host: str, port: int, log_level: str = "warning") -> uvicorn.Server:
-    """Configure a uvicorn server for ``app`` (sans-I/O WebSockets, `MAX_FRAME_BYTES` frames)."""
-    config = uvicorn.Config(
-        app,
-        host=host,
-        port=port,
-        ws="websockets-sansio",
-        ws_max_size=MAX_FRAME_BYTES,
-        log_level=log_level,
-        lifespan="off",
-        backlog=LISTEN_BACKLOG,
-    )
-    return uvicorn.Server(config)
+        if self.outbox.ending:
+            await self.outbox.ended()
+        else:
+            self.outbox.close()

@@ -1,18 +1,22 @@
 """One live trial: the person and the avatar on the engine's clock, every sample recorded to disk.
 
-A `LiveTrial` is driven by the server: `update_person` stores the pointer's latest position
-whenever the browser sends one, and `tick` is called once per control period T (0.03 s). The
-trial is a session of the engine's own step loop (`mirror_avatar.engine.loop.Engine`): the
-person is player 0, a `PointerPlayer` whose sample k is the latest position received when tick k
-runs (velocity ``(x_k - x_{k-1}) / T``), and the avatar, if any, is player 1, advanced by its own
-``step`` exactly as in simulations. The time axis is therefore the engine's clock, uniform at
-1/T Hz; how late the server's ticks really were is recorded.
+A `LiveTrial` is the one-participant case of the real-time core's clocked trial
+(`mirror_avatar.realtime.trial.ClockedTrial`), driven by the server: `update_person` stores the
+pointer's latest position whenever the browser sends one, and the clock
+(`mirror_avatar.realtime.clock.run_on_clock`) ticks it once per control period T (0.03 s). The
+person is player 0, a `mirror_avatar.realtime.inputs.HumanPlayer` whose sample k is the latest
+position received when tick k runs (velocity ``(x_k - x_{k-1}) / T``), and the avatar, if any,
+is player 1, advanced by its own ``step`` exactly as in simulations. The time axis is therefore
+the engine's clock, uniform at 1/T Hz; when each sample was really taken, and how late its tick
+was, is recorded beside it.
 
 Recording, as each sample is taken (flushed): ``<stem>_session.csv``, the session in the
 toolkit's session format (`mirror_avatar.session.SessionWriter`, read back by
 `mirror_avatar.session.load_session`, so ``mirror-avatar evaluate`` works on it) with its sidecar
 ``<stem>_session.json`` (participant, mode, avatar spec, seed, timestamps, completeness, round
-trips and, at the end, the metrics), and ``<stem>.csv``, the person's trial alone
+trips, lateness and, at the end, the metrics), ``<stem>_inputs.csv`` (each sample's true time,
+lateness and input, `mirror_avatar.realtime.trial.TickLog`) and ``<stem>.csv``, the person's
+trial alone
 (``time,position``, the trial exchange format: solo trials feed ``mirror-avatar generator fit``
 directly). The sidecar
 says ``"complete": false`` until the trial ends well, so a crash, a dropped connection or a closed
@@ -24,10 +28,8 @@ from __future__ import annotations
 import logging
 import math
 import secrets
-import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import IO, Any
@@ -37,12 +39,14 @@ from numpy.typing import NDArray
 
 from mirror_avatar import __version__
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.engine.loop import Engine, Sink
 from mirror_avatar.graphs import complete_graph
 from mirror_avatar.live.protocol import StartRequest
 from mirror_avatar.metrics import compute_relative_phase, session_metrics
-from mirror_avatar.players.base import ExternalPlayer, Observation, Player
-from mirror_avatar.session import Session, SessionWriter
+from mirror_avatar.players.base import Observation, Player
+from mirror_avatar.realtime.inputs import BrowserInput, HumanPlayer
+from mirror_avatar.realtime.latency import RoundTrips
+from mirror_avatar.realtime.trial import ClockedTrial
+from mirror_avatar.session import Session
 from mirror_avatar.signature import DEFAULT_BINS, compute_ims
 from mirror_avatar.trials import MIN_SAMPLES
 
@@ -83,34 +87,6 @@ def make_avatar_factory(spec: str = DEFAULT_AVATAR) -> AvatarFactory:
         return load_player(spec, AVATAR_ROLES[mode])
 
     return factory
-
-
-class PointerPlayer(ExternalPlayer):
-    """The person at the browser: the latest pointer position, read once per sample.
-
-    Parameters
-    ----------
-    period
-        Control period T (s), for the finite-difference velocity.
-    """
-
-    label = "person"
-
-    def __init__(self, period: float = CONTROL_PERIOD) -> None:
-        self.period = period
-        self.x = 0.0
-        self._previous: float | None = None
-
-    def reset(self, seed: int | None = None) -> tuple[float, float]:
-        """Forget the previous sample; the state is the pointer's, at rest."""
-        self._previous = None
-        return self.x, 0.0
-
-    def current_state(self) -> tuple[float, float]:
-        """Return the latest position (units) and ``(x_k - x_{k-1}) / T`` (0 at first)."""
-        previous = self.x if self._previous is None else self._previous
-        self._previous = self.x
-        return self.x, (self.x - previous) / self.period
 
 
 class PersonTrialWriter:
@@ -181,7 +157,6 @@ def start_trial(
         "duration_requested_s": request.duration,
         "period_s": period,
         "sampling_rate_hz": 1.0 / period,
-        "time_axis": "engine clock: sample k at k * period_s",
         "created_utc": now.isoformat(),
         "software": f"mirror-avatar {__version__}",
         "files": {"person": f"{stem}.csv", "session": f"{stem}_session.csv"},
@@ -193,30 +168,6 @@ def _warm_up(avatar: Player) -> None:
     """Step a spare avatar once, so compiling its step happens here, not on the live clock."""
     avatar.reset(seed=0)
     avatar.step(Observation.of_partner(0, 0.0, 0.0, 0.0))
-
-
-@dataclass
-class RoundTrips:
-    """Round-trip times (ms) reported by the browser during a trial."""
-
-    samples: list[float] = field(default_factory=list)
-
-    def add(self, rtt_ms: float) -> None:
-        """Record one round trip (ms)."""
-        self.samples.append(rtt_ms)
-
-    def summary(self) -> dict[str, float | int | None]:
-        """Count, mean, median, 95th percentile and maximum (ms); None when there are none."""
-        if not self.samples:
-            return {"n": 0, "mean": None, "median": None, "p95": None, "max": None}
-        values = np.asarray(self.samples)
-        return {
-            "n": int(values.size),
-            "mean": float(values.mean()),
-            "median": float(np.median(values)),
-            "p95": float(np.percentile(values, 95)),
-            "max": float(values.max()),
-        }
 
 
 PLOT_POINTS = 600
@@ -273,38 +224,8 @@ def compute_trial_metrics(session: Session) -> dict[str, Any]:
     return metrics
 
 
-class RecordedTrial:
-    """A trial recorded sample by sample: its progress from its ``writer`` and ``n_ticks``.
-
-    Attributes
-    ----------
-    writer
-        The session file being written (`mirror_avatar.session.SessionWriter`).
-    n_ticks
-        Samples the whole trial takes.
-    """
-
-    writer: SessionWriter
-    n_ticks: int
-
-    @property
-    def k(self) -> int:
-        """Samples recorded so far."""
-        return self.writer.n_samples
-
-    @property
-    def finished(self) -> bool:
-        """Whether every sample of the trial has been recorded."""
-        return self.k >= self.n_ticks
-
-    @property
-    def progress(self) -> float:
-        """Fraction of the trial recorded, in [0, 1]."""
-        return min(1.0, self.k / self.n_ticks)
-
-
-class LiveTrial(RecordedTrial):
-    """A trial in progress: the engine playing the person and the avatar, and its recordings.
+class LiveTrial(ClockedTrial):
+    """A trial in progress: the person at the browser and the avatar, on the real-time core.
 
     Parameters
     ----------
@@ -334,28 +255,31 @@ class LiveTrial(RecordedTrial):
         self.mode = request.mode
         self.duration = request.duration
         self.avatar = avatar
-        self.period = period
-        self.n_ticks = int(round(request.duration / period)) + 1
         self.round_trips = RoundTrips()
         self.rejected_messages = 0
         self.started_utc = datetime.now(UTC).isoformat()
-        self.person = PointerPlayer(period)
+        self.source = BrowserInput()
+        self.person = HumanPlayer(self.source, f"person {request.participant}", period)
         players = [self.person] if avatar is None else [self.person, avatar]
         roles = [PERSON_ROLES.get(self.mode, "joint")]
         roles += [] if avatar is None else [AVATAR_ROLES[self.mode]]
-        labels = [f"person {request.participant}"] + ([] if avatar is None else ["avatar"])
-        graph = complete_graph(len(players))
+        labels = [self.person.label] + ([] if avatar is None else ["avatar"])
         self.person_path = stem.with_name(stem.name + ".csv")
-        self.session_path = stem.with_name(stem.name + "_session.csv")
-        self.writer = SessionWriter(self.session_path, labels, roles, graph, period, metadata)
         self.person_writer = PersonTrialWriter(self.person_path)
-        sinks: list[Sink] = [self.writer.append, self.person_writer]
-        self.engine = Engine(players, graph, roles, labels, sinks)
-        self.engine.reset(seed, self.n_ticks)
-        self._lateness: list[float] = []
         self.last_heard = time.monotonic()
-        self._lock = threading.Lock()
-        self._closed = False
+        self._seq = 0
+        super().__init__(
+            players,
+            labels,
+            roles,
+            complete_graph(len(players)),
+            int(round(request.duration / period)) + 1,
+            seed,
+            stem,
+            metadata,
+            time.monotonic,
+            [self.person_writer],
+        )
 
     @property
     def avatar_x(self) -> float | None:
@@ -364,71 +288,47 @@ class LiveTrial(RecordedTrial):
             return None
         return self.engine.state(1)[0]
 
-    def update_person(self, x: float, rtt_ms: float | None) -> None:
-        """Store the person's latest position (units) and the browser's last round trip (ms)."""
-        self.person.x = x
+    def update_person(self, x: float, rtt_ms: float | None, seq: int | None = None) -> None:
+        """Store the person's latest position (units) and the browser's last round trip (ms).
+
+        ``seq`` numbers the page's positions; without it they are numbered in arrival order.
+        """
+        self._seq = self._seq + 1 if seq is None else seq
+        self.source.put(x, self._seq)
         self.last_heard = time.monotonic()
         if rtt_ms is not None and self.k > 0:
             self.round_trips.add(rtt_ms)
 
-    def tick(self, lateness: float = 0.0) -> None:
-        """Take sample k (the person's latest position) and advance the avatar to t_{k+1}.
+    def close_files(self) -> None:
+        """Close the person's trial file and the tick log."""
+        super().close_files()
+        try:
+            self.person_writer.close()
+        except OSError as error:
+            logger.warning("closing %s: %s", self.person_path, error)
 
-        Safe to call from a worker thread: a tick and `finish` never overlap, and a tick after
-        `finish` does nothing.
-
-        Parameters
-        ----------
-        lateness
-            How late (s) the server called this tick compared with its schedule.
-        """
-        with self._lock:
-            if self._closed:
-                return
-            self._lateness.append(lateness)
-            if self.k < self.n_ticks - 1:
-                self.engine.step()
-            else:
-                self.engine.finish()
+    def analyse(self, session: Session) -> dict[str, Any]:
+        """Return the live trial's end numbers: round trips, rejected messages and metrics."""
+        return {
+            "started_utc": self.started_utc,
+            "round_trip_ms": self.round_trips.summary(),
+            "rejected_messages": self.rejected_messages,
+            "metrics": compute_trial_metrics(session),
+        }
 
     def finish(self, complete: bool, reason: str) -> dict[str, Any]:
         """Close the files, compute the metrics and write the final sidecar.
 
-        Parameters
-        ----------
-        complete
-            Whether the trial ran its full duration.
-        reason
-            Why it ended (``"completed"``, ``"connection closed"``...).
-
         Returns
         -------
         dict
-            The trial's metadata as the sidecar records it, with ``metrics`` and ``n_samples``,
-            and the figures' ``traces`` (`compute_trial_traces`).
+            `ClockedTrial.finish`'s summary; the figures' ``traces`` (`compute_trial_traces`)
+            are returned, not stored in the sidecar.
         """
-        with self._lock:
-            self._closed = True
-        self.person_writer.close()
-        lateness = np.asarray(self._lateness) * 1000.0
-        extra: dict[str, Any] = {
-            "started_utc": self.started_utc,
-            "ended_utc": datetime.now(UTC).isoformat(),
-            "end_reason": reason,
-            "round_trip_ms": self.round_trips.summary(),
-            "tick_lateness_ms": {
-                "mean": float(lateness.mean()) if lateness.size else None,
-                "max": float(lateness.max()) if lateness.size else None,
-            },
-            "rejected_messages": self.rejected_messages,
-        }
-        traces: dict[str, Any] = {}
+        summary = super().finish(complete, reason)
         try:
-            session = self.engine.session()
-            extra["metrics"] = compute_trial_metrics(session)
-            traces = compute_trial_traces(session)
-        except Exception as error:  # the recording is kept whatever the analysis does
-            logger.exception("metrics of %s failed", self.session_path)
-            extra["metrics"] = {"error": f"{type(error).__name__}: {error}"}
-        sidecar = self.writer.close(complete, extra)
-        return sidecar["metadata"] | {"n_samples": sidecar["n_samples"], "traces": traces}
+            traces = compute_trial_traces(self.engine.session())
+        except Exception:  # the recording is kept whatever the analysis does
+            logger.exception("traces of %s failed", self.session_path)
+            traces = {}
+        return summary | {"traces": traces}

@@ -154,11 +154,13 @@
       if (slot.kind === "human") {
         state = slot.connected ? "connected" : slot.joined ? "disconnected" : "not joined";
         if (slot.dropped_at !== null && slot.dropped_at !== undefined) state += ` · dropped at sample ${slot.dropped_at}`;
+        if (slot.input_live === false) state += " · input lost";
       }
       cell(row, state).className = `state ${state.split(" ")[0]}`;
-      cell(row, slot.kind === "human" ? `${fmt(slot.rtt_median_ms)} / ${fmt(slot.rtt_p95_ms)}` : "");
+      const waiting = slot.rtt_waiting_ms > 1000 ? ` (no answer for ${fmt(slot.rtt_waiting_ms, 0)})` : "";
+      cell(row, slot.kind === "human" ? `${fmt(slot.rtt_median_ms)} / ${fmt(slot.rtt_p95_ms)}${waiting}` : "");
       cell(row, slot.kind === "human" ? `${slot.frames_dropped} / ${slot.late_frames}` : "");
-      cell(row, slot.kind === "human" ? String(slot.held ?? "-") : "");
+      cell(row, slot.kind === "human" ? `${slot.held ?? "-"} / ${slot.lost ?? "-"}` : "");
       const link = status.links[slot.label];
       if (link) {
         const box = document.createElement("span");
@@ -184,7 +186,9 @@
       cell(row, String(trial.n_samples));
       cell(row, Object.entries(trial.metrics).filter(([k]) => names[k]).map(([k, v]) => `${names[k]} ${fmt(v, 3)}`).join(" · ")).className = "metrics";
       const dropped = Object.entries(trial.dropped).map(([k, v]) => `${k} dropped at ${v}`);
-      cell(row, [Object.entries(trial.held).map(([k, v]) => `${k}: ${v}`).join(", "), ...dropped].join("; "));
+      const lost = Object.entries(trial.lost || {}).filter(([, v]) => v > 0).map(([k, v]) => `${k} lost ${v}`);
+      const late = trial.late_ms && trial.late_ms.max !== null ? [`clock late ≤ ${fmt(trial.late_ms.max, 0)} ms`] : [];
+      cell(row, [Object.entries(trial.held).map(([k, v]) => `${k}: ${v}`).join(", "), ...dropped, ...lost, ...late].join("; "));
       const files = document.createElement("span");
       trial.files.forEach((name) => files.append(Object.assign(document.createElement("a"), { href: `/api/sessions/${status.id}/files/${name}`, textContent: name }), " "));
       cell(row, files);
@@ -195,7 +199,7 @@
   // Where the session stands: the trial running, the next one, or that it is over.
   function whereNow(status) {
     const done = status.trials.length;
-    if (status.trial) return `trial ${status.trial.n} running`;
+    if (status.trial) return `trial ${status.trial.n} running · clock late ${fmt(status.trial.late_ms, 0)} ms (max ${fmt(status.trial.max_late_ms, 0)})`;
     if (status.state === "finished") return `finished: ${done} of ${status.plan.trials} trial(s) played`;
     if (status.state === "aborted") return `aborted after ${done} trial(s)`;
     return `next trial ${Math.min(status.next_trial, status.plan.trials)}`;

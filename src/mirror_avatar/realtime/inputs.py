@@ -5,17 +5,29 @@ sequence number that grows with every new sample, and when it arrived). The serv
 it once per control period through a `HumanPlayer`, which never invents a position: when no new
 sample has arrived since the previous tick it holds the last one and counts the tick as held,
 and before the first sample it holds the centre of the playing range (also counted).
+
+Liveness is judged from what a source actually delivers, not from a connection's state: an
+input is *lost* at a tick when its newest sample arrived more than `LIVENESS_TIMEOUT` seconds
+earlier (or, before its first sample, when the trial started that long ago), and *live* again
+as soon as a new sample arrives. A page that freezes or is closed, a network that stalls, an LSL
+stream that vanishes or stops sending: all look the same, and all are seen.
 """
 
 from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.players.base import ExternalPlayer
+
+LIVENESS_TIMEOUT = 1.0
+"""Seconds without a new sample after which an input is judged lost (**choice**: a page sends
+one position per animation frame, 60 a second; a hand tracker 100 or more; a second is over
+30 control periods, far beyond a network's hiccup, short enough to act on within a trial)."""
 
 
 @dataclass(frozen=True)
@@ -87,11 +99,14 @@ class TickInput:
         Its age when read (s; NaN before any).
     held
         Whether no new sample had arrived since the previous tick.
+    alive
+        Whether the input delivered within `LIVENESS_TIMEOUT` (see the module docstring).
     """
 
     seq: int
     age: float
     held: bool
+    alive: bool = True
 
 
 class HumanPlayer(ExternalPlayer):
@@ -105,21 +120,43 @@ class HumanPlayer(ExternalPlayer):
         The person's name in the session.
     period
         Control period T (s), for the finite-difference velocity ``(x_k - x_{k-1}) / T``.
+    timeout
+        Seconds without a new sample after which the input is judged lost.
+    clock
+        Monotonic clock (s), the one `Sample.received` is stamped with.
+
+    Attributes
+    ----------
+    held, lost
+        Ticks of the trial at which the position was held, and at which the input was lost.
+    last_input
+        What the latest tick used (`TickInput`).
     """
 
-    def __init__(self, source: InputSource, label: str, period: float = CONTROL_PERIOD) -> None:
+    def __init__(
+        self,
+        source: InputSource,
+        label: str,
+        period: float = CONTROL_PERIOD,
+        timeout: float = LIVENESS_TIMEOUT,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.source = source
         self.label = label
         self.period = period
-        self.held = 0
+        self.timeout = timeout
+        self.clock = clock
+        self.held = self.lost = 0
         self.last_input = TickInput(-1, float("nan"), True)
         self._previous: float | None = None
+        self._started = clock()
 
     def reset(self, seed: int | None = None) -> tuple[float, float]:
-        """Start a trial: forget the previous sample and the held count."""
+        """Start a trial: forget the previous sample and the held and lost counts."""
         self._previous = None
-        self.held = 0
+        self.held = self.lost = 0
         self.last_input = TickInput(-1, float("nan"), True)
+        self._started = self.clock()
         sample = self.source.latest()
         return (0.0 if sample is None else sample.x), 0.0
 
@@ -127,12 +164,17 @@ class HumanPlayer(ExternalPlayer):
         """Read the newest sample: its position (units) and the finite-difference velocity."""
         sample = self.source.latest()
         previous_seq = self.last_input.seq
+        now = self.clock()
         if sample is None:
-            x, tick = 0.0, TickInput(-1, float("nan"), True)
+            alive = now - self._started <= self.timeout
+            x, tick = 0.0, TickInput(-1, float("nan"), True, alive)
         else:
-            age = time.monotonic() - sample.received
-            x, tick = sample.x, TickInput(sample.seq, age, sample.seq == previous_seq)
+            age = now - sample.received
+            heard = max(sample.received, self._started)
+            alive = now - heard <= self.timeout
+            x, tick = sample.x, TickInput(sample.seq, age, sample.seq == previous_seq, alive)
         self.held += int(tick.held)
+        self.lost += int(not tick.alive)
         self.last_input = tick
         before = x if self._previous is None else self._previous
         self._previous = x

@@ -1,0 +1,133 @@
+"""The servers' sockets: listening, aborting a connection that stopped reading, quiet logs.
+
+Both real-time servers run under uvicorn (`make_server`) on a socket bound before the server
+starts (`listening_socket`). A connection whose client stopped reading is aborted
+(`abort_transport`), not closed gracefully, so its socket cannot linger; the transport is
+reached through the server's own ASGI ``send`` callable, which the gates keep in the scope under
+`SERVER_SEND` (`mirror_avatar.realtime.gates`). The access log leaves secrets out
+(`RedactSecrets`): tokens in query strings and the keys of join links.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import re
+import secrets
+import socket
+
+import uvicorn
+from starlette.types import ASGIApp
+from starlette.websockets import WebSocket
+
+MAX_FRAME_BYTES = 16 * 1024
+"""Largest WebSocket frame the servers read at all (bytes); larger ones close the connection."""
+
+SERVER_SEND = "mirror_avatar.server_send"
+"""Scope key of the ASGI server's own ``send`` callable (see `abort_transport`)."""
+
+
+def abort_transport(websocket: WebSocket, delay: float = 0.0) -> None:
+    """Close a connection's socket at once, or after ``delay`` seconds, discarding the rest.
+
+    A graceful close would wait for a client that stopped reading to take the queued data, so
+    its socket would stay open. The transport is reached through the server's own ASGI ``send``
+    callable, which the gates keep in the scope (uvicorn's is a method of its protocol
+    object); under a server that does not expose it the connection is left to its own close.
+    """
+    transport = _transport(websocket)
+    if transport is not None:
+        asyncio.get_running_loop().call_later(delay, transport.abort)
+
+
+def stop_reading(websocket: WebSocket) -> None:
+    """Read nothing more from a connection's socket (a flooding client's data stays unread)."""
+    transport = _transport(websocket)
+    if transport is not None:
+        transport.pause_reading()
+
+
+def _transport(websocket: WebSocket) -> asyncio.Transport | None:
+    """Return the socket transport under ``websocket``, if the server exposes it (the gates)."""
+    protocol = getattr(websocket.scope.get(SERVER_SEND), "__self__", None)
+    transport = getattr(protocol, "transport", None)
+    return transport if isinstance(transport, asyncio.Transport) else None
+
+
+def make_token() -> str:
+    """Generate a fresh random access token (URL-safe, 128 bits)."""
+    return secrets.token_urlsafe(16)
+
+
+LISTEN_BACKLOG = 2048
+"""Connections the kernel queues for the server before it accepts them (uvicorn's default)."""
+
+RECEIVE_BUFFER_BYTES = 8192
+"""Kernel receive buffer of each connection (bytes; Linux doubles it; **choice**). One read
+of a client's data is parsed whole before the event loop moves on, so the buffer bounds the
+frames a flooding client can make the server parse at once (a few hundred), while a browser
+sends a few kilobytes per second."""
+
+
+def listening_socket(host: str, port: int) -> socket.socket:
+    """Bind the server's socket and listen (IPv4 or IPv6 by ``host``; port 0: any free port).
+
+    The socket listens before the server runs, so a client that connects as soon as the address
+    is printed waits in the kernel's queue (`LISTEN_BACKLOG` connections) instead of being
+    refused.
+    Accepted connections inherit its `RECEIVE_BUFFER_BYTES` receive buffer, and its protocol
+    (TCP by name), from which asyncio turns Nagle's algorithm off on each (``TCP_NODELAY``): a
+    small message is sent at once instead of waiting for the client's acknowledgement of the
+    previous one.
+    """
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
+    sock.bind((host, port))
+    sock.listen(LISTEN_BACKLOG)
+    return sock
+
+
+def make_server(app: ASGIApp, host: str, port: int, log_level: str = "warning") -> uvicorn.Server:
+    """Configure a uvicorn server for ``app`` (sans-I/O WebSockets, `MAX_FRAME_BYTES` frames).
+
+    Its logs leave secrets out (`keep_secrets_out_of_logs`).
+    """
+    config = uvicorn.Config(
+        app,
+        host=host,
+        port=port,
+        ws="websockets-sansio",
+        ws_max_size=MAX_FRAME_BYTES,
+        log_level=log_level,
+        lifespan="off",
+        backlog=LISTEN_BACKLOG,
+    )
+    keep_secrets_out_of_logs()
+    return uvicorn.Server(config)
+
+
+SECRETS = re.compile(r"(token=|/join/)[^&\s\"/?]+")
+"""Where secrets stand in a request line: a token query parameter, a join link's key."""
+
+
+class RedactSecrets(logging.Filter):
+    """A logging filter replacing tokens and join keys in log records by ``***``."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        """Redact the record's arguments (uvicorn's access log puts the path there)."""
+        if isinstance(record.args, tuple):
+            record.args = tuple(
+                SECRETS.sub(r"\1***", arg) if isinstance(arg, str) else arg for arg in record.args
+            )
+        record.msg = SECRETS.sub(r"\1***", str(record.msg))
+        return True
+
+
+def keep_secrets_out_of_logs() -> None:
+    """Install `RedactSecrets` on uvicorn's logs (HTTP requests and WebSocket handshakes)."""
+    for name in ("uvicorn.access", "uvicorn.error"):
+        log = logging.getLogger(name)
+        if not any(isinstance(f, RedactSecrets) for f in log.filters):
+            log.addFilter(RedactSecrets())
