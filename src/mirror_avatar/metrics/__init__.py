@@ -4,6 +4,10 @@
 variance, time lag and cross-correlation, paired t-tests; METHODS section 6), `group` the
 synchronisation of N players (cluster phase, METHODS section 8), and `summary` composes them
 into `session_metrics`, the one summary of a session every part of the toolkit reports.
+The measures mirror-game studies report beside them (jitter, co-confidence, synchrony episodes,
+leadership, transfer entropy, surrogates; METHODS section 12) have one module each, composed by
+`measures.session_measures`, which `evaluate` calls (imported from there, since it brings
+pyinform).
 """
 
 from mirror_avatar.metrics.coordination import (

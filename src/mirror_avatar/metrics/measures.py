@@ -1,0 +1,360 @@
+"""The field's measures of a session, each beside its chance level (METHODS section 12).
+
+`session_measures` is the companion of `mirror_avatar.metrics.summary.session_metrics`: it takes
+any `Session` (simulated, live, lab, imported, BIDS) and returns co-confidence, jitter,
+synchrony episodes, leadership and transfer entropy, and for every coordination measure a
+surrogate distribution and a p-value (`mirror_avatar.metrics.surrogates`). Keys:
+
+- two players: ``co_confidence_rate`` (share of time), ``co_confidence_count``,
+  ``co_confidence_mean_length`` (s), ``co_confidence_segments`` (start and end in session time
+  (s), ``dv``, ``dt`` (s)); ``jitter_index_player_<k>``; ``synchrony_share``,
+  ``synchrony_entries``, ``synchrony_exits``, ``synchrony_mean_dwell`` and
+  ``synchrony_mean_gap`` (s); ``leader`` (0, 1 or ``"none"``), ``leader_share``,
+  ``leader_lag_s`` (s), ``leadership_strength`` (mean picked-peak correlation, windows without
+  a peak counting 0); ``transfer_entropy_0_to_1`` and ``_1_to_0`` (bits); and
+  ``max_cross_correlation``;
+- three or more: ``jitter_index_player_<k>``, ``transfer_entropy_<i>_to_<j>`` for every ordered
+  pair and each player's ``influence_player_<i>`` (mean transfer entropy to the others, bits);
+- ``<measure>_p_value`` beside each tested measure (`TESTED`); ``time_lag_p_value`` is the
+  p-value of the cross-correlation peak that fixes the time lag; ``surrogates`` records the
+  kind, number, smallest shift and seed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from tqdm.auto import tqdm
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.metrics import co_confidence, jitter, leadership, synchrony_episodes
+from mirror_avatar.metrics import transfer_entropy as te
+from mirror_avatar.metrics.coordination import (
+    compute_cross_correlation_peak,
+    compute_phase,
+    compute_phase_locking,
+    compute_relative_phase,
+    compute_rmse,
+)
+from mirror_avatar.metrics.group import compute_cluster_phase
+from mirror_avatar.metrics.surrogates import (
+    MIN_SHIFT,
+    WeakNull,
+    kuramoto_weak_null,
+    p_value,
+    pseudo_session,
+    shift_offsets,
+    shifted,
+)
+from mirror_avatar.seeds import spawn_seeds
+from mirror_avatar.session import Session
+
+Array = NDArray[np.float64]
+
+N_SURROGATES = 99
+"""Surrogates per session by default (p-values down to 0.01)."""
+
+DYAD_TESTED = {
+    "phase_locking": True, "rmse": False, "max_cross_correlation": True,
+    "co_confidence_rate": True, "leadership_strength": True, "leader_share": True,
+    "transfer_entropy_0_to_1": True, "transfer_entropy_1_to_0": True,
+}  # fmt: skip
+"""The coordination measures of a pair tested against surrogates: name -> larger is more
+coordinated (False for RMS)."""
+
+P_VALUE_KEYS = {"max_cross_correlation": "time_lag_p_value"}
+"""Tested measures whose p-value is named after the measure they stand for."""
+
+
+@dataclass(frozen=True)
+class MeasureOptions:
+    """The open parameters of the measures, each a **choice** (METHODS section 12).
+
+    Attributes
+    ----------
+    min_duration, jitter_threshold, dv_threshold, dv_window, rest_fraction
+        Co-confidence (`mirror_avatar.metrics.co_confidence.find_co_confidence`).
+    jitter_band
+        Jitter band (Hz).
+    sync_window, sync_threshold
+        Synchrony episodes (s, windowed phase locking).
+    lead_window, lead_step, lead_max_lag, lead_min_peak, leader_share
+        Leadership (`mirror_avatar.metrics.leadership`); ``lead_signal`` ``"velocity"`` or
+        ``"position"``.
+    te_bins, te_history, te_step
+        Transfer entropy (`mirror_avatar.metrics.transfer_entropy`).
+    n_surrogates, surrogates, min_shift, seed
+        Surrogates per session (0: none), their kind (``"shift"`` or ``"pseudo"``), the
+        smallest circular shift (s) and the seed of their draws.
+    """
+
+    min_duration: float = co_confidence.MIN_DURATION
+    jitter_threshold: float = co_confidence.JITTER_THRESHOLD
+    dv_threshold: float = co_confidence.DV_THRESHOLD
+    dv_window: float = co_confidence.DV_WINDOW
+    rest_fraction: float = co_confidence.REST_FRACTION
+    jitter_band: tuple[float, float] = jitter.JITTER_BAND
+    sync_window: float = synchrony_episodes.WINDOW
+    sync_threshold: float = synchrony_episodes.THRESHOLD
+    lead_window: float = leadership.WINDOW
+    lead_step: float = leadership.STEP
+    lead_max_lag: float = leadership.MAX_LAG
+    lead_min_peak: float = leadership.MIN_PEAK
+    leader_share: float = leadership.LEADER_SHARE
+    lead_signal: Literal["velocity", "position"] = "velocity"
+    te_bins: int = te.BINS
+    te_history: int = te.HISTORY
+    te_step: float = te.STEP
+    n_surrogates: int = N_SURROGATES
+    surrogates: Literal["shift", "pseudo"] = "shift"
+    min_shift: float = MIN_SHIFT
+    seed: int = 0
+
+
+@dataclass
+class Measures:
+    """A session's measures.
+
+    ``values`` (JSON-ready, keys in the module docstring), the time-resolved ``details`` figures
+    draw (``co_confidence``, ``leadership``, ``jitter``, ``synchrony``, ``start``: the session
+    time of sample 0), and ``null``, each tested measure's surrogate values.
+    """
+
+    values: dict[str, Any] = field(default_factory=dict)
+    details: dict[str, Any] = field(default_factory=dict)
+    null: dict[str, Array] = field(default_factory=dict)
+
+
+def _cc(v: Array, rate: float, o: MeasureOptions) -> co_confidence.CoConfidence:
+    return co_confidence.find_co_confidence(
+        v[0], v[1], rate, o.min_duration, o.jitter_threshold, o.dv_threshold, o.dv_window,
+        o.rest_fraction, o.jitter_band,
+    )  # fmt: skip
+
+
+def _leadership(x: Array, v: Array, rate: float, o: MeasureOptions) -> leadership.Leadership | None:
+    """Leadership of the pair; None when the session is shorter than a window and its lags."""
+    if x.shape[1] < round(o.lead_window * rate) + 2 * round(o.lead_max_lag * rate):
+        return None
+    s = v if o.lead_signal == "velocity" else x
+    return leadership.compute_leadership(
+        s[0], s[1], rate, o.lead_window, o.lead_step, o.lead_max_lag, o.lead_min_peak
+    )
+
+
+def _te(v: Array, i: int, j: int, rate: float, o: MeasureOptions) -> float:
+    return te.transfer_entropy(v[i], v[j], rate, o.te_history, o.te_bins, o.te_step)
+
+
+def coordination_statistics(x: Array, v: Array, rate: float, o: MeasureOptions) -> dict[str, float]:
+    """Compute the tested measures of N moving players (`tested_directions` names them).
+
+    Parameters
+    ----------
+    x, v
+        Positions (units) and velocities (units/s), shape (N, n), uniform at ``rate`` (Hz).
+    rate
+        Sampling rate (Hz).
+    o
+        Options.
+    """
+    if x.shape[0] > 2:
+        phases = np.array([compute_phase(row) for row in x])
+        out = {"group_synchronisation": float(compute_cluster_phase(phases).group.mean())}
+        for i in range(x.shape[0]):
+            for j in range(x.shape[0]):
+                if i != j:
+                    out[f"transfer_entropy_{i}_to_{j}"] = _te(v, i, j, rate, o)
+        return out
+    lead = _leadership(x, v, rate, o)
+    nan = float("nan")
+    return {
+        "phase_locking": compute_phase_locking(compute_relative_phase(x[0], x[1])),
+        "rmse": compute_rmse(x[0], x[1]),
+        "max_cross_correlation": compute_cross_correlation_peak(x[0], x[1], rate)[1],
+        "co_confidence_rate": _cc(v, rate, o).rate,
+        "leadership_strength": nan
+        if lead is None
+        else float(np.nan_to_num(lead.peak_values).mean()),
+        "leader_share": nan if lead is None else lead.leader(rate, o.leader_share)[1],
+        "transfer_entropy_0_to_1": _te(v, 0, 1, rate, o),
+        "transfer_entropy_1_to_0": _te(v, 1, 0, rate, o),
+    }
+
+
+def tested_directions(n_players: int) -> dict[str, bool]:
+    """Name the tested measures of ``n_players`` players: name -> larger is more coordinated."""
+    if n_players == 2:
+        return DYAD_TESTED
+    pairs = [(i, j) for i in range(n_players) for j in range(n_players) if i != j]
+    return {"group_synchronisation": True} | {
+        f"transfer_entropy_{i}_to_{j}": True for i, j in pairs
+    }
+
+
+def _surrogate_sessions(
+    x: Array, v: Array, rate: float, o: MeasureOptions, partners: Sequence[Session]
+) -> list[tuple[Array, Array]]:
+    """Draw the surrogate (positions, velocities) of a session, as `MeasureOptions` asks."""
+    if o.surrogates == "pseudo":
+        others = [p for p in partners if p.n_players == x.shape[0]]
+        if not others:
+            raise InputError(
+                "--surrogates pseudo", "needs other sessions with as many players (or use shift)"
+            )
+        picks = np.random.default_rng(o.seed).permutation(len(others))[: o.n_surrogates]
+        return [
+            (pseudo_session(x, others[k].positions), pseudo_session(v, others[k].velocities))
+            for k in picks
+        ]
+    rng = np.random.default_rng(o.seed)
+    offsets = shift_offsets(x.shape[1], x.shape[0], o.n_surrogates, round(o.min_shift * rate), rng)
+    return [(shifted(x, k), shifted(v, k)) for k in offsets]
+
+
+def session_measures(
+    session: Session, trim: float = 0.0, options: MeasureOptions | None = None,
+    partners: Sequence[Session] = (),
+) -> Measures:  # fmt: skip
+    """Compute the measures of a session and their chance levels (module docstring).
+
+    Parameters
+    ----------
+    session
+        Any session of two or more players (one player: only its jitter; a session shorter
+        than `mirror_avatar.metrics.jitter.shortest_series` samples: none).
+    trim
+        Seconds left out at the start, as in `session_metrics`.
+    options
+        The open parameters; defaults `MeasureOptions()`.
+    partners
+        Other sessions (already trimmed) for pseudo-pair surrogates.
+    """
+    o = options or MeasureOptions()
+    kept = session.trimmed(trim) if trim > 0 else session
+    x, v = kept.positions, kept.velocities
+    rate = 1.0 / float(np.median(np.diff(kept.times)))
+    out = Measures(details={"start": float(kept.times[0])})
+    if kept.n_samples < jitter.shortest_series():
+        return out
+    index = [jitter.jitter_index(row, rate, o.jitter_band) for row in v]
+    out.details["jitter"] = np.array(index)
+    for k, row in enumerate(v):
+        out.values[f"jitter_index_player_{k}"] = jitter.jitter_value(row, rate, o.jitter_band)
+    if kept.n_players < 2 or not all(np.ptp(row) > 0 for row in x):
+        return out
+    observed = coordination_statistics(x, v, rate, o)
+    out.values |= observed
+    if kept.n_players == 2:
+        out.values |= _dyad_values(x, v, rate, o, out.details)
+    else:
+        _add_influence(out.values, kept.n_players)
+    if o.n_surrogates > 0:
+        _add_p_values(out, observed, x, v, rate, o, partners)
+    return out
+
+
+def _dyad_values(
+    x: Array, v: Array, rate: float, o: MeasureOptions, details: dict[str, Any]
+) -> dict[str, Any]:
+    """Compute the untested measures of a pair, and its time-resolved details for the figures."""
+    start = details["start"]
+    cc = _cc(v, rate, o)
+    lead = _leadership(x, v, rate, o)
+    sync = synchrony_episodes.find_synchrony_episodes(
+        compute_relative_phase(x[0], x[1]), rate, o.sync_window, o.sync_threshold
+    )
+    details |= {"co_confidence": cc, "synchrony": sync}
+    leader = None
+    if lead is not None:
+        details["leadership"] = lead
+        leader, _ = lead.leader(rate, o.leader_share)
+    segments = [
+        {"start": s.start + start, "end": s.end + start, "dv": s.dv, "dt": s.dt}
+        for s in cc.segments
+    ]
+    return {
+        "co_confidence_count": len(cc.segments),
+        "co_confidence_mean_length": cc.mean_length,
+        "co_confidence_segments": segments,
+        "synchrony_share": sync.share,
+        "synchrony_entries": sync.entries,
+        "synchrony_exits": sync.exits,
+        "synchrony_mean_dwell": sync.mean_dwell,
+        "synchrony_mean_gap": sync.mean_gap,
+        "leader": "none" if leader is None else leader,
+        "leader_lag_s": float("nan")
+        if lead is None or leader is None
+        else lead.leader_lag(leader, rate),
+    }
+
+
+def _add_influence(values: dict[str, Any], n_players: int) -> None:
+    for i in range(n_players):
+        outgoing = [values[f"transfer_entropy_{i}_to_{j}"] for j in range(n_players) if j != i]
+        values[f"influence_player_{i}"] = float(np.mean(outgoing))
+
+
+def _add_p_values(
+    out: Measures, observed: dict[str, float], x: Array, v: Array, rate: float,
+    o: MeasureOptions, partners: Sequence[Session],
+) -> None:  # fmt: skip
+    if o.surrogates == "shift" and x.shape[1] - 2 * round(o.min_shift * rate) < 1:
+        out.values["surrogates"] = {"kind": o.surrogates, "n": 0, "min_shift": o.min_shift,
+                                    "seed": o.seed, "note": "too short for the shifts"}  # fmt: skip
+        return
+    directions = tested_directions(x.shape[0])
+    draws = [
+        coordination_statistics(xs, vs, rate, o)
+        for xs, vs in _surrogate_sessions(x, v, rate, o, partners)
+    ]
+    for name, greater in directions.items():
+        null = np.array([draw[name] for draw in draws])
+        out.null[name] = null
+        key = P_VALUE_KEYS.get(name, f"{name}_p_value")
+        out.values[key] = p_value(observed[name], null, greater)
+    out.values["surrogates"] = {
+        "kind": o.surrogates, "n": len(draws), "min_shift": o.min_shift, "seed": o.seed,
+    }  # fmt: skip
+
+
+def evaluate_measures(
+    sessions: Sequence[Session], trim: float, options: MeasureOptions
+) -> tuple[list[Measures], WeakNull | None]:
+    """Compute the measures of several sessions, and the weak-null test over them.
+
+    Session i draws its surrogates from child i of ``options.seed``
+    (`mirror_avatar.seeds.spawn_seeds`); pseudo-pairs take their partners from the other
+    sessions. A progress bar shows on a terminal when surrogates are drawn.
+
+    Returns
+    -------
+    measures, weak_null
+        One `Measures` per session, in order; the weak-null test of the most common group size
+        among the moving sessions of two or more players, when two or more have it, else None.
+    """
+    kept = [s.trimmed(trim) if trim > 0 else s for s in sessions]
+    seeds = spawn_seeds(options.seed, len(kept))
+    quiet = None if options.n_surrogates > 0 else True
+    found = []
+    for i, session in enumerate(tqdm(kept, disable=quiet, unit="session", leave=False)):
+        others = kept[:i] + kept[i + 1 :]
+        found.append(session_measures(session, 0.0, replace(options, seed=int(seeds[i])), others))
+    return found, _weak_null(kept)
+
+
+def _weak_null(sessions: Sequence[Session]) -> WeakNull | None:
+    moving = [
+        s for s in sessions if s.n_players >= 2 and all(np.ptp(row) > 0 for row in s.positions)
+    ]
+    sizes = [s.n_players for s in moving]
+    if not sizes:
+        return None
+    size = max(set(sizes), key=sizes.count)
+    sample = [np.array([compute_phase(row) for row in s.positions]) for s in moving
+              if s.n_players == size]  # fmt: skip
+    return kuramoto_weak_null(sample) if len(sample) >= 2 else None
