@@ -94,10 +94,15 @@
       group_synchronisation: "Group synchronisation",
       synchronisation: "Your synchronisation",
     };
-    return Object.entries(metrics || {})
+    const lines = Object.entries(metrics || {})
       .filter(([name, value]) => names[name] && value !== null)
-      .map(([name, value]) => `${names[name]}: ${Number(value).toFixed(2)}`)
-      .join("\n");
+      .map(([name, value]) => `${names[name]}: ${Number(value).toFixed(2)}`);
+    const led = { you: "You led.", partner: "Your partner led.", none: "Neither of you led for most of the trial." };
+    if (led[(metrics || {}).led_by]) lines.push(led[metrics.led_by]);
+    if (typeof (metrics || {}).co_confidence_rate === "number") {
+      lines.push(`Moving together smoothly: ${Math.round(100 * metrics.co_confidence_rate)} % of the time`);
+    }
+    return lines.join("\n");
   }
 
   function finish() {
