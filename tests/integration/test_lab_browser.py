@@ -171,17 +171,19 @@ def test_a_participant_following_an_avatar_sees_the_measures_listed(chromium, la
     pointer_at(page, 0.0)
     start_when_joined(console, 1)
     page.wait_for_function("window.mirrorLab.others.size === 1", timeout=30_000)
-    seen: list[tuple[float, float]] = []
-    began = time.monotonic()
+    times: list[float] = []
+    seen: list[float] = []
+    began, n = time.monotonic(), 0
     while (t := time.monotonic() - began) < 13.0:
-        seen.append((t, page.evaluate("window.mirrorLab.others.get(0)")))
-        earlier = [x for s, x in seen if s <= t - 0.3]
-        pointer_at(page, earlier[-1] if earlier else 0.0)
-        time.sleep(1 / 30)
+        times.append(t)
+        seen.append(page.evaluate("window.mirrorLab.others.get(0)"))
+        pointer_at(page, float(np.interp(t - 0.3, times, seen, left=0.0)))
+        n += 1
+        time.sleep(max(0.0, began + n / 60 - time.monotonic()))
     row = wait_trial_listed(console, 1)
     console.locator("#trial-list").scroll_into_view_if_needed()
     screenshot(console, "lab-console-measures")
-    assert "leader A1" in row and "co-confidence" in row and "2-3 Hz jitter A1" in row
+    assert "leader A1" in row and "co-confidence" in row and "2-3 Hz jitter A1" in row, row
     record = json.loads((session_dir(tmp_path) / "trial-01_session.json").read_text())
     assert record["metadata"]["measures"]["leader"] == 0
     page.wait_for_function("document.getElementById('message').textContent.includes('led')")
