@@ -172,6 +172,37 @@ def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
     screenshot(console, "lab-console-finished")
 
 
+def test_a_participant_following_an_avatar_sees_the_measures_listed(chromium, lab, tmp_path):
+    """The participant's mouse copies the avatar it sees 0.3 s late; the console's trial list
+    names the avatar as leader and gives the co-confidence, and so does the end screen."""
+    console = open_console(chromium, lab.url)
+    links = create_session(console, "dyad", 12)
+    page = join(chromium, links["P1"])
+    assert page.evaluate("window.mirrorLab.welcome.role") == "follower"
+    pointer_at(page, 0.0)
+    start_when_joined(console, 1)
+    page.wait_for_function("window.mirrorLab.others.size === 1", timeout=30_000)
+    times: list[float] = []
+    seen: list[float] = []
+    began, n = time.monotonic(), 0
+    while (t := time.monotonic() - began) < 13.0:
+        times.append(t)
+        seen.append(page.evaluate("window.mirrorLab.others.get(0)"))
+        pointer_at(page, float(np.interp(t - 0.3, times, seen, left=0.0)))
+        n += 1
+        time.sleep(max(0.0, began + n / 60 - time.monotonic()))
+    row = wait_trial_listed(console, 1)
+    console.locator("#trial-list").scroll_into_view_if_needed()
+    screenshot(console, "lab-console-measures")
+    assert "leader A1" in row and "co-confidence" in row and "2-3 Hz jitter A1" in row, row
+    record = json.loads((session_dir(tmp_path) / "trial-01_session.json").read_text())
+    assert record["metadata"]["measures"]["leader"] == 0
+    page.wait_for_function("document.getElementById('message').textContent.includes('led')")
+    assert "Your partner led." in page.locator("#message").inner_text()
+    assert "Moving together smoothly" in page.locator("#message").inner_text()
+    screenshot(page, "lab-participant-end-measures")
+
+
 def test_group_of_four_on_a_ring_two_people_two_avatars(chromium, lab, tmp_path):
     console = open_console(chromium, lab.url)
     links = create_session(console, "ring", 6)

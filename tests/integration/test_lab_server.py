@@ -207,6 +207,52 @@ def test_a_dyad_of_two_people_plays_on_one_clock(lab, tmp_path):
     assert row["rtt_median_ms"] is not None and row["rtt_median_ms"] < 100
 
 
+class Follower(Page):
+    """A participant's page that copies the avatar it sees ``delay`` samples late."""
+
+    def __init__(self, link: str, delay: int) -> None:
+        super().__init__(link)
+        self.delay = delay
+        self.seen: list[float] = []  # the avatar's position in each frame received
+        self._read = 0
+
+    def x(self, t: float) -> float:
+        for message in self.messages[self._read :]:
+            if message["type"] == "frame":
+                self.seen.append(message["x"][1])
+        self._read = len(self.messages)
+        return self.seen[-1 - self.delay] if len(self.seen) > self.delay else 0.0
+
+
+def test_an_avatar_leads_a_following_participant_and_the_measures_name_it(lab, tmp_path):
+    plan = {
+        "condition": "leader_follower",
+        "leaders": [0],
+        "duration": 15.0,
+        "players": [
+            {"label": "A1", "kind": "avatar", "spec": "bundled:slow"},
+            {"label": "P1", "kind": "human"},
+        ],
+    }
+    created = create(lab, plan)
+    sid = created["id"]
+    follower = Follower(created["links"]["P1"], delay=10)  # 10 frames: 0.3 s behind
+    asyncio.run(play_all([follower], 22.0, lambda: command(lab, sid, "start").raise_for_status()))
+    (trial,) = status(lab, sid)["trials"]
+    measures = trial["measures"]
+    assert trial["complete"] and measures["leader"] == 0  # the avatar, A1
+    assert 0.25 <= measures["leader_lag_s"] <= 0.6  # 0.3 s copied, plus the network
+    assert 0.0 <= measures["co_confidence_rate"] <= 1.0
+    assert measures["leader_share_p_value"] == pytest.approx(1 / 20)  # beat all 19 surrogates
+    listed = ("jitter_index_player_1", "transfer_entropy_1_to_0", "co_confidence_rate_p_value")
+    assert set(listed) <= set(measures)
+    sidecar = json.loads((tmp_path / sid / "trial-01_session.json").read_text())["metadata"]
+    assert sidecar["measures"]["leader"] == 0 and sidecar["measures"]["surrogates"]["n"] == 19
+    assert sidecar["measures"]["co_confidence_rate"] == measures["co_confidence_rate"]
+    (end,) = follower.of_type("end")
+    assert end["metrics"]["led_by"] == "partner" and "co_confidence_rate" in end["metrics"]
+
+
 def test_a_dropped_participant_is_marked_and_the_trial_goes_on(lab, tmp_path):
     created = create(lab, RING | {"duration": 4.0})
     sid = created["id"]

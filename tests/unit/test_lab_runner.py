@@ -1,4 +1,5 @@
-"""A lab session's runner: stopping at any moment leaves every trial it opened closed and listed."""
+"""A lab session's runner: stopping at any moment leaves every trial it opened closed and listed;
+what the console and the end screens show of a trial's measures."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import json
 import time
 
 from mirror_avatar.lab.plan import parse_plan
-from mirror_avatar.lab.runner import LabSession
+from mirror_avatar.lab.runner import LabSession, headline_measures, participant_measures
 
 SOLO = {"condition": "solo", "duration": 5.0, "players": [{"label": "P1", "kind": "human"}]}
 
@@ -57,3 +58,26 @@ def test_a_stop_mid_trial_saves_it_and_the_next_start_plays_the_next_trial(tmp_p
         and second["n_samples"] == round(2.0 / 0.03) + 1
         and second["lab"]["trial"] == 2
     )
+
+
+def test_each_participant_is_told_who_led_in_their_own_words():
+    measures = {"leader": 0, "co_confidence_rate": 0.25, "leader_lag_s": 0.3}
+    assert participant_measures(measures, 0) == {"co_confidence_rate": 0.25, "led_by": "you"}
+    assert participant_measures(measures, 1)["led_by"] == "partner"
+    assert participant_measures(measures | {"leader": "none"}, 1)["led_by"] == "none"
+    assert participant_measures({"jitter_index_player_0": 0.1}, 0) == {}  # a group or too short
+
+
+def test_the_trial_list_keeps_the_headline_measures_and_every_p_value():
+    measures = {
+        "leader": 1, "leader_lag_s": 0.4, "co_confidence_rate": 0.5, "co_confidence_count": 2,
+        "co_confidence_segments": [{"start": 0.0, "end": 3.0, "dv": 0.1, "dt": 0.05}],
+        "jitter_index_player_0": 0.1, "jitter_index_player_1": 0.2, "synchrony_entries": 3,
+        "leader_share_p_value": 0.05, "time_lag_p_value": 0.1, "surrogates": {"n": 19},
+    }  # fmt: skip
+    assert set(headline_measures(measures)) == {
+        "leader", "leader_lag_s", "co_confidence_rate", "co_confidence_count",
+        "jitter_index_player_0", "jitter_index_player_1", "leader_share_p_value",
+        "time_lag_p_value",
+    }  # fmt: skip
+    assert headline_measures({"error": "ValueError: x"}) == {"error": "ValueError: x"}

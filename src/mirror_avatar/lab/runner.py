@@ -454,6 +454,7 @@ class LabSession:
             message: dict[str, Any] = {"type": "end", "trial": trial.n, "reason": reason}
             if self.plan.show_metrics:
                 message["metrics"] = participant_metrics(summary.get("metrics", {}), k)
+                message["metrics"] |= participant_measures(summary.get("measures", {}), k)
             more = trial.n < self.plan.trials and complete
             message["next_in"] = self.plan.pause if more else None
             participant.outbox.put(message)
@@ -527,6 +528,19 @@ def participant_metrics(metrics: dict[str, Any], k: int) -> dict[str, Any]:
     return shown | {key: own[key] for key in keys if key in own}
 
 
+def participant_measures(measures: dict[str, Any], k: int) -> dict[str, Any]:
+    """Select what participant k's end screen says of the measures of a dyad.
+
+    ``co_confidence_rate`` (share of the trial spent moving together smoothly) and ``led_by``:
+    ``"you"``, ``"partner"`` or ``"none"`` (neither led for most of the trial).
+    """
+    if "leader" not in measures:
+        return {}
+    leader = measures["leader"]
+    led_by = "none" if leader == "none" else "you" if leader == k else "partner"
+    return {"co_confidence_rate": measures.get("co_confidence_rate"), "led_by": led_by}
+
+
 TRIAL_SUMMARY_KEYS = (
     "phase_locking",
     "rmse",
@@ -539,9 +553,35 @@ TRIAL_SUMMARY_KEYS = (
 )
 """The metrics listed per trial on the console."""
 
+MEASURE_SUMMARY_KEYS = (
+    "co_confidence_rate",
+    "co_confidence_count",
+    "leader",
+    "leader_lag_s",
+    "leader_share",
+    "transfer_entropy_0_to_1",
+    "transfer_entropy_1_to_0",
+    "error",
+)
+"""The measures listed per trial on the console, besides each player's jitter and influence and
+every p-value."""
+
+
+def headline_measures(measures: dict[str, Any]) -> dict[str, Any]:
+    """Select the measures the console lists of a trial (`MEASURE_SUMMARY_KEYS` and more)."""
+    per_player = ("jitter_index_player_", "influence_player_")
+    return {
+        key: value
+        for key, value in measures.items()
+        if key in MEASURE_SUMMARY_KEYS or key.startswith(per_player) or key.endswith("_p_value")
+    }
+
 
 def trial_row(summary: dict[str, Any]) -> dict[str, Any]:
-    """Return a finished trial as the console lists it: number, outcome, metrics and file names."""
+    """Return a finished trial as the console lists it: outcome, metrics, measures, files.
+
+    The measures are `headline_measures`'.
+    """
     metrics = summary.get("metrics", {})
     return {
         "n": summary["lab"]["trial"],
@@ -553,6 +593,7 @@ def trial_row(summary: dict[str, Any]) -> dict[str, Any]:
         "lost": summary.get("lost", {}),
         "late_ms": summary.get("tick_lateness_ms", {}),
         "metrics": {key: metrics[key] for key in TRIAL_SUMMARY_KEYS if key in metrics},
+        "measures": headline_measures(summary.get("measures", {})),
         "files": [
             summary["files"]["session"],
             summary["files"]["session"].removesuffix(".csv") + ".json",

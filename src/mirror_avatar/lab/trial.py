@@ -19,12 +19,18 @@ Files, in the session's folder, flushed line by line (METHODS section 9):
   new sample since the previous tick: the last position is kept, never extrapolated) and whether
   the input was live.
 
+When a trial ends, its sidecar records the session's metrics (``metrics``:
+`mirror_avatar.metrics.session_metrics`) and the field's measures (``measures``:
+`mirror_avatar.metrics.measures.session_measures` with `LAB_SURROGATES` circular-shift
+surrogates seeded by the trial's seed), computed in the worker thread that finishes the trial.
+
 Whatever happens - a participant drops, the disk fills, the server is killed - the lines
 written stay readable; the sidecar says ``"complete": false`` until the trial ends well.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
@@ -38,6 +44,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.metrics import compute_phase, session_metrics
 from mirror_avatar.metrics.group import compute_cluster_phase
+from mirror_avatar.metrics.measures import MeasureOptions, session_measures
 from mirror_avatar.players.base import Player
 from mirror_avatar.realtime.clock import time_players
 from mirror_avatar.realtime.inputs import HumanPlayer, InputSource
@@ -46,6 +53,13 @@ from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.session import Session
 from mirror_avatar.specs import load_player
 from mirror_avatar.trials import MIN_SAMPLES
+
+logger = logging.getLogger(__name__)
+
+LAB_SURROGATES = 19
+"""Surrogates per lab trial (**choice**): enough for a p-value of 0.05 (the smallest that 19
+give: the measure beat every surrogate) at a fraction of a second per minute of trial, so the
+end screens come at once; ``mirror-avatar evaluate --surrogates`` gives finer p-values later."""
 
 
 def trial_stem(directory: Path, n: int) -> Path:
@@ -222,15 +236,34 @@ class LabTrial(ClockedTrial):
         }
 
     def analyse(self, session: Session) -> dict[str, Any]:
-        """Return the drops, the input devices' final counts and the metrics.
+        """Return the drops, the input devices' final counts, the metrics and the measures.
 
-        The metrics are `mirror_avatar.metrics.session_metrics`'s.
+        The metrics are `mirror_avatar.metrics.session_metrics`'s, the measures
+        `trial_measures`'.
         """
         slots = self.writer.sidecar["metadata"]["lab"]["slots"]
         for k, slot in enumerate(slots):
             slot.update(self._device(k))
         metrics = session_metrics(session) if session.n_samples >= MIN_SAMPLES else {}
-        return {"dropped": dict(self.dropped), "metrics": metrics}
+        measures = trial_measures(session, self.seed) if metrics else {}
+        return {"dropped": dict(self.dropped), "metrics": metrics, "measures": measures}
+
+
+def trial_measures(session: Session, seed: int) -> dict[str, Any]:
+    """Compute a trial's measures with `LAB_SURROGATES` surrogates drawn from ``seed``.
+
+    Returns
+    -------
+    dict
+        `mirror_avatar.metrics.measures.Measures.values`, or ``{"error": ...}`` when they
+        cannot be computed (the metrics are kept).
+    """
+    options = MeasureOptions(n_surrogates=LAB_SURROGATES, seed=seed)
+    try:
+        return session_measures(session, options=options).values
+    except Exception as error:  # the metrics and the recording are kept whatever this does
+        logger.exception("the measures of a lab trial failed")
+        return {"error": f"{type(error).__name__}: {error}"}
 
 
 def _group_sync(x: Array) -> float | None:

@@ -175,6 +175,30 @@
     });
   }
 
+  // The field's measures of a trial in words, one line each (keys: lab/runner.py headline_measures).
+  function measureLines(measures, labels) {
+    if (measures.error) return [`measures failed: ${measures.error}`];
+    const p = (key) => (measures[`${key}_p_value`] === undefined ? "" : ` (p ${fmt(measures[`${key}_p_value`], 2)})`);
+    const lines = [];
+    if (measures.leader !== undefined) {
+      lines.push(measures.leader === "none" ? `no clear leader${p("leader_share")}`
+        : `leader ${labels[measures.leader]}, ${fmt(measures.leader_lag_s, 2)} s ahead in ${fmt(100 * measures.leader_share, 0)} % of windows${p("leader_share")}`);
+    }
+    if (measures.co_confidence_rate !== undefined) {
+      lines.push(`co-confidence ${fmt(100 * measures.co_confidence_rate, 0)} % of the time, ${measures.co_confidence_count} stretch(es)${p("co_confidence_rate")}`);
+    }
+    if (measures.transfer_entropy_0_to_1 !== undefined) {
+      lines.push(`transfer entropy ${labels[0]}→${labels[1]} ${fmt(measures.transfer_entropy_0_to_1, 3)} bits${p("transfer_entropy_0_to_1")}, ${labels[1]}→${labels[0]} ${fmt(measures.transfer_entropy_1_to_0, 3)} bits${p("transfer_entropy_1_to_0")}`);
+    }
+    const perPlayer = (prefix) => labels.map((label, k) => [label, measures[`${prefix}${k}`]])
+      .filter(([, v]) => v !== undefined).map(([label, v]) => `${label} ${fmt(v, 3)}`).join(", ");
+    const influence = perPlayer("influence_player_");
+    if (influence) lines.push(`influence (bits) ${influence}`);
+    const jitter = perPlayer("jitter_index_player_");
+    if (jitter) lines.push(`2-3 Hz jitter ${jitter}`);
+    return lines;
+  }
+
   function renderTrials(status) {
     const body = $("trial-list").querySelector("tbody");
     body.innerHTML = "";
@@ -185,6 +209,9 @@
       cell(row, trial.complete ? "complete" : `incomplete: ${trial.end_reason}`);
       cell(row, String(trial.n_samples));
       cell(row, Object.entries(trial.metrics).filter(([k]) => names[k]).map(([k, v]) => `${names[k]} ${fmt(v, 3)}`).join(" · ")).className = "metrics";
+      const lines = document.createElement("div");
+      measureLines(trial.measures || {}, status.slots.map((slot) => slot.label)).forEach((line) => lines.append(Object.assign(document.createElement("div"), { textContent: line })));
+      cell(row, lines).className = "metrics measures";
       const dropped = Object.entries(trial.dropped).map(([k, v]) => `${k} dropped at ${v}`);
       const lost = Object.entries(trial.lost || {}).filter(([, v]) => v > 0).map(([k, v]) => `${k} lost ${v}`);
       const late = trial.late_ms && trial.late_ms.max !== null ? [`clock late ≤ ${fmt(trial.late_ms.max, 0)} ms`] : [];

@@ -113,6 +113,24 @@
       .map(([name, value]) => [`${METRIC_WORDS[name][0]}: ${Number(value).toFixed(2)}`, METRIC_WORDS[name][1]]);
   }
 
+  // Who led and how long the players moved together smoothly, in plain words.
+  const LED_WORDS = {
+    you: "You led.",
+    partner: "Your partner led.",
+    none: "Neither of you led for most of the trial.",
+  };
+
+  function measureLines(metrics) {
+    const lines = [];
+    const led = LED_WORDS[(metrics || {}).led_by];
+    if (led) lines.push([led, "the one whose movements the other followed, in most stretches of the trial"]);
+    if (typeof (metrics || {}).co_confidence_rate === "number") {
+      lines.push([`Moving together smoothly: ${Math.round(100 * metrics.co_confidence_rate)} % of the time`,
+        "stretches of over 2 s in which you both moved smoothly and together"]);
+    }
+    return lines;
+  }
+
   function finish() {
     ended = true;
     say([...lastEnd, "The session has ended. Thank you!"]);
@@ -144,7 +162,7 @@
         ui.bar.style.width = `${(100 * message.progress).toFixed(1)}%`;
         break;
       case "end": {
-        lastEnd = [`Trial ${message.trial} done.`, ...metricLines(message.metrics)];
+        lastEnd = [`Trial ${message.trial} done.`, ...metricLines(message.metrics), ...measureLines(message.metrics)];
         const next = message.next_in === null ? "Please wait." : `Next trial in ${Math.round(message.next_in)} s.`;
         say([...lastEnd, next]);
         break;
