@@ -21,11 +21,20 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import GraphSource, draw_graph
 from mirror_avatar.players.base import ExternalPlayer, Observation, Player, gather_neighbours
 from mirror_avatar.seeds import entropy_of, spawn_seeds
-from mirror_avatar.session import Session, default_roles
+from mirror_avatar.session import CHANNELS, Session, default_roles
 
 Array = NDArray[np.float64]
 Sink = Callable[[Array], None]
 """Receives each completed sample as a row: time, then each player's four channels."""
+
+
+def row_positions(row: Array) -> Array:
+    """Return the players' positions (units) of a row the engine passes its sinks, shape (N,).
+
+    A row is ``[t, x_0, v_0, u_0, r_0, x_1, ...]``: the time (s), then each player's
+    `mirror_avatar.session.CHANNELS` (position, velocity, control, reference) in player order.
+    """
+    return row[1 :: len(CHANNELS)]
 
 
 def check_lineup(players: Sequence[Player]) -> float:

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mirror_avatar.engine.loop import row_positions
 from mirror_avatar.errors import InputError
 from mirror_avatar.realtime.inputs import Sample
 from mirror_avatar.trials import PLAYING_RANGE
@@ -121,7 +122,8 @@ class SessionOutlet:
         ----------
         row
             Shape (1 + 4N,): time (s), then per player position (units), velocity (units/s),
-            control and reference; the positions ``row[1::4]`` are published.
+            control and reference; the positions (`mirror_avatar.engine.loop.row_positions`) are
+            published.
         """
         row = np.asarray(row, dtype=np.float64)
         if row.shape != (1 + 4 * self.n_players,):
@@ -129,7 +131,7 @@ class SessionOutlet:
                 f"an engine row of {self.n_players} players has shape "
                 f"({1 + 4 * self.n_players},), got {row.shape}"
             )
-        self.push_positions(row[1::4])
+        self.push_positions(row_positions(row))
 
     def push_positions(self, positions: ArrayLike, timestamp: float | None = None) -> None:
         """Publish the players' positions.

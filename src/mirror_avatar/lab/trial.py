@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from mirror_avatar import __version__
-from mirror_avatar.engine.loop import count_samples
+from mirror_avatar.engine.loop import count_samples, row_positions
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.metrics import compute_phase, session_metrics
@@ -199,7 +199,7 @@ class LabTrial(ClockedTrial):
         return {"input": describe()} if callable(describe) else {}
 
     def _remember(self, row: Array) -> None:
-        self._taken = row[1::4].copy()
+        self._taken = row_positions(row).copy()
         if self.publish is not None:
             self.publish(self._taken, self.tick_log.last_stamp)
 
