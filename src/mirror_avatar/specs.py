@@ -153,6 +153,14 @@ def load_player(
     return RecordedPlayer(_read_recording(spec, options))
 
 
+def recording_file(spec: str) -> Path | None:
+    """Return the trial file a spec replays or follows (``vt:FILE``, a trial file), else None."""
+    if spec.partition(":")[0] in MODEL_PARTNERS or spec.startswith("bundled:"):
+        return None
+    path = Path(spec.removeprefix("vt:"))
+    return None if path.suffix.lower() == ".npz" else path
+
+
 def model_partner(spec: str, role: str = "follower") -> ModelPartner:
     """Build the partner from the literature that ``NAME[:key=value,...]`` names.
 

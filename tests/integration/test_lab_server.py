@@ -23,6 +23,7 @@ import pytest
 import websockets
 
 from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.trial import MAX_RECORDING_SPEC_BYTES
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 
@@ -421,3 +422,17 @@ def test_api_errors_are_one_json_line(lab):
     sid = create(lab, DYAD)["id"]
     unknown = command(lab, sid, "dance")
     assert unknown.status_code == 404 and "start, stop or abort" in unknown.json()["error"]
+
+
+def test_a_huge_recording_as_an_avatar_is_refused_before_it_is_read(lab, tmp_path):
+    huge = tmp_path / "huge.csv"
+    with huge.open("wb") as file:  # a sparse file: its size is what is checked, nothing is read
+        file.truncate(MAX_RECORDING_SPEC_BYTES + 1)
+    for spec in (str(huge), f"vt:{huge}"):
+        players = [*RING["players"][:3], {**RING["players"][3], "spec": spec}]
+        refused = httpx.post(
+            f"{lab.url}/api/sessions", json=RING | {"players": players}, headers=BEARER
+        )
+        error = refused.json()["error"]
+        assert refused.status_code == 400 and "huge.csv" in error and "limit" in error, error
+    assert httpx.get(f"{lab.url}/api/sessions", headers=BEARER).json() == {"sessions": []}

@@ -51,8 +51,9 @@ from mirror_avatar.realtime.inputs import HumanPlayer, InputSource
 from mirror_avatar.realtime.trial import Array, Clock, ClockedTrial
 from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.session import Session
-from mirror_avatar.specs import load_player
+from mirror_avatar.specs import load_player, recording_file
 from mirror_avatar.trials import MIN_SAMPLES
+from mirror_avatar.user_files import check_regular
 
 logger = logging.getLogger(__name__)
 
@@ -67,8 +68,17 @@ def trial_stem(directory: Path, n: int) -> Path:
     return directory / f"trial-{n:02d}"
 
 
+MAX_RECORDING_SPEC_BYTES = 64 * 2**20
+"""Largest recording an avatar spec may replay or follow in a lab session (bytes; **choice**:
+an hour at 1 kHz as CSV is about 40 MB), checked before the file is read, so a session's
+creation never reads a huge file into the server's memory."""
+
+
 def build_avatars(plan: SessionPlan) -> dict[int, Player]:
     """Load every avatar of the plan in its role and time its step on this machine.
+
+    A recording an avatar replays or follows is refused over `MAX_RECORDING_SPEC_BYTES`
+    before it is read.
 
     Each avatar is stepped once untimed (compiling it off the clock) and then timed
     (`mirror_avatar.realtime.clock.time_players`); a plan whose avatars together need more than
@@ -83,6 +93,9 @@ def build_avatars(plan: SessionPlan) -> dict[int, Player]:
     avatars: dict[int, Player] = {}
     for k, slot in enumerate(plan.slots):
         if slot.kind == "avatar" and slot.spec is not None:
+            recording = recording_file(slot.spec)
+            if recording is not None and recording.is_file():
+                check_regular(recording, MAX_RECORDING_SPEC_BYTES)
             avatars[k] = load_player(slot.spec, plan.roles[k])
     if avatars:
         medians = time_players(list(avatars.values()))
