@@ -159,10 +159,11 @@ def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
     assert session.metadata["metrics"]["phase_locking"] > 0.8
     pages["P2"].wait_for_function("document.getElementById('message').textContent.includes('CV')")
     words = pages["P2"].locator("#message .words").all_inner_texts()
-    assert words == [
+    assert words[:2] == [
         "how steadily your timing kept pace with the others': 0 no relation, 1 always in step",
         "how far apart your points were on average, in track widths: 0 always together",
     ]
+    assert "the one whose movements the other followed" in words[2]  # who led, in words
     screenshot(pages["P2"], "lab-participant-end")
     console.wait_for_function(
         "document.getElementById('session-summary').textContent.includes('finished')"

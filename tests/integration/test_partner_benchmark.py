@@ -113,7 +113,9 @@ def test_benchmark_refuses_bad_models_and_unpaired_humans(
     assert main([*base, "--models", "adaptive,opc"]) == 2
     error = capsys.readouterr().err.strip()
     assert error.count("\n") == 0 and "unknown model opc" in error and "kuramoto" in error
-    assert main([*base, "--models", "rpc", "--human", str(leader), "--human", str(leader)]) == 2
+    other = tmp_path / "other.csv"
+    write_trial(zhai_trials[1], other)
+    assert main([*base, "--models", "rpc", "--human", str(leader), "--human", str(other)]) == 2
     assert "one human follower per leader" in capsys.readouterr().err
     assert main([*base, "--models", "hkb:zeta=1"]) == 2
     assert "unknown parameter 'zeta'; hkb takes alpha" in capsys.readouterr().err
