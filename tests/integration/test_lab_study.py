@@ -18,6 +18,7 @@ from typing import Any
 
 import httpx
 import pytest
+import websockets
 from test_lab_server import BEARER, TOKEN, Page, status
 
 from mirror_avatar.lab.protocol import load_protocol
@@ -29,9 +30,25 @@ PROTOCOL = """
 title = "test study"
 seed = 7
 
+[questions.partner]
+text = "Was your partner a person or a computer?"
+kind = "choice"
+options = ["a person", "a computer"]
+
+[questions.confidence]
+text = "How confident are you?"
+kind = "likert"
+points = 7
+
+[questions.remarks]
+text = "Anything to add?"
+kind = "text"
+max_chars = 40
+
 [[blocks]]
 name = "dyads"
 order = "williams"
+after_block = ["remarks"]
 
 [[blocks.conditions]]
 name = "follow"
@@ -55,7 +72,40 @@ players = [
 trials = 2
 duration = 2
 pause = 0.5
+after_trial = ["partner", "confidence"]
 """
+
+
+class AnsweringPage(Page):
+    """A participant's page that answers every question: first out of range, then properly."""
+
+    ANSWERS: dict[str, Any] = {"partner": "a computer", "confidence": 5, "remarks": "smooth"}  # noqa: RUF012
+
+    async def play(self, seconds: float) -> None:
+        async with websockets.connect(self.url) as socket:
+            sender = asyncio.create_task(self._send(socket))
+            try:
+                async with asyncio.timeout(seconds):
+                    async for text in socket:
+                        message = json.loads(text)
+                        self.messages.append(message)
+                        if message["type"] == "ping":
+                            await socket.send(json.dumps({"type": "pong", "id": message["id"]}))
+                        elif message["type"] == "questions":
+                            await self._answer(socket, message)
+            except websockets.ConnectionClosed as closed:
+                self.closed = closed
+            except TimeoutError:
+                pass
+            finally:
+                sender.cancel()
+
+    async def _answer(self, socket: Any, message: dict[str, Any]) -> None:
+        for question in message["questions"]:
+            answer = {"type": "answer", "trial": message["trial"], "question": question["id"]}
+            if question["kind"] == "likert":
+                await socket.send(json.dumps(answer | {"value": question["points"] + 1}))
+            await socket.send(json.dumps(answer | {"value": self.ANSWERS[question["id"]]}))
 
 
 @pytest.fixture
@@ -98,7 +148,10 @@ def test_a_participant_plays_the_protocol_in_their_order_blinded(
     assert created["study"]["where"] == f"block 1 of 1, condition '{first}', trial 1 of " + (
         "1" if first == "follow" else "2"
     )
-    pages = [Page(created["links"]["P1"]), Page(created["links"]["P2"], phase=-0.4)]
+    pages = [
+        AnsweringPage(created["links"]["P1"]),
+        AnsweringPage(created["links"]["P2"], phase=-0.4),
+    ]
     seen: set[str] = set()
 
     async def scenario() -> None:
@@ -137,6 +190,22 @@ def test_a_participant_plays_the_protocol_in_their_order_blinded(
     p2_ends = [e["trial"] for e in pages[1].of_type("end")]
     together = [n for n, name in zip((1, 2, 3), names, strict=True) if name == "together"]
     assert p2_ends == (together if person else [])
+    for n in (1, 2, 3):  # questions after each 'together' trial, the block's after the last
+        path = folder / f"trial-{n:02d}_answers.json"
+        after_trial = ["partner", "confidence"] if n in together else []
+        after_block = ["remarks"] if n == 3 else []
+        if not after_trial + after_block:
+            assert not path.exists()
+            continue
+        saved = json.loads(path.read_text())
+        assert (saved["after_trial"], saved["after_block"]) == (after_trial, after_block)
+        players = ["P1", "P2"] if person and n in together else ["P1"]
+        assert sorted(saved["answers"]) == players
+        for label in players:
+            values = {q: a["value"] for q, a in saved["answers"][label].items()}
+            assert values == {q: AnsweringPage.ANSWERS[q] for q in after_trial + after_block}
+    refusals = [m["message"] for m in pages[0].of_type("error")]
+    assert refusals == ["confidence: choose a point from 1 to 7"] * len(together)
 
 
 def test_study_requests_are_refused_with_one_line(lab, tmp_path):
@@ -203,7 +272,7 @@ def test_a_server_killed_mid_protocol_resumes_at_the_next_trial(tmp_path, protoc
     try:
         created = create_participant(url, 0, headers)
         sid = created["id"]
-        pages = [Page(created["links"]["P1"]), Page(created["links"]["P2"])]
+        pages = [AnsweringPage(created["links"]["P1"]), AnsweringPage(created["links"]["P2"])]
 
         def on_trial_two() -> bool:
             trial = httpx.get(f"{url}/api/sessions/{sid}", headers=headers).json()["trial"]
@@ -235,7 +304,7 @@ def test_a_server_killed_mid_protocol_resumes_at_the_next_trial(tmp_path, protoc
         resumed = create_participant(url, 0, headers)
         assert resumed["id"] == sid and resumed["next_trial"] == 3
         assert any("resumed at trial 3 of 3" in event for event in resumed["events"])
-        pages = [Page(resumed["links"]["P1"]), Page(resumed["links"]["P2"])]
+        pages = [AnsweringPage(resumed["links"]["P1"]), AnsweringPage(resumed["links"]["P2"])]
 
         async def finish() -> None:
             tasks = [asyncio.create_task(page.play(20.0)) for page in pages]

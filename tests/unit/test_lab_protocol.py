@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import copy
+import json
 import tomllib
 from pathlib import Path
 
 import pytest
 
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.messages import Answer, parse_participant_message
 from mirror_avatar.lab.protocol import MAX_PROTOCOL_BYTES, load_protocol, parse_protocol
+from mirror_avatar.realtime.messages import ProtocolError
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
 
@@ -193,3 +196,44 @@ def test_file_level_refusals_name_the_file(tmp_path):
     huge.write_text("# " + "x" * MAX_PROTOCOL_BYTES)
     with pytest.raises(InputError, match=r"huge\.toml: the protocol is over"):
         load_protocol(huge)
+
+
+def test_answers_are_checked_against_their_question():
+    questions = load_protocol(EXAMPLE).questions
+    choice, likert, text = questions["partner"], questions["confidence"], questions["remarks"]
+    assert choice.problem("a computer") is None
+    assert choice.problem("a robot") == "partner: choose one of the options"
+    assert likert.problem(1) is None and likert.problem(7) is None
+    for bad in (0, 8, "5", True, 5.0):
+        assert likert.problem(bad) == "confidence: choose a point from 1 to 7"
+    assert text.problem("") is None and text.problem("x" * 100) is None
+    assert text.problem("x" * 101) == "remarks: write at most 100 characters"
+    assert text.problem(3) == "remarks: write at most 100 characters"
+
+
+def test_a_free_text_answer_fits_in_one_page_message():
+    data = _example()
+    data["questions"]["remarks"]["max_chars"] = 121
+    with pytest.raises(
+        InputError, match=r"questions.remarks.max_chars: must be an integer from 1 to 120"
+    ):
+        parse_protocol(data, "study.toml")
+
+
+def test_a_page_answer_message_is_parsed_and_bounded():
+    answer = parse_participant_message(
+        json.dumps({"type": "answer", "trial": 3, "question": "confidence", "value": 5})
+    )
+    assert answer == Answer(3, "confidence", 5)
+    longest = {"type": "answer", "trial": 999, "question": "q" * 32, "value": "\u00e9" * 120}
+    assert (
+        parse_participant_message(json.dumps(longest, ensure_ascii=False)).value == "\u00e9" * 120
+    )
+    for bad in (
+        {"type": "answer", "trial": 1, "question": "q", "value": True},
+        {"type": "answer", "trial": 1, "question": "q", "value": [1]},
+        {"type": "answer", "trial": 1, "question": 2, "value": 1},
+        {"type": "answer", "trial": -1, "question": "q", "value": 1},
+    ):
+        with pytest.raises(ProtocolError):
+            parse_participant_message(json.dumps(bad))

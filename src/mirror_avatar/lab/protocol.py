@@ -45,6 +45,9 @@ MAX_BLOCKS, MAX_CONDITIONS, MAX_QUESTIONS, MAX_OPTIONS = 20, 20, 50, 20
 MAX_TEXT_CHARS = 500
 """Longest title, name, question or option text (characters)."""
 
+MAX_ANSWER_CHARS = 120
+"""Longest free-text answer (characters; one answer travels in one page message)."""
+
 LIKERT_RANGE = (2, 11)
 """Fewest and most points of a rating scale."""
 
@@ -101,6 +104,32 @@ class Question:
     points: int = 0
     anchors: tuple[str, str] = ("", "")
     max_chars: int = 0
+
+    def problem(self, value: object) -> str | None:
+        """Return why ``value`` cannot answer the question, or None when it can.
+
+        A choice's answer is one of its options, a Likert answer an integer 1..points, a text
+        answer at most ``max_chars`` characters.
+        """
+        if self.kind == "choice" and value not in self.options:
+            return f"{self.id}: choose one of the options"
+        if self.kind == "likert" and not (_is_int(value) and 1 <= value <= self.points):  # type: ignore[operator]
+            return f"{self.id}: choose a point from 1 to {self.points}"
+        if self.kind == "text" and not (isinstance(value, str) and len(value) <= self.max_chars):
+            return f"{self.id}: write at most {self.max_chars} characters"
+        return None
+
+    def to_json(self) -> dict[str, object]:
+        """Return the question as a page shows it."""
+        return {
+            "id": self.id,
+            "text": self.text,
+            "kind": self.kind,
+            "options": list(self.options),
+            "points": self.points,
+            "anchors": list(self.anchors),
+            "max_chars": self.max_chars,
+        }
 
 
 @dataclass(frozen=True)
@@ -406,10 +435,10 @@ def _question(check: _Checker, qid: str, value: object) -> Question:
             )
         ends = tuple(check.text(a, f"{where}.anchors[{i}]", True) for i, a in enumerate(anchors))
         return Question(qid, text, kind, points=points, anchors=(ends[0], ends[1]))
-    most = data.get("max_chars", MAX_TEXT_CHARS)
-    if not _is_int(most) or not 1 <= most <= MAX_TEXT_CHARS:
+    most = data.get("max_chars", MAX_ANSWER_CHARS)
+    if not _is_int(most) or not 1 <= most <= MAX_ANSWER_CHARS:
         raise check.error(
-            f"{where}.max_chars", f"must be an integer from 1 to {MAX_TEXT_CHARS}", "e.g. 200"
+            f"{where}.max_chars", f"must be an integer from 1 to {MAX_ANSWER_CHARS}", "e.g. 100"
         )
     return Question(qid, text, kind, max_chars=most)
 

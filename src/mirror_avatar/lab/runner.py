@@ -353,6 +353,7 @@ class LabSession:
                 if reason == DISK_FULL:
                     self._wait(f"{DISK_FULL}: free some space, then start the next trial")
                     return
+                await self._after_trial(self.next_trial - 1)
                 if self.next_trial <= self.total_trials:
                     self.state = "pause"
                     await asyncio.sleep(self.plan.pause)
@@ -367,6 +368,13 @@ class LabSession:
         if self.avatars is None:
             self.avatars = await asyncio.to_thread(build_avatars, self.plan)
         await asyncio.to_thread(self._open_devices)
+
+    async def _after_trial(self, n: int) -> None:
+        """Do what follows trial n before the pause (a study asks its questions)."""
+
+    def answer(self, participant: Participant, answer: Any) -> str | None:
+        """Take a participant's answer to a question; return why not, or None."""
+        return "no question was asked"
 
     def _wait(self, problem: str) -> None:
         """Wait for the researcher, saying why."""

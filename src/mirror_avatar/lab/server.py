@@ -62,7 +62,7 @@ from starlette.websockets import WebSocket
 from mirror_avatar.atomic import json_safe
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.messages import Pong, parse_participant_message
+from mirror_avatar.lab.messages import Answer, Pong, parse_participant_message
 from mirror_avatar.lab.plan import LslDevice, SessionPlan, parse_plan
 from mirror_avatar.lab.protocol import Protocol
 from mirror_avatar.lab.runner import LabSession, Outlet, Participant
@@ -87,7 +87,7 @@ TOKEN_COOKIE = "mirror_avatar_lab_token"
 logger = logging.getLogger(__name__)
 CLOSE_POLICY, CLOSE_REPLACED, CLOSE_UNKNOWN = 1008, 4002, 4004
 FILE_NAME = re.compile(
-    r"plan\.json|study\.json|trial-\d{2,3}_(session\.csv|session\.json|inputs\.csv)"
+    r"plan\.json|study\.json|trial-\d{2,3}_(session\.csv|session\.json|inputs\.csv|answers\.json)"
 )
 """Names of the files a session's folder may serve."""
 
@@ -507,10 +507,14 @@ class ParticipantPage:
         async for message in self.inbox.messages():
             self._handle(message)
 
-    def _handle(self, message: PositionUpdate | Pong) -> None:
+    def _handle(self, message: PositionUpdate | Pong | Answer) -> None:
         participant = self.participant
         participant.last_heard = time.monotonic()
-        if isinstance(message, Pong):
+        if isinstance(message, Answer):
+            problem = self.session.answer(participant, message)
+            if problem is not None:
+                self.outbox.put({"type": "error", "message": problem})
+        elif isinstance(message, Pong):
             self.pings.answer(message.id)
             participant.late_frames = message.late_frames
         elif isinstance(participant.source, BrowserInput):

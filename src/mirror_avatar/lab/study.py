@@ -18,21 +18,38 @@ are not on disk; the trial a crash interrupted keeps what it recorded.
 
 from __future__ import annotations
 
+import asyncio
 import json
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.protocol import Protocol
+from mirror_avatar.lab.messages import Answer
+from mirror_avatar.lab.protocol import Protocol, Question
 from mirror_avatar.lab.runner import COLOURS, LabSession, Participant
 from mirror_avatar.lab.trial import trial_stem
 from mirror_avatar.realtime.clock import MAX_STEP
+from mirror_avatar.realtime.outbox import Outbox
 from mirror_avatar.realtime.trial import Clock
 from mirror_avatar.seeds import spawn_seeds
 
 STUDY_FILE = "study.json"
 """The participant's schedule in the session's folder."""
+
+
+@dataclass
+class Asking:
+    """The questions open after trial ``n``: who has yet to answer which, and the answers."""
+
+    n: int
+    questions: dict[str, Question]
+    after: dict[str, list[str]]
+    pending: dict[str, set[str]]
+    answers: dict[str, dict[str, dict[str, object]]]
+    done: asyncio.Event = field(default_factory=asyncio.Event)
 
 
 def study_folder(protocol: Protocol, participant: int) -> str:
@@ -80,6 +97,7 @@ class StudySession(LabSession):
             label: Participant(k, label, "pointer", [k]) for k, label in enumerate(protocol.people)
         }
         self.step = 0
+        self.asking: Asking | None = None
         super().__init__(directory.name, self.plans[0], directory, clock, countdown, max_step)
         self._enter(self._step_of(self.next_trial) if self.next_trial <= self.total_trials else 0)
 
@@ -212,6 +230,88 @@ class StudySession(LabSession):
             "partners": {slot.label: slot.kind for slot in self.plan.slots},
         }
 
+    def questions_after(self, n: int) -> dict[str, list[str]]:
+        """Return the ids of the questions asked after trial n: after the trial, after the block.
+
+        A block's questions follow the participant's last trial in that block.
+        """
+        step = self._step_of(n)
+        here = self.steps[step]
+        block = self.protocol.blocks[here.block]
+        last = n == self.first_trials[step + 1] - 1 and (
+            step + 1 == len(self.steps) or self.steps[step + 1].block != here.block
+        )
+        return {
+            "trial": list(block.conditions[here.condition].after_trial),
+            "block": list(block.after_block) if last else [],
+        }
+
+    async def _after_trial(self, n: int) -> None:
+        """Ask the trial's (and the block's) questions and wait for every answer."""
+        after = self.questions_after(n)
+        ids = list(dict.fromkeys(after["trial"] + after["block"]))
+        people = [p.label for p in self.participants.values()]
+        if not ids or not people:
+            return
+        questions = {qid: self.protocol.questions[qid] for qid in ids}
+        pending = {label: set(ids) for label in people}
+        self.asking = Asking(n, questions, after, pending, {label: {} for label in people})
+        self._write_answers(self.asking)
+        for participant in self.participants.values():
+            if participant.outbox is not None:
+                participant.outbox.put(self._questions_message(participant.label))
+        self.log(f"trial {n}: asking {', '.join(ids)}")
+        try:
+            await self.asking.done.wait()
+        finally:
+            self.asking = None
+        self.log(f"trial {n}: every answer in")
+
+    def _questions_message(self, label: str) -> dict[str, Any]:
+        asking = self.asking
+        assert asking is not None
+        open_ = [q.to_json() for qid, q in asking.questions.items() if qid in asking.pending[label]]
+        return {"type": "questions", "trial": asking.n, "questions": open_}
+
+    def answer(self, participant: Participant, answer: Any) -> str | None:
+        """Take a participant's answer; return why not, or None (every answer is written)."""
+        asking = self.asking
+        if not isinstance(answer, Answer) or asking is None or answer.trial != asking.n:
+            return "no question is open for that trial"
+        pending = asking.pending.get(participant.label, set())
+        if answer.question not in pending:
+            return f"{answer.question}: not an open question"
+        problem = asking.questions[answer.question].problem(answer.value)
+        if problem is not None:
+            return problem
+        stamp = datetime.now(UTC).isoformat()
+        asking.answers[participant.label][answer.question] = {"value": answer.value, "utc": stamp}
+        pending.discard(answer.question)
+        self._write_answers(asking)
+        if not any(asking.pending.values()):
+            asking.done.set()
+        return None
+
+    def _write_answers(self, asking: Asking) -> None:
+        step = self.steps[self._step_of(asking.n)]
+        write_atomic_json(
+            answers_path(self.directory, asking.n),
+            {
+                "trial": asking.n,
+                "block": self.protocol.blocks[step.block].name,
+                "condition": step.name,
+                "after_trial": asking.after["trial"],
+                "after_block": asking.after["block"],
+                "answers": asking.answers,
+            },
+        )
+
+    def attach(self, participant: Participant, outbox: Outbox, connection: object) -> None:
+        """Register a participant's page; a page that rejoins is asked its open questions."""
+        super().attach(participant, outbox, connection)
+        if self.asking is not None and self.asking.pending.get(participant.label):
+            outbox.put(self._questions_message(participant.label))
+
     def status(self) -> dict[str, Any]:
         """Return the session's status, with where the participant is in the protocol."""
         n = min(self.next_trial if self.trial is None else self.trial.n, self.total_trials)
@@ -224,8 +324,16 @@ class StudySession(LabSession):
                 "order": order,
                 "waiting": waiting,
                 "total_trials": self.total_trials,
+                "unanswered": {}
+                if self.asking is None
+                else {label: sorted(ids) for label, ids in self.asking.pending.items() if ids},
             }
         }
+
+
+def answers_path(directory: Path, n: int) -> Path:
+    """Return the file of the answers given after trial n."""
+    return trial_stem(directory, n).with_name(f"{trial_stem(directory, n).name}_answers.json")
 
 
 def _recorded(directory: Path, n: int) -> bool:
