@@ -93,6 +93,17 @@ def test_two_pages_answer_by_mouse_and_by_touch(chromium, lab, tmp_path):
         page.wait_for_selector("#questions fieldset", timeout=30_000)
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     phone.screenshot(path=SCREENSHOTS / "lab-study-question-phone.png", full_page=True)
+    console = chromium.new_context(viewport={"width": 1280, "height": 900}).new_page()
+    console.goto(f"{lab.url}/console?token={TOKEN}")
+    console.click(f"#sessions-list a:has-text('{sid}')")
+    console.wait_for_function(
+        "document.getElementById('session-summary').textContent.includes('participant 0')"
+    )
+    summary = console.locator("#session-summary").inner_text()
+    assert "block 1 of 1, condition 'together', trial 1 of 1" in summary
+    assert "P1 to answer: confidence, partner, remarks" in summary
+    assert "P2 to answer: confidence, partner, remarks" in summary
+    console.screenshot(path=SCREENSHOTS / "lab-study-console.png", full_page=True)
 
     desk.click(button("partner", "a computer"))
     desk.click(button("confidence", "6"))
@@ -125,5 +136,5 @@ def test_two_pages_answer_by_mouse_and_by_touch(chromium, lab, tmp_path):
         "P2": {"partner": "a person", "confidence": 3, "remarks": "felt human"},
     }
     assert (saved["after_trial"], saved["after_block"]) == (["partner", "confidence"], ["remarks"])
-    for context in (desk.context, phone_context):
+    for context in (desk.context, phone_context, console.context):
         context.close()

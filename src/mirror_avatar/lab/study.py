@@ -256,6 +256,7 @@ class StudySession(LabSession):
         questions = {qid: self.protocol.questions[qid] for qid in ids}
         pending = {label: set(ids) for label in people}
         self.asking = Asking(n, questions, after, pending, {label: {} for label in people})
+        self.state = "pause"
         self._write_answers(self.asking)
         for participant in self.participants.values():
             if participant.outbox is not None:

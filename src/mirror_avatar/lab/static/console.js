@@ -201,7 +201,7 @@
     $("state").className = `badge ${status.state}`;
     const plan = status.plan;
     $("session-summary").textContent = `${plan.condition.replace("_", "-")} · ${plan.slots.length} players · ${plan.trials} trial(s) of ${plan.duration} s · seed ${plan.seed}` + (status.trial ? ` · trial ${status.trial.n} running · clock late ${fmt(status.trial.late_ms, 0)} ms (max ${fmt(status.trial.max_late_ms, 0)})` : ` · next trial ${Math.min(status.next_trial, plan.trials)}`);
-    if (status.study) $("session-summary").textContent = `participant ${status.study.participant} · ${status.study.where} · order: ${status.study.order.join(", ")}` + (status.study.waiting.length ? ` · waiting: ${status.study.waiting.join(", ")}` : "");
+    if (status.study) $("session-summary").textContent = `participant ${status.study.participant} · ${status.study.where} · order: ${status.study.order.join(", ")}` + (status.study.waiting.length ? ` · waiting: ${status.study.waiting.join(", ")}` : "") + Object.entries(status.study.unanswered).map(([label, ids]) => ` · ${label} to answer: ${ids.join(", ")}`).join("");
     $("session-error").textContent = status.error || $("session-error").textContent;
     renderSlots(status);
     renderTrials(status);
