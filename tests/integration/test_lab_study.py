@@ -332,3 +332,67 @@ def test_a_server_killed_mid_protocol_resumes_at_the_next_trial(tmp_path, protoc
     assert last.metadata["complete"] and last.metadata["lab"]["protocol_condition"] == final
     assert last.metadata["lab"]["condition_trial"] == (2 if final == "together" else 1)
     assert not (folder / "trial-04_session.csv").exists()
+
+
+DELAYED = """
+title = "delayed partner"
+seed = 1
+
+[[blocks]]
+name = "delay"
+
+[[blocks.conditions]]
+name = "late and hidden"
+game = "joint"
+players = [
+  { label = "P1", kind = "person" },
+  { label = "A1", kind = "avatar", spec = "bundled:slow" },
+]
+trials = 1
+duration = 3
+delay = 0.3
+occlude = [[1.5, 2.1]]
+"""
+
+
+def test_the_partner_is_drawn_late_and_hidden_as_the_condition_says(tmp_path):
+    path = tmp_path / "delayed.toml"
+    path.write_text(DELAYED)
+    settings = LabSettings(
+        out_dir=tmp_path / "out", token=TOKEN, countdown=1, protocol=load_protocol(path)
+    )
+    with ServerThread(create_lab_app(settings)) as lab:
+        created = create_participant(lab.url, 0, BEARER)
+        sid = created["id"]
+        page = Page(created["links"]["P1"])
+
+        def start() -> None:
+            httpx.post(f"{lab.url}/api/sessions/{sid}/start", json={}, headers=BEARER)
+
+        async def scenario() -> None:
+            task = asyncio.create_task(page.play(30.0))
+            await asyncio.sleep(0.5)
+            await asyncio.to_thread(start)
+            await asyncio.to_thread(wait_for, lambda: status(lab, sid)["state"] == "finished")
+            await task
+
+        asyncio.run(scenario())
+    trial = load_session(tmp_path / "out" / sid / "trial-01_session.csv")
+    lab_meta = trial.metadata["lab"]
+    assert lab_meta["partner_delay_s"] == pytest.approx(0.3)
+    assert lab_meta["occluded_s"] == [[1.5, 2.1]]
+    lag = 10  # 0.3 s of T = 0.03 s
+    frames = page.of_type("frame")
+    assert len(frames) > 50
+    hidden = shown = 0
+    for frame in frames:
+        k = frame["k"]
+        own, partner = frame["x"]
+        assert own == trial.positions[0, k]  # the page's own point is not delayed
+        if k < lag or 1.5 <= k * 0.03 < 2.1:
+            assert partner is None
+            hidden += 1
+        else:
+            assert partner == trial.positions[1, k - lag]  # exactly 10 samples late
+            shown += 1
+    assert hidden > 5 and shown > 20

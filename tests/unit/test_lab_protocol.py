@@ -33,6 +33,10 @@ def test_the_example_protocol_loads():
     assert plan.roles == ("follower", "leader")
     assert (plan.trials, plan.duration, plan.pause, plan.seed) == (2, 30.0, 5.0, 5)
     assert follow.after_trial == ("partner", "confidence")
+    assert (follow.delay, follow.occlude) == (0.0, ())
+    lead = protocol.blocks[1].conditions[3]
+    assert (lead.delay, lead.occlude) == (0.3, ((10.0, 15.0),))
+    assert protocol.blocks[1].conditions[2].occlude == ((0.0, float("inf")),)
 
 
 def test_person_or_avatar_is_filled_by_the_person_or_the_avatar():
@@ -130,6 +134,11 @@ REFUSALS = [
     ((*C0, "pause"), "long", "blocks[1].conditions[0].pause: pause must be a number"),
     ((*C0, "show_metrics"), 1, "blocks[1].conditions[0].show_metrics: show_metrics must be"),
     ((*C0, "on_drop"), "pause", "blocks[1].conditions[0].on_drop: on_drop must be one of"),
+    ((*C0, "delay"), 1.5, "blocks[1].conditions[0].delay: must be seconds from 0 to 1"),
+    ((*C0, "delay"), True, "blocks[1].conditions[0].delay: must be seconds from 0 to 1"),
+    ((*C0, "occlude"), "half", "blocks[1].conditions[0].occlude: must be a list of [start, end]"),
+    ((*C0, "occlude"), [[3, 2]], "blocks[1].conditions[0].occlude[0]: must be [start, end] with"),
+    ((*C0, "occlude"), [[1, 2, 3]], "blocks[1].conditions[0].occlude[0]: must be [start, end]"),
     ((*C0, "after_trial"), ["mood"], "blocks[1].conditions[0].after_trial: no question 'mood'"),
     (
         ("blocks", 1, "conditions", 2, "graph"),

@@ -17,6 +17,7 @@ Every mistake is refused with one line naming the file, the key path (such as
 
 from __future__ import annotations
 
+import math
 import secrets
 import tomllib
 from dataclasses import dataclass
@@ -45,6 +46,9 @@ MAX_BLOCKS, MAX_CONDITIONS, MAX_QUESTIONS, MAX_OPTIONS = 20, 20, 50, 20
 MAX_TEXT_CHARS = 500
 """Longest title, name, question or option text (characters)."""
 
+MAX_DELAY = 1.0
+"""Longest visual delay of the partners (s; Stepp 2009 delayed up to 1 s)."""
+
 MAX_ANSWER_CHARS = 120
 """Longest free-text answer (characters; one answer travels in one page message)."""
 
@@ -57,6 +61,8 @@ SEED_LIMIT = 2**63 - 1
 TOP_KEYS = ("title", "seed", "block_order", "questions", "blocks")
 BLOCK_KEYS = ("name", "order", "after_block", "conditions")
 CONDITION_KEYS = (
+    "delay",
+    "occlude",
     "name",
     "game",
     "players",
@@ -160,6 +166,10 @@ class Condition:
         The plan's other keys (graph, trials, duration, pause, show_metrics, on_drop).
     after_trial
         Ids of the questions asked after each trial.
+    delay
+        How late the partners are drawn on the people's pages (s).
+    occlude
+        Intervals of each trial (s from its start) during which the partners are hidden.
     """
 
     name: str
@@ -168,6 +178,8 @@ class Condition:
     leaders: tuple[str, ...]
     settings: dict[str, Any]
     after_trial: tuple[str, ...]
+    delay: float = 0.0
+    occlude: tuple[tuple[float, float], ...] = ()
 
     @property
     def trials(self) -> int:
@@ -489,9 +501,32 @@ def _condition(
         )
     settings = {key: data[key] for key in PLAN_KEYS if key in data}
     after = check.refs(data.get("after_trial", []), f"{where}.after_trial", questions)
-    condition = Condition(name, str(game), players, tuple(leaders), settings, after)
+    delay = data.get("delay", 0.0)
+    if not isinstance(delay, int | float) or isinstance(delay, bool) or not 0 <= delay <= MAX_DELAY:
+        raise check.error(f"{where}.delay", f"must be seconds from 0 to {MAX_DELAY:g}", "e.g. 0.3")
+    occlude = _intervals(check, data.get("occlude", []), f"{where}.occlude")
+    condition = Condition(
+        name, str(game), players, tuple(leaders), settings, after, float(delay), occlude
+    )
     _check_plan(check, condition, where)
     return condition
+
+
+def _intervals(check: _Checker, value: object, where: str) -> tuple[tuple[float, float], ...]:
+    """Read occlusion intervals: ``"whole"`` (the whole trial) or ``[[start, end], ...]`` (s)."""
+    if value == "whole":
+        return ((0.0, math.inf),)
+    fix = 'e.g. [[5, 12]] (seconds from the trial\'s start) or "whole"'
+    if not isinstance(value, list) or len(value) > MAX_CONDITIONS:
+        raise check.error(where, "must be a list of [start, end] intervals", fix)
+    intervals = []
+    for i, item in enumerate(value):
+        ok = isinstance(item, list) and len(item) == 2
+        ok = ok and all(isinstance(t, int | float) and not isinstance(t, bool) for t in item)
+        if not ok or not 0 <= item[0] < item[1] <= 600:
+            raise check.error(f"{where}[{i}]", "must be [start, end] with 0 <= start < end", fix)
+        intervals.append((float(item[0]), float(item[1])))
+    return tuple(intervals)
 
 
 def _player(check: _Checker, value: object, where: str) -> Player:

@@ -19,18 +19,21 @@ are not on disk; the trial a crash interrupted keeps what it recorded.
 from __future__ import annotations
 
 import asyncio
+import collections
 import json
+import math
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 from mirror_avatar.atomic import write_atomic_json
+from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.messages import Answer
-from mirror_avatar.lab.protocol import Protocol, Question
+from mirror_avatar.lab.protocol import Condition, Protocol, Question
 from mirror_avatar.lab.runner import COLOURS, LabSession, Participant
-from mirror_avatar.lab.trial import trial_stem
+from mirror_avatar.lab.trial import LabTrial, trial_stem
 from mirror_avatar.realtime.clock import MAX_STEP
 from mirror_avatar.realtime.outbox import Outbox
 from mirror_avatar.realtime.trial import Clock
@@ -98,6 +101,7 @@ class StudySession(LabSession):
         }
         self.step = 0
         self.asking: Asking | None = None
+        self._shown: collections.deque[list[float]] = collections.deque(maxlen=1)
         super().__init__(directory.name, self.plans[0], directory, clock, countdown, max_step)
         self._enter(self._step_of(self.next_trial) if self.next_trial <= self.total_trials else 0)
 
@@ -219,9 +223,51 @@ class StudySession(LabSession):
         message["trials"] = self.total_trials
         return message
 
+    def condition(self) -> Condition:
+        """Return the protocol's condition being played."""
+        step = self.steps[self.step]
+        return self.protocol.blocks[step.block].conditions[step.condition]
+
+    def delay_samples(self) -> int:
+        """Return the partners' visual delay of the current condition (samples of T)."""
+        return round(self.condition().delay / CONTROL_PERIOD)
+
+    def _send_frames(self, trial: LabTrial) -> None:
+        """Send each page its frame, the partners delayed and hidden as the condition says.
+
+        A page's own position is the one just recorded; each partner's is the one recorded
+        `delay_samples` earlier (none before that: not drawn), and none while occluded. The
+        recording keeps the true positions.
+        """
+        condition = self.condition()
+        if not condition.delay and not condition.occlude:
+            super()._send_frames(trial)
+            return
+        lag = self.delay_samples()
+        if trial.k == 1 or self._shown.maxlen != lag + 1:
+            self._shown = collections.deque(maxlen=lag + 1)
+        positions = trial.positions()
+        self._shown.append(positions)
+        k = trial.k - 1
+        hidden = any(start <= k * CONTROL_PERIOD < end for start, end in condition.occlude)
+        past = self._shown[0] if len(self._shown) > lag and not hidden else None
+        for participant in self.participants.values():
+            if participant.outbox is None:
+                continue
+            own, *others = participant.visible
+            shown = [positions[own], *(None if past is None else past[j] for j in others)]
+            frame = {"type": "frame", "k": k, "x": shown, "progress": trial.progress}
+            participant.outbox.put_frame(frame)
+
     def _trial_lab(self, n: int) -> dict[str, Any]:
         step = self._step_of(n)
+        condition = self.protocol.blocks[self.steps[step].block].conditions[
+            self.steps[step].condition
+        ]
+        occlude = [[a, b if math.isfinite(b) else self.plan.duration] for a, b in condition.occlude]
         return super()._trial_lab(n) | {
+            "partner_delay_s": round(condition.delay / CONTROL_PERIOD) * CONTROL_PERIOD,
+            "occluded_s": occlude,
             "protocol": self.protocol.title,
             "participant": self.number,
             "block": self.protocol.blocks[self.steps[step].block].name,
