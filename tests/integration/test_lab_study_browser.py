@@ -77,9 +77,16 @@ def button(question: str, value: str) -> str:
 
 
 def test_two_pages_answer_by_mouse_and_by_touch(chromium, lab, tmp_path):
-    created = httpx.post(f"{lab.url}/api/sessions", json={"participant": 0}, headers=BEARER)
-    assert created.status_code == 201, created.text
-    sid, links = created.json()["id"], created.json()["links"]
+    console = chromium.new_context(viewport={"width": 1280, "height": 900}).new_page()
+    console.goto(f"{lab.url}/console?token={TOKEN}")
+    console.wait_for_selector("#study:not([hidden])")
+    assert "people P1, P2" in console.locator("#study-title").inner_text()
+    console.fill("#participant", "0")
+    console.click("#create-participant")
+    console.wait_for_selector("a.join")
+    sid = console.locator("#session-id").inner_text()
+    assert sid == "study-p000"
+    links = httpx.get(f"{lab.url}/api/sessions/{sid}", headers=BEARER).json()["links"]
     desk = join(chromium.new_context(viewport={"width": 900, "height": 600}), links["P1"])
     phone_context = chromium.new_context(
         viewport={"width": 390, "height": 780}, has_touch=True, is_mobile=True
@@ -93,9 +100,6 @@ def test_two_pages_answer_by_mouse_and_by_touch(chromium, lab, tmp_path):
         page.wait_for_selector("#questions fieldset", timeout=30_000)
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     phone.screenshot(path=SCREENSHOTS / "lab-study-question-phone.png", full_page=True)
-    console = chromium.new_context(viewport={"width": 1280, "height": 900}).new_page()
-    console.goto(f"{lab.url}/console?token={TOKEN}")
-    console.click(f"#sessions-list a:has-text('{sid}')")
     console.wait_for_function(
         "document.getElementById('session-summary').textContent.includes('participant 0')"
     )

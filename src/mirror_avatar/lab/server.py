@@ -3,7 +3,8 @@
 Routes (`create_lab_app`):
 
 - ``GET /console``: the researcher's console (a page using the API below).
-- ``GET /api/sessions``: every session's status; ``POST /api/sessions`` with a plan
+- ``GET /api/sessions``: every session's status (and the protocol's title, seed and people
+  when one is loaded); ``POST /api/sessions`` with a plan
   (`mirror_avatar.lab.plan.parse_plan`) builds its avatars (a bad spec is refused here, 400),
   creates the session and answers its status and its join links; with a protocol loaded,
   ``POST /api/sessions`` with ``{"participant": p}`` creates (or resumes) participant p's run
@@ -326,9 +327,17 @@ class LabApi:
         """List the sessions, or create one from the plan in the body."""
         if request.method == "GET":
             self.lab.forget_ended()
-            return _json(
-                {"sessions": [self._status(s, request) for s in self.lab.sessions.values()]}
-            )
+            listing: dict[str, Any] = {
+                "sessions": [self._status(s, request) for s in self.lab.sessions.values()]
+            }
+            protocol = self.lab.settings.protocol
+            if protocol is not None:
+                listing["protocol"] = {
+                    "title": protocol.title,
+                    "seed": protocol.seed,
+                    "people": protocol.people,
+                }
+            return _json(listing)
         try:
             data = await _body(request)
             if isinstance(data, dict) and "participant" in data:

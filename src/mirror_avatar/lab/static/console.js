@@ -244,6 +244,8 @@
     try {
       const listing = await api("/api/sessions");
       renderSessionList(listing.sessions);
+      $("study").hidden = !listing.protocol;
+      if (listing.protocol) $("study-title").textContent = `"${listing.protocol.title}" · seed ${listing.protocol.seed} · people ${listing.protocol.people.join(", ")}`;
       if (current) {
         render(await api(`/api/sessions/${current}`));
         drawLive(await api(`/api/sessions/${current}/live`));
@@ -267,6 +269,15 @@
   $("preset").addEventListener("change", (event) => applyPreset(event.target.value));
   $("add-player").addEventListener("click", () => playerRow());
   $("create-session").addEventListener("click", create);
+  $("create-participant").addEventListener("click", async () => {
+    $("study-error").textContent = "";
+    try {
+      const status = await api("/api/sessions", { method: "POST", body: JSON.stringify({ participant: Number($("participant").value) }) });
+      show(status.id);
+    } catch (error) {
+      $("study-error").textContent = error.message;
+    }
+  });
   $("start").addEventListener("click", () => command("start"));
   $("start-force").addEventListener("click", () => command("start", { force: true }));
   $("stop").addEventListener("click", () => command("stop"));
