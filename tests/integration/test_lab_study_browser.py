@@ -142,3 +142,65 @@ def test_two_pages_answer_by_mouse_and_by_touch(chromium, lab, tmp_path):
     assert (saved["after_trial"], saved["after_block"]) == (["partner", "confidence"], ["remarks"])
     for context in (desk.context, phone_context, console.context):
         context.close()
+
+
+OCCLUDED = """
+title = "hidden partner"
+seed = 2
+
+[[blocks]]
+name = "only"
+
+[[blocks.conditions]]
+name = "hidden"
+game = "joint"
+players = [
+  { label = "P1", kind = "person" },
+  { label = "A1", kind = "avatar", spec = "bundled:slow" },
+]
+trials = 1
+duration = 5
+occlude = [[2.0, 3.5]]
+"""
+
+PARTNER_PIXELS = """() => {
+  const canvas = document.getElementById("field");
+  const data = canvas.getContext("2d").getImageData(0, 0, canvas.width, canvas.height).data;
+  let n = 0;  // the partner's colour, #d62728 (player 1)
+  for (let i = 0; i < data.length; i += 4) {
+    const near = (value, target) => Math.abs(value - target) < 25;
+    if (near(data[i], 214) && near(data[i + 1], 39) && near(data[i + 2], 40)) n += 1;
+  }
+  const others = window.mirrorLab.others;
+  return [n, others.has(1) ? others.get(1) : "none"];
+}"""
+
+
+def test_an_occluded_partner_is_absent_from_the_page_pixels(chromium, tmp_path):
+    path = tmp_path / "hidden.toml"
+    path.write_text(OCCLUDED)
+    settings = LabSettings(
+        out_dir=tmp_path / "out", token=TOKEN, countdown=1, protocol=load_protocol(path)
+    )
+    with ServerThread(create_lab_app(settings)) as lab:
+        created = httpx.post(f"{lab.url}/api/sessions", json={"participant": 0}, headers=BEARER)
+        sid, links = created.json()["id"], created.json()["links"]
+        page = join(chromium.new_context(viewport={"width": 900, "height": 500}), links["P1"])
+        httpx.post(f"{lab.url}/api/sessions/{sid}/start", json={}, headers=BEARER)
+        samples: list[tuple[int, Any]] = []
+        page.wait_for_function("window.mirrorLab.others.size === 1", timeout=30_000)
+        while httpx.get(f"{lab.url}/api/sessions/{sid}", headers=BEARER).json()["state"] in (
+            "countdown",
+            "running",
+        ):
+            samples.append(tuple(page.evaluate(PARTNER_PIXELS)))
+            if samples[-1][1] is None and not (SCREENSHOTS / "lab-study-occluded.png").exists():
+                SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+                page.screenshot(path=SCREENSHOTS / "lab-study-occluded.png")
+            page.wait_for_timeout(50)
+        page.context.close()
+    hidden = [n for n, x in samples if x is None]
+    shown = [n for n, x in samples if isinstance(x, float)]
+    assert len(hidden) >= 3 and len(shown) >= 3
+    assert max(hidden) == 0  # occluded: not one pixel of the partner's colour
+    assert min(shown) > 50  # otherwise the partner's disc is drawn
