@@ -18,8 +18,23 @@ from mirror_avatar.cli.play import server_options
     help="Publish each session as an LSL stream and accept LSL input devices "
     "(default: when pylsl is installed).",
 )
+@click.option(
+    "--protocol",
+    "protocol_file",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="A study protocol (TOML, README 'Study protocols'): the console then creates each "
+    "participant's run of it, in their counterbalanced order.",
+)
 @click.pass_context
-def lab(ctx: click.Context, host: str, port: int, out_dir: Path, lsl: bool | None) -> None:
+def lab(
+    ctx: click.Context,
+    host: str,
+    port: int,
+    out_dir: Path,
+    lsl: bool | None,
+    protocol_file: Path | None,
+) -> None:
     """Run lab sessions: people at their own screens and avatars, from a researcher's console.
 
     Serves on http://HOST:PORT and prints the console's URL with the researcher's token (the
@@ -30,9 +45,11 @@ def lab(ctx: click.Context, host: str, port: int, out_dir: Path, lsl: bool | Non
     """
     if ctx.invoked_subcommand is not None:
         return
+    from mirror_avatar.lab.protocol import load_protocol
     from mirror_avatar.lab.server import LabSettings, create_lab_app
     from mirror_avatar.realtime.transport import listening_socket, make_server, make_token
 
+    protocol = None if protocol_file is None else load_protocol(protocol_file)
     check_output_dir(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     use_lsl = _lsl_available() if lsl is None else lsl
@@ -41,7 +58,7 @@ def lab(ctx: click.Context, host: str, port: int, out_dir: Path, lsl: bool | Non
     if use_lsl:
         _quiet_lsl()
     token = make_token()
-    settings = LabSettings(out_dir=out_dir, token=token, lsl=use_lsl)
+    settings = LabSettings(out_dir=out_dir, token=token, lsl=use_lsl, protocol=protocol)
     sock = listening_socket(host, port)
     port = sock.getsockname()[1]
     server = make_server(create_lab_app(settings), host, port, "info")
@@ -49,6 +66,11 @@ def lab(ctx: click.Context, host: str, port: int, out_dir: Path, lsl: bool | Non
     click.echo(
         f"mirror-avatar lab: recording to {out_dir.resolve()}; LSL {'on' if use_lsl else 'off'}"
     )
+    if protocol is not None:
+        people = ", ".join(protocol.people)
+        click.echo(
+            f"protocol {protocol_file}: {protocol.title!r}, seed {protocol.seed}, people {people}"
+        )
     click.echo(f"researcher's token: {token}")
     click.echo(f"console: http://{shown}:{port}/console?token={token}  (Ctrl+C to stop)")
     if host in ("0.0.0.0", "::"):

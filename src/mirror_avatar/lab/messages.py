@@ -6,7 +6,9 @@ The page sends JSON text messages (at most `mirror_avatar.realtime.messages.MAX_
   ``n`` from 0 on each connection, sent once per animation frame while a trial runs;
 - ``{"type": "pong", "id": i, "late_frames": f}``: the answer to the server's ``ping`` ``i``
   (the server measures the round trip), with the number of animation frames the page drew
-  late so far (more than twice the display's frame interval).
+  late so far (more than twice the display's frame interval);
+- ``{"type": "answer", "trial": n, "question": id, "value": v}``: the participant's answer to
+  a question asked after trial ``n`` (a study protocol's ``questions`` message).
 
 The server sends ``welcome`` (the participant's slot, the players it sees and their colours),
 ``ping``, ``countdown``, ``go``, ``frame`` (once per tick: the sample ``k``, the visible
@@ -38,7 +40,16 @@ class Pong:
     late_frames: int
 
 
-ParticipantMessage = PositionUpdate | Pong
+@dataclass(frozen=True)
+class Answer:
+    """The participant's answer ``value`` (text or integer) to ``question`` after ``trial``."""
+
+    trial: int
+    question: str
+    value: str | int
+
+
+ParticipantMessage = PositionUpdate | Pong | Answer
 
 
 def parse_participant_message(text: str | bytes | None) -> ParticipantMessage:
@@ -55,6 +66,11 @@ def parse_participant_message(text: str | bytes | None) -> ParticipantMessage:
         return parse_position(data)
     if kind == "pong":
         return Pong(_count(data, "id"), _count(data, "late_frames"))
+    if kind == "answer":
+        question, value = data.get("question"), data.get("value")
+        if not isinstance(question, str) or not isinstance(value, str | int) or value is True:
+            raise ProtocolError("answer: 'question' must be text, 'value' text or an integer")
+        return Answer(_count(data, "trial"), question, value)
     raise ProtocolError(f"unknown message type {kind!r}")
 
 

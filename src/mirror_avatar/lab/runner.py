@@ -203,8 +203,17 @@ class LabSession:
         self.runner: asyncio.Task[None] | None = None
         self._stop_reason: str | None = None
         self._events_seen = 0
-        directory.mkdir(parents=True, exist_ok=False)
-        write_atomic_json(directory / "plan.json", self.describe())
+        self._create_files()
+
+    def _create_files(self) -> None:
+        """Create the session's folder and its ``plan.json``."""
+        self.directory.mkdir(parents=True, exist_ok=False)
+        write_atomic_json(self.directory / "plan.json", self.describe())
+
+    @property
+    def total_trials(self) -> int:
+        """Number of trials the session plays."""
+        return self.plan.trials
 
     def describe(self) -> dict[str, Any]:
         """Return the session's id, creation time and plan (as ``plan.json`` records them)."""
@@ -259,7 +268,8 @@ class LabSession:
         participant.connection = None
         outbox.close()
         trial = self.trial
-        if trial is not None and self.state == "running":
+        playing = participant in self.participants.values()
+        if trial is not None and self.state == "running" and playing:
             trial.mark_dropped(participant.label)
             self.log(f"{participant.label} dropped at sample {trial.k} of trial {trial.n}")
             self._mark(f"{participant.label} dropped")
@@ -281,7 +291,7 @@ class LabSession:
         """
         if self.state != "waiting":
             return f"the session is {self.state}"
-        if self.next_trial > self.plan.trials:
+        if self.next_trial > self.total_trials:
             return "every trial has been played"
         missing = self.missing()
         if missing and not force:
@@ -315,7 +325,7 @@ class LabSession:
     def close(self) -> None:
         """Tell every page the session ended; close the input devices and the LSL outlet."""
         self.broadcast({"type": "state", "state": self.state, "message": "The session has ended."})
-        for participant in self.participants.values():
+        for participant in self.everyone():
             if participant.outbox is not None:
                 participant.outbox.end(CLOSE_ENDED, "the session has ended")
             closer = getattr(participant.source, "close", None)
@@ -323,6 +333,10 @@ class LabSession:
                 closer()
         if self.outlet is not None:
             self.outlet.close()
+
+    def everyone(self) -> list[Participant]:
+        """Every person's slot of the session (those of the current plan)."""
+        return list(self.participants.values())
 
     def broadcast(self, message: dict[str, Any]) -> None:
         """Queue a control message to every connected page."""
@@ -332,16 +346,15 @@ class LabSession:
 
     async def _run(self) -> None:
         try:
-            if self.avatars is None:
-                self.avatars = await asyncio.to_thread(build_avatars, self.plan)
-            await asyncio.to_thread(self._open_devices)
-            while self.next_trial <= self.plan.trials:
+            while self.next_trial <= self.total_trials:
+                await self._prepare(self.next_trial)
                 reason = await self._play(self.next_trial)
                 self.next_trial += 1
                 if reason == DISK_FULL:
                     self._wait(f"{DISK_FULL}: free some space, then start the next trial")
                     return
-                if self.next_trial <= self.plan.trials:
+                await self._after_trial(self.next_trial - 1)
+                if self.next_trial <= self.total_trials:
                     self.state = "pause"
                     await asyncio.sleep(self.plan.pause)
             self.state = "finished"
@@ -349,6 +362,19 @@ class LabSession:
             self.close()
         except (InputError, OSError) as error:
             self._wait(f"cannot run: {error}")
+
+    async def _prepare(self, n: int) -> None:
+        """Get trial n's players ready: the avatars built, the LSL devices open."""
+        if self.avatars is None:
+            self.avatars = await asyncio.to_thread(build_avatars, self.plan)
+        await asyncio.to_thread(self._open_devices)
+
+    async def _after_trial(self, n: int) -> None:
+        """Do what follows trial n before the pause (a study asks its questions)."""
+
+    def answer(self, participant: Participant, answer: Any) -> str | None:
+        """Take a participant's answer to a question; return why not, or None."""
+        return "no question was asked"
 
     def _wait(self, problem: str) -> None:
         """Wait for the researcher, saying why."""
@@ -394,12 +420,16 @@ class LabSession:
 
     def _new_trial(self, n: int) -> LabTrial:
         inputs = {k: p.source for k, p in self.participants.items() if p.source is not None}
-        lab = {"session_id": self.id, "condition": self.plan.condition}
+        lab = self._trial_lab(n)
         assert self.avatars is not None
         publish = None if self.outlet is None else self.outlet.push_positions
         return LabTrial(
             self.plan, n, self.directory, inputs, self.avatars, self.clock, lab, publish
         )
+
+    def _trial_lab(self, n: int) -> dict[str, Any]:
+        """Return what trial n's sidecar records of the session (``metadata["lab"]``)."""
+        return {"session_id": self.id, "condition": self.plan.condition}
 
     def _after_tick(self, trial: LabTrial) -> None:
         if trial.k == 1:
@@ -455,7 +485,7 @@ class LabSession:
             if self.plan.show_metrics:
                 message["metrics"] = participant_metrics(summary.get("metrics", {}), k)
                 message["metrics"] |= participant_measures(summary.get("measures", {}), k)
-            more = trial.n < self.plan.trials and complete
+            more = trial.n < self.total_trials and complete
             message["next_in"] = self.plan.pause if more else None
             participant.outbox.put(message)
 

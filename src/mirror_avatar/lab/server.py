@@ -3,9 +3,12 @@
 Routes (`create_lab_app`):
 
 - ``GET /console``: the researcher's console (a page using the API below).
-- ``GET /api/sessions``: every session's status; ``POST /api/sessions`` with a plan
+- ``GET /api/sessions``: every session's status (and the protocol's title, seed and people
+  when one is loaded); ``POST /api/sessions`` with a plan
   (`mirror_avatar.lab.plan.parse_plan`) builds its avatars (a bad spec is refused here, 400),
-  creates the session and answers its status and its join links.
+  creates the session and answers its status and its join links; with a protocol loaded,
+  ``POST /api/sessions`` with ``{"participant": p}`` creates (or resumes) participant p's run
+  of it (`mirror_avatar.lab.study.StudySession`).
 - ``GET /api/sessions/{id}``: a session's status (`mirror_avatar.lab.runner.LabSession.status`)
   with its join links; ``GET /api/sessions/{id}/live``: the last 10 s of positions and ρ_g.
 - ``POST /api/sessions/{id}/start`` (body ``{"force": true}`` starts without everyone),
@@ -60,9 +63,11 @@ from starlette.websockets import WebSocket
 from mirror_avatar.atomic import json_safe
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.messages import Pong, parse_participant_message
+from mirror_avatar.lab.messages import Answer, Pong, parse_participant_message
 from mirror_avatar.lab.plan import LslDevice, SessionPlan, parse_plan
+from mirror_avatar.lab.protocol import Protocol
 from mirror_avatar.lab.runner import LabSession, Outlet, Participant
+from mirror_avatar.lab.study import StudySession, study_folder
 from mirror_avatar.lab.trial import build_avatars
 from mirror_avatar.players.base import Player
 from mirror_avatar.realtime.gates import JsonGate, OriginGate, RateGate, TokenGate
@@ -82,8 +87,13 @@ TOKEN_COOKIE = "mirror_avatar_lab_token"
 
 logger = logging.getLogger(__name__)
 CLOSE_POLICY, CLOSE_REPLACED, CLOSE_UNKNOWN = 1008, 4002, 4004
-FILE_NAME = re.compile(r"plan\.json|trial-\d{2,3}_(session\.csv|session\.json|inputs\.csv)")
+FILE_NAME = re.compile(
+    r"plan\.json|study\.json|trial-\d{2,3}_(session\.csv|session\.json|inputs\.csv|answers\.json)"
+)
 """Names of the files a session's folder may serve."""
+
+MAX_PARTICIPANT = 999
+"""Largest participant number of a protocol."""
 
 MAX_BODY_BYTES = 64 * 1024
 """Largest API request body (bytes)."""
@@ -107,6 +117,9 @@ class LabSettings(PageSettings):
         API requests and WebSocket connections per second from one address (bursts of 4 s).
     lsl
         Whether sessions publish an LSL outlet and take LSL input devices (needs pylsl).
+    protocol
+        The study protocol whose participants' sessions the console creates
+        (`mirror_avatar.lab.study.StudySession`), or None.
     """
 
     out_dir: Path
@@ -115,6 +128,7 @@ class LabSettings(PageSettings):
     ping_interval: float = 0.5
     requests_per_second: float = 40.0
     lsl: bool = False
+    protocol: Protocol | None = None
 
 
 KEEP_ENDED = 8
@@ -157,10 +171,37 @@ class Lab:
             open_device,
         )
         session.avatars = avatars
-        self.sessions[session_id] = session
-        for participant in session.participants.values():
-            self.keys[participant.key] = (session, participant)
+        self._add(session)
         return session
+
+    def create_study(self, participant: int) -> LabSession:
+        """Create (or resume from its folder) participant ``participant``'s run of the protocol.
+
+        Study sessions keep the monotonic clock and publish no LSL outlet (their players change
+        from one condition to the next).
+        """
+        protocol = self.settings.protocol
+        assert protocol is not None
+        self.forget_ended()
+        name = study_folder(protocol, participant)
+        if name in self.sessions and not self.sessions[name].ended:
+            raise InputError("participant", f"participant {participant}'s session is open")
+        session = StudySession(
+            protocol,
+            participant,
+            self.settings.out_dir / name,
+            time.monotonic,
+            self.settings.countdown,
+            self.settings.max_tick,
+        )
+        self.sessions.pop(name, None)
+        self._add(session)
+        return session
+
+    def _add(self, session: LabSession) -> None:
+        self.sessions[session.id] = session
+        for participant in session.everyone():
+            self.keys[participant.key] = (session, participant)
 
     def find(self, key: str) -> tuple[LabSession, Participant] | None:
         """Return the session and slot of a join key, while the session lasts."""
@@ -286,16 +327,38 @@ class LabApi:
         """List the sessions, or create one from the plan in the body."""
         if request.method == "GET":
             self.lab.forget_ended()
-            return _json(
-                {"sessions": [self._status(s, request) for s in self.lab.sessions.values()]}
-            )
+            listing: dict[str, Any] = {
+                "sessions": [self._status(s, request) for s in self.lab.sessions.values()]
+            }
+            protocol = self.lab.settings.protocol
+            if protocol is not None:
+                listing["protocol"] = {
+                    "title": protocol.title,
+                    "seed": protocol.seed,
+                    "people": protocol.people,
+                }
+            return _json(listing)
         try:
-            plan = parse_plan(await _body(request))
-            avatars = await asyncio.to_thread(build_avatars, plan)
-            session = self.lab.create(plan, avatars)
+            data = await _body(request)
+            if isinstance(data, dict) and "participant" in data:
+                session = self._study(data["participant"])
+            else:
+                plan = parse_plan(data)
+                avatars = await asyncio.to_thread(build_avatars, plan)
+                session = self.lab.create(plan, avatars)
         except InputError as error:
             raise ApiError(400, str(error)) from None
         return _json(self._status(session, request), 201)
+
+    def _study(self, participant: object) -> LabSession:
+        """Create participant ``participant``'s run of the server's protocol."""
+        if self.lab.settings.protocol is None:
+            raise InputError("participant", "no protocol loaded (start the lab with --protocol)")
+        if not isinstance(participant, int) or isinstance(participant, bool) or participant < 0:
+            raise InputError("participant", "must be the participant's number, 0 or more")
+        if participant > MAX_PARTICIPANT:
+            raise InputError("participant", f"must be at most {MAX_PARTICIPANT}")
+        return self.lab.create_study(participant)
 
     async def session(self, request: Request) -> Response:
         """One session's status and join links."""
@@ -357,7 +420,7 @@ class LabApi:
 def join_links(session: LabSession, request: Request) -> dict[str, str]:
     """Each person's join link, on the address the researcher reached the server by."""
     base = str(request.base_url).rstrip("/")
-    return {p.label: f"{base}/join/{p.key}" for p in session.participants.values()}
+    return {p.label: f"{base}/join/{p.key}" for p in session.everyone()}
 
 
 class ApiError(Exception):
@@ -453,10 +516,14 @@ class ParticipantPage:
         async for message in self.inbox.messages():
             self._handle(message)
 
-    def _handle(self, message: PositionUpdate | Pong) -> None:
+    def _handle(self, message: PositionUpdate | Pong | Answer) -> None:
         participant = self.participant
         participant.last_heard = time.monotonic()
-        if isinstance(message, Pong):
+        if isinstance(message, Answer):
+            problem = self.session.answer(participant, message)
+            if problem is not None:
+                self.outbox.put({"type": "error", "message": problem})
+        elif isinstance(message, Pong):
             self.pings.answer(message.id)
             participant.late_frames = message.late_frames
         elif isinstance(participant.source, BrowserInput):

@@ -238,6 +238,7 @@
     $("state").className = `badge ${status.state}`;
     const plan = status.plan;
     $("session-summary").textContent = `${plan.condition.replace("_", "-")} · ${plan.slots.length} players · ${plan.trials} trial(s) of ${plan.duration} s · seed ${plan.seed} · ` + whereNow(status);
+    if (status.study) $("session-summary").textContent = `participant ${status.study.participant} · ${status.study.where} · order: ${status.study.order.join(", ")}` + (status.study.waiting.length ? ` · waiting: ${status.study.waiting.join(", ")}` : "") + Object.entries(status.study.unanswered).map(([label, ids]) => ` · ${label} to answer: ${ids.join(", ")}`).join("");
     $("session-error").textContent = status.error || $("session-error").textContent;
     renderSlots(status);
     renderTrials(status);
@@ -280,6 +281,8 @@
     try {
       const listing = await api("/api/sessions");
       renderSessionList(listing.sessions);
+      $("study").hidden = !listing.protocol;
+      if (listing.protocol) $("study-title").textContent = `"${listing.protocol.title}" · seed ${listing.protocol.seed} · people ${listing.protocol.people.join(", ")}`;
       if (current) {
         render(await api(`/api/sessions/${current}`));
         drawLive(await api(`/api/sessions/${current}/live`));
@@ -303,6 +306,15 @@
   $("preset").addEventListener("change", (event) => applyPreset(event.target.value));
   $("add-player").addEventListener("click", () => playerRow());
   $("create-session").addEventListener("click", create);
+  $("create-participant").addEventListener("click", async () => {
+    $("study-error").textContent = "";
+    try {
+      const status = await api("/api/sessions", { method: "POST", body: JSON.stringify({ participant: Number($("participant").value) }) });
+      show(status.id);
+    } catch (error) {
+      $("study-error").textContent = error.message;
+    }
+  });
   $("start").addEventListener("click", () => command("start"));
   $("start-force").addEventListener("click", () => command("start", { force: true }));
   $("stop").addEventListener("click", () => command("stop"));

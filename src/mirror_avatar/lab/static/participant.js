@@ -167,6 +167,7 @@
         say([...lastEnd, next]);
         break;
       }
+      case "questions": ask(message); break;
       case "state":
         if (message.state === "finished" || message.state === "aborted") finish();
         else say(message.message);
@@ -174,6 +175,54 @@
       case "error": console.warn(message.message); break;
       default: break;
     }
+  }
+
+  function ask(message) {
+    const form = document.getElementById("questions");
+    form.innerHTML = "";
+    const open = new Set(message.questions.map((q) => q.id));
+    const answered = (id) => {
+      open.delete(id);
+      if (open.size === 0) { form.hidden = true; say("Thank you. Please wait."); }
+    };
+    const answer = (q, value, button) => {
+      send({ type: "answer", trial: message.trial, question: q.id, value });
+      if (button) {
+        button.parentElement.querySelectorAll("button").forEach((b) => b.classList.remove("chosen"));
+        button.classList.add("chosen");
+      }
+      answered(q.id);
+    };
+    message.questions.forEach((q) => {
+      const set = document.createElement("fieldset");
+      set.dataset.question = q.id;
+      const legend = document.createElement("legend");
+      legend.textContent = q.text;
+      const row = document.createElement("div");
+      row.className = "choices";
+      set.append(legend, row);
+      const button = (text, value) => {
+        const b = Object.assign(document.createElement("button"), { type: "button", textContent: text });
+        b.dataset.value = String(value);
+        b.addEventListener("click", () => answer(q, value, b));
+        row.append(b);
+      };
+      if (q.kind === "choice") q.options.forEach((option) => button(option, option));
+      if (q.kind === "likert") {
+        if (q.anchors[0]) row.append(Object.assign(document.createElement("span"), { className: "anchor", textContent: q.anchors[0] }));
+        for (let point = 1; point <= q.points; point += 1) button(String(point), point);
+        if (q.anchors[1]) row.append(Object.assign(document.createElement("span"), { className: "anchor", textContent: q.anchors[1] }));
+      }
+      if (q.kind === "text") {
+        const text = Object.assign(document.createElement("textarea"), { maxLength: q.max_chars });
+        const sendText = Object.assign(document.createElement("button"), { type: "button", textContent: "Send" });
+        sendText.addEventListener("click", () => { answer(q, text.value, null); sendText.disabled = true; text.disabled = true; });
+        row.append(text, sendText);
+      }
+      form.append(set);
+    });
+    say("");
+    form.hidden = false;
   }
 
   function connect() {

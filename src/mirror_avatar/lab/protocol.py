@@ -1,0 +1,600 @@
+"""A study protocol: blocks of conditions, who plays in each, the questions, the order.
+
+A protocol is a TOML file (`load_protocol`; the format is in the lab guide, README "Lab
+sessions"). It has blocks, each a list of conditions; a condition is one game (``solo``,
+``leader_follower``, ``joint``, ``group``) with its players, graph, leaders, trials, duration
+and pause, which becomes a `mirror_avatar.lab.plan.SessionPlan` once its players are decided
+(`Condition.plan`). A player is a person (by label), an avatar (by player spec) or a
+``person-or-avatar``: the partner's slot is filled by the person or by the avatar, drawn per
+participant from the protocol's seed, so that neither the participant nor the page knows which
+(the files record it). Questions are declared once and asked after each trial of a condition
+(``after_trial``) or after a block (``after_block``). The order of blocks and of each block's
+conditions is fixed, random or counterbalanced across participants (`mirror_avatar.lab.order`).
+
+Every mistake is refused with one line naming the file, the key path (such as
+``blocks[1].conditions[0].players``), the problem and how to fix it.
+"""
+
+from __future__ import annotations
+
+import math
+import secrets
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.lab.order import ORDERS, block_order, condition_order
+from mirror_avatar.lab.plan import CONDITIONS, MAX_SPEC_CHARS, SessionPlan, parse_plan
+from mirror_avatar.realtime.messages import PARTICIPANT_PATTERN
+
+PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
+"""What a protocol's player slot holds."""
+
+QUESTION_KINDS = ("choice", "likert", "text")
+"""Kinds of question: one option of several, a point on a rating scale, free text."""
+
+MAX_PROTOCOL_BYTES = 256 * 1024
+"""Largest protocol file read (bytes)."""
+
+MAX_BLOCKS, MAX_CONDITIONS, MAX_QUESTIONS, MAX_OPTIONS = 20, 20, 50, 20
+"""Most blocks, conditions per block, questions, and options of a choice."""
+
+MAX_TEXT_CHARS = 500
+"""Longest title, name, question or option text (characters)."""
+
+MAX_DELAY = 1.0
+"""Longest visual delay of the partners (s; Stepp 2009 delayed up to 1 s)."""
+
+MAX_ANSWER_CHARS = 120
+"""Longest free-text answer (characters; one answer travels in one page message)."""
+
+LIKERT_RANGE = (2, 11)
+"""Fewest and most points of a rating scale."""
+
+SEED_LIMIT = 2**63 - 1
+"""Largest seed."""
+
+TOP_KEYS = ("title", "seed", "block_order", "questions", "blocks")
+BLOCK_KEYS = ("name", "order", "after_block", "conditions")
+CONDITION_KEYS = (
+    "delay",
+    "occlude",
+    "name",
+    "game",
+    "players",
+    "graph",
+    "leaders",
+    "trials",
+    "duration",
+    "pause",
+    "after_trial",
+    "show_metrics",
+    "on_drop",
+)
+PLAYER_KEYS = ("label", "kind", "spec", "device")
+QUESTION_KEYS = ("text", "kind", "options", "points", "anchors", "max_chars")
+PLAN_KEYS = ("graph", "trials", "duration", "pause", "show_metrics", "on_drop")
+"""Keys of a condition passed on to `mirror_avatar.lab.plan.parse_plan` as they are."""
+
+
+@dataclass(frozen=True)
+class Question:
+    """A question asked on the participants' pages.
+
+    Attributes
+    ----------
+    id
+        Its name (the column of the answers).
+    text
+        What the page asks.
+    kind
+        One of `QUESTION_KINDS`.
+    options
+        A choice's options.
+    points
+        A Likert scale's number of points (answers 1..points).
+    anchors
+        The labels of a Likert scale's two ends.
+    max_chars
+        Longest free-text answer (characters).
+    """
+
+    id: str
+    text: str
+    kind: str
+    options: tuple[str, ...] = ()
+    points: int = 0
+    anchors: tuple[str, str] = ("", "")
+    max_chars: int = 0
+
+    def problem(self, value: object) -> str | None:
+        """Return why ``value`` cannot answer the question, or None when it can.
+
+        A choice's answer is one of its options, a Likert answer an integer 1..points, a text
+        answer at most ``max_chars`` characters.
+        """
+        if self.kind == "choice" and value not in self.options:
+            return f"{self.id}: choose one of the options"
+        if self.kind == "likert" and not (_is_int(value) and 1 <= value <= self.points):  # type: ignore[operator]
+            return f"{self.id}: choose a point from 1 to {self.points}"
+        if self.kind == "text" and not (isinstance(value, str) and len(value) <= self.max_chars):
+            return f"{self.id}: write at most {self.max_chars} characters"
+        return None
+
+    def to_json(self) -> dict[str, object]:
+        """Return the question as a page shows it."""
+        return {
+            "id": self.id,
+            "text": self.text,
+            "kind": self.kind,
+            "options": list(self.options),
+            "points": self.points,
+            "anchors": list(self.anchors),
+            "max_chars": self.max_chars,
+        }
+
+
+@dataclass(frozen=True)
+class Player:
+    """A player slot of a condition: ``kind`` in `PLAYER_KINDS`; ``spec`` for avatars."""
+
+    label: str
+    kind: str
+    spec: str | None = None
+    device: str = "pointer"
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One condition of a block: its game and players, and what `parse_plan` reads.
+
+    Attributes
+    ----------
+    name
+        Its name (unique in the protocol).
+    game
+        One of `mirror_avatar.lab.plan.CONDITIONS`.
+    players
+        Its player slots, in order.
+    leaders
+        Labels of the leading players.
+    settings
+        The plan's other keys (graph, trials, duration, pause, show_metrics, on_drop).
+    after_trial
+        Ids of the questions asked after each trial.
+    delay
+        How late the partners are drawn on the people's pages (s).
+    occlude
+        Intervals of each trial (s from its start) during which the partners are hidden.
+    """
+
+    name: str
+    game: str
+    players: tuple[Player, ...]
+    leaders: tuple[str, ...]
+    settings: dict[str, Any]
+    after_trial: tuple[str, ...]
+    delay: float = 0.0
+    occlude: tuple[tuple[float, float], ...] = ()
+
+    @property
+    def trials(self) -> int:
+        """Number of trials."""
+        return int(self.settings.get("trials", 1))
+
+    def plan(self, persons: dict[str, bool], seed: int) -> SessionPlan:
+        """Return the condition's plan, each ``person-or-avatar`` slot decided by ``persons``.
+
+        Parameters
+        ----------
+        persons
+            Per ``person-or-avatar`` label, True when a person fills it.
+        seed
+            The plan's seed.
+        """
+        slots: list[dict[str, str | None]] = []
+        for player in self.players:
+            human = player.kind == "person" or (
+                player.kind == "person-or-avatar" and persons[player.label]
+            )
+            if human:
+                slots.append({"label": player.label, "kind": "human", "device": player.device})
+            else:
+                slots.append({"label": player.label, "kind": "avatar", "spec": player.spec})
+        labels = [player.label for player in self.players]
+        leaders = [labels.index(label) for label in self.leaders]
+        data: dict[str, Any] = {"condition": self.game, "players": slots, "leaders": leaders}
+        return parse_plan(data | self.settings | {"seed": seed})
+
+
+@dataclass(frozen=True)
+class Block:
+    """A block: its conditions, their order, and the questions asked after it."""
+
+    name: str
+    order: str
+    conditions: tuple[Condition, ...]
+    after_block: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """A study protocol (see the module docstring).
+
+    Attributes
+    ----------
+    source
+        The file it was read from.
+    title
+        Its title.
+    seed
+        The seed of every draw (order, partners); drawn and recorded when the file has none.
+    block_order
+        ``"fixed"`` or ``"random"``.
+    questions
+        Its questions, by id.
+    blocks
+        Its blocks, in the file's order.
+    """
+
+    source: str
+    title: str
+    seed: int
+    block_order: str
+    questions: dict[str, Question]
+    blocks: tuple[Block, ...]
+
+    @property
+    def people(self) -> tuple[str, ...]:
+        """Labels of everyone who may play as a person, in order of first appearance."""
+        labels: list[str] = []
+        for block in self.blocks:
+            for condition in block.conditions:
+                for player in condition.players:
+                    if player.kind != "avatar" and player.label not in labels:
+                        labels.append(player.label)
+        return tuple(labels)
+
+    def schedule(self, participant: int) -> list[Step]:
+        """Return what participant number ``participant`` (0-based) plays, in order."""
+        steps = []
+        blocks = block_order(self.block_order, len(self.blocks), participant, self.seed)
+        for b in blocks:
+            block = self.blocks[b]
+            order = condition_order(block.order, len(block.conditions), participant, self.seed, b)
+            for c in order:
+                condition = block.conditions[c]
+                persons = self._partners(condition, participant, b, c)
+                steps.append(Step(b, c, condition.name, persons))
+        return steps
+
+    def _partners(self, condition: Condition, participant: int, b: int, c: int) -> dict[str, bool]:
+        """Draw whether a person fills each ``person-or-avatar`` slot (True) or the avatar.
+
+        **Choice**: an even draw per participant and condition from the seed.
+        """
+        rng = np.random.default_rng([self.seed, 4, participant, b, c])
+        return {
+            player.label: bool(rng.random() < 0.5)
+            for player in condition.players
+            if player.kind == "person-or-avatar"
+        }
+
+
+@dataclass(frozen=True)
+class Step:
+    """One condition in a participant's schedule.
+
+    Block and condition indices, its name, and whether a person (True) or the avatar fills
+    each ``person-or-avatar`` slot.
+    """
+
+    block: int
+    condition: int
+    name: str
+    persons: dict[str, bool]
+
+
+def load_protocol(path: Path) -> Protocol:
+    """Read and validate a protocol file.
+
+    Raises
+    ------
+    InputError
+        ``FILE: KEY.PATH: problem (fix)`` for the first mistake found.
+    """
+    try:
+        with path.open("rb") as handle:
+            raw = handle.read(MAX_PROTOCOL_BYTES + 1)
+    except OSError as error:
+        raise InputError(
+            path, f"cannot read the protocol: {error.strerror} (check --protocol)"
+        ) from None
+    if len(raw) > MAX_PROTOCOL_BYTES:
+        raise InputError(path, f"the protocol is over {MAX_PROTOCOL_BYTES} bytes (shorten it)")
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise InputError(path, "the protocol is not UTF-8 text (save it as UTF-8)") from None
+    except tomllib.TOMLDecodeError as error:
+        raise InputError(path, f"not valid TOML: {error} (fix the syntax there)") from None
+    return parse_protocol(data, str(path))
+
+
+def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
+    """Validate a protocol read from TOML (``source`` names it in errors)."""
+    check = _Checker(source)
+    check.keys(data, "", TOP_KEYS)
+    title = check.text(data.get("title", ""), "title", allow_empty=True)
+    seed = data.get("seed", secrets.randbits(63))
+    if not _is_int(seed) or not 0 <= seed <= SEED_LIMIT:
+        raise check.error("seed", f"must be an integer from 0 to {SEED_LIMIT}", "or leave it out")
+    order = data.get("block_order", "fixed")
+    if order not in ("fixed", "random"):
+        raise check.error("block_order", "must be 'fixed' or 'random'", "choose one")
+    questions = _questions(check, data.get("questions", {}))
+    blocks = check.array(data.get("blocks"), "blocks", MAX_BLOCKS, "add [[blocks]] tables")
+    parsed = tuple(
+        _block(check, block, f"blocks[{b}]", questions) for b, block in enumerate(blocks)
+    )
+    names = [c.name for block in parsed for c in block.conditions]
+    for b, block in enumerate(parsed):
+        for c, condition in enumerate(block.conditions):
+            if names.count(condition.name) > 1:
+                where = f"blocks[{b}].conditions[{c}].name"
+                raise check.error(where, f"{condition.name!r} names two conditions", "rename one")
+    return Protocol(source, title, int(seed), order, questions, parsed)
+
+
+class _Checker:
+    """Builds the errors of one protocol file: ``FILE: KEY.PATH: problem (fix)``."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def error(self, where: str, problem: str, fix: str) -> InputError:
+        return InputError(self.source, f"{where}: {problem} ({fix})")
+
+    def table(self, value: object, where: str) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            raise self.error(where, "must be a table", "write it as { key = value, ... }")
+        return value
+
+    def keys(self, value: dict[str, Any], where: str, known: tuple[str, ...]) -> None:
+        for key in value:
+            if key not in known:
+                place = f"{where}.{key}" if where else key
+                raise self.error(place, "unknown key", f"known keys: {', '.join(known)}")
+
+    def array(self, value: object, where: str, most: int, fix: str) -> list[Any]:
+        if not isinstance(value, list) or not 1 <= len(value) <= most:
+            raise self.error(where, f"must be a list of 1 to {most} entries", fix)
+        return value
+
+    def text(self, value: object, where: str, allow_empty: bool = False) -> str:
+        if not isinstance(value, str) or len(value) > MAX_TEXT_CHARS or not (value or allow_empty):
+            raise self.error(where, f"must be text of 1 to {MAX_TEXT_CHARS} characters", "quote it")
+        return value
+
+    def label(self, value: object, where: str) -> str:
+        if not isinstance(value, str) or not PARTICIPANT_PATTERN.fullmatch(value):
+            raise self.error(
+                where,
+                f"{value!r} is not a label",
+                "use 1-32 letters, digits, '_' or '-', starting with a letter or digit",
+            )
+        return value
+
+    def refs(self, value: object, where: str, questions: dict[str, Question]) -> tuple[str, ...]:
+        if not isinstance(value, list) or not all(isinstance(q, str) for q in value):
+            raise self.error(where, "must be a list of question ids", 'e.g. ["partner"]')
+        for q in value:
+            if q not in questions:
+                known = ", ".join(questions) or "none declared"
+                raise self.error(
+                    where, f"no question {q!r}", f"declare [questions.{q}]; known: {known}"
+                )
+        return tuple(value)
+
+
+def _questions(check: _Checker, value: object) -> dict[str, Question]:
+    table = check.table(value, "questions")
+    if len(table) > MAX_QUESTIONS:
+        raise check.error("questions", f"more than {MAX_QUESTIONS} questions", "ask fewer")
+    return {
+        check.label(qid, f"questions.{qid}"): _question(check, qid, q) for qid, q in table.items()
+    }
+
+
+def _question(check: _Checker, qid: str, value: object) -> Question:
+    where = f"questions.{qid}"
+    data = check.table(value, where)
+    check.keys(data, where, QUESTION_KEYS)
+    text = check.text(data.get("text"), f"{where}.text")
+    kind = data.get("kind")
+    if kind not in QUESTION_KINDS:
+        raise check.error(
+            f"{where}.kind", f"must be one of {', '.join(QUESTION_KINDS)}", "choose one"
+        )
+    if kind == "choice":
+        options = check.array(
+            data.get("options"),
+            f"{where}.options",
+            MAX_OPTIONS,
+            'list at least two, e.g. ["a person", "a computer"]',
+        )
+        texts = tuple(check.text(o, f"{where}.options[{i}]") for i, o in enumerate(options))
+        if len(texts) < 2 or len(set(texts)) != len(texts):
+            raise check.error(
+                f"{where}.options", "needs two or more different options", "add or rename"
+            )
+        return Question(qid, text, kind, options=texts)
+    if kind == "likert":
+        points = data.get("points", 7)
+        low, high = LIKERT_RANGE
+        if not _is_int(points) or not low <= points <= high:
+            raise check.error(
+                f"{where}.points", f"must be an integer from {low} to {high}", "e.g. 7"
+            )
+        anchors = data.get("anchors", ["", ""])
+        if not isinstance(anchors, list) or len(anchors) != 2:
+            raise check.error(
+                f"{where}.anchors", "must name the two ends", 'e.g. ["not at all", "very"]'
+            )
+        ends = tuple(check.text(a, f"{where}.anchors[{i}]", True) for i, a in enumerate(anchors))
+        return Question(qid, text, kind, points=points, anchors=(ends[0], ends[1]))
+    most = data.get("max_chars", MAX_ANSWER_CHARS)
+    if not _is_int(most) or not 1 <= most <= MAX_ANSWER_CHARS:
+        raise check.error(
+            f"{where}.max_chars", f"must be an integer from 1 to {MAX_ANSWER_CHARS}", "e.g. 100"
+        )
+    return Question(qid, text, kind, max_chars=most)
+
+
+def _block(check: _Checker, value: object, where: str, questions: dict[str, Question]) -> Block:
+    data = check.table(value, where)
+    check.keys(data, where, BLOCK_KEYS)
+    name = check.text(data.get("name", where), f"{where}.name")
+    order = data.get("order", "fixed")
+    if order not in ORDERS:
+        raise check.error(f"{where}.order", f"must be one of {', '.join(ORDERS)}", "choose one")
+    after = check.refs(data.get("after_block", []), f"{where}.after_block", questions)
+    items = check.array(
+        data.get("conditions"),
+        f"{where}.conditions",
+        MAX_CONDITIONS,
+        f"add [[{where.split('[')[0]}.conditions]] tables",
+    )
+    conditions = tuple(
+        _condition(check, item, f"{where}.conditions[{c}]", questions)
+        for c, item in enumerate(items)
+    )
+    return Block(name, str(order), conditions, after)
+
+
+def _condition(
+    check: _Checker, value: object, where: str, questions: dict[str, Question]
+) -> Condition:
+    data = check.table(value, where)
+    check.keys(data, where, CONDITION_KEYS)
+    name = check.text(data.get("name"), f"{where}.name")
+    game = data.get("game")
+    if game not in CONDITIONS:
+        raise check.error(
+            f"{where}.game", f"{game!r} is not a game", f"one of {', '.join(CONDITIONS)}"
+        )
+    items = check.array(
+        data.get("players"), f"{where}.players", 16, 'e.g. [{ label = "P1", kind = "person" }]'
+    )
+    players = tuple(_player(check, item, f"{where}.players[{k}]") for k, item in enumerate(items))
+    labels = [player.label for player in players]
+    leaders = data.get("leaders", [])
+    if not isinstance(leaders, list) or not all(label in labels for label in leaders):
+        raise check.error(
+            f"{where}.leaders",
+            "must list labels of this condition's players",
+            f"choose among {', '.join(labels)}",
+        )
+    settings = {key: data[key] for key in PLAN_KEYS if key in data}
+    after = check.refs(data.get("after_trial", []), f"{where}.after_trial", questions)
+    delay = data.get("delay", 0.0)
+    if not isinstance(delay, int | float) or isinstance(delay, bool) or not 0 <= delay <= MAX_DELAY:
+        raise check.error(f"{where}.delay", f"must be seconds from 0 to {MAX_DELAY:g}", "e.g. 0.3")
+    occlude = _intervals(check, data.get("occlude", []), f"{where}.occlude")
+    condition = Condition(
+        name, str(game), players, tuple(leaders), settings, after, float(delay), occlude
+    )
+    _check_plan(check, condition, where)
+    return condition
+
+
+def _intervals(check: _Checker, value: object, where: str) -> tuple[tuple[float, float], ...]:
+    """Read occlusion intervals: ``"whole"`` (the whole trial) or ``[[start, end], ...]`` (s)."""
+    if value == "whole":
+        return ((0.0, math.inf),)
+    fix = 'e.g. [[5, 12]] (seconds from the trial\'s start) or "whole"'
+    if not isinstance(value, list) or len(value) > MAX_CONDITIONS:
+        raise check.error(where, "must be a list of [start, end] intervals", fix)
+    intervals = []
+    for i, item in enumerate(value):
+        ok = isinstance(item, list) and len(item) == 2
+        ok = ok and all(isinstance(t, int | float) and not isinstance(t, bool) for t in item)
+        if not ok or not 0 <= item[0] < item[1] <= 600:
+            raise check.error(f"{where}[{i}]", "must be [start, end] with 0 <= start < end", fix)
+        intervals.append((float(item[0]), float(item[1])))
+    return tuple(intervals)
+
+
+def _player(check: _Checker, value: object, where: str) -> Player:
+    data = check.table(value, where)
+    check.keys(data, where, PLAYER_KEYS)
+    label = check.label(data.get("label"), f"{where}.label")
+    kind = data.get("kind")
+    if kind not in PLAYER_KINDS:
+        raise check.error(
+            f"{where}.kind",
+            f"{kind!r} is not a kind of player",
+            f"one of {', '.join(PLAYER_KINDS)}",
+        )
+    spec = data.get("spec")
+    if kind == "person" and spec is not None:
+        raise check.error(
+            f"{where}.spec", "a person has no spec", "remove it, or make the kind avatar"
+        )
+    if kind != "person" and not (isinstance(spec, str) and 0 < len(spec) <= MAX_SPEC_CHARS):
+        raise check.error(
+            f"{where}.spec",
+            f"{'an' if kind == 'avatar' else 'a'} {kind} needs the avatar's player spec",
+            'e.g. spec = "bundled:slow"',
+        )
+    device = data.get("device", "pointer")
+    if device != "pointer":
+        raise check.error(
+            f"{where}.device",
+            f"{device!r} is not available in a protocol",
+            "use 'pointer': LSL devices are set in single plans",
+        )
+    return Player(label, str(kind), spec, device)
+
+
+def _check_plan(check: _Checker, condition: Condition, where: str) -> None:
+    """Refuse a condition whose plan would be refused, with either filling of its partners."""
+    choices = [player.label for player in condition.players if player.kind == "person-or-avatar"]
+    for person in (True, False):
+        try:
+            condition.plan(dict.fromkeys(choices, person), 0)
+        except InputError as error:
+            either = " when its person-or-avatar is an avatar" if choices and not person else ""
+            key = _plan_key(error.problem)
+            raise check.error(
+                f"{where}.{key}", f"{error.problem.split(' (')[0]}{either}", FIXES[key]
+            ) from None
+
+
+FIXES = {
+    "players": "change the players to suit the game",
+    "leaders": 'name one leader by label, e.g. leaders = ["A1"]',
+    "graph": "a topology name or an adjacency matrix",
+    "trials": "a whole number of trials",
+    "duration": "a trial's length in seconds",
+    "pause": "seconds between trials",
+    "show_metrics": "true or false",
+    "on_drop": "'continue' or 'stop'",
+}
+"""How to fix a condition that `parse_plan` refuses, by the key at fault."""
+
+
+def _plan_key(problem: str) -> str:
+    """Return the condition's key a `parse_plan` problem is about."""
+    for key in PLAN_KEYS:
+        if problem.startswith(key):
+            return key
+    return "leaders" if "leader" in problem else "players"
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)

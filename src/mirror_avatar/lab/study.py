@@ -1,0 +1,389 @@
+"""A participant's run of a study protocol: its conditions in their order, resumable from disk.
+
+A `StudySession` is a `mirror_avatar.lab.runner.LabSession` whose plan changes from one
+condition to the next of a participant's schedule (`mirror_avatar.lab.protocol.Protocol.
+schedule`). Its trials are numbered across the whole protocol (``trial-01`` to ``trial-NN`` in
+one folder), each sidecar naming its block, condition, trial within the condition and the true
+kind of every player. Each person keeps one join link for the whole protocol; a person who
+does not play a condition waits. Pages are blinded: the players they see are "your partner"
+(or "partner 1", "partner 2", ...), never a label or a kind.
+
+The folder is named after the protocol and the participant (``<protocol>-p003``) and holds
+``study.json``: the protocol's seed and source, the participant's number and the order of the
+conditions as run, with each condition's trial numbers and partners. Creating the same
+participant's session again (after a crash, a server restart) resumes it: ``study.json`` must
+match the protocol (same seed, same order), and play continues at the first trial whose files
+are not on disk; the trial a crash interrupted keeps what it recorded.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import json
+import math
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from mirror_avatar.atomic import write_atomic_json
+from mirror_avatar.dynamics import CONTROL_PERIOD
+from mirror_avatar.errors import InputError
+from mirror_avatar.lab.messages import Answer
+from mirror_avatar.lab.protocol import Condition, Protocol, Question
+from mirror_avatar.lab.runner import COLOURS, LabSession, Participant
+from mirror_avatar.lab.trial import LabTrial, trial_stem
+from mirror_avatar.realtime.clock import MAX_STEP
+from mirror_avatar.realtime.outbox import Outbox
+from mirror_avatar.realtime.trial import Clock
+from mirror_avatar.seeds import spawn_seeds
+
+STUDY_FILE = "study.json"
+"""The participant's schedule in the session's folder."""
+
+
+@dataclass
+class Asking:
+    """The questions open after trial ``n``: who has yet to answer which, and the answers."""
+
+    n: int
+    questions: dict[str, Question]
+    after: dict[str, list[str]]
+    pending: dict[str, set[str]]
+    answers: dict[str, dict[str, dict[str, object]]]
+    done: asyncio.Event = field(default_factory=asyncio.Event)
+
+
+def study_folder(protocol: Protocol, participant: int) -> str:
+    """Return the folder name of a participant's run of a protocol."""
+    return f"{Path(protocol.source).stem}-p{participant:03d}"
+
+
+class StudySession(LabSession):
+    """A participant's run of a protocol (see the module docstring).
+
+    Parameters
+    ----------
+    protocol
+        The protocol.
+    participant
+        The participant's number (0-based; their row of the counterbalancing).
+    directory
+        The session's folder (created, or resumed when it holds this participant's run).
+    clock, countdown, max_step
+        As for `mirror_avatar.lab.runner.LabSession`.
+    """
+
+    def __init__(
+        self,
+        protocol: Protocol,
+        participant: int,
+        directory: Path,
+        clock: Clock,
+        countdown: int = 3,
+        max_step: float = MAX_STEP,
+    ) -> None:
+        self.protocol = protocol
+        self.number = participant
+        self.steps = protocol.schedule(participant)
+        seeds = spawn_seeds(protocol.seed, participant + 1)[participant]
+        seeds = spawn_seeds(int(seeds), len(self.steps))
+        self.plans = [
+            protocol.blocks[s.block].conditions[s.condition].plan(s.persons, int(seed))
+            for s, seed in zip(self.steps, seeds, strict=True)
+        ]
+        self.first_trials = [1]
+        for plan in self.plans:
+            self.first_trials.append(self.first_trials[-1] + plan.trials)
+        self.people = {
+            label: Participant(k, label, "pointer", [k]) for k, label in enumerate(protocol.people)
+        }
+        self.step = 0
+        self.asking: Asking | None = None
+        self._shown: collections.deque[list[float]] = collections.deque(maxlen=1)
+        super().__init__(directory.name, self.plans[0], directory, clock, countdown, max_step)
+        self._enter(self._step_of(self.next_trial) if self.next_trial <= self.total_trials else 0)
+
+    @property
+    def total_trials(self) -> int:
+        """Number of trials of the whole protocol for this participant."""
+        return self.first_trials[-1] - 1
+
+    def everyone(self) -> list[Participant]:
+        """Every person of the protocol."""
+        return list(self.people.values())
+
+    def describe(self) -> dict[str, Any]:
+        """Return the participant's schedule as ``study.json`` records it."""
+        order = []
+        for i, (step, plan) in enumerate(zip(self.steps, self.plans, strict=True)):
+            block = self.protocol.blocks[step.block]
+            order.append(
+                {
+                    "block": block.name,
+                    "condition": step.name,
+                    "game": plan.condition,
+                    "trials": list(range(self.first_trials[i], self.first_trials[i + 1])),
+                    "players": {slot.label: slot.kind for slot in plan.slots},
+                    "plan": plan.to_json(),
+                }
+            )
+        return {
+            "id": self.id,
+            "created_utc": self.created_utc,
+            "protocol": {"source": self.protocol.source, "title": self.protocol.title},
+            "seed": self.protocol.seed,
+            "participant": self.number,
+            "order": order,
+        }
+
+    def _create_files(self) -> None:
+        """Create the folder and ``study.json``, or resume the run recorded there."""
+        path = self.directory / STUDY_FILE
+        if not self.directory.exists():
+            self.directory.mkdir(parents=True)
+            write_atomic_json(path, self.describe())
+            return
+        try:
+            recorded = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            raise InputError(path, "this folder holds no readable study (move it away)") from None
+        expected = self.describe()
+        for key in ("seed", "participant"):
+            if recorded.get(key) != expected[key]:
+                raise InputError(path, f"recorded with another {key} (use another --out folder)")
+        names = [(c.get("condition"), c.get("players")) for c in recorded.get("order", [])]
+        if names != [(c["condition"], c["players"]) for c in expected["order"]]:
+            raise InputError(path, "recorded with another order (use another --out folder)")
+        self.created_utc = recorded.get("created_utc", self.created_utc)
+        self.next_trial = 1 + max(
+            (n for n in range(1, self.total_trials + 1) if _recorded(self.directory, n)),
+            default=0,
+        )
+        self.log(f"resumed at trial {self.next_trial} of {self.total_trials}")
+
+    def _step_of(self, n: int) -> int:
+        """Return the index of the step trial n belongs to."""
+        return max(i for i, first in enumerate(self.first_trials[:-1]) if first <= n)
+
+    def _enter(self, step: int) -> None:
+        """Make step ``step``'s plan the current one: its people's slots, their pages told."""
+        self.step = step
+        self.plan = self.plans[step]
+        self.avatars = None
+        self.participants = {}
+        for k in self.plan.humans:
+            person = self.people[self.plan.slots[k].label]
+            person.index, person.visible = k, [k, *self.plan.neighbours(k)]
+            self.participants[k] = person
+        for person in self.people.values():
+            if person.outbox is not None:
+                person.outbox.put(self.welcome(person))
+
+    async def _prepare(self, n: int) -> None:
+        step = self._step_of(n)
+        if step != self.step or self.avatars is None:
+            self._enter(step)
+            self.log(f"now {self.where(n)}")
+        await super()._prepare(n)
+
+    def where(self, n: int) -> str:
+        """Say where trial n is in the protocol: block, condition and trial within it."""
+        step = self._step_of(n)
+        blocks = list(dict.fromkeys(s.block for s in self.steps))
+        block = self.steps[step].block
+        within = n - self.first_trials[step] + 1
+        return (
+            f"block {blocks.index(block) + 1} of {len(blocks)}, condition "
+            f"'{self.steps[step].name}', trial {within} of {self.plans[step].trials}"
+        )
+
+    def welcome(self, participant: Participant) -> dict[str, Any]:
+        """Return the blinded welcome: partners are "your partner", never a label or a kind."""
+        playing = participant in self.participants.values()
+        if not playing:
+            me = {"index": participant.index, "label": participant.label, "colour": COLOURS[0]}
+            return {
+                "type": "welcome",
+                "label": participant.label,
+                "index": participant.index,
+                "role": "waiting",
+                "condition": "waiting",
+                "device": "pointer",
+                "visible": [me],
+                "trials": self.total_trials,
+                "duration": self.plan.duration,
+                "state": "waiting",
+            }
+        message = super().welcome(participant)
+        others = message["visible"][1:]
+        for i, player in enumerate(others):
+            player["label"] = "your partner" if len(others) == 1 else f"partner {i + 1}"
+        message["trials"] = self.total_trials
+        return message
+
+    def condition(self) -> Condition:
+        """Return the protocol's condition being played."""
+        step = self.steps[self.step]
+        return self.protocol.blocks[step.block].conditions[step.condition]
+
+    def delay_samples(self) -> int:
+        """Return the partners' visual delay of the current condition (samples of T)."""
+        return round(self.condition().delay / CONTROL_PERIOD)
+
+    def _send_frames(self, trial: LabTrial) -> None:
+        """Send each page its frame, the partners delayed and hidden as the condition says.
+
+        A page's own position is the one just recorded; each partner's is the one recorded
+        `delay_samples` earlier (none before that: not drawn), and none while occluded. The
+        recording keeps the true positions.
+        """
+        condition = self.condition()
+        if not condition.delay and not condition.occlude:
+            super()._send_frames(trial)
+            return
+        lag = self.delay_samples()
+        if trial.k == 1 or self._shown.maxlen != lag + 1:
+            self._shown = collections.deque(maxlen=lag + 1)
+        positions = trial.positions()
+        self._shown.append(positions)
+        k = trial.k - 1
+        hidden = any(start <= k * CONTROL_PERIOD < end for start, end in condition.occlude)
+        past = self._shown[0] if len(self._shown) > lag and not hidden else None
+        for participant in self.participants.values():
+            if participant.outbox is None:
+                continue
+            own, *others = participant.visible
+            shown = [positions[own], *(None if past is None else past[j] for j in others)]
+            frame = {"type": "frame", "k": k, "x": shown, "progress": trial.progress}
+            participant.outbox.put_frame(frame)
+
+    def _trial_lab(self, n: int) -> dict[str, Any]:
+        step = self._step_of(n)
+        condition = self.protocol.blocks[self.steps[step].block].conditions[
+            self.steps[step].condition
+        ]
+        occlude = [[a, b if math.isfinite(b) else self.plan.duration] for a, b in condition.occlude]
+        return super()._trial_lab(n) | {
+            "partner_delay_s": round(condition.delay / CONTROL_PERIOD) * CONTROL_PERIOD,
+            "occluded_s": occlude,
+            "protocol": self.protocol.title,
+            "participant": self.number,
+            "block": self.protocol.blocks[self.steps[step].block].name,
+            "protocol_condition": self.steps[step].name,
+            "condition_trial": n - self.first_trials[step] + 1,
+            "partners": {slot.label: slot.kind for slot in self.plan.slots},
+        }
+
+    def questions_after(self, n: int) -> dict[str, list[str]]:
+        """Return the ids of the questions asked after trial n: after the trial, after the block.
+
+        A block's questions follow the participant's last trial in that block.
+        """
+        step = self._step_of(n)
+        here = self.steps[step]
+        block = self.protocol.blocks[here.block]
+        last = n == self.first_trials[step + 1] - 1 and (
+            step + 1 == len(self.steps) or self.steps[step + 1].block != here.block
+        )
+        return {
+            "trial": list(block.conditions[here.condition].after_trial),
+            "block": list(block.after_block) if last else [],
+        }
+
+    async def _after_trial(self, n: int) -> None:
+        """Ask the trial's (and the block's) questions and wait for every answer."""
+        after = self.questions_after(n)
+        ids = list(dict.fromkeys(after["trial"] + after["block"]))
+        people = [p.label for p in self.participants.values()]
+        if not ids or not people:
+            return
+        questions = {qid: self.protocol.questions[qid] for qid in ids}
+        pending = {label: set(ids) for label in people}
+        self.asking = Asking(n, questions, after, pending, {label: {} for label in people})
+        self.state = "pause"
+        self._write_answers(self.asking)
+        for participant in self.participants.values():
+            if participant.outbox is not None:
+                participant.outbox.put(self._questions_message(participant.label))
+        self.log(f"trial {n}: asking {', '.join(ids)}")
+        try:
+            await self.asking.done.wait()
+        finally:
+            self.asking = None
+        self.log(f"trial {n}: every answer in")
+
+    def _questions_message(self, label: str) -> dict[str, Any]:
+        asking = self.asking
+        assert asking is not None
+        open_ = [q.to_json() for qid, q in asking.questions.items() if qid in asking.pending[label]]
+        return {"type": "questions", "trial": asking.n, "questions": open_}
+
+    def answer(self, participant: Participant, answer: Any) -> str | None:
+        """Take a participant's answer; return why not, or None (every answer is written)."""
+        asking = self.asking
+        if not isinstance(answer, Answer) or asking is None or answer.trial != asking.n:
+            return "no question is open for that trial"
+        pending = asking.pending.get(participant.label, set())
+        if answer.question not in pending:
+            return f"{answer.question}: not an open question"
+        problem = asking.questions[answer.question].problem(answer.value)
+        if problem is not None:
+            return problem
+        stamp = datetime.now(UTC).isoformat()
+        asking.answers[participant.label][answer.question] = {"value": answer.value, "utc": stamp}
+        pending.discard(answer.question)
+        self._write_answers(asking)
+        if not any(asking.pending.values()):
+            asking.done.set()
+        return None
+
+    def _write_answers(self, asking: Asking) -> None:
+        step = self.steps[self._step_of(asking.n)]
+        write_atomic_json(
+            answers_path(self.directory, asking.n),
+            {
+                "trial": asking.n,
+                "block": self.protocol.blocks[step.block].name,
+                "condition": step.name,
+                "after_trial": asking.after["trial"],
+                "after_block": asking.after["block"],
+                "answers": asking.answers,
+            },
+        )
+
+    def attach(self, participant: Participant, outbox: Outbox, connection: object) -> None:
+        """Register a participant's page; a page that rejoins is asked its open questions."""
+        super().attach(participant, outbox, connection)
+        if self.asking is not None and self.asking.pending.get(participant.label):
+            outbox.put(self._questions_message(participant.label))
+
+    def status(self) -> dict[str, Any]:
+        """Return the session's status, with where the participant is in the protocol."""
+        n = min(self.next_trial if self.trial is None else self.trial.n, self.total_trials)
+        order = [step.name for step in self.steps]
+        waiting = [p.label for p in self.people.values() if p not in self.participants.values()]
+        return super().status() | {
+            "study": {
+                "participant": self.number,
+                "where": self.where(n),
+                "order": order,
+                "waiting": waiting,
+                "total_trials": self.total_trials,
+                "unanswered": {}
+                if self.asking is None
+                else {label: sorted(ids) for label, ids in self.asking.pending.items() if ids},
+            }
+        }
+
+
+def answers_path(directory: Path, n: int) -> Path:
+    """Return the file of the answers given after trial n."""
+    return trial_stem(directory, n).with_name(f"{trial_stem(directory, n).name}_answers.json")
+
+
+def _recorded(directory: Path, n: int) -> bool:
+    """Whether any file of trial n is on disk."""
+    stem = trial_stem(directory, n)
+    return any(stem.parent.glob(f"{stem.name}_*"))

@@ -1,0 +1,398 @@
+"""A study protocol run through the real lab server: each participant's conditions in their
+counterbalanced order, blinded pages, the truth in the files, and a killed server resumed."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+import websockets
+from test_lab_server import BEARER, TOKEN, Page, status
+
+from mirror_avatar.lab.protocol import load_protocol
+from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.session import load_session
+from mirror_avatar.testing import ServerThread
+
+PROTOCOL = """
+title = "test study"
+seed = 7
+
+[questions.partner]
+text = "Was your partner a person or a computer?"
+kind = "choice"
+options = ["a person", "a computer"]
+
+[questions.confidence]
+text = "How confident are you?"
+kind = "likert"
+points = 7
+
+[questions.remarks]
+text = "Anything to add?"
+kind = "text"
+max_chars = 40
+
+[[blocks]]
+name = "dyads"
+order = "williams"
+after_block = ["remarks"]
+
+[[blocks.conditions]]
+name = "follow"
+game = "leader_follower"
+players = [
+  { label = "P1", kind = "person" },
+  { label = "A1", kind = "avatar", spec = "bundled:slow" },
+]
+leaders = ["A1"]
+trials = 1
+duration = 2
+pause = 0.5
+
+[[blocks.conditions]]
+name = "together"
+game = "joint"
+players = [
+  { label = "P1", kind = "person" },
+  { label = "P2", kind = "person-or-avatar", spec = "bundled:slow" },
+]
+trials = 2
+duration = 2
+pause = 0.5
+after_trial = ["partner", "confidence"]
+"""
+
+
+class AnsweringPage(Page):
+    """A participant's page that answers every question: first out of range, then properly."""
+
+    ANSWERS: dict[str, Any] = {"partner": "a computer", "confidence": 5, "remarks": "smooth"}  # noqa: RUF012
+
+    async def play(self, seconds: float) -> None:
+        async with websockets.connect(self.url) as socket:
+            sender = asyncio.create_task(self._send(socket))
+            try:
+                async with asyncio.timeout(seconds):
+                    async for text in socket:
+                        message = json.loads(text)
+                        self.messages.append(message)
+                        if message["type"] == "ping":
+                            await socket.send(json.dumps({"type": "pong", "id": message["id"]}))
+                        elif message["type"] == "questions":
+                            await self._answer(socket, message)
+            except websockets.ConnectionClosed as closed:
+                self.closed = closed
+            except TimeoutError:
+                pass
+            finally:
+                sender.cancel()
+
+    async def _answer(self, socket: Any, message: dict[str, Any]) -> None:
+        for question in message["questions"]:
+            answer = {"type": "answer", "trial": message["trial"], "question": question["id"]}
+            if question["kind"] == "likert":
+                await socket.send(json.dumps(answer | {"value": question["points"] + 1}))
+            await socket.send(json.dumps(answer | {"value": self.ANSWERS[question["id"]]}))
+
+
+@pytest.fixture
+def protocol_file(tmp_path: Path) -> Path:
+    path = tmp_path / "study.toml"
+    path.write_text(PROTOCOL)
+    return path
+
+
+@pytest.fixture
+def lab(tmp_path: Path, protocol_file: Path) -> Iterator[ServerThread]:
+    protocol = load_protocol(protocol_file)
+    settings = LabSettings(out_dir=tmp_path / "out", token=TOKEN, countdown=1, protocol=protocol)
+    with ServerThread(create_lab_app(settings)) as running:
+        yield running
+
+
+def create_participant(url: str, participant: int, headers: dict[str, str]) -> dict[str, Any]:
+    response = httpx.post(f"{url}/api/sessions", json={"participant": participant}, headers=headers)
+    assert response.status_code == 201, response.text
+    return response.json()
+
+
+def person_plays_together(protocol_file: Path, participant: int) -> bool:
+    steps = load_protocol(protocol_file).schedule(participant)
+    return next(step.persons["P2"] for step in steps if step.name == "together")
+
+
+@pytest.mark.parametrize("participant", [0, 1])
+def test_a_participant_plays_the_protocol_in_their_order_blinded(
+    lab, tmp_path, protocol_file, participant
+):
+    expected = [step.name for step in load_protocol(protocol_file).schedule(participant)]
+    created = create_participant(lab.url, participant, BEARER)
+    sid = created["id"]
+    assert sid == f"study-p{participant:03d}"
+    assert set(created["links"]) == {"P1", "P2"}
+    assert created["study"]["order"] == expected
+    first = "follow" if expected[0] == "follow" else "together"
+    assert created["study"]["where"] == f"block 1 of 1, condition '{first}', trial 1 of " + (
+        "1" if first == "follow" else "2"
+    )
+    pages = [
+        AnsweringPage(created["links"]["P1"]),
+        AnsweringPage(created["links"]["P2"], phase=-0.4),
+    ]
+    seen: set[str] = set()
+
+    async def scenario() -> None:
+        tasks = [asyncio.create_task(page.play(40.0)) for page in pages]
+        await asyncio.sleep(0.5)
+        started = await asyncio.to_thread(
+            httpx.post, f"{lab.url}/api/sessions/{sid}/start", json={"force": True}, headers=BEARER
+        )
+        assert started.status_code == 200, started.text
+        while (now := await asyncio.to_thread(status, lab, sid))["state"] != "finished":
+            seen.add(now["study"]["where"])
+            await asyncio.sleep(0.1)
+        await asyncio.gather(*tasks)
+
+    asyncio.run(scenario())
+    assert "block 1 of 1, condition 'together', trial 2 of 2" in seen
+    folder = tmp_path / "out" / sid
+    study = json.loads((folder / "study.json").read_text())
+    assert [c["condition"] for c in study["order"]] == expected
+    assert study["seed"] == 7 and study["participant"] == participant
+    person = person_plays_together(protocol_file, participant)
+    trials = [load_session(folder / f"trial-{n:02d}_session.csv") for n in (1, 2, 3)]
+    names = [t.metadata["lab"]["protocol_condition"] for t in trials]
+    assert names == [n for n in expected for _ in range(1 if n == "follow" else 2)]
+    for trial in trials:
+        lab_meta = trial.metadata["lab"]
+        assert trial.metadata["complete"]
+        if lab_meta["protocol_condition"] == "together":
+            assert lab_meta["partners"] == {"P1": "human", "P2": "human" if person else "avatar"}
+        else:
+            assert lab_meta["partners"] == {"P1": "human", "A1": "avatar"}
+    for page in pages:  # blinded: the partner is "your partner", never a label or a kind
+        for welcome in page.of_type("welcome"):
+            assert [v["label"] for v in welcome["visible"][1:]] in ([], ["your partner"])
+            assert "avatar" not in json.dumps(welcome) and "human" not in json.dumps(welcome)
+    p2_ends = [e["trial"] for e in pages[1].of_type("end")]
+    together = [n for n, name in zip((1, 2, 3), names, strict=True) if name == "together"]
+    assert p2_ends == (together if person else [])
+    for n in (1, 2, 3):  # questions after each 'together' trial, the block's after the last
+        path = folder / f"trial-{n:02d}_answers.json"
+        after_trial = ["partner", "confidence"] if n in together else []
+        after_block = ["remarks"] if n == 3 else []
+        if not after_trial + after_block:
+            assert not path.exists()
+            continue
+        saved = json.loads(path.read_text())
+        assert (saved["after_trial"], saved["after_block"]) == (after_trial, after_block)
+        players = ["P1", "P2"] if person and n in together else ["P1"]
+        assert sorted(saved["answers"]) == players
+        for label in players:
+            values = {q: a["value"] for q, a in saved["answers"][label].items()}
+            assert values == {q: AnsweringPage.ANSWERS[q] for q in after_trial + after_block}
+    refusals = [m["message"] for m in pages[0].of_type("error")]
+    assert refusals == ["confidence: choose a point from 1 to 7"] * len(together)
+
+
+def test_study_requests_are_refused_with_one_line(lab, tmp_path):
+    for body, problem in (
+        ({"participant": -1}, "participant: must be the participant's number, 0 or more"),
+        ({"participant": "one"}, "participant: must be the participant's number, 0 or more"),
+        ({"participant": 1000}, "participant: must be at most 999"),
+    ):
+        answer = httpx.post(f"{lab.url}/api/sessions", json=body, headers=BEARER)
+        assert answer.status_code == 400 and answer.json() == {"error": problem}
+    create_participant(lab.url, 0, BEARER)
+    again = httpx.post(f"{lab.url}/api/sessions", json={"participant": 0}, headers=BEARER)
+    assert again.status_code == 400
+    assert again.json()["error"] == "participant: participant 0's session is open"
+
+
+def test_the_cli_refuses_a_bad_protocol_in_one_line(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(PROTOCOL.replace('game = "joint"', 'game = "duet"'))
+    result = subprocess.run(
+        [Path(sys.executable).parent / "mirror-avatar", "lab", "--protocol", str(bad),
+         "--out", str(tmp_path / "out"), "--port", "0", "--no-lsl"],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert lines == [
+        f"mirror-avatar: error: {bad}: blocks[0].conditions[1].game: 'duet' is not a game "
+        "(one of solo, leader_follower, joint, group)"
+    ], result.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def start_server(out: Path, protocol_file: Path) -> tuple[subprocess.Popen[str], str, str]:
+    server = subprocess.Popen(
+        [Path(sys.executable).parent / "mirror-avatar", "lab", "--port", "0", "--out", str(out),
+         "--no-lsl", "--protocol", str(protocol_file)],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
+    )  # fmt: skip
+    for line in server.stdout:  # type: ignore[union-attr]
+        if found := re.search(r"console: (http://[^/]+)/console\?token=(\S+)", line):
+            return server, found.group(1), found.group(2)
+    raise AssertionError("the server printed no console link")
+
+
+def kill(server: subprocess.Popen[str]) -> None:
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(server.pid, signal.SIGKILL)
+    server.wait(10)
+    server.stdout.close()  # type: ignore[union-attr]
+
+
+def wait_for(predicate: Any, timeout: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.05)
+
+
+def test_a_server_killed_mid_protocol_resumes_at_the_next_trial(tmp_path, protocol_file):
+    out = tmp_path / "out"
+    server, url, token = start_server(out, protocol_file)
+    headers = {"Authorization": f"Bearer {token}"}
+    try:
+        created = create_participant(url, 0, headers)
+        sid = created["id"]
+        pages = [AnsweringPage(created["links"]["P1"]), AnsweringPage(created["links"]["P2"])]
+
+        def on_trial_two() -> bool:
+            trial = httpx.get(f"{url}/api/sessions/{sid}", headers=headers).json()["trial"]
+            return trial is not None and trial["n"] == 2 and trial["progress"] > 0.2
+
+        async def scenario() -> None:
+            tasks = [asyncio.create_task(page.play(40.0)) for page in pages]
+            await asyncio.sleep(0.5)
+            await asyncio.to_thread(
+                httpx.post, f"{url}/api/sessions/{sid}/start", json={"force": True},
+                headers=headers,
+            )  # fmt: skip
+            await asyncio.to_thread(wait_for, on_trial_two)
+            os.killpg(server.pid, signal.SIGKILL)
+            await asyncio.gather(*tasks)
+
+        asyncio.run(scenario())
+    finally:
+        kill(server)
+    folder = out / sid
+    first = (folder / "trial-01_session.csv").read_bytes()
+    interrupted = load_session(folder / "trial-02_session.csv")
+    assert interrupted.metadata["complete"] is False and interrupted.n_samples > 10
+    second_size = (folder / "trial-02_session.csv").stat().st_size
+
+    server, url, token = start_server(out, protocol_file)
+    headers = {"Authorization": f"Bearer {token}"}
+    try:
+        resumed = create_participant(url, 0, headers)
+        assert resumed["id"] == sid and resumed["next_trial"] == 3
+        assert any("resumed at trial 3 of 3" in event for event in resumed["events"])
+        pages = [AnsweringPage(resumed["links"]["P1"]), AnsweringPage(resumed["links"]["P2"])]
+
+        async def finish() -> None:
+            tasks = [asyncio.create_task(page.play(20.0)) for page in pages]
+            await asyncio.sleep(0.5)
+            await asyncio.to_thread(
+                httpx.post, f"{url}/api/sessions/{sid}/start", json={"force": True},
+                headers=headers,
+            )  # fmt: skip
+            await asyncio.to_thread(
+                wait_for,
+                lambda: (
+                    httpx.get(f"{url}/api/sessions/{sid}", headers=headers).json()["state"]
+                    == "finished"
+                ),
+            )
+            await asyncio.gather(*tasks)
+
+        asyncio.run(finish())
+    finally:
+        kill(server)
+    assert (folder / "trial-01_session.csv").read_bytes() == first
+    assert (folder / "trial-02_session.csv").stat().st_size == second_size
+    last = load_session(folder / "trial-03_session.csv")
+    final = load_protocol(protocol_file).schedule(0)[-1].name
+    assert last.metadata["complete"] and last.metadata["lab"]["protocol_condition"] == final
+    assert last.metadata["lab"]["condition_trial"] == (2 if final == "together" else 1)
+    assert not (folder / "trial-04_session.csv").exists()
+
+
+DELAYED = """
+title = "delayed partner"
+seed = 1
+
+[[blocks]]
+name = "delay"
+
+[[blocks.conditions]]
+name = "late and hidden"
+game = "joint"
+players = [
+  { label = "P1", kind = "person" },
+  { label = "A1", kind = "avatar", spec = "bundled:slow" },
+]
+trials = 1
+duration = 3
+delay = 0.3
+occlude = [[1.5, 2.1]]
+"""
+
+
+def test_the_partner_is_drawn_late_and_hidden_as_the_condition_says(tmp_path):
+    path = tmp_path / "delayed.toml"
+    path.write_text(DELAYED)
+    settings = LabSettings(
+        out_dir=tmp_path / "out", token=TOKEN, countdown=1, protocol=load_protocol(path)
+    )
+    with ServerThread(create_lab_app(settings)) as lab:
+        created = create_participant(lab.url, 0, BEARER)
+        sid = created["id"]
+        page = Page(created["links"]["P1"])
+
+        def start() -> None:
+            httpx.post(f"{lab.url}/api/sessions/{sid}/start", json={}, headers=BEARER)
+
+        async def scenario() -> None:
+            task = asyncio.create_task(page.play(30.0))
+            await asyncio.sleep(0.5)
+            await asyncio.to_thread(start)
+            await asyncio.to_thread(wait_for, lambda: status(lab, sid)["state"] == "finished")
+            await task
+
+        asyncio.run(scenario())
+    trial = load_session(tmp_path / "out" / sid / "trial-01_session.csv")
+    lab_meta = trial.metadata["lab"]
+    assert lab_meta["partner_delay_s"] == pytest.approx(0.3)
+    assert lab_meta["occluded_s"] == [[1.5, 2.1]]
+    lag = 10  # 0.3 s of T = 0.03 s
+    frames = page.of_type("frame")
+    assert len(frames) > 50
+    hidden = shown = 0
+    for frame in frames:
+        k = frame["k"]
+        own, partner = frame["x"]
+        assert own == trial.positions[0, k]  # the page's own point is not delayed
+        if k < lag or 1.5 <= k * 0.03 < 2.1:
+            assert partner is None
+            hidden += 1
+        else:
+            assert partner == trial.positions[1, k - lag]  # exactly 10 samples late
+            shown += 1
+    assert hidden > 5 and shown > 20

@@ -1,0 +1,248 @@
+"""Study protocols: the example file, each participant's schedule, and every refusal."""
+
+from __future__ import annotations
+
+import copy
+import json
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.lab.messages import Answer, parse_participant_message
+from mirror_avatar.lab.protocol import MAX_PROTOCOL_BYTES, load_protocol, parse_protocol
+from mirror_avatar.realtime.messages import ProtocolError
+
+EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
+
+
+def _example() -> dict:
+    return tomllib.loads(EXAMPLE.read_text())
+
+
+def test_the_example_protocol_loads():
+    protocol = load_protocol(EXAMPLE)
+    assert protocol.seed == 20261125
+    assert [block.name for block in protocol.blocks] == ["alone", "partners"]
+    assert protocol.people == ("P1", "P2")
+    assert protocol.questions["confidence"].points == 7
+    assert protocol.questions["partner"].options == ("a person", "a computer")
+    follow = protocol.blocks[1].conditions[0]
+    plan = follow.plan({}, seed=5)
+    assert plan.roles == ("follower", "leader")
+    assert (plan.trials, plan.duration, plan.pause, plan.seed) == (2, 30.0, 5.0, 5)
+    assert follow.after_trial == ("partner", "confidence")
+    assert (follow.delay, follow.occlude) == (0.0, ())
+    lead = protocol.blocks[1].conditions[3]
+    assert (lead.delay, lead.occlude) == (0.3, ((10.0, 15.0),))
+    assert protocol.blocks[1].conditions[2].occlude == ((0.0, float("inf")),)
+
+
+def test_person_or_avatar_is_filled_by_the_person_or_the_avatar():
+    joint = load_protocol(EXAMPLE).blocks[1].conditions[1]
+    as_person = joint.plan({"P2": True}, seed=1)
+    as_avatar = joint.plan({"P2": False}, seed=1)
+    assert [slot.kind for slot in as_person.slots] == ["human", "human"]
+    assert [slot.kind for slot in as_avatar.slots] == ["human", "avatar"]
+    assert as_avatar.slots[1].spec == "bundled:slow"
+    assert as_avatar.slots[1].label == "P2"
+
+
+def test_schedules_follow_the_williams_design_and_the_seed():
+    protocol = load_protocol(EXAMPLE)
+    schedules = [protocol.schedule(p) for p in range(4)]
+    assert all(steps[0].name == "solo" for steps in schedules)
+    partners = [[step.condition for step in steps[1:]] for steps in schedules]
+    for position in range(4):
+        assert sorted(order[position] for order in partners) == [0, 1, 2, 3]
+    assert schedules == [protocol.schedule(p) for p in range(4)]
+    draws = [step.persons["P2"] for steps in schedules for step in steps if step.persons]
+    assert set(draws) == {True, False}
+
+
+def test_a_protocol_without_a_seed_draws_one():
+    data = _example()
+    del data["seed"]
+    first, second = parse_protocol(data, "p.toml"), parse_protocol(data, "p.toml")
+    assert first.seed != second.seed
+
+
+def _set(path: tuple, value: object) -> dict:
+    data = copy.deepcopy(_example())
+    node = data
+    for key in path[:-1]:
+        node = node[key]
+    if value is DELETE:
+        del node[path[-1]]
+    else:
+        node[path[-1]] = value
+    return data
+
+
+DELETE = object()
+C0 = ("blocks", 1, "conditions", 0)
+REFUSALS = [
+    (("colour",), "blue", "colour: unknown key"),
+    (("title",), 3, "title: must be text"),
+    (("seed",), -1, "seed: must be an integer"),
+    (("seed",), 1.5, "seed: must be an integer"),
+    (("block_order",), "latin", "block_order: must be 'fixed' or 'random'"),
+    (("questions",), [], "questions: must be a table"),
+    (
+        ("questions", "bad id!"),
+        {"text": "x", "kind": "text"},
+        "questions.bad id!: 'bad id!' is not",
+    ),
+    (("questions", "partner", "kind"), "slider", "questions.partner.kind: must be one of"),
+    (("questions", "partner", "text"), "", "questions.partner.text: must be text"),
+    (("questions", "partner", "colour"), 1, "questions.partner.colour: unknown key"),
+    (("questions", "partner", "options"), ["a"], "questions.partner.options: needs two"),
+    (("questions", "partner", "options"), ["a", "a"], "questions.partner.options: needs two"),
+    (("questions", "partner", "options"), "a", "questions.partner.options: must be a list"),
+    (("questions", "partner", "options"), ["a", 2], "questions.partner.options[1]: must be text"),
+    (("questions", "confidence", "points"), 1, "questions.confidence.points: must be an integer"),
+    (("questions", "confidence", "points"), 7.0, "questions.confidence.points: must be an integer"),
+    (("questions", "confidence", "anchors"), ["a"], "questions.confidence.anchors: must name"),
+    (("questions", "confidence", "anchors"), ["a", 1], "questions.confidence.anchors[1]: must be"),
+    (("questions", "remarks", "max_chars"), 0, "questions.remarks.max_chars: must be an integer"),
+    (("blocks",), DELETE, "blocks: must be a list of 1 to"),
+    (("blocks",), [], "blocks: must be a list of 1 to"),
+    (("blocks", 1), "partners", "blocks[1]: must be a table"),
+    (("blocks", 1, "repeat"), 2, "blocks[1].repeat: unknown key"),
+    (("blocks", 1, "order"), "balanced", "blocks[1].order: must be one of fixed, random, latin"),
+    (("blocks", 1, "after_block"), "remarks", "blocks[1].after_block: must be a list of question"),
+    (("blocks", 1, "after_block"), ["mood"], "blocks[1].after_block: no question 'mood'"),
+    (("blocks", 1, "conditions"), [], "blocks[1].conditions: must be a list of 1 to"),
+    ((*C0, "name"), "joint", "blocks[1].conditions[0].name: 'joint' names two conditions"),
+    ((*C0, "name"), DELETE, "blocks[1].conditions[0].name: must be text"),
+    ((*C0, "game"), "mirror", "blocks[1].conditions[0].game: 'mirror' is not a game"),
+    ((*C0, "speed"), 2, "blocks[1].conditions[0].speed: unknown key"),
+    ((*C0, "players"), [], "blocks[1].conditions[0].players: must be a list of 1 to"),
+    ((*C0, "players", 1, "kind"), "robot", "blocks[1].conditions[0].players[1].kind: 'robot'"),
+    ((*C0, "players", 1, "label"), "-A", "blocks[1].conditions[0].players[1].label: '-A' is not"),
+    ((*C0, "players", 1, "spec"), DELETE, "blocks[1].conditions[0].players[1].spec: an avatar"),
+    ((*C0, "players", 0, "spec"), "bundled:slow", "blocks[1].conditions[0].players[0].spec: a per"),
+    ((*C0, "players", 0, "device"), "lsl", "blocks[1].conditions[0].players[0].device: 'lsl'"),
+    ((*C0, "players", 0, "hand"), "left", "blocks[1].conditions[0].players[0].hand: unknown key"),
+    ((*C0, "players", 0), "P1", "blocks[1].conditions[0].players[0]: must be a table"),
+    ((*C0, "leaders"), ["P9"], "blocks[1].conditions[0].leaders: must list labels"),
+    ((*C0, "leaders"), [], "blocks[1].conditions[0].leaders: leader_follower needs exactly one"),
+    ((*C0, "trials"), 0, "blocks[1].conditions[0].trials: trials must lie between"),
+    ((*C0, "trials"), 1.5, "blocks[1].conditions[0].trials: trials must be an integer"),
+    ((*C0, "duration"), 0.1, "blocks[1].conditions[0].duration: duration must lie between"),
+    ((*C0, "pause"), "long", "blocks[1].conditions[0].pause: pause must be a number"),
+    ((*C0, "show_metrics"), 1, "blocks[1].conditions[0].show_metrics: show_metrics must be"),
+    ((*C0, "on_drop"), "pause", "blocks[1].conditions[0].on_drop: on_drop must be one of"),
+    ((*C0, "delay"), 1.5, "blocks[1].conditions[0].delay: must be seconds from 0 to 1"),
+    ((*C0, "delay"), True, "blocks[1].conditions[0].delay: must be seconds from 0 to 1"),
+    ((*C0, "occlude"), "half", "blocks[1].conditions[0].occlude: must be a list of [start, end]"),
+    ((*C0, "occlude"), [[3, 2]], "blocks[1].conditions[0].occlude[0]: must be [start, end] with"),
+    ((*C0, "occlude"), [[1, 2, 3]], "blocks[1].conditions[0].occlude[0]: must be [start, end]"),
+    ((*C0, "after_trial"), ["mood"], "blocks[1].conditions[0].after_trial: no question 'mood'"),
+    (
+        ("blocks", 1, "conditions", 2, "graph"),
+        "star-ish",
+        "blocks[1].conditions[2].graph: graph must be one of",
+    ),
+    (
+        ("blocks", 1, "conditions", 2, "graph"),
+        [[0, 1], [1, 0]],
+        "blocks[1].conditions[2].graph: graph:",
+    ),
+    (
+        ("blocks", 1, "conditions", 1, "players"),
+        [{"label": "P1", "kind": "person"}],
+        "blocks[1].conditions[1].players: joint needs exactly two players",
+    ),
+    (
+        ("blocks", 1, "conditions", 1, "players", 0, "label"),
+        "P2",
+        "blocks[1].conditions[1].players: two players are labelled 'P2'",
+    ),
+    (
+        ("blocks", 1, "conditions", 1, "players", 0),
+        {"label": "A9", "kind": "avatar", "spec": "bundled:slow"},
+        "blocks[1].conditions[1].players: a lab session needs at least one person when its "
+        "person-or-avatar is an avatar",
+    ),
+    (
+        ("blocks", 0, "conditions", 0, "players", 1),
+        {"label": "A9", "kind": "avatar", "spec": "bundled:slow"},
+        "blocks[0].conditions[0].players: a solo session has people only",
+    ),
+    (
+        ("blocks", 1, "conditions", 2, "players"),
+        [{"label": "P1", "kind": "person"}],
+        "blocks[1].conditions[2].players: a group needs at least two players",
+    ),
+]
+
+
+@pytest.mark.parametrize(("path", "value", "message"), REFUSALS)
+def test_each_mistake_is_refused_with_its_key_path_and_a_fix(path, value, message):
+    with pytest.raises(InputError) as caught:
+        parse_protocol(_set(path, value), "study.toml")
+    text = str(caught.value)
+    assert text.startswith(f"study.toml: {message}"), text
+    assert "\n" not in text
+    assert text.endswith(")"), text
+
+
+def test_file_level_refusals_name_the_file(tmp_path):
+    missing = tmp_path / "none.toml"
+    with pytest.raises(InputError, match=r"none\.toml: cannot read the protocol"):
+        load_protocol(missing)
+    broken = tmp_path / "broken.toml"
+    broken.write_text("title = \n")
+    with pytest.raises(InputError, match=r"broken\.toml: not valid TOML: .*line 1"):
+        load_protocol(broken)
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(b"title = '\xff'\n")
+    with pytest.raises(InputError, match=r"binary\.toml: the protocol is not UTF-8"):
+        load_protocol(binary)
+    huge = tmp_path / "huge.toml"
+    huge.write_text("# " + "x" * MAX_PROTOCOL_BYTES)
+    with pytest.raises(InputError, match=r"huge\.toml: the protocol is over"):
+        load_protocol(huge)
+
+
+def test_answers_are_checked_against_their_question():
+    questions = load_protocol(EXAMPLE).questions
+    choice, likert, text = questions["partner"], questions["confidence"], questions["remarks"]
+    assert choice.problem("a computer") is None
+    assert choice.problem("a robot") == "partner: choose one of the options"
+    assert likert.problem(1) is None and likert.problem(7) is None
+    for bad in (0, 8, "5", True, 5.0):
+        assert likert.problem(bad) == "confidence: choose a point from 1 to 7"
+    assert text.problem("") is None and text.problem("x" * 100) is None
+    assert text.problem("x" * 101) == "remarks: write at most 100 characters"
+    assert text.problem(3) == "remarks: write at most 100 characters"
+
+
+def test_a_free_text_answer_fits_in_one_page_message():
+    data = _example()
+    data["questions"]["remarks"]["max_chars"] = 121
+    with pytest.raises(
+        InputError, match=r"questions.remarks.max_chars: must be an integer from 1 to 120"
+    ):
+        parse_protocol(data, "study.toml")
+
+
+def test_a_page_answer_message_is_parsed_and_bounded():
+    answer = parse_participant_message(
+        json.dumps({"type": "answer", "trial": 3, "question": "confidence", "value": 5})
+    )
+    assert answer == Answer(3, "confidence", 5)
+    longest = {"type": "answer", "trial": 999, "question": "q" * 32, "value": "\u00e9" * 120}
+    assert (
+        parse_participant_message(json.dumps(longest, ensure_ascii=False)).value == "\u00e9" * 120
+    )
+    for bad in (
+        {"type": "answer", "trial": 1, "question": "q", "value": True},
+        {"type": "answer", "trial": 1, "question": "q", "value": [1]},
+        {"type": "answer", "trial": 1, "question": 2, "value": 1},
+        {"type": "answer", "trial": -1, "question": "q", "value": 1},
+    ):
+        with pytest.raises(ProtocolError):
+            parse_participant_message(json.dumps(bad))

@@ -1,0 +1,67 @@
+"""A participant's run of a protocol: trials numbered across conditions, where it is, which
+questions follow which trial, and resuming from its folder."""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.lab.protocol import load_protocol
+from mirror_avatar.lab.study import StudySession, study_folder
+
+EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
+
+
+def _session(tmp_path: Path, participant: int = 0, seed: int | None = None) -> StudySession:
+    protocol = load_protocol(EXAMPLE)
+    if seed is not None:
+        protocol = replace(protocol, seed=seed)
+    folder = tmp_path / study_folder(protocol, participant)
+    return StudySession(protocol, participant, folder, time.monotonic)
+
+
+def test_trials_are_numbered_across_the_participants_conditions(tmp_path):
+    session = _session(tmp_path, participant=2)
+    names = [step.name for step in session.steps]
+    assert session.directory.name == "protocol-p002"
+    assert session.total_trials == 1 + 2 + 2 + 2 + 2
+    assert session.where(1) == "block 1 of 2, condition 'solo', trial 1 of 1"
+    assert session.where(2) == f"block 2 of 2, condition '{names[1]}', trial 1 of 2"
+    assert session.where(9) == f"block 2 of 2, condition '{names[-1]}', trial 2 of 2"
+    study = json.loads((session.directory / "study.json").read_text())
+    assert [c["condition"] for c in study["order"]] == names
+    assert [c["trials"] for c in study["order"]] == [[1], [2, 3], [4, 5], [6, 7], [8, 9]]
+    assert study["seed"] == 20261125 and study["participant"] == 2
+
+
+def test_block_questions_follow_the_last_trial_of_the_block(tmp_path):
+    session = _session(tmp_path)
+    assert session.questions_after(1) == {"trial": [], "block": []}
+    last = session.questions_after(session.total_trials)
+    assert last["block"] == ["remarks"]
+    assert all(session.questions_after(n)["block"] == [] for n in range(1, session.total_trials))
+
+
+def test_a_folder_resumes_at_the_first_trial_with_no_files(tmp_path):
+    session = _session(tmp_path)
+    for n in (1, 2, 3):
+        (session.directory / f"trial-{n:02d}_session.csv").write_text("t\n")
+    resumed = _session(tmp_path)
+    assert resumed.next_trial == 4
+    assert resumed.plan == resumed.plans[resumed._step_of(4)]
+    assert any("resumed at trial 4 of 9" in event for event in resumed.events)
+
+
+def test_a_folder_of_another_seed_or_no_study_is_refused(tmp_path):
+    _session(tmp_path)
+    with pytest.raises(InputError, match=r"study\.json: recorded with another seed"):
+        _session(tmp_path, seed=5)
+    stray = tmp_path / "protocol-p001"
+    stray.mkdir()
+    with pytest.raises(InputError, match=r"study\.json: this folder holds no readable study"):
+        _session(tmp_path, participant=1)
