@@ -8,7 +8,9 @@ written beside the engine's own compiled code (``__pycache__/kind_loops``; the u
 directory when the package cannot be written), rewritten only when its text changes, and
 compiled by numba with ``cache=True`` like any other, so a process loads it from disk;
 `make clean-cache` removes its compiled code with the rest. `kind_loop` returns the loop, once
-per process and set of kinds.
+per process and set of kinds. Its first call in a process holds a lock on the module's file, so
+processes that start together (test workers, Dask workers) compile and cache it one at a time
+(numba's cache is not safe against several writers of one index).
 """
 
 from __future__ import annotations
@@ -17,9 +19,15 @@ import importlib.util
 import os
 import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: the first calls are not serialised between processes
+    fcntl = None  # type: ignore[assignment]
 
 from mirror_avatar.atomic import write_atomic_text
 from mirror_avatar.players.kinds import PlayerKind, player_kind
@@ -118,8 +126,25 @@ def _load(names: tuple[str, ...], source: str) -> Callable[..., None]:
     module: Any = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module
     spec.loader.exec_module(module)
-    loop: Callable[..., None] = module.run_kinds
+    compiled = module.run_kinds
+
+    def loop(*arguments: Any) -> None:
+        if compiled.signatures:
+            compiled(*arguments)
+            return
+        with _exclusive(path.with_suffix(".lock")):
+            compiled(*arguments)  # loads the compiled loop, or compiles and caches it
+
     return loop
+
+
+@contextmanager
+def _exclusive(path: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``path`` (created if missing) across processes and threads."""
+    with open(path, "w") as handle:
+        if fcntl is not None:
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        yield
 
 
 def _directory() -> Path:
