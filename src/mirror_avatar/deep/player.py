@@ -6,7 +6,8 @@ the action of highest value under its network (`mirror_avatar.deep.network`; hid
 100-50-50 by default) and holds that acceleration over T on its own end effector, exactly as
 the tabular `mirror_avatar.learning.agent.CyberPlayer` does with its Q-table (what they share is
 `mirror_avatar.learning.acceleration_player.AccelerationPlayer`). `deep_step` is the compiled
-step, called by `DeepCyberPlayer.step` and by the compiled batch loop; the DQN learner is
+step, called by `DeepCyberPlayer.step` and, through the deep players' kind (`KIND`,
+`mirror_avatar.players.kinds`), by the compiled batch loop; the DQN learner is
 `mirror_avatar.deep.training.DQNLearner`.
 
 A trained player is one ``.npz`` file (format ``mirror-avatar/deep-cyber-player``): the flat
@@ -20,7 +21,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -49,7 +50,8 @@ from mirror_avatar.model_files import (
     load_model,
     require_arrays,
 )
-from mirror_avatar.players.base import DEEP, Observation, PlayerPlan
+from mirror_avatar.players.base import Observation, PlayerPlan
+from mirror_avatar.players.kinds import PlayerKind, parameter_table, register_kind
 from mirror_avatar.players.reference import ReferenceDraw
 from mirror_avatar.trials import Trial
 
@@ -142,6 +144,102 @@ class NetworkPolicy:
     use_reference: bool
     actions: Array
     n_substeps: int
+
+
+class PackedNetworks(NamedTuple):
+    """A session's D deep players as the compiled batch loop reads them, each row padded."""
+
+    weights: Array
+    """Flat network parameters, shape (D, P)."""
+    sizes: Ints
+    """Layer widths, shape (D, L)."""
+    n_sizes: Ints
+    """How many layer widths each network has, shape (D,)."""
+    n_slots: Ints
+    """Neighbour slots of each input, shape (D,)."""
+    use_reference: Ints
+    """1 where the input holds the player's reference velocity, shape (D,)."""
+    actions: Array
+    """Accelerations (units/s²), shape (D, A)."""
+    n_actions: Ints
+    """How many actions each network has, shape (D,)."""
+    substeps: Ints
+    """RK4 substeps per control period, shape (D,)."""
+    params: NDArray[np.void]
+    """The distinct end effectors, records of `mirror_avatar.dynamics.PARAMS_DTYPE`, (P,)."""
+    param_rows: Ints
+    """Each player's row in ``params``, shape (D,)."""
+
+
+def pack_networks(plans: Sequence[PlayerPlan], players: Ints) -> PackedNetworks:
+    """Pack a session's deep players (their plans; their rows in the session are not needed)."""
+    networks: list[NetworkPolicy] = [plan.policy for plan in plans]
+    count = len(networks)
+    weights = np.zeros((count, max([n.weights.size for n in networks], default=1)))
+    sizes = np.zeros((count, max([n.sizes.size for n in networks], default=1)), dtype=np.int64)
+    n_actions = np.array([n.actions.size for n in networks], dtype=np.int64)
+    actions = np.zeros((count, max(n_actions, default=1)))
+    for d, network in enumerate(networks):
+        weights[d, : network.weights.size] = network.weights
+        sizes[d, : network.sizes.size] = network.sizes
+        actions[d, : network.actions.size] = network.actions
+    return PackedNetworks(
+        weights,
+        sizes,
+        np.array([n.sizes.size for n in networks], dtype=np.int64),
+        np.array([n.n_slots for n in networks], dtype=np.int64),
+        np.array([n.use_reference for n in networks], dtype=np.int64),
+        actions,
+        n_actions,
+        np.array([n.n_substeps for n in networks], dtype=np.int64),
+        *parameter_table(plans),
+    )
+
+
+@njit(cache=True, nogil=True, inline="always")
+def play_network(
+    weights: Array,
+    sizes: Ints,
+    n_sizes: Ints,
+    n_slots: Ints,
+    use_reference: Ints,
+    actions: Array,
+    n_actions: Ints,
+    substeps: Ints,
+    params: NDArray[np.void],
+    param_rows: Ints,
+    slot: int,
+    k: int,
+    x: float,
+    v: float,
+    positions: Array,
+    velocities: Array,
+    previous: Array,
+    reference: float,
+) -> tuple[float, float, float]:
+    """`deep_step` of deep player ``slot`` of the packed networks.
+
+    The first arguments are the fields of `PackedNetworks`, the others a kind's step's
+    (`mirror_avatar.players.kinds`).
+    """
+    return deep_step(
+        weights[slot],
+        sizes[slot, : n_sizes[slot]],
+        n_slots[slot],
+        use_reference[slot] != 0,
+        actions[slot, : n_actions[slot]],
+        params[param_rows[slot]],
+        substeps[slot],
+        x,
+        v,
+        positions,
+        velocities,
+        reference,
+    )
+
+
+KIND = register_kind(PlayerKind("deep", PackedNetworks, pack_networks, play_network))
+"""The deep players' kind in the compiled batch loop."""
 
 
 class DeepCyberPlayer(AccelerationPlayer):
@@ -254,7 +352,7 @@ class DeepCyberPlayer(AccelerationPlayer):
     def _policy_plan(
         self, start: tuple[float, float], reference: ReferenceDraw | None
     ) -> PlayerPlan:
-        return PlayerPlan(DEEP, start, self.params, reference=reference, policy=self.policy_)
+        return PlayerPlan(KIND.name, start, self.params, reference=reference, policy=self.policy_)
 
     def model_arrays(self, source: Source) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
         """Return the arrays and metadata of its file (`deep_player_arrays`)."""

@@ -17,7 +17,8 @@ Follows METHODS section 7; the **choice**s it leaves open, all configurable:
   pushing further out set to zero (a hand stopped at the edge of the range);
 - alone (no neighbour), the avatar takes its own state as its partner's.
 
-`cyber_step` is the compiled step, called by `CyberPlayer.step` and by the compiled batch loop.
+`cyber_step` is the compiled step, called by `CyberPlayer.step` and, through the cyber players'
+kind (`KIND`, `mirror_avatar.players.kinds`), by the compiled batch loop.
 
 A trained player is saved as one ``.npz`` file holding the Q-table, the bin edges, the action set
 and a JSON metadata string (format name ``mirror-avatar/cyber-player``), read without unpickling
@@ -29,10 +30,10 @@ and with every value it holds checked against its range (`CyberPlayer.save`,
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -66,7 +67,8 @@ from mirror_avatar.model_files import (
     load_model,
     require_arrays,
 )
-from mirror_avatar.players.base import CYBER, Observation, PlayerPlan, partner_state
+from mirror_avatar.players.base import Observation, PlayerPlan, partner_state
+from mirror_avatar.players.kinds import PlayerKind, parameter_table, register_kind
 from mirror_avatar.players.reference import ReferenceDraw
 from mirror_avatar.trials import Trial
 
@@ -74,6 +76,7 @@ if TYPE_CHECKING:
     import os
 
 Array = NDArray[np.float64]
+Ints = NDArray[np.int64]
 
 Q_INIT_SCALE = 1e-3
 """Scale of an untrained Q-table's random values (`CyberPlayer.initialise_policy`, **choice**)."""
@@ -151,6 +154,104 @@ class GreedyPolicy:
     discretisation: Discretisation
     actions: Array
     n_substeps: int
+
+
+class PackedPolicies(NamedTuple):
+    """A session's C cyber players as the compiled batch loop reads them, each row padded."""
+
+    q_tables: Array
+    """Q-tables padded with -inf, shape (C, S, A)."""
+    modes: Ints
+    """Feature codes, shape (C,)."""
+    edges: Array
+    """Bin edges, shape (C, E)."""
+    offsets: Ints
+    """Edge offsets, shape (C, 5)."""
+    actions: Array
+    """Accelerations (units/s²), shape (C, A)."""
+    n_actions: Ints
+    """How many actions each has, shape (C,)."""
+    substeps: Ints
+    """RK4 substeps per period, shape (C,)."""
+    params: NDArray[np.void]
+    """The distinct end effectors, records of `mirror_avatar.dynamics.PARAMS_DTYPE`, (P,)."""
+    param_rows: Ints
+    """Each player's row in ``params``, shape (C,)."""
+
+
+def pack_policies(plans: Sequence[PlayerPlan], players: Ints) -> PackedPolicies:
+    """Pack a session's cyber players (their plans; their rows in the session are not needed)."""
+    policies: list[GreedyPolicy] = [plan.policy for plan in plans]
+    count = len(policies)
+    n_states = max([p.q_table.shape[0] for p in policies], default=1)
+    n_actions = np.array([p.actions.size for p in policies], dtype=np.int64)
+    n_edges = max([p.discretisation.flat_edges.size for p in policies], default=1)
+    q_tables = np.full((count, n_states, max(n_actions, default=1)), -np.inf)
+    edges = np.zeros((count, n_edges))
+    offsets = np.zeros((count, 5), dtype=np.int64)
+    actions = np.zeros((count, q_tables.shape[2]))
+    for c, policy in enumerate(policies):
+        q = policy.q_table
+        q_tables[c, : q.shape[0], : q.shape[1]] = q
+        flat = policy.discretisation.flat_edges
+        edges[c, : flat.size] = flat
+        offsets[c] = policy.discretisation.offsets
+        actions[c, : policy.actions.size] = policy.actions
+    return PackedPolicies(
+        q_tables,
+        np.array([p.discretisation.mode for p in policies], dtype=np.int64),
+        edges,
+        offsets,
+        actions,
+        n_actions,
+        np.array([p.n_substeps for p in policies], dtype=np.int64),
+        *parameter_table(plans),
+    )
+
+
+@njit(cache=True, nogil=True, inline="always")
+def play_policy(
+    q_tables: Array,
+    modes: Ints,
+    edges: Array,
+    offsets: Ints,
+    actions: Array,
+    n_actions: Ints,
+    substeps: Ints,
+    params: NDArray[np.void],
+    param_rows: Ints,
+    slot: int,
+    k: int,
+    x: float,
+    v: float,
+    positions: Array,
+    velocities: Array,
+    previous: Array,
+    reference: float,
+) -> tuple[float, float, float]:
+    """`cyber_step` of cyber player ``slot`` of the packed policies.
+
+    The first arguments are the fields of `PackedPolicies`, the others a kind's step's
+    (`mirror_avatar.players.kinds`).
+    """
+    return cyber_step(
+        q_tables[slot],
+        modes[slot],
+        edges[slot],
+        offsets[slot],
+        actions[slot, : n_actions[slot]],
+        params[param_rows[slot]],
+        substeps[slot],
+        x,
+        v,
+        positions,
+        velocities,
+        reference,
+    )
+
+
+KIND = register_kind(PlayerKind("cyber", PackedPolicies, pack_policies, play_policy))
+"""The cyber players' kind in the compiled batch loop."""
 
 
 class CyberPlayer(AccelerationPlayer):
@@ -254,7 +355,7 @@ class CyberPlayer(AccelerationPlayer):
     def _policy_plan(
         self, start: tuple[float, float], reference: ReferenceDraw | None
     ) -> PlayerPlan:
-        return PlayerPlan(CYBER, start, self.params, reference=reference, policy=self.policy_)
+        return PlayerPlan(KIND.name, start, self.params, reference=reference, policy=self.policy_)
 
     def model_arrays(self, source: Source) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
         """Return the arrays and metadata of its file (`cyber_player_arrays`)."""

@@ -37,9 +37,6 @@ if TYPE_CHECKING:
 
 Array = NDArray[np.float64]
 
-VIRTUAL_TRAINER, RECORDED, CYBER, DEEP = range(4)
-"""Codes of the player kinds the compiled batch loop runs (`PlayerPlan.kind`)."""
-
 
 @dataclass(frozen=True, eq=False)
 class Observation:
@@ -74,7 +71,8 @@ class PlayerPlan:
     Attributes
     ----------
     kind
-        `VIRTUAL_TRAINER`, `RECORDED`, `CYBER` or `DEEP`.
+        The name of its kind, registered by the module that defines the player
+        (`mirror_avatar.players.kinds`), which packs and steps it.
     start
         Initial position (units) and velocity (units/s).
     params
@@ -86,13 +84,13 @@ class PlayerPlan:
     track
         A recording's positions and velocities on the control grid, shape (2, L), else None.
     policy
-        A learned player's greedy policy, the record its kind defines (`CYBER`: a Q-table,
-        `mirror_avatar.learning.agent.GreedyPolicy`; `DEEP`: a network,
+        A learned player's greedy policy, the record its kind defines (a Q-table,
+        `mirror_avatar.learning.agent.GreedyPolicy`; a network,
         `mirror_avatar.deep.player.NetworkPolicy`), else None. The players live above this
         module, so it is not typed here.
     """
 
-    kind: int
+    kind: str
     start: tuple[float, float]
     params: HKBParams | None = None
     reference: ReferenceDraw | None = None

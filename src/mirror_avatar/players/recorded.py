@@ -1,23 +1,26 @@
 """A recorded trial replayed open-loop: the player ignores its neighbours.
 
-`recorded_step` is the compiled step, called by `RecordedPlayer.step` and by the compiled batch
-loop.
+`recorded_step` is the compiled step, called by `RecordedPlayer.step` and, through the
+recordings' kind (`KIND`, `mirror_avatar.players.kinds`), by the compiled batch loop.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.players.base import RECORDED, Observation, Player, PlayerPlan
+from mirror_avatar.players.base import Observation, Player, PlayerPlan
+from mirror_avatar.players.kinds import PlayerKind, register_kind
 from mirror_avatar.trials import PLAYING_RANGE, Trial
 
 Array = NDArray[np.float64]
+Ints = NDArray[np.int64]
 
 
 @njit(cache=True, nogil=True)
@@ -106,4 +109,49 @@ class RecordedPlayer(Player):
     def plan(self, seed: int, n_steps: int) -> PlayerPlan:
         """Return the recording on the control grid (``seed`` changes nothing)."""
         start = (float(self.track[0, 0]), float(self.track[1, 0]))
-        return PlayerPlan(RECORDED, start, track=self.track)
+        return PlayerPlan(KIND.name, start, track=self.track)
+
+
+class Recordings(NamedTuple):
+    """A session's K recordings as the compiled batch loop reads them."""
+
+    tracks: Array
+    """Each one's positions and velocities on the control grid, padded, shape (K, 2, L)."""
+    lengths: Ints
+    """Each one's length, shape (K,)."""
+
+
+def pack_recordings(plans: Sequence[PlayerPlan], players: Ints) -> Recordings:
+    """Pack a session's recordings (their plans; their rows in the session are not needed)."""
+    lengths = np.array([0 if p.track is None else p.track.shape[1] for p in plans], np.int64)
+    tracks = np.full((len(plans), 2, max(int(lengths.max()), 1)), np.nan)
+    for slot, plan in enumerate(plans):
+        if plan.track is not None:
+            tracks[slot, :, : lengths[slot]] = plan.track
+    return Recordings(tracks, lengths)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def replay_recording(
+    tracks: Array,
+    lengths: Ints,
+    slot: int,
+    k: int,
+    x: float,
+    v: float,
+    positions: Array,
+    velocities: Array,
+    previous: Array,
+    reference: float,
+) -> tuple[float, float, float]:
+    """`recorded_step` of recording ``slot``, with no control (NaN).
+
+    The first arguments are the fields of `Recordings`, the others a kind's step's
+    (`mirror_avatar.players.kinds`).
+    """
+    x, v = recorded_step(tracks[slot, :, : lengths[slot]], k)
+    return x, v, np.nan
+
+
+KIND = register_kind(PlayerKind("recorded", Recordings, pack_recordings, replay_recording))
+"""The recordings' kind in the compiled batch loop."""

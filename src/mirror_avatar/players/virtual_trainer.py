@@ -11,27 +11,31 @@ the group of two. Alone (no neighbour) it tracks its reference with the whole we
 (`mirror_avatar.dynamics.partner_weights`).
 
 `virtual_trainer_problem` states a trainer's problem for one period; `virtual_trainer_step` solves
-it for `VirtualTrainer.step`, and the compiled batch loop solves all its trainers' problems of a
-period together (`mirror_avatar.dynamics.optimal_control_steps`, the same solver).
+it for `VirtualTrainer.step`. The trainers' kind (`KIND`, `mirror_avatar.players.kinds`) is
+solved together: in the compiled batch loop each trainer poses its problem of a period
+(`pose_trainer`) and `solve_trainers` solves them all in lockstep
+(`mirror_avatar.dynamics.optimal_control_steps`, the same solver), which gives each the result
+it would have alone.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from mirror_avatar.dynamics import PROBLEM_COLUMNS, HKBParams, optimal_control_steps
-from mirror_avatar.players.base import (
-    VIRTUAL_TRAINER,
-    Observation,
-    Player,
-    PlayerPlan,
-    partner_state,
+from mirror_avatar.dynamics import (
+    PROBLEM_COLUMNS,
+    HKBParams,
+    coupling_rate,
+    optimal_control_steps,
 )
+from mirror_avatar.players.base import Observation, Player, PlayerPlan, partner_state
+from mirror_avatar.players.kinds import PlayerKind, parameter_table, register_kind
 from mirror_avatar.players.reference import (
     ReferenceDraw,
     ReferenceTrack,
@@ -41,6 +45,7 @@ from mirror_avatar.players.reference import (
 from mirror_avatar.trials import Trial
 
 Array = NDArray[np.float64]
+Ints = NDArray[np.int64]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -182,4 +187,119 @@ class VirtualTrainer(Player):
         """Return the start, parameters and the draw of the reference `reset(seed)` uses."""
         start = (float(self.start[0]), float(self.start[1]))
         draw = ReferenceDraw(self.reference, n_steps, self.period, seed)
-        return PlayerPlan(VIRTUAL_TRAINER, start, self.params, reference=draw)
+        return PlayerPlan(KIND.name, start, self.params, reference=draw)
+
+
+class TrainerLanes(NamedTuple):
+    """A session's K virtual trainers as the compiled batch loop solves them, in lockstep.
+
+    The lanes are ordered as suits the lockstep shots (`stiffest_first`); a trainer's slot is
+    its number among the session's trainers.
+    """
+
+    players: Ints
+    """Each lane's player, its row in the session, shape (K,)."""
+    lanes: Ints
+    """Each slot's lane, shape (K,)."""
+    params: NDArray[np.void]
+    """The distinct parameters, records of `mirror_avatar.dynamics.PARAMS_DTYPE`, (P,)."""
+    param_rows: Ints
+    """Each lane's row in ``params``, shape (K,)."""
+    problems: Array
+    """Each lane's problem of the period, shape (K, `PROBLEM_COLUMNS`)."""
+    coupled: NDArray[np.bool_]
+    """Whether each lane's trainer has a neighbour, shape (K,)."""
+    solved: Array
+    """Each lane's position, velocity and control, shape (K, 3)."""
+
+
+def pack_trainers(plans: Sequence[PlayerPlan], players: Ints) -> TrainerLanes:
+    """Pack a session's virtual trainers (their plans, and their rows in the session)."""
+    params, rows = parameter_table(plans)
+    order = stiffest_first(params, rows)
+    lanes = np.empty(order.size, dtype=np.int64)
+    lanes[order] = np.arange(order.size)
+    count = len(plans)
+    return TrainerLanes(
+        players[order],
+        lanes,
+        params,
+        rows[order],
+        np.empty((count, PROBLEM_COLUMNS)),
+        np.empty(count, np.bool_),
+        np.empty((count, 3)),
+    )
+
+
+@njit(cache=True, nogil=True)
+def stiffest_first(params: NDArray[np.void], rows: Ints) -> Ints:
+    """Order the trainers by their costate-control rate, fastest first (stable).
+
+    The rate (`mirror_avatar.dynamics.coupling_rate`) sets a problem's fewest RK4 steps, and
+    the lockstep shots stop at the last problem still stepping: problems with as many steps
+    side by side waste none. Each problem's solution does not depend on the order.
+    """
+    rates = np.empty(rows.size)
+    for t in range(rows.size):
+        p = params[rows[t]]
+        rates[t] = coupling_rate(p, p.theta_p)
+    return np.argsort(-rates, kind="mergesort")
+
+
+@njit(cache=True, nogil=True, inline="always")
+def pose_trainer(
+    players: Ints,
+    lanes: Ints,
+    params: NDArray[np.void],
+    param_rows: Ints,
+    problems: Array,
+    coupled: NDArray[np.bool_],
+    solved: Array,
+    slot: int,
+    k: int,
+    x: float,
+    v: float,
+    positions: Array,
+    velocities: Array,
+    previous: Array,
+    reference: float,
+) -> None:
+    """Pose trainer ``slot``'s problem of period k in its lane (`virtual_trainer_problem`).
+
+    The first arguments are the fields of `TrainerLanes`, the others a kind's step's
+    (`mirror_avatar.players.kinds`).
+    """
+    lane = lanes[slot]
+    coupled[lane] = virtual_trainer_problem(
+        x, v, positions, velocities, previous, reference, problems[lane]
+    )
+
+
+@njit(cache=True, nogil=True, inline="always")
+def solve_trainers(
+    players: Ints,
+    lanes: Ints,
+    params: NDArray[np.void],
+    param_rows: Ints,
+    problems: Array,
+    coupled: NDArray[np.bool_],
+    solved: Array,
+    k: int,
+    out: Array,
+) -> None:
+    """Solve the posed problems together and write the trainers' samples into ``out``.
+
+    The first arguments are the fields of `TrainerLanes`; ``out`` (4, N, n) receives positions
+    and velocities at sample k + 1 and controls at sample k.
+    """
+    optimal_control_steps(problems, coupled, params, param_rows, solved)
+    for t in range(players.size):
+        out[0, players[t], k + 1] = solved[t, 0]
+        out[1, players[t], k + 1] = solved[t, 1]
+        out[2, players[t], k] = solved[t, 2]
+
+
+KIND = register_kind(
+    PlayerKind("virtual_trainer", TrainerLanes, pack_trainers, pose_trainer, solve_trainers)
+)
+"""The virtual trainers' kind in the compiled batch loop, solved together."""
