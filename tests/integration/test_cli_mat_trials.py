@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 import scipy.io
 
 from mirror_avatar.trial_files import MAT_DURATION
@@ -75,6 +76,7 @@ def refused_unread(arguments: list[str], folder: Path) -> int:
     return peak
 
 
+@pytest.mark.slow  # minutes of work: `make test-all` runs it
 def test_too_many_trials_for_generator_fit_are_refused_before_expansion(tmp_path: Path) -> None:
     n_trials = 3 * MAX_MAT_TRIALS
     path = struct_file(tmp_path / "trials.mat", n_trials, samples=int(MAT_DURATION) + 1)

@@ -78,6 +78,7 @@ def test_a_cyber_player_of_an_unknown_role_is_refused(tmp_path: Path, role: str)
     )
 
 
+@pytest.mark.slow  # minutes of work: `make test-all` runs it
 def test_identical_avatar_runs_write_identical_files(tmp_path: Path) -> None:
     (tmp_path / "trials").mkdir()
     for k, trial in enumerate(load_zhai2017()[9:12]):

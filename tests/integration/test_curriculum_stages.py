@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.experiments.curriculum import measure_stages, own_emd
 from mirror_avatar.generator import IMSGenerator
 
 
+@pytest.mark.slow  # minutes of work: `make test-all` runs it
 def test_stages_move_from_the_patient_to_the_target() -> None:
     """EMD to the patient strictly rising and to the target strictly falling, the first stage
     within the patient's trial-to-trial EMD and the last within the target's, strokes mostly

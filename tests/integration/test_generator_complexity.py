@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import pytest
+
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.experiments import generator_complexity
 
 
+@pytest.mark.slow  # minutes of work: `make test-all` runs it
 def test_five_trials_generate_motion_as_close_as_the_persons_own() -> None:
     """Five trials of each style, the other four held out (one draw): the EMD of generated to
     held-out motion is at most 1.2 times the EMD between the person's own trials and the
