@@ -100,8 +100,8 @@ def test_two_pages_answer_by_mouse_and_by_touch(chromium, lab, tmp_path):
         page.wait_for_selector("#questions fieldset", timeout=30_000)
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     phone.screenshot(path=SCREENSHOTS / "lab-study-question-phone.png", full_page=True)
-    console.wait_for_function(
-        "document.getElementById('session-summary').textContent.includes('participant 0')"
+    console.wait_for_function(  # the console polls: wait for the status that lists the questions
+        "document.getElementById('session-summary').textContent.includes('P1 to answer')"
     )
     summary = console.locator("#session-summary").inner_text()
     assert "block 1 of 1, condition 'together', trial 1 of 1" in summary
