@@ -95,14 +95,18 @@ class Page:
                     async for text in socket:
                         message = json.loads(text)
                         self.messages.append(message)
-                        if message["type"] == "ping":
-                            await socket.send(json.dumps({"type": "pong", "id": message["id"]}))
+                        await self.on_message(socket, message)
             except websockets.ConnectionClosed as closed:
                 self.closed = closed
             except TimeoutError:
                 pass
             finally:
                 sender.cancel()
+
+    async def on_message(self, socket: Any, message: dict[str, Any]) -> None:
+        """Answer a ping (pages that do more extend this)."""
+        if message["type"] == "ping":
+            await socket.send(json.dumps({"type": "pong", "id": message["id"]}))
 
     async def _send(self, socket: Any) -> None:
         began, seq = time.monotonic(), 0

@@ -18,7 +18,6 @@ from typing import Any
 
 import httpx
 import pytest
-import websockets
 from test_lab_server import BEARER, TOKEN, Page, status
 
 from mirror_avatar.lab.protocol import load_protocol
@@ -81,24 +80,10 @@ class AnsweringPage(Page):
 
     ANSWERS: dict[str, Any] = {"partner": "a computer", "confidence": 5, "remarks": "smooth"}  # noqa: RUF012
 
-    async def play(self, seconds: float) -> None:
-        async with websockets.connect(self.url) as socket:
-            sender = asyncio.create_task(self._send(socket))
-            try:
-                async with asyncio.timeout(seconds):
-                    async for text in socket:
-                        message = json.loads(text)
-                        self.messages.append(message)
-                        if message["type"] == "ping":
-                            await socket.send(json.dumps({"type": "pong", "id": message["id"]}))
-                        elif message["type"] == "questions":
-                            await self._answer(socket, message)
-            except websockets.ConnectionClosed as closed:
-                self.closed = closed
-            except TimeoutError:
-                pass
-            finally:
-                sender.cancel()
+    async def on_message(self, socket: Any, message: dict[str, Any]) -> None:
+        await super().on_message(socket, message)
+        if message["type"] == "questions":
+            await self._answer(socket, message)
 
     async def _answer(self, socket: Any, message: dict[str, Any]) -> None:
         for question in message["questions"]:
