@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import json
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -59,6 +60,32 @@ def test_schedules_follow_the_williams_design_and_the_seed():
     assert schedules == [protocol.schedule(p) for p in range(4)]
     draws = [step.persons["P2"] for steps in schedules for step in steps if step.persons]
     assert set(draws) == {True, False}
+
+
+@pytest.mark.parametrize("seed", [20261125, 3, 77])
+def test_person_or_avatar_draws_are_balanced_across_participants(seed):
+    protocol = replace(load_protocol(EXAMPLE), seed=seed)
+    slots = [("joint", "P2"), ("lead", "P2")]
+    for n in range(2, 9):
+        schedules = [protocol.schedule(p) for p in range(n)]
+        for name, label in slots:
+            people = [
+                next(s.persons[label] for s in steps if s.name == name) for steps in schedules
+            ]
+            avatars = people.count(False)
+            assert abs(avatars - (n - avatars)) <= n % 2, (seed, n, name, people)
+            for pair in range(n // 2):  # each pair of participants: one person, one avatar
+                assert people[2 * pair] != people[2 * pair + 1]
+
+
+def test_who_in_a_pair_meets_the_avatar_is_drawn_from_the_seed():
+    protocol = load_protocol(EXAMPLE)
+    firsts = {
+        next(s.persons["P2"] for s in replace(protocol, seed=seed).schedule(0) if s.name == "joint")
+        for seed in range(20)
+    }
+    assert firsts == {True, False}
+    assert protocol.schedule(5) == load_protocol(EXAMPLE).schedule(5)
 
 
 def test_a_protocol_without_a_seed_draws_one():

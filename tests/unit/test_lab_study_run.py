@@ -65,3 +65,17 @@ def test_a_folder_of_another_seed_or_no_study_is_refused(tmp_path):
     stray.mkdir()
     with pytest.raises(InputError, match=r"study\.json: this folder holds no readable study"):
         _session(tmp_path, participant=1)
+
+
+def test_balanced_partner_draws_are_recorded_and_resumed(tmp_path):
+    kinds = []
+    for participant in range(4):
+        session = _session(tmp_path, participant)
+        study = json.loads((session.directory / "study.json").read_text())
+        joint = next(c for c in study["order"] if c["condition"] == "joint")
+        kinds.append(joint["players"]["P2"])
+        drawn = next(s.persons["P2"] for s in session.steps if s.name == "joint")
+        assert kinds[-1] == ("human" if drawn else "avatar")
+        resumed = _session(tmp_path, participant)
+        assert resumed.describe()["order"] == study["order"]
+    assert kinds[0] != kinds[1] and kinds[2] != kinds[3]

@@ -5,9 +5,10 @@ sessions"). It has blocks, each a list of conditions; a condition is one game (`
 ``leader_follower``, ``joint``, ``group``) with its players, graph, leaders, trials, duration
 and pause, which becomes a `mirror_avatar.lab.plan.SessionPlan` once its players are decided
 (`Condition.plan`). A player is a person (by label), an avatar (by player spec) or a
-``person-or-avatar``: the partner's slot is filled by the person or by the avatar, drawn per
-participant from the protocol's seed, so that neither the participant nor the page knows which
-(the files record it). Questions are declared once and asked after each trial of a condition
+``person-or-avatar``: the partner's slot is filled by the person or by the avatar, drawn from
+the protocol's seed and balanced across participants (half of each pair of consecutive
+participants meet the avatar), so that neither the participant nor the page knows which (the
+files record it). Questions are declared once and asked after each trial of a condition
 (``after_trial``) or after a block (``after_block``). The order of blocks and of each block's
 conditions is fixed, random or counterbalanced across participants (`mirror_avatar.lab.order`).
 
@@ -275,14 +276,20 @@ class Protocol:
     def _partners(self, condition: Condition, participant: int, b: int, c: int) -> dict[str, bool]:
         """Draw whether a person fills each ``person-or-avatar`` slot (True) or the avatar.
 
-        **Choice**: an even draw per participant and condition from the seed.
+        **Choice**: balanced across participants. Participants are taken in pairs (0 and 1,
+        2 and 3, ...); in each pair one meets the person and the other the avatar, which one
+        drawn from the seed per pair, condition and slot. Any run of participants from the
+        first therefore meets the avatar as often as the person, give or take one, in an
+        order the seed reproduces.
         """
-        rng = np.random.default_rng([self.seed, 4, participant, b, c])
-        return {
-            player.label: bool(rng.random() < 0.5)
-            for player in condition.players
-            if player.kind == "person-or-avatar"
-        }
+        pair, second = divmod(participant, 2)
+        draws = {}
+        for k, player in enumerate(condition.players):
+            if player.kind == "person-or-avatar":
+                rng = np.random.default_rng([self.seed, 4, pair, b, c, k])
+                first_meets_person = bool(rng.random() < 0.5)
+                draws[player.label] = first_meets_person != bool(second)
+        return draws
 
 
 @dataclass(frozen=True)
