@@ -21,16 +21,17 @@ from __future__ import annotations
 import math
 import secrets
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.checker import Checker, is_int
 from mirror_avatar.lab.order import ORDERS, block_order, condition_order
+from mirror_avatar.lab.perturbation import Perturbation, parse_perturbations
 from mirror_avatar.lab.plan import CONDITIONS, MAX_SPEC_CHARS, SessionPlan, parse_plan
-from mirror_avatar.realtime.messages import PARTICIPANT_PATTERN
 
 PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
 """What a protocol's player slot holds."""
@@ -43,9 +44,6 @@ MAX_PROTOCOL_BYTES = 256 * 1024
 
 MAX_BLOCKS, MAX_CONDITIONS, MAX_QUESTIONS, MAX_OPTIONS = 20, 20, 50, 20
 """Most blocks, conditions per block, questions, and options of a choice."""
-
-MAX_TEXT_CHARS = 500
-"""Longest title, name, question or option text (characters)."""
 
 MAX_DELAY = 1.0
 """Longest visual delay of the partners (s; Stepp 2009 delayed up to 1 s)."""
@@ -63,6 +61,7 @@ TOP_KEYS = ("title", "seed", "block_order", "questions", "blocks")
 BLOCK_KEYS = ("name", "order", "after_block", "conditions")
 CONDITION_KEYS = (
     "delay",
+    "perturb",
     "occlude",
     "name",
     "game",
@@ -120,7 +119,7 @@ class Question:
         """
         if self.kind == "choice" and value not in self.options:
             return f"{self.id}: choose one of the options"
-        if self.kind == "likert" and not (_is_int(value) and 1 <= value <= self.points):  # type: ignore[operator]
+        if self.kind == "likert" and not (is_int(value) and 1 <= value <= self.points):  # type: ignore[operator]
             return f"{self.id}: choose a point from 1 to {self.points}"
         if self.kind == "text" and not (isinstance(value, str) and len(value) <= self.max_chars):
             return f"{self.id}: write at most {self.max_chars} characters"
@@ -171,6 +170,9 @@ class Condition:
         How late the partners are drawn on the people's pages (s).
     occlude
         Intervals of each trial (s from its start) during which the partners are hidden.
+    perturb
+        Changes of its avatars at given times of each trial
+        (`mirror_avatar.lab.perturbation`), in order of time.
     """
 
     name: str
@@ -181,6 +183,7 @@ class Condition:
     after_trial: tuple[str, ...]
     delay: float = 0.0
     occlude: tuple[tuple[float, float], ...] = ()
+    perturb: tuple[Perturbation, ...] = ()
 
     @property
     def trials(self) -> int:
@@ -334,11 +337,11 @@ def load_protocol(path: Path) -> Protocol:
 
 def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
     """Validate a protocol read from TOML (``source`` names it in errors)."""
-    check = _Checker(source)
+    check = Checker(source)
     check.keys(data, "", TOP_KEYS)
     title = check.text(data.get("title", ""), "title", allow_empty=True)
     seed = data.get("seed", secrets.randbits(63))
-    if not _is_int(seed) or not 0 <= seed <= SEED_LIMIT:
+    if not is_int(seed) or not 0 <= seed <= SEED_LIMIT:
         raise check.error("seed", f"must be an integer from 0 to {SEED_LIMIT}", "or leave it out")
     order = data.get("block_order", "fixed")
     if order not in ("fixed", "random"):
@@ -357,58 +360,7 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
     return Protocol(source, title, int(seed), order, questions, parsed)
 
 
-class _Checker:
-    """Builds the errors of one protocol file: ``FILE: KEY.PATH: problem (fix)``."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def error(self, where: str, problem: str, fix: str) -> InputError:
-        return InputError(self.source, f"{where}: {problem} ({fix})")
-
-    def table(self, value: object, where: str) -> dict[str, Any]:
-        if not isinstance(value, dict):
-            raise self.error(where, "must be a table", "write it as { key = value, ... }")
-        return value
-
-    def keys(self, value: dict[str, Any], where: str, known: tuple[str, ...]) -> None:
-        for key in value:
-            if key not in known:
-                place = f"{where}.{key}" if where else key
-                raise self.error(place, "unknown key", f"known keys: {', '.join(known)}")
-
-    def array(self, value: object, where: str, most: int, fix: str) -> list[Any]:
-        if not isinstance(value, list) or not 1 <= len(value) <= most:
-            raise self.error(where, f"must be a list of 1 to {most} entries", fix)
-        return value
-
-    def text(self, value: object, where: str, allow_empty: bool = False) -> str:
-        if not isinstance(value, str) or len(value) > MAX_TEXT_CHARS or not (value or allow_empty):
-            raise self.error(where, f"must be text of 1 to {MAX_TEXT_CHARS} characters", "quote it")
-        return value
-
-    def label(self, value: object, where: str) -> str:
-        if not isinstance(value, str) or not PARTICIPANT_PATTERN.fullmatch(value):
-            raise self.error(
-                where,
-                f"{value!r} is not a label",
-                "use 1-32 letters, digits, '_' or '-', starting with a letter or digit",
-            )
-        return value
-
-    def refs(self, value: object, where: str, questions: dict[str, Question]) -> tuple[str, ...]:
-        if not isinstance(value, list) or not all(isinstance(q, str) for q in value):
-            raise self.error(where, "must be a list of question ids", 'e.g. ["partner"]')
-        for q in value:
-            if q not in questions:
-                known = ", ".join(questions) or "none declared"
-                raise self.error(
-                    where, f"no question {q!r}", f"declare [questions.{q}]; known: {known}"
-                )
-        return tuple(value)
-
-
-def _questions(check: _Checker, value: object) -> dict[str, Question]:
+def _questions(check: Checker, value: object) -> dict[str, Question]:
     table = check.table(value, "questions")
     if len(table) > MAX_QUESTIONS:
         raise check.error("questions", f"more than {MAX_QUESTIONS} questions", "ask fewer")
@@ -417,7 +369,7 @@ def _questions(check: _Checker, value: object) -> dict[str, Question]:
     }
 
 
-def _question(check: _Checker, qid: str, value: object) -> Question:
+def _question(check: Checker, qid: str, value: object) -> Question:
     where = f"questions.{qid}"
     data = check.table(value, where)
     check.keys(data, where, QUESTION_KEYS)
@@ -443,7 +395,7 @@ def _question(check: _Checker, qid: str, value: object) -> Question:
     if kind == "likert":
         points = data.get("points", 7)
         low, high = LIKERT_RANGE
-        if not _is_int(points) or not low <= points <= high:
+        if not is_int(points) or not low <= points <= high:
             raise check.error(
                 f"{where}.points", f"must be an integer from {low} to {high}", "e.g. 7"
             )
@@ -455,14 +407,14 @@ def _question(check: _Checker, qid: str, value: object) -> Question:
         ends = tuple(check.text(a, f"{where}.anchors[{i}]", True) for i, a in enumerate(anchors))
         return Question(qid, text, kind, points=points, anchors=(ends[0], ends[1]))
     most = data.get("max_chars", MAX_ANSWER_CHARS)
-    if not _is_int(most) or not 1 <= most <= MAX_ANSWER_CHARS:
+    if not is_int(most) or not 1 <= most <= MAX_ANSWER_CHARS:
         raise check.error(
             f"{where}.max_chars", f"must be an integer from 1 to {MAX_ANSWER_CHARS}", "e.g. 100"
         )
     return Question(qid, text, kind, max_chars=most)
 
 
-def _block(check: _Checker, value: object, where: str, questions: dict[str, Question]) -> Block:
+def _block(check: Checker, value: object, where: str, questions: dict[str, Question]) -> Block:
     data = check.table(value, where)
     check.keys(data, where, BLOCK_KEYS)
     name = check.text(data.get("name", where), f"{where}.name")
@@ -484,7 +436,7 @@ def _block(check: _Checker, value: object, where: str, questions: dict[str, Ques
 
 
 def _condition(
-    check: _Checker, value: object, where: str, questions: dict[str, Question]
+    check: Checker, value: object, where: str, questions: dict[str, Question]
 ) -> Condition:
     data = check.table(value, where)
     check.keys(data, where, CONDITION_KEYS)
@@ -516,10 +468,18 @@ def _condition(
         name, str(game), players, tuple(leaders), settings, after, float(delay), occlude
     )
     _check_plan(check, condition, where)
-    return condition
+    if "perturb" not in data:
+        return condition
+    plan = condition.plan({p.label: False for p in players if p.kind == "person-or-avatar"}, 0)
+    specs = {p.label: None if p.kind == "person" else p.spec for p in players}
+    roles = dict(zip(labels, plan.roles, strict=True))
+    perturb = parse_perturbations(
+        check, data["perturb"], f"{where}.perturb", specs, roles, plan.duration
+    )
+    return replace(condition, perturb=perturb)
 
 
-def _intervals(check: _Checker, value: object, where: str) -> tuple[tuple[float, float], ...]:
+def _intervals(check: Checker, value: object, where: str) -> tuple[tuple[float, float], ...]:
     """Read occlusion intervals: ``"whole"`` (the whole trial) or ``[[start, end], ...]`` (s)."""
     if value == "whole":
         return ((0.0, math.inf),)
@@ -536,7 +496,7 @@ def _intervals(check: _Checker, value: object, where: str) -> tuple[tuple[float,
     return tuple(intervals)
 
 
-def _player(check: _Checker, value: object, where: str) -> Player:
+def _player(check: Checker, value: object, where: str) -> Player:
     data = check.table(value, where)
     check.keys(data, where, PLAYER_KEYS)
     label = check.label(data.get("label"), f"{where}.label")
@@ -568,7 +528,7 @@ def _player(check: _Checker, value: object, where: str) -> Player:
     return Player(label, str(kind), spec, device)
 
 
-def _check_plan(check: _Checker, condition: Condition, where: str) -> None:
+def _check_plan(check: Checker, condition: Condition, where: str) -> None:
     """Refuse a condition whose plan would be refused, with either filling of its partners."""
     choices = [player.label for player in condition.players if player.kind == "person-or-avatar"]
     for person in (True, False):
@@ -601,7 +561,3 @@ def _plan_key(problem: str) -> str:
         if problem.startswith(key):
             return key
     return "leaders" if "leader" in problem else "players"
-
-
-def _is_int(value: object) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)

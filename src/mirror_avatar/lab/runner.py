@@ -35,6 +35,7 @@ import numpy as np
 
 from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.perturbation import Perturbation
 from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.lab.trial import LabTrial, build_avatars
 from mirror_avatar.players.base import Player
@@ -202,7 +203,7 @@ class LabSession:
         self.avatars: dict[int, Player] | None = None
         self.runner: asyncio.Task[None] | None = None
         self._stop_reason: str | None = None
-        self._events_seen = 0
+        self._events_seen = self._perturbations_seen = 0
         self._create_files()
 
     def _create_files(self) -> None:
@@ -409,7 +410,7 @@ class LabSession:
             self.next_trial += 1
             raise
         self.trial, self.state, self._stop_reason = trial, "running", None
-        self._events_seen = 0
+        self._events_seen = self._perturbations_seen = 0
         self.log(f"trial {n} started")
         self.broadcast({"type": "go", "trial": n, "duration": self.plan.duration})
         complete, reason = await run_on_clock(
@@ -422,10 +423,25 @@ class LabSession:
         inputs = {k: p.source for k, p in self.participants.items() if p.source is not None}
         lab = self._trial_lab(n)
         assert self.avatars is not None
-        publish = None if self.outlet is None else self.outlet.push_positions
         return LabTrial(
-            self.plan, n, self.directory, inputs, self.avatars, self.clock, lab, publish
+            self.plan,
+            n,
+            self.directory,
+            inputs,
+            self.avatars,
+            self.clock,
+            lab,
+            self._publisher(),
+            self._perturbations(),
         )
+
+    def _publisher(self) -> Callable[[Array, float], None] | None:
+        """Return what receives each sample's positions and clock time (the outlet), or None."""
+        return None if self.outlet is None else self.outlet.push_positions
+
+    def _perturbations(self) -> list[tuple[int, Perturbation]]:
+        """Return the changes of avatars in the next trial, with their player indices."""
+        return []
 
     def _trial_lab(self, n: int) -> dict[str, Any]:
         """Return what trial n's sidecar records of the session (``metadata["lab"]``)."""
@@ -442,6 +458,12 @@ class LabSession:
             if lost and event["seq"] >= 0 and self.plan.on_drop == "stop":
                 self._stop_reason = f"{label}'s input was lost"
         self._events_seen = len(trial.events)
+        for change in trial.perturbations[self._perturbations_seen :]:
+            what = f"{change['player']} {change['change']}"
+            self.log(f"{what} at sample {change['sample']} of trial {trial.n}")
+            now = change["sample"] == trial.k - 1
+            self._mark(f"perturbation {what}", trial.tick_log.last_stamp if now else None)
+        self._perturbations_seen = len(trial.perturbations)
         self._send_frames(trial)
 
     def _send_frames(self, trial: LabTrial) -> None:

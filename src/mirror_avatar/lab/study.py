@@ -31,6 +31,7 @@ from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.messages import Answer
+from mirror_avatar.lab.perturbation import Perturbation
 from mirror_avatar.lab.protocol import Condition, Protocol, Question
 from mirror_avatar.lab.runner import COLOURS, LabSession, Participant
 from mirror_avatar.lab.trial import LabTrial, trial_stem
@@ -258,6 +259,11 @@ class StudySession(LabSession):
             shown = [positions[own], *(None if past is None else past[j] for j in others)]
             frame = {"type": "frame", "k": k, "x": shown, "progress": trial.progress}
             participant.outbox.put_frame(frame)
+
+    def _perturbations(self) -> list[tuple[int, Perturbation]]:
+        """Return the condition's changes of the avatars playing now (a person is not changed)."""
+        index = {slot.label: k for k, slot in enumerate(self.plan.slots) if slot.kind == "avatar"}
+        return [(index[p.player], p) for p in self.condition().perturb if p.player in index]
 
     def _trial_lab(self, n: int) -> dict[str, Any]:
         step = self._step_of(n)

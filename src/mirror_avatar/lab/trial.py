@@ -31,7 +31,7 @@ written stay readable; the sidecar says ``"complete": false`` until the trial en
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -39,8 +39,9 @@ from typing import Any
 import numpy as np
 
 from mirror_avatar import __version__
-from mirror_avatar.engine.loop import count_samples, row_positions
+from mirror_avatar.engine.loop import count_samples, row_positions, spawn_session_seeds
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.perturbation import Perturbation, successor
 from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.metrics import compute_phase, session_metrics
 from mirror_avatar.metrics.group import compute_cluster_phase
@@ -134,6 +135,15 @@ class LabTrial(ClockedTrial):
         (session id, condition...).
     publish
         Receives each sample's positions and clock time (the LSL outlet), or None.
+    perturbations
+        Changes of avatars during the trial, each with the avatar's player index, in order
+        of time (`mirror_avatar.lab.perturbation`).
+
+    Attributes
+    ----------
+    perturbations
+        The changes made so far, as the sidecar's ``"perturbations"`` lists them:
+        ``{"sample", "time_s", "player", "change"}``.
     """
 
     def __init__(
@@ -146,6 +156,7 @@ class LabTrial(ClockedTrial):
         clock: Clock,
         lab: dict[str, Any],
         publish: Callable[[Array, float], None] | None = None,
+        perturbations: Sequence[tuple[int, Perturbation]] = (),
     ) -> None:
         self.plan = plan
         self.n = n
@@ -160,6 +171,8 @@ class LabTrial(ClockedTrial):
         self.seed = int(spawn_seeds(plan.seed, n)[n - 1])
         self.dropped: dict[str, int] = {}
         self.publish = publish
+        self.perturbations: list[dict[str, Any]] = []
+        self._successors = self._build_successors(perturbations, len(players))
         self._taken = np.full(len(players), np.nan)
         super().__init__(
             players,
@@ -183,6 +196,46 @@ class LabTrial(ClockedTrial):
             self.finish(False, "the trial's files could not be written")
             raise
 
+    def _build_successors(
+        self, perturbations: Sequence[tuple[int, Perturbation]], n_players: int
+    ) -> list[tuple[int, Perturbation, Player]]:
+        """Build and reset, off the clock, the player each perturbation hands the avatar over to.
+
+        Each is its spec's player in the latest role with every parameter set so far, reset
+        with the seed the engine gives the avatar (`mirror_avatar.engine.loop.
+        spawn_session_seeds`), so that it draws the avatar's own reference.
+        """
+        seeds, _ = spawn_session_seeds(self.seed, n_players)
+        now: dict[int, tuple[str, dict[str, float]]] = {}
+        built = []
+        for k, perturbation in perturbations:
+            spec = self.plan.slots[k].spec
+            assert spec is not None
+            role, values = now.get(k, (self.plan.roles[k], {}))
+            role = perturbation.role or role
+            values = values | dict(perturbation.values)
+            now[k] = (role, values)
+            player = successor(spec, role, values)
+            player.reset(seed=seeds[k])
+            built.append((k, perturbation, player))
+        return built
+
+    def before_step(self, k: int) -> None:
+        """Hand each avatar perturbed at sample k over to its successor, and record it."""
+        while self._successors and self._successors[0][1].sample <= k:
+            i, perturbation, player = self._successors.pop(0)
+            player.take_over(self.engine.players[i])
+            self.engine.players[i] = self.players[i] = player
+            self.perturbations.append(
+                {
+                    "sample": k,
+                    "time_s": round(k * self.period, 9),
+                    "player": perturbation.player,
+                    "change": perturbation.change,
+                }
+            )
+            self.writer.annotate({"perturbations": list(self.perturbations)})
+
     def _metadata(self, lab: dict[str, Any], period: float) -> dict[str, Any]:
         slots = [
             {
@@ -204,6 +257,7 @@ class LabTrial(ClockedTrial):
             "software": f"mirror-avatar {__version__}",
             "dropped": {},
             "held": {},
+            "perturbations": [],
         }
 
     def _device(self, k: int) -> dict[str, Any]:

@@ -99,6 +99,8 @@ class AccelerationPlayer(Player):
 
     training_: dict[str, Any]
     target_counts_: Array
+    TRIAL_STATE = ("_k", "_state", "last_control", "last_reference")
+    """A successor policy (a personal avatar's other role) keeps its own reference track."""
 
     def __init__(
         self,

@@ -146,6 +146,8 @@ class AdaptivePlayer(ModelPartner):
     """
 
     PARAMETERS = PARAMETERS
+    FIXED_IN_TRIAL = ("a0", "b0")
+    TRIAL_STATE = ("_x", "_v", "gains", "_k", "_u", "_sampled", "last_control")
 
     def __init__(
         self, options: Mapping[str, float] | None = None, role: str = "follower", label: str = ""

@@ -30,6 +30,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from mirror_avatar.dynamics import CONTROL_PERIOD, HKBParams
+from mirror_avatar.errors import InputError
 from mirror_avatar.trials import PLAYING_RANGE
 
 if TYPE_CHECKING:
@@ -120,6 +121,9 @@ class Player:
     stochastic: bool = False
     last_control: float = math.nan
     last_reference: float = math.nan
+    TRIAL_STATE: tuple[str, ...] = ()
+    """The attributes `reset` sets and `step` advances: what a successor takes over
+    (`take_over`); empty for a player that cannot hand its trial over."""
 
     def reset(self, seed: int | None = None) -> tuple[float, float]:
         """Start a new trial and return the initial (position, velocity) (units, units/s)."""
@@ -142,6 +146,33 @@ class Player:
         None (the default) means the player runs only in the Python step loop.
         """
         return None
+
+    def take_over(self, previous: Player) -> None:
+        """Continue ``previous``'s trial from its current sample, in this player's way.
+
+        The successor (the same kind of player in another role or with other parameters,
+        already `reset` with the seed ``previous`` was reset with) takes ``previous``'s
+        `TRIAL_STATE` (its state, its sample count, a drawn reference track), so its next
+        `step` advances from where ``previous`` stands; what it does not take (its parameters,
+        its policy, a reference of its own) stays its own. ``previous`` must not be stepped
+        afterwards.
+
+        Raises
+        ------
+        InputError
+            When the two players do not keep the same trial state (another kind of player).
+        """
+        if not self.TRIAL_STATE or _state_owner(type(previous)) is not _state_owner(type(self)):
+            raise InputError(
+                self.label, f"cannot take over the trial of {type(previous).__name__}"
+            )
+        for name in self.TRIAL_STATE:
+            setattr(self, name, getattr(previous, name))
+
+
+def _state_owner(kind: type[Player]) -> type[Player]:
+    """Return the class that declares ``kind``'s `Player.TRIAL_STATE`."""
+    return next(c for c in kind.__mro__ if "TRIAL_STATE" in vars(c))
 
 
 class ExternalPlayer(Player):

@@ -165,6 +165,9 @@ class ModelPartner(Player):
 
     PARAMETERS: Mapping[str, Parameter] = {}
     NAME = "model partner"
+    FIXED_IN_TRIAL: tuple[str, ...] = ()
+    """Parameters that cannot change mid-trial: initial values, or scales whose change would
+    move the player at once (the others may: `mirror_avatar.players.base.Player.take_over`)."""
 
     def __init__(self, options: Mapping[str, float] | None = None, label: str = "") -> None:
         given = dict(options or {})

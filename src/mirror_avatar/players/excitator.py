@@ -92,6 +92,8 @@ class ExcitatorPartner(ModelPartner):
     """A Jirsa-Kelso excitator partner (see the module docstring)."""
 
     PARAMETERS = PARAMETERS
+    FIXED_IN_TRIAL = ("scale",)
+    TRIAL_STATE = ("state",)
     NAME = "excitator (Jirsa & Kelso 2005)"
 
     def reset(self, seed: int | None = None) -> tuple[float, float]:

@@ -77,6 +77,7 @@ class HKBPartner(ModelPartner):
     """A coupled HKB oscillator partner (see the module docstring)."""
 
     PARAMETERS = PARAMETERS
+    TRIAL_STATE = ("state",)
     NAME = "HKB oscillator (Haken, Kelso & Bunz 1985)"
 
     def reset(self, seed: int | None = None) -> tuple[float, float]:

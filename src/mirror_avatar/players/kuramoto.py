@@ -78,6 +78,8 @@ class KuramotoPlayer(ModelPartner):
     """A Kuramoto phase oscillator player (see the module docstring)."""
 
     PARAMETERS = PARAMETERS
+    FIXED_IN_TRIAL = ("phase", "amplitude")
+    TRIAL_STATE = ("state",)
     NAME = "Kuramoto oscillator"
 
     def kernel_parameters(self) -> Array:

@@ -81,6 +81,7 @@ class ReactivePredictivePlayer(ModelPartner):
     """The reactive-predictive controller (see the module docstring)."""
 
     PARAMETERS = PARAMETERS
+    TRIAL_STATE = ("state", "_k")
     NAME = "reactive-predictive (Noy et al. 2011)"
 
     def kernel_parameters(self) -> Array:

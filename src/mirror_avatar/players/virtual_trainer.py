@@ -126,6 +126,8 @@ class VirtualTrainer(Player):
         A name for the player (recorded in sessions).
     """
 
+    TRIAL_STATE = ("_references", "seed_", "_k", "_x", "_v", "last_control", "last_reference")
+
     def __init__(
         self,
         params: HKBParams,

@@ -267,11 +267,18 @@ class ClockedTrial:
             self._tick_began, self._sink_time = time.perf_counter(), 0.0
             k = self.k
             if k < self.n_ticks - 1:
+                self.before_step(k)
                 self.engine.step()
             else:
                 self.engine.finish()
             self.step_time = self.step_time_so_far(time.perf_counter())
             self._note_liveness(k)
+
+    def before_step(self, k: int) -> None:
+        """Do what must happen at sample k before the players step to k + 1 (subclasses).
+
+        Called in the ticking thread, within the tick.
+        """
 
     @property
     def max_lateness(self) -> float:

@@ -1,0 +1,77 @@
+"""The checks of a protocol file, each failing with one line: ``FILE: KEY.PATH: problem (fix)``."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from mirror_avatar.errors import InputError
+from mirror_avatar.realtime.messages import PARTICIPANT_PATTERN
+
+if TYPE_CHECKING:
+    from mirror_avatar.lab.protocol import Question
+
+MAX_TEXT_CHARS = 500
+"""Longest title, name, question or option text (characters)."""
+
+
+class Checker:
+    """Builds the errors of one protocol file: ``FILE: KEY.PATH: problem (fix)``."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def error(self, where: str, problem: str, fix: str) -> InputError:
+        """Return the error of the key at ``where``: its problem and how to fix it."""
+        return InputError(self.source, f"{where}: {problem} ({fix})")
+
+    def table(self, value: object, where: str) -> dict[str, Any]:
+        """Return ``value`` if it is a table."""
+        if not isinstance(value, dict):
+            raise self.error(where, "must be a table", "write it as { key = value, ... }")
+        return value
+
+    def keys(self, value: dict[str, Any], where: str, known: tuple[str, ...]) -> None:
+        """Refuse a key of the table at ``where`` that is not ``known``."""
+        for key in value:
+            if key not in known:
+                place = f"{where}.{key}" if where else key
+                raise self.error(place, "unknown key", f"known keys: {', '.join(known)}")
+
+    def array(self, value: object, where: str, most: int, fix: str) -> list[Any]:
+        """Return ``value`` if it is a list of 1 to ``most`` entries."""
+        if not isinstance(value, list) or not 1 <= len(value) <= most:
+            raise self.error(where, f"must be a list of 1 to {most} entries", fix)
+        return value
+
+    def text(self, value: object, where: str, allow_empty: bool = False) -> str:
+        """Return ``value`` if it is text of at most `MAX_TEXT_CHARS` characters."""
+        if not isinstance(value, str) or len(value) > MAX_TEXT_CHARS or not (value or allow_empty):
+            raise self.error(where, f"must be text of 1 to {MAX_TEXT_CHARS} characters", "quote it")
+        return value
+
+    def label(self, value: object, where: str) -> str:
+        """Return ``value`` if it is a player label or question id."""
+        if not isinstance(value, str) or not PARTICIPANT_PATTERN.fullmatch(value):
+            raise self.error(
+                where,
+                f"{value!r} is not a label",
+                "use 1-32 letters, digits, '_' or '-', starting with a letter or digit",
+            )
+        return value
+
+    def refs(self, value: object, where: str, questions: dict[str, Question]) -> tuple[str, ...]:
+        """Return ``value`` if it is a list of the ids of declared questions."""
+        if not isinstance(value, list) or not all(isinstance(q, str) for q in value):
+            raise self.error(where, "must be a list of question ids", 'e.g. ["partner"]')
+        for q in value:
+            if q not in questions:
+                known = ", ".join(questions) or "none declared"
+                raise self.error(
+                    where, f"no question {q!r}", f"declare [questions.{q}]; known: {known}"
+                )
+        return tuple(value)
+
+
+def is_int(value: object) -> bool:
+    """Whether ``value`` is an integer (a bool is not)."""
+    return isinstance(value, int) and not isinstance(value, bool)
