@@ -3,8 +3,11 @@
 `SessionOutlet` publishes every player's position of a lab trial as one LSL stream (type
 ``"Position"``, one float64 channel per player, in playing range units), so a recorder such as
 LabRecorder stores it next to EEG or motion capture on the same clock, and the session's events
-(a trial's first and last sample, a participant's drop) as a second stream of string markers
-(type ``"Markers"``, named as the positions with `` markers`` appended), for epoching.
+(a trial's first and last sample, a participant's drop, an avatar's perturbation, a study's
+condition) as a second stream of string markers (type ``"Markers"``, named as the positions
+with `` markers`` appended), for epoching. A study session's outlet has one channel per player
+label of the participant's whole run, NaN while that player is not in the condition
+(`mirror_avatar.lab.study.StudySession.channels`).
 `LslInput` reads one channel of another LSL stream (a hand tracker, a slider) as a person's input
 device: a background thread keeps the newest sample, mapped to the playing range, for the
 session's clock to read.
@@ -79,7 +82,8 @@ class SessionOutlet:
     roles
         The players' roles (for instance ``"leader"``), one per channel.
     kinds
-        ``"human"`` or ``"avatar"``, one per channel.
+        ``"human"`` or ``"avatar"``, one per channel (a study's channel that is one or the
+        other from one condition to the next: ``"human/avatar"``).
     period
         Control period T (s); the nominal rate is ``1 / period`` (Hz).
 
@@ -193,7 +197,7 @@ def _check_players(
     where = _where(name)
     if not labels or not len(labels) == len(roles) == len(kinds):
         raise InputError(where, "needs as many labels, roles and kinds, at least one of each")
-    unknown = sorted(set(kinds) - set(KINDS))
+    unknown = sorted({part for kind in kinds for part in kind.split("/")} - set(KINDS))
     if unknown:
         raise InputError(where, f"unknown player kind {unknown[0]!r} (use human or avatar)")
     if not (math.isfinite(period) and period > 0.0):

@@ -177,8 +177,8 @@ class Lab:
     def create_study(self, participant: int) -> LabSession:
         """Create (or resume from its folder) participant ``participant``'s run of the protocol.
 
-        Study sessions keep the monotonic clock and publish no LSL outlet (their players change
-        from one condition to the next).
+        With LSL, the session stamps its samples on the LSL clock and publishes one outlet
+        for the participant's whole run (`study_outlet`).
         """
         protocol = self.settings.protocol
         assert protocol is not None
@@ -190,10 +190,12 @@ class Lab:
             protocol,
             participant,
             self.settings.out_dir / name,
-            time.monotonic,
+            lsl_clock() if self.settings.lsl else time.monotonic,
             self.settings.countdown,
             self.settings.max_tick,
         )
+        if self.settings.lsl:
+            session.outlet = study_outlet(session)
         self.sessions.pop(name, None)
         self._add(session)
         return session
@@ -224,8 +226,6 @@ def lsl_hooks(
     """Return a session's LSL outlet, LSL device opener and clock (without LSL: monotonic)."""
     if not enabled:
         return None, None, time.monotonic
-    import pylsl
-
     from mirror_avatar.lab.lsl import LslInput, SessionOutlet
 
     outlet = SessionOutlet(
@@ -243,7 +243,37 @@ def lsl_hooks(
             source_id=device.source_id,
         )  # fmt: skip
 
-    return outlet, open_device, pylsl.local_clock
+    return outlet, open_device, lsl_clock()
+
+
+def lsl_clock() -> Clock:
+    """Return the LSL clock (`pylsl.local_clock`, s)."""
+    import pylsl
+
+    return pylsl.local_clock
+
+
+def study_outlet(session: StudySession) -> Outlet:
+    """Return the LSL outlet of a participant's run of a protocol.
+
+    **Choice**: one outlet for the whole run (a recorder resolves it once), with a channel per
+    player label of the run (`mirror_avatar.lab.study.StudySession.channels`; NaN while that
+    player is not in the condition), named and identified by the run's folder
+    (``mirror-avatar <protocol>-p003``, so a resumed run publishes under the same source id),
+    and markers naming each condition and its line-up as it begins, each trial's start and
+    end and each perturbation.
+    """
+    from mirror_avatar.lab.lsl import SessionOutlet
+
+    labels, roles, kinds = session.channels()
+    return SessionOutlet(
+        f"mirror-avatar {session.id}",
+        f"mirror-avatar-{session.id}",
+        labels,
+        roles,
+        kinds,
+        CONTROL_PERIOD,
+    )
 
 
 def create_lab_app(settings: LabSettings) -> ASGIApp:

@@ -22,10 +22,13 @@ import asyncio
 import collections
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.dynamics import CONTROL_PERIOD
@@ -37,7 +40,7 @@ from mirror_avatar.lab.runner import COLOURS, LabSession, Participant
 from mirror_avatar.lab.trial import LabTrial, trial_stem
 from mirror_avatar.realtime.clock import MAX_STEP
 from mirror_avatar.realtime.outbox import Outbox
-from mirror_avatar.realtime.trial import Clock
+from mirror_avatar.realtime.trial import Array, Clock
 from mirror_avatar.seeds import spawn_seeds
 
 STUDY_FILE = "study.json"
@@ -187,7 +190,55 @@ class StudySession(LabSession):
         if step != self.step or self.avatars is None:
             self._enter(step)
             self.log(f"now {self.where(n)}")
+            self._mark(self.condition_marker())
         await super()._prepare(n)
+
+    def condition_marker(self) -> str:
+        """Return the marker of the condition entered: its name, block and line-up.
+
+        For instance ``condition 'follow' of block 'dyads': P1 human follower, A1 avatar
+        leader``.
+        """
+        step = self.steps[self.step]
+        players = ", ".join(
+            f"{slot.label} {slot.kind} {role}"
+            for slot, role in zip(self.plan.slots, self.plan.roles, strict=True)
+        )
+        block = self.protocol.blocks[step.block].name
+        return f"condition '{step.name}' of block '{block}': {players}"
+
+    def channels(self) -> tuple[list[str], list[str], list[str]]:
+        """Return the outlet's channels: every player label of the run, with roles and kinds.
+
+        Labels in order of first appearance over the participant's conditions; a label's
+        roles and kinds are those it plays, joined by ``/`` when they change from one
+        condition to the next (``human/avatar`` for a ``person-or-avatar`` drawn both ways).
+        """
+        roles: dict[str, list[str]] = {}
+        kinds: dict[str, list[str]] = {}
+        for plan in self.plans:
+            for slot, role in zip(plan.slots, plan.roles, strict=True):
+                for seen, value in ((roles, role), (kinds, slot.kind)):
+                    values = seen.setdefault(slot.label, [])
+                    if value not in values:
+                        values.append(value)
+        labels = list(roles)
+        return labels, ["/".join(roles[x]) for x in labels], ["/".join(kinds[x]) for x in labels]
+
+    def _publisher(self) -> Callable[[Array, float], None] | None:
+        """Publish each sample on the run's channels, NaN for the players not in the condition."""
+        outlet = self.outlet
+        if outlet is None:
+            return None
+        labels = self.channels()[0]
+        index = [labels.index(slot.label) for slot in self.plan.slots]
+        values = np.full(len(labels), np.nan)
+
+        def publish(positions: Array, timestamp: float) -> None:
+            values[index] = positions
+            outlet.push_positions(values, timestamp)
+
+        return publish
 
     def where(self, n: int) -> str:
         """Say where trial n is in the protocol: block, condition and trial within it."""
