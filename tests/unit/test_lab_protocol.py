@@ -35,6 +35,9 @@ def test_the_example_protocol_loads():
     assert (plan.trials, plan.duration, plan.pause, plan.seed) == (2, 30.0, 5.0, 5)
     assert follow.after_trial == ("partner", "confidence")
     assert (follow.delay, follow.occlude) == (0.0, ())
+    assert [(p.sample, p.player, p.change) for p in follow.perturb] == [
+        (667, "A1", "role=follower")
+    ]
     lead = protocol.blocks[1].conditions[3]
     assert (lead.delay, lead.occlude) == (0.3, ((10.0, 15.0),))
     assert protocol.blocks[1].conditions[2].occlude == ((0.0, float("inf")),)

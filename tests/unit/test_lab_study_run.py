@@ -79,3 +79,15 @@ def test_balanced_partner_draws_are_recorded_and_resumed(tmp_path):
         resumed = _session(tmp_path, participant)
         assert resumed.describe()["order"] == study["order"]
     assert kinds[0] != kinds[1] and kinds[2] != kinds[3]
+
+
+@pytest.mark.parametrize("participant", [0, 1])
+def test_the_outlet_channels_are_every_label_of_the_run(tmp_path, participant):
+    session = _session(tmp_path, participant)
+    labels, roles, kinds = session.channels()
+    assert labels[:2] == ["P1", "P2"] and sorted(labels[2:]) == ["A1", "A2"]
+    kind = dict(zip(labels, kinds, strict=True))
+    assert (kind["P1"], kind["A1"], kind["A2"]) == ("human", "avatar", "avatar")
+    meets_avatar = any(step.persons.get("P2") is False for step in session.steps)
+    assert kind["P2"] == ("human/avatar" if meets_avatar else "human")
+    assert roles[0].split("/")[0] == "solo" and "leader" in roles[0].split("/")
