@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from collections.abc import Mapping
+from typing import Any
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.realtime.messages import PARTICIPANT_PATTERN
-
-if TYPE_CHECKING:
-    from mirror_avatar.lab.protocol import Question
 
 MAX_TEXT_CHARS = 500
 """Longest title, name, question or option text (characters)."""
@@ -59,7 +57,7 @@ class Checker:
             )
         return value
 
-    def refs(self, value: object, where: str, questions: dict[str, Question]) -> tuple[str, ...]:
+    def refs(self, value: object, where: str, questions: Mapping[str, object]) -> tuple[str, ...]:
         """Return ``value`` if it is a list of the ids of declared questions."""
         if not isinstance(value, list) or not all(isinstance(q, str) for q in value):
             raise self.error(where, "must be a list of question ids", 'e.g. ["partner"]')
