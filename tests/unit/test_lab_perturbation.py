@@ -4,6 +4,7 @@ every refusal at load time."""
 from __future__ import annotations
 
 import copy
+import time
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -16,6 +17,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.lab.perturbation import changeable, successor
 from mirror_avatar.lab.protocol import parse_protocol
+from mirror_avatar.lab.study import StudySession
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.players.base import Observation, Player
@@ -168,3 +170,25 @@ def test_each_perturbation_mistake_is_refused_with_one_line(entries, spec, messa
         parse_protocol(with_perturb(entries, spec=spec), "p.toml")
     text = str(error.value)
     assert text.startswith(WHERE) and message in text and "\n" not in text, text
+
+
+def test_a_virtual_trainers_successor_takes_the_role_and_the_values():
+    changed = successor("bundled:slow", "follower", {"theta_p": 0.3, "omega": 0.5})
+    assert (changed.params.theta_p, changed.params.omega) == (0.3, 0.5)
+    assert changed.params.alpha == load_player("bundled:slow", "follower").params.alpha
+    leading = successor("adaptive:cp=20", "leader", {"leader_cp": 7.0})
+    assert (leading.cp, leading.options["cp"]) == (7.0, 20.0)
+
+
+def test_a_person_filling_the_slot_is_not_perturbed(tmp_path):
+    data = with_perturb([{"at": 5, "player": "P2", "set": "leader"}], condition=1)
+    protocol = parse_protocol(data, str(tmp_path / "p.toml"))
+    found = {}
+    for participant in (0, 1):  # a pair: one meets the person, the other the avatar
+        session = StudySession(protocol, participant, tmp_path / f"p{participant}", time.monotonic)
+        step = next(i for i, s in enumerate(session.steps) if s.name == "joint")
+        session._enter(step)
+        found[session.steps[step].persons["P2"]] = session._perturbations()
+    assert found[True] == []
+    ((index, perturbation),) = found[False]
+    assert (index, perturbation.change) == (1, "role=leader")
