@@ -33,7 +33,7 @@ MOTION_FILE = re.compile(
 
 TOP_LEVEL = {
     "dataset_description.json", "README", "participants.tsv", "participants.json",
-    "task-mirrorgame_events.json",
+    "task-mirrorgame_events.json", "scans.json",
 }  # fmt: skip
 REQUIRED_SIDECAR = {
     "TaskName", "TaskDescription", "SamplingFrequency", "TrackingSystemName",
@@ -170,10 +170,12 @@ def test_every_human_gets_a_file_per_trial_named_as_bids_says(exported: Exported
 def test_the_dataset_holds_only_bids_files_and_the_source_data(exported: Exported) -> None:
     files = [p.relative_to(exported.root) for p in exported.root.rglob("*") if p.is_file()]
     outside = {
-        p.as_posix() for p in files if p.parts[0] not in ("sourcedata",) and len(p.parts) > 1
+        p.as_posix() for p in files if p.parts[0] not in ("sourcedata",) and len(p.parts) > 2
     }
     assert all(MOTION_FILE.fullmatch(name) for name in outside), sorted(outside)
     assert len(outside) == 4 * 6
+    scans = {p.as_posix() for p in files if len(p.parts) == 2 and p.parts[0] != "sourcedata"}
+    assert scans == {"sub-P1/sub-P1_scans.tsv", "sub-P2/sub-P2_scans.tsv"}
     assert {p.name for p in files if len(p.parts) == 1} == TOP_LEVEL
     assert sorted(p.name for p in exported.root.iterdir() if p.is_dir()) == [
         "sourcedata", "sub-P1", "sub-P2"
@@ -380,3 +382,17 @@ def copy_recording(exported: Exported, folder: Path) -> Path:
     for suffix in ("_motion.tsv", "_motion.json", "_channels.tsv"):
         (folder / f"{stem}{suffix}").write_bytes(motion.with_name(f"{stem}{suffix}").read_bytes())
     return folder / motion.name
+
+
+def test_each_subject_lists_its_recordings_with_their_acquisition_time(exported: Exported) -> None:
+    lines = (exported.root / "sub-P2" / "sub-P2_scans.tsv").read_text().splitlines()
+    assert lines[0].split("\t") == ["filename", "acq_time", "trial", "block", "condition"]
+    rows = [dict(zip(lines[0].split("\t"), line.split("\t"), strict=True)) for line in lines[1:]]
+    assert [row["filename"] for row in rows] == [
+        f"motion/sub-P2_task-mirrorgame_tracksys-pointer_acq-20250302ring_run-{n}_motion.tsv"
+        for n in (1, 2)
+    ]
+    assert {row["acq_time"] for row in rows} == {"2025-03-01T10:00:00.000000Z"}
+    assert [(row["trial"], row["block"], row["condition"]) for row in rows] == [
+        ("1", "n/a", "group"), ("2", "n/a", "group")
+    ]  # fmt: skip

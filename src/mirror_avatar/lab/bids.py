@@ -27,6 +27,7 @@ values and tables follow the rules of `mirror_avatar.bids`.
 
 from __future__ import annotations
 
+import collections
 import os
 import re
 from dataclasses import dataclass
@@ -40,10 +41,22 @@ from mirror_avatar import __version__
 from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
 from mirror_avatar.bids.names import MISSING, bids_label, channel_names
 from mirror_avatar.bids.reading import GAME_KEY
+from mirror_avatar.bids.tables import read_tsv
 from mirror_avatar.bids.writing import one_line, tsv_table, tsv_values
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.bids_events import EVENT_COLUMN_INFO, EVENT_COLUMNS, trial_events
+from mirror_avatar.lab.bids_study import (
+    ANSWERS_SUFFIX,
+    acq_time,
+    answer_rows,
+    read_answers,
+    trial_row,
+    write_beh,
+    write_descriptions,
+    write_scans,
+)
 from mirror_avatar.session import Session, load_session
-from mirror_avatar.trial_io import MAX_FILE_BYTES, read_sidecar_text
+from mirror_avatar.trial_io import MAX_FILE_BYTES, _first_row, _read_numbers, read_sidecar_text
 from mirror_avatar.user_files import parse_json, read_bytes
 
 Array = NDArray[np.float64]
@@ -79,8 +92,10 @@ CONDITIONS = {
 class _LabTrial:
     """One recorded trial of a lab session with its lab description.
 
-    ``slots`` are the sidecar's slot dictionaries (one per player, in player order) and
-    ``period`` the control period (s).
+    ``slots`` are the sidecar's slot dictionaries (one per player, in player order),
+    ``period`` the control period (s), ``timing`` the `TIMING_CHANNELS` (shape (4, samples))
+    when the trial's inputs file is there, and ``answers`` the answers given after the trial
+    (`mirror_avatar.lab.bids_study.read_answers`).
     """
 
     path: Path
@@ -91,6 +106,8 @@ class _LabTrial:
     created_utc: str | None
     slots: tuple[dict[str, Any], ...]
     period: float
+    timing: Array | None
+    answers: dict[str, Any] | None
 
     def humans(self) -> list[int]:
         """Return the indices of the human slots."""
@@ -145,12 +162,46 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     for trial in trials:
         _add_participants(participants, trial, out_dir / "participants.tsv")
     described = _read_column_info(out_dir / "participants.json")
-    written = [_write_recording(trial, k, out_dir) for trial in trials for k in trial.humans()]
+    subjects = {_subject(trial, k) for trial in trials for k in trial.humans()}
+    for subject in sorted(subjects):  # a damaged table is refused before anything is written
+        read_tsv(out_dir / subject / f"{subject}_scans.tsv", "filename")
+    written, answered = _write_trials(trials, out_dir)
     _copy_sources(session_dir, files, out_dir / "sourcedata" / session_id)
     _write_participants(out_dir, columns, participants, described)
     _write_description(out_dir)
     write_atomic_json(out_dir / f"task-{TASK}_events.json", EVENT_COLUMN_INFO)
+    write_descriptions(out_dir, TASK, answers=answered)
     return written
+
+
+def _write_trials(trials: list[_LabTrial], out_dir: Path) -> tuple[list[Path], bool]:
+    """Write every human's recording and answers, and list them in their ``_scans.tsv``.
+
+    Returns the ``_motion.tsv`` files written and whether any answers were.
+    """
+    written: list[Path] = []
+    answered = False
+    scans: dict[str, list[dict[str, str]]] = collections.defaultdict(list)
+    for trial in trials:
+        metadata = trial.session.metadata
+        when = {"acq_time": acq_time(metadata)} | trial_row(metadata)
+        for k in trial.humans():
+            motion = _write_recording(trial, k, out_dir)
+            behaviour = _write_answers(trial, k, out_dir)
+            written.append(motion)
+            answered |= behaviour is not None
+            for path in (motion, behaviour):
+                if path is not None:
+                    filename = f"{path.parent.name}/{path.name}"
+                    scans[_subject(trial, k)].append({"filename": filename} | when)
+    for subject, rows in scans.items():
+        write_scans(out_dir / subject, rows)
+    return written, answered
+
+
+def _subject(trial: _LabTrial, slot: int) -> str:
+    """Return the ``sub-<label>`` folder of a trial's human slot."""
+    return f"sub-{bids_label(trial.slots[slot]['label'])}"
 
 
 def _trial_files(session_dir: Path) -> list[Path]:
@@ -178,7 +229,7 @@ def _read_lab_trial(path: Path) -> _LabTrial:
     trial = lab.get("trial")
     if isinstance(trial, bool) or not isinstance(trial, int) or trial < 0:
         raise InputError(path, f"lab trial {trial!r} is not a trial number")
-    created = lab.get("created_utc")
+    created = session.metadata.get("created_utc", lab.get("created_utc"))
     return _LabTrial(
         path=path,
         session=session,
@@ -188,6 +239,8 @@ def _read_lab_trial(path: Path) -> _LabTrial:
         created_utc=created if isinstance(created, str) else None,
         slots=slots,
         period=_nominal_period(path, session),
+        timing=_read_timing(path, session),
+        answers=read_answers(path),
     )
 
 
@@ -215,6 +268,54 @@ def _slots(path: Path, slots: object, session: Session) -> tuple[dict[str, Any],
     if len(set(session.labels)) != len(session.labels):
         raise InputError(path, f"two players share a label in {list(session.labels)}")
     return tuple(checked)
+
+
+INPUT_COLUMNS = ("clock_s", "late_ms", "step_ms")
+"""Columns of a trial's inputs file (`mirror_avatar.realtime.trial.TickLog`) the export keeps."""
+
+TIMING_CHANNELS = (
+    ("latency", "LATENCY", "s",
+     "time at which the sample was taken, from the first sample's (the clock channel minus "
+     "its first value); the first sample's is the acq_time of the scans file"),
+    ("clock", "MISC", "s",
+     "clock time at which the sample was taken: the Lab Streaming Layer clock "
+     "(pylsl.local_clock) when the lab ran with pylsl, else the monotonic clock (see "
+     "MirrorGame.clock), so that samples line up with EEG recorded through LSL"),
+    ("late", "MISC", "ms", "how late the sample's tick came against its schedule"),
+    ("step", "MISC", "ms", "time the players' step took at that tick (file writes excluded)"),
+)  # fmt: skip
+"""Name, type, units and description of the channels of each sample's true time."""
+
+
+def _read_timing(path: Path, session: Session) -> Array | None:
+    """Read the `TIMING_CHANNELS` of a trial from its inputs file, shape (4, samples).
+
+    The inputs file is the sidecar's ``files.inputs`` (``trial-NN_inputs.csv``) beside the
+    trial; None when it is not there. Samples it lacks (a crash between the two files'
+    lines) are NaN; the latency is rounded to the microsecond.
+
+    Raises
+    ------
+    InputError
+        An inputs file without the `INPUT_COLUMNS`, or with values that are not numbers.
+    """
+    files = session.metadata.get("files")
+    name = files.get("inputs") if isinstance(files, dict) else None
+    inputs = path.with_name(Path(name).name if isinstance(name, str) and name else
+                            path.name.replace("_session.csv", "_inputs.csv"))  # fmt: skip
+    if not inputs.is_file():
+        return None
+    header = _first_row(inputs, ",")
+    missing = [column for column in INPUT_COLUMNS if column not in header]
+    if missing:
+        raise InputError(inputs, f"no {', '.join(missing)} column: not a lab trial's inputs file")
+    columns = [header.index(column) for column in INPUT_COLUMNS]
+    values = _read_numbers(inputs, columns, list(INPUT_COLUMNS), ",", 2)
+    n = session.n_samples
+    clock, late, step = (np.pad(v[:n], (0, max(0, n - v.size)), constant_values=np.nan)
+                         for v in values)  # fmt: skip
+    latency = np.round(clock - clock[0], 6) if n else clock
+    return np.vstack([latency, clock, late, step])
 
 
 def _nominal_period(path: Path, session: Session) -> float:
@@ -257,21 +358,8 @@ def _check_acquisition(out_dir: Path, session_id: str) -> None:
 
 def _read_participants(path: Path) -> tuple[list[str], dict[str, dict[str, str]]]:
     """Read ``participants.tsv`` (columns and rows by participant id); empty if absent."""
-    if not path.is_file():
-        return list(PARTICIPANT_COLUMNS), {}
-    lines = [line for line in read_sidecar_text(path).splitlines() if line.strip()]
-    header = lines[0].split("\t") if lines else []
-    if "participant_id" not in header:
-        raise InputError(path, "no participant_id column")
-    rows: dict[str, dict[str, str]] = {}
-    for number, line in enumerate(lines[1:], start=2):
-        cells = line.split("\t")
-        if len(cells) != len(header):
-            raise InputError(path, f"row {number} has {len(cells)} cells for {len(header)} columns")
-        row = dict(zip(header, cells, strict=True))
-        rows[row["participant_id"]] = row
-    columns = header + [c for c in PARTICIPANT_COLUMNS if c not in header]
-    return columns, rows
+    header, rows = read_tsv(path, "participant_id")
+    return header + [c for c in PARTICIPANT_COLUMNS if c not in header], rows
 
 
 def _add_participants(rows: dict[str, dict[str, str]], trial: _LabTrial, path: Path) -> None:
@@ -301,49 +389,36 @@ def _write_recording(trial: _LabTrial, slot: int, out_dir: Path) -> Path:
     order = _player_order(slot, trial.session.n_players)
     channels = [row for j in order for row in _channel_rows(trial, j, own=j == slot)]
     session = trial.session
-    values = np.vstack(
-        [array[j] for j in order for array in (session.positions, session.velocities)]
-    )
+    arrays = [array[j] for j in order for array in (session.positions, session.velocities)]
+    if trial.timing is not None:
+        channels += [_timing_row(*channel) for channel in TIMING_CHANNELS]
+        arrays += list(trial.timing)
     motion = folder / f"{stem}_motion.tsv"
-    write_atomic_text(motion, tsv_values(values.T))
+    write_atomic_text(motion, tsv_values(np.vstack(arrays).T))
     write_atomic_text(folder / f"{stem}_channels.tsv", tsv_table(CHANNEL_COLUMNS, channels))
     write_atomic_json(folder / f"{stem}_motion.json", _motion_sidecar(trial, slot, len(channels)))
-    write_atomic_text(folder / f"{stem}_events.tsv", tsv_table(EVENT_COLUMNS, _events(trial)))
+    events = trial_events(session.metadata, session.n_samples, trial.period)
+    write_atomic_text(folder / f"{stem}_events.tsv", tsv_table(EVENT_COLUMNS, events))
     return motion
 
 
-EVENT_COLUMNS = ("onset", "duration", "trial_type", "sample")
-"""Columns of a recording's ``_events.tsv``."""
-
-EVENT_COLUMN_INFO = {
-    "trial_type": {
-        "Description": "What happened",
-        "Levels": {
-            "trial": "The trial, from its first recorded sample to its last",
-            "dropped LABEL": "The connection of participant LABEL dropped; their position is "
-            "held from here on",
-        },
-    },
-    "sample": {"Description": "Index of the motion sample at the onset (0-based)"},
-}
-"""The events' columns, described once for the dataset (``task-mirrorgame_events.json``)."""
+def _timing_row(name: str, kind: str, units: str, description: str) -> dict[str, str]:
+    """Make the ``_channels.tsv`` row of one of the `TIMING_CHANNELS`."""
+    return {"name": name, "component": MISSING, "type": kind, "tracked_point": MISSING,
+            "units": units, "description": description}  # fmt: skip
 
 
-def _events(trial: _LabTrial) -> list[dict[str, str]]:
-    """List the trial (from its first sample, as long as it was recorded) and each drop.
-
-    Onsets and durations in seconds from the recording's first sample; ``sample`` its index.
-    """
-    duration = trial.session.n_samples * trial.period
-    rows = [{"onset": "0.0", "duration": repr(duration), "trial_type": "trial", "sample": "0"}]
-    for who, sample in sorted(_mapping(trial.session.metadata.get("dropped")).items()):
-        if isinstance(sample, int) and not isinstance(sample, bool):
-            onset = repr(sample * trial.period)
-            rows.append(
-                {"onset": onset, "duration": "0.0", "trial_type": f"dropped {who}",
-                 "sample": str(sample)}
-            )  # fmt: skip
-    return rows
+def _write_answers(trial: _LabTrial, slot: int, out_dir: Path) -> Path | None:
+    """Write slot ``slot``'s answers after ``trial`` as ``_beh.tsv``; None if they gave none."""
+    label = trial.slots[slot]["label"]
+    rows = [] if trial.answers is None else answer_rows(trial.answers, label)
+    if not rows:
+        return None
+    subject = bids_label(label)
+    name = f"sub-{subject}_task-{TASK}_acq-{bids_label(trial.session_id)}_run-{trial.trial}"
+    path = out_dir / f"sub-{subject}" / "beh" / f"{name}_beh.tsv"
+    write_beh(path, rows)
+    return path
 
 
 def _player_order(slot: int, n_players: int) -> list[int]:
@@ -377,6 +452,7 @@ def _motion_sidecar(trial: _LabTrial, slot: int, n_channels: int) -> dict[str, A
         "MotionChannelCount": n_channels,
         "POSChannelCount": n_players,
         "VELChannelCount": n_players,
+        **({} if trial.timing is None else {"LATENCYChannelCount": 1, "MiscChannelCount": 3}),
         "TrackedPointsCount": n_players,
         "RecordingDuration": n_samples * trial.period,
         "RecordingType": "continuous",
@@ -420,6 +496,9 @@ def _game_info(trial: _LabTrial, slot: int) -> dict[str, Any]:
         "trial": trial.trial,
         "condition": trial.condition,
         "created_utc": trial.created_utc,
+        "started_utc": metadata.get("started_utc"),
+        "clock": metadata.get("clock"),
+        "clock_start_s": _clock_start(trial.timing),
         "participant": trial.slots[slot]["label"],
         "slot": slot,
         "slots": list(trial.slots),
@@ -438,11 +517,23 @@ def _mapping(value: object) -> dict[str, Any]:
     return dict(value) if isinstance(value, dict) else {}
 
 
+def _clock_start(timing: Array | None) -> float | None:
+    """Return the clock time (s) of the first sample, or None when unknown."""
+    if timing is None or not timing.shape[1] or np.isnan(timing[1, 0]):
+        return None
+    return float(timing[1, 0])
+
+
 def _copy_sources(session_dir: Path, files: list[Path], target: Path) -> None:
-    """Copy the trial files, their sidecars and ``plan.json`` to ``target``."""
+    """Copy the trial files (with inputs and answers), ``plan.json``, ``study.json``."""
     target.mkdir(parents=True, exist_ok=True)
-    sources = [p for f in files for p in (f, f.with_suffix(".json"))]
-    sources.append(session_dir / "plan.json")
+    sources = [
+        path
+        for f in files
+        for path in (f, f.with_suffix(".json"), f.with_name(f.name.replace("_session.csv",
+                     "_inputs.csv")), f.with_name(f.name.replace("_session.csv", ANSWERS_SUFFIX)))
+    ]  # fmt: skip
+    sources += [session_dir / "plan.json", session_dir / "study.json"]
     for source in sources:
         if source.is_file():
             write_atomic_bytes(target / source.name, read_bytes(source, MAX_FILE_BYTES))
