@@ -465,8 +465,11 @@ def _motion_sidecar(trial: _LabTrial, slot: int, n_channels: int) -> dict[str, A
 def _task_description(trial: _LabTrial) -> str:
     """Describe the mirror game and the trial's condition."""
     what = CONDITIONS.get(trial.condition, "the players move together")
+    named = trial.session.metadata["lab"].get("protocol_condition")
+    game = trial.condition or MISSING
+    condition = f"{named} ({game}: {what})" if named else f"{game} ({what})"
     return (
-        f"Mirror game, condition {trial.condition or MISSING} ({what}): each player moves a point "
+        f"Mirror game, condition {condition}: each player moves a point "
         "along a line and sees the points of the players they are coupled to. Positions are in "
         f"playing range units (-0.5..0.5), sampled every {trial.period:g} s."
     )

@@ -78,7 +78,8 @@ def trial_events(metadata: dict[str, Any], n_samples: int, period: float) -> lis
     Returns
     -------
     list of dict
-        One row per event (column -> cell), the trial first, then by onset.
+        One row per event (every column -> its cell, ``n/a`` when it does not apply), the
+        trial first, then by onset.
     """
     lab = _mapping(metadata.get("lab"))
     length = n_samples * period
@@ -110,7 +111,8 @@ def trial_events(metadata: dict[str, Any], n_samples: int, period: float) -> lis
                                "change": _cell(change.get("change"))})  # fmt: skip
     first, rest = rows[0], rows[1:]
     rest.sort(key=lambda row: float(row["onset"]))
-    return [common | row for row in (first, *rest)]
+    empty = dict.fromkeys(EVENT_COLUMNS, MISSING)
+    return [empty | common | row for row in (first, *rest)]
 
 
 def _row(onset: float, duration: float, kind: str, period: float) -> dict[str, str]:

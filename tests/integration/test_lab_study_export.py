@@ -1,0 +1,299 @@
+"""The BIDS export of a study protocol's session, played through the real lab server: one run
+per trial with its condition and manipulations as events, the answers as behavioural files,
+acquisition times, each sample's clock, the official validator, the toolkit reading it back,
+and the console's export request."""
+
+from __future__ import annotations
+
+import asyncio
+import csv
+import json
+import shutil
+import subprocess
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+from test_lab_server import BEARER, TOKEN, status
+from test_lab_study import AnsweringPage, create_participant
+
+from mirror_avatar.cli import main
+from mirror_avatar.lab.protocol import load_protocol
+from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.session import load_session
+from mirror_avatar.testing import ServerThread
+
+PROTOCOL = """
+title = "export study"
+seed = 3
+
+[questions.partner]
+text = "Was your partner a person or a computer?"
+kind = "choice"
+options = ["a person", "a computer"]
+
+[questions.confidence]
+text = "How confident are you?"
+kind = "likert"
+points = 7
+
+[questions.remarks]
+text = "Anything to add?"
+kind = "text"
+max_chars = 40
+
+[[blocks]]
+name = "partners"
+order = "fixed"
+after_block = ["remarks"]
+
+[[blocks.conditions]]
+name = "follow"
+game = "leader_follower"
+players = [
+  { label = "P1", kind = "person" },
+  { label = "A1", kind = "avatar", spec = "bundled:slow" },
+]
+leaders = ["A1"]
+trials = 1
+duration = 2
+pause = 0.5
+after_trial = ["partner", "confidence"]
+
+[[blocks.conditions]]
+name = "hidden"
+game = "joint"
+players = [
+  { label = "P1", kind = "person" },
+  { label = "P2", kind = "person" },
+]
+trials = 1
+duration = 3
+pause = 0.5
+delay = 0.3
+occlude = [[1, 2]]
+after_trial = ["partner"]
+"""
+
+PERTURBATION = {"sample": 40, "time_s": 1.2, "player": "A1", "change": "coupling: leader"}
+"""A perturbation of the avatar, as the lab records one in a trial's sidecar."""
+
+
+@dataclass
+class Study:
+    server: ServerThread
+    sid: str
+    folder: Path
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Study]:
+    """Participant 0's run of the protocol (follow, then hidden), played on the lab server."""
+    base = tmp_path_factory.mktemp("study")
+    protocol_file = base / "export.toml"
+    protocol_file.write_text(PROTOCOL)
+    settings = LabSettings(
+        out_dir=base / "out", token=TOKEN, countdown=1, protocol=load_protocol(protocol_file)
+    )
+    with ServerThread(create_lab_app(settings)) as server:
+        created = create_participant(server.url, 0, BEARER)
+        sid = created["id"]
+        pages = [AnsweringPage(created["links"][label]) for label in ("P1", "P2")]
+
+        async def scenario() -> None:
+            tasks = [asyncio.create_task(page.play(40.0)) for page in pages]
+            await asyncio.sleep(0.5)
+            await asyncio.to_thread(
+                httpx.post, f"{server.url}/api/sessions/{sid}/start", json={"force": True},
+                headers=BEARER,
+            )  # fmt: skip
+            while (await asyncio.to_thread(status, server, sid))["state"] != "finished":
+                await asyncio.sleep(0.1)
+            await asyncio.gather(*tasks)
+
+        asyncio.run(scenario())
+        yield Study(server, sid, base / "out" / sid)
+
+
+def rows_of(path: Path) -> list[dict[str, str]]:
+    with path.open(encoding="utf-8", newline="") as handle:
+        return list(csv.DictReader(handle, delimiter="\t"))
+
+
+def test_every_trial_is_a_run_with_its_condition_and_manipulations(study, tmp_path, capsys):
+    bids = tmp_path / "bids"
+    assert main(["lab", "export", str(study.folder), "--out", str(bids)]) == 0
+    assert "wrote 3 motion files" in capsys.readouterr().out  # P1 twice, P2 once
+    acq = "exportp000"
+    motion = sorted(p.relative_to(bids).as_posix() for p in bids.glob("sub-*/motion/*_motion.tsv"))
+    assert motion == [
+        f"sub-P1/motion/sub-P1_task-mirrorgame_tracksys-pointer_acq-{acq}_run-1_motion.tsv",
+        f"sub-P1/motion/sub-P1_task-mirrorgame_tracksys-pointer_acq-{acq}_run-2_motion.tsv",
+        f"sub-P2/motion/sub-P2_task-mirrorgame_tracksys-pointer_acq-{acq}_run-2_motion.tsv",
+    ]
+    follow = rows_of(next(bids.glob("sub-P1/motion/*run-1_events.tsv")))
+    assert [(r["trial_type"], r["trial"], r["block"], r["condition"]) for r in follow] == [
+        ("trial", "1", "partners", "follow")
+    ]
+    hidden = rows_of(next(bids.glob("sub-P2/motion/*run-2_events.tsv")))
+    kinds = [r["trial_type"] for r in hidden]
+    assert kinds[:3] == ["trial", "delay", "occlusion"]
+    assert {r["condition"] for r in hidden} == {"hidden"}
+    delay = hidden[1]
+    assert (float(delay["onset"]), float(delay["delay_s"])) == (0.0, pytest.approx(0.3))
+    occlusion = hidden[2]
+    assert (float(occlusion["onset"]), float(occlusion["duration"])) == (1.0, 1.0)
+    assert int(occlusion["sample"]) == 34  # the first sample at or after 1 s: 34 * 0.03 s
+    sidecar = load_session(study.folder / "trial-02_session.csv").metadata
+    lost = [(e["sample"], e["label"]) for e in sidecar["input_events"] if e["event"] == "lost"]
+    assert [(int(r["sample"]), r["player"]) for r in hidden if r["trial_type"] == "input_lost"] == (
+        sorted(lost)
+    )
+
+
+def test_answers_are_behavioural_files_beside_the_runs(study, tmp_path):
+    bids = tmp_path / "bids"
+    assert main(["lab", "export", str(study.folder), "--out", str(bids)]) == 0
+    (first,) = bids.glob("sub-P1/beh/sub-P1_task-mirrorgame_acq-exportp000_run-1_beh.tsv")
+    rows = rows_of(first)
+    assert [(r["question"], r["kind"], r["answer"], r["after"]) for r in rows] == [
+        ("partner", "choice", "a computer", "trial"),
+        ("confidence", "likert", "5", "trial"),
+    ]
+    assert rows[0]["text"] == "Was your partner a person or a computer?"
+    assert {(r["trial"], r["block"], r["condition"]) for r in rows} == {("1", "partners", "follow")}
+    recorded = json.loads((study.folder / "trial-01_answers.json").read_text())
+    assert rows[1]["answered_utc"] == recorded["answers"]["P1"]["confidence"]["utc"]
+    for label in ("P1", "P2"):  # the last trial of the block: its question and the block's
+        (last,) = bids.glob(f"sub-{label}/beh/*_run-2_beh.tsv")
+        assert [(r["question"], r["answer"], r["after"]) for r in rows_of(last)] == [
+            ("partner", "a computer", "trial"), ("remarks", "smooth", "block")
+        ]  # fmt: skip
+    described = json.loads((bids / "task-mirrorgame_beh.json").read_text())
+    assert set(described) == {"TaskName", *rows[0]}
+
+
+def test_scans_give_each_runs_start_and_the_motion_every_samples_clock(study, tmp_path):
+    bids = tmp_path / "bids"
+    assert main(["lab", "export", str(study.folder), "--out", str(bids)]) == 0
+    scans = {r["filename"]: r for r in rows_of(bids / "sub-P1" / "sub-P1_scans.tsv")}
+    assert len(scans) == 4  # two runs, each a motion and a beh file
+    for n in (1, 2):
+        metadata = load_session(study.folder / f"trial-{n:02d}_session.csv").metadata
+        started = datetime.fromisoformat(metadata["started_utc"])
+        created = datetime.fromisoformat(metadata["created_utc"])
+        assert created <= started
+        motion = next(name for name in scans if name.startswith("motion/") and f"run-{n}_" in name)
+        stamp = scans[motion]["acq_time"]
+        assert stamp.endswith("Z") and datetime.fromisoformat(stamp) == started
+        inputs = np.genfromtxt(study.folder / f"trial-{n:02d}_inputs.csv", delimiter=",",
+                               names=True)  # fmt: skip
+        channels = rows_of(bids / "sub-P1" / motion.replace("_motion.tsv", "_channels.tsv"))
+        names = [c["name"] for c in channels]
+        values = np.loadtxt(bids / "sub-P1" / motion, delimiter="\t", ndmin=2)
+        assert values.shape == (inputs.size, len(names))
+        np.testing.assert_array_equal(values[:, names.index("clock")], inputs["clock_s"])
+        np.testing.assert_allclose(
+            values[:, names.index("latency")], inputs["clock_s"] - inputs["clock_s"][0], atol=5e-7
+        )
+        np.testing.assert_array_equal(values[:, names.index("late")], inputs["late_ms"])
+        types = {c["name"]: (c["type"], c["units"]) for c in channels}
+        assert types["latency"] == ("LATENCY", "s") and types["clock"] == ("MISC", "s")
+        sidecar = json.loads((bids / "sub-P1" / motion.replace(".tsv", ".json")).read_text())
+        assert sidecar["MirrorGame"]["clock_start_s"] == inputs["clock_s"][0]
+        assert sidecar["MirrorGame"]["created_utc"] == metadata["created_utc"]
+    copied = sorted(p.name for p in (bids / "sourcedata" / study.sid).iterdir())
+    assert {"study.json", "trial-01_inputs.csv", "trial-02_answers.json"} <= set(copied)
+
+
+def perturbed_copy(study: Study, tmp_path: Path) -> Path:
+    """A copy of the study's folder whose first trial records a perturbation of its avatar."""
+    folder = tmp_path / study.sid
+    shutil.copytree(study.folder, folder)
+    sidecar = folder / "trial-01_session.json"
+    data = json.loads(sidecar.read_text())
+    data["metadata"]["perturbations"] = [PERTURBATION]
+    sidecar.write_text(json.dumps(data))
+    return folder
+
+
+def test_a_perturbation_is_an_event_and_the_validator_finds_no_error(study, tmp_path):
+    bids = tmp_path / "bids"
+    assert main(["lab", "export", str(perturbed_copy(study, tmp_path)), "--out", str(bids)]) == 0
+    events = rows_of(next(bids.glob("sub-P1/motion/*run-1_events.tsv")))
+    (change,) = [r for r in events if r["trial_type"] == "perturbation"]
+    assert (change["onset"], change["sample"], change["player"], change["change"]) == (
+        "1.2", "40", "A1", "coupling: leader"
+    )  # fmt: skip
+    validator = Path(sys.executable).parent / "bids-validator-deno"
+    report = subprocess.run(
+        [validator, str(bids), "--format", "json"], capture_output=True, text=True, timeout=300
+    )
+    found = json.loads(report.stdout)
+    errors = [issue for issue in found["issues"]["issues"] if issue["severity"] == "error"]
+    assert errors == [], errors[:3]
+    warnings = {issue["code"] for issue in found["issues"]["issues"]}
+    assert warnings <= {"NO_AUTHORS", "TOO_FEW_AUTHORS", "JSON_KEY_RECOMMENDED",
+                        "SIDECAR_KEY_RECOMMENDED"}, warnings  # fmt: skip
+    assert sorted(found["summary"]["dataTypes"]) == ["beh", "motion"]
+
+
+def test_convert_signature_and_evaluate_read_the_runs_apart(study, tmp_path, capsys):
+    bids = tmp_path / "bids"
+    assert main(["lab", "export", str(study.folder), "--out", str(bids)]) == 0
+    out = tmp_path / "converted"
+    assert main(["convert", str(bids), "--group-by", "bids", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "group 'sub-P1': 2 trial(s)" in printed and "group 'sub-P2': 1 trial(s)" in printed
+    converted = sorted(p.name for p in out.rglob("*.csv"))
+    assert converted == [
+        "sub-P1_task-mirrorgame_tracksys-pointer_acq-exportp000_run-1.csv",
+        "sub-P1_task-mirrorgame_tracksys-pointer_acq-exportp000_run-2.csv",
+        "sub-P2_task-mirrorgame_tracksys-pointer_acq-exportp000_run-2.csv",
+    ]
+    signature = tmp_path / "signature"
+    assert main(["signature", str(bids / "sub-P1"), "--group-by", "bids", "--out",
+                 str(signature)]) == 0  # fmt: skip
+    labels = json.loads((signature / "signature.json").read_text())["labels"]
+    assert labels == [name.removesuffix(".csv") for name in converted[:2]]
+    evaluated = tmp_path / "evaluated"
+    runs = sorted(bids.glob("sub-P1/motion/*_motion.tsv"))
+    capsys.readouterr()
+    assert main(["evaluate", *map(str, runs), "--out", str(evaluated)]) == 0
+    table = capsys.readouterr().out
+    assert all(run.name in table for run in runs), table
+    for n in (1, 2):
+        (motion,) = bids.glob(f"sub-P1/motion/*run-{n}_motion.tsv")
+        back, recorded = (
+            load_session(motion),
+            load_session(study.folder / f"trial-{n:02d}_session.csv"),
+        )
+        np.testing.assert_array_equal(back.positions, recorded.positions)
+        assert back.labels == recorded.labels
+        assert back.metadata["bids"]["entities"]["run"] == str(n)
+        assert back.metadata["lab"]["condition"] == recorded.metadata["lab"]["condition"]
+
+
+def test_the_console_exports_the_session_into_the_lab_folder(study):
+    url = f"{study.server.url}/api/sessions/{study.sid}/export"
+    assert httpx.post(url, json={}).status_code == 403
+    done = httpx.post(url, json={}, headers=BEARER)
+    assert done.status_code == 200, done.text
+    answer = done.json()
+    folder = study.folder.parent / "bids"
+    assert answer["folder"] == str(folder) and answer["motion_files"] == 3
+    assert answer["files"] == sum(1 for p in folder.rglob("*") if p.is_file())
+    assert len(list(folder.glob("sub-*/beh/*_beh.tsv"))) == 3
+    named = httpx.post(url, json={"folder": "bids_2"}, headers=BEARER)
+    assert named.status_code == 200 and named.json()["folder"] == str(folder.parent / "bids_2")
+    for bad in ("../elsewhere", ".hidden", study.sid, "a/b"):
+        refused = httpx.post(url, json={"folder": bad}, headers=BEARER)
+        assert refused.status_code == 400 and refused.json()["error"].startswith("folder: ")
+    assert not (study.folder.parent.parent / "elsewhere").exists()
+    events = status(study.server, study.sid)["events"]
+    assert any("exported 3 motion files" in event for event in events)
