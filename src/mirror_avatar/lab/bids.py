@@ -1,28 +1,42 @@
-"""BIDS-Motion export of lab sessions (BIDS 1.9.0, motion modality).
+"""BIDS-Motion export of lab sessions and study sessions (BIDS 1.9.0, motion and beh).
 
 A lab session folder holds, per trial n, ``trial-NN_session.csv`` and its sidecar
 ``trial-NN_session.json`` (`mirror_avatar.session.SessionWriter`), whose ``metadata`` describes
-the trial (``lab``: session id, trial, condition, slots; ``complete``, ``dropped``, ``held``).
+the trial (``lab``: session id, trial, condition, slots, and in a study session its block,
+protocol condition, delay and occlusion; ``created_utc``, ``started_utc``, ``complete``,
+``dropped``, ``held``, ``input_events``), its ``trial-NN_inputs.csv`` (each sample's clock time:
+`mirror_avatar.realtime.trial.TickLog`) and, in a study session, ``trial-NN_answers.json``.
 `export_bids` writes, for every trial and every human slot, one motion recording holding the
-whole trial as that participant played it::
+whole trial as that participant played it, and the answers they gave after it::
 
-    <out>/dataset_description.json, README, participants.tsv, participants.json
+    <out>/dataset_description.json, README, participants.tsv, participants.json, scans.json
+    <out>/task-mirrorgame_events.json, task-mirrorgame_beh.json (with answers)
+    <out>/sub-<sub>/sub-<sub>_scans.tsv
     <out>/sub-<sub>/motion/sub-<sub>_task-mirrorgame_tracksys-<device>_acq-<acq>_run-<n>_motion.tsv
     <out>/sub-<sub>/motion/sub-<sub>_task-mirrorgame_tracksys-<device>_acq-<acq>_run-<n>_channels.tsv
     <out>/sub-<sub>/motion/sub-<sub>_task-mirrorgame_tracksys-<device>_acq-<acq>_run-<n>_motion.json
-    <out>/sourcedata/<session id>/trial-NN_session.csv, trial-NN_session.json (and plan.json)
+    <out>/sub-<sub>/motion/sub-<sub>_task-mirrorgame_tracksys-<device>_acq-<acq>_run-<n>_events.tsv
+    <out>/sub-<sub>/beh/sub-<sub>_task-mirrorgame_acq-<acq>_run-<n>_beh.tsv
+    <out>/sourcedata/<session id>/ the trial files (session, sidecar, inputs, answers),
+                                   plan.json or study.json
 
 Entities follow the order of the specification (sub, task, tracksys, acq, run). ``<sub>`` is the
 slot's label, ``<acq>`` the session id and ``<device>`` the slot's input device (``pointer`` or
 ``lsl``), each with its non-alphanumeric characters removed (`bids_label`); ``<n>`` is the trial
-number. Channels are the participant's own ``position`` and ``velocity``, then
+number (in a study, numbered across the protocol: one run per trial). A study's block and
+condition are columns of the events (`mirror_avatar.lab.bids_events`) and of the scans
+(`mirror_avatar.lab.bids_study`), not entities: ``acq`` already names the session and BIDS has
+no entity for a condition. Channels are the participant's own ``position`` and ``velocity``, then
 ``position_<label>`` and ``velocity_<label>`` of every other player in player order, in playing
-range units (-0.5..0.5; per second for velocities). The non-standard ``MirrorGame`` key of each
-``_motion.json`` describes the trial so that `mirror_avatar.session.load_session` rebuilds the
-N-player session (`mirror_avatar.bids.reading.read_lab_recording`); the participant's own file
-stays readable as their solo trial by `mirror_avatar.bids.reading.read_bids_motion` (it reads
-the channel named ``position``), so every command that reads trials reads the export. Names,
-values and tables follow the rules of `mirror_avatar.bids`.
+range units (-0.5..0.5; per second for velocities), then, when the inputs file is there, the
+`TIMING_CHANNELS`: each sample's ``latency`` from the first (type LATENCY, s), its ``clock`` time
+(the LSL clock when the lab ran with pylsl), and how ``late`` its tick was and how long its
+``step`` took (ms). The non-standard ``MirrorGame`` key of each ``_motion.json`` describes the
+trial so that `mirror_avatar.session.load_session` rebuilds the N-player session
+(`mirror_avatar.bids.reading.read_lab_recording`); the participant's own file stays readable as
+their solo trial by `mirror_avatar.bids.reading.read_bids_motion` (it reads the channel named
+``position``), so every command that reads trials reads the export. Names, values and tables
+follow the rules of `mirror_avatar.bids`.
 """
 
 from __future__ import annotations
@@ -130,8 +144,11 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     trial (a crash) is exported as far as it was recorded, ``complete`` being false in its
     ``MirrorGame`` key. ``participants.tsv`` gains the session's participants (one row each,
     existing rows kept); ``dataset_description.json`` and ``README`` are written only when
-    absent; ``sourcedata/<session id>/`` receives copies of the trial files and ``plan.json``.
-    Every file is written atomically, and nothing is written before every trial has been read.
+    absent; each subject's ``_scans.tsv`` gains their files with their acquisition times
+    (existing rows kept); a trial's answers become each participant's ``_beh.tsv``;
+    ``sourcedata/<session id>/`` receives copies of the trial files (with their inputs and
+    answers) and ``plan.json`` or ``study.json``. Every file is written atomically, and nothing
+    is written before every trial (and every table merged into) has been read.
 
     Parameters
     ----------
@@ -151,7 +168,9 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
         No such folder, no trial file in it, a trial without lab metadata (or with slots that
         do not match its players), trials of different sessions, a human slot without a device,
         two players with one label, two participants mapping to one BIDS label (also against
-        ``participants.tsv``), or a session id already exported under the same ``acq-`` label.
+        ``participants.tsv``), a session id already exported under the same ``acq-`` label,
+        an inputs file without its clock columns, an answers file that is not one, or a
+        damaged ``participants.tsv`` or ``_scans.tsv``.
     """
     session_dir, out_dir = Path(session_dir), Path(out_dir)
     files = _trial_files(session_dir)
@@ -598,7 +617,12 @@ to; some players may be avatars (computer-controlled). Each human participant (s
 per session (acq-<session id>) and trial (run-<trial>), one motion recording holding the whole
 trial as they played it: their own position and velocity, then those of every other player.
 Positions are in playing range units (-0.5..0.5), velocities in playing range units per second,
-sampled at the control period. The MirrorGame key of each _motion.json describes the trial
-(condition, players, coupling graph, connection drops). sourcedata/<session id>/ holds the
-original recordings.
+sampled at the control period; the channels latency and clock give when each sample was
+really taken (clock: the Lab Streaming Layer clock when the lab ran with it, to align with EEG),
+and sub-<label>_scans.tsv when each run's first sample was (acq_time, UTC). The MirrorGame key of
+each _motion.json describes the trial (condition, players, coupling graph, connection drops);
+each _events.tsv its condition (and block, in a study) and manipulations (visual delay,
+occlusion, perturbations of an avatar, inputs lost). In a study, the answers a participant gave
+after a trial are in sub-<label>/beh/, run-<trial>. sourcedata/<session id>/ holds the original
+recordings.
 """
