@@ -297,3 +297,27 @@ def test_the_console_exports_the_session_into_the_lab_folder(study):
     assert not (study.folder.parent.parent / "elsewhere").exists()
     events = status(study.server, study.sid)["events"]
     assert any("exported 3 motion files" in event for event in events)
+
+
+@pytest.mark.browser
+def test_the_console_button_exports_the_session(study, chromium):
+    """The researcher clicks Export BIDS on the console in Chromium; the dataset appears."""
+    folder = study.folder.parent / "bids"
+    shutil.rmtree(folder, ignore_errors=True)
+    console = chromium.new_context(viewport={"width": 1280, "height": 1000}).new_page()
+    try:
+        console.goto(f"{study.server.url}/console?token={TOKEN}")
+        console.click(f"#sessions-list a:has-text('{study.sid}')")
+        console.wait_for_selector("#session:not([hidden])")
+        console.wait_for_function("!document.getElementById('export').disabled")
+        console.click("#export")
+        console.wait_for_function(
+            "document.getElementById('export-result').textContent.startsWith('exported')"
+        )
+        shown = console.locator("#export-result").inner_text()
+    finally:
+        console.context.close()
+    files = sum(1 for p in folder.rglob("*") if p.is_file())
+    assert shown == f"exported 3 motion file(s); {folder} holds {files} files"
+    assert len(list(folder.glob("sub-*/motion/*_motion.tsv"))) == 3
+    assert len(list(folder.glob("sub-*/beh/*_beh.tsv"))) == 3
