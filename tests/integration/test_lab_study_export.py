@@ -321,3 +321,23 @@ def test_the_console_button_exports_the_session(study, chromium):
     assert shown == f"exported 3 motion file(s); {folder} holds {files} files"
     assert len(list(folder.glob("sub-*/motion/*_motion.tsv"))) == 3
     assert len(list(folder.glob("sub-*/beh/*_beh.tsv"))) == 3
+
+
+def test_samples_missing_from_a_cut_inputs_file_have_no_clock(study, tmp_path):
+    """A crash between a sample's two lines: the inputs file lacks the last samples."""
+    folder = tmp_path / study.sid
+    shutil.copytree(study.folder, folder)
+    inputs = folder / "trial-01_inputs.csv"
+    lines = inputs.read_text().splitlines(keepends=True)
+    inputs.write_text("".join(lines[:-3]) + lines[-3].split(",")[0] + ",")
+    bids = tmp_path / "bids"
+    assert main(["lab", "export", str(folder), "--out", str(bids)]) == 0
+    (motion,) = bids.glob("sub-P1/motion/*run-1_motion.tsv")
+    names = [
+        c["name"]
+        for c in rows_of(motion.with_name(motion.name.replace("motion.tsv", "channels.tsv")))
+    ]
+    rows = [line.split("\t") for line in motion.read_text().splitlines()]
+    clock = [row[names.index("clock")] for row in rows]
+    assert clock[-3:] == ["n/a"] * 3 and "n/a" not in clock[:-3]
+    assert len(rows) == load_session(folder / "trial-01_session.csv").n_samples
