@@ -1,7 +1,8 @@
-"""The BIDS export of a study protocol's session, played through the real lab server: one run
+"""The BIDS export of a study protocol's sessions, played through the real lab server: one run
 per trial with its condition and manipulations as events, the answers as behavioural files,
-acquisition times, each sample's clock, the official validator, the toolkit reading it back,
-and the console's export request."""
+acquisition times, each sample's clock, two participants' people as distinct subjects of one
+dataset, the official validator, the toolkit reading it back, and the console's export
+request."""
 
 from __future__ import annotations
 
@@ -89,11 +90,36 @@ class Study:
     server: ServerThread
     sid: str
     folder: Path
+    second: Path
+
+
+def play(server: ServerThread, participant: int) -> str:
+    """Play a participant's run of the protocol (follow, then hidden); return its session id."""
+    created = create_participant(server.url, participant, BEARER)
+    sid = created["id"]
+    pages = [AnsweringPage(created["links"][label]) for label in ("P1", "P2")]
+
+    async def scenario() -> None:
+        tasks = [asyncio.create_task(page.play(40.0)) for page in pages]
+        await asyncio.sleep(0.5)
+        await asyncio.to_thread(
+            httpx.post, f"{server.url}/api/sessions/{sid}/start", json={"force": True},
+            headers=BEARER,
+        )  # fmt: skip
+        while (await asyncio.to_thread(status, server, sid))["state"] != "finished":
+            await asyncio.sleep(0.1)
+        await asyncio.gather(*tasks)
+
+    asyncio.run(scenario())
+    return sid
 
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Study]:
-    """Participant 0's run of the protocol (follow, then hidden), played on the lab server."""
+    """Participants 0 and 1's runs of the protocol, played one after the other on the lab server.
+
+    Exported alone, the ``folder`` of participant 0 has ``sub-p000P1`` and ``sub-p000P2``.
+    """
     base = tmp_path_factory.mktemp("study")
     protocol_file = base / "export.toml"
     protocol_file.write_text(PROTOCOL)
@@ -101,23 +127,8 @@ def study(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Study]:
         out_dir=base / "out", token=TOKEN, countdown=1, protocol=load_protocol(protocol_file)
     )
     with ServerThread(create_lab_app(settings)) as server:
-        created = create_participant(server.url, 0, BEARER)
-        sid = created["id"]
-        pages = [AnsweringPage(created["links"][label]) for label in ("P1", "P2")]
-
-        async def scenario() -> None:
-            tasks = [asyncio.create_task(page.play(40.0)) for page in pages]
-            await asyncio.sleep(0.5)
-            await asyncio.to_thread(
-                httpx.post, f"{server.url}/api/sessions/{sid}/start", json={"force": True},
-                headers=BEARER,
-            )  # fmt: skip
-            while (await asyncio.to_thread(status, server, sid))["state"] != "finished":
-                await asyncio.sleep(0.1)
-            await asyncio.gather(*tasks)
-
-        asyncio.run(scenario())
-        yield Study(server, sid, base / "out" / sid)
+        sid, second = play(server, 0), play(server, 1)
+        yield Study(server, sid, base / "out" / sid, base / "out" / second)
 
 
 def rows_of(path: Path) -> list[dict[str, str]]:
@@ -132,15 +143,15 @@ def test_every_trial_is_a_run_with_its_condition_and_manipulations(study, tmp_pa
     acq = "exportp000"
     motion = sorted(p.relative_to(bids).as_posix() for p in bids.glob("sub-*/motion/*_motion.tsv"))
     assert motion == [
-        f"sub-P1/motion/sub-P1_task-mirrorgame_tracksys-pointer_acq-{acq}_run-1_motion.tsv",
-        f"sub-P1/motion/sub-P1_task-mirrorgame_tracksys-pointer_acq-{acq}_run-2_motion.tsv",
-        f"sub-P2/motion/sub-P2_task-mirrorgame_tracksys-pointer_acq-{acq}_run-2_motion.tsv",
+        f"sub-p000P1/motion/sub-p000P1_task-mirrorgame_tracksys-pointer_acq-{acq}_run-1_motion.tsv",
+        f"sub-p000P1/motion/sub-p000P1_task-mirrorgame_tracksys-pointer_acq-{acq}_run-2_motion.tsv",
+        f"sub-p000P2/motion/sub-p000P2_task-mirrorgame_tracksys-pointer_acq-{acq}_run-2_motion.tsv",
     ]
-    follow = rows_of(next(bids.glob("sub-P1/motion/*run-1_events.tsv")))
+    follow = rows_of(next(bids.glob("sub-p000P1/motion/*run-1_events.tsv")))
     assert [(r["trial_type"], r["trial"], r["block"], r["condition"]) for r in follow] == [
         ("trial", "1", "partners", "follow")
     ]
-    hidden = rows_of(next(bids.glob("sub-P2/motion/*run-2_events.tsv")))
+    hidden = rows_of(next(bids.glob("sub-p000P2/motion/*run-2_events.tsv")))
     kinds = [r["trial_type"] for r in hidden]
     assert kinds[:3] == ["trial", "delay", "occlusion"]
     assert {r["condition"] for r in hidden} == {"hidden"}
@@ -159,7 +170,7 @@ def test_every_trial_is_a_run_with_its_condition_and_manipulations(study, tmp_pa
 def test_answers_are_behavioural_files_beside_the_runs(study, tmp_path):
     bids = tmp_path / "bids"
     assert main(["lab", "export", str(study.folder), "--out", str(bids)]) == 0
-    (first,) = bids.glob("sub-P1/beh/sub-P1_task-mirrorgame_acq-exportp000_run-1_beh.tsv")
+    (first,) = bids.glob("sub-p000P1/beh/sub-p000P1_task-mirrorgame_acq-exportp000_run-1_beh.tsv")
     rows = rows_of(first)
     assert [(r["question"], r["kind"], r["answer"], r["after"]) for r in rows] == [
         ("partner", "choice", "a computer", "trial"),
@@ -170,7 +181,7 @@ def test_answers_are_behavioural_files_beside_the_runs(study, tmp_path):
     recorded = json.loads((study.folder / "trial-01_answers.json").read_text())
     assert rows[1]["answered_utc"] == recorded["answers"]["P1"]["confidence"]["utc"]
     for label in ("P1", "P2"):  # the last trial of the block: its question and the block's
-        (last,) = bids.glob(f"sub-{label}/beh/*_run-2_beh.tsv")
+        (last,) = bids.glob(f"sub-p000{label}/beh/*_run-2_beh.tsv")
         assert [(r["question"], r["answer"], r["after"]) for r in rows_of(last)] == [
             ("partner", "a computer", "trial"), ("remarks", "smooth", "block")
         ]  # fmt: skip
@@ -181,7 +192,7 @@ def test_answers_are_behavioural_files_beside_the_runs(study, tmp_path):
 def test_scans_give_each_runs_start_and_the_motion_every_samples_clock(study, tmp_path):
     bids = tmp_path / "bids"
     assert main(["lab", "export", str(study.folder), "--out", str(bids)]) == 0
-    scans = {r["filename"]: r for r in rows_of(bids / "sub-P1" / "sub-P1_scans.tsv")}
+    scans = {r["filename"]: r for r in rows_of(bids / "sub-p000P1" / "sub-p000P1_scans.tsv")}
     assert len(scans) == 4  # two runs, each a motion and a beh file
     for n in (1, 2):
         metadata = load_session(study.folder / f"trial-{n:02d}_session.csv").metadata
@@ -193,9 +204,9 @@ def test_scans_give_each_runs_start_and_the_motion_every_samples_clock(study, tm
         assert stamp.endswith("Z") and datetime.fromisoformat(stamp) == started
         inputs = np.genfromtxt(study.folder / f"trial-{n:02d}_inputs.csv", delimiter=",",
                                names=True)  # fmt: skip
-        channels = rows_of(bids / "sub-P1" / motion.replace("_motion.tsv", "_channels.tsv"))
+        channels = rows_of(bids / "sub-p000P1" / motion.replace("_motion.tsv", "_channels.tsv"))
         names = [c["name"] for c in channels]
-        values = np.loadtxt(bids / "sub-P1" / motion, delimiter="\t", ndmin=2)
+        values = np.loadtxt(bids / "sub-p000P1" / motion, delimiter="\t", ndmin=2)
         assert values.shape == (inputs.size, len(names))
         np.testing.assert_array_equal(values[:, names.index("clock")], inputs["clock_s"])
         np.testing.assert_allclose(
@@ -204,7 +215,7 @@ def test_scans_give_each_runs_start_and_the_motion_every_samples_clock(study, tm
         np.testing.assert_array_equal(values[:, names.index("late")], inputs["late_ms"])
         types = {c["name"]: (c["type"], c["units"]) for c in channels}
         assert types["latency"] == ("LATENCY", "s") and types["clock"] == ("MISC", "s")
-        sidecar = json.loads((bids / "sub-P1" / motion.replace(".tsv", ".json")).read_text())
+        sidecar = json.loads((bids / "sub-p000P1" / motion.replace(".tsv", ".json")).read_text())
         assert sidecar["MirrorGame"]["clock_start_s"] == inputs["clock_s"][0]
         assert sidecar["MirrorGame"]["created_utc"] == metadata["created_utc"]
     copied = sorted(p.name for p in (bids / "sourcedata" / study.sid).iterdir())
@@ -222,10 +233,53 @@ def perturbed_copy(study: Study, tmp_path: Path) -> Path:
     return folder
 
 
-def test_a_perturbation_is_an_event_and_the_validator_finds_no_error(study, tmp_path):
+def export_both(study: Study, bids: Path, first: Path | None = None) -> None:
+    """Export participant 0's folder (or ``first``), then participant 1's, into ``bids``."""
+    for folder in (first or study.folder, study.second):
+        assert main(["lab", "export", str(folder), "--out", str(bids)]) == 0
+
+
+SUBJECTS = ["sub-p000P1", "sub-p000P2", "sub-p001P1", "sub-p001P2"]
+"""The people of participants 0 and 1: four subjects, though both runs label them P1 and P2."""
+
+
+def test_two_participants_people_are_distinct_subjects_of_one_dataset(study, tmp_path):
     bids = tmp_path / "bids"
-    assert main(["lab", "export", str(perturbed_copy(study, tmp_path)), "--out", str(bids)]) == 0
-    events = rows_of(next(bids.glob("sub-P1/motion/*run-1_events.tsv")))
+    export_both(study, bids)
+    assert sorted(p.name for p in bids.glob("sub-*")) == SUBJECTS
+    participants = rows_of(bids / "participants.tsv")
+    assert [tuple(r.values()) for r in participants] == [
+        (subject, subject[-2:], "pointer", str(int(subject[5:8])), "export") for subject in SUBJECTS
+    ]
+    assert list(participants[0]) == ["participant_id", "label", "device", "study_participant",
+                                     "protocol"]  # fmt: skip
+    described = json.loads((bids / "participants.json").read_text())
+    assert set(described) == set(participants[0])
+    for n, folder in enumerate((study.folder, study.second)):
+        scans = rows_of(bids / f"sub-p00{n}P1" / f"sub-p00{n}P1_scans.tsv")
+        assert len(scans) == 4 and all(f"acq-exportp00{n}_" in r["filename"] for r in scans)
+        started = load_session(folder / "trial-01_session.csv").metadata["started_utc"]
+        (first,) = [r for r in scans if r["filename"].endswith("run-1_motion.tsv")]
+        assert datetime.fromisoformat(first["acq_time"]) == datetime.fromisoformat(started)
+        (motion,) = bids.glob(f"sub-p00{n}P1/motion/*run-1_motion.tsv")
+        np.testing.assert_array_equal(
+            load_session(motion).positions, load_session(folder / "trial-01_session.csv").positions
+        )
+    assert sorted(p.name for p in (bids / "sourcedata").iterdir()) == [
+        study.sid, study.second.name
+    ]  # fmt: skip
+    tables = {p: p.read_bytes() for p in bids.rglob("*.tsv") if "_scans" in p.name}
+    tables[bids / "participants.tsv"] = (bids / "participants.tsv").read_bytes()
+    assert main(["lab", "export", str(study.folder), "--out", str(bids)]) == 0
+    assert {p: p.read_bytes() for p in tables} == tables  # exported again: nothing added
+
+
+def test_a_perturbation_is_an_event_and_the_validator_finds_no_error(study, tmp_path):
+    """Participants 0 (their first trial perturbed) and 1 exported into one dataset."""
+    bids = tmp_path / "bids"
+    export_both(study, bids, first=perturbed_copy(study, tmp_path))
+    assert sorted(p.name for p in bids.glob("sub-*")) == SUBJECTS
+    events = rows_of(next(bids.glob("sub-p000P1/motion/*run-1_events.tsv")))
     (change,) = [r for r in events if r["trial_type"] == "perturbation"]
     assert (change["onset"], change["sample"], change["player"], change["change"]) == (
         "1.2", "40", "A1", "coupling: leader"
@@ -241,34 +295,38 @@ def test_a_perturbation_is_an_event_and_the_validator_finds_no_error(study, tmp_
     assert warnings <= {"NO_AUTHORS", "TOO_FEW_AUTHORS", "JSON_KEY_RECOMMENDED",
                         "SIDECAR_KEY_RECOMMENDED"}, warnings  # fmt: skip
     assert sorted(found["summary"]["dataTypes"]) == ["beh", "motion"]
+    assert sorted(found["summary"]["subjects"]) == [subject[4:] for subject in SUBJECTS]
 
 
 def test_convert_signature_and_evaluate_read_the_runs_apart(study, tmp_path, capsys):
     bids = tmp_path / "bids"
-    assert main(["lab", "export", str(study.folder), "--out", str(bids)]) == 0
+    export_both(study, bids)
     out = tmp_path / "converted"
+    capsys.readouterr()
     assert main(["convert", str(bids), "--group-by", "bids", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert "group 'sub-P1': 2 trial(s)" in printed and "group 'sub-P2': 1 trial(s)" in printed
+    for subject, runs in zip(SUBJECTS, (2, 1, 2, 1), strict=True):
+        assert f"group '{subject}': {runs} trial(s)" in printed, printed
     converted = sorted(p.name for p in out.rglob("*.csv"))
     assert converted == [
-        "sub-P1_task-mirrorgame_tracksys-pointer_acq-exportp000_run-1.csv",
-        "sub-P1_task-mirrorgame_tracksys-pointer_acq-exportp000_run-2.csv",
-        "sub-P2_task-mirrorgame_tracksys-pointer_acq-exportp000_run-2.csv",
+        f"{subject}_task-mirrorgame_tracksys-pointer_acq-exportp{subject[5:8]}_run-{n}.csv"
+        for subject in SUBJECTS
+        for n in ((1, 2) if subject.endswith("P1") else (2,))
     ]
     signature = tmp_path / "signature"
-    assert main(["signature", str(bids / "sub-P1"), "--group-by", "bids", "--out",
+    assert main(["signature", str(bids / "sub-p000P1"), "--group-by", "bids", "--out",
                  str(signature)]) == 0  # fmt: skip
     labels = json.loads((signature / "signature.json").read_text())["labels"]
     assert labels == [name.removesuffix(".csv") for name in converted[:2]]
     evaluated = tmp_path / "evaluated"
-    runs = sorted(bids.glob("sub-P1/motion/*_motion.tsv"))
+    runs = sorted(bids.glob("sub-p00*P1/motion/*_motion.tsv"))
+    assert len(runs) == 4
     capsys.readouterr()
     assert main(["evaluate", *map(str, runs), "--out", str(evaluated)]) == 0
     table = capsys.readouterr().out
     assert all(run.name in table for run in runs), table
     for n in (1, 2):
-        (motion,) = bids.glob(f"sub-P1/motion/*run-{n}_motion.tsv")
+        (motion,) = bids.glob(f"sub-p000P1/motion/*run-{n}_motion.tsv")
         back, recorded = (
             load_session(motion),
             load_session(study.folder / f"trial-{n:02d}_session.csv"),
@@ -332,7 +390,7 @@ def test_samples_missing_from_a_cut_inputs_file_have_no_clock(study, tmp_path):
     inputs.write_text("".join(lines[:-3]) + lines[-3].split(",")[0] + ",")
     bids = tmp_path / "bids"
     assert main(["lab", "export", str(folder), "--out", str(bids)]) == 0
-    (motion,) = bids.glob("sub-P1/motion/*run-1_motion.tsv")
+    (motion,) = bids.glob("sub-p000P1/motion/*run-1_motion.tsv")
     names = [
         c["name"]
         for c in rows_of(motion.with_name(motion.name.replace("motion.tsv", "channels.tsv")))

@@ -21,9 +21,11 @@ whole trial as that participant played it, and the answers they gave after it::
                                    plan.json or study.json
 
 Entities follow the order of the specification (sub, task, tracksys, acq, run). ``<sub>`` is the
-slot's label, ``<acq>`` the session id and ``<device>`` the slot's input device (``pointer`` or
-``lsl``), each with its non-alphanumeric characters removed (`bids_label`); ``<n>`` is the trial
-number (in a study, numbered across the protocol: one run per trial). A study's block and
+slot's label, in a study session after ``p`` and the participant's number (``p003P1``: the
+people of different participants' runs are different subjects; `mirror_avatar.lab.bids_study.
+subject_label`), ``<acq>`` the session id and ``<device>`` the slot's input device (``pointer``
+or ``lsl``), each with its non-alphanumeric characters removed (`bids_label`); ``<n>`` is the
+trial number (in a study, numbered across the protocol: one run per trial). A study's block and
 condition are columns of the events (`mirror_avatar.lab.bids_events`) and of the scans
 (`mirror_avatar.lab.bids_study`), not entities: ``acq`` already names the session and BIDS has
 no entity for a condition. Channels are the participant's own ``position`` and ``velocity``, then
@@ -61,9 +63,14 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.lab.bids_events import EVENT_COLUMN_INFO, EVENT_COLUMNS, trial_events
 from mirror_avatar.lab.bids_study import (
     ANSWERS_SUFFIX,
+    STUDY_COLUMNS,
+    STUDY_FILE,
+    StudyRun,
     acq_time,
     answer_rows,
     read_answers,
+    read_study,
+    subject_label,
     trial_row,
     write_beh,
     write_descriptions,
@@ -91,7 +98,9 @@ CHANNEL_COLUMNS = ("name", "component", "type", "tracked_point", "units", "descr
 """Columns of a ``_channels.tsv``."""
 
 PARTICIPANT_COLUMNS = ("participant_id", "label", "device")
-"""Columns `export_bids` fills in ``participants.tsv`` (others already there are kept)."""
+"""Columns `export_bids` fills in ``participants.tsv``, with the study's
+(`mirror_avatar.lab.bids_study.STUDY_COLUMNS`) when it exports a study session (others already
+there are kept)."""
 
 CONDITIONS = {
     "solo": "one player moves alone",
@@ -109,7 +118,8 @@ class _LabTrial:
     ``slots`` are the sidecar's slot dictionaries (one per player, in player order),
     ``period`` the control period (s), ``timing`` the `TIMING_CHANNELS` (shape (4, samples))
     when the trial's inputs file is there, and ``answers`` the answers given after the trial
-    (`mirror_avatar.lab.bids_study.read_answers`).
+    (`mirror_avatar.lab.bids_study.read_answers`); ``study`` is whose run of which protocol
+    the trial belongs to, None outside a study.
     """
 
     path: Path
@@ -122,6 +132,7 @@ class _LabTrial:
     period: float
     timing: Array | None
     answers: dict[str, Any] | None
+    study: StudyRun | None
 
     def humans(self) -> list[int]:
         """Return the indices of the human slots."""
@@ -129,8 +140,11 @@ class _LabTrial:
 
 
 def motion_stem(subject: str, device: str, acquisition: str, run: int) -> str:
-    """Return ``sub-<subject>_task-mirrorgame_tracksys-<device>_acq-<acquisition>_run-<run>``."""
-    return f"sub-{subject}_task-{TASK}_tracksys-{device}_acq-{acquisition}_run-{run}"
+    """Return ``<subject>_task-mirrorgame_tracksys-<device>_acq-<acquisition>_run-<run>``.
+
+    ``subject`` is the subject's folder, ``sub-<label>``.
+    """
+    return f"{subject}_task-{TASK}_tracksys-{device}_acq-{acquisition}_run-{run}"
 
 
 def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> list[Path]:
@@ -140,10 +154,12 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     human slot, in ``out_dir/sub-<label>/motion/`` (layout in the module docstring); avatars get
     none but appear as channels of every human's recording. BIDS labels must be alphanumeric:
     the participant label is the slot's label with every other character removed (``P_1``
-    becomes ``sub-P1``), and likewise the ``acq-`` label from the session id. An incomplete
-    trial (a crash) is exported as far as it was recorded, ``complete`` being false in its
-    ``MirrorGame`` key. ``participants.tsv`` gains the session's participants (one row each,
-    existing rows kept); ``dataset_description.json`` and ``README`` are written only when
+    becomes ``sub-P1``), in a study session (``session_dir`` holds ``study.json``) after ``p``
+    and the participant's number (``sub-p003P1``), and likewise the ``acq-`` label from the
+    session id. An incomplete trial (a crash) is exported as far as it was recorded,
+    ``complete`` being false in its ``MirrorGame`` key. ``participants.tsv`` gains the
+    session's participants (one row each, with the study's participant number and protocol in
+    a study; existing rows kept); ``dataset_description.json`` and ``README`` are written only when
     absent; each subject's ``_scans.tsv`` gains their files with their acquisition times
     (existing rows kept); a trial's answers become each participant's ``_beh.tsv``;
     ``sourcedata/<session id>/`` receives copies of the trial files (with their inputs and
@@ -168,16 +184,19 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
         No such folder, no trial file in it, a trial without lab metadata (or with slots that
         do not match its players), trials of different sessions, a human slot without a device,
         two players with one label, two participants mapping to one BIDS label (also against
-        ``participants.tsv``), a session id already exported under the same ``acq-`` label,
-        an inputs file without its clock columns, an answers file that is not one, or a
-        damaged ``participants.tsv`` or ``_scans.tsv``.
+        ``participants.tsv``, where a study's participant number and protocol must match too),
+        a session id already exported under the same ``acq-`` label, a ``study.json`` without
+        a participant number or a trial of another participant, an inputs file without its
+        clock columns, an answers file that is not one, or a damaged ``participants.tsv`` or
+        ``_scans.tsv``.
     """
     session_dir, out_dir = Path(session_dir), Path(out_dir)
     files = _trial_files(session_dir)
-    trials = [_read_lab_trial(path) for path in files]
+    study = read_study(session_dir)
+    trials = [_read_lab_trial(path, study) for path in files]
     session_id = _one_session(session_dir, trials)
     _check_acquisition(out_dir, session_id)
-    columns, participants = _read_participants(out_dir / "participants.tsv")
+    columns, participants = _read_participants(out_dir / "participants.tsv", study)
     for trial in trials:
         _add_participants(participants, trial, out_dir / "participants.tsv")
     described = _read_column_info(out_dir / "participants.json")
@@ -220,7 +239,7 @@ def _write_trials(trials: list[_LabTrial], out_dir: Path) -> tuple[list[Path], b
 
 def _subject(trial: _LabTrial, slot: int) -> str:
     """Return the ``sub-<label>`` folder of a trial's human slot."""
-    return f"sub-{bids_label(trial.slots[slot]['label'])}"
+    return f"sub-{subject_label(trial.slots[slot]['label'], trial.study, trial.path)}"
 
 
 def _trial_files(session_dir: Path) -> list[Path]:
@@ -235,8 +254,8 @@ def _trial_files(session_dir: Path) -> list[Path]:
     return files
 
 
-def _read_lab_trial(path: Path) -> _LabTrial:
-    """Read a trial file and check its lab metadata against its players."""
+def _read_lab_trial(path: Path, study: StudyRun | None) -> _LabTrial:
+    """Read a trial file of ``study`` (None: no study) and check its lab metadata."""
     session = load_session(path)
     lab = session.metadata.get("lab")
     if not isinstance(lab, dict):
@@ -248,6 +267,12 @@ def _read_lab_trial(path: Path) -> _LabTrial:
     trial = lab.get("trial")
     if isinstance(trial, bool) or not isinstance(trial, int) or trial < 0:
         raise InputError(path, f"lab trial {trial!r} is not a trial number")
+    if study is not None and lab.get("participant", study.participant) != study.participant:
+        raise InputError(
+            path,
+            f"a trial of participant {lab['participant']!r} in participant "
+            f"{study.participant}'s study folder: export each participant's folder as recorded",
+        )
     created = session.metadata.get("created_utc", lab.get("created_utc"))
     return _LabTrial(
         path=path,
@@ -260,6 +285,7 @@ def _read_lab_trial(path: Path) -> _LabTrial:
         period=_nominal_period(path, session),
         timing=_read_timing(path, session),
         answers=read_answers(path),
+        study=study,
     )
 
 
@@ -375,35 +401,52 @@ def _check_acquisition(out_dir: Path, session_id: str) -> None:
             )
 
 
-def _read_participants(path: Path) -> tuple[list[str], dict[str, dict[str, str]]]:
-    """Read ``participants.tsv`` (columns and rows by participant id); empty if absent."""
+def _read_participants(
+    path: Path, study: StudyRun | None
+) -> tuple[list[str], dict[str, dict[str, str]]]:
+    """Read ``participants.tsv`` (columns and rows by participant id); empty if absent.
+
+    The columns gain the `PARTICIPANT_COLUMNS`, and the study's when ``study`` is one.
+    """
     header, rows = read_tsv(path, "participant_id")
-    return header + [c for c in PARTICIPANT_COLUMNS if c not in header], rows
+    wanted = PARTICIPANT_COLUMNS + (() if study is None else STUDY_COLUMNS)
+    return header + [c for c in wanted if c not in header], rows
 
 
 def _add_participants(rows: dict[str, dict[str, str]], trial: _LabTrial, path: Path) -> None:
-    """Add a trial's human slots to the participants rows, refusing two labels for one id."""
+    """Add a trial's human slots to the participants rows, refusing two people for one id.
+
+    A row already there is the same person when its label (and in a study, its participant
+    number and protocol) are the trial's, or unknown (``n/a``).
+    """
     for k in trial.humans():
         label, device = trial.slots[k]["label"], trial.slots[k]["device"]
-        subject = f"sub-{bids_label(label, trial.path)}"
-        row = rows.setdefault(subject, {"participant_id": subject, "label": label})
-        if row.get("label", MISSING) not in (label, MISSING):
+        subject = _subject(trial, k)
+        person = {"label": label} | ({} if trial.study is None else trial.study.cells())
+        row = rows.setdefault(subject, {"participant_id": subject} | person)
+        if any(row.get(key, MISSING) not in (value, MISSING) for key, value in person.items()):
             raise InputError(
                 path,
-                f"slot {label!r} of {trial.path.name} and participant {row['label']!r} both map "
+                f"{_who(person)} of {trial.path.name} and the participant {_who(row)} both map "
                 f"to {subject}",
             )
         devices = set(row.get("device", MISSING).split(",")) - {MISSING, ""}
-        row |= {"label": label, "device": ",".join(sorted(devices | {device}))}
+        row |= person | {"device": ",".join(sorted(devices | {device}))}
+
+
+def _who(cells: dict[str, str]) -> str:
+    """Name a participant by their label, and in a study their participant number and protocol."""
+    study = [cells.get(key, MISSING) for key in STUDY_COLUMNS]
+    run = "" if MISSING in study else f" (participant {study[0]} of protocol {study[1]!r})"
+    return f"{cells.get('label', MISSING)!r}{run}"
 
 
 def _write_recording(trial: _LabTrial, slot: int, out_dir: Path) -> Path:
     """Write slot ``slot``'s motion, channels and sidecar files; return the motion file."""
-    label = trial.slots[slot]["label"]
-    subject = bids_label(label)
+    subject = _subject(trial, slot)
     device = bids_label(trial.slots[slot]["device"])
     stem = motion_stem(subject, device, bids_label(trial.session_id), trial.trial)
-    folder = out_dir / f"sub-{subject}" / "motion"
+    folder = out_dir / subject / "motion"
     folder.mkdir(parents=True, exist_ok=True)
     order = _player_order(slot, trial.session.n_players)
     channels = [row for j in order for row in _channel_rows(trial, j, own=j == slot)]
@@ -433,9 +476,9 @@ def _write_answers(trial: _LabTrial, slot: int, out_dir: Path) -> Path | None:
     rows = [] if trial.answers is None else answer_rows(trial.answers, label)
     if not rows:
         return None
-    subject = bids_label(label)
-    name = f"sub-{subject}_task-{TASK}_acq-{bids_label(trial.session_id)}_run-{trial.trial}"
-    path = out_dir / f"sub-{subject}" / "beh" / f"{name}_beh.tsv"
+    subject = _subject(trial, slot)
+    name = f"{subject}_task-{TASK}_acq-{bids_label(trial.session_id)}_run-{trial.trial}"
+    path = out_dir / subject / "beh" / f"{name}_beh.tsv"
     write_beh(path, rows)
     return path
 
@@ -555,7 +598,7 @@ def _copy_sources(session_dir: Path, files: list[Path], target: Path) -> None:
         for path in (f, f.with_suffix(".json"), f.with_name(f.name.replace("_session.csv",
                      "_inputs.csv")), f.with_name(f.name.replace("_session.csv", ANSWERS_SUFFIX)))
     ]  # fmt: skip
-    sources += [session_dir / "plan.json", session_dir / "study.json"]
+    sources += [session_dir / "plan.json", session_dir / STUDY_FILE]
     for source in sources:
         if source.is_file():
             write_atomic_bytes(target / source.name, read_bytes(source, MAX_FILE_BYTES))
@@ -577,14 +620,27 @@ def _write_participants(
     """Write ``participants.tsv`` (sorted by id) and ``participants.json``."""
     ordered = [rows[key] for key in sorted(rows)]
     write_atomic_text(out_dir / "participants.tsv", tsv_table(columns, ordered))
-    write_atomic_json(out_dir / "participants.json", described | _COLUMN_INFO)
+    columns_info = {column: _COLUMN_INFO[column] for column in columns if column in _COLUMN_INFO}
+    write_atomic_json(out_dir / "participants.json", described | columns_info)
 
 
 _COLUMN_INFO = {
     "participant_id": {
-        "Description": "Participant: sub- and the slot label without non-alphanumeric characters"
+        "Description": "Participant: sub- and the slot label without non-alphanumeric "
+        "characters; in a study, sub-, p, the participant number on three digits or more, "
+        "then the label (sub-p003P1: person P1 of participant 3)"
     },
-    "label": {"Description": "The participant's slot label in the lab sessions, as recorded"},
+    "label": {
+        "Description": "The participant's slot label in the lab sessions, as recorded; in a "
+        "study, the person's label in the protocol (the same for every participant's run)"
+    },
+    "study_participant": {
+        "Description": "The number of the participant whose run of the study protocol the "
+        "person played in (0-based: their row of the counterbalancing; n/a: not a study)"
+    },
+    "protocol": {
+        "Description": "The study protocol: its file name without extension (n/a: not a study)"
+    },
     "device": {
         "Description": "Input device(s) the participant used, separated by commas: pointer (the "
         "browser page's pointer) or lsl (a Lab Streaming Layer stream)"
@@ -613,8 +669,10 @@ def _write_description(out_dir: Path) -> None:
 _README = """Mirror game lab sessions (BIDS-Motion), exported by mirror-avatar.
 
 In the mirror game, players move a point along a line, each seeing the players they are coupled
-to; some players may be avatars (computer-controlled). Each human participant (sub-<label>) has,
-per session (acq-<session id>) and trial (run-<trial>), one motion recording holding the whole
+to; some players may be avatars (computer-controlled). Each human participant (sub-<label>; in
+a study, the participant's number then the person's label in the protocol: sub-p003P1, with
+study_participant and protocol in participants.tsv) has, per session (acq-<session id>) and
+trial (run-<trial>), one motion recording holding the whole
 trial as they played it: their own position and velocity, then those of every other player.
 Positions are in playing range units (-0.5..0.5), velocities in playing range units per second,
 sampled at the control period; the channels latency and clock give when each sample was

@@ -1,4 +1,10 @@
-"""A study's answers and every recording's acquisition time in a BIDS export of lab sessions.
+"""A study's subjects and answers, and every recording's acquisition time, in a BIDS export.
+
+Subjects: the people of different participants' runs of a study are different people, so the
+BIDS subject of a person in a study session (its folder holds ``study.json``:
+`mirror_avatar.lab.study`) is the participant's number and the person's label in the protocol,
+``sub-p003P1`` for person ``P1`` of participant 3 (`subject_label`); outside a study it is the
+slot's label (``sub-P1``). Labels keep only their letters and digits.
 
 Answers (BIDS 1.9.0, behavioural experiments): the answers a participant gave after trial n
 (``trial-NN_answers.json`` of a study session: `mirror_avatar.lab.study`) become
@@ -16,18 +22,23 @@ described in ``scans.json``). Rows already there from another export are kept.
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Iterable
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 from mirror_avatar.atomic import write_atomic_json, write_atomic_text
-from mirror_avatar.bids.names import MISSING
+from mirror_avatar.bids.names import MISSING, bids_label
 from mirror_avatar.bids.tables import read_tsv
 from mirror_avatar.bids.writing import tsv_table
 from mirror_avatar.errors import InputError
 from mirror_avatar.trial_io import read_sidecar_text
 from mirror_avatar.user_files import parse_json
+
+STUDY_FILE = "study.json"
+"""A study session's schedule in its folder (as `mirror_avatar.lab.study` writes it)."""
 
 ANSWERS_SUFFIX = "_answers.json"
 """How the answers given after a trial are named beside its session file."""
@@ -73,6 +84,65 @@ SCAN_COLUMN_INFO: dict[str, Any] = {
     "condition": {"Description": "Condition of the trial (the study protocol's, else the lab's)"},
 }
 """The scans' columns beyond ``filename``, described once for the dataset (``scans.json``)."""
+
+
+@dataclass(frozen=True)
+class StudyRun:
+    """Whose run of which protocol a study session is.
+
+    ``participant`` is the participant's number (0-based: their row of the counterbalancing)
+    and ``protocol`` the protocol's file name without its extension (the session's folder is
+    ``<protocol>-p<participant:03d>``).
+    """
+
+    participant: int
+    protocol: str
+
+    def cells(self) -> dict[str, str]:
+        """Return the run's ``participants.tsv`` cells (`STUDY_COLUMNS`)."""
+        return {"study_participant": str(self.participant), "protocol": self.protocol}
+
+
+STUDY_COLUMNS = ("study_participant", "protocol")
+"""Columns ``participants.tsv`` gets when a study session is exported."""
+
+
+def read_study(session_dir: Path) -> StudyRun | None:
+    """Read whose run a study session folder holds (its `STUDY_FILE`); None outside a study.
+
+    Raises
+    ------
+    InputError
+        A ``study.json`` that is not a JSON object with a participant number (an integer, 0 or
+        more) and its protocol's source.
+    """
+    path = session_dir / STUDY_FILE
+    if not path.is_file():
+        return None
+    study = parse_json(read_sidecar_text(path), path)
+    participant = study.get("participant") if isinstance(study, dict) else None
+    if isinstance(participant, bool) or not isinstance(participant, int) or participant < 0:
+        raise InputError(path, f"participant {participant!r} is not a participant number")
+    source = _mapping(study.get("protocol")).get("source")
+    if not isinstance(source, str) or not source:
+        raise InputError(path, "no protocol source: not a study session's schedule")
+    return StudyRun(participant, Path(source).stem)
+
+
+def subject_label(
+    label: str, study: StudyRun | None, source: str | os.PathLike[str] | None = None
+) -> str:
+    """Return the BIDS subject label of the person labelled ``label``.
+
+    ``label`` with its non-alphanumeric characters removed (`mirror_avatar.bids.names.
+    bids_label`), after ``p`` and the participant's number on three digits or more in a study:
+    ``P_1`` gives ``P1``, and ``p003P1`` in participant 3's run. One label gives a different
+    subject label in every participant's run; two different labels may still give one
+    (``P_1`` and ``P1``; ``0P1`` of participant 100 and ``P1`` of participant 1000), which the
+    export refuses.
+    """
+    person = bids_label(label, source)
+    return person if study is None else f"p{study.participant:03d}{person}"
 
 
 def acq_time(metadata: dict[str, Any]) -> str:
