@@ -428,7 +428,7 @@ def _add_participants(rows: dict[str, dict[str, str]], trial: _LabTrial, path: P
             raise InputError(
                 path,
                 f"{_who(person)} of {trial.path.name} and the participant {_who(row)} both map "
-                f"to {subject}",
+                f"to {subject} (relabel one, or export into another --out folder)",
             )
         devices = set(row.get("device", MISSING).split(",")) - {MISSING, ""}
         row |= person | {"device": ",".join(sorted(devices | {device}))}
