@@ -347,6 +347,9 @@ def test_the_console_exports_the_session_into_the_lab_folder(study):
     assert answer["folder"] == str(folder) and answer["motion_files"] == 3
     assert answer["files"] == sum(1 for p in folder.rglob("*") if p.is_file())
     assert len(list(folder.glob("sub-*/beh/*_beh.tsv"))) == 3
+    second = httpx.post(url.replace(study.sid, study.second.name), json={}, headers=BEARER)
+    assert second.status_code == 200 and second.json()["motion_files"] == 3
+    assert sorted(p.name for p in folder.glob("sub-*")) == SUBJECTS
     named = httpx.post(url, json={"folder": "bids_2"}, headers=BEARER)
     assert named.status_code == 200 and named.json()["folder"] == str(folder.parent / "bids_2")
     for bad in ("../elsewhere", ".hidden", study.sid, "a/b"):
