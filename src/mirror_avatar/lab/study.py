@@ -349,6 +349,7 @@ class StudySession(LabSession):
                 "condition": step.name,
                 "after_trial": asking.after["trial"],
                 "after_block": asking.after["block"],
+                "questions": {qid: q.to_json() for qid, q in asking.questions.items()},
                 "answers": asking.answers,
             },
         )
