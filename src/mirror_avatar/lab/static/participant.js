@@ -64,7 +64,7 @@
     ctx.moveTo(toPixels(-RANGE), height / 2);
     ctx.lineTo(toPixels(RANGE), height / 2);
     ctx.stroke();
-    if (!welcome) return;
+    if (!welcome || ended) return;  // after the session: the line alone
     const radius = Math.max(10, Math.min(width, height) * 0.04);
     welcome.visible.forEach((player, i) => {
       const own = i === 0;
