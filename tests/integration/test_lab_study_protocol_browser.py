@@ -27,6 +27,7 @@ PARTICIPANT = 1
 CONSOLE = "lab-study-protocol-console.png"
 PHONE_QUESTION = "lab-study-protocol-question-phone.png"
 PHONE_END = "lab-study-protocol-end-phone.png"
+PHONE_WAITING = "lab-study-protocol-waiting-phone.png"
 PROTOCOL = """
 title = "three conditions"
 seed = 11
@@ -147,7 +148,7 @@ def test_three_pages_run_a_counterbalanced_protocol_with_an_avatar(chromium, tmp
     out = tmp_path / "out"
     settings = LabSettings(out_dir=out, token=TOKEN, countdown=1, protocol=protocol)
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
-    for name in (CONSOLE, PHONE_QUESTION, PHONE_END):
+    for name in (CONSOLE, PHONE_QUESTION, PHONE_END, PHONE_WAITING):
         (SCREENSHOTS / name).unlink(missing_ok=True)
     with ServerThread(create_lab_app(settings)) as lab:
         console = chromium.new_context(viewport={"width": 1280, "height": 900}).new_page()
@@ -206,6 +207,12 @@ def test_three_pages_run_a_counterbalanced_protocol_with_an_avatar(chromium, tmp
                 console.screenshot(path=SCREENSHOTS / CONSOLE, full_page=True)
                 phone.wait_for_selector("#questions:not([hidden]) fieldset", timeout=30_000)
                 phone.screenshot(path=SCREENSHOTS / PHONE_QUESTION)
+            if "P2" not in playing:  # P2's partner is an avatar: P2 waits, and is told so
+                phone.wait_for_function(
+                    "document.getElementById('message').textContent.includes('Not your turn')"
+                )
+                if not (SCREENSHOTS / PHONE_WAITING).exists():
+                    phone.screenshot(path=SCREENSHOTS / PHONE_WAITING)
             given[n] = {}
             for label, (page, touch) in playing.items():
                 given[n][label] = answer(page, n, touch)

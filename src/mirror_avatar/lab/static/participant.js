@@ -104,7 +104,6 @@
     follower: "Follow your partner as closely as you can.",
     group: "Move in step with the others.",
     group_leader: "You lead: move freely, the others follow you.",
-    waiting: "Not your turn: please wait.",
   };
 
   // Each number of the end screen with what it means in plain words.
@@ -162,7 +161,9 @@
         dot.style.background = colour;
         ui.who.append(dot, ` You are ${message.label}`);
         ui.task.textContent = TASK_WORDS[message.role] || "";
-        say(message.state === "running" ? "" : "Please wait: the researcher will start soon.");
+        if (message.role === "waiting") say("Not your turn: please wait while the others play.");
+        else if (message.state === "waiting") say("Please wait: the researcher will start soon.");
+        else say(message.state === "running" ? "" : "Please wait.");
         break;
       }
       case "ping": send({ type: "pong", id: message.id, late_frames: me.lateFrames }); break;
