@@ -157,7 +157,9 @@ def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
         recorded = np.column_stack([session.times, session.positions[k]])
         assert_matches(recorded, driven[label])
     assert session.metadata["metrics"]["phase_locking"] > 0.8
-    pages["P2"].wait_for_function("document.getElementById('message').textContent.includes('CV')")
+    pages["P2"].wait_for_function(
+        "document.getElementById('message').textContent.includes('Coordination')"
+    )
     words = pages["P2"].locator("#message .words").all_inner_texts()
     assert words[:2] == [
         "how steadily your timing kept pace with the others': 0 no relation, 1 always in step",

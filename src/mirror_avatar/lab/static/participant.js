@@ -108,9 +108,9 @@
 
   // Each number of the end screen with what it means in plain words.
   const METRIC_WORDS = {
-    phase_locking: ["Coordination (CV)",
+    phase_locking: ["Coordination",
       "how steadily your timing kept pace with the others': 0 no relation, 1 always in step"],
-    rmse: ["Distance (RMS)",
+    rmse: ["Distance",
       "how far apart your points were on average, as a share of the line: 0 always together"],
     group_synchronisation: ["Group synchronisation",
       "how much the whole group moved in step: 0 not at all, 1 perfectly"],
