@@ -91,6 +91,12 @@ TASKS = {  # what each role is asked to do, as the participant's page words it
 }
 
 
+POINTER_TYPES = """
+window.pointerTypes = new Set();  // how the page was pressed: mouse, touch or pen
+addEventListener("pointerdown", (event) => window.pointerTypes.add(event.pointerType), true);
+"""
+
+
 def role(plan: dict[str, Any], label: str) -> str:
     """The role of a player in a recorded plan (its game and leaders)."""
     labels = [slot["label"] for slot in plan["slots"]]
@@ -163,13 +169,13 @@ def test_three_pages_run_a_counterbalanced_protocol_with_an_avatar(chromium, tmp
             links[label] = link.get_attribute("href")
         sid = console.locator("#session-id").inner_text()
         study = json.loads((out / sid / "study.json").read_text())
-        desk = join(chromium.new_context(viewport={"width": 900, "height": 600}), links["P1"])
-        phone = join(
-            chromium.new_context(
-                viewport={"width": 390, "height": 780}, has_touch=True, is_mobile=True
-            ),
-            links["P2"],
+        desk_context = chromium.new_context(viewport={"width": 900, "height": 600})
+        phone_context = chromium.new_context(
+            viewport={"width": 390, "height": 780}, has_touch=True, is_mobile=True
         )
+        for context in (desk_context, phone_context):
+            context.add_init_script(POINTER_TYPES)
+        desk, phone = join(desk_context, links["P1"]), join(phone_context, links["P2"])
         pages = {"P1": (desk, False), "P2": (phone, True)}
         for label in pages:
             console.wait_for_selector(f'tr[data-label="{label}"] td.state.connected')
@@ -223,6 +229,10 @@ def test_three_pages_run_a_counterbalanced_protocol_with_an_avatar(chromium, tmp
             )
             texts.append(page.locator("body").inner_text())
         phone.screenshot(path=SCREENSHOTS / PHONE_END)
+        pressed = {
+            label: set(page.evaluate("[...window.pointerTypes]"))
+            for label, (page, _) in pages.items()
+        }
         desk.screenshot(path=SCREENSHOTS / "lab-study-protocol-end.png")
         console.wait_for_function("document.getElementById('state').textContent === 'finished'")
         for page in [console, desk, phone]:
@@ -237,11 +247,11 @@ def test_three_pages_run_a_counterbalanced_protocol_with_an_avatar(chromium, tmp
     for label in pages:
         assert seen[label] == expected_tasks(study, label)
     assert len(seen["P1"]) == total  # P1 plays every trial; P2 waits if the draw gave an avatar
+    assert pressed == {"P1": {"mouse"}, "P2": {"touch"}}  # answered by mouse, and by touch
     # blinded: no page ever showed a kind, a label of an avatar or its spec
     for text in texts:
-        assert not {"avatar", "A1", "bundled", "slow", "computer player"} & set(
-            text.replace(".", " ").replace(":", " ").split()
-        )
+        words = set(text.lower().replace(".", " ").replace(":", " ").split())
+        assert not {"avatar", "a1", "bundled", "human"} & words
     # the files hold the answers and the true kinds of the partners
     for condition in study["order"]:
         for n in condition["trials"]:
