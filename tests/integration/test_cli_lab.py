@@ -93,6 +93,6 @@ def test_the_export_passes_the_bids_validator(lab_session, tmp_path):
     assert json.loads(report.stdout)["summary"]["dataTypes"] == ["motion"]
     (events,) = bids.glob("sub-P1/motion/*run-1_events.tsv")
     assert events.read_text().splitlines() == [
-        "onset\tduration\ttrial_type\tsample",
-        f"0.0\t{repr(668 * 0.03)}\ttrial\t0",
+        "onset\tduration\ttrial_type\tsample\ttrial\tblock\tcondition\tplayer\tdelay_s\tchange",
+        f"0.0\t{repr(668 * 0.03)}\ttrial\t0\t1\tn/a\tgroup\tn/a\tn/a\tn/a",
     ]

@@ -26,7 +26,6 @@ def test_dask_and_local_runs_are_identical(zhai_trials_100hz: list) -> None:
                 5,
                 duration=3.0,
                 seed=4,
-                backend="dask",
                 scheduler=cluster.scheduler_address,
                 chunk_size=2,
             )
@@ -42,4 +41,4 @@ def test_unreachable_scheduler_is_one_line(zhai_trials_100hz: list, monkeypatch)
     model = IMSGenerator(n_symbols=32, random_state=0).fit(zhai_trials_100hz[9:12])
     pairs = [(VirtualTrainer(LEADER, model), VirtualTrainer(FOLLOWER, model))]
     with pytest.raises(InputError, match="cannot reach"):
-        next(run_sessions(pairs, 1, backend="dask", scheduler="tcp://127.0.0.1:1"))
+        next(run_sessions(pairs, 1, scheduler="tcp://127.0.0.1:1"))

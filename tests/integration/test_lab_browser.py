@@ -157,11 +157,13 @@ def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
         recorded = np.column_stack([session.times, session.positions[k]])
         assert_matches(recorded, driven[label])
     assert session.metadata["metrics"]["phase_locking"] > 0.8
-    pages["P2"].wait_for_function("document.getElementById('message').textContent.includes('CV')")
+    pages["P2"].wait_for_function(
+        "document.getElementById('message').textContent.includes('Coordination')"
+    )
     words = pages["P2"].locator("#message .words").all_inner_texts()
     assert words[:2] == [
         "how steadily your timing kept pace with the others': 0 no relation, 1 always in step",
-        "how far apart your points were on average, in track widths: 0 always together",
+        "how far apart your points were on average, as a share of the line: 0 always together",
     ]
     assert "the one whose movements the other followed" in words[2]  # who led, in words
     screenshot(pages["P2"], "lab-participant-end")

@@ -1,4 +1,4 @@
-"""Tests of the batch engine: identical to one-at-a-time play, whatever the chunking or backend."""
+"""Tests of the batch engine: identical to one-at-a-time play, however the sessions are run."""
 
 import threading
 import time
@@ -100,9 +100,5 @@ class Person(ExternalPlayer):
 def test_bad_runs_are_refused(pairs) -> None:
     with pytest.raises(InputError, match="cannot run Person"):
         next(run_sessions([(Person(), pairs[0][1])], 1))
-    with pytest.raises(InputError, match="scheduler"):
-        next(run_sessions(pairs, 1, backend="dask"))
-    with pytest.raises(InputError, match="unknown backend"):
-        next(run_sessions(pairs, 1, backend="spark"))  # type: ignore[arg-type]
     with pytest.raises(InputError, match="no players"):
         next(run_sessions([], 1))

@@ -33,7 +33,7 @@ MOTION_FILE = re.compile(
 
 TOP_LEVEL = {
     "dataset_description.json", "README", "participants.tsv", "participants.json",
-    "task-mirrorgame_events.json",
+    "task-mirrorgame_events.json", "scans.json",
 }  # fmt: skip
 REQUIRED_SIDECAR = {
     "TaskName", "TaskDescription", "SamplingFrequency", "TrackingSystemName",
@@ -170,10 +170,12 @@ def test_every_human_gets_a_file_per_trial_named_as_bids_says(exported: Exported
 def test_the_dataset_holds_only_bids_files_and_the_source_data(exported: Exported) -> None:
     files = [p.relative_to(exported.root) for p in exported.root.rglob("*") if p.is_file()]
     outside = {
-        p.as_posix() for p in files if p.parts[0] not in ("sourcedata",) and len(p.parts) > 1
+        p.as_posix() for p in files if p.parts[0] not in ("sourcedata",) and len(p.parts) > 2
     }
     assert all(MOTION_FILE.fullmatch(name) for name in outside), sorted(outside)
     assert len(outside) == 4 * 6
+    scans = {p.as_posix() for p in files if len(p.parts) == 2 and p.parts[0] != "sourcedata"}
+    assert scans == {"sub-P1/sub-P1_scans.tsv", "sub-P2/sub-P2_scans.tsv"}
     assert {p.name for p in files if len(p.parts) == 1} == TOP_LEVEL
     assert sorted(p.name for p in exported.root.iterdir() if p.is_dir()) == [
         "sourcedata", "sub-P1", "sub-P2"
@@ -380,3 +382,125 @@ def copy_recording(exported: Exported, folder: Path) -> Path:
     for suffix in ("_motion.tsv", "_motion.json", "_channels.tsv"):
         (folder / f"{stem}{suffix}").write_bytes(motion.with_name(f"{stem}{suffix}").read_bytes())
     return folder / motion.name
+
+
+def test_each_subject_lists_its_recordings_with_their_acquisition_time(exported: Exported) -> None:
+    lines = (exported.root / "sub-P2" / "sub-P2_scans.tsv").read_text().splitlines()
+    assert lines[0].split("\t") == ["filename", "acq_time", "trial", "block", "condition"]
+    rows = [dict(zip(lines[0].split("\t"), line.split("\t"), strict=True)) for line in lines[1:]]
+    assert [row["filename"] for row in rows] == [
+        f"motion/sub-P2_task-mirrorgame_tracksys-pointer_acq-20250302ring_run-{n}_motion.tsv"
+        for n in (1, 2)
+    ]
+    assert {row["acq_time"] for row in rows} == {"2025-03-01T10:00:00.000000Z"}
+    assert [(row["trial"], row["block"], row["condition"]) for row in rows] == [
+        ("1", "n/a", "group"), ("2", "n/a", "group")
+    ]  # fmt: skip
+
+
+def write_study_session(
+    folder: Path, protocol: str, participant: int, labels: tuple[str, ...], seed: int
+) -> Path:
+    """Record a study session folder ``<protocol>-p<participant>``: its trials and study.json."""
+    slots = [slot(label, "human", "joint", "pointer") for label in labels]
+    session_id = f"{protocol}-p{participant:03d}"
+    slots.append(slot("A1", "avatar", "joint"))
+    trial = LabTrial(1, slots, complete_graph(len(slots)), "group")
+    session = write_lab_session(folder, session_id, [trial], seed)
+    (session / "plan.json").unlink()
+    study = {"id": session_id, "protocol": {"source": f"/lab/{protocol}.toml", "title": "t"},
+             "seed": 3, "participant": participant, "order": []}  # fmt: skip
+    (session / "study.json").write_text(json.dumps(study))
+    return session
+
+
+def participants_of(root: Path) -> list[list[str]]:
+    return [line.split("\t") for line in (root / "participants.tsv").read_text().splitlines()]
+
+
+def test_a_studys_people_are_subjects_of_their_participant(
+    exported: Exported, tmp_path: Path
+) -> None:
+    """Participants 3 and 12 both have P_1 and P2: four subjects, beside a plain session's."""
+    root = tmp_path / "bids"
+    export_bids(exported.dyad, root)
+    written = [
+        path.relative_to(root).as_posix()
+        for participant in (3, 12)
+        for path in export_bids(
+            write_study_session(tmp_path, "pilot", participant, ("P_1", "P2"), participant), root
+        )
+    ]
+    assert [name.split("_task")[0] for name in written] == [
+        f"{subject}/motion/{subject}" for subject in ("sub-p003P1", "sub-p003P2", "sub-p012P1",
+                                                      "sub-p012P2")
+    ]  # fmt: skip
+    assert all(MOTION_FILE.fullmatch(name) for name in written)
+    assert participants_of(root) == [
+        ["participant_id", "label", "device", "study_participant", "protocol"],
+        ["sub-P1", "P_1", "pointer", "n/a", "n/a"],
+        ["sub-p003P1", "P_1", "pointer", "3", "pilot"],
+        ["sub-p003P2", "P2", "pointer", "3", "pilot"],
+        ["sub-p012P1", "P_1", "pointer", "12", "pilot"],
+        ["sub-p012P2", "P2", "pointer", "12", "pilot"],
+    ]
+    described = json.loads((root / "participants.json").read_text())
+    assert set(described) == set(participants_of(root)[0])
+    scans = (root / "sub-p012P2" / "sub-p012P2_scans.tsv").read_text()
+    assert "motion/sub-p012P2_task-mirrorgame_tracksys-pointer_acq-pilotp012_run-1" in scans
+
+
+def test_a_plain_sessions_participants_get_no_study_columns(exported: Exported) -> None:
+    assert participants_of(exported.root)[0] == ["participant_id", "label", "device"]
+
+
+@pytest.mark.parametrize(
+    ("first", "second", "subject"),
+    [
+        (("pilot", 3, ("P1",)), ("pilot", 3, ("P_1",)), "sub-p003P1"),  # another label
+        (("pilot", 100, ("0P1",)), ("pilot", 1000, ("P1",)), "sub-p1000P1"),  # digits run on
+        (("pilot", 3, ("P1",)), ("main", 3, ("P1",)), "sub-p003P1"),  # another protocol
+        (None, ("pilot", 3, ("P1",)), "sub-p003P1"),  # a plain session's p003P1
+    ],
+)
+def test_two_people_with_one_subject_label_are_refused(
+    tmp_path: Path, first: Any, second: Any, subject: str
+) -> None:
+    root = tmp_path / "bids"
+    if first is None:
+        slots = [slot("p003-P1", "human", "joint", "pointer"), slot("A1", "avatar", "joint")]
+        trial = LabTrial(1, slots, complete_graph(2), "joint")
+        export_bids(write_lab_session(tmp_path, "plain", [trial], 1), root)
+    else:
+        export_bids(write_study_session(tmp_path / "a", *first, seed=1), root)
+    before = {p: p.read_bytes() for p in root.rglob("*") if p.is_file()}
+    folder = write_study_session(tmp_path / "b", *second, seed=2)
+    with pytest.raises(InputError, match=f"both map to {subject}"):
+        export_bids(folder, root)
+    assert {p: p.read_bytes() for p in root.rglob("*") if p.is_file()} == before
+
+
+def test_two_people_of_one_run_with_one_subject_label_are_refused(tmp_path: Path) -> None:
+    folder = write_study_session(tmp_path, "pilot", 3, ("P-1", "P1"), 1)
+    with pytest.raises(InputError, match="both map to sub-p003P1"):
+        export_bids(folder, tmp_path / "bids")
+    assert not (tmp_path / "bids").exists()
+
+
+def test_a_trial_of_another_participant_or_a_damaged_study_file_is_refused(
+    tmp_path: Path,
+) -> None:
+    folder = write_study_session(tmp_path, "pilot", 3, ("P1",), 1)
+    sidecar = folder / "trial-01_session.json"
+    data = json.loads(sidecar.read_text())
+    data["metadata"]["lab"]["participant"] = 4
+    sidecar.write_text(json.dumps(data))
+    with pytest.raises(InputError, match="participant 4 in participant 3's study folder"):
+        export_bids(folder, tmp_path / "bids")
+    data["metadata"]["lab"]["participant"] = 3
+    sidecar.write_text(json.dumps(data))
+    study = folder / "study.json"
+    study.write_text(study.read_text().replace('"participant": 3', '"participant": "3"'))
+    with pytest.raises(InputError, match="study.json.*'3' is not a participant number"):
+        export_bids(folder, tmp_path / "bids")
+    assert not (tmp_path / "bids").exists()

@@ -157,7 +157,6 @@ def train(
         seed=seed,
         duration=duration,
         graph=graph_source(graph_spec, len(partners) + 1),
-        backend="dask" if scheduler else "local",
         scheduler=scheduler,
         n_jobs=jobs,
         checkpoint=checkpoint_path(out_path),

@@ -126,6 +126,11 @@ recordings' own names are known once the session is read)."""
 def export(session_dir: Path, out_dir: Path) -> None:
     """Export the lab session in SESSION_DIR as BIDS-Motion (one file set per person and trial).
 
+    A study session's folder (<protocol>-pNNN) exports the same way, its people as subjects
+    sub-pNNN<label> (distinct for every participant): one run per trial, its block, condition
+    and manipulations as events, the answers as beh files. Export each participant's folder
+    into one --out to build the study's dataset.
+
     Every exported _motion.tsv is read back by `mirror-avatar evaluate` (the whole trial) and by
     `signature` or `generator fit` (that person's own motion).
     """

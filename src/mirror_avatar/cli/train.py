@@ -201,7 +201,6 @@ def train(
         n_sessions=sessions,
         seed=seed,
         duration=duration,
-        backend="dask" if scheduler else "local",
         scheduler=scheduler,
         n_jobs=jobs,
         checkpoint=checkpoint_path(out_path),

@@ -8,7 +8,8 @@ on threads of this process (the compiled code releases the GIL, and nothing is p
 Dask cluster, and are yielded in order as lists of `mirror_avatar.session.Session`:
 a 24 000-session run never holds more than a few chunks in memory. Session ``i`` uses
 ``lineups[i % len(lineups)]`` and the seed ``spawn_seeds(seed, n, bits=64)[i]``, so results depend
-neither on the chunk size nor on the backend. The graph may be fixed or drawn for each session.
+neither on the chunk size nor on where they are played. The graph may be fixed or drawn for
+each session.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -149,7 +150,6 @@ def run_sessions(
     n_sessions: int,
     duration: float = 60.0,
     seed: int | None = 0,
-    backend: Literal["local", "dask"] = "local",
     scheduler: str | None = None,
     n_jobs: int = 2,
     chunk_size: int = 50,
@@ -170,13 +170,11 @@ def run_sessions(
         Session length (s).
     seed
         Seed of the run (session seeds are spawned from it).
-    backend
-        ``"local"``: threads of this process (``n_jobs=1`` runs in the calling thread);
-        ``"dask"``: the Dask cluster at ``scheduler``.
     scheduler
-        Address of a Dask scheduler (``tcp://host:port``); required for ``backend="dask"``.
+        Address of the Dask scheduler (``tcp://host:port``) whose cluster plays the sessions;
+        None plays them on ``n_jobs`` threads of this process.
     n_jobs
-        Local worker threads.
+        Local worker threads (``1`` plays in the calling thread).
     chunk_size
         Sessions per chunk (the unit of work and of memory: 6.4 MB of session arrays per 50
         dyads of 60 s, played side by side in one compiled loop).
@@ -193,13 +191,13 @@ def run_sessions(
     list of Session
         Consecutive chunks; the last may be shorter.
     """
-    period = _check_run(lineups, n_sessions, chunk_size, backend, scheduler, graph)
+    period = _check_run(lineups, n_sessions, chunk_size, graph)
     n_samples = count_samples(duration, period)
     seeds = spawn_seeds(seed, n_sessions, bits=64)
     starts = range(0, n_sessions, chunk_size)
     tasks = ((list(lineups), seeds[s : s + chunk_size], s, n_samples, graph, roles) for s in starts)
-    if backend == "dask":
-        results = _run_on_dask(tasks, str(scheduler))
+    if scheduler is not None:
+        results = _run_on_dask(tasks, scheduler)
     elif n_jobs == 1:
         results = (run_chunk(*task) for task in tasks)
     else:
@@ -214,8 +212,6 @@ def _check_run(
     lineups: Sequence[Lineup],
     n_sessions: int,
     chunk_size: int,
-    backend: str,
-    scheduler: str | None,
     graph: GraphSource,
 ) -> float:
     if not lineups:
@@ -234,10 +230,6 @@ def _check_run(
         raise InputError("lineups", f"all players need the same control period, got {periods}")
     if n_sessions < 1 or chunk_size < 1:
         raise InputError("sessions", "n_sessions and chunk_size must be positive")
-    if backend not in ("local", "dask"):
-        raise InputError("backend", f"unknown backend {backend!r}; expected local or dask")
-    if backend == "dask" and not scheduler:
-        raise InputError("backend", "the dask backend needs a scheduler address")
     return periods.pop()
 
 

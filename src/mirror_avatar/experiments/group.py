@@ -140,7 +140,6 @@ def run(
         partners,
         n_sessions=n_train,
         seed=seed,
-        backend="dask" if scheduler else "local",
         scheduler=scheduler,
         n_jobs=n_jobs,
         agent=agent,

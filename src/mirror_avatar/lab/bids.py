@@ -1,32 +1,49 @@
-"""BIDS-Motion export of lab sessions (BIDS 1.9.0, motion modality).
+"""BIDS-Motion export of lab sessions and study sessions (BIDS 1.9.0, motion and beh).
 
 A lab session folder holds, per trial n, ``trial-NN_session.csv`` and its sidecar
 ``trial-NN_session.json`` (`mirror_avatar.session.SessionWriter`), whose ``metadata`` describes
-the trial (``lab``: session id, trial, condition, slots; ``complete``, ``dropped``, ``held``).
+the trial (``lab``: session id, trial, condition, slots, and in a study session its block,
+protocol condition, delay and occlusion; ``created_utc``, ``started_utc``, ``complete``,
+``dropped``, ``held``, ``input_events``), its ``trial-NN_inputs.csv`` (each sample's clock time:
+`mirror_avatar.realtime.trial.TickLog`) and, in a study session, ``trial-NN_answers.json``.
 `export_bids` writes, for every trial and every human slot, one motion recording holding the
-whole trial as that participant played it::
+whole trial as that participant played it, and the answers they gave after it::
 
-    <out>/dataset_description.json, README, participants.tsv, participants.json
+    <out>/dataset_description.json, README, participants.tsv, participants.json, scans.json
+    <out>/task-mirrorgame_events.json, task-mirrorgame_beh.json (with answers)
+    <out>/sub-<sub>/sub-<sub>_scans.tsv
     <out>/sub-<sub>/motion/sub-<sub>_task-mirrorgame_tracksys-<device>_acq-<acq>_run-<n>_motion.tsv
     <out>/sub-<sub>/motion/sub-<sub>_task-mirrorgame_tracksys-<device>_acq-<acq>_run-<n>_channels.tsv
     <out>/sub-<sub>/motion/sub-<sub>_task-mirrorgame_tracksys-<device>_acq-<acq>_run-<n>_motion.json
-    <out>/sourcedata/<session id>/trial-NN_session.csv, trial-NN_session.json (and plan.json)
+    <out>/sub-<sub>/motion/sub-<sub>_task-mirrorgame_tracksys-<device>_acq-<acq>_run-<n>_events.tsv
+    <out>/sub-<sub>/beh/sub-<sub>_task-mirrorgame_acq-<acq>_run-<n>_beh.tsv
+    <out>/sourcedata/<session id>/ the trial files (session, sidecar, inputs, answers),
+                                   plan.json or study.json
 
 Entities follow the order of the specification (sub, task, tracksys, acq, run). ``<sub>`` is the
-slot's label, ``<acq>`` the session id and ``<device>`` the slot's input device (``pointer`` or
-``lsl``), each with its non-alphanumeric characters removed (`bids_label`); ``<n>`` is the trial
-number. Channels are the participant's own ``position`` and ``velocity``, then
+slot's label, in a study session after ``p`` and the participant's number (``p003P1``: the
+people of different participants' runs are different subjects; `mirror_avatar.lab.bids_study.
+subject_label`), ``<acq>`` the session id and ``<device>`` the slot's input device (``pointer``
+or ``lsl``), each with its non-alphanumeric characters removed (`bids_label`); ``<n>`` is the
+trial number (in a study, numbered across the protocol: one run per trial). A study's block and
+condition are columns of the events (`mirror_avatar.lab.bids_events`) and of the scans
+(`mirror_avatar.lab.bids_study`), not entities: ``acq`` already names the session and BIDS has
+no entity for a condition. Channels are the participant's own ``position`` and ``velocity``, then
 ``position_<label>`` and ``velocity_<label>`` of every other player in player order, in playing
-range units (-0.5..0.5; per second for velocities). The non-standard ``MirrorGame`` key of each
-``_motion.json`` describes the trial so that `mirror_avatar.session.load_session` rebuilds the
-N-player session (`mirror_avatar.bids.reading.read_lab_recording`); the participant's own file
-stays readable as their solo trial by `mirror_avatar.bids.reading.read_bids_motion` (it reads
-the channel named ``position``), so every command that reads trials reads the export. Names,
-values and tables follow the rules of `mirror_avatar.bids`.
+range units (-0.5..0.5; per second for velocities), then, when the inputs file is there, the
+`TIMING_CHANNELS`: each sample's ``latency`` from the first (type LATENCY, s), its ``clock`` time
+(the LSL clock when the lab ran with pylsl), and how ``late`` its tick was and how long its
+``step`` took (ms). The non-standard ``MirrorGame`` key of each ``_motion.json`` describes the
+trial so that `mirror_avatar.session.load_session` rebuilds the N-player session
+(`mirror_avatar.bids.reading.read_lab_recording`); the participant's own file stays readable as
+their solo trial by `mirror_avatar.bids.reading.read_bids_motion` (it reads the channel named
+``position``), so every command that reads trials reads the export. Names, values and tables
+follow the rules of `mirror_avatar.bids`.
 """
 
 from __future__ import annotations
 
+import collections
 import os
 import re
 from dataclasses import dataclass
@@ -40,10 +57,27 @@ from mirror_avatar import __version__
 from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
 from mirror_avatar.bids.names import MISSING, bids_label, channel_names
 from mirror_avatar.bids.reading import GAME_KEY
+from mirror_avatar.bids.tables import read_tsv
 from mirror_avatar.bids.writing import one_line, tsv_table, tsv_values
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.bids_events import EVENT_COLUMN_INFO, EVENT_COLUMNS, trial_events
+from mirror_avatar.lab.bids_study import (
+    ANSWERS_SUFFIX,
+    STUDY_COLUMNS,
+    STUDY_FILE,
+    StudyRun,
+    acq_time,
+    answer_rows,
+    read_answers,
+    read_study,
+    subject_label,
+    trial_row,
+    write_beh,
+    write_descriptions,
+    write_scans,
+)
 from mirror_avatar.session import Session, load_session
-from mirror_avatar.trial_io import MAX_FILE_BYTES, read_sidecar_text
+from mirror_avatar.trial_io import MAX_FILE_BYTES, _first_row, _read_numbers, read_sidecar_text
 from mirror_avatar.user_files import parse_json, read_bytes
 
 Array = NDArray[np.float64]
@@ -64,7 +98,9 @@ CHANNEL_COLUMNS = ("name", "component", "type", "tracked_point", "units", "descr
 """Columns of a ``_channels.tsv``."""
 
 PARTICIPANT_COLUMNS = ("participant_id", "label", "device")
-"""Columns `export_bids` fills in ``participants.tsv`` (others already there are kept)."""
+"""Columns `export_bids` fills in ``participants.tsv``, with the study's
+(`mirror_avatar.lab.bids_study.STUDY_COLUMNS`) when it exports a study session (others already
+there are kept)."""
 
 CONDITIONS = {
     "solo": "one player moves alone",
@@ -79,8 +115,11 @@ CONDITIONS = {
 class _LabTrial:
     """One recorded trial of a lab session with its lab description.
 
-    ``slots`` are the sidecar's slot dictionaries (one per player, in player order) and
-    ``period`` the control period (s).
+    ``slots`` are the sidecar's slot dictionaries (one per player, in player order),
+    ``period`` the control period (s), ``timing`` the `TIMING_CHANNELS` (shape (4, samples))
+    when the trial's inputs file is there, and ``answers`` the answers given after the trial
+    (`mirror_avatar.lab.bids_study.read_answers`); ``study`` is whose run of which protocol
+    the trial belongs to, None outside a study.
     """
 
     path: Path
@@ -91,6 +130,9 @@ class _LabTrial:
     created_utc: str | None
     slots: tuple[dict[str, Any], ...]
     period: float
+    timing: Array | None
+    answers: dict[str, Any] | None
+    study: StudyRun | None
 
     def humans(self) -> list[int]:
         """Return the indices of the human slots."""
@@ -98,8 +140,11 @@ class _LabTrial:
 
 
 def motion_stem(subject: str, device: str, acquisition: str, run: int) -> str:
-    """Return ``sub-<subject>_task-mirrorgame_tracksys-<device>_acq-<acquisition>_run-<run>``."""
-    return f"sub-{subject}_task-{TASK}_tracksys-{device}_acq-{acquisition}_run-{run}"
+    """Return ``<subject>_task-mirrorgame_tracksys-<device>_acq-<acquisition>_run-<run>``.
+
+    ``subject`` is the subject's folder, ``sub-<label>``.
+    """
+    return f"{subject}_task-{TASK}_tracksys-{device}_acq-{acquisition}_run-{run}"
 
 
 def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> list[Path]:
@@ -109,12 +154,17 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     human slot, in ``out_dir/sub-<label>/motion/`` (layout in the module docstring); avatars get
     none but appear as channels of every human's recording. BIDS labels must be alphanumeric:
     the participant label is the slot's label with every other character removed (``P_1``
-    becomes ``sub-P1``), and likewise the ``acq-`` label from the session id. An incomplete
-    trial (a crash) is exported as far as it was recorded, ``complete`` being false in its
-    ``MirrorGame`` key. ``participants.tsv`` gains the session's participants (one row each,
-    existing rows kept); ``dataset_description.json`` and ``README`` are written only when
-    absent; ``sourcedata/<session id>/`` receives copies of the trial files and ``plan.json``.
-    Every file is written atomically, and nothing is written before every trial has been read.
+    becomes ``sub-P1``), in a study session (``session_dir`` holds ``study.json``) after ``p``
+    and the participant's number (``sub-p003P1``), and likewise the ``acq-`` label from the
+    session id. An incomplete trial (a crash) is exported as far as it was recorded,
+    ``complete`` being false in its ``MirrorGame`` key. ``participants.tsv`` gains the
+    session's participants (one row each, with the study's participant number and protocol in
+    a study; existing rows kept); ``dataset_description.json`` and ``README`` are written only when
+    absent; each subject's ``_scans.tsv`` gains their files with their acquisition times
+    (existing rows kept); a trial's answers become each participant's ``_beh.tsv``;
+    ``sourcedata/<session id>/`` receives copies of the trial files (with their inputs and
+    answers) and ``plan.json`` or ``study.json``. Every file is written atomically, and nothing
+    is written before every trial (and every table merged into) has been read.
 
     Parameters
     ----------
@@ -134,23 +184,62 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
         No such folder, no trial file in it, a trial without lab metadata (or with slots that
         do not match its players), trials of different sessions, a human slot without a device,
         two players with one label, two participants mapping to one BIDS label (also against
-        ``participants.tsv``), or a session id already exported under the same ``acq-`` label.
+        ``participants.tsv``, where a study's participant number and protocol must match too),
+        a session id already exported under the same ``acq-`` label, a ``study.json`` without
+        a participant number or a trial of another participant, an inputs file without its
+        clock columns, an answers file that is not one, or a damaged ``participants.tsv`` or
+        ``_scans.tsv``.
     """
     session_dir, out_dir = Path(session_dir), Path(out_dir)
     files = _trial_files(session_dir)
-    trials = [_read_lab_trial(path) for path in files]
+    study = read_study(session_dir)
+    trials = [_read_lab_trial(path, study) for path in files]
     session_id = _one_session(session_dir, trials)
     _check_acquisition(out_dir, session_id)
-    columns, participants = _read_participants(out_dir / "participants.tsv")
+    columns, participants = _read_participants(out_dir / "participants.tsv", study)
     for trial in trials:
         _add_participants(participants, trial, out_dir / "participants.tsv")
     described = _read_column_info(out_dir / "participants.json")
-    written = [_write_recording(trial, k, out_dir) for trial in trials for k in trial.humans()]
+    subjects = {_subject(trial, k) for trial in trials for k in trial.humans()}
+    for subject in sorted(subjects):  # a damaged table is refused before anything is written
+        read_tsv(out_dir / subject / f"{subject}_scans.tsv", "filename")
+    written, answered = _write_trials(trials, out_dir)
     _copy_sources(session_dir, files, out_dir / "sourcedata" / session_id)
     _write_participants(out_dir, columns, participants, described)
     _write_description(out_dir)
     write_atomic_json(out_dir / f"task-{TASK}_events.json", EVENT_COLUMN_INFO)
+    write_descriptions(out_dir, TASK, answers=answered)
     return written
+
+
+def _write_trials(trials: list[_LabTrial], out_dir: Path) -> tuple[list[Path], bool]:
+    """Write every human's recording and answers, and list them in their ``_scans.tsv``.
+
+    Returns the ``_motion.tsv`` files written and whether any answers were.
+    """
+    written: list[Path] = []
+    answered = False
+    scans: dict[str, list[dict[str, str]]] = collections.defaultdict(list)
+    for trial in trials:
+        metadata = trial.session.metadata
+        when = {"acq_time": acq_time(metadata)} | trial_row(metadata)
+        for k in trial.humans():
+            motion = _write_recording(trial, k, out_dir)
+            behaviour = _write_answers(trial, k, out_dir)
+            written.append(motion)
+            answered |= behaviour is not None
+            for path in (motion, behaviour):
+                if path is not None:
+                    filename = f"{path.parent.name}/{path.name}"
+                    scans[_subject(trial, k)].append({"filename": filename} | when)
+    for subject, rows in scans.items():
+        write_scans(out_dir / subject, rows)
+    return written, answered
+
+
+def _subject(trial: _LabTrial, slot: int) -> str:
+    """Return the ``sub-<label>`` folder of a trial's human slot."""
+    return f"sub-{subject_label(trial.slots[slot]['label'], trial.study, trial.path)}"
 
 
 def _trial_files(session_dir: Path) -> list[Path]:
@@ -165,8 +254,8 @@ def _trial_files(session_dir: Path) -> list[Path]:
     return files
 
 
-def _read_lab_trial(path: Path) -> _LabTrial:
-    """Read a trial file and check its lab metadata against its players."""
+def _read_lab_trial(path: Path, study: StudyRun | None) -> _LabTrial:
+    """Read a trial file of ``study`` (None: no study) and check its lab metadata."""
     session = load_session(path)
     lab = session.metadata.get("lab")
     if not isinstance(lab, dict):
@@ -178,7 +267,13 @@ def _read_lab_trial(path: Path) -> _LabTrial:
     trial = lab.get("trial")
     if isinstance(trial, bool) or not isinstance(trial, int) or trial < 0:
         raise InputError(path, f"lab trial {trial!r} is not a trial number")
-    created = lab.get("created_utc")
+    if study is not None and lab.get("participant", study.participant) != study.participant:
+        raise InputError(
+            path,
+            f"a trial of participant {lab['participant']!r} in participant "
+            f"{study.participant}'s study folder: export each participant's folder as recorded",
+        )
+    created = session.metadata.get("created_utc", lab.get("created_utc"))
     return _LabTrial(
         path=path,
         session=session,
@@ -188,6 +283,9 @@ def _read_lab_trial(path: Path) -> _LabTrial:
         created_utc=created if isinstance(created, str) else None,
         slots=slots,
         period=_nominal_period(path, session),
+        timing=_read_timing(path, session),
+        answers=read_answers(path),
+        study=study,
     )
 
 
@@ -215,6 +313,54 @@ def _slots(path: Path, slots: object, session: Session) -> tuple[dict[str, Any],
     if len(set(session.labels)) != len(session.labels):
         raise InputError(path, f"two players share a label in {list(session.labels)}")
     return tuple(checked)
+
+
+INPUT_COLUMNS = ("clock_s", "late_ms", "step_ms")
+"""Columns of a trial's inputs file (`mirror_avatar.realtime.trial.TickLog`) the export keeps."""
+
+TIMING_CHANNELS = (
+    ("latency", "LATENCY", "s",
+     "time at which the sample was taken, from the first sample's (the clock channel minus "
+     "its first value); the first sample's is the acq_time of the scans file"),
+    ("clock", "MISC", "s",
+     "clock time at which the sample was taken: the Lab Streaming Layer clock "
+     "(pylsl.local_clock) when the lab ran with pylsl, else the monotonic clock (see "
+     "MirrorGame.clock), so that samples line up with EEG recorded through LSL"),
+    ("late", "MISC", "ms", "how late the sample's tick came against its schedule"),
+    ("step", "MISC", "ms", "time the players' step took at that tick (file writes excluded)"),
+)  # fmt: skip
+"""Name, type, units and description of the channels of each sample's true time."""
+
+
+def _read_timing(path: Path, session: Session) -> Array | None:
+    """Read the `TIMING_CHANNELS` of a trial from its inputs file, shape (4, samples).
+
+    The inputs file is the sidecar's ``files.inputs`` (``trial-NN_inputs.csv``) beside the
+    trial; None when it is not there. Samples it lacks (a crash between the two files'
+    lines) are NaN; the latency is rounded to the microsecond.
+
+    Raises
+    ------
+    InputError
+        An inputs file without the `INPUT_COLUMNS`, or with values that are not numbers.
+    """
+    files = session.metadata.get("files")
+    name = files.get("inputs") if isinstance(files, dict) else None
+    inputs = path.with_name(Path(name).name if isinstance(name, str) and name else
+                            path.name.replace("_session.csv", "_inputs.csv"))  # fmt: skip
+    if not inputs.is_file():
+        return None
+    header = _first_row(inputs, ",")
+    missing = [column for column in INPUT_COLUMNS if column not in header]
+    if missing:
+        raise InputError(inputs, f"no {', '.join(missing)} column: not a lab trial's inputs file")
+    columns = [header.index(column) for column in INPUT_COLUMNS]
+    values = _read_numbers(inputs, columns, list(INPUT_COLUMNS), ",", 2)
+    n = session.n_samples
+    clock, late, step = (np.pad(v[:n], (0, max(0, n - v.size)), constant_values=np.nan)
+                         for v in values)  # fmt: skip
+    latency = np.round(clock - clock[0], 6) if n else clock
+    return np.vstack([latency, clock, late, step])
 
 
 def _nominal_period(path: Path, session: Session) -> float:
@@ -255,95 +401,86 @@ def _check_acquisition(out_dir: Path, session_id: str) -> None:
             )
 
 
-def _read_participants(path: Path) -> tuple[list[str], dict[str, dict[str, str]]]:
-    """Read ``participants.tsv`` (columns and rows by participant id); empty if absent."""
-    if not path.is_file():
-        return list(PARTICIPANT_COLUMNS), {}
-    lines = [line for line in read_sidecar_text(path).splitlines() if line.strip()]
-    header = lines[0].split("\t") if lines else []
-    if "participant_id" not in header:
-        raise InputError(path, "no participant_id column")
-    rows: dict[str, dict[str, str]] = {}
-    for number, line in enumerate(lines[1:], start=2):
-        cells = line.split("\t")
-        if len(cells) != len(header):
-            raise InputError(path, f"row {number} has {len(cells)} cells for {len(header)} columns")
-        row = dict(zip(header, cells, strict=True))
-        rows[row["participant_id"]] = row
-    columns = header + [c for c in PARTICIPANT_COLUMNS if c not in header]
-    return columns, rows
+def _read_participants(
+    path: Path, study: StudyRun | None
+) -> tuple[list[str], dict[str, dict[str, str]]]:
+    """Read ``participants.tsv`` (columns and rows by participant id); empty if absent.
+
+    The columns gain the `PARTICIPANT_COLUMNS`, and the study's when ``study`` is one.
+    """
+    header, rows = read_tsv(path, "participant_id")
+    wanted = PARTICIPANT_COLUMNS + (() if study is None else STUDY_COLUMNS)
+    return header + [c for c in wanted if c not in header], rows
 
 
 def _add_participants(rows: dict[str, dict[str, str]], trial: _LabTrial, path: Path) -> None:
-    """Add a trial's human slots to the participants rows, refusing two labels for one id."""
+    """Add a trial's human slots to the participants rows, refusing two people for one id.
+
+    A row already there is the same person when its label (and in a study, its participant
+    number and protocol) are the trial's, or unknown (``n/a``).
+    """
     for k in trial.humans():
         label, device = trial.slots[k]["label"], trial.slots[k]["device"]
-        subject = f"sub-{bids_label(label, trial.path)}"
-        row = rows.setdefault(subject, {"participant_id": subject, "label": label})
-        if row.get("label", MISSING) not in (label, MISSING):
+        subject = _subject(trial, k)
+        person = {"label": label} | ({} if trial.study is None else trial.study.cells())
+        row = rows.setdefault(subject, {"participant_id": subject} | person)
+        if any(row.get(key, MISSING) not in (value, MISSING) for key, value in person.items()):
             raise InputError(
                 path,
-                f"slot {label!r} of {trial.path.name} and participant {row['label']!r} both map "
-                f"to {subject}",
+                f"{_who(person)} of {trial.path.name} and the participant {_who(row)} both map "
+                f"to {subject} (relabel one, or export into another --out folder)",
             )
         devices = set(row.get("device", MISSING).split(",")) - {MISSING, ""}
-        row |= {"label": label, "device": ",".join(sorted(devices | {device}))}
+        row |= person | {"device": ",".join(sorted(devices | {device}))}
+
+
+def _who(cells: dict[str, str]) -> str:
+    """Name a participant by their label, and in a study their participant number and protocol."""
+    study = [cells.get(key, MISSING) for key in STUDY_COLUMNS]
+    run = "" if MISSING in study else f" (participant {study[0]} of protocol {study[1]!r})"
+    return f"{cells.get('label', MISSING)!r}{run}"
 
 
 def _write_recording(trial: _LabTrial, slot: int, out_dir: Path) -> Path:
     """Write slot ``slot``'s motion, channels and sidecar files; return the motion file."""
-    label = trial.slots[slot]["label"]
-    subject = bids_label(label)
+    subject = _subject(trial, slot)
     device = bids_label(trial.slots[slot]["device"])
     stem = motion_stem(subject, device, bids_label(trial.session_id), trial.trial)
-    folder = out_dir / f"sub-{subject}" / "motion"
+    folder = out_dir / subject / "motion"
     folder.mkdir(parents=True, exist_ok=True)
     order = _player_order(slot, trial.session.n_players)
     channels = [row for j in order for row in _channel_rows(trial, j, own=j == slot)]
     session = trial.session
-    values = np.vstack(
-        [array[j] for j in order for array in (session.positions, session.velocities)]
-    )
+    arrays = [array[j] for j in order for array in (session.positions, session.velocities)]
+    if trial.timing is not None:
+        channels += [_timing_row(*channel) for channel in TIMING_CHANNELS]
+        arrays += list(trial.timing)
     motion = folder / f"{stem}_motion.tsv"
-    write_atomic_text(motion, tsv_values(values.T))
+    write_atomic_text(motion, tsv_values(np.vstack(arrays).T))
     write_atomic_text(folder / f"{stem}_channels.tsv", tsv_table(CHANNEL_COLUMNS, channels))
     write_atomic_json(folder / f"{stem}_motion.json", _motion_sidecar(trial, slot, len(channels)))
-    write_atomic_text(folder / f"{stem}_events.tsv", tsv_table(EVENT_COLUMNS, _events(trial)))
+    events = trial_events(session.metadata, session.n_samples, trial.period)
+    write_atomic_text(folder / f"{stem}_events.tsv", tsv_table(EVENT_COLUMNS, events))
     return motion
 
 
-EVENT_COLUMNS = ("onset", "duration", "trial_type", "sample")
-"""Columns of a recording's ``_events.tsv``."""
-
-EVENT_COLUMN_INFO = {
-    "trial_type": {
-        "Description": "What happened",
-        "Levels": {
-            "trial": "The trial, from its first recorded sample to its last",
-            "dropped LABEL": "The connection of participant LABEL dropped; their position is "
-            "held from here on",
-        },
-    },
-    "sample": {"Description": "Index of the motion sample at the onset (0-based)"},
-}
-"""The events' columns, described once for the dataset (``task-mirrorgame_events.json``)."""
+def _timing_row(name: str, kind: str, units: str, description: str) -> dict[str, str]:
+    """Make the ``_channels.tsv`` row of one of the `TIMING_CHANNELS`."""
+    return {"name": name, "component": MISSING, "type": kind, "tracked_point": MISSING,
+            "units": units, "description": description}  # fmt: skip
 
 
-def _events(trial: _LabTrial) -> list[dict[str, str]]:
-    """List the trial (from its first sample, as long as it was recorded) and each drop.
-
-    Onsets and durations in seconds from the recording's first sample; ``sample`` its index.
-    """
-    duration = trial.session.n_samples * trial.period
-    rows = [{"onset": "0.0", "duration": repr(duration), "trial_type": "trial", "sample": "0"}]
-    for who, sample in sorted(_mapping(trial.session.metadata.get("dropped")).items()):
-        if isinstance(sample, int) and not isinstance(sample, bool):
-            onset = repr(sample * trial.period)
-            rows.append(
-                {"onset": onset, "duration": "0.0", "trial_type": f"dropped {who}",
-                 "sample": str(sample)}
-            )  # fmt: skip
-    return rows
+def _write_answers(trial: _LabTrial, slot: int, out_dir: Path) -> Path | None:
+    """Write slot ``slot``'s answers after ``trial`` as ``_beh.tsv``; None if they gave none."""
+    label = trial.slots[slot]["label"]
+    rows = [] if trial.answers is None else answer_rows(trial.answers, label)
+    if not rows:
+        return None
+    subject = _subject(trial, slot)
+    name = f"{subject}_task-{TASK}_acq-{bids_label(trial.session_id)}_run-{trial.trial}"
+    path = out_dir / subject / "beh" / f"{name}_beh.tsv"
+    write_beh(path, rows)
+    return path
 
 
 def _player_order(slot: int, n_players: int) -> list[int]:
@@ -377,6 +514,7 @@ def _motion_sidecar(trial: _LabTrial, slot: int, n_channels: int) -> dict[str, A
         "MotionChannelCount": n_channels,
         "POSChannelCount": n_players,
         "VELChannelCount": n_players,
+        **({} if trial.timing is None else {"LATENCYChannelCount": 1, "MiscChannelCount": 3}),
         "TrackedPointsCount": n_players,
         "RecordingDuration": n_samples * trial.period,
         "RecordingType": "continuous",
@@ -389,8 +527,11 @@ def _motion_sidecar(trial: _LabTrial, slot: int, n_channels: int) -> dict[str, A
 def _task_description(trial: _LabTrial) -> str:
     """Describe the mirror game and the trial's condition."""
     what = CONDITIONS.get(trial.condition, "the players move together")
+    named = trial.session.metadata["lab"].get("protocol_condition")
+    game = trial.condition or MISSING
+    condition = f"{named} ({game}: {what})" if named else f"{game} ({what})"
     return (
-        f"Mirror game, condition {trial.condition or MISSING} ({what}): each player moves a point "
+        f"Mirror game, condition {condition}: each player moves a point "
         "along a line and sees the points of the players they are coupled to. Positions are in "
         f"playing range units (-0.5..0.5), sampled every {trial.period:g} s."
     )
@@ -420,6 +561,9 @@ def _game_info(trial: _LabTrial, slot: int) -> dict[str, Any]:
         "trial": trial.trial,
         "condition": trial.condition,
         "created_utc": trial.created_utc,
+        "started_utc": metadata.get("started_utc"),
+        "clock": metadata.get("clock"),
+        "clock_start_s": _clock_start(trial.timing),
         "participant": trial.slots[slot]["label"],
         "slot": slot,
         "slots": list(trial.slots),
@@ -438,11 +582,23 @@ def _mapping(value: object) -> dict[str, Any]:
     return dict(value) if isinstance(value, dict) else {}
 
 
+def _clock_start(timing: Array | None) -> float | None:
+    """Return the clock time (s) of the first sample, or None when unknown."""
+    if timing is None or not timing.shape[1] or np.isnan(timing[1, 0]):
+        return None
+    return float(timing[1, 0])
+
+
 def _copy_sources(session_dir: Path, files: list[Path], target: Path) -> None:
-    """Copy the trial files, their sidecars and ``plan.json`` to ``target``."""
+    """Copy the trial files (with inputs and answers), ``plan.json``, ``study.json``."""
     target.mkdir(parents=True, exist_ok=True)
-    sources = [p for f in files for p in (f, f.with_suffix(".json"))]
-    sources.append(session_dir / "plan.json")
+    sources = [
+        path
+        for f in files
+        for path in (f, f.with_suffix(".json"), f.with_name(f.name.replace("_session.csv",
+                     "_inputs.csv")), f.with_name(f.name.replace("_session.csv", ANSWERS_SUFFIX)))
+    ]  # fmt: skip
+    sources += [session_dir / "plan.json", session_dir / STUDY_FILE]
     for source in sources:
         if source.is_file():
             write_atomic_bytes(target / source.name, read_bytes(source, MAX_FILE_BYTES))
@@ -464,14 +620,27 @@ def _write_participants(
     """Write ``participants.tsv`` (sorted by id) and ``participants.json``."""
     ordered = [rows[key] for key in sorted(rows)]
     write_atomic_text(out_dir / "participants.tsv", tsv_table(columns, ordered))
-    write_atomic_json(out_dir / "participants.json", described | _COLUMN_INFO)
+    columns_info = {column: _COLUMN_INFO[column] for column in columns if column in _COLUMN_INFO}
+    write_atomic_json(out_dir / "participants.json", described | columns_info)
 
 
 _COLUMN_INFO = {
     "participant_id": {
-        "Description": "Participant: sub- and the slot label without non-alphanumeric characters"
+        "Description": "Participant: sub- and the slot label without non-alphanumeric "
+        "characters; in a study, sub-, p, the participant number on three digits or more, "
+        "then the label (sub-p003P1: person P1 of participant 3)"
     },
-    "label": {"Description": "The participant's slot label in the lab sessions, as recorded"},
+    "label": {
+        "Description": "The participant's slot label in the lab sessions, as recorded; in a "
+        "study, the person's label in the protocol (the same for every participant's run)"
+    },
+    "study_participant": {
+        "Description": "The number of the participant whose run of the study protocol the "
+        "person played in (0-based: their row of the counterbalancing; n/a: not a study)"
+    },
+    "protocol": {
+        "Description": "The study protocol: its file name without extension (n/a: not a study)"
+    },
     "device": {
         "Description": "Input device(s) the participant used, separated by commas: pointer (the "
         "browser page's pointer) or lsl (a Lab Streaming Layer stream)"
@@ -500,11 +669,18 @@ def _write_description(out_dir: Path) -> None:
 _README = """Mirror game lab sessions (BIDS-Motion), exported by mirror-avatar.
 
 In the mirror game, players move a point along a line, each seeing the players they are coupled
-to; some players may be avatars (computer-controlled). Each human participant (sub-<label>) has,
-per session (acq-<session id>) and trial (run-<trial>), one motion recording holding the whole
+to; some players may be avatars (computer-controlled). Each human participant (sub-<label>; in
+a study, the participant's number then the person's label in the protocol: sub-p003P1, with
+study_participant and protocol in participants.tsv) has, per session (acq-<session id>) and
+trial (run-<trial>), one motion recording holding the whole
 trial as they played it: their own position and velocity, then those of every other player.
 Positions are in playing range units (-0.5..0.5), velocities in playing range units per second,
-sampled at the control period. The MirrorGame key of each _motion.json describes the trial
-(condition, players, coupling graph, connection drops). sourcedata/<session id>/ holds the
-original recordings.
+sampled at the control period; the channels latency and clock give when each sample was
+really taken (clock: the Lab Streaming Layer clock when the lab ran with it, to align with EEG),
+and sub-<label>_scans.tsv when each run's first sample was (acq_time, UTC). The MirrorGame key of
+each _motion.json describes the trial (condition, players, coupling graph, connection drops);
+each _events.tsv its condition (and block, in a study) and manipulations (visual delay,
+occlusion, perturbations of an avatar, inputs lost). In a study, the answers a participant gave
+after a trial are in sub-<label>/beh/, run-<trial>. sourcedata/<session id>/ holds the original
+recordings.
 """

@@ -12,7 +12,9 @@ Routes (`create_lab_app`):
 - ``GET /api/sessions/{id}``: a session's status (`mirror_avatar.lab.runner.LabSession.status`)
   with its join links; ``GET /api/sessions/{id}/live``: the last 10 s of positions and ρ_g.
 - ``POST /api/sessions/{id}/start`` (body ``{"force": true}`` starts without everyone),
-  ``/stop`` and ``/abort``.
+  ``/stop`` and ``/abort``; ``POST /api/sessions/{id}/export`` (body ``{"folder": name}``,
+  optional) exports the session's trials as BIDS (`mirror_avatar.lab.bids.export_bids`) into
+  ``OUT/bids`` or ``OUT/<name>`` between trials, answering the folder and its file count.
 - ``GET /api/sessions/{id}/files/{name}``: a file of the session (plan, trials' recordings);
   ``GET /api/sessions/{id}/qr/{label}.svg``: the QR code of a person's join link.
 - ``GET /join/{key}``: a participant's page; ``/ws/join/{key}``: its WebSocket
@@ -97,6 +99,12 @@ MAX_PARTICIPANT = 999
 
 MAX_BODY_BYTES = 64 * 1024
 """Largest API request body (bytes)."""
+
+EXPORT_FOLDER = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
+"""Name of a folder of OUT the console may export into (one path part, no dots)."""
+
+PLAYING = ("countdown", "running", "pause")
+"""States in which a session's trials are being played (no export then)."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -416,9 +424,39 @@ class LabApi:
             await session.stop()
         elif action == "abort":
             await session.abort()
+        elif action == "export":
+            return await self._export(session, data)
         else:
-            return _json({"error": f"unknown action {action!r}: start, stop or abort"}, 404)
+            return _json({"error": f"unknown action {action!r}: start, stop, abort or export"}, 404)
         return _json(self._status(session, request))
+
+    async def _export(self, session: LabSession, data: Any) -> Response:
+        """Export the session as BIDS into ``OUT/bids`` or ``OUT/<folder>`` (not while playing).
+
+        Answers the dataset's folder, its number of files and the motion files written.
+        """
+        from mirror_avatar.lab.bids import export_bids
+
+        folder = data.get("folder", "bids") if isinstance(data, dict) else "bids"
+        if not isinstance(folder, str) or not EXPORT_FOLDER.fullmatch(folder):
+            raise ApiError(400, "folder: a name of letters, digits, - and _ (at most 64)")
+        target = self.lab.settings.out_dir / folder
+        if (
+            folder in self.lab.sessions
+            or (target / "plan.json").exists()
+            or (target / "study.json").exists()
+        ):
+            raise ApiError(400, f"folder: {folder} is a session's folder, not a BIDS dataset")
+        if session.state in PLAYING:
+            problem = f"the session is playing ({session.state}): export when it waits or has ended"
+            return _json({"error": problem}, 409)
+        try:
+            written = await asyncio.to_thread(export_bids, session.directory, target)
+        except InputError as error:
+            raise ApiError(400, str(error)) from None
+        files = sum(1 for path in target.rglob("*") if path.is_file())
+        session.log(f"exported {len(written)} motion files to {target}")
+        return _json({"folder": str(target), "files": files, "motion_files": len(written)})
 
     async def file(self, request: Request) -> Response:
         """Serve a file of the session's folder, by one of the names the session lists."""

@@ -406,6 +406,7 @@ class StudySession(LabSession):
                 "condition": step.name,
                 "after_trial": asking.after["trial"],
                 "after_block": asking.after["block"],
+                "questions": {qid: q.to_json() for qid, q in asking.questions.items()},
                 "answers": asking.answers,
             },
         )
@@ -417,8 +418,13 @@ class StudySession(LabSession):
             outbox.put(self._questions_message(participant.label))
 
     def status(self) -> dict[str, Any]:
-        """Return the session's status, with where the participant is in the protocol."""
+        """Return the session's status, with where the participant is in the protocol.
+
+        While questions are open, "where" is the trial they follow.
+        """
         n = min(self.next_trial if self.trial is None else self.trial.n, self.total_trials)
+        if self.asking is not None:
+            n = self.asking.n
         order = [step.name for step in self.steps]
         waiting = [p.label for p in self.people.values() if p not in self.participants.values()]
         return super().status() | {

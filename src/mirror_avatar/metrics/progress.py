@@ -21,8 +21,8 @@ from mirror_avatar.session import Session
 from mirror_avatar.signature import compute_emd, compute_ims
 
 START_KEYS = ("started_utc", "created_utc")
-"""Metadata keys of a session's start time (ISO 8601), in order of preference: a live trial's
-``started_utc`` (when its clock started), else the ``created_utc`` of a live or lab trial file;
+"""Metadata keys of a session's start time (ISO 8601), in order of preference: a live or lab
+trial's ``started_utc`` (when its clock started), else the ``created_utc`` of its file;
 a lab export's is ``lab.created_utc`` with the trial number after it."""
 
 Item = TypeVar("Item")

@@ -163,9 +163,7 @@ class Player:
             When the two players do not keep the same trial state (another kind of player).
         """
         if not self.TRIAL_STATE or _state_owner(type(previous)) is not _state_owner(type(self)):
-            raise InputError(
-                self.label, f"cannot take over the trial of {type(previous).__name__}"
-            )
+            raise InputError(self.label, f"cannot take over the trial of {type(previous).__name__}")
         for name in self.TRIAL_STATE:
             setattr(self, name, getattr(previous, name))
 

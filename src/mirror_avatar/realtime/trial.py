@@ -75,6 +75,8 @@ class TickLog:
     ----------
     first_stamp, last_stamp
         Clock times of the first and the latest sample written (NaN before any).
+    first_utc
+        When the first sample was written (UTC, ISO 8601; None before any).
     lateness, step_time
         How late the tick being taken is (s) and how long its step took (s): set by the trial
         before the row is written.
@@ -84,6 +86,7 @@ class TickLog:
         self.people = list(people)
         self.clock = clock
         self.first_stamp = self.last_stamp = math.nan
+        self.first_utc: str | None = None
         self.lateness = self.step_time = 0.0
         self._file: IO[str] = path.open("x", encoding="utf-8", newline="\n")
         columns = ["time", "clock_s", "late_ms", "step_ms"]
@@ -98,6 +101,7 @@ class TickLog:
         stamp = self.clock()
         if math.isnan(self.first_stamp):
             self.first_stamp = stamp
+            self.first_utc = datetime.now(UTC).isoformat()
         self.last_stamp = stamp
         fields = [repr(float(row[0])), repr(stamp)]
         fields += [f"{self.lateness * 1000.0:.3f}", f"{self.step_time * 1000.0:.3f}"]
@@ -314,7 +318,8 @@ class ClockedTrial:
         Returns
         -------
         dict
-            The sidecar's metadata with ``n_samples`` and ``end_reason``; ``tick_lateness_ms``
+            The sidecar's metadata with ``n_samples``, ``started_utc`` (when the first sample
+            was taken; None if none was), ``ended_utc`` and ``end_reason``; ``tick_lateness_ms``
             (`lateness_summary`), ``held``, ``lost`` and ``input_events``; and what `analyse`
             adds (``{"error": ...}`` as ``metrics`` if it fails: the recording is kept). On a
             full disk the sidecar keeps what it said before (``"complete": false``).
@@ -323,6 +328,7 @@ class ClockedTrial:
             self._closed = True
         self.close_files()
         extra: dict[str, Any] = {
+            "started_utc": self.tick_log.first_utc,
             "ended_utc": datetime.now(UTC).isoformat(),
             "end_reason": reason,
             "tick_lateness_ms": lateness_summary(self._lateness, self.period),

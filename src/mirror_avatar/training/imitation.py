@@ -367,7 +367,6 @@ def train_cyber_player(
     n_sessions: int = 4000,
     seed: int | None = 0,
     duration: float = 60.0,
-    backend: Literal["local", "dask"] = "local",
     scheduler: str | None = None,
     n_jobs: int = 2,
     chunk_size: int = 50,
@@ -389,7 +388,7 @@ def train_cyber_player(
         IMS generators (or recorded trials) of the person to imitate and of the partners.
     role
         ``"follower"`` or ``"leader"``.
-    n_sessions, seed, duration, backend, scheduler, n_jobs, chunk_size, checkpoint,
+    n_sessions, seed, duration, scheduler, n_jobs, chunk_size, checkpoint,
     checkpoint_every, progress
         As in `imitate`. A leader's file holds its motion source, so with a ``checkpoint``
         ``target`` must be an `IMSGenerator` (checked before training).
@@ -417,7 +416,6 @@ def train_cyber_player(
         n_sessions=n_sessions,
         seed=seed,
         duration=duration,
-        backend=backend,
         scheduler=scheduler,
         n_jobs=n_jobs,
         chunk_size=chunk_size,
@@ -437,7 +435,6 @@ def imitate(
     seed: int | None = 0,
     duration: float = 60.0,
     graph: GraphSource = None,
-    backend: Literal["local", "dask"] = "local",
     scheduler: str | None = None,
     n_jobs: int = 2,
     chunk_size: int = 50,
@@ -470,7 +467,7 @@ def imitate(
     graph
         Who observes whom (`mirror_avatar.graphs.GraphSource`; a function draws a new graph for
         every session).
-    backend, scheduler, n_jobs, chunk_size
+    scheduler, n_jobs, chunk_size
         Where the sessions are played (see `mirror_avatar.engine.batch.run_sessions`).
     checkpoint, checkpoint_every
         Save the player to ``checkpoint`` every ``checkpoint_every`` sessions and at the end.
@@ -490,7 +487,6 @@ def imitate(
         n_sessions,
         duration=duration,
         seed=session_seed,
-        backend=backend,
         scheduler=scheduler,
         n_jobs=n_jobs,
         chunk_size=chunk_size,
@@ -570,7 +566,7 @@ def train_group_cyber_player(
     agent
         ``"tabular"`` or ``"dqn"`` (`make_group_cyber_player`).
     **options
-        ``backend``, ``scheduler``, ``n_jobs``, ``chunk_size``, ``checkpoint``,
+        ``scheduler``, ``n_jobs``, ``chunk_size``, ``checkpoint``,
         ``checkpoint_every``, ``progress`` of `imitate`.
 
     Returns

@@ -134,6 +134,19 @@
     }
   }
 
+  // Export the session's trials as BIDS (OUT/bids) and say where and how many files.
+  async function exportBids() {
+    $("session-error").textContent = "";
+    $("export-result").textContent = "exporting...";
+    try {
+      const done = await api(`/api/sessions/${current}/export`, { method: "POST", body: "{}" });
+      $("export-result").textContent = `exported ${done.motion_files} motion file(s); ${done.folder} holds ${done.files} files`;
+    } catch (error) {
+      $("export-result").textContent = "";
+      $("session-error").textContent = error.message;
+    }
+  }
+
   function fmt(value, digits = 1) { return value === null || value === undefined ? "-" : Number(value).toFixed(digits); }
 
   function renderSlots(status) {
@@ -248,6 +261,7 @@
     $("start-force").disabled = status.state !== "waiting";
     $("stop").disabled = !running;
     $("abort").disabled = ["finished", "aborted"].includes(status.state);
+    $("export").disabled = running;
     $("sync-box").hidden = plan.slots.length < 3;
   }
 
@@ -318,6 +332,7 @@
   $("start").addEventListener("click", () => command("start"));
   $("start-force").addEventListener("click", () => command("start", { force: true }));
   $("stop").addEventListener("click", () => command("stop"));
+  $("export").addEventListener("click", exportBids);
   $("abort").addEventListener("click", () => { if (confirm("Abort the session? Its links expire.")) command("abort"); });
   applyPreset("dyad");
   poll();

@@ -11,6 +11,7 @@
   const ui = {
     who: document.getElementById("who"),
     trial: document.getElementById("trial"),
+    task: document.getElementById("task"),
     overlay: document.getElementById("overlay"),
     message: document.getElementById("message"),
     bar: document.getElementById("progress-bar"),
@@ -21,7 +22,7 @@
   let welcome = null;
   let others = new Map();      // player index -> latest position from the server
   let ended = false;
-  let lastEnd = [];            // the last end screen's lines (trial and metrics)
+  let lastNumbers = [];        // the last trial's numbers, each with its words
   window.mirrorLab = { get welcome() { return welcome; }, get others() { return others; }, me };
 
   function resize() {
@@ -63,7 +64,7 @@
     ctx.moveTo(toPixels(-RANGE), height / 2);
     ctx.lineTo(toPixels(RANGE), height / 2);
     ctx.stroke();
-    if (!welcome) return;
+    if (!welcome || ended) return;  // after the session: the line alone
     const radius = Math.max(10, Math.min(width, height) * 0.04);
     welcome.visible.forEach((player, i) => {
       const own = i === 0;
@@ -95,12 +96,22 @@
     requestAnimationFrame(animate);
   }
 
+  // What a player is asked to do in each role, in words a participant understands.
+  const TASK_WORDS = {
+    solo: "Move your point freely, on your own.",
+    joint: "Move together with your partner: neither of you leads.",
+    leader: "You lead: move freely, your partner follows you.",
+    follower: "Follow your partner as closely as you can.",
+    group: "Move in step with the others.",
+    group_leader: "You lead: move freely, the others follow you.",
+  };
+
   // Each number of the end screen with what it means in plain words.
   const METRIC_WORDS = {
-    phase_locking: ["Coordination (CV)",
+    phase_locking: ["Coordination",
       "how steadily your timing kept pace with the others': 0 no relation, 1 always in step"],
-    rmse: ["Distance (RMS)",
-      "how far apart your points were on average, in track widths: 0 always together"],
+    rmse: ["Distance",
+      "how far apart your points were on average, as a share of the line: 0 always together"],
     group_synchronisation: ["Group synchronisation",
       "how much the whole group moved in step: 0 not at all, 1 perfectly"],
     synchronisation: ["Your synchronisation",
@@ -133,7 +144,9 @@
 
   function finish() {
     ended = true;
-    say([...lastEnd, "The session has ended. Thank you!"]);
+    ui.task.textContent = "";
+    const numbers = lastNumbers.length ? ["Your last trial:", ...lastNumbers] : [];
+    say(["The session has ended. Thank you!", ...numbers]);
   }
 
   function onMessage(event) {
@@ -147,7 +160,10 @@
         dot.className = "dot";
         dot.style.background = colour;
         ui.who.append(dot, ` You are ${message.label}`);
-        say(message.state === "running" ? "" : "Please wait: the researcher will start soon.");
+        ui.task.textContent = TASK_WORDS[message.role] || "";
+        if (message.role === "waiting") say("Not your turn: please wait while the others play.");
+        else if (message.state === "waiting") say("Please wait: the researcher will start soon.");
+        else say(message.state === "running" ? "" : "Please wait.");
         break;
       }
       case "ping": send({ type: "pong", id: message.id, late_frames: me.lateFrames }); break;
@@ -162,9 +178,9 @@
         ui.bar.style.width = `${(100 * message.progress).toFixed(1)}%`;
         break;
       case "end": {
-        lastEnd = [`Trial ${message.trial} done.`, ...metricLines(message.metrics), ...measureLines(message.metrics)];
+        lastNumbers = [...metricLines(message.metrics), ...measureLines(message.metrics)];
         const next = message.next_in === null ? "Please wait." : `Next trial in ${Math.round(message.next_in)} s.`;
-        say([...lastEnd, next]);
+        say([`Trial ${message.trial} done.`, ...lastNumbers, next]);
         break;
       }
       case "questions": ask(message); break;
@@ -183,7 +199,7 @@
     const open = new Set(message.questions.map((q) => q.id));
     const answered = (id) => {
       open.delete(id);
-      if (open.size === 0) { form.hidden = true; say("Thank you. Please wait."); }
+      if (open.size === 0) { form.hidden = true; document.body.classList.remove("asking"); say("Thank you. Please wait."); }
     };
     const answer = (q, value, button) => {
       send({ type: "answer", trial: message.trial, question: q.id, value });
@@ -208,10 +224,13 @@
         row.append(b);
       };
       if (q.kind === "choice") q.options.forEach((option) => button(option, option));
-      if (q.kind === "likert") {
-        if (q.anchors[0]) row.append(Object.assign(document.createElement("span"), { className: "anchor", textContent: q.anchors[0] }));
+      if (q.kind === "likert") {  // the points in one row, the anchors under its two ends
+        row.classList.add("likert");
         for (let point = 1; point <= q.points; point += 1) button(String(point), point);
-        if (q.anchors[1]) row.append(Object.assign(document.createElement("span"), { className: "anchor", textContent: q.anchors[1] }));
+        const anchors = Object.assign(document.createElement("div"), { className: "anchors" });
+        q.anchors.forEach((text) => anchors.append(Object.assign(document.createElement("span"), { textContent: text || "" })));
+        row.style.maxWidth = anchors.style.maxWidth = `${q.points * 70}px`;
+        if (q.anchors.some(Boolean)) set.append(anchors);
       }
       if (q.kind === "text") {
         const text = Object.assign(document.createElement("textarea"), { maxLength: q.max_chars });
@@ -223,6 +242,7 @@
     });
     say("");
     form.hidden = false;
+    document.body.classList.add("asking");
   }
 
   function connect() {

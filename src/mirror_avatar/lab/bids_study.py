@@ -1,0 +1,274 @@
+"""A study's subjects and answers, and every recording's acquisition time, in a BIDS export.
+
+Subjects: the people of different participants' runs of a study are different people, so the
+BIDS subject of a person in a study session (its folder holds ``study.json``:
+`mirror_avatar.lab.study`) is the participant's number and the person's label in the protocol,
+``sub-p003P1`` for person ``P1`` of participant 3 (`subject_label`); outside a study it is the
+slot's label (``sub-P1``). Labels keep only their letters and digits.
+
+Answers (BIDS 1.9.0, behavioural experiments): the answers a participant gave after trial n
+(``trial-NN_answers.json`` of a study session: `mirror_avatar.lab.study`) become
+``sub-<sub>/beh/sub-<sub>_task-mirrorgame_acq-<acq>_run-<n>_beh.tsv``, one row per question,
+its columns (`BEH_COLUMNS`) described once for the dataset in ``task-mirrorgame_beh.json``.
+
+Acquisition times: each subject's ``sub-<sub>/sub-<sub>_scans.tsv`` lists every file of theirs
+the export wrote (``filename`` relative to the subject's folder) with its ``acq_time``: when the
+trial's first sample was taken (its sidecar's ``started_utc``, else its ``created_utc``: the
+trial's files are created just before its first sample), in UTC as BIDS writes it
+(``YYYY-MM-DDThh:mm:ss.ffffffZ``), then the trial, block and condition (`SCAN_COLUMNS`,
+described in ``scans.json``). Rows already there from another export are kept.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from mirror_avatar.atomic import write_atomic_json, write_atomic_text
+from mirror_avatar.bids.names import MISSING, bids_label
+from mirror_avatar.bids.tables import read_tsv
+from mirror_avatar.bids.writing import tsv_table
+from mirror_avatar.errors import InputError
+from mirror_avatar.trial_io import read_sidecar_text
+from mirror_avatar.user_files import parse_json
+
+STUDY_FILE = "study.json"
+"""A study session's schedule in its folder (as `mirror_avatar.lab.study` writes it)."""
+
+ANSWERS_SUFFIX = "_answers.json"
+"""How the answers given after a trial are named beside its session file."""
+
+BEH_COLUMNS = (
+    "question", "text", "kind", "answer", "after", "trial", "block", "condition", "answered_utc",
+)  # fmt: skip
+"""Columns of a ``_beh.tsv``."""
+
+BEH_COLUMN_INFO: dict[str, Any] = {
+    "question": {"Description": "Identifier of the question in the study protocol"},
+    "text": {"Description": "The question as the participant's page showed it"},
+    "kind": {
+        "Description": "How the question is answered",
+        "Levels": {
+            "choice": "one of the options the question offers",
+            "likert": "a point of a Likert scale, 1 to the scale's number of points",
+            "text": "free text",
+        },
+    },
+    "answer": {"Description": "The participant's answer: the option, the point or the text"},
+    "after": {
+        "Description": "When the question was asked",
+        "Levels": {"trial": "after the trial", "block": "after the last trial of the block"},
+    },
+    "trial": {"Description": "The trial after which it was asked (the run's index)"},
+    "block": {"Description": "The block of the study protocol the trial belongs to"},
+    "condition": {"Description": "The study protocol's condition of the trial"},
+    "answered_utc": {"Description": "When the answer was given (UTC, ISO 8601)"},
+}
+"""The answers' columns, described once for the dataset (``task-<task>_beh.json``)."""
+
+SCAN_COLUMNS = ("filename", "acq_time", "trial", "block", "condition")
+"""Columns a ``_scans.tsv`` gets from the export (others already there are kept)."""
+
+SCAN_COLUMN_INFO: dict[str, Any] = {
+    "acq_time": {
+        "Description": "When the trial's first sample was taken (UTC; the lab's clock, whose "
+        "own times are the recording's clock channel)"
+    },
+    "trial": {"Description": "Number of the trial in its session (the run's index)"},
+    "block": {"Description": "Block of the study protocol the trial belongs to (n/a: no study)"},
+    "condition": {"Description": "Condition of the trial (the study protocol's, else the lab's)"},
+}
+"""The scans' columns beyond ``filename``, described once for the dataset (``scans.json``)."""
+
+
+@dataclass(frozen=True)
+class StudyRun:
+    """Whose run of which protocol a study session is.
+
+    ``participant`` is the participant's number (0-based: their row of the counterbalancing)
+    and ``protocol`` the protocol's file name without its extension (the session's folder is
+    ``<protocol>-p<participant:03d>``).
+    """
+
+    participant: int
+    protocol: str
+
+    def cells(self) -> dict[str, str]:
+        """Return the run's ``participants.tsv`` cells (`STUDY_COLUMNS`)."""
+        return {"study_participant": str(self.participant), "protocol": self.protocol}
+
+
+STUDY_COLUMNS = ("study_participant", "protocol")
+"""Columns ``participants.tsv`` gets when a study session is exported."""
+
+
+def read_study(session_dir: Path) -> StudyRun | None:
+    """Read whose run a study session folder holds (its `STUDY_FILE`); None outside a study.
+
+    Raises
+    ------
+    InputError
+        A ``study.json`` that is not a JSON object with a participant number (an integer, 0 or
+        more) and its protocol's source.
+    """
+    path = session_dir / STUDY_FILE
+    if not path.is_file():
+        return None
+    study = parse_json(read_sidecar_text(path), path)
+    participant = study.get("participant") if isinstance(study, dict) else None
+    if isinstance(participant, bool) or not isinstance(participant, int) or participant < 0:
+        raise InputError(path, f"participant {participant!r} is not a participant number")
+    source = _mapping(study.get("protocol")).get("source")
+    if not isinstance(source, str) or not source:
+        raise InputError(path, "no protocol source: not a study session's schedule")
+    return StudyRun(participant, Path(source).stem)
+
+
+def subject_label(
+    label: str, study: StudyRun | None, source: str | os.PathLike[str] | None = None
+) -> str:
+    """Return the BIDS subject label of the person labelled ``label``.
+
+    ``label`` with its non-alphanumeric characters removed (`mirror_avatar.bids.names.
+    bids_label`), after ``p`` and the participant's number on three digits or more in a study:
+    ``P_1`` gives ``P1``, and ``p003P1`` in participant 3's run. One label gives a different
+    subject label in every participant's run; two different labels may still give one
+    (``P_1`` and ``P1``; ``0P1`` of participant 100 and ``P1`` of participant 1000), which the
+    export refuses.
+    """
+    person = bids_label(label, source)
+    return person if study is None else f"p{study.participant:03d}{person}"
+
+
+def acq_time(metadata: dict[str, Any]) -> str:
+    """Return when a trial's first sample was taken, as a BIDS ``acq_time``, or ``n/a``.
+
+    The sidecar's ``started_utc``, else its ``created_utc``, else ``lab.created_utc``;
+    converted to UTC and written ``YYYY-MM-DDThh:mm:ss.ffffffZ``.
+    """
+    lab = _mapping(metadata.get("lab"))
+    for stamp in (metadata.get("started_utc"), metadata.get("created_utc"), lab.get("created_utc")):
+        if isinstance(stamp, str):
+            try:
+                moment = datetime.fromisoformat(stamp)
+            except ValueError:
+                continue
+            moment = moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment
+            return moment.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+    return MISSING
+
+
+def trial_row(metadata: dict[str, Any]) -> dict[str, str]:
+    """Return a trial's ``trial``, ``block`` and ``condition`` cells."""
+    lab = _mapping(metadata.get("lab"))
+    cells = (
+        lab.get("trial"),
+        lab.get("block"),
+        lab.get("protocol_condition", lab.get("condition")),
+    )
+    return {
+        key: MISSING if value in (None, "") else str(value)
+        for key, value in zip(("trial", "block", "condition"), cells, strict=True)
+    }
+
+
+def read_answers(session_csv: Path) -> dict[str, Any] | None:
+    """Read the answers given after a trial (``trial-NN_answers.json``), or None if none.
+
+    Raises
+    ------
+    InputError
+        A file that is not a JSON object with an ``answers`` object.
+    """
+    path = session_csv.with_name(session_csv.name.replace("_session.csv", ANSWERS_SUFFIX))
+    if not path.is_file():
+        return None
+    answers = parse_json(read_sidecar_text(path), path)
+    if not isinstance(answers, dict) or not isinstance(answers.get("answers"), dict):
+        raise InputError(path, "not the answers of a trial (no 'answers' object)")
+    return answers | {"path": path}
+
+
+def answer_rows(answers: dict[str, Any], label: str) -> list[dict[str, str]]:
+    """Return the ``_beh.tsv`` rows of one participant's answers after a trial.
+
+    Questions are in the order they were asked (after the trial, then after the block); the
+    question's text and kind come from the file's ``questions`` when it holds them.
+    """
+    given = answers["answers"].get(label)
+    if not isinstance(given, dict):
+        return []
+    after_trial, after_block = _ids(answers.get("after_trial")), _ids(answers.get("after_block"))
+    questions = _mapping(answers.get("questions"))
+    order = list(dict.fromkeys([*after_trial, *after_block, *given]))
+    rows = []
+    for qid in order:
+        answer = given.get(qid)
+        if not isinstance(answer, dict):
+            continue
+        question = _mapping(questions.get(qid))
+        rows.append(
+            {
+                "question": qid,
+                "text": str(question.get("text", MISSING)),
+                "kind": str(question.get("kind", MISSING)),
+                "answer": _answer_cell(answer.get("value")),
+                "after": "trial" if qid in after_trial else "block",
+                "trial": str(answers.get("trial", MISSING)),
+                "block": str(answers.get("block", MISSING)),
+                "condition": str(answers.get("condition", MISSING)),
+                "answered_utc": str(answer.get("utc", MISSING)),
+            }
+        )
+    return rows
+
+
+def _mapping(value: object) -> dict[str, Any]:
+    """Return ``value`` if it is a JSON object, else an empty one."""
+    return value if isinstance(value, dict) else {}
+
+
+def _ids(value: object) -> list[str]:
+    return [str(item) for item in value] if isinstance(value, list) else []
+
+
+def _answer_cell(value: object) -> str:
+    """Write an answer as one TSV cell: text as given, numbers as written, else JSON."""
+    if value is None or value == "":
+        return MISSING
+    return value if isinstance(value, str) else json.dumps(value)
+
+
+def write_beh(path: Path, rows: list[dict[str, str]]) -> None:
+    """Write a participant's answers after one trial as ``_beh.tsv``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic_text(path, tsv_table(BEH_COLUMNS, rows))
+
+
+def write_scans(subject_dir: Path, rows: Iterable[dict[str, str]]) -> None:
+    """Add rows (by ``filename``) to ``sub-<sub>_scans.tsv`` in ``subject_dir``; keep the rest.
+
+    Raises
+    ------
+    InputError
+        An existing table without a ``filename`` column or with a malformed row.
+    """
+    path = subject_dir / f"{subject_dir.name}_scans.tsv"
+    columns, existing = read_tsv(path, "filename")
+    for row in rows:
+        existing[row["filename"]] = existing.get(row["filename"], {}) | row
+    columns += [c for c in SCAN_COLUMNS if c not in columns]
+    ordered = [existing[name] for name in sorted(existing)]
+    write_atomic_text(path, tsv_table(columns, ordered))
+
+
+def write_descriptions(out_dir: Path, task: str, answers: bool) -> None:
+    """Write the dataset's description of the scans' columns, and of the answers' if any."""
+    write_atomic_json(out_dir / "scans.json", SCAN_COLUMN_INFO)
+    if answers:
+        write_atomic_json(out_dir / f"task-{task}_beh.json", {"TaskName": task} | BEH_COLUMN_INFO)

@@ -1,0 +1,42 @@
+"""Acquisition times and answers of a lab trial as the BIDS export writes them."""
+
+from __future__ import annotations
+
+from mirror_avatar.lab.bids_study import acq_time, answer_rows
+
+
+def test_acq_time_is_the_first_samples_time_in_utc_as_bids_writes_it() -> None:
+    metadata = {
+        "started_utc": "2026-11-25T23:30:00.250000+01:00",
+        "created_utc": "2026-11-25T22:29:59.000000+00:00",
+        "lab": {"created_utc": "2020-01-01T00:00:00+00:00"},
+    }
+    assert acq_time(metadata) == "2026-11-25T22:30:00.250000Z"
+    assert acq_time(metadata | {"started_utc": None}) == "2026-11-25T22:29:59.000000Z"
+    assert acq_time({"lab": {"created_utc": "2025-03-01T10:00:00"}}) == (
+        "2025-03-01T10:00:00.000000Z"
+    )
+    assert acq_time({"created_utc": "yesterday", "lab": {}}) == "n/a"
+
+
+def test_answers_without_the_questions_text_keep_their_values_and_order() -> None:
+    answers = {
+        "trial": 3, "block": "b", "condition": "c", "after_trial": ["who", "sure"],
+        "after_block": ["notes"],
+        "answers": {
+            "P1": {
+                "notes": {"value": "tab\there\nand a line", "utc": "u3"},
+                "sure": {"value": 6, "utc": "u2"},
+                "who": {"value": "a person", "utc": "u1"},
+            },
+            "P2": {},
+        },
+    }  # fmt: skip
+    rows = answer_rows(answers, "P1")
+    assert [(r["question"], r["text"], r["kind"], r["answer"], r["after"], r["answered_utc"])
+            for r in rows] == [
+        ("who", "n/a", "n/a", "a person", "trial", "u1"),
+        ("sure", "n/a", "n/a", "6", "trial", "u2"),
+        ("notes", "n/a", "n/a", "tab\there\nand a line", "block", "u3"),
+    ]  # fmt: skip
+    assert answer_rows(answers, "P2") == [] and answer_rows(answers, "P3") == []
