@@ -62,9 +62,7 @@ from mirror_avatar.bids.writing import one_line, tsv_table, tsv_values
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.bids_events import EVENT_COLUMN_INFO, EVENT_COLUMNS, trial_events
 from mirror_avatar.lab.bids_study import (
-    ANSWERS_SUFFIX,
     STUDY_COLUMNS,
-    STUDY_FILE,
     StudyRun,
     acq_time,
     answer_rows,
@@ -75,6 +73,14 @@ from mirror_avatar.lab.bids_study import (
     write_beh,
     write_descriptions,
     write_scans,
+)
+from mirror_avatar.lab.files import (
+    ANSWERS_SUFFIX,
+    INPUTS_SUFFIX,
+    PLAN_FILE,
+    STUDY_FILE,
+    TRIAL_PATTERN,
+    companion,
 )
 from mirror_avatar.session import Session, load_session
 from mirror_avatar.trial_io import MAX_FILE_BYTES, _first_row, _read_numbers, read_sidecar_text
@@ -88,7 +94,6 @@ BIDS_VERSION = "1.9.0"
 TASK = "mirrorgame"
 """The ``task-`` label and ``TaskName`` of every recording."""
 
-TRIAL_PATTERN = "trial-*_session.csv"
 """Trial files of a lab session folder."""
 
 GAME_FORMAT, GAME_VERSION = "mirror-avatar/lab-bids", 1
@@ -595,10 +600,11 @@ def _copy_sources(session_dir: Path, files: list[Path], target: Path) -> None:
     sources = [
         path
         for f in files
-        for path in (f, f.with_suffix(".json"), f.with_name(f.name.replace("_session.csv",
-                     "_inputs.csv")), f.with_name(f.name.replace("_session.csv", ANSWERS_SUFFIX)))
+        for path in (
+            f, f.with_suffix(".json"), companion(f, INPUTS_SUFFIX), companion(f, ANSWERS_SUFFIX)
+        )
     ]  # fmt: skip
-    sources += [session_dir / "plan.json", session_dir / STUDY_FILE]
+    sources += [session_dir / PLAN_FILE, session_dir / STUDY_FILE]
     for source in sources:
         if source.is_file():
             write_atomic_bytes(target / source.name, read_bytes(source, MAX_FILE_BYTES))

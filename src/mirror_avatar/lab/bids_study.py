@@ -34,14 +34,9 @@ from mirror_avatar.bids.names import MISSING, bids_label
 from mirror_avatar.bids.tables import read_tsv
 from mirror_avatar.bids.writing import tsv_table
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.files import ANSWERS_SUFFIX, STUDY_FILE, companion
 from mirror_avatar.trial_io import read_sidecar_text
 from mirror_avatar.user_files import parse_json
-
-STUDY_FILE = "study.json"
-"""A study session's schedule in its folder (as `mirror_avatar.lab.study` writes it)."""
-
-ANSWERS_SUFFIX = "_answers.json"
-"""How the answers given after a trial are named beside its session file."""
 
 BEH_COLUMNS = (
     "question", "text", "kind", "answer", "after", "trial", "block", "condition", "answered_utc",
@@ -185,7 +180,7 @@ def read_answers(session_csv: Path) -> dict[str, Any] | None:
     InputError
         A file that is not a JSON object with an ``answers`` object.
     """
-    path = session_csv.with_name(session_csv.name.replace("_session.csv", ANSWERS_SUFFIX))
+    path = companion(session_csv, ANSWERS_SUFFIX)
     if not path.is_file():
         return None
     answers = parse_json(read_sidecar_text(path), path)

@@ -35,6 +35,7 @@ import numpy as np
 
 from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.files import PLAN_FILE
 from mirror_avatar.lab.perturbation import Perturbation
 from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.lab.trial import LabTrial, build_avatars
@@ -209,7 +210,7 @@ class LabSession:
     def _create_files(self) -> None:
         """Create the session's folder and its ``plan.json``."""
         self.directory.mkdir(parents=True, exist_ok=False)
-        write_atomic_json(self.directory / "plan.json", self.describe())
+        write_atomic_json(self.directory / PLAN_FILE, self.describe())
 
     @property
     def total_trials(self) -> int:

@@ -65,6 +65,7 @@ from starlette.websockets import WebSocket
 from mirror_avatar.atomic import json_safe
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.files import is_session_folder
 from mirror_avatar.lab.messages import Answer, Pong, parse_participant_message
 from mirror_avatar.lab.plan import LslDevice, SessionPlan, parse_plan
 from mirror_avatar.lab.protocol import Protocol
@@ -441,11 +442,7 @@ class LabApi:
         if not isinstance(folder, str) or not EXPORT_FOLDER.fullmatch(folder):
             raise ApiError(400, "folder: a name of letters, digits, - and _ (at most 64)")
         target = self.lab.settings.out_dir / folder
-        if (
-            folder in self.lab.sessions
-            or (target / "plan.json").exists()
-            or (target / "study.json").exists()
-        ):
+        if folder in self.lab.sessions or is_session_folder(target):
             raise ApiError(400, f"folder: {folder} is a session's folder, not a BIDS dataset")
         if session.state in PLAYING:
             problem = f"the session is playing ({session.state}): export when it waits or has ended"

@@ -33,18 +33,16 @@ import numpy as np
 from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.files import ANSWERS_SUFFIX, STUDY_FILE, trial_stem
 from mirror_avatar.lab.messages import Answer
 from mirror_avatar.lab.perturbation import Perturbation
 from mirror_avatar.lab.protocol import Condition, Protocol, Question
 from mirror_avatar.lab.runner import COLOURS, LabSession, Participant
-from mirror_avatar.lab.trial import LabTrial, trial_stem
+from mirror_avatar.lab.trial import LabTrial
 from mirror_avatar.realtime.clock import MAX_STEP
 from mirror_avatar.realtime.outbox import Outbox
 from mirror_avatar.realtime.trial import Array, Clock
 from mirror_avatar.seeds import spawn_seeds
-
-STUDY_FILE = "study.json"
-"""The participant's schedule in the session's folder."""
 
 
 @dataclass
@@ -443,7 +441,8 @@ class StudySession(LabSession):
 
 def answers_path(directory: Path, n: int) -> Path:
     """Return the file of the answers given after trial n."""
-    return trial_stem(directory, n).with_name(f"{trial_stem(directory, n).name}_answers.json")
+    stem = trial_stem(directory, n)
+    return stem.with_name(stem.name + ANSWERS_SUFFIX)
 
 
 def _recorded(directory: Path, n: int) -> bool:

@@ -41,6 +41,7 @@ import numpy as np
 from mirror_avatar import __version__
 from mirror_avatar.engine.loop import count_samples, row_positions, spawn_session_seeds
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.files import trial_stem
 from mirror_avatar.lab.perturbation import Perturbation, successor
 from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.metrics import compute_phase, session_metrics
@@ -62,11 +63,6 @@ LAB_SURROGATES = 19
 """Surrogates per lab trial (**choice**): enough for a p-value of 0.05 (the smallest that 19
 give: the measure beat every surrogate) at a fraction of a second per minute of trial, so the
 end screens come at once; ``mirror-avatar evaluate --surrogates`` gives finer p-values later."""
-
-
-def trial_stem(directory: Path, n: int) -> Path:
-    """Path of trial n's files without their suffixes: ``directory/trial-NN``."""
-    return directory / f"trial-{n:02d}"
 
 
 MAX_RECORDING_SPEC_BYTES = 64 * 2**20
