@@ -189,6 +189,9 @@ def test_a_participant_plays_the_protocol_in_their_order_blinded(
         for label in players:
             values = {q: a["value"] for q, a in saved["answers"][label].items()}
             assert values == {q: AnsweringPage.ANSWERS[q] for q in after_trial + after_block}
+    for end in pages[0].of_type("end"):  # no countdown to a trial that waits for answers
+        asked = end["trial"] in together or end["trial"] == 3
+        assert end["next_in"] == (None if asked else 0.5)
     refusals = [m["message"] for m in pages[0].of_type("error")]
     assert refusals == ["confidence: choose a point from 1 to 7"] * len(together)
 

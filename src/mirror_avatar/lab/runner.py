@@ -508,9 +508,12 @@ class LabSession:
             if self.plan.show_metrics:
                 message["metrics"] = participant_metrics(summary.get("metrics", {}), k)
                 message["metrics"] |= participant_measures(summary.get("measures", {}), k)
-            more = trial.n < self.total_trials and complete
-            message["next_in"] = self.plan.pause if more else None
+            message["next_in"] = self.next_in(trial.n, complete)
             participant.outbox.put(message)
+
+    def next_in(self, n: int, complete: bool) -> float | None:
+        """Return the pause (s) before the trial after trial n, or None if none follows it."""
+        return self.plan.pause if complete and n < self.total_trials else None
 
     def status(self) -> dict[str, Any]:
         """Return what the console shows: state, slots with their connection quality, trials."""

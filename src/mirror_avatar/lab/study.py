@@ -347,6 +347,11 @@ class StudySession(LabSession):
             "block": list(block.after_block) if last else [],
         }
 
+    def next_in(self, n: int, complete: bool) -> float | None:
+        """Return None after a trial with questions: the next trial waits for the answers."""
+        after = self.questions_after(n)
+        return None if after["trial"] or after["block"] else super().next_in(n, complete)
+
     async def _after_trial(self, n: int) -> None:
         """Ask the trial's (and the block's) questions and wait for every answer."""
         after = self.questions_after(n)
