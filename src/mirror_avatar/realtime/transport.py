@@ -66,12 +66,13 @@ def make_token() -> str:
 LISTEN_BACKLOG = 2048
 """Connections the kernel queues for the server before it accepts them (uvicorn's default)."""
 
-ACCEPT_BATCH = 16
-"""Most connections the event loop accepts at once (**choice**). asyncio accepts up to the
+ACCEPT_BATCH = 4
+"""Most connections the event loop accepts in one turn (**choice**). asyncio accepts up to the
 listen backlog's number of waiting connections in one turn of the loop, and the next turns
-handshake all of them before a timer due meanwhile runs: with a flood of connections queued
-(2048 by default), one turn took over a second and the trials' clocks fell behind. With a small
-batch each turn stays a few milliseconds long; the rest wait in the kernel's queue."""
+handshake all of them before anything else waiting runs: under a flood of connections, with
+thousands queued, a turn lasted long enough for the trials' clocks to fall behind. With a small
+batch each turn stays short, so the clocks' timers, the pages' frames and their positions wait
+for a few handshakes at most; the rest of a flood waits in the kernel's queue."""
 
 RECEIVE_BUFFER_BYTES = 8192
 """Kernel receive buffer of each connection (bytes; Linux doubles it; **choice**). One read
@@ -128,8 +129,8 @@ class RealtimeServer(uvicorn.Server):
       the sockets it was given are set back to queue `LISTEN_BACKLOG` connections.
     - Once it serves, the objects that exist (the modules imported: hundreds of thousands) are
       frozen out of garbage collection (`gc.freeze`, **choice**): a full collection would
-      otherwise walk them all, holding every thread for tens of milliseconds on an idle
-      machine and hundreds on a busy one, while a trial's clock waits.
+      otherwise walk them all, holding every thread (the trials' clocks among them) while it
+      runs, which a flood of connections, with all the objects it makes, triggers often.
     """
 
     async def startup(self, sockets: list[socket.socket] | None = None) -> None:
