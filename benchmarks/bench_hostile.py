@@ -73,12 +73,22 @@ WINDOW = 3.0
 """Seconds of the "before" and "after" windows (quick runs; full runs double them)."""
 
 FIFOS = 7
+"""FIFO specs asked for at once."""
+
 FLOOD_ADDRESSES = ("127.0.0.2", "127.0.0.3", "127.0.0.4", "127.0.0.5")
+"""Loopback addresses of the flooding processes (the server limits rates per address)."""
+
 BIG_AVATARS = 8
+"""The largest legal DQN avatars in the too slow plan."""
+
 CPU_WAIT_INTERVAL = 0.05
+"""Seconds between samples of the server's wait for a CPU."""
+
 BATCH_INTERVAL = 0.5
 """Seconds between the batches of session-create requests of a hostile case."""
+
 AVATAR = "bundled:slow"
+"""The avatar of the good session and of the frozen page's session."""
 
 
 def lowest() -> None:
@@ -117,9 +127,7 @@ class Hostiles:
 
     def __init__(self, api: httpx.AsyncClient, base: str, folder: Path) -> None:
         self.api = api
-        self.base = base
         self.port = int(urlsplit(base).port or 80)
-        self.folder = folder
         self.reader_path = ""  # the good session's second person's socket path
         self.flood_target = ""  # a real join key's socket path, of a session never started
         self.frozen: subprocess.Popen[bytes] | None = None
@@ -323,12 +331,11 @@ async def scenario(
             page.cancel()
             hostiles.frozen.kill()
             hostiles.frozen.wait()
-        status = (await api.get(f"/api/sessions/{good['id']}")).json()
-        trial = status["trials"][0]
+        trial = (await api.get(f"/api/sessions/{good['id']}")).json()["trials"][0]
         inputs = await api.get(f"/api/sessions/{good['id']}/files/{trial['files'][2]}")
         inputs.raise_for_status()
     rows = list(csv.DictReader(io.StringIO(inputs.text)))
-    return {"log": log, "marks": marks, "inputs": rows, "trial": trial, "status": status}
+    return {"log": log, "marks": marks, "inputs": rows, "trial": trial}
 
 
 def measure(quick: bool, only: list[str]) -> dict[str, Any]:
@@ -343,11 +350,11 @@ def measure(quick: bool, only: list[str]) -> dict[str, Any]:
             result = asyncio.run(scenario(base, token, Path(folder), window, only))
         finally:
             waits.stop()
-            result_peak = stop_process(lab)
+            peak = stop_process(lab)
         warnings = [line for line in log.read_text().splitlines() if "WARNING" in line]
     return result | {
         "window": window,
-        "peak_mb": result_peak,
+        "peak_mb": peak,
         "cpu_waits": waits,
         "load": (load_before, os.getloadavg()),
         "warnings": warnings,
