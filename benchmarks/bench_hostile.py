@@ -13,7 +13,8 @@ input-to-frame p50 and p95 and its longest frame gap are reported in three windo
 
 - ``connection flood``: four processes (``nice 19``, from 127.0.0.2-5) open WebSockets as
   fast as they open, to an unknown join key and to a real one of another session, holding 50
-  each unread and closing the oldest;
+  each unread and closing the oldest; meanwhile a newcomer joins that session by its other
+  link every half second, and how long it waits for its welcome is noted;
 - ``slow reader``: a page that never reads its socket (4 KB receive buffer) takes the second
   person's slot of the good participant's own session;
 - ``frozen page``: the page of another running session, a process of its own, is stopped
@@ -50,6 +51,7 @@ from urllib.parse import urlsplit
 
 import httpx
 import numpy as np
+from websockets.asyncio.client import connect
 
 from mirror_avatar.deep.player import MAX_LAYERS, MAX_UNITS, DeepCyberPlayer
 from mirror_avatar.testing import raw_websocket
@@ -130,6 +132,7 @@ class Hostiles:
         self.port = int(urlsplit(base).port or 80)
         self.reader_path = ""  # the good session's second person's socket path
         self.flood_target = ""  # a real join key's socket path, of a session never started
+        self.newcomer = ""  # the other join link of that session (a page's URL)
         self.frozen: subprocess.Popen[bytes] | None = None
         self.fifos = [folder / f"fifo-{k}.npz" for k in range(FIFOS)]
         self.huge = [folder / "huge.npz", folder / "huge.csv"]
@@ -162,8 +165,23 @@ class Hostiles:
             assert flood.stdout is not None
             await flood.stdout.readline()  # its imports done: the flood begins
         self.began = time.monotonic()
+        waits = []
+        while time.monotonic() < self.began + seconds - 1.0:
+            await asyncio.sleep(0.5)
+            waits.append(await self._join_wait())
         counts = [int((await flood.communicate())[0] or 0) for flood in floods]
-        return f"{sum(counts):,} handshakes from {len(floods)} processes"
+        joins = ", ".join(f"{wait * 1e3:.0f}" for wait in waits)
+        return (
+            f"{sum(counts):,} handshakes from {len(floods)} processes; a newcomer joining "
+            f"another session meanwhile waited {joins} ms for its welcome"
+        )
+
+    async def _join_wait(self) -> float:
+        """Seconds from opening the newcomer's join link to its first message (the welcome)."""
+        began = time.monotonic()
+        async with connect(self.newcomer, proxy=None, open_timeout=30) as ws:
+            await ws.recv()
+        return time.monotonic() - began
 
     async def slow_reader(self, seconds: float) -> str:
         """Join the good session's second slot and never read."""
@@ -304,6 +322,7 @@ async def scenario(
                                     "players": [person("T1"), person("T2")]})  # fmt: skip
         hostiles.reader_path = urlsplit(socket_url(good["links"]["S1"])).path
         hostiles.flood_target = urlsplit(socket_url(target["links"]["T1"])).path
+        hostiles.newcomer = socket_url(target["links"]["T2"])
         log = PageLog("G1")
         page = asyncio.create_task(page_client(socket_url(good["links"]["G1"]), log, 0.0))
         hostiles.frozen = subprocess.Popen(
