@@ -126,7 +126,7 @@ class RealtimeServer(uvicorn.Server):
     - It accepts `ACCEPT_BATCH` connections at a time. asyncio takes one number, the server's
       ``backlog``, both for the kernel's queue (``listen``) and for the connections accepted in
       one turn of the loop; the server is configured with `ACCEPT_BATCH`, and once it listens
-      the sockets it was given are set back to queue `LISTEN_BACKLOG` connections.
+      its sockets are set back to queue `LISTEN_BACKLOG` connections.
     - Once it serves, the objects that exist (the modules imported: hundreds of thousands) are
       frozen out of garbage collection (`gc.freeze`, **choice**): a full collection would
       otherwise walk them all, holding every thread (the trials' clocks among them) while it
@@ -136,8 +136,10 @@ class RealtimeServer(uvicorn.Server):
     async def startup(self, sockets: list[socket.socket] | None = None) -> None:
         """Start serving, let the kernel queue `LISTEN_BACKLOG` connections, freeze the heap."""
         await super().startup(sockets)
-        for sock in sockets or []:
-            sock.listen(LISTEN_BACKLOG)
+        for server in self.servers:
+            for listener in server.sockets:  # the kernel's socket through a duplicate handle
+                with socket.fromfd(listener.fileno(), listener.family, listener.type) as sock:
+                    sock.listen(LISTEN_BACKLOG)
         gc.collect()
         gc.freeze()
 
