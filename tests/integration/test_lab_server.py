@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
 import json
+import logging
 import math
 import os
 import re
@@ -16,6 +18,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 import httpx
 import numpy as np
@@ -26,7 +29,7 @@ from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.lab.trial import MAX_RECORDING_SPEC_BYTES
 from mirror_avatar.session import load_session
-from mirror_avatar.testing import ServerThread
+from mirror_avatar.testing import ServerThread, raw_websocket
 
 TOKEN = "researcher-token"
 BEARER = {"Authorization": f"Bearer {TOKEN}"}
@@ -240,6 +243,21 @@ def clock_caught_up(inputs: Path) -> np.ndarray:
     """
     clock = np.loadtxt(inputs, delimiter=",", skiprows=1, usecols=1, ndmin=1)
     return np.append(np.diff(clock) < CONTROL_PERIOD / 2, False)
+
+
+def test_a_link_opened_by_many_clients_at_once_replaces_pages_without_errors(lab, caplog):
+    link = create(lab, DYAD)["links"]["P1"]
+    path = urlsplit(socket_url(link)).path
+    sockets = [raw_websocket(lab.port, path=path) for _ in range(30)]  # none answers a close
+    wait_for(lambda: sum(s.recv(1) != b"" for s in sockets) == len(sockets))  # all accepted
+    for sock in sockets:
+        sock.close()
+    newest = Page(link)
+    asyncio.run(newest.play(2.0))
+    assert newest.of_type("welcome")
+    gc.collect()  # an outbox task left pending would be reported as destroyed now
+    errors = [r.getMessage() for r in caplog.records if r.levelno >= logging.ERROR]
+    assert errors == []
 
 
 class Follower(Page):
