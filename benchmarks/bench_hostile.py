@@ -370,13 +370,16 @@ def measure(quick: bool, only: list[str]) -> dict[str, Any]:
         finally:
             waits.stop()
             peak = stop_process(lab)
-        warnings = [line for line in log.read_text().splitlines() if "WARNING" in line]
+        lines = log.read_text().splitlines()
+        warnings = [line for line in lines if line.startswith("WARNING")]
+        errors = [line for line in lines if line.startswith("ERROR") or "destroyed" in line]
     return result | {
         "window": window,
         "peak_mb": peak,
         "cpu_waits": waits,
         "load": (load_before, os.getloadavg()),
         "warnings": warnings,
+        "errors": errors,
     }
 
 
@@ -446,8 +449,8 @@ def report(result: dict[str, Any]) -> tuple[str, list[dict]]:
         f"Load average {b1:.2f}/{b5:.2f}/{b15:.2f} before, {a1:.2f}/{a5:.2f}/{a15:.2f} after; "
         f"server peak resident memory {peak} MB; the good trial ended: {trial['end_reason']} "
         f"({trial['n_samples']} samples, held {trial['held']}); longest gap of all windows "
-        f"{longest:.1f} ms (bound {GAP_BOUND_MS:g} ms); {len(result['warnings'])} server "
-        "warnings."
+        f"{longest:.1f} ms (bound {GAP_BOUND_MS:g} ms); server log: "
+        f"{len(result['warnings'])} warnings, {len(result['errors'])} errors."
     )
     notes = "\n".join(f"- {mark.case}: {mark.note}" for mark in result["marks"])
     rows = []
