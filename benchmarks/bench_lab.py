@@ -29,12 +29,9 @@ import csv
 import io
 import json
 import math
-import os
-import queue
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 import tracemalloc
 from pathlib import Path
@@ -42,8 +39,7 @@ from typing import Any
 
 import httpx
 import numpy as np
-from websockets.asyncio.client import ClientConnection, connect
-from websockets.exceptions import ConnectionClosed
+from websockets.asyncio.client import connect
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.engine.loop import Engine, count_samples
@@ -53,10 +49,23 @@ from mirror_avatar.players.base import Player
 from mirror_avatar.realtime.inputs import BrowserInput, HumanPlayer
 from mirror_avatar.realtime.outbox import encode_message
 
+sys.path.insert(0, str(Path(__file__).parent))
+from probe_clients import (  # noqa: E402
+    SEND_RATE,
+    PageLog,
+    input_to_frame,
+    page_client,
+    send_positions,
+    socket_url,
+    start_lab,
+    start_process,
+    stop_process,
+    wait_joined,
+)
+
 AVATAR = "bundled:slow"
 SIZES = (2, 4, 10)
 CLIENTS = 4
-SEND_RATE = 60.0
 PERIOD_NOTE = f"control period {CONTROL_PERIOD * 1e3:g} ms"
 ECHO_SERVER = """
 import asyncio
@@ -216,88 +225,10 @@ def _count(n: int, one: str, many: str) -> str:
     return f"{n} {one if n == 1 else many}"
 
 
-def start_process(command: list[str], log: Path, marker: str) -> tuple[subprocess.Popen, str]:
-    """Start ``command`` and return it with the first stdout line starting with ``marker``.
-
-    Its stdout keeps being drained (into ``log``, with its stderr) so that it never blocks.
-    """
-    with log.open("ab") as errors:
-        process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=errors, text=True,
-                                   env={**os.environ, "PYTHONUNBUFFERED": "1"})  # fmt: skip
-    lines: queue.Queue[str] = queue.Queue()
-    threading.Thread(target=_drain, args=(process, lines, log), daemon=True).start()
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        try:
-            line = lines.get(timeout=1)
-        except queue.Empty:
-            continue
-        if line.startswith(marker):
-            return process, line
-        if not line:
-            break
-    process.kill()
-    raise RuntimeError(f"{command[:4]} did not start: see {log.read_text()[-2000:]}")
-
-
-def _drain(process: subprocess.Popen, lines: queue.Queue[str], log: Path) -> None:
-    """Pass ``process``'s stdout lines on, and append them to ``log``; an empty line at EOF."""
-    assert process.stdout is not None
-    with log.open("a") as copy:
-        for line in process.stdout:
-            copy.write(line)
-            lines.put(line)
-    lines.put("")
-
-
-def stop_process(process: subprocess.Popen) -> float:
-    """Return the peak resident memory (MB) of ``process``, then terminate it."""
-    peak = 0.0
-    try:
-        for line in Path(f"/proc/{process.pid}/status").read_text().splitlines():
-            if line.startswith("VmHWM:"):
-                peak = int(line.split()[1]) / 1024
-    except OSError:
-        pass
-    process.terminate()
-    try:
-        process.wait(30)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        process.wait()
-    return peak
-
-
-def start_lab(out: Path, log: Path) -> tuple[subprocess.Popen, str, str]:
-    """Run ``mirror-avatar lab --port 0``; return it, its base URL and the researcher's token."""
-    command = [sys.executable, "-c", "from mirror_avatar.console import run; run()", "lab",
-               "--port", "0", "--out", str(out), "--no-lsl"]  # fmt: skip
-    process, line = start_process(command, log, "console: ")
-    url = line.split()[1]
-    base, token = url.split("/console?token=")
-    return process, base, token
-
-
 def start_echo(log: Path) -> tuple[subprocess.Popen, int]:
     """Run a bare ``websockets`` echo server; return it and its port."""
     process, line = start_process([sys.executable, "-c", ECHO_SERVER], log, "port ")
     return process, int(line.split()[1])
-
-
-def position(seq: int, phase: float) -> str:
-    """Return position message ``seq``: a 0.5 Hz sine, unique to the client and ``seq``."""
-    x = 0.3 * math.sin(math.pi * seq / SEND_RATE + phase) + 1e-9 * seq
-    return json.dumps({"type": "position", "seq": seq, "x": x})
-
-
-async def send_positions(ws: ClientConnection, phase: float, sent: dict[int, float]) -> None:
-    """Send positions at `SEND_RATE` on absolute deadlines, noting when each one left."""
-    start, seq = time.monotonic(), 0
-    while True:
-        await asyncio.sleep(max(0.0, start + seq / SEND_RATE - time.monotonic()))
-        sent[seq] = time.monotonic()
-        await ws.send(position(seq, phase))
-        seq += 1
 
 
 async def echo_client(url: str, duration: float, phase: float) -> list[float]:
@@ -324,38 +255,6 @@ async def echo_round_trips(port: int, duration: float) -> np.ndarray:
     return np.concatenate([np.asarray(r) for r in results])
 
 
-class PageLog:
-    """What one participant's client saw: positions sent, frames received (sample, time)."""
-
-    def __init__(self, label: str) -> None:
-        self.label = label
-        self.sent: dict[int, float] = {}
-        self.frames: list[tuple[int, float]] = []
-        self.own_null = 0
-
-
-async def page_client(url: str, log: PageLog, phase: float) -> None:
-    """Join by ``url``, send positions at 60 Hz, answer pings, note frames until the end."""
-    async with connect(url, proxy=None, open_timeout=30) as ws:
-        sender = asyncio.create_task(send_positions(ws, phase, log.sent))
-        try:
-            async for text in ws:
-                message = json.loads(text)
-                kind = message["type"]
-                if kind == "ping":
-                    await ws.send(json.dumps({"type": "pong", "id": message["id"],
-                                              "late_frames": 0}))  # fmt: skip
-                elif kind == "frame":
-                    log.frames.append((message["k"], time.monotonic()))
-                    log.own_null += message["x"][0] is None
-                elif kind == "end":
-                    sender.cancel()
-        except ConnectionClosed:
-            pass
-        finally:
-            sender.cancel()
-
-
 def session_plan(duration: float) -> dict[str, Any]:
     """Four people P1..P4 and two avatars in a complete group, one trial."""
     people = [{"label": f"P{k}", "kind": "human"} for k in range(1, CLIENTS + 1)]
@@ -372,12 +271,11 @@ async def lab_session(base: str, token: str, duration: float) -> tuple[dict, lis
         created.raise_for_status()
         status = created.json()
         logs = [PageLog(label) for label in status["links"]]
-        urls = [link.replace("http://", "ws://").replace("/join/", "/ws/join/")
-                for link in status["links"].values()]  # fmt: skip
+        urls = [socket_url(link) for link in status["links"].values()]
         clients = [asyncio.create_task(page_client(url, log, i))
                    for i, (url, log) in enumerate(zip(urls, logs, strict=True))]  # fmt: skip
         sid = status["id"]
-        await _wait_joined(api, sid)
+        await wait_joined(api, sid)
         (await api.post(f"/api/sessions/{sid}/start", json={})).raise_for_status()
         await asyncio.wait_for(asyncio.gather(*clients), duration + 60)
         status = (await api.get(f"/api/sessions/{sid}")).json()
@@ -385,35 +283,6 @@ async def lab_session(base: str, token: str, duration: float) -> tuple[dict, lis
         inputs = await api.get(f"/api/sessions/{sid}/files/{name}")
         inputs.raise_for_status()
     return status, logs, inputs.text
-
-
-async def _wait_joined(api: httpx.AsyncClient, sid: str) -> None:
-    """Wait until every person's page has joined the session."""
-    for _ in range(300):
-        status = (await api.get(f"/api/sessions/{sid}")).json()
-        if all(slot.get("connected", True) for slot in status["slots"]):
-            return
-        await asyncio.sleep(0.1)
-    raise RuntimeError("the clients did not join")
-
-
-def input_to_frame(log: PageLog, inputs: list[dict[str, str]]) -> list[float]:
-    """Seconds from sending each sampled position to receiving its sample's frame.
-
-    A position is sampled at the first sample whose ``seq_<label>`` names it; its frame is the
-    first frame received for that sample or a later one (a superseded frame is never sent).
-    """
-    first: dict[int, int] = {}
-    for k, row in enumerate(inputs):
-        first.setdefault(int(row[f"seq_{log.label}"]), k)
-    arrivals = sorted(log.frames)
-    samples = [k for k, _ in arrivals]
-    latencies = []
-    for seq, k in first.items():
-        i = int(np.searchsorted(samples, k))
-        if seq in log.sent and i < len(arrivals):
-            latencies.append(arrivals[i][1] - log.sent[seq])
-    return latencies
 
 
 def sampled_ages(inputs: list[dict[str, str]], labels: list[str]) -> np.ndarray:
@@ -449,7 +318,7 @@ def round_trips(duration: float) -> dict[str, Any]:
         "lab_peak": lab_peak,
         "status": status,
         "logs": logs,
-        "latency": np.concatenate([np.asarray(input_to_frame(page, rows)) for page in logs]),
+        "latency": np.concatenate([input_to_frame(page, rows)[:, 1] for page in logs]),
         "ages": sampled_ages(rows, [page.label for page in logs]),
         "warnings": warnings,
     }

@@ -212,9 +212,9 @@ class ServerThread:
 
 
 def raw_websocket(
-    port: int, source: str = "127.0.0.1", receive_buffer: int | None = None
+    port: int, source: str = "127.0.0.1", receive_buffer: int | None = None, path: str = "/ws"
 ) -> socket.socket:
-    """Open a WebSocket to ``/ws`` of a loopback server by hand, as a hostile client would.
+    """Open a WebSocket to ``path`` of a loopback server by hand, as a hostile client would.
 
     The handshake is sent from ``source`` (any loopback address) and the server's answer is
     left unread. ``receive_buffer`` (bytes) sets a small receive window before connecting: a
@@ -227,7 +227,7 @@ def raw_websocket(
     sock.connect(("127.0.0.1", port))
     key = base64.b64encode(os.urandom(16)).decode()
     sock.sendall(
-        f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+        f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
         f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
         "Sec-WebSocket-Version: 13\r\n\r\n".encode()
     )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import math
 import os
@@ -24,7 +25,7 @@ from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import AvatarFactory, make_avatar_factory
 from mirror_avatar.players import Player
-from mirror_avatar.realtime.transport import RECEIVE_BUFFER_BYTES, listening_socket
+from mirror_avatar.realtime.transport import ACCEPT_BATCH, RECEIVE_BUFFER_BYTES, listening_socket
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread, raw_websocket, text_frame
 from mirror_avatar.trials import make_trial
@@ -538,6 +539,20 @@ def test_the_server_socket_queues_a_client_that_connects_before_the_server_runs(
         client.close()
     finally:
         sock.close()
+
+
+def test_a_burst_of_connections_is_accepted_in_batches_and_every_one_answered(live):
+    server = live.serve()
+    assert gc.get_freeze_count() > 0  # the heap of imports is left out of collections
+    clients = [socket.create_connection((server.host, server.port), timeout=30.0)
+               for _ in range(4 * ACCEPT_BATCH)]  # fmt: skip
+    try:
+        for client in clients:
+            client.sendall(b"GET /nowhere HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+        assert all(client.recv(9) == b"HTTP/1.1 " for client in clients)
+    finally:
+        for client in clients:
+            client.close()
 
 
 class Sleepy(Replay):

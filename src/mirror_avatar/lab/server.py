@@ -60,7 +60,7 @@ from starlette.responses import (
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp
-from starlette.websockets import WebSocket
+from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from mirror_avatar.atomic import json_safe
 from mirror_avatar.dynamics import CONTROL_PERIOD
@@ -527,8 +527,8 @@ async def join_socket(lab: Lab, websocket: WebSocket) -> None:
     session, participant = found
     await websocket.accept()
     previous = participant.connection
-    if isinstance(previous, WebSocket):
-        with contextlib.suppress(RuntimeError, OSError):
+    if isinstance(previous, WebSocket):  # it may be gone already, or closing for another page
+        with contextlib.suppress(RuntimeError, OSError, WebSocketDisconnect):
             await previous.close(CLOSE_REPLACED, "this link was opened on another page")
     page = ParticipantPage(lab.settings, session, participant, websocket)
     await page.run()
@@ -571,6 +571,7 @@ class ParticipantPage:
             if self.outbox.ending:
                 await self.outbox.ended()
             self.session.detach(self.participant, self.outbox)
+            self.outbox.close()  # also when a newer page of the slot replaced this one
 
     async def _ping(self) -> None:
         while True:

@@ -101,6 +101,7 @@ class Outbox:
         self._frame: str | None = None
         self._ending: tuple[int, str, bool] | None = None
         self.superseded = 0
+        self._closed = False
         self._ready = asyncio.Event()
         self.task = asyncio.get_running_loop().create_task(self._run())
 
@@ -117,10 +118,10 @@ class Outbox:
         self._ready.set()
 
     async def _run(self) -> None:
-        while True:
+        while not self._closed:
             await self._ready.wait()
             self._ready.clear()
-            while self._control or self._frame is not None:
+            while (self._control or self._frame is not None) and not self._closed:
                 if self._control:
                     await self.peer.send(self._control.popleft())
                 elif self._frame is not None:
@@ -145,5 +146,12 @@ class Outbox:
         await asyncio.wait([self.task])
 
     def close(self) -> None:
-        """Stop sending."""
+        """Stop sending.
+
+        The task is cancelled, and told to end as well: a cancellation arriving as a send
+        completes can be lost inside `asyncio.wait_for` (Python 3.11), which would leave the
+        task waiting for ever once its page is gone.
+        """
+        self._closed = True
+        self._ready.set()
         self.task.cancel()

@@ -1,8 +1,11 @@
 """The servers' sockets: listening, aborting a connection that stopped reading, quiet logs.
 
 Both real-time servers run under uvicorn (`make_server`) on a socket bound before the server
-starts (`listening_socket`). A connection whose client stopped reading is aborted
-(`abort_transport`), not closed gracefully, so its socket cannot linger; the transport is
+starts (`listening_socket`). Its event loop accepts at most `ACCEPT_BATCH` connections at a time
+and the objects that exist once it serves are left out of garbage collection
+(`RealtimeServer`), so that neither a flood of connections nor a collection holds it for long.
+A connection whose client stopped reading is aborted (`abort_transport`), not closed
+gracefully, so its socket cannot linger; the transport is
 reached through the server's own ASGI ``send`` callable, which the gates keep in the scope under
 `SERVER_SEND` (`mirror_avatar.realtime.gates`). The access log leaves secrets out
 (`RedactSecrets`): tokens in query strings and the keys of join links.
@@ -11,6 +14,7 @@ reached through the server's own ASGI ``send`` callable, which the gates keep in
 from __future__ import annotations
 
 import asyncio
+import gc
 import logging
 import re
 import secrets
@@ -62,6 +66,14 @@ def make_token() -> str:
 LISTEN_BACKLOG = 2048
 """Connections the kernel queues for the server before it accepts them (uvicorn's default)."""
 
+ACCEPT_BATCH = 4
+"""Most connections the event loop accepts in one turn (**choice**). asyncio accepts up to the
+listen backlog's number of waiting connections in one turn of the loop, and the next turns
+handshake all of them before anything else waiting runs: under a flood of connections, with
+thousands queued, a turn lasted long enough for the trials' clocks to fall behind. With a small
+batch each turn stays short, so the clocks' timers, the pages' frames and their positions wait
+for a few handshakes at most; the rest of a flood waits in the kernel's queue."""
+
 RECEIVE_BUFFER_BYTES = 8192
 """Kernel receive buffer of each connection (bytes; Linux doubles it; **choice**). One read
 of a client's data is parsed whole before the event loop moves on, so the buffer bounds the
@@ -102,10 +114,34 @@ def make_server(app: ASGIApp, host: str, port: int, log_level: str = "warning") 
         ws_max_size=MAX_FRAME_BYTES,
         log_level=log_level,
         lifespan="off",
-        backlog=LISTEN_BACKLOG,
+        backlog=ACCEPT_BATCH,
     )
     keep_secrets_out_of_logs()
-    return uvicorn.Server(config)
+    return RealtimeServer(config)
+
+
+class RealtimeServer(uvicorn.Server):
+    """A uvicorn server whose event loop is never held long by accepting or collecting.
+
+    - It accepts `ACCEPT_BATCH` connections at a time. asyncio takes one number, the server's
+      ``backlog``, both for the kernel's queue (``listen``) and for the connections accepted in
+      one turn of the loop; the server is configured with `ACCEPT_BATCH`, and once it listens
+      its sockets are set back to queue `LISTEN_BACKLOG` connections.
+    - Once it serves, the objects that exist (the modules imported: hundreds of thousands) are
+      frozen out of garbage collection (`gc.freeze`, **choice**): a full collection would
+      otherwise walk them all, holding every thread (the trials' clocks among them) while it
+      runs, which a flood of connections, with all the objects it makes, triggers often.
+    """
+
+    async def startup(self, sockets: list[socket.socket] | None = None) -> None:
+        """Start serving, let the kernel queue `LISTEN_BACKLOG` connections, freeze the heap."""
+        await super().startup(sockets)
+        for server in self.servers:
+            for listener in server.sockets:  # the kernel's socket through a duplicate handle
+                with socket.fromfd(listener.fileno(), listener.family, listener.type) as sock:
+                    sock.listen(LISTEN_BACKLOG)
+        gc.collect()
+        gc.freeze()
 
 
 SECRETS = re.compile(r"(token=|/join/)[^&\s\"/?]+")
