@@ -327,12 +327,24 @@ def load_protocol(path: Path) -> Protocol:
     if len(raw) > MAX_PROTOCOL_BYTES:
         raise InputError(path, f"the protocol is over {MAX_PROTOCOL_BYTES} bytes (shorten it)")
     try:
-        data = tomllib.loads(raw.decode("utf-8"))
+        text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise InputError(path, "the protocol is not UTF-8 text (save it as UTF-8)") from None
+    return parse_protocol(protocol_table(text, str(path)), str(path))
+
+
+def protocol_table(text: str, source: str) -> dict[str, Any]:
+    """Parse a protocol's TOML text (``source`` names it in errors).
+
+    Raises
+    ------
+    InputError
+        ``FILE: not valid TOML: ...`` with where the syntax fails.
+    """
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
-        raise InputError(path, f"not valid TOML: {error} (fix the syntax there)") from None
-    return parse_protocol(data, str(path))
+        raise InputError(source, f"not valid TOML: {error} (fix the syntax there)") from None
 
 
 def parse_protocol(data: dict[str, Any], source: str) -> Protocol:

@@ -9,6 +9,10 @@ Routes (`create_lab_app`):
   creates the session and answers its status and its join links; with a protocol loaded,
   ``POST /api/sessions`` with ``{"participant": p}`` creates (or resumes) participant p's run
   of it (`mirror_avatar.lab.study.StudySession`).
+- ``POST /api/protocol`` with ``{"name": file name, "text": TOML}``: loads a protocol from the
+  console (`mirror_avatar.lab.protocol_store.store_protocol`: validated, kept as
+  ``OUT/protocols/<name>.toml``, used from then on); refused while a participant's run of the
+  current protocol is playing (409).
 - ``GET /api/sessions/{id}``: a session's status (`mirror_avatar.lab.runner.LabSession.status`)
   with its join links; ``GET /api/sessions/{id}/live``: the last 10 s of positions and ρ_g.
 - ``POST /api/sessions/{id}/start`` (body ``{"force": true}`` starts without everyone),
@@ -68,7 +72,8 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.lab.files import is_session_folder
 from mirror_avatar.lab.messages import Answer, Pong, parse_participant_message
 from mirror_avatar.lab.plan import LslDevice, SessionPlan, parse_plan
-from mirror_avatar.lab.protocol import Protocol
+from mirror_avatar.lab.protocol import MAX_PROTOCOL_BYTES, Protocol
+from mirror_avatar.lab.protocol_store import PROTOCOLS_FOLDER, store_protocol
 from mirror_avatar.lab.runner import LabSession, Outlet, Participant
 from mirror_avatar.lab.study import StudySession, study_folder
 from mirror_avatar.lab.trial import build_avatars
@@ -101,6 +106,9 @@ MAX_PARTICIPANT = 999
 MAX_BODY_BYTES = 64 * 1024
 """Largest API request body (bytes)."""
 
+MAX_PROTOCOL_BODY_BYTES = 2 * MAX_PROTOCOL_BYTES + 1024
+"""Largest body of ``POST /api/protocol`` (bytes): a protocol's largest text, escaped as JSON."""
+
 EXPORT_FOLDER = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 """Name of a folder of OUT the console may export into (one path part, no dots)."""
 
@@ -128,7 +136,7 @@ class LabSettings(PageSettings):
         Whether sessions publish an LSL outlet and take LSL input devices (needs pylsl).
     protocol
         The study protocol whose participants' sessions the console creates
-        (`mirror_avatar.lab.study.StudySession`), or None.
+        (`mirror_avatar.lab.study.StudySession`) until the console loads another, or None.
     """
 
     out_dir: Path
@@ -151,13 +159,18 @@ class Lab:
 
     A session that ends loses its join keys at once (its links stop); of the ended sessions
     only the `KEEP_ENDED` most recent stay listed, so memory and the console's answers do not
-    grow with the sessions a server has run.
+    grow with the sessions a server has run. ``protocol`` is the protocol whose participants'
+    runs are created: the settings' at first, then the last one loaded from the console.
     """
 
     settings: LabSettings
     sessions: dict[str, LabSession] = field(default_factory=dict)
     keys: dict[str, tuple[LabSession, Participant]] = field(default_factory=dict)
     created: int = 0
+    protocol: Protocol | None = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.protocol = self.settings.protocol
 
     def create(self, plan: SessionPlan, avatars: dict[int, Player]) -> LabSession:
         """Create a session of ``plan`` with its avatars, built (`build_avatars`)."""
@@ -189,7 +202,7 @@ class Lab:
         With LSL, the session stamps its samples on the LSL clock and publishes one outlet
         for the participant's whole run (`study_outlet`).
         """
-        protocol = self.settings.protocol
+        protocol = self.protocol
         assert protocol is not None
         self.forget_ended()
         name = study_folder(protocol, participant)
@@ -297,6 +310,7 @@ def create_lab_app(settings: LabSettings) -> ASGIApp:
             Route("/console", console_page),
             Route("/join/{key}", functools.partial(join_page, lab)),
             Route("/api/sessions", api.sessions, methods=["GET", "POST"]),
+            Route("/api/protocol", api.protocol, methods=["POST"]),
             Route("/api/sessions/{sid}", api.session),
             Route("/api/sessions/{sid}/live", api.live),
             Route("/api/sessions/{sid}/{action:str}", api.command, methods=["POST"]),
@@ -354,6 +368,7 @@ class LabApi:
 
     def __init__(self, lab: Lab) -> None:
         self.lab = lab
+        self.loading = asyncio.Lock()
 
     def _session(self, request: Request) -> LabSession:
         self.lab.forget_ended()
@@ -369,13 +384,8 @@ class LabApi:
             listing: dict[str, Any] = {
                 "sessions": [self._status(s, request) for s in self.lab.sessions.values()]
             }
-            protocol = self.lab.settings.protocol
-            if protocol is not None:
-                listing["protocol"] = {
-                    "title": protocol.title,
-                    "seed": protocol.seed,
-                    "people": protocol.people,
-                }
+            if self.lab.protocol is not None:
+                listing["protocol"] = protocol_summary(self.lab.protocol)
             return _json(listing)
         try:
             data = await _body(request)
@@ -391,13 +401,47 @@ class LabApi:
 
     def _study(self, participant: object) -> LabSession:
         """Create participant ``participant``'s run of the server's protocol."""
-        if self.lab.settings.protocol is None:
-            raise InputError("participant", "no protocol loaded (start the lab with --protocol)")
+        if self.lab.protocol is None:
+            raise InputError(
+                "participant", "no protocol loaded (load one on the console, or use --protocol)"
+            )
         if not isinstance(participant, int) or isinstance(participant, bool) or participant < 0:
             raise InputError("participant", "must be the participant's number, 0 or more")
         if participant > MAX_PARTICIPANT:
             raise InputError("participant", f"must be at most {MAX_PARTICIPANT}")
         return self.lab.create_study(participant)
+
+    async def protocol(self, request: Request) -> Response:
+        """Load the protocol in the body (``name``, ``text``) and use it from then on.
+
+        Answers the protocol's title, seed, people and kept copy; refused while a participant's
+        run of the current protocol is playing (409).
+        """
+        data = await _body(request, limit=MAX_PROTOCOL_BODY_BYTES)
+        if not isinstance(data, dict) or not all(
+            isinstance(data.get(key), str) for key in ("name", "text")
+        ):
+            raise ApiError(400, 'the body must be {"name": the file\'s name, "text": its TOML}')
+        async with self.loading:
+            playing = [
+                s.id
+                for s in self.lab.sessions.values()
+                if isinstance(s, StudySession)
+                and s.protocol is self.lab.protocol
+                and s.state in PLAYING
+            ]
+            if playing:
+                problem = f"{playing[0]} is playing: load a protocol when no trial runs"
+                return _json({"error": problem}, 409)
+            try:
+                protocol = await asyncio.to_thread(
+                    store_protocol, self.lab.settings.out_dir, data["name"], data["text"]
+                )
+            except InputError as error:
+                raise ApiError(400, str(error)) from None
+            self.lab.protocol = protocol
+        logger.info("protocol %s loaded from the console", protocol.source)
+        return _json({"protocol": protocol_summary(protocol)})
 
     async def session(self, request: Request) -> Response:
         """One session's status and join links."""
@@ -442,6 +486,8 @@ class LabApi:
         if not isinstance(folder, str) or not EXPORT_FOLDER.fullmatch(folder):
             raise ApiError(400, "folder: a name of letters, digits, - and _ (at most 64)")
         target = self.lab.settings.out_dir / folder
+        if folder == PROTOCOLS_FOLDER:
+            raise ApiError(400, f"folder: {folder} holds the loaded protocols, not a BIDS dataset")
         if folder in self.lab.sessions or is_session_folder(target):
             raise ApiError(400, f"folder: {folder} is a session's folder, not a BIDS dataset")
         if session.state in PLAYING:
@@ -482,6 +528,16 @@ class LabApi:
         return session.status() | {"links": links}
 
 
+def protocol_summary(protocol: Protocol) -> dict[str, Any]:
+    """Return the protocol as the console shows it: title, seed, people and its file."""
+    return {
+        "title": protocol.title,
+        "seed": protocol.seed,
+        "people": protocol.people,
+        "file": protocol.source,
+    }
+
+
 def join_links(session: LabSession, request: Request) -> dict[str, str]:
     """Each person's join link, on the address the researcher reached the server by."""
     base = str(request.base_url).rstrip("/")
@@ -502,10 +558,12 @@ async def api_error(request: Request, error: Exception) -> Response:
     return _json({"error": str(error)}, error.status)
 
 
-async def _body(request: Request, allow_empty: bool = False) -> Any:
-    raw = await request.body()
-    if len(raw) > MAX_BODY_BYTES:
-        raise ApiError(400, f"request body over {MAX_BODY_BYTES} bytes")
+async def _body(request: Request, allow_empty: bool = False, limit: int = MAX_BODY_BYTES) -> Any:
+    raw = bytearray()
+    async for chunk in request.stream():  # read no further than the limit
+        raw += chunk
+        if len(raw) > limit:
+            raise ApiError(400, f"request body over {limit} bytes")
     if not raw and allow_empty:
         return {}
     try:
