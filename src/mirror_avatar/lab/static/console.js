@@ -295,8 +295,7 @@
     try {
       const listing = await api("/api/sessions");
       renderSessionList(listing.sessions);
-      $("study").hidden = !listing.protocol;
-      if (listing.protocol) $("study-title").textContent = `"${listing.protocol.title}" · seed ${listing.protocol.seed} · people ${listing.protocol.people.join(", ")}`;
+      showProtocol(listing.protocol);
       if (current) {
         render(await api(`/api/sessions/${current}`));
         drawLive(await api(`/api/sessions/${current}/live`));
@@ -305,6 +304,29 @@
       $("session-error").textContent = error.message;
     }
     setTimeout(poll, POLL_MS);
+  }
+
+  function showProtocol(protocol) {
+    $("study").classList.toggle("loaded", Boolean(protocol));
+    $("study-run").hidden = !protocol;
+    $("study-title").textContent = protocol ? `"${protocol.title}" · seed ${protocol.seed} · people ${protocol.people.join(", ")}` : "none loaded";
+  }
+
+  async function loadProtocol() {
+    $("protocol-error").textContent = "";
+    $("protocol-result").textContent = "";
+    const file = $("protocol-file").files[0];
+    if (!file) {
+      $("protocol-error").textContent = "choose a protocol file first";
+      return;
+    }
+    try {
+      const answer = await api("/api/protocol", { method: "POST", body: JSON.stringify({ name: file.name, text: await file.text() }) });
+      showProtocol(answer.protocol);
+      $("protocol-result").textContent = `loaded; kept as ${answer.protocol.file}`;
+    } catch (error) {
+      $("protocol-error").textContent = error.message;
+    }
   }
 
   function renderSessionList(sessions) {
@@ -320,6 +342,7 @@
   $("preset").addEventListener("change", (event) => applyPreset(event.target.value));
   $("add-player").addEventListener("click", () => playerRow());
   $("create-session").addEventListener("click", create);
+  $("load-protocol").addEventListener("click", loadProtocol);
   $("create-participant").addEventListener("click", async () => {
     $("study-error").textContent = "";
     try {
