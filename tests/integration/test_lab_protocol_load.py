@@ -139,12 +139,13 @@ def test_bad_protocols_are_refused_with_one_line(lab, out):
 def test_loading_is_refused_while_a_participant_plays(lab, out):
     assert load(lab.url, "people.toml", PEOPLE_ONLY).status_code == 200
     sid = create_participant(lab.url, 0, BEARER)["id"]
+    assert load(lab.url, "people.toml", PEOPLE_ONLY).status_code == 200  # the same, reloaded
     start = f"{lab.url}/api/sessions/{sid}/start"
     started = httpx.post(start, json={"force": True}, headers=BEARER)
     assert started.status_code == 200, started.text
     refused = load(lab.url, "study.toml", PROTOCOL)
     assert refused.status_code == 409
-    assert refused.json()["error"] == (f"{sid} is playing: load a protocol when no trial runs")
+    assert refused.json()["error"] == f"{sid} is playing: load a protocol when no trial runs"
     assert listing(lab.url)["protocol"]["title"] == "two people"
     httpx.post(f"{lab.url}/api/sessions/{sid}/abort", json={}, headers=BEARER)
     loaded = load(lab.url, "study.toml", PROTOCOL)

@@ -423,11 +423,12 @@ class LabApi:
         ):
             raise ApiError(400, 'the body must be {"name": the file\'s name, "text": its TOML}')
         async with self.loading:
+            current = None if self.lab.protocol is None else self.lab.protocol.source
             playing = [
                 s.id
                 for s in self.lab.sessions.values()
                 if isinstance(s, StudySession)
-                and s.protocol is self.lab.protocol
+                and s.protocol.source == current
                 and s.state in PLAYING
             ]
             if playing:
