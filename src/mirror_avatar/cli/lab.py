@@ -24,7 +24,7 @@ from mirror_avatar.cli.play import server_options
     type=click.Path(path_type=Path),
     default=None,
     help="A study protocol (TOML, README 'Study protocols'): the console then creates each "
-    "participant's run of it, in their counterbalanced order.",
+    "participant's run of it, in their counterbalanced order (the console can also load one).",
 )
 @click.pass_context
 def lab(
