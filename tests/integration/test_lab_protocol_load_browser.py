@@ -16,6 +16,7 @@ pytestmark = pytest.mark.browser
 
 TOKEN = "protocol-load-token"
 SCREENSHOT = "lab-protocol-loaded-console.png"
+REFUSED = "lab-protocol-refused-panel.png"
 
 
 def test_the_console_loads_a_protocol_file_and_creates_a_participants_run(chromium, tmp_path):
@@ -26,7 +27,8 @@ def test_the_console_loads_a_protocol_file_and_creates_a_participants_run(chromi
     out = tmp_path / "out"
     settings = LabSettings(out_dir=out, token=TOKEN, countdown=1)
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
-    (SCREENSHOTS / SCREENSHOT).unlink(missing_ok=True)
+    for name in (SCREENSHOT, REFUSED):
+        (SCREENSHOTS / name).unlink(missing_ok=True)
     with ServerThread(create_lab_app(settings)) as lab:
         console = chromium.new_context(viewport={"width": 1280, "height": 900}).new_page()
         console.goto(f"{lab.url}/console?token={TOKEN}")
@@ -41,6 +43,7 @@ def test_the_console_loads_a_protocol_file_and_creates_a_participants_run(chromi
         assert refusal.startswith("pilot.toml: blocks[0].conditions[1].trials: ")
         assert "\n" not in refusal
         assert console.locator("#study-run").is_hidden()
+        console.locator("#study").screenshot(path=str(SCREENSHOTS / REFUSED))
 
         console.set_input_files("#protocol-file", str(good))
         console.click("#load-protocol")
