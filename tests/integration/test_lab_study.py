@@ -227,6 +227,27 @@ def test_the_cli_refuses_a_bad_protocol_in_one_line(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+def test_a_protocol_without_a_seed_is_served_with_a_warning_naming_the_drawn_seed(tmp_path):
+    unseeded = tmp_path / "unseeded.toml"
+    unseeded.write_text(PROTOCOL.replace("seed = 7\n", ""))
+    server = subprocess.Popen(
+        [Path(sys.executable).parent / "mirror-avatar", "lab", "--port", "0", "--no-lsl",
+         "--out", str(tmp_path / "out"), "--protocol", str(unseeded)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+    try:
+        shown = next(line for line in server.stdout if "protocol " in line)  # type: ignore[union-attr]
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(server.pid, signal.SIGTERM)
+        _, errors = server.communicate(timeout=30)
+    seed = re.search(r"seed (\d+)", shown).group(1)  # type: ignore[union-attr]
+    assert (
+        f"warning: {unseeded} has no seed: add 'seed = {seed}' to it, or a restart draws "
+        "another and the participants' runs cannot resume"
+    ) in errors.splitlines()
+
+
 def start_server(out: Path, protocol_file: Path) -> tuple[subprocess.Popen[str], str, str]:
     server = subprocess.Popen(
         [Path(sys.executable).parent / "mirror-avatar", "lab", "--port", "0", "--out", str(out),

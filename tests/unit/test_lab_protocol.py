@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import json
+import os
 import tomllib
 from dataclasses import replace
 from pathlib import Path
@@ -221,7 +222,7 @@ def test_each_mistake_is_refused_with_its_key_path_and_a_fix(path, value, messag
 
 def test_file_level_refusals_name_the_file(tmp_path):
     missing = tmp_path / "none.toml"
-    with pytest.raises(InputError, match=r"none\.toml: cannot read the protocol"):
+    with pytest.raises(InputError, match=r"none\.toml: no such file"):
         load_protocol(missing)
     broken = tmp_path / "broken.toml"
     broken.write_text("title = \n")
@@ -229,12 +230,16 @@ def test_file_level_refusals_name_the_file(tmp_path):
         load_protocol(broken)
     binary = tmp_path / "binary.toml"
     binary.write_bytes(b"title = '\xff'\n")
-    with pytest.raises(InputError, match=r"binary\.toml: the protocol is not UTF-8"):
+    with pytest.raises(InputError, match=r"binary\.toml: not UTF-8"):
         load_protocol(binary)
     huge = tmp_path / "huge.toml"
     huge.write_text("# " + "x" * MAX_PROTOCOL_BYTES)
-    with pytest.raises(InputError, match=r"huge\.toml: the protocol is over"):
+    with pytest.raises(InputError, match=r"huge\.toml: .* over the limit"):
         load_protocol(huge)
+    pipe = tmp_path / "pipe.toml"
+    os.mkfifo(pipe)
+    with pytest.raises(InputError, match=r"pipe\.toml: is a named pipe \(FIFO\)"):
+        load_protocol(pipe)
 
 
 def test_answers_are_checked_against_their_question():

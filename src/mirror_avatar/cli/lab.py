@@ -71,6 +71,12 @@ def lab(
         click.echo(
             f"protocol {protocol_file}: {protocol.title!r}, seed {protocol.seed}, people {people}"
         )
+        if protocol.seed_drawn:
+            click.echo(
+                f"warning: {protocol_file} has no seed: add 'seed = {protocol.seed}' to it, or a "
+                "restart draws another and the participants' runs cannot resume",
+                err=True,
+            )
     click.echo(f"researcher's token: {token}")
     click.echo(f"console: http://{shown}:{port}/console?token={token}  (Ctrl+C to stop)")
     if host in ("0.0.0.0", "::"):

@@ -32,6 +32,7 @@ from mirror_avatar.lab.checker import Checker, is_int
 from mirror_avatar.lab.order import ORDERS, block_order, condition_order
 from mirror_avatar.lab.perturbation import Perturbation, parse_perturbations
 from mirror_avatar.lab.plan import CONDITIONS, MAX_SPEC_CHARS, SessionPlan, parse_plan
+from mirror_avatar.user_files import read_text
 
 PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
 """What a protocol's player slot holds."""
@@ -243,6 +244,9 @@ class Protocol:
         Its questions, by id.
     blocks
         Its blocks, in the file's order.
+    seed_drawn
+        Whether the file has no seed and ``seed`` was drawn when it was read (a restart draws
+        another, and the participants' runs then no longer resume).
     """
 
     source: str
@@ -251,6 +255,7 @@ class Protocol:
     block_order: str
     questions: dict[str, Question]
     blocks: tuple[Block, ...]
+    seed_drawn: bool = False
 
     @property
     def people(self) -> tuple[str, ...]:
@@ -315,21 +320,10 @@ def load_protocol(path: Path) -> Protocol:
     Raises
     ------
     InputError
-        ``FILE: KEY.PATH: problem (fix)`` for the first mistake found.
+        ``FILE: KEY.PATH: problem (fix)`` for the first mistake found; a file that is not a
+        regular UTF-8 text file of at most `MAX_PROTOCOL_BYTES` (`mirror_avatar.user_files`).
     """
-    try:
-        with path.open("rb") as handle:
-            raw = handle.read(MAX_PROTOCOL_BYTES + 1)
-    except OSError as error:
-        raise InputError(
-            path, f"cannot read the protocol: {error.strerror} (check --protocol)"
-        ) from None
-    if len(raw) > MAX_PROTOCOL_BYTES:
-        raise InputError(path, f"the protocol is over {MAX_PROTOCOL_BYTES} bytes (shorten it)")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError:
-        raise InputError(path, "the protocol is not UTF-8 text (save it as UTF-8)") from None
+    text = read_text(path, MAX_PROTOCOL_BYTES)
     return parse_protocol(protocol_table(text, str(path)), str(path))
 
 
@@ -369,7 +363,7 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
             if names.count(condition.name) > 1:
                 where = f"blocks[{b}].conditions[{c}].name"
                 raise check.error(where, f"{condition.name!r} names two conditions", "rename one")
-    return Protocol(source, title, int(seed), order, questions, parsed)
+    return Protocol(source, title, int(seed), order, questions, parsed, "seed" not in data)
 
 
 def _questions(check: Checker, value: object) -> dict[str, Question]:
