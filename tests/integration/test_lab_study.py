@@ -25,10 +25,7 @@ from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 
-PROTOCOL = """
-title = "test study"
-seed = 7
-
+QUESTIONS = """
 [questions.partner]
 text = "Was your partner a person or a computer?"
 kind = "choice"
@@ -43,7 +40,13 @@ points = 7
 text = "Anything to add?"
 kind = "text"
 max_chars = 40
+"""
+"""A choice, a Likert scale and a free text, asked by the study tests."""
 
+PROTOCOL = f"""
+title = "test study"
+seed = 7
+{QUESTIONS}
 [[blocks]]
 name = "dyads"
 order = "williams"
@@ -53,8 +56,8 @@ after_block = ["remarks"]
 name = "follow"
 game = "leader_follower"
 players = [
-  { label = "P1", kind = "person" },
-  { label = "A1", kind = "avatar", spec = "bundled:slow" },
+  {{ label = "P1", kind = "person" }},
+  {{ label = "A1", kind = "avatar", spec = "bundled:slow" }},
 ]
 leaders = ["A1"]
 trials = 1
@@ -65,8 +68,8 @@ pause = 0.5
 name = "together"
 game = "joint"
 players = [
-  { label = "P1", kind = "person" },
-  { label = "P2", kind = "person-or-avatar", spec = "bundled:slow" },
+  {{ label = "P1", kind = "person" }},
+  {{ label = "P2", kind = "person-or-avatar", spec = "bundled:slow" }},
 ]
 trials = 2
 duration = 2

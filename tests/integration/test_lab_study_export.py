@@ -21,7 +21,7 @@ import httpx
 import numpy as np
 import pytest
 from test_lab_server import BEARER, TOKEN, status
-from test_lab_study import AnsweringPage, create_participant
+from test_lab_study import QUESTIONS, AnsweringPage, create_participant
 
 from mirror_avatar.cli import main
 from mirror_avatar.lab.protocol import load_protocol
@@ -29,25 +29,10 @@ from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 
-PROTOCOL = """
+PROTOCOL = f"""
 title = "export study"
 seed = 3
-
-[questions.partner]
-text = "Was your partner a person or a computer?"
-kind = "choice"
-options = ["a person", "a computer"]
-
-[questions.confidence]
-text = "How confident are you?"
-kind = "likert"
-points = 7
-
-[questions.remarks]
-text = "Anything to add?"
-kind = "text"
-max_chars = 40
-
+{QUESTIONS}
 [[blocks]]
 name = "partners"
 order = "fixed"
@@ -57,8 +42,8 @@ after_block = ["remarks"]
 name = "follow"
 game = "leader_follower"
 players = [
-  { label = "P1", kind = "person" },
-  { label = "A1", kind = "avatar", spec = "bundled:slow" },
+  {{ label = "P1", kind = "person" }},
+  {{ label = "A1", kind = "avatar", spec = "bundled:slow" }},
 ]
 leaders = ["A1"]
 trials = 1
@@ -70,8 +55,8 @@ after_trial = ["partner", "confidence"]
 name = "hidden"
 game = "joint"
 players = [
-  { label = "P1", kind = "person" },
-  { label = "P2", kind = "person" },
+  {{ label = "P1", kind = "person" }},
+  {{ label = "P2", kind = "person" }},
 ]
 trials = 1
 duration = 3
