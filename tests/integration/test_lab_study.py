@@ -239,11 +239,16 @@ def test_a_protocol_without_a_seed_is_served_with_a_warning_naming_the_drawn_see
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
     )  # fmt: skip
     try:
-        shown = next(line for line in server.stdout if "protocol " in line)  # type: ignore[union-attr]
+        printed = []
+        for line in server.stdout:  # type: ignore[union-attr]
+            printed.append(line)
+            if "console:" in line:  # printed after the warning
+                break
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(server.pid, signal.SIGTERM)
         _, errors = server.communicate(timeout=30)
+    shown = next(line for line in printed if line.startswith("protocol "))
     seed = re.search(r"seed (\d+)", shown).group(1)  # type: ignore[union-attr]
     assert (
         f"warning: {unseeded} has no seed: add 'seed = {seed}' to it, or a restart draws "

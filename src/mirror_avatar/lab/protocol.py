@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import secrets
 import tomllib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -255,7 +255,7 @@ class Protocol:
     block_order: str
     questions: dict[str, Question]
     blocks: tuple[Block, ...]
-    seed_drawn: bool = False
+    seed_drawn: bool = field(default=False, compare=False)
 
     @property
     def people(self) -> tuple[str, ...]:
