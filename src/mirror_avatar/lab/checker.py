@@ -35,6 +35,15 @@ class Checker:
                 place = f"{where}.{key}" if where else key
                 raise self.error(place, "unknown key", f"known keys: {', '.join(known)}")
 
+    def one_of(self, value: object, where: str, choices: tuple[str, ...], noun: str = "") -> str:
+        """Return ``value`` if it is one of ``choices``; the error names the ``noun`` if given."""
+        if value in choices:
+            return str(value)
+        listed = ", ".join(choices)
+        if noun:
+            raise self.error(where, f"{value!r} is not a {noun}", f"one of {listed}")
+        raise self.error(where, f"must be one of {listed}", "choose one")
+
     def array(self, value: object, where: str, most: int, fix: str) -> list[Any]:
         """Return ``value`` if it is a list of 1 to ``most`` entries."""
         if not isinstance(value, list) or not 1 <= len(value) <= most:

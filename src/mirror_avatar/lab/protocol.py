@@ -380,11 +380,7 @@ def _question(check: Checker, qid: str, value: object) -> Question:
     data = check.table(value, where)
     check.keys(data, where, QUESTION_KEYS)
     text = check.text(data.get("text"), f"{where}.text")
-    kind = data.get("kind")
-    if kind not in QUESTION_KINDS:
-        raise check.error(
-            f"{where}.kind", f"must be one of {', '.join(QUESTION_KINDS)}", "choose one"
-        )
+    kind = check.one_of(data.get("kind"), f"{where}.kind", QUESTION_KINDS)
     if kind == "choice":
         options = check.array(
             data.get("options"),
@@ -424,9 +420,7 @@ def _block(check: Checker, value: object, where: str, questions: dict[str, Quest
     data = check.table(value, where)
     check.keys(data, where, BLOCK_KEYS)
     name = check.text(data.get("name", where), f"{where}.name")
-    order = data.get("order", "fixed")
-    if order not in ORDERS:
-        raise check.error(f"{where}.order", f"must be one of {', '.join(ORDERS)}", "choose one")
+    order = check.one_of(data.get("order", "fixed"), f"{where}.order", ORDERS)
     after = check.refs(data.get("after_block", []), f"{where}.after_block", questions)
     items = check.array(
         data.get("conditions"),
@@ -447,11 +441,7 @@ def _condition(
     data = check.table(value, where)
     check.keys(data, where, CONDITION_KEYS)
     name = check.text(data.get("name"), f"{where}.name")
-    game = data.get("game")
-    if game not in CONDITIONS:
-        raise check.error(
-            f"{where}.game", f"{game!r} is not a game", f"one of {', '.join(CONDITIONS)}"
-        )
+    game = check.one_of(data.get("game"), f"{where}.game", CONDITIONS, "game")
     items = check.array(
         data.get("players"), f"{where}.players", 16, 'e.g. [{ label = "P1", kind = "person" }]'
     )
@@ -506,13 +496,7 @@ def _player(check: Checker, value: object, where: str) -> Player:
     data = check.table(value, where)
     check.keys(data, where, PLAYER_KEYS)
     label = check.label(data.get("label"), f"{where}.label")
-    kind = data.get("kind")
-    if kind not in PLAYER_KINDS:
-        raise check.error(
-            f"{where}.kind",
-            f"{kind!r} is not a kind of player",
-            f"one of {', '.join(PLAYER_KINDS)}",
-        )
+    kind = check.one_of(data.get("kind"), f"{where}.kind", PLAYER_KINDS, "kind of player")
     spec = data.get("spec")
     if kind == "person" and spec is not None:
         raise check.error(

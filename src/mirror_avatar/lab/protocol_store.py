@@ -32,7 +32,6 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.lab.protocol import (
     MAX_PROTOCOL_BYTES,
     Protocol,
-    load_protocol,
     parse_protocol,
     protocol_table,
 )
@@ -101,8 +100,7 @@ def store_protocol(out_dir: Path, file_name: str, text: str) -> Protocol:
     shown = file_part(file_name) or "protocol"
     if len(text.encode("utf-8")) > MAX_PROTOCOL_BYTES:
         raise InputError(shown, f"the protocol is over {MAX_PROTOCOL_BYTES} bytes (shorten it)")
-    data = protocol_table(text, shown)
-    protocol = parse_protocol(data, shown)
+    protocol = parse_protocol(protocol_table(text, shown), shown)
     copy = out_dir / PROTOCOLS_FOLDER / f"{protocol_name(file_name)}.toml"
     if copy.exists():
         kept = read_text(copy, MAX_PROTOCOL_BYTES + len(SEED_LINE) + 20)
@@ -111,8 +109,8 @@ def store_protocol(out_dir: Path, file_name: str, text: str) -> Protocol:
                 shown,
                 f"{copy} holds another protocol of that name (rename the file, or load that one)",
             )
-        return load_protocol(copy)
-    kept = text if "seed" in data else SEED_LINE.format(seed=protocol.seed) + text
+        return parse_protocol(protocol_table(kept, str(copy)), str(copy))
+    kept = SEED_LINE.format(seed=protocol.seed) + text if protocol.seed_drawn else text
     copy.parent.mkdir(parents=True, exist_ok=True)
     write_atomic_text(copy, kept)
     return replace(protocol, source=str(copy))
