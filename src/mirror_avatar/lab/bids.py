@@ -351,8 +351,10 @@ def _read_timing(path: Path, session: Session) -> Array | None:
     """
     files = session.metadata.get("files")
     name = files.get("inputs") if isinstance(files, dict) else None
-    inputs = path.with_name(Path(name).name if isinstance(name, str) and name else
-                            path.name.replace("_session.csv", "_inputs.csv"))  # fmt: skip
+    if isinstance(name, str) and name:
+        inputs = path.with_name(Path(name).name)
+    else:
+        inputs = companion(path, INPUTS_SUFFIX)
     if not inputs.is_file():
         return None
     header = _first_row(inputs, ",")
