@@ -117,6 +117,36 @@ def create_participant(url: str, participant: int, headers: dict[str, str]) -> d
     return response.json()
 
 
+def play_to_the_end(
+    lab: ServerThread,
+    sid: str,
+    pages: list[Page],
+    seconds: float = 40.0,
+    force: bool = False,
+    seen: set[str] | None = None,
+) -> None:
+    """Start a participant's run with its pages playing and wait until it has finished.
+
+    ``seen`` collects where in the protocol the console said the run was, poll by poll.
+    """
+
+    async def scenario() -> None:
+        tasks = [asyncio.create_task(page.play(seconds)) for page in pages]
+        await asyncio.sleep(0.5)
+        body = {"force": True} if force else {}
+        started = await asyncio.to_thread(
+            httpx.post, f"{lab.url}/api/sessions/{sid}/start", json=body, headers=BEARER
+        )
+        assert started.status_code == 200, started.text
+        while (now := await asyncio.to_thread(status, lab, sid))["state"] != "finished":
+            if seen is not None:
+                seen.add(now["study"]["where"])
+            await asyncio.sleep(0.1)
+        await asyncio.gather(*tasks)
+
+    asyncio.run(scenario())
+
+
 def person_plays_together(protocol_file: Path, participant: int) -> bool:
     steps = load_protocol(protocol_file).schedule(participant)
     return next(step.persons["P2"] for step in steps if step.name == "together")
@@ -141,20 +171,7 @@ def test_a_participant_plays_the_protocol_in_their_order_blinded(
         AnsweringPage(created["links"]["P2"], phase=-0.4),
     ]
     seen: set[str] = set()
-
-    async def scenario() -> None:
-        tasks = [asyncio.create_task(page.play(40.0)) for page in pages]
-        await asyncio.sleep(0.5)
-        started = await asyncio.to_thread(
-            httpx.post, f"{lab.url}/api/sessions/{sid}/start", json={"force": True}, headers=BEARER
-        )
-        assert started.status_code == 200, started.text
-        while (now := await asyncio.to_thread(status, lab, sid))["state"] != "finished":
-            seen.add(now["study"]["where"])
-            await asyncio.sleep(0.1)
-        await asyncio.gather(*tasks)
-
-    asyncio.run(scenario())
+    play_to_the_end(lab, sid, pages, force=True, seen=seen)
     assert "block 1 of 1, condition 'together', trial 2 of 2" in seen
     folder = tmp_path / "out" / sid
     study = json.loads((folder / "study.json").read_text())

@@ -6,7 +6,6 @@ request."""
 
 from __future__ import annotations
 
-import asyncio
 import csv
 import json
 import shutil
@@ -21,7 +20,7 @@ import httpx
 import numpy as np
 import pytest
 from test_lab_server import BEARER, TOKEN, status
-from test_lab_study import QUESTIONS, AnsweringPage, create_participant
+from test_lab_study import QUESTIONS, AnsweringPage, create_participant, play_to_the_end
 
 from mirror_avatar.cli import main
 from mirror_avatar.lab.protocol import load_protocol
@@ -83,19 +82,7 @@ def play(server: ServerThread, participant: int) -> str:
     created = create_participant(server.url, participant, BEARER)
     sid = created["id"]
     pages = [AnsweringPage(created["links"][label]) for label in ("P1", "P2")]
-
-    async def scenario() -> None:
-        tasks = [asyncio.create_task(page.play(40.0)) for page in pages]
-        await asyncio.sleep(0.5)
-        await asyncio.to_thread(
-            httpx.post, f"{server.url}/api/sessions/{sid}/start", json={"force": True},
-            headers=BEARER,
-        )  # fmt: skip
-        while (await asyncio.to_thread(status, server, sid))["state"] != "finished":
-            await asyncio.sleep(0.1)
-        await asyncio.gather(*tasks)
-
-    asyncio.run(scenario())
+    play_to_the_end(server, sid, pages, force=True)
     return sid
 
 

@@ -4,7 +4,6 @@ the LSL clock, markers for each condition, trial and perturbation."""
 
 from __future__ import annotations
 
-import asyncio
 import csv
 from collections.abc import Iterator
 from pathlib import Path
@@ -13,7 +12,8 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
-from test_lab_server import BEARER, TOKEN, Page, status
+from test_lab_server import BEARER, TOKEN, Page
+from test_lab_study import play_to_the_end
 
 from mirror_avatar.lab.protocol import load_protocol
 from mirror_avatar.lab.server import LabSettings, create_lab_app
@@ -112,19 +112,7 @@ def test_a_study_run_publishes_one_outlet_across_its_conditions(lab, tmp_path):
         ("A2", "avatar", "joint"),
     ]
     page = Page(created.json()["links"]["P1"])
-
-    async def scenario() -> None:
-        task = asyncio.create_task(page.play(40.0))
-        await asyncio.sleep(0.5)
-        started = await asyncio.to_thread(
-            httpx.post, f"{lab.url}/api/sessions/{sid}/start", json={}, headers=BEARER
-        )
-        assert started.status_code == 200, started.text
-        while (await asyncio.to_thread(status, lab, sid))["state"] != "finished":
-            await asyncio.sleep(0.1)
-        await task
-
-    asyncio.run(scenario())
+    play_to_the_end(lab, sid, [page], 40.0)
     samples, stamps = pull_all(inlet, *pulled[0])
     folder = tmp_path / "out" / sid
     trials = [load_session(folder / f"trial-{n:02d}_session.csv") for n in (1, 2)]

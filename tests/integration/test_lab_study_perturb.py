@@ -3,7 +3,6 @@ at one sample of a participant's run, seen in the recording against the recorded
 
 from __future__ import annotations
 
-import asyncio
 import json
 from collections.abc import Iterator
 from pathlib import Path
@@ -12,6 +11,7 @@ import httpx
 import numpy as np
 import pytest
 from test_lab_server import BEARER, TOKEN, Page, status
+from test_lab_study import play_to_the_end
 
 from mirror_avatar.lab.protocol import load_protocol
 from mirror_avatar.lab.server import LabSettings, create_lab_app
@@ -82,19 +82,7 @@ def test_an_avatar_switched_from_following_to_leading_changes_at_that_sample(lab
     assert created.status_code == 201, created.text
     sid = created.json()["id"]
     page = Page(created.json()["links"]["P1"])
-
-    async def scenario() -> None:
-        task = asyncio.create_task(page.play(30.0))
-        await asyncio.sleep(0.5)
-        started = await asyncio.to_thread(
-            httpx.post, f"{lab.url}/api/sessions/{sid}/start", json={}, headers=BEARER
-        )
-        assert started.status_code == 200, started.text
-        while (await asyncio.to_thread(status, lab, sid))["state"] != "finished":
-            await asyncio.sleep(0.1)
-        await task
-
-    asyncio.run(scenario())
+    play_to_the_end(lab, sid, [page], 30.0)
     events = status(lab, sid)["events"]
     assert any(e.endswith(f"A1 role=leader at sample {SWITCH} of trial 1") for e in events)
     folder = tmp_path / "out" / sid
