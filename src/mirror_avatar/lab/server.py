@@ -494,13 +494,17 @@ class LabApi:
         if session.state in PLAYING:
             problem = f"the session is playing ({session.state}): export when it waits or has ended"
             return _json({"error": problem}, 409)
+
+        def export() -> tuple[int, int]:  # off the event loop: the trials' clocks run on it
+            written = export_bids(session.directory, target)
+            return len(written), sum(1 for path in target.rglob("*") if path.is_file())
+
         try:
-            written = await asyncio.to_thread(export_bids, session.directory, target)
+            motion_files, files = await asyncio.to_thread(export)
         except InputError as error:
             raise ApiError(400, str(error)) from None
-        files = sum(1 for path in target.rglob("*") if path.is_file())
-        session.log(f"exported {len(written)} motion files to {target}")
-        return _json({"folder": str(target), "files": files, "motion_files": len(written)})
+        session.log(f"exported {motion_files} motion files to {target}")
+        return _json({"folder": str(target), "files": files, "motion_files": motion_files})
 
     async def file(self, request: Request) -> Response:
         """Serve a file of the session's folder, by one of the names the session lists."""
