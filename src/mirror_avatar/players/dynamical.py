@@ -14,6 +14,7 @@ given on the command line as ``NAME:key=value,...`` (`parse_options`).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -184,7 +185,11 @@ class ModelPartner(Player):
         self.label = label or self.NAME
         self.last_control = math.nan
         self.last_reference = math.nan
-        self.params = self.kernel_parameters()
+
+    @functools.cached_property
+    def params(self) -> Array:
+        """The parameters the model's kernel reads (`kernel_parameters`), built when first read."""
+        return self.kernel_parameters()
 
     def kernel_parameters(self) -> Array:
         """Return the parameters the model's kernel reads, in its order (default: all)."""
