@@ -2,3 +2,4 @@
 
 The layer above the lab: it reads what the lab records (run folders and BIDS exports) and never
 runs a trial.
+"""
