@@ -333,12 +333,15 @@ def protocol_table(text: str, source: str) -> dict[str, Any]:
     Raises
     ------
     InputError
-        ``FILE: not valid TOML: ...`` with where the syntax fails.
+        ``FILE: not valid TOML: ...`` with where the syntax fails, or arrays and tables nested
+        deeper than Python's recursion limit.
     """
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise InputError(source, f"not valid TOML: {error} (fix the syntax there)") from None
+    except RecursionError:  # tomllib reads nested arrays and tables recursively
+        raise InputError(source, "arrays or tables nested too deeply (flatten them)") from None
 
 
 def parse_protocol(data: dict[str, Any], source: str) -> Protocol:

@@ -30,9 +30,10 @@ Access: ``/console`` and ``/api`` need the researcher's token always, even on lo
 one). A join link holds the secret key of one person's slot in one session: it shows that
 session only, moves that person's point only, and expires when the session ends. WebSocket
 handshakes from another origin are refused. Rates are limited per client address (API
-requests, connections) and per connection (messages). Clients never name a path: files are
-written by the server into ``OUT/<session id>/`` under names it makes, and served only from the
-session's own folder by the names it lists.
+requests, connections; the researcher's token-carrying requests have a budget of their own, so a
+flood from their address does not slow them) and per connection (messages). Clients never name
+a path: files are written by the server into ``OUT/<session id>/`` under names it makes, and
+served only from the session's own folder by the names it lists, through the checked reader.
 """
 
 from __future__ import annotations
@@ -41,15 +42,16 @@ import asyncio
 import contextlib
 import functools
 import io
-import json
 import logging
+import mimetypes
+import os
 import re
 import time
-from collections.abc import Callable
+from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from starlette.applications import Starlette
 from starlette.middleware import Middleware
@@ -60,6 +62,7 @@ from starlette.responses import (
     PlainTextResponse,
     RedirectResponse,
     Response,
+    StreamingResponse,
 )
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
@@ -86,6 +89,8 @@ from mirror_avatar.realtime.messages import PositionUpdate
 from mirror_avatar.realtime.outbox import Outbox, Peer
 from mirror_avatar.realtime.settings import PageSettings
 from mirror_avatar.realtime.trial import Clock
+from mirror_avatar.trial_io import MAX_FILE_BYTES
+from mirror_avatar.user_files import open_regular, parse_json
 
 STATIC = Path(__file__).parent / "static"
 """The console's and the participants' pages."""
@@ -168,6 +173,7 @@ class Lab:
     keys: dict[str, tuple[LabSession, Participant]] = field(default_factory=dict)
     created: int = 0
     protocol: Protocol | None = field(init=False)
+    opening: set[str] = field(default_factory=set)
 
     def __post_init__(self) -> None:
         self.protocol = self.settings.protocol
@@ -196,26 +202,34 @@ class Lab:
         self._add(session)
         return session
 
-    def create_study(self, participant: int) -> LabSession:
+    async def create_study(self, participant: int) -> LabSession:
         """Create (or resume from its folder) participant ``participant``'s run of the protocol.
 
-        With LSL, the session stamps its samples on the LSL clock and publishes one outlet
-        for the participant's whole run (`study_outlet`).
+        The folder is made, or its ``study.json`` read and its trials listed, in a worker
+        thread (`mirror_avatar.lab.study.read_schedule`: the checked reader), so that a bad
+        folder delays no one's clock. With LSL, the session stamps its samples on the LSL
+        clock and publishes one outlet for the participant's whole run (`study_outlet`).
         """
         protocol = self.protocol
         assert protocol is not None
         self.forget_ended()
         name = study_folder(protocol, participant)
-        if name in self.sessions and not self.sessions[name].ended:
+        open_ = name in self.sessions and not self.sessions[name].ended
+        if open_ or name in self.opening:
             raise InputError("participant", f"participant {participant}'s session is open")
-        session = StudySession(
-            protocol,
-            participant,
-            self.settings.out_dir / name,
-            lsl_clock() if self.settings.lsl else time.monotonic,
-            self.settings.countdown,
-            self.settings.max_tick,
-        )
+        self.opening.add(name)
+        try:
+            session = await asyncio.to_thread(
+                StudySession,
+                protocol,
+                participant,
+                self.settings.out_dir / name,
+                lsl_clock() if self.settings.lsl else time.monotonic,
+                self.settings.countdown,
+                self.settings.max_tick,
+            )
+        finally:
+            self.opening.discard(name)
         if self.settings.lsl:
             session.outlet = study_outlet(session)
         self.sessions.pop(name, None)
@@ -321,7 +335,14 @@ def create_lab_app(settings: LabSettings) -> ASGIApp:
         ],
         exception_handlers={ApiError: api_error},
         middleware=[
-            Middleware(RateGate, rate=rate, burst=4 * rate, paths=("/api", "/ws")),
+            Middleware(
+                RateGate,
+                rate=rate,
+                burst=4 * rate,
+                paths=("/api", "/ws"),
+                token=settings.token,
+                cookie=TOKEN_COOKIE,
+            ),
             Middleware(
                 TokenGate,
                 token=settings.token,
@@ -390,7 +411,7 @@ class LabApi:
         try:
             data = await _body(request)
             if isinstance(data, dict) and "participant" in data:
-                session = self._study(data["participant"])
+                session = await self._study(data["participant"])
             else:
                 plan = parse_plan(data)
                 avatars = await asyncio.to_thread(build_avatars, plan)
@@ -399,7 +420,7 @@ class LabApi:
             raise ApiError(400, str(error)) from None
         return _json(self._status(session, request), 201)
 
-    def _study(self, participant: object) -> LabSession:
+    async def _study(self, participant: object) -> LabSession:
         """Create participant ``participant``'s run of the server's protocol."""
         if self.lab.protocol is None:
             raise InputError(
@@ -409,7 +430,7 @@ class LabApi:
             raise InputError("participant", "must be the participant's number, 0 or more")
         if participant > MAX_PARTICIPANT:
             raise InputError("participant", f"must be at most {MAX_PARTICIPANT}")
-        return self.lab.create_study(participant)
+        return await self.lab.create_study(participant)
 
     async def protocol(self, request: Request) -> Response:
         """Load the protocol in the body (``name``, ``text``) and use it from then on.
@@ -489,7 +510,7 @@ class LabApi:
         target = self.lab.settings.out_dir / folder
         if folder == PROTOCOLS_FOLDER:
             raise ApiError(400, f"folder: {folder} holds the loaded protocols, not a BIDS dataset")
-        if folder in self.lab.sessions or is_session_folder(target):
+        if folder in self.lab.sessions or await asyncio.to_thread(is_session_folder, target):
             raise ApiError(400, f"folder: {folder} is a session's folder, not a BIDS dataset")
         if session.state in PLAYING:
             problem = f"the session is playing ({session.state}): export when it waits or has ended"
@@ -507,12 +528,26 @@ class LabApi:
         return _json({"folder": str(target), "files": files, "motion_files": motion_files})
 
     async def file(self, request: Request) -> Response:
-        """Serve a file of the session's folder, by one of the names the session lists."""
+        """Serve a file of the session's folder, by one of the names the session lists.
+
+        Opened in a worker thread by the checked reader (`mirror_avatar.user_files.
+        open_regular`: a regular file of at most `MAX_FILE_BYTES`) and sent in chunks read in
+        worker threads.
+        """
         name = request.path_params["name"]
         path = self._session(request).directory / name
-        if not FILE_NAME.fullmatch(name) or not path.is_file():
+        if not FILE_NAME.fullmatch(name):
             return _json({"error": "no such file in this session"}, 404)
-        return FileResponse(path, headers={"Cache-Control": "no-store"})
+        try:
+            handle = await asyncio.to_thread(open_regular, path, MAX_FILE_BYTES)
+        except InputError:
+            return _json({"error": "no such file in this session"}, 404)
+        size = os.fstat(handle.fileno()).st_size
+        return StreamingResponse(
+            file_chunks(handle),
+            media_type=mimetypes.guess_type(name)[0] or "application/octet-stream",
+            headers={"Cache-Control": "no-store", "Content-Length": str(size)},
+        )
 
     async def qr(self, request: Request) -> Response:
         """Serve the QR code (SVG) of a person's join link."""
@@ -564,6 +599,14 @@ async def api_error(request: Request, error: Exception) -> Response:
 
 
 async def _body(request: Request, allow_empty: bool = False, limit: int = MAX_BODY_BYTES) -> Any:
+    """Read a request's JSON body: at most ``limit`` bytes, parsed by the bounded parser.
+
+    Raises
+    ------
+    ApiError
+        400: over the limit, or not JSON (`mirror_avatar.user_files.parse_json`: not UTF-8,
+        nested too deeply, NaN or a number beyond float64's range).
+    """
     raw = bytearray()
     async for chunk in request.stream():  # read no further than the limit
         raw += chunk
@@ -572,9 +615,18 @@ async def _body(request: Request, allow_empty: bool = False, limit: int = MAX_BO
     if not raw and allow_empty:
         return {}
     try:
-        return json.loads(raw)
-    except ValueError:
-        raise ApiError(400, "the request body is not valid JSON") from None
+        return await asyncio.to_thread(parse_json, bytes(raw), None, "the request body")
+    except InputError as error:
+        raise ApiError(400, str(error)) from None
+
+
+async def file_chunks(handle: IO[bytes], size: int = 2**16) -> AsyncIterator[bytes]:
+    """Yield an open file's bytes in chunks of ``size`` read in worker threads, then close it."""
+    try:
+        while chunk := await asyncio.to_thread(handle.read, size):
+            yield chunk
+    finally:
+        handle.close()
 
 
 def _json(data: dict[str, Any], status: int = 200) -> JSONResponse:
