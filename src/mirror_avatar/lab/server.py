@@ -166,6 +166,7 @@ class Lab:
     only the `KEEP_ENDED` most recent stay listed, so memory and the console's answers do not
     grow with the sessions a server has run. ``protocol`` is the protocol whose participants'
     runs are created: the settings' at first, then the last one loaded from the console.
+    ``opening`` names the sessions whose folders are being made or read in a worker thread.
     """
 
     settings: LabSettings
@@ -178,26 +179,34 @@ class Lab:
     def __post_init__(self) -> None:
         self.protocol = self.settings.protocol
 
-    def create(self, plan: SessionPlan, avatars: dict[int, Player]) -> LabSession:
-        """Create a session of ``plan`` with its avatars, built (`build_avatars`)."""
+    async def create(self, plan: SessionPlan, avatars: dict[int, Player]) -> LabSession:
+        """Create a session of ``plan`` with its avatars, built (`build_avatars`).
+
+        Its folder and ``plan.json`` are written in a worker thread.
+        """
         self.forget_ended()
         active = [s for s in self.sessions.values() if not s.ended]
-        if len(active) >= self.settings.max_sessions:
+        if len(active) + len(self.opening) >= self.settings.max_sessions:
             raise InputError("plan", f"{len(active)} sessions are open: end one first")
         self.created += 1
         stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
         session_id = f"{stamp}-{self.created:03d}"
         outlet, open_device, clock = lsl_hooks(self.settings.lsl, session_id, plan)
-        session = LabSession(
-            session_id,
-            plan,
-            self.settings.out_dir / session_id,
-            clock,
-            self.settings.countdown,
-            self.settings.max_tick,
-            outlet,
-            open_device,
-        )
+        self.opening.add(session_id)
+        try:
+            session = await asyncio.to_thread(
+                LabSession,
+                session_id,
+                plan,
+                self.settings.out_dir / session_id,
+                clock,
+                self.settings.countdown,
+                self.settings.max_tick,
+                outlet,
+                open_device,
+            )
+        finally:
+            self.opening.discard(session_id)
         session.avatars = avatars
         self._add(session)
         return session
@@ -415,7 +424,7 @@ class LabApi:
             else:
                 plan = parse_plan(data)
                 avatars = await asyncio.to_thread(build_avatars, plan)
-                session = self.lab.create(plan, avatars)
+                session = await self.lab.create(plan, avatars)
         except InputError as error:
             raise ApiError(400, str(error)) from None
         return _json(self._status(session, request), 201)
