@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.balance import block_balance
 from mirror_avatar.lab.messages import Answer, parse_participant_message
 from mirror_avatar.lab.protocol import MAX_PROTOCOL_BYTES, load_protocol, parse_protocol
 from mirror_avatar.realtime.messages import ProtocolError
@@ -67,19 +68,15 @@ def test_schedules_follow_the_williams_design_and_the_seed():
 
 
 @pytest.mark.parametrize("seed", [20261125, 3, 77])
-def test_person_or_avatar_draws_are_balanced_across_participants(seed):
+def test_person_or_avatar_draws_are_balanced_across_participants_and_positions(seed):
     protocol = replace(load_protocol(EXAMPLE), seed=seed)
-    slots = [("joint", "P2"), ("lead", "P2")]
-    for n in range(2, 9):
-        schedules = [protocol.schedule(p) for p in range(n)]
-        for name, label in slots:
-            people = [
-                next(s.persons[label] for s in steps if s.name == name) for steps in schedules
-            ]
-            avatars = people.count(False)
-            assert abs(avatars - (n - avatars)) <= n % 2, (seed, n, name, people)
-            for pair in range(n // 2):  # each pair of participants: one person, one avatar
-                assert people[2 * pair] != people[2 * pair + 1]
+    schedules = [protocol.schedule(p) for p in range(8)]  # the Williams design of 4: 8 a cycle
+    for name in ("joint", "lead"):
+        people = [next(s.persons["P2"] for s in steps if s.name == name) for steps in schedules]
+        assert people.count(True) == people.count(False) == 4, (seed, name, people)
+    partners = block_balance(protocol, schedules)[1]
+    assert partners.problems() == []
+    assert partners.kinds.tolist() == [[2, 2, 2, 2], [2, 2, 2, 2]]  # 2 slots of 4 at a position
 
 
 def test_who_in_a_pair_meets_the_avatar_is_drawn_from_the_seed():

@@ -5,12 +5,13 @@ sessions"). It has blocks, each a list of conditions; a condition is one game (`
 ``leader_follower``, ``joint``, ``group``) with its players, graph, leaders, trials, duration
 and pause, which becomes a `mirror_avatar.lab.plan.SessionPlan` once its players are decided
 (`Condition.plan`). A player is a person (by label), an avatar (by player spec) or a
-``person-or-avatar``: the partner's slot is filled by the person or by the avatar, drawn from
-the protocol's seed and balanced across participants (half of each pair of consecutive
-participants meet the avatar), so that neither the participant nor the page knows which (the
-files record it). Questions are declared once and asked after each trial of a condition
-(``after_trial``) or after a block (``after_block``). The order of blocks and of each block's
-conditions is fixed, random or counterbalanced across participants (`mirror_avatar.lab.order`).
+``person-or-avatar``: the partner's slot is filled by the person or by the avatar, balanced
+across participants and across the positions of the order
+(`mirror_avatar.lab.order.meets_person`), so that neither the participant nor the page knows
+which (the files record it). Questions are declared once and asked after each trial of a
+condition (``after_trial``) or after a block (``after_block``). The order of blocks and of each
+block's conditions is fixed, random or counterbalanced across participants
+(`mirror_avatar.lab.order`).
 
 Every mistake is refused with one line naming the file, the key path (such as
 ``blocks[1].conditions[0].players``), the problem and how to fix it.
@@ -25,11 +26,15 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.checker import Checker, is_int
-from mirror_avatar.lab.order import ORDERS, block_order, condition_order
+from mirror_avatar.lab.order import (
+    ORDERS,
+    block_order,
+    condition_order,
+    first_meets_person,
+    meets_person,
+)
 from mirror_avatar.lab.perturbation import Perturbation, parse_perturbations
 from mirror_avatar.lab.plan import CONDITIONS, MAX_SPEC_CHARS, SessionPlan, parse_plan
 from mirror_avatar.user_files import read_text
@@ -274,30 +279,23 @@ class Protocol:
         blocks = block_order(self.block_order, len(self.blocks), participant, self.seed)
         for b in blocks:
             block = self.blocks[b]
-            order = condition_order(block.order, len(block.conditions), participant, self.seed, b)
-            for c in order:
+            n = len(block.conditions)
+            order = condition_order(block.order, n, participant, self.seed, b)
+            for position, c in enumerate(order):
                 condition = block.conditions[c]
-                persons = self._partners(condition, participant, b, c)
+                persons = {
+                    player.label: meets_person(
+                        block.order,
+                        n,
+                        participant,
+                        position,
+                        first_meets_person(self.seed, b, self.people.index(player.label)),
+                    )
+                    for player in condition.players
+                    if player.kind == "person-or-avatar"
+                }
                 steps.append(Step(b, c, condition.name, persons))
         return steps
-
-    def _partners(self, condition: Condition, participant: int, b: int, c: int) -> dict[str, bool]:
-        """Draw whether a person fills each ``person-or-avatar`` slot (True) or the avatar.
-
-        **Choice**: balanced across participants. Participants are taken in pairs (0 and 1,
-        2 and 3, ...); in each pair one meets the person and the other the avatar, which one
-        drawn from the seed per pair, condition and slot. Any run of participants from the
-        first therefore meets the avatar as often as the person, give or take one, in an
-        order the seed reproduces.
-        """
-        pair, second = divmod(participant, 2)
-        draws = {}
-        for k, player in enumerate(condition.players):
-            if player.kind == "person-or-avatar":
-                rng = np.random.default_rng([self.seed, 4, pair, b, c, k])
-                first_meets_person = bool(rng.random() < 0.5)
-                draws[player.label] = first_meets_person != bool(second)
-        return draws
 
 
 @dataclass(frozen=True)
