@@ -8,7 +8,8 @@ Routes (`create_lab_app`):
   (`mirror_avatar.lab.plan.parse_plan`) builds its avatars (a bad spec is refused here, 400),
   creates the session and answers its status and its join links; with a protocol loaded,
   ``POST /api/sessions`` with ``{"participant": p}`` creates (or resumes) participant p's run
-  of it (`mirror_avatar.lab.study.StudySession`).
+  of it (`mirror_avatar.lab.study.StudySession`), or answers the run as it is while it is
+  open (200: a reloaded console shows it again).
 - ``POST /api/protocol`` with ``{"name": file name, "text": TOML}``: loads a protocol from the
   console (`mirror_avatar.lab.protocol_store.store_protocol`: validated, kept as
   ``OUT/protocols/<name>.toml``, used from then on); refused while a participant's run of the
@@ -222,6 +223,13 @@ class Lab:
         self._add(session)
         return session
 
+    def open_study(self, participant: int) -> LabSession | None:
+        """Return participant ``participant``'s run of the protocol while it is open, or None."""
+        assert self.protocol is not None
+        self.forget_ended()
+        session = self.sessions.get(study_folder(self.protocol, participant))
+        return None if session is None or session.ended else session
+
     def _add(self, session: LabSession) -> None:
         self.sessions[session.id] = session
         for participant in session.everyone():
@@ -390,7 +398,11 @@ class LabApi:
         try:
             data = await _body(request)
             if isinstance(data, dict) and "participant" in data:
-                session = self._study(data["participant"])
+                participant = self._participant(data["participant"])
+                running = self.lab.open_study(participant)
+                if running is not None:
+                    return _json(self._status(running, request))
+                session = self.lab.create_study(participant)
             else:
                 plan = parse_plan(data)
                 avatars = await asyncio.to_thread(build_avatars, plan)
@@ -399,8 +411,8 @@ class LabApi:
             raise ApiError(400, str(error)) from None
         return _json(self._status(session, request), 201)
 
-    def _study(self, participant: object) -> LabSession:
-        """Create participant ``participant``'s run of the server's protocol."""
+    def _participant(self, participant: object) -> int:
+        """Check a participant's number for a run of the server's protocol."""
         if self.lab.protocol is None:
             raise InputError(
                 "participant", "no protocol loaded (load one on the console, or use --protocol)"
@@ -409,7 +421,7 @@ class LabApi:
             raise InputError("participant", "must be the participant's number, 0 or more")
         if participant > MAX_PARTICIPANT:
             raise InputError("participant", f"must be at most {MAX_PARTICIPANT}")
-        return self.lab.create_study(participant)
+        return participant
 
     async def protocol(self, request: Request) -> Response:
         """Load the protocol in the body (``name``, ``text``) and use it from then on.
