@@ -89,6 +89,12 @@ def test_who_in_a_pair_meets_the_avatar_is_drawn_from_the_seed():
     assert protocol.schedule(5) == load_protocol(EXAMPLE).schedule(5)
 
 
+def test_a_protocol_is_single_blind_unless_it_says_double():
+    data = _example()
+    assert parse_protocol(data, "p.toml").blind == "single"
+    assert parse_protocol(data | {"blind": "double"}, "p.toml").blind == "double"
+
+
 def test_a_protocol_without_a_seed_draws_one():
     data = _example()
     del data["seed"]
@@ -116,6 +122,7 @@ REFUSALS = [
     (("seed",), -1, "seed: must be an integer"),
     (("seed",), 1.5, "seed: must be an integer"),
     (("block_order",), "latin", "block_order: must be 'fixed' or 'random'"),
+    (("blind",), "triple", "blind: must be one of single, double"),
     (("questions",), [], "questions: must be a table"),
     (
         ("questions", "bad id!"),

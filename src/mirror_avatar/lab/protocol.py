@@ -63,7 +63,10 @@ LIKERT_RANGE = (2, 11)
 SEED_LIMIT = 2**63 - 1
 """Largest seed."""
 
-TOP_KEYS = ("title", "seed", "block_order", "questions", "blocks")
+BLINDS = ("single", "double")
+"""Who is blind to the partner kinds: the participants' pages, or the researcher's console too."""
+
+TOP_KEYS = ("title", "seed", "block_order", "blind", "questions", "blocks")
 BLOCK_KEYS = ("name", "order", "after_block", "conditions")
 CONDITION_KEYS = (
     "delay",
@@ -252,6 +255,10 @@ class Protocol:
     seed_drawn
         Whether the file has no seed and ``seed`` was drawn when it was read (a restart draws
         another, and the participants' runs then no longer resume).
+    blind
+        One of `BLINDS`: ``"single"``, the participants' pages never show a partner's kind;
+        ``"double"``, the researcher's console neither, until export
+        (`mirror_avatar.lab.blinding`).
     """
 
     source: str
@@ -261,6 +268,7 @@ class Protocol:
     questions: dict[str, Question]
     blocks: tuple[Block, ...]
     seed_drawn: bool = field(default=False, compare=False)
+    blind: str = "single"
 
     @property
     def people(self) -> tuple[str, ...]:
@@ -350,6 +358,7 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
     order = data.get("block_order", "fixed")
     if order not in ("fixed", "random"):
         raise check.error("block_order", "must be 'fixed' or 'random'", "choose one")
+    blind = check.one_of(data.get("blind", "single"), "blind", BLINDS)
     questions = _questions(check, data.get("questions", {}))
     blocks = check.array(data.get("blocks"), "blocks", MAX_BLOCKS, "add [[blocks]] tables")
     parsed = tuple(
@@ -361,7 +370,8 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
             if names.count(condition.name) > 1:
                 where = f"blocks[{b}].conditions[{c}].name"
                 raise check.error(where, f"{condition.name!r} names two conditions", "rename one")
-    return Protocol(source, title, int(seed), order, questions, parsed, "seed" not in data)
+    drawn = "seed" not in data
+    return Protocol(source, title, int(seed), order, questions, parsed, drawn, str(blind))
 
 
 def _questions(check: Checker, value: object) -> dict[str, Question]:

@@ -20,7 +20,9 @@ Routes (`create_lab_app`):
   ``/stop`` and ``/abort``; ``POST /api/sessions/{id}/export`` (body ``{"folder": name}``,
   optional) exports the session's trials as BIDS (`mirror_avatar.lab.bids.export_bids`) into
   ``OUT/bids`` or ``OUT/<name>`` between trials, answering the folder and its file count.
-- ``GET /api/sessions/{id}/files/{name}``: a file of the session (plan, trials' recordings);
+- ``GET /api/sessions/{id}/files/{name}``: a file of the session (plan, trials' recordings;
+  refused, 403, for a run of a double-blind protocol, whose statuses are blinded too:
+  `mirror_avatar.lab.blinding`);
   ``GET /api/sessions/{id}/qr/{label}.svg``: the QR code of a person's join link.
 - ``GET /join/{key}``: a participant's page; ``/ws/join/{key}``: its WebSocket
   (`mirror_avatar.lab.messages`).
@@ -70,6 +72,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 from mirror_avatar.atomic import json_safe
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.blinding import console_status, hidden_of, unjoined
 from mirror_avatar.lab.files import is_session_folder
 from mirror_avatar.lab.messages import Answer, Pong, parse_participant_message
 from mirror_avatar.lab.plan import LslDevice, SessionPlan, parse_plan
@@ -475,7 +478,9 @@ class LabApi:
         session = self._session(request)
         data = await _body(request, allow_empty=True)
         if action == "start":
-            problem = session.start(force=bool(isinstance(data, dict) and data.get("force")))
+            force = bool(isinstance(data, dict) and data.get("force"))
+            problem = unjoined(session) if hidden_of(session) and not force else None
+            problem = problem or session.start(force=force)
             if problem is not None:
                 return _json({"error": problem}, 409)
         elif action == "stop":
@@ -521,7 +526,11 @@ class LabApi:
     async def file(self, request: Request) -> Response:
         """Serve a file of the session's folder, by one of the names the session lists."""
         name = request.path_params["name"]
-        path = self._session(request).directory / name
+        session = self._session(request)
+        if hidden_of(session):
+            problem = "the protocol is double blind: a run's files are hidden until its export"
+            return _json({"error": problem}, 403)
+        path = session.directory / name
         if not FILE_NAME.fullmatch(name) or not path.is_file():
             return _json({"error": "no such file in this session"}, 404)
         return FileResponse(path, headers={"Cache-Control": "no-store"})
@@ -541,16 +550,18 @@ class LabApi:
         )
 
     def _status(self, session: LabSession, request: Request) -> dict[str, Any]:
+        """Return a session's status and links, blinded for a double-blind protocol's run."""
         links = {} if session.ended else join_links(session, request)
-        return session.status() | {"links": links}
+        return console_status(session, session.status() | {"links": links})
 
 
 def protocol_summary(protocol: Protocol) -> dict[str, Any]:
-    """Return the protocol as the console shows it: title, seed, people and its file."""
+    """Return the protocol as the console shows it: title, seed, people, blinding, its file."""
     return {
         "title": protocol.title,
         "seed": protocol.seed,
         "people": protocol.people,
+        "blind": protocol.blind,
         "file": protocol.source,
     }
 

@@ -165,8 +165,8 @@
       cell(row, slot.label);
       cell(row, slot.role);
       const avatar = `avatar: ${slot.spec}` + (slot.plays ? ` · plays ${slot.plays}` : "");
-      cell(row, slot.kind === "avatar" ? avatar : `person (${slot.device})`);
-      let state = "ready";
+      cell(row, slot.kind === "hidden" ? "person or avatar: hidden until export" : slot.kind === "avatar" ? avatar : `person (${slot.device})`);
+      let state = slot.kind === "hidden" ? "-" : "ready";
       if (slot.kind === "human") {
         state = slot.connected ? "connected" : slot.joined ? "disconnected" : "not joined";
         if (slot.dropped_at !== null && slot.dropped_at !== undefined) state += ` · dropped at sample ${slot.dropped_at}`;
@@ -274,7 +274,8 @@
     if (status.study) {
       const study = status.study;
       const where = status.state === "finished" ? `finished: all ${study.total_trials} trials played` : study.where;
-      $("session-summary").textContent = `participant ${study.participant} · ${where} · order: ${study.order.join(", ")}` + (study.waiting.length ? ` · waiting: ${study.waiting.join(", ")}` : "") + Object.entries(study.unanswered).map(([label, ids]) => ` · ${label} to answer: ${ids.join(", ")}`).join("");
+      const pages = study.pages ? ` · pages: ${Object.entries(study.pages).map(([label, on]) => `${label} ${on ? "connected" : "not connected"}`).join(", ")} · double blind: partner kinds hidden until export` : "";
+      $("session-summary").textContent = `participant ${study.participant} · ${where} · order: ${study.order.join(", ")}` + (study.waiting.length ? ` · waiting: ${study.waiting.join(", ")}` : "") + Object.entries(study.unanswered).map(([label, ids]) => ` · ${label} to answer: ${ids.join(", ")}`).join("") + pages;
     }
     $("session-error").textContent = status.error || $("session-error").textContent;
     renderSlots(status);
@@ -334,7 +335,7 @@
   function showProtocol(protocol) {
     $("study").classList.toggle("loaded", Boolean(protocol));
     $("study-run").hidden = !protocol;
-    $("study-title").textContent = protocol ? `"${protocol.title}" · seed ${protocol.seed} · people ${protocol.people.join(", ")}` : "none loaded";
+    $("study-title").textContent = protocol ? `"${protocol.title}" · seed ${protocol.seed} · people ${protocol.people.join(", ")}` + (protocol.blind === "double" ? " · double blind" : "") : "none loaded";
   }
 
   async function loadProtocol() {
