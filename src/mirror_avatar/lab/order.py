@@ -127,16 +127,18 @@ def meets_person(method: str, n: int, participant: int, position: int, first: bo
     (``2 j >= n``), else 0. Hence:
 
     - in each pair of participants (0 and 1, 2 and 3, ...) one meets the person and the other
-      the avatar at every position, so each kind comes at each position equally often;
+      the avatar at every position where both meet such a slot, so each kind comes at each
+      position equally often;
     - cycle ``q + 1`` repeats cycle ``q``'s rows with every kind swapped, so every ``2 R``
       participants each condition meets each kind at each position equally often (the two
       squares crossed), and each condition meets each kind equally often;
-    - each participant meets both kinds in a block of two or more conditions (the first half
-      of its order one kind, the second half the other).
+    - each participant meets one kind in the first half of its order and the other in the
+      second: both kinds when the block's slots fall in both halves (always when each of its
+      two or more conditions has one).
 
-    A slot that stays with the same kind at every position for a pair of participants would
-    balance the conditions too within the pair, but then each participant would meet one kind
-    only; the crossing keeps both within each participant.
+    Balancing each condition's kinds within every pair as well would leave each participant one
+    kind only (for consecutive rows of a square the two demands have no other solution); the
+    crossing balances the conditions' kinds over whole cycles instead.
     """
     rows = design_rows(method, n)
     row, cycle = participant % rows, participant // rows
