@@ -63,6 +63,17 @@ def test_an_unbalanced_count_is_said_with_the_count_that_balances(tmp_path, caps
     assert capsys.readouterr().out.splitlines()[-1].startswith("balanced:")
 
 
+def test_an_order_that_is_not_counterbalanced_is_named_with_the_fix(tmp_path, capsys):
+    path = tmp_path / "random.toml"
+    path.write_text(THREE.replace('order = "latin"', 'order = "random"'))
+    assert main(["lab", "preview", "--protocol", str(path), "--participants", "6"]) == 0
+    verdict = capsys.readouterr().out.splitlines()[-1]
+    assert verdict.startswith("not balanced: block 'b': ")
+    assert verdict.endswith(
+        '(block \'b\' is not counterbalanced: order = "latin" or "williams" balances it)'
+    )
+
+
 def test_bad_options_are_refused_in_one_line(tmp_path, capsys):
     missing = tmp_path / "none.toml"
     assert main(["lab", "preview", "--protocol", str(missing)]) == 2

@@ -39,7 +39,7 @@ def preview(protocol_file: Path, participants: int) -> None:
     whether every block is balanced, or what is not and how many participants would balance it.
     Nothing is written: the lab draws the same orders and partners from the protocol's seed.
     """
-    from mirror_avatar.lab.balance import balancing_count, block_balance
+    from mirror_avatar.lab.balance import block_balance
     from mirror_avatar.lab.protocol import load_protocol
 
     protocol = load_protocol(protocol_file)
@@ -69,13 +69,27 @@ def preview(protocol_file: Path, participants: int) -> None:
             "each position equally often, each person-or-avatar slot as often each kind"
         )
         return
+    click.echo(f"not balanced: {'; '.join(problems)} ({_fix(protocol, participants, balances)})")
+
+
+def _fix(protocol: Protocol, participants: int, balances: list[BlockBalance]) -> str:
+    """Say what would balance every block: a counterbalanced order, or more participants."""
+    from mirror_avatar.lab.balance import balancing_count
+
+    unsquared = [
+        f"'{balance.name}'"
+        for balance in balances
+        if balance.problems() and balance.order in ("fixed", "random")
+    ]
+    if unsquared:
+        return (
+            f"block {', '.join(unsquared)} is not counterbalanced: "
+            'order = "latin" or "williams" balances it'
+        )
     count = balancing_count(protocol, participants, MAX_PREVIEW)
-    fix = (
-        f"{count} participants balance every block"
-        if count is not None
-        else f"no number of participants up to {MAX_PREVIEW} balances every block"
-    )
-    click.echo(f"not balanced: {'; '.join(problems)} ({fix})")
+    if count is None:
+        return f"no number of participants up to {MAX_PREVIEW} balances every block"
+    return f"{count} participants balance every block"
 
 
 def _order_line(protocol: Protocol, steps: list[Step]) -> str:
