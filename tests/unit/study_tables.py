@@ -95,7 +95,7 @@ def scripted_answers(truth: list[str], guesses: list[str], confidence: list[floa
     """Rows of a person's answers, one per trial, with the partner's true kind."""
     n = len(truth)
     return pd.DataFrame({
-        "participant": [f"p{i % 4:03d}" for i in range(n)], "person": "P1",
+        "participant": [f"p{i % 3:03d}" for i in range(n)], "person": "P1",
         "player_kind": "person", "condition": "c", "trial": np.arange(n), "position": 1,
         "partner_kind": truth, "guess_kind": guesses,
         "guess_correct": [t == g for t, g in zip(truth, guesses, strict=True)],

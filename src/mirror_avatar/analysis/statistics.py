@@ -31,6 +31,13 @@ CONFIDENCE = 0.95
 BootstrapMethod = Literal["BCa", "percentile"]
 
 
+def has_spread(values: NDArray[np.float64]) -> bool:
+    """Whether ``values`` differ by more than rounding (relative 1e-12): a spread to scale by."""
+    if values.size == 0:
+        return False
+    return bool(np.ptp(values) > 1e-12 * max(1.0, float(np.max(np.abs(values)))))
+
+
 def participant_means(rows: pd.DataFrame, measure: str, conditions: Sequence[str]) -> pd.DataFrame:
     """Each participant's mean of ``measure`` in each condition over their trials.
 
@@ -55,7 +62,7 @@ def bootstrap_mean_ci(
     """Bootstrap confidence interval of the mean of ``values`` (one per participant).
 
     ``scipy.stats.bootstrap`` (Efron & Tibshirani 1993) with a generator seeded by ``seed``.
-    Values all equal give the interval (value, value); fewer than two values give NaN.
+    Values all equal (see `has_spread`) give (value, value); fewer than two values give NaN.
 
     Returns
     -------
@@ -66,8 +73,8 @@ def bootstrap_mean_ci(
     sample = sample[np.isfinite(sample)]
     if sample.size < 2:
         return (float("nan"), float("nan"))
-    if np.ptp(sample) == 0.0:
-        return (float(sample[0]), float(sample[0]))
+    if not has_spread(sample):
+        return (float(sample.mean()), float(sample.mean()))
     found = stats.bootstrap(
         (sample,),
         np.mean,
@@ -268,7 +275,7 @@ def paired_effect(
     """
     differences = np.asarray(condition, dtype=np.float64) - np.asarray(reference, dtype=np.float64)
     nan = float("nan")
-    if differences.size < 2 or np.ptp(differences) == 0.0:
+    if differences.size < 2 or not has_spread(differences):
         return {"d_z": nan, "t": nan, "t_p": nan, "wilcoxon_p": nan}
     tested = stats.ttest_rel(condition, reference)
     signed_rank = stats.wilcoxon(differences) if np.any(differences != 0.0) else None
