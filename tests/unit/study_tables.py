@@ -101,3 +101,24 @@ def scripted_answers(truth: list[str], guesses: list[str], confidence: list[floa
         "guess_correct": [t == g for t, g in zip(truth, guesses, strict=True)],
         "guess_confidence": confidence, "rms": 0.1,
     })  # fmt: skip
+
+
+def with_answers(rows: pd.DataFrame, seed: int, right: float = 0.75) -> pd.DataFrame:
+    """The rows with a "person or avatar?" answer after each person's trial.
+
+    The partner's true kind alternates with the trial; each guess is right with probability
+    ``right``, with a confidence of 0.8 when right and 0.5 when wrong, plus noise.
+    """
+    rng = np.random.default_rng(seed)
+    persons = rows["player_kind"] == "person"
+    truth = np.where(rows["trial"] % 2 == 0, "person", "avatar")
+    is_right = rng.random(len(rows)) < right
+    guess = np.where(is_right, truth, np.where(truth == "person", "avatar", "person"))
+    confidence = np.clip(np.where(is_right, 0.8, 0.5) + rng.normal(0, 0.1, len(rows)), 0, 1)
+    return rows.assign(
+        partner_kind=np.where(persons, truth, rows["partner_kind"]),
+        guess_kind=np.where(persons, guess, None),
+        guess_correct=np.where(persons, is_right, None),
+        guess_confidence=np.where(persons, confidence, np.nan),
+        answer_q1=np.where(persons, guess, None),
+    )

@@ -72,9 +72,9 @@ def signal_detection(
     if corrected:
         hit_rate, false_alarm_rate = (hits + 0.5) / (signal + 1), (false_alarms + 0.5) / (noise + 1)
     z_hit, z_false_alarm = stats.norm.ppf(hit_rate), stats.norm.ppf(false_alarm_rate)
-    return SignalDetection(
+    return SignalDetection(  # + 0.0: no unbiased criterion written as -0
         **counts, hit_rate=hit_rate, false_alarm_rate=false_alarm_rate,
-        d_prime=float(z_hit - z_false_alarm), criterion=float(-(z_hit + z_false_alarm) / 2),
+        d_prime=float(z_hit - z_false_alarm), criterion=float(-(z_hit + z_false_alarm) / 2) + 0.0,
         corrected=corrected,
     )  # fmt: skip
 
