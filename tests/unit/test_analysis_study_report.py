@@ -110,7 +110,7 @@ def test_analysis_leaves_out_the_avatars_rows_and_finds_the_effects(table_dir: P
     assert rms.startswith(f"Delay 0.5 s raised rms from {means[NO_DELAY].mean():.3g} (no delay)")
     assert locking.startswith("Delay 0.5 s lowered phase_locking from")
     assert analysis.verdict().startswith("2 of 2 comparisons changed a measure")
-    assert "Partners identified better than chance" in analysis.verdict()
+    assert "Partners identified above chance" in analysis.verdict()
 
 
 def test_identical_conditions_are_said_not_to_differ(tmp_path: Path) -> None:

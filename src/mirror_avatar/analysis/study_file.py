@@ -58,21 +58,32 @@ class StudyTable:
 
     @property
     def measures(self) -> list[str]:
-        """The measure columns: Role "measure" in the dictionary, else numeric and not design."""
+        """The numeric measure columns: Role "measure" in the dictionary, else not design."""
         if self.dictionary:
-            return [
-                name
-                for name, entry in self.dictionary.items()
-                if entry.get("Role") == "measure" and name in self.rows
-            ]
+            return [name for name in self._declared_measures() if self._numeric(name)]
         return [
             name
             for name in self.rows.columns
             if name not in DESIGN_COLUMNS
             and not name.startswith("answer_")
-            and pd.api.types.is_numeric_dtype(self.rows[name])
+            and self._numeric(name)
             and not pd.api.types.is_bool_dtype(self.rows[name])
         ]
+
+    @property
+    def skipped_measures(self) -> list[str]:
+        """The dictionary's measures that hold no numbers (a leader's label): not averaged."""
+        return [name for name in self._declared_measures() if not self._numeric(name)]
+
+    def _declared_measures(self) -> list[str]:
+        return [
+            name
+            for name, entry in self.dictionary.items()
+            if entry.get("Role") == "measure" and name in self.rows
+        ]
+
+    def _numeric(self, name: str) -> bool:
+        return pd.api.types.is_numeric_dtype(self.rows[name])
 
     def units(self, column: str) -> str:
         """Return the column's units from the dictionary, or "" when it has none."""

@@ -146,6 +146,8 @@ def analyse_study(
         raise InputError("--reference", f"no condition {reference!r} in {table.source}; its "
                          f"conditions are {', '.join(conditions)}")  # fmt: skip
     rows, notes = _participants_rows(table.rows)
+    if table.skipped_measures:
+        notes.append(f"not numbers, so not averaged: {', '.join(table.skipped_measures)}")
     summaries = condition_summaries(rows, table.measures, conditions, seed, resamples, confidence)
     models = []
     for measure in table.measures:

@@ -62,15 +62,14 @@ def comparison_sentence(contrast: Contrast, units: str, several: bool) -> str:
 def identification_sentence(found: Identification) -> str:
     """Say the identification result in one paragraph: rate against chance, d', c, confidence."""
     d = found.detection
-    above = "above" if found.rate > CHANCE else "below"
-    told = (f"told persons from avatars {above} chance" if found.binomial_p < ALPHA
-            else "did not tell persons from avatars better than chance")  # fmt: skip
-    bias = 'a bias towards "person"' if d.criterion < 0 else 'a bias towards "avatar"'
+    said = _against_chance(found)
+    told = (f"told persons from avatars {said}" if said != "at chance"
+            else "did not tell persons from avatars apart better than chance")  # fmt: skip
     text = (
         f"Participants {told}: {found.correct} of {found.answers} answers right "
         f"({found.rate:.0%}, 95 % CI {found.rate_ci_low:.0%}-{found.rate_ci_high:.0%}; exact "
         f"binomial {format_p(found.binomial_p)} against {CHANCE:.0%}); d' = {number(d.d_prime)}, "
-        f"criterion c = {number(d.criterion)} ({'no bias' if d.criterion == 0 else bias})"
+        f"criterion c = {number(d.criterion)}{_bias(d.criterion)}"
     )
     if d.corrected:
         text += ", log-linear corrected for a rate of 0 or 1"
@@ -95,7 +94,7 @@ def verdict(contrasts: list[Contrast], identification: Identification | None) ->
     else:
         line = f"None of {len(contrasts)} comparisons changed a measure (p < {ALPHA} in none)."
     if identification is not None:
-        said = "better than chance" if identification.binomial_p < ALPHA else "at chance"
+        said = _against_chance(identification)
         line += (f" Partners identified {said}: {identification.rate:.0%} right "
                  f"({format_p(identification.binomial_p)}).")  # fmt: skip
     return line
@@ -138,3 +137,19 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
 
 def _capitalised(sentence: str) -> str:
     return sentence[:1].upper() + sentence[1:]
+
+
+def _against_chance(found: Identification) -> str:
+    """Say "above chance", "below chance" (both at `ALPHA`) or "at chance"."""
+    if found.binomial_p >= ALPHA:
+        return "at chance"
+    return "above chance" if found.rate > CHANCE else "below chance"
+
+
+def _bias(criterion: float) -> str:
+    """Say which answer the criterion leans to, in brackets."""
+    if math.isnan(criterion):
+        return " (d' and c need answers about both kinds of partner)"
+    if criterion == 0:
+        return " (no bias)"
+    return f' (a bias towards "{"person" if criterion < 0 else "avatar"}")'
