@@ -135,3 +135,24 @@ def test_answers_without_confidence_have_no_confidence_test() -> None:
     assert found is not None
     assert np.isnan(found.confidence_right) and np.isnan(found.confidence_p)
     assert found.confidence_right_n == 0
+
+
+def test_per_condition_rates_of_a_three_arm_design() -> None:
+    """Llobera et al.'s arms: a person, a coupled avatar, an uncoupled avatar; 10 answers each.
+    "person" said 8, 6 and 1 times: right 8, 4 and 9 times."""
+    truth = ["person"] * 10 + ["avatar"] * 20
+    guesses = (["person"] * 8 + ["avatar"] * 2 + ["person"] * 6 + ["avatar"] * 4
+               + ["person"] * 1 + ["avatar"] * 9)  # fmt: skip
+    answers = scripted_answers(truth, guesses, [np.nan] * 30)
+    answers["condition"] = ["human"] * 10 + ["coupled"] * 10 + ["uncoupled"] * 10
+    found = identify(answers)
+    assert found is not None
+    table = found.per_condition
+    assert list(table.index) == ["human", "coupled", "uncoupled"]
+    assert list(table["partners"]) == ["person", "avatar", "avatar"]
+    assert list(table["said_person"]) == pytest.approx([0.8, 0.6, 0.1])
+    assert list(table["correct"]) == [8, 4, 9]
+    two_sided = [2 * sum(math.comb(10, j) for j in range(max(k, 10 - k), 11)) / 2**10
+                 for k in (8, 4, 9)]  # fmt: skip
+    assert list(table["binomial_p"]) == pytest.approx(two_sided)
+    assert found.to_dict()["per_condition"][2]["condition"] == "uncoupled"

@@ -104,6 +104,10 @@ class Identification:
     per_participant
         Per participant: answers, correct, rate, hit_rate, false_alarm_rate, d_prime,
         criterion, corrected.
+    per_condition
+        Per condition (a partner's kind may be fixed by the condition, as in a three-arm
+        design): answers, the true kinds answered about, correct, rate, binomial_p (against
+        `CHANCE`) and said_person, the share of answers "person".
     left_out
         Answers about mixed partners (persons and avatars together), not scored.
     """
@@ -124,31 +128,36 @@ class Identification:
     confidence_wrong_n: int
     confidence_p: float
     per_participant: pd.DataFrame
+    per_condition: pd.DataFrame
     left_out: int
 
     def to_dict(self) -> dict[str, Any]:
-        """Every number, the per-participant table as a list of records."""
+        """Return every number, each table as a list of records."""
         found = asdict(self)
-        found["per_participant"] = self.per_participant.reset_index().to_dict(orient="records")
+        for name in ("per_participant", "per_condition"):
+            found[name] = getattr(self, name).reset_index().to_dict(orient="records")
         return found
 
 
 def scored_answers(rows: pd.DataFrame) -> tuple[pd.DataFrame, int]:
-    """Return the answers to score (participant, truth, guess, right, confidence), and the rest.
+    """Return the answers to score and how many answers about mixed partners were left out.
 
     Returns
     -------
     tuple
-        The answers (a row each with a guess of "person" or "avatar" about a partner of one true
-        kind) and the number of guesses about mixed partners.
+        The answers (columns participant, condition, truth, guess, right, confidence; a row
+        each with a guess of "person" or "avatar" about a partner of one true kind) and the
+        number of guesses about mixed partners.
     """
     if "guess_kind" not in rows or "partner_kind" not in rows:
-        return pd.DataFrame(columns=["participant", "truth", "guess", "right", "confidence"]), 0
+        columns = ["participant", "condition", "truth", "guess", "right", "confidence"]
+        return pd.DataFrame(columns=columns), 0
     guessed = rows[rows["guess_kind"].isin(KINDS)]
     scored = guessed[guessed["partner_kind"].isin(KINDS)]
     confidence = scored.get("guess_confidence", pd.Series(np.nan, index=scored.index))
     answers = pd.DataFrame({
-        "participant": scored["participant"], "truth": scored["partner_kind"],
+        "participant": scored["participant"], "condition": scored["condition"],
+        "truth": scored["partner_kind"],
         "guess": scored["guess_kind"], "right": scored["guess_kind"] == scored["partner_kind"],
         "confidence": pd.to_numeric(confidence, errors="coerce"),
     })  # fmt: skip
@@ -166,6 +175,9 @@ def identify(rows: pd.DataFrame, confidence: float = CONFIDENCE) -> Identificati
     per_participant = pd.DataFrame(
         {p: _participant_row(group) for p, group in answers.groupby("participant")}
     ).T.rename_axis("participant")
+    per_condition = pd.DataFrame(
+        {c: _condition_row(group) for c, group in answers.groupby("condition", sort=False)}
+    ).T.rename_axis("condition")
     d_primes = per_participant["d_prime"].astype(np.float64).dropna()
     rated = answers.dropna(subset=["confidence"])
     right, wrong = rated.loc[rated["right"], "confidence"], rated.loc[~rated["right"], "confidence"]
@@ -178,7 +190,7 @@ def identify(rows: pd.DataFrame, confidence: float = CONFIDENCE) -> Identificati
         confidence_right=_mean(right), confidence_wrong=_mean(wrong),
         confidence_right_n=len(right), confidence_wrong_n=len(wrong),
         confidence_p=_mann_whitney_p(right.to_numpy(), wrong.to_numpy()),
-        per_participant=per_participant, left_out=left_out,
+        per_participant=per_participant, per_condition=per_condition, left_out=left_out,
     )  # fmt: skip
 
 
@@ -198,6 +210,16 @@ def _participant_row(answers: pd.DataFrame) -> dict[str, Any]:
         "rate": float(answers["right"].mean()), "hit_rate": detection.hit_rate,
         "false_alarm_rate": detection.false_alarm_rate, "d_prime": detection.d_prime,
         "criterion": detection.criterion, "corrected": detection.corrected,
+    }  # fmt: skip
+
+
+def _condition_row(answers: pd.DataFrame) -> dict[str, Any]:
+    correct = int(answers["right"].sum())
+    return {
+        "answers": len(answers), "partners": ", ".join(sorted(set(answers["truth"]))),
+        "correct": correct, "rate": correct / len(answers),
+        "binomial_p": float(stats.binomtest(correct, len(answers), CHANCE).pvalue),
+        "said_person": float((answers["guess"] == "person").mean()),
     }  # fmt: skip
 
 
