@@ -96,14 +96,15 @@ def test_confidence_of_right_against_wrong_answers() -> None:
     assert found.confidence_p < 0.001
 
 
-def test_per_participant_scores_and_their_d_prime_test() -> None:
+def test_per_person_scores_and_their_d_prime_test() -> None:
     answers = forty_eight_answers()
     found = identify(answers)
     assert found is not None
-    assert found.participants == 3
-    table = found.per_participant
+    assert found.persons == 3
+    table = found.per_person
     assert int(table["answers"].sum()) == 48 and int(table["correct"].sum()) == 36
     for participant, group in answers.groupby("participant"):
+        participant = f"{participant}/P1"
         hits = int(((group["partner_kind"] == "person") & (group["guess_kind"] == "person")).sum())
         persons = int((group["partner_kind"] == "person").sum())
         alarms = int(
@@ -113,8 +114,8 @@ def test_per_participant_scores_and_their_d_prime_test() -> None:
         own = signal_detection(hits, persons - hits, alarms, avatars - alarms)
         assert table.loc[participant, "d_prime"] == pytest.approx(own.d_prime)
     d_primes = table["d_prime"].astype(float).to_numpy()
-    assert found.participant_d_prime_mean == pytest.approx(d_primes.mean())
-    assert found.participant_d_prime_p == pytest.approx(stats.ttest_1samp(d_primes, 0).pvalue)
+    assert found.person_d_prime_mean == pytest.approx(d_primes.mean())
+    assert found.person_d_prime_p == pytest.approx(stats.ttest_1samp(d_primes, 0).pvalue)
 
 
 def test_answers_about_mixed_partners_and_rows_without_answers_are_not_scored() -> None:

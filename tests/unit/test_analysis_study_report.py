@@ -163,7 +163,7 @@ def test_report_leads_with_its_verdict_and_results_hold_every_number(
     assert results["identification"]["detection"]["d_prime"] == pytest.approx(
         found.detection.d_prime
     )
-    assert len(results["identification"]["per_participant"]) == 12
+    assert len(results["identification"]["per_person"]) == 12
     contrasts = pd.read_csv(html.parent / "contrasts.csv")
     assert list(contrasts["measure"]) == ["rms", "phase_locking"]
     conditions = pd.read_csv(html.parent / "conditions.csv")
@@ -199,3 +199,22 @@ def test_the_command_refuses_bad_input_before_any_work(table_dir: Path, tmp_path
                                        "--reference", "nope"])  # fmt: skip
     assert isinstance(reference.exception, InputError)
     assert not (tmp_path / "o").exists()
+
+
+def test_two_persons_of_a_participant_count_once_and_answer_each(tmp_path: Path) -> None:
+    """A two-person protocol: P1 and P2 of one participant share the pair's measures; the
+    participant is the unit of the statistics, and each person's answers are scored apart."""
+    one = make_study_rows(2, effects=EFFECTS)
+    one = one[one["player_kind"] == "person"]
+    two = pd.concat([one, one.assign(person="P2", partners="P1")], ignore_index=True)
+    two = with_answers(two, seed=4)
+    alone = analyse_study(read_study_table(write_study_table(one, tmp_path / "one")))
+    pair = analyse_study(read_study_table(write_study_table(two, tmp_path / "two")))
+    assert pair.parameters["participants"] == 12
+    pd.testing.assert_frame_equal(pair.summaries, alone.summaries)
+    assert [c.p for c in pair.contrasts] == pytest.approx(
+        [c.p for c in alone.contrasts], rel=1e-6, abs=0
+    )
+    assert pair.identification is not None
+    assert pair.identification.persons == 24
+    assert "p000/P2" in pair.identification.per_person.index

@@ -105,7 +105,7 @@ def test_participant_figure_joins_each_participants_conditions() -> None:
     assert figure.axes[0].get_ylabel() == "rms (units)"
 
 
-def test_identification_figure_has_a_line_per_participant() -> None:
+def test_identification_figure_has_a_line_per_person() -> None:
     truth = ["person", "avatar"] * 24
     guesses = ["person", "avatar"] * 18 + ["avatar", "person"] * 6
     found = identify(scripted_answers(truth, guesses, list(np.linspace(0, 1, 48))))
@@ -115,8 +115,8 @@ def test_identification_figure_has_a_line_per_participant() -> None:
     participant_lines = [
         line for line in rates.get_lines() if isinstance(line, Line2D) and line.get_color() == "0.6"
     ]
-    assert len(participant_lines) == found.participants == 3
+    assert len(participant_lines) == found.persons == 3
     assert confidence.get_ylabel() == "confidence"
-    hit, alarm = found.per_participant.iloc[0][["hit_rate", "false_alarm_rate"]]
+    hit, alarm = found.per_person.iloc[0][["hit_rate", "false_alarm_rate"]]
     assert participant_lines[0].get_ydata() == pytest.approx([hit, alarm])
-    assert isinstance(found.per_participant, pd.DataFrame)
+    assert isinstance(found.per_person, pd.DataFrame)

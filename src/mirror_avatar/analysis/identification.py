@@ -93,16 +93,18 @@ class Identification:
         Two-sided exact binomial test of ``correct`` against `CHANCE` (answers independent).
     detection
         Pooled signal detection.
-    participants
-        Participants who answered; ``participant_d_prime_mean`` the mean of their own d' (each
-        corrected as `signal_detection` says) and ``participant_d_prime_p`` its one-sample
-        t-test against 0 (participants as the unit; NaN for fewer than two).
+    persons
+        Persons who answered (a participant of a two-person protocol has two);
+        ``person_d_prime_mean`` the mean of their own d' (each corrected as `signal_detection`
+        says) and ``person_d_prime_p`` its one-sample t-test against 0 (persons as the unit;
+        NaN for fewer than two).
     confidence_right, confidence_wrong
         Mean confidence of right and of wrong answers (NaN without confidence ratings), over
         ``confidence_right_n`` and ``confidence_wrong_n`` answers; ``confidence_p`` the
         two-sided Mann-Whitney U test between them.
-    per_participant
-        Per participant: answers, correct, rate, hit_rate, false_alarm_rate, d_prime,
+    per_person
+        Per person who answered (``participant/person``, or the participant in a table
+        without persons' labels): answers, correct, rate, hit_rate, false_alarm_rate, d_prime,
         criterion, corrected.
     per_condition
         Per condition (a partner's kind may be fixed by the condition, as in a three-arm
@@ -119,22 +121,22 @@ class Identification:
     rate_ci_high: float
     binomial_p: float
     detection: SignalDetection
-    participants: int
-    participant_d_prime_mean: float
-    participant_d_prime_p: float
+    persons: int
+    person_d_prime_mean: float
+    person_d_prime_p: float
     confidence_right: float
     confidence_wrong: float
     confidence_right_n: int
     confidence_wrong_n: int
     confidence_p: float
-    per_participant: pd.DataFrame
+    per_person: pd.DataFrame
     per_condition: pd.DataFrame
     left_out: int
 
     def to_dict(self) -> dict[str, Any]:
         """Return every number, each table as a list of records."""
         found = asdict(self)
-        for name in ("per_participant", "per_condition"):
+        for name in ("per_person", "per_condition"):
             found[name] = getattr(self, name).reset_index().to_dict(orient="records")
         return found
 
@@ -145,18 +147,18 @@ def scored_answers(rows: pd.DataFrame) -> tuple[pd.DataFrame, int]:
     Returns
     -------
     tuple
-        The answers (columns participant, condition, truth, guess, right, confidence; a row
+        The answers (columns person, condition, truth, guess, right, confidence; a row
         each with a guess of "person" or "avatar" about a partner of one true kind) and the
         number of guesses about mixed partners.
     """
     if "guess_kind" not in rows or "partner_kind" not in rows:
-        columns = ["participant", "condition", "truth", "guess", "right", "confidence"]
+        columns = ["person", "condition", "truth", "guess", "right", "confidence"]
         return pd.DataFrame(columns=columns), 0
     guessed = rows[rows["guess_kind"].isin(KINDS)]
     scored = guessed[guessed["partner_kind"].isin(KINDS)]
     confidence = scored.get("guess_confidence", pd.Series(np.nan, index=scored.index))
     answers = pd.DataFrame({
-        "participant": scored["participant"], "condition": scored["condition"],
+        "person": _answerers(scored), "condition": scored["condition"],
         "truth": scored["partner_kind"],
         "guess": scored["guess_kind"], "right": scored["guess_kind"] == scored["partner_kind"],
         "confidence": pd.to_numeric(confidence, errors="coerce"),
@@ -172,26 +174,33 @@ def identify(rows: pd.DataFrame, confidence: float = CONFIDENCE) -> Identificati
     correct = int(answers["right"].sum())
     tested = stats.binomtest(correct, len(answers), CHANCE)
     interval = tested.proportion_ci(confidence, method="exact")
-    per_participant = pd.DataFrame(
-        {p: _participant_row(group) for p, group in answers.groupby("participant")}
-    ).T.rename_axis("participant")
+    per_person = pd.DataFrame(
+        {p: _person_row(group) for p, group in answers.groupby("person")}
+    ).T.rename_axis("person")
     per_condition = pd.DataFrame(
         {c: _condition_row(group) for c, group in answers.groupby("condition", sort=False)}
     ).T.rename_axis("condition")
-    d_primes = per_participant["d_prime"].astype(np.float64).dropna()
+    d_primes = per_person["d_prime"].astype(np.float64).dropna()
     rated = answers.dropna(subset=["confidence"])
     right, wrong = rated.loc[rated["right"], "confidence"], rated.loc[~rated["right"], "confidence"]
     return Identification(
         answers=len(answers), correct=correct, rate=correct / len(answers),
         rate_ci_low=float(interval.low), rate_ci_high=float(interval.high),
         binomial_p=float(tested.pvalue), detection=_detection(answers),
-        participants=len(per_participant), participant_d_prime_mean=_mean(d_primes),
-        participant_d_prime_p=_one_sample_p(d_primes.to_numpy()),
+        persons=len(per_person), person_d_prime_mean=_mean(d_primes),
+        person_d_prime_p=_one_sample_p(d_primes.to_numpy()),
         confidence_right=_mean(right), confidence_wrong=_mean(wrong),
         confidence_right_n=len(right), confidence_wrong_n=len(wrong),
         confidence_p=_mann_whitney_p(right.to_numpy(), wrong.to_numpy()),
-        per_participant=per_participant, per_condition=per_condition, left_out=left_out,
+        per_person=per_person, per_condition=per_condition, left_out=left_out,
     )  # fmt: skip
+
+
+def _answerers(rows: pd.DataFrame) -> pd.Series:
+    """Name who answered each row: ``participant/person``, or the participant alone."""
+    if "person" not in rows:
+        return rows["participant"].astype(str)
+    return rows["participant"].astype(str) + "/" + rows["person"].astype(str)
 
 
 def _detection(answers: pd.DataFrame) -> SignalDetection:
@@ -203,7 +212,7 @@ def _detection(answers: pd.DataFrame) -> SignalDetection:
     )  # fmt: skip
 
 
-def _participant_row(answers: pd.DataFrame) -> dict[str, Any]:
+def _person_row(answers: pd.DataFrame) -> dict[str, Any]:
     detection = _detection(answers)
     return {
         "answers": len(answers), "correct": int(answers["right"].sum()),

@@ -38,6 +38,29 @@ def has_spread(values: NDArray[np.float64]) -> bool:
     return bool(np.ptp(values) > 1e-12 * max(1.0, float(np.max(np.abs(values)))))
 
 
+TRIAL_KEYS = ("participant", "condition", "position", "block", "trial")
+"""The columns that name a trial of a participant (those the table has)."""
+
+
+def trial_values(rows: pd.DataFrame, measure: str) -> pd.DataFrame:
+    """One value of ``measure`` per trial: the mean over the trial's rows (its persons).
+
+    A participant of a two-person protocol has a row per person and trial; a measure of the
+    pair is the same in both, and counting it twice would halve the model's variance. Rows
+    without ``block`` and ``trial`` columns are each a trial.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns `TRIAL_KEYS` (those present) and ``measure``.
+    """
+    keys = [key for key in TRIAL_KEYS if key in rows]
+    if "trial" not in keys:
+        return rows[[*keys, measure]]
+    grouped = rows.groupby(keys, sort=False, dropna=False)[measure].mean()
+    return grouped.reset_index()
+
+
 def participant_means(rows: pd.DataFrame, measure: str, conditions: Sequence[str]) -> pd.DataFrame:
     """Each participant's mean of ``measure`` in each condition over their trials.
 
@@ -207,6 +230,8 @@ def fit_contrasts(
 ) -> MeasureModel | None:
     """Fit ``measure ~ C(condition) + position`` with a random intercept per participant.
 
+    The observations are the participant's trials (`trial_values`).
+
     statsmodels' `MixedLM` fitted by REML; the reference condition is the treatment coding's
     baseline. Wald tests (z) of the fixed effects. The model is fitted to the measure centred
     and divided by its SD, and its estimates scaled back (REML is equivariant, so nothing
@@ -220,7 +245,7 @@ def fit_contrasts(
     MeasureModel or None
         None when fewer than two conditions or two participants have values of ``measure``.
     """
-    data = rows.dropna(subset=[measure, "position"])
+    data = trial_values(rows.dropna(subset=[measure, "position"]), measure)
     data = data[data["condition"].isin(conditions)]
     present = [c for c in conditions if c in set(data["condition"])]
     if reference not in present or len(present) < 2 or data["participant"].nunique() < 2:

@@ -50,15 +50,15 @@ def plot_participants(means: pd.DataFrame, summary: pd.DataFrame, label: str) ->
 
 
 def plot_identification(rows: pd.DataFrame, identification: Identification) -> Figure:
-    """Answers "person" per true partner kind, per participant; confidence of right and wrong.
+    """Answers "person" per true partner kind, per person; confidence of right and wrong.
 
-    Left: each participant's share of "person" answers when the partner was a person (hit
+    Left: each person's share of "person" answers when the partner was a person (hit
     rate) and when an avatar (false-alarm rate), joined by a line, with the pooled rates.
     Right: confidence of right and of wrong answers (every answer a dot), with their means.
     """
     figure = _new_figure(1.6)
     rates, confidence = figure.subplots(1, 2)
-    table = identification.per_participant
+    table = identification.per_person
     for _, row in table.iterrows():
         rates.plot([0, 1], [row["hit_rate"], row["false_alarm_rate"]], color=PARTICIPANT_COLOUR,
                    marker="o", ms=3, lw=0.9)  # fmt: skip

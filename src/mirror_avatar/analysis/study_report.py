@@ -288,8 +288,8 @@ def _identification_section(rows: pd.DataFrame, found: Identification) -> Sectio
         tables={"Signal detection over all answers (\"person\" the signal)": pooled,
                 "Per condition (said_person: the share of answers \"person\")":
                     found.per_condition,
-                "Per participant": found.per_participant},
-        figures={"Answers \"person\" by the partner's true kind (each participant a line), and "
+                "Per person who answered": found.per_person},
+        figures={"Answers \"person\" by the partner's true kind (each person a line), and "
                  "confidence of right and wrong answers": plot_identification(rows, found)},
     )  # fmt: skip
 

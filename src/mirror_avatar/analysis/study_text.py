@@ -129,7 +129,7 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         'c = -(z(H) + z(F))/2 with "person" as the signal (hit: "person" said of a '
         'person; false alarm: "person" said of an avatar; Macmillan & Creelman 2005), '
         "log-linear corrected (0.5 added to hits and false alarms, 1 to each kind's count; "
-        "Hautus 1995) when a rate is 0 or 1; participants' own d' tested against 0 by a "
+        "Hautus 1995) when a rate is 0 or 1; each person's own d' tested against 0 by a "
         "one-sample t-test; confidence in right and in wrong answers compared by a two-sided "
         f"Mann-Whitney U test. Significance level {ALPHA}."
     )
