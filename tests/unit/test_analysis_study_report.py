@@ -218,3 +218,21 @@ def test_two_persons_of_a_participant_count_once_and_answer_each(tmp_path: Path)
     assert pair.identification is not None
     assert pair.identification.persons == 24
     assert "p000/P2" in pair.identification.per_person.index
+
+
+@pytest.mark.parametrize("with_dictionary", [True, False])
+def test_ratings_are_compared_like_measures(tmp_path: Path, with_dictionary: bool) -> None:
+    """A numeric answer (a 1-7 rating, one point lower with the delay) is an outcome; the
+    person-or-avatar answer (text) is not."""
+    rows = with_answers(make_study_rows(0), seed=1)
+    rng = np.random.default_rng(2)
+    delayed = (rows["condition"] == DELAY).to_numpy()
+    rating = np.clip(np.round(5.0 - delayed + rng.normal(0, 0.7, len(rows))), 1, 7)
+    rows = rows.assign(answer_enjoy=np.where(rows["player_kind"] == "person", rating, np.nan))
+    table = read_study_table(write_study_table(rows, tmp_path, with_dictionary=with_dictionary))
+    assert table.rated_answers == ["answer_enjoy"]
+    assert table.outcomes == ["rms", "phase_locking", "answer_enjoy"]
+    analysis = analyse_study(table, resamples=999)
+    (enjoy,) = [c for c in analysis.contrasts if c.measure == "answer_enjoy"]
+    assert enjoy.p < 0.05 and enjoy.difference == pytest.approx(-1.0, abs=0.3)
+    assert analysis.sentences()[-1].startswith("Delay 0.5 s lowered answer_enjoy from")

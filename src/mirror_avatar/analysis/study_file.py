@@ -71,6 +71,26 @@ class StudyTable:
         ]
 
     @property
+    def rated_answers(self) -> list[str]:
+        """The answers given as numbers (a rating): Role "answer" (or ``answer_...``), numeric."""
+        if self.dictionary:
+            declared = [n for n, e in self.dictionary.items() if e.get("Role") == "answer"]
+        else:
+            declared = [n for n in self.rows.columns if n.startswith("answer_")]
+        return [
+            name
+            for name in declared
+            if name in self.rows
+            and self._numeric(name)
+            and not pd.api.types.is_bool_dtype(self.rows[name])
+        ]
+
+    @property
+    def outcomes(self) -> list[str]:
+        """Every column compared between conditions: the measures, then the rated answers."""
+        return self.measures + self.rated_answers
+
+    @property
     def skipped_measures(self) -> list[str]:
         """The dictionary's measures that hold no numbers (a leader's label): not averaged."""
         return [name for name in self._declared_measures() if not self._numeric(name)]

@@ -148,9 +148,9 @@ def analyse_study(
     rows, notes = _participants_rows(table.rows)
     if table.skipped_measures:
         notes.append(f"not numbers, so not averaged: {', '.join(table.skipped_measures)}")
-    summaries = condition_summaries(rows, table.measures, conditions, seed, resamples, confidence)
+    summaries = condition_summaries(rows, table.outcomes, conditions, seed, resamples, confidence)
     models = []
-    for measure in table.measures:
+    for measure in table.outcomes:
         model = fit_contrasts(rows, measure, conditions, reference, confidence)
         if model is None:
             notes.append(f"{measure}: no comparison (fewer than two conditions or participants)")
@@ -160,7 +160,8 @@ def analyse_study(
     parameters = {
         "source": str(table.source), "participants": int(rows["participant"].nunique()),
         "rows": len(rows), "conditions": conditions, "reference": reference,
-        "measures": table.measures, "seed": seed, "bootstrap_resamples": resamples,
+        "measures": table.measures, "rated_answers": table.rated_answers, "seed": seed,
+        "bootstrap_resamples": resamples,
         "bootstrap_method": "BCa", "confidence": confidence,
         "model": "measure ~ C(condition, reference) + position, random intercept per "
                  "participant, REML, Wald z tests, Holm over a measure's contrasts",
@@ -262,7 +263,7 @@ def _sections(analysis: StudyAnalysis) -> list[Section]:
                 f"{measure} ({table.units(measure)})" if table.units(measure) else measure,
             )
         )
-        for measure in table.measures
+        for measure in table.outcomes
     }
     sections = [
         Section("comparisons", "In words", text=analysis.sentences() + analysis.notes),
