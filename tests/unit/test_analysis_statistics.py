@@ -193,3 +193,16 @@ def test_the_delays_effect_is_found_with_its_sign_in_every_seed() -> None:
             assert contrast.p < 0.05, (seed, measure, contrast)
             assert np.sign(contrast.difference) == np.sign(effect)
             assert np.sign(contrast.d_z) == np.sign(effect)
+
+
+def test_a_constant_or_noiseless_measure_is_said_untested() -> None:
+    rows = persons(make_study_rows(0))
+    constant = fit_contrasts(rows.assign(rms=0.1), "rms", CONDITIONS, NO_DELAY)
+    noiseless = rows.assign(rms=np.where(rows["condition"] == DELAY, 0.2, 0.1))
+    exact = fit_contrasts(noiseless, "rms", CONDITIONS, NO_DELAY)
+    assert constant is not None and exact is not None
+    assert constant.notes == ["the same value in every trial"]
+    assert exact.notes[-1].startswith("the mixed model could not be fitted")
+    (contrast,) = exact.contrasts
+    assert np.isnan(contrast.p) and np.isnan(contrast.difference)
+    assert contrast.condition_mean == pytest.approx(0.2)

@@ -120,3 +120,11 @@ def test_identification_figure_has_a_line_per_person() -> None:
     hit, alarm = found.per_person.iloc[0][["hit_rate", "false_alarm_rate"]]
     assert participant_lines[0].get_ydata() == pytest.approx([hit, alarm])
     assert isinstance(found.per_person, pd.DataFrame)
+
+
+def test_an_untested_comparison_says_so() -> None:
+    nan = float("nan")
+    untested = replace(CONTRAST, difference=nan, p=nan, p_holm=nan, d_z=nan)
+    assert comparison_sentence(untested, "units", several=False) == (
+        "Delay 0.5 s against no delay: rms 0.12 and 0.19 units, not tested (see the notes below)."
+    )

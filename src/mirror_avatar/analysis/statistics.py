@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 from statsmodels.regression.mixed_linear_model import MixedLM
 from statsmodels.stats.multitest import multipletests
+from statsmodels.tools.sm_exceptions import ConvergenceWarning
 
 BOOTSTRAP_RESAMPLES = 9999
 """Bootstrap resamples of the participants' means (**choice**: scipy's default)."""
@@ -253,18 +254,24 @@ def fit_contrasts(
     others = [c for c in present if c != reference]
     design, notes = _design(data, others)
     values = data[measure].to_numpy(np.float64)
-    sd = float(np.std(values)) or 1.0
+    means = participant_means(data, measure, present)
+    if not has_spread(values):
+        return _unfitted(data, measure, means, reference, notes + ["the same value in every trial"])
+    sd = float(np.std(values))
     model = MixedLM((values - values.mean()) / sd, design, groups=data["participant"])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = model.fit(reml=True)
-    notes += _fit_notes(caught)
+        try:
+            result = model.fit(reml=True)
+        except (np.linalg.LinAlgError, ValueError) as error:
+            failed = f"the mixed model could not be fitted ({' '.join(str(error).split())})"
+            return _unfitted(data, measure, means, reference, notes + [failed])
+    notes += _fit_notes(caught, bool(result.converged))
     interval = result.conf_int(alpha=1.0 - confidence) * sd
     coefficients = result.fe_params * sd
     participant_variance = float(np.asarray(result.cov_re)[0, 0]) * sd**2
     residual_variance = float(result.scale) * sd**2
     total_sd = float(np.sqrt(participant_variance + residual_variance))
-    means = participant_means(data, measure, present)
     p_values = [float(result.pvalues[c]) for c in others]
     holm = multipletests(p_values, method="holm")[1]
     contrasts = []
@@ -327,15 +334,31 @@ def _design(data: pd.DataFrame, others: list[str]) -> tuple[pd.DataFrame, list[s
     return design, [f"order not checked: position left out of the model, {why}"]
 
 
-def _fit_notes(caught: list[warnings.WarningMessage]) -> list[str]:
-    """Say each of the fit's warnings in one line (a participant variance of 0: a boundary fit)."""
+def _fit_notes(caught: list[warnings.WarningMessage], converged: bool) -> list[str]:
+    """Say what the fit's warnings mean: a boundary fit, a fit that did not converge."""
+    texts = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
     notes = []
-    for message in caught:
-        text = " ".join(str(message.message).split())
-        if "boundary" in text or "singular" in text:
-            text = "the participants' variance is near 0 (a boundary fit)"
-        notes.append(f"mixed model: {text}")
-    return list(dict.fromkeys(notes))
+    if any("boundary" in text for text in texts):
+        notes.append("mixed model: the participants' variance is near 0 (a boundary fit)")
+    if not converged:
+        notes.append("mixed model: the fit did not converge, so its p-values are not reliable")
+    return notes
+
+
+def _unfitted(
+    data: pd.DataFrame, measure: str, means: pd.DataFrame, reference: str, notes: list[str]
+) -> MeasureModel:
+    """Make the model of a measure that could not be fitted: NaN estimates, the paired tests."""
+    nan = float("nan")
+    estimate = (nan, np.array([nan, nan]), nan, nan)
+    others = [c for c in means.columns if c != reference]
+    return MeasureModel(
+        measure=measure, rows=len(data), participants=int(data["participant"].nunique()),
+        position_in_model=False, position_slope=nan, position_p=nan, participant_variance=nan,
+        residual_variance=nan,
+        contrasts=[_contrast(measure, c, reference, means, estimate, nan) for c in others],
+        notes=notes,
+    )  # fmt: skip
 
 
 def _contrast(

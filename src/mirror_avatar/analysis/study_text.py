@@ -47,6 +47,11 @@ def comparison_sentence(contrast: Contrast, units: str, several: bool) -> str:
     unit = "" if units in NO_UNITS else f" {units}"
     p = format_p(c.p_holm) + (" Holm-corrected" if several else "")
     evidence = f"({p}, d_z = {number(c.d_z)}, n = {c.participants})"
+    if math.isnan(c.p_holm):
+        return _capitalised(
+            f"{c.condition} against {c.reference}: {c.measure} {number(c.reference_mean)} and "
+            f"{number(c.condition_mean)}{unit}, not tested (see the notes below)."
+        )
     if is_change(c):
         verb = "raised" if c.difference > 0 else "lowered"
         return _capitalised(
