@@ -74,7 +74,10 @@ def bad_table(folder: Path, case: str) -> Path:
         (folder / "t.txt").write_text("x")
         return folder / "t.txt"
     drop = {"no position": ["position"], "no measure": ["rms", "phase_locking"]}.get(case, [])
-    write_study_table(make_study_rows(0).drop(columns=drop), folder)
+    rows = make_study_rows(0).drop(columns=drop)
+    if case == "no condition":
+        rows["condition"] = np.nan
+    write_study_table(rows, folder)
     if case == "bad dictionary":
         (folder / "study.json").write_text("{not json")
     return folder / "study.csv"
@@ -88,6 +91,7 @@ def bad_table(folder: Path, case: str) -> Path:
         ("not a table", "is not a .csv or .parquet"),
         ("no position", "no position column"),
         ("no measure", "no measure column"),
+        ("no condition", "no row has a condition"),
         ("bad dictionary", "cannot be read as the table's data dictionary"),
     ],
 )
@@ -134,7 +138,7 @@ def test_another_reference_and_an_unknown_one(table_dir: Path) -> None:
 
 def test_one_condition_has_means_and_no_comparison(tmp_path: Path) -> None:
     rows = make_study_rows(0)
-    rows = rows[rows["condition"] == NO_DELAY]
+    rows = rows.assign(condition=rows["condition"].where(rows["condition"] == NO_DELAY))
     analysis = analyse_study(read_study_table(write_study_table(rows, tmp_path)), resamples=999)
     assert analysis.models == [] and len(analysis.summaries) == 2
     assert analysis.verdict() == "No conditions to compare."

@@ -112,7 +112,7 @@ class StudyTable:
     def conditions(self) -> list[str]:
         """List the conditions in the dictionary's order of levels, then as they appear."""
         levels = self.dictionary.get("condition", {}).get("Levels", {})
-        present = list(dict.fromkeys(self.rows["condition"]))
+        present = list(dict.fromkeys(self.rows["condition"].dropna()))
         return [c for c in levels if c in present] + [c for c in present if c not in levels]
 
 
@@ -125,7 +125,7 @@ def read_study_table(path: str | Path) -> StudyTable:
     ------
     InputError
         No table at ``path``, a file that is not a CSV or Parquet table, an unreadable
-        dictionary, a required column missing, or no measure column.
+        dictionary, a required column missing, no condition, or no measure column.
     """
     path = Path(path)
     file = _table_file(path)
@@ -141,6 +141,8 @@ def read_study_table(path: str | Path) -> StudyTable:
             f"no {', '.join(missing)} column: give the table `mirror-avatar study table` writes",
         )
     table = StudyTable(rows=rows, dictionary=dictionary, source=file)
+    if not table.conditions():
+        raise InputError(file, "no row has a condition: the statistics compare conditions")
     if not table.measures:
         raise InputError(file, 'no measure column (Role "measure" in its study.json)')
     return table
