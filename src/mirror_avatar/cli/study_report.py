@@ -43,12 +43,13 @@ from mirror_avatar.cli.outputs import check_output_dir
 def report(table: Path, out_dir: Path, seed: int, reference: str | None, resamples: int) -> None:
     """Statistics of a study table (a folder holding study.csv, or the table itself).
 
-    Per condition and measure, the mean over participants with a 95 % bootstrap CI; each
-    condition against the reference within participants (linear mixed model, random intercept
-    per participant, the condition's position in the order as a covariate) with effect sizes
-    and paired tests; the "person or avatar?" answers against chance, with d', criterion and
-    confidence. Writes an HTML report with a line per comparison in plain words and a methods
-    paragraph to cite, and results.json with every number.
+    Per condition and measure (and each answer given as a number, a rating), the mean over
+    participants with a 95 % bootstrap CI; each condition against the reference within
+    participants (linear mixed model, random intercept per participant, the condition's
+    position in the order as a covariate) with effect sizes and paired tests; the "person or
+    avatar?" answers against chance, with d', criterion and confidence. Writes an HTML report
+    with a line per comparison in plain words and a methods paragraph to cite, and
+    results.json with every number.
     """
     check_output_dir(out_dir, files=STUDY_REPORT_FILES)
     analysis = analyse_study(read_study_table(table), seed=seed, reference=reference,
