@@ -98,11 +98,18 @@ def write_report(
 
 
 def render_report(
-    sections: Sequence[Section], title: str, metadata: Mapping[str, Any] | None = None
+    sections: Sequence[Section],
+    title: str,
+    metadata: Mapping[str, Any] | None = None,
+    lead: str = "",
 ) -> str:
-    """Render sections as one self-contained HTML page (see `write_report`)."""
+    """Render sections as one self-contained HTML page (see `write_report`).
+
+    ``lead``, when given, is the line shown first under the title (a report's verdict).
+    """
     return _template().render(
         title=title,
+        lead=lead,
         metadata=dict(metadata or {}),
         sections=[_render_section(section) for section in sections],
     )
