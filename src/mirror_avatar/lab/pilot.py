@@ -129,13 +129,13 @@ class StandIn:
             self._players[role] = _warmed(load_player(self.spec, role))
         self.player = self._players[role]
 
-    def start(self, trial: int) -> str | None:
+    def start(self, trial: int, seq: int) -> str | None:
         """Reset the player for trial ``trial``; return its first position message, if it plays."""
         if self.player is None:
             return None
         self._seen.clear()
         position, _ = self.player.reset(seed=int(spawn_seeds(self.seed, trial)[trial - 1]))
-        return _position_message(0, position)
+        return _position_message(seq, position)
 
     def frame(self, message: Mapping[str, Any], seq: int) -> str | None:
         """Step on a frame; return the position message to send, if the stand-in plays."""
@@ -211,7 +211,7 @@ def _answer(stand_in: StandIn, message: Mapping[str, Any], seq: int) -> list[str
     if kind == "ping":
         return [json.dumps({"type": "pong", "id": message["id"], "late_frames": 0})]
     if kind == "go":
-        return [m for m in (stand_in.start(int(message["trial"])),) if m is not None]
+        return [m for m in (stand_in.start(int(message["trial"]), seq),) if m is not None]
     if kind == "frame":
         return [m for m in (stand_in.frame(message, seq),) if m is not None]
     if kind == "questions":
