@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -10,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+
+from mirror_avatar.lab.protocol import load_protocol
 
 PROTOCOL = """
 title = "Delay pilot"
@@ -131,3 +134,41 @@ def test_a_stand_in_for_nobody_is_refused_in_one_line(tmp_path):
     assert result.returncode == 2
     assert result.stderr.strip().count("\n") == 0, result.stderr
     assert "P9" in result.stderr and "P1" in result.stderr
+
+
+TEMPLATES = sorted((Path(__file__).parents[2] / "examples" / "protocols").glob("*.toml"))
+
+
+def rehearsal(template: Path, folder: Path) -> Path:
+    """Copy a template with every trial shortened to 2 s, one per condition, and no pauses."""
+    text = template.read_text(encoding="utf-8")
+    for key, value in (("duration", "2"), ("trials", "1"), ("pause", "0")):
+        text = re.sub(rf"^{key} = .*$", f"{key} = {value}", text, flags=re.MULTILINE)
+    copy = folder / template.name
+    copy.write_text(text, encoding="utf-8")
+    return copy
+
+
+def test_the_field_s_designs_are_templates():
+    assert [t.stem for t in TEMPLATES] == ["brezis2017", "llobera2022", "slowinski2017"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("template", TEMPLATES, ids=lambda t: t.stem)
+def test_each_template_is_piloted_through_the_server(template, tmp_path):
+    protocol = load_protocol(template)
+    out = tmp_path / "out"
+    result = run_command(
+        "lab", "pilot", "--protocol", str(rehearsal(template, tmp_path)), "--participants", "2",
+        "--seed", "5", "--out", str(out),
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    conditions = [c.name for block in protocol.blocks for c in block.conditions]
+    for run in sorted(out.glob("*-p00*")):
+        sidecars = sorted(run.glob("trial-*_session.json"))
+        played = [
+            json.loads(s.read_text())["metadata"]["lab"]["protocol_condition"] for s in sidecars
+        ]
+        assert sorted(played) == sorted(conditions), run
+        for sidecar in sidecars:
+            assert json.loads(sidecar.read_text())["metadata"]["complete"], sidecar
