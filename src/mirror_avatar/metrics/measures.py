@@ -34,6 +34,7 @@ from mirror_avatar.constraints import Constraint, Interval, Options, check
 from mirror_avatar.errors import InputError
 from mirror_avatar.metrics import co_confidence, jitter, leadership, synchrony_episodes
 from mirror_avatar.metrics import transfer_entropy as te
+from mirror_avatar.metrics.analysis_rate import session_rate
 from mirror_avatar.metrics.coordination import (
     compute_cross_correlation_peak,
     compute_phase,
@@ -303,7 +304,7 @@ def session_measures(
     o = options or MeasureOptions()
     kept = session.trimmed(trim) if trim > 0 else session
     x, v = kept.positions, kept.velocities
-    rate = 1.0 / float(np.median(np.diff(kept.times)))
+    rate = session_rate(kept)
     out = Measures(details={"start": float(kept.times[0])})
     if kept.n_samples < jitter.shortest_series():
         return out
