@@ -106,6 +106,16 @@ def test_positions_too_large_for_the_measures_are_refused_naming_the_file(tmp_pa
     assert f"{pair}: positions reach 1e+308" in error
 
 
+def test_a_trim_longer_than_a_session_is_refused_naming_the_file(tmp_path, capsys):
+    pair = tmp_path / "pair.csv"
+    write_pair(pair, 50.0, 20.0)
+    status, _, error = evaluate(capsys, str(pair), "--trim", "1e9")
+    assert status == 2
+    assert error.strip() == (
+        f"mirror-avatar: error: {pair}: --trim 1e+09 s leaves fewer than two samples of its 19.98 s"
+    )
+
+
 def test_a_session_too_short_for_leadership_says_so(tmp_path, capsys):
     pair = tmp_path / "short.csv"
     write_pair(pair, 50.0, 8.0)

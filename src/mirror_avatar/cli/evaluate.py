@@ -78,14 +78,19 @@ def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], 
     return found, notes
 
 
-def analysed(path: Path, session: Session) -> tuple[Session, str | None]:
+def analysed(path: Path, session: Session, trim: float) -> tuple[Session, str | None]:
     """Check a session's magnitudes and bring it to the analysis rate, with a note if it changed.
 
     Raises
     ------
     InputError
-        A position or velocity beyond `MAX_MAGNITUDE`, naming the file.
+        A position or velocity beyond `MAX_MAGNITUDE`, or a ``trim`` (s) that leaves fewer
+        than two samples, naming the file.
     """
+    if np.count_nonzero(session.times >= session.times[0] + trim) < 2:
+        raise InputError(
+            path, f"--trim {trim:g} s leaves fewer than two samples of its {session.duration:g} s"
+        )
     for name, channel in (("positions", session.positions), ("velocities", session.velocities)):
         largest = float(np.max(np.abs(channel)))
         if largest > MAX_MAGNITUDE:
@@ -170,7 +175,7 @@ def evaluate(
     found_sessions, notes = find_sessions(paths)
     sessions = []
     for path, session in found_sessions:
-        kept, note = analysed(path, session)
+        kept, note = analysed(path, session, trim)
         sessions.append((path, kept))
         notes += [note] if note else []
     for note in notes:
