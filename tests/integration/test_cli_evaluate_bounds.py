@@ -10,6 +10,7 @@ the option, with exit code 2, before any session is read.
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -20,12 +21,39 @@ import pytest
 from mirror_avatar.cli import main
 from mirror_avatar.cli.evaluate import TRIM_RANGE
 from mirror_avatar.cli.measure_options import OPTIONS
+from mirror_avatar.constraints import Constraint, Options
 from mirror_avatar.metrics.analysis_rate import ANALYSIS_RATE
 from mirror_avatar.metrics.measures import CONSTRAINTS
 from mirror_avatar.testing import smooth_motion
 
 DECLARED = [("--trim", TRIM_RANGE)] + [(flag, CONSTRAINTS[name]) for name, flag, _ in OPTIONS]
 """Every option of ``evaluate`` with a declared range."""
+
+
+def allowed_ends(constraint: Constraint) -> list[str]:
+    """The most extreme values a declaration allows (its words, for options)."""
+    if isinstance(constraint, Options):
+        return list(constraint.values)
+    ends = []
+    for end, inward, closed in (
+        (constraint.low, 1.0, constraint.closed in ("both", "left")),
+        (constraint.high, -1.0, constraint.closed in ("both", "right")),
+    ):
+        if end is None:
+            ends.append(str(constraint.kind(-inward * 1e300)) if constraint.kind is float else "")
+        elif closed:
+            ends.append(str(constraint.kind(end)))
+        else:
+            ends.append(repr(math.nextafter(end, end + inward)))
+    return [end for end in ends if end]
+
+
+EXTREMES = [
+    pytest.param(flag, value, id=f"{flag}={value}")
+    for flag, constraint in DECLARED
+    for value in allowed_ends(constraint)
+    if (flag, value) != ("--surrogates", "9999")  # minutes of work: the unit tests check it
+]
 
 REFUSALS = [
     pytest.param(flag, value, id=f"{flag}={value}")
@@ -68,6 +96,15 @@ def test_a_value_outside_an_options_declared_range_is_refused_in_one_line(
     status, printed, error = evaluate(capsys, str(missing), flag, str(value))
     assert status == 2 and printed == ""
     assert len(error.strip().splitlines()) == 1 and flag in error, error
+
+
+@pytest.mark.parametrize(("flag", "value"), EXTREMES)
+def test_the_ends_of_every_range_give_results_or_one_line(tmp_path, capsys, flag, value):
+    pair = tmp_path / "pair.csv"
+    write_pair(pair, 50.0, 20.0)
+    status, _, error = evaluate(capsys, str(pair), "--surrogates", "2", flag, value)
+    assert status in (0, 2), error
+    assert status == 0 or (len(error.strip().splitlines()) == 1 and "error:" in error), error
 
 
 @pytest.mark.parametrize(
