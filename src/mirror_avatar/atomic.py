@@ -1,4 +1,4 @@
-"""Atomic file writes: a failure never leaves a half-written file or clobbers a good one.
+"""Atomic file writes: a failure never leaves a half-written file or set, or clobbers a good one.
 
 Also the one conversion of results to plain JSON (`json_safe`): numpy scalars and arrays become
 numbers and lists, NaN and infinities ``null``.
@@ -11,7 +11,7 @@ import math
 import os
 import tempfile
 from collections.abc import Iterator, Mapping
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -74,9 +74,36 @@ def write_atomic_text(path: str | Path, text: str) -> None:
     write_atomic_bytes(path, text.encode("utf-8"))
 
 
+def write_atomic_files(folder: str | Path, texts: Mapping[str, str]) -> None:
+    """Write several UTF-8 files in ``folder`` as a set: all of them, or none.
+
+    Every file is written to its temporary file first; only when all are written are they
+    renamed over their names, so a failure while writing (a full disk, a size limit) leaves
+    every file as it was.
+
+    Parameters
+    ----------
+    folder
+        The folder, which must exist.
+    texts
+        Each file's name in ``folder`` and its text.
+    """
+    with ExitStack() as stack:
+        temporaries = {
+            name: stack.enter_context(atomic_path(Path(folder) / name)) for name in texts
+        }
+        for name, text in texts.items():
+            temporaries[name].write_bytes(text.encode("utf-8"))
+
+
 def write_atomic_json(path: str | Path, value: Any) -> None:
     """Write ``json_safe(value)`` to ``path`` atomically, indented, with a final newline."""
-    write_atomic_text(path, json.dumps(json_safe(value), indent=2) + "\n")
+    write_atomic_text(path, json_text(value))
+
+
+def json_text(value: Any) -> str:
+    """Return ``json_safe(value)`` as JSON text, indented, with a final newline."""
+    return json.dumps(json_safe(value), indent=2) + "\n"
 
 
 def json_safe(value: Any) -> Any:

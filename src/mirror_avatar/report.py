@@ -18,7 +18,7 @@ import jinja2
 import pandas as pd
 from matplotlib.figure import Figure
 
-from mirror_avatar.atomic import write_atomic_json, write_atomic_text
+from mirror_avatar.atomic import json_text, write_atomic_files
 
 
 @dataclass
@@ -63,8 +63,9 @@ def write_report(
 
     The HTML is self-contained (figures embedded as base64 PNG, tables as HTML, all text
     escaped); ``metrics.json`` holds ``{section.key: section.metrics, ..., "metadata": metadata}``,
-    with NaN and infinities written as ``null``. Both files are written atomically (a temporary
-    file in ``out_dir``, then `os.replace`). Every figure is closed once rendered.
+    with NaN and infinities written as ``null``. Both files are written together, atomically
+    (`mirror_avatar.atomic.write_atomic_files`): a failure leaves neither half-written nor one
+    without the other. Every figure is closed once rendered.
 
     Parameters
     ----------
@@ -83,26 +84,46 @@ def write_report(
     pathlib.Path
         Path of ``report.html``.
     """
+    texts = report_texts(sections, title, metadata)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_atomic_files(out, texts)
+    return out / REPORT_FILES[1]
+
+
+def report_texts(
+    sections: Sequence[Section], title: str, metadata: Mapping[str, Any] | None = None
+) -> dict[str, str]:
+    """Render the files of a report (`REPORT_FILES`), name -> text, without writing them.
+
+    A command that writes other files with its report writes them all together
+    (`mirror_avatar.atomic.write_atomic_files`).
+    """
     keys = [section.key for section in sections]
     if len(set(keys)) != len(keys) or "metadata" in keys:
         raise ValueError(f"section keys must be distinct and not 'metadata', got {keys}")
     metadata = dict(metadata or {})
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     metrics = {s.key: s.metrics for s in sections} | {"metadata": metadata}
     metrics_name, report_name = REPORT_FILES
-    write_atomic_json(out / metrics_name, metrics)
-    path = out / report_name
-    write_atomic_text(path, render_report(sections, title, metadata))
-    return path
+    return {
+        metrics_name: json_text(metrics),
+        report_name: render_report(sections, title, metadata),
+    }
 
 
 def render_report(
-    sections: Sequence[Section], title: str, metadata: Mapping[str, Any] | None = None
+    sections: Sequence[Section],
+    title: str,
+    metadata: Mapping[str, Any] | None = None,
+    lead: str = "",
 ) -> str:
-    """Render sections as one self-contained HTML page (see `write_report`)."""
+    """Render sections as one self-contained HTML page (see `write_report`).
+
+    ``lead``, when given, is the line shown first under the title (a report's verdict).
+    """
     return _template().render(
         title=title,
+        lead=lead,
         metadata=dict(metadata or {}),
         sections=[_render_section(section) for section in sections],
     )

@@ -214,6 +214,22 @@ def test_a_participant_plays_the_protocol_in_their_order_blinded(
         assert end["next_in"] == (None if asked else 0.5)
     refusals = [m["message"] for m in pages[0].of_type("error")]
     assert refusals == ["confidence: choose a point from 1 to 7"] * len(together)
+    assert_console_lists_the_trials(status(lab, sid), folder, trials)
+
+
+def assert_console_lists_the_trials(final: dict[str, Any], folder: Path, trials: list) -> None:
+    """The finished run's status: nobody waits, and each trial's row names its condition, its
+    partners' true kinds and the answers given after it, as the files record them."""
+    assert final["state"] == "finished" and final["study"]["waiting"] == []
+    assert [row["n"] for row in final["trials"]] == [1, 2, 3]
+    for row, trial in zip(final["trials"], trials, strict=True):
+        meta = trial.metadata["lab"]
+        assert (row["block"], row["condition"]) == (meta["block"], meta["protocol_condition"])
+        assert row["partners"] == meta["partners"]
+        path = folder / f"trial-{row['n']:02d}_answers.json"
+        saved = json.loads(path.read_text())["answers"] if path.exists() else {}
+        given = {label: {q: a["value"] for q, a in qs.items()} for label, qs in saved.items()}
+        assert row["answers"] == given
 
 
 def test_study_requests_are_refused_with_one_line(lab, tmp_path):
@@ -224,10 +240,14 @@ def test_study_requests_are_refused_with_one_line(lab, tmp_path):
     ):
         answer = httpx.post(f"{lab.url}/api/sessions", json=body, headers=BEARER)
         assert answer.status_code == 400 and answer.json() == {"error": problem}
-    create_participant(lab.url, 0, BEARER)
+
+
+def test_creating_an_open_participants_run_again_answers_it_as_it_is(lab):
+    created = create_participant(lab.url, 0, BEARER)  # a reloaded console creates it again
     again = httpx.post(f"{lab.url}/api/sessions", json={"participant": 0}, headers=BEARER)
-    assert again.status_code == 400
-    assert again.json()["error"] == "participant: participant 0's session is open"
+    assert again.status_code == 200
+    assert (again.json()["id"], again.json()["state"]) == (created["id"], "waiting")
+    assert again.json()["links"] == created["links"]  # the same join links, still valid
 
 
 def test_the_cli_refuses_a_bad_protocol_in_one_line(tmp_path):

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.balance import block_balance
 from mirror_avatar.lab.messages import Answer, parse_participant_message
 from mirror_avatar.lab.protocol import MAX_PROTOCOL_BYTES, load_protocol, parse_protocol
 from mirror_avatar.realtime.messages import ProtocolError
@@ -67,19 +68,15 @@ def test_schedules_follow_the_williams_design_and_the_seed():
 
 
 @pytest.mark.parametrize("seed", [20261125, 3, 77])
-def test_person_or_avatar_draws_are_balanced_across_participants(seed):
+def test_person_or_avatar_draws_are_balanced_across_participants_and_positions(seed):
     protocol = replace(load_protocol(EXAMPLE), seed=seed)
-    slots = [("joint", "P2"), ("lead", "P2")]
-    for n in range(2, 9):
-        schedules = [protocol.schedule(p) for p in range(n)]
-        for name, label in slots:
-            people = [
-                next(s.persons[label] for s in steps if s.name == name) for steps in schedules
-            ]
-            avatars = people.count(False)
-            assert abs(avatars - (n - avatars)) <= n % 2, (seed, n, name, people)
-            for pair in range(n // 2):  # each pair of participants: one person, one avatar
-                assert people[2 * pair] != people[2 * pair + 1]
+    schedules = [protocol.schedule(p) for p in range(8)]  # the Williams design of 4: 8 a cycle
+    for name in ("joint", "lead"):
+        people = [next(s.persons["P2"] for s in steps if s.name == name) for steps in schedules]
+        assert people.count(True) == people.count(False) == 4, (seed, name, people)
+    partners = block_balance(protocol, schedules)[1]
+    assert partners.problems() == []
+    assert partners.kinds.tolist() == [[2, 2, 2, 2], [2, 2, 2, 2]]  # 2 slots of 4 at a position
 
 
 def test_who_in_a_pair_meets_the_avatar_is_drawn_from_the_seed():
@@ -90,6 +87,12 @@ def test_who_in_a_pair_meets_the_avatar_is_drawn_from_the_seed():
     }
     assert firsts == {True, False}
     assert protocol.schedule(5) == load_protocol(EXAMPLE).schedule(5)
+
+
+def test_a_protocol_is_single_blind_unless_it_says_double():
+    data = _example()
+    assert parse_protocol(data, "p.toml").blind == "single"
+    assert parse_protocol(data | {"blind": "double"}, "p.toml").blind == "double"
 
 
 def test_a_protocol_without_a_seed_draws_one():
@@ -119,6 +122,7 @@ REFUSALS = [
     (("seed",), -1, "seed: must be an integer"),
     (("seed",), 1.5, "seed: must be an integer"),
     (("block_order",), "latin", "block_order: must be 'fixed' or 'random'"),
+    (("blind",), "triple", "blind: must be one of single, double"),
     (("questions",), [], "questions: must be a table"),
     (
         ("questions", "bad id!"),

@@ -8,6 +8,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from mirror_avatar.errors import InputError
@@ -91,3 +92,44 @@ def test_the_outlet_channels_are_every_label_of_the_run(tmp_path, participant):
     meets_avatar = any(step.persons.get("P2") is False for step in session.steps)
     assert kind["P2"] == ("human/avatar" if meets_avatar else "human")
     assert roles[0].split("/")[0] == "solo" and "leader" in roles[0].split("/")
+
+
+def _earlier_draws(protocol, participant: int) -> list[tuple[str, dict[str, str]]]:
+    """The partners block's order and kinds as drawn before partner kinds were balanced over
+    positions (literal-tagged streams; kinds drawn per pair of participants and condition)."""
+    from mirror_avatar.lab.order import williams_square
+
+    block = protocol.blocks[1]
+    symbols = np.random.default_rng([protocol.seed, 3, 1]).permutation(4)
+    order = [int(symbols[s]) for s in williams_square(4)[participant % 4]]
+    pair, second = divmod(participant, 2)
+    drawn = []
+    for c in order:
+        condition = block.conditions[c]
+        players = {}
+        for k, player in enumerate(condition.players):
+            kind = "avatar" if player.kind == "avatar" else "human"
+            if player.kind == "person-or-avatar":
+                rng = np.random.default_rng([protocol.seed, 4, pair, 1, c, k])
+                kind = "human" if (rng.random() < 0.5) != bool(second) else "avatar"
+            players[player.label] = kind
+        drawn.append((condition.name, players))
+    return drawn
+
+
+@pytest.mark.parametrize("participant", range(4))
+def test_a_run_recorded_with_the_earlier_draws_refuses_to_resume_in_one_line(tmp_path, participant):
+    session = _session(tmp_path, participant)
+    path = session.directory / "study.json"
+    study = json.loads(path.read_text())
+    earlier = [
+        ("solo", study["order"][0]["players"]),
+        *_earlier_draws(session.protocol, participant),
+    ]
+    assert earlier != [(c["condition"], c["players"]) for c in study["order"]]
+    for recorded, (name, players) in zip(study["order"], earlier, strict=True):
+        recorded["condition"], recorded["players"] = name, players
+    path.write_text(json.dumps(study))
+    with pytest.raises(InputError) as refused:
+        _session(tmp_path, participant)
+    assert str(refused.value) == f"{path}: recorded with another order (use another --out folder)"

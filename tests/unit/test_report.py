@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 from matplotlib.figure import Figure
 
-from mirror_avatar.report import Section, render_png, write_report
+from mirror_avatar.report import Section, render_png, render_report, write_report
 
 
 def small_figure():
@@ -61,3 +61,10 @@ def test_a_mapping_in_the_metadata_is_a_table(tmp_path):
     assert "{&#39;" not in html and "{'" not in html
     rows = re.findall(r"<tr><th>([^<]*)</th><td>([^<]*)</td></tr>", html)
     assert rows == [("signature", "12.5"), ("virtual trainer", "3.25")]
+
+
+def test_a_lead_is_the_first_line_under_the_title():
+    page = render_report([Section("s", "S")], "T", {"seed": 1}, lead="Verdict <1>")
+    lead = page.index('<p class="lead">Verdict &lt;1&gt;</p>')
+    assert page.index("</h1>") < lead < page.index('<dl class="meta">')
+    assert 'class="lead"' not in render_report([Section("s", "S")], "T")

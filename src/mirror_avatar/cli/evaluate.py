@@ -8,9 +8,11 @@ from pathlib import Path
 from typing import Any
 
 import click
+import numpy as np
 import pandas as pd
 
-from mirror_avatar.atomic import json_safe, write_atomic_text
+from mirror_avatar.atomic import json_safe, write_atomic_files
+from mirror_avatar.cli.constrained import constrained_type, with_range
 from mirror_avatar.cli.measure_options import (
     format_measures,
     measure_options,
@@ -19,13 +21,20 @@ from mirror_avatar.cli.measure_options import (
 )
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.simulate import format_metrics
+from mirror_avatar.constraints import Interval
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_progress, plot_session
 from mirror_avatar.measure_figures import measures_section
 from mirror_avatar.metrics import TRIM, session_metrics
+from mirror_avatar.metrics.analysis_rate import (
+    ANALYSIS_RATE,
+    at_analysis_rate,
+    decimation_factor,
+    session_rate,
+)
 from mirror_avatar.metrics.measures import evaluate_measures
 from mirror_avatar.metrics.progress import order_by_start, progress_table
-from mirror_avatar.report import REPORT_FILES, Section, write_report
+from mirror_avatar.report import REPORT_FILES, Section, report_texts
 from mirror_avatar.session import Session, load_session
 from mirror_avatar.trial_sets import common_root
 
@@ -35,6 +44,13 @@ SUMMARY_KEYS = (
     "kuramoto_order", "mean_phase_locking", "mean_rmse",
 )  # fmt: skip
 """The columns of the table of several sessions (those that apply to each)."""
+
+TRIM_RANGE = Interval(float, 0.0, None, "left", "s")
+"""Allowed ``--trim``; a trim that leaves fewer than two samples is refused when reading."""
+
+MAX_MAGNITUDE = 1e100
+"""Largest position (units) or velocity (units/s) a session may hold: the measures square and
+sum them, and float64 ends at 1.8e308."""
 
 
 def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], list[str]]:
@@ -62,6 +78,37 @@ def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], 
     return found, notes
 
 
+def analysed(path: Path, session: Session, trim: float) -> tuple[Session, str | None]:
+    """Check a session's magnitudes and bring it to the analysis rate, with a note if it changed.
+
+    Raises
+    ------
+    InputError
+        A position or velocity beyond `MAX_MAGNITUDE`, or a ``trim`` (s) that leaves fewer
+        than two samples, naming the file.
+    """
+    if np.count_nonzero(session.times >= session.times[0] + trim) < 2:
+        raise InputError(
+            path, f"--trim {trim:g} s leaves fewer than two samples of its {session.duration:g} s"
+        )
+    for name, channel in (("positions", session.positions), ("velocities", session.velocities)):
+        largest = float(np.max(np.abs(channel)))
+        if largest > MAX_MAGNITUDE:
+            raise InputError(
+                path, f"{name} reach {largest:g}, beyond the {MAX_MAGNITUDE:g} the measures can "
+                "square and sum: give the file in smaller units"
+            )  # fmt: skip
+    rate = session_rate(session)
+    q = decimation_factor(rate)
+    if q == 1:
+        return session, None
+    note = (
+        f"{path}: sampled at {rate:g} Hz, analysed at {rate / q:g} Hz (every {q}th sample after "
+        f"an anti-aliasing filter; the measures need at most {ANALYSIS_RATE:g} Hz)"
+    )
+    return at_analysis_rate(session), note
+
+
 def session_names(paths: list[Path]) -> list[str]:
     """Name sessions by their paths below the folder they share (one file: its name).
 
@@ -85,8 +132,9 @@ def summary_row(path: Path, session: Session, metrics: dict[str, Any]) -> dict[s
 @click.command()
 @click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option(
-    "--trim", type=float, default=TRIM, show_default=True, help="Seconds left out of the metrics."
-)
+    "--trim", type=constrained_type(TRIM_RANGE), default=TRIM, show_default=True,
+    help=with_range("Seconds left out of the metrics.", TRIM_RANGE),
+)  # fmt: skip
 @click.option(
     "--json", "as_json", is_flag=True, help="Print the metrics as JSON (one object per file)."
 )
@@ -95,7 +143,8 @@ def summary_row(path: Path, session: Session, metrics: dict[str, Any]) -> dict[s
     "out_dir",
     type=click.Path(path_type=Path),
     default=None,
-    help="Also write sessions.csv, report.html (with figures) and metrics.json here.",
+    help="Also write sessions.csv, report.html (with figures) and metrics.json here, all "
+    "together: if one cannot be written, none is.",
 )
 @click.option(
     "--progress",
@@ -116,18 +165,27 @@ def evaluate(
     player 0 minus player 1 (positive when player 0 is ahead); for a group, its synchronisation
     and each player against the mean of its neighbours. Several sessions give one table.
     The field's measures (co-confidence, jitter, synchrony episodes, leadership, transfer
-    entropy) follow, each coordination measure with a p-value against surrogates.
+    entropy) follow, each coordination measure with a p-value against surrogates. Sessions
+    sampled faster than 100 Hz are analysed at 100 Hz (or the rate below it that a whole
+    factor gives), after an anti-aliasing filter.
     """
     options = options_from(measure_kwargs)
     if out_dir is not None:
         check_output_dir(out_dir, files=["sessions.csv", *REPORT_FILES])
-    sessions, notes = find_sessions(paths)
+    found_sessions, notes = find_sessions(paths)
+    sessions = []
+    for path, session in found_sessions:
+        kept, note = analysed(path, session, trim)
+        sessions.append((path, kept))
+        notes += [note] if note else []
     for note in notes:
         click.echo(note)
     results = [(path, session, session_metrics(session, trim=trim)) for path, session in sessions]
     measures, weak_null = evaluate_measures([s for _, s in sessions], trim, options)
-    for (_, _, metrics), found in zip(results, measures, strict=True):
+    for (path, _, metrics), found in zip(results, measures, strict=True):
         metrics |= found.values
+        for note in found.notes:
+            click.echo(f"{path}: {note}")
     rows = pd.DataFrame(
         [summary_row(p, s, m) | scalar_measures(f.values)
          for (p, s, m), f in zip(results, measures, strict=True)]
@@ -193,9 +251,11 @@ def write_evaluation(
     out_dir: Path, results: list[tuple[Path, Session, dict[str, Any]]], rows: pd.DataFrame,
     trim: float, extra: list[Section] | None = None,
 ) -> None:  # fmt: skip
-    """Write the table (CSV), every session's metrics (JSON) and an HTML page with figures."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    write_atomic_text(out_dir / "sessions.csv", rows.to_csv(index=False))
+    """Write the table (CSV), every session's metrics (JSON) and an HTML page with figures.
+
+    The three files are rendered first, then written together
+    (`mirror_avatar.atomic.write_atomic_files`): a failure leaves none of them changed.
+    """
     names = session_names([path for path, _, _ in results])
     figures = {
         f"{shown}: {name.replace('_', ' ')}": figure
@@ -210,4 +270,6 @@ def write_evaluation(
         figures=figures,
         metrics={"trim": trim} | {str(path): metrics for path, _, metrics in results},
     )
-    write_report([section, *(extra or [])], out_dir, title="mirror-avatar: sessions evaluated")
+    texts = report_texts([section, *(extra or [])], title="mirror-avatar: sessions evaluated")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_atomic_files(out_dir, {"sessions.csv": rows.to_csv(index=False)} | texts)

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from mirror_avatar.cli.lab_pilot import pilot
+from mirror_avatar.cli.lab_preview import preview
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.play import server_options
 
@@ -145,3 +147,7 @@ def export(session_dir: Path, out_dir: Path) -> None:
     check_output_dir(out_dir, files=DATASET_FILES)
     written = export_bids(session_dir, out_dir)
     click.echo(f"wrote {len(written)} motion files to {out_dir.resolve()}")
+
+
+lab.add_command(pilot)
+lab.add_command(preview)

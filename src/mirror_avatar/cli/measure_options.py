@@ -1,7 +1,8 @@
 """The command-line options of the field's measures, and their text table.
 
 `measure_options` adds to a command one option per open parameter of
-`mirror_avatar.metrics.measures.MeasureOptions` (each a **choice**, METHODS section 12), and
+`mirror_avatar.metrics.measures.MeasureOptions` (each a **choice**, METHODS section 12), its
+type and range built from the parameter's declared constraint, and
 `options_from` turns the command's keyword arguments back into that record.
 """
 
@@ -13,48 +14,50 @@ from typing import Any, TypeVar
 
 import click
 
-from mirror_avatar.metrics.measures import MeasureOptions
+from mirror_avatar.cli.constrained import constrained_type, with_range
+from mirror_avatar.metrics.measures import CONSTRAINTS, MeasureOptions
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 OPTIONS = (
-    ("n_surrogates", "--surrogates", click.IntRange(min=0),
-     "Surrogates per session for the p-values (0: none)."),
-    ("surrogates", "--surrogate-kind", click.Choice(["shift", "pseudo"]),
+    ("n_surrogates", "--surrogates", "Surrogates per session for the p-values (0: none)."),
+    ("surrogates", "--surrogate-kind",
      "shift: circular shifts of the partners; pseudo: player 0 with other sessions' partners."),
-    ("seed", "--surrogate-seed", int, "Seed of the surrogate draws (recorded)."),
-    ("min_shift", "--min-shift", float, "Smallest circular shift (s)."),
-    ("min_duration", "--cc-min-duration", float, "Shortest co-confidence segment (s)."),
-    ("jitter_threshold", "--jitter-threshold", float,
+    ("seed", "--surrogate-seed", "Seed of the surrogate draws (recorded)."),
+    ("min_shift", "--min-shift", "Smallest circular shift (s)."),
+    ("min_duration", "--cc-min-duration", "Shortest co-confidence segment (s)."),
+    ("jitter_threshold", "--jitter-threshold",
      "Jitter index of the velocity difference above which motion is not smooth."),
-    ("dv_threshold", "--dv-threshold", float, "Largest relative velocity difference of CC."),
-    ("dv_window", "--dv-window", float, "Window of the velocity difference (s)."),
-    ("rest_fraction", "--rest-fraction", float,
+    ("dv_threshold", "--dv-threshold", "Largest relative velocity difference of CC."),
+    ("dv_window", "--dv-window", "Window of the velocity difference (s)."),
+    ("rest_fraction", "--rest-fraction",
      "Share of the pair's RMS speed below which the pair rests (not CC)."),
-    ("sync_threshold", "--sync-threshold", float, "Windowed CV of synchrony episodes."),
-    ("sync_window", "--sync-window", float, "Window of the windowed CV (s)."),
-    ("lead_signal", "--lead-signal", click.Choice(["velocity", "position"]),
-     "Series the leadership windows correlate."),
-    ("lead_window", "--lead-window", float, "Window of the lagged cross-correlation (s)."),
-    ("lead_step", "--lead-step", float, "Step between windows (s)."),
-    ("lead_max_lag", "--lead-max-lag", float, "Largest lag of the leadership search (s)."),
-    ("lead_min_peak", "--lead-min-peak", float, "Smallest correlation of a picked peak."),
-    ("leader_share", "--leader-share", float, "Share of windows a session's leader must lead."),
-    ("te_bins", "--te-bins", int, "Equiprobable velocity bins of transfer entropy."),
-    ("te_history", "--te-history", int, "Target history of transfer entropy (steps)."),
-    ("te_step", "--te-step", float, "Time step of transfer entropy (s)."),
+    ("sync_threshold", "--sync-threshold", "Windowed CV of synchrony episodes."),
+    ("sync_window", "--sync-window", "Window of the windowed CV (s)."),
+    ("lead_signal", "--lead-signal", "Series the leadership windows correlate."),
+    ("lead_window", "--lead-window", "Window of the lagged cross-correlation (s)."),
+    ("lead_step", "--lead-step", "Step between windows (s)."),
+    ("lead_max_lag", "--lead-max-lag", "Largest lag of the leadership search (s)."),
+    ("lead_min_peak", "--lead-min-peak", "Smallest correlation of a picked peak."),
+    ("leader_share", "--leader-share", "Share of windows a session's leader must lead."),
+    ("te_bins", "--te-bins", "Equiprobable velocity bins of transfer entropy."),
+    ("te_history", "--te-history", "Target history of transfer entropy (steps)."),
+    ("te_step", "--te-step", "Time step of transfer entropy (s)."),
 )  # fmt: skip
-"""(field of MeasureOptions, option name, type, help)."""
+"""(field of MeasureOptions, option name, help); each option's type and range come from the
+field's declaration, `mirror_avatar.metrics.measures.CONSTRAINTS`."""
 
 DEFAULTS = {f.name: f.default for f in fields(MeasureOptions)}
 
 
 def measure_options(command: F) -> F:
-    """Add the measures' options (`OPTIONS`) to a click command, defaults shown."""
-    for name, flag, kind, text in reversed(OPTIONS):
+    """Add the measures' options (`OPTIONS`) to a click command, defaults and ranges shown."""
+    for name, flag, text in reversed(OPTIONS):
+        constraint = CONSTRAINTS[name]
         command = click.option(
-            flag, name, type=kind, default=DEFAULTS[name], show_default=True, help=text
-        )(command)
+            flag, name, type=constrained_type(constraint), default=DEFAULTS[name],
+            show_default=True, help=with_range(text, constraint),
+        )(command)  # fmt: skip
     return command
 
 

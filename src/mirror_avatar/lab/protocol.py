@@ -5,12 +5,13 @@ sessions"). It has blocks, each a list of conditions; a condition is one game (`
 ``leader_follower``, ``joint``, ``group``) with its players, graph, leaders, trials, duration
 and pause, which becomes a `mirror_avatar.lab.plan.SessionPlan` once its players are decided
 (`Condition.plan`). A player is a person (by label), an avatar (by player spec) or a
-``person-or-avatar``: the partner's slot is filled by the person or by the avatar, drawn from
-the protocol's seed and balanced across participants (half of each pair of consecutive
-participants meet the avatar), so that neither the participant nor the page knows which (the
-files record it). Questions are declared once and asked after each trial of a condition
-(``after_trial``) or after a block (``after_block``). The order of blocks and of each block's
-conditions is fixed, random or counterbalanced across participants (`mirror_avatar.lab.order`).
+``person-or-avatar``: the partner's slot is filled by the person or by the avatar, balanced
+across participants and across the positions of the order
+(`mirror_avatar.lab.order.meets_person`), so that neither the participant nor the page knows
+which (the files record it). Questions are declared once and asked after each trial of a
+condition (``after_trial``) or after a block (``after_block``). The order of blocks and of each
+block's conditions is fixed, random or counterbalanced across participants
+(`mirror_avatar.lab.order`).
 
 Every mistake is refused with one line naming the file, the key path (such as
 ``blocks[1].conditions[0].players``), the problem and how to fix it.
@@ -25,11 +26,15 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.checker import Checker, is_int
-from mirror_avatar.lab.order import ORDERS, block_order, condition_order
+from mirror_avatar.lab.order import (
+    ORDERS,
+    block_order,
+    condition_order,
+    first_meets_person,
+    meets_person,
+)
 from mirror_avatar.lab.perturbation import Perturbation, parse_perturbations
 from mirror_avatar.lab.plan import CONDITIONS, MAX_SPEC_CHARS, SessionPlan, parse_plan
 from mirror_avatar.user_files import read_text
@@ -58,7 +63,10 @@ LIKERT_RANGE = (2, 11)
 SEED_LIMIT = 2**63 - 1
 """Largest seed."""
 
-TOP_KEYS = ("title", "seed", "block_order", "questions", "blocks")
+BLINDS = ("single", "double")
+"""Who is blind to the partner kinds: the participants' pages, or the researcher's console too."""
+
+TOP_KEYS = ("title", "seed", "block_order", "blind", "questions", "blocks")
 BLOCK_KEYS = ("name", "order", "after_block", "conditions")
 CONDITION_KEYS = (
     "delay",
@@ -247,6 +255,10 @@ class Protocol:
     seed_drawn
         Whether the file has no seed and ``seed`` was drawn when it was read (a restart draws
         another, and the participants' runs then no longer resume).
+    blind
+        One of `BLINDS`: ``"single"``, the participants' pages never show a partner's kind;
+        ``"double"``, the researcher's console neither, until export
+        (`mirror_avatar.lab.blinding`).
     """
 
     source: str
@@ -256,6 +268,7 @@ class Protocol:
     questions: dict[str, Question]
     blocks: tuple[Block, ...]
     seed_drawn: bool = field(default=False, compare=False)
+    blind: str = "single"
 
     @property
     def people(self) -> tuple[str, ...]:
@@ -274,30 +287,23 @@ class Protocol:
         blocks = block_order(self.block_order, len(self.blocks), participant, self.seed)
         for b in blocks:
             block = self.blocks[b]
-            order = condition_order(block.order, len(block.conditions), participant, self.seed, b)
-            for c in order:
+            n = len(block.conditions)
+            order = condition_order(block.order, n, participant, self.seed, b)
+            for position, c in enumerate(order):
                 condition = block.conditions[c]
-                persons = self._partners(condition, participant, b, c)
+                persons = {
+                    player.label: meets_person(
+                        block.order,
+                        n,
+                        participant,
+                        position,
+                        first_meets_person(self.seed, b, self.people.index(player.label)),
+                    )
+                    for player in condition.players
+                    if player.kind == "person-or-avatar"
+                }
                 steps.append(Step(b, c, condition.name, persons))
         return steps
-
-    def _partners(self, condition: Condition, participant: int, b: int, c: int) -> dict[str, bool]:
-        """Draw whether a person fills each ``person-or-avatar`` slot (True) or the avatar.
-
-        **Choice**: balanced across participants. Participants are taken in pairs (0 and 1,
-        2 and 3, ...); in each pair one meets the person and the other the avatar, which one
-        drawn from the seed per pair, condition and slot. Any run of participants from the
-        first therefore meets the avatar as often as the person, give or take one, in an
-        order the seed reproduces.
-        """
-        pair, second = divmod(participant, 2)
-        draws = {}
-        for k, player in enumerate(condition.players):
-            if player.kind == "person-or-avatar":
-                rng = np.random.default_rng([self.seed, 4, pair, b, c, k])
-                first_meets_person = bool(rng.random() < 0.5)
-                draws[player.label] = first_meets_person != bool(second)
-        return draws
 
 
 @dataclass(frozen=True)
@@ -355,6 +361,7 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
     order = data.get("block_order", "fixed")
     if order not in ("fixed", "random"):
         raise check.error("block_order", "must be 'fixed' or 'random'", "choose one")
+    blind = check.one_of(data.get("blind", "single"), "blind", BLINDS)
     questions = _questions(check, data.get("questions", {}))
     blocks = check.array(data.get("blocks"), "blocks", MAX_BLOCKS, "add [[blocks]] tables")
     parsed = tuple(
@@ -366,7 +373,8 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
             if names.count(condition.name) > 1:
                 where = f"blocks[{b}].conditions[{c}].name"
                 raise check.error(where, f"{condition.name!r} names two conditions", "rename one")
-    return Protocol(source, title, int(seed), order, questions, parsed, "seed" not in data)
+    drawn = "seed" not in data
+    return Protocol(source, title, int(seed), order, questions, parsed, drawn, str(blind))
 
 
 def _questions(check: Checker, value: object) -> dict[str, Question]:

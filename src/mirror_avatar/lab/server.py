@@ -8,7 +8,8 @@ Routes (`create_lab_app`):
   (`mirror_avatar.lab.plan.parse_plan`) builds its avatars (a bad spec is refused here, 400),
   creates the session and answers its status and its join links; with a protocol loaded,
   ``POST /api/sessions`` with ``{"participant": p}`` creates (or resumes) participant p's run
-  of it (`mirror_avatar.lab.study.StudySession`).
+  of it (`mirror_avatar.lab.study.StudySession`), or answers the run as it is while it is
+  open (200: a reloaded console shows it again).
 - ``POST /api/protocol`` with ``{"name": file name, "text": TOML}``: loads a protocol from the
   console (`mirror_avatar.lab.protocol_store.store_protocol`: validated, kept as
   ``OUT/protocols/<name>.toml``, used from then on); refused while a participant's run of the
@@ -19,7 +20,9 @@ Routes (`create_lab_app`):
   ``/stop`` and ``/abort``; ``POST /api/sessions/{id}/export`` (body ``{"folder": name}``,
   optional) exports the session's trials as BIDS (`mirror_avatar.lab.bids.export_bids`) into
   ``OUT/bids`` or ``OUT/<name>`` between trials, answering the folder and its file count.
-- ``GET /api/sessions/{id}/files/{name}``: a file of the session (plan, trials' recordings);
+- ``GET /api/sessions/{id}/files/{name}``: a file of the session (plan, trials' recordings;
+  refused, 403, for a run of a double-blind protocol, whose statuses are blinded too:
+  `mirror_avatar.lab.blinding`);
   ``GET /api/sessions/{id}/qr/{label}.svg``: the QR code of a person's join link.
 - ``GET /join/{key}``: a participant's page; ``/ws/join/{key}``: its WebSocket
   (`mirror_avatar.lab.messages`).
@@ -72,6 +75,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 from mirror_avatar.atomic import json_safe
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.blinding import console_status, hidden_of, unjoined
 from mirror_avatar.lab.files import is_session_folder
 from mirror_avatar.lab.messages import Answer, Pong, parse_participant_message
 from mirror_avatar.lab.plan import LslDevice, SessionPlan, parse_plan
@@ -244,6 +248,13 @@ class Lab:
         self.sessions.pop(name, None)
         self._add(session)
         return session
+
+    def open_study(self, participant: int) -> LabSession | None:
+        """Return participant ``participant``'s run of the protocol while it is open, or None."""
+        assert self.protocol is not None
+        self.forget_ended()
+        session = self.sessions.get(study_folder(self.protocol, participant))
+        return None if session is None or session.ended else session
 
     def _add(self, session: LabSession) -> None:
         self.sessions[session.id] = session
@@ -420,7 +431,11 @@ class LabApi:
         try:
             data = await _body(request)
             if isinstance(data, dict) and "participant" in data:
-                session = await self._study(data["participant"])
+                participant = self._participant(data["participant"])
+                running = self.lab.open_study(participant)
+                if running is not None:
+                    return _json(self._status(running, request))
+                session = await self.lab.create_study(participant)
             else:
                 plan = parse_plan(data)
                 avatars = await asyncio.to_thread(build_avatars, plan)
@@ -429,8 +444,8 @@ class LabApi:
             raise ApiError(400, str(error)) from None
         return _json(self._status(session, request), 201)
 
-    async def _study(self, participant: object) -> LabSession:
-        """Create participant ``participant``'s run of the server's protocol."""
+    def _participant(self, participant: object) -> int:
+        """Check a participant's number for a run of the server's protocol."""
         if self.lab.protocol is None:
             raise InputError(
                 "participant", "no protocol loaded (load one on the console, or use --protocol)"
@@ -439,7 +454,7 @@ class LabApi:
             raise InputError("participant", "must be the participant's number, 0 or more")
         if participant > MAX_PARTICIPANT:
             raise InputError("participant", f"must be at most {MAX_PARTICIPANT}")
-        return await self.lab.create_study(participant)
+        return participant
 
     async def protocol(self, request: Request) -> Response:
         """Load the protocol in the body (``name``, ``text``) and use it from then on.
@@ -493,7 +508,9 @@ class LabApi:
         session = self._session(request)
         data = await _body(request, allow_empty=True)
         if action == "start":
-            problem = session.start(force=bool(isinstance(data, dict) and data.get("force")))
+            force = bool(isinstance(data, dict) and data.get("force"))
+            problem = unjoined(session) if hidden_of(session) and not force else None
+            problem = problem or session.start(force=force)
             if problem is not None:
                 return _json({"error": problem}, 409)
         elif action == "stop":
@@ -544,7 +561,11 @@ class LabApi:
         worker threads.
         """
         name = request.path_params["name"]
-        path = self._session(request).directory / name
+        session = self._session(request)
+        if hidden_of(session):
+            problem = "the protocol is double blind: a run's files are hidden until its export"
+            return _json({"error": problem}, 403)
+        path = session.directory / name
         if not FILE_NAME.fullmatch(name):
             return _json({"error": "no such file in this session"}, 404)
         try:
@@ -573,16 +594,18 @@ class LabApi:
         )
 
     def _status(self, session: LabSession, request: Request) -> dict[str, Any]:
+        """Return a session's status and links, blinded for a double-blind protocol's run."""
         links = {} if session.ended else join_links(session, request)
-        return session.status() | {"links": links}
+        return console_status(session, session.status() | {"links": links})
 
 
 def protocol_summary(protocol: Protocol) -> dict[str, Any]:
-    """Return the protocol as the console shows it: title, seed, people and its file."""
+    """Return the protocol as the console shows it: title, seed, people, blinding, its file."""
     return {
         "title": protocol.title,
         "seed": protocol.seed,
         "people": protocol.people,
+        "blind": protocol.blind,
         "file": protocol.source,
     }
 

@@ -104,6 +104,7 @@ class StudySession(LabSession):
         }
         self.step = 0
         self.asking: Asking | None = None
+        self.answered: dict[int, dict[str, dict[str, object]]] = {}
         self._shown: collections.deque[list[float]] = collections.deque(maxlen=1)
         super().__init__(directory.name, self.plans[0], directory, clock, countdown, max_step)
         self._enter(self._step_of(self.next_trial) if self.next_trial <= self.total_trials else 0)
@@ -393,6 +394,8 @@ class StudySession(LabSession):
             return problem
         stamp = datetime.now(UTC).isoformat()
         asking.answers[participant.label][answer.question] = {"value": answer.value, "utc": stamp}
+        given = self.answered.setdefault(asking.n, {}).setdefault(participant.label, {})
+        given[answer.question] = answer.value
         pending.discard(answer.question)
         self._write_answers(asking)
         if not any(asking.pending.values()):
@@ -423,14 +426,19 @@ class StudySession(LabSession):
     def status(self) -> dict[str, Any]:
         """Return the session's status, with where the participant is in the protocol.
 
-        While questions are open, "where" is the trial they follow.
+        While questions are open, "where" is the trial they follow; nobody waits once the run
+        has ended. Each trial's row also names its block, condition, partners and answers
+        (`trial_study`).
         """
         n = min(self.next_trial if self.trial is None else self.trial.n, self.total_trials)
         if self.asking is not None:
             n = self.asking.n
         order = [step.name for step in self.steps]
-        waiting = [p.label for p in self.people.values() if p not in self.participants.values()]
-        return super().status() | {
+        playing = self.participants.values()
+        waiting = [] if self.ended else [p.label for p in self.people.values() if p not in playing]
+        status = super().status()
+        status["trials"] = [row | self.trial_study(row["n"]) for row in status["trials"]]
+        return status | {
             "study": {
                 "participant": self.number,
                 "where": self.where(n),
@@ -441,6 +449,20 @@ class StudySession(LabSession):
                 if self.asking is None
                 else {label: sorted(ids) for label, ids in self.asking.pending.items() if ids},
             }
+        }
+
+    def trial_study(self, n: int) -> dict[str, Any]:
+        """Return what the console lists of trial n: its block, condition, partners and answers.
+
+        The partners are every player's true kind; the answers those given after the trial, by
+        label and question.
+        """
+        step = self._step_of(n)
+        return {
+            "block": self.protocol.blocks[self.steps[step].block].name,
+            "condition": self.steps[step].name,
+            "partners": {slot.label: slot.kind for slot in self.plans[step].slots},
+            "answers": self.answered.get(n, {}),
         }
 
 

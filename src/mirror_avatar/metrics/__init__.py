@@ -7,7 +7,7 @@ into `session_metrics`, the one summary of a session every part of the toolkit r
 The measures mirror-game studies report beside them (jitter, co-confidence, synchrony episodes,
 leadership, transfer entropy, surrogates; METHODS section 12) have one module each, composed by
 `measures.session_measures`, which `evaluate` calls (imported from there, since it brings
-pyinform).
+pyinform) on sessions brought to at most 100 Hz by `analysis_rate.at_analysis_rate`.
 """
 
 from mirror_avatar.metrics.coordination import (

@@ -119,7 +119,16 @@ def windowed_cross_correlation(
     """
     a, b = np.asarray(s0, dtype=float), np.asarray(s1, dtype=float)
     w, h, m = round(window * rate), max(1, round(step * rate)), round(max_lag * rate)
-    if a.ndim != 1 or a.shape != b.shape or w < 3 or a.size < w + 2 * m:
+    if m < 1 or w < 3:
+        option, value, fewest = (
+            ("--lead-max-lag", max_lag, 1) if m < 1 else ("--lead-window", window, 3)
+        )
+        raise InputError(
+            option,
+            f"{value:g} s is under {fewest} sample(s) at {rate:g} Hz; give at least "
+            f"{fewest / rate:g} s",
+        )
+    if a.ndim != 1 or a.shape != b.shape or a.size < w + 2 * m:
         raise InputError(
             "leadership",
             f"need two equal series longer than --lead-window + 2 --lead-max-lag, got {a.shape}",

@@ -22,7 +22,7 @@ surrogate distribution and a p-value (`mirror_avatar.metrics.surrogates`). Keys:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
@@ -30,9 +30,11 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm.auto import tqdm
 
+from mirror_avatar.constraints import Constraint, Interval, Options, check
 from mirror_avatar.errors import InputError
 from mirror_avatar.metrics import co_confidence, jitter, leadership, synchrony_episodes
 from mirror_avatar.metrics import transfer_entropy as te
+from mirror_avatar.metrics.analysis_rate import session_rate
 from mirror_avatar.metrics.coordination import (
     compute_cross_correlation_peak,
     compute_phase,
@@ -57,6 +59,46 @@ Array = NDArray[np.float64]
 
 N_SURROGATES = 99
 """Surrogates per session by default (p-values down to 0.01)."""
+
+MAX_SURROGATES = 9999
+"""Most surrogates per session (p-values down to 1e-4); each is drawn, measured and dropped in
+turn, so memory does not grow with their number, but time does."""
+
+MAX_SECONDS = 600.0
+"""Longest window, step, lag, segment or shift (s) of the measures: ten minutes, beyond any
+use in the field, and a bound on the memory of a window's running sums."""
+
+MAX_TE_STATES = 2**24
+"""Most joint states ``te_bins ** (te_history + 2)`` of transfer entropy: pyinform allocates
+a table of them (a few hundred MB at this bound) and fails, or crashes, beyond."""
+
+_SECONDS = Interval(float, 0.0, MAX_SECONDS, "right", "s")
+_SHARE = Interval(float, 0.0, 1.0)
+CONSTRAINTS: dict[str, Constraint] = {
+    "min_duration": _SECONDS,
+    "jitter_threshold": Interval(float, 0.0, None, "neither"),
+    "dv_threshold": Interval(float, 0.0, 2.0, "right"),
+    "dv_window": _SECONDS,
+    "rest_fraction": _SHARE,
+    "sync_window": _SECONDS,
+    "sync_threshold": _SHARE,
+    "lead_window": _SECONDS,
+    "lead_step": _SECONDS,
+    "lead_max_lag": _SECONDS,
+    "lead_min_peak": Interval(float, -1.0, 1.0),
+    "leader_share": _SHARE,
+    "lead_signal": Options(("velocity", "position")),
+    "te_bins": Interval(int, 2, 64),
+    "te_history": Interval(int, 1, 16),
+    "te_step": _SECONDS,
+    "n_surrogates": Interval(int, 0, MAX_SURROGATES),
+    "surrogates": Options(("shift", "pseudo")),
+    "min_shift": Interval(float, 0.0, MAX_SECONDS, unit="s"),
+    "seed": Interval(int, 0, 2**32 - 1),
+}
+"""The allowed values of each open parameter of `MeasureOptions` (the jitter band excepted: it
+is fixed by the literature). dV is at most 2, shares and the windowed CV lie in [0, 1] and
+correlations in [-1, 1]."""
 
 DYAD_TESTED = {
     "phase_locking": True, "rmse": False, "max_cross_correlation": True,
@@ -114,6 +156,25 @@ class MeasureOptions:
     min_shift: float = MIN_SHIFT
     seed: int = 0
 
+    def __post_init__(self) -> None:
+        """Check every parameter against its declaration (`CONSTRAINTS`).
+
+        Raises
+        ------
+        mirror_avatar.constraints.ConstraintError
+            A parameter outside its range, or transfer entropy with more than `MAX_TE_STATES`
+            joint states.
+        """
+        for name, constraint in CONSTRAINTS.items():
+            check(name, getattr(self, name), constraint)
+        if self.te_bins ** (self.te_history + 2) > MAX_TE_STATES:
+            raise InputError(
+                "te_bins, te_history",
+                f"{self.te_bins} bins with a history of {self.te_history} make "
+                f"{self.te_bins ** (self.te_history + 2)} joint states, more than "
+                f"{MAX_TE_STATES}; lower --te-bins or --te-history",
+            )
+
 
 @dataclass
 class Measures:
@@ -121,12 +182,14 @@ class Measures:
 
     ``values`` (JSON-ready, keys in the module docstring), the time-resolved ``details`` figures
     draw (``co_confidence``, ``leadership``, ``jitter``, ``synchrony``, ``start``: the session
-    time of sample 0), and ``null``, each tested measure's surrogate values.
+    time of sample 0), ``null``, each tested measure's surrogate values, and ``notes``, one
+    line for each measure the session is too short for.
     """
 
     values: dict[str, Any] = field(default_factory=dict)
     details: dict[str, Any] = field(default_factory=dict)
     null: dict[str, Array] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
 
 
 def _cc(v: Array, rate: float, o: MeasureOptions) -> co_confidence.CoConfidence:
@@ -198,8 +261,12 @@ def tested_directions(n_players: int) -> dict[str, bool]:
 
 def _surrogate_sessions(
     x: Array, v: Array, rate: float, o: MeasureOptions, partners: Sequence[Session]
-) -> list[tuple[Array, Array]]:
-    """Draw the surrogate (positions, velocities) of a session, as `MeasureOptions` asks."""
+) -> Iterator[tuple[Array, Array]]:
+    """Yield the surrogate (positions, velocities) of a session one at a time, as ``o`` asks.
+
+    Only the offsets (or the picks of partners) are drawn at once, so memory does not grow
+    with the number of surrogates.
+    """
     if o.surrogates == "pseudo":
         others = [p for p in partners if p.n_players == x.shape[0]]
         if not others:
@@ -207,13 +274,13 @@ def _surrogate_sessions(
                 "--surrogates pseudo", "needs other sessions with as many players (or use shift)"
             )
         picks = np.random.default_rng(o.seed).permutation(len(others))[: o.n_surrogates]
-        return [
-            (pseudo_session(x, others[k].positions), pseudo_session(v, others[k].velocities))
-            for k in picks
-        ]
+        for k in picks:
+            yield pseudo_session(x, others[k].positions), pseudo_session(v, others[k].velocities)
+        return
     rng = np.random.default_rng(o.seed)
     offsets = shift_offsets(x.shape[1], x.shape[0], o.n_surrogates, round(o.min_shift * rate), rng)
-    return [(shifted(x, k), shifted(v, k)) for k in offsets]
+    for k in offsets:
+        yield shifted(x, k), shifted(v, k)
 
 
 def session_measures(
@@ -237,7 +304,7 @@ def session_measures(
     o = options or MeasureOptions()
     kept = session.trimmed(trim) if trim > 0 else session
     x, v = kept.positions, kept.velocities
-    rate = 1.0 / float(np.median(np.diff(kept.times)))
+    rate = session_rate(kept)
     out = Measures(details={"start": float(kept.times[0])})
     if kept.n_samples < jitter.shortest_series():
         return out
@@ -251,6 +318,11 @@ def session_measures(
     out.values |= observed
     if kept.n_players == 2:
         out.values |= _dyad_values(x, v, rate, o, out.details)
+        if "leadership" not in out.details:
+            out.notes.append(
+                f"no leadership: {kept.duration:g} s is shorter than --lead-window + 2 "
+                f"--lead-max-lag ({o.lead_window + 2 * o.lead_max_lag:g} s)"
+            )
     else:
         _add_influence(out.values, kept.n_players)
     if o.n_surrogates > 0:
@@ -306,19 +378,25 @@ def _add_p_values(
     if o.surrogates == "shift" and x.shape[1] - 2 * round(o.min_shift * rate) < 1:
         out.values["surrogates"] = {"kind": o.surrogates, "n": 0, "min_shift": o.min_shift,
                                     "seed": o.seed, "note": "too short for the shifts"}  # fmt: skip
+        out.notes.append(
+            f"no p-values: {x.shape[1] / rate:g} s is too short for circular shifts of at "
+            f"least --min-shift ({o.min_shift:g} s) from either end"
+        )
         return
     directions = tested_directions(x.shape[0])
-    draws = [
-        coordination_statistics(xs, vs, rate, o)
-        for xs, vs in _surrogate_sessions(x, v, rate, o, partners)
-    ]
+    draws: dict[str, list[float]] = {name: [] for name in directions}
+    for xs, vs in _surrogate_sessions(x, v, rate, o, partners):
+        draw = coordination_statistics(xs, vs, rate, o)
+        for name in directions:
+            draws[name].append(draw[name])
     for name, greater in directions.items():
-        null = np.array([draw[name] for draw in draws])
+        null = np.array(draws[name], dtype=np.float64)
         out.null[name] = null
         key = P_VALUE_KEYS.get(name, f"{name}_p_value")
         out.values[key] = p_value(observed[name], null, greater)
+    n = len(next(iter(draws.values())))
     out.values["surrogates"] = {
-        "kind": o.surrogates, "n": len(draws), "min_shift": o.min_shift, "seed": o.seed,
+        "kind": o.surrogates, "n": n, "min_shift": o.min_shift, "seed": o.seed,
     }  # fmt: skip
 
 

@@ -119,10 +119,13 @@
     }
   }
 
+  // Show a session; its id goes into the URL's fragment, so a reloaded console shows it again.
   function show(id) {
     current = id;
-    $("session").hidden = false;
-    $("session-id").textContent = id;
+    $("session").hidden = !id;
+    $("session-id").textContent = id || "";
+    $("session-error").textContent = "";
+    history.replaceState(null, "", id ? `#${encodeURIComponent(id)}` : location.pathname);
   }
 
   async function command(action, body = {}) {
@@ -162,8 +165,8 @@
       cell(row, slot.label);
       cell(row, slot.role);
       const avatar = `avatar: ${slot.spec}` + (slot.plays ? ` · plays ${slot.plays}` : "");
-      cell(row, slot.kind === "avatar" ? avatar : `person (${slot.device})`);
-      let state = "ready";
+      cell(row, slot.kind === "hidden" ? "person or avatar: hidden until export" : slot.kind === "avatar" ? avatar : `person (${slot.device})`);
+      let state = slot.kind === "hidden" ? "-" : "ready";
       if (slot.kind === "human") {
         state = slot.connected ? "connected" : slot.joined ? "disconnected" : "not joined";
         if (slot.dropped_at !== null && slot.dropped_at !== undefined) state += ` · dropped at sample ${slot.dropped_at}`;
@@ -212,13 +215,30 @@
     return lines;
   }
 
+  const KIND_WORDS = { human: "person", avatar: "avatar", hidden: "hidden until export" };
+
+  // One line per item, in a cell (the partners, the answers of each person).
+  function listed(items) {
+    const box = document.createElement("div");
+    items.forEach((text) => box.append(Object.assign(document.createElement("div"), { textContent: text })));
+    return box;
+  }
+
+  function answerLines(answers) {
+    return Object.entries(answers).map(([label, given]) => `${label}: ` + Object.entries(given).map(([question, value]) => `${question} ${value}`).join(", "));
+  }
+
   function renderTrials(status) {
+    $("trial-list").classList.toggle("study", Boolean(status.study));
     const body = $("trial-list").querySelector("tbody");
     body.innerHTML = "";
     const names = { phase_locking: "CV", rmse: "RMS", time_lag: "lag (s)", group_synchronisation: "ρg", mean_phase_locking: "mean CV", mean_rmse: "mean RMS", kuramoto_order: "r" };
     status.trials.forEach((trial) => {
       const row = document.createElement("tr");
       cell(row, String(trial.n));
+      cell(row, trial.condition ? `${trial.condition} (${trial.block})` : "").className = "study-only condition";
+      cell(row, listed(Object.entries(trial.partners || {}).map(([label, kind]) => `${label} ${KIND_WORDS[kind] || kind}`))).className = "study-only partners";
+      cell(row, listed(answerLines(trial.answers || {}))).className = "study-only answers";
       cell(row, trial.complete ? "complete" : `incomplete: ${trial.end_reason}`);
       cell(row, String(trial.n_samples));
       cell(row, Object.entries(trial.metrics).filter(([k]) => names[k]).map(([k, v]) => `${names[k]} ${fmt(v, 3)}`).join(" · ")).className = "metrics";
@@ -251,7 +271,12 @@
     $("state").className = `badge ${status.state}`;
     const plan = status.plan;
     $("session-summary").textContent = `${plan.condition.replace("_", "-")} · ${plan.slots.length} players · ${plan.trials} trial(s) of ${plan.duration} s · seed ${plan.seed} · ` + whereNow(status);
-    if (status.study) $("session-summary").textContent = `participant ${status.study.participant} · ${status.study.where} · order: ${status.study.order.join(", ")}` + (status.study.waiting.length ? ` · waiting: ${status.study.waiting.join(", ")}` : "") + Object.entries(status.study.unanswered).map(([label, ids]) => ` · ${label} to answer: ${ids.join(", ")}`).join("");
+    if (status.study) {
+      const study = status.study;
+      const where = status.state === "finished" ? `finished: all ${study.total_trials} trials played` : study.where;
+      const pages = study.pages ? ` · pages: ${Object.entries(study.pages).map(([label, on]) => `${label} ${on ? "connected" : "not connected"}`).join(", ")} · double blind: partner kinds hidden until export` : "";
+      $("session-summary").textContent = `participant ${study.participant} · ${where} · order: ${study.order.join(", ")}` + (study.waiting.length ? ` · waiting: ${study.waiting.join(", ")}` : "") + Object.entries(study.unanswered).map(([label, ids]) => ` · ${label} to answer: ${ids.join(", ")}`).join("") + pages;
+    }
     $("session-error").textContent = status.error || $("session-error").textContent;
     renderSlots(status);
     renderTrials(status);
@@ -296,6 +321,7 @@
       const listing = await api("/api/sessions");
       renderSessionList(listing.sessions);
       showProtocol(listing.protocol);
+      if (current && !listing.sessions.some((s) => s.id === current)) show(null);  // forgotten by the server
       if (current) {
         render(await api(`/api/sessions/${current}`));
         drawLive(await api(`/api/sessions/${current}/live`));
@@ -309,7 +335,7 @@
   function showProtocol(protocol) {
     $("study").classList.toggle("loaded", Boolean(protocol));
     $("study-run").hidden = !protocol;
-    $("study-title").textContent = protocol ? `"${protocol.title}" · seed ${protocol.seed} · people ${protocol.people.join(", ")}` : "none loaded";
+    $("study-title").textContent = protocol ? `"${protocol.title}" · seed ${protocol.seed} · people ${protocol.people.join(", ")}` + (protocol.blind === "double" ? " · double blind" : "") : "none loaded";
   }
 
   async function loadProtocol() {
@@ -358,5 +384,6 @@
   $("export").addEventListener("click", exportBids);
   $("abort").addEventListener("click", () => { if (confirm("Abort the session? Its links expire.")) command("abort"); });
   applyPreset("dyad");
+  if (location.hash.length > 1) show(decodeURIComponent(location.hash.slice(1)));
   poll();
 })();

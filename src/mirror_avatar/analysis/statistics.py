@@ -1,0 +1,387 @@
+"""The statistics of conditions compared within participants (docs/METHODS.md, section 14).
+
+Per condition and measure, the mean over participants with a bootstrap confidence interval
+(`condition_summaries`); per measure, each condition against the reference condition in a
+linear mixed model with a random intercept per participant and the condition's position in the
+participant's order as a covariate, with effect sizes and paired tests of the participants'
+means as a cross-check (`fit_contrasts`). Rows are a participant's trials (one per trial and
+player); every participant's mean is taken over their trials first.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import pandas as pd
+from numpy.typing import ArrayLike, NDArray
+from scipy import stats
+from statsmodels.regression.mixed_linear_model import MixedLM
+from statsmodels.stats.multitest import multipletests
+from statsmodels.tools.sm_exceptions import ConvergenceWarning
+
+BOOTSTRAP_RESAMPLES = 9999
+"""Bootstrap resamples of the participants' means (**choice**: scipy's default)."""
+
+CONFIDENCE = 0.95
+"""Confidence level of every interval."""
+
+BootstrapMethod = Literal["BCa", "percentile"]
+
+
+def has_spread(values: NDArray[np.float64]) -> bool:
+    """Whether ``values`` differ by more than rounding (relative 1e-12): a spread to scale by."""
+    if values.size == 0:
+        return False
+    return bool(np.ptp(values) > 1e-12 * max(1.0, float(np.max(np.abs(values)))))
+
+
+TRIAL_KEYS = ("participant", "condition", "position", "block", "trial")
+"""The columns that name a trial of a participant (those the table has)."""
+
+
+def trial_values(rows: pd.DataFrame, measure: str) -> pd.DataFrame:
+    """One value of ``measure`` per trial: the mean over the trial's rows (its persons).
+
+    A participant of a two-person protocol has a row per person and trial; a measure of the
+    pair is the same in both, and counting it twice would halve the model's variance. Rows
+    without ``block`` and ``trial`` columns are each a trial.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns `TRIAL_KEYS` (those present) and ``measure``.
+    """
+    keys = [key for key in TRIAL_KEYS if key in rows]
+    if "trial" not in keys:
+        return rows[[*keys, measure]]
+    grouped = rows.groupby(keys, sort=False, dropna=False)[measure].mean()
+    return grouped.reset_index()
+
+
+def participant_means(rows: pd.DataFrame, measure: str, conditions: Sequence[str]) -> pd.DataFrame:
+    """Each participant's mean of ``measure`` in each condition over their trials.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index the participants (sorted), columns ``conditions`` in their order; NaN where a
+        participant has no value in a condition.
+    """
+    valid = rows.dropna(subset=[measure])
+    means = valid.groupby(["participant", "condition"])[measure].mean().unstack("condition")
+    return means.reindex(columns=list(conditions)).sort_index()
+
+
+def bootstrap_mean_ci(
+    values: ArrayLike,
+    seed: int,
+    resamples: int = BOOTSTRAP_RESAMPLES,
+    confidence: float = CONFIDENCE,
+    method: BootstrapMethod = "BCa",
+) -> tuple[float, float]:
+    """Bootstrap confidence interval of the mean of ``values`` (one per participant).
+
+    ``scipy.stats.bootstrap`` (Efron & Tibshirani 1993) with a generator seeded by ``seed``.
+    Values all equal (see `has_spread`) give (value, value); fewer than two values give NaN.
+
+    Returns
+    -------
+    tuple of float
+        Lower and upper limits, in the values' units.
+    """
+    sample = np.asarray(values, dtype=np.float64)
+    sample = sample[np.isfinite(sample)]
+    if sample.size < 2:
+        return (float("nan"), float("nan"))
+    if not has_spread(sample):
+        return (float(sample.mean()), float(sample.mean()))
+    found = stats.bootstrap(
+        (sample,),
+        np.mean,
+        n_resamples=resamples,
+        confidence_level=confidence,
+        method=method,
+        rng=np.random.default_rng(seed),
+    )
+    return (float(found.confidence_interval.low), float(found.confidence_interval.high))
+
+
+def condition_summaries(
+    rows: pd.DataFrame,
+    measures: Sequence[str],
+    conditions: Sequence[str],
+    seed: int,
+    resamples: int = BOOTSTRAP_RESAMPLES,
+    confidence: float = CONFIDENCE,
+) -> pd.DataFrame:
+    """Mean over participants, its bootstrap CI and the SD, per measure and condition.
+
+    Each interval draws its resamples from a generator seeded by ``seed`` (BCa).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``measure, condition, participants, mean, ci_low, ci_high, sd``, one row per
+        measure and condition, in the given orders.
+    """
+    found = []
+    for measure in measures:
+        means = participant_means(rows, measure, conditions)
+        for condition in conditions:
+            values = means[condition].dropna().to_numpy()
+            low, high = bootstrap_mean_ci(values, seed, resamples, confidence)
+            found.append({
+                "measure": measure, "condition": condition, "participants": values.size,
+                "mean": _mean(values), "ci_low": low, "ci_high": high,
+                "sd": float(np.std(values, ddof=1)) if values.size > 1 else float("nan"),
+            })  # fmt: skip
+    return pd.DataFrame(found)
+
+
+@dataclass(frozen=True)
+class Contrast:
+    """One condition against the reference condition, for one measure.
+
+    Parameters
+    ----------
+    measure, condition, reference
+        What is compared.
+    difference
+        The mixed model's coefficient of the condition: its mean minus the reference's, in the
+        measure's units, at equal position.
+    ci_low, ci_high
+        Its Wald confidence interval.
+    p
+        Its Wald test's p-value; ``p_holm`` the same, Holm-corrected over the measure's contrasts.
+    standardised
+        ``difference`` over the model's total SD (participant and residual variances summed).
+    participants
+        Participants with a mean in both conditions (the paired tests' n).
+    reference_mean, condition_mean
+        Means of those participants' means.
+    d_z
+        Cohen's d_z: mean of the paired differences over their SD.
+    t, t_p
+        Paired t-test of the participants' means; ``wilcoxon_p`` the Wilcoxon signed-rank test's.
+    """
+
+    measure: str
+    condition: str
+    reference: str
+    difference: float
+    ci_low: float
+    ci_high: float
+    p: float
+    p_holm: float
+    standardised: float
+    participants: int
+    reference_mean: float
+    condition_mean: float
+    d_z: float
+    t: float
+    t_p: float
+    wilcoxon_p: float
+
+
+@dataclass(frozen=True)
+class MeasureModel:
+    """The mixed model of one measure and its contrasts.
+
+    Parameters
+    ----------
+    measure
+        The measure modelled.
+    rows, participants
+        Rows (trials) and participants it was fitted on.
+    position_in_model
+        Whether the position covariate was in the model (left out when it is constant or
+        confounded with condition, which ``notes`` says).
+    position_slope, position_p
+        Change of the measure per step later in the order (measure units), its Wald p-value.
+    participant_variance, residual_variance
+        The random intercept's variance and the residual variance (units squared).
+    contrasts
+        Each condition against the reference.
+    notes
+        What the fit said (boundary, convergence) and what was left out, in plain words.
+    """
+
+    measure: str
+    rows: int
+    participants: int
+    position_in_model: bool
+    position_slope: float
+    position_p: float
+    participant_variance: float
+    residual_variance: float
+    contrasts: list[Contrast]
+    notes: list[str] = field(default_factory=list)
+
+
+def fit_contrasts(
+    rows: pd.DataFrame,
+    measure: str,
+    conditions: Sequence[str],
+    reference: str,
+    confidence: float = CONFIDENCE,
+) -> MeasureModel | None:
+    """Fit ``measure ~ C(condition) + position`` with a random intercept per participant.
+
+    The observations are the participant's trials (`trial_values`).
+
+    statsmodels' `MixedLM` fitted by REML; the reference condition is the treatment coding's
+    baseline. Wald tests (z) of the fixed effects. The model is fitted to the measure centred
+    and divided by its SD, and its estimates scaled back (REML is equivariant, so nothing
+    changes but the fit's boundary check: statsmodels flags a random-intercept variance under
+    0.01 in the outcome's units squared, here under 1 % of the measure's variance). Each
+    contrast is cross-checked by a paired t-test and a Wilcoxon signed-rank test of the
+    participants' means in the two conditions.
+
+    Returns
+    -------
+    MeasureModel or None
+        None when fewer than two conditions or two participants have values of ``measure``.
+    """
+    data = trial_values(rows.dropna(subset=[measure, "position"]), measure)
+    data = data[data["condition"].isin(conditions)]
+    present = [c for c in conditions if c in set(data["condition"])]
+    if reference not in present or len(present) < 2 or data["participant"].nunique() < 2:
+        return None
+    others = [c for c in present if c != reference]
+    design, notes = _design(data, others)
+    values = data[measure].to_numpy(np.float64)
+    means = participant_means(data, measure, present)
+    if not has_spread(values):
+        return _unfitted(data, measure, means, reference, notes + ["the same value in every trial"])
+    sd = float(np.std(values))
+    model = MixedLM((values - values.mean()) / sd, design, groups=data["participant"])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            result = model.fit(reml=True)
+        except (np.linalg.LinAlgError, ValueError) as error:
+            failed = f"the mixed model could not be fitted ({' '.join(str(error).split())})"
+            return _unfitted(data, measure, means, reference, notes + [failed])
+    notes += _fit_notes(caught, bool(result.converged))
+    interval = result.conf_int(alpha=1.0 - confidence) * sd
+    coefficients = result.fe_params * sd
+    participant_variance = float(np.asarray(result.cov_re)[0, 0]) * sd**2
+    residual_variance = float(result.scale) * sd**2
+    total_sd = float(np.sqrt(participant_variance + residual_variance))
+    p_values = [float(result.pvalues[c]) for c in others]
+    holm = multipletests(p_values, method="holm")[1]
+    contrasts = []
+    for condition, p, p_holm in zip(others, p_values, holm, strict=True):
+        limits = interval.loc[condition].to_numpy(np.float64)
+        estimate = (float(coefficients[condition]), limits, p, float(p_holm))
+        contrasts.append(_contrast(measure, condition, reference, means, estimate, total_sd))
+    has_position = "position" in design
+    return MeasureModel(
+        measure=measure,
+        rows=len(data),
+        participants=int(data["participant"].nunique()),
+        position_in_model=has_position,
+        position_slope=float(coefficients["position"]) if has_position else float("nan"),
+        position_p=float(result.pvalues["position"]) if has_position else float("nan"),
+        participant_variance=participant_variance,
+        residual_variance=residual_variance,
+        contrasts=contrasts,
+        notes=notes,
+    )
+
+
+def paired_effect(
+    reference: NDArray[np.float64], condition: NDArray[np.float64]
+) -> dict[str, float]:
+    """Cohen's d_z, paired t-test and Wilcoxon signed-rank test of paired participant means.
+
+    Returns
+    -------
+    dict
+        ``d_z``, ``t``, ``t_p``, ``wilcoxon_p`` (two-sided); NaN when fewer than two pairs or
+        when every difference is the same (no spread to scale by).
+    """
+    differences = np.asarray(condition, dtype=np.float64) - np.asarray(reference, dtype=np.float64)
+    nan = float("nan")
+    if differences.size < 2 or not has_spread(differences):
+        return {"d_z": nan, "t": nan, "t_p": nan, "wilcoxon_p": nan}
+    tested = stats.ttest_rel(condition, reference)
+    signed_rank = stats.wilcoxon(differences) if np.any(differences != 0.0) else None
+    return {
+        "d_z": float(np.mean(differences) / np.std(differences, ddof=1)),
+        "t": float(tested.statistic),
+        "t_p": float(tested.pvalue),
+        "wilcoxon_p": nan if signed_rank is None else float(signed_rank.pvalue),
+    }
+
+
+def _design(data: pd.DataFrame, others: list[str]) -> tuple[pd.DataFrame, list[str]]:
+    """Fixed-effects design: intercept, a dummy per non-reference condition, then position."""
+    design = pd.DataFrame({"Intercept": 1.0}, index=data.index)
+    for condition in others:
+        design[condition] = (data["condition"] == condition).astype(np.float64)
+    with_position = design.assign(position=data["position"].astype(np.float64))
+    if np.linalg.matrix_rank(with_position.to_numpy()) == with_position.shape[1]:
+        return with_position, []
+    if data["position"].nunique() == 1:
+        why = "it is the same in every row"
+    else:
+        why = "it is confounded with condition (every participant met the conditions in one order)"
+    return design, [f"order not checked: position left out of the model, {why}"]
+
+
+def _fit_notes(caught: list[warnings.WarningMessage], converged: bool) -> list[str]:
+    """Say what the fit's warnings mean: a boundary fit, a fit that did not converge."""
+    texts = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
+    notes = []
+    if any("boundary" in text for text in texts):
+        notes.append("mixed model: the participants' variance is near 0 (a boundary fit)")
+    if not converged:
+        notes.append("mixed model: the fit did not converge, so its p-values are not reliable")
+    return notes
+
+
+def _unfitted(
+    data: pd.DataFrame, measure: str, means: pd.DataFrame, reference: str, notes: list[str]
+) -> MeasureModel:
+    """Make the model of a measure that could not be fitted: NaN estimates, the paired tests."""
+    nan = float("nan")
+    estimate = (nan, np.array([nan, nan]), nan, nan)
+    others = [c for c in means.columns if c != reference]
+    return MeasureModel(
+        measure=measure, rows=len(data), participants=int(data["participant"].nunique()),
+        position_in_model=False, position_slope=nan, position_p=nan, participant_variance=nan,
+        residual_variance=nan,
+        contrasts=[_contrast(measure, c, reference, means, estimate, nan) for c in others],
+        notes=notes,
+    )  # fmt: skip
+
+
+def _contrast(
+    measure: str,
+    condition: str,
+    reference: str,
+    means: pd.DataFrame,
+    estimate: tuple[float, NDArray[np.float64], float, float],
+    total_sd: float,
+) -> Contrast:
+    """Build a contrast from the model's ``estimate`` (coefficient, CI, p, Holm p)."""
+    difference, interval, p, p_holm = estimate
+    paired = means[[reference, condition]].dropna()
+    before, after = paired[reference].to_numpy(), paired[condition].to_numpy()
+    effect = paired_effect(before, after)
+    return Contrast(
+        measure=measure, condition=condition, reference=reference, difference=float(difference),
+        ci_low=float(interval[0]), ci_high=float(interval[1]), p=p, p_holm=p_holm,
+        standardised=float(difference) / total_sd if total_sd > 0 else float("nan"),
+        participants=len(paired), reference_mean=_mean(before), condition_mean=_mean(after),
+        **effect,
+    )  # fmt: skip
+
+
+def _mean(values: NDArray[np.float64]) -> float:
+    return float(np.mean(values)) if values.size else float("nan")

@@ -1,0 +1,127 @@
+"""``mirror-avatar lab pilot``: a study protocol played by virtual participants."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+
+from mirror_avatar.cli.outputs import check_output_dir
+from mirror_avatar.errors import InputError
+from mirror_avatar.seeds import entropy_of
+
+DEFAULT_STAND_IN = "bundled:slow"
+"""The SPEC standing in for a person no --stand-in names."""
+
+
+def _pairs(values: tuple[str, ...], option: str) -> dict[str, str]:
+    """Read ``KEY=VALUE`` options into a mapping (one line naming the option otherwise)."""
+    pairs = {}
+    for value in values:
+        key, sep, rest = value.partition("=")
+        if not sep or not key or not rest:
+            raise InputError(option, f"{value!r}: give KEY=VALUE, such as P1=bundled:slow")
+        pairs[key] = rest
+    return pairs
+
+
+@click.command()
+@click.option(
+    "--protocol",
+    "protocol_file",
+    required=True,
+    type=click.Path(path_type=Path),
+    help="The study protocol (TOML) to pilot.",
+)
+@click.option(
+    "--participants",
+    type=click.IntRange(1, 1000),
+    default=2,
+    show_default=True,
+    help="How many participants' runs to play, in turn.",
+)
+@click.option(
+    "--first",
+    type=click.IntRange(0, 10_000),
+    default=0,
+    show_default=True,
+    help="The first participant's number (their row of the order).",
+)
+@click.option(
+    "--stand-in",
+    "stand_in",
+    multiple=True,
+    metavar="LABEL=SPEC",
+    help=f"The player SPEC standing in for the person LABEL (repeatable; default "
+    f"{DEFAULT_STAND_IN} for every person).",
+)
+@click.option(
+    "--answer",
+    multiple=True,
+    metavar="QUESTION=RULE",
+    help="How the virtual participants answer a question: random (default), first, "
+    "or value:TEXT (repeatable).",
+)
+@click.option(
+    "--seed",
+    type=click.IntRange(0),
+    default=None,
+    help="The pilot's seed (the stand-ins' own seeds; default: drawn and printed).",
+)
+@click.option(
+    "--out",
+    "out_dir",
+    required=True,
+    type=click.Path(path_type=Path),
+    help="Where the lab server records the runs (one folder per participant).",
+)
+def pilot(
+    protocol_file: Path,
+    participants: int,
+    first: int,
+    stand_in: tuple[str, ...],
+    answer: tuple[str, ...],
+    seed: int | None,
+    out_dir: Path,
+) -> None:
+    """Play a protocol with virtual participants through the real lab server.
+
+    Starts `mirror-avatar lab --protocol` on loopback and plays each participant's run in
+    turn, in real time: every person's slot is joined by a virtual participant's page that sees
+    what a person's page sees (partners delayed and hidden as the condition says) and moves a
+    player SPEC on it, and answers the questions by rule. The folders are a real study's, so
+    `mirror-avatar study table` and `study report` run on them before the first person comes.
+    """
+    from mirror_avatar.lab.pilot import AnswerRule, run_pilot
+    from mirror_avatar.lab.protocol import load_protocol
+
+    protocol = load_protocol(protocol_file)
+    given = _pairs(stand_in, "--stand-in")
+    stand_ins = {label: given.get(label, DEFAULT_STAND_IN) for label in protocol.people} | given
+    rules = {q: AnswerRule.parse(rule) for q, rule in _pairs(answer, "--answer").items()}
+    check_output_dir(out_dir)
+    seed = entropy_of(seed)
+    people = ", ".join(f"{label}={spec}" for label, spec in stand_ins.items())
+    click.echo(
+        f"pilot of {protocol_file}: participants {first}-{first + participants - 1}, "
+        f"stand-ins {people}, seed {seed}"
+    )
+    started = time.monotonic()
+
+    def done(number: int, status: dict[str, Any]) -> None:
+        trials = status.get("trials", [])
+        cut = [f"trial {t['n']}: {t['end_reason']}" for t in trials if not t["complete"]]
+        click.echo(
+            f"participant {number}: {status['state']}, {len(trials) - len(cut)} of "
+            f"{len(trials)} trial(s) complete ({time.monotonic() - started:.0f} s)"
+            + (f"; {'; '.join(cut)}" if cut else "")
+        )
+
+    run_pilot(
+        protocol_file, out_dir, range(first, first + participants), stand_ins, seed, rules, done
+    )
+    click.echo(
+        f"recorded in {out_dir.resolve()}; next: mirror-avatar study table {out_dir} --out RESULTS"
+    )

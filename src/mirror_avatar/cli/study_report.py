@@ -1,0 +1,61 @@
+"""``mirror-avatar study report``: the statistics a paper reports, from a study table."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from mirror_avatar.analysis.statistics import BOOTSTRAP_RESAMPLES
+from mirror_avatar.analysis.study_file import read_study_table
+from mirror_avatar.analysis.study_report import (
+    STUDY_REPORT_FILES,
+    analyse_study,
+    write_study_report,
+)
+from mirror_avatar.cli.outputs import check_output_dir
+
+
+@click.command()
+@click.argument("table", type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(path_type=Path),
+    required=True,
+    help="Folder for report.html, results.json, conditions.csv and contrasts.csv.",
+)
+@click.option(
+    "--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap's resamples."
+)
+@click.option(
+    "--reference",
+    default=None,
+    help="The condition every other is compared with [default: the first condition].",
+)
+@click.option(
+    "--resamples",
+    type=click.IntRange(min=100),
+    default=BOOTSTRAP_RESAMPLES,
+    show_default=True,
+    help="Bootstrap resamples of the participants' means.",
+)
+def report(table: Path, out_dir: Path, seed: int, reference: str | None, resamples: int) -> None:
+    """Statistics of a study table (a folder holding study.csv, or the table itself).
+
+    Per condition and measure (and each answer given as a number, a rating), the mean over
+    participants with a 95 % bootstrap CI; each condition against the reference within
+    participants (linear mixed model, random intercept per participant, the condition's
+    position in the order as a covariate) with effect sizes and paired tests; the "person or
+    avatar?" answers against chance, with d', criterion and confidence. Writes an HTML report
+    with a line per comparison in plain words and a methods paragraph to cite, and
+    results.json with every number.
+    """
+    check_output_dir(out_dir, files=STUDY_REPORT_FILES)
+    analysis = analyse_study(read_study_table(table), seed=seed, reference=reference,
+                             resamples=resamples)  # fmt: skip
+    click.echo(analysis.verdict())
+    for line in analysis.sentences():
+        click.echo(f"  {line}")
+    path = write_study_report(analysis, out_dir)
+    click.echo(f"wrote {path.resolve()}")

@@ -1,0 +1,156 @@
+"""Constraints declared as data: what a setting accepts, checked and described from one record.
+
+A setting's allowed values are declared once, as an `Interval` (numbers between two ends, each
+open or closed, finite, whole numbers or not) or as `Options` (a fixed set of words), in the
+style of scikit-learn's ``sklearn/utils/_param_validation.py``. The declaration checks a value
+(`check`), describes the allowed values for help texts and documents (``str``), and names values
+it refuses (`Interval.refused`, `Options.refused`), from which the refusal tests are generated.
+
+A refused value raises `ConstraintError`: an `InputError` of one line naming the setting, the
+value and what is allowed, which carries the setting's key, the value and the constraint as
+data, so that callers never read them back out of the message.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from mirror_avatar.errors import InputError
+
+Closed = Literal["both", "left", "right", "neither"]
+"""Which ends of an `Interval` belong to it."""
+
+
+@dataclass(frozen=True)
+class Interval:
+    """Finite numbers between ``low`` and ``high``, whole numbers only if ``kind`` is `int`.
+
+    Parameters
+    ----------
+    kind
+        `int` (integers only; bools are refused) or `float` (any finite real number).
+    low, high
+        The ends; None for no end on that side.
+    closed
+        Which ends are allowed values themselves.
+    unit
+        Unit of the values, for the description (``"s"``); empty for none.
+    """
+
+    kind: type[int] | type[float]
+    low: float | None
+    high: float | None
+    closed: Closed = "both"
+    unit: str = ""
+
+    def __contains__(self, value: object) -> bool:
+        """Say whether ``value`` is an allowed number (NaN and infinities never are)."""
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            return False
+        if isinstance(value, numbers.Integral):
+            number: int | float = int(value)
+        elif self.kind is int or not math.isfinite(number := float(value)):
+            return False
+        low_ok = self.low is None or (
+            number >= self.low if self.closed in ("both", "left") else number > self.low
+        )
+        high_ok = self.high is None or (
+            number <= self.high if self.closed in ("both", "right") else number < self.high
+        )
+        return low_ok and high_ok
+
+    def __str__(self) -> str:
+        """Describe the allowed values, e.g. ``a number in (0, 600] s``."""
+        what = "a whole number" if self.kind is int else "a number"
+        left = "[" if self.closed in ("both", "left") and self.low is not None else "("
+        right = "]" if self.closed in ("both", "right") and self.high is not None else ")"
+        low = "-inf" if self.low is None else self._shown(self.low)
+        high = "inf" if self.high is None else self._shown(self.high)
+        unit = f" {self.unit}" if self.unit else ""
+        return f"{what} in {left}{low}, {high}{right}{unit}"
+
+    def _shown(self, end: float) -> str:
+        return str(int(end)) if self.kind is int else f"{end:g}"
+
+    def parse(self, text: str) -> float:
+        """Read a number of this interval's kind from ``text`` (not yet checked).
+
+        Raises
+        ------
+        ValueError
+            ``text`` is not a number (a whole one for `int`).
+        """
+        return int(text) if self.kind is int else float(text)
+
+    def refused(self) -> list[float]:
+        """Values this interval refuses: NaN, infinities, beyond each end, open ends themselves."""
+        out = [math.nan, math.inf, -math.inf] if self.kind is float else []
+        for end, step, included in (
+            (self.low, -1, self.closed in ("both", "left")),
+            (self.high, 1, self.closed in ("both", "right")),
+        ):
+            if end is None:
+                continue
+            out.append(self.kind(end + step * max(1.0, abs(end))))
+            if not included:
+                out.append(self.kind(end))
+        return out
+
+
+@dataclass(frozen=True)
+class Options:
+    """One of a fixed set of words."""
+
+    values: tuple[str, ...]
+
+    def __contains__(self, value: object) -> bool:
+        """Say whether ``value`` is one of the words."""
+        return value in self.values
+
+    def __str__(self) -> str:
+        """Describe the allowed values, e.g. ``one of shift, pseudo``."""
+        return "one of " + ", ".join(self.values)
+
+    def refused(self) -> list[str]:
+        """Values these options refuse: the empty word and a word not among them."""
+        return ["", "|".join(self.values)]
+
+
+Constraint = Interval | Options
+"""Any declared constraint."""
+
+
+class ConstraintError(InputError):
+    """A value outside its declared constraint: one line naming the key, the value, the range.
+
+    Attributes
+    ----------
+    key
+        The setting (an option such as ``--trim``, or a key of a file).
+    value
+        The value refused.
+    constraint
+        What is allowed.
+    """
+
+    def __init__(self, key: str, value: Any, constraint: Constraint) -> None:
+        self.key = key
+        self.value = value
+        self.constraint = constraint
+        super().__init__(key, f"{value!r} is not allowed; give {constraint}")
+
+
+def check(key: str, value: Any, constraint: Constraint) -> Any:
+    """Return ``value`` if ``constraint`` allows it.
+
+    Raises
+    ------
+    ConstraintError
+        Otherwise, naming ``key``.
+    """
+    if value not in constraint:
+        raise ConstraintError(key, value, constraint)
+    return value

@@ -1,0 +1,451 @@
+"""Pilots of a study: virtual participants play a protocol through the real lab server.
+
+`run_pilot` starts ``mirror-avatar lab --protocol FILE`` in a process of its own on loopback
+and, for each participant in turn, does what the researcher and the people would: creates the
+participant's run through the researcher's API, joins every person's slot with a `StandIn` -
+a virtual participant's page over a WebSocket -, starts the run and waits for its end. The
+server records everything as it does for people, so the folders are those of a real study.
+
+A stand-in sees exactly what a person's page is sent: each ``frame`` holds its own position and
+its visible partners' (delayed and hidden as the condition says; a hidden partner is not seen).
+It is any player SPEC (`mirror_avatar.specs.load_player`) in the role its page is told, stepped
+once per frame received: the partners shown are its observation, and the position it returns is
+sent as the pointer's. Questions are answered by an `AnswerRule` per question.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import os
+import queue
+import re
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+from websockets.asyncio.client import connect
+from websockets.exceptions import ConnectionClosed
+
+from mirror_avatar.dynamics import CONTROL_PERIOD
+from mirror_avatar.errors import InputError
+from mirror_avatar.lab.plan import SessionPlan
+from mirror_avatar.lab.protocol import Protocol, load_protocol
+from mirror_avatar.players.base import Observation, Player
+from mirror_avatar.seeds import spawn_seeds
+from mirror_avatar.specs import load_player
+
+PLAYER_ROLES = {"solo": "leader"}
+"""The role preset a stand-in plays for a page's role where they differ (alone: it leads)."""
+
+START_TIMEOUT = 120.0
+"""Seconds the lab server may take to start (it imports and compiles its kernels)."""
+
+SLACK = 60.0
+"""Seconds a participant's run may take beyond its planned time before the pilot gives up."""
+
+
+@dataclass(frozen=True)
+class AnswerRule:
+    """How a virtual participant answers a question.
+
+    ``kind`` is ``random`` (an option, a point or ``"pilot"``, drawn from the stand-in's seed),
+    ``first`` (the first option, point 1, ``"pilot"``) or ``value`` (``value`` itself, which must
+    answer the question: an option's text, a point's number or a text).
+    """
+
+    kind: str = "random"
+    value: str = ""
+
+    @classmethod
+    def parse(cls, text: str) -> AnswerRule:
+        """Read ``random``, ``first`` or ``value:TEXT``."""
+        kind, _, value = text.partition(":")
+        if kind not in ("random", "first", "value") or (kind == "value") != bool(value):
+            raise InputError(
+                "--answer", f"{text!r} is not a rule: give random, first or value:TEXT"
+            )
+        return cls(kind, value)
+
+    def answer(self, question: Mapping[str, Any], rng: np.random.Generator) -> str | int:
+        """Return the answer to ``question`` (as a page shows it: kind, options, points)."""
+        kind = question["kind"]
+        if self.kind == "value":
+            return int(self.value) if kind == "likert" and self.value.isdigit() else self.value
+        if kind == "choice":
+            options = list(question["options"])
+            return options[0] if self.kind == "first" else options[rng.integers(len(options))]
+        if kind == "likert":
+            return 1 if self.kind == "first" else int(rng.integers(1, int(question["points"]) + 1))
+        return "pilot"
+
+
+@dataclass
+class StandIn:
+    """A virtual participant's page: a player SPEC stepping on the frames the page receives.
+
+    Parameters
+    ----------
+    label
+        The person's label in the protocol (its slot).
+    spec
+        The player SPEC standing in for the person.
+    seed
+        The stand-in's seed: trial n's player is reset with the n-th seed spawned from it, its
+        random answers drawn from it.
+    answers
+        The rule for each question id; `AnswerRule()` (random) for the others.
+    """
+
+    label: str
+    spec: str
+    seed: int
+    answers: Mapping[str, AnswerRule] = field(default_factory=dict)
+    role: str = "waiting"
+    player: Player | None = None
+    _players: dict[str, Player] = field(default_factory=dict)
+    _seen: dict[int, float] = field(default_factory=dict)
+    _rng: np.random.Generator = field(init=False)
+
+    def __post_init__(self) -> None:
+        self._rng = np.random.default_rng(spawn_seeds(self.seed, 1)[0])
+
+    def welcome(self, message: Mapping[str, Any]) -> None:
+        """Take the page's slot and role (sent on joining and as each condition begins)."""
+        self.role = str(message["role"])
+        if self.role == "waiting":
+            self.player = None
+            return
+        role = PLAYER_ROLES.get(self.role, self.role)
+        if role not in self._players:
+            self._players[role] = _warmed(load_player(self.spec, role))
+        self.player = self._players[role]
+
+    def start(self, trial: int, seq: int) -> str | None:
+        """Reset the player for trial ``trial``; return its first position message, if it plays."""
+        if self.player is None:
+            return None
+        self._seen.clear()
+        position, _ = self.player.reset(seed=int(spawn_seeds(self.seed, trial)[trial - 1]))
+        return _position_message(seq, position)
+
+    def frame(self, message: Mapping[str, Any], seq: int) -> str | None:
+        """Step on a frame; return the position message to send, if the stand-in plays."""
+        if self.player is None:
+            return None
+        partners = {j: x for j, x in enumerate(message["x"][1:]) if x is not None}
+        positions = np.array(list(partners.values()), dtype=float)
+        previous = np.array([self._seen.get(j, x) for j, x in partners.items()], dtype=float)
+        velocities = (positions - previous) / CONTROL_PERIOD
+        self._seen = partners
+        k = int(message["k"])
+        position, _ = self.player.step(Observation(k, positions, velocities, previous))
+        return _position_message(seq, position)
+
+    def reply(self, message: Mapping[str, Any]) -> list[str]:
+        """Return the answer messages to a ``questions`` message."""
+        return [
+            json.dumps(
+                {
+                    "type": "answer",
+                    "trial": message["trial"],
+                    "question": question["id"],
+                    "value": self.answers.get(question["id"], AnswerRule()).answer(
+                        question, self._rng
+                    ),
+                }
+            )
+            for question in message["questions"]
+        ]
+
+
+def _warmed(player: Player) -> Player:
+    """Step ``player`` once off the clock, so that its kernels are compiled before a trial."""
+    player.reset(seed=0)
+    player.step(Observation.of_partner(0, 0.0, 0.0, 0.0))
+    return player
+
+
+def _position_message(seq: int, x: float) -> str:
+    return json.dumps({"type": "position", "seq": seq, "x": float(x)})
+
+
+async def play_page(url: str, stand_in: StandIn) -> str:
+    """Join by the WebSocket ``url`` as ``stand_in`` and play until the session ends.
+
+    Returns
+    -------
+    str
+        The session's last state (``finished`` or ``aborted``), or ``closed``.
+    """
+    seq = 0
+    async with connect(url, proxy=None, open_timeout=30, max_queue=None) as ws:
+        try:
+            async for text in ws:
+                message = json.loads(text)
+                kind = message["type"]
+                if kind == "welcome":
+                    await asyncio.to_thread(stand_in.welcome, message)
+                outgoing = _answer(stand_in, message, seq)
+                for reply in outgoing:
+                    await ws.send(reply)
+                seq += sum('"position"' in reply for reply in outgoing)
+                if kind == "state" and message["state"] in ("finished", "aborted"):
+                    return str(message["state"])
+        except ConnectionClosed:
+            pass
+    return "closed"
+
+
+def _answer(stand_in: StandIn, message: Mapping[str, Any], seq: int) -> list[str]:
+    """Return what a page sends back to one server message."""
+    kind = message["type"]
+    if kind == "ping":
+        return [json.dumps({"type": "pong", "id": message["id"], "late_frames": 0})]
+    if kind == "go":
+        return [m for m in (stand_in.start(int(message["trial"]), seq),) if m is not None]
+    if kind == "frame":
+        return [m for m in (stand_in.frame(message, seq),) if m is not None]
+    if kind == "questions":
+        return stand_in.reply(message)
+    return []
+
+
+@contextlib.contextmanager
+def lab_server(protocol_file: Path, out_dir: Path, log: Path) -> Iterator[tuple[str, str]]:
+    """Run ``mirror-avatar lab --protocol`` on loopback; yield its base URL and token.
+
+    Its output goes to ``log``; it is terminated on leaving.
+    """
+    command = [
+        sys.executable,
+        "-c",
+        "from mirror_avatar.console import run; run()",
+        "lab",
+        "--host",
+        "127.0.0.1",
+        "--port",
+        "0",
+        "--out",
+        str(out_dir),
+        "--no-lsl",
+        "--protocol",
+        str(protocol_file),
+    ]
+    with log.open("w") as sink:
+        process = subprocess.Popen(
+            command,
+            stdout=subprocess.PIPE,
+            stderr=sink,
+            text=True,
+            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        )
+    try:
+        yield _console_link(process, log)
+    finally:
+        process.terminate()
+        try:
+            process.wait(30)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+        if process.stdout is not None:
+            process.stdout.close()
+
+
+def _console_link(process: subprocess.Popen[str], log: Path) -> tuple[str, str]:
+    """Read the server's output until its console link; keep draining it afterwards."""
+    lines: queue.Queue[str] = queue.Queue()
+
+    def drain() -> None:
+        assert process.stdout is not None
+        for line in process.stdout:
+            lines.put(line)
+        lines.put("")
+
+    threading.Thread(target=drain, daemon=True).start()
+    deadline = time.monotonic() + START_TIMEOUT
+    while time.monotonic() < deadline:
+        try:
+            line = lines.get(timeout=1.0)
+        except queue.Empty:
+            continue
+        if found := re.search(r"console: (http://[^/\s]+)/console\?token=(\S+)", line):
+            return found.group(1), found.group(2)
+        if not line:
+            break
+    last = log.read_text(errors="replace").strip().splitlines()[-1:] or ["no output"]
+    raise InputError(str(log), f"the lab server did not start: {last[0]}")
+
+
+async def pilot_participant(
+    api: httpx.AsyncClient, number: int, stand_ins: Mapping[str, StandIn], planned_s: float
+) -> dict[str, Any]:
+    """Play participant ``number``'s run with the stand-ins; return its final status.
+
+    Raises
+    ------
+    InputError
+        When a person of the run has no stand-in, the run cannot start, or it does not end
+        within its planned time and `SLACK`.
+    """
+    created = await api.post("/api/sessions", json={"participant": number})
+    if not created.is_success:
+        raise InputError(f"participant {number}", _refusal(created))
+    status = created.json()
+    missing = sorted(set(status["links"]) - set(stand_ins))
+    if missing:
+        raise InputError("--stand-in", f"no stand-in for {', '.join(missing)}: add LABEL=SPEC")
+    pages = [
+        asyncio.create_task(play_page(_socket_url(link), stand_ins[label]))
+        for label, link in status["links"].items()
+    ]
+    try:
+        await _wait_joined(api, status["id"])
+        started = await api.post(f"/api/sessions/{status['id']}/start", json={})
+        if not started.is_success:
+            raise InputError(f"participant {number}", _refusal(started))
+        await asyncio.wait_for(asyncio.gather(*pages), planned_s + SLACK)
+    except TimeoutError:
+        raise InputError(
+            f"participant {number}", f"the run did not end within {planned_s + SLACK:.0f} s"
+        ) from None
+    finally:
+        for page in pages:
+            page.cancel()
+        await asyncio.gather(*pages, return_exceptions=True)
+    return dict((await api.get(f"/api/sessions/{status['id']}")).json())
+
+
+def _refusal(response: httpx.Response) -> str:
+    try:
+        return str(response.json().get("error", response.text))
+    except ValueError:
+        return response.text.strip() or f"HTTP {response.status_code}"
+
+
+def _socket_url(link: str) -> str:
+    return link.replace("http://", "ws://").replace("/join/", "/ws/join/")
+
+
+async def _wait_joined(api: httpx.AsyncClient, sid: str, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        status = (await api.get(f"/api/sessions/{sid}")).json()
+        if all(slot.get("joined", True) for slot in status["slots"]):
+            return
+        await asyncio.sleep(0.1)
+    raise InputError(f"session {sid}", f"the stand-ins did not join within {timeout:.0f} s")
+
+
+COUNTDOWN_S = 3.0
+"""Seconds of countdown before each trial (`mirror_avatar.lab.runner.LabSession`'s default)."""
+
+
+def planned_seconds(protocol: Protocol) -> float:
+    """Return how long one participant's run is planned to take (s): trials, countdowns, pauses."""
+    defaults = {f.name: f.default for f in fields(SessionPlan)}
+    total = 0.0
+    for block in protocol.blocks:
+        for condition in block.conditions:
+            duration = float(condition.settings.get("duration", defaults["duration"]))
+            pause = float(condition.settings.get("pause", defaults["pause"]))
+            total += condition.trials * (COUNTDOWN_S + duration + pause)
+    return total
+
+
+def run_pilot(
+    protocol_file: Path,
+    out_dir: Path,
+    participants: range,
+    stand_ins: Mapping[str, str],
+    seed: int,
+    answers: Mapping[str, AnswerRule] | None = None,
+    on_done: Callable[[int, dict[str, Any]], None] | None = None,
+) -> list[dict[str, Any]]:
+    """Play ``participants``' runs of a protocol with virtual participants, in turn.
+
+    Parameters
+    ----------
+    protocol_file
+        The study protocol (TOML), served as ``mirror-avatar lab --protocol`` serves it.
+    out_dir
+        Where the server records (``OUT/<protocol>-pNNN/`` per participant); the server's log
+        is ``OUT/pilot-server.log``.
+    participants
+        The participants' numbers.
+    stand_ins
+        The player SPEC standing in for each person's label of the protocol.
+    seed
+        The pilot's seed: the stand-in for person ``j`` of participant ``p`` is seeded with
+        ``spawn_seeds([seed, p], len(people))[j]``.
+    answers
+        The rule for each question id (default: random answers).
+    on_done
+        Called with each participant's number and final status as their run ends.
+
+    Returns
+    -------
+    list of dict
+        Each participant's final status (as ``GET /api/sessions/ID`` answers).
+    """
+    protocol = load_protocol(protocol_file)
+    unknown = sorted(set(stand_ins) - set(protocol.people))
+    if unknown:
+        raise InputError(
+            "--stand-in",
+            f"{', '.join(unknown)}: no such person in {protocol_file.name} "
+            f"(its people: {', '.join(protocol.people)})",
+        )
+    out_dir.mkdir(parents=True, exist_ok=True)
+    planned = planned_seconds(protocol)
+    with lab_server(protocol_file, out_dir, out_dir / "pilot-server.log") as (base, token):
+        return asyncio.run(
+            _pilot_all(
+                base,
+                token,
+                protocol,
+                participants,
+                stand_ins,
+                seed,
+                answers or {},
+                planned,
+                on_done,
+            )
+        )
+
+
+async def _pilot_all(
+    base: str,
+    token: str,
+    protocol: Protocol,
+    participants: range,
+    stand_ins: Mapping[str, str],
+    seed: int,
+    answers: Mapping[str, AnswerRule],
+    planned: float,
+    on_done: Callable[[int, dict[str, Any]], None] | None,
+) -> list[dict[str, Any]]:
+    headers = {"Authorization": f"Bearer {token}"}
+    results = []
+    async with httpx.AsyncClient(base_url=base, headers=headers, timeout=30.0) as api:
+        for number in participants:
+            seeds = spawn_seeds([seed, number], len(protocol.people))
+            people = {
+                label: StandIn(label, stand_ins[label], int(seeds[j]), answers)
+                for j, label in enumerate(protocol.people)
+                if label in stand_ins
+            }
+            status = await pilot_participant(api, number, people, planned)
+            if on_done is not None:
+                on_done(number, status)
+            results.append(status)
+    return results

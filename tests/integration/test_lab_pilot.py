@@ -1,0 +1,174 @@
+"""`mirror-avatar lab pilot`: virtual participants play a protocol through the real lab server."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mirror_avatar.lab.protocol import load_protocol
+
+PROTOCOL = """
+title = "Delay pilot"
+seed = 7
+
+[questions.partner]
+text = "Was your partner a person or a computer?"
+kind = "choice"
+options = ["a person", "a computer"]
+
+[questions.sure]
+text = "How sure are you?"
+kind = "likert"
+points = 5
+anchors = ["guessing", "certain"]
+
+[[blocks]]
+name = "main"
+order = "latin"
+
+[[blocks.conditions]]
+name = "nodelay"
+game = "leader_follower"
+players = [
+  { label = "P1", kind = "person" },
+  { label = "A1", kind = "avatar", spec = "bundled:fast" },
+]
+leaders = ["A1"]
+trials = 1
+duration = 3
+pause = 0
+after_trial = ["partner", "sure"]
+
+[[blocks.conditions]]
+name = "delayed"
+game = "leader_follower"
+players = [
+  { label = "P1", kind = "person" },
+  { label = "A1", kind = "avatar", spec = "bundled:fast" },
+]
+leaders = ["A1"]
+trials = 1
+duration = 3
+pause = 0
+delay = 0.5
+"""
+
+
+def run_command(*arguments: str) -> subprocess.CompletedProcess[str]:
+    command = "from mirror_avatar.console import run; run()"
+    return subprocess.run(
+        [sys.executable, "-c", command, *arguments],
+        capture_output=True, text=True, check=False, timeout=600,
+    )  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def piloted(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> tuple[Path, subprocess.CompletedProcess[str]]:
+    folder = tmp_path_factory.mktemp("pilot")
+    protocol = folder / "delay.toml"
+    protocol.write_text(PROTOCOL, encoding="utf-8")
+    out = folder / "out"
+    result = run_command(
+        "lab", "pilot", "--protocol", str(protocol), "--participants", "2",
+        "--stand-in", "P1=bundled:slow", "--answer", "partner=first", "--seed", "3",
+        "--out", str(out),
+    )  # fmt: skip
+    return out, result
+
+
+def test_a_pilot_records_every_participant_as_a_study_does(piloted):
+    out, result = piloted
+    assert result.returncode == 0, result.stderr
+    assert "participant 0: finished" in result.stdout
+    assert "participant 1: finished" in result.stdout
+    for number in (0, 1):
+        run = out / f"delay-p00{number}"
+        study = json.loads((run / "study.json").read_text())
+        assert study["participant"] == number
+        sidecars = sorted(run.glob("trial-*_session.json"))
+        assert len(sidecars) == 2
+        conditions = [json.loads(s.read_text())["metadata"]["lab"] for s in sidecars]
+        assert {c["protocol_condition"] for c in conditions} == {"nodelay", "delayed"}
+        delays = {c["protocol_condition"]: c["partner_delay_s"] for c in conditions}
+        assert delays["nodelay"] == 0.0
+        assert delays["delayed"] == pytest.approx(0.51)
+
+
+def test_the_stand_in_moves_the_person_s_point_from_its_page(piloted):
+    out, _ = piloted
+    for csv in sorted(out.glob("delay-p00*/trial-*_session.csv")):
+        person = pd.read_csv(csv)["position_0"].to_numpy()
+        assert np.all(np.isfinite(person)), csv
+        assert person.std() > 0.01, f"{csv}: the stand-in's point did not move"
+        inputs = pd.read_csv(csv.with_name(csv.name.replace("_session.csv", "_inputs.csv")))
+        live = inputs[[c for c in inputs.columns if c.startswith("seq_")][0]].nunique()
+        assert live > len(inputs) / 2, f"{csv}: most samples held the same pointer position"
+
+
+def test_the_virtual_participants_answer_by_their_rules(piloted):
+    out, _ = piloted
+    answered = sorted(out.glob("delay-p00*/trial-*_answers.json"))
+    assert len(answered) == 2
+    for path in answered:
+        answers = json.loads(path.read_text())["answers"]["P1"]
+        assert answers["partner"]["value"] == "a person"
+        assert answers["sure"]["value"] in range(1, 6)
+
+
+def test_a_stand_in_for_nobody_is_refused_in_one_line(tmp_path):
+    protocol = tmp_path / "delay.toml"
+    protocol.write_text(PROTOCOL, encoding="utf-8")
+    result = run_command(
+        "lab", "pilot", "--protocol", str(protocol), "--stand-in", "P9=bundled:slow",
+        "--out", str(tmp_path / "out"),
+    )  # fmt: skip
+    assert result.returncode == 2
+    assert result.stderr.strip().count("\n") == 0, result.stderr
+    assert "P9" in result.stderr and "P1" in result.stderr
+
+
+TEMPLATES = sorted((Path(__file__).parents[2] / "examples" / "protocols").glob("*.toml"))
+
+
+def rehearsal(template: Path, folder: Path) -> Path:
+    """Copy a template with every trial shortened to 2 s, one per condition, and no pauses."""
+    text = template.read_text(encoding="utf-8")
+    for key, value in (("duration", "2"), ("trials", "1"), ("pause", "0")):
+        text = re.sub(rf"^{key} = .*$", f"{key} = {value}", text, flags=re.MULTILINE)
+    copy = folder / template.name
+    copy.write_text(text, encoding="utf-8")
+    return copy
+
+
+def test_the_field_s_designs_are_templates():
+    assert [t.stem for t in TEMPLATES] == ["brezis2017", "llobera2022", "slowinski2017"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("template", TEMPLATES, ids=lambda t: t.stem)
+def test_each_template_is_piloted_through_the_server(template, tmp_path):
+    protocol = load_protocol(template)
+    out = tmp_path / "out"
+    result = run_command(
+        "lab", "pilot", "--protocol", str(rehearsal(template, tmp_path)), "--participants", "2",
+        "--seed", "5", "--out", str(out),
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    conditions = [c.name for block in protocol.blocks for c in block.conditions]
+    for run in sorted(out.glob("*-p00*")):
+        sidecars = sorted(run.glob("trial-*_session.json"))
+        played = [
+            json.loads(s.read_text())["metadata"]["lab"]["protocol_condition"] for s in sidecars
+        ]
+        assert sorted(played) == sorted(conditions), run
+        for sidecar in sidecars:
+            assert json.loads(sidecar.read_text())["metadata"]["complete"], sidecar

@@ -1,0 +1,242 @@
+"""``study report``: a study table read back, analysed, and written as HTML, JSON and CSV.
+
+Synthetic tables with known truth, written as ``study table`` writes them (study.csv and its
+data dictionary study.json); the command run through click's runner on the command object.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from html import escape as html_escape
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+from study_tables import CONDITIONS, make_study_rows, with_answers, write_study_table
+
+from mirror_avatar.analysis.statistics import participant_means
+from mirror_avatar.analysis.study_file import read_study_table
+from mirror_avatar.analysis.study_report import (
+    STUDY_REPORT_FILES,
+    analyse_study,
+    write_study_report,
+)
+from mirror_avatar.cli.study_report import report
+from mirror_avatar.errors import InputError
+
+NO_DELAY, DELAY = CONDITIONS
+EFFECTS = {"rms": 0.05, "phase_locking": -0.1}
+
+
+@pytest.fixture
+def table_dir(tmp_path: Path) -> Path:
+    rows = with_answers(make_study_rows(0, effects=EFFECTS), seed=1)
+    return write_study_table(rows, tmp_path / "table")
+
+
+def test_read_a_folder_or_its_csv_with_the_dictionary(table_dir: Path) -> None:
+    for path in (table_dir, table_dir / "study.csv"):
+        table = read_study_table(path)
+        assert table.source == table_dir / "study.csv"
+        assert table.measures == ["rms", "phase_locking"]
+        assert table.units("rms") == "units"
+        assert table.conditions() == list(CONDITIONS)
+
+
+def test_read_keeps_identifiers_as_text_and_reads_parquet(tmp_path: Path) -> None:
+    rows = make_study_rows(0).assign(participant=lambda r: r["participant"].str[1:])  # "000"
+    folder = write_study_table(rows, tmp_path / "csv")
+    assert read_study_table(folder).rows["participant"].iloc[0] == "000"
+    (tmp_path / "pq").mkdir()
+    rows.to_parquet(tmp_path / "pq" / "study.parquet")
+    parquet = read_study_table(tmp_path / "pq")
+    assert parquet.source.name == "study.parquet"
+    assert parquet.measures == ["rms", "phase_locking"]
+
+
+def test_without_a_dictionary_measures_are_the_numeric_non_design_columns(tmp_path: Path) -> None:
+    rows = with_answers(make_study_rows(0), seed=1)
+    table = read_study_table(write_study_table(rows, tmp_path, with_dictionary=False))
+    assert table.measures == ["rms", "phase_locking"]
+    assert table.units("rms") == ""
+
+
+def bad_table(folder: Path, case: str) -> Path:
+    """Write the bad table ``case`` in ``folder`` and return the path to give the reader."""
+    if case == "empty folder":
+        return folder
+    if case == "missing":
+        return folder / "missing.csv"
+    if case == "not a table":
+        (folder / "t.txt").write_text("x")
+        return folder / "t.txt"
+    drop = {"no position": ["position"], "no measure": ["rms", "phase_locking"]}.get(case, [])
+    rows = make_study_rows(0).drop(columns=drop)
+    if case == "no condition":
+        rows["condition"] = np.nan
+    write_study_table(rows, folder)
+    if case == "bad dictionary":
+        (folder / "study.json").write_text("{not json")
+    return folder / "study.csv"
+
+
+@pytest.mark.parametrize(
+    ("case", "problem"),
+    [
+        ("empty folder", "no study.csv or study.parquet in it"),
+        ("missing", "no such file or folder"),
+        ("not a table", "is not a .csv or .parquet"),
+        ("no position", "no position column"),
+        ("no measure", "no measure column"),
+        ("no condition", "no row has a condition"),
+        ("bad dictionary", "cannot be read as the table's data dictionary"),
+    ],
+)
+def test_bad_tables_are_refused_in_one_line(tmp_path: Path, case: str, problem: str) -> None:
+    with pytest.raises(InputError, match=re.escape(problem)) as error:
+        read_study_table(bad_table(tmp_path, case))
+    assert "\n" not in str(error.value)
+
+
+def test_analysis_leaves_out_the_avatars_rows_and_finds_the_effects(table_dir: Path) -> None:
+    analysis = analyse_study(read_study_table(table_dir), seed=3, resamples=999)
+    assert set(analysis.rows["player_kind"]) == {"person"}
+    assert any("avatars left out" in note for note in analysis.notes)
+    assert analysis.reference == NO_DELAY
+    means = participant_means(analysis.rows, "rms", CONDITIONS)
+    summary = analysis.summaries.set_index(["measure", "condition"])
+    assert summary.loc[("rms", DELAY), "mean"] == pytest.approx(means[DELAY].mean())
+    assert summary["mean"].max() < 1.0  # no avatar value (100) in any mean
+    rms, locking = analysis.sentences()
+    assert rms.startswith(f"Delay 0.5 s raised rms from {means[NO_DELAY].mean():.3g} (no delay)")
+    assert locking.startswith("Delay 0.5 s lowered phase_locking from")
+    assert analysis.verdict().startswith("2 of 2 comparisons changed a measure")
+    assert "Partners identified above chance" in analysis.verdict()
+
+
+def test_identical_conditions_are_said_not_to_differ(tmp_path: Path) -> None:
+    rows = make_study_rows(3)  # no effect; p >= 0.05 for both measures with this seed
+    analysis = analyse_study(read_study_table(write_study_table(rows, tmp_path)), resamples=999)
+    assert all(c.p >= 0.05 for c in analysis.contrasts)
+    assert all("did not change" in line for line in analysis.sentences())
+    assert analysis.verdict() == "None of 2 comparisons changed a measure (p < 0.05 in none)."
+    assert analysis.identification is None
+
+
+def test_another_reference_and_an_unknown_one(table_dir: Path) -> None:
+    table = read_study_table(table_dir)
+    analysis = analyse_study(table, reference=DELAY, resamples=999)
+    (contrast, _) = analysis.contrasts
+    assert (contrast.condition, contrast.reference) == (NO_DELAY, DELAY)
+    assert contrast.difference < 0
+    with pytest.raises(InputError, match=r"--reference: no condition 'fast'"):
+        analyse_study(table, reference="fast")
+
+
+def test_one_condition_has_means_and_no_comparison(tmp_path: Path) -> None:
+    rows = make_study_rows(0)
+    rows = rows.assign(condition=rows["condition"].where(rows["condition"] == NO_DELAY))
+    analysis = analyse_study(read_study_table(write_study_table(rows, tmp_path)), resamples=999)
+    assert analysis.models == [] and len(analysis.summaries) == 2
+    assert analysis.verdict() == "No conditions to compare."
+    write_study_report(analysis, tmp_path / "out")
+
+
+def test_report_leads_with_its_verdict_and_results_hold_every_number(
+    table_dir: Path, tmp_path: Path
+) -> None:
+    analysis = analyse_study(read_study_table(table_dir), seed=11, resamples=999)
+    html = write_study_report(analysis, tmp_path / "out")
+    assert sorted(p.name for p in html.parent.iterdir()) == sorted(STUDY_REPORT_FILES)
+    page = html.read_text()
+    lead = page.index('<p class="lead">')
+    assert page.index("</h1>") < lead < page.index("<section")
+    assert html_escape(analysis.verdict()) in page[lead : lead + 400]
+    assert page.count("<img ") == 3  # rms, phase locking, identification
+    assert "random seed 11" in page and "999 resamples" in page
+    results = json.loads((html.parent / "results.json").read_text())
+    assert results["parameters"]["seed"] == 11
+    assert results["parameters"]["versions"]["statsmodels"]
+    (model, _) = results["models"]
+    assert model["contrasts"][0]["p"] == pytest.approx(analysis.contrasts[0].p)
+    found = analysis.identification
+    assert found is not None
+    assert results["identification"]["detection"]["d_prime"] == pytest.approx(
+        found.detection.d_prime
+    )
+    assert len(results["identification"]["per_person"]) == 12
+    contrasts = pd.read_csv(html.parent / "contrasts.csv")
+    assert list(contrasts["measure"]) == ["rms", "phase_locking"]
+    conditions = pd.read_csv(html.parent / "conditions.csv")
+    assert np.all(conditions["ci_low"] < conditions["ci_high"])
+
+
+def test_the_command_writes_the_report(table_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    result = CliRunner().invoke(
+        report, [str(table_dir), "--out", str(out), "--seed", "5", "--resamples", "500"]
+    )
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    assert lines[0].startswith("2 of 2 comparisons changed a measure")
+    assert lines[1].strip().startswith("Delay 0.5 s raised rms")
+    assert lines[-1] == f"wrote {(out / 'report.html').resolve()}"
+    results = json.loads((out / "results.json").read_text())
+    assert results["parameters"]["seed"] == 5
+    assert results["parameters"]["bootstrap_resamples"] == 500
+
+
+def test_the_command_refuses_bad_input_before_any_work(table_dir: Path, tmp_path: Path) -> None:
+    runner = CliRunner()
+    missing = runner.invoke(report, [str(tmp_path / "nothing"), "--out", str(tmp_path / "o")])
+    assert isinstance(missing.exception, InputError)
+    assert "no such file or folder" in str(missing.exception)
+    blocked = tmp_path / "blocked"
+    (blocked / "results.json").mkdir(parents=True)
+    refused = runner.invoke(report, [str(table_dir), "--out", str(blocked)])
+    assert isinstance(refused.exception, InputError)
+    assert "results.json" in str(refused.exception)
+    reference = runner.invoke(report, [str(table_dir), "--out", str(tmp_path / "o"),
+                                       "--reference", "nope"])  # fmt: skip
+    assert isinstance(reference.exception, InputError)
+    assert not (tmp_path / "o").exists()
+
+
+def test_two_persons_of_a_participant_count_once_and_answer_each(tmp_path: Path) -> None:
+    """A two-person protocol: P1 and P2 of one participant share the pair's measures; the
+    participant is the unit of the statistics, and each person's answers are scored apart."""
+    one = make_study_rows(2, effects=EFFECTS)
+    one = one[one["player_kind"] == "person"]
+    two = pd.concat([one, one.assign(person="P2", partners="P1")], ignore_index=True)
+    two = with_answers(two, seed=4)
+    alone = analyse_study(read_study_table(write_study_table(one, tmp_path / "one")))
+    pair = analyse_study(read_study_table(write_study_table(two, tmp_path / "two")))
+    assert pair.parameters["participants"] == 12
+    pd.testing.assert_frame_equal(pair.summaries, alone.summaries)
+    assert [c.p for c in pair.contrasts] == pytest.approx(
+        [c.p for c in alone.contrasts], rel=1e-6, abs=0
+    )
+    assert pair.identification is not None
+    assert pair.identification.persons == 24
+    assert "p000/P2" in pair.identification.per_person.index
+
+
+@pytest.mark.parametrize("with_dictionary", [True, False])
+def test_ratings_are_compared_like_measures(tmp_path: Path, with_dictionary: bool) -> None:
+    """A numeric answer (a 1-7 rating, one point lower with the delay) is an outcome; the
+    person-or-avatar answer (text) is not."""
+    rows = with_answers(make_study_rows(0), seed=1)
+    rng = np.random.default_rng(2)
+    delayed = (rows["condition"] == DELAY).to_numpy()
+    rating = np.clip(np.round(5.0 - delayed + rng.normal(0, 0.7, len(rows))), 1, 7)
+    rows = rows.assign(answer_enjoy=np.where(rows["player_kind"] == "person", rating, np.nan))
+    table = read_study_table(write_study_table(rows, tmp_path, with_dictionary=with_dictionary))
+    assert table.rated_answers == ["answer_enjoy"]
+    assert table.outcomes == ["rms", "phase_locking", "answer_enjoy"]
+    analysis = analyse_study(table, resamples=999)
+    (enjoy,) = [c for c in analysis.contrasts if c.measure == "answer_enjoy"]
+    assert enjoy.p < 0.05 and enjoy.difference == pytest.approx(-1.0, abs=0.3)
+    assert analysis.sentences()[-1].startswith("Delay 0.5 s lowered answer_enjoy from")

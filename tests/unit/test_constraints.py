@@ -1,0 +1,69 @@
+"""Declared constraints: membership, descriptions, refused values and the error's data."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mirror_avatar.constraints import ConstraintError, Interval, Options, check
+from mirror_avatar.errors import InputError
+
+
+def test_an_interval_admits_finite_numbers_between_its_ends():
+    seconds = Interval(float, 0.0, 600.0, "right", "s")
+    assert 0.5 in seconds and 600.0 in seconds and np.float64(3.0) in seconds and 2 in seconds
+    for refused in (0.0, -1.0, 600.5, math.nan, math.inf, -math.inf, "3", None, True):
+        assert refused not in seconds
+    assert str(seconds) == "a number in (0, 600] s"
+
+
+def test_an_integer_interval_admits_integers_only():
+    count = Interval(int, 0, 9999)
+    assert 0 in count and 9999 in count and np.int64(7) in count
+    for refused in (-1, 10_000, 2.0, 0.5, math.nan, False, 10**400):
+        assert refused not in count
+    assert str(count) == "a whole number in [0, 9999]"
+
+
+def test_open_and_unbounded_ends_are_described_and_refused():
+    positive = Interval(float, 0.0, None, "neither")
+    assert str(positive) == "a number in (0, inf)" and 1e300 in positive
+    assert 0.0 in positive.refused() and -1.0 in positive.refused()
+    anywhere = Interval(float, None, None)
+    assert str(anywhere) == "a number in (-inf, inf)" and 1e308 in anywhere
+
+
+@pytest.mark.parametrize(
+    "constraint",
+    [
+        Interval(float, 0.0, 1.0),
+        Interval(float, -1.0, 1.0, "neither"),
+        Interval(float, 0.0, None, "left"),
+        Interval(int, 2, 64),
+        Interval(int, 1, None),
+        Options(("shift", "pseudo")),
+    ],
+)
+def test_every_value_a_constraint_names_as_refused_is_refused(constraint):
+    assert constraint.refused()
+    for value in constraint.refused():
+        assert value not in constraint
+
+
+def test_options_admit_their_words_only():
+    kinds = Options(("shift", "pseudo"))
+    assert "shift" in kinds and "pseudo" in kinds and "Shift" not in kinds and 0 not in kinds
+    assert str(kinds) == "one of shift, pseudo"
+
+
+def test_a_refusal_is_one_input_error_line_carrying_its_key_value_and_constraint():
+    share = Interval(float, 0.0, 1.0)
+    assert check("--leader-share", 0.6, share) == 0.6
+    with pytest.raises(ConstraintError) as caught:
+        check("--leader-share", math.nan, share)
+    error = caught.value
+    assert isinstance(error, InputError)
+    assert (error.key, error.constraint) == ("--leader-share", share) and math.isnan(error.value)
+    assert str(error) == "--leader-share: nan is not allowed; give a number in [0, 1]"
