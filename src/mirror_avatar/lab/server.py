@@ -442,6 +442,8 @@ class LabApi:
                 session = await self.lab.create(plan, avatars)
         except InputError as error:
             raise ApiError(400, str(error)) from None
+        except OSError as error:
+            raise unwritable(error) from None
         return _json(self._status(session, request), 201)
 
     def _participant(self, participant: object) -> int:
@@ -485,6 +487,8 @@ class LabApi:
                 )
             except InputError as error:
                 raise ApiError(400, str(error)) from None
+            except OSError as error:
+                raise unwritable(error) from None
             self.lab.protocol = protocol
         logger.info("protocol %s loaded from the console", protocol.source)
         return _json({"protocol": protocol_summary(protocol)})
@@ -550,6 +554,8 @@ class LabApi:
             motion_files, files = await asyncio.to_thread(export)
         except InputError as error:
             raise ApiError(400, str(error)) from None
+        except OSError as error:
+            raise unwritable(error) from None
         session.log(f"exported {motion_files} motion files to {target}")
         return _json({"folder": str(target), "files": files, "motion_files": motion_files})
 
@@ -622,6 +628,13 @@ class ApiError(Exception):
     def __init__(self, status: int, message: str) -> None:
         super().__init__(message)
         self.status = status
+
+
+def unwritable(error: OSError) -> ApiError:
+    """Say in one line which file the server could not write (a full disk, a file-size limit)."""
+    line = str(InputError(error.filename, error.strerror or type(error).__name__))
+    logger.warning("cannot write: %s", line)
+    return ApiError(500, line)
 
 
 async def api_error(request: Request, error: Exception) -> Response:
