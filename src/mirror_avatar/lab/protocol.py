@@ -13,7 +13,9 @@ files record it). Questions are declared once and asked after each trial of a co
 conditions is fixed, random or counterbalanced across participants (`mirror_avatar.lab.order`).
 
 Every mistake is refused with one line naming the file, the key path (such as
-``blocks[1].conditions[0].players``), the problem and how to fix it.
+``blocks[1].conditions[0].players``), the problem and how to fix it; every avatar is built and
+dry-run in each condition's role when the protocol is read, and a run planned too long for a
+participant is read with a warning (`mirror_avatar.lab.protocol_checks`, `Protocol.warnings`).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from mirror_avatar.lab.checker import Checker, is_int
 from mirror_avatar.lab.order import ORDERS, block_order, condition_order
 from mirror_avatar.lab.perturbation import Perturbation, parse_perturbations
 from mirror_avatar.lab.plan import CONDITIONS, MAX_SPEC_CHARS, SessionPlan, parse_plan
+from mirror_avatar.lab.protocol_checks import AvatarCheck, long_run
 from mirror_avatar.user_files import read_text
 
 PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
@@ -191,6 +194,15 @@ class Condition:
         """Number of trials."""
         return int(self.settings.get("trials", 1))
 
+    @property
+    def choices(self) -> tuple[str, ...]:
+        """Labels of its ``person-or-avatar`` slots."""
+        return tuple(p.label for p in self.players if p.kind == "person-or-avatar")
+
+    def with_avatars(self) -> SessionPlan:
+        """Return its plan with every ``person-or-avatar`` slot filled by the avatar (seed 0)."""
+        return self.plan(dict.fromkeys(self.choices, False), 0)
+
     def plan(self, persons: dict[str, bool], seed: int) -> SessionPlan:
         """Return the condition's plan, each ``person-or-avatar`` slot decided by ``persons``.
 
@@ -247,6 +259,8 @@ class Protocol:
     seed_drawn
         Whether the file has no seed and ``seed`` was drawn when it was read (a restart draws
         another, and the participants' runs then no longer resume).
+    warnings
+        What is odd but allowed, one line each (`mirror_avatar.lab.protocol_checks.long_run`).
     """
 
     source: str
@@ -256,6 +270,7 @@ class Protocol:
     questions: dict[str, Question]
     blocks: tuple[Block, ...]
     seed_drawn: bool = field(default=False, compare=False)
+    warnings: tuple[str, ...] = field(default=(), compare=False)
 
     @property
     def people(self) -> tuple[str, ...]:
@@ -363,7 +378,23 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
             if names.count(condition.name) > 1:
                 where = f"blocks[{b}].conditions[{c}].name"
                 raise check.error(where, f"{condition.name!r} names two conditions", "rename one")
-    return Protocol(source, title, int(seed), order, questions, parsed, "seed" not in data)
+    avatars, plans = AvatarCheck(check), []
+    for b, block in enumerate(parsed):
+        for c, condition in enumerate(block.conditions):
+            plans.append(condition.with_avatars())
+            avatars.condition(
+                f"blocks[{b}].conditions[{c}]", condition.name, plans[-1], condition.perturb
+            )
+    return Protocol(
+        source,
+        title,
+        int(seed),
+        order,
+        questions,
+        parsed,
+        "seed" not in data,
+        long_run(source, plans),
+    )
 
 
 def _questions(check: Checker, value: object) -> dict[str, Question]:
@@ -466,7 +497,7 @@ def _condition(
     _check_plan(check, condition, where)
     if "perturb" not in data:
         return condition
-    plan = condition.plan({p.label: False for p in players if p.kind == "person-or-avatar"}, 0)
+    plan = condition.with_avatars()
     specs = {p.label: None if p.kind == "person" else p.spec for p in players}
     roles = dict(zip(labels, plan.roles, strict=True))
     perturb = parse_perturbations(
@@ -520,7 +551,7 @@ def _player(check: Checker, value: object, where: str) -> Player:
 
 def _check_plan(check: Checker, condition: Condition, where: str) -> None:
     """Refuse a condition whose plan would be refused, with either filling of its partners."""
-    choices = [player.label for player in condition.players if player.kind == "person-or-avatar"]
+    choices = condition.choices
     for person in (True, False):
         try:
             condition.plan(dict.fromkeys(choices, person), 0)
