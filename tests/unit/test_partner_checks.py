@@ -4,6 +4,7 @@ ending its session at the sample it diverged, naming it."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,7 +20,7 @@ from mirror_avatar.players.base import (
     dry_run,
 )
 from mirror_avatar.players.dynamical import parse_number
-from mirror_avatar.specs import load_player
+from mirror_avatar.specs import MODEL_PARTNERS, load_player
 
 DIVERGING = [
     ("excitator:a=-10,b=10,tau=0.01", "tau=0.01 (default 1)"),
@@ -130,3 +131,12 @@ def test_a_dry_run_refuses_a_player_outrunning_its_bound():
         dry_run(Exploding(), "boom", "hint")
     dry_run(Still(), "still")
     assert math.isfinite(load_player("bundled:slow", "follower").reset(seed=1)[0])
+
+
+def test_the_methods_list_every_partners_parameter_with_its_default_and_range():
+    methods = (Path(__file__).parents[2] / "docs" / "METHODS.md").read_text()
+    for name, kind in MODEL_PARTNERS.items():
+        for key, p in kind.PARAMETERS.items():
+            meaning = p.meaning.replace("|", "\\|")
+            row = f"| `{name}` | `{key}` | {p.default:g} | {p.low:g} .. {p.high:g} | {meaning} |"
+            assert row in methods, row

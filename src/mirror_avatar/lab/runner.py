@@ -16,6 +16,8 @@ the console's events at once; the trial goes on with their position held, unless
 ``on_drop: "stop"``; the researcher may stop it from the console either way. Opening the link
 again rejoins. A trial whose recording cannot be written (a full disk) ends as ``"disk full"``:
 the samples written stay, the pages get their end message, and the next trial opens new files.
+A trial whose avatar diverges ends at that sample, the player and the sample its end reason in
+the console's events and the trial's sidecar (`mirror_avatar.realtime.trial.ClockedTrial`).
 """
 
 from __future__ import annotations

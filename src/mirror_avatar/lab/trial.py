@@ -24,8 +24,10 @@ When a trial ends, its sidecar records the session's metrics (``metrics``:
 `mirror_avatar.metrics.measures.session_measures` with `LAB_SURROGATES` circular-shift
 surrogates seeded by the trial's seed), computed in the worker thread that finishes the trial.
 
-Whatever happens - a participant drops, the disk fills, the server is killed - the lines
-written stay readable; the sidecar says ``"complete": false`` until the trial ends well.
+Whatever happens - a participant drops, the disk fills, the server is killed, an avatar
+diverges (the trial ends at that sample, its sidecar's ``diverged`` saying which player and
+when) - the lines written stay readable; the sidecar says ``"complete": false`` until the trial
+ends well.
 """
 
 from __future__ import annotations

@@ -15,6 +15,11 @@ everything the player does afterwards a deterministic function of ``s`` and of i
 
 The neighbours' mean (`partner_state`), used by every built-in player, is compiled once here and
 called from the Python step loop and the compiled batch loop alike.
+
+A player that diverges is refused or stopped, never recorded: `dry_run` steps a newly made
+player against a scripted partner (`mirror_avatar.specs` runs it on every spec), and the step
+loop raises `PlayerDiverged` at the first sample whose state is not finite or beyond
+`DIVERGED_BEYOND`.
 """
 
 from __future__ import annotations
