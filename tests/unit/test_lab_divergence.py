@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import json
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -25,6 +26,14 @@ DYAD = {
         {"label": "A1", "kind": "avatar", "spec": "hkb"},
     ],
 }
+
+
+async def wait_for(condition: Callable[[], bool], seconds: float = 30.0) -> None:
+    """Wait until ``condition()`` holds, failing after ``seconds``."""
+    deadline = time.monotonic() + seconds
+    while not condition():
+        assert time.monotonic() < deadline, "the session never got there"
+        await asyncio.sleep(0.05)
 
 
 class Unstable(Player):
@@ -47,8 +56,7 @@ def test_a_diverging_avatar_ends_the_trial_naming_it_and_the_sample(tmp_path):
         session = LabSession("S1", parse_plan(DYAD), tmp_path / "S1", time.monotonic, countdown=0)
         session.avatars = {1: Unstable()}
         assert session.start(force=True) is None
-        while session.state != "finished" and session.error is None:
-            await asyncio.sleep(0.05)
+        await wait_for(lambda: session.state == "finished" or session.error is not None)
         return session
 
     session = asyncio.run(scenario())
@@ -66,3 +74,36 @@ def test_a_diverging_avatar_ends_the_trial_naming_it_and_the_sample(tmp_path):
     assert sidecar["metadata"]["diverged"]["sample"] == 24 and not sidecar["metadata"]["complete"]
     recorded = load_session(tmp_path / "S1" / "trial-01_session.csv")
     assert recorded.n_samples == 24 and np.isfinite(recorded.positions).all()
+
+
+class Broken(Player):
+    """An avatar whose reset returns no position."""
+
+    label = "broken"
+
+    def reset(self, seed: int | None = None) -> tuple[float, float]:
+        return float("nan"), 0.0
+
+    def step(self, observation: Observation) -> tuple[float, float]:
+        return 0.0, 0.0
+
+
+def test_an_avatar_diverging_at_reset_closes_the_trial_and_the_next_start_opens_the_next(tmp_path):
+    async def scenario() -> tuple[LabSession, str]:
+        plan = parse_plan(DYAD | {"trials": 3})
+        session = LabSession("S2", plan, tmp_path / "S2", time.monotonic, countdown=0)
+        session.avatars = {1: Broken()}
+        assert session.start(force=True) is None
+        await wait_for(lambda: session.error is not None)
+        error = session.error
+        session.avatars = {1: Unstable()}
+        assert session.start(force=True) is None
+        await wait_for(lambda: bool(session.results))
+        await session.stop()
+        return session, error
+
+    session, error = asyncio.run(scenario())
+    assert error.startswith("cannot run: player 1 (A1): diverged at sample 0 (0.00 s)"), error
+    first = json.loads((tmp_path / "S2" / "trial-01_session.json").read_text())["metadata"]
+    assert first["diverged"]["sample"] == 0 and not first["complete"]
+    assert session.results[0]["lab"]["trial"] == 2
