@@ -497,7 +497,7 @@ def _condition(
     _check_plan(check, condition, where)
     if "perturb" not in data:
         return condition
-    plan = condition.with_avatars()
+    plan = condition.plan({p.label: False for p in players if p.kind == "person-or-avatar"}, 0)
     specs = {p.label: None if p.kind == "person" else p.spec for p in players}
     roles = dict(zip(labels, plan.roles, strict=True))
     perturb = parse_perturbations(
@@ -551,7 +551,7 @@ def _player(check: Checker, value: object, where: str) -> Player:
 
 def _check_plan(check: Checker, condition: Condition, where: str) -> None:
     """Refuse a condition whose plan would be refused, with either filling of its partners."""
-    choices = condition.choices
+    choices = [player.label for player in condition.players if player.kind == "person-or-avatar"]
     for person in (True, False):
         try:
             condition.plan(dict.fromkeys(choices, person), 0)
