@@ -606,13 +606,14 @@ class LabApi:
 
 
 def protocol_summary(protocol: Protocol) -> dict[str, Any]:
-    """Return the protocol as the console shows it: title, seed, people, blinding, its file."""
+    """Return the protocol as the console shows it: title, seed, people, blind, file, warnings."""
     return {
         "title": protocol.title,
         "seed": protocol.seed,
         "people": protocol.people,
         "blind": protocol.blind,
         "file": protocol.source,
+        "warnings": list(protocol.warnings),
     }
 
 
