@@ -71,6 +71,11 @@ class GroupMap:
     by_person: dict[str, str]
     order: list[str]
 
+    @property
+    def trials_as_people(self) -> bool:
+        """Whether some trial rows name no person, so that each of those trials is one."""
+        return any(person is None for person, _ in self.by_trial.values())
+
 
 def read_group_map(path: Path) -> GroupMap:
     """Read a CSV or TSV table with a ``group`` column and a ``person`` or ``trial`` column.
