@@ -170,6 +170,8 @@ class DistanceResult:
         Mean distance from each candidate signal to each reference signal.
     own
         Mean distance between the person's own trials (NaN with fewer than two).
+    spread
+        Mean distance between the candidate signals (NaN with fewer than two).
     test
         Permutation test of `between_minus_within`, labels permuted by trial.
     """
@@ -178,6 +180,7 @@ class DistanceResult:
     unit: str
     to_reference: float
     own: float
+    spread: float
     test: PermutationTest
 
     @property
@@ -191,8 +194,16 @@ class DistanceResult:
         return self.test.p_value < ALPHA
 
     def verdict(self) -> str:
-        """One line: distinguishable or not, with the ratio and the p-value."""
-        numbers = f"{self.ratio:.2f} x the person's own (p = {self.test.p_value:.3g})"
+        """One line: distinguishable or not, with both ratios and the p-value.
+
+        The test asks whether the two sets are one distribution, so a candidate as near the
+        held-out trials as the person's own but less varied (a small spread) is distinguishable.
+        """
+        spread = self.spread / self.own if self.own > 0 else math.nan
+        numbers = (
+            f"{self.ratio:.2f} x the person's own, spread {spread:.2f} x "
+            f"(p = {self.test.p_value:.3g})"
+        )
         if self.distinguishable:
             return f"distinguishable: {self.measure} {numbers}"
         return f"indistinguishable at this data size: {self.measure} {numbers}"
@@ -203,6 +214,7 @@ class DistanceResult:
             "unit": self.unit,
             "to_reference": self.to_reference,
             "own": self.own,
+            "spread": self.spread,
             "ratio": self.ratio,
             "test": self.test.to_json_dict(),
             "verdict": self.verdict(),
@@ -246,6 +258,7 @@ def compare_distances(
                 unit=unit,
                 to_reference=float(np.mean(matrix[np.ix_(labels, ~labels)])),
                 own=_mean_off_diagonal(own_matrix),
+                spread=_mean_off_diagonal(matrix[np.ix_(labels, labels)]),
                 test=permutation_test(
                     _between_minus_within_of(matrix),
                     labels,
@@ -457,6 +470,7 @@ class Likeness:
                 "to held-out": d.to_reference,
                 "person's own": d.own,
                 "ratio": d.ratio,
+                "spread": d.spread,
                 "p": d.test.p_value,
                 "verdict": _short(d.distinguishable),
             }
@@ -466,6 +480,7 @@ class Likeness:
             "to held-out": self.classifier.auc,
             "person's own": 0.5,
             "ratio": math.nan,
+            "spread": math.nan,
             "p": self.classifier.test.p_value,
             "verdict": _short(self.classifier.distinguishable),
         }
