@@ -75,6 +75,9 @@ MAX_UNITS = 24
 """Most trials of one side the classifier uses, spread evenly over the given order (**choice**:
 an avatar plays over a hundred validation sessions, and more do not change the verdict)."""
 
+MIN_STROKE_SECONDS = 0.2
+"""Shortest stroke (s) whose amplitude counts: METHODS section 3's 20 samples at 100 Hz."""
+
 FOLDS = 5
 """Cross-validation folds of the classifier, fewer when a side has fewer trials."""
 
@@ -93,8 +96,12 @@ def ims_distances(velocities: Sequence[Array]) -> Array:
 
 
 def stroke_amplitudes(velocity: Array, rate: float) -> Array:
-    """Distance travelled (units) in each complete stroke (`velocity_strokes`), shape (k,)."""
-    return np.array([np.abs(s).sum() / rate for s in velocity_strokes(velocity)])
+    """Distance travelled (units) in each complete stroke (`velocity_strokes`), shape (k,).
+
+    Strokes shorter than `MIN_STROKE_SECONDS` are left out.
+    """
+    strokes = velocity_strokes(velocity, max(3, round(MIN_STROKE_SECONDS * rate)))
+    return np.array([np.abs(s).sum() / rate for s in strokes])
 
 
 def amplitude_distances(velocities: Sequence[Array], rate: float) -> Array:
