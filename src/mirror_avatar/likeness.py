@@ -206,6 +206,8 @@ class DistanceResult:
         The test asks whether the two sets are one distribution, so a candidate as near the
         held-out trials as the person's own but less varied (a small spread) is distinguishable.
         """
+        if math.isnan(self.test.p_value):
+            return f"not measured: {self.measure} (a trial without a complete stroke or motion)"
         spread = self.spread / self.own if self.own > 0 else math.nan
         numbers = (
             f"{self.ratio:.2f} x the person's own, spread {spread:.2f} x "
@@ -479,7 +481,7 @@ class Likeness:
                 "ratio": d.ratio,
                 "spread": d.spread,
                 "p": d.test.p_value,
-                "verdict": _short(d.distinguishable),
+                "verdict": d.verdict().partition(":")[0],
             }
             for d in self.distances
         }
@@ -489,7 +491,7 @@ class Likeness:
             "ratio": math.nan,
             "spread": math.nan,
             "p": self.classifier.test.p_value,
-            "verdict": _short(self.classifier.distinguishable),
+            "verdict": self.classifier.verdict().partition(":")[0],
         }
         return pd.DataFrame.from_dict(rows, orient="index")
 
@@ -501,10 +503,6 @@ class Likeness:
             "distances": {d.measure: d.to_json_dict() for d in self.distances},
             "classifier": self.classifier.to_json_dict(),
         }
-
-
-def _short(distinguishable: bool) -> str:
-    return "distinguishable" if distinguishable else "indistinguishable at this data size"
 
 
 def compare_motion(

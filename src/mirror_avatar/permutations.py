@@ -42,6 +42,8 @@ class PermutationTest:
         relabellings (the true one included) at least as large.
     exact
         Whether every distinct relabelling was tried.
+
+    A statistic that is not finite with the true labels is not tested: no relabellings, p NaN.
     """
 
     statistic: float
@@ -56,8 +58,8 @@ class PermutationTest:
             "p_value": self.p_value,
             "exact": self.exact,
             "permutations": int(self.null.size),
-            "null_mean": float(np.mean(self.null)),
-            "null_sd": float(np.std(self.null)),
+            "null_mean": float(np.mean(self.null)) if self.null.size else math.nan,
+            "null_sd": float(np.std(self.null)) if self.null.size else math.nan,
         }
 
 
@@ -86,6 +88,8 @@ def permutation_test(
     if not 0 < k < n:
         raise InputError(None, "a permutation test needs units on both sides")
     observed = statistic(truth)
+    if not np.isfinite(observed):
+        return PermutationTest(observed, np.empty(0), math.nan, False)
     if math.comb(n, k) <= n_permutations:
         null = np.array([statistic(_labelling(n, chosen)) for chosen in _choices(n, k)])
         return PermutationTest(observed, null, float(np.mean(null >= observed)), True)

@@ -118,3 +118,11 @@ def test_classifier_cuts_a_single_trial_in_halves(rng: np.random.Generator) -> N
     # two halves against three trials: ten relabellings, so p is at best 1/10
     assert test.test.exact and test.test.p_value == pytest.approx(0.1)
     assert test.verdict().startswith("indistinguishable at this data size: classifier AUC 1.00")
+
+
+def test_a_distance_that_cannot_be_measured_says_so(rng: np.random.Generator) -> None:
+    still = [np.full(3000, 0.2) for _ in range(3)]  # moving one way: no complete stroke
+    moving = [_sine_velocity(0.2, 1.0, 30.0) + rng.normal(0, 0.01, 3000) for _ in range(3)]
+    amplitude = next(d for d in compare_distances(moving, still) if d.measure == "amplitude")
+    assert np.isnan(amplitude.test.p_value) and not amplitude.distinguishable
+    assert amplitude.verdict().startswith("not measured: amplitude")
