@@ -337,7 +337,7 @@ class ClassifierTest:
     test
         The AUC (statistic), its values with the labels permuted by trial, and the p-value.
     n_reference, n_candidate
-        Trials (or trial halves, see ``halves``) of each side the classifier used.
+        Trials (or trial halves, see ``halves``, or people) of each side the classifier used.
     n_windows
         Windows of each side, ``(reference, candidate)``.
     folds
@@ -390,6 +390,7 @@ def classifier_test(
     rate: float = DEFAULT_RATE,
     n_permutations: int = N_PERMUTATIONS,
     seed: int = 0,
+    units: Sequence[str] | None = None,
 ) -> ClassifierTest:
     """Classifier two-sample test of windows of reference against candidate signals.
 
@@ -409,14 +410,27 @@ def classifier_test(
         Sampling rate (Hz).
     n_permutations, seed
         Of the permutation test; ``seed`` also seeds the folds.
+    units
+        Whose each signal of ``[*reference, *candidate]`` is (a person): the groups of the folds
+        and of the permutations instead of the signals, each unit on one side; every signal is
+        used and none is halved.
     """
-    ref, ref_halves = _units(reference)
-    cand, cand_halves = _units(candidate)
+    if units is None:
+        ref, ref_halves = _units(reference)
+        cand, cand_halves = _units(candidate)
+        unit_ids = list(range(len(ref) + len(cand)))
+    else:
+        ref, cand, ref_halves, cand_halves = list(reference), list(candidate), False, False
+        unit_ids = [list(dict.fromkeys(units)).index(u) for u in units]
     signals = [*ref, *cand]
     features = [window_features(v, rate) for v in signals]
-    groups = np.concatenate([np.full(len(f), k) for k, f in enumerate(features)])
+    groups = np.concatenate([np.full(len(f), u) for u, f in zip(unit_ids, features, strict=True)])
     x = np.concatenate(features)
-    folds = min(FOLDS, len(ref), len(cand))
+    labels = np.zeros(max(unit_ids) + 1, dtype=bool)
+    labels[unit_ids[len(ref) :]] = True
+    if np.any(labels[unit_ids[: len(ref)]]):
+        raise InputError(None, "a unit of the classifier test has signals on both sides")
+    folds = min(FOLDS, int((~labels).sum()), int(labels.sum()))
     fold_seed, permutation_seed = draw_seeds(seed, 2)
 
     def auc(side: NDArray[np.bool_]) -> float:
@@ -429,12 +443,11 @@ def classifier_test(
             aucs.append(roc_auc_score(y[test], model.decision_function(x[test])))
         return float(np.mean(aucs))
 
-    labels = np.arange(len(signals)) >= len(ref)
     windows = (sum(len(f) for f in features[: len(ref)]), sum(len(f) for f in features[len(ref) :]))
     return ClassifierTest(
         test=permutation_test(auc, labels, n_permutations, permutation_seed),
-        n_reference=len(ref),
-        n_candidate=len(cand),
+        n_reference=int((~labels).sum()),
+        n_candidate=int(labels.sum()),
         n_windows=windows,
         folds=folds,
         halves=ref_halves or cand_halves,

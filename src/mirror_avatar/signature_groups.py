@@ -11,6 +11,8 @@ trials are never split between training and test, and labels are permuted by per
   nearer on average (leave-one-person-out); accuracy, sensitivity (the second group, as the file
   names it, is the positive one) and specificity, each beside its label-shuffled chance, the
   accuracy with a permutation p-value.
+- **The classifier two-sample test** of the human-likeness battery (`mirror_avatar.likeness`) on
+  windows of the two groups' trials, folds and permutations grouped by person.
 
 The groups come from a table (`read_group_map`) naming people or trials.
 """
@@ -29,6 +31,7 @@ from numpy.typing import NDArray
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import excerpt
+from mirror_avatar.likeness import ClassifierTest, classifier_test
 from mirror_avatar.permutations import (
     PermutationTest,
     between_and_within,
@@ -38,7 +41,7 @@ from mirror_avatar.permutations import (
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.signature import classical_mds
 from mirror_avatar.trial_io import read_sidecar_text
-from mirror_avatar.trials import Trial
+from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 Array = NDArray[np.float64]
 
@@ -271,6 +274,8 @@ class GroupComparison:
         Permutation test of the accuracy, labels permuted by person.
     chance_sensitivity, chance_specificity
         Mean sensitivity and specificity over those relabellings.
+    classifier
+        The classifier two-sample test of the groups' trials (None when no velocities given).
     seed
         Seed of the permutation tests.
     """
@@ -287,10 +292,11 @@ class GroupComparison:
     chance: PermutationTest
     chance_sensitivity: float
     chance_specificity: float
+    classifier: ClassifierTest | None
     seed: int
 
     def verdict(self) -> list[str]:
-        """Two lines: the distances and the classification, each with its verdict."""
+        """Return the distances, the classification and the classifier test, with verdicts."""
         negative, positive = self.groups
         counts = f"{negative} ({int((~self.positive).sum())} people) and {positive} " + (
             f"({int(self.positive.sum())} people)"
@@ -305,7 +311,7 @@ class GroupComparison:
             f"{c.sensitivity:.0%}, specificity {c.specificity:.0%}); label-shuffled chance "
             f"{np.mean(self.chance.null):.0%} ({self.chance_sensitivity:.0%}, "
             f"{self.chance_specificity:.0%}), p = {self.chance.p_value:.3g}",
-        ]
+        ] + ([] if self.classifier is None else [f"trial windows: {self.classifier.verdict()}"])
 
     def to_json_dict(self) -> dict[str, Any]:
         """Return the comparison's numbers, verdict and seed."""
@@ -327,6 +333,7 @@ class GroupComparison:
             "chance": self.chance.to_json_dict(),
             "chance_sensitivity": self.chance_sensitivity,
             "chance_specificity": self.chance_specificity,
+            "classifier": None if self.classifier is None else self.classifier.to_json_dict(),
             "seed": self.seed,
             "verdict": self.verdict(),
         }
@@ -339,6 +346,8 @@ def compare_groups(
     order: Sequence[str],
     n_permutations: int = GROUP_PERMUTATIONS,
     seed: int = 0,
+    velocities: Sequence[Array] | None = None,
+    rate: float = DEFAULT_RATE,
 ) -> GroupComparison:
     """Compare two groups of people by the distances between their trials.
 
@@ -351,14 +360,17 @@ def compare_groups(
     order
         The groups in the table's order; the second present is the positive group.
     n_permutations, seed
-        Of both permutation tests (labels permuted by person).
+        Of both permutation tests (labels permuted by person); the classifier test draws
+        `mirror_avatar.likeness.N_PERMUTATIONS` relabellings.
+    velocities, rate
+        Each trial's velocity (units/s) at ``rate`` Hz, for the classifier test (none without).
     """
     names, distances = person_distances(trial_distances, people)
     group_of = dict(zip(people, groups, strict=True))
     present = [g for g in order if g in set(groups)]
     negative, positive_group = present[0], present[1]
     positive = np.array([group_of[p] == positive_group for p in names])
-    separation_seed, chance_seed = draw_seeds(seed, 2)
+    separation_seed, chance_seed, classifier_seed = draw_seeds(seed, 3)
     between, within = between_and_within(distances, positive)
     results: list[Classification] = []
 
@@ -385,5 +397,30 @@ def compare_groups(
         chance=chance,
         chance_sensitivity=float(np.mean([r.sensitivity for r in results[1:]])),
         chance_specificity=float(np.mean([r.specificity for r in results[1:]])),
+        classifier=None
+        if velocities is None
+        else _classifier(velocities, people, groups, positive_group, rate, classifier_seed),
         seed=seed,
+    )
+
+
+def _classifier(
+    velocities: Sequence[Array],
+    people: Sequence[str],
+    groups: Sequence[str],
+    positive: str,
+    rate: float,
+    seed: int,
+) -> ClassifierTest:
+    """Run the classifier two-sample test on the groups' trials, grouped by person."""
+    side = [g == positive for g in groups]
+    order = [k for k in range(len(side)) if not side[k]] + [k for k in range(len(side)) if side[k]]
+    n_negative = side.count(False)
+    signals = [velocities[k] for k in order]
+    return classifier_test(
+        signals[:n_negative],
+        signals[n_negative:],
+        rate,
+        seed=seed,
+        units=[people[k] for k in order],
     )

@@ -32,6 +32,7 @@ def test_fast_and_slow_people_are_told_apart(tmp_path, capsys):
     assert abs(result["chance"]["null_mean"] - 0.5) < 0.1
     assert result["between"] > 3 * result["within"]
     assert result["seed"] == 0
+    assert result["classifier"]["auc"] > 0.95 and result["classifier"]["test"]["p_value"] < 0.01
     assert (out / "groups.png").read_bytes().startswith(b"\x89PNG")
     printed = capsys.readouterr().out
     assert "each is a person" in printed and "classified 100% right" in printed
@@ -48,6 +49,7 @@ def test_shuffled_labels_are_at_chance(tmp_path):
     assert result["separation"]["p_value"] > 0.05 and result["chance"]["p_value"] > 0.05
     assert 0.2 <= result["accuracy"] <= 0.8
     assert abs(result["chance"]["null_mean"] - 0.5) < 0.1
+    assert result["classifier"]["test"]["p_value"] > 0.05
 
 
 def test_people_by_their_group_by_folder(zhai_trials, tmp_path):
@@ -67,6 +69,9 @@ def test_people_by_their_group_by_folder(zhai_trials, tmp_path):
     assert sorted(result["people"]) == ["fast0", "fast1", "slow0", "slow1"]
     assert result["accuracy"] == 1.0
     assert result["chance"]["exact"]  # 4 choose 2 relabellings, all tried
+    classifier = result["classifier"]
+    assert classifier["n_reference"] == classifier["n_candidate"] == 2  # people, not trials
+    assert classifier["test"]["exact"] and classifier["folds"] == 2
 
 
 @pytest.mark.parametrize(

@@ -126,3 +126,14 @@ def test_a_distance_that_cannot_be_measured_says_so(rng: np.random.Generator) ->
     amplitude = next(d for d in compare_distances(moving, still) if d.measure == "amplitude")
     assert np.isnan(amplitude.test.p_value) and not amplitude.distinguishable
     assert amplitude.verdict().startswith("not measured: amplitude")
+
+
+def test_classifier_groups_by_the_units_given(rng: np.random.Generator) -> None:
+    slow = [_sine_velocity(0.2, 0.3, 20.0) + rng.normal(0, 0.02, 2000) for _ in range(4)]
+    fast = [_sine_velocity(0.2, 1.5, 20.0) + rng.normal(0, 0.02, 2000) for _ in range(4)]
+    people = ["p1", "p1", "p2", "p2", "q1", "q1", "q2", "q2"]
+    test = classifier_test(slow, fast, units=people)
+    assert (test.n_reference, test.n_candidate, test.folds) == (2, 2, 2)
+    assert test.test.exact and test.test.null.size == 6  # 4 people choose 2
+    with pytest.raises(InputError, match="both sides"):
+        classifier_test(slow, fast, units=["p1"] * 5 + ["q1"] * 3)

@@ -19,9 +19,11 @@ from mirror_avatar.figures import (
     plot_skew_kurtosis,
 )
 from mirror_avatar.importing import ImportOptions
+from mirror_avatar.likeness import trial_velocity
 from mirror_avatar.report import render_png
 from mirror_avatar.signature import SignatureAnalysis, analyse_signatures
 from mirror_avatar.signature_groups import compare_groups, place_trials, read_group_map
+from mirror_avatar.trials import Trial
 
 FIGURES = ("ims.png", "similarity.png", "strokes.png")
 """The figures written beside ``signature.json``."""
@@ -133,11 +135,12 @@ def signature(
             click.echo(
                 f"note: {groups_path} names trials without a person column: each is a person"
             )
-        _compare_groups(analysis, people, groups, group_map.order, seed, out_dir)
+        _compare_groups(trials, analysis, people, groups, group_map.order, seed, out_dir)
     click.echo(f"{len(trials)} trials in {len(analysis.group_names)} groups -> {out_dir}")
 
 
 def _compare_groups(
+    trials: list[Trial],
     analysis: SignatureAnalysis,
     people: list[str],
     groups: list[str],
@@ -146,7 +149,10 @@ def _compare_groups(
     out_dir: Path,
 ) -> None:
     """Compare the two groups of people, print the verdict and write its file and figure."""
-    comparison = compare_groups(analysis.emd, people, groups, order, seed=seed)
+    velocities = [trial_velocity(t, analysis.rate) for t in trials]
+    comparison = compare_groups(
+        analysis.emd, people, groups, order, seed=seed, velocities=velocities, rate=analysis.rate
+    )
     numbers, figure = GROUP_FILES
     write_atomic_json(out_dir / numbers, comparison.to_json_dict())
     write_atomic_bytes(out_dir / figure, render_png(plot_group_comparison(comparison)))
