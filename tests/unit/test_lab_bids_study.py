@@ -32,11 +32,16 @@ def test_answers_without_the_questions_text_keep_their_values_and_order() -> Non
             "P2": {},
         },
     }  # fmt: skip
-    rows = answer_rows(answers, "P1")
+    slots = [{"label": "P1", "kind": "human"}, {"label": "A1", "kind": "avatar"},
+             {"label": "P2", "kind": "human"}]  # fmt: skip
+    rows = answer_rows(answers, "P1", slots)
     assert [(r["question"], r["text"], r["kind"], r["answer"], r["after"], r["answered_utc"])
             for r in rows] == [
         ("who", "n/a", "n/a", "a person", "trial", "u1"),
         ("sure", "n/a", "n/a", "6", "trial", "u2"),
         ("notes", "n/a", "n/a", "tab\there\nand a line", "block", "u3"),
     ]  # fmt: skip
-    assert answer_rows(answers, "P2") == [] and answer_rows(answers, "P3") == []
+    assert {(r["partners"], r["partner_kind"]) for r in rows} == {("A1+P2", "mixed")}
+    assert answer_rows(answers, "P2", slots) == [] and answer_rows(answers, "P3", slots) == []
+    alone = answer_rows(answers, "P1", slots[:1])
+    assert {(r["partners"], r["partner_kind"]) for r in alone} == {("n/a", "none")}

@@ -480,7 +480,7 @@ def _timing_row(name: str, kind: str, units: str, description: str) -> dict[str,
 def _write_answers(trial: _LabTrial, slot: int, out_dir: Path) -> Path | None:
     """Write slot ``slot``'s answers after ``trial`` as ``_beh.tsv``; None if they gave none."""
     label = trial.slots[slot]["label"]
-    rows = [] if trial.answers is None else answer_rows(trial.answers, label)
+    rows = [] if trial.answers is None else answer_rows(trial.answers, label, trial.slots)
     if not rows:
         return None
     subject = _subject(trial, slot)

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -36,10 +36,12 @@ from mirror_avatar.bids.writing import tsv_table
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.files import ANSWERS_SUFFIX, STUDY_FILE, companion
 from mirror_avatar.trial_io import read_sidecar_text
+from mirror_avatar.trial_record import partner_kind
 from mirror_avatar.user_files import parse_json
 
 BEH_COLUMNS = (
-    "question", "text", "kind", "answer", "after", "trial", "block", "condition", "answered_utc",
+    "question", "text", "kind", "answer", "partners", "partner_kind", "after", "trial", "block",
+    "condition", "answered_utc",
 )  # fmt: skip
 """Columns of a ``_beh.tsv``."""
 
@@ -55,6 +57,20 @@ BEH_COLUMN_INFO: dict[str, Any] = {
         },
     },
     "answer": {"Description": "The participant's answer: the option, the point or the text"},
+    "partners": {
+        "Description": "The labels of the participant's partners in the trial, joined "
+        "by + (n/a: none)"
+    },
+    "partner_kind": {
+        "Description": "The true kind of the participant's partners in the trial, beside the "
+        "answer (to score a person-or-computer question without a join)",
+        "Levels": {
+            "person": "every partner a person",
+            "avatar": "every partner a computer player",
+            "mixed": "persons and computer players",
+            "none": "no partner (a solo trial)",
+        },
+    },
     "after": {
         "Description": "When the question was asked",
         "Levels": {"trial": "after the trial", "block": "after the last trial of the block"},
@@ -189,12 +205,21 @@ def read_answers(session_csv: Path) -> dict[str, Any] | None:
     return answers | {"path": path}
 
 
-def answer_rows(answers: dict[str, Any], label: str) -> list[dict[str, str]]:
+def answer_rows(
+    answers: dict[str, Any], label: str, slots: Sequence[dict[str, Any]]
+) -> list[dict[str, str]]:
     """Return the ``_beh.tsv`` rows of one participant's answers after a trial.
 
     Questions are in the order they were asked (after the trial, then after the block); the
-    question's text and kind come from the file's ``questions`` when it holds them.
+    question's text and kind come from the file's ``questions`` when it holds them. ``slots``
+    (the trial's, each with its ``label`` and ``kind``) give every row the participant's
+    partners and their true kind (`mirror_avatar.trial_record.partner_kind`).
     """
+    partners = [slot for slot in slots if slot["label"] != label]
+    beside = {
+        "partners": "+".join(slot["label"] for slot in partners) or MISSING,
+        "partner_kind": partner_kind(slot["kind"] for slot in partners),
+    }
     given = answers["answers"].get(label)
     if not isinstance(given, dict):
         return []
@@ -213,6 +238,7 @@ def answer_rows(answers: dict[str, Any], label: str) -> list[dict[str, str]]:
                 "text": str(question.get("text", MISSING)),
                 "kind": str(question.get("kind", MISSING)),
                 "answer": _answer_cell(answer.get("value")),
+                **beside,
                 "after": "trial" if qid in after_trial else "block",
                 "trial": str(answers.get("trial", MISSING)),
                 "block": str(answers.get("block", MISSING)),
