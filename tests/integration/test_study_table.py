@@ -107,3 +107,24 @@ def test_the_answers_carry_the_partners_true_kind(study, tmp_path):
     assert {(r["partners"], r["partner_kind"]) for r in rows[2]} == {("P2", "person")}
     described = json.loads((bids / "task-mirrorgame_beh.json").read_text())
     assert set(described["partner_kind"]["Levels"]) == {"person", "avatar", "mixed", "none"}
+
+
+def test_evaluate_reads_the_export_from_its_motion_files_once_per_trial(study, tmp_path, capsys):
+    bids = tmp_path / "bids"
+    for folder in (study.folder, study.second):
+        assert main(["lab", "export", str(folder), "--out", str(bids)]) == 0
+
+    def evaluated(*paths: Path) -> list[dict]:
+        capsys.readouterr()
+        assert main(["evaluate", *map(str, paths), "--json", "--surrogates", "0"]) == 0
+        out = capsys.readouterr().out
+        found, _ = json.JSONDecoder().raw_decode(out[out.index("{") :])  # a weak-null line follows
+        return list(found.values())
+
+    from_bids = evaluated(bids)  # 6 motion files of 4 trials; sourcedata's 4 trials not read
+    from_runs = evaluated(study.folder, study.second)
+    assert len(from_bids) == len(from_runs) == 4
+    for exported, recorded in zip(from_bids, from_runs, strict=True):
+        for key in ("rmse", "phase_locking", "time_lag", "co_confidence_rate"):
+            assert exported[key] == recorded[key]
+    assert len(evaluated(bids / "sub-p000P1")) == 2

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from mirror_avatar.bids.reading import read_lab_recording
 from mirror_avatar.bids.writing import write_bids_motion
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import complete_graph, ring_graph
@@ -337,12 +338,15 @@ def test_a_new_label_for_an_exported_participant_id_is_refused(
         export_bids(folder, root)
 
 
-def test_a_motion_file_without_the_mirror_game_key_is_refused(tmp_path: Path) -> None:
+def test_a_motion_file_without_the_mirror_game_key_is_another_tools(tmp_path: Path) -> None:
     t = np.arange(100) * T
     path = tmp_path / "sub-01_task-mirror_tracksys-pointer_motion.tsv"
     write_bids_motion(make_trial(t, 0.2 * np.sin(t), label="mirror"), path)
     with pytest.raises(InputError, match="not a mirror-avatar lab export.*signature"):
-        load_session(path)
+        read_lab_recording(path)
+    session = load_session(path)  # one player: its one position channel
+    assert session.n_players == 1
+    np.testing.assert_allclose(session.positions[0], 0.2 * np.sin(t), atol=1e-12)
 
 
 @pytest.mark.parametrize(

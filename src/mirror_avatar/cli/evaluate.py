@@ -11,6 +11,7 @@ import click
 import pandas as pd
 
 from mirror_avatar.atomic import json_safe, write_atomic_text
+from mirror_avatar.bids.names import MOTION_SUFFIX
 from mirror_avatar.cli.measure_options import (
     format_measures,
     measure_options,
@@ -40,8 +41,11 @@ SUMMARY_KEYS = (
 def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], list[str]]:
     """Read the sessions among ``paths`` (files, or folders searched recursively).
 
-    In folders, files that are not sessions (solo trials, other tables) are skipped with a note;
-    a file named explicitly must be a session.
+    Folders are searched for session files and BIDS-Motion recordings (`session_files`): a BIDS
+    dataset or one of its subject folders is read from its ``_motion.tsv`` files, a lab
+    export's trial once whichever of its people's recordings holds it. In folders, files that
+    are not sessions (solo trials, other tables) are skipped with a note; a file named
+    explicitly must be a session.
     """
     found, notes = [], []
     for path in paths:
@@ -49,17 +53,52 @@ def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], 
             found.append((path, load_session(path)))
             continue
         before = len(found)
-        for file in sorted(p for p in path.rglob("*") if p.suffix.lower() in SESSION_FILES):
+        trials: dict[tuple[object, object], Path] = {}
+        for file in session_files(path):
             if file.suffix.lower() == ".csv" and file.with_suffix(".parquet").is_file():
                 notes.append(f"skipped {file}: the same session as {file.with_suffix('.parquet')}")
                 continue
             try:
-                found.append((file, load_session(file)))
+                session = load_session(file)
             except InputError as error:
                 notes.append(f"skipped {file}: {error.problem}")
+                continue
+            trial = _exported_trial(session)
+            if trial in trials:
+                notes.append(f"skipped {file}: the same lab trial as {trials[trial]}")
+                continue
+            if trial is not None:
+                trials[trial] = file
+            found.append((file, session))
         if len(found) == before:
-            raise InputError(path, "no session files in it (time, position_0, ... columns)")
+            raise InputError(
+                path,
+                "no session files in it (time, position_0, ... columns, or BIDS-Motion "
+                "_motion.tsv files; sourcedata/ is read only when named)",
+            )
     return found, notes
+
+
+def session_files(folder: Path) -> list[Path]:
+    """List a folder's session files and BIDS-Motion recordings, sorted, outside ``sourcedata/``.
+
+    A BIDS dataset's ``sourcedata/`` (the lab's own trial files, copied by the export) is read
+    only when named: ``evaluate bids/sourcedata``.
+    """
+    return sorted(
+        p
+        for p in folder.rglob("*")
+        if (p.suffix.lower() in SESSION_FILES or p.name.endswith(MOTION_SUFFIX))
+        and "sourcedata" not in p.relative_to(folder).parts[:-1]
+    )
+
+
+def _exported_trial(session: Session) -> tuple[object, object] | None:
+    """Return the session id and trial number of a lab export's recording, else None."""
+    lab, bids = session.metadata.get("lab"), session.metadata.get("bids")
+    if not (isinstance(lab, dict) and isinstance(bids, dict)):
+        return None
+    return lab.get("session_id"), lab.get("trial")
 
 
 def session_names(paths: list[Path]) -> list[str]:
