@@ -180,7 +180,7 @@ def read_trial_record(path: str | Path) -> TrialRecord:
     path = Path(path)
     sidecar = parse_json(read_sidecar_text(path), path)
     metadata = sidecar.get("metadata") if isinstance(sidecar, dict) else None
-    return trial_record(_Keys(path, "metadata").object(metadata))
+    return trial_record(_Keys(path, "metadata").object(metadata), path)
 
 
 def trial_record(

@@ -18,6 +18,7 @@ from mirror_avatar.graphs import complete_graph, ring_graph
 from mirror_avatar.lab.bids import export_bids
 from mirror_avatar.session import Session, SessionWriter, load_session
 from mirror_avatar.trial_files import read_trial
+from mirror_avatar.trial_record import SlotRecord, TrialRecord
 from mirror_avatar.trials import make_trial
 
 T = 0.03
@@ -64,23 +65,28 @@ class LabTrial:
 
 
 def write_lab_session(folder: Path, session_id: str, trials: list[LabTrial], seed: int) -> Path:
-    """Record a lab session folder as the lab does: one SessionWriter per trial."""
+    """Record a lab session folder as the lab does: one SessionWriter per trial.
+
+    Each sidecar's metadata is written by the trial record (`mirror_avatar.trial_record`), the
+    one declaration of its format: a key renamed there and not in the export breaks these tests.
+    """
     folder = folder / session_id
     folder.mkdir(parents=True)
     (folder / "plan.json").write_text(json.dumps({"session_id": session_id}))
     rng = np.random.default_rng(seed)
     for trial in trials:
         labels = [s["label"] for s in trial.slots]
-        lab = {
-            "session_id": session_id,
-            "trial": trial.number,
-            "condition": trial.condition,
-            "created_utc": "2025-03-01T10:00:00+00:00",
-            "slots": trial.slots,
-        }
+        record = TrialRecord(
+            session_id=session_id,
+            trial=trial.number,
+            condition=trial.condition,
+            slots=tuple(SlotRecord(**s) for s in trial.slots),
+            seed=seed,
+            created_utc="2025-03-01T10:00:00+00:00",
+        )
         path = folder / f"trial-{trial.number:02d}_session.csv"
         writer = SessionWriter(path, labels, [s["role"] for s in trial.slots], trial.graph, T,
-                               {"lab": lab, "seed": seed})  # fmt: skip
+                               record.metadata_json())  # fmt: skip
         for row in session_rows(rng, len(labels)):
             writer.append(row)
         held = {s["label"]: int(rng.integers(0, 5)) for s in trial.slots if s["kind"] == "human"}

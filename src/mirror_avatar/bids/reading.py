@@ -49,6 +49,7 @@ from mirror_avatar.trial_io import (
     import_trial,
     read_sidecar_text,
 )
+from mirror_avatar.trial_record import trial_record
 from mirror_avatar.trials import MAX_RATE, MIN_RATE, Trial
 from mirror_avatar.user_files import check_regular, open_regular
 
@@ -355,22 +356,22 @@ def _player_channels(
 
 
 def _lab_metadata(path: Path, game: dict[str, Any]) -> dict[str, Any]:
-    """Make the session metadata from a ``MirrorGame`` key."""
-    lab_keys = ("session_id", "trial", "condition", "created_utc", "slots")
-    metadata: dict[str, Any] = {
-        "lab": {key: game.get(key) for key in lab_keys},
-        "complete": game.get("complete") is True,
-        "dropped": _mapping(game.get("dropped")),
-        "held": _mapping(game.get("held")),
+    """Make the session metadata from a ``MirrorGame`` key: the trial's record, as a sidecar's.
+
+    The record (`mirror_avatar.trial_record`) is read from the key's ``session_id``,
+    ``condition``, ``trial``, ``slots``, times, ``seed``, ``complete`` and ``dropped``; ``held``
+    and where the file is (``bids``) are added.
+    """
+    lab = {key: game.get(key) for key in ("session_id", "condition", "trial", "slots")}
+    kept = ("created_utc", "started_utc", "seed", "complete", "dropped")
+    record = trial_record({"lab": lab} | {key: game[key] for key in kept if key in game},
+                          path.with_name(f"{recording_stem(path.name)}_motion.json"))  # fmt: skip
+    held = game.get("held")
+    return record.metadata_json() | {
+        "held": dict(held) if isinstance(held, dict) else {},
         "bids": {"path": str(path), "participant": game.get("participant"), "slot": game["slot"],
                  "entities": entities(path.name)},
     }  # fmt: skip
-    return metadata if "seed" not in game else metadata | {"seed": game["seed"]}
-
-
-def _mapping(value: object) -> dict[str, Any]:
-    """Copy ``value`` if it is a JSON object, else return an empty one."""
-    return dict(value) if isinstance(value, dict) else {}
 
 
 @dataclass(frozen=True)
