@@ -34,6 +34,8 @@ from mirror_avatar.trial_io import read_sidecar_text
 from mirror_avatar.trial_record import (
     AnswerRecord,
     AnswersRecord,
+    PerturbationRecord,
+    StudyRecord,
     TrialRecord,
     read_answers_record,
     read_trial_record,
@@ -159,13 +161,26 @@ _MOTION = "_motion.tsv"
 def _bids_trial(
     root: Path, motion: Path, game: dict[str, Any], participants: dict[str, dict[str, str]]
 ) -> StudyTrial:
-    """Read one exported trial: its session, its record and every person's answers."""
+    """Read one exported trial: its session, its record and every person's answers.
+
+    The session's metadata holds the record the ``MirrorGame`` key gives
+    (`mirror_avatar.bids.reading.read_lab_recording`); the run's events add the study's part
+    and the perturbations.
+    """
     session = load_session(motion)
     subject = f"sub-{entities(motion.name).get('sub', '')}"
     study = _study_run(participants.get(subject, {}))
     events = _rows(motion.with_name(motion.name.replace(_MOTION, "_events.tsv")))
-    metadata = _metadata(game, events, study)
-    record = trial_record(metadata, motion.with_name(motion.name.replace(".tsv", ".json")))
+    record = trial_record(session.metadata, motion.with_name(motion.name.replace(".tsv", ".json")))
+    record = replace(
+        record,
+        study=None if study is None else _study_record(record, events, study),
+        perturbations=tuple(
+            PerturbationRecord(int(e["sample"]), float(e["onset"]), e["player"], e["change"])
+            for e in events
+            if e["trial_type"] == "perturbation"
+        ),
+    )
     answers = _bids_answers(root, record, study)
     return StudyTrial(participant_name(study, record.session_id), record, session, answers, motion)
 
@@ -176,38 +191,24 @@ def _study_run(row: dict[str, str]) -> StudyRun | None:
     return None if not number.isdigit() else StudyRun(int(number), row.get("protocol", ""))
 
 
-def _metadata(game: dict[str, Any], events: list[dict[str, str]], study: StudyRun | None
-              ) -> dict[str, Any]:  # fmt: skip
-    """Rebuild a version-1 trial metadata from a ``MirrorGame`` key and the run's events."""
-    found = game.get("slots")
-    slots: list[Any] = found if isinstance(found, list) else []
-    lab: dict[str, Any] = {"session_id": game.get("session_id"),
-                           "condition": game.get("condition", "")}  # fmt: skip
+def _study_record(record: TrialRecord, events: list[dict[str, str]], study: StudyRun
+                  ) -> StudyRecord:  # fmt: skip
+    """Make a trial's study part from its run's events (``condition_trial`` counted later)."""
     first = events[0] if events else {}
-    if study is not None:
-        lab |= {
-            "partner_delay_s": next(
-                (float(e["delay_s"]) for e in events if e["trial_type"] == "delay"), 0.0
-            ),
-            "occluded_s": [
-                [float(e["onset"]), float(e["onset"]) + float(e["duration"])]
-                for e in events if e["trial_type"] == "occlusion"
-            ],
-            "protocol": study.protocol,
-            "participant": study.participant,
-            "block": first.get("block", MISSING),
-            "protocol_condition": first.get("condition", MISSING),
-            "condition_trial": 0,
-            "partners": {s.get("label"): s.get("kind") for s in slots if isinstance(s, dict)},
-        }  # fmt: skip
-    lab |= {"trial": game.get("trial"), "slots": slots}
-    changes = [
-        {"sample": int(e["sample"]), "time_s": float(e["onset"]), "player": e["player"],
-         "change": e["change"]}
-        for e in events if e["trial_type"] == "perturbation"
-    ]  # fmt: skip
-    kept = ("seed", "created_utc", "started_utc", "complete", "dropped")
-    return {"lab": lab} | {k: game[k] for k in kept if k in game} | {"perturbations": changes}
+    return StudyRecord(
+        protocol=study.protocol,
+        participant=study.participant,
+        block=first.get("block", MISSING),
+        condition=first.get("condition", MISSING),
+        condition_trial=0,
+        delay_s=next((float(e["delay_s"]) for e in events if e["trial_type"] == "delay"), 0.0),
+        occluded_s=tuple(
+            (float(e["onset"]), float(e["onset"]) + float(e["duration"]))
+            for e in events
+            if e["trial_type"] == "occlusion"
+        ),
+        partners={slot.label: slot.kind for slot in record.slots},
+    )
 
 
 def _rows(path: Path) -> list[dict[str, str]]:
