@@ -84,6 +84,7 @@ from mirror_avatar.lab.files import (
 )
 from mirror_avatar.session import Session, load_session
 from mirror_avatar.trial_io import MAX_FILE_BYTES, _first_row, _read_numbers, read_sidecar_text
+from mirror_avatar.trial_record import AnswersRecord
 from mirror_avatar.user_files import parse_json, read_bytes
 
 Array = NDArray[np.float64]
@@ -136,7 +137,7 @@ class _LabTrial:
     slots: tuple[dict[str, Any], ...]
     period: float
     timing: Array | None
-    answers: dict[str, Any] | None
+    answers: AnswersRecord | None
     study: StudyRun | None
 
     def humans(self) -> list[int]:
