@@ -151,9 +151,12 @@ def evaluate(
     """Print the coordination metrics of saved sessions (.parquet or .csv, or folders of them).
 
     Any session the toolkit writes (simulations, groups, live trials) or a plain CSV with
-    ``time, position_0, position_1, ...``. For two players, relative phase and time lag are
-    player 0 minus player 1 (positive when player 0 is ahead); for a group, its synchronisation
-    and each player against the mean of its neighbours. Several sessions give one table.
+    ``time, position_0, position_1, ...``; a BIDS-Motion dataset or subject folder from its
+    _motion.tsv files (a lab export's trial once; another tool's recording as one player per
+    tracked point with a POS channel; sourcedata/ only when named). For two players,
+    relative phase and time lag are player 0 minus player 1 (positive when player 0 is
+    ahead); for a group, its synchronisation and each player against the mean of its
+    neighbours. Several sessions give one table.
     The field's measures (co-confidence, jitter, synchrony episodes, leadership, transfer
     entropy) follow, each coordination measure with a p-value against surrogates.
     """
