@@ -18,7 +18,7 @@ from mirror_avatar.graphs import complete_graph, ring_graph
 from mirror_avatar.lab.bids import export_bids
 from mirror_avatar.session import Session, SessionWriter, load_session
 from mirror_avatar.trial_files import read_trial
-from mirror_avatar.trial_record import SlotRecord, TrialRecord
+from mirror_avatar.trial_record import SlotRecord, StudyRecord, TrialRecord
 from mirror_avatar.trials import make_trial
 
 T = 0.03
@@ -64,7 +64,10 @@ class LabTrial:
     crash: bool = False
 
 
-def write_lab_session(folder: Path, session_id: str, trials: list[LabTrial], seed: int) -> Path:
+def write_lab_session(
+    folder: Path, session_id: str, trials: list[LabTrial], seed: int,
+    study: StudyRecord | None = None,
+) -> Path:  # fmt: skip
     """Record a lab session folder as the lab does: one SessionWriter per trial.
 
     Each sidecar's metadata is written by the trial record (`mirror_avatar.trial_record`), the
@@ -81,6 +84,7 @@ def write_lab_session(folder: Path, session_id: str, trials: list[LabTrial], see
             trial=trial.number,
             condition=trial.condition,
             slots=tuple(SlotRecord(**s) for s in trial.slots),
+            study=study,
             seed=seed,
             created_utc="2025-03-01T10:00:00+00:00",
         )
@@ -416,7 +420,9 @@ def write_study_session(
     session_id = f"{protocol}-p{participant:03d}"
     slots.append(slot("A1", "avatar", "joint"))
     trial = LabTrial(1, slots, complete_graph(len(slots)), "group")
-    session = write_lab_session(folder, session_id, [trial], seed)
+    partners = {s["label"]: s["kind"] for s in slots}
+    run = StudyRecord(protocol, participant, "b", "c", 1, 0.0, (), partners)
+    session = write_lab_session(folder, session_id, [trial], seed, run)
     (session / "plan.json").unlink()
     study = {"id": session_id, "protocol": {"source": f"/lab/{protocol}.toml", "title": "t"},
              "seed": 3, "participant": participant, "order": []}  # fmt: skip

@@ -65,6 +65,7 @@ def test_a_plain_sessions_table_is_the_same_from_its_folder_and_its_export(ring_
     assert list(runs["partner_kind"][:3]) == ["mixed", "person", "mixed"]
     assert runs[["synchronisation", "influence", "group_synchronisation"]].notna().all(axis=None)
     assert not any(column.startswith(("answer_", "guess_")) for column in runs.columns)
+    assert not any(column.startswith("transfer_entropy_") for column in runs.columns)
     bids = tmp_path / "bids"
     assert main(["lab", "export", str(ring_session), "--out", str(bids)]) == 0
     pd.testing.assert_frame_equal(runs, table([bids], tmp_path / "bids_table"))
@@ -106,3 +107,11 @@ def test_the_guess_is_the_choice_naming_both_kinds_with_its_confidence() -> None
 def replace_kind(record: AnswerRecord, kind: str) -> AnswerRecord:
     return AnswerRecord(record.label, record.question, record.text, kind, record.value,
                         record.after, record.utc)  # fmt: skip
+
+
+def test_an_output_in_the_way_is_refused_before_any_work(ring_session, tmp_path, capsys):
+    (tmp_path / "out" / "study.parquet").mkdir(parents=True)
+    assert main(["study", "table", str(ring_session), "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "study.parquet" in error
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["study.parquet"]

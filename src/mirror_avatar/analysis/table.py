@@ -104,12 +104,17 @@ def _player_measures(measures: dict[str, Any], k: int, trial: StudyTrial) -> dic
                 row[own.removesuffix("_").removesuffix("_player")] = value
         elif key == "leader":
             row[key] = labels[value] if isinstance(value, int) else str(value)
-        elif _known(key) and isinstance(value, int | float):
+        elif _known(key) and isinstance(value, int | float) and not _pairwise(key, len(labels)):
             row[key] = value
     group = measures.get("players")
     if isinstance(group, list):
         row |= {key: group[k][key] for key in _GROUP_PLAYER_KEYS if key in group[k]}
     return row
+
+
+def _pairwise(key: str, n_players: int) -> bool:
+    """Whether ``key`` is a pair's measure in a group (``influence`` averages a player's)."""
+    return n_players > 2 and key.startswith("transfer_entropy_")
 
 
 def _known(key: str) -> bool:
