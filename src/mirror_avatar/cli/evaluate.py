@@ -28,6 +28,7 @@ from mirror_avatar.metrics.measures import evaluate_measures
 from mirror_avatar.metrics.progress import order_by_start, progress_table
 from mirror_avatar.report import REPORT_FILES, Section, write_report
 from mirror_avatar.session import Session, load_session
+from mirror_avatar.trial_record import trial_record
 from mirror_avatar.trial_sets import common_root
 
 SESSION_FILES = (".csv", ".parquet")
@@ -53,7 +54,7 @@ def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], 
             found.append((path, load_session(path)))
             continue
         before = len(found)
-        trials: dict[tuple[object, object], Path] = {}
+        trials: dict[tuple[str, int], Path] = {}
         for file in session_files(path):
             if file.suffix.lower() == ".csv" and file.with_suffix(".parquet").is_file():
                 notes.append(f"skipped {file}: the same session as {file.with_suffix('.parquet')}")
@@ -93,12 +94,12 @@ def session_files(folder: Path) -> list[Path]:
     )
 
 
-def _exported_trial(session: Session) -> tuple[object, object] | None:
-    """Return the session id and trial number of a lab export's recording, else None."""
-    lab, bids = session.metadata.get("lab"), session.metadata.get("bids")
-    if not (isinstance(lab, dict) and isinstance(bids, dict)):
+def _exported_trial(session: Session) -> tuple[str, int] | None:
+    """Return the session id and trial of a lab export's recording (its record), else None."""
+    if "bids" not in session.metadata or "lab" not in session.metadata:
         return None
-    return lab.get("session_id"), lab.get("trial")
+    record = trial_record(session.metadata, session.metadata["bids"]["path"])
+    return record.session_id, record.trial
 
 
 def session_names(paths: list[Path]) -> list[str]:
