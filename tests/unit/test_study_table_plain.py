@@ -71,6 +71,16 @@ def test_a_plain_sessions_table_is_the_same_from_its_folder_and_its_export(ring_
     pd.testing.assert_frame_equal(runs, table([bids], tmp_path / "bids_table"))
 
 
+def test_a_trial_too_short_to_measure_keeps_its_rows(ring_session, tmp_path):
+    full = table([ring_session], tmp_path / "full")
+    trimmed = tmp_path / "trimmed"
+    assert main(["study", "table", str(ring_session), "--out", str(trimmed), "--trim", "60",
+                 "--surrogates", "0"]) == 0  # fmt: skip
+    rows = pd.read_parquet(trimmed / "study.parquet")
+    assert list(rows.columns) == list(full.columns[: len(rows.columns)])
+    assert len(rows) == len(full) and "rmse" not in rows
+
+
 def test_paths_that_hold_no_study_are_one_line(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     for path in (tmp_path / "nowhere", tmp_path / "empty"):

@@ -34,15 +34,18 @@ from mirror_avatar.analysis.dictionary import (
 from mirror_avatar.analysis.identification import guess
 from mirror_avatar.analysis.trials import StudyTrial
 from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.errors import InputError
+from mirror_avatar.lab.trial import LAB_SURROGATES
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.metrics.measures import MeasureOptions, session_measures
 from mirror_avatar.trial_record import KIND_NAMES, SlotRecord, partner_kind
+from mirror_avatar.trials import MIN_SAMPLES
 
 TABLE_FILES = ("study.csv", "study.parquet", "study.json")
 """The files `write_study_table` writes."""
 
-SURROGATES = 19
-"""Surrogates per trial by default (**choice**, as the lab's end screen: p-values down to 0.05)."""
+SURROGATES = LAB_SURROGATES
+"""Surrogates per trial by default: the lab's own (p-values down to 0.05)."""
 
 MAX_LEVELS = 20
 """Most distinct values a text column may have to be listed as ``Levels`` (**choice**)."""
@@ -68,8 +71,17 @@ def study_table(
 
 
 def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str, Any]:
-    """Compute a trial's metrics and measures (the session trimmed once)."""
-    session = trial.session.trimmed(trim) if trim > 0 else trial.session
+    """Compute a trial's metrics and measures (the session trimmed once).
+
+    A trial with fewer than `mirror_avatar.trials.MIN_SAMPLES` samples after the trim (a run
+    stopped at once) has none: its rows keep their design and answers.
+    """
+    try:
+        session = trial.session.trimmed(trim) if trim > 0 else trial.session
+    except InputError:
+        return {}
+    if session.n_samples < MIN_SAMPLES:
+        return {}
     seed = trial.record.seed if trial.record.seed is not None else 0
     options = MeasureOptions(n_surrogates=surrogates, seed=seed)
     return session_metrics(session) | session_measures(session, options=options).values
