@@ -125,3 +125,11 @@ def test_an_output_in_the_way_is_refused_before_any_work(ring_session, tmp_path,
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "study.parquet" in error
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["study.parquet"]
+
+
+def test_a_measure_s_p_value_is_described_as_a_p_value_not_a_measure():
+    from mirror_avatar.analysis.dictionary import measure_info, p_value_column
+
+    assert measure_info(p_value_column("rmse"))["Role"] == "p_value"
+    assert measure_info("rmse")["Role"] == "measure"
+    assert p_value_column("max_cross_correlation") == "time_lag_p_value"

@@ -3,15 +3,15 @@
 Each column of `mirror_avatar.analysis.table` is described BIDS-style (``Description``,
 ``Units`` where it has units, ``Levels`` for a categorical one) plus ``Role``: ``identifier``
 (who and which trial), ``design`` (what the protocol set: the factors), ``measure`` (computed
-from the recording) or ``answer`` (what the person answered), so a report finds its measures
-and factors by role.
+from the recording), ``p_value`` (a measure's p-value against its surrogates) or ``answer``
+(what the person answered), so a report finds its measures and factors by role.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-ROLES = ("identifier", "design", "measure", "answer")
+ROLES = ("identifier", "design", "measure", "p_value", "answer")
 """What a column is, as the dictionary's ``Role`` says."""
 
 DESIGN_COLUMNS: dict[str, dict[str, Any]] = {
@@ -113,7 +113,7 @@ def measure_info(column: str) -> dict[str, Any]:
     tested = P_VALUE_OF.get(column, column.removesuffix("_p_value"))
     if column != tested:
         text = MEASURES[tested][0]
-        return {"Description": f"p-value against surrogates of: {text}", "Role": "measure"}
+        return {"Description": f"p-value against surrogates of: {text}", "Role": "p_value"}
     text, units = MEASURES[column]
     return {"Description": text} | ({"Units": units} if units else {}) | {"Role": "measure"}
 

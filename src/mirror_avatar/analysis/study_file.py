@@ -2,10 +2,10 @@
 
 The table (``study.csv`` or ``study.parquet``, written by ``mirror-avatar study table``) has a
 row per trial and player; its data dictionary (``study.json``, BIDS style) gives each column's
-"Description", "Units", "Levels" and "Role" (``identifier``, ``design``, ``measure`` or
-``answer``). The statistics need the columns ``participant``, ``condition`` and ``position``,
-and at least one measure; a table without a dictionary has every numeric column outside the
-known design and answer columns as a measure.
+"Description", "Units", "Levels" and "Role" (``identifier``, ``design``, ``measure``,
+``p_value`` or ``answer``). The statistics need the columns ``participant``, ``condition`` and
+``position``, and at least one measure; a table without a dictionary has every numeric column
+outside the known design, answer and p-value (``*_p_value``) columns as a measure.
 """
 
 from __future__ import annotations
@@ -66,6 +66,7 @@ class StudyTable:
             for name in self.rows.columns
             if name not in DESIGN_COLUMNS
             and not name.startswith("answer_")
+            and not name.endswith("_p_value")
             and self._numeric(name)
             and not pd.api.types.is_bool_dtype(self.rows[name])
         ]

@@ -163,7 +163,8 @@ def _answer(value: object, kind: str) -> object:
 def _ordered(table: pd.DataFrame) -> pd.DataFrame:
     """Order the columns (design, measures, answers) and rows, and type them."""
     design = list(DESIGN_COLUMNS)
-    measured = [c for m in MEASURES for c in (m, p_value_column(m)) if c in table.columns]
+    tested = (c for m in MEASURES for c in (m, p_value_column(m)) if c in table.columns)
+    measured = list(dict.fromkeys(tested))  # time_lag and its peak share one p-value
     answers = sorted(c for c in table.columns if c.startswith("answer_"))
     guesses = [c for c in GUESS_COLUMNS if c in table.columns]
     if table.empty:
