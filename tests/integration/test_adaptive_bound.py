@@ -24,19 +24,20 @@ AFTER_DROP_OUT = 0.5
 def near_drop_outs(trial: Trial, times: np.ndarray) -> np.ndarray:
     """Which of ``times`` (s from the trial's start) lie in a drop-out or just after one.
 
-    A drop-out is a run of identical consecutive recorded positions; it covers the run's first
-    to last sample and `AFTER_DROP_OUT` seconds more.
+    A drop-out (`Trial.held_runs`) covers its run's first to last sample and `AFTER_DROP_OUT`
+    seconds more.
     """
-    offsets = trial.times - trial.times[0]
-    held = np.flatnonzero(np.diff(trial.positions) == 0.0)
     near = np.zeros(times.shape, dtype=bool)
-    for i in held:
-        near |= (times >= offsets[i]) & (times <= offsets[i + 1] + AFTER_DROP_OUT)
+    for start, stop in trial.held_runs():
+        near |= (times >= start) & (times <= stop + AFTER_DROP_OUT)
     return near
 
 
-def test_near_drop_outs_by_hand() -> None:
+def test_held_runs_and_near_drop_outs_by_hand() -> None:
     trial = Trial(np.arange(6.0), np.array([0.0, 0.1, 0.1, 0.1, 0.2, 0.3]))
+    assert trial.held_runs().tolist() == [[1.0, 3.0]]
+    ends = Trial(np.arange(5.0) + 2.0, np.array([0.2, 0.2, 0.1, 0.3, 0.3]))
+    assert ends.held_runs().tolist() == [[0.0, 1.0], [3.0, 4.0]]
     times = np.array([0.5, 1.0, 2.5, 3.4, 3.6, 5.0])
     assert near_drop_outs(trial, times).tolist() == [False, True, True, True, False, False]
 
