@@ -32,8 +32,8 @@ code's ``CpL``, ``deltaL``, which it names without values: their defaults here e
 follower's, **choice**).
 
 **Departures**: the public code integrates the HKB by one explicit Euler step per pass, RK4 here
-(``euler=True`` takes the code's step, which damps stably only while the follower's speed stays
-under sqrt(2 / (beta T)), 1.8 units/s at T = 0.03 s); a longer sampling time is rounded to a whole
+(``euler=True`` takes the code's step, whose damping step shrinks the speed only while
+beta x'² T < 2, below 1.8 units/s at T = 0.03 s); a longer sampling time is rounded to a whole
 number of control periods; the player starts at rest at 0, not at the partner's position, and
 stops at the walls. In a group it follows its neighbours' mean (METHODS section 8).
 """
