@@ -24,7 +24,10 @@ input-to-frame p50 and p95 and its longest frame gap are reported in three windo
 - ``huge spec``: session-create requests whose avatar spec is a 1 GiB file (a sparse file made
   with ``truncate``: its size is real, its blocks are not), as ``.npz`` and ``.csv`` in turn;
 - ``slow avatar``: session-create requests whose plan holds eight of the largest legal DQN
-  avatars (8 hidden layers of 1024 units), timed by the server and refused as too slow.
+  avatars (8 hidden layers of 1024 units), timed by the server and refused as too slow;
+- ``FIFO resume``, ``huge resume``, ``nested resume``: requests resuming a participant's run
+  of the protocol loaded from the console (`RESUME_PROTOCOL`) whose folder's ``study.json`` is
+  a FIFO, a 600 MB file (its JSON padded with real spaces), or JSON nested 200 000 deep.
 
 The baseline of each case is its own "before" window. The server's peak resident memory, the
 machine's load average and, per window, how long the server's main thread waited for a CPU
@@ -35,6 +38,7 @@ from __future__ import annotations
 
 import asyncio
 import csv
+import functools
 import io
 import os
 import signal
@@ -54,6 +58,7 @@ import numpy as np
 from websockets.asyncio.client import connect
 
 from mirror_avatar.deep.player import MAX_LAYERS, MAX_UNITS, DeepCyberPlayer
+from mirror_avatar.lab.files import STUDY_FILE
 from mirror_avatar.testing import raw_websocket
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -92,6 +97,30 @@ BATCH_INTERVAL = 0.5
 AVATAR = "bundled:slow"
 """The avatar of the good session and of the frozen page's session."""
 
+RESUME_PROTOCOL = """title = "resume"
+seed = 1
+
+[[blocks]]
+name = "main"
+
+[[blocks.conditions]]
+name = "together"
+game = "joint"
+players = [{ label = "P1", kind = "person" }, { label = "P2", kind = "person" }]
+trials = 1
+duration = 10
+"""
+"""The protocol loaded from the console (as ``resume.toml``) whose participants' runs resume."""
+
+RESUMES = {"FIFO resume": 1, "huge resume": 2, "nested resume": 3}
+"""The participant whose folder each resume case holds."""
+
+PADDED_BYTES = 600 * 2**20
+"""Size of the whitespace-padded ``study.json`` (bytes)."""
+
+NESTED = 200_000
+"""Depth of the nested ``study.json``."""
+
 
 def lowest() -> None:
     """Run at the lowest CPU priority (a flooding process: another machine's clients)."""
@@ -127,8 +156,9 @@ class Hostiles:
     Each returns a note saying what it did and how the server answered.
     """
 
-    def __init__(self, api: httpx.AsyncClient, base: str, folder: Path) -> None:
+    def __init__(self, api: httpx.AsyncClient, base: str, folder: Path, out: Path) -> None:
         self.api = api
+        self.out = out
         self.port = int(urlsplit(base).port or 80)
         self.reader_path = ""  # the good session's second person's socket path
         self.flood_target = ""  # a real join key's socket path, of a session never started
@@ -149,6 +179,17 @@ class Hostiles:
         big = DeepCyberPlayer(hidden=(MAX_UNITS,) * MAX_LAYERS)
         big.initialise_policy(0)
         big.save(self.big)
+        folders = {case: self.out / f"resume-p{n:03d}" for case, n in RESUMES.items()}
+        schedules = {case: folder / STUDY_FILE for case, folder in folders.items()}
+        for schedule in schedules.values():
+            schedule.parent.mkdir(parents=True)
+        os.mkfifo(schedules["FIFO resume"])
+        with schedules["huge resume"].open("wb") as file:
+            file.write(b'{"seed": 1, "participant": 2}')
+            spaces = b" " * 2**24
+            for _ in range(PADDED_BYTES // len(spaces)):
+                file.write(spaces)
+        schedules["nested resume"].write_text("[" * NESTED + "]" * NESTED)
 
     async def connection_flood(self, seconds: float) -> str:
         """Flood the server with connections from `FLOOD_ADDRESSES` (a process each)."""
@@ -219,6 +260,16 @@ class Hostiles:
         big = [avatar(f"A{k}", str(self.big)) for k in range(BIG_AVATARS)]
         plan = self._plan(big, condition="group")
         return await self._refused(seconds, lambda: [self._create(plan)])
+
+    async def resume(self, case: str, seconds: float) -> str:
+        """Ask to resume the run of the participant whose ``study.json`` is ``case``'s."""
+        body = {"participant": RESUMES[case]}
+
+        async def ask() -> tuple[int, str]:
+            answer = await self.api.post("/api/sessions", json=body)
+            return answer.status_code, str(answer.json().get("error", answer.text))
+
+        return await self._refused(seconds, lambda: [ask()])
 
     def _plan(self, avatars: list[dict[str, str]], condition: str = "joint") -> dict[str, Any]:
         return {"condition": condition, "duration": 10.0, "players": [person("P1"), *avatars]}
@@ -301,8 +352,10 @@ async def scenario(
     """Play the good session through every hostile case; return its log, marks and inputs."""
     headers = {"Authorization": f"Bearer {token}"}
     async with httpx.AsyncClient(base_url=base, headers=headers, timeout=300) as api:
-        hostiles = Hostiles(api, base, folder)
+        hostiles = Hostiles(api, base, folder, folder / "lab")
         await asyncio.to_thread(hostiles.prepare)
+        body = {"name": "resume.toml", "text": RESUME_PROTOCOL}
+        (await api.post("/api/protocol", json=body)).raise_for_status()
         cases: list[tuple[str, Callable[[float], Awaitable[str]]]] = [
             ("connection flood", hostiles.connection_flood),
             ("slow reader", hostiles.slow_reader),
@@ -310,6 +363,7 @@ async def scenario(
             ("FIFO specs", hostiles.fifo_specs),
             ("huge spec", hostiles.huge_spec),
             ("slow avatar", hostiles.slow_avatar),
+            *((case, functools.partial(hostiles.resume, case)) for case in RESUMES),
         ]
         cases = [(case, hostile) for case, hostile in cases if not only or case in only]
         duration = len(cases) * 4 * window + 30.0

@@ -31,6 +31,12 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     ------
     Path
         Where to write; removed if the body raises.
+
+    Raises
+    ------
+    OSError
+        The write failed (a full disk, a file-size limit): the error names ``path``, also when
+        the system's error named no file.
     """
     path = Path(path)
     handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
@@ -40,6 +46,10 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     try:
         yield temporary
         os.replace(temporary, path)
+    except OSError as error:
+        if error.filename is not None and error.filename != str(temporary):
+            raise
+        raise OSError(error.errno, error.strerror or str(error), str(path)) from error
     finally:
         temporary.unlink(missing_ok=True)
 

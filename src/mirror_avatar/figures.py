@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from mirror_avatar.metrics import compute_cluster_phase, compute_phase, compute_relative_phase
 from mirror_avatar.session import Session
 from mirror_avatar.signature import DEFAULT_BINS, Bins, Ellipse
+from mirror_avatar.signature_groups import GroupComparison
 
 HUMAN_SKEWNESS = (-0.5, 0.5)
 """Range of stroke skewness seen in people (METHODS section 3)."""
@@ -435,3 +436,34 @@ def plot_session(session: Session, trim: float = 0.0, seconds: float = 30.0) -> 
             kept.times, {"rho_g": cluster.group}
         )
     return figures
+
+
+def plot_group_comparison(comparison: GroupComparison) -> Figure:
+    """Two groups of people: their similarity space, and each test against its shuffled labels.
+
+    Left, the people (classical MDS of their mean EMD), a cross on each one classified into the
+    other group; middle, between- minus within-group EMD over relabellings of people, the true
+    value as a line; right, the leave-one-person-out accuracy likewise.
+    """
+    figure = Figure(figsize=(FIGSIZE[0] * 2, FIGSIZE[1]), layout="constrained")
+    FigureCanvasAgg(figure)
+    space, separation, accuracy = figure.subplots(1, 3)
+    wrong = comparison.classification.predicted != comparison.positive
+    for k, name in enumerate(comparison.groups):
+        mine = comparison.positive == bool(k)
+        xy = comparison.coordinates[mine]
+        space.scatter(xy[:, 0], xy[:, 1], s=22, color=f"C{k}", label=name, zorder=3)
+        missed = comparison.coordinates[mine & wrong]
+        space.scatter(missed[:, 0], missed[:, 1], s=60, marker="x", color="black", zorder=4)
+    space.set(xlabel="dimension 1 (EMD)", ylabel="dimension 2 (EMD)", title="People")
+    space.set_aspect("equal", adjustable="datalim")
+    space.legend(frameon=False)
+    for axes, test, label in (
+        (separation, comparison.separation, "between - within EMD"),
+        (accuracy, comparison.chance, "accuracy (leave one person out)"),
+    ):
+        axes.hist(test.null, bins=30, color="0.7", label="labels shuffled by person")
+        axes.axvline(test.statistic, color="C3", label=f"true labels (p = {test.p_value:.3g})")
+        axes.set(xlabel=label, ylabel="relabellings")
+        axes.legend(frameon=False, fontsize=7)
+    return figure

@@ -23,6 +23,7 @@ A model file may come from anyone, so `read_archive` reads nothing it has not bo
   `mirror_avatar.user_files.MAX_JSON_DEPTH` arrays and objects deep.
 
 The loaders then check every value they read with `check_integer`, `check_real`, `check_array`
+(every array value finite and at most `MAX_MAGNITUDE` in size unless a tighter range is given)
 and `check_object`; a value quoted in a message is cut by `mirror_avatar.importing.excerpt`.
 """
 
@@ -77,6 +78,12 @@ kilobytes)."""
 MAX_FILE_BYTES = MAX_TOTAL_BYTES + 2**24
 """Largest model archive read, in bytes: `MAX_TOTAL_BYTES` and 16 MiB for the zip's own records
 (**choice**)."""
+
+MAX_MAGNITUDE = 1e9
+"""Largest magnitude of a value in a model's arrays (`check_array`'s default range; **choice**:
+trained weights, Q values, counts and velocities stay orders of magnitude below, while a deep
+network of the largest layout `mirror_avatar.deep.player` reads, nine layers of at most 1024
+inputs, with weights this large still computes finite values, about 1e113 times its input)."""
 
 MEMBER_DATE = (1980, 1, 1, 0, 0, 0)
 """Date and time given to every member of a saved archive (the earliest a zip file can hold)."""
@@ -420,8 +427,8 @@ def check_array(
     array: NDArray[Any],
     kind: Kind,
     shape: tuple[int | None, ...],
-    low: float = -math.inf,
-    high: float = math.inf,
+    low: float = -MAX_MAGNITUDE,
+    high: float = MAX_MAGNITUDE,
 ) -> NDArray[Any]:
     """Return ``array`` if its dtype kind, shape and values are as expected.
 
@@ -438,7 +445,7 @@ def check_array(
     shape
         The expected shape; None matches any length along that axis.
     low, high
-        Every value must be finite and lie in [low, high].
+        Every value must be finite and lie in [low, high] (default ±`MAX_MAGNITUDE`).
 
     Raises
     ------
@@ -455,8 +462,11 @@ def check_array(
     bad = ~np.isfinite(array) | (array < low) | (array > high)
     if np.any(bad):
         value = array.flat[int(np.argmax(bad))]
-        span = "" if (low, high) == (-math.inf, math.inf) else f" and within {_bounds(low, high)}"
-        raise InputError(source, f"{name} holds {excerpt(value)}; its values must be finite{span}")
+        raise InputError(
+            source,
+            f"{name} holds {excerpt(value)}; its values must be finite and within "
+            f"{_bounds(low, high)}",
+        )
     return array
 
 

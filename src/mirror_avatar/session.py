@@ -18,6 +18,7 @@ for a trial, METHODS section 2).
 from __future__ import annotations
 
 import io
+import logging
 import math
 import os
 from collections.abc import Sequence
@@ -37,6 +38,8 @@ from mirror_avatar.graphs import Graph, check_graph, complete_graph
 from mirror_avatar.trial_io import MAX_FILE_BYTES, MAX_SIDECAR_BYTES
 from mirror_avatar.trials import compute_velocity
 from mirror_avatar.user_files import check_regular, open_regular, read_json, read_text
+
+logger = logging.getLogger(__name__)
 
 Array = NDArray[np.float64]
 CHANNELS = ("position", "velocity", "control", "reference")
@@ -260,8 +263,9 @@ class SessionWriter:
     """Append a session to a CSV file one sample at a time, each line flushed as it is written.
 
     The sidecar is written when the file is opened and rewritten (atomically) by `close`, so a
-    crash leaves a CSV whose complete lines `load_session` reads, and a sidecar saying the
-    recording did not finish (``metadata["complete"]`` is False until `close` says otherwise).
+    crash leaves a CSV whose complete lines `load_session` reads (a last line without its line
+    end, torn, is left out with a logged warning naming the file and line), and a sidecar saying
+    the recording did not finish (``metadata["complete"]`` is False until `close` says otherwise).
 
     Parameters
     ----------
@@ -420,6 +424,13 @@ def _read_columns(path: Path) -> dict[str, Array]:
 
         text = read_text(path, MAX_FILE_BYTES)
         complete = text if text.endswith("\n") else text[: text.rfind("\n") + 1]
+        if text[len(complete) :].strip():
+            logger.warning(
+                "%s: line %d has no line end (a recording cut off, e.g. by a full disk): it may "
+                "be torn and is left out",
+                path,
+                complete.count("\n") + 1,
+            )
         try:
             frame = pd.read_csv(io.StringIO(complete))
         except (ValueError, OSError) as error:

@@ -27,6 +27,13 @@ A SPEC is one of:
 
 Virtual trainers take the end-effector and cost parameters of the role. The format of an ``.npz``
 file is read from its JSON metadata without unpickling.
+
+Every player a spec names is checked when it is made: its parameters against their declared
+ranges and orders (a partner's ``PARAMETERS`` and ``ORDERED``), then a dry run of
+`mirror_avatar.players.base.DRY_RUN_SECONDS` against a scripted partner
+(`mirror_avatar.players.base.dry_run`): a spec whose player stops being finite, leaves the
+playing range or outruns `mirror_avatar.players.base.DRY_RUN_MAX_SPEED` is refused in one line
+naming it (and, for a partner, the parameters it gives).
 """
 
 from __future__ import annotations
@@ -55,6 +62,7 @@ from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.model_files import read_archive
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.players.adaptive import AdaptivePlayer
+from mirror_avatar.players.base import dry_run
 from mirror_avatar.players.dynamical import ModelPartner, parse_options
 from mirror_avatar.players.excitator import ExcitatorPartner
 from mirror_avatar.players.hkb_partner import HKBPartner
@@ -117,16 +125,24 @@ def load_player(
     Returns
     -------
     Player
+        Reset and dry-run (see the module docstring): reset it again before use.
 
     Raises
     ------
     InputError
-        ``spec: problem`` for an unknown spec, an unknown role, a missing or unreadable file, or a
-        cyber player asked to play a role it was not trained for.
+        ``spec: problem`` for an unknown spec, an unknown role, a missing or unreadable file, a
+        cyber player asked to play a role it was not trained for, or a player that diverges in
+        its dry run.
     """
-    partner = spec.partition(":")[0]
-    if partner in MODEL_PARTNERS:
+    if spec.partition(":")[0] in MODEL_PARTNERS:
         return model_partner(spec, role if isinstance(role, str) else "follower")
+    player = _build_player(spec, role, options)
+    dry_run(player, spec)
+    return player
+
+
+def _build_player(spec: str, role: str | HKBParams, options: ImportOptions) -> Player:
+    """Build the player of a spec that names no partner from the literature (`load_player`)."""
     params = preset(role) if isinstance(role, str) else role
     label = f"virtual trainer ({spec})"
     if spec.startswith("bundled:"):
@@ -162,15 +178,24 @@ def recording_file(spec: str) -> Path | None:
 
 
 def model_partner(spec: str, role: str = "follower") -> ModelPartner:
-    """Build the partner from the literature that ``NAME[:key=value,...]`` names.
+    """Build the partner from the literature that ``NAME[:key=value,...]`` names, dry-run.
 
     The adaptive player takes the leader's gains in a leading role; the others ignore the role.
+
+    Raises
+    ------
+    InputError
+        ``spec: problem``: a value that is no plain number, out of its range or out of order
+        with another (``ORDERED``), or a partner that diverges in its dry run.
     """
     kind = MODEL_PARTNERS[spec.partition(":")[0]]
     options = parse_options(spec, kind.PARAMETERS)
-    if kind is AdaptivePlayer:
-        return AdaptivePlayer(options, role)
-    return kind(options)
+    try:
+        player = AdaptivePlayer(options, role) if kind is AdaptivePlayer else kind(options)
+    except InputError as error:
+        raise InputError(spec, error.problem) from None
+    dry_run(player, spec, player.given())
+    return player
 
 
 def _read_recording(path: str, options: ImportOptions) -> Trial:

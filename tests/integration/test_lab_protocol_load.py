@@ -153,3 +153,11 @@ def test_loading_is_refused_while_a_participant_plays(lab, out):
     assert loaded.json()["protocol"]["title"] == "test study"
     assert create_participant(lab.url, 0, BEARER)["id"] == "study-p000"
     assert sorted(p.name for p in (out / "protocols").iterdir()) == ["people.toml", "study.toml"]
+
+
+def test_a_protocol_too_long_for_a_participant_loads_with_its_warning_shown(lab, out):
+    answer = load(lab.url, "marathon.toml", PEOPLE_ONLY.replace("trials = 1", "trials = 30"))
+    assert answer.status_code == 200, answer.text
+    warnings = answer.json()["protocol"]["warnings"]
+    assert len(warnings) == 1 and "h" in warnings[0], warnings
+    assert listing(lab.url)["protocol"]["warnings"] == warnings

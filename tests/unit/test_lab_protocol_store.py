@@ -29,7 +29,7 @@ UNSEEDED = re.sub(r"(?m)^seed = .*\n", "", SEEDED)
         ("My study (v2).toml", "My-study-v2"),
         ("C:\\Users\\lab\\pilot.toml", "pilot"),
         ("/home/lab/a.b.toml", "a-b"),
-        ("étude.toml", "tude"),
+        ("étude.toml", "étude"),
         ("x" * 100 + ".toml", "x" * 64),
     ],
 )
@@ -37,7 +37,7 @@ def test_a_protocol_is_kept_under_its_files_stem_in_safe_characters(chosen, name
     assert protocol_name(chosen) == name
 
 
-@pytest.mark.parametrize("chosen", ["", "---.toml", "../..", "ééé.toml"])
+@pytest.mark.parametrize("chosen", ["", "---.toml", "../..", "\u0301\u0301.toml"])
 def test_a_name_without_letters_or_digits_is_refused(chosen):
     with pytest.raises(InputError, match="the file name has no letters or digits"):
         protocol_name(chosen)

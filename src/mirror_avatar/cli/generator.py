@@ -19,7 +19,9 @@ from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator, sweep_codebook
 from mirror_avatar.importing import ImportOptions, excerpt
+from mirror_avatar.likeness import Likeness, compare_motion, trial_velocity
 from mirror_avatar.model_files import read_archive
+from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.trial_io import write_csv_trial
 from mirror_avatar.trials import Trial
 
@@ -52,6 +54,13 @@ def generator() -> None:
     help="Also sweep codebook sizes 32-256 on a 2/3 : 1/3 split of the trials and write "
     "MODEL.sweep.csv.",
 )
+@click.option(
+    "--likeness/--no-likeness",
+    default=True,
+    show_default=True,
+    help="Check generated motion against held-out trials with the human-likeness battery "
+    "(up to 5 trials held out in turn, each fold refitted) and write MODEL.likeness.json.",
+)
 @import_options
 def fit(
     paths: tuple[Path, ...],
@@ -60,10 +69,12 @@ def fit(
     seed: int,
     bundled: str | None,
     sweep: bool,
+    likeness: bool,
     options: ImportOptions,
 ) -> None:
     """Fit a generator on the trials in FILE_OR_DIR... (CSV, MAT, Parquet, BIDS motion)."""
-    check_output_file(out_path, ".npz", beside=[sweep_path(out_path)] if sweep else [])
+    beside = [path for path, wanted in ((sweep_path, sweep), (likeness_path, likeness)) if wanted]
+    check_output_file(out_path, ".npz", beside=[path(out_path) for path in beside])
     if not paths and bundled is None:
         raise InputError(None, "give trial files or directories, or --bundled fast|slow")
     trials = read_and_report(paths, "none", options) if paths else []
@@ -77,6 +88,8 @@ def fit(
         f"{len(trials)} trials, {summary['n_frames']} frames, {model.n_symbols_} symbols, "
         f"distortion {summary['distortion']:.4g} -> {out_path}"
     )
+    if likeness:
+        _report_likeness(trials, model, seed, out_path)
     if sweep:
         table = _sweep(trials, seed)
         write_atomic_text(sweep_path(out_path), table.to_csv())
@@ -87,6 +100,58 @@ def fit(
 def sweep_path(model: Path) -> Path:
     """Where ``generator fit --sweep`` writes its table: ``MODEL.sweep.csv``."""
     return model.with_name(model.stem + ".sweep.csv")
+
+
+def likeness_path(model: Path) -> Path:
+    """Where ``generator fit`` writes its human-likeness battery: ``MODEL.likeness.json``."""
+    return model.with_name(model.stem + ".likeness.json")
+
+
+LIKENESS_FOLDS = 5
+"""Most trials ``generator fit`` holds out in turn for the battery, spread over the order."""
+
+SAMPLES_PER_FOLD = 1
+"""Trials each fold's generator makes, as long as its held-out trial (**choice**: one, so that
+each generated trial comes from its own model as each held-out trial is its own recording, and
+the permutation tests relabel independent units)."""
+
+
+def _report_likeness(trials: list[Trial], model: IMSGenerator, seed: int, out_path: Path) -> None:
+    """Print and write the battery of generated against held-out trials (or why it is not run)."""
+    if len(trials) < 2:
+        click.echo("likeness not measured: it needs 2 trials, one to hold out")
+        return
+    try:
+        result = held_out_likeness(trials, model, seed)
+    except InputError as error:
+        click.echo(f"likeness not measured: {error}")
+        return
+    write_atomic_json(likeness_path(out_path), result.to_json_dict())
+    click.echo("generated trials against held-out ones (each fold refitted without its trial):")
+    click.echo(result.table().to_string(float_format=lambda v: f"{v:.4g}", na_rep="-"))
+    click.echo(f"likeness: {result.verdict()} -> {likeness_path(out_path)}")
+
+
+def held_out_likeness(trials: list[Trial], model: IMSGenerator, seed: int) -> Likeness:
+    """Run the human-likeness battery on generated trials against held-out ones.
+
+    Up to `LIKENESS_FOLDS` trials, spread over the order, are held out in turn; a generator
+    with ``model``'s settings and codebook size is fitted on the others and makes
+    `SAMPLES_PER_FOLD` trials as long as the held-out one. The person's own variability is that
+    of all their trials. Fold ``k`` is seeded by ``draw_seeds([seed, 38], folds)[k]``.
+    """
+    held = np.unique(np.linspace(0, len(trials) - 1, min(len(trials), LIKENESS_FOLDS)).round())
+    settings = model.get_params() | {"n_symbols": model.n_symbols_}
+    reference, generated = [], []
+    for k, fold_seed in zip(held.astype(int), draw_seeds([seed, 38], held.size), strict=True):
+        fitted = IMSGenerator(**settings | {"random_state": fold_seed}).fit(
+            trials[:k] + trials[k + 1 :]
+        )
+        reference.append(trial_velocity(trials[k], model.rate))
+        samples = fitted.sample(trials[k].duration, SAMPLES_PER_FOLD, random_state=fold_seed)
+        generated += [trial_velocity(t, model.rate) for t in samples]
+    own = [trial_velocity(t, model.rate) for t in trials]
+    return compare_motion(reference, generated, own=own, rate=model.rate, seed=seed)
 
 
 def _codebook_size(symbols: str) -> int | str:

@@ -73,6 +73,8 @@ def lab(
         click.echo(
             f"protocol {protocol_file}: {protocol.title!r}, seed {protocol.seed}, people {people}"
         )
+        for warning in protocol.warnings:
+            click.echo(f"warning: {warning}", err=True)
         if protocol.seed_drawn:
             click.echo(
                 f"warning: {protocol_file} has no seed: add 'seed = {protocol.seed}' to it, or a "

@@ -12,13 +12,24 @@ from mirror_avatar.cli.reading import group_option, import_options, read_and_rep
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.signature import compute_group_emd
-from mirror_avatar.figures import plot_ims, plot_similarity_space, plot_skew_kurtosis
+from mirror_avatar.figures import (
+    plot_group_comparison,
+    plot_ims,
+    plot_similarity_space,
+    plot_skew_kurtosis,
+)
 from mirror_avatar.importing import ImportOptions
+from mirror_avatar.likeness import trial_velocity
 from mirror_avatar.report import render_png
-from mirror_avatar.signature import analyse_signatures
+from mirror_avatar.signature import SignatureAnalysis, analyse_signatures
+from mirror_avatar.signature_groups import compare_groups, place_trials, read_group_map
+from mirror_avatar.trials import Trial
 
 FIGURES = ("ims.png", "similarity.png", "strokes.png")
 """The figures written beside ``signature.json``."""
+
+GROUP_FILES = ("groups.json", "groups.png")
+"""What ``--groups`` adds: the comparison's numbers and its figure."""
 
 
 @click.command()
@@ -50,6 +61,17 @@ FIGURES = ("ims.png", "similarity.png", "strokes.png")
     is_flag=True,
     help="Analyse the bundled Zhai 2017 trials (grouped by style) as well.",
 )
+@click.option(
+    "--groups",
+    "groups_path",
+    type=click.Path(path_type=Path),
+    help="Compare two groups of people: a CSV or TSV table with a column group and a column "
+    "person (a --group-by group) or trial (a trial's label; each trial its own person unless a "
+    "person column says whose). Writes groups.json and groups.png.",
+)
+@click.option(
+    "--seed", type=int, default=0, show_default=True, help="Seed of the --groups permutations."
+)
 @import_options
 def signature(
     paths: tuple[Path, ...],
@@ -58,6 +80,8 @@ def signature(
     level: float,
     rate: float,
     bundled: bool,
+    groups_path: Path | None,
+    seed: int,
     options: ImportOptions,
 ) -> None:
     """Compare the motor signatures of the trials in FILE_OR_DIR... (CSV, MAT, ...).
@@ -70,10 +94,14 @@ def signature(
         raise InputError("--rate", f"must be positive, got {rate}")
     if not paths and not bundled:
         raise InputError(None, "give trial files or directories, or --bundled")
-    check_output_dir(out_dir, files=["signature.json", *FIGURES])
+    group_files = list(GROUP_FILES) if groups_path is not None else []
+    check_output_dir(out_dir, files=["signature.json", *FIGURES, *group_files])
+    group_map = read_group_map(groups_path) if groups_path is not None else None
     trials = read_and_report(paths, group_by, options) if paths else []
     trials += load_zhai2017() if bundled else []
     analysis = analyse_signatures(trials, level=level, rate=rate)
+    if group_map is not None:
+        people, groups = place_trials(trials, analysis.labels, group_map)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_atomic_json(out_dir / "signature.json", analysis.to_json_dict())
     ims, similarity, strokes = FIGURES
@@ -102,4 +130,31 @@ def signature(
                 "ellipse in the similarity space (it needs 3)",
                 err=True,
             )
+    if group_map is not None:
+        if group_map.trials_as_people:
+            click.echo(
+                f"note: {groups_path} names trials without a person column: each is a person"
+            )
+        _compare_groups(trials, analysis, people, groups, group_map.order, seed, out_dir)
     click.echo(f"{len(trials)} trials in {len(analysis.group_names)} groups -> {out_dir}")
+
+
+def _compare_groups(
+    trials: list[Trial],
+    analysis: SignatureAnalysis,
+    people: list[str],
+    groups: list[str],
+    order: list[str],
+    seed: int,
+    out_dir: Path,
+) -> None:
+    """Compare the two groups of people, print the verdict and write its file and figure."""
+    velocities = [trial_velocity(t, analysis.rate) for t in trials]
+    comparison = compare_groups(
+        analysis.emd, people, groups, order, seed=seed, velocities=velocities, rate=analysis.rate
+    )
+    numbers, figure = GROUP_FILES
+    write_atomic_json(out_dir / numbers, comparison.to_json_dict())
+    write_atomic_bytes(out_dir / figure, render_png(plot_group_comparison(comparison)))
+    for line in comparison.verdict():
+        click.echo(line)

@@ -39,7 +39,8 @@ METRIC_ROWS = (
 SPEC_HELP = (
     "A player spec: bundled:fast, bundled:slow, a generator or cyber-player .npz, a recorded "
     "trial file (replayed), vt:TRIAL_FILE, or a partner from the literature: adaptive, rpc, hkb, "
-    "excitator or kuramoto, with parameters as NAME:key=value,..."
+    "excitator or kuramoto, with parameters as NAME:key=value,... (defaults and ranges: METHODS "
+    "section 13). A spec whose player diverges in a 5 s dry run is refused."
 )
 
 

@@ -7,6 +7,11 @@ each sample is read when the sample is taken. Each completed sample is recorded 
 the engine's sinks (for instance a `mirror_avatar.session.SessionWriter`, so a live recording is
 on disk as it happens). `play` runs a whole session; the Gymnasium environment and the live
 server call `Engine.step` themselves.
+
+A stepped player whose position or velocity stops being finite (or exceeds
+`mirror_avatar.players.base.DIVERGED_BEYOND`) ends the session: `Engine.step` raises
+`mirror_avatar.players.base.PlayerDiverged` naming the player and the sample, which is not taken
+(the samples before it are, and stay finite).
 """
 
 from __future__ import annotations
@@ -19,7 +24,14 @@ from numpy.typing import NDArray
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import GraphSource, draw_graph
-from mirror_avatar.players.base import ExternalPlayer, Observation, Player, gather_neighbours
+from mirror_avatar.players.base import (
+    DIVERGED_BEYOND,
+    ExternalPlayer,
+    Observation,
+    Player,
+    PlayerDiverged,
+    gather_neighbours,
+)
 from mirror_avatar.seeds import entropy_of, spawn_seeds
 from mirror_avatar.session import CHANNELS, Session, default_roles
 
@@ -118,9 +130,17 @@ class Engine:
             self._data[:2, i, 0] = player.reset(seed=self.player_seeds[i])
         self.k = 0
         self.n_taken = 0
+        self._stepped = np.flatnonzero([not isinstance(p, ExternalPlayer) for p in self.players])
+        self._check_finite(0)
 
     def step(self) -> None:
-        """Take sample k (reading the external players) and advance everyone to k + 1."""
+        """Take sample k (reading the external players) and advance everyone to k + 1.
+
+        Raises
+        ------
+        PlayerDiverged
+            When a stepped player's state at k + 1 has diverged (sample k is taken, k + 1 not).
+        """
         k, data = self.k, self._data
         if k + 1 >= self.n_samples:
             raise InputError("session", f"the session holds {self.n_samples} samples")
@@ -133,6 +153,15 @@ class Engine:
             data[3, i, k] = player.last_reference
         self._emit(k)
         self.k += 1
+        self._check_finite(self.k)
+
+    def _check_finite(self, k: int) -> None:
+        """Raise `PlayerDiverged` for the first stepped player whose state at k has diverged."""
+        bounded = (np.abs(self._data[:2, self._stepped, k]) <= DIVERGED_BEYOND).all(axis=0)
+        if not bounded.all():
+            i = int(self._stepped[np.argmin(bounded)])
+            x, v = (float(value) for value in self._data[:2, i, k])
+            raise PlayerDiverged(i, self.labels[i], k, self.period, (x, v))
 
     def finish(self) -> Session:
         """Take the last sample (reading the external players) and return the session."""

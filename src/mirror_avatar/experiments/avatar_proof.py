@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.cyber_player import CRITERIA
 from mirror_avatar.figures import plot_positions
 from mirror_avatar.importing import excerpt
+from mirror_avatar.likeness import Likeness, compare_motion, trial_velocity
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.seeds import draw_seeds
@@ -111,11 +112,16 @@ class HeldOutProof:
     to_avatar
         Source of the avatar's motion (``"played as follower"``...) -> EMD between each
         held-out trial's IMS and each of its sessions', shape (held-out x sessions,).
+    likeness
+        Source -> the human-likeness battery of its sessions against the held-out trials
+        (`mirror_avatar.likeness.compare_motion`, the person's own variability from all their
+        trials).
     """
 
     held_out: list[str]
     own: Array
     to_avatar: dict[str, Array]
+    likeness: dict[str, Likeness] = field(default_factory=dict)
 
     @property
     def played(self) -> Array:
@@ -176,6 +182,7 @@ class HeldOutProof:
             "own_emd_range": [lo, hi],
             "moves_like_the_person": self.moves_like,
             "verdict": self.verdict(),
+            "likeness": {source: result.to_json_dict() for source, result in self.likeness.items()},
         }
 
 
@@ -186,7 +193,11 @@ def trial_ims(trial: Trial) -> Array:
 
 
 def prove_held_out(
-    fitted: Sequence[Trial], held_out: Sequence[Trial], motion: Mapping[str, Sequence[Array]]
+    fitted: Sequence[Trial],
+    held_out: Sequence[Trial],
+    motion: Mapping[str, Sequence[Array]],
+    rate: float = DEFAULT_RATE,
+    seed: int = 0,
 ) -> HeldOutProof:
     """Compare held-out trials with the avatar's motion and with the person's own variation.
 
@@ -196,6 +207,10 @@ def prove_held_out(
         The person's trials fitted and held out (at least one held out).
     motion
         Source -> the avatar's velocity (units/s) in each session.
+    rate
+        Sampling rate (Hz) of the sessions; the battery resamples the trials to it.
+    seed
+        Seeds the human-likeness battery of each source.
     """
     ims = [trial_ims(t) for t in (*fitted, *held_out)]
     own = np.array([compute_emd(a, b) for a, b in itertools.combinations(ims, 2)])
@@ -204,7 +219,12 @@ def prove_held_out(
         source: np.array([compute_emd(h, compute_ims(v)) for h in held for v in velocities])
         for source, velocities in motion.items()
     }
-    return HeldOutProof([t.label for t in held_out], own, to_avatar)
+    velocities = [trial_velocity(t, rate) for t in (*fitted, *held_out)]
+    likeness = {
+        source: compare_motion(velocities[len(fitted) :], sessions, velocities, rate, seed=seed)
+        for source, sessions in motion.items()
+    }
+    return HeldOutProof([t.label for t in held_out], own, to_avatar, likeness)
 
 
 @dataclass
@@ -383,6 +403,10 @@ class Proof:
             tables[
                 f"Velocity IMS EMD to the held-out trials ({', '.join(self.held_out.held_out)})"
             ] = self.held_out.table()
+            for source, result in self.held_out.likeness.items():
+                tables[f"Human-likeness of the avatar {source}, against the held-out trials"] = (
+                    result.table()
+                )
         if self.partners is not None:
             tables["The person and the avatar against their partner's recorded track (mean)"] = (
                 self.partners.table()

@@ -149,7 +149,11 @@ def create_avatar(
     avatar = Avatar(name, generator, {r.role: r.player for r in results}, summary)
     report("checking the avatar against the person")
     proof = Proof(
-        prove_held_out(fitted, held_out, _played_motion(results)) if held_out else None,
+        prove_held_out(
+            fitted, held_out, _played_motion(results), 1.0 / results[0].player.period, seed
+        )
+        if held_out
+        else None,
         prove_with_partners(avatar, partner_sessions, seed=seed) if partner_sessions else None,
         held_out,
     )

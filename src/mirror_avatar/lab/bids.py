@@ -61,6 +61,7 @@ from mirror_avatar.bids.tables import read_tsv
 from mirror_avatar.bids.writing import one_line, tsv_table, tsv_values
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.bids_events import EVENT_COLUMN_INFO, EVENT_COLUMNS, trial_events
+from mirror_avatar.lab.bids_lock import dataset_lock
 from mirror_avatar.lab.bids_study import (
     STUDY_COLUMNS,
     StudyRun,
@@ -169,7 +170,9 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     (existing rows kept); a trial's answers become each participant's ``_beh.tsv``;
     ``sourcedata/<session id>/`` receives copies of the trial files (with their inputs and
     answers) and ``plan.json`` or ``study.json``. Every file is written atomically, and nothing
-    is written before every trial (and every table merged into) has been read.
+    is written before every trial (and every table merged into) has been read. Exports into one
+    ``out_dir`` take turns (`mirror_avatar.lab.bids_lock.dataset_lock`, across threads and
+    processes), so that none loses the rows another adds to the tables.
 
     Parameters
     ----------
@@ -200,20 +203,21 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     study = read_study(session_dir)
     trials = [_read_lab_trial(path, study) for path in files]
     session_id = _one_session(session_dir, trials)
-    _check_acquisition(out_dir, session_id)
-    columns, participants = _read_participants(out_dir / "participants.tsv", study)
-    for trial in trials:
-        _add_participants(participants, trial, out_dir / "participants.tsv")
-    described = _read_column_info(out_dir / "participants.json")
-    subjects = {_subject(trial, k) for trial in trials for k in trial.humans()}
-    for subject in sorted(subjects):  # a damaged table is refused before anything is written
-        read_tsv(out_dir / subject / f"{subject}_scans.tsv", "filename")
-    written, answered = _write_trials(trials, out_dir)
-    _copy_sources(session_dir, files, out_dir / "sourcedata" / session_id)
-    _write_participants(out_dir, columns, participants, described)
-    _write_description(out_dir)
-    write_atomic_json(out_dir / f"task-{TASK}_events.json", EVENT_COLUMN_INFO)
-    write_descriptions(out_dir, TASK, answers=answered)
+    with dataset_lock(out_dir):  # the tables are read, merged and written by one export at once
+        _check_acquisition(out_dir, session_id)
+        columns, participants = _read_participants(out_dir / "participants.tsv", study)
+        for trial in trials:
+            _add_participants(participants, trial, out_dir / "participants.tsv")
+        described = _read_column_info(out_dir / "participants.json")
+        subjects = {_subject(trial, k) for trial in trials for k in trial.humans()}
+        for subject in sorted(subjects):  # a damaged table is refused before anything is written
+            read_tsv(out_dir / subject / f"{subject}_scans.tsv", "filename")
+        written, answered = _write_trials(trials, out_dir)
+        _copy_sources(session_dir, files, out_dir / "sourcedata" / session_id)
+        _write_participants(out_dir, columns, participants, described)
+        _write_description(out_dir)
+        write_atomic_json(out_dir / f"task-{TASK}_events.json", EVENT_COLUMN_INFO)
+        write_descriptions(out_dir, TASK, answers=answered)
     return written
 
 

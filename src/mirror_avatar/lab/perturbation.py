@@ -49,7 +49,7 @@ from mirror_avatar.lab.checker import Checker
 from mirror_avatar.model_files import read_archive
 from mirror_avatar.players.adaptive import AdaptivePlayer
 from mirror_avatar.players.base import Player
-from mirror_avatar.players.dynamical import parse_options
+from mirror_avatar.players.dynamical import parse_number, parse_options
 from mirror_avatar.specs import MODEL_PARTNERS, load_player
 from mirror_avatar.training.avatar import FORMAT_NAME as AVATAR_FORMAT
 from mirror_avatar.training.avatar import POLICY_FOR_ROLE
@@ -258,11 +258,8 @@ def _values(check: Checker, where: str, text: str) -> tuple[tuple[str, float], .
     values: dict[str, float] = {}
     for item in text.split(","):
         key, _, raw = (part.strip() for part in item.partition("="))
-        try:
-            number = float(raw)
-        except ValueError:
-            number = math.nan
-        if not key or not math.isfinite(number) or key in values:
+        number = parse_number(raw)
+        if not key or number is None or key in values:
             raise check.error(
                 where, f"{item.strip()!r} is not a new key=number", 'e.g. "theta_p=0.5,omega=0.3"'
             )

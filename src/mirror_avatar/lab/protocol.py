@@ -14,7 +14,9 @@ block's conditions is fixed, random or counterbalanced across participants
 (`mirror_avatar.lab.order`).
 
 Every mistake is refused with one line naming the file, the key path (such as
-``blocks[1].conditions[0].players``), the problem and how to fix it.
+``blocks[1].conditions[0].players``), the problem and how to fix it; every avatar is built and
+dry-run in each condition's role when the protocol is read, and a run planned too long for a
+participant is read with a warning (`mirror_avatar.lab.protocol_checks`, `Protocol.warnings`).
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from mirror_avatar.lab.order import (
 )
 from mirror_avatar.lab.perturbation import Perturbation, parse_perturbations
 from mirror_avatar.lab.plan import CONDITIONS, MAX_SPEC_CHARS, SessionPlan, parse_plan
+from mirror_avatar.lab.protocol_checks import AvatarCheck, long_run
 from mirror_avatar.user_files import read_text
 
 PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
@@ -199,6 +202,15 @@ class Condition:
         """Number of trials."""
         return int(self.settings.get("trials", 1))
 
+    @property
+    def choices(self) -> tuple[str, ...]:
+        """Labels of its ``person-or-avatar`` slots."""
+        return tuple(p.label for p in self.players if p.kind == "person-or-avatar")
+
+    def with_avatars(self) -> SessionPlan:
+        """Return its plan with every ``person-or-avatar`` slot filled by the avatar (seed 0)."""
+        return self.plan(dict.fromkeys(self.choices, False), 0)
+
     def plan(self, persons: dict[str, bool], seed: int) -> SessionPlan:
         """Return the condition's plan, each ``person-or-avatar`` slot decided by ``persons``.
 
@@ -259,6 +271,8 @@ class Protocol:
         One of `BLINDS`: ``"single"``, the participants' pages never show a partner's kind;
         ``"double"``, the researcher's console neither, until export
         (`mirror_avatar.lab.blinding`).
+    warnings
+        What is odd but allowed, one line each (`mirror_avatar.lab.protocol_checks.long_run`).
     """
 
     source: str
@@ -269,6 +283,7 @@ class Protocol:
     blocks: tuple[Block, ...]
     seed_drawn: bool = field(default=False, compare=False)
     blind: str = "single"
+    warnings: tuple[str, ...] = field(default=(), compare=False)
 
     @property
     def people(self) -> tuple[str, ...]:
@@ -339,12 +354,15 @@ def protocol_table(text: str, source: str) -> dict[str, Any]:
     Raises
     ------
     InputError
-        ``FILE: not valid TOML: ...`` with where the syntax fails.
+        ``FILE: not valid TOML: ...`` with where the syntax fails, or arrays and tables nested
+        deeper than Python's recursion limit.
     """
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise InputError(source, f"not valid TOML: {error} (fix the syntax there)") from None
+    except RecursionError:  # tomllib reads nested arrays and tables recursively
+        raise InputError(source, "arrays or tables nested too deeply (flatten them)") from None
 
 
 def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
@@ -370,8 +388,24 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
             if names.count(condition.name) > 1:
                 where = f"blocks[{b}].conditions[{c}].name"
                 raise check.error(where, f"{condition.name!r} names two conditions", "rename one")
-    drawn = "seed" not in data
-    return Protocol(source, title, int(seed), order, questions, parsed, drawn, str(blind))
+    avatars, plans = AvatarCheck(check), []
+    for b, block in enumerate(parsed):
+        for c, condition in enumerate(block.conditions):
+            plans.append(condition.with_avatars())
+            avatars.condition(
+                f"blocks[{b}].conditions[{c}]", condition.name, plans[-1], condition.perturb
+            )
+    return Protocol(
+        source,
+        title,
+        int(seed),
+        order,
+        questions,
+        parsed,
+        seed_drawn="seed" not in data,
+        blind=str(blind),
+        warnings=long_run(source, plans),
+    )
 
 
 def _questions(check: Checker, value: object) -> dict[str, Question]:

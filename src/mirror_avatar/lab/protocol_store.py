@@ -3,8 +3,10 @@
 The console sends a protocol's TOML text with the name of the file the researcher chose
 (`store_protocol`). It is validated as a ``--protocol`` file is (`mirror_avatar.lab.protocol`),
 every mistake refused with one line naming the chosen file, and a copy is kept as
-``OUT/protocols/<name>.toml``, ``<name>`` being the chosen file's stem with every run of
-characters other than letters, digits, ``-`` and ``_`` made one ``-``. The copy is the
+``OUT/protocols/<name>.toml``, ``<name>`` being the chosen file's stem in Unicode's composed
+form (NFC) with every run of characters other than letters, digits (of any script: ``études``,
+``протокол``), ``-`` and ``_`` made one ``-`` - so no path separator, dot or control character
+stays -, cut to `MAX_NAME_CHARS` characters and `MAX_NAME_BYTES` bytes of UTF-8. The copy is the
 protocol's source: participants' folders are named after its stem
 (`mirror_avatar.lab.study.study_folder`), so a server restarted with ``--protocol
 OUT/protocols/<name>.toml`` resumes the same folders.
@@ -24,6 +26,7 @@ copy resolves them the same way after a restart from the same directory.
 from __future__ import annotations
 
 import re
+import unicodedata
 from dataclasses import replace
 from pathlib import Path, PurePosixPath
 
@@ -49,8 +52,13 @@ DRAWN_SEED = re.compile(r"seed = \d+  # drawn when the protocol was loaded from 
 MAX_NAME_CHARS = 64
 """Longest name of a kept protocol (characters)."""
 
-NOT_NAME = re.compile(r"[^A-Za-z0-9_-]+")
-"""Runs of characters a kept protocol's name does not hold."""
+MAX_NAME_BYTES = 200
+"""Longest name of a kept protocol in UTF-8 (bytes): with ``.toml`` or a participant's
+``-p003``, within the 255 bytes a file name may have."""
+
+NOT_NAME = re.compile(r"[^\w-]+")
+"""Runs of characters a kept protocol's name does not hold: all but letters and digits of any
+script, ``_`` and ``-``."""
 
 
 def file_part(file_name: str) -> str:
@@ -67,7 +75,11 @@ def protocol_name(file_name: str) -> str:
         A name with no letter or digit.
     """
     part = file_part(file_name)
-    name = NOT_NAME.sub("-", PurePosixPath(part).stem).strip("-_")[:MAX_NAME_CHARS]
+    stem = unicodedata.normalize("NFC", PurePosixPath(part).stem)
+    name = NOT_NAME.sub("-", stem).strip("-_")[:MAX_NAME_CHARS]
+    while len(name.encode("utf-8")) > MAX_NAME_BYTES:
+        name = name[:-1]
+    name = name.rstrip("-_")
     if not name:
         problem = "the file name has no letters or digits (rename it, e.g. study.toml)"
         raise InputError(part or "protocol", problem)

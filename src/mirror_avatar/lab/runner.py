@@ -16,6 +16,8 @@ the console's events at once; the trial goes on with their position held, unless
 ``on_drop: "stop"``; the researcher may stop it from the console either way. Opening the link
 again rejoins. A trial whose recording cannot be written (a full disk) ends as ``"disk full"``:
 the samples written stay, the pages get their end message, and the next trial opens new files.
+A trial whose avatar diverges ends at that sample, the player and the sample its end reason in
+the console's events and the trial's sidecar (`mirror_avatar.realtime.trial.ClockedTrial`).
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ from mirror_avatar.lab.files import PLAN_FILE
 from mirror_avatar.lab.perturbation import Perturbation
 from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.lab.trial import LabTrial, build_avatars
-from mirror_avatar.players.base import Player
+from mirror_avatar.players.base import Player, PlayerDiverged
 from mirror_avatar.realtime.clock import MAX_STEP, ClockLimits, run_on_clock
 from mirror_avatar.realtime.inputs import BrowserInput, InputSource
 from mirror_avatar.realtime.latency import Pings
@@ -407,7 +409,7 @@ class LabSession:
         except asyncio.CancelledError:  # stopped while its files were opening: `stop` closes them
             self.trial = await opening
             raise
-        except OSError:  # its number is taken by whatever files were made: the next is new
+        except (OSError, PlayerDiverged):  # its number is taken by the files made: the next is new
             self.next_trial += 1
             raise
         self.trial, self.state, self._stop_reason = trial, "running", None

@@ -33,9 +33,10 @@ Access: ``/console`` and ``/api`` need the researcher's token always, even on lo
 one). A join link holds the secret key of one person's slot in one session: it shows that
 session only, moves that person's point only, and expires when the session ends. WebSocket
 handshakes from another origin are refused. Rates are limited per client address (API
-requests, connections) and per connection (messages). Clients never name a path: files are
-written by the server into ``OUT/<session id>/`` under names it makes, and served only from the
-session's own folder by the names it lists.
+requests, connections; the researcher's token-carrying requests have a budget of their own, so a
+flood from their address does not slow them) and per connection (messages). Clients never name
+a path: files are written by the server into ``OUT/<session id>/`` under names it makes, and
+served only from the session's own folder by the names it lists, through the checked reader.
 """
 
 from __future__ import annotations
@@ -44,15 +45,16 @@ import asyncio
 import contextlib
 import functools
 import io
-import json
 import logging
+import mimetypes
+import os
 import re
 import time
-from collections.abc import Callable
+from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from starlette.applications import Starlette
 from starlette.middleware import Middleware
@@ -63,6 +65,7 @@ from starlette.responses import (
     PlainTextResponse,
     RedirectResponse,
     Response,
+    StreamingResponse,
 )
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
@@ -90,6 +93,8 @@ from mirror_avatar.realtime.messages import PositionUpdate
 from mirror_avatar.realtime.outbox import Outbox, Peer
 from mirror_avatar.realtime.settings import PageSettings
 from mirror_avatar.realtime.trial import Clock
+from mirror_avatar.trial_io import MAX_FILE_BYTES
+from mirror_avatar.user_files import open_regular, parse_json
 
 STATIC = Path(__file__).parent / "static"
 """The console's and the participants' pages."""
@@ -165,6 +170,7 @@ class Lab:
     only the `KEEP_ENDED` most recent stay listed, so memory and the console's answers do not
     grow with the sessions a server has run. ``protocol`` is the protocol whose participants'
     runs are created: the settings' at first, then the last one loaded from the console.
+    ``opening`` names the sessions whose folders are being made or read in a worker thread.
     """
 
     settings: LabSettings
@@ -172,54 +178,71 @@ class Lab:
     keys: dict[str, tuple[LabSession, Participant]] = field(default_factory=dict)
     created: int = 0
     protocol: Protocol | None = field(init=False)
+    opening: set[str] = field(default_factory=set)
 
     def __post_init__(self) -> None:
         self.protocol = self.settings.protocol
 
-    def create(self, plan: SessionPlan, avatars: dict[int, Player]) -> LabSession:
-        """Create a session of ``plan`` with its avatars, built (`build_avatars`)."""
+    async def create(self, plan: SessionPlan, avatars: dict[int, Player]) -> LabSession:
+        """Create a session of ``plan`` with its avatars, built (`build_avatars`).
+
+        Its folder and ``plan.json`` are written in a worker thread.
+        """
         self.forget_ended()
         active = [s for s in self.sessions.values() if not s.ended]
-        if len(active) >= self.settings.max_sessions:
+        if len(active) + len(self.opening) >= self.settings.max_sessions:
             raise InputError("plan", f"{len(active)} sessions are open: end one first")
         self.created += 1
         stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
         session_id = f"{stamp}-{self.created:03d}"
         outlet, open_device, clock = lsl_hooks(self.settings.lsl, session_id, plan)
-        session = LabSession(
-            session_id,
-            plan,
-            self.settings.out_dir / session_id,
-            clock,
-            self.settings.countdown,
-            self.settings.max_tick,
-            outlet,
-            open_device,
-        )
+        self.opening.add(session_id)
+        try:
+            session = await asyncio.to_thread(
+                LabSession,
+                session_id,
+                plan,
+                self.settings.out_dir / session_id,
+                clock,
+                self.settings.countdown,
+                self.settings.max_tick,
+                outlet,
+                open_device,
+            )
+        finally:
+            self.opening.discard(session_id)
         session.avatars = avatars
         self._add(session)
         return session
 
-    def create_study(self, participant: int) -> LabSession:
+    async def create_study(self, participant: int) -> LabSession:
         """Create (or resume from its folder) participant ``participant``'s run of the protocol.
 
-        With LSL, the session stamps its samples on the LSL clock and publishes one outlet
-        for the participant's whole run (`study_outlet`).
+        The folder is made, or its ``study.json`` read and its trials listed, in a worker
+        thread (`mirror_avatar.lab.study.read_schedule`: the checked reader), so that a bad
+        folder delays no one's clock. With LSL, the session stamps its samples on the LSL
+        clock and publishes one outlet for the participant's whole run (`study_outlet`).
         """
         protocol = self.protocol
         assert protocol is not None
         self.forget_ended()
         name = study_folder(protocol, participant)
-        if name in self.sessions and not self.sessions[name].ended:
+        open_ = name in self.sessions and not self.sessions[name].ended
+        if open_ or name in self.opening:
             raise InputError("participant", f"participant {participant}'s session is open")
-        session = StudySession(
-            protocol,
-            participant,
-            self.settings.out_dir / name,
-            lsl_clock() if self.settings.lsl else time.monotonic,
-            self.settings.countdown,
-            self.settings.max_tick,
-        )
+        self.opening.add(name)
+        try:
+            session = await asyncio.to_thread(
+                StudySession,
+                protocol,
+                participant,
+                self.settings.out_dir / name,
+                lsl_clock() if self.settings.lsl else time.monotonic,
+                self.settings.countdown,
+                self.settings.max_tick,
+            )
+        finally:
+            self.opening.discard(name)
         if self.settings.lsl:
             session.outlet = study_outlet(session)
         self.sessions.pop(name, None)
@@ -332,7 +355,14 @@ def create_lab_app(settings: LabSettings) -> ASGIApp:
         ],
         exception_handlers={ApiError: api_error},
         middleware=[
-            Middleware(RateGate, rate=rate, burst=4 * rate, paths=("/api", "/ws")),
+            Middleware(
+                RateGate,
+                rate=rate,
+                burst=4 * rate,
+                paths=("/api", "/ws"),
+                token=settings.token,
+                cookie=TOKEN_COOKIE,
+            ),
             Middleware(
                 TokenGate,
                 token=settings.token,
@@ -405,13 +435,15 @@ class LabApi:
                 running = self.lab.open_study(participant)
                 if running is not None:
                     return _json(self._status(running, request))
-                session = self.lab.create_study(participant)
+                session = await self.lab.create_study(participant)
             else:
                 plan = parse_plan(data)
                 avatars = await asyncio.to_thread(build_avatars, plan)
-                session = self.lab.create(plan, avatars)
+                session = await self.lab.create(plan, avatars)
         except InputError as error:
             raise ApiError(400, str(error)) from None
+        except OSError as error:
+            raise unwritable(error) from None
         return _json(self._status(session, request), 201)
 
     def _participant(self, participant: object) -> int:
@@ -455,6 +487,8 @@ class LabApi:
                 )
             except InputError as error:
                 raise ApiError(400, str(error)) from None
+            except OSError as error:
+                raise unwritable(error) from None
             self.lab.protocol = protocol
         logger.info("protocol %s loaded from the console", protocol.source)
         return _json({"protocol": protocol_summary(protocol)})
@@ -506,7 +540,7 @@ class LabApi:
         target = self.lab.settings.out_dir / folder
         if folder == PROTOCOLS_FOLDER:
             raise ApiError(400, f"folder: {folder} holds the loaded protocols, not a BIDS dataset")
-        if folder in self.lab.sessions or is_session_folder(target):
+        if folder in self.lab.sessions or await asyncio.to_thread(is_session_folder, target):
             raise ApiError(400, f"folder: {folder} is a session's folder, not a BIDS dataset")
         if session.state in PLAYING:
             problem = f"the session is playing ({session.state}): export when it waits or has ended"
@@ -520,20 +554,36 @@ class LabApi:
             motion_files, files = await asyncio.to_thread(export)
         except InputError as error:
             raise ApiError(400, str(error)) from None
+        except OSError as error:
+            raise unwritable(error) from None
         session.log(f"exported {motion_files} motion files to {target}")
         return _json({"folder": str(target), "files": files, "motion_files": motion_files})
 
     async def file(self, request: Request) -> Response:
-        """Serve a file of the session's folder, by one of the names the session lists."""
+        """Serve a file of the session's folder, by one of the names the session lists.
+
+        Opened in a worker thread by the checked reader (`mirror_avatar.user_files.
+        open_regular`: a regular file of at most `MAX_FILE_BYTES`) and sent in chunks read in
+        worker threads.
+        """
         name = request.path_params["name"]
         session = self._session(request)
         if hidden_of(session):
             problem = "the protocol is double blind: a run's files are hidden until its export"
             return _json({"error": problem}, 403)
         path = session.directory / name
-        if not FILE_NAME.fullmatch(name) or not path.is_file():
+        if not FILE_NAME.fullmatch(name):
             return _json({"error": "no such file in this session"}, 404)
-        return FileResponse(path, headers={"Cache-Control": "no-store"})
+        try:
+            handle = await asyncio.to_thread(open_regular, path, MAX_FILE_BYTES)
+        except InputError:
+            return _json({"error": "no such file in this session"}, 404)
+        size = os.fstat(handle.fileno()).st_size
+        return StreamingResponse(
+            file_chunks(handle),
+            media_type=mimetypes.guess_type(name)[0] or "application/octet-stream",
+            headers={"Cache-Control": "no-store", "Content-Length": str(size)},
+        )
 
     async def qr(self, request: Request) -> Response:
         """Serve the QR code (SVG) of a person's join link."""
@@ -556,13 +606,14 @@ class LabApi:
 
 
 def protocol_summary(protocol: Protocol) -> dict[str, Any]:
-    """Return the protocol as the console shows it: title, seed, people, blinding, its file."""
+    """Return the protocol as the console shows it: title, seed, people, blind, file, warnings."""
     return {
         "title": protocol.title,
         "seed": protocol.seed,
         "people": protocol.people,
         "blind": protocol.blind,
         "file": protocol.source,
+        "warnings": list(protocol.warnings),
     }
 
 
@@ -580,6 +631,13 @@ class ApiError(Exception):
         self.status = status
 
 
+def unwritable(error: OSError) -> ApiError:
+    """Say in one line which file the server could not write (a full disk, a file-size limit)."""
+    line = str(InputError(error.filename, error.strerror or type(error).__name__))
+    logger.warning("cannot write: %s", line)
+    return ApiError(500, line)
+
+
 async def api_error(request: Request, error: Exception) -> Response:
     """Answer an `ApiError` as JSON."""
     assert isinstance(error, ApiError)
@@ -587,6 +645,14 @@ async def api_error(request: Request, error: Exception) -> Response:
 
 
 async def _body(request: Request, allow_empty: bool = False, limit: int = MAX_BODY_BYTES) -> Any:
+    """Read a request's JSON body: at most ``limit`` bytes, parsed by the bounded parser.
+
+    Raises
+    ------
+    ApiError
+        400: over the limit, or not JSON (`mirror_avatar.user_files.parse_json`: not UTF-8,
+        nested too deeply, NaN or a number beyond float64's range).
+    """
     raw = bytearray()
     async for chunk in request.stream():  # read no further than the limit
         raw += chunk
@@ -595,9 +661,18 @@ async def _body(request: Request, allow_empty: bool = False, limit: int = MAX_BO
     if not raw and allow_empty:
         return {}
     try:
-        return json.loads(raw)
-    except ValueError:
-        raise ApiError(400, "the request body is not valid JSON") from None
+        return await asyncio.to_thread(parse_json, bytes(raw), None, "the request body")
+    except InputError as error:
+        raise ApiError(400, str(error)) from None
+
+
+async def file_chunks(handle: IO[bytes], size: int = 2**16) -> AsyncIterator[bytes]:
+    """Yield an open file's bytes in chunks of ``size`` read in worker threads, then close it."""
+    try:
+        while chunk := await asyncio.to_thread(handle.read, size):
+            yield chunk
+    finally:
+        handle.close()
 
 
 def _json(data: dict[str, Any], status: int = 200) -> JSONResponse:

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import asyncio
 import collections
-import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -43,6 +42,8 @@ from mirror_avatar.realtime.clock import MAX_STEP
 from mirror_avatar.realtime.outbox import Outbox
 from mirror_avatar.realtime.trial import Array, Clock
 from mirror_avatar.seeds import spawn_seeds
+from mirror_avatar.trial_io import read_sidecar_text
+from mirror_avatar.user_files import parse_json
 
 
 @dataclass
@@ -148,22 +149,21 @@ class StudySession(LabSession):
             self.directory.mkdir(parents=True)
             write_atomic_json(path, self.describe())
             return
-        try:
-            recorded = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            raise InputError(path, "this folder holds no readable study (move it away)") from None
+        recorded = read_schedule(path)
         expected = self.describe()
         for key in ("seed", "participant"):
             if recorded.get(key) != expected[key]:
                 raise InputError(path, f"recorded with another {key} (use another --out folder)")
-        names = [(c.get("condition"), c.get("players")) for c in recorded.get("order", [])]
+        order = recorded.get("order")
+        names = [
+            (c.get("condition"), c.get("players")) if isinstance(c, dict) else None
+            for c in (order if isinstance(order, list) else [])
+        ]
         if names != [(c["condition"], c["players"]) for c in expected["order"]]:
             raise InputError(path, "recorded with another order (use another --out folder)")
-        self.created_utc = recorded.get("created_utc", self.created_utc)
-        self.next_trial = 1 + max(
-            (n for n in range(1, self.total_trials + 1) if _recorded(self.directory, n)),
-            default=0,
-        )
+        created = recorded.get("created_utc")
+        self.created_utc = created if isinstance(created, str) else self.created_utc
+        self.next_trial = first_unrecorded(self.directory, self.total_trials)
         self.log(f"resumed at trial {self.next_trial} of {self.total_trials}")
 
     def _step_of(self, n: int) -> int:
@@ -470,6 +470,55 @@ def answers_path(directory: Path, n: int) -> Path:
     """Return the file of the answers given after trial n."""
     stem = trial_stem(directory, n)
     return stem.with_name(stem.name + ANSWERS_SUFFIX)
+
+
+def read_schedule(path: Path) -> dict[str, Any]:
+    """Read a run's ``study.json`` through the checked reader (`mirror_avatar.user_files`).
+
+    At most `mirror_avatar.trial_io.MAX_SIDECAR_BYTES`, a regular file (never a FIFO or a
+    device, whose read could wait for ever), JSON nested at most
+    `mirror_avatar.user_files.MAX_JSON_DEPTH` deep.
+
+    Raises
+    ------
+    InputError
+        One line naming the file: not a regular file, too large, not UTF-8, not JSON, nested
+        too deeply, or not a JSON object.
+    """
+    try:
+        recorded = parse_json(read_sidecar_text(path), path)
+    except InputError as error:
+        raise InputError(
+            path, f"this folder holds no readable study ({error.problem}; move the folder away)"
+        ) from None
+    if not isinstance(recorded, dict):
+        raise InputError(path, "this folder holds no readable study (move the folder away)")
+    return recorded
+
+
+def first_unrecorded(directory: Path, total: int) -> int:
+    """Return the trial a run resumes at: the first of 1..``total`` with no file on disk.
+
+    **Choice**: a trial with no file before one with files (a gap: files deleted or moved) is
+    refused rather than played out of the order recorded in ``study.json``.
+
+    Raises
+    ------
+    InputError
+        A gap, naming the missing trial and the next one recorded.
+    """
+    recorded = [n for n in range(1, total + 1) if _recorded(directory, n)]
+    following = len(recorded) + 1
+    gaps = [n for n in range(1, following) if n not in recorded]
+    if gaps:
+        stem = trial_stem(directory, gaps[0]).name
+        later = next(n for n in recorded if n > gaps[0])
+        raise InputError(
+            directory,
+            f"trial {gaps[0]} has no files ({stem}_*) but trial {later} has: restore "
+            f"{stem}'s files, or move the folder away to run the participant afresh",
+        )
+    return following
 
 
 def _recorded(directory: Path, n: int) -> bool:

@@ -24,8 +24,10 @@ When a trial ends, its sidecar records the session's metrics (``metrics``:
 `mirror_avatar.metrics.measures.session_measures` with `LAB_SURROGATES` circular-shift
 surrogates seeded by the trial's seed), computed in the worker thread that finishes the trial.
 
-Whatever happens - a participant drops, the disk fills, the server is killed - the lines
-written stay readable; the sidecar says ``"complete": false`` until the trial ends well.
+Whatever happens - a participant drops, the disk fills, the server is killed, an avatar
+diverges (the trial ends at that sample, its sidecar's ``diverged`` saying which player and
+when) - the lines written stay readable; the sidecar says ``"complete": false`` until the trial
+ends well.
 """
 
 from __future__ import annotations
@@ -71,11 +73,41 @@ an hour at 1 kHz as CSV is about 40 MB), checked before the file is read, so a s
 creation never reads a huge file into the server's memory."""
 
 
-def build_avatars(plan: SessionPlan) -> dict[int, Player]:
-    """Load every avatar of the plan in its role and time its step on this machine.
+def load_avatar(spec: str, role: str) -> Player:
+    """Load an avatar's player in its role (`mirror_avatar.specs.load_player`: checked, dry-run).
 
-    A recording an avatar replays or follows is refused over `MAX_RECORDING_SPEC_BYTES`
-    before it is read.
+    A recording the spec replays or follows is refused over `MAX_RECORDING_SPEC_BYTES` before
+    it is read.
+    """
+    recording = recording_file(spec)
+    if recording is not None and recording.is_file():
+        check_regular(recording, MAX_RECORDING_SPEC_BYTES)
+    return load_player(spec, role)
+
+
+def successor_players(
+    plan: SessionPlan, perturbations: Sequence[tuple[int, Perturbation]]
+) -> list[tuple[int, Perturbation, Player]]:
+    """Build the player each perturbation hands an avatar over to, in order (not reset).
+
+    Each is its spec's player in the latest role with every parameter set so far
+    (`mirror_avatar.lab.perturbation.successor`).
+    """
+    now: dict[int, tuple[str, dict[str, float]]] = {}
+    built = []
+    for k, perturbation in perturbations:
+        spec = plan.slots[k].spec
+        assert spec is not None
+        role, values = now.get(k, (plan.roles[k], {}))
+        role = perturbation.role or role
+        values = values | dict(perturbation.values)
+        now[k] = (role, values)
+        built.append((k, perturbation, successor(spec, role, values)))
+    return built
+
+
+def build_avatars(plan: SessionPlan) -> dict[int, Player]:
+    """Load every avatar of the plan in its role (`load_avatar`) and time its step here.
 
     Each avatar is stepped once untimed (compiling it off the clock) and then timed
     (`mirror_avatar.realtime.clock.time_players`); a plan whose avatars together need more than
@@ -90,10 +122,7 @@ def build_avatars(plan: SessionPlan) -> dict[int, Player]:
     avatars: dict[int, Player] = {}
     for k, slot in enumerate(plan.slots):
         if slot.kind == "avatar" and slot.spec is not None:
-            recording = recording_file(slot.spec)
-            if recording is not None and recording.is_file():
-                check_regular(recording, MAX_RECORDING_SPEC_BYTES)
-            avatars[k] = load_player(slot.spec, plan.roles[k])
+            avatars[k] = load_avatar(slot.spec, plan.roles[k])
     if avatars:
         medians = time_players(list(avatars.values()))
         period = next(iter(avatars.values())).period
@@ -197,23 +226,14 @@ class LabTrial(ClockedTrial):
     ) -> list[tuple[int, Perturbation, Player]]:
         """Build and reset, off the clock, the player each perturbation hands the avatar over to.
 
-        Each is its spec's player in the latest role with every parameter set so far, reset
-        with the seed the engine gives the avatar (`mirror_avatar.engine.loop.
-        spawn_session_seeds`), so that it draws the avatar's own reference.
+        Each is `successor_players`', reset with the seed the engine gives the avatar
+        (`mirror_avatar.engine.loop.spawn_session_seeds`), so that it draws the avatar's own
+        reference.
         """
         seeds, _ = spawn_session_seeds(self.seed, n_players)
-        now: dict[int, tuple[str, dict[str, float]]] = {}
-        built = []
-        for k, perturbation in perturbations:
-            spec = self.plan.slots[k].spec
-            assert spec is not None
-            role, values = now.get(k, (self.plan.roles[k], {}))
-            role = perturbation.role or role
-            values = values | dict(perturbation.values)
-            now[k] = (role, values)
-            player = successor(spec, role, values)
+        built = successor_players(self.plan, perturbations)
+        for k, _, player in built:
             player.reset(seed=seeds[k])
-            built.append((k, perturbation, player))
         return built
 
     def before_step(self, k: int) -> None:

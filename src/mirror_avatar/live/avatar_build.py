@@ -22,6 +22,11 @@ from mirror_avatar.experiments.personal_avatar import (
 )
 from mirror_avatar.training.avatar import load_avatar
 from mirror_avatar.trial_files import read_trial
+from mirror_avatar.user_files import read_text
+
+MAX_CARD_BYTES = 32 * 2**20
+"""Largest avatar card sent to the page (bytes; **choice**: a card with its figures is well
+under a few MiB)."""
 
 MIN_SOLO_TRIALS = 2
 """Fewest solo trials a build starts from (**choice**: cross-validation needs two)."""
@@ -92,9 +97,15 @@ def describe_avatar(path: Path) -> dict[str, str]:
     """Return what the page shows of a built avatar: its card's ``verdict`` and the ``card`` (HTML).
 
     The card travels in the message so that the page links it without the server serving the
-    participant's folder.
+    participant's folder. Both files are read by the checked readers (the card at most
+    `MAX_CARD_BYTES`); the server calls this in a worker thread.
+
+    Raises
+    ------
+    InputError
+        An avatar or card that cannot be read (missing, not a regular file, too large).
     """
     return {
         "verdict": str(load_avatar(path).summary.get("verdict", "")),
-        "card": path.with_suffix(".html").read_text(encoding="utf-8"),
+        "card": read_text(path.with_suffix(".html"), MAX_CARD_BYTES),
     }

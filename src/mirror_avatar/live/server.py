@@ -413,6 +413,7 @@ class Connection:
             path = await asyncio.to_thread(
                 build_avatar, folder, request.participant, self.settings.build_sessions, report
             )
+            described = await asyncio.to_thread(describe_avatar, path)
         except (InputError, OSError) as error:
             self.send({"type": "error", "message": f"cannot build the avatar: {error}"})
             return
@@ -421,7 +422,7 @@ class Connection:
         self.avatar_factory = make_avatar_factory(str(path))
         self.avatar_spec = str(path)
         built = {"type": "built", "avatar": path.name, "modes": list(MODES)}
-        self.send(built | describe_avatar(path))
+        self.send(built | described)
 
     async def end_trial(self, complete: bool, reason: str) -> dict[str, Any] | None:
         """Finish and save the running trial, if any, and return its sidecar.

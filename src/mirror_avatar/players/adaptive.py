@@ -133,15 +133,24 @@ def adaptive_gains(
 
 @njit(cache=True, nogil=True)
 def count_hkb_substeps(
-    x: float, v: float, u: float, alpha: float, beta: float, period: float
+    x: float,
+    v: float,
+    u: float,
+    alpha: float,
+    beta: float,
+    gamma: float,
+    omega: float,
+    period: float,
 ) -> int:
     """RK4 steps for one period of the HKB: at least `MIN_SUBSTEPS`, more when it is stiff.
 
-    The damping rate ``alpha x² + 3 beta x'²`` (1/s), taken at the start and at the velocity the
-    held control could add over the period, times the step stays below `DAMPING_STIFFNESS`.
+    The damping rate ``alpha x² + 3 beta x'² + |gamma|`` (1/s), taken at the velocity the held
+    control and the spring force ``omega² x`` could reach over the period, times the step stays
+    below `DAMPING_STIFFNESS`. (Without the spring force a stiff spring, omega = 100 rad/s with
+    beta = 1000, sent the velocity beyond the estimate within a period and RK4 to infinity.)
     """
-    fastest = abs(v) + abs(u) * period
-    rate = alpha * x * x + 3.0 * beta * fastest * fastest
+    fastest = abs(v) + (abs(u) + omega * omega * abs(x)) * period
+    rate = alpha * x * x + 3.0 * beta * fastest * fastest + abs(gamma)
     wanted = math.ceil(period * rate / DAMPING_STIFFNESS)
     return int(min(max(wanted, MIN_SUBSTEPS), MAX_RK4_SUBSTEPS))
 
@@ -243,5 +252,5 @@ class AdaptivePlayer(ModelPartner):
             return clip_to_range(
                 x + self.period * v, v + self.period * hkb_acceleration(x, v, u, *hkb)
             )
-        n = count_hkb_substeps(x, v, u, o["alpha"], o["beta"], self.period)
+        n = count_hkb_substeps(x, v, u, *hkb, self.period)
         return advance_hkb(x, v, u, *hkb, self.period, n)

@@ -15,6 +15,11 @@ everything the player does afterwards a deterministic function of ``s`` and of i
 
 The neighbours' mean (`partner_state`), used by every built-in player, is compiled once here and
 called from the Python step loop and the compiled batch loop alike.
+
+A player that diverges is refused or stopped, never recorded: `dry_run` steps a newly made
+player against a scripted partner (`mirror_avatar.specs` runs it on every spec), and the step
+loop raises `PlayerDiverged` at the first sample whose state is not finite or beyond
+`DIVERGED_BEYOND`.
 """
 
 from __future__ import annotations
@@ -250,6 +255,108 @@ def gather_neighbours(
 
 class PlayerCheckError(AssertionError):
     """A player does not honour the protocol."""
+
+
+DIVERGED_BEYOND = 1e6
+"""A position (units) or velocity (units/s) beyond this magnitude, or not finite, means its
+player has diverged (**choice**: a million times the playing range, far beyond any player that
+works, yet finite enough that the samples before it can be analysed without overflow)."""
+
+
+class PlayerDiverged(InputError):
+    """A player's position or velocity is not finite or beyond `DIVERGED_BEYOND`: it diverged.
+
+    Parameters
+    ----------
+    index
+        The player's index in the session.
+    label
+        Its label.
+    sample
+        The first sample whose state is not finite.
+    period
+        The control period (s), to say when.
+    state
+        The position (units) and velocity (units/s) it returned.
+    """
+
+    def __init__(
+        self, index: int, label: str, sample: int, period: float, state: tuple[float, float]
+    ) -> None:
+        self.index, self.label, self.sample = index, label, sample
+        super().__init__(
+            f"player {index} ({label})",
+            f"diverged at sample {sample} ({sample * period:.2f} s): it returned position "
+            f"{state[0]!r} and velocity {state[1]!r}, not finite or beyond {DIVERGED_BEYOND:g}; "
+            "the session ends there (give its spec parameters nearer their defaults)",
+        )
+
+    def describe(self) -> dict[str, Any]:
+        """Return what a trial's sidecar records of it: sample, player index, label, message."""
+        return {
+            "sample": self.sample,
+            "player": self.index,
+            "label": self.label,
+            "message": str(self),
+        }
+
+
+DRY_RUN_SECONDS = 5.0
+"""Length of a player's dry run against a scripted partner (s; **choice**: a few oscillations of
+the partner, 170 control periods, a few milliseconds for a model partner)."""
+
+DRY_RUN_MAX_SPEED = 100.0
+"""Largest speed (units/s) a player may reach in its dry run (**choice**: crossing the playing
+range a hundred times a second; the fastest bundled trials stay under 10 units/s)."""
+
+
+def dry_run(player: Player, source: str, hint: str = "", seconds: float = DRY_RUN_SECONDS) -> None:
+    """Step ``player`` for ``seconds`` against one scripted partner and refuse it if it diverges.
+
+    The partner moves as ``0.3 sin(2 t)`` units (about 0.32 Hz), the neighbour `check_player`
+    scripts. The player is reset with seed 0 first; reset it again before use.
+
+    Parameters
+    ----------
+    player
+        The player, built.
+    source
+        What made it (its spec), named by the error.
+    hint
+        What the error adds on how to fix it (the parameters given).
+    seconds
+        How long to play (s).
+
+    Raises
+    ------
+    InputError
+        ``source: ...`` when a position or velocity stops being finite, a position leaves the
+        playing range or a speed exceeds `DRY_RUN_MAX_SPEED`, saying when.
+    """
+    n_steps = int(round(seconds / player.period))
+    state = player.reset(seed=0)
+    for k in range(n_steps + 1):
+        problem = _state_problem(float(state[0]), float(state[1]))
+        if problem is not None:
+            raise InputError(
+                source,
+                f"diverges: {k * player.period:.2f} s into a dry run against a partner moving "
+                f"as 0.3 sin(2t), {problem}" + (f" ({hint})" if hint else ""),
+            )
+        if k < n_steps:
+            state = player.step(_scripted_observation(k, player.period, 1))
+
+
+def _state_problem(x: float, v: float) -> str | None:
+    """Say what is wrong with a dry run's state, or None (see `dry_run`)."""
+    low, high = PLAYING_RANGE
+    if not (math.isfinite(x) and math.isfinite(v)):
+        return f"its position {x!r} and velocity {v!r} stopped being finite"
+    if not low <= x <= high:
+        return f"its position {x:.6g} left the playing range {low:g}..{high:g}"
+    if abs(v) > DRY_RUN_MAX_SPEED:
+        return f"its speed {abs(v):.6g} units/s exceeded {DRY_RUN_MAX_SPEED:g}"
+    return None
 
 
 def _scripted_observation(k: int, period: float, n_neighbours: int) -> Observation:

@@ -8,14 +8,17 @@ equations over the period with fixed-step RK4 (`rk4_held`, compiled once and spe
 each model's compiled right-hand side). They run in the Python step
 loop only (``plan`` returns None, so the batch engine refuses them with one line).
 
-A partner's parameters are declared as a table of `Parameter` (default and allowed range) and
-given on the command line as ``NAME:key=value,...`` (`parse_options`).
+A partner's parameters are declared as data: a table of `Parameter` (default and allowed range,
+whose sign the range states) and the pairs that must stay in order (``ORDERED``); they are
+given on the command line as ``NAME:key=value,...`` (`parse_options`), each value a plain ASCII
+decimal number (`parse_number`).
 """
 
 from __future__ import annotations
 
 import functools
 import math
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -52,6 +55,17 @@ class Parameter:
     meaning: str
 
 
+NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+"""A plain ASCII decimal number, optionally in scientific notation (no ``_``, no other digits,
+no ``inf`` or ``nan``)."""
+
+
+def parse_number(text: str) -> float | None:
+    """Return the number ``text`` writes (`NUMBER`, spaces around it allowed), else None."""
+    text = text.strip(" ")
+    return float(text) if NUMBER.fullmatch(text) else None
+
+
 def parse_options(spec: str, table: Mapping[str, Parameter]) -> dict[str, float]:
     """Read ``NAME`` or ``NAME:key=value,...`` into every parameter of ``table``.
 
@@ -86,10 +100,12 @@ def parse_options(spec: str, table: Mapping[str, Parameter]) -> dict[str, float]
         if key in given:
             raise InputError(spec, f"{key} is given twice")
         given.add(key)
-        try:
-            number = float(raw)
-        except ValueError:
-            raise InputError(spec, f"{key} must be a number, not {excerpt(raw)}") from None
+        number = parse_number(raw)
+        if number is None:
+            raise InputError(
+                spec,
+                f"{key} must be a number in ASCII decimals (e.g. 0.5 or 2e-3), not {excerpt(raw)}",
+            )
         parameter = table[key]
         values[key] = check_real(spec, key, number, parameter.low, parameter.high)
     return values
@@ -165,6 +181,8 @@ class ModelPartner(Player):
     """
 
     PARAMETERS: Mapping[str, Parameter] = {}
+    ORDERED: tuple[tuple[str, str], ...] = ()
+    """Pairs of parameters ``(lower, higher)`` whose values must satisfy lower < higher."""
     NAME = "model partner"
     FIXED_IN_TRIAL: tuple[str, ...] = ()
     """Parameters that cannot change mid-trial: initial values, or scales whose change would
@@ -182,6 +200,13 @@ class ModelPartner(Player):
             key: check_real(type(self).__name__, key, given.get(key, p.default), p.low, p.high)
             for key, p in self.PARAMETERS.items()
         }
+        for lower, higher in self.ORDERED:
+            if not self.options[lower] < self.options[higher]:
+                raise InputError(
+                    type(self).__name__,
+                    f"{lower} {self.options[lower]:g} must be below {higher} "
+                    f"{self.options[higher]:g}",
+                )
         self.label = label or self.NAME
         self.last_control = math.nan
         self.last_reference = math.nan
@@ -198,6 +223,15 @@ class ModelPartner(Player):
     def parameter_array(self, names: tuple[str, ...]) -> Array:
         """Return the named parameters as a float array in that order (for the kernels)."""
         return np.array([self.options[name] for name in names], dtype=np.float64)
+
+    def given(self) -> str:
+        """Say which parameters differ from their defaults, and the defaults ("" if none)."""
+        changed = [
+            f"{key}={value:g} (default {self.PARAMETERS[key].default:g})"
+            for key, value in self.options.items()
+            if value != self.PARAMETERS[key].default
+        ]
+        return f"parameters given: {', '.join(changed)}" if changed else ""
 
     def describe(self) -> dict[str, Any]:
         """Class, label and parameters."""

@@ -81,6 +81,7 @@ class ReactivePredictivePlayer(ModelPartner):
     """The reactive-predictive controller (see the module docstring)."""
 
     PARAMETERS = PARAMETERS
+    ORDERED = (("omega_low", "omega_high"),)
     TRIAL_STATE = ("state", "_k")
     NAME = "reactive-predictive (Noy et al. 2011)"
 

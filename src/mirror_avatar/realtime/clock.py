@@ -6,7 +6,9 @@ up), each in the trial's own worker thread, so a slow avatar, a slow disk or ano
 work on the default thread pool delays no one else's clock. How late each tick was is passed to
 the trial, which records it with the sample.
 
-Two bounds end a trial that cannot keep real time, each saying why (`ClockLimits`):
+A tick whose player diverges (`mirror_avatar.players.base.PlayerDiverged`) ends the trial, its
+message (the player and the sample) the reason. Two bounds end a trial that cannot keep real
+time, each saying why (`ClockLimits`):
 
 - ``max_step``: the players' step alone (timed in the ticking thread, file writes excluded)
   took longer than this: an avatar too slow for real time. Event-loop stalls, a flood of
@@ -29,7 +31,7 @@ from typing import Protocol
 
 import numpy as np
 
-from mirror_avatar.players.base import Observation, Player
+from mirror_avatar.players.base import Observation, Player, PlayerDiverged
 from mirror_avatar.realtime.trial import write_failure
 
 MAX_LATENESS = 1.0
@@ -107,7 +109,8 @@ async def run_on_clock(
     -------
     tuple
         Whether the trial completed, and why it ended (``"completed"``, the stop reason,
-        ``limits.slow_reason``, the clock's lateness, or `write_failure`'s words).
+        ``limits.slow_reason``, the clock's lateness, `write_failure`'s words, or which player
+        diverged at which sample).
     """
     loop = asyncio.get_running_loop()
     executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="clock")
@@ -126,6 +129,8 @@ async def run_on_clock(
                 await loop.run_in_executor(executor, trial.tick, lateness)
             except OSError as error:
                 return False, write_failure(error)
+            except PlayerDiverged as error:
+                return False, str(error)
             if trial.step_time > limits.max_step:
                 return False, limits.slow_reason
             if lateness > limits.max_lateness:

@@ -19,7 +19,8 @@ server's own ``send`` callable kept in its scope (`mirror_avatar.realtime.transp
 - `TokenGate`: the access token, as a ``token`` query parameter, a cookie or an
   ``Authorization: Bearer`` header, compared in constant time.
 - `OriginGate`: WebSocket handshakes only from pages of the server's own origin.
-- `RateGate`: requests per second from one client address.
+- `RateGate`: requests per second from one client address (the token's holder has a budget of
+  their own).
 - `JsonGate`: POST bodies must be declared JSON (a cross-site form cannot send one).
 """
 
@@ -201,20 +202,40 @@ class OriginGate(Gate):
 
 
 class RateGate(Gate):
-    """Refuse requests beyond ``rate`` per second (bursts of ``burst``) from one address."""
+    """Refuse requests beyond ``rate`` per second (bursts of ``burst``) from one address.
+
+    With a ``token``, requests carrying it (`given_token`) draw on a budget of their own,
+    the same rate and burst, not on their address's: a flood of anonymous connections from
+    the researcher's address (or a proxy's) leaves the researcher's API calls their rate.
+    """
 
     def __init__(
-        self, app: ASGIApp, rate: float, burst: float, paths: Sequence[str] = EVERYWHERE
+        self,
+        app: ASGIApp,
+        rate: float,
+        burst: float,
+        paths: Sequence[str] = EVERYWHERE,
+        token: str | None = None,
+        cookie: str = "",
     ) -> None:
         super().__init__(app, paths)
         self.rate = rate
         self.burst = burst
+        self.token = token
+        self.cookie = cookie
         self.buckets: dict[str, TokenBucket] = {}
+        self.holder = TokenBucket(rate, burst)
 
     def check(self, connection: HTTPConnection) -> None:
-        """Take one request from the address's rate; refuse it when exhausted (429)."""
-        address = connection.client.host if connection.client else ""
-        if bucket_for(self.buckets, address, self.rate, self.burst).take() > 0.0:
+        """Take one request from its budget; refuse it when exhausted (429)."""
+        if self.token is not None and token_matches(
+            given_token(connection, self.cookie), self.token
+        ):
+            bucket = self.holder
+        else:
+            address = connection.client.host if connection.client else ""
+            bucket = bucket_for(self.buckets, address, self.rate, self.burst)
+        if bucket.take() > 0.0:
             raise Refusal("too many requests: slow down", 429)
 
 

@@ -17,7 +17,10 @@ Files, flushed line by line as each sample is taken:
   device sample used, its age (ms), whether it was held and whether the input was live.
 
 A tick that cannot write (a full disk) raises `OSError`; the lines written stay readable and
-`finish` still returns the trial's summary, writing what it can.
+`finish` still returns the trial's summary, writing what it can. A tick whose player diverges
+(its position or velocity no longer finite) raises `mirror_avatar.players.base.PlayerDiverged`
+after recording it in the sidecar (``"diverged"``: sample, player, label, message): the samples
+before it stay, all finite, and the clock ends the trial with the message as its reason.
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ from numpy.typing import NDArray
 
 from mirror_avatar.engine.loop import Engine, Sink
 from mirror_avatar.graphs import Graph
-from mirror_avatar.players.base import Player
+from mirror_avatar.players.base import Player, PlayerDiverged
 from mirror_avatar.realtime.inputs import HumanPlayer
 from mirror_avatar.realtime.latency import summarise
 from mirror_avatar.session import Session, SessionWriter
@@ -201,10 +204,16 @@ class ClockedTrial:
         self._alive = {person.label: True for person in self.people}
         own: list[Sink] = [self.writer.append, self.tick_log]
         timed = [self._timed(sink) for sink in (*own, *sinks)]
+        self.diverged: dict[str, Any] | None = None
         self.engine = Engine(self.players, graph, roles, labels, timed)
-        self.engine.reset(seed, n_ticks)
         self._lock = threading.Lock()
         self._closed = False
+        try:
+            self.engine.reset(seed, n_ticks)
+        except PlayerDiverged as error:
+            self.diverged = error.describe()
+            self.finish(False, str(error))
+            raise
 
     def _timed(self, sink: Sink) -> Sink:
         def timed(row: Array) -> None:
@@ -262,6 +271,8 @@ class ClockedTrial:
         ------
         OSError
             When a sample cannot be written (`write_failure` says why).
+        PlayerDiverged
+            When a player's state at k + 1 is not finite (recorded as ``diverged``).
         """
         with self._lock:
             if self._closed or self.finished:
@@ -272,7 +283,12 @@ class ClockedTrial:
             k = self.k
             if k < self.n_ticks - 1:
                 self.before_step(k)
-                self.engine.step()
+                try:
+                    self.engine.step()
+                except PlayerDiverged as error:
+                    self.diverged = error.describe()
+                    self.writer.annotate({"diverged": self.diverged})
+                    raise
             else:
                 self.engine.finish()
             self.step_time = self.step_time_so_far(time.perf_counter())
@@ -320,7 +336,8 @@ class ClockedTrial:
         dict
             The sidecar's metadata with ``n_samples``, ``started_utc`` (when the first sample
             was taken; None if none was), ``ended_utc`` and ``end_reason``; ``tick_lateness_ms``
-            (`lateness_summary`), ``held``, ``lost`` and ``input_events``; and what `analyse`
+            (`lateness_summary`), ``held``, ``lost`` and ``input_events``; ``diverged`` when a
+            player diverged (`tick`); and what `analyse`
             adds (``{"error": ...}`` as ``metrics`` if it fails: the recording is kept). On a
             full disk the sidecar keeps what it said before (``"complete": false``).
         """
@@ -336,6 +353,8 @@ class ClockedTrial:
             "lost": self.lost(),
             "input_events": list(self.events),
         }
+        if self.diverged is not None:
+            extra["diverged"] = self.diverged
         try:
             extra |= self.analyse(self.engine.session())
         except Exception as error:  # the recording is kept whatever the analysis does

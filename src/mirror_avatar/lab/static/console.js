@@ -335,7 +335,7 @@
   function showProtocol(protocol) {
     $("study").classList.toggle("loaded", Boolean(protocol));
     $("study-run").hidden = !protocol;
-    $("study-title").textContent = protocol ? `"${protocol.title}" · seed ${protocol.seed} · people ${protocol.people.join(", ")}` + (protocol.blind === "double" ? " · double blind" : "") : "none loaded";
+    $("study-title").textContent = protocol ? `"${protocol.title}" · seed ${protocol.seed} · people ${protocol.people.join(", ")}` + (protocol.blind === "double" ? " · double blind" : "") + (protocol.warnings || []).map((w) => ` · warning: ${w}`).join("") : "none loaded";
   }
 
   async function loadProtocol() {
