@@ -133,3 +133,16 @@ def test_player_follows_the_authors_controller_on_bundled_leaders(
     np.testing.assert_array_equal(session.positions[0], leader)
     got = np.vstack([session.positions[1], session.velocities[1]])
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6)
+
+
+def test_the_start_at_rest_at_0_is_forgotten_within_2_s_on_slow_leaders(
+    zhai_trials_100hz: list[Trial],
+) -> None:
+    """The code starts at its leader's first position, the player at 0: after 2 s the authors'
+    controller from either start is the same to 2e-4 on every slow leader (4e-3 after 1 s)."""
+    for trial in (t for t in zhai_trials_100hz if t.group == "slow"):
+        leader = RecordedPlayer(trial, CONTROL_PERIOD).track[0]
+        authors = simulation_hc(leader, CONTROL_PERIOD, PUBLISHED)
+        players = simulation_hc(leader, CONTROL_PERIOD, PUBLISHED, start=(0.0, 0.0))
+        after = round(2.0 / CONTROL_PERIOD)
+        np.testing.assert_allclose(players[0, after:], authors[0, after:], atol=1e-3)
