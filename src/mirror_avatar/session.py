@@ -32,7 +32,13 @@ from numpy.typing import ArrayLike, NDArray
 from mirror_avatar import __version__
 from mirror_avatar.atomic import atomic_path, write_atomic_json
 from mirror_avatar.bids.names import MOTION_SUFFIX
-from mirror_avatar.bids.reading import LabRecording, read_lab_recording
+from mirror_avatar.bids.reading import (
+    LabRecording,
+    TrackedPoints,
+    is_lab_recording,
+    read_lab_recording,
+    read_tracked_points,
+)
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import Graph, check_graph, complete_graph
 from mirror_avatar.trial_io import MAX_FILE_BYTES, MAX_SIDECAR_BYTES
@@ -319,7 +325,9 @@ def load_session(path: str | os.PathLike[str]) -> Session:
 
     A lab trial exported as BIDS-Motion (a ``_motion.tsv`` of `mirror_avatar.lab.bids`) is
     read as its whole N-player session (`mirror_avatar.bids.reading.read_lab_recording`;
-    controls and references NaN). Also reads plain CSV or Parquet files with a ``time``
+    controls and references NaN); another tool's ``_motion.tsv`` as one player per tracked
+    point (`mirror_avatar.bids.reading.read_tracked_points`; velocities computed from the
+    positions). Also reads plain CSV or Parquet files with a ``time``
     column and ``position_0``, ``position_1``... (velocities are then computed from the
     positions as for a trial; controls and references are NaN). A last CSV line without its
     newline (a recording cut short) is ignored. The sidecar (``.json`` beside the file) is optional.
@@ -333,7 +341,9 @@ def load_session(path: str | os.PathLike[str]) -> Session:
     path = Path(path)
     check_regular(path, MAX_FILE_BYTES)
     if path.name.endswith(MOTION_SUFFIX):
-        return _lab_recording_session(read_lab_recording(path))
+        if is_lab_recording(path):
+            return _lab_recording_session(read_lab_recording(path))
+        return _tracked_points_session(read_tracked_points(path))
     columns = _read_columns(path)
     n_players = _count_players(path, columns)
     times = columns["time"]
@@ -378,6 +388,23 @@ def _lab_recording_session(recording: LabRecording) -> Session:
     except (InputError, ValueError, TypeError) as error:
         problem = error.problem if isinstance(error, InputError) else "malformed graph"
         raise InputError(path, f"MirrorGame: {problem}") from None
+
+
+def _tracked_points_session(points: TrackedPoints) -> Session:
+    """Make the session of another tool's recording: a player per tracked point."""
+    path = points.metadata["bids"]["path"]
+    if points.times.size < MIN_SESSION_SAMPLES:
+        raise InputError(path, f"{points.times.size} samples, fewer than {MIN_SESSION_SAMPLES}")
+    rate = 1.0 / float(np.mean(np.diff(points.times)))
+    return Session(
+        points.times,
+        points.positions,
+        np.vstack([compute_velocity(row, rate) for row in points.positions]),
+        np.full_like(points.positions, np.nan),
+        np.full_like(points.positions, np.nan),
+        labels=points.labels,
+        metadata=points.metadata,
+    )
 
 
 def _count_players(path: Path, columns: dict[str, Array]) -> int:

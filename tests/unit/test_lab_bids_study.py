@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-from mirror_avatar.lab.bids_study import acq_time, answer_rows
+import json
+from pathlib import Path
+
+from mirror_avatar.lab.bids_study import acq_time, answer_rows, read_answers
 
 
 def test_acq_time_is_the_first_samples_time_in_utc_as_bids_writes_it() -> None:
@@ -19,7 +22,7 @@ def test_acq_time_is_the_first_samples_time_in_utc_as_bids_writes_it() -> None:
     assert acq_time({"created_utc": "yesterday", "lab": {}}) == "n/a"
 
 
-def test_answers_without_the_questions_text_keep_their_values_and_order() -> None:
+def test_answers_without_the_questions_text_keep_their_values_and_order(tmp_path: Path) -> None:
     answers = {
         "trial": 3, "block": "b", "condition": "c", "after_trial": ["who", "sure"],
         "after_block": ["notes"],
@@ -32,11 +35,19 @@ def test_answers_without_the_questions_text_keep_their_values_and_order() -> Non
             "P2": {},
         },
     }  # fmt: skip
-    rows = answer_rows(answers, "P1")
+    (tmp_path / "trial-03_answers.json").write_text(json.dumps(answers))
+    answers = read_answers(tmp_path / "trial-03_session.csv")
+    assert read_answers(tmp_path / "trial-04_session.csv") is None
+    slots = [{"label": "P1", "kind": "human"}, {"label": "A1", "kind": "avatar"},
+             {"label": "P2", "kind": "human"}]  # fmt: skip
+    rows = answer_rows(answers, "P1", slots)
     assert [(r["question"], r["text"], r["kind"], r["answer"], r["after"], r["answered_utc"])
             for r in rows] == [
         ("who", "n/a", "n/a", "a person", "trial", "u1"),
         ("sure", "n/a", "n/a", "6", "trial", "u2"),
         ("notes", "n/a", "n/a", "tab\there\nand a line", "block", "u3"),
     ]  # fmt: skip
-    assert answer_rows(answers, "P2") == [] and answer_rows(answers, "P3") == []
+    assert {(r["partners"], r["partner_kind"]) for r in rows} == {("A1+P2", "mixed")}
+    assert answer_rows(answers, "P2", slots) == [] and answer_rows(answers, "P3", slots) == []
+    alone = answer_rows(answers, "P1", slots[:1])
+    assert {(r["partners"], r["partner_kind"]) for r in alone} == {("n/a", "none")}

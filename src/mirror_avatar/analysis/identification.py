@@ -1,4 +1,4 @@
-"""Telling a person from a computer: the answers to "person or avatar?" scored (METHODS 14).
+"""Telling a person from a computer: the answers to "person or avatar?" scored (METHODS 15).
 
 An answer is a row with a guess (``guess_kind``, "person" or "avatar") about a partner whose
 true kind (``partner_kind``) is "person" or "avatar"; rows whose partners were mixed are left

@@ -1,4 +1,4 @@
-"""The statistics of conditions compared within participants (docs/METHODS.md, section 14).
+"""The statistics of conditions compared within participants (docs/METHODS.md, section 15).
 
 Per condition and measure, the mean over participants with a bootstrap confidence interval
 (`condition_summaries`); per measure, each condition against the reference condition in a

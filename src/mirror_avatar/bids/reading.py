@@ -12,7 +12,8 @@ arrays, so memory stays a small multiple of the file's size whichever reader is 
 recording's entities (`mirror_avatar.bids.names.recording_stem`), never by ``TaskName``.
 `read_lab_recording` reads a ``_motion.tsv`` that `mirror_avatar.lab.bids.export_bids` wrote,
 whose ``MirrorGame`` sidecar key describes the trial's players, back as arrays for
-`mirror_avatar.session.load_session`.
+`mirror_avatar.session.load_session`; `read_tracked_points` reads any other tool's recording
+the same way, one player per tracked point with a position (``POS``) channel.
 """
 
 from __future__ import annotations
@@ -48,6 +49,7 @@ from mirror_avatar.trial_io import (
     import_trial,
     read_sidecar_text,
 )
+from mirror_avatar.trial_record import trial_record
 from mirror_avatar.trials import MAX_RATE, MIN_RATE, Trial
 from mirror_avatar.user_files import check_regular, open_regular
 
@@ -206,15 +208,7 @@ def _position_channel(recording: Recording, options: ImportOptions) -> tuple[int
                 "with --position-column NAME",
             )
         index = positional[0]
-    unit = rows[index].get("units", "")
-    if unit in ("", MISSING):
-        return index, names[index], None
-    if unit not in POSITION_UNITS:
-        raise InputError(
-            recording.motion.with_name(f"{recording_stem(recording.motion.name)}_channels.tsv"),
-            f"unit {excerpt(unit)} of channel {excerpt(names[index])} is not mm, cm or m",
-        )
-    return index, names[index], unit
+    return index, names[index], _length_unit(recording, index)
 
 
 @dataclass(frozen=True)
@@ -244,6 +238,17 @@ class LabRecording:
     roles: tuple[str, ...]
     graph: object
     metadata: dict[str, Any]
+
+
+def is_lab_recording(path: str | Path) -> bool:
+    """Whether a ``_motion.tsv``'s sidecar has the lab export's ``MirrorGame`` key.
+
+    Raises
+    ------
+    InputError
+        As `open_recording`.
+    """
+    return GAME_KEY in open_recording(path).info
 
 
 def read_lab_recording(path: str | Path) -> LabRecording:
@@ -351,19 +356,101 @@ def _player_channels(
 
 
 def _lab_metadata(path: Path, game: dict[str, Any]) -> dict[str, Any]:
-    """Make the session metadata from a ``MirrorGame`` key."""
-    lab_keys = ("session_id", "trial", "condition", "created_utc", "slots")
-    metadata: dict[str, Any] = {
-        "lab": {key: game.get(key) for key in lab_keys},
-        "complete": game.get("complete") is True,
-        "dropped": _mapping(game.get("dropped")),
-        "held": _mapping(game.get("held")),
+    """Make the session metadata from a ``MirrorGame`` key: the trial's record, as a sidecar's.
+
+    The record (`mirror_avatar.trial_record`) is read from the key's ``session_id``,
+    ``condition``, ``trial``, ``slots``, times, ``seed``, ``complete`` and ``dropped``; ``held``
+    and where the file is (``bids``) are added.
+    """
+    lab = {key: game.get(key) for key in ("session_id", "condition", "trial", "slots")}
+    kept = ("created_utc", "started_utc", "seed", "complete", "dropped")
+    record = trial_record({"lab": lab} | {key: game[key] for key in kept if key in game},
+                          path.with_name(f"{recording_stem(path.name)}_motion.json"))  # fmt: skip
+    held = game.get("held")
+    return record.metadata_json() | {
+        "held": dict(held) if isinstance(held, dict) else {},
         "bids": {"path": str(path), "participant": game.get("participant"), "slot": game["slot"],
                  "entities": entities(path.name)},
     }  # fmt: skip
-    return metadata if "seed" not in game else metadata | {"seed": game["seed"]}
 
 
-def _mapping(value: object) -> dict[str, Any]:
-    """Copy ``value`` if it is a JSON object, else return an empty one."""
-    return dict(value) if isinstance(value, dict) else {}
+@dataclass(frozen=True)
+class TrackedPoints:
+    """The players of a BIDS-Motion recording made by any tool: one per tracked point.
+
+    Attributes
+    ----------
+    times
+        Sample times (s), shape (n,): ``k / SamplingFrequency``.
+    positions
+        Shape (points, n), normalised units (`mirror_avatar.importing`), short gaps filled.
+    labels
+        Each tracked point's name.
+    metadata
+        ``bids``: this file, its entities and the sidecar's ``TaskName``.
+    """
+
+    times: Array
+    positions: Array
+    labels: tuple[str, ...]
+    metadata: dict[str, Any]
+
+
+def read_tracked_points(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> TrackedPoints:
+    """Read a BIDS-Motion recording's tracked points as players, in the channels' order.
+
+    Each tracked point (``_channels.tsv`` column ``tracked_point``) with a ``POS`` channel is a
+    player: its ``x`` component's channel, else its first ``POS`` channel, converted from its
+    ``units`` (mm, cm, m) as `read_bids_motion` converts one; a file without a channels file
+    holds one column, one player.
+
+    Raises
+    ------
+    InputError
+        As `open_recording`; no ``POS`` channel; a channel's unit not a length; a value that is
+        not a number; any `mirror_avatar.trial_io.import_trial` problem of a point's positions.
+    """
+    recording = open_recording(path)
+    points: dict[str, int] = {}
+    for index, row in enumerate(recording.channels):
+        if row.get("type", "").upper() == "POS":
+            point = row.get("tracked_point", MISSING)
+            point = row.get("name", "") if point in ("", MISSING) else point
+            if point not in points or row.get("component", "").lower() == "x":
+                points[point] = index
+    if recording.channels and not points:
+        raise InputError(recording.motion, "no POS channel in its channels file: no tracked point")
+    chosen = [(0, "1", None)] if not recording.channels else [
+        (index, recording.names[index], _length_unit(recording, index))
+        for index in points.values()
+    ]  # fmt: skip
+    if not recording.channels:
+        _position_channel(recording, options)  # one column, or the refusal naming the problem
+    values = _read_numbers(recording.motion, [c for c, _, _ in chosen], [n for _, n, _ in chosen],
+                           "\t", 1)  # fmt: skip
+    times = np.arange(values[0].size) / recording.rate
+    trials = [import_trial(times, column, recording.motion, replace(options, time_unit="s"), unit)
+              for column, (_, _, unit) in zip(values, chosen, strict=True)]  # fmt: skip
+    if len({trial.n_samples for trial in trials}) != 1:
+        raise InputError(recording.motion, "its tracked points have different blank rows")
+    task = _name_in(recording.info, "TaskName", recording.sidecar, "")
+    bids = {"path": str(recording.motion), "entities": entities(recording.motion.name)}
+    return TrackedPoints(
+        times=trials[0].times,
+        positions=np.vstack([trial.positions for trial in trials]),
+        labels=tuple(points) if points else (recording_stem(recording.motion.name),),
+        metadata={"bids": bids | ({"TaskName": task} if task else {})},
+    )
+
+
+def _length_unit(recording: Recording, index: int) -> str | None:
+    """Return a channel's length unit (None: not given), refusing one that is not a length."""
+    unit = recording.channels[index].get("units", "")
+    if unit in ("", MISSING):
+        return None
+    if unit not in POSITION_UNITS:
+        raise InputError(
+            recording.motion.with_name(f"{recording_stem(recording.motion.name)}_channels.tsv"),
+            f"unit {excerpt(unit)} of channel {excerpt(recording.names[index])} is not mm, cm or m",
+        )
+    return unit

@@ -28,6 +28,7 @@ from mirror_avatar.cli.play import play
 from mirror_avatar.cli.reproduce import reproduce
 from mirror_avatar.cli.signature import signature
 from mirror_avatar.cli.simulate import simulate
+from mirror_avatar.cli.study import study
 from mirror_avatar.cli.train import train
 from mirror_avatar.errors import InputError
 from mirror_avatar.interruptions import aborted, interrupt
@@ -53,6 +54,7 @@ cli.add_command(play)
 cli.add_command(reproduce)
 cli.add_command(signature)
 cli.add_command(simulate)
+cli.add_command(study)
 cli.add_command(evaluate)
 cli.add_command(train)
 

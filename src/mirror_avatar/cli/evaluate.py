@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from mirror_avatar.atomic import json_safe, write_atomic_files
+from mirror_avatar.bids.names import MOTION_SUFFIX
 from mirror_avatar.cli.constrained import constrained_type, with_range
 from mirror_avatar.cli.measure_options import (
     format_measures,
@@ -36,6 +37,7 @@ from mirror_avatar.metrics.measures import evaluate_measures
 from mirror_avatar.metrics.progress import order_by_start, progress_table
 from mirror_avatar.report import REPORT_FILES, Section, report_texts
 from mirror_avatar.session import Session, load_session
+from mirror_avatar.trial_record import trial_record
 from mirror_avatar.trial_sets import common_root
 
 SESSION_FILES = (".csv", ".parquet")
@@ -56,8 +58,11 @@ sum them, and float64 ends at 1.8e308."""
 def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], list[str]]:
     """Read the sessions among ``paths`` (files, or folders searched recursively).
 
-    In folders, files that are not sessions (solo trials, other tables) are skipped with a note;
-    a file named explicitly must be a session.
+    Folders are searched for session files and BIDS-Motion recordings (`session_files`): a BIDS
+    dataset or one of its subject folders is read from its ``_motion.tsv`` files, a lab
+    export's trial once whichever of its people's recordings holds it. In folders, files that
+    are not sessions (solo trials, other tables) are skipped with a note; a file named
+    explicitly must be a session.
     """
     found, notes = [], []
     for path in paths:
@@ -65,16 +70,29 @@ def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], 
             found.append((path, load_session(path)))
             continue
         before = len(found)
-        for file in sorted(p for p in path.rglob("*") if p.suffix.lower() in SESSION_FILES):
+        trials: dict[tuple[str, int], Path] = {}
+        for file in session_files(path):
             if file.suffix.lower() == ".csv" and file.with_suffix(".parquet").is_file():
                 notes.append(f"skipped {file}: the same session as {file.with_suffix('.parquet')}")
                 continue
             try:
-                found.append((file, load_session(file)))
+                session = load_session(file)
             except InputError as error:
                 notes.append(f"skipped {file}: {error.problem}")
+                continue
+            trial = _exported_trial(session)
+            if trial in trials:
+                notes.append(f"skipped {file}: the same lab trial as {trials[trial]}")
+                continue
+            if trial is not None:
+                trials[trial] = file
+            found.append((file, session))
         if len(found) == before:
-            raise InputError(path, "no session files in it (time, position_0, ... columns)")
+            raise InputError(
+                path,
+                "no session files in it (time, position_0, ... columns, or BIDS-Motion "
+                "_motion.tsv files; sourcedata/ is read only when named)",
+            )
     return found, notes
 
 
@@ -107,6 +125,28 @@ def analysed(path: Path, session: Session, trim: float) -> tuple[Session, str | 
         f"an anti-aliasing filter; the measures need at most {ANALYSIS_RATE:g} Hz)"
     )
     return at_analysis_rate(session), note
+
+
+def session_files(folder: Path) -> list[Path]:
+    """List a folder's session files and BIDS-Motion recordings, sorted, outside ``sourcedata/``.
+
+    A BIDS dataset's ``sourcedata/`` (the lab's own trial files, copied by the export) is read
+    only when named: ``evaluate bids/sourcedata``.
+    """
+    return sorted(
+        p
+        for p in folder.rglob("*")
+        if (p.suffix.lower() in SESSION_FILES or p.name.endswith(MOTION_SUFFIX))
+        and "sourcedata" not in p.relative_to(folder).parts[:-1]
+    )
+
+
+def _exported_trial(session: Session) -> tuple[str, int] | None:
+    """Return the session id and trial of a lab export's recording (its record), else None."""
+    if "bids" not in session.metadata or "lab" not in session.metadata:
+        return None
+    record = trial_record(session.metadata, session.metadata["bids"]["path"])
+    return record.session_id, record.trial
 
 
 def session_names(paths: list[Path]) -> list[str]:
@@ -161,9 +201,12 @@ def evaluate(
     """Print the coordination metrics of saved sessions (.parquet or .csv, or folders of them).
 
     Any session the toolkit writes (simulations, groups, live trials) or a plain CSV with
-    ``time, position_0, position_1, ...``. For two players, relative phase and time lag are
-    player 0 minus player 1 (positive when player 0 is ahead); for a group, its synchronisation
-    and each player against the mean of its neighbours. Several sessions give one table.
+    ``time, position_0, position_1, ...``; a BIDS-Motion dataset or subject folder from its
+    _motion.tsv files (a lab export's trial once; another tool's recording as one player per
+    tracked point with a POS channel; sourcedata/ only when named). For two players,
+    relative phase and time lag are player 0 minus player 1 (positive when player 0 is
+    ahead); for a group, its synchronisation and each player against the mean of its
+    neighbours. Several sessions give one table.
     The field's measures (co-confidence, jitter, synchrony episodes, leadership, transfer
     entropy) follow, each coordination measure with a p-value against surrogates. Sessions
     sampled faster than 100 Hz are analysed at 100 Hz (or the rate below it that a whole

@@ -85,6 +85,7 @@ from mirror_avatar.lab.files import (
 )
 from mirror_avatar.session import Session, load_session
 from mirror_avatar.trial_io import MAX_FILE_BYTES, _first_row, _read_numbers, read_sidecar_text
+from mirror_avatar.trial_record import AnswersRecord, trial_record
 from mirror_avatar.user_files import parse_json, read_bytes
 
 Array = NDArray[np.float64]
@@ -137,7 +138,7 @@ class _LabTrial:
     slots: tuple[dict[str, Any], ...]
     period: float
     timing: Array | None
-    answers: dict[str, Any] | None
+    answers: AnswersRecord | None
     study: StudyRun | None
 
     def humans(self) -> list[int]:
@@ -264,31 +265,33 @@ def _trial_files(session_dir: Path) -> list[Path]:
 
 
 def _read_lab_trial(path: Path, study: StudyRun | None) -> _LabTrial:
-    """Read a trial file of ``study`` (None: no study) and check its lab metadata."""
+    """Read a trial file of ``study`` (None: no study) and check its record.
+
+    The record is the sidecar's (`mirror_avatar.trial_record.trial_record`); a ``created_utc``
+    inside its ``lab`` object, where early recordings kept it, is still read.
+    """
     session = load_session(path)
     lab = session.metadata.get("lab")
     if not isinstance(lab, dict):
         raise InputError(path, "no lab metadata in its sidecar: not a lab trial")
+    record = trial_record(session.metadata, path.with_suffix(".json"))
     slots = _slots(path, lab.get("slots"), session)
-    session_id = lab.get("session_id")
-    if not isinstance(session_id, str) or not _is_folder_name(session_id):
-        raise InputError(path, f"lab session_id {session_id!r} is not a usable folder name")
-    trial = lab.get("trial")
-    if isinstance(trial, bool) or not isinstance(trial, int) or trial < 0:
-        raise InputError(path, f"lab trial {trial!r} is not a trial number")
-    if study is not None and lab.get("participant", study.participant) != study.participant:
+    if not _is_folder_name(record.session_id):
+        raise InputError(path, f"lab session_id {record.session_id!r} is not a usable folder name")
+    recorded = record.study
+    if study is not None and recorded is not None and recorded.participant != study.participant:
         raise InputError(
             path,
-            f"a trial of participant {lab['participant']!r} in participant "
+            f"a trial of participant {recorded.participant!r} in participant "
             f"{study.participant}'s study folder: export each participant's folder as recorded",
         )
-    created = session.metadata.get("created_utc", lab.get("created_utc"))
+    created = record.created_utc or lab.get("created_utc")
     return _LabTrial(
         path=path,
         session=session,
-        session_id=session_id,
-        trial=trial,
-        condition=str(lab.get("condition", "")),
+        session_id=record.session_id,
+        trial=record.trial,
+        condition=record.condition,
         created_utc=created if isinstance(created, str) else None,
         slots=slots,
         period=_nominal_period(path, session),
@@ -484,7 +487,7 @@ def _timing_row(name: str, kind: str, units: str, description: str) -> dict[str,
 def _write_answers(trial: _LabTrial, slot: int, out_dir: Path) -> Path | None:
     """Write slot ``slot``'s answers after ``trial`` as ``_beh.tsv``; None if they gave none."""
     label = trial.slots[slot]["label"]
-    rows = [] if trial.answers is None else answer_rows(trial.answers, label)
+    rows = [] if trial.answers is None else answer_rows(trial.answers, label, trial.slots)
     if not rows:
         return None
     subject = _subject(trial, slot)

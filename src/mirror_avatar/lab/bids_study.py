@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -36,10 +36,12 @@ from mirror_avatar.bids.writing import tsv_table
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.files import ANSWERS_SUFFIX, STUDY_FILE, companion
 from mirror_avatar.trial_io import read_sidecar_text
+from mirror_avatar.trial_record import AnswersRecord, partner_kind, read_answers_record
 from mirror_avatar.user_files import parse_json
 
 BEH_COLUMNS = (
-    "question", "text", "kind", "answer", "after", "trial", "block", "condition", "answered_utc",
+    "question", "text", "kind", "answer", "partners", "partner_kind", "after", "trial", "block",
+    "condition", "answered_utc",
 )  # fmt: skip
 """Columns of a ``_beh.tsv``."""
 
@@ -55,6 +57,20 @@ BEH_COLUMN_INFO: dict[str, Any] = {
         },
     },
     "answer": {"Description": "The participant's answer: the option, the point or the text"},
+    "partners": {
+        "Description": "The labels of the participant's partners in the trial, joined "
+        "by + (n/a: none)"
+    },
+    "partner_kind": {
+        "Description": "The true kind of the participant's partners in the trial, beside the "
+        "answer (to score a person-or-computer question without a join)",
+        "Levels": {
+            "person": "every partner a person",
+            "avatar": "every partner a computer player",
+            "mixed": "persons and computer players",
+            "none": "no partner (a solo trial)",
+        },
+    },
     "after": {
         "Description": "When the question was asked",
         "Levels": {"trial": "after the trial", "block": "after the last trial of the block"},
@@ -172,64 +188,53 @@ def trial_row(metadata: dict[str, Any]) -> dict[str, str]:
     }
 
 
-def read_answers(session_csv: Path) -> dict[str, Any] | None:
+def read_answers(session_csv: Path) -> AnswersRecord | None:
     """Read the answers given after a trial (``trial-NN_answers.json``), or None if none.
 
     Raises
     ------
     InputError
-        A file that is not a JSON object with an ``answers`` object.
+        As `mirror_avatar.trial_record.read_answers_record`.
     """
     path = companion(session_csv, ANSWERS_SUFFIX)
-    if not path.is_file():
-        return None
-    answers = parse_json(read_sidecar_text(path), path)
-    if not isinstance(answers, dict) or not isinstance(answers.get("answers"), dict):
-        raise InputError(path, "not the answers of a trial (no 'answers' object)")
-    return answers | {"path": path}
+    return read_answers_record(path) if path.is_file() else None
 
 
-def answer_rows(answers: dict[str, Any], label: str) -> list[dict[str, str]]:
+def answer_rows(
+    answers: AnswersRecord, label: str, slots: Sequence[dict[str, Any]]
+) -> list[dict[str, str]]:
     """Return the ``_beh.tsv`` rows of one participant's answers after a trial.
 
-    Questions are in the order they were asked (after the trial, then after the block); the
-    question's text and kind come from the file's ``questions`` when it holds them.
+    Questions are in the order they were asked (after the trial, then after the block); a
+    question's text and kind are ``n/a`` when the file does not hold them. ``slots`` (the
+    trial's, each with its ``label`` and ``kind``) give every row the participant's partners
+    and their true kind (`mirror_avatar.trial_record.partner_kind`).
     """
-    given = answers["answers"].get(label)
-    if not isinstance(given, dict):
-        return []
-    after_trial, after_block = _ids(answers.get("after_trial")), _ids(answers.get("after_block"))
-    questions = _mapping(answers.get("questions"))
-    order = list(dict.fromkeys([*after_trial, *after_block, *given]))
-    rows = []
-    for qid in order:
-        answer = given.get(qid)
-        if not isinstance(answer, dict):
-            continue
-        question = _mapping(questions.get(qid))
-        rows.append(
-            {
-                "question": qid,
-                "text": str(question.get("text", MISSING)),
-                "kind": str(question.get("kind", MISSING)),
-                "answer": _answer_cell(answer.get("value")),
-                "after": "trial" if qid in after_trial else "block",
-                "trial": str(answers.get("trial", MISSING)),
-                "block": str(answers.get("block", MISSING)),
-                "condition": str(answers.get("condition", MISSING)),
-                "answered_utc": str(answer.get("utc", MISSING)),
-            }
-        )
-    return rows
+    partners = [slot for slot in slots if slot["label"] != label]
+    beside = {
+        "partners": "+".join(slot["label"] for slot in partners) or MISSING,
+        "partner_kind": partner_kind(slot["kind"] for slot in partners),
+    }
+    return [
+        {
+            "question": answer.question,
+            "text": answer.text or MISSING,
+            "kind": answer.kind or MISSING,
+            "answer": _answer_cell(answer.value),
+            **beside,
+            "after": answer.after,
+            "trial": str(answers.trial),
+            "block": answers.block or MISSING,
+            "condition": answers.condition or MISSING,
+            "answered_utc": answer.utc or MISSING,
+        }
+        for answer in answers.of(label)
+    ]
 
 
 def _mapping(value: object) -> dict[str, Any]:
     """Return ``value`` if it is a JSON object, else an empty one."""
     return value if isinstance(value, dict) else {}
-
-
-def _ids(value: object) -> list[str]:
-    return [str(item) for item in value] if isinstance(value, list) else []
 
 
 def _answer_cell(value: object) -> str:

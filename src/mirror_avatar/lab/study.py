@@ -43,6 +43,7 @@ from mirror_avatar.realtime.outbox import Outbox
 from mirror_avatar.realtime.trial import Array, Clock
 from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.trial_io import read_sidecar_text
+from mirror_avatar.trial_record import StudyRecord
 from mirror_avatar.user_files import parse_json
 
 
@@ -320,17 +321,20 @@ class StudySession(LabSession):
         condition = self.protocol.blocks[self.steps[step].block].conditions[
             self.steps[step].condition
         ]
-        occlude = [[a, b if math.isfinite(b) else self.plan.duration] for a, b in condition.occlude]
-        return super()._trial_lab(n) | {
-            "partner_delay_s": round(condition.delay / CONTROL_PERIOD) * CONTROL_PERIOD,
-            "occluded_s": occlude,
-            "protocol": self.protocol.title,
-            "participant": self.number,
-            "block": self.protocol.blocks[self.steps[step].block].name,
-            "protocol_condition": self.steps[step].name,
-            "condition_trial": n - self.first_trials[step] + 1,
-            "partners": {slot.label: slot.kind for slot in self.plan.slots},
-        }
+        occlude = tuple(
+            (a, b if math.isfinite(b) else self.plan.duration) for a, b in condition.occlude
+        )
+        study = StudyRecord(
+            protocol=self.protocol.title,
+            participant=self.number,
+            block=self.protocol.blocks[self.steps[step].block].name,
+            condition=self.steps[step].name,
+            condition_trial=n - self.first_trials[step] + 1,
+            delay_s=round(condition.delay / CONTROL_PERIOD) * CONTROL_PERIOD,
+            occluded_s=occlude,
+            partners={slot.label: slot.kind for slot in self.plan.slots},
+        )
+        return super()._trial_lab(n) | study.to_json()
 
     def questions_after(self, n: int) -> dict[str, list[str]]:
         """Return the ids of the questions asked after trial n: after the trial, after the block.

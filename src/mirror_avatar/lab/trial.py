@@ -56,6 +56,7 @@ from mirror_avatar.realtime.trial import Array, Clock, ClockedTrial
 from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.session import Session
 from mirror_avatar.specs import load_player, recording_file
+from mirror_avatar.trial_record import SlotRecord, trial_record
 from mirror_avatar.trials import MIN_SAMPLES
 from mirror_avatar.user_files import check_regular
 
@@ -253,19 +254,14 @@ class LabTrial(ClockedTrial):
             self.writer.annotate({"perturbations": list(self.perturbations)})
 
     def _metadata(self, lab: dict[str, Any], period: float) -> dict[str, Any]:
-        slots = [
-            {
-                "label": slot.label,
-                "kind": slot.kind,
-                "role": role,
-                "spec": slot.spec,
-                "device": slot.device,
-            }
-            | self._device(k)
+        """Return the sidecar's first metadata; its ``lab`` written by the trial's record."""
+        slots = tuple(
+            SlotRecord(slot.label, slot.kind, role, slot.spec, slot.device, self._device(k))
             for k, (slot, role) in enumerate(zip(self.plan.slots, self.plan.roles, strict=True))
-        ]
+        )
+        lab = lab | {"trial": self.n, "slots": [slot.to_json() for slot in slots]}
         return {
-            "lab": lab | {"trial": self.n, "slots": slots},
+            "lab": trial_record({"lab": lab}).lab_json(),
             "seed": self.seed,
             "duration_requested_s": self.plan.duration,
             "period_s": period,
@@ -276,10 +272,10 @@ class LabTrial(ClockedTrial):
             "perturbations": [],
         }
 
-    def _device(self, k: int) -> dict[str, Any]:
+    def _device(self, k: int) -> dict[str, Any] | None:
         """Return what an input device says of itself (an LSL stream: source id, host, counts)."""
         describe = getattr(self.inputs.get(k), "describe", None)
-        return {"input": describe()} if callable(describe) else {}
+        return describe() if callable(describe) else None
 
     def _remember(self, row: Array) -> None:
         self._taken = row_positions(row).copy()
@@ -326,7 +322,9 @@ class LabTrial(ClockedTrial):
         """
         slots = self.writer.sidecar["metadata"]["lab"]["slots"]
         for k, slot in enumerate(slots):
-            slot.update(self._device(k))
+            device = self._device(k)
+            if device is not None:
+                slot["input"] = device
         metrics = session_metrics(session) if session.n_samples >= MIN_SAMPLES else {}
         measures = trial_measures(session, self.seed) if metrics else {}
         return {"dropped": dict(self.dropped), "metrics": metrics, "measures": measures}

@@ -1,0 +1,60 @@
+"""The person-or-computer question: which answer guesses the partner's kind, and how surely.
+
+A protocol asks it as a choice question (``kind = "choice"``) whose text names both a person and
+a machine ("Was your partner a person or a computer?"); the answer's words say the guess
+(`PERSON_WORDS`, `MACHINE_WORDS`). Its confidence is the Likert question asked with it whose id
+or text speaks of confidence ("How confident are you?"). Both rules read only what every copy
+of the answers keeps (the question's text and kind and the answer), so run folders and BIDS
+``_beh.tsv`` files give the same guesses.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable
+
+from mirror_avatar.trial_record import AnswerRecord
+
+PERSON_WORDS = frozenset({"person", "human", "people", "someone", "somebody", "participant"})
+"""Words of an answer or a question naming a person."""
+
+MACHINE_WORDS = frozenset(
+    {"computer", "avatar", "machine", "robot", "program", "algorithm", "bot", "ai", "agent"}
+)
+"""Words of an answer or a question naming a computer player."""
+
+
+def _words(text: str) -> set[str]:
+    return set(re.findall(r"[a-z]+", text.lower()))
+
+
+def is_identification(answer: AnswerRecord) -> bool:
+    """Whether ``answer`` answers a person-or-computer question (see the module docstring)."""
+    words = _words(answer.text)
+    return answer.kind == "choice" and bool(words & PERSON_WORDS) and bool(words & MACHINE_WORDS)
+
+
+def guess_of(value: object) -> str | None:
+    """Return ``"person"`` or ``"avatar"`` as an answer's words say, None when they do not."""
+    words = _words(value) if isinstance(value, str) else set()
+    person, machine = bool(words & PERSON_WORDS), bool(words & MACHINE_WORDS)
+    if person == machine:
+        return None
+    return "person" if person else "avatar"
+
+
+def guess(answers: Iterable[AnswerRecord]) -> tuple[str | None, float] | None:
+    """Return a person's guess of their partner's kind and its confidence, None if not asked.
+
+    The confidence is the Likert point of the confidence question (NaN when none was asked).
+    """
+    given = list(answers)
+    asked = next((a for a in given if is_identification(a)), None)
+    if asked is None:
+        return None
+    points = [a for a in given if a.kind == "likert" and isinstance(a.value, int)]
+    confidence = next(
+        (float(a.value) for a in points if "confiden" in f"{a.question} {a.text}".lower()),  # type: ignore[arg-type]
+        float("nan"),
+    )
+    return guess_of(asked.value), confidence

@@ -1,0 +1,232 @@
+"""The study table: one row per trial and player, with the design, the measures and the answers.
+
+`study_table` turns a study's trials (`mirror_avatar.analysis.trials.read_study_trials`) into
+one long `pandas.DataFrame` (columns in `mirror_avatar.analysis.dictionary`): who played
+(``participant``, ``session``, ``person``, ``player_kind``), where the trial stands in the
+participant's run (``block`` and ``position``: 1-based order of the block and of the condition
+in the run, counted from the trials as played; ``trial``), what the protocol set (``condition``,
+``partners``, ``partner_kind``, ``delay_s``, ``occluded``, ``perturbations``), the measures of
+the player's trial (`mirror_avatar.metrics.session_metrics` and
+`mirror_avatar.metrics.measures.session_measures` after the same trim as ``evaluate``, with
+``surrogates`` circular-shift surrogates seeded by the trial's own seed: a pair's measures on
+both players' rows, a player's own - jitter index, influence, a group member's measures against
+its neighbours - on its row), then each answer (``answer_<question id>``) and, for a
+person-or-computer question, the guess (`mirror_avatar.analysis.guesses`).
+`write_study_table` writes ``study.csv``, ``study.parquet`` and the dictionary ``study.json``.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from mirror_avatar.analysis.dictionary import (
+    DESIGN_COLUMNS,
+    GUESS_COLUMNS,
+    MEASURES,
+    measure_info,
+    p_value_column,
+)
+from mirror_avatar.analysis.guesses import guess
+from mirror_avatar.analysis.trials import StudyTrial
+from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.errors import InputError
+from mirror_avatar.lab.trial import LAB_SURROGATES
+from mirror_avatar.metrics import TRIM, session_metrics
+from mirror_avatar.metrics.measures import MeasureOptions, session_measures
+from mirror_avatar.trial_record import KIND_NAMES, SlotRecord, partner_kind
+from mirror_avatar.trials import MIN_SAMPLES
+
+TABLE_FILES = ("study.csv", "study.parquet", "study.json")
+"""The files `write_study_table` writes."""
+
+SURROGATES = LAB_SURROGATES
+"""Surrogates per trial by default: the lab's own (p-values down to 0.05)."""
+
+MAX_LEVELS = 20
+"""Most distinct values a text column may have to be listed as ``Levels`` (**choice**)."""
+
+_PER_PLAYER = ("jitter_index_player_", "influence_player_")
+_GROUP_PLAYER_KEYS = ("phase_locking", "rmse", "time_lag", "max_cross_correlation",
+                      "synchronisation", "relative_phase_to_group")  # fmt: skip
+
+
+def study_table(
+    trials: Sequence[StudyTrial], trim: float = TRIM, surrogates: int = SURROGATES
+) -> pd.DataFrame:
+    """Make the study table of ``trials`` (module docstring); rows by participant, trial, player."""
+    rows: list[dict[str, Any]] = []
+    for trial in trials:
+        measures = trial_measures(trial, trim, surrogates)
+        for k, slot in enumerate(trial.record.slots):
+            row = _design(trial, slot) | {"block": trial.block, "position": trial.position}
+            row |= _player_measures(measures, k, trial)
+            row |= _answers(trial, slot)
+            rows.append(row)
+    return _ordered(pd.DataFrame(rows))
+
+
+def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str, Any]:
+    """Compute a trial's metrics and measures (the session trimmed once).
+
+    A trial with fewer than `mirror_avatar.trials.MIN_SAMPLES` samples after the trim (a run
+    stopped at once) has none: its rows keep their design and answers.
+    """
+    try:
+        session = trial.session.trimmed(trim) if trim > 0 else trial.session
+    except InputError:
+        return {}
+    if session.n_samples < MIN_SAMPLES:
+        return {}
+    seed = trial.record.seed if trial.record.seed is not None else 0
+    options = MeasureOptions(n_surrogates=surrogates, seed=seed)
+    return session_metrics(session) | session_measures(session, options=options).values
+
+
+def _design(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:
+    record, study = trial.record, trial.record.study
+    partners = record.partners_of(slot.label)
+    return {
+        "participant": trial.participant,
+        "session": record.session_id,
+        "person": slot.label,
+        "player_kind": KIND_NAMES[slot.kind],
+        "condition": record.condition if study is None else study.condition,
+        "trial": record.trial,
+        "partners": "+".join(p.label for p in partners),
+        "partner_kind": partner_kind(p.kind for p in partners),
+        "delay_s": 0.0 if study is None else float(study.delay_s),
+        "occluded": study is not None and bool(study.occluded_s),
+        "perturbations": len(record.perturbations),
+    }
+
+
+def _player_measures(measures: dict[str, Any], k: int, trial: StudyTrial) -> dict[str, Any]:
+    """Select player k's measures: the pair's or group's, its own, its p-values."""
+    labels = [slot.label for slot in trial.record.slots]
+    row: dict[str, Any] = {}
+    for key, value in measures.items():
+        own = next((prefix for prefix in _PER_PLAYER if key.startswith(prefix)), None)
+        if own is not None:
+            if key == f"{own}{k}" and value is not None:
+                row[own.removesuffix("_").removesuffix("_player")] = value
+        elif key == "leader":
+            row[key] = labels[value] if isinstance(value, int) else str(value)
+        elif _known(key) and isinstance(value, int | float) and not _pairwise(key, len(labels)):
+            row[key] = value
+    group = measures.get("players")
+    if isinstance(group, list):
+        row |= {key: group[k][key] for key in _GROUP_PLAYER_KEYS if key in group[k]}
+    return row
+
+
+def _pairwise(key: str, n_players: int) -> bool:
+    """Whether ``key`` is a pair's measure in a group (``influence`` averages a player's)."""
+    return n_players > 2 and key.startswith("transfer_entropy_")
+
+
+def _known(key: str) -> bool:
+    return key in MEASURES or any(key == p_value_column(m) for m in MEASURES)
+
+
+def _answers(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:
+    """Return a person's answers after the trial, and their person-or-computer guess."""
+    given = () if trial.answers is None else trial.answers.of(slot.label)
+    row: dict[str, Any] = {f"answer_{a.question}": _answer(a.value, a.kind) for a in given}
+    found = guess(given)
+    if found is not None:
+        partners = _design(trial, slot)["partner_kind"]
+        kind, confidence = found
+        row |= {
+            "guess_kind": kind,
+            "guess_correct": None
+            if kind is None or partners not in KIND_NAMES.values()
+            else kind == partners,
+            "guess_confidence": confidence,
+        }
+    return row
+
+
+def _answer(value: object, kind: str) -> object:
+    """Return an answer as a cell: a Likert point as a float, text as text, nothing as None."""
+    if value is None or value == "":
+        return None
+    if kind == "likert" and isinstance(value, int | float) and not isinstance(value, bool):
+        return float(value)
+    return value if isinstance(value, str) else str(value)
+
+
+def _ordered(table: pd.DataFrame) -> pd.DataFrame:
+    """Order the columns (design, measures, answers) and rows, and type them."""
+    design = list(DESIGN_COLUMNS)
+    measured = [c for m in MEASURES for c in (m, p_value_column(m)) if c in table.columns]
+    answers = sorted(c for c in table.columns if c.startswith("answer_"))
+    guesses = [c for c in GUESS_COLUMNS if c in table.columns]
+    if table.empty:
+        return pd.DataFrame(columns=design)
+    table = table[design + measured + answers + guesses]
+    table = table.sort_values(["participant", "session", "trial"], kind="stable")
+    types = {"block": "int64", "trial": "int64", "position": "int64", "perturbations": "int64",
+             "delay_s": "float64", "occluded": "bool"}  # fmt: skip
+    table = table.astype(types)
+    for column in [*measured, "guess_confidence"]:
+        if column in table and column != "leader":
+            table[column] = pd.to_numeric(table[column], errors="coerce").astype("float64")
+    for column in [c for c in answers if table[c].map(_is_number).all()]:
+        table[column] = table[column].astype("float64")
+    if "guess_correct" in table:
+        table["guess_correct"] = table["guess_correct"].astype("boolean")
+    return table.reset_index(drop=True)
+
+
+def _is_number(value: object) -> bool:
+    """Whether an answer cell is a number or empty (a Likert point, or none given)."""
+    return value is None or isinstance(value, float)
+
+
+def table_dictionary(table: pd.DataFrame, questions: dict[str, str]) -> dict[str, Any]:
+    """Describe every column of ``table`` (`mirror_avatar.analysis.dictionary`).
+
+    ``questions`` gives each question's text by id, for its answer column.
+    """
+    info: dict[str, Any] = {}
+    for column in table.columns:
+        if column in DESIGN_COLUMNS:
+            info[column] = dict(DESIGN_COLUMNS[column])
+        elif column in GUESS_COLUMNS:
+            info[column] = dict(GUESS_COLUMNS[column])
+        elif column.startswith("answer_"):
+            qid = column.removeprefix("answer_")
+            info[column] = {"Description": f"The answer to {qid}: {questions.get(qid, qid)}",
+                            "Role": "answer"}  # fmt: skip
+        else:
+            info[column] = measure_info(column)
+        if table[column].dtype == object and "Levels" not in info[column]:
+            values = sorted({str(v) for v in table[column].dropna()})
+            categorical = column in ("condition", "leader") or column.startswith("answer_")
+            if categorical and 0 < len(values) <= MAX_LEVELS:
+                info[column]["Levels"] = {value: value for value in values}
+    return info
+
+
+def question_texts(trials: Sequence[StudyTrial]) -> dict[str, str]:
+    """Return each question's text by id, as the trials' answers record it."""
+    return {a.question: a.text for t in trials if t.answers for a in t.answers.answers}
+
+
+def write_study_table(table: pd.DataFrame, dictionary: dict[str, Any], out_dir: Path) -> None:
+    """Write ``study.csv`` (empty cells: NA), ``study.parquet`` and ``study.json``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_atomic_text(out_dir / "study.csv", table.to_csv(index=False, na_rep="NA"))
+    write_atomic_bytes(out_dir / "study.parquet", _parquet(table))
+    write_atomic_json(out_dir / "study.json", dictionary)
+
+
+def _parquet(table: pd.DataFrame) -> bytes:
+    buffer = io.BytesIO()
+    table.to_parquet(buffer, index=False)
+    return buffer.getvalue()

@@ -1,0 +1,272 @@
+"""A study's trials read back: each trial's session, record and answers, from run folders or BIDS.
+
+`read_study_trials` takes any mix of the lab's run folders (a study participant's
+``<out>/<protocol>-pNNN/``, a plain session's ``<out>/<session id>/``), folders holding them
+(the lab's ``--out``), a BIDS dataset a lab export wrote (`mirror_avatar.lab.bids`) or one of its
+subject folders. From a run folder, each trial's sidecar gives its record
+(`mirror_avatar.trial_record.read_trial_record`) and ``trial-NN_answers.json`` its answers.
+From a BIDS dataset (never its ``sourcedata/``), each trial is read once whichever of its people's
+``_motion.tsv`` holds it (`mirror_avatar.session.load_session`): the ``MirrorGame`` key gives
+its slots with their true kinds, the ``_events.tsv`` its block, condition, delay, occlusions and
+perturbations, ``participants.tsv`` the study participant's number and each ``_beh.tsv`` the
+answers; the record is then made by the same reader (`mirror_avatar.trial_record.trial_record`)
+as a sidecar's, so both sources give equal records.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from mirror_avatar.bids.names import MISSING, bids_label, entities
+from mirror_avatar.bids.reading import GAME_KEY, open_recording
+from mirror_avatar.bids.tables import read_tsv
+from mirror_avatar.errors import InputError
+from mirror_avatar.lab.bids import TASK
+from mirror_avatar.lab.bids_study import StudyRun, read_study, subject_label
+from mirror_avatar.lab.files import ANSWERS_SUFFIX, TRIAL_PATTERN, companion, is_session_folder
+from mirror_avatar.session import Session, load_session
+from mirror_avatar.trial_io import read_sidecar_text
+from mirror_avatar.trial_record import (
+    AnswerRecord,
+    AnswersRecord,
+    PerturbationRecord,
+    StudyRecord,
+    TrialRecord,
+    read_answers_record,
+    read_trial_record,
+    trial_record,
+)
+
+DATASET_FILE = "dataset_description.json"
+"""The file that makes a folder a BIDS dataset's root."""
+
+
+@dataclass(frozen=True)
+class StudyTrial:
+    """One trial of a study as read back.
+
+    Attributes
+    ----------
+    participant
+        The study participant (``p003``), or the session id of a plain lab session.
+    record
+        The trial's record.
+    session
+        Its N-player session.
+    answers
+        The answers given after it, None when none were asked.
+    source
+        The file it was read from.
+    block, position
+        The 1-based order of the trial's block and of its condition in the participant's run,
+        counted over the run's trials as played.
+    """
+
+    participant: str
+    record: TrialRecord
+    session: Session
+    answers: AnswersRecord | None
+    source: Path
+    block: int = 0
+    position: int = 0
+
+
+def read_study_trials(paths: Sequence[Path]) -> list[StudyTrial]:
+    """Read every trial under ``paths`` (see the module docstring), by participant and trial.
+
+    Raises
+    ------
+    InputError
+        A path that is neither a run folder, a folder of them, a BIDS dataset nor a subject
+        folder of one; a file of a trial that cannot be read.
+    """
+    found: list[StudyTrial] = []
+    for path in paths:
+        if not path.is_dir():
+            raise InputError(
+                path, "no such folder (give run folders, the lab's --out or a BIDS dataset)"
+            )
+        if is_session_folder(path):
+            found += read_run_folder(path)
+        elif (path / DATASET_FILE).is_file() or path.name.startswith("sub-"):
+            found += read_bids_trials(path)
+        else:
+            runs = sorted(p for p in path.iterdir() if p.is_dir() and is_session_folder(p))
+            if not runs:
+                raise InputError(
+                    path, "no run folder (plan.json or study.json) and not a BIDS dataset in it"
+                )
+            found += [trial for run in runs for trial in read_run_folder(run)]
+    unique = {(t.participant, t.record.session_id, t.record.trial): t for t in found}
+    return [unique[key] for key in sorted(unique)]
+
+
+def participant_name(study: StudyRun | None, session_id: str) -> str:
+    """Name a study participant ``pNNN`` (their number), a plain session by its id."""
+    return session_id if study is None else f"p{study.participant:03d}"
+
+
+def read_run_folder(folder: Path) -> list[StudyTrial]:
+    """Read the trials of one lab run folder, in trial order."""
+    study = read_study(folder)
+    trials: list[StudyTrial] = []
+    for path in sorted(folder.glob(TRIAL_PATTERN)):
+        record = read_trial_record(path.with_suffix(".json"))
+        answers_file = companion(path, ANSWERS_SUFFIX)
+        answers = read_answers_record(answers_file) if answers_file.is_file() else None
+        trials.append(
+            StudyTrial(
+                participant_name(study, record.session_id),
+                record,
+                load_session(path),
+                answers,
+                path,
+            )  # fmt: skip
+        )
+    return _number(trials)
+
+
+def read_bids_trials(path: Path) -> list[StudyTrial]:
+    """Read the lab trials of a BIDS dataset, or of one of its subject folders (not sourcedata).
+
+    A subject folder's trials are placed in their run (block, position) by every subject's.
+    """
+    root = path if (path / DATASET_FILE).is_file() else path.parent
+    subjects = sorted(root.glob("sub-*"))
+    _, participants = read_tsv(root / "participants.tsv", "participant_id")
+    by_trial: dict[tuple[str, int], StudyTrial] = {}
+    holders: dict[tuple[str, int], set[str]] = {}
+    for motion in (m for s in subjects for m in sorted(s.glob(f"motion/*{_MOTION}"))):
+        game = open_recording(motion).info.get(GAME_KEY)
+        if not isinstance(game, dict):
+            continue
+        key = (str(game.get("session_id")), int(game.get("trial", -1)))
+        holders.setdefault(key, set()).add(motion.parents[1].name)
+        if key not in by_trial:
+            by_trial[key] = _bids_trial(root, motion, game, participants)
+    numbered = _number(list(by_trial.values()))
+    if not path.name.startswith("sub-"):
+        return numbered
+    return [t for t in numbered if path.name in holders[(t.record.session_id, t.record.trial)]]
+
+
+_MOTION = "_motion.tsv"
+
+
+def _bids_trial(
+    root: Path, motion: Path, game: dict[str, Any], participants: dict[str, dict[str, str]]
+) -> StudyTrial:
+    """Read one exported trial: its session, its record and every person's answers.
+
+    The session's metadata holds the record the ``MirrorGame`` key gives
+    (`mirror_avatar.bids.reading.read_lab_recording`); the run's events add the study's part
+    and the perturbations.
+    """
+    session = load_session(motion)
+    subject = f"sub-{entities(motion.name).get('sub', '')}"
+    study = _study_run(participants.get(subject, {}))
+    events = _rows(motion.with_name(motion.name.replace(_MOTION, "_events.tsv")))
+    record = trial_record(session.metadata, motion.with_name(motion.name.replace(".tsv", ".json")))
+    record = replace(
+        record,
+        study=None if study is None else _study_record(record, events, study),
+        perturbations=tuple(
+            PerturbationRecord(int(e["sample"]), float(e["onset"]), e["player"], e["change"])
+            for e in events
+            if e["trial_type"] == "perturbation"
+        ),
+    )
+    answers = _bids_answers(root, record, study)
+    return StudyTrial(participant_name(study, record.session_id), record, session, answers, motion)
+
+
+def _study_run(row: dict[str, str]) -> StudyRun | None:
+    """Return the study run a ``participants.tsv`` row names, None outside a study."""
+    number = row.get("study_participant", MISSING)
+    return None if not number.isdigit() else StudyRun(int(number), row.get("protocol", ""))
+
+
+def _study_record(record: TrialRecord, events: list[dict[str, str]], study: StudyRun
+                  ) -> StudyRecord:  # fmt: skip
+    """Make a trial's study part from its run's events (``condition_trial`` counted later)."""
+    first = events[0] if events else {}
+    return StudyRecord(
+        protocol=study.protocol,
+        participant=study.participant,
+        block=first.get("block", MISSING),
+        condition=first.get("condition", MISSING),
+        condition_trial=0,
+        delay_s=next((float(e["delay_s"]) for e in events if e["trial_type"] == "delay"), 0.0),
+        occluded_s=tuple(
+            (float(e["onset"]), float(e["onset"]) + float(e["duration"]))
+            for e in events
+            if e["trial_type"] == "occlusion"
+        ),
+        partners={slot.label: slot.kind for slot in record.slots},
+    )
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    """Read a TSV table's rows (none when the file is absent)."""
+    if not path.is_file():
+        return []
+    return list(csv.DictReader(io.StringIO(read_sidecar_text(path)), delimiter="\t"))
+
+
+def _bids_answers(root: Path, record: TrialRecord, study: StudyRun | None) -> AnswersRecord | None:
+    """Read every person's ``_beh.tsv`` of a trial into one answers record (None: no answers)."""
+    answers: list[AnswerRecord] = []
+    first: dict[str, str] = {}
+    acquisition = bids_label(record.session_id)
+    for slot in (s for s in record.slots if s.kind == "human"):
+        subject = f"sub-{subject_label(slot.label, study)}"
+        name = f"{subject}_task-{TASK}_acq-{acquisition}_run-{record.trial}_beh.tsv"
+        for row in _rows(root / subject / "beh" / name):
+            first = first or row
+            answers.append(AnswerRecord(
+                label=slot.label, question=row["question"], text=row["text"], kind=row["kind"],
+                value=_answer_value(row["answer"], row["kind"]), after=row["after"],
+                utc=None if row["answered_utc"] == MISSING else row["answered_utc"],
+            ))  # fmt: skip
+    if not answers:
+        return None
+    return AnswersRecord(record.trial, first["block"], first["condition"], tuple(answers))
+
+
+def _answer_value(cell: str, kind: str) -> object:
+    """Return an answer as the lab recorded it: a Likert point as an integer, else the text."""
+    if cell == MISSING:
+        return None
+    return int(cell) if kind == "likert" and cell.lstrip("-").isdigit() else cell
+
+
+def _number(trials: Iterable[StudyTrial]) -> list[StudyTrial]:
+    """Place each trial in its participant's run: its block, position and condition_trial.
+
+    The three are counted over the run's trials in order; a plain session's trials are of one
+    block, a condition being the game.
+    """
+    numbered: list[StudyTrial] = []
+    blocks: list[str] = []
+    conditions: list[tuple[str, str]] = []
+    run: tuple[str, str] | None = None
+    count = 0
+    for trial in sorted(trials, key=lambda t: (t.participant, t.record.session_id, t.record.trial)):
+        record, study = trial.record, trial.record.study
+        if run != (trial.participant, record.session_id):
+            run, blocks, conditions = (trial.participant, record.session_id), [], []
+        here = ("", record.condition) if study is None else (study.block, study.condition)
+        if not blocks or blocks[-1] != here[0]:
+            blocks.append(here[0])
+        count = count + 1 if conditions and conditions[-1] == here else 1
+        if count == 1:
+            conditions.append(here)
+        if study is not None:
+            record = replace(record, study=replace(study, condition_trial=count))
+        numbered.append(replace(trial, record=record, block=len(blocks), position=len(conditions)))
+    return numbered

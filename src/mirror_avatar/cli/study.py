@@ -1,0 +1,71 @@
+"""``mirror-avatar study``: a study's results, from the lab's run folders or its BIDS export."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from mirror_avatar.analysis.table import (
+    SURROGATES,
+    TABLE_FILES,
+    question_texts,
+    study_table,
+    table_dictionary,
+    write_study_table,
+)
+from mirror_avatar.analysis.trials import read_study_trials
+from mirror_avatar.cli.outputs import check_output_dir
+from mirror_avatar.cli.study_report import report
+from mirror_avatar.errors import InputError
+from mirror_avatar.metrics import TRIM
+
+
+@click.group()
+def study() -> None:
+    """Gather a study's results: one table of every trial, the statistics a paper reports."""
+
+
+@study.command()
+@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option(
+    "--out", "out_dir", type=click.Path(path_type=Path), required=True,
+    help="Write study.csv, study.parquet and the data dictionary study.json here.",
+)  # fmt: skip
+@click.option(
+    "--trim", type=float, default=TRIM, show_default=True,
+    help="Seconds left out at the start of each trial's measures (as evaluate).",
+)  # fmt: skip
+@click.option(
+    "--surrogates", type=click.IntRange(min=0), default=SURROGATES, show_default=True,
+    help="Circular-shift surrogates per trial for the measures' p-values (0: none), drawn "
+    "from each trial's recorded seed.",
+)  # fmt: skip
+def table(paths: tuple[Path, ...], out_dir: Path, trim: float, surrogates: int) -> None:
+    """Write one long table of a study: a row per trial and player.
+
+    PATHS are the lab's run folders (a study participant's OUT/<protocol>-pNNN/, a plain
+    session's folder), folders holding them (the lab's --out), a BIDS dataset a lab export wrote
+    or one of its sub-* folders (never its sourcedata/). Each row holds the participant, the
+    player, the block, condition and trial, the condition's position in the participant's
+    order, the partners and their true kind, the delay, occlusion and perturbations, every
+    measure of the player's trial, and each answer with, for a person-or-computer question,
+    the guess, whether it was right and its confidence. The data dictionary study.json gives
+    each column's description, units, levels and role (identifier, design, measure, answer).
+    """
+    if not trim >= 0:
+        raise InputError("--trim", "must be 0 or more seconds")
+    check_output_dir(out_dir, files=TABLE_FILES)
+    trials = read_study_trials(paths)
+    if not trials:
+        raise InputError(paths[0], "no lab trial in it (run folders or a lab's BIDS export)")
+    rows = study_table(trials, trim=trim, surrogates=surrogates)
+    write_study_table(rows, table_dictionary(rows, question_texts(trials)), out_dir)
+    participants = rows["participant"].nunique()
+    click.echo(
+        f"wrote {out_dir.resolve()}: {len(rows)} rows ({len(trials)} trials, "
+        f"{participants} participant{'s' * (participants != 1)})"
+    )
+
+
+study.add_command(report)

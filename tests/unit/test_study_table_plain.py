@@ -1,0 +1,127 @@
+"""The study table of a plain lab session (no study): a group on a ring, read from its run
+folder and from its BIDS export; the person-or-computer rules; bad paths refused in one line."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from mirror_avatar.analysis.guesses import guess, guess_of, is_identification
+from mirror_avatar.cli import main
+from mirror_avatar.lab.plan import parse_plan
+from mirror_avatar.lab.trial import LabTrial, build_avatars
+from mirror_avatar.realtime.inputs import BrowserInput
+from mirror_avatar.trial_record import AnswerRecord
+
+RING = {
+    "condition": "group", "graph": "ring", "duration": 4.0, "trials": 2, "seed": 5,
+    "players": [
+        {"label": "P1", "kind": "human"},
+        {"label": "A1", "kind": "avatar", "spec": "bundled:slow"},
+        {"label": "P2", "kind": "human"},
+    ],
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def ring_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Two trials of a ring of two people and an avatar, recorded as the lab records them."""
+    folder = tmp_path_factory.mktemp("lab") / "20261127T010203-001"
+    folder.mkdir()
+    (folder / "plan.json").write_text(json.dumps({"session_id": folder.name}))
+    plan = parse_plan(RING)
+    avatars = build_avatars(plan)
+    for n in (1, 2):
+        inputs = {k: BrowserInput() for k in plan.humans}
+        lab = {"session_id": folder.name, "condition": plan.condition}
+        trial = LabTrial(plan, n, folder, inputs, avatars, time.monotonic, lab)
+        while not trial.finished:
+            for i, source in inputs.items():
+                phase = 2 * math.pi * (0.4 + 0.1 * n) * trial.k * 0.03 + i
+                source.put(0.3 * math.sin(phase), trial.k)
+            trial.tick()
+        trial.finish(True, "completed")
+    return folder
+
+
+def table(paths: list[Path], out: Path) -> pd.DataFrame:
+    assert main(["study", "table", *map(str, paths), "--out", str(out), "--surrogates", "0"]) == 0
+    return pd.read_parquet(out / "study.parquet")
+
+
+def test_a_plain_sessions_table_is_the_same_from_its_folder_and_its_export(ring_session, tmp_path):
+    runs = table([ring_session], tmp_path / "runs")
+    assert set(runs["participant"]) == {ring_session.name}
+    assert list(runs["person"]) == ["P1", "A1", "P2"] * 2
+    assert list(runs["trial"]) == [1, 1, 1, 2, 2, 2]
+    assert set(runs["block"]) == {1} and set(runs["position"]) == {1}
+    assert set(runs["condition"]) == {"group"}
+    assert list(runs["partners"][:3]) == ["A1+P2", "P1+P2", "P1+A1"]
+    assert list(runs["partner_kind"][:3]) == ["mixed", "person", "mixed"]
+    assert runs[["synchronisation", "influence", "group_synchronisation"]].notna().all(axis=None)
+    assert not any(column.startswith(("answer_", "guess_")) for column in runs.columns)
+    assert not any(column.startswith("transfer_entropy_") for column in runs.columns)
+    bids = tmp_path / "bids"
+    assert main(["lab", "export", str(ring_session), "--out", str(bids)]) == 0
+    pd.testing.assert_frame_equal(runs, table([bids], tmp_path / "bids_table"))
+
+
+def test_a_trial_too_short_to_measure_keeps_its_rows(ring_session, tmp_path):
+    full = table([ring_session], tmp_path / "full")
+    trimmed = tmp_path / "trimmed"
+    assert main(["study", "table", str(ring_session), "--out", str(trimmed), "--trim", "60",
+                 "--surrogates", "0"]) == 0  # fmt: skip
+    rows = pd.read_parquet(trimmed / "study.parquet")
+    assert list(rows.columns) == list(full.columns[: len(rows.columns)])
+    assert len(rows) == len(full) and "rmse" not in rows
+
+
+def test_paths_that_hold_no_study_are_one_line(tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    for path in (tmp_path / "nowhere", tmp_path / "empty"):
+        assert main(["study", "table", str(path), "--out", str(tmp_path / "out")]) == 2
+        error = capsys.readouterr().err
+        assert error.count("\n") == 1 and path.name in error
+
+
+def answer(question: str, text: str, kind: str, value: object) -> AnswerRecord:
+    return AnswerRecord("P1", question, text, kind, value, "trial", None)
+
+
+@pytest.mark.parametrize(
+    ("value", "kind"),
+    [("a person", "person"), ("A human being", "person"), ("a computer", "avatar"),
+     ("the avatar", "avatar"), ("not sure", None), ("a person or a computer", None)],
+)  # fmt: skip
+def test_an_answer_names_the_guessed_kind(value: str, kind: str | None) -> None:
+    assert guess_of(value) == kind
+
+
+def test_the_guess_is_the_choice_naming_both_kinds_with_its_confidence() -> None:
+    asked = answer("partner", "Was your partner a person or a computer?", "choice", "a person")
+    sure = answer("confidence", "How confident are you?", "likert", 6)
+    assert is_identification(asked)
+    assert not is_identification(answer("mood", "How did the computer feel?", "choice", "fine"))
+    assert not is_identification(replace_kind(asked, "text"))
+    assert guess([asked, sure]) == ("person", 6.0)
+    kind, confidence = guess([asked])  # type: ignore[misc]
+    assert kind == "person" and math.isnan(confidence)
+    assert guess([sure]) is None
+
+
+def replace_kind(record: AnswerRecord, kind: str) -> AnswerRecord:
+    return AnswerRecord(record.label, record.question, record.text, kind, record.value,
+                        record.after, record.utc)  # fmt: skip
+
+
+def test_an_output_in_the_way_is_refused_before_any_work(ring_session, tmp_path, capsys):
+    (tmp_path / "out" / "study.parquet").mkdir(parents=True)
+    assert main(["study", "table", str(ring_session), "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "study.parquet" in error
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["study.parquet"]
