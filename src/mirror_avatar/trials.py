@@ -106,6 +106,17 @@ class Trial:
             )
         return compute_velocity(self.positions, self.rate, cutoff=cutoff)
 
+    def held_runs(self) -> Array:
+        """Tracking drop-outs: each run of identical consecutive positions, shape (m, 2).
+
+        Each row is the run's first and last sample time (s from the trial's first sample).
+        """
+        offsets = self.times - self.times[0]
+        held = np.diff(self.positions) == 0.0
+        edges = np.flatnonzero(np.diff(np.concatenate([[False], held, [False]]).astype(np.int8)))
+        starts, stops = edges[0::2], edges[1::2]
+        return np.column_stack([offsets[starts], offsets[stops]])
+
 
 def make_trial(
     times: ArrayLike,

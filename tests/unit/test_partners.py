@@ -123,7 +123,7 @@ def test_kuramoto_step_matches_solve_ivp() -> None:
 
 
 def test_adaptive_step_matches_solve_ivp() -> None:
-    """The sampled-data controller of the public code, the HKB under the held u by solve_ivp."""
+    """The sampled-data controller held over three periods, the HKB under it by solve_ivp."""
     alpha, beta, gamma, omega = 10.0, 20.0, -1.0, 0.1
     cp, delta, eta, bound = 40.0, 0.25, 30.0, 5.0
     hold = 3
@@ -153,7 +153,8 @@ def test_adaptive_step_matches_solve_ivp() -> None:
 
         x, v = integrate(rates, np.array([x, v]), 0.0)
         expected.append([x, v])
-    np.testing.assert_allclose(play_against_leader(AdaptivePlayer()), expected, atol=1e-6)
+    player = AdaptivePlayer({"sampling": interval})
+    np.testing.assert_allclose(play_against_leader(player), expected, atol=1e-6)
 
 
 @pytest.mark.parametrize("name", list(MODEL_PARTNERS))

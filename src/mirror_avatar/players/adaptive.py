@@ -17,23 +17,25 @@ with the gains adapting as::
     a' = -exp(-2a) [e e_v + eta_a e²] - eta_a
     b' = e_v exp(-2b) [omega² x + (alpha x² + beta x'² - gamma) x' - eta_a e_v - u_I] - eta_a
 
-How it runs (follows the public MirrorGame code, ``Adaptive Control/``): the controller is a
-sampled-data one. At each controller sample it reads the partner's position, estimates the
-partner's velocity by the backward difference over the last sampling interval (the paper's
-eq. (3); zero at the first sample), advances a and b by one explicit Euler step of the
+How it runs (follows the public MirrorGame code, ``Adaptive Control/simulation/simulationHC.m``):
+the controller is a sampled-data one. At each controller sample it reads the partner's position,
+estimates the partner's velocity by the backward difference over the last sampling interval (the
+paper's eq. (3); zero at the first sample), advances a and b by one explicit Euler step of the
 sampling interval, clips each to [-bound, bound] (the code's ``coupMax`` 5), and computes u, held
 until the next sample while the HKB is integrated (RK4, `mirror_avatar.dynamics.advance_hkb`);
-at the first sample u uses a(0), b(0). The b law's ``u`` is u_I, as the public code passes it
-(**choice**: the paper writes u).
+at the first sample u uses a(0), b(0). The code's loop does all this on every pass, its step the
+pass's wall-clock time capped at 0.1 s (the paper's "T = 0.1 s"), so by default the controller
+samples every control period (`mirror_avatar.dynamics.CONTROL_PERIOD`). The b law's ``u`` is
+u_I, as the public code passes it (**choice**: the paper writes u).
 In the leader role, u_I takes the leader's gains (``leader_cp``, ``leader_delta``; the public
 code's ``CpL``, ``deltaL``, which it names without values: their defaults here equal the
 follower's, **choice**).
 
-**Departures**: the toolkit steps players every `mirror_avatar.dynamics.CONTROL_PERIOD`
-(0.03 s), so the published sampling time (0.1 s) is rounded to a whole number of control
-periods (three: 0.09 s); the public code integrates the HKB by explicit Euler over its
-wall-clock loop time, RK4 here; the player starts at rest at 0, not at the partner's position.
-In a group it follows its neighbours' mean (METHODS section 8).
+**Departures**: the public code integrates the HKB by one explicit Euler step per pass, RK4 here
+(``euler=True`` takes the code's step, whose damping step shrinks the speed only while
+beta x'² T < 2, below 1.8 units/s at T = 0.03 s); a longer sampling time is rounded to a whole
+number of control periods; the player starts at rest at 0, not at the partner's position, and
+stops at the walls. In a group it follows its neighbours' mean (METHODS section 8).
 """
 
 from __future__ import annotations
@@ -43,7 +45,14 @@ from collections.abc import Mapping
 
 from numba import njit
 
-from mirror_avatar.dynamics import DAMPING_STIFFNESS, MAX_RK4_SUBSTEPS, advance_hkb
+from mirror_avatar.dynamics import (
+    CONTROL_PERIOD,
+    DAMPING_STIFFNESS,
+    MAX_RK4_SUBSTEPS,
+    advance_hkb,
+    clip_to_range,
+    hkb_acceleration,
+)
 from mirror_avatar.players.base import Observation, partner_state
 from mirror_avatar.players.dynamical import ModelPartner, Parameter
 
@@ -60,9 +69,14 @@ PARAMETERS: Mapping[str, Parameter] = {
     "leader_delta": Parameter(0.25, 0.0, 1e3, "delta in the leader role (s²/units²)"),
     "eta": Parameter(30.0, 0.0, 1e4, "adaptation rate eta_a"),
     "bound": Parameter(5.0, 0.01, 50.0, "bound on |a| and |b| (the code's coupMax)"),
-    "sampling": Parameter(0.1, 0.0, 1.0, "controller sampling time (s), in whole periods"),
+    "sampling": Parameter(
+        CONTROL_PERIOD, 0.0, 1.0, "controller sampling time (s), in whole periods"
+    ),
 }
-"""The published parameters (Zhai et al. 2017, section 4; public code ``parametersHC.m``)."""
+"""The published parameters: the HKB's, C_p, delta and eta_a from the public code's
+``parameters/parametersHC.m``, a(0) and b(0) from ``parameters/simulationParameters.m``, the bound
+from ``simulation/simulationHC.m`` (``coupMax``), sampling every pass of its loop (one control
+period here)."""
 
 MIN_SUBSTEPS = 16
 """Fewest RK4 steps per control period (the HKB under the held control to about 1e-9)."""
@@ -152,6 +166,9 @@ class AdaptivePlayer(ModelPartner):
         The role it plays: in `LEADER_ROLES` its position gain and width are the leader's.
     label
         Its name in sessions.
+    euler
+        Advance the HKB by one explicit Euler step per control period, as the public code does,
+        instead of RK4 (for checking the player against that code).
     """
 
     PARAMETERS = PARAMETERS
@@ -159,10 +176,16 @@ class AdaptivePlayer(ModelPartner):
     TRIAL_STATE = ("_x", "_v", "gains", "_k", "_u", "_sampled", "last_control")
 
     def __init__(
-        self, options: Mapping[str, float] | None = None, role: str = "follower", label: str = ""
+        self,
+        options: Mapping[str, float] | None = None,
+        role: str = "follower",
+        label: str = "",
+        *,
+        euler: bool = False,
     ) -> None:
         super().__init__(options, label or "adaptive control (Zhai et al. 2017)")
         self.role = role
+        self.euler = euler
         o = self.options
         self.hold = max(1, round(o["sampling"] / self.period))
         leads = role in LEADER_ROLES
@@ -215,12 +238,19 @@ class AdaptivePlayer(ModelPartner):
             e = self._x - r_p
             self._u = (a + b * e * e) * (self._v - r_v) - u_i
             self._sampled = r_p
-        n = count_hkb_substeps(
-            self._x, self._v, self._u, o["alpha"], o["beta"], o["gamma"], o["omega"], self.period
-        )
-        self._x, self._v = advance_hkb(
-            self._x, self._v, self._u, o["alpha"], o["beta"], o["gamma"], o["omega"], self.period, n
-        )
+        self._x, self._v = self._advance()
         self.last_control = self._u
         self._k += 1
         return self._x, self._v
+
+    def _advance(self) -> tuple[float, float]:
+        """Integrate the HKB over one control period under the held control."""
+        o = self.options
+        x, v, u = self._x, self._v, self._u
+        hkb = (o["alpha"], o["beta"], o["gamma"], o["omega"])
+        if self.euler:
+            return clip_to_range(
+                x + self.period * v, v + self.period * hkb_acceleration(x, v, u, *hkb)
+            )
+        n = count_hkb_substeps(x, v, u, *hkb, self.period)
+        return advance_hkb(x, v, u, *hkb, self.period, n)
