@@ -150,3 +150,20 @@ def test_a_hidden_source_folder_gives_a_visible_output_folder(tmp_path, capsys) 
         "recordings/trial-human.csv",
     ]
     assert f"to {out.resolve()}: recordings/ (2)" in text.splitlines()[-1]
+
+
+def test_the_command_line_and_the_report_name_one_seed_and_no_nan(tmp_path, capsys) -> None:
+    path = tmp_path / "trial.csv"
+    write_recording(path)
+    out = tmp_path / "report"
+    status, text, error = run(
+        capsys, "evaluate", str(path), "--columns", COLUMNS, "--resample", "100",
+        "--surrogates", "19", "--surrogate-seed", "5", "--out", str(out),
+    )  # fmt: skip
+    assert status == 0, error
+    assert text.splitlines()[-2] == "(19 shift surrogates, --surrogate-seed 5)"
+    assert "CV against surrogates" in text and "p <= 0.05" in text  # the players lock
+    assert "p = 0.05" not in text and "nan" not in text.lower()
+    report = (out / "report.html").read_text()
+    assert "19 shift surrogates (--surrogate-seed 5:" in report
+    assert "written p &lt;= 0.05" in report

@@ -251,7 +251,7 @@ def evaluate(
         click.echo(json.dumps(json_safe(shown), indent=2))
     elif len(results) == 1:
         click.echo(format_metrics(results[0][2]))
-        if text := format_measures(measures[0].values):
+        if text := format_measures(measures[0].values, options):
             click.echo(text)
     else:
         click.echo(rows.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
