@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from mirror_avatar.constraints import Interval
 from mirror_avatar.errors import InputError
 
 Array = NDArray[np.float64]
@@ -54,8 +55,11 @@ rounding, finer than any tracker's sampling (**choice**)."""
 MISSING_CELLS = ("", "nan", "na", "n/a")
 """Cells that are a missing sample (compared after stripping spaces, in any letter case)."""
 
-MIN_RESAMPLE, MAX_RESAMPLE = 1.0, 10_000.0
-"""Rates (Hz) ``--resample`` accepts: `mirror_avatar.trials.MIN_RATE` to ``MAX_RATE``."""
+RESAMPLE_RANGE = Interval(float, 1.0, 10_000.0, "both", "Hz")
+"""Rates ``--resample`` accepts: `mirror_avatar.trials.MIN_RATE` to ``MAX_RATE``."""
+
+MAX_GAP_RANGE = Interval(float, 0.0, None, "both", "s")
+"""Values ``--max-gap`` accepts (0 refuses every gap)."""
 
 ECHO_CHARS = 40
 """Most characters of a value from a file quoted in an error line (**choice**)."""
@@ -172,14 +176,12 @@ class ImportOptions:
             raise InputError("--position-unit", f"must be one of {', '.join(POSITION_UNITS)}")
         if not (np.isfinite(self.playing_range) and self.playing_range > 0):
             raise InputError("--playing-range", "must be a positive number of centimetres")
-        if not (np.isfinite(self.max_gap) and self.max_gap >= 0):
-            raise InputError("--max-gap", "must be a non-negative number of seconds")
+        if self.max_gap not in MAX_GAP_RANGE:
+            raise InputError("--max-gap", f"must be {MAX_GAP_RANGE}")
         if not np.isfinite(self.offset):
             raise InputError("--offset", "must be a finite number (in --position-unit)")
-        if self.resample is not None and not MIN_RESAMPLE <= self.resample <= MAX_RESAMPLE:
-            raise InputError(
-                "--resample", f"must be a rate of {MIN_RESAMPLE:g} to {MAX_RESAMPLE:g} Hz"
-            )
+        if self.resample is not None and self.resample not in RESAMPLE_RANGE:
+            raise InputError("--resample", f"must be {RESAMPLE_RANGE}")
 
     @property
     def player_columns(self) -> ColumnMap:

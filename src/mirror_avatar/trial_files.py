@@ -15,6 +15,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
 from mirror_avatar.trial_io import (
     MAX_MAT_TRIALS,
+    only_trial,
     read_csv_trials,
     read_mat_struct,
     read_parquet_trials,
@@ -35,10 +36,7 @@ def read_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Tri
 
     A MATLAB file of more is refused from its header, before its trials are read.
     """
-    trials = read_trial_file(path, options, max_trials=1)
-    if len(trials) != 1:
-        raise InputError(path, f"holds {len(trials)} trials, expected one")
-    return trials[0]
+    return only_trial(read_trial_file(path, options, max_trials=1), path)
 
 
 def read_trial_file(

@@ -377,12 +377,23 @@ def write_mat_struct(trials: list[Trial], path: str | Path, variable: str) -> No
         scipy.io.savemat(handle, {variable: struct})
 
 
+def only_trial(trials: list[Trial], path: str | Path) -> Trial:
+    """Return the one trial of a file, or refuse its several (naming players, if any)."""
+    if len(trials) == 1:
+        return trials[0]
+    players = [str(trial.metadata.get("player", "")) for trial in trials]
+    if all(players):
+        raise InputError(
+            path,
+            f"holds {len(trials)} players' trials ({', '.join(players)}), expected one: name "
+            "one player in --columns",
+        )
+    raise InputError(path, f"holds {len(trials)} trials, expected one")
+
+
 def read_csv_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
     """Read a CSV trial of one player (see `read_csv_trials`)."""
-    trials = read_csv_trials(path, options)
-    if len(trials) != 1:
-        raise InputError(path, f"holds {len(trials)} players' trials, expected one")
-    return trials[0]
+    return only_trial(read_csv_trials(path, options), path)
 
 
 def read_csv_trials(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> list[Trial]:
@@ -496,10 +507,7 @@ def write_csv_trial(trial: Trial, path: str | Path) -> None:
 
 def read_parquet_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
     """Read a Parquet trial of one player (see `read_parquet_trials`)."""
-    trials = read_parquet_trials(path, options)
-    if len(trials) != 1:
-        raise InputError(path, f"holds {len(trials)} players' trials, expected one")
-    return trials[0]
+    return only_trial(read_parquet_trials(path, options), path)
 
 
 def read_parquet_trials(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> list[Trial]:

@@ -167,3 +167,18 @@ def test_the_command_line_and_the_report_name_one_seed_and_no_nan(tmp_path, caps
     report = (out / "report.html").read_text()
     assert "19 shift surrogates (--surrogate-seed 5:" in report
     assert "written p &lt;= 0.05" in report
+
+
+@pytest.mark.parametrize("command", ["evaluate", "convert"])
+@pytest.mark.parametrize(
+    ("flag", "value"),
+    [("--resample", "0"), ("--resample", "0.99"), ("--resample", "20000"), ("--resample", "nan"),
+     ("--max-gap", "-1"), ("--max-gap", "inf")],
+)  # fmt: skip
+def test_reading_options_out_of_range_are_one_line(tmp_path, capsys, command, flag, value) -> None:
+    path = tmp_path / "trial.csv"
+    write_recording(path)
+    out = ["--out", str(tmp_path / "out")] if command == "convert" else []
+    status, _, error = run(capsys, command, str(path), "--columns", COLUMNS, flag, value, *out)
+    assert status == 2 and error.count("\n") == 1 and flag in error
+    assert not (tmp_path / "out").exists()

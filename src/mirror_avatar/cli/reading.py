@@ -20,11 +20,14 @@ from typing import Any
 
 import click
 
+from mirror_avatar.cli.constrained import constrained_type, with_range
 from mirror_avatar.import_checks import check_table, check_trial
 from mirror_avatar.importing import (
     MAX_GAP,
+    MAX_GAP_RANGE,
     PLAYING_RANGE_CM,
     POSITION_UNITS,
+    RESAMPLE_RANGE,
     TIME_UNITS,
     ColumnMap,
     ImportOptions,
@@ -48,14 +51,16 @@ COLUMNS_OPTION = click.option(
     "instance time=time,human=human,avatar=avatar: the labels name the players.",
 )  # fmt: skip
 RESAMPLE_OPTION = click.option(
-    "--resample", type=float, default=None,
-    help="Interpolate irregularly sampled recordings (PCHIP) onto a uniform grid at this "
-    "rate (Hz); steps between samples over --max-gap are refused, not bridged.",
+    "--resample", type=constrained_type(RESAMPLE_RANGE), default=None,
+    help=with_range("Interpolate irregularly sampled recordings (PCHIP) onto a uniform grid "
+                    "at this rate (Hz); steps between samples over --max-gap are refused, not "
+                    "bridged.", RESAMPLE_RANGE),
 )  # fmt: skip
 MAX_GAP_OPTION = click.option(
-    "--max-gap", type=float, default=MAX_GAP, show_default=True,
-    help="Longest drop-out interpolated: seconds between the positions on either side of "
-    "missing ones (with --resample: the longest step between samples).",
+    "--max-gap", type=constrained_type(MAX_GAP_RANGE), default=MAX_GAP, show_default=True,
+    help=with_range("Longest drop-out interpolated: seconds between the positions on either "
+                    "side of missing ones (with --resample: the longest step between samples).",
+                    MAX_GAP_RANGE),
 )  # fmt: skip
 
 
