@@ -4,8 +4,10 @@ Formats: CSV with header ``time,position`` (the exchange format; extra columns a
 Parquet, and the MATLAB struct format of the bundled data (a 1xK struct array with fields ``x``
 and ``v``); BIDS-Motion is read by `mirror_avatar.bids.reading` with the checks of this module,
 and `mirror_avatar.trial_files` reads and writes any of them by name. Other columns and units
-are read as `mirror_avatar.importing.ImportOptions` say. Readers do not resample: irregular
-timestamps are kept (call ``trial.resampled``). Every reader validates its input and raises
+are read as `mirror_avatar.importing.ImportOptions` say, several players' columns of one file
+as one trial each (``options.columns``). Readers resample only when asked
+(``options.resample``); otherwise irregular timestamps are kept (call ``trial.resampled``).
+Every reader validates its input and raises
 `InputError` with one line naming the file and the problem, whatever the file holds (binary
 junk, text that is not UTF-8, damaged or crafted contents, wrong types in JSON); values quoted
 from the file are cut to a few dozen characters (`mirror_avatar.importing.excerpt`). Files
