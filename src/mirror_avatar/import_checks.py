@@ -6,7 +6,8 @@ its travel gives positions in [0, 1] instead of [-0.5, 0.5], and every analysis 
 centre, the samples interpolated over drop-outs) and names what looks wrong: positions outside
 the playing range `mirror_avatar.trials.PLAYING_RANGE`, a span whose centre is off the middle of
 the range by more than `OFF_CENTRE`, or irregular sampling (a step longer than `IRREGULAR_STEP`
-times the median step). `check_table` lays the checks out one line per trial.
+times the median step). `check_table` lays the checks out one line per trial; a trial
+resampled on reading (``--resample``) shows its recorded and new rates (``13.1->100``).
 """
 
 from __future__ import annotations
@@ -57,6 +58,8 @@ class TrialCheck:
         Middle of the positions' span, ``(low + high) / 2`` (units).
     interpolated
         Samples interpolated over drop-outs.
+    recorded_rate
+        Mean rate of the recording (Hz) when it was resampled to ``rate``; None otherwise.
     problems
         Short phrases naming what looks wrong; empty if nothing does.
     """
@@ -69,6 +72,14 @@ class TrialCheck:
     centre: float
     interpolated: int
     problems: tuple[str, ...]
+    recorded_rate: float | None = None
+
+    @property
+    def rate_text(self) -> str:
+        """The rate as the table shows it: ``13.1->100`` for a trial resampled."""
+        if self.recorded_rate is None:
+            return f"{self.rate:.4g}"
+        return f"{self.recorded_rate:.3g}->{self.rate:.4g}"
 
 
 def check_trial(trial: Trial) -> TrialCheck:
@@ -85,7 +96,7 @@ def check_trial(trial: Trial) -> TrialCheck:
         problems.append(f"irregular sampling (a step of {steps.max():.3g} s)")
     info = trial.metadata.get("import", {})
     return TrialCheck(
-        name=str(trial.metadata.get("source") or trial.label),
+        name=_name(trial),
         rate=trial.rate,
         duration=trial.duration,
         low=low,
@@ -93,20 +104,28 @@ def check_trial(trial: Trial) -> TrialCheck:
         centre=centre,
         interpolated=int(info.get("interpolated_samples", 0)),
         problems=tuple(problems),
+        recorded_rate=trial.metadata.get("resampled_from"),
     )
+
+
+def _name(trial: Trial) -> str:
+    """Name a trial in the table: its source file (and player, of a file of several)."""
+    name = str(trial.metadata.get("source") or trial.label)
+    player = trial.metadata.get("player")
+    return f"{name} ({player})" if player else name
 
 
 def check_table(checks: Sequence[TrialCheck]) -> list[str]:
     """Lay ``checks`` out as text lines: a header, one line per trial, then the fixes needed."""
     width = max([len("trial"), *(len(check.name) for check in checks)])
     lines = [
-        f"{'trial':<{width}}  {'rate Hz':>8}  {'length s':>8}  {'positions':>15}  "
+        f"{'trial':<{width}}  {'rate Hz':>10}  {'length s':>8}  {'positions':>15}  "
         f"{'centre':>6}  {'filled':>6}  problems"
     ]
     for check in checks:
         span = f"{check.low:.2f} to {check.high:.2f}"
         lines.append(
-            f"{check.name:<{width}}  {check.rate:>8.4g}  {check.duration:>8.4g}  {span:>15}  "
+            f"{check.name:<{width}}  {check.rate_text:>10}  {check.duration:>8.4g}  {span:>15}  "
             f"{check.centre:>+6.2f}  {check.interpolated:>6d}  "
             f"{'; '.join(check.problems) or 'none'}"
         )

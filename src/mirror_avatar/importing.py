@@ -9,6 +9,13 @@ is refused with one line naming the option that would read it. Short drop-outs (
 NaN, where tracking was lost) are interpolated linearly up to `ImportOptions.max_gap` seconds and
 reported; longer ones are refused. Values quoted from a file in an error line are cut to
 `ECHO_CHARS` characters (`excerpt`).
+
+A recording of several players in one file (``time,human,avatar``) is read with a `ColumnMap`
+(``--columns time=time,human=human,avatar=avatar``): the time column, then one player per
+``LABEL=COLUMN``, labels taken from the names. An irregularly sampled recording (web pages and
+hand trackers stamp each frame as it comes) is put on a uniform grid with ``--resample HZ``
+(`check_steps` first refuses a step between samples longer than ``--max-gap``: resampling does
+not bridge what was never recorded).
 """
 
 from __future__ import annotations
@@ -21,6 +28,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from mirror_avatar.constraints import Interval
 from mirror_avatar.errors import InputError
 
 Array = NDArray[np.float64]
@@ -47,8 +55,76 @@ rounding, finer than any tracker's sampling (**choice**)."""
 MISSING_CELLS = ("", "nan", "na", "n/a")
 """Cells that are a missing sample (compared after stripping spaces, in any letter case)."""
 
+RESAMPLE_RANGE = Interval(float, 1.0, 10_000.0, "both", "Hz")
+"""Rates ``--resample`` accepts: `mirror_avatar.trials.MIN_RATE` to ``MAX_RATE``."""
+
+MAX_GAP_RANGE = Interval(float, 0.0, None, "both", "s")
+"""Values ``--max-gap`` accepts (0 refuses every gap)."""
+
 ECHO_CHARS = 40
 """Most characters of a value from a file quoted in an error line (**choice**)."""
+
+
+@dataclass(frozen=True)
+class ColumnMap:
+    """Which columns of a file hold the time and each player's position.
+
+    Parameters
+    ----------
+    time
+        The time column.
+    players
+        ``(label, column)`` per player, in order: the label names the player in every output.
+    """
+
+    time: str
+    players: tuple[tuple[str, str], ...]
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        """The players' labels, in order."""
+        return tuple(label for label, _ in self.players)
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """The players' position columns, in order."""
+        return tuple(column for _, column in self.players)
+
+    def __str__(self) -> str:
+        """Write the map as ``--columns`` takes it."""
+        return ",".join(f"{key}={value}" for key, value in (("time", self.time), *self.players))
+
+
+COLUMNS_EXAMPLE = "time=time,human=human,avatar=avatar"
+"""A ``--columns`` value, quoted in error lines."""
+
+
+def parse_columns(text: str) -> ColumnMap:
+    """Read ``--columns``: ``time=TIME``, then ``LABEL=COLUMN`` per player, comma-separated.
+
+    Raises
+    ------
+    InputError
+        A part that is not ``KEY=COLUMN``, a first key other than ``time``, no player, or a
+        label or column named twice.
+    """
+    usage = f"give time=TIME,LABEL=COLUMN,... (for instance {COLUMNS_EXAMPLE})"
+    pairs = []
+    for part in text.split(","):
+        key, equals, value = (piece.strip() for piece in part.partition("="))
+        if not (equals and key and value):
+            raise InputError("--columns", f"{excerpt(part)} is not KEY=COLUMN: {usage}")
+        pairs.append((key, value))
+    if pairs[0][0] != "time" or len(pairs) < 2:
+        raise InputError("--columns", f"the time column first, then at least one player: {usage}")
+    players = tuple(pairs[1:])
+    for what, names in (("label", [p[0] for p in players]), ("column", [p[1] for p in players])):
+        repeated = sorted({name for name in names if names.count(name) > 1})
+        if repeated:
+            raise InputError("--columns", f"{what} {excerpt(repeated[0])} is given twice: {usage}")
+    if any(label.startswith(".") or "/" in label for label, _ in players):
+        raise InputError("--columns", f"labels may not start with '.' or hold '/': {usage}")
+    return ColumnMap(pairs[0][1], players)
 
 
 @dataclass(frozen=True)
@@ -74,6 +150,12 @@ class ImportOptions:
         reads the middle of the playing range.
     centre
         Move each trial so that the middle of its positions' span is 0 (after ``offset``).
+    columns
+        The time column and each player's position column (overrides ``time_column`` and
+        ``position_column``); one trial is read per player.
+    resample
+        Rate (Hz) of the uniform grid each trial is interpolated onto (PCHIP, METHODS section
+        2), after `check_steps`; None keeps the samples' own times.
     """
 
     time_column: str = "time"
@@ -84,6 +166,8 @@ class ImportOptions:
     max_gap: float = MAX_GAP
     offset: float = 0.0
     centre: bool = False
+    columns: ColumnMap | None = None
+    resample: float | None = None
 
     def __post_init__(self) -> None:
         if self.time_unit not in TIME_UNITS:
@@ -92,10 +176,19 @@ class ImportOptions:
             raise InputError("--position-unit", f"must be one of {', '.join(POSITION_UNITS)}")
         if not (np.isfinite(self.playing_range) and self.playing_range > 0):
             raise InputError("--playing-range", "must be a positive number of centimetres")
-        if not (np.isfinite(self.max_gap) and self.max_gap >= 0):
-            raise InputError("--max-gap", "must be a non-negative number of seconds")
+        if self.max_gap not in MAX_GAP_RANGE:
+            raise InputError("--max-gap", f"must be {MAX_GAP_RANGE}")
         if not np.isfinite(self.offset):
             raise InputError("--offset", "must be a finite number (in --position-unit)")
+        if self.resample is not None and self.resample not in RESAMPLE_RANGE:
+            raise InputError("--resample", f"must be {RESAMPLE_RANGE}")
+
+    @property
+    def player_columns(self) -> ColumnMap:
+        """The columns read: `columns`, or ``time_column`` and ``position_column`` (one player)."""
+        if self.columns is not None:
+            return self.columns
+        return ColumnMap(self.time_column, (("", self.position_column),))
 
     def describe(self) -> dict[str, Any]:
         """Return the options as recorded in each trial's metadata."""
@@ -221,6 +314,36 @@ def fill_gaps(
     good = ~missing
     positions[missing] = np.interp(times[missing], times[good], positions[good])
     return times, positions, int(missing.sum())
+
+
+def check_steps(times: Array, max_gap: float, source: str) -> None:
+    """Refuse a step between consecutive samples longer than ``max_gap`` before resampling.
+
+    Parameters
+    ----------
+    times
+        Sample times (s), shape (n,), increasing.
+    max_gap
+        Longest step (s) interpolated over, within `GAP_TOLERANCE`.
+    source
+        The file, named in the error line.
+
+    Raises
+    ------
+    InputError
+        Naming the longest step's times and length, and ``--max-gap``.
+    """
+    steps = np.diff(times)
+    if not steps.size:
+        return
+    k = int(np.argmax(steps))
+    if steps[k] > max_gap + GAP_TOLERANCE:
+        raise InputError(
+            source,
+            f"no sample between t = {times[k]:.3f} s and {times[k + 1]:.3f} s ({steps[k]:.3g} s): "
+            f"resampling bridges steps up to --max-gap {max_gap:g} s; give a larger --max-gap "
+            "to bridge this one, or cut the recording there",
+        )
 
 
 def clock_offsets(cells: pd.Series) -> Array:

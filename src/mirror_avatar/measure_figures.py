@@ -17,7 +17,7 @@ from matplotlib.figure import Figure
 
 from mirror_avatar.metrics.measures import P_VALUE_KEYS, MeasureOptions, Measures
 from mirror_avatar.metrics.surrogates import WeakNull
-from mirror_avatar.report import Section
+from mirror_avatar.report import Section, p_text
 from mirror_avatar.session import Session
 
 WIDE = (7.2, 4.8)
@@ -100,7 +100,7 @@ def plot_surrogates(measures: Measures) -> Figure:
         axes.hist(null, bins=20, color="0.6")
         axes.axvline(measures.values[name], color="C3", lw=1.5)
         p = measures.values.get(P_VALUE_KEYS.get(name, f"{name}_p_value"), float("nan"))
-        axes.set_title(f"{name.replace('_', ' ')}\np = {p:.3g}", fontsize="small")
+        axes.set_title(f"{name.replace('_', ' ')}\n{p_text(p, null.size)}", fontsize="small")
         axes.tick_params(labelsize="x-small")
     for axes in grid.ravel()[len(names) :]:
         axes.set_axis_off()
@@ -121,6 +121,19 @@ def plot_measures(session: Session, measures: Measures) -> dict[str, Figure]:
     if measures.null:
         figures["surrogates"] = plot_surrogates(measures)
     return figures
+
+
+def _surrogates_text(options: MeasureOptions) -> str:
+    """Say what the p-values were tested against: how many surrogates, which seed, the floor."""
+    if options.n_surrogates == 0:
+        return "No surrogates were drawn (--surrogates 0): the measures have no p-values."
+    return (
+        f"Every coordination measure is tested against {options.n_surrogates} "
+        f"{options.surrogates} surrogates (--surrogate-seed {options.seed}: session k draws "
+        "from child k of it); a p-value at or above 0.05 means the measure does not beat its "
+        f"surrogates, and the smallest p-value {options.n_surrogates} surrogates can give is "
+        f"written {p_text(0.0, options.n_surrogates)}."
+    )
 
 
 def measures_section(
@@ -144,9 +157,7 @@ def measures_section(
         "difference (2-3 Hz). Jitter index: each player's share of velocity in 2-3 Hz. "
         "Leadership: windowed lagged cross-correlation of the velocities with peak picking "
         "(positive lag: player 0 leads). Transfer entropy between velocities, in bits.",
-        f"Every coordination measure is tested against {options.n_surrogates} "
-        f"{options.surrogates} surrogates (seed {options.seed}); a p-value at or above 0.05 "
-        "means the measure does not beat its surrogates.",
+        _surrogates_text(options),
     ]
     if weak_null is not None:
         text.append(f"Weak-null test of synchrony over the sessions: {weak_null}.")

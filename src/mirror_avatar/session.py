@@ -12,7 +12,10 @@ Files: Parquet or CSV with a ``time`` column and one column per player and chann
 graph and metadata. `SessionWriter` appends the same CSV a sample at a time, flushed, so a live
 recording is readable at every moment; `load_session` reads every session the toolkit writes,
 and plain files with only ``time`` and ``position_<i>`` columns (velocities are then computed as
-for a trial, METHODS section 2).
+for a trial, METHODS section 2). Other files of several players' positions are read with a
+`mirror_avatar.importing.ColumnMap` (``--columns time=time,human=human,avatar=avatar``: labels
+from the names), and irregularly sampled ones put on a uniform grid first (``resample``, PCHIP
+as `mirror_avatar.trials.resample`; a step longer than ``max_gap`` is refused, not bridged).
 """
 
 from __future__ import annotations
@@ -41,8 +44,9 @@ from mirror_avatar.bids.reading import (
 )
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import Graph, check_graph, complete_graph
+from mirror_avatar.importing import MAX_GAP, ColumnMap, check_steps, excerpt
 from mirror_avatar.trial_io import MAX_FILE_BYTES, MAX_SIDECAR_BYTES
-from mirror_avatar.trials import compute_velocity
+from mirror_avatar.trials import compute_velocity, make_trial
 from mirror_avatar.user_files import check_regular, open_regular, read_json, read_text
 
 logger = logging.getLogger(__name__)
@@ -320,7 +324,12 @@ class SessionWriter:
         return self.sidecar
 
 
-def load_session(path: str | os.PathLike[str]) -> Session:
+def load_session(
+    path: str | os.PathLike[str],
+    columns: ColumnMap | None = None,
+    resample: float | None = None,
+    max_gap: float = MAX_GAP,
+) -> Session:
     """Read a session: any file `Session.save`, `Session.save_csv` or `SessionWriter` wrote.
 
     A lab trial exported as BIDS-Motion (a ``_motion.tsv`` of `mirror_avatar.lab.bids`) is
@@ -332,11 +341,25 @@ def load_session(path: str | os.PathLike[str]) -> Session:
     positions as for a trial; controls and references are NaN). A last CSV line without its
     newline (a recording cut short) is ignored. The sidecar (``.json`` beside the file) is optional.
 
+    Parameters
+    ----------
+    path
+        The file.
+    columns
+        The time column and each player's position column, labels from the map (the sidecar's
+        labels are then not used); None reads ``time``, ``position_0``...
+    resample
+        Rate (Hz) of a uniform grid the positions are interpolated onto (velocities computed
+        on it; controls and references dropped), recorded in ``metadata["import"]``.
+    max_gap
+        Longest step between samples (s) that ``resample`` interpolates over.
+
     Raises
     ------
     InputError
         Missing or unreadable file, no players, missing columns, non-finite positions, time
-        not increasing or too few samples.
+        not increasing, too few samples, irregular sampling without ``resample`` or a step
+        over ``max_gap`` with it; each naming the option that fixes it.
     """
     path = Path(path)
     check_regular(path, MAX_FILE_BYTES)
@@ -344,13 +367,22 @@ def load_session(path: str | os.PathLike[str]) -> Session:
         if is_lab_recording(path):
             return _lab_recording_session(read_lab_recording(path))
         return _tracked_points_session(read_tracked_points(path))
-    columns = _read_columns(path)
-    n_players = _count_players(path, columns)
-    times = columns["time"]
+    table = _read_columns(path)
+    if columns is not None:
+        table = _mapped(path, table, columns)
+    n_players = _count_players(path, table)
+    times = table["time"]
     if times.size < MIN_SESSION_SAMPLES or not np.all(np.diff(times) > 0):
         raise InputError(path, f"time must hold at least {MIN_SESSION_SAMPLES} increasing samples")
-    channels = {c: _channel(path, columns, c, n_players, times) for c in CHANNELS}
+    read: dict[str, Any] = {} if columns is None else {"columns": str(columns)}
+    if resample is not None:
+        table, recorded = _resampled(path, table, n_players, resample, max_gap)
+        times = table["time"]
+        read |= {"resampled_from": recorded, "resample": resample, "max_gap": max_gap}
+    channels = {c: _channel(path, table, c, n_players, times) for c in CHANNELS}
     sidecar = _read_sidecar(path)
+    metadata = dict(sidecar.get("metadata", {})) | ({"import": read} if read else {})
+    labels = columns.labels if columns is not None else tuple(sidecar.get("labels", ()))
     graph = sidecar.get("graph")
     try:
         return Session(
@@ -359,10 +391,10 @@ def load_session(path: str | os.PathLike[str]) -> Session:
             channels["velocity"],
             channels["control"],
             channels["reference"],
-            labels=tuple(sidecar.get("labels", ()))[:n_players],
+            labels=labels[:n_players],
             roles=tuple(sidecar.get("roles", ()))[:n_players],
             graph=np.zeros((0, 0), dtype=np.int8) if graph is None else np.asarray(graph),
-            metadata=dict(sidecar.get("metadata", {})),
+            metadata=metadata,
         )
     except InputError as error:
         raise InputError(path, error.problem) from None
@@ -407,16 +439,58 @@ def _tracked_points_session(points: TrackedPoints) -> Session:
     )
 
 
+def _mapped(path: Path, table: dict[str, Array], columns: ColumnMap) -> dict[str, Array]:
+    """Rename a file's columns as a session's: ``time`` and ``position_<i>`` per player."""
+    names = (columns.time, *columns.columns)
+    missing = [name for name in names if name not in table]
+    if missing:
+        found = ", ".join(excerpt(name) for name in list(table)[:8])
+        raise InputError(
+            path, f"no column {excerpt(missing[0])} (found {found}): name them in --columns"
+        )
+    return {"time": table[columns.time]} | {
+        f"position_{p}": table[column] for p, column in enumerate(columns.columns)
+    }
+
+
 def _count_players(path: Path, columns: dict[str, Array]) -> int:
-    if "time" not in columns:
-        raise InputError(path, "not a session file: no 'time' column")
     n = 0
     while f"position_{n}" in columns:
         n += 1
-    if n == 0:
-        found = ", ".join(list(columns)[:6])
-        raise InputError(path, f"not a session file: no 'position_0' column (found {found})")
+    if "time" not in columns or n == 0:
+        names = list(columns)
+        found = ", ".join(excerpt(name) for name in names[:8])
+        time = "time" if "time" in columns else "TIME"
+        players = [name for name in names if name != time][:2] or ["A", "B"]
+        pairs = [f"{excerpt(name, False)}={excerpt(name, False)}" for name in players]
+        example = ",".join([f"time={time}", *pairs])
+        what = "'time'" if "time" not in columns else "'position_0'"
+        raise InputError(
+            path,
+            f"not a session file: no {what} column (found {found}): name the time and each "
+            f"player's position column with --columns {example}",
+        )
     return n
+
+
+def _resampled(
+    path: Path, table: dict[str, Array], n_players: int, rate: float, max_gap: float
+) -> tuple[dict[str, Array], float]:
+    """Interpolate each player's positions onto a uniform grid at ``rate`` Hz (PCHIP).
+
+    Returns the table of ``time`` and ``position_<i>`` on the grid, and the recording's mean
+    rate (Hz).
+    """
+    times = table["time"]
+    check_steps(times, max_gap, str(path))
+    trials = [
+        make_trial(times, table[f"position_{p}"], source=str(path)).resampled(rate)
+        for p in range(n_players)
+    ]
+    grid = {"time": trials[0].times} | {
+        f"position_{p}": trial.positions for p, trial in enumerate(trials)
+    }
+    return grid, float(trials[0].metadata["resampled_from"])
 
 
 def _channel(
@@ -440,7 +514,11 @@ def _channel(
 def _velocities(path: Path, columns: dict[str, Array], n_players: int, times: Array) -> Array:
     steps = np.diff(times)
     if np.any(np.abs(steps - steps.mean()) > 1e-6 * steps.mean()):
-        raise InputError(path, "positions without velocities must be sampled uniformly")
+        raise InputError(
+            path,
+            f"irregular sampling (steps of {steps.min():.3g} to {steps.max():.3g} s, mean rate "
+            f"{1 / steps.mean():.3g} Hz): give --resample HZ (for instance --resample 100)",
+        )
     rate = 1.0 / float(steps.mean())
     return np.vstack([compute_velocity(columns[f"position_{p}"], rate) for p in range(n_players)])
 

@@ -15,9 +15,10 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
 from mirror_avatar.trial_io import (
     MAX_MAT_TRIALS,
-    read_csv_trial,
+    only_trial,
+    read_csv_trials,
     read_mat_struct,
-    read_parquet_trial,
+    read_parquet_trials,
     write_csv_trial,
     write_parquet_trial,
 )
@@ -35,10 +36,7 @@ def read_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Tri
 
     A MATLAB file of more is refused from its header, before its trials are read.
     """
-    trials = read_trial_file(path, options, max_trials=1)
-    if len(trials) != 1:
-        raise InputError(path, f"holds {len(trials)} trials, expected one")
-    return trials[0]
+    return only_trial(read_trial_file(path, options, max_trials=1), path)
 
 
 def read_trial_file(
@@ -57,9 +55,9 @@ def read_trial_file(
             + (" (a folder name? it does not exist)" if not suffix else ""),
         )
     if suffix == ".csv":
-        return [read_csv_trial(path, options)]
+        return read_csv_trials(path, options)
     if suffix == ".parquet":
-        return [read_parquet_trial(path, options)]
+        return read_parquet_trials(path, options)
     if suffix == MOTION_SUFFIX:
         return [read_bids_motion(path, options)]
     return read_mat_struct(path, MAT_DURATION, max_trials=max_trials)

@@ -4,8 +4,10 @@ Formats: CSV with header ``time,position`` (the exchange format; extra columns a
 Parquet, and the MATLAB struct format of the bundled data (a 1xK struct array with fields ``x``
 and ``v``); BIDS-Motion is read by `mirror_avatar.bids.reading` with the checks of this module,
 and `mirror_avatar.trial_files` reads and writes any of them by name. Other columns and units
-are read as `mirror_avatar.importing.ImportOptions` say. Readers do not resample: irregular
-timestamps are kept (call ``trial.resampled``). Every reader validates its input and raises
+are read as `mirror_avatar.importing.ImportOptions` say, several players' columns of one file
+as one trial each (``options.columns``). Readers resample only when asked
+(``options.resample``); otherwise irregular timestamps are kept (call ``trial.resampled``).
+Every reader validates its input and raises
 `InputError` with one line naming the file and the problem, whatever the file holds (binary
 junk, text that is not UTF-8, damaged or crafted contents, wrong types in JSON); values quoted
 from the file are cut to a few dozen characters (`mirror_avatar.importing.excerpt`). Files
@@ -53,9 +55,11 @@ from numpy.typing import NDArray
 from mirror_avatar.atomic import atomic_path, write_atomic_text
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import (
+    COLUMNS_EXAMPLE,
     DEFAULT_IMPORT,
     MISSING_CELLS,
     ImportOptions,
+    check_steps,
     excerpt,
     fill_gaps,
     parse_cells,
@@ -375,13 +379,33 @@ def write_mat_struct(trials: list[Trial], path: str | Path, variable: str) -> No
         scipy.io.savemat(handle, {variable: struct})
 
 
+def only_trial(trials: list[Trial], path: str | Path) -> Trial:
+    """Return the one trial of a file, or refuse its several (naming players, if any)."""
+    if len(trials) == 1:
+        return trials[0]
+    players = [str(trial.metadata.get("player", "")) for trial in trials]
+    if all(players):
+        raise InputError(
+            path,
+            f"holds {len(trials)} players' trials ({', '.join(players)}), expected one: name "
+            "one player in --columns",
+        )
+    raise InputError(path, f"holds {len(trials)} trials, expected one")
+
+
 def read_csv_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
-    """Read a CSV trial: by default columns ``time,position`` (s, normalised units).
+    """Read a CSV trial of one player (see `read_csv_trials`)."""
+    return only_trial(read_csv_trials(path, options), path)
+
+
+def read_csv_trials(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> list[Trial]:
+    """Read a CSV file's trials: by default one, columns ``time,position`` (s, normalised units).
 
     Other columns and units are read as ``options`` say (an epoch clock's stamps exactly, as
-    text: `mirror_avatar.importing.clock_offsets`); blank cells are missing samples
-    (`mirror_avatar.importing.fill_gaps`). A byte-order mark is ignored, and so are blank rows.
-    Rows are numbered in error lines as a spreadsheet would, without the blank ones.
+    text: `mirror_avatar.importing.clock_offsets`); with ``options.columns`` one trial per
+    player. Blank cells are missing samples (`mirror_avatar.importing.fill_gaps`). A byte-order
+    mark is ignored, and so are blank rows. Rows are numbered in error lines as a spreadsheet
+    would, without the blank ones.
 
     Raises
     ------
@@ -393,18 +417,29 @@ def read_csv_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) ->
     path = Path(path)
     check_regular(path, MAX_FILE_BYTES)
     header = _first_row(path, ",")
-    names = (options.time_column, options.position_column)
-    missing = [name for name in names if name not in header]
+    mapping = options.player_columns
+    names = (mapping.time, *mapping.columns)
+    _check_columns(path, names, header)
+    values = _read_numbers(path, [header.index(name) for name in names], names, ",", 2)
+    times = values[0]
+    if options.time_unit.startswith("epoch"):
+        times = read_clock_offsets(path, header.index(mapping.time))
+    return [
+        import_trial(times, positions, path, options, None, first_row=2, player=label)
+        for (label, _), positions in zip(mapping.players, values[1:], strict=True)
+    ]
+
+
+def _check_columns(path: Path, names: Sequence[str], found: Sequence[str]) -> None:
+    """Refuse a file without the columns ``names``, naming those ``found`` and the options."""
+    missing = [name for name in dict.fromkeys(names) if name not in found]
     if missing:
         raise InputError(
             path,
-            f"missing column(s) {_listing(missing)}; found {_listing(header)}: name the columns "
-            "to read with --time-column and --position-column",
+            f"missing column(s) {_listing(missing)}; found {_listing(found)}: name the columns "
+            f"to read with --time-column and --position-column, or several players' with "
+            f"--columns (for instance {COLUMNS_EXAMPLE})",
         )
-    times, positions = _read_numbers(path, [header.index(name) for name in names], names, ",", 2)
-    if options.time_unit.startswith("epoch"):
-        times = read_clock_offsets(path, header.index(options.time_column))
-    return import_trial(times, positions, path, options, None, first_row=2)
 
 
 def import_trial(
@@ -414,19 +449,24 @@ def import_trial(
     options: ImportOptions,
     position_unit: str | None,
     first_row: int = 1,
+    player: str = "",
 ) -> Trial:
     """Convert a file's columns with ``options``, fill short drop-outs, and validate the trial.
 
     ``position_unit`` (a unit the file itself names) overrides ``options.position_unit``.
     Rows with neither a time nor a position (NaN in both) are skipped; ``first_row`` is the
-    number of the first row in error lines. The trial's metadata records the options and how
-    many samples were interpolated.
+    number of the first row in error lines. With ``options.resample`` the trial is
+    interpolated onto a uniform grid (`mirror_avatar.trials.resample`, PCHIP) after its steps
+    are checked against ``options.max_gap`` (`mirror_avatar.importing.check_steps`). The
+    trial's metadata records the options, how many samples were interpolated and, if
+    resampled, the recording's mean rate (``resampled_from``, Hz); ``player`` (a label from
+    ``options.columns``) is kept as ``metadata["player"]`` and ends the trial's label.
 
     Raises
     ------
     InputError
-        A row with a position and no finite time, a gap too long to fill, or any `make_trial`
-        problem.
+        A row with a position and no finite time, a gap too long to fill or resample over, or
+        any `make_trial` problem.
     """
     blank = np.isnan(times) & np.isnan(positions)
     untimed = ~np.isfinite(times) & ~blank
@@ -443,10 +483,19 @@ def import_trial(
         seconds = options.seconds(times, str(path))
         normalised = options.normalised(positions, position_unit)
         seconds, normalised, filled = fill_gaps(seconds, normalised, options.max_gap, str(path))
-    metadata = {"import": options.describe() | {"interpolated_samples": filled}}
+    metadata: dict[str, Any] = {"import": options.describe() | {"interpolated_samples": filled}}
     if position_unit is not None:
         metadata["import"]["position_unit"] = position_unit
-    return make_trial(seconds, normalised, source=str(path), label=path.stem, metadata=metadata)
+    source = f"{path} ({player})" if player else str(path)
+    if player:
+        metadata["player"] = player
+    label = f"{path.stem}-{player}" if player else path.stem
+    metadata["source"] = str(path)
+    trial = make_trial(seconds, normalised, source=source, label=label, metadata=metadata)
+    if options.resample is None:
+        return trial
+    check_steps(trial.times, options.max_gap, source)
+    return trial.resampled(options.resample)
 
 
 def write_csv_trial(trial: Trial, path: str | Path) -> None:
@@ -459,9 +508,14 @@ def write_csv_trial(trial: Trial, path: str | Path) -> None:
 
 
 def read_parquet_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> Trial:
-    """Read a Parquet trial, by default columns ``time`` and ``position``; metadata from the schema.
+    """Read a Parquet trial of one player (see `read_parquet_trials`)."""
+    return only_trial(read_parquet_trials(path, options), path)
 
-    Other columns and units are read as ``options`` say (see `read_csv_trial`); the two columns
+
+def read_parquet_trials(path: str | Path, options: ImportOptions = DEFAULT_IMPORT) -> list[Trial]:
+    """Read a Parquet file's trials, by default one of columns ``time`` and ``position``.
+
+    Other columns and units are read as ``options`` say (see `read_csv_trials`); the columns
     must hold integers or floating-point numbers, nulls being missing samples. Label, group and
     metadata come from the JSON schema metadata ``mirror_avatar`` that `write_parquet_trial`
     writes.
@@ -479,17 +533,12 @@ def read_parquet_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT
 
     path = Path(path)
     check_regular(path, MAX_FILE_BYTES)
-    names = (options.time_column, options.position_column)
+    mapping = options.player_columns
+    names = (mapping.time, *mapping.columns)
     try:
         with open_regular(path, MAX_FILE_BYTES) as file, pq.ParquetFile(file) as parquet:
             schema = parquet.schema_arrow
-            missing = [name for name in names if name not in schema.names]
-            if missing:
-                raise InputError(
-                    path,
-                    f"missing column(s) {_listing(missing)}; found {_listing(schema.names)}: name "
-                    "the columns to read with --time-column and --position-column",
-                )
+            _check_columns(path, names, schema.names)
             for name in names:
                 kind = schema.field(schema.names.index(name)).type
                 if not (pa.types.is_integer(kind) or pa.types.is_floating(kind)):
@@ -501,9 +550,9 @@ def read_parquet_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT
                     "trial files",
                 )
             table = parquet.read(columns=list(dict.fromkeys(names)))
-            times, positions = (
+            values = [
                 table.column(name).cast(pa.float64(), safe=False).to_numpy() for name in names
-            )
+            ]
             del table
     except (pa.ArrowException, OSError, UnicodeDecodeError) as error:
         raise InputError(path, f"not a readable Parquet file ({type(error).__name__})") from None
@@ -513,13 +562,20 @@ def read_parquet_trial(path: str | Path, options: ImportOptions = DEFAULT_IMPORT
     extra = info.get("metadata", {})
     if not isinstance(extra, dict):
         raise InputError(path, f"{where}: metadata is {_json_kind(extra)}, not an object")
-    trial = import_trial(times, positions, path, options, None)
-    return replace(
-        trial,
-        label=_name_in(info, "label", path, f"{where}: ") or path.stem,
-        group=_name_in(info, "group", path, f"{where}: "),
-        metadata=extra | trial.metadata,
-    )
+    label = _name_in(info, "label", path, f"{where}: ") or path.stem
+    group = _name_in(info, "group", path, f"{where}: ")
+    trials = []
+    for (player, _), positions in zip(mapping.players, values[1:], strict=True):
+        trial = import_trial(values[0], positions, path, options, None, player=player)
+        trials.append(
+            replace(
+                trial,
+                label=f"{label}-{player}" if player else label,
+                group=group,
+                metadata=extra | trial.metadata,
+            )
+        )
+    return trials
 
 
 def write_parquet_trial(trial: Trial, path: str | Path) -> None:

@@ -137,12 +137,22 @@ def _identified(
     labelled = [
         replace(
             trial,
-            label=identity if len(trials) == 1 else f"{identity}-{k + 1}",
+            label=identity + _trial_suffix(trial, k, len(trials)),
             metadata=trial.metadata | {"source": str(file)},
         )
         for k, trial in enumerate(trials)
     ]
     return [replace(trial, group=rule(trial, file, base)) for trial in labelled]
+
+
+def _trial_suffix(trial: Trial, k: int, count: int) -> str:
+    """Return how a trial's label ends: ``-PLAYER`` (``--columns``), else ``-k`` (from 1).
+
+    A file of one trial without a player adds nothing.
+    """
+    if player := trial.metadata.get("player"):
+        return f"-{player}"
+    return f"-{k + 1}" if count > 1 else ""
 
 
 def _first_time(file: Path, seen: set[Path], found: TrialSet) -> bool:

@@ -37,8 +37,10 @@ def convert(paths: tuple[Path, ...], out_dir: Path, group_by: str, options: Impo
     Columns and units are read as the options say and short drop-outs interpolated; each group
     (--group-by) gets a folder OUT/GROUP of ``<trial>.csv`` files in seconds and normalised
     units, named by each trial's identity (its path below the folders given, ``/`` written
-    as ``_``; a BIDS file's entities), ready for every other command; convert.json records the
-    sources and options. Every name is checked before anything is written.
+    as ``_``; a BIDS file's entities; with --columns, ``-LABEL`` per player), ready for every
+    other command; convert.json records the sources and options. Names never start with a dot
+    (a hidden source folder gives a visible output folder), and the last line says where the
+    files went. Every name is checked before anything is written.
     """
     check_output_dir(out_dir)
     trials = read_and_report(paths, group_by, options)
@@ -62,13 +64,31 @@ def convert(paths: tuple[Path, ...], out_dir: Path, group_by: str, options: Impo
         )
     manifest = {"options": options.describe(), "group_by": group_by, "trials": written}
     write_atomic_json(out_dir / "convert.json", manifest)
-    click.echo(f"{len(written)} trials -> {out_dir}")
+    click.echo(_where(out_dir, targets))
+
+
+def _where(out_dir: Path, targets: list[Path]) -> str:
+    """Say in one line where the trials went: the folder and each group's sub-folder."""
+    folders = Counter(target.parent.name for target in targets)
+    shown = ", ".join(f"{name}/ ({count})" for name, count in folders.items())
+    return (
+        f"wrote {len(targets)} trial(s) to {out_dir.resolve()}: {shown}; sources and options "
+        "in convert.json"
+    )
+
+
+def safe_name(text: str, fallback: str) -> str:
+    """Make ``text`` a visible file or folder name: unsafe characters as ``_``, no leading dot.
+
+    ``fallback`` is used when nothing is left (``.``, ``..``, an empty group).
+    """
+    return UNSAFE.sub("_", text).lstrip(".") or fallback
 
 
 def _target(out_dir: Path, trial: Trial) -> Path:
     """Return where ``trial`` is written: OUT/GROUP/<its identity, one file name>.csv."""
-    folder = out_dir / (UNSAFE.sub("_", trial.group) or "trials")
-    return folder / f"{UNSAFE.sub('_', trial.label) or 'trial'}.csv"
+    folder = out_dir / safe_name(trial.group, "trials")
+    return folder / f"{safe_name(trial.label, 'trial')}.csv"
 
 
 def _check_targets(targets: list[Path]) -> None:

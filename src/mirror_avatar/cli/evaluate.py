@@ -21,6 +21,12 @@ from mirror_avatar.cli.measure_options import (
     scalar_measures,
 )
 from mirror_avatar.cli.outputs import check_output_dir
+from mirror_avatar.cli.reading import (
+    DEFAULT_READING,
+    SessionReading,
+    session_note,
+    session_options,
+)
 from mirror_avatar.cli.simulate import format_metrics
 from mirror_avatar.constraints import Interval
 from mirror_avatar.errors import InputError
@@ -36,7 +42,7 @@ from mirror_avatar.metrics.analysis_rate import (
 from mirror_avatar.metrics.measures import evaluate_measures
 from mirror_avatar.metrics.progress import order_by_start, progress_table
 from mirror_avatar.report import REPORT_FILES, Section, report_texts
-from mirror_avatar.session import Session, load_session
+from mirror_avatar.session import Session
 from mirror_avatar.trial_record import trial_record
 from mirror_avatar.trial_sets import common_root
 
@@ -55,19 +61,23 @@ MAX_MAGNITUDE = 1e100
 sum them, and float64 ends at 1.8e308."""
 
 
-def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], list[str]]:
+def find_sessions(
+    paths: tuple[Path, ...], reading: SessionReading = DEFAULT_READING
+) -> tuple[list[tuple[Path, Session]], list[str]]:
     """Read the sessions among ``paths`` (files, or folders searched recursively).
 
     Folders are searched for session files and BIDS-Motion recordings (`session_files`): a BIDS
     dataset or one of its subject folders is read from its ``_motion.tsv`` files, a lab
     export's trial once whichever of its people's recordings holds it. In folders, files that
     are not sessions (solo trials, other tables) are skipped with a note; a file named
-    explicitly must be a session.
+    explicitly must be a session. Files read with ``reading``'s column map or resampling get
+    a note saying so (`session_note`).
     """
     found, notes = [], []
     for path in paths:
         if not path.is_dir():
-            found.append((path, load_session(path)))
+            found.append((path, reading.load(path)))
+            notes += [note] if (note := session_note(path, found[-1][1])) else []
             continue
         before = len(found)
         trials: dict[tuple[str, int], Path] = {}
@@ -76,7 +86,8 @@ def find_sessions(paths: tuple[Path, ...]) -> tuple[list[tuple[Path, Session]], 
                 notes.append(f"skipped {file}: the same session as {file.with_suffix('.parquet')}")
                 continue
             try:
-                session = load_session(file)
+                session = reading.load(file)
+                notes += [note] if (note := session_note(file, session)) else []
             except InputError as error:
                 notes.append(f"skipped {file}: {error.problem}")
                 continue
@@ -193,20 +204,22 @@ def summary_row(path: Path, session: Session, metrics: dict[str, Any]) -> dict[s
     "time each recorded; in the order given when one has none, which the output says): drift "
     "of their IMS from the first session, EMD to the partner, CV and RMS.",
 )
+@session_options
 @measure_options
 def evaluate(
     paths: tuple[Path, ...], trim: float, as_json: bool, out_dir: Path | None, progress: bool,
-    **measure_kwargs: Any,
+    reading: SessionReading, **measure_kwargs: Any,
 ) -> None:  # fmt: skip
     """Print the coordination metrics of saved sessions (.parquet or .csv, or folders of them).
 
     Any session the toolkit writes (simulations, groups, live trials) or a plain CSV with
     ``time, position_0, position_1, ...``; a BIDS-Motion dataset or subject folder from its
     _motion.tsv files (a lab export's trial once; another tool's recording as one player per
-    tracked point with a POS channel; sourcedata/ only when named). For two players,
-    relative phase and time lag are player 0 minus player 1 (positive when player 0 is
-    ahead); for a group, its synchronisation and each player against the mean of its
-    neighbours. Several sessions give one table.
+    tracked point with a POS channel; sourcedata/ only when named). Other columns are named
+    with --columns (labels from the names), irregular recordings put on a uniform grid with
+    --resample. For two players, relative phase and time lag are player 0 minus player 1
+    (positive when player 0 is ahead); for a group, its synchronisation and each player
+    against the mean of its neighbours. Several sessions give one table.
     The field's measures (co-confidence, jitter, synchrony episodes, leadership, transfer
     entropy) follow, each coordination measure with a p-value against surrogates. Sessions
     sampled faster than 100 Hz are analysed at 100 Hz (or the rate below it that a whole
@@ -215,7 +228,7 @@ def evaluate(
     options = options_from(measure_kwargs)
     if out_dir is not None:
         check_output_dir(out_dir, files=["sessions.csv", *REPORT_FILES])
-    found_sessions, notes = find_sessions(paths)
+    found_sessions, notes = find_sessions(paths, reading)
     sessions = []
     for path, session in found_sessions:
         kept, note = analysed(path, session, trim)
@@ -238,7 +251,7 @@ def evaluate(
         click.echo(json.dumps(json_safe(shown), indent=2))
     elif len(results) == 1:
         click.echo(format_metrics(results[0][2]))
-        if text := format_measures(measures[0].values):
+        if text := format_measures(measures[0].values, options):
             click.echo(text)
     else:
         click.echo(rows.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
@@ -296,10 +309,12 @@ def write_evaluation(
 ) -> None:  # fmt: skip
     """Write the table (CSV), every session's metrics (JSON) and an HTML page with figures.
 
-    The three files are rendered first, then written together
+    A session read with --columns or --resample says so (`session_note`). The three files
+    are rendered first, then written together
     (`mirror_avatar.atomic.write_atomic_files`): a failure leaves none of them changed.
     """
     names = session_names([path for path, _, _ in results])
+    read = [note for path, session, _ in results if (note := session_note(path, session))]
     figures = {
         f"{shown}: {name.replace('_', ' ')}": figure
         for shown, (_, session, _) in zip(names, results, strict=True)
@@ -308,7 +323,7 @@ def write_evaluation(
     section = Section(
         key="sessions",
         title=f"{len(results)} session(s)",
-        text=[f"Metrics leave out the first {trim:g} s of each session."],
+        text=[f"Metrics leave out the first {trim:g} s of each session.", *read],
         tables={"Sessions": rows.set_index("session")},
         figures=figures,
         metrics={"trim": trim} | {str(path): metrics for path, _, metrics in results},

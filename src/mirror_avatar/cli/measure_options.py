@@ -8,6 +8,7 @@ type and range built from the parameter's declared constraint, and
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import fields
 from typing import Any, TypeVar
@@ -16,6 +17,7 @@ import click
 
 from mirror_avatar.cli.constrained import constrained_type, with_range
 from mirror_avatar.metrics.measures import CONSTRAINTS, MeasureOptions
+from mirror_avatar.report import p_text
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -95,34 +97,70 @@ def _family_label(key: str) -> str:
     return key.replace("_", " ")
 
 
-def format_measures(values: dict[str, Any]) -> str:
-    """Render the measures of one session as aligned text, each tested one with its p-value."""
+MISSING_WORDS = {
+    "co_confidence_mean_length": "no segment",
+    "synchrony_mean_dwell": "no episode",
+    "leader_lag_s": "no leader",
+    "leader_share": "no window",
+    "leadership_strength": "no window",
+}
+"""What a measure without a value (NaN) is written as; any other: ``none``."""
+
+
+def _shown(key: str, value: Any) -> tuple[str, bool]:
+    """Return a measure's value as text, and whether it has one (NaN: `MISSING_WORDS`)."""
+    if isinstance(value, str | int):
+        return str(value), True
+    if not math.isfinite(value):
+        return MISSING_WORDS.get(key, "none"), False
+    return f"{value:.4f}", True
+
+
+def format_measures(values: dict[str, Any], options: MeasureOptions) -> str:
+    """Render the measures of one session as aligned text, each tested one with its p-value.
+
+    A measure without a value is written in words (`MISSING_WORDS`), never ``nan``; a p-value
+    at the floor of the surrogates is written ``p <= 0.01`` (`mirror_avatar.report.p_text`);
+    the seed printed is ``options.seed``, the one the report and ``metrics.json`` name (this
+    session's surrogates are drawn from a child of it).
+    """
     p_keys = {"max_cross_correlation": "time_lag_p_value"}
     rows = [row for row in MEASURE_ROWS if row[0] in values]
     rows += [(k, _family_label(k), unit) for k in values for prefix, unit in FAMILIES
              if k.startswith(prefix) and not k.endswith("_p_value")]  # fmt: skip
     if not rows:
         return ""
+    if values.get("leader") == "none":
+        rows = [_no_leader_row(row, options) for row in rows]
+    n = int(values.get("surrogates", {}).get("n", options.n_surrogates))
     width = max(len(description) for _, description, _ in rows)
     lines = []
     for key, description, unit in rows:
-        value = values[key]
-        shown = str(value) if isinstance(value, str | int) else f"{value:.4f}"
+        shown, present = _shown(key, values[key])
         p = values.get(p_keys.get(key, f"{key}_p_value"))
-        tail = "" if p is None else f"  p = {p:.3g}"
-        lines.append(f"{description:<{width}}  {shown:>8}  {unit:<4}{tail}".rstrip())
-    if "time_lag_p_value" in values:
-        lines.append(f"{'time lag (its cross-correlation peak)':<{width}}  p = "
-                     f"{values['time_lag_p_value']:.3g}")  # fmt: skip
-    for key in ("phase_locking", "rmse"):
-        if f"{key}_p_value" in values:
-            label = "CV" if key == "phase_locking" else "RMSE"
-            lines.append(f"{label + ' against surrogates':<{width}}  p = "
-                         f"{values[f'{key}_p_value']:.3g}")  # fmt: skip
+        tail = "" if p is None or not present else f"  {p_text(p, n)}"
+        lines.append(f"{description:<{width}}  {shown:>8}  {unit if present else '':<4}{tail}")
+    lines = [line.rstrip() for line in lines]
+    tested = [("time_lag_p_value", "time lag (its cross-correlation peak)"),
+              ("phase_locking_p_value", "CV against surrogates"),
+              ("rmse_p_value", "RMSE against surrogates")]  # fmt: skip
+    for key, label in tested:
+        if key in values:
+            lines.append(f"{label:<{width}}  {p_text(values[key], n)}")
     if "surrogates" in values:
         s = values["surrogates"]
-        lines.append(f"({s['n']} {s['kind']} surrogates, seed {s['seed']})")
+        lines.append(f"({s['n']} {s['kind']} surrogates, --surrogate-seed {options.seed})")
     return "\n".join(lines)
+
+
+def _no_leader_row(row: tuple[str, str, str], options: MeasureOptions) -> tuple[str, str, str]:
+    """Word a row of a session without a leader so that it cannot be read as one's."""
+    key, description, unit = row
+    if key == "leader":
+        return key, f"leader (none leads {options.leader_share:.0%} of the windows)", unit
+    if key == "leader_share":
+        return key, "share of windows the most-leading player leads", unit
+    return row
 
 
 def scalar_measures(values: dict[str, Any]) -> dict[str, Any]:
