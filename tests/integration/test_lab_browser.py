@@ -198,6 +198,7 @@ def test_a_participant_following_an_avatar_sees_the_measures_listed(chromium, la
     console.locator("#trial-list").scroll_into_view_if_needed()
     screenshot(console, "lab-console-measures")
     assert "leader A1" in row and "co-confidence" in row and "2-3 Hz jitter A1" in row, row
+    assert "(p 0.05)" not in row, row  # the floor of 19 surrogates is a bound: "p ≤ 0.05"
     record = json.loads((session_dir(tmp_path) / "trial-01_session.json").read_text())
     assert record["metadata"]["measures"]["leader"] == 0
     page.wait_for_function("document.getElementById('message').textContent.includes('led')")

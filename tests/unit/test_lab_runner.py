@@ -78,6 +78,6 @@ def test_the_trial_list_keeps_the_headline_measures_and_every_p_value():
     assert set(headline_measures(measures)) == {
         "leader", "leader_lag_s", "co_confidence_rate", "co_confidence_count",
         "jitter_index_player_0", "jitter_index_player_1", "leader_share_p_value",
-        "time_lag_p_value",
+        "time_lag_p_value", "surrogates",
     }  # fmt: skip
     assert headline_measures({"error": "ValueError: x"}) == {"error": "ValueError: x"}

@@ -626,12 +626,19 @@ every p-value."""
 
 
 def headline_measures(measures: dict[str, Any]) -> dict[str, Any]:
-    """Select the measures the console lists of a trial (`MEASURE_SUMMARY_KEYS` and more)."""
+    """Select the measures the console lists of a trial (`MEASURE_SUMMARY_KEYS` and more).
+
+    The p-values come with their surrogates' description (``surrogates``: kind and count), so
+    that the console writes a p-value at the floor of its surrogates as a bound.
+    """
     per_player = ("jitter_index_player_", "influence_player_")
     return {
         key: value
         for key, value in measures.items()
-        if key in MEASURE_SUMMARY_KEYS or key.startswith(per_player) or key.endswith("_p_value")
+        if key in MEASURE_SUMMARY_KEYS
+        or key.startswith(per_player)
+        or key.endswith("_p_value")
+        or key == "surrogates"
     }
 
 

@@ -194,10 +194,16 @@
   // The field's measures of a trial in words, one line each (keys: lab/runner.py headline_measures).
   function measureLines(measures, labels) {
     if (measures.error) return [`measures failed: ${measures.error}`];
-    const p = (key) => (measures[`${key}_p_value`] === undefined ? "" : ` (p ${fmt(measures[`${key}_p_value`], 2)})`);
+    // At the floor of its surrogates (1 / (n + 1)) a p-value is only bounded: "p <= floor".
+    const floor = measures.surrogates ? 1 / (measures.surrogates.n + 1) : 0;
+    const p = (key) => {
+      const value = measures[`${key}_p_value`];
+      if (value === undefined || value === null) return "";
+      return value <= floor + 1e-12 ? ` (p ≤ ${fmt(floor, 2)})` : ` (p ${fmt(value, 2)})`;
+    };
     const lines = [];
     if (measures.leader !== undefined) {
-      lines.push(measures.leader === "none" ? `no clear leader${p("leader_share")}`
+      lines.push(measures.leader === "none" ? "no clear leader (neither led most of the time)"
         : `leader ${labels[measures.leader]}, ${fmt(measures.leader_lag_s, 2)} s ahead in ${fmt(100 * measures.leader_share, 0)} % of windows${p("leader_share")}`);
     }
     if (measures.co_confidence_rate !== undefined) {
