@@ -149,14 +149,18 @@ def analyse_study(
     if table.skipped_measures:
         notes.append(f"not numbers, so not averaged: {', '.join(table.skipped_measures)}")
     summaries = condition_summaries(rows, table.outcomes, conditions, seed, resamples, confidence)
-    models = []
+    models, untested = [], []
     for measure in table.outcomes:
         model = fit_contrasts(rows, measure, conditions, reference, confidence)
         if model is None:
-            notes.append(f"{measure}: no comparison (fewer than two conditions or participants)")
+            untested.append(measure)
         else:
             models.append(model)
             notes += [f"{measure}: {note}" for note in model.notes]
+    if untested:
+        notes.append(
+            f"no comparison (fewer than two conditions or participants): {', '.join(untested)}"
+        )
     parameters = {
         "source": str(table.source), "participants": int(rows["participant"].nunique()),
         "rows": len(rows), "conditions": conditions, "reference": reference,
