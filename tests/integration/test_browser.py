@@ -26,6 +26,7 @@ from mirror_avatar.players import Observation
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 from mirror_avatar.training.avatar import load_avatar
+from waiting import wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -200,10 +201,8 @@ def test_killing_the_browser_mid_trial_leaves_an_incomplete_trial(playwright, se
     with contextlib.suppress(psutil.NoSuchProcess):  # already reaped
         psutil.Process(main).wait(10)
     sidecar = next((tmp_path / "B01").glob("*_session.json"))
-    deadline = time.monotonic() + 10
-    while "ended_utc" not in (record := json.loads(sidecar.read_text())["metadata"]):
-        assert time.monotonic() < deadline, "the trial was never closed"
-        time.sleep(0.05)
+    wait_for(lambda: "ended_utc" in json.loads(sidecar.read_text())["metadata"])
+    record = json.loads(sidecar.read_text())["metadata"]
     assert not record["complete"] and record["end_reason"] in (
         "connection closed",
         "the browser stopped sending",

@@ -177,7 +177,13 @@ def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
 
 def test_a_participant_following_an_avatar_sees_the_measures_listed(chromium, lab, tmp_path):
     """The participant's mouse copies the avatar it sees 0.3 s late; the console's trial list
-    names the avatar as leader and gives the co-confidence, and so does the end screen."""
+    and the end screen say who led and give the co-confidence, as the trial's record has them.
+
+    Which player led is not asserted: the copy is made by this process through the browser in
+    real time, and on a busy machine it comes late and irregularly enough that no lead is
+    clear. That a follower's partner is found to lead is tested over the protocol, with frames
+    copied by count (test_lab_server.py).
+    """
     console = open_console(chromium, lab.url)
     links = create_session(console, "dyad", 12)
     page = join(chromium, links["P1"])
@@ -197,12 +203,15 @@ def test_a_participant_following_an_avatar_sees_the_measures_listed(chromium, la
     row = wait_trial_listed(console, 1)
     console.locator("#trial-list").scroll_into_view_if_needed()
     screenshot(console, "lab-console-measures")
-    assert "leader A1" in row and "co-confidence" in row and "2-3 Hz jitter A1" in row, row
     record = json.loads((session_dir(tmp_path) / "trial-01_session.json").read_text())
-    assert record["metadata"]["measures"]["leader"] == 0
-    page.wait_for_function("document.getElementById('message').textContent.includes('led')")
-    assert "Your partner led." in page.locator("#message").inner_text()
-    assert "Moving together smoothly" in page.locator("#message").inner_text()
+    leader = record["metadata"]["measures"]["leader"]  # 0 is A1, 1 is P1
+    listed = "no clear leader" if leader == "none" else f"leader {('A1', 'P1')[leader]}"
+    assert listed in row and "co-confidence" in row and "2-3 Hz jitter A1" in row, row
+    page.wait_for_function(
+        "document.getElementById('message').textContent.includes('Moving together smoothly')"
+    )
+    said = {"none": "Neither of you led", 0: "Your partner led.", 1: "You led."}[leader]
+    assert said in page.locator("#message").inner_text()
     screenshot(page, "lab-participant-end-measures")
 
 

@@ -17,11 +17,12 @@ from pathlib import Path
 import httpx
 import numpy as np
 import pytest
-from test_lab_server import BEARER, TOKEN, Page, status, wait_for
+from test_lab_server import BEARER, TOKEN, Page, status, welcomed
 
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
+from waiting import wait_for
 
 pylsl = pytest.importorskip("pylsl")
 
@@ -152,7 +153,7 @@ def test_the_sessions_outlet_carries_every_sample_of_every_player(lab, tmp_path)
 
     async def play() -> None:
         task = asyncio.create_task(page.play(8.0))
-        await asyncio.sleep(0.5)
+        await welcomed([page])
         await asyncio.to_thread(start)
         await task
 

@@ -15,6 +15,7 @@ from browsers import SCREENSHOTS
 from mirror_avatar.lab.protocol import load_protocol
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
+from waiting import wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -125,11 +126,7 @@ def test_two_pages_answer_by_mouse_and_by_touch(chromium, lab, tmp_path):
 
     desk.wait_for_function("document.getElementById('questions').hidden")
     phone.wait_for_function("document.getElementById('questions').hidden")
-    deadline = 100
-    while not finished() and deadline:
-        desk.wait_for_timeout(100)
-        deadline -= 1
-    assert finished()
+    wait_for(finished, what="the run to finish")
     saved = json.loads((tmp_path / "out" / sid / "trial-01_answers.json").read_text())
     values = {
         label: {q: a["value"] for q, a in answers.items()}
