@@ -18,6 +18,7 @@ import pytest
 from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains
 
 from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.metrics import session_metrics
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 
@@ -156,7 +157,9 @@ def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
     for k, label in enumerate(("P1", "P2")):
         recorded = np.column_stack([session.times, session.positions[k]])
         assert_matches(recorded, driven[label])
-    assert session.metadata["metrics"]["phase_locking"] > 0.8
+    # how steadily the two kept pace depends on how evenly this busy process moved both mice
+    # (from about 0.7 to 1): the record's metrics are those of the positions it holds
+    assert session.metadata["metrics"] == pytest.approx(session_metrics(session), nan_ok=True)
     pages["P2"].wait_for_function(
         "document.getElementById('message').textContent.includes('Coordination')"
     )
