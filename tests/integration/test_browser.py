@@ -63,7 +63,7 @@ def start_trial(page: Any, url: str, mode: str, duration: float) -> None:
     page.click("#start")
     box = page.locator("#track").bounding_box()
     page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
-    page.wait_for_function("window.mirrorGame.phase === 'running'", timeout=15_000)
+    page.wait_for_function("window.mirrorGame.phase === 'running'", timeout=60_000)
 
 
 def drive(page: Any, seconds: float) -> np.ndarray:
@@ -89,7 +89,7 @@ def drive(page: Any, seconds: float) -> np.ndarray:
 
 
 def finish(page: Any, name: str, tmp_path: Path) -> dict[str, Any]:
-    page.wait_for_selector("#results:not([hidden])", timeout=15_000)
+    page.wait_for_selector("#results:not([hidden])", timeout=60_000)
     summary = page.evaluate("window.mirrorGame.summary")
     page.screenshot(path=tmp_path / f"{name}.png", full_page=True)
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
@@ -269,7 +269,7 @@ def test_record_solo_trials_build_your_avatar_and_play_with_it(chromium, avatar_
         page.select_option("#mode", "avatar_follows")
         page.fill("#duration", "4")
         page.click("#start")
-        page.wait_for_function("window.mirrorGame.phase === 'running'", timeout=15_000)
+        page.wait_for_function("window.mirrorGame.phase === 'running'", timeout=60_000)
         drive(page, 5)
         summary = finish(page, "own-avatar-trial", tmp_path)
         # after solo trials (no phase figure) the avatar trial's relative phase is drawn
