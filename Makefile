@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 OUT ?= output/demo
 
-.PHONY: demo test test-all bench lint docs clean clean-cache
+.PHONY: demo check test test-all bench lint docs clean clean-cache
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,11 +25,17 @@ lint: $(STAMP)
 docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
 
+# The tests print their 25 slowest; `check` is the inner loop (lint and the unit tests).
+PYTEST := $(BIN)/pytest -p no:cacheprovider --durations=25
+
+check: lint
+	$(PYTEST) -m "not slow" -n auto tests/unit
+
 test: lint docs
-	$(BIN)/pytest -m "not slow" -n auto
+	$(PYTEST) -m "not slow" -n auto
 
 test-all: lint docs
-	$(BIN)/pytest -n auto
+	$(PYTEST) -n auto
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py --out benchmarks/results.md

@@ -39,6 +39,17 @@ def pytest_configure(config: pytest.Config) -> None:
         )
 
 
+SLOW_TIMEOUT = 1800
+"""Deadline (s) of a test marked slow (minutes of work; the others have pyproject's)."""
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Give each test marked slow, unless it sets its own, the longer `SLOW_TIMEOUT`."""
+    for item in items:
+        if item.get_closest_marker("slow") and not item.get_closest_marker("timeout"):
+            item.add_marker(pytest.mark.timeout(SLOW_TIMEOUT))
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     """A random generator with a fixed seed, new for each test."""

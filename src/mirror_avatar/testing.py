@@ -178,15 +178,24 @@ class ServerThread:
         The application to serve.
     host
         Address to bind (port chosen by the operating system).
+    stop_timeout
+        Seconds the server is given to stop gracefully when the block ends; then it is stopped
+        without waiting for its connections, and given as long again.
+
+    Raises
+    ------
+    RuntimeError
+        When the server did not start within 10 s, or did not stop (on leaving the block).
     """
 
-    def __init__(self, app: ASGIApp, host: str = "127.0.0.1") -> None:
+    def __init__(self, app: ASGIApp, host: str = "127.0.0.1", stop_timeout: float = 15.0) -> None:
         # Imported here so that the rest of this module works without the live extra.
         from mirror_avatar.realtime.transport import listening_socket, make_server
 
         self.socket = listening_socket(host, 0)
         self.host, self.port = self.socket.getsockname()[:2]
         self.server = make_server(app, self.host, self.port)
+        self.stop_timeout = stop_timeout
         self.thread = threading.Thread(
             target=self.server.run, kwargs={"sockets": [self.socket]}, daemon=True
         )
@@ -207,8 +216,13 @@ class ServerThread:
 
     def __exit__(self, *exc: object) -> None:
         self.server.should_exit = True
-        self.thread.join(10.0)
+        self.thread.join(self.stop_timeout)
+        if self.thread.is_alive():  # a connection's handler ignored the shutdown
+            self.server.force_exit = True
+            self.thread.join(self.stop_timeout)
         self.socket.close()
+        if self.thread.is_alive() and exc[0] is None:
+            raise RuntimeError(f"the live server did not stop in {2 * self.stop_timeout:g} s")
 
 
 def raw_websocket(

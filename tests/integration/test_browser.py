@@ -26,6 +26,7 @@ from mirror_avatar.players import Observation
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 from mirror_avatar.training.avatar import load_avatar
+from waiting import wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -62,7 +63,7 @@ def start_trial(page: Any, url: str, mode: str, duration: float) -> None:
     page.click("#start")
     box = page.locator("#track").bounding_box()
     page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
-    page.wait_for_function("window.mirrorGame.phase === 'running'", timeout=15_000)
+    page.wait_for_function("window.mirrorGame.phase === 'running'", timeout=60_000)
 
 
 def drive(page: Any, seconds: float) -> np.ndarray:
@@ -88,7 +89,7 @@ def drive(page: Any, seconds: float) -> np.ndarray:
 
 
 def finish(page: Any, name: str, tmp_path: Path) -> dict[str, Any]:
-    page.wait_for_selector("#results:not([hidden])", timeout=15_000)
+    page.wait_for_selector("#results:not([hidden])", timeout=60_000)
     summary = page.evaluate("window.mirrorGame.summary")
     page.screenshot(path=tmp_path / f"{name}.png", full_page=True)
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
@@ -149,18 +150,36 @@ def test_solo_trial_records_the_driven_trajectory(chromium, server, tmp_path):
     page.close()
 
 
+TRACE_FRAMES = """() => {
+  // After each of the page's own frames (animation frame callbacks run in the order they were
+  // asked for), the frame's time (s) and the dot's position: the page's clock, not the server's.
+  window.frames = [];
+  const look = (now) => {
+    window.frames.push([now / 1000, window.mirrorGame.x]);
+    requestAnimationFrame(look);
+  };
+  requestAnimationFrame(look);
+}"""
+
+
 def test_keyboard_moves_the_dot_at_a_constant_speed(chromium, server, tmp_path):
+    """The dot moves at KEY_SPEED on the page's clock (the server samples whatever position
+    last arrived, as irregularly as a busy machine delivers it), and the server records the
+    position the page ended at."""
     page = chromium.new_page()
     start_trial(page, server.url, "solo", 2)
+    page.evaluate(TRACE_FRAMES)
     page.keyboard.down("ArrowRight")
     time.sleep(0.5)
     page.keyboard.up("ArrowRight")
     summary = finish(page, "keyboard", tmp_path)
+    step = np.diff(np.asarray(page.evaluate("window.frames")), axis=0)
+    moving = (step[:, 1] > 0) & (step[:, 0] <= 0.1)  # game.js moves at most 0.1 s per frame
+    assert moving.sum() >= 3
+    speed = step[moving, 1] / step[moving, 0]
+    assert np.median(speed) == pytest.approx(0.8, rel=0.01)  # KEY_SPEED in game.js, units/s
     data = load_csv(tmp_path / "B01" / summary["files"]["person"])
-    moving = np.flatnonzero(np.diff(data[:, 1]) > 0)
-    speed = np.polyfit(data[moving, 0], data[moving, 1], 1)[0]
-    assert speed == pytest.approx(0.8, rel=0.1)  # KEY_SPEED in game.js, units/s
-    assert data[-1, 1] == pytest.approx(0.4, abs=0.06)  # about 0.5 s at 0.8 units/s
+    assert data[-1, 1] == pytest.approx(page.evaluate("window.mirrorGame.x"), abs=1e-6)
     page.close()
 
 
@@ -200,10 +219,8 @@ def test_killing_the_browser_mid_trial_leaves_an_incomplete_trial(playwright, se
     with contextlib.suppress(psutil.NoSuchProcess):  # already reaped
         psutil.Process(main).wait(10)
     sidecar = next((tmp_path / "B01").glob("*_session.json"))
-    deadline = time.monotonic() + 10
-    while "ended_utc" not in (record := json.loads(sidecar.read_text())["metadata"]):
-        assert time.monotonic() < deadline, "the trial was never closed"
-        time.sleep(0.05)
+    wait_for(lambda: "ended_utc" in json.loads(sidecar.read_text())["metadata"])
+    record = json.loads(sidecar.read_text())["metadata"]
     assert not record["complete"] and record["end_reason"] in (
         "connection closed",
         "the browser stopped sending",
@@ -270,7 +287,7 @@ def test_record_solo_trials_build_your_avatar_and_play_with_it(chromium, avatar_
         page.select_option("#mode", "avatar_follows")
         page.fill("#duration", "4")
         page.click("#start")
-        page.wait_for_function("window.mirrorGame.phase === 'running'", timeout=15_000)
+        page.wait_for_function("window.mirrorGame.phase === 'running'", timeout=60_000)
         drive(page, 5)
         summary = finish(page, "own-avatar-trial", tmp_path)
         # after solo trials (no phase figure) the avatar trial's relative phase is drawn

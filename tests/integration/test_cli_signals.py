@@ -9,11 +9,12 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
+from waiting import wait_for
 
 CONSOLE = "from mirror_avatar.console import run; run()"
 
@@ -44,10 +45,7 @@ def started(command: list[str], ignore: tuple[int, ...] = ()) -> Iterator[subpro
 
 def wait_for_start(process: subprocess.Popen[str], marker: Path) -> None:
     """Wait until the command is running (it has written ``marker``), at most ten minutes."""
-    for _ in range(6000):
-        if marker.exists() or process.poll() is not None:
-            break
-        time.sleep(0.1)
+    wait_for(lambda: marker.exists() or process.poll() is not None, 600.0, f"{marker.name}")
     assert process.poll() is None and marker.exists(), "the command did not start"
 
 
@@ -64,10 +62,8 @@ def test_a_signal_at_the_first_instant_is_an_abort(tmp_path: Path) -> None:
     the command line is still being imported, and the program ends as an abort (exit 130)."""
     command = [sys.executable, "-c", CONSOLE, "info"]
     with started(command) as process:
-        for _ in range(100_000):
-            if caught_signals(process.pid) & (1 << (signal.SIGTERM - 1)):
-                break
-            time.sleep(0.001)
+        sigterm = 1 << (signal.SIGTERM - 1)
+        wait_for(lambda: caught_signals(process.pid) & sigterm, 120.0, interval=0.001)
         maps = Path(f"/proc/{process.pid}/maps").read_text()
         process.send_signal(signal.SIGTERM)
         out, error = process.communicate(timeout=120)
@@ -102,10 +98,8 @@ def test_nohup_keeps_a_command_running_past_a_hangup(tmp_path: Path) -> None:
         wait_for_start(process, checkpoint)
         process.send_signal(signal.SIGHUP)
         first = checkpoint.stat().st_mtime_ns
-        for _ in range(6000):  # still working: it writes its next checkpoint
-            if checkpoint.stat().st_mtime_ns != first or process.poll() is not None:
-                break
-            time.sleep(0.1)
+        rewritten = lambda: checkpoint.stat().st_mtime_ns != first  # noqa: E731
+        wait_for(lambda: rewritten() or process.poll() is not None, 600.0)  # still working
         assert process.poll() is None, process.communicate()[1]
         process.send_signal(signal.SIGTERM)
         _, error = process.communicate(timeout=120)

@@ -7,7 +7,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +21,7 @@ from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.specs import bundled_generator
 from mirror_avatar.trial_io import write_csv_trial
 from mirror_avatar.trials import DEFAULT_RATE
+from waiting import wait_for
 
 
 @pytest.fixture(autouse=True)
@@ -150,10 +150,7 @@ def test_sigterm_keeps_the_finished_policy_and_stops_the_workers(
     process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True)
     checkpoint = tmp_path / "vt.checkpoint.npz"
     try:
-        for _ in range(1200):
-            if checkpoint.exists() or process.poll() is not None:
-                break
-            time.sleep(0.1)
+        wait_for(lambda: checkpoint.exists() or process.poll() is not None, 120.0)
         assert checkpoint.exists(), "no checkpoint was written"
         process.send_signal(signal.SIGTERM)
         _, error = process.communicate(timeout=60)
@@ -168,14 +165,16 @@ def test_sigterm_keeps_the_finished_policy_and_stops_the_workers(
         checkpoint: checkpoint.read_bytes()
     }
     assert load_cyber_player(checkpoint).training_["n_sessions"] >= 4
-    for _ in range(50):
-        try:
-            os.killpg(process.pid, 0)
-        except ProcessLookupError:
-            break
-        time.sleep(0.1)
-    else:
-        pytest.fail("worker processes outlived the command")
+    wait_for(lambda: group_gone(process.pid), 30.0, "the command's worker processes to end")
+
+
+def group_gone(group: int) -> bool:
+    """Whether no process of the process group ``group`` is left."""
+    try:
+        os.killpg(group, 0)
+    except ProcessLookupError:
+        return True
+    return False
 
 
 def test_an_interruption_while_compiling_waits_for_the_compiler() -> None:
@@ -186,10 +185,7 @@ def test_an_interruption_while_compiling_waits_for_the_compiler() -> None:
     try:
         with global_compiler_lock:
             interrupt(signal.SIGUSR1, None)  # no exception while the lock is held
-        for _ in range(100):
-            if received:
-                break
-            time.sleep(0.01)
+        wait_for(lambda: received, 10.0, "the signal sent again")
     finally:
         signal.signal(signal.SIGUSR1, previous)
     assert received == [signal.SIGUSR1]
@@ -208,10 +204,8 @@ def test_sigterm_while_compiling_exits_130(tmp_path: Path, models: list[Path]) -
                "--jobs", "1", "--out", str(tmp_path / "vt.npz")]  # fmt: skip
     process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, env=environment)
     try:
-        for _ in range(600):  # until the first compiled function is cached
-            if any((tmp_path / "numba").rglob("*.nbi")) or process.poll() is not None:
-                break
-            time.sleep(0.05)
+        numba = tmp_path / "numba"
+        wait_for(lambda: any(numba.rglob("*.nbi")) or process.poll() is not None, 120.0)
         process.send_signal(signal.SIGTERM)
         _, error = process.communicate(timeout=120)
     finally:

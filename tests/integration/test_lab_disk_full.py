@@ -12,11 +12,12 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from test_lab_server import DYAD, TOKEN, Page, command, create, status, wait_for
+from test_lab_server import DYAD, TOKEN, Page, command, create, status, welcomed
 
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
+from waiting import wait_for
 
 DISK_BYTES = 256 * 1024
 ROOM_BYTES = 36 * 1024
@@ -61,7 +62,7 @@ def test_a_full_disk_ends_the_trial_cleanly_and_the_next_starts_with_new_files(s
 
         async def first_trial() -> None:
             tasks = [asyncio.create_task(page.play(60.0)) for page in pages]
-            await asyncio.sleep(0.5)
+            await welcomed(pages)
             await asyncio.to_thread(lambda: command(lab, sid, "start").raise_for_status())
             await asyncio.to_thread(wait_for, lambda: all(p.of_type("end") for p in pages), 40.0)
             for task in tasks:
@@ -86,7 +87,7 @@ def test_a_full_disk_ends_the_trial_cleanly_and_the_next_starts_with_new_files(s
 
         async def second_trial() -> None:
             tasks = [asyncio.create_task(page.play(60.0)) for page in pages]
-            await asyncio.sleep(0.5)
+            await welcomed(pages)
             started = await asyncio.to_thread(command, lab, sid, "start")
             assert started.status_code == 200, started.text
             await asyncio.to_thread(wait_for, lambda: status(lab, sid)["state"] == "finished", 60)

@@ -15,10 +15,11 @@ from typing import Any
 
 import httpx
 import pytest
-from test_lab_server import BEARER, TOKEN, status, wait_for
+from test_lab_server import BEARER, TOKEN, status
 
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
+from waiting import wait_for
 
 pylsl = pytest.importorskip("pylsl")
 

@@ -17,11 +17,12 @@ from pathlib import Path
 import httpx
 import numpy as np
 import pytest
-from test_lab_server import BEARER, TOKEN, Page, status, wait_for
+from test_lab_server import BEARER, TOKEN, Page, status, welcomed
 
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
+from waiting import wait_for
 
 pylsl = pytest.importorskip("pylsl")
 
@@ -97,21 +98,24 @@ def test_an_lsl_stream_plays_a_participant(lab, tmp_path):
     x = session.positions[0]
     # The tracker is a Python thread of this busy test process: under load it misses some of
     # the 30 ms ticks (held, the last sample kept), as many as the load makes; the inputs log
-    # counts them as the session does, and the fit below still holds tightly.
+    # counts them as the session does.
     held = [row["held_H1"] for row in rows]
     assert session.n_samples == 134 and session.metadata["held"]["H1"] == held.count("1")
-    amplitude, phase = fit_sine(clock, x)
+    # How late a tick's sample is depends on how late the busy test process published and
+    # pulled it: not asserted. What holds on any clock: every position recorded is a sample the
+    # tracker published before the tick, and at the times those samples were taken the
+    # positions are the tracker's sine in units, of its amplitude and phase.
+    stamps, published = (np.array(column) for column in zip(*sent, strict=True))
+    taken = []  # the LSL time stamp of the sample each tick recorded
+    for tick_clock, position in zip(clock, x, strict=True):
+        (same,) = np.nonzero(
+            (stamps <= tick_clock) & (np.abs(published / MM_PER_UNIT - position) < 1e-12)
+        )
+        assert same.size, (tick_clock, position)
+        taken.append(stamps[same[-1]])
+    amplitude, phase = fit_sine(np.asarray(taken), x)
     assert amplitude == pytest.approx(AMPLITUDE_MM / MM_PER_UNIT, rel=0.01)
     assert abs(np.angle(np.exp(1j * (phase - PHASE)))) < 0.01 * 2 * np.pi
-    # How far a tick's position is from the tracker's at the tick's clock depends on how late
-    # the busy test process published and pulled samples: not asserted. What holds on any
-    # clock: every position recorded is a sample the tracker published before the tick.
-    stamps, published = (np.array(column) for column in zip(*sent, strict=True))
-    for tick_clock, position in zip(clock, x, strict=True):
-        earlier = published[stamps <= tick_clock] / MM_PER_UNIT
-        assert np.min(np.abs(earlier - position)) < 1e-12, (tick_clock, position)
-    error = np.abs(x - sine_mm(clock) / MM_PER_UNIT)  # at most 0.8 units/s: 0.003 per 4 ms
-    assert np.median(error) < 0.003
 
 
 def test_the_sessions_outlet_carries_every_sample_of_every_player(lab, tmp_path):
@@ -152,7 +156,7 @@ def test_the_sessions_outlet_carries_every_sample_of_every_player(lab, tmp_path)
 
     async def play() -> None:
         task = asyncio.create_task(page.play(8.0))
-        await asyncio.sleep(0.5)
+        await welcomed([page])
         await asyncio.to_thread(start)
         await task
 

@@ -30,6 +30,7 @@ from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.lab.trial import MAX_RECORDING_SPEC_BYTES
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread, raw_websocket
+from waiting import wait_for
 
 TOKEN = "researcher-token"
 BEARER = {"Authorization": f"Bearer {TOKEN}"}
@@ -125,18 +126,18 @@ class Page:
         return [m for m in self.messages if m["type"] == kind]
 
 
+async def welcomed(pages: list[Page]) -> None:
+    """Wait until the server has welcomed every page: each has joined its slot."""
+    await asyncio.to_thread(
+        wait_for, lambda: all(page.of_type("welcome") for page in pages), 60.0, "every welcome"
+    )
+
+
 async def play_all(pages: list[Page], seconds: float, start: Any) -> None:
     tasks = [asyncio.create_task(page.play(seconds)) for page in pages]
-    await asyncio.sleep(0.5)
+    await welcomed(pages)
     await asyncio.to_thread(start)
     await asyncio.gather(*tasks)
-
-
-def wait_for(predicate: Any, timeout: float = 15.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.05)
 
 
 def test_the_console_and_the_api_need_the_researchers_token(lab):
@@ -248,10 +249,11 @@ def clock_caught_up(inputs: Path) -> np.ndarray:
 def test_a_link_opened_by_many_clients_at_once_replaces_pages_without_errors(lab, caplog):
     link = create(lab, DYAD)["links"]["P1"]
     path = urlsplit(socket_url(link)).path
-    sockets = [raw_websocket(lab.port, path=path) for _ in range(30)]  # none answers a close
-    wait_for(lambda: sum(s.recv(1) != b"" for s in sockets) == len(sockets))  # all accepted
-    for sock in sockets:
-        sock.close()
+    with contextlib.ExitStack() as opened:  # 30 pages, none of which answers a close
+        sockets = [opened.enter_context(raw_websocket(lab.port, path=path)) for _ in range(30)]
+        for sock in sockets:
+            sock.settimeout(60.0)
+        assert all(sock.recv(1) != b"" for sock in sockets)  # every one accepted
     newest = Page(link)
     asyncio.run(newest.play(2.0))
     assert newest.of_type("welcome")
@@ -314,7 +316,7 @@ def test_a_dropped_participant_is_marked_and_the_trial_goes_on(lab, tmp_path):
     async def scenario() -> None:
         staying = asyncio.create_task(stay.play(9.0))
         leaving = asyncio.create_task(leave.play(3.5))  # leaves about 2 s into the trial
-        await asyncio.sleep(0.5)
+        await welcomed([stay, leave])
         await asyncio.to_thread(lambda: command(lab, sid, "start").raise_for_status())
         await asyncio.gather(staying, leaving)
 
@@ -335,7 +337,7 @@ def test_on_drop_stop_ends_the_trial(lab, tmp_path):
 
     async def scenario() -> None:
         tasks = [asyncio.create_task(pages[0].play(6.0)), asyncio.create_task(pages[1].play(3.0))]
-        await asyncio.sleep(0.5)
+        await welcomed(pages)
         await asyncio.to_thread(lambda: command(lab, sid, "start").raise_for_status())
         await asyncio.gather(*tasks)
 
@@ -410,10 +412,9 @@ def test_killing_the_server_leaves_every_sample_on_disk(tmp_path):
 
         async def scenario() -> None:
             tasks = [asyncio.create_task(p.play(30.0)) for p in (page, other)]
-            await asyncio.sleep(0.5)
+            await welcomed([page, other])
             await asyncio.to_thread(start)
-            while len(page.of_type("frame")) < 100:
-                await asyncio.sleep(0.05)
+            await asyncio.to_thread(wait_for, lambda: len(page.of_type("frame")) >= 100)
             os.killpg(server.pid, signal.SIGKILL)
             await asyncio.gather(*tasks)
 
@@ -438,10 +439,10 @@ def test_hidden_metrics_and_a_participant_who_rejoins(lab, tmp_path):
     async def scenario() -> None:
         staying = asyncio.create_task(steady.play(10.0))
         leaving = asyncio.create_task(first.play(2.5))
-        await asyncio.sleep(0.5)
+        await welcomed([steady, first])
         await asyncio.to_thread(lambda: command(lab, sid, "start").raise_for_status())
         await leaving
-        await asyncio.sleep(0.5)
+        await asyncio.to_thread(wait_for, lambda: not status(lab, sid)["slots"][1]["connected"])
         await again.play(7.0)
         await staying
 

@@ -11,19 +11,19 @@ import re
 import signal
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
-from test_lab_server import BEARER, TOKEN, Page, status
+from test_lab_server import BEARER, TOKEN, Page, status, welcomed
 
 from mirror_avatar.lab.protocol import load_protocol
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
+from waiting import wait_for
 
 QUESTIONS = """
 [questions.partner]
@@ -124,25 +124,30 @@ def play_to_the_end(
     seconds: float = 40.0,
     force: bool = False,
     seen: set[str] | None = None,
+    timeout: float = 120.0,
 ) -> None:
     """Start a participant's run with its pages playing and wait until it has finished.
 
-    ``seen`` collects where in the protocol the console said the run was, poll by poll.
+    ``seen`` collects where in the protocol the console said the run was, poll by poll;
+    ``timeout`` (s) is the deadline of the wait.
     """
 
     async def scenario() -> None:
         tasks = [asyncio.create_task(page.play(seconds)) for page in pages]
-        await asyncio.sleep(0.5)
+        await welcomed(pages)
         body = {"force": True} if force else {}
         started = await asyncio.to_thread(
             httpx.post, f"{lab.url}/api/sessions/{sid}/start", json=body, headers=BEARER
         )
         assert started.status_code == 200, started.text
-        while (now := await asyncio.to_thread(status, lab, sid))["state"] != "finished":
-            if seen is not None:
-                seen.add(now["study"]["where"])
-            await asyncio.sleep(0.1)
+        await asyncio.to_thread(wait_for, finished, timeout, f"the run {sid} to finish")
         await asyncio.gather(*tasks)
+
+    def finished() -> bool:
+        now = status(lab, sid)
+        if seen is not None:
+            seen.add(now["study"]["where"])
+        return bool(now["state"] == "finished")
 
     asyncio.run(scenario())
 
@@ -312,13 +317,6 @@ def kill(server: subprocess.Popen[str]) -> None:
     server.stdout.close()  # type: ignore[union-attr]
 
 
-def wait_for(predicate: Any, timeout: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.05)
-
-
 def test_a_server_killed_mid_protocol_resumes_at_the_next_trial(tmp_path, protocol_file):
     out = tmp_path / "out"
     server, url, token = start_server(out, protocol_file)
@@ -334,7 +332,7 @@ def test_a_server_killed_mid_protocol_resumes_at_the_next_trial(tmp_path, protoc
 
         async def scenario() -> None:
             tasks = [asyncio.create_task(page.play(40.0)) for page in pages]
-            await asyncio.sleep(0.5)
+            await welcomed(pages)
             await asyncio.to_thread(
                 httpx.post, f"{url}/api/sessions/{sid}/start", json={"force": True},
                 headers=headers,
@@ -362,7 +360,7 @@ def test_a_server_killed_mid_protocol_resumes_at_the_next_trial(tmp_path, protoc
 
         async def finish() -> None:
             tasks = [asyncio.create_task(page.play(20.0)) for page in pages]
-            await asyncio.sleep(0.5)
+            await welcomed(pages)
             await asyncio.to_thread(
                 httpx.post, f"{url}/api/sessions/{sid}/start", json={"force": True},
                 headers=headers,
@@ -425,7 +423,7 @@ def test_the_partner_is_drawn_late_and_hidden_as_the_condition_says(tmp_path):
 
         async def scenario() -> None:
             task = asyncio.create_task(page.play(30.0))
-            await asyncio.sleep(0.5)
+            await welcomed([page])
             await asyncio.to_thread(start)
             await asyncio.to_thread(wait_for, lambda: status(lab, sid)["state"] == "finished")
             await task

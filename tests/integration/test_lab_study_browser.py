@@ -15,6 +15,7 @@ from browsers import SCREENSHOTS
 from mirror_avatar.lab.protocol import load_protocol
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
+from waiting import wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -125,11 +126,7 @@ def test_two_pages_answer_by_mouse_and_by_touch(chromium, lab, tmp_path):
 
     desk.wait_for_function("document.getElementById('questions').hidden")
     phone.wait_for_function("document.getElementById('questions').hidden")
-    deadline = 100
-    while not finished() and deadline:
-        desk.wait_for_timeout(100)
-        deadline -= 1
-    assert finished()
+    wait_for(finished, what="the run to finish")
     saved = json.loads((tmp_path / "out" / sid / "trial-01_answers.json").read_text())
     values = {
         label: {q: a["value"] for q, a in answers.items()}
@@ -163,7 +160,22 @@ duration = 5
 occlude = [[2.0, 3.5]]
 """
 
-PARTNER_PIXELS = """() => {
+PARTNER_PIXELS = """async () => {
+  // The page draws on its animation frames what its last message said: the pixels are read
+  // two frames after the state, and the state again, so that a sample taken as the occlusion
+  // begins or ends (a frame not drawn yet), or as the session ends (the line alone is drawn
+  // from then on), is seen to straddle it.
+  const state = () => {
+    if (document.getElementById("message").textContent.includes("session has ended")) {
+      return "over";
+    }
+    const x = window.mirrorLab.others.get(1);
+    return x === null ? "hidden" : typeof x === "number" ? "shown" : "none";
+  };
+  const frame = () => new Promise((resolve) => requestAnimationFrame(resolve));
+  const before = state();
+  await frame();
+  await frame();
   const canvas = document.getElementById("field");
   const data = canvas.getContext("2d").getImageData(0, 0, canvas.width, canvas.height).data;
   let n = 0;  // the partner's colour, #d62728 (player 1)
@@ -171,8 +183,7 @@ PARTNER_PIXELS = """() => {
     const near = (value, target) => Math.abs(value - target) < 25;
     if (near(data[i], 214) && near(data[i + 1], 39) && near(data[i + 2], 40)) n += 1;
   }
-  const others = window.mirrorLab.others;
-  return [n, others.has(1) ? others.get(1) : "none"];
+  return [n, before, state()];
 }"""
 
 
@@ -187,20 +198,20 @@ def test_an_occluded_partner_is_absent_from_the_page_pixels(chromium, tmp_path):
         sid, links = created.json()["id"], created.json()["links"]
         page = join(chromium.new_context(viewport={"width": 900, "height": 500}), links["P1"])
         httpx.post(f"{lab.url}/api/sessions/{sid}/start", json={}, headers=BEARER)
-        samples: list[tuple[int, Any]] = []
+        samples: list[tuple[int, str, str]] = []
         page.wait_for_function("window.mirrorLab.others.size === 1", timeout=30_000)
         while httpx.get(f"{lab.url}/api/sessions/{sid}", headers=BEARER).json()["state"] in (
             "countdown",
             "running",
         ):
             samples.append(tuple(page.evaluate(PARTNER_PIXELS)))
-            if samples[-1][1] is None and not (SCREENSHOTS / "lab-study-occluded.png").exists():
+            if samples[-1][1] == "hidden" and not (SCREENSHOTS / "lab-study-occluded.png").exists():
                 SCREENSHOTS.mkdir(parents=True, exist_ok=True)
                 page.screenshot(path=SCREENSHOTS / "lab-study-occluded.png")
             page.wait_for_timeout(50)
         page.context.close()
-    hidden = [n for n, x in samples if x is None]
-    shown = [n for n, x in samples if isinstance(x, float)]
+    hidden = [n for n, before, after in samples if before == after == "hidden"]
+    shown = [n for n, before, after in samples if before == after == "shown"]
     assert len(hidden) >= 3 and len(shown) >= 3
     assert max(hidden) == 0  # occluded: not one pixel of the partner's colour
-    assert min(shown) > 50  # otherwise the partner's disc is drawn
+    assert min(shown) > 50, samples  # otherwise the partner's disc is drawn

@@ -29,6 +29,7 @@ from mirror_avatar.realtime.transport import ACCEPT_BATCH, RECEIVE_BUFFER_BYTES,
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread, raw_websocket, text_frame
 from mirror_avatar.trials import make_trial
+from waiting import wait_for
 
 FRAME = 1 / 60
 
@@ -206,11 +207,8 @@ def test_dropped_connection_leaves_an_incomplete_trial_and_server_keeps_serving(
     player.start("avatar_follows", 30.0)
     assert player.play(sway, until=1.0) is None
     player.ws.close()
-    deadline = time.monotonic() + 5
-    while "ended_utc" not in (found := sidecars(tmp_path))[0]:
-        assert time.monotonic() < deadline
-        time.sleep(0.05)
-    record = found[0]
+    wait_for(lambda: "ended_utc" in sidecars(tmp_path)[0])
+    record = sidecars(tmp_path)[0]
     assert not record["complete"] and record["end_reason"] == "connection closed"
     session = load_session(tmp_path / "recordings" / "P07" / record["files"]["session"])
     assert 20 < session.n_samples < 60 and record["n_samples"] == session.n_samples

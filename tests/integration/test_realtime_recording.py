@@ -19,7 +19,7 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
-from test_lab_server import BEARER, DYAD, TOKEN, Page, command, create, status, wait_for
+from test_lab_server import BEARER, DYAD, TOKEN, Page, command, create, status
 from websockets.sync.client import connect
 
 from mirror_avatar.deep.player import MAX_LAYERS, MAX_UNITS, DeepCyberPlayer
@@ -32,6 +32,7 @@ from mirror_avatar.realtime.clock import time_players
 from mirror_avatar.session import load_session
 from mirror_avatar.specs import load_player
 from mirror_avatar.testing import ServerThread
+from waiting import wait_for
 
 
 def read_rows(path: Path) -> list[dict[str, str]]:

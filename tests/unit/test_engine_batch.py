@@ -1,7 +1,6 @@
 """Tests of the batch engine: identical to one-at-a-time play, however the sessions are run."""
 
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -14,6 +13,7 @@ from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.graphs import random_connected_graph
 from mirror_avatar.players import ExternalPlayer, RecordedPlayer, VirtualTrainer
 from mirror_avatar.seeds import spawn_seeds
+from waiting import wait_for
 
 CHANNELS = ("positions", "velocities", "controls", "references")
 
@@ -63,12 +63,8 @@ def test_a_run_stopped_early_leaves_no_worker_thread_behind(pairs) -> None:
     chunks = run_sessions(pairs, 200, duration=4.0, n_jobs=2, chunk_size=2)
     assert len(next(chunks)) == 2
     chunks.close()
-    for _ in range(100):
-        if not any(t.name.startswith("mirror-avatar-batch") for t in threading.enumerate()):
-            break
-        time.sleep(0.05)
-    else:
-        pytest.fail("batch threads outlived the run")
+    names = lambda: [thread.name for thread in threading.enumerate()]  # noqa: E731
+    wait_for(lambda: not any(n.startswith("mirror-avatar-batch") for n in names()), 30.0)
 
 
 def test_chunks_stream_in_order(pairs) -> None:

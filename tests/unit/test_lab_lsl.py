@@ -18,6 +18,7 @@ from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.lsl import UNIT, LslInput, SessionOutlet
 from mirror_avatar.realtime.inputs import HumanPlayer
+from waiting import wait_for
 
 pylsl = pytest.importorskip("pylsl")
 
@@ -60,13 +61,6 @@ def pull_all(inlet, n: int, timeout: float = 5.0) -> tuple[np.ndarray, np.ndarra
         samples.extend(chunk)
         stamps.extend(chunk_stamps)
     return np.asarray(samples, dtype=np.float64), np.asarray(stamps)
-
-
-def wait_until(condition, timeout: float = 5.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.005)
 
 
 def session_outlet(name: str) -> SessionOutlet:
@@ -217,7 +211,7 @@ def test_input_follows_a_tracker_sine_in_units(hand) -> None:
         sender.start()
         ticks = sample_ticks(device, sender)
         sender.join()
-        wait_until(lambda: device.n_received == sent[0])
+        wait_for(lambda: device.n_received == sent[0])
         newest = device.latest()
         assert newest is not None and newest.seq == sent[0]
         assert HumanPlayer(device, "P01").current_state()[0] == newest.x
@@ -246,7 +240,7 @@ def test_input_clips_to_the_playing_range_and_skips_invalid_values() -> None:
     with LslInput(name, offset=0.42, timeout=5) as device:
         for value in values:
             outlet.push_sample([value])
-        wait_until(lambda: device.n_received == len(values))
+        wait_for(lambda: device.n_received == len(values))
         latest = device.latest()
         description = device.describe()
     del outlet
@@ -275,7 +269,7 @@ def test_closed_input_stops_its_thread_and_keeps_the_last_sample() -> None:
     outlet = raw_outlet(name, 1, pylsl.IRREGULAR_RATE)
     device = LslInput(name, timeout=5)
     outlet.push_sample([0.125])
-    wait_until(lambda: device.n_received == 1)
+    wait_for(lambda: device.n_received == 1)
     device.close()
     device.close()
     del outlet
@@ -289,9 +283,9 @@ def test_input_reports_a_stream_lost_for_good() -> None:
     outlet = pylsl.StreamOutlet(pylsl.StreamInfo(name, "Mocap", 1, RATE, pylsl.cf_double64, ""))
     with LslInput(name, timeout=5) as device:
         outlet.push_sample([0.25])
-        wait_until(lambda: device.n_received == 1)
+        wait_for(lambda: device.n_received == 1)
         del outlet
-        wait_until(lambda: device.error is not None)
+        wait_for(lambda: device.error is not None)
         assert "lost" in (device.error or "")
         latest = device.latest()
     assert latest is not None and latest.x == 0.25
