@@ -118,7 +118,15 @@ def test_each_sample_records_its_ticks_lateness(tmp_path):
     plan = parse_plan({"condition": "solo", "duration": 1.0, "players": [
         {"label": "P1", "kind": "human"}]})  # fmt: skip
     source = BrowserInput()
-    trial = LabTrial(plan, 1, tmp_path, {0: source}, {}, time.monotonic, {})
+    trial = LabTrial(
+        plan,
+        1,
+        tmp_path,
+        {0: source},
+        {},
+        time.monotonic,
+        {"session_id": "solo", "condition": "solo"},
+    )
     late = [0.0, 0.25, 0.0125, 0.0]
     for k, lateness in enumerate(late):
         source.put(0.01 * k, k)
