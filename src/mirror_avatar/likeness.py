@@ -467,22 +467,32 @@ def _units(signals: Sequence[Array]) -> tuple[list[Array], bool]:
 
 @dataclass(frozen=True)
 class Likeness:
-    """The whole battery: the distances and the classifier test, with the seed used."""
+    """The whole battery: the distances and the classifier test, with the seed used.
+
+    ``classifier`` is None when the signals are too short for its windows (a held-out trial
+    under two `WINDOW_SECONDS` windows): the distances judge alone, and the verdict says so.
+    """
 
     distances: list[DistanceResult]
-    classifier: ClassifierTest
+    classifier: ClassifierTest | None
     seed: int
 
     @property
     def distinguishable(self) -> bool:
         """Whether any test tells the candidate from the reference."""
-        return self.classifier.distinguishable or any(d.distinguishable for d in self.distances)
+        told = self.classifier is not None and self.classifier.distinguishable
+        return told or any(d.distinguishable for d in self.distances)
 
     def verdict(self) -> str:
         """One line: the classifier's verdict, then the distances that tell the sets apart."""
         apart = [d.verdict().removeprefix("distinguishable: ") for d in self.distances]
         told = [v for v, d in zip(apart, self.distances, strict=True) if d.distinguishable]
         tail = f"; distances that tell them apart: {', '.join(told)}" if told else ""
+        if self.classifier is None:
+            head = (
+                f"not measured: classifier (trials shorter than its {WINDOW_SECONDS:g} s windows)"
+            )
+            return head + tail
         return self.classifier.verdict() + tail
 
     def table(self) -> pd.DataFrame:
@@ -498,14 +508,15 @@ class Likeness:
             }
             for d in self.distances
         }
-        rows["classifier AUC (0.5 = chance)"] = {
-            "to held-out": self.classifier.auc,
-            "person's own": 0.5,
-            "ratio": math.nan,
-            "spread": math.nan,
-            "p": self.classifier.test.p_value,
-            "verdict": self.classifier.verdict().partition(":")[0],
-        }
+        if self.classifier is not None:
+            rows["classifier AUC (0.5 = chance)"] = {
+                "to held-out": self.classifier.auc,
+                "person's own": 0.5,
+                "ratio": math.nan,
+                "spread": math.nan,
+                "p": self.classifier.test.p_value,
+                "verdict": self.classifier.verdict().partition(":")[0],
+            }
         return pd.DataFrame.from_dict(rows, orient="index")
 
     def to_json_dict(self) -> dict[str, Any]:
@@ -514,7 +525,7 @@ class Likeness:
             "seed": self.seed,
             "verdict": self.verdict(),
             "distances": {d.measure: d.to_json_dict() for d in self.distances},
-            "classifier": self.classifier.to_json_dict(),
+            "classifier": None if self.classifier is None else self.classifier.to_json_dict(),
         }
 
 
@@ -544,8 +555,12 @@ def compare_motion(
         Of every permutation test; ``seed`` is recorded in the result.
     """
     distance_seed, classifier_seed = draw_seeds(seed, 2)
+    try:
+        classifier = classifier_test(reference, candidate, rate, n_permutations, classifier_seed)
+    except InputError:  # signals too short for its windows: the distances judge alone
+        classifier = None
     return Likeness(
         distances=compare_distances(reference, candidate, own, rate, n_permutations, distance_seed),
-        classifier=classifier_test(reference, candidate, rate, n_permutations, classifier_seed),
+        classifier=classifier,
         seed=seed,
     )

@@ -137,3 +137,16 @@ def test_classifier_groups_by_the_units_given(rng: np.random.Generator) -> None:
     assert test.test.exact and test.test.null.size == 6  # 4 people choose 2
     with pytest.raises(InputError, match="both sides"):
         classifier_test(slow, fast, units=["p1"] * 5 + ["q1"] * 3)
+
+
+def test_trials_too_short_for_the_classifier_are_judged_by_the_distances_alone():
+    from mirror_avatar.datasets import load_zhai2017
+    from mirror_avatar.likeness import compare_motion, trial_velocity
+
+    rate = 1 / 0.03
+    short = [trial_velocity(t, rate)[: round(8 * rate)] for t in load_zhai2017()[:4]]
+    result = compare_motion(short[3:], short[:2], short, rate, n_permutations=19, seed=0)
+    assert result.classifier is None
+    assert result.verdict().startswith("not measured: classifier")
+    assert "classifier AUC (0.5 = chance)" not in result.table().index
+    assert result.to_json_dict()["classifier"] is None
