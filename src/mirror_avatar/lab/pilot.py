@@ -113,6 +113,7 @@ class StandIn:
     player: Player | None = None
     _players: dict[str, Player] = field(default_factory=dict)
     _seen: dict[int, float] = field(default_factory=dict)
+    _sent: int = 0
     _rng: np.random.Generator = field(init=False)
 
     def __post_init__(self) -> None:
@@ -129,15 +130,15 @@ class StandIn:
             self._players[role] = _warmed(load_player(self.spec, role))
         self.player = self._players[role]
 
-    def start(self, trial: int, seq: int) -> str | None:
+    def start(self, trial: int) -> str | None:
         """Reset the player for trial ``trial``; return its first position message, if it plays."""
         if self.player is None:
             return None
         self._seen.clear()
         position, _ = self.player.reset(seed=int(spawn_seeds(self.seed, trial)[trial - 1]))
-        return _position_message(seq, position)
+        return self._position(position)
 
-    def frame(self, message: Mapping[str, Any], seq: int) -> str | None:
+    def frame(self, message: Mapping[str, Any]) -> str | None:
         """Step on a frame; return the position message to send, if the stand-in plays."""
         if self.player is None:
             return None
@@ -148,7 +149,12 @@ class StandIn:
         self._seen = partners
         k = int(message["k"])
         position, _ = self.player.step(Observation(k, positions, velocities, previous))
-        return _position_message(seq, position)
+        return self._position(position)
+
+    def _position(self, x: float) -> str:
+        """Return the pointer's position message, numbered across the page's connection."""
+        self._sent += 1
+        return json.dumps({"type": "position", "seq": self._sent - 1, "x": float(x)})
 
     def reply(self, message: Mapping[str, Any]) -> list[str]:
         """Return the answer messages to a ``questions`` message."""
@@ -174,10 +180,6 @@ def _warmed(player: Player) -> Player:
     return player
 
 
-def _position_message(seq: int, x: float) -> str:
-    return json.dumps({"type": "position", "seq": seq, "x": float(x)})
-
-
 async def play_page(url: str, stand_in: StandIn) -> str:
     """Join by the WebSocket ``url`` as ``stand_in`` and play until the session ends.
 
@@ -186,7 +188,6 @@ async def play_page(url: str, stand_in: StandIn) -> str:
     str
         The session's last state (``finished`` or ``aborted``), or ``closed``.
     """
-    seq = 0
     async with connect(url, proxy=None, open_timeout=30, max_queue=None) as ws:
         try:
             async for text in ws:
@@ -194,10 +195,8 @@ async def play_page(url: str, stand_in: StandIn) -> str:
                 kind = message["type"]
                 if kind == "welcome":
                     await asyncio.to_thread(stand_in.welcome, message)
-                outgoing = _answer(stand_in, message, seq)
-                for reply in outgoing:
+                for reply in _answer(stand_in, message):
                     await ws.send(reply)
-                seq += sum('"position"' in reply for reply in outgoing)
                 if kind == "state" and message["state"] in ("finished", "aborted"):
                     return str(message["state"])
         except ConnectionClosed:
@@ -205,15 +204,15 @@ async def play_page(url: str, stand_in: StandIn) -> str:
     return "closed"
 
 
-def _answer(stand_in: StandIn, message: Mapping[str, Any], seq: int) -> list[str]:
+def _answer(stand_in: StandIn, message: Mapping[str, Any]) -> list[str]:
     """Return what a page sends back to one server message."""
     kind = message["type"]
     if kind == "ping":
         return [json.dumps({"type": "pong", "id": message["id"], "late_frames": 0})]
     if kind == "go":
-        return [m for m in (stand_in.start(int(message["trial"]), seq),) if m is not None]
+        return [m for m in (stand_in.start(int(message["trial"])),) if m is not None]
     if kind == "frame":
-        return [m for m in (stand_in.frame(message, seq),) if m is not None]
+        return [m for m in (stand_in.frame(message),) if m is not None]
     if kind == "questions":
         return stand_in.reply(message)
     return []
