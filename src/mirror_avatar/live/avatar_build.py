@@ -1,6 +1,6 @@
 """A participant's avatar built on the live server from the solo trials they just recorded.
 
-The page's "Build my avatar" asks for it (`mirror_avatar.live.protocol.BuildRequest`): the
+The page's "Build my avatar" asks for it (`mirror_avatar.live.messages.BuildRequest`): the
 participant's solo trial files in their folder (``P_solo_*.csv``, the person's own trial of each
 solo recording) are read, `mirror_avatar.experiments.personal_avatar.create_avatar` builds and
 validates the avatar (with the default partners), and it is written beside them as

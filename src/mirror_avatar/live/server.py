@@ -1,7 +1,7 @@
 """The live server: one page, one WebSocket per browser tab, one avatar per trial.
 
 `create_app` builds the ASGI application (starlette): ``/`` serves the page, ``/static/`` its
-script and style, and ``/ws`` the game's WebSocket (messages in `mirror_avatar.live.protocol`).
+script and style, and ``/ws`` the game's WebSocket (messages in `mirror_avatar.live.messages`).
 Each connection plays at most one trial at a time (`mirror_avatar.live.session.LiveTrial`): a
 task ticks it every control period on absolute deadlines, while the receive loop stores the
 pointer's latest position and answers each one at once with the avatar's position.
@@ -57,7 +57,7 @@ from mirror_avatar.live.avatar_build import (
     describe_avatar,
     solo_trial_files,
 )
-from mirror_avatar.live.protocol import (
+from mirror_avatar.live.messages import (
     DURATION_RANGE,
     MODES,
     BuildRequest,
