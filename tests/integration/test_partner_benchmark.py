@@ -18,8 +18,10 @@ from mirror_avatar.experiments.partner_benchmark import (
     relative_position_error,
     run_benchmark,
 )
+from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.specs import bundled_generator, load_player
+from mirror_avatar.training.imitation import train_cyber_player
 from mirror_avatar.trial_files import write_trial
 from mirror_avatar.trials import Trial
 
@@ -221,6 +223,25 @@ def test_a_personal_avatar_follows_as_its_follower_player(
     assert (out / f"{str(avatar).replace('/', '_').replace('.', '_')}.png").is_file()
 
 
+def test_a_trained_policy_follows_and_one_trained_to_lead_is_refused(
+    tmp_path: Path, zhai_trials_100hz: list[Trial], capsys: pytest.CaptureFixture[str]
+) -> None:
+    motion = IMSGenerator(n_symbols=8, random_state=0).fit(zhai_trials_100hz[9:11])
+    for role in ("follower", "leader"):
+        player, _ = train_cyber_player(
+            motion, [motion], role=role, n_sessions=2, duration=2.0, n_jobs=1, progress=False
+        )
+        player.save(tmp_path / f"{role}.npz")
+    write_trial(cropped(zhai_trials_100hz[9], 5.0), tmp_path / "leader.csv")
+    base = ["benchmark", "--leader", str(tmp_path / "leader.csv"), "--out", str(tmp_path / "b")]
+    assert main([*base, "--models", str(tmp_path / "follower.npz")]) == 0
+    table = pd.read_csv(tmp_path / "b" / "table.csv", index_col="follower")
+    assert list(table.index) == [str(tmp_path / "follower.npz")]
+    assert main([*base, "--models", f"rpc,{tmp_path / 'leader.npz'}"]) == 2
+    error = capsys.readouterr().err
+    assert f"--models: {tmp_path / 'leader.npz'}: a cyber player trained as leader cannot" in error
+
+
 def bad(arguments: list[str], capsys: pytest.CaptureFixture[str]) -> str:
     """Run the command, which must refuse in one line with status 2; return that line."""
     assert main(["benchmark", *arguments]) == 2
@@ -254,6 +275,11 @@ def test_bad_input_is_refused_in_one_line_before_any_work(
     play(players, duration=5.0, seed=0, roles=("joint", "joint")).save_csv(joint)
     error = bad([*base, "--humans", str(joint)], capsys)
     assert f"--humans: {joint}: players with roles joint, joint" in error
+    session = play(players, duration=5.0, seed=0, roles=("leader", "follower"))
+    session.metadata["lab"] = {"slots": [{"kind": "human"}, {"kind": "avatar"}]}
+    session.save_csv(tmp_path / "avatar_followed.csv")
+    error = bad([*base, "--humans", str(tmp_path / "avatar_followed.csv")], capsys)
+    assert f"avatar_followed.csv: its follower {session.labels[1]!r} is an avatar" in error
     one = str(human_folder / "run1.csv")
     assert "--humans: 1 recording(s) give no spread" in bad([*base, "--humans", one], capsys)
     assert "--rank-by: humans needs recorded human followers" in bad(

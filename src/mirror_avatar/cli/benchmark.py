@@ -37,6 +37,7 @@ from mirror_avatar.experiments.partner_benchmark import (
     HUMAN,
     MODELS,
     PUBLISHED_ADAPTIVE_BOUNDS,
+    SCORES,
     TRIM,
     BenchmarkResult,
     check_followers,
@@ -128,7 +129,7 @@ def split_specs(values: tuple[str, ...]) -> list[str]:
     default=None,
     help=f"'{HUMANS}' (closeness to the recorded humans; default with --humans), "
     f"'{HUMANS}:MEASURE,...', or one measure nearest its ideal (default without --humans: "
-    f"{NO_HUMANS_DEFAULT}).",
+    f"{NO_HUMANS_DEFAULT}). Measures: {', '.join(SCORES)}.",
 )
 @click.option(
     "--out",

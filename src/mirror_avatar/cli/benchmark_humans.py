@@ -3,8 +3,9 @@
 A human follower's recording is a session of two players, one whose role is ``leader`` and one
 whose role is ``follower`` (the person): the toolkit's session files and lab runs, BIDS-Motion
 lab exports, or any table of the two players' positions read with ``--columns`` (leader first:
-a session without roles takes the default leader, follower). Files and folders are read as
-``evaluate`` reads them (`mirror_avatar.cli.evaluate.find_sessions`).
+a session without roles takes the default leader, follower). A lab recording whose follower's
+slot is an avatar is refused. Files and folders are read as ``evaluate`` reads them
+(`mirror_avatar.cli.evaluate.find_sessions`).
 """
 
 from __future__ import annotations
@@ -75,4 +76,19 @@ def _roles(path: Path, session: Session) -> tuple[int, int]:
             "holds one leader and one follower (--columns time=T,leader=L,follower=F for a "
             "table of their positions)",
         )  # fmt: skip
-    return roles.index("leader"), roles.index("follower")
+    leader, follower = roles.index("leader"), roles.index("follower")
+    if _lab_kind(session, follower) == "avatar":
+        raise InputError(
+            OPTION, f"{path}: its follower {session.labels[follower]!r} is an avatar (the lab "
+            "slot's kind), not a person",
+        )  # fmt: skip
+    return leader, follower
+
+
+def _lab_kind(session: Session, player: int) -> object:
+    """Return the kind (human, avatar) a lab recording's slot gives the player, else None."""
+    lab = session.metadata.get("lab")
+    slots = lab.get("slots") if isinstance(lab, dict) else None
+    if isinstance(slots, list) and player < len(slots) and isinstance(slots[player], dict):
+        return slots[player].get("kind")
+    return None
