@@ -184,6 +184,28 @@ def test_published_values_stand_apart_in_their_own_definitions(
     assert "circularVariance.m" in theirs and "1 - R" in theirs
 
 
+def test_humans_in_a_table_of_named_columns_rank_by_the_measures_chosen(
+    tmp_path: Path, zhai_trials: list[Trial], rng: np.random.Generator
+) -> None:
+    """``--columns`` names the leader's and the person's columns; ``humans:rms,time_lag``."""
+    for k, trial in enumerate([zhai_trials[0], zhai_trials[1]]):
+        leader = cropped(trial, 10.0)
+        table = {"t": leader.times, "screen": leader.positions, "person": late_copy(leader, rng)}
+        pd.DataFrame(table).to_csv(tmp_path / f"p{k}.csv", index=False)
+    out = tmp_path / "bench"
+    arguments = ["benchmark", "--humans", str(tmp_path / "p0.csv"), "--humans"]
+    arguments += [str(tmp_path / "p1.csv"), "--columns", "time=t,screen=screen,person=person"]
+    arguments += ["--models", "adaptive,hkb", "--rank-by", "humans:rms,time_lag"]
+    assert main([*arguments, "--out", str(out)]) == 0
+    table = pd.read_csv(out / "table.csv", index_col="follower")
+    assert table.loc["human", "trials"] == 2
+    assert table.loc["human", "time_lag"] == pytest.approx(HUMAN_DELAY, abs=0.03)
+    ranking = pd.read_csv(out / "ranking.csv", index_col="follower")
+    assert list(ranking.columns) == ["distance", "rms", "time_lag", "z_rms", "z_time_lag"]
+    z = ranking[["z_rms", "z_time_lag"]].to_numpy()
+    assert ranking["distance"].to_numpy() == pytest.approx(np.sqrt((z**2).mean(axis=1)))
+
+
 @pytest.fixture(scope="module")
 def avatar(tmp_path_factory: pytest.TempPathFactory, zhai_trials: list[Trial]) -> Path:
     """A personal avatar made by ``avatar create`` from three bundled slow trials."""

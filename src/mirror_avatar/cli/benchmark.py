@@ -290,7 +290,11 @@ def _section(result: BenchmarkResult, ranking: Ranking, figures: dict[str, Figur
             "Mean by leader group": _readable(result.by_group()),
             "Every trial": _readable(result.trials.set_index(["follower", "trial", "group"])),
         }
-        | ({"The human followers' mean and spread": _readable(ranking.humans)} if recorded else {}),
+        | (
+            {"The human followers' mean and spread": _readable(ranking.humans)}
+            if not ranking.humans.empty
+            else {}
+        ),
         figures=captions,
         metrics=json.loads(json.dumps(json_safe(table.to_dict(orient="index")))),
     )
