@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 OUT ?= output/demo
 
-.PHONY: demo check test test-all bench lint docs clean clean-cache
+.PHONY: demo check test test-all bench lint docs docs-tables clean clean-cache
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +24,10 @@ lint: $(STAMP)
 
 docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
+
+# The lab guide's tables of protocol keys, written from their declarations.
+docs-tables: $(STAMP)
+	$(BIN)/python docs/keys.py
 
 # The tests print their 25 slowest; `check` is the inner loop (lint and the unit tests).
 PYTEST := $(BIN)/pytest -p no:cacheprovider --durations=25

@@ -116,11 +116,105 @@ class Options:
 
     def refused(self) -> list[str]:
         """Values these options refuse: the empty word and a word not among them."""
-        return ["", "|".join(self.values)]
+        return ["", "|".join(self.values) + "|"]
 
 
-Constraint = Interval | Options
+@dataclass(frozen=True)
+class Flag:
+    """True or false (a boolean; numbers and words are refused)."""
+
+    def __contains__(self, value: object) -> bool:
+        """Say whether ``value`` is a boolean."""
+        return isinstance(value, bool)
+
+    def __str__(self) -> str:
+        """Describe the allowed values."""
+        return "true or false"
+
+    def refused(self) -> list[object]:
+        """Values a flag refuses: a number and a word."""
+        return [1, "yes"]
+
+
+Constraint = Interval | Options | Flag
 """Any declared constraint."""
+
+
+REQUIRED = object()
+"""The default of a `Setting` that must be given."""
+
+
+@dataclass(frozen=True)
+class Setting:
+    """A key of a file (a protocol, a plan) declared once: what it means, allows and defaults to.
+
+    Parameters
+    ----------
+    key
+        The key as the file spells it.
+    meaning
+        What it sets, in a few words (for the documents' tables).
+    constraint
+        What it allows, or None for a structured value (a list, a table) that its own reader
+        checks, described by ``allowed``.
+    default
+        Its value when left out; `REQUIRED` when it must be given, None when it is drawn or
+        left unset.
+    allowed
+        The allowed values in words, for a key without a ``constraint``.
+    default_shown
+        The default in words, when its value does not say it (``drawn and recorded``).
+    """
+
+    key: str
+    meaning: str
+    constraint: Constraint | None = None
+    default: Any = REQUIRED
+    allowed: str = ""
+    default_shown: str = ""
+
+    def read(self, data: dict[str, Any], where: str = "") -> Any:
+        """Return the key's value in ``data`` (its default when absent), checked.
+
+        Raises
+        ------
+        ConstraintError
+            The value is outside the constraint, or absent when required; its ``key`` is
+            ``where.key`` (the key alone when ``where`` is empty). A key without a constraint
+            is returned as it is (None when absent and required), for its reader to check.
+        """
+        key = f"{where}.{self.key}" if where else self.key
+        if self.key not in data:
+            if self.default is REQUIRED and self.constraint is not None:
+                raise ConstraintError(key, None, self.constraint)
+            return None if self.default is REQUIRED else self.default
+        value = data[self.key]
+        return value if self.constraint is None else check(key, value, self.constraint)
+
+    def described(self) -> str:
+        """Describe the allowed values (the constraint's words, or ``allowed``)."""
+        return str(self.constraint) if self.constraint is not None else self.allowed
+
+    def default_text(self) -> str:
+        """Describe the default: ``required``, ``default_shown``, or the value as TOML writes it."""
+        if self.default_shown:
+            return self.default_shown
+        if self.default is REQUIRED:
+            return "required"
+        if self.default is None:
+            return "none"
+        if isinstance(self.default, bool):
+            return str(self.default).lower()
+        return f'"{self.default}"' if isinstance(self.default, str) else f"{self.default:g}"
+
+
+def settings_table(settings: tuple[Setting, ...]) -> str:
+    """Write declared settings as a Markdown table: key, meaning, allowed values, default."""
+    rows = ["| key | sets | allowed | default |", "|---|---|---|---|"]
+    rows += [
+        f"| `{s.key}` | {s.meaning} | {s.described()} | {s.default_text()} |" for s in settings
+    ]
+    return "\n".join(rows) + "\n"
 
 
 class ConstraintError(InputError):

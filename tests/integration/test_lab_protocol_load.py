@@ -110,8 +110,8 @@ def test_a_server_restarted_with_the_kept_copy_resumes_the_participants_folders(
 def test_bad_protocols_are_refused_with_one_line(lab, out):
     for name, text, problem in (
         ("duet.toml", PROTOCOL.replace('game = "joint"', 'game = "duet"'),
-         "duet.toml: blocks[0].conditions[1].game: 'duet' is not a game "
-         "(one of solo, leader_follower, joint, group)"),
+         "duet.toml: blocks[0].conditions[1].game: 'duet' is not allowed "
+         "(give one of solo, leader_follower, joint, group)"),
         ("C:\\studies\\broken.toml", "title = \n[[blocks]]\n", None),
         ("big.toml", "#" * (MAX_PROTOCOL_BYTES + 1),
          f"big.toml: the protocol is over {MAX_PROTOCOL_BYTES} bytes (shorten it)"),

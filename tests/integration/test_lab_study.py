@@ -266,8 +266,8 @@ def test_the_cli_refuses_a_bad_protocol_in_one_line(tmp_path):
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert lines == [
-        f"mirror-avatar: error: {bad}: blocks[0].conditions[1].game: 'duet' is not a game "
-        "(one of solo, leader_follower, joint, group)"
+        f"mirror-avatar: error: {bad}: blocks[0].conditions[1].game: 'duet' is not allowed "
+        "(give one of solo, leader_follower, joint, group)"
     ], result.stderr
     assert not (tmp_path / "out").exists()
 

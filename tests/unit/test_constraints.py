@@ -7,7 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from mirror_avatar.constraints import ConstraintError, Interval, Options, check
+from mirror_avatar.constraints import (
+    ConstraintError,
+    Flag,
+    Interval,
+    Options,
+    Setting,
+    check,
+    settings_table,
+)
 from mirror_avatar.errors import InputError
 
 
@@ -44,12 +52,45 @@ def test_open_and_unbounded_ends_are_described_and_refused():
         Interval(int, 2, 64),
         Interval(int, 1, None),
         Options(("shift", "pseudo")),
+        Options(("pointer",)),
+        Flag(),
     ],
 )
 def test_every_value_a_constraint_names_as_refused_is_refused(constraint):
     assert constraint.refused()
     for value in constraint.refused():
         assert value not in constraint
+
+
+def test_a_setting_reads_its_value_or_default_and_names_its_path_when_refused():
+    trials = Setting("trials", "trials", Interval(int, 1, 100), 1)
+    game = Setting("game", "the game", Options(("solo", "joint")))
+    assert trials.read({}) == 1 and trials.read({"trials": 4}, "blocks[0]") == 4
+    with pytest.raises(ConstraintError) as caught:
+        trials.read({"trials": 0}, "blocks[0]")
+    assert (caught.value.key, caught.value.value) == ("blocks[0].trials", 0)
+    with pytest.raises(ConstraintError, match="game: None is not allowed"):
+        game.read({})
+    assert Setting("graph", "who sees whom", default="complete", allowed="a name").read({}) == (
+        "complete"
+    )
+
+
+def test_settings_are_tabled_with_their_meaning_allowed_values_and_default():
+    table = settings_table((
+        Setting("trials", "trials of the condition", Interval(int, 1, 100), 1),
+        Setting("show_metrics", "the end screen shows metrics", Flag(), True),
+        Setting("seed", "the seed", Interval(int, 0, 9), None, default_shown="drawn"),
+        Setting("game", "what is played", Options(("solo", "joint"))),
+    ))  # fmt: skip
+    assert table.splitlines() == [
+        "| key | sets | allowed | default |",
+        "|---|---|---|---|",
+        "| `trials` | trials of the condition | a whole number in [1, 100] | 1 |",
+        "| `show_metrics` | the end screen shows metrics | true or false | true |",
+        "| `seed` | the seed | a whole number in [0, 9] | drawn |",
+        "| `game` | what is played | one of solo, joint | required |",
+    ]
 
 
 def test_options_admit_their_words_only():

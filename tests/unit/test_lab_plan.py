@@ -5,9 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import ring_graph
-from mirror_avatar.lab.plan import LslDevice, parse_plan
+from mirror_avatar.lab.plan import (
+    LSL_SETTINGS,
+    SESSION_SETTINGS,
+    TRIAL_SETTINGS,
+    LslDevice,
+    PlanError,
+    parse_plan,
+)
 
 PERSON = {"label": "P1", "kind": "human"}
 AVATAR = {"label": "A1", "kind": "avatar", "spec": "bundled:slow"}
@@ -68,7 +74,7 @@ def test_plan_round_trips_through_json():
         ({"condition": "joint", "players": [{**PERSON, "label": "../x"}, AVATAR]}, "label"),
         ({"condition": "joint", "players": [PERSON, {**AVATAR, "spec": ""}]}, "spec"),
         ({"condition": "joint", "players": [PERSON, AVATAR], "duration": 0.5}, "duration"),
-        ({"condition": "joint", "players": [PERSON, AVATAR], "trials": 1.5}, "integer"),
+        ({"condition": "joint", "players": [PERSON, AVATAR], "trials": 1.5}, "whole number"),
         ({"condition": "joint", "players": [PERSON, AVATAR], "pause": "5"}, "number"),
         ({"condition": "joint", "players": [PERSON, AVATAR], "show_metrics": 1}, "true or"),
         ({"condition": "joint", "players": [PERSON, AVATAR], "on_drop": "x"}, "on_drop"),
@@ -80,6 +86,27 @@ def test_plan_round_trips_through_json():
     ],
 )
 def test_bad_plans_are_refused_in_one_line(plan, problem):
-    with pytest.raises(InputError, match=problem) as caught:
+    with pytest.raises(PlanError, match=problem) as caught:
         parse_plan(plan)
     assert "\n" not in str(caught.value) and str(caught.value).startswith("plan:")
+    assert str(caught.value).startswith(f"plan: {caught.value.key}: {caught.value.what} (")
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [(s.key, value) for s in TRIAL_SETTINGS + SESSION_SETTINGS + LSL_SETTINGS
+     for value in s.constraint.refused()],  # type: ignore[union-attr]
+    ids=str,
+)  # fmt: skip
+def test_every_value_a_declared_key_refuses_is_refused_naming_the_key(key, value):
+    plan: dict = {"condition": "joint", "players": [PERSON, AVATAR]}
+    where = key
+    if key in {s.key for s in LSL_SETTINGS}:
+        plan["players"] = [{**PERSON, "device": "lsl", "lsl": {"stream": "hand", key: value}},
+                           AVATAR]  # fmt: skip
+        where = f"players[0].lsl.{key}"
+    else:
+        plan[key] = value
+    with pytest.raises(PlanError) as caught:
+        parse_plan(plan)
+    assert caught.value.key == where and caught.value.what == f"{value!r} is not allowed"

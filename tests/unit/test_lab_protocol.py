@@ -11,10 +11,13 @@ from pathlib import Path
 
 import pytest
 
+from mirror_avatar.constraints import REQUIRED
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.balance import block_balance
+from mirror_avatar.lab.checker import ProtocolKeyError
 from mirror_avatar.lab.messages import Answer, parse_participant_message
 from mirror_avatar.lab.protocol import MAX_PROTOCOL_BYTES, load_protocol, parse_protocol
+from mirror_avatar.lab.protocol_keys import TABLES, key_tables
 from mirror_avatar.realtime.messages import ProtocolError
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
@@ -119,42 +122,33 @@ C0 = ("blocks", 1, "conditions", 0)
 REFUSALS = [
     (("colour",), "blue", "colour: unknown key"),
     (("title",), 3, "title: must be text"),
-    (("seed",), -1, "seed: must be an integer"),
-    (("seed",), 1.5, "seed: must be an integer"),
-    (("block_order",), "latin", "block_order: must be 'fixed' or 'random'"),
-    (("blind",), "triple", "blind: must be one of single, double"),
+    (("seed",), 1.5, "seed: 1.5 is not allowed (give a whole number in [0, "),
     (("questions",), [], "questions: must be a table"),
     (
         ("questions", "bad id!"),
         {"text": "x", "kind": "text"},
         "questions.bad id!: 'bad id!' is not",
     ),
-    (("questions", "partner", "kind"), "slider", "questions.partner.kind: must be one of"),
     (("questions", "partner", "text"), "", "questions.partner.text: must be text"),
     (("questions", "partner", "colour"), 1, "questions.partner.colour: unknown key"),
     (("questions", "partner", "options"), ["a"], "questions.partner.options: needs two"),
     (("questions", "partner", "options"), ["a", "a"], "questions.partner.options: needs two"),
     (("questions", "partner", "options"), "a", "questions.partner.options: must be a list"),
     (("questions", "partner", "options"), ["a", 2], "questions.partner.options[1]: must be text"),
-    (("questions", "confidence", "points"), 1, "questions.confidence.points: must be an integer"),
-    (("questions", "confidence", "points"), 7.0, "questions.confidence.points: must be an integer"),
+    (("questions", "confidence", "points"), 7.0, "questions.confidence.points: 7.0 is not all"),
     (("questions", "confidence", "anchors"), ["a"], "questions.confidence.anchors: must name"),
     (("questions", "confidence", "anchors"), ["a", 1], "questions.confidence.anchors[1]: must be"),
-    (("questions", "remarks", "max_chars"), 0, "questions.remarks.max_chars: must be an integer"),
     (("blocks",), DELETE, "blocks: must be a list of 1 to"),
     (("blocks",), [], "blocks: must be a list of 1 to"),
     (("blocks", 1), "partners", "blocks[1]: must be a table"),
     (("blocks", 1, "repeat"), 2, "blocks[1].repeat: unknown key"),
-    (("blocks", 1, "order"), "balanced", "blocks[1].order: must be one of fixed, random, latin"),
     (("blocks", 1, "after_block"), "remarks", "blocks[1].after_block: must be a list of question"),
     (("blocks", 1, "after_block"), ["mood"], "blocks[1].after_block: no question 'mood'"),
     (("blocks", 1, "conditions"), [], "blocks[1].conditions: must be a list of 1 to"),
     ((*C0, "name"), "joint", "blocks[1].conditions[0].name: 'joint' names two conditions"),
     ((*C0, "name"), DELETE, "blocks[1].conditions[0].name: must be text"),
-    ((*C0, "game"), "mirror", "blocks[1].conditions[0].game: 'mirror' is not a game"),
     ((*C0, "speed"), 2, "blocks[1].conditions[0].speed: unknown key"),
     ((*C0, "players"), [], "blocks[1].conditions[0].players: must be a list of 1 to"),
-    ((*C0, "players", 1, "kind"), "robot", "blocks[1].conditions[0].players[1].kind: 'robot'"),
     ((*C0, "players", 1, "label"), "-A", "blocks[1].conditions[0].players[1].label: '-A' is not"),
     ((*C0, "players", 1, "spec"), DELETE, "blocks[1].conditions[0].players[1].spec: an avatar"),
     ((*C0, "players", 0, "spec"), "bundled:slow", "blocks[1].conditions[0].players[0].spec: a per"),
@@ -163,14 +157,9 @@ REFUSALS = [
     ((*C0, "players", 0), "P1", "blocks[1].conditions[0].players[0]: must be a table"),
     ((*C0, "leaders"), ["P9"], "blocks[1].conditions[0].leaders: must list labels"),
     ((*C0, "leaders"), [], "blocks[1].conditions[0].leaders: leader_follower needs exactly one"),
-    ((*C0, "trials"), 0, "blocks[1].conditions[0].trials: trials must lie between"),
-    ((*C0, "trials"), 1.5, "blocks[1].conditions[0].trials: trials must be an integer"),
-    ((*C0, "duration"), 0.1, "blocks[1].conditions[0].duration: duration must lie between"),
-    ((*C0, "pause"), "long", "blocks[1].conditions[0].pause: pause must be a number"),
-    ((*C0, "show_metrics"), 1, "blocks[1].conditions[0].show_metrics: show_metrics must be"),
-    ((*C0, "on_drop"), "pause", "blocks[1].conditions[0].on_drop: on_drop must be one of"),
-    ((*C0, "delay"), 1.5, "blocks[1].conditions[0].delay: must be seconds from 0 to 1"),
-    ((*C0, "delay"), True, "blocks[1].conditions[0].delay: must be seconds from 0 to 1"),
+    ((*C0, "trials"), 1.5, "blocks[1].conditions[0].trials: 1.5 is not allowed (give a whole"),
+    ((*C0, "pause"), "long", "blocks[1].conditions[0].pause: 'long' is not allowed (give a num"),
+    ((*C0, "delay"), True, "blocks[1].conditions[0].delay: True is not allowed (give a number"),
     ((*C0, "occlude"), "half", "blocks[1].conditions[0].occlude: must be a list of [start, end]"),
     ((*C0, "occlude"), [[3, 2]], "blocks[1].conditions[0].occlude[0]: must be [start, end] with"),
     ((*C0, "occlude"), [[1, 2, 3]], "blocks[1].conditions[0].occlude[0]: must be [start, end]"),
@@ -178,12 +167,12 @@ REFUSALS = [
     (
         ("blocks", 1, "conditions", 2, "graph"),
         "star-ish",
-        "blocks[1].conditions[2].graph: graph must be one of",
+        "blocks[1].conditions[2].graph: 'star-ish' is not one of",
     ),
     (
         ("blocks", 1, "conditions", 2, "graph"),
         [[0, 1], [1, 0]],
-        "blocks[1].conditions[2].graph: graph:",
+        "blocks[1].conditions[2].graph: 2 rows for 4 players",
     ),
     (
         ("blocks", 1, "conditions", 1, "players"),
@@ -222,6 +211,51 @@ def test_each_mistake_is_refused_with_its_key_path_and_a_fix(path, value, messag
     assert text.startswith(f"study.toml: {message}"), text
     assert "\n" not in text
     assert text.endswith(")"), text
+
+
+TABLE_PATHS = {
+    "study": (),
+    "question": ("questions", "confidence"),
+    "block": ("blocks", 1),
+    "condition": C0,
+    "player": (*C0, "players", 0),
+}
+"""Where each table of the example protocol is (a Likert question; a person of a condition)."""
+
+
+def declared_refusals() -> list[tuple[tuple, object, str]]:
+    """Every value a declared key refuses, at that key in the example protocol, and the key path;
+    a required key left out too."""
+    cases = []
+    for table, settings in TABLES.items():
+        path = TABLE_PATHS[table]
+        where = "".join(f"[{k}]" if isinstance(k, int) else f".{k}" for k in path).lstrip(".")
+        for setting in settings:
+            key = f"{where}.{setting.key}" if where else setting.key
+            if setting.constraint is not None:
+                cases += [
+                    ((*path, setting.key), value, key) for value in setting.constraint.refused()
+                ]
+                if setting.default is REQUIRED:
+                    cases.append(((*path, setting.key), DELETE, key))
+    return cases
+
+
+@pytest.mark.parametrize(("path", "value", "key"), declared_refusals(), ids=str)
+def test_every_value_a_declared_key_refuses_is_refused_in_one_line_naming_its_path(
+    path, value, key
+):
+    with pytest.raises(ProtocolKeyError) as caught:
+        parse_protocol(_set(path, value), "study.toml")
+    assert caught.value.key == key
+    text = str(caught.value)
+    assert text.startswith(f"study.toml: {key}: ") and "\n" not in text and text.endswith(")")
+
+
+def test_the_lab_guide_tables_every_declared_key():
+    guide = (Path(__file__).parents[2] / "docs" / "lab.md").read_text(encoding="utf-8")
+    for name, table in key_tables().items():
+        assert f"<!-- keys: {name} -->\n{table}<!-- end keys -->" in guide, "run make docs-tables"
 
 
 def test_file_level_refusals_name_the_file(tmp_path):
@@ -263,7 +297,8 @@ def test_a_free_text_answer_fits_in_one_page_message():
     data = _example()
     data["questions"]["remarks"]["max_chars"] = 121
     with pytest.raises(
-        InputError, match=r"questions.remarks.max_chars: must be an integer from 1 to 120"
+        InputError,
+        match=r"questions.remarks.max_chars: 121 is not allowed \(give a whole number",
     ):
         parse_protocol(data, "study.toml")
 

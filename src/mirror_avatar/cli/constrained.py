@@ -12,7 +12,14 @@ from typing import Any
 
 import click
 
-from mirror_avatar.constraints import Constraint, ConstraintError, Interval, Options, check
+from mirror_avatar.constraints import (
+    Constraint,
+    ConstraintError,
+    Flag,
+    Interval,
+    Options,
+    check,
+)
 
 
 class ConstrainedNumber(click.ParamType):
@@ -38,6 +45,8 @@ def constrained_type(constraint: Constraint) -> click.ParamType:
     """Make the click type of an option whose values ``constraint`` declares."""
     if isinstance(constraint, Options):
         return click.Choice(constraint.values)
+    if isinstance(constraint, Flag):
+        return click.BOOL
     return ConstrainedNumber(constraint)
 
 

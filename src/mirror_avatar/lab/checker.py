@@ -5,11 +5,24 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from mirror_avatar.constraints import ConstraintError, Setting
 from mirror_avatar.errors import InputError
 from mirror_avatar.realtime.messages import PARTICIPANT_PATTERN
 
 MAX_TEXT_CHARS = 500
 """Longest title, name, question or option text (characters)."""
+
+
+class ProtocolKeyError(InputError):
+    """A protocol's key refused: ``FILE: KEY.PATH: problem (fix)``.
+
+    ``key`` is the key's path (``blocks[1].conditions[0].trials``), ``what`` the problem and
+    ``fix`` the fix, as data for whoever handles the error.
+    """
+
+    def __init__(self, source: str, key: str, what: str, fix: str) -> None:
+        self.key, self.what, self.fix = key, what, fix
+        super().__init__(source, f"{key}: {what} ({fix})")
 
 
 class Checker:
@@ -18,9 +31,21 @@ class Checker:
     def __init__(self, source: str) -> None:
         self.source = source
 
-    def error(self, where: str, problem: str, fix: str) -> InputError:
+    def error(self, where: str, problem: str, fix: str) -> ProtocolKeyError:
         """Return the error of the key at ``where``: its problem and how to fix it."""
-        return InputError(self.source, f"{where}: {problem} ({fix})")
+        return ProtocolKeyError(self.source, where, problem, fix)
+
+    def setting(self, data: dict[str, Any], where: str, setting: Setting) -> Any:
+        """Return the declared ``setting`` of the table at ``where``, checked.
+
+        Its default when absent (`mirror_avatar.constraints.Setting.read`).
+        """
+        try:
+            return setting.read(data, where)
+        except ConstraintError as error:
+            raise self.error(
+                error.key, f"{error.value!r} is not allowed", f"give {error.constraint}"
+            ) from None
 
     def table(self, value: object, where: str) -> dict[str, Any]:
         """Return ``value`` if it is a table."""

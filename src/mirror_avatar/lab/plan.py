@@ -17,17 +17,18 @@ also who sees whom on the participants' pages.
 
 from __future__ import annotations
 
-import math
 import secrets
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
+from mirror_avatar.constraints import ConstraintError, Flag, Interval, Options, Setting
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import TOPOLOGIES, Graph, check_graph, complete_graph, make_graph
 from mirror_avatar.realtime.clock import MAX_LATENESS
 from mirror_avatar.realtime.messages import PARTICIPANT_PATTERN
+from mirror_avatar.user_files import is_int
 
 CONDITIONS = ("solo", "leader_follower", "joint", "group")
 """Kinds of lab session."""
@@ -38,20 +39,42 @@ DEVICES = ("pointer", "lsl")
 MAX_PLAYERS = 16
 """Most players in one session."""
 
-DURATION_RANGE = (1.0, 600.0)
-"""Shortest and longest trial (s)."""
-
-MAX_TRIALS = 100
-"""Most trials in one session."""
-
-MAX_PAUSE = 600.0
-"""Longest pause between trials (s)."""
-
-LATENESS_RANGE = (0.03, 10.0)
-"""Smallest and largest bound on a tick's lateness a plan may set (s)."""
+SEED_LIMIT = 2**63 - 1
+"""Largest seed."""
 
 MAX_SPEC_CHARS = 1024
 """Longest avatar spec or LSL stream name (characters)."""
+
+TRIAL_SETTINGS = (
+    Setting("trials", "trials of the condition", Interval(int, 1, 100), 1),
+    Setting("duration", "length of each trial", Interval(float, 1.0, 600.0, unit="s"), 60.0),
+    Setting("pause", "between a trial's end and the next countdown",
+            Interval(float, 0.0, 600.0, unit="s"), 5.0),
+    Setting("show_metrics", "the end screen shows the trial's metrics", Flag(), True),
+    Setting("on_drop", "a trial whose person's connection drops: goes on (their position "
+            "held) or stops", Options(("continue", "stop")), "continue"),
+)  # fmt: skip
+"""The plan's keys of its trials, declared once: a protocol's conditions take them as they are."""
+
+SESSION_SETTINGS = (
+    Setting("max_lateness", "how late a tick may come before the trial ends as unable to keep "
+            "its clock", Interval(float, 0.03, 10.0, unit="s"), MAX_LATENESS),
+    Setting("seed", "the session's seed; each trial's is spawned from it",
+            Interval(int, 0, SEED_LIMIT), None),
+)  # fmt: skip
+"""The plan's other scalar keys (a seed left out is drawn)."""
+
+
+class PlanError(InputError):
+    """A plan refused: ``key`` is the plan's key at fault, ``what`` the problem, ``fix`` the fix.
+
+    The message is ``plan: KEY: what (fix)``; callers (a protocol's checks) read the key and
+    the problem from the attributes, never from the message.
+    """
+
+    def __init__(self, key: str, what: str, fix: str) -> None:
+        self.key, self.what, self.fix = key, what, fix
+        super().__init__("plan", f"{key}: {what} ({fix})")
 
 
 @dataclass(frozen=True)
@@ -201,111 +224,137 @@ def parse_plan(data: object) -> SessionPlan:
 
     Raises
     ------
-    InputError
-        ``plan: <field>: problem`` for the first problem found.
+    PlanError
+        ``plan: KEY: problem (fix)`` for the first problem found, with the key, problem and fix
+        as attributes.
     """
     if not isinstance(data, dict):
-        raise _error("the plan must be a JSON object")
+        raise PlanError("plan", "must be a JSON object", 'send {"condition": ..., ...}')
     condition = data.get("condition")
     if condition not in CONDITIONS:
-        raise _error(f"condition must be one of {', '.join(CONDITIONS)}")
+        raise PlanError(
+            "condition", f"{condition!r} is not a condition", f"one of {', '.join(CONDITIONS)}"
+        )
     players = data.get("players")
     if not isinstance(players, list) or not 1 <= len(players) <= MAX_PLAYERS:
-        raise _error(f"players must be a list of 1 to {MAX_PLAYERS} slots")
+        raise PlanError(
+            "players", f"must be a list of 1 to {MAX_PLAYERS} slots", "list the players"
+        )
     slots = tuple(_parse_slot(item, k) for k, item in enumerate(players))
     _check_labels(slots)
     n = len(slots)
     leaders = _parse_leaders(data.get("leaders", []), n)
     _check_condition(condition, slots, leaders)
-    plan = SessionPlan(
+    values = {setting.key: _read(setting, data) for setting in TRIAL_SETTINGS + SESSION_SETTINGS}
+    seed = secrets.randbits(63) if values["seed"] is None else values["seed"]
+    return SessionPlan(
         condition=condition,
         slots=slots,
         graph=_parse_graph(data.get("graph", "complete"), condition, n),
         leaders=leaders,
-        duration=_number(data, "duration", 60.0, DURATION_RANGE),
-        trials=int(_number(data, "trials", 1, (1, MAX_TRIALS), integer=True)),
-        pause=_number(data, "pause", 5.0, (0.0, MAX_PAUSE)),
-        show_metrics=_flag(data, "show_metrics", True),
-        on_drop=_choice(data, "on_drop", ("continue", "stop")),
-        max_lateness=_number(data, "max_lateness", MAX_LATENESS, LATENESS_RANGE),
-        seed=int(_number(data, "seed", secrets.randbits(63), (0, 2**63 - 1), integer=True)),
+        duration=float(values["duration"]),
+        trials=int(values["trials"]),
+        pause=float(values["pause"]),
+        show_metrics=bool(values["show_metrics"]),
+        on_drop=str(values["on_drop"]),
+        max_lateness=float(values["max_lateness"]),
+        seed=int(seed),
     )
-    return plan
 
 
-def _error(problem: str) -> InputError:
-    return InputError("plan", problem)
+def _read(setting: Setting, data: dict[str, Any], where: str = "") -> Any:
+    """Read a declared setting of the plan, refusing a value outside it as a `PlanError`."""
+    try:
+        return setting.read(data, where)
+    except ConstraintError as error:
+        raise PlanError(
+            error.key, f"{error.value!r} is not allowed", f"give {error.constraint}"
+        ) from None
+
+
+LSL_SETTINGS = (
+    Setting("channel", "the stream's channel read", Interval(int, 0, 1023), 0),
+    Setting("scale", "position = offset + scale * value", Interval(float, -1e6, 1e6), 1.0),
+    Setting("offset", "position = offset + scale * value", Interval(float, -1e6, 1e6), 0.0),
+)  # fmt: skip
+"""A person's LSL stream's scalar keys."""
+
+LABEL_FIX = "1-32 letters, digits, '_' or '-', starting with a letter or digit"
+"""How to write a player's label."""
 
 
 def _parse_slot(item: object, k: int) -> Slot:
+    where = f"players[{k}]"
     if not isinstance(item, dict):
-        raise _error(f"players[{k}] must be an object")
+        raise PlanError(where, "must be an object", '{"label": "P1", "kind": "human"}')
     label = item.get("label")
     if not isinstance(label, str) or not PARTICIPANT_PATTERN.fullmatch(label):
-        raise _error(
-            f"players[{k}].label must be 1-32 letters, digits, '_' or '-', starting with a "
-            "letter or digit"
-        )
+        raise PlanError(f"{where}.label", f"{label!r} is not a label", LABEL_FIX)
     kind = item.get("kind")
     if kind == "avatar":
         spec = item.get("spec")
         if not isinstance(spec, str) or not 0 < len(spec) <= MAX_SPEC_CHARS:
-            raise _error(f"players[{k}].spec must name the avatar (a player spec)")
+            raise PlanError(f"{where}.spec", "must name the avatar", "give a player spec")
         return Slot(label, "avatar", spec=spec)
     if kind != "human":
-        raise _error(f"players[{k}].kind must be 'human' or 'avatar'")
+        raise PlanError(f"{where}.kind", f"{kind!r} is not a kind of player", "'human' or 'avatar'")
     device = item.get("device", "pointer")
     if device not in DEVICES:
-        raise _error(f"players[{k}].device must be one of {', '.join(DEVICES)}")
-    lsl = _parse_lsl(item.get("lsl"), k) if device == "lsl" else None
+        raise PlanError(
+            f"{where}.device", f"{device!r} is not a device", f"one of {', '.join(DEVICES)}"
+        )
+    lsl = _parse_lsl(item.get("lsl"), f"{where}.lsl") if device == "lsl" else None
     return Slot(label, "human", device=device, lsl=lsl)
 
 
-def _parse_lsl(item: object, k: int) -> LslDevice:
-    where = f"players[{k}].lsl"
+def _parse_lsl(item: object, where: str) -> LslDevice:
     if not isinstance(item, dict):
-        raise _error(f"{where} must give the stream: {{'stream': NAME, 'channel': 0, ...}}")
+        raise PlanError(where, "must give the stream", "{'stream': NAME, 'channel': 0, ...}")
     stream = item.get("stream")
     if not isinstance(stream, str) or not 0 < len(stream) <= MAX_SPEC_CHARS:
-        raise _error(f"{where}.stream must be the stream's name")
-    channel = int(_number(item, "channel", 0, (0, 1023), integer=True, where=where))
-    scale = _number(item, "scale", 1.0, (-1e6, 1e6), where=where)
+        raise PlanError(f"{where}.stream", "must be the stream's name", "name the LSL stream")
+    channel, scale, offset = (_read(setting, item, where) for setting in LSL_SETTINGS)
     if scale == 0.0:
-        raise _error(f"{where}.scale must not be 0")
-    offset = _number(item, "offset", 0.0, (-1e6, 1e6), where=where)
+        raise PlanError(f"{where}.scale", "must not be 0", "give the units per stream value")
     source_id = item.get("source_id")
     if source_id is not None and not (
         isinstance(source_id, str) and 0 < len(source_id) <= MAX_SPEC_CHARS
     ):
-        raise _error(f"{where}.source_id must be the stream's source id")
-    return LslDevice(stream, channel, scale, offset, source_id)
+        raise PlanError(f"{where}.source_id", "must be the stream's source id", "or leave it out")
+    return LslDevice(stream, int(channel), float(scale), float(offset), source_id)
 
 
 def _check_labels(slots: tuple[Slot, ...]) -> None:
     labels = [slot.label for slot in slots]
     for label in labels:
         if labels.count(label) > 1:
-            raise _error(f"two players are labelled {label!r}")
+            raise PlanError("players", f"two players are labelled {label!r}", "relabel one")
 
 
 def _parse_leaders(value: object, n: int) -> tuple[int, ...]:
-    if not isinstance(value, list) or not all(_is_int(k) and 0 <= k < n for k in value):
-        raise _error(f"leaders must be a list of player indices 0..{n - 1}")
+    if not isinstance(value, list) or not all(is_int(k) and 0 <= k < n for k in value):
+        raise PlanError("leaders", f"must be a list of player indices 0..{n - 1}", "e.g. [0]")
     return tuple(sorted(set(value)))
+
+
+PLAYERS_FIX = "change the players to suit the game"
+"""How to fix players that do not suit their condition."""
 
 
 def _check_condition(condition: str, slots: tuple[Slot, ...], leaders: tuple[int, ...]) -> None:
     n = len(slots)
     if condition == "solo" and any(slot.kind == "avatar" for slot in slots):
-        raise _error("a solo session has people only")
+        raise PlanError("players", "a solo session has people only", PLAYERS_FIX)
     if condition in ("leader_follower", "joint") and n != 2:
-        raise _error(f"{condition} needs exactly two players")
+        raise PlanError("players", f"{condition} needs exactly two players", PLAYERS_FIX)
     if condition == "leader_follower" and len(leaders) != 1:
-        raise _error("leader_follower needs exactly one leader (leaders: [0] or [1])")
+        raise PlanError(
+            "leaders", "leader_follower needs exactly one leader", "name one leader by its player"
+        )
     if condition == "group" and n < 2:
-        raise _error("a group needs at least two players")
+        raise PlanError("players", "a group needs at least two players", PLAYERS_FIX)
     if not any(slot.kind == "human" for slot in slots):
-        raise _error("a lab session needs at least one person")
+        raise PlanError("players", "a lab session needs at least one person", PLAYERS_FIX)
 
 
 def _parse_graph(value: object, condition: str, n: int) -> Graph:
@@ -313,50 +362,13 @@ def _parse_graph(value: object, condition: str, n: int) -> Graph:
         return np.zeros((n, n), dtype=np.int8)
     if condition != "group":
         return complete_graph(n)
+    fix = "a topology name or an adjacency matrix"
     if isinstance(value, str):
         if value not in TOPOLOGIES or value == "random":
             shown = ", ".join(t for t in TOPOLOGIES if t != "random")
-            raise _error(f"graph must be one of {shown} or an adjacency matrix")
+            raise PlanError("graph", f"{value!r} is not one of {shown}", fix)
         return make_graph(value, n)
     try:
         return check_graph(value, n)  # type: ignore[arg-type]
     except InputError as error:
-        raise _error(f"graph: {error.problem}") from None
-
-
-def _is_int(value: object) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
-def _number(
-    data: dict[str, Any],
-    key: str,
-    default: float,
-    bounds: tuple[float, float],
-    integer: bool = False,
-    where: str = "",
-) -> float:
-    name = f"{where}.{key}" if where else key
-    value = data.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise _error(f"{name} must be a number")
-    if integer and not _is_int(value):
-        raise _error(f"{name} must be an integer")
-    low, high = bounds
-    if not (math.isfinite(value) and low <= value <= high):
-        raise _error(f"{name} must lie between {low:g} and {high:g}")
-    return value
-
-
-def _flag(data: dict[str, Any], key: str, default: bool) -> bool:
-    value = data.get(key, default)
-    if not isinstance(value, bool):
-        raise _error(f"{key} must be true or false")
-    return value
-
-
-def _choice(data: dict[str, Any], key: str, choices: tuple[str, ...]) -> str:
-    value = data.get(key, choices[0])
-    if value not in choices:
-        raise _error(f"{key} must be one of {', '.join(choices)}")
-    return str(value)
+        raise PlanError("graph", error.problem, fix) from None

@@ -31,66 +31,41 @@ from typing import Any
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.checker import Checker, is_int
 from mirror_avatar.lab.order import (
-    ORDERS,
     block_order,
     condition_order,
     first_meets_person,
     meets_person,
 )
 from mirror_avatar.lab.perturbation import Perturbation, parse_perturbations
-from mirror_avatar.lab.plan import CONDITIONS, MAX_SPEC_CHARS, SessionPlan, parse_plan
+from mirror_avatar.lab.plan import (
+    MAX_SPEC_CHARS,
+    TRIAL_SETTINGS,
+    PlanError,
+    SessionPlan,
+    parse_plan,
+)
 from mirror_avatar.lab.protocol_checks import AvatarCheck, long_run
+from mirror_avatar.lab.protocol_keys import (
+    BLOCK,
+    BLOCK_SETTINGS,
+    CONDITION,
+    CONDITION_SETTINGS,
+    MAX_BLOCKS,
+    MAX_CONDITIONS,
+    MAX_OCCLUSION_END,
+    MAX_OPTIONS,
+    MAX_QUESTIONS,
+    PLAYER,
+    PLAYER_SETTINGS,
+    QUESTION,
+    QUESTION_SETTINGS,
+    STUDY_SETTINGS,
+    keys_of,
+)
 from mirror_avatar.user_files import read_text
-
-PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
-"""What a protocol's player slot holds."""
-
-QUESTION_KINDS = ("choice", "likert", "text")
-"""Kinds of question: one option of several, a point on a rating scale, free text."""
 
 MAX_PROTOCOL_BYTES = 256 * 1024
 """Largest protocol file read (bytes)."""
-
-MAX_BLOCKS, MAX_CONDITIONS, MAX_QUESTIONS, MAX_OPTIONS = 20, 20, 50, 20
-"""Most blocks, conditions per block, questions, and options of a choice."""
-
-MAX_DELAY = 1.0
-"""Longest visual delay of the partners (s; Stepp 2009 delayed up to 1 s)."""
-
-MAX_ANSWER_CHARS = 120
-"""Longest free-text answer (characters; one answer travels in one page message)."""
-
-LIKERT_RANGE = (2, 11)
-"""Fewest and most points of a rating scale."""
-
-SEED_LIMIT = 2**63 - 1
-"""Largest seed."""
-
-BLINDS = ("single", "double")
-"""Who is blind to the partner kinds: the participants' pages, or the researcher's console too."""
-
-TOP_KEYS = ("title", "seed", "block_order", "blind", "questions", "blocks")
-BLOCK_KEYS = ("name", "order", "after_block", "conditions")
-CONDITION_KEYS = (
-    "delay",
-    "perturb",
-    "occlude",
-    "name",
-    "game",
-    "players",
-    "graph",
-    "leaders",
-    "trials",
-    "duration",
-    "pause",
-    "after_trial",
-    "show_metrics",
-    "on_drop",
-)
-PLAYER_KEYS = ("label", "kind", "spec", "device")
-QUESTION_KEYS = ("text", "kind", "options", "points", "anchors", "max_chars")
-PLAN_KEYS = ("graph", "trials", "duration", "pause", "show_metrics", "on_drop")
-"""Keys of a condition passed on to `mirror_avatar.lab.plan.parse_plan` as they are."""
 
 
 @dataclass(frozen=True)
@@ -104,7 +79,7 @@ class Question:
     text
         What the page asks.
     kind
-        One of `QUESTION_KINDS`.
+        One of `mirror_avatar.lab.protocol_keys.QUESTION_KINDS`.
     options
         A choice's options.
     points
@@ -152,7 +127,10 @@ class Question:
 
 @dataclass(frozen=True)
 class Player:
-    """A player slot of a condition: ``kind`` in `PLAYER_KINDS`; ``spec`` for avatars."""
+    """A player slot of a condition: its label, kind, avatar spec and device.
+
+    ``kind`` is one of `mirror_avatar.lab.protocol_keys.PLAYER_KINDS`; ``spec`` is for avatars.
+    """
 
     label: str
     kind: str
@@ -268,8 +246,8 @@ class Protocol:
         Whether the file has no seed and ``seed`` was drawn when it was read (a restart draws
         another, and the participants' runs then no longer resume).
     blind
-        One of `BLINDS`: ``"single"``, the participants' pages never show a partner's kind;
-        ``"double"``, the researcher's console neither, until export
+        One of `mirror_avatar.lab.protocol_keys.BLINDS`: ``"single"``, the participants' pages
+        never show a partner's kind; ``"double"``, the researcher's console neither, until export
         (`mirror_avatar.lab.blinding`).
     warnings
         What is odd but allowed, one line each (`mirror_avatar.lab.protocol_checks.long_run`).
@@ -368,15 +346,11 @@ def protocol_table(text: str, source: str) -> dict[str, Any]:
 def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
     """Validate a protocol read from TOML (``source`` names it in errors)."""
     check = Checker(source)
-    check.keys(data, "", TOP_KEYS)
+    check.keys(data, "", keys_of(STUDY_SETTINGS))
     title = check.text(data.get("title", ""), "title", allow_empty=True)
-    seed = data.get("seed", secrets.randbits(63))
-    if not is_int(seed) or not 0 <= seed <= SEED_LIMIT:
-        raise check.error("seed", f"must be an integer from 0 to {SEED_LIMIT}", "or leave it out")
-    order = data.get("block_order", "fixed")
-    if order not in ("fixed", "random"):
-        raise check.error("block_order", "must be 'fixed' or 'random'", "choose one")
-    blind = check.one_of(data.get("blind", "single"), "blind", BLINDS)
+    study = {setting.key: check.setting(data, "", setting) for setting in STUDY_SETTINGS}
+    seed = secrets.randbits(63) if study["seed"] is None else study["seed"]
+    order, blind = study["block_order"], study["blind"]
     questions = _questions(check, data.get("questions", {}))
     blocks = check.array(data.get("blocks"), "blocks", MAX_BLOCKS, "add [[blocks]] tables")
     parsed = tuple(
@@ -420,9 +394,10 @@ def _questions(check: Checker, value: object) -> dict[str, Question]:
 def _question(check: Checker, qid: str, value: object) -> Question:
     where = f"questions.{qid}"
     data = check.table(value, where)
-    check.keys(data, where, QUESTION_KEYS)
+    check.keys(data, where, keys_of(QUESTION_SETTINGS))
     text = check.text(data.get("text"), f"{where}.text")
-    kind = check.one_of(data.get("kind"), f"{where}.kind", QUESTION_KINDS)
+    kind, points, most = (check.setting(data, where, QUESTION[key])
+                          for key in ("kind", "points", "max_chars"))  # fmt: skip
     if kind == "choice":
         options = check.array(
             data.get("options"),
@@ -437,12 +412,6 @@ def _question(check: Checker, qid: str, value: object) -> Question:
             )
         return Question(qid, text, kind, options=texts)
     if kind == "likert":
-        points = data.get("points", 7)
-        low, high = LIKERT_RANGE
-        if not is_int(points) or not low <= points <= high:
-            raise check.error(
-                f"{where}.points", f"must be an integer from {low} to {high}", "e.g. 7"
-            )
         anchors = data.get("anchors", ["", ""])
         if not isinstance(anchors, list) or len(anchors) != 2:
             raise check.error(
@@ -450,19 +419,14 @@ def _question(check: Checker, qid: str, value: object) -> Question:
             )
         ends = tuple(check.text(a, f"{where}.anchors[{i}]", True) for i, a in enumerate(anchors))
         return Question(qid, text, kind, points=points, anchors=(ends[0], ends[1]))
-    most = data.get("max_chars", MAX_ANSWER_CHARS)
-    if not is_int(most) or not 1 <= most <= MAX_ANSWER_CHARS:
-        raise check.error(
-            f"{where}.max_chars", f"must be an integer from 1 to {MAX_ANSWER_CHARS}", "e.g. 100"
-        )
     return Question(qid, text, kind, max_chars=most)
 
 
 def _block(check: Checker, value: object, where: str, questions: dict[str, Question]) -> Block:
     data = check.table(value, where)
-    check.keys(data, where, BLOCK_KEYS)
+    check.keys(data, where, keys_of(BLOCK_SETTINGS))
     name = check.text(data.get("name", where), f"{where}.name")
-    order = check.one_of(data.get("order", "fixed"), f"{where}.order", ORDERS)
+    order = check.setting(data, where, BLOCK["order"])
     after = check.refs(data.get("after_block", []), f"{where}.after_block", questions)
     items = check.array(
         data.get("conditions"),
@@ -481,9 +445,9 @@ def _condition(
     check: Checker, value: object, where: str, questions: dict[str, Question]
 ) -> Condition:
     data = check.table(value, where)
-    check.keys(data, where, CONDITION_KEYS)
+    check.keys(data, where, keys_of(CONDITION_SETTINGS))
     name = check.text(data.get("name"), f"{where}.name")
-    game = check.one_of(data.get("game"), f"{where}.game", CONDITIONS, "game")
+    game, delay = (check.setting(data, where, CONDITION[key]) for key in ("game", "delay"))
     items = check.array(
         data.get("players"), f"{where}.players", 16, 'e.g. [{ label = "P1", kind = "person" }]'
     )
@@ -496,11 +460,14 @@ def _condition(
             "must list labels of this condition's players",
             f"choose among {', '.join(labels)}",
         )
-    settings = {key: data[key] for key in PLAN_KEYS if key in data}
+    settings = {
+        setting.key: check.setting(data, where, setting)
+        for setting in TRIAL_SETTINGS
+        if setting.key in data
+    }
+    if "graph" in data:
+        settings["graph"] = data["graph"]
     after = check.refs(data.get("after_trial", []), f"{where}.after_trial", questions)
-    delay = data.get("delay", 0.0)
-    if not isinstance(delay, int | float) or isinstance(delay, bool) or not 0 <= delay <= MAX_DELAY:
-        raise check.error(f"{where}.delay", f"must be seconds from 0 to {MAX_DELAY:g}", "e.g. 0.3")
     occlude = _intervals(check, data.get("occlude", []), f"{where}.occlude")
     condition = Condition(
         name, str(game), players, tuple(leaders), settings, after, float(delay), occlude
@@ -528,7 +495,7 @@ def _intervals(check: Checker, value: object, where: str) -> tuple[tuple[float, 
     for i, item in enumerate(value):
         ok = isinstance(item, list) and len(item) == 2
         ok = ok and all(isinstance(t, int | float) and not isinstance(t, bool) for t in item)
-        if not ok or not 0 <= item[0] < item[1] <= 600:
+        if not ok or not 0 <= item[0] < item[1] <= MAX_OCCLUSION_END:
             raise check.error(f"{where}[{i}]", "must be [start, end] with 0 <= start < end", fix)
         intervals.append((float(item[0]), float(item[1])))
     return tuple(intervals)
@@ -536,9 +503,9 @@ def _intervals(check: Checker, value: object, where: str) -> tuple[tuple[float, 
 
 def _player(check: Checker, value: object, where: str) -> Player:
     data = check.table(value, where)
-    check.keys(data, where, PLAYER_KEYS)
+    check.keys(data, where, keys_of(PLAYER_SETTINGS))
     label = check.label(data.get("label"), f"{where}.label")
-    kind = check.one_of(data.get("kind"), f"{where}.kind", PLAYER_KINDS, "kind of player")
+    kind = check.setting(data, where, PLAYER["kind"])
     spec = data.get("spec")
     if kind == "person" and spec is not None:
         raise check.error(
@@ -561,35 +528,16 @@ def _player(check: Checker, value: object, where: str) -> Player:
 
 
 def _check_plan(check: Checker, condition: Condition, where: str) -> None:
-    """Refuse a condition whose plan would be refused, with either filling of its partners."""
+    """Refuse a condition whose plan would be refused, with either filling of its partners.
+
+    The plan's error names its key (`mirror_avatar.lab.plan.PlanError`): the condition's key
+    of that name is at fault.
+    """
     choices = [player.label for player in condition.players if player.kind == "person-or-avatar"]
     for person in (True, False):
         try:
             condition.plan(dict.fromkeys(choices, person), 0)
-        except InputError as error:
+        except PlanError as error:
             either = " when its person-or-avatar is an avatar" if choices and not person else ""
-            key = _plan_key(error.problem)
-            raise check.error(
-                f"{where}.{key}", f"{error.problem.split(' (')[0]}{either}", FIXES[key]
-            ) from None
-
-
-FIXES = {
-    "players": "change the players to suit the game",
-    "leaders": 'name one leader by label, e.g. leaders = ["A1"]',
-    "graph": "a topology name or an adjacency matrix",
-    "trials": "a whole number of trials",
-    "duration": "a trial's length in seconds",
-    "pause": "seconds between trials",
-    "show_metrics": "true or false",
-    "on_drop": "'continue' or 'stop'",
-}
-"""How to fix a condition that `parse_plan` refuses, by the key at fault."""
-
-
-def _plan_key(problem: str) -> str:
-    """Return the condition's key a `parse_plan` problem is about."""
-    for key in PLAN_KEYS:
-        if problem.startswith(key):
-            return key
-    return "leaders" if "leader" in problem else "players"
+            key = error.key.split("[")[0].split(".")[0]
+            raise check.error(f"{where}.{key}", f"{error.what}{either}", error.fix) from None

@@ -1,0 +1,133 @@
+"""The keys of a study protocol, declared once: what each sets, allows and defaults to.
+
+Each table of a protocol file (the file itself, a question, a block, a condition, a player) has
+its keys declared here as `mirror_avatar.constraints.Setting` records. The protocol's reader
+(`mirror_avatar.lab.protocol`) knows the keys and checks every scalar value from them; the
+refusal tests are generated from them; and the lab guide's tables of keys are written from
+them (`key_tables`), so that the file format, its checks and its documents say the same.
+A condition's trial keys are the plan's (`mirror_avatar.lab.plan.TRIAL_SETTINGS`), declared
+there once.
+"""
+
+from __future__ import annotations
+
+from mirror_avatar.constraints import Interval, Options, Setting, settings_table
+from mirror_avatar.lab.order import ORDERS
+from mirror_avatar.lab.plan import CONDITIONS, MAX_PLAYERS, SEED_LIMIT, TRIAL_SETTINGS
+
+PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
+"""What a protocol's player slot holds."""
+
+QUESTION_KINDS = ("choice", "likert", "text")
+"""Kinds of question: one option of several, a point on a rating scale, free text."""
+
+BLINDS = ("single", "double")
+"""Who is blind to the partner kinds: the participants' pages, or the researcher's console too."""
+
+MAX_BLOCKS, MAX_CONDITIONS, MAX_QUESTIONS, MAX_OPTIONS = 20, 20, 50, 20
+"""Most blocks, conditions per block, questions, and options of a choice."""
+
+MAX_DELAY = 1.0
+"""Longest visual delay of the partners (s; Stepp 2009 delayed up to 1 s)."""
+
+MAX_ANSWER_CHARS = 120
+"""Longest free-text answer (characters; one answer travels in one page message)."""
+
+MAX_OCCLUSION_END = 600.0
+"""Latest end of an occlusion interval (s from the trial's start: the longest trial)."""
+
+STUDY_SETTINGS = (
+    Setting("title", "the study's name", default="", allowed="text"),
+    Setting("seed", "every draw (orders, partners) follows from it",
+            Interval(int, 0, SEED_LIMIT), None, default_shown="drawn and recorded"),
+    Setting("block_order", "the order of the blocks", Options(("fixed", "random")), "fixed"),
+    Setting("blind", "single: the pages never show a partner's kind; double: the console "
+            "neither, until export", Options(BLINDS), "single"),
+    Setting("questions", "the questions, one `[questions.ID]` table each", default=None,
+            allowed=f"up to {MAX_QUESTIONS} tables"),
+    Setting("blocks", "the blocks, one `[[blocks]]` table each",
+            allowed=f"1 to {MAX_BLOCKS} tables"),
+)  # fmt: skip
+"""The keys of the protocol file itself."""
+
+QUESTION_SETTINGS = (
+    Setting("text", "what the page asks", allowed="text"),
+    Setting("kind", "the kind of answer", Options(QUESTION_KINDS)),
+    Setting("options", "a choice's options", default=None,
+            allowed=f"2 to {MAX_OPTIONS} different texts"),
+    Setting("points", "a Likert scale's points (answers 1..points)", Interval(int, 2, 11), 7),
+    Setting("anchors", "a Likert scale's two ends", default=None, allowed="two texts"),
+    Setting("max_chars", "longest text answer", Interval(int, 1, MAX_ANSWER_CHARS, unit="chars"),
+            MAX_ANSWER_CHARS),
+)  # fmt: skip
+"""The keys of a question (``[questions.ID]``)."""
+
+BLOCK_SETTINGS = (
+    Setting("name", "the block's name", default=None, allowed="text",
+            default_shown="its place, blocks[N]"),
+    Setting("order", "the order of its conditions (latin: a cyclic Latin square across "
+            "participants; williams: each condition also right before every other equally "
+            "often)", Options(ORDERS), "fixed"),
+    Setting("after_block", "questions asked after a participant's last trial of the block",
+            default=None, allowed="question ids"),
+    Setting("conditions", "its conditions, one `[[blocks.conditions]]` table each",
+            allowed=f"1 to {MAX_CONDITIONS} tables"),
+)  # fmt: skip
+"""The keys of a block (``[[blocks]]``)."""
+
+CONDITION_SETTINGS = (
+    Setting("name", "the condition's name, unique in the protocol", allowed="text"),
+    Setting("game", "what the players play", Options(CONDITIONS)),
+    Setting("players", "its players, `{ label, kind }` each (a player's keys below)",
+            allowed=f"1 to {MAX_PLAYERS} tables"),
+    Setting("leaders", "the leading players", default=None, allowed="labels of its players"),
+    Setting("graph", "who sees and follows whom, in a group", default="complete",
+            allowed="complete, ring, path, star or an adjacency matrix"),
+    *TRIAL_SETTINGS,
+    Setting("after_trial", "questions asked after each trial", default=None,
+            allowed="question ids"),
+    Setting("delay", "the partners drawn this late on the people's pages (whole control "
+            "periods)", Interval(float, 0.0, MAX_DELAY, unit="s"), 0.0),
+    Setting("occlude", "when the partners are hidden", default=None,
+            allowed=f'[[start, end], ...] s within 0..{MAX_OCCLUSION_END:g}, or "whole"'),
+    Setting("perturb", "changes of an avatar mid-trial", default=None,
+            allowed="{ at, player, set } tables (Perturbations)"),
+)  # fmt: skip
+"""The keys of a condition (``[[blocks.conditions]]``)."""
+
+PLAYER_SETTINGS = (
+    Setting("label", "the player's label", allowed="1-32 letters, digits, '_' or '-'"),
+    Setting("kind", "a person, an avatar, or either (balanced across participants)",
+            Options(PLAYER_KINDS)),
+    Setting("spec", "an avatar's player SPEC", default=None, allowed="a SPEC"),
+    Setting("device", "a person's input device", Options(("pointer",)), "pointer"),
+)  # fmt: skip
+"""The keys of a player of a condition."""
+
+TABLES = {
+    "study": STUDY_SETTINGS,
+    "question": QUESTION_SETTINGS,
+    "block": BLOCK_SETTINGS,
+    "condition": CONDITION_SETTINGS,
+    "player": PLAYER_SETTINGS,
+}
+"""Every table of a protocol file and its declared keys."""
+
+
+def keys_of(settings: tuple[Setting, ...]) -> tuple[str, ...]:
+    """Return the keys a table declares, in order."""
+    return tuple(setting.key for setting in settings)
+
+
+def by_key(settings: tuple[Setting, ...]) -> dict[str, Setting]:
+    """Return a table's declared settings by key."""
+    return {setting.key: setting for setting in settings}
+
+
+STUDY, QUESTION, BLOCK, CONDITION, PLAYER = (by_key(t) for t in TABLES.values())
+"""Each table's settings by key."""
+
+
+def key_tables() -> dict[str, str]:
+    """Return each table's keys as a Markdown table (`TABLES`; the lab guide shows them)."""
+    return {name: settings_table(settings) for name, settings in TABLES.items()}
