@@ -12,6 +12,7 @@ import numpy as np
 
 from mirror_avatar.lab.plan import parse_plan
 from mirror_avatar.lab.runner import LabSession
+from mirror_avatar.lab.schedule import OnePlan
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.session import load_session
 
@@ -53,7 +54,9 @@ class Unstable(Player):
 
 def test_a_diverging_avatar_ends_the_trial_naming_it_and_the_sample(tmp_path):
     async def scenario() -> LabSession:
-        session = LabSession("S1", parse_plan(DYAD), tmp_path / "S1", time.monotonic, countdown=0)
+        session = LabSession(
+            "S1", OnePlan(parse_plan(DYAD)), tmp_path / "S1", time.monotonic, countdown=0
+        )
         session.avatars = {1: Unstable()}
         assert session.start(force=True) is None
         await wait_for(lambda: session.state == "finished" or session.error is not None)
@@ -91,7 +94,7 @@ class Broken(Player):
 def test_an_avatar_diverging_at_reset_closes_the_trial_and_the_next_start_opens_the_next(tmp_path):
     async def scenario() -> tuple[LabSession, str]:
         plan = parse_plan(DYAD | {"trials": 3})
-        session = LabSession("S2", plan, tmp_path / "S2", time.monotonic, countdown=0)
+        session = LabSession("S2", OnePlan(plan), tmp_path / "S2", time.monotonic, countdown=0)
         session.avatars = {1: Broken()}
         assert session.start(force=True) is None
         await wait_for(lambda: session.error is not None)
