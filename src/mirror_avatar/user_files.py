@@ -27,7 +27,7 @@ import os
 import re
 import stat
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, TypeGuard
 
 from mirror_avatar.errors import InputError
 
@@ -202,6 +202,11 @@ def _finite(text: str) -> float:
     if not math.isfinite(value):
         raise ValueError(f"the number {text[:20]} is beyond the range of float64")
     return value
+
+
+def is_int(value: object) -> TypeGuard[int]:
+    """Whether a parsed JSON or TOML value is an integer (``true`` is not: a bool is no integer)."""
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _integer(text: str) -> int:

@@ -6,7 +6,6 @@ from __future__ import annotations
 import asyncio
 import json
 import time
-from collections.abc import Callable
 
 import numpy as np
 
@@ -15,6 +14,7 @@ from mirror_avatar.lab.runner import LabSession
 from mirror_avatar.lab.schedule import OnePlan
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.session import load_session
+from waiting import wait_for
 
 DYAD = {
     "condition": "leader_follower",
@@ -27,14 +27,6 @@ DYAD = {
         {"label": "A1", "kind": "avatar", "spec": "hkb"},
     ],
 }
-
-
-async def wait_for(condition: Callable[[], bool], seconds: float = 30.0) -> None:
-    """Wait until ``condition()`` holds, failing after ``seconds``."""
-    deadline = time.monotonic() + seconds
-    while not condition():
-        assert time.monotonic() < deadline, "the session never got there"
-        await asyncio.sleep(0.05)
 
 
 class Unstable(Player):
@@ -59,7 +51,9 @@ def test_a_diverging_avatar_ends_the_trial_naming_it_and_the_sample(tmp_path):
         )
         session.avatars = {1: Unstable()}
         assert session.start(force=True) is None
-        await wait_for(lambda: session.state == "finished" or session.error is not None)
+        await asyncio.to_thread(
+            wait_for, lambda: session.state == "finished" or session.error is not None, 30.0
+        )
         return session
 
     session = asyncio.run(scenario())
@@ -97,11 +91,11 @@ def test_an_avatar_diverging_at_reset_closes_the_trial_and_the_next_start_opens_
         session = LabSession("S2", OnePlan(plan), tmp_path / "S2", time.monotonic, countdown=0)
         session.avatars = {1: Broken()}
         assert session.start(force=True) is None
-        await wait_for(lambda: session.error is not None)
+        await asyncio.to_thread(wait_for, lambda: session.error is not None, 30.0)
         error = session.error
         session.avatars = {1: Unstable()}
         assert session.start(force=True) is None
-        await wait_for(lambda: bool(session.results))
+        await asyncio.to_thread(wait_for, lambda: bool(session.results), 30.0)
         await session.stop()
         return session, error
 

@@ -28,6 +28,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import TOPOLOGIES, Graph, check_graph, complete_graph, make_graph
 from mirror_avatar.realtime.clock import MAX_LATENESS
 from mirror_avatar.realtime.messages import PARTICIPANT_PATTERN
+from mirror_avatar.user_files import is_int
 
 CONDITIONS = ("solo", "leader_follower", "joint", "group")
 """Kinds of lab session."""
@@ -289,7 +290,7 @@ def _check_labels(slots: tuple[Slot, ...]) -> None:
 
 
 def _parse_leaders(value: object, n: int) -> tuple[int, ...]:
-    if not isinstance(value, list) or not all(_is_int(k) and 0 <= k < n for k in value):
+    if not isinstance(value, list) or not all(is_int(k) and 0 <= k < n for k in value):
         raise _error(f"leaders must be a list of player indices 0..{n - 1}")
     return tuple(sorted(set(value)))
 
@@ -324,10 +325,6 @@ def _parse_graph(value: object, condition: str, n: int) -> Graph:
         raise _error(f"graph: {error.problem}") from None
 
 
-def _is_int(value: object) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
 def _number(
     data: dict[str, Any],
     key: str,
@@ -340,7 +337,7 @@ def _number(
     value = data.get(key, default)
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise _error(f"{name} must be a number")
-    if integer and not _is_int(value):
+    if integer and not is_int(value):
         raise _error(f"{name} must be an integer")
     low, high = bounds
     if not (math.isfinite(value) and low <= value <= high):

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.checker import Checker, is_int
+from mirror_avatar.lab.checker import Checker
 from mirror_avatar.lab.order import (
     ORDERS,
     block_order,
@@ -40,7 +40,7 @@ from mirror_avatar.lab.order import (
 from mirror_avatar.lab.perturbation import Perturbation, parse_perturbations
 from mirror_avatar.lab.plan import CONDITIONS, MAX_SPEC_CHARS, SessionPlan, parse_plan
 from mirror_avatar.lab.protocol_checks import AvatarCheck, long_run
-from mirror_avatar.user_files import read_text
+from mirror_avatar.user_files import is_int, read_text
 
 PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
 """What a protocol's player slot holds."""
@@ -131,7 +131,7 @@ class Question:
         """
         if self.kind == "choice" and value not in self.options:
             return f"{self.id}: choose one of the options"
-        if self.kind == "likert" and not (is_int(value) and 1 <= value <= self.points):  # type: ignore[operator]
+        if self.kind == "likert" and not (is_int(value) and 1 <= value <= self.points):
             return f"{self.id}: choose a point from 1 to {self.points}"
         if self.kind == "text" and not (isinstance(value, str) and len(value) <= self.max_chars):
             return f"{self.id}: write at most {self.max_chars} characters"
