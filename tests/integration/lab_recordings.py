@@ -9,9 +9,11 @@ partners delayed and hidden), its welcomes, questions and end messages. What dep
 clock's timing (timestamps, input ages, lateness, dates, when an input was judged lost) is
 masked, and the metrics and measures are left to their own tests.
 
-Run as a script, it writes what it recorded to ``tests/fixtures/lab_recordings/recorded.json``,
-which ``test_lab_recordings.py`` compares with a new recording: refresh it (with the code it
-should pin) only when a change of the recordings is meant.
+Run as a script (``PYTHONPATH=src:tests:tests/integration python
+tests/integration/lab_recordings.py``), it writes what it recorded to
+``tests/fixtures/lab_recordings/recorded.json``, which ``test_lab_recordings.py`` compares with a
+new recording: refresh it (with the code it should pin) only when a change of the recordings is
+meant.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ import pytest
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.protocol import load_protocol
 from mirror_avatar.lab.runner import LabSession
-from mirror_avatar.lab.study import ParticipantRun, study_folder, study_session
+from mirror_avatar.lab.study import ParticipantRun, study_folder
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
 
@@ -24,7 +24,7 @@ def _session(tmp_path: Path, participant: int = 0, seed: int | None = None) -> L
     if seed is not None:
         protocol = replace(protocol, seed=seed)
     folder = tmp_path / study_folder(protocol, participant)
-    return study_session(protocol, participant, folder, time.monotonic)
+    return LabSession(folder.name, ParticipantRun(protocol, participant), folder, time.monotonic)
 
 
 def _run(session: LabSession) -> ParticipantRun:

@@ -22,7 +22,7 @@ from mirror_avatar.lab.plan import LslDevice, SessionPlan
 from mirror_avatar.lab.protocol import Protocol
 from mirror_avatar.lab.runner import LabSession, Outlet
 from mirror_avatar.lab.schedule import OnePlan
-from mirror_avatar.lab.study import ParticipantRun, study_folder, study_session
+from mirror_avatar.lab.study import ParticipantRun, study_folder
 from mirror_avatar.players.base import Player
 from mirror_avatar.realtime.inputs import InputSource
 from mirror_avatar.realtime.settings import PageSettings
@@ -136,15 +136,7 @@ class Lab:
             raise InputError("participant", f"participant {participant}'s session is open")
         self.opening.add(name)
         try:
-            session = await asyncio.to_thread(
-                study_session,
-                protocol,
-                participant,
-                self.settings.out_dir / name,
-                lsl_clock() if self.settings.lsl else time.monotonic,
-                self.settings.countdown,
-                self.settings.max_tick,
-            )
+            session = await asyncio.to_thread(self._open_run, protocol, participant, name)
         finally:
             self.opening.discard(name)
         if self.settings.lsl:
@@ -152,6 +144,17 @@ class Lab:
         self.sessions.pop(name, None)
         self._add(session)
         return session
+
+    def _open_run(self, protocol: Protocol, participant: int, name: str) -> LabSession:
+        """Return the session of a participant's run, its folder made or resumed (blocking)."""
+        return LabSession(
+            name,
+            ParticipantRun(protocol, participant),
+            self.settings.out_dir / name,
+            lsl_clock() if self.settings.lsl else time.monotonic,
+            self.settings.countdown,
+            self.settings.max_tick,
+        )
 
     def open_study(self, participant: int) -> LabSession | None:
         """Return participant ``participant``'s run of the protocol while it is open, or None."""

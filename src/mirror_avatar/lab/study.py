@@ -2,12 +2,12 @@
 
 A `ParticipantRun` is the schedule (`mirror_avatar.lab.schedule.Schedule`) of a
 `mirror_avatar.lab.runner.LabSession` whose plan changes from one condition to the next of a
-participant's order (`mirror_avatar.lab.protocol.Protocol.schedule`); `study_session` makes that
-session. Its trials are numbered across the whole protocol (``trial-01`` to ``trial-NN`` in
-one folder), each sidecar naming its block, condition, trial within the condition and the true
-kind of every player. Each person keeps one join link for the whole protocol; a person who
-does not play a condition waits. Pages are blinded: the players they see are "your partner"
-(or "partner 1", "partner 2", ...), never a label or a kind.
+participant's order (`mirror_avatar.lab.protocol.Protocol.schedule`). Its trials are numbered
+across the whole protocol (``trial-01`` to ``trial-NN`` in one folder), each sidecar naming its
+block, condition, trial within the condition and the true kind of every player. Each person
+keeps one join link for the whole protocol; a person who does not play a condition waits. Pages
+are blinded: the players they see are "your partner" (or "partner 1", "partner 2", ...), never a
+label or a kind.
 
 The folder is named after the protocol and the participant (``<protocol>-p003``) and holds
 ``study.json``: the protocol's seed and source, the participant's number and the order of the
@@ -39,11 +39,9 @@ from mirror_avatar.lab.participant import COLOURS, Participant
 from mirror_avatar.lab.perturbation import Perturbation
 from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.lab.protocol import Condition, Protocol, Question
-from mirror_avatar.lab.runner import LabSession
 from mirror_avatar.lab.schedule import Entered, Opening, Publisher, next_in, send_frames, welcome
 from mirror_avatar.lab.trial import LabTrial
-from mirror_avatar.realtime.clock import MAX_STEP
-from mirror_avatar.realtime.trial import Array, Clock
+from mirror_avatar.realtime.trial import Array
 from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.trial_io import read_sidecar_text
 from mirror_avatar.trial_record import StudyRecord
@@ -65,24 +63,6 @@ class Asking:
 def study_folder(protocol: Protocol, participant: int) -> str:
     """Return the folder name of a participant's run of a protocol."""
     return f"{Path(protocol.source).stem}-p{participant:03d}"
-
-
-def study_session(
-    protocol: Protocol,
-    participant: int,
-    directory: Path,
-    clock: Clock,
-    countdown: int = 3,
-    max_step: float = MAX_STEP,
-) -> LabSession:
-    """Return the lab session of participant ``participant``'s run of ``protocol``.
-
-    The session plays their `ParticipantRun`, is named after its folder ``directory`` (created,
-    or resumed when it holds this participant's run) and ticks on ``clock``; ``countdown`` and
-    ``max_step`` are as for `mirror_avatar.lab.runner.LabSession`.
-    """
-    run = ParticipantRun(protocol, participant)
-    return LabSession(directory.name, run, directory, clock, countdown, max_step)
 
 
 class ParticipantRun:
