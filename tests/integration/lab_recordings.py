@@ -74,12 +74,11 @@ TIMING_COLUMNS = re.compile(r"time|clock_s|(age_ms|alive)_.*|late_ms|step_ms")
 """Columns of a recording's CSV files that depend on the clock's timing."""
 
 TIMING_KEYS = {
-    "created_utc", "utc", "started_utc", "ended_utc", "tick_lateness_ms", "timing", "clock",
-    "metrics", "measures", "events", "lost", "held", "alive", "input_ages", "max_lateness",
-    "frames_dropped", "late_frames", "source",
+    "created_utc", "started_utc", "ended_utc", "utc", "clock", "tick_lateness_ms", "max_lateness",
+    "held", "lost", "metrics", "measures", "source",
 }  # fmt: skip
-"""Keys of the JSON files and messages whose values depend on timing (or are tested
-elsewhere: metrics, measures)."""
+"""Keys of the JSON files and messages whose values depend on timing or on the scratch folder
+(``source``: the protocol's path), or are tested elsewhere (metrics, measures)."""
 
 
 class SilentPage(Page):
