@@ -117,12 +117,33 @@ class PerturbationRecord:
 
 
 @dataclass(frozen=True)
+class InputEventRecord:
+    """A person's input lost or live again: at ``sample``, of ``label``, at message ``seq``.
+
+    ``event`` is ``lost`` or ``live``; ``seq`` is the page's last message number (None when
+    the input has none).
+    """
+
+    sample: int
+    label: str
+    event: str
+    seq: int | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """Return the event as the sidecar's ``input_events`` lists it."""
+        return {"sample": self.sample, "label": self.label, "event": self.event, "seq": self.seq}
+
+
+@dataclass(frozen=True)
 class TrialRecord:
     """One lab trial as its sidecar declares it (see the module docstring).
 
     ``condition`` is the game (``solo``, ``leader_follower``, ``joint``, ``group``); ``study``
     is None outside a study; ``seed`` and ``started_utc`` are None when unknown; ``dropped``
-    gives the sample at which each dropped participant's connection dropped.
+    gives the sample at which each dropped participant's connection dropped, ``held`` each
+    person's samples held because nothing new arrived, ``input_events`` when inputs were lost
+    or came back, ``clock`` the clock that stamped the samples and ``files`` the trial's
+    companion files by role (``inputs``, ...), as names beside the sidecar.
     """
 
     session_id: str
@@ -136,6 +157,10 @@ class TrialRecord:
     complete: bool = False
     dropped: dict[str, int] = field(default_factory=dict)
     perturbations: tuple[PerturbationRecord, ...] = ()
+    held: dict[str, int] = field(default_factory=dict)
+    input_events: tuple[InputEventRecord, ...] = ()
+    clock: str | None = None
+    files: dict[str, str] = field(default_factory=dict)
     version: int = RECORD_VERSION
 
     def lab_json(self) -> dict[str, Any]:
@@ -157,11 +182,27 @@ class TrialRecord:
         metadata |= {key: value for key, value in stamps.items() if value is not None}
         if self.seed is not None:
             metadata["seed"] = self.seed
-        return metadata | {
+        metadata |= {
             "complete": self.complete,
             "dropped": dict(self.dropped),
             "perturbations": [change.to_json() for change in self.perturbations],
+            "held": dict(self.held),
         }
+        if self.input_events:
+            metadata["input_events"] = [event.to_json() for event in self.input_events]
+        if self.clock is not None:
+            metadata["clock"] = self.clock
+        return metadata | ({"files": dict(self.files)} if self.files else {})
+
+    @property
+    def block(self) -> str | None:
+        """The study block the trial belongs to, None outside a study."""
+        return None if self.study is None else self.study.block
+
+    @property
+    def named_condition(self) -> str:
+        """The condition as the researcher named it: the protocol's, else the game's."""
+        return self.condition if self.study is None else self.study.condition
 
     def partners_of(self, label: str) -> tuple[SlotRecord, ...]:
         """Return the slots of every player but ``label``, in player order."""
@@ -183,6 +224,22 @@ def read_trial_record(path: str | Path) -> TrialRecord:
     return trial_record(_Keys(path, "metadata").object(metadata), path)
 
 
+def lab_trial_record(
+    metadata: dict[str, Any], source: str | Path = "the trial's metadata"
+) -> TrialRecord | None:
+    """Return the record of a lab trial's ``metadata``, or None when it is not a lab trial's.
+
+    A session from another source (a simulation, a live trial, another tool's recording)
+    has no ``lab`` object and no record.
+
+    Raises
+    ------
+    InputError
+        A ``lab`` object that is not a trial's record (as `trial_record`).
+    """
+    return trial_record(metadata, source) if "lab" in metadata else None
+
+
 def trial_record(
     metadata: dict[str, Any], source: str | Path = "the trial's metadata"
 ) -> TrialRecord:
@@ -201,23 +258,56 @@ def trial_record(
         raise at.error("slots", "is not a non-empty list")
     study = _study(at, lab) if "protocol" in lab else None
     dropped = keys.object(metadata.get("dropped", {}), "dropped")
-    changes = metadata.get("perturbations", [])
-    if not isinstance(changes, list):
-        raise keys.error("perturbations", "is not a list")
+    changes = _list(keys, metadata, "perturbations")
+    events = _list(keys, metadata, "input_events")
+    held = keys.object(metadata.get("held", {}), "held")
+    files = keys.object(metadata.get("files", {}), "files")
     return TrialRecord(
         session_id=at.text(lab, "session_id"),
         trial=at.count(lab, "trial"),
         condition=at.text(lab, "condition", empty=True),
         slots=tuple(_slot(at.within(f"slots[{k}]"), s) for k, s in enumerate(slots)),
         study=study,
-        seed=keys.count(metadata, "seed") if metadata.get("seed") is not None else None,
-        created_utc=keys.optional_text(metadata, "created_utc"),
+        seed=_seed(keys, metadata, at, lab),
+        created_utc=keys.optional_text(metadata, "created_utc")
+        or at.optional_text(lab, "created_utc"),
         started_utc=keys.optional_text(metadata, "started_utc"),
         complete=metadata.get("complete") is True,
         dropped={str(who): keys.within("dropped").count(dropped, who) for who in dropped},
         perturbations=tuple(
             _perturbation(keys.within(f"perturbations[{k}]"), c) for k, c in enumerate(changes)
         ),
+        held={str(who): keys.within("held").count(held, who) for who in held},
+        input_events=tuple(
+            _input_event(keys.within(f"input_events[{k}]"), e) for k, e in enumerate(events)
+        ),
+        clock=keys.optional_text(metadata, "clock"),
+        files={str(role): keys.within("files").text(files, role) for role in files},
+    )
+
+
+def _seed(keys: _Keys, metadata: dict[str, Any], at: _Keys, lab: dict[str, Any]) -> int | None:
+    """Return the trial's seed: the metadata's, else (early recordings) the ``lab`` object's."""
+    if metadata.get("seed") is not None:
+        return keys.count(metadata, "seed")
+    return at.count(lab, "seed") if lab.get("seed") is not None else None
+
+
+def _list(keys: _Keys, metadata: dict[str, Any], key: str) -> list[Any]:
+    value = metadata.get(key, [])
+    if not isinstance(value, list):
+        raise keys.error(key, "is not a list")
+    return value
+
+
+def _input_event(keys: _Keys, value: object) -> InputEventRecord:
+    event = keys.object(value)
+    seq = event.get("seq")
+    return InputEventRecord(
+        sample=keys.count(event, "sample"),
+        label=keys.text(event, "label"),
+        event=keys.text(event, "event"),
+        seq=None if seq is None else keys.count(event, "seq"),
     )
 
 

@@ -267,10 +267,15 @@ def test_record_solo_trials_build_your_avatar_and_play_with_it(chromium, avatar_
                             build_sessions=(30, 1, 4))  # fmt: skip
     with ServerThread(create_app(settings, avatar_factory)) as server:
         page = chromium.new_page()
+        hints = []
         for k in range(3):  # one is held out of fitting to check the avatar against
             start_trial(page, server.url, "solo", 8)
             drive(page, 9)
             finish(page, f"own-avatar-solo-{k + 1}", tmp_path)
+            hints.append(page.text_content("#build-hint"))
+        assert "record 1 more to build your avatar" in hints[0]
+        assert "can be built, but it will not be checked against you" in hints[1]
+        assert "enough to build your avatar and check it" in hints[2]
         page.click("#build")
         page.wait_for_function("window.mirrorGame.phase === 'building'")
         page.wait_for_function("window.mirrorGame.personalAvatar !== null", timeout=180_000)
@@ -303,6 +308,7 @@ def test_building_without_solo_trials_is_refused(chromium, server):
     page = chromium.new_page()
     page.goto(server.url)
     page.wait_for_function("window.mirrorGame && window.mirrorGame.phase === 'idle'")
+    assert "record 3 or more solo trials first" in page.text_content("#build-hint")
     page.fill("#participant", "NEW1")
     page.click("#build")
     page.wait_for_function("window.mirrorGame.phase === 'idle'")

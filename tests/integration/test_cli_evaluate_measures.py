@@ -17,7 +17,7 @@ import pytest
 from mirror_avatar.cli import main
 from mirror_avatar.lab.plan import parse_plan
 from mirror_avatar.lab.trial import LabTrial, build_avatars
-from mirror_avatar.live.protocol import StartRequest
+from mirror_avatar.live.messages import StartRequest
 from mirror_avatar.live.session import make_avatar_factory, start_trial
 from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.testing import smooth_motion

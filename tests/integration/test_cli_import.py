@@ -127,7 +127,7 @@ def test_a_bids_dataset_of_two_subjects(zhai_trials, tmp_path, capsys) -> None:
 
 def test_a_live_recording_folder(zhai_trials, tmp_path, capsys) -> None:
     """Solo trials beside a session file: the session is skipped with a note, then evaluated."""
-    from mirror_avatar.live.protocol import StartRequest
+    from mirror_avatar.live.messages import StartRequest
     from mirror_avatar.live.session import start_trial
 
     for index in (9, 10):

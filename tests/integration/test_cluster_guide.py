@@ -11,14 +11,17 @@ import os
 import subprocess
 import sys
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import psutil
 import pytest
 
 from mirror_avatar.cli import main
 from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.engine import batch
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.model_files import load_model
 from mirror_avatar.trial_io import write_csv_trial
@@ -36,9 +39,18 @@ def _environment(cache: Path) -> dict[str, str]:
     return os.environ | {"PYTHONPATH": path, "XDG_CACHE_HOME": str(cache)}
 
 
+@dataclass(frozen=True)
+class Cluster:
+    """A loopback rehearsal's scheduler address and its processes' ids."""
+
+    address: str
+    pids: list[int]
+
+
 @pytest.fixture(scope="module")
-def scheduler(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """Start ``dask scheduler`` and two ``dask worker`` processes; yield the scheduler address."""
+def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cluster]:
+    """Start ``dask scheduler`` and two ``dask worker`` processes on loopback, as the guide's
+    rehearsal does."""
     folder = tmp_path_factory.mktemp("cluster")
     address_file = folder / "scheduler.json"
     environment = _environment(folder / "cache")
@@ -46,7 +58,7 @@ def scheduler(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     processes = [
         subprocess.Popen(
             [str(DASK), "scheduler", "--host", "127.0.0.1", "--port", "0",
-             "--dashboard-address", ":0", "--scheduler-file", str(address_file)],
+             "--dashboard-address", "127.0.0.1:0", "--scheduler-file", str(address_file)],
             **common,
         )
     ]  # fmt: skip
@@ -56,13 +68,14 @@ def scheduler(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
             processes.append(
                 subprocess.Popen(
                     [str(DASK), "worker", "--scheduler-file", str(address_file),
-                     "--nthreads", "1", "--dashboard-address", ":0"],
+                     "--host", "127.0.0.1", "--nthreads", "1",
+                     "--dashboard-address", "127.0.0.1:0"],
                     **common,
                 )
             )  # fmt: skip
         with distributed.Client(scheduler_file=str(address_file), timeout=60) as client:
             client.wait_for_workers(2, timeout=120)
-            yield client.scheduler.address
+            yield Cluster(client.scheduler.address, [p.pid for p in processes])
     finally:
         for process in reversed(processes):
             process.terminate()
@@ -79,8 +92,32 @@ def _without_timings(value: Any) -> Any:
     return value
 
 
+def test_the_rehearsal_listens_on_loopback_only(cluster: Cluster) -> None:
+    listening = [
+        (pid, connection.laddr)
+        for pid in cluster.pids
+        for connection in psutil.Process(pid).net_connections(kind="inet")
+        if connection.status == psutil.CONN_LISTEN
+    ]
+    assert len({pid for pid, _ in listening}) == 3, listening
+    assert all(address.ip == "127.0.0.1" for _, address in listening), listening
+
+
+def test_an_unreachable_scheduler_is_refused_before_the_trials_are_read(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(batch, "DASK_CONNECT_TIMEOUT", 1.0)
+    missing = tmp_path / "no-such-trials"
+    command = ["avatar", "create", str(missing), "--name", "P01",
+               "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "P01.npz")]  # fmt: skip
+    assert main(command) == 2
+    error = capsys.readouterr().err
+    assert "cannot reach the Dask scheduler" in error and "no-such-trials" not in error
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_avatar_create_on_the_cluster_gives_the_local_file(
-    scheduler: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    cluster: Cluster, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     source = IMSGenerator(n_symbols=64, random_state=7).fit(load_zhai2017()[9:13])
@@ -94,7 +131,7 @@ def test_avatar_create_on_the_cluster_gives_the_local_file(
                "--partners", f"{fast},{slow}", "--sessions", "20", "--jobs", "1"]  # fmt: skip
     local, remote = tmp_path / "local.npz", tmp_path / "remote.npz"
     assert main([*command, "--out", str(local)]) == 0
-    assert main([*command, "--scheduler", scheduler, "--out", str(remote)]) == 0
+    assert main([*command, "--scheduler", cluster.address, "--out", str(remote)]) == 0
     local_arrays, local_metadata = load_model(local, "mirror-avatar/avatar", 1, ())
     remote_arrays, remote_metadata = load_model(remote, "mirror-avatar/avatar", 1, ())
     assert local_arrays.keys() == remote_arrays.keys()

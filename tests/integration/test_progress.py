@@ -62,7 +62,7 @@ def test_sessions_without_a_start_time_keep_the_order_given_and_say_so(
 
 def test_live_trials_are_followed_in_the_order_they_were_played(zhai_trials, tmp_path, capsys):
     """File names that sort against time: the start times the trials recorded decide."""
-    from mirror_avatar.live.protocol import StartRequest
+    from mirror_avatar.live.messages import StartRequest
     from mirror_avatar.live.session import start_trial
 
     created = []

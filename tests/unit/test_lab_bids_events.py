@@ -1,19 +1,32 @@
-"""The events of an exported lab trial: its condition and every manipulation, from its sidecar."""
+"""The events of an exported lab trial: its condition and every manipulation, from its record."""
 
 from __future__ import annotations
 
+from typing import Any
+
 from mirror_avatar.lab.bids_events import EVENT_COLUMN_INFO, EVENT_COLUMNS, trial_events
+from mirror_avatar.trial_record import TrialRecord, trial_record
 
 T = 0.03
 
 
-def study_metadata() -> dict[str, object]:
-    """A study trial's sidecar metadata: delayed, occluded twice, inputs lost, a perturbation."""
+SLOTS = [{"label": "P1", "kind": "human", "role": "joint"},
+         {"label": "A1", "kind": "avatar", "role": "joint"}]  # fmt: skip
+
+
+def study(**lab: Any) -> dict[str, Any]:
+    """A study trial's ``lab`` object, with ``lab``'s keys changed."""
     return {
-        "lab": {
-            "trial": 4, "block": "partners", "condition": "joint", "protocol_condition": "hidden",
-            "partner_delay_s": 0.3, "occluded_s": [[10.0, 15.0], [25.0, 40.0], [50.0, 60.0]],
-        },
+        "session_id": "study-p001", "condition": "joint", "protocol": "p", "participant": 1,
+        "block": "partners", "protocol_condition": "hidden", "condition_trial": 1,
+        "partners": {}, "trial": 4, "slots": SLOTS, "partner_delay_s": 0.3, "occluded_s": [],
+    } | lab  # fmt: skip
+
+
+def study_metadata() -> TrialRecord:
+    """A study trial's record: delayed, occluded twice, inputs lost, a perturbation."""
+    return trial_record({
+        "lab": study(occluded_s=[[10.0, 15.0], [25.0, 40.0], [50.0, 60.0]]),
         "input_events": [
             {"sample": 300, "label": "P2", "event": "lost", "seq": 120},
             {"sample": 330, "label": "P2", "event": "live", "seq": 121},
@@ -21,9 +34,9 @@ def study_metadata() -> dict[str, object]:
         "dropped": {"P1": 900},
         "perturbations": [
             {"sample": 500, "time_s": 15.0, "player": "A1", "change": "follower -> leader"},
-            {"sample": 100, "player": "A1", "change": "gain 2"},
+            {"sample": 100, "time_s": 3.0, "player": "A1", "change": "gain 2"},
         ],
-    }  # fmt: skip
+    })  # fmt: skip
 
 
 def test_every_manipulation_is_an_event_in_order_of_onset() -> None:
@@ -46,21 +59,16 @@ def test_every_manipulation_is_an_event_in_order_of_onset() -> None:
 
 
 def test_a_trial_outside_a_study_has_its_lab_condition_and_no_block() -> None:
-    metadata = {"lab": {"trial": 2, "condition": "group"}, "dropped": {}}
-    (row,) = trial_events(metadata, n_samples=10, period=T)
+    lab = {"session_id": "s", "trial": 2, "condition": "group", "slots": SLOTS}
+    (row,) = trial_events(trial_record({"lab": lab}), n_samples=10, period=T)
     assert (row["trial_type"], row["trial"], row["block"], row["condition"]) == (
         "trial", "2", "n/a", "group"
     )  # fmt: skip
 
 
-def test_malformed_manipulations_are_left_out() -> None:
-    metadata = {
-        "lab": {"trial": 1, "partner_delay_s": True, "occluded_s": [[5, 2], ["a", 3], 7]},
-        "input_events": [{"sample": -1, "label": "P1", "event": "lost"}, "lost"],
-        "perturbations": [{"player": "A1", "change": "no time"}],
-        "dropped": {"P1": 1.5},
-    }
-    assert [r["trial_type"] for r in trial_events(metadata, 100, T)] == ["trial"]
+def test_occlusions_backwards_or_after_the_recording_and_no_delay_are_left_out() -> None:
+    lab = study(partner_delay_s=0.0, occluded_s=[[5, 2], [4, 4], [3.5, 9]])
+    assert [r["trial_type"] for r in trial_events(trial_record({"lab": lab}), 100, T)] == ["trial"]
 
 
 def test_every_column_and_event_type_is_described() -> None:

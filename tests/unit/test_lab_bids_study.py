@@ -4,22 +4,34 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 from mirror_avatar.lab.bids_study import acq_time, answer_rows, read_answers
+from mirror_avatar.trial_record import SlotRecord, TrialRecord, trial_record
+
+
+def record(**stamps: str | None) -> TrialRecord:
+    """A one-person solo trial's record with the given time stamps (``lab_created_utc`` is
+    the early recordings' creation time inside the ``lab`` object)."""
+    lab: dict[str, Any] = {"session_id": "s", "condition": "solo", "trial": 1,
+                           "slots": [{"label": "P1", "kind": "human", "role": "solo"}]}  # fmt: skip
+    if "lab_created_utc" in stamps:
+        lab["created_utc"] = stamps.pop("lab_created_utc")
+    return trial_record({"lab": lab} | stamps)
 
 
 def test_acq_time_is_the_first_samples_time_in_utc_as_bids_writes_it() -> None:
-    metadata = {
+    stamps = {
         "started_utc": "2026-11-25T23:30:00.250000+01:00",
         "created_utc": "2026-11-25T22:29:59.000000+00:00",
-        "lab": {"created_utc": "2020-01-01T00:00:00+00:00"},
+        "lab_created_utc": "2020-01-01T00:00:00+00:00",
     }
-    assert acq_time(metadata) == "2026-11-25T22:30:00.250000Z"
-    assert acq_time(metadata | {"started_utc": None}) == "2026-11-25T22:29:59.000000Z"
-    assert acq_time({"lab": {"created_utc": "2025-03-01T10:00:00"}}) == (
+    assert acq_time(record(**stamps)) == "2026-11-25T22:30:00.250000Z"
+    assert acq_time(record(**stamps | {"started_utc": None})) == "2026-11-25T22:29:59.000000Z"
+    assert acq_time(record(lab_created_utc="2025-03-01T10:00:00")) == (
         "2025-03-01T10:00:00.000000Z"
     )
-    assert acq_time({"created_utc": "yesterday", "lab": {}}) == "n/a"
+    assert acq_time(record(created_utc="yesterday")) == "n/a"
 
 
 def test_answers_without_the_questions_text_keep_their_values_and_order(tmp_path: Path) -> None:
@@ -38,8 +50,8 @@ def test_answers_without_the_questions_text_keep_their_values_and_order(tmp_path
     (tmp_path / "trial-03_answers.json").write_text(json.dumps(answers))
     answers = read_answers(tmp_path / "trial-03_session.csv")
     assert read_answers(tmp_path / "trial-04_session.csv") is None
-    slots = [{"label": "P1", "kind": "human"}, {"label": "A1", "kind": "avatar"},
-             {"label": "P2", "kind": "human"}]  # fmt: skip
+    slots = [SlotRecord("P1", "human", "group"), SlotRecord("A1", "avatar", "group"),
+             SlotRecord("P2", "human", "group")]  # fmt: skip
     rows = answer_rows(answers, "P1", slots)
     assert [(r["question"], r["text"], r["kind"], r["answer"], r["after"], r["answered_utc"])
             for r in rows] == [

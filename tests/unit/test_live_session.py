@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.live.protocol import StartRequest
+from mirror_avatar.live.messages import StartRequest
 from mirror_avatar.live.session import (
     compute_trial_metrics,
     compute_trial_traces,

@@ -67,8 +67,10 @@ def test_sessions_are_ordered_by_their_recorded_start() -> None:
     late = session_with({"started_utc": "2026-03-02T10:00:00+00:00",
                          "created_utc": "2026-03-01T09:00:00+00:00"})  # fmt: skip
     early = session_with({"created_utc": "2026-03-01T12:00:00"})
-    lab_2 = session_with({"lab": {"created_utc": "2026-03-01T08:00:00+00:00", "trial": 2}})
-    lab_1 = session_with({"lab": {"created_utc": "2026-03-01T08:00:00+00:00", "trial": 1}})
+    lab = {"session_id": "s", "condition": "solo", "created_utc": "2026-03-01T08:00:00+00:00",
+           "slots": [{"label": "P1", "kind": "human", "role": "solo"}]}  # fmt: skip
+    lab_2 = session_with({"lab": lab | {"trial": 2}})
+    lab_1 = session_with({"lab": lab | {"trial": 1}})
     assert recorded_start(late) == (datetime(2026, 3, 2, 10, tzinfo=UTC), 0)
     given = [("late", late), ("early", early), ("lab 2", lab_2), ("lab 1", lab_1)]
     ordered, untimed = order_by_start(given)

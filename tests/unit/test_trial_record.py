@@ -15,10 +15,12 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.session import make_sidecar
 from mirror_avatar.trial_record import (
     KINDS,
+    InputEventRecord,
     PerturbationRecord,
     SlotRecord,
     StudyRecord,
     TrialRecord,
+    lab_trial_record,
     partner_kind,
     read_trial_record,
     trial_record,
@@ -69,6 +71,19 @@ records = st.builds(
         ),
         max_size=3,
     ).map(tuple),  # fmt: skip
+    held=st.dictionaries(texts, counts, max_size=2),
+    input_events=st.lists(
+        st.builds(
+            InputEventRecord,
+            sample=counts,
+            label=texts,
+            event=st.sampled_from(["lost", "live"]),
+            seq=st.none() | counts,
+        ),
+        max_size=3,
+    ).map(tuple),  # fmt: skip
+    clock=st.none() | texts,
+    files=st.dictionaries(st.sampled_from(["inputs", "answers"]), texts, max_size=2),
 )
 
 
@@ -92,8 +107,11 @@ def test_a_sidecar_the_lab_wrote_is_read_as_its_record(tmp_path: Path) -> None:
         ],
     }  # fmt: skip
     change = {"sample": 40, "time_s": 1.2, "player": "A1", "change": "coupling"}
+    event = {"sample": 41, "label": "P1", "event": "lost", "seq": 39}
     metadata = {"lab": lab, "seed": 5, "created_utc": "c", "started_utc": "s", "complete": True,
-                "dropped": {"P1": 40}, "perturbations": [change]}  # fmt: skip
+                "dropped": {"P1": 40}, "perturbations": [change], "held": {"P1": 3},
+                "input_events": [event], "clock": "local_clock",
+                "files": {"inputs": "trial-07_inputs.csv"}}  # fmt: skip
     path = tmp_path / "trial-07_session.json"
     path.write_text(json.dumps(make_sidecar(["P1", "A1"], ["joint"] * 2, [[0, 1], [1, 0]], 0.03,
                                             metadata)))  # fmt: skip
@@ -102,6 +120,22 @@ def test_a_sidecar_the_lab_wrote_is_read_as_its_record(tmp_path: Path) -> None:
     assert record.study is not None and record.study.occluded_s == ((10, 15),)
     assert record.perturbations[0].player == "A1" and record.dropped == {"P1": 40}
     assert [s.label for s in record.partners_of("P1")] == ["A1"]
+    assert record.held == {"P1": 3} and record.input_events[0].to_json() == event
+    assert record.clock == "local_clock" and record.files["inputs"] == "trial-07_inputs.csv"
+    assert record.block == "partners" and record.named_condition == "hidden"
+    assert {k: v for k, v in record.metadata_json().items()} == metadata
+
+
+def test_an_early_recording_keeps_its_creation_time_in_the_lab_object() -> None:
+    lab = {"session_id": "s", "condition": "solo", "created_utc": "2026-11-01T10:00:00",
+           "trial": 1, "slots": [{"label": "P1", "kind": "human", "role": "solo"}]}  # fmt: skip
+    record = trial_record({"lab": lab})
+    assert record.created_utc == "2026-11-01T10:00:00" and record.block is None
+    assert record.named_condition == "solo"
+
+
+def test_a_session_of_another_source_has_no_lab_record() -> None:
+    assert lab_trial_record({"seed": 3}) is None
 
 
 @pytest.mark.parametrize(
@@ -114,6 +148,9 @@ def test_a_sidecar_the_lab_wrote_is_read_as_its_record(tmp_path: Path) -> None:
         (lambda m: m["lab"].update(partner_delay_s="late"),
          "metadata.lab.partner_delay_s: 'late' is not a finite number"),
         (lambda m: m.update(perturbations={}), "metadata.perturbations: is not a list"),
+        (lambda m: m.update(held={"P1": -1}), "metadata.held.P1: -1 is not a whole number"),
+        (lambda m: m.update(input_events=[{"sample": 3, "label": "P1"}]),
+         "metadata.input_events[0].event: None is not a text"),
     ],
 )  # fmt: skip
 def test_a_damaged_record_is_one_line_naming_the_file_and_key(tmp_path, damage, problem):

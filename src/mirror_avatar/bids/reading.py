@@ -359,16 +359,14 @@ def _lab_metadata(path: Path, game: dict[str, Any]) -> dict[str, Any]:
     """Make the session metadata from a ``MirrorGame`` key: the trial's record, as a sidecar's.
 
     The record (`mirror_avatar.trial_record`) is read from the key's ``session_id``,
-    ``condition``, ``trial``, ``slots``, times, ``seed``, ``complete`` and ``dropped``; ``held``
-    and where the file is (``bids``) are added.
+    ``condition``, ``trial``, ``slots``, times, ``seed``, ``complete``, ``dropped`` and
+    ``held``; where the file is (``bids``) is added.
     """
     lab = {key: game.get(key) for key in ("session_id", "condition", "trial", "slots")}
-    kept = ("created_utc", "started_utc", "seed", "complete", "dropped")
+    kept = ("created_utc", "started_utc", "seed", "complete", "dropped", "held")
     record = trial_record({"lab": lab} | {key: game[key] for key in kept if key in game},
                           path.with_name(f"{recording_stem(path.name)}_motion.json"))  # fmt: skip
-    held = game.get("held")
     return record.metadata_json() | {
-        "held": dict(held) if isinstance(held, dict) else {},
         "bids": {"path": str(path), "participant": game.get("participant"), "slot": game["slot"],
                  "entities": entities(path.name)},
     }  # fmt: skip

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from mirror_avatar import __version__
+from mirror_avatar.cli.cluster import scheduler_option
 from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.cli.train import load_generator
@@ -75,10 +76,7 @@ def avatar() -> None:
 )  # fmt: skip
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of everything.")
 @click.option("--jobs", type=int, default=2, show_default=True, help="Local threads.")
-@click.option(
-    "--scheduler", default=None,
-    help="Dask scheduler address (tcp://host:port): its workers play the sessions.",
-)  # fmt: skip
+@scheduler_option()
 @click.option(
     "--out", "out_path", required=True, type=click.Path(path_type=Path),
     help="The avatar file (.npz); its card is written beside it (.html).",

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import click
 
+from mirror_avatar.cli.cluster import scheduler_option
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
 from mirror_avatar.datasets import load_zhai2017
@@ -57,11 +58,7 @@ from mirror_avatar.training.agents import AGENTS
     show_default=True,
     help="The cyber players of the dyad and group experiments: the paper's Q-table or a DQN.",
 )
-@click.option(
-    "--scheduler",
-    default=None,
-    help="Dask scheduler address (tcp://host:port): its workers play the training sessions.",
-)
+@scheduler_option("training sessions")
 @group_option()
 @import_options
 def reproduce(

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from mirror_avatar.atomic import write_atomic_bytes
+from mirror_avatar.cli.cluster import scheduler_option
 from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options
 from mirror_avatar.errors import InputError
@@ -92,7 +93,7 @@ def training_options(
             "--duration", type=float, default=60.0, show_default=True, help="Session length (s)."
         ),
         click.option("--seed", type=int, default=0, show_default=True, help="Run seed (recorded)."),
-        click.option("--scheduler", default=None, help="Dask scheduler address (tcp://host:port)."),
+        scheduler_option(),
         click.option("--jobs", type=int, default=2, show_default=True, help="Local threads."),
         click.option(
             "--agent", type=click.Choice(AGENTS), default=agent, show_default=True,

@@ -246,15 +246,36 @@ def _run_on_threads(tasks: Iterator[tuple[Any, ...]], n_jobs: int) -> Iterator[l
         pool.shutdown(wait=False, cancel_futures=True)
 
 
-def _run_on_dask(tasks: Iterator[tuple[Any, ...]], scheduler: str) -> Iterator[list[Session]]:
-    """Submit chunks to a Dask cluster, keeping a few in flight, and yield them in order."""
+def connect_to_scheduler(scheduler: str) -> Any:
+    """Connect a Dask client to ``scheduler`` (``tcp://host:port``), waiting `DASK_CONNECT_TIMEOUT`.
+
+    Raises
+    ------
+    InputError
+        The scheduler cannot be reached (one line naming its address).
+    """
     from distributed import Client
 
     try:
-        client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
-    except (OSError, TimeoutError) as error:
+        return Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
+    except (OSError, TimeoutError, ValueError) as error:
         raise InputError(scheduler, f"cannot reach the Dask scheduler ({error})") from None
-    with client:
+
+
+def check_scheduler(scheduler: str) -> None:
+    """Connect to ``scheduler`` and disconnect, so a command fails before its work, not after.
+
+    Raises
+    ------
+    InputError
+        The scheduler cannot be reached.
+    """
+    connect_to_scheduler(scheduler).close()
+
+
+def _run_on_dask(tasks: Iterator[tuple[Any, ...]], scheduler: str) -> Iterator[list[Session]]:
+    """Submit chunks to a Dask cluster, keeping a few in flight, and yield them in order."""
+    with connect_to_scheduler(scheduler) as client:
         scattered: list[Any] = []
 
         def submit(lineups: Sequence[Lineup], *rest: Any) -> Any:

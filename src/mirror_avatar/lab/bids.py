@@ -31,14 +31,14 @@ condition are columns of the events (`mirror_avatar.lab.bids_events`) and of the
 no entity for a condition. Channels are the participant's own ``position`` and ``velocity``, then
 ``position_<label>`` and ``velocity_<label>`` of every other player in player order, in playing
 range units (-0.5..0.5; per second for velocities), then, when the inputs file is there, the
-`TIMING_CHANNELS`: each sample's ``latency`` from the first (type LATENCY, s), its ``clock`` time
-(the LSL clock when the lab ran with pylsl), and how ``late`` its tick was and how long its
-``step`` took (ms). The non-standard ``MirrorGame`` key of each ``_motion.json`` describes the
-trial so that `mirror_avatar.session.load_session` rebuilds the N-player session
-(`mirror_avatar.bids.reading.read_lab_recording`); the participant's own file stays readable as
-their solo trial by `mirror_avatar.bids.reading.read_bids_motion` (it reads the channel named
-``position``), so every command that reads trials reads the export. Names, values and tables
-follow the rules of `mirror_avatar.bids`.
+`mirror_avatar.lab.bids_trial.TIMING_CHANNELS`: each sample's ``latency`` from the first (type
+LATENCY, s), its ``clock`` time (the LSL clock when the lab ran with pylsl), and how ``late``
+its tick was and how long its ``step`` took (ms). The non-standard ``MirrorGame`` key of each
+``_motion.json`` describes the trial so that `mirror_avatar.session.load_session` rebuilds the
+N-player session (`mirror_avatar.bids.reading.read_lab_recording`); the participant's own file
+stays readable as their solo trial by `mirror_avatar.bids.reading.read_bids_motion` (it reads
+the channel named ``position``), so every command that reads trials reads the export. Names,
+values and tables follow the rules of `mirror_avatar.bids`.
 """
 
 from __future__ import annotations
@@ -46,7 +46,6 @@ from __future__ import annotations
 import collections
 import os
 import re
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -67,7 +66,6 @@ from mirror_avatar.lab.bids_study import (
     StudyRun,
     acq_time,
     answer_rows,
-    read_answers,
     read_study,
     subject_label,
     trial_row,
@@ -75,17 +73,21 @@ from mirror_avatar.lab.bids_study import (
     write_descriptions,
     write_scans,
 )
+from mirror_avatar.lab.bids_trial import (
+    TIMING_CHANNELS,
+    LabTrial,
+    clock_start,
+    read_lab_trial,
+    trial_files,
+)
 from mirror_avatar.lab.files import (
     ANSWERS_SUFFIX,
     INPUTS_SUFFIX,
     PLAN_FILE,
     STUDY_FILE,
-    TRIAL_PATTERN,
     companion,
 )
-from mirror_avatar.session import Session, load_session
-from mirror_avatar.trial_io import MAX_FILE_BYTES, _first_row, _read_numbers, read_sidecar_text
-from mirror_avatar.trial_record import AnswersRecord, trial_record
+from mirror_avatar.trial_io import MAX_FILE_BYTES, read_sidecar_text
 from mirror_avatar.user_files import parse_json, read_bytes
 
 Array = NDArray[np.float64]
@@ -116,34 +118,6 @@ CONDITIONS = {
     "group": "several players move together, coupled on a graph",
 }
 """What each lab condition asks of the players, for ``TaskDescription``."""
-
-
-@dataclass(frozen=True)
-class _LabTrial:
-    """One recorded trial of a lab session with its lab description.
-
-    ``slots`` are the sidecar's slot dictionaries (one per player, in player order),
-    ``period`` the control period (s), ``timing`` the `TIMING_CHANNELS` (shape (4, samples))
-    when the trial's inputs file is there, and ``answers`` the answers given after the trial
-    (`mirror_avatar.lab.bids_study.read_answers`); ``study`` is whose run of which protocol
-    the trial belongs to, None outside a study.
-    """
-
-    path: Path
-    session: Session
-    session_id: str
-    trial: int
-    condition: str
-    created_utc: str | None
-    slots: tuple[dict[str, Any], ...]
-    period: float
-    timing: Array | None
-    answers: AnswersRecord | None
-    study: StudyRun | None
-
-    def humans(self) -> list[int]:
-        """Return the indices of the human slots."""
-        return [k for k, slot in enumerate(self.slots) if slot["kind"] == "human"]
 
 
 def motion_stem(subject: str, device: str, acquisition: str, run: int) -> str:
@@ -200,9 +174,9 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
         ``_scans.tsv``.
     """
     session_dir, out_dir = Path(session_dir), Path(out_dir)
-    files = _trial_files(session_dir)
+    files = trial_files(session_dir)
     study = read_study(session_dir)
-    trials = [_read_lab_trial(path, study) for path in files]
+    trials = [read_lab_trial(path, study) for path in files]
     session_id = _one_session(session_dir, trials)
     with dataset_lock(out_dir):  # the tables are read, merged and written by one export at once
         _check_acquisition(out_dir, session_id)
@@ -222,7 +196,7 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     return written
 
 
-def _write_trials(trials: list[_LabTrial], out_dir: Path) -> tuple[list[Path], bool]:
+def _write_trials(trials: list[LabTrial], out_dir: Path) -> tuple[list[Path], bool]:
     """Write every human's recording and answers, and list them in their ``_scans.tsv``.
 
     Returns the ``_motion.tsv`` files written and whether any answers were.
@@ -231,8 +205,7 @@ def _write_trials(trials: list[_LabTrial], out_dir: Path) -> tuple[list[Path], b
     answered = False
     scans: dict[str, list[dict[str, str]]] = collections.defaultdict(list)
     for trial in trials:
-        metadata = trial.session.metadata
-        when = {"acq_time": acq_time(metadata)} | trial_row(metadata)
+        when = {"acq_time": acq_time(trial.record)} | trial_row(trial.record)
         for k in trial.humans():
             motion = _write_recording(trial, k, out_dir)
             behaviour = _write_answers(trial, k, out_dir)
@@ -247,155 +220,14 @@ def _write_trials(trials: list[_LabTrial], out_dir: Path) -> tuple[list[Path], b
     return written, answered
 
 
-def _subject(trial: _LabTrial, slot: int) -> str:
+def _subject(trial: LabTrial, slot: int) -> str:
     """Return the ``sub-<label>`` folder of a trial's human slot."""
-    return f"sub-{subject_label(trial.slots[slot]['label'], trial.study, trial.path)}"
+    return f"sub-{subject_label(trial.slots[slot].label, trial.study, trial.path)}"
 
 
-def _trial_files(session_dir: Path) -> list[Path]:
-    """Return the trial files of a lab session folder, sorted."""
-    if not session_dir.is_dir():
-        raise InputError(session_dir, "no such folder")
-    files = sorted(path for path in session_dir.glob(TRIAL_PATTERN) if path.is_file())
-    if not files:
-        raise InputError(
-            session_dir, "no trial file (trial-NN_session.csv) in it: not a lab session folder"
-        )
-    return files
-
-
-def _read_lab_trial(path: Path, study: StudyRun | None) -> _LabTrial:
-    """Read a trial file of ``study`` (None: no study) and check its record.
-
-    The record is the sidecar's (`mirror_avatar.trial_record.trial_record`); a ``created_utc``
-    inside its ``lab`` object, where early recordings kept it, is still read.
-    """
-    session = load_session(path)
-    lab = session.metadata.get("lab")
-    if not isinstance(lab, dict):
-        raise InputError(path, "no lab metadata in its sidecar: not a lab trial")
-    record = trial_record(session.metadata, path.with_suffix(".json"))
-    slots = _slots(path, lab.get("slots"), session)
-    if not _is_folder_name(record.session_id):
-        raise InputError(path, f"lab session_id {record.session_id!r} is not a usable folder name")
-    recorded = record.study
-    if study is not None and recorded is not None and recorded.participant != study.participant:
-        raise InputError(
-            path,
-            f"a trial of participant {recorded.participant!r} in participant "
-            f"{study.participant}'s study folder: export each participant's folder as recorded",
-        )
-    created = record.created_utc or lab.get("created_utc")
-    return _LabTrial(
-        path=path,
-        session=session,
-        session_id=record.session_id,
-        trial=record.trial,
-        condition=record.condition,
-        created_utc=created if isinstance(created, str) else None,
-        slots=slots,
-        period=_nominal_period(path, session),
-        timing=_read_timing(path, session),
-        answers=read_answers(path),
-        study=study,
-    )
-
-
-def _slots(path: Path, slots: object, session: Session) -> tuple[dict[str, Any], ...]:
-    """Check the lab slots: one per player, labels as the session's, unique, devices named."""
-    if not isinstance(slots, list) or len(slots) != session.n_players:
-        raise InputError(path, f"lab slots must be a list of {session.n_players} (one per player)")
-    checked = []
-    for k, slot in enumerate(slots):
-        if not isinstance(slot, dict) or slot.get("kind") not in ("human", "avatar"):
-            raise InputError(path, f"lab slot {k} is not a human or avatar slot")
-        if slot.get("label") != session.labels[k]:
-            raise InputError(
-                path,
-                f"lab slot {k} is {slot.get('label')!r} but player {k} is {session.labels[k]!r}",
-            )
-        role = slot.get("role", session.roles[k])
-        checked.append(dict(slot) | {"label": session.labels[k], "role": str(role)})
-        if slot["kind"] == "human":
-            device = slot.get("device")
-            if not isinstance(device, str) or not device:
-                raise InputError(path, f"human slot {session.labels[k]!r} names no input device")
-            bids_label(device, path)
-            bids_label(session.labels[k], path)
-    if len(set(session.labels)) != len(session.labels):
-        raise InputError(path, f"two players share a label in {list(session.labels)}")
-    return tuple(checked)
-
-
-INPUT_COLUMNS = ("clock_s", "late_ms", "step_ms")
-"""Columns of a trial's inputs file (`mirror_avatar.realtime.trial.TickLog`) the export keeps."""
-
-TIMING_CHANNELS = (
-    ("latency", "LATENCY", "s",
-     "time at which the sample was taken, from the first sample's (the clock channel minus "
-     "its first value); the first sample's is the acq_time of the scans file"),
-    ("clock", "MISC", "s",
-     "clock time at which the sample was taken: the Lab Streaming Layer clock "
-     "(pylsl.local_clock) when the lab ran with pylsl, else the monotonic clock (see "
-     "MirrorGame.clock), so that samples line up with EEG recorded through LSL"),
-    ("late", "MISC", "ms", "how late the sample's tick came against its schedule"),
-    ("step", "MISC", "ms", "time the players' step took at that tick (file writes excluded)"),
-)  # fmt: skip
-"""Name, type, units and description of the channels of each sample's true time."""
-
-
-def _read_timing(path: Path, session: Session) -> Array | None:
-    """Read the `TIMING_CHANNELS` of a trial from its inputs file, shape (4, samples).
-
-    The inputs file is the sidecar's ``files.inputs`` (``trial-NN_inputs.csv``) beside the
-    trial; None when it is not there. Samples it lacks (a crash between the two files'
-    lines) are NaN; the latency is rounded to the microsecond.
-
-    Raises
-    ------
-    InputError
-        An inputs file without the `INPUT_COLUMNS`, or with values that are not numbers.
-    """
-    files = session.metadata.get("files")
-    name = files.get("inputs") if isinstance(files, dict) else None
-    if isinstance(name, str) and name:
-        inputs = path.with_name(Path(name).name)
-    else:
-        inputs = companion(path, INPUTS_SUFFIX)
-    if not inputs.is_file():
-        return None
-    header = _first_row(inputs, ",")
-    missing = [column for column in INPUT_COLUMNS if column not in header]
-    if missing:
-        raise InputError(inputs, f"no {', '.join(missing)} column: not a lab trial's inputs file")
-    columns = [header.index(column) for column in INPUT_COLUMNS]
-    values = _read_numbers(inputs, columns, list(INPUT_COLUMNS), ",", 2)
-    n = session.n_samples
-    clock, late, step = (np.pad(v[:n], (0, max(0, n - v.size)), constant_values=np.nan)
-                         for v in values)  # fmt: skip
-    latency = np.round(clock - clock[0], 6) if n else clock
-    return np.vstack([latency, clock, late, step])
-
-
-def _nominal_period(path: Path, session: Session) -> float:
-    """Return the sidecar's control period (s), or the one the sample times give."""
-    try:
-        period = parse_json(read_sidecar_text(path.with_suffix(".json")), path).get("period")
-    except (ValueError, AttributeError):
-        period = None
-    if isinstance(period, int | float) and not isinstance(period, bool) and period > 0:
-        return float(period)
-    return session.period
-
-
-def _is_folder_name(text: str) -> bool:
-    """Whether ``text`` can name one folder: not empty, no separator, not hidden."""
-    return bool(text) and not text.startswith(".") and not re.search(r"[/\\\x00-\x1f]", text)
-
-
-def _one_session(session_dir: Path, trials: list[_LabTrial]) -> str:
+def _one_session(session_dir: Path, trials: list[LabTrial]) -> str:
     """Return the session id the trials share."""
-    ids = sorted({trial.session_id for trial in trials})
+    ids = sorted({trial.record.session_id for trial in trials})
     if len(ids) != 1:
         raise InputError(session_dir, f"trials of several sessions in one folder: {ids}")
     return ids[0]
@@ -427,14 +259,14 @@ def _read_participants(
     return header + [c for c in wanted if c not in header], rows
 
 
-def _add_participants(rows: dict[str, dict[str, str]], trial: _LabTrial, path: Path) -> None:
+def _add_participants(rows: dict[str, dict[str, str]], trial: LabTrial, path: Path) -> None:
     """Add a trial's human slots to the participants rows, refusing two people for one id.
 
     A row already there is the same person when its label (and in a study, its participant
     number and protocol) are the trial's, or unknown (``n/a``).
     """
     for k in trial.humans():
-        label, device = trial.slots[k]["label"], trial.slots[k]["device"]
+        label, device = trial.slots[k].label, str(trial.slots[k].device)
         subject = _subject(trial, k)
         person = {"label": label} | ({} if trial.study is None else trial.study.cells())
         row = rows.setdefault(subject, {"participant_id": subject} | person)
@@ -455,11 +287,11 @@ def _who(cells: dict[str, str]) -> str:
     return f"{cells.get('label', MISSING)!r}{run}"
 
 
-def _write_recording(trial: _LabTrial, slot: int, out_dir: Path) -> Path:
+def _write_recording(trial: LabTrial, slot: int, out_dir: Path) -> Path:
     """Write slot ``slot``'s motion, channels and sidecar files; return the motion file."""
     subject = _subject(trial, slot)
-    device = bids_label(trial.slots[slot]["device"])
-    stem = motion_stem(subject, device, bids_label(trial.session_id), trial.trial)
+    device = bids_label(str(trial.slots[slot].device))
+    stem = motion_stem(subject, device, bids_label(trial.record.session_id), trial.record.trial)
     folder = out_dir / subject / "motion"
     folder.mkdir(parents=True, exist_ok=True)
     order = _player_order(slot, trial.session.n_players)
@@ -473,7 +305,7 @@ def _write_recording(trial: _LabTrial, slot: int, out_dir: Path) -> Path:
     write_atomic_text(motion, tsv_values(np.vstack(arrays).T))
     write_atomic_text(folder / f"{stem}_channels.tsv", tsv_table(CHANNEL_COLUMNS, channels))
     write_atomic_json(folder / f"{stem}_motion.json", _motion_sidecar(trial, slot, len(channels)))
-    events = trial_events(session.metadata, session.n_samples, trial.period)
+    events = trial_events(trial.record, session.n_samples, trial.period)
     write_atomic_text(folder / f"{stem}_events.tsv", tsv_table(EVENT_COLUMNS, events))
     return motion
 
@@ -484,14 +316,15 @@ def _timing_row(name: str, kind: str, units: str, description: str) -> dict[str,
             "units": units, "description": description}  # fmt: skip
 
 
-def _write_answers(trial: _LabTrial, slot: int, out_dir: Path) -> Path | None:
+def _write_answers(trial: LabTrial, slot: int, out_dir: Path) -> Path | None:
     """Write slot ``slot``'s answers after ``trial`` as ``_beh.tsv``; None if they gave none."""
-    label = trial.slots[slot]["label"]
+    label = trial.slots[slot].label
     rows = [] if trial.answers is None else answer_rows(trial.answers, label, trial.slots)
     if not rows:
         return None
     subject = _subject(trial, slot)
-    name = f"{subject}_task-{TASK}_acq-{bids_label(trial.session_id)}_run-{trial.trial}"
+    acquisition = bids_label(trial.record.session_id)
+    name = f"{subject}_task-{TASK}_acq-{acquisition}_run-{trial.record.trial}"
     path = out_dir / subject / "beh" / f"{name}_beh.tsv"
     write_beh(path, rows)
     return path
@@ -502,12 +335,12 @@ def _player_order(slot: int, n_players: int) -> list[int]:
     return [slot, *(j for j in range(n_players) if j != slot)]
 
 
-def _channel_rows(trial: _LabTrial, player: int, own: bool) -> list[dict[str, str]]:
+def _channel_rows(trial: LabTrial, player: int, own: bool) -> list[dict[str, str]]:
     """Make a player's ``_channels.tsv`` rows: position (POS), then velocity (VEL)."""
     slot = trial.slots[player]
-    who = one_line(f"{slot['label']} ({slot['kind']}, {slot['role']})")
-    position, velocity = channel_names(slot["label"], own)
-    common = {"component": "x", "tracked_point": slot["label"], "units": MISSING}
+    who = one_line(f"{slot.label} ({slot.kind}, {slot.role})")
+    position, velocity = channel_names(slot.label, own)
+    common = {"component": "x", "tracked_point": slot.label, "units": MISSING}
     return [
         common | {"name": position, "type": "POS",
                   "description": f"position of {who} in playing range units: -0.5..0.5"},
@@ -517,14 +350,14 @@ def _channel_rows(trial: _LabTrial, player: int, own: bool) -> list[dict[str, st
     ]  # fmt: skip
 
 
-def _motion_sidecar(trial: _LabTrial, slot: int, n_channels: int) -> dict[str, Any]:
+def _motion_sidecar(trial: LabTrial, slot: int, n_channels: int) -> dict[str, Any]:
     """Make the ``_motion.json`` of slot ``slot``'s recording of ``trial``."""
     n_players, n_samples = trial.session.n_players, trial.session.n_samples
     return {
         "TaskName": TASK,
         "TaskDescription": _task_description(trial),
         "SamplingFrequency": 1.0 / trial.period,
-        "TrackingSystemName": trial.slots[slot]["device"],
+        "TrackingSystemName": trial.slots[slot].device,
         "MotionChannelCount": n_channels,
         "POSChannelCount": n_players,
         "VELChannelCount": n_players,
@@ -538,11 +371,12 @@ def _motion_sidecar(trial: _LabTrial, slot: int, n_channels: int) -> dict[str, A
     }
 
 
-def _task_description(trial: _LabTrial) -> str:
+def _task_description(trial: LabTrial) -> str:
     """Describe the mirror game and the trial's condition."""
-    what = CONDITIONS.get(trial.condition, "the players move together")
-    named = trial.session.metadata["lab"].get("protocol_condition")
-    game = trial.condition or MISSING
+    record = trial.record
+    what = CONDITIONS.get(record.condition, "the players move together")
+    named = None if record.study is None else record.study.condition
+    game = record.condition or MISSING
     condition = f"{named} ({game}: {what})" if named else f"{game} ({what})"
     return (
         f"Mirror game, condition {condition}: each player moves a point "
@@ -551,56 +385,42 @@ def _task_description(trial: _LabTrial) -> str:
     )
 
 
-def _artefacts(trial: _LabTrial, slot: int) -> str:
+def _artefacts(trial: LabTrial, slot: int) -> str:
     """Name the trial's connection drops and an early end, or return ``n/a``."""
-    metadata = trial.session.metadata
     notes = []
-    for who, sample in _mapping(metadata.get("dropped")).items():
-        whose = "this participant" if who == trial.slots[slot]["label"] else "another participant"
-        when = f" ({sample * trial.period:.3f} s)" if isinstance(sample, int | float) else ""
+    for who, sample in trial.record.dropped.items():
+        whose = "this participant" if who == trial.slots[slot].label else "another participant"
+        when = f" ({sample * trial.period:.3f} s)"
         notes.append(f"The connection of {who} ({whose}) dropped at sample {sample}{when}.")
-    if metadata.get("complete") is not True:
+    if not trial.record.complete:
         notes.append("The recording stopped before the end of the trial (incomplete).")
     return " ".join(notes) or MISSING
 
 
-def _game_info(trial: _LabTrial, slot: int) -> dict[str, Any]:
+def _game_info(trial: LabTrial, slot: int) -> dict[str, Any]:
     """Make the ``MirrorGame`` key: what `mirror_avatar.bids.reading` needs to rebuild the trial."""
-    metadata = trial.session.metadata
+    record = trial.record
     info: dict[str, Any] = {
         "format": GAME_FORMAT,
         "version": GAME_VERSION,
         "library_version": __version__,
-        "session_id": trial.session_id,
-        "trial": trial.trial,
-        "condition": trial.condition,
-        "created_utc": trial.created_utc,
-        "started_utc": metadata.get("started_utc"),
-        "clock": metadata.get("clock"),
-        "clock_start_s": _clock_start(trial.timing),
-        "participant": trial.slots[slot]["label"],
+        "session_id": record.session_id,
+        "trial": record.trial,
+        "condition": record.condition,
+        "created_utc": record.created_utc,
+        "started_utc": record.started_utc,
+        "clock": record.clock,
+        "clock_start_s": clock_start(trial.timing),
+        "participant": trial.slots[slot].label,
         "slot": slot,
-        "slots": list(trial.slots),
+        "slots": [each.to_json() for each in trial.slots],
         "graph": trial.session.graph.tolist(),
         "start_time": float(trial.session.times[0]),
-        "complete": metadata.get("complete") is True,
-        "dropped": _mapping(metadata.get("dropped")),
-        "held": _mapping(metadata.get("held")),
+        "complete": record.complete,
+        "dropped": dict(record.dropped),
+        "held": dict(record.held),
     }
-    seed = metadata.get("seed", metadata["lab"].get("seed"))
-    return info if seed is None else info | {"seed": seed}
-
-
-def _mapping(value: object) -> dict[str, Any]:
-    """Copy ``value`` if it is a JSON object, else return an empty one."""
-    return dict(value) if isinstance(value, dict) else {}
-
-
-def _clock_start(timing: Array | None) -> float | None:
-    """Return the clock time (s) of the first sample, or None when unknown."""
-    if timing is None or not timing.shape[1] or np.isnan(timing[1, 0]):
-        return None
-    return float(timing[1, 0])
+    return info if record.seed is None else info | {"seed": record.seed}
 
 
 def _copy_sources(session_dir: Path, files: list[Path], target: Path) -> None:

@@ -11,18 +11,21 @@ order of onset (the trial first):
 - ``delay``: the visual delay of the partners on the pages (``delay_s``), for the whole trial;
 - ``occlusion``: each interval during which the partners were hidden, clipped to the recording;
 - ``input_lost`` / ``input_live``: a person's input stopped delivering / delivered again
-  (``player``), from the sidecar's ``input_events``;
-- ``dropped``: a person's connection dropped (``player``), from the sidecar's ``dropped``;
+  (``player``), from the record's input events;
+- ``dropped``: a person's connection dropped (``player``), from the record's drops;
 - ``perturbation``: a change of an avatar mid-trial (``player``, ``change``), from the
-  sidecar's ``perturbations`` (``{"sample", "time_s", "player", "change"}`` each).
+  record's perturbations.
+
+Everything is read from the trial's record (`mirror_avatar.trial_record.TrialRecord`).
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any, TypeGuard
+from typing import Any
 
 from mirror_avatar.bids.names import MISSING
+from mirror_avatar.trial_record import TrialRecord
 
 EVENT_COLUMNS = (
     "onset", "duration", "trial_type", "sample", "trial", "block", "condition", "player",
@@ -62,14 +65,14 @@ EVENT_COLUMN_INFO: dict[str, Any] = {
 """The events' columns, described once for the dataset (``task-mirrorgame_events.json``)."""
 
 
-def trial_events(metadata: dict[str, Any], n_samples: int, period: float) -> list[dict[str, str]]:
+def trial_events(record: TrialRecord, n_samples: int, period: float) -> list[dict[str, str]]:
     """List the events of a lab trial (see the module docstring) as ``_events.tsv`` rows.
 
     Parameters
     ----------
-    metadata
-        The trial sidecar's metadata (``lab``, ``dropped``, ``input_events``,
-        ``perturbations``).
+    record
+        The trial's record (`mirror_avatar.trial_record.TrialRecord`): its study's delay and
+        occlusions, its input events, drops and perturbations.
     n_samples
         Samples recorded.
     period
@@ -81,34 +84,28 @@ def trial_events(metadata: dict[str, Any], n_samples: int, period: float) -> lis
         One row per event (every column -> its cell, ``n/a`` when it does not apply), the
         trial first, then by onset.
     """
-    lab = _mapping(metadata.get("lab"))
     length = n_samples * period
     common = {
-        "trial": _cell(lab.get("trial")),
-        "block": _cell(lab.get("block")),
-        "condition": _cell(lab.get("protocol_condition", lab.get("condition"))),
+        "trial": str(record.trial),
+        "block": _cell(record.block),
+        "condition": _cell(record.named_condition),
     }
     rows = [_row(0.0, length, "trial", period)]
-    delay = lab.get("partner_delay_s")
-    if _is_number(delay) and delay > 0:
-        rows.append(_row(0.0, length, "delay", period) | {"delay_s": repr(float(delay))})
-    for start, end in _intervals(lab.get("occluded_s")):
-        if start < length:
+    study = record.study
+    if study is not None and study.delay_s > 0:
+        rows.append(_row(0.0, length, "delay", period) | {"delay_s": repr(float(study.delay_s))})
+    for start, end in () if study is None else study.occluded_s:
+        if 0 <= start < end and start < length:
             rows.append(_row(start, min(end, length) - start, "occlusion", period))
-    for event in _objects(metadata.get("input_events")):
-        if _is_sample(event.get("sample")) and event.get("event") in ("lost", "live"):
-            onset = event["sample"] * period
-            row = _row(onset, 0.0, f"input_{event['event']}", period)
-            rows.append(row | {"player": _cell(event.get("label"))})
-    for who, sample in _mapping(metadata.get("dropped")).items():
-        if _is_sample(sample):
-            rows.append(_row(sample * period, 0.0, "dropped", period) | {"player": str(who)})
-    for change in _objects(metadata.get("perturbations")):
-        onset = _onset(change, period)
-        if onset is not None:
-            row = _row(onset, 0.0, "perturbation", period)
-            rows.append(row | {"player": _cell(change.get("player")),
-                               "change": _cell(change.get("change"))})  # fmt: skip
+    for event in record.input_events:
+        if event.event in ("lost", "live"):
+            row = _row(event.sample * period, 0.0, f"input_{event.event}", period)
+            rows.append(row | {"player": _cell(event.label)})
+    for who, sample in record.dropped.items():
+        rows.append(_row(sample * period, 0.0, "dropped", period) | {"player": who})
+    for change in record.perturbations:
+        rows.append(_row(change.time_s, 0.0, "perturbation", period)
+                    | {"player": _cell(change.player), "change": _cell(change.change)})  # fmt: skip
     first, rest = rows[0], rows[1:]
     rest.sort(key=lambda row: float(row["onset"]))
     empty = dict.fromkeys(EVENT_COLUMNS, MISSING)
@@ -122,44 +119,6 @@ def _row(onset: float, duration: float, kind: str, period: float) -> dict[str, s
             "trial_type": kind, "sample": str(sample)}  # fmt: skip
 
 
-def _onset(change: dict[str, Any], period: float) -> float | None:
-    """Return a perturbation's onset (s): ``time_s``, else its sample's time; None if neither."""
-    if _is_number(change.get("time_s")) and change["time_s"] >= 0:
-        return float(change["time_s"])
-    if _is_sample(change.get("sample")):
-        return float(change["sample"] * period)
-    return None
-
-
-def _intervals(value: object) -> list[tuple[float, float]]:
-    """Return the ``[start, end]`` pairs (s) of an occlusion list, those that make sense."""
-    pairs = value if isinstance(value, list) else []
-    return [
-        (float(pair[0]), float(pair[1]))
-        for pair in pairs
-        if isinstance(pair, list) and len(pair) == 2 and all(_is_number(v) for v in pair)
-        and 0 <= pair[0] < pair[1]
-    ]  # fmt: skip
-
-
 def _cell(value: object) -> str:
     """Write a value as a TSV cell: text as is, numbers as written, nothing as ``n/a``."""
     return MISSING if value is None or value == "" else str(value)
-
-
-def _is_number(value: object) -> TypeGuard[int | float]:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _is_sample(value: object) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
-
-
-def _objects(value: object) -> list[dict[str, Any]]:
-    """Return the JSON objects of a list (anything else: none)."""
-    return [item for item in value if isinstance(item, dict)] if isinstance(value, list) else []
-
-
-def _mapping(value: object) -> dict[str, Any]:
-    """Copy ``value`` if it is a JSON object, else return an empty one."""
-    return dict(value) if isinstance(value, dict) else {}

@@ -36,7 +36,13 @@ from mirror_avatar.bids.writing import tsv_table
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.files import ANSWERS_SUFFIX, STUDY_FILE, companion
 from mirror_avatar.trial_io import read_sidecar_text
-from mirror_avatar.trial_record import AnswersRecord, partner_kind, read_answers_record
+from mirror_avatar.trial_record import (
+    AnswersRecord,
+    SlotRecord,
+    TrialRecord,
+    partner_kind,
+    read_answers_record,
+)
 from mirror_avatar.user_files import parse_json
 
 BEH_COLUMNS = (
@@ -156,15 +162,14 @@ def subject_label(
     return person if study is None else f"p{study.participant:03d}{person}"
 
 
-def acq_time(metadata: dict[str, Any]) -> str:
+def acq_time(record: TrialRecord) -> str:
     """Return when a trial's first sample was taken, as a BIDS ``acq_time``, or ``n/a``.
 
-    The sidecar's ``started_utc``, else its ``created_utc``, else ``lab.created_utc``;
-    converted to UTC and written ``YYYY-MM-DDThh:mm:ss.ffffffZ``.
+    The record's ``started_utc``, else its ``created_utc``; converted to UTC and written
+    ``YYYY-MM-DDThh:mm:ss.ffffffZ``.
     """
-    lab = _mapping(metadata.get("lab"))
-    for stamp in (metadata.get("started_utc"), metadata.get("created_utc"), lab.get("created_utc")):
-        if isinstance(stamp, str):
+    for stamp in (record.started_utc, record.created_utc):
+        if stamp is not None:
             try:
                 moment = datetime.fromisoformat(stamp)
             except ValueError:
@@ -174,14 +179,9 @@ def acq_time(metadata: dict[str, Any]) -> str:
     return MISSING
 
 
-def trial_row(metadata: dict[str, Any]) -> dict[str, str]:
+def trial_row(record: TrialRecord) -> dict[str, str]:
     """Return a trial's ``trial``, ``block`` and ``condition`` cells."""
-    lab = _mapping(metadata.get("lab"))
-    cells = (
-        lab.get("trial"),
-        lab.get("block"),
-        lab.get("protocol_condition", lab.get("condition")),
-    )
+    cells = (record.trial, record.block, record.named_condition)
     return {
         key: MISSING if value in (None, "") else str(value)
         for key, value in zip(("trial", "block", "condition"), cells, strict=True)
@@ -201,19 +201,19 @@ def read_answers(session_csv: Path) -> AnswersRecord | None:
 
 
 def answer_rows(
-    answers: AnswersRecord, label: str, slots: Sequence[dict[str, Any]]
+    answers: AnswersRecord, label: str, slots: Sequence[SlotRecord]
 ) -> list[dict[str, str]]:
     """Return the ``_beh.tsv`` rows of one participant's answers after a trial.
 
     Questions are in the order they were asked (after the trial, then after the block); a
     question's text and kind are ``n/a`` when the file does not hold them. ``slots`` (the
-    trial's, each with its ``label`` and ``kind``) give every row the participant's partners
+    trial's records) give every row the participant's partners
     and their true kind (`mirror_avatar.trial_record.partner_kind`).
     """
-    partners = [slot for slot in slots if slot["label"] != label]
+    partners = [slot for slot in slots if slot.label != label]
     beside = {
-        "partners": "+".join(slot["label"] for slot in partners) or MISSING,
-        "partner_kind": partner_kind(slot["kind"] for slot in partners),
+        "partners": "+".join(slot.label for slot in partners) or MISSING,
+        "partner_kind": partner_kind(slot.kind for slot in partners),
     }
     return [
         {

@@ -1,6 +1,6 @@
 """A participant's avatar built on the live server from the solo trials they just recorded.
 
-The page's "Build my avatar" asks for it (`mirror_avatar.live.protocol.BuildRequest`): the
+The page's "Build my avatar" asks for it (`mirror_avatar.live.messages.BuildRequest`): the
 participant's solo trial files in their folder (``P_solo_*.csv``, the person's own trial of each
 solo recording) are read, `mirror_avatar.experiments.personal_avatar.create_avatar` builds and
 validates the avatar (with the default partners), and it is written beside them as
@@ -12,9 +12,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from mirror_avatar import __version__
 from mirror_avatar.errors import InputError
+from mirror_avatar.experiments.avatar_proof import MIN_TRIALS_TO_HOLD_OUT
 from mirror_avatar.experiments.personal_avatar import (
     create_avatar,
     default_partners,
@@ -42,6 +44,36 @@ def solo_trial_files(folder: Path, participant: str) -> list[Path]:
         for path in folder.glob(f"{participant}_solo_*.csv")
         if not path.name.endswith(("_session.csv", "_inputs.csv"))
     )
+
+
+def build_readiness(count: int) -> dict[str, Any]:
+    """Say what ``count`` recorded solo trials allow, before "Build my avatar" is pressed.
+
+    Parameters
+    ----------
+    count
+        The participant's recorded solo trials (`solo_trial_files`).
+
+    Returns
+    -------
+    dict
+        ``solo_trials`` (the count), ``ready`` (at least `MIN_SOLO_TRIALS`, so a build can
+        start) and ``hint``, a sentence for the page: how many more trials a build needs, and
+        whether the avatar will be checked against a held-out trial of the person
+        (`MIN_TRIALS_TO_HOLD_OUT` or more) or not.
+    """
+    recorded = f"{count} solo trial{'s' * (count != 1)} recorded"
+    check = f"{MIN_TRIALS_TO_HOLD_OUT} or more let it be checked against you"
+    if count < MIN_SOLO_TRIALS:
+        hint = f"{recorded}: record {MIN_SOLO_TRIALS - count} more to build your avatar ({check})"
+    elif count < MIN_TRIALS_TO_HOLD_OUT:
+        hint = (
+            f"{recorded}: your avatar can be built, but it will not be checked against you "
+            f"({check})"
+        )
+    else:
+        hint = f"{recorded}: enough to build your avatar and check it against a held-out trial"
+    return {"solo_trials": count, "ready": count >= MIN_SOLO_TRIALS, "hint": hint}
 
 
 def build_avatar(

@@ -1,7 +1,7 @@
 """The live server: one page, one WebSocket per browser tab, one avatar per trial.
 
 `create_app` builds the ASGI application (starlette): ``/`` serves the page, ``/static/`` its
-script and style, and ``/ws`` the game's WebSocket (messages in `mirror_avatar.live.protocol`).
+script and style, and ``/ws`` the game's WebSocket (messages in `mirror_avatar.live.messages`).
 Each connection plays at most one trial at a time (`mirror_avatar.live.session.LiveTrial`): a
 task ticks it every control period on absolute deadlines, while the receive loop stores the
 pointer's latest position and answers each one at once with the avatar's position.
@@ -51,8 +51,13 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.cyber_player import BASELINE_SESSIONS, VALIDATION_SESSIONS
 from mirror_avatar.experiments.personal_avatar import DEFAULT_SESSIONS
 from mirror_avatar.live.admission import Admission
-from mirror_avatar.live.avatar_build import build_avatar, describe_avatar
-from mirror_avatar.live.protocol import (
+from mirror_avatar.live.avatar_build import (
+    build_avatar,
+    build_readiness,
+    describe_avatar,
+    solo_trial_files,
+)
+from mirror_avatar.live.messages import (
     DURATION_RANGE,
     MODES,
     BuildRequest,
@@ -327,7 +332,7 @@ class Connection:
                 self.ticker.cancel()
             summary = await self.end_trial(False, "stopped by the participant")
             if summary is not None:
-                self.send({"type": "done", "summary": summary})
+                await self.send_done(summary)
         elif trial is not None:
             self.reject("a trial is already running")
         else:
@@ -391,8 +396,8 @@ class Connection:
         if reason == stale:
             self.outbox.end(CLOSE_STALE, "no position received: trial saved as incomplete")
             self.drop()
-        else:
-            self.send({"type": "done", "summary": summary})
+        elif summary is not None:
+            await self.send_done(summary)
 
     async def build(self, request: BuildRequest) -> None:
         """Build the participant's avatar in a worker thread, reporting each stage.
@@ -433,6 +438,17 @@ class Connection:
         if trial is None:
             return None
         return await asyncio.to_thread(trial.finish, complete, reason)
+
+    async def send_done(self, summary: dict[str, Any]) -> None:
+        """Tell the page its trial is saved, with what the participant's solo trials now allow.
+
+        The readiness to build an avatar (`build_readiness`) is counted from the files in a
+        worker thread.
+        """
+        participant = str(summary["participant"])
+        folder = self.settings.out_dir / participant
+        count = len(await asyncio.to_thread(solo_trial_files, folder, participant))
+        self.send({"type": "done", "summary": summary, "build": build_readiness(count)})
 
     def reject(self, problem: str) -> bool:
         """Answer a bad message with an error; return False once the connection is closing."""

@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 from mirror_avatar import __version__
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.graphs import complete_graph
-from mirror_avatar.live.protocol import StartRequest
+from mirror_avatar.live.messages import StartRequest
 from mirror_avatar.metrics import compute_relative_phase, session_metrics
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.realtime.inputs import BrowserInput, HumanPlayer

@@ -12,18 +12,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from datetime import UTC, datetime
-from typing import Any, TypeVar
+from typing import TypeVar
 
 import pandas as pd
 
 from mirror_avatar.metrics.summary import session_metrics
 from mirror_avatar.session import Session
 from mirror_avatar.signature import compute_emd, compute_ims
+from mirror_avatar.trial_record import lab_trial_record
 
 START_KEYS = ("started_utc", "created_utc")
 """Metadata keys of a session's start time (ISO 8601), in order of preference: a live or lab
 trial's ``started_utc`` (when its clock started), else the ``created_utc`` of its file;
-a lab export's is ``lab.created_utc`` with the trial number after it."""
+then a lab trial's record's creation time, with the trial number after it."""
 
 Item = TypeVar("Item")
 
@@ -35,11 +36,11 @@ def recorded_start(session: Session) -> tuple[datetime, int] | None:
     export stamps with the session's creation time. None when no readable time is recorded.
     """
     metadata = session.metadata
-    found = metadata.get("lab")
-    lab: dict[str, Any] = found if isinstance(found, dict) else {}
-    stamps = [metadata.get(key) for key in START_KEYS] + [lab.get("created_utc")]
-    trial = lab.get("trial")
-    number = trial if isinstance(trial, int) and not isinstance(trial, bool) else 0
+    record = lab_trial_record(metadata)
+    stamps = [metadata.get(key) for key in START_KEYS]
+    if record is not None:
+        stamps += [record.created_utc]
+    number = 0 if record is None else record.trial
     for stamp in stamps:
         if isinstance(stamp, str):
             try:

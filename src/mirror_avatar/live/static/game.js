@@ -13,6 +13,7 @@
     progress: $("progress"), results: $("results"), metrics: $("metrics"), plot: $("plot"),
     positions: $("positions"), phase: $("phase"), phaseFigure: $("phase-figure"),
     saved: $("saved"), avatarLegend: $("avatar-legend"), build: $("build"),
+    buildHint: $("build-hint"),
     verdict: $("avatar-verdict"), verdictText: $("verdict-text"), cardLink: $("card-link"),
   };
   const game = {
@@ -280,6 +281,7 @@
         game.summary = message.summary;
         if (message.summary.complete) ui.progress.style.width = "100%";
         showResults(message.summary);
+        if (message.build) ui.buildHint.textContent = message.build.hint;
         setStatus(message.summary.complete ? "Trial saved" : "Trial stopped and saved");
         break;
       case "building":

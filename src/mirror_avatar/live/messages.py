@@ -14,9 +14,10 @@ The browser sends JSON text messages, one object each, with a ``type`` field:
 
 The server replies with ``ready``, ``countdown``, ``go``, ``avatar`` (one per ``position``:
 ``{"type": "avatar", "seq": n, "x": avatar position, "progress": fraction of the trial}``),
-``done`` (metrics and file names), ``building`` (a build's stage), ``built`` (the avatar's file
-and the modes it plays) and ``error`` messages. Anything malformed raises
-`ProtocolError`, whose message is sent back to the browser as an ``error``.
+``done`` (metrics and file names, and under ``build`` what the participant's solo trials now
+allow: `mirror_avatar.live.avatar_build.build_readiness`), ``building`` (a build's stage),
+``built`` (the avatar's file and the modes it plays) and ``error`` messages. Anything malformed
+raises `ProtocolError`, whose message is sent back to the browser as an ``error``.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mirror_avatar.live.protocol import (
+from mirror_avatar.live.messages import (
     PositionUpdate,
     ProtocolError,
     StartRequest,
