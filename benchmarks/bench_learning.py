@@ -22,10 +22,11 @@ import numpy as np
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.discretisation import make_default_discretisation
-from mirror_avatar.learning.training import QLearner, score_imitation
+from mirror_avatar.learning.training import QLearner
 from mirror_avatar.players import Observation
 from mirror_avatar.session import Session
 from mirror_avatar.testing import make_follower_sessions, python_learn_session
+from mirror_avatar.training.imitation import score_avatar
 
 
 def follower_sessions(group: str = "slow") -> list[Session]:
@@ -114,7 +115,7 @@ def _quality_rows(sessions: list[Session], quick: bool) -> list[dict]:
     rows = [
         {"name": "held-out RMS: copy the partner", "value": copy, "unit": "units"},
         {"name": "held-out RMS: untrained (random Q)",
-         "value": score_imitation(untrained, test)[1].mean(), "unit": "units"},
+         "value": score_avatar(untrained, test)[1].mean(), "unit": "units"},
     ]  # fmt: skip
     n_sessions = 300 if quick else 2000
     for features in ("relative", "absolute"):
@@ -122,7 +123,7 @@ def _quality_rows(sessions: list[Session], quick: bool) -> list[dict]:
         for seed in range(3):
             player = CyberPlayer(make_default_discretisation(features))
             QLearner(player, random_state=seed, progress=False).fit(cycle(fit, n_sessions))
-            seeds.append(score_imitation(player, test)[1].mean())
+            seeds.append(score_avatar(player, test)[1].mean())
         rows.append(
             {
                 "name": f"held-out RMS: trained, {features} features",

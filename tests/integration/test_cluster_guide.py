@@ -10,7 +10,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +25,7 @@ from mirror_avatar.engine import batch
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.model_files import load_model
 from mirror_avatar.trial_io import write_csv_trial
+from waiting import wait_for
 
 distributed = pytest.importorskip("distributed")
 
@@ -63,10 +63,7 @@ def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cluster]:
         )
     ]  # fmt: skip
     try:
-        deadline = time.monotonic() + 60.0
-        while not address_file.is_file():
-            assert time.monotonic() < deadline, "the scheduler did not start"
-            time.sleep(0.2)
+        wait_for(address_file.is_file, 60.0, "the scheduler to start", interval=0.2)
         for _ in range(2):
             processes.append(
                 subprocess.Popen(

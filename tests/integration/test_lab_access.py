@@ -8,15 +8,16 @@ import re
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import httpx
 from test_lab_server import BEARER, DYAD, TOKEN, command, create, socket_url
 from websockets.sync.client import connect
 
-from mirror_avatar.lab.server import KEEP_ENDED, LabSettings, create_lab_app
+from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.sessions import KEEP_ENDED
 from mirror_avatar.testing import ServerThread
+from waiting import wait_for
 
 
 def test_a_link_with_a_wrong_token_leaves_the_researchers_cookie_alone(tmp_path):
@@ -39,13 +40,12 @@ def test_tokens_and_join_keys_stay_out_of_the_log(tmp_path):
             env=os.environ | {"PYTHONUNBUFFERED": "1"},
         )  # fmt: skip
     try:
-        url = token = None
-        deadline = time.monotonic() + 60.0
-        while not (url and token):
-            assert server.poll() is None and time.monotonic() < deadline, log.read_text()
-            time.sleep(0.1)
-            if found := re.search(r"console: (http://[^/]+)/console\?token=(\S+)", log.read_text()):
-                url, token = found.groups()
+
+        def console_link() -> re.Match[str] | None:
+            assert server.poll() is None, log.read_text()
+            return re.search(r"console: (http://[^/]+)/console\?token=(\S+)", log.read_text())
+
+        url, token = wait_for(console_link, 60.0, "the console's link", interval=0.1).groups()
         headers = {"Authorization": f"Bearer {token}"}
         with httpx.Client(base_url=url) as browser:
             assert browser.get(f"/console?token={token}").status_code == 303

@@ -16,6 +16,7 @@ from browsers import SCREENSHOTS
 from mirror_avatar.lab.protocol import load_protocol
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
+from waiting import wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -110,13 +111,15 @@ def play_to_the_end(chromium: Any, lab: ServerThread, console: Any, sid: str) ->
     pages = {label: join(chromium.new_context(), links[label]) for label in ("P1", "P2")}
     console.wait_for_function("!document.getElementById('start').disabled")
     console.click("#start")
-    for _ in range(600):
+
+    def finished() -> bool:
         if console.locator("#state").inner_text() == "finished":
-            break
+            return True
         for label, page in pages.items():
             answer_if_asked(page, label)
-        console.wait_for_timeout(100)
-    console.wait_for_function("document.getElementById('state').textContent === 'finished'")
+        return False
+
+    wait_for(finished, 120.0, f"the run {sid} to finish on the console", interval=0.1)
     console.wait_for_function("document.querySelectorAll('#trial-list tbody tr').length === 2")
     return pages
 

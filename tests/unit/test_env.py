@@ -14,9 +14,9 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import random_connected_graph, star_graph
 from mirror_avatar.learning.agent import DEFAULT_ACTIONS, CyberPlayer
 from mirror_avatar.learning.kernels import compute_reward
-from mirror_avatar.learning.training import score_imitation
 from mirror_avatar.session import Session
 from mirror_avatar.specs import load_player
+from mirror_avatar.training.imitation import score_avatar
 
 
 def sine_sessions(k: int = 3, n: int = 50, lag: int = 5) -> list[Session]:
@@ -127,7 +127,7 @@ def test_greedy_policy_through_the_env_scores_as_the_compiled_session():
     while not truncated:
         obs, reward, _, truncated, _ = env.step(int(np.argmax(player.q_table_[obs])))
         rewards.append(reward)
-    mean_reward, _ = score_imitation(player, sessions)
+    mean_reward, _ = score_avatar(player, sessions)
     assert len(rewards) == 199
     assert np.mean(rewards) == pytest.approx(mean_reward[0], rel=1e-12)
 

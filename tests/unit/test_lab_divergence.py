@@ -6,14 +6,15 @@ from __future__ import annotations
 import asyncio
 import json
 import time
-from collections.abc import Callable
 
 import numpy as np
 
 from mirror_avatar.lab.plan import parse_plan
 from mirror_avatar.lab.runner import LabSession
+from mirror_avatar.lab.schedule import OnePlan
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.session import load_session
+from waiting import wait_for
 
 DYAD = {
     "condition": "leader_follower",
@@ -26,14 +27,6 @@ DYAD = {
         {"label": "A1", "kind": "avatar", "spec": "hkb"},
     ],
 }
-
-
-async def wait_for(condition: Callable[[], bool], seconds: float = 30.0) -> None:
-    """Wait until ``condition()`` holds, failing after ``seconds``."""
-    deadline = time.monotonic() + seconds
-    while not condition():
-        assert time.monotonic() < deadline, "the session never got there"
-        await asyncio.sleep(0.05)
 
 
 class Unstable(Player):
@@ -53,10 +46,14 @@ class Unstable(Player):
 
 def test_a_diverging_avatar_ends_the_trial_naming_it_and_the_sample(tmp_path):
     async def scenario() -> LabSession:
-        session = LabSession("S1", parse_plan(DYAD), tmp_path / "S1", time.monotonic, countdown=0)
+        session = LabSession(
+            "S1", OnePlan(parse_plan(DYAD)), tmp_path / "S1", time.monotonic, countdown=0
+        )
         session.avatars = {1: Unstable()}
         assert session.start(force=True) is None
-        await wait_for(lambda: session.state == "finished" or session.error is not None)
+        await asyncio.to_thread(
+            wait_for, lambda: session.state == "finished" or session.error is not None, 30.0
+        )
         return session
 
     session = asyncio.run(scenario())
@@ -91,14 +88,14 @@ class Broken(Player):
 def test_an_avatar_diverging_at_reset_closes_the_trial_and_the_next_start_opens_the_next(tmp_path):
     async def scenario() -> tuple[LabSession, str]:
         plan = parse_plan(DYAD | {"trials": 3})
-        session = LabSession("S2", plan, tmp_path / "S2", time.monotonic, countdown=0)
+        session = LabSession("S2", OnePlan(plan), tmp_path / "S2", time.monotonic, countdown=0)
         session.avatars = {1: Broken()}
         assert session.start(force=True) is None
-        await wait_for(lambda: session.error is not None)
+        await asyncio.to_thread(wait_for, lambda: session.error is not None, 30.0)
         error = session.error
         session.avatars = {1: Unstable()}
         assert session.start(force=True) is None
-        await wait_for(lambda: bool(session.results))
+        await asyncio.to_thread(wait_for, lambda: bool(session.results), 30.0)
         await session.stop()
         return session, error
 

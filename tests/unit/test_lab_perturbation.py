@@ -4,7 +4,6 @@ every refusal at load time."""
 from __future__ import annotations
 
 import copy
-import time
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -17,7 +16,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.lab.perturbation import changeable, successor
 from mirror_avatar.lab.protocol import parse_protocol
-from mirror_avatar.lab.study import StudySession
+from mirror_avatar.lab.study import ParticipantRun
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.players.base import Observation, Player
@@ -185,10 +184,10 @@ def test_a_person_filling_the_slot_is_not_perturbed(tmp_path):
     protocol = parse_protocol(data, str(tmp_path / "p.toml"))
     found = {}
     for participant in (0, 1):  # a pair: one meets the person, the other the avatar
-        session = StudySession(protocol, participant, tmp_path / f"p{participant}", time.monotonic)
-        step = next(i for i, s in enumerate(session.steps) if s.name == "joint")
-        session._enter(step)
-        found[session.steps[step].persons["P2"]] = session._perturbations()
+        run = ParticipantRun(protocol, participant)
+        n = next(run.first_trials[i] for i, s in enumerate(run.steps) if s.name == "joint")
+        run.enter(n, again=True)
+        found[run.steps[run.step].persons["P2"]] = run.perturbations()
     assert found[True] == []
     ((index, perturbation),) = found[False]
     assert (index, perturbation.change) == (1, "role=leader")

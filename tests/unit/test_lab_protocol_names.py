@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 
 from mirror_avatar.lab.protocol_store import MAX_NAME_BYTES, protocol_name, store_protocol
-from mirror_avatar.lab.study import StudySession, study_folder
+from mirror_avatar.lab.runner import LabSession
+from mirror_avatar.lab.study import ParticipantRun, study_folder
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
 
@@ -39,5 +40,6 @@ def test_a_protocol_named_in_cyrillic_is_kept_and_names_its_participants_folders
     protocol = store_protocol(tmp_path, "протокол.toml", EXAMPLE.read_text())
     assert Path(protocol.source) == tmp_path / "protocols" / "протокол.toml"
     assert study_folder(protocol, 3) == "протокол-p003"
-    session = StudySession(protocol, 3, tmp_path / study_folder(protocol, 3), time.monotonic)
+    folder = tmp_path / study_folder(protocol, 3)
+    session = LabSession(folder.name, ParticipantRun(protocol, 3), folder, time.monotonic)
     assert (session.directory / "study.json").is_file()

@@ -9,13 +9,16 @@ import time
 
 from mirror_avatar.lab.plan import parse_plan
 from mirror_avatar.lab.runner import LabSession, headline_measures, participant_measures
+from mirror_avatar.lab.schedule import OnePlan
 
 SOLO = {"condition": "solo", "duration": 5.0, "players": [{"label": "P1", "kind": "human"}]}
 
 
 def test_a_stop_while_the_trial_opens_closes_it(tmp_path):
     async def scenario() -> LabSession:
-        session = LabSession("S1", parse_plan(SOLO), tmp_path / "S1", time.monotonic, countdown=0)
+        session = LabSession(
+            "S1", OnePlan(parse_plan(SOLO)), tmp_path / "S1", time.monotonic, countdown=0
+        )
         opening = session._new_trial
 
         def slow_open(n: int):
@@ -39,7 +42,7 @@ def test_a_stop_while_the_trial_opens_closes_it(tmp_path):
 def test_a_stop_mid_trial_saves_it_and_the_next_start_plays_the_next_trial(tmp_path):
     async def scenario() -> LabSession:
         plan = parse_plan(SOLO | {"duration": 2.0, "trials": 2, "pause": 0.0})
-        session = LabSession("S2", plan, tmp_path / "S2", time.monotonic, countdown=0)
+        session = LabSession("S2", OnePlan(plan), tmp_path / "S2", time.monotonic, countdown=0)
         assert session.start(force=True) is None
         while session.state != "running":
             await asyncio.sleep(0.01)

@@ -11,16 +11,17 @@ import pytest
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.protocol import load_protocol
-from mirror_avatar.lab.study import StudySession, study_folder
+from mirror_avatar.lab.runner import LabSession
+from mirror_avatar.lab.study import ParticipantRun, study_folder
 from mirror_avatar.trial_io import MAX_SIDECAR_BYTES
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
 
 
-def _session(tmp_path: Path, participant: int = 0) -> StudySession:
+def _session(tmp_path: Path, participant: int = 0) -> LabSession:
     protocol = load_protocol(EXAMPLE)
     folder = tmp_path / study_folder(protocol, participant)
-    return StudySession(protocol, participant, folder, time.monotonic)
+    return LabSession(folder.name, ParticipantRun(protocol, participant), folder, time.monotonic)
 
 
 def _folder_with(tmp_path: Path, participant: int = 0) -> Path:

@@ -13,27 +13,33 @@ import pytest
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.protocol import load_protocol
-from mirror_avatar.lab.study import StudySession, study_folder
+from mirror_avatar.lab.runner import LabSession
+from mirror_avatar.lab.study import ParticipantRun, study_folder
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
 
 
-def _session(tmp_path: Path, participant: int = 0, seed: int | None = None) -> StudySession:
+def _session(tmp_path: Path, participant: int = 0, seed: int | None = None) -> LabSession:
     protocol = load_protocol(EXAMPLE)
     if seed is not None:
         protocol = replace(protocol, seed=seed)
     folder = tmp_path / study_folder(protocol, participant)
-    return StudySession(protocol, participant, folder, time.monotonic)
+    return LabSession(folder.name, ParticipantRun(protocol, participant), folder, time.monotonic)
+
+
+def _run(session: LabSession) -> ParticipantRun:
+    assert isinstance(session.schedule, ParticipantRun)
+    return session.schedule
 
 
 def test_trials_are_numbered_across_the_participants_conditions(tmp_path):
     session = _session(tmp_path, participant=2)
-    names = [step.name for step in session.steps]
+    names = [step.name for step in _run(session).steps]
     assert session.directory.name == "protocol-p002"
     assert session.total_trials == 1 + 2 + 2 + 2 + 2
-    assert session.where(1) == "block 1 of 2, condition 'solo', trial 1 of 1"
-    assert session.where(2) == f"block 2 of 2, condition '{names[1]}', trial 1 of 2"
-    assert session.where(9) == f"block 2 of 2, condition '{names[-1]}', trial 2 of 2"
+    assert _run(session).where(1) == "block 1 of 2, condition 'solo', trial 1 of 1"
+    assert _run(session).where(2) == f"block 2 of 2, condition '{names[1]}', trial 1 of 2"
+    assert _run(session).where(9) == f"block 2 of 2, condition '{names[-1]}', trial 2 of 2"
     study = json.loads((session.directory / "study.json").read_text())
     assert [c["condition"] for c in study["order"]] == names
     assert [c["trials"] for c in study["order"]] == [[1], [2, 3], [4, 5], [6, 7], [8, 9]]
@@ -42,10 +48,12 @@ def test_trials_are_numbered_across_the_participants_conditions(tmp_path):
 
 def test_block_questions_follow_the_last_trial_of_the_block(tmp_path):
     session = _session(tmp_path)
-    assert session.questions_after(1) == {"trial": [], "block": []}
-    last = session.questions_after(session.total_trials)
+    assert _run(session).questions_after(1) == {"trial": [], "block": []}
+    last = _run(session).questions_after(session.total_trials)
     assert last["block"] == ["remarks"]
-    assert all(session.questions_after(n)["block"] == [] for n in range(1, session.total_trials))
+    assert all(
+        _run(session).questions_after(n)["block"] == [] for n in range(1, session.total_trials)
+    )
 
 
 def test_a_folder_resumes_at_the_first_trial_with_no_files(tmp_path):
@@ -54,7 +62,7 @@ def test_a_folder_resumes_at_the_first_trial_with_no_files(tmp_path):
         (session.directory / f"trial-{n:02d}_session.csv").write_text("t\n")
     resumed = _session(tmp_path)
     assert resumed.next_trial == 4
-    assert resumed.plan == resumed.plans[resumed._step_of(4)]
+    assert resumed.plan == _run(resumed).plans[_run(resumed)._step_of(4)]
     assert any("resumed at trial 4 of 9" in event for event in resumed.events)
 
 
@@ -75,21 +83,21 @@ def test_balanced_partner_draws_are_recorded_and_resumed(tmp_path):
         study = json.loads((session.directory / "study.json").read_text())
         joint = next(c for c in study["order"] if c["condition"] == "joint")
         kinds.append(joint["players"]["P2"])
-        drawn = next(s.persons["P2"] for s in session.steps if s.name == "joint")
+        drawn = next(s.persons["P2"] for s in _run(session).steps if s.name == "joint")
         assert kinds[-1] == ("human" if drawn else "avatar")
         resumed = _session(tmp_path, participant)
-        assert resumed.describe()["order"] == study["order"]
+        assert _run(resumed).describe(resumed.id, resumed.created_utc)["order"] == study["order"]
     assert kinds[0] != kinds[1] and kinds[2] != kinds[3]
 
 
 @pytest.mark.parametrize("participant", [0, 1])
 def test_the_outlet_channels_are_every_label_of_the_run(tmp_path, participant):
     session = _session(tmp_path, participant)
-    labels, roles, kinds = session.channels()
+    labels, roles, kinds = _run(session).channels()
     assert labels[:2] == ["P1", "P2"] and sorted(labels[2:]) == ["A1", "A2"]
     kind = dict(zip(labels, kinds, strict=True))
     assert (kind["P1"], kind["A1"], kind["A2"]) == ("human", "avatar", "avatar")
-    meets_avatar = any(step.persons.get("P2") is False for step in session.steps)
+    meets_avatar = any(step.persons.get("P2") is False for step in _run(session).steps)
     assert kind["P2"] == ("human/avatar" if meets_avatar else "human")
     assert roles[0].split("/")[0] == "solo" and "leader" in roles[0].split("/")
 
@@ -124,7 +132,7 @@ def test_a_run_recorded_with_the_earlier_draws_refuses_to_resume_in_one_line(tmp
     study = json.loads(path.read_text())
     earlier = [
         ("solo", study["order"][0]["players"]),
-        *_earlier_draws(session.protocol, participant),
+        *_earlier_draws(_run(session).protocol, participant),
     ]
     assert earlier != [(c["condition"], c["players"]) for c in study["order"]]
     for recorded, (name, players) in zip(study["order"], earlier, strict=True):

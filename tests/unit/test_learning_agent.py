@@ -11,9 +11,10 @@ from mirror_avatar.dynamics import CONTROL_PERIOD, FOLLOWER, LEADER, integrate_h
 from mirror_avatar.errors import InputError
 from mirror_avatar.learning.agent import DEFAULT_ACTIONS, CyberPlayer, load_cyber_player
 from mirror_avatar.learning.discretisation import Discretisation, make_default_discretisation
-from mirror_avatar.learning.training import QLearner, score_imitation
+from mirror_avatar.learning.training import QLearner
 from mirror_avatar.players import Observation, Player, check_player
 from mirror_avatar.testing import make_follower_sessions
+from mirror_avatar.training.imitation import score_avatar
 
 
 @pytest.fixture(scope="module")
@@ -132,7 +133,7 @@ def test_save_load_round_trip(saved, slow_sessions):
         np.testing.assert_array_equal(a, b)
     assert loaded.training_ == player.training_
     np.testing.assert_array_equal(
-        score_imitation(loaded, slow_sessions[1])[1], score_imitation(player, slow_sessions[1])[1]
+        score_avatar(loaded, slow_sessions[1])[1], score_avatar(player, slow_sessions[1])[1]
     )
     with np.load(path, allow_pickle=False) as archive:
         metadata = json.loads(str(archive["metadata"]))

@@ -18,7 +18,6 @@ from mirror_avatar.learning.training import (
     ImitationTask,
     play_task,
     policy_arguments,
-    score_imitation,
 )
 from mirror_avatar.model_files import read_archive, save_model
 from mirror_avatar.players import check_player
@@ -33,6 +32,7 @@ from mirror_avatar.training.imitation import (
     make_pairs,
     make_role_discretisation,
     make_virtual_trainers,
+    score_avatar,
     train_cyber_player,
 )
 from mirror_avatar.trials import Trial
@@ -206,9 +206,9 @@ def test_reference_features_need_reference_velocities(trainers: list[VirtualTrai
     (session,) = next(run_sessions(pairs, 1, duration=2.0, n_jobs=1))
     session.references[:] = np.nan
     with pytest.raises(InputError, match="reference velocities"):
-        score_imitation(leader, [session])
+        score_avatar(leader, [session])
     (session,) = next(run_sessions(pairs, 1, duration=2.0, n_jobs=1))
-    assert score_imitation(leader, [session])[1].shape == (1,)
+    assert score_avatar(leader, [session])[1].shape == (1,)
 
 
 def test_checkpoint_and_learning_curve_files(
@@ -243,9 +243,9 @@ def test_learning_happens_and_beats_the_baselines(trainers: list[VirtualTrainerS
     sessions = [s for chunk in run_sessions(pairs, 30, seed=99, n_jobs=2) for s in chunk]
     untrained = make_cyber_player("follower")
     untrained.initialise_q(0, 1e-3)
-    trained_rms = score_imitation(player, sessions)[1].mean()
+    trained_rms = score_avatar(player, sessions)[1].mean()
     positions = np.stack([s.positions for s in sessions])
     copy_rms = np.sqrt(((positions[:, 0, 1:] - positions[:, 1, 1:]) ** 2).mean(axis=1)).mean()
-    assert trained_rms < 0.5 * score_imitation(untrained, sessions)[1].mean()
+    assert trained_rms < 0.5 * score_avatar(untrained, sessions)[1].mean()
     assert trained_rms < copy_rms
     assert math.isfinite(trained_rms)

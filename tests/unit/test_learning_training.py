@@ -17,13 +17,13 @@ from mirror_avatar.learning.training import (
     ExponentialEpsilon,
     ImitationTask,
     QLearner,
-    score_imitation,
 )
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.session import Session
 from mirror_avatar.signature import compute_emd, compute_ims
 from mirror_avatar.testing import make_follower_sessions
+from mirror_avatar.training.imitation import score_avatar
 from mirror_avatar.trials import make_trial
 
 
@@ -71,7 +71,7 @@ def test_learning_beats_random_and_copy_baselines_on_a_real_follower_task(slow_s
     relative = trained_player(train, "relative")
     absolute = trained_player(train, "absolute")
     rms = {
-        name: score_imitation(p, test)[1].mean()
+        name: score_avatar(p, test)[1].mean()
         for name, p in [("untrained", untrained), ("relative", relative), ("absolute", absolute)]
     }
     assert rms["relative"] < 0.7 * copy_rms
@@ -83,7 +83,7 @@ def test_greedy_scoring_leaves_q_unchanged(slow_sessions):
     player = CyberPlayer()
     player.initialise_q(0, 1e-3)
     before = player.q_table_.copy()
-    rewards, rms = score_imitation(player, slow_sessions[1])
+    rewards, rms = score_avatar(player, slow_sessions[1])
     assert np.array_equal(before, player.q_table_)
     assert rewards.shape == rms.shape == (2,) and np.all(rewards < 0) and np.all(rms > 0)
 
@@ -181,7 +181,7 @@ def test_bad_hyper_parameters_and_sessions_are_input_errors(slow_sessions):
     leader = CyberPlayer(make_default_discretisation("reference"))
     leader.initialise_q(0, 1.0)
     with pytest.raises(InputError, match="reference velocities"):
-        score_imitation(leader, [session])
+        score_avatar(leader, [session])
 
 
 def test_epsilon_must_not_increase(slow_sessions):

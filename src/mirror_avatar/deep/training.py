@@ -35,7 +35,7 @@ from mirror_avatar.deep.player import DeepCyberPlayer
 from mirror_avatar.dynamics import Record, advance_hkb
 from mirror_avatar.errors import InputError
 from mirror_avatar.learning.kernels import compute_reward
-from mirror_avatar.learning.training import ImitationTask, SessionLearner, score_tasks
+from mirror_avatar.learning.training import ImitationTask, SessionLearner
 from mirror_avatar.session import Session
 
 Array = NDArray[np.float64]
@@ -367,28 +367,6 @@ class DQNLearner(SessionLearner):
     def _play(self, task: ImitationTask, epsilon: float) -> tuple[float, float]:
         return play_deep_task(self, task, epsilon, True, self.rng_)
 
-    def score(self, sessions: Iterable[Session]) -> tuple[Array, Array]:
-        """Play each session greedily in the target's place with the player's network.
-
-        Learns nothing: the replay buffer and the networks are left as they are (a learner
-        that has not trained yet makes them, keeping the player's network).
-
-        Returns
-        -------
-        mean_reward, rms : ndarray, shape (n_sessions,)
-            Mean reward per step and RMS position error to the target (units) per session.
-        """
-        if not hasattr(self, "replay_"):
-            self._initialise(np.random.SeedSequence(self.random_state))
-        self._begin()
-        rng = np.random.default_rng(0)
-        return score_tasks(
-            lambda task: play_deep_task(self, task, 0.0, False, rng),
-            sessions,
-            self.target,
-            self.player.period,
-        )
-
     def _hyperparameters(self) -> dict[str, Any]:
         return {
             "agent": "dqn",
@@ -447,16 +425,16 @@ def play_deep_task(
     return total / max(task.target_x.size - 1, 1), rms
 
 
-def score_deep_imitation(
-    player: DeepCyberPlayer, sessions: Iterable[Session], target: int = 1
-) -> tuple[Array, Array]:
-    """Play each session greedily in the target's place (no learning, open loop).
+def greedy_deep(player: DeepCyberPlayer) -> Callable[[ImitationTask], tuple[float, float]]:
+    """Return how a deep player plays a task greedily with its network: no learning.
 
-    Returns
-    -------
-    mean_reward, rms : ndarray, shape (n_sessions,)
-        Mean reward per step and RMS position error to the target (units) per session.
+    The function returned plays one task in the target's place and returns its mean reward per
+    step and RMS position error to the target (units), as
+    `mirror_avatar.learning.training.score_tasks` wants. It plays through a learner of one
+    transition's buffer that never learns, so the player's network is left as it is.
     """
-    return DQNLearner(player, target, batch_size=1, buffer_size=1, learning_starts=1).score(
-        sessions
-    )
+    learner = DQNLearner(player, batch_size=1, buffer_size=1, learning_starts=1)
+    learner._initialise(np.random.SeedSequence(learner.random_state))
+    learner._begin()
+    rng = np.random.default_rng(0)
+    return lambda task: play_deep_task(learner, task, 0.0, False, rng)

@@ -4,7 +4,7 @@ A protocol with ``blind = "double"`` hides from the researcher's console and its
 run is exported, whether a person or the avatar fills each ``person-or-avatar`` slot. Such a
 label (`hidden_labels`) is hidden everywhere in the run, also in conditions where the same label
 is a plain person, since the difference would tell. `blind_status` rewrites a run's status
-(`mirror_avatar.lab.study.StudySession.status`): what only a person's slot has (its connection,
+(`mirror_avatar.lab.study.ParticipantRun.status`): what only a person's slot has (its connection,
 round trips, inputs held and lost, answers, a drop) or only an avatar's (its spec, the policy it
 plays, a perturbation) is left out for those labels, their kind reads ``"hidden"``, and events
 naming them are left out; which pages are connected is said for every person of the protocol,
@@ -19,7 +19,7 @@ from typing import Any
 
 from mirror_avatar.lab.protocol import Protocol
 from mirror_avatar.lab.runner import LabSession
-from mirror_avatar.lab.study import StudySession
+from mirror_avatar.lab.study import ParticipantRun
 
 HIDDEN = "hidden"
 """The kind the console is told of a hidden slot."""
@@ -49,7 +49,8 @@ def hidden_labels(protocol: Protocol) -> frozenset[str]:
 
 def hidden_of(session: LabSession) -> frozenset[str]:
     """Return the labels whose kind the console must not see in a session (`hidden_labels`)."""
-    return hidden_labels(session.protocol) if isinstance(session, StudySession) else frozenset()
+    schedule = session.schedule
+    return hidden_labels(schedule.protocol) if isinstance(schedule, ParticipantRun) else frozenset()
 
 
 def unjoined(session: LabSession) -> str | None:

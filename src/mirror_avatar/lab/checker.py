@@ -102,8 +102,3 @@ class Checker:
                     where, f"no question {q!r}", f"declare [questions.{q}]; known: {known}"
                 )
         return tuple(value)
-
-
-def is_int(value: object) -> bool:
-    """Whether ``value`` is an integer (a bool is not)."""
-    return isinstance(value, int) and not isinstance(value, bool)

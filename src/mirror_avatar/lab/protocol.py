@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.checker import Checker, is_int
+from mirror_avatar.lab.checker import Checker
 from mirror_avatar.lab.order import (
     block_order,
     condition_order,
@@ -62,7 +62,7 @@ from mirror_avatar.lab.protocol_keys import (
     STUDY_SETTINGS,
     keys_of,
 )
-from mirror_avatar.user_files import read_text
+from mirror_avatar.user_files import is_int, read_text
 
 MAX_PROTOCOL_BYTES = 256 * 1024
 """Largest protocol file read (bytes)."""
@@ -106,7 +106,7 @@ class Question:
         """
         if self.kind == "choice" and value not in self.options:
             return f"{self.id}: choose one of the options"
-        if self.kind == "likert" and not (is_int(value) and 1 <= value <= self.points):  # type: ignore[operator]
+        if self.kind == "likert" and not (is_int(value) and 1 <= value <= self.points):
             return f"{self.id}: choose a point from 1 to {self.points}"
         if self.kind == "text" and not (isinstance(value, str) and len(value) <= self.max_chars):
             return f"{self.id}: write at most {self.max_chars} characters"

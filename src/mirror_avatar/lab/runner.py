@@ -1,7 +1,10 @@
 """A lab session on the server: its participants' connections, its trials, one clock for all.
 
-A `LabSession` runs the trials of a `mirror_avatar.lab.plan.SessionPlan` one after another
-(countdown, trial, end screen, pause) when the researcher starts it. Its clock ticks every
+A `LabSession` runs the trials of its schedule (`mirror_avatar.lab.schedule.Schedule`: one
+`mirror_avatar.lab.plan.SessionPlan`, or a participant's run of a study protocol) one after
+another (countdown, trial, end screen, what follows the trial, pause) when the researcher
+starts it; the schedule says which plan plays each trial, who plays it, what the pages see and
+what each trial's record holds. Its clock ticks every
 control period T on absolute deadlines: each tick advances the `mirror_avatar.lab.trial.
 LabTrial` (`mirror_avatar.realtime.clock.run_on_clock`) from the positions last received, then
 sends every connected participant a frame with the players it sees. Frames go through each
@@ -26,25 +29,19 @@ import asyncio
 import collections
 import contextlib
 import logging
-import secrets
-import time
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Protocol
 
-import numpy as np
-
-from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.files import PLAN_FILE
-from mirror_avatar.lab.perturbation import Perturbation
+from mirror_avatar.lab.participant import COLOURS, Participant
 from mirror_avatar.lab.plan import SessionPlan
+from mirror_avatar.lab.schedule import Schedule
 from mirror_avatar.lab.trial import LabTrial, build_avatars
 from mirror_avatar.players.base import Player, PlayerDiverged
 from mirror_avatar.realtime.clock import MAX_STEP, ClockLimits, run_on_clock
 from mirror_avatar.realtime.inputs import BrowserInput, InputSource
-from mirror_avatar.realtime.latency import Pings
 from mirror_avatar.realtime.outbox import Outbox
 from mirror_avatar.realtime.trial import DISK_FULL, Array, Clock
 
@@ -56,11 +53,6 @@ pausing between trials, all trials done, aborted."""
 
 ENDED = ("finished", "aborted")
 """States in which the session's links have expired."""
-
-COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b",
-           "#e377c2", "#7f7f7f", "#bcbd22", "#393b79", "#637939", "#8c6d31", "#843c39",
-           "#7b4173", "#3182bd")  # fmt: skip
-"""Player k's colour on every page (the console's plots included)."""
 
 
 class Outlet(Protocol):
@@ -83,83 +75,18 @@ CLOSE_ENDED = 4001
 """WebSocket close code telling a page its session has ended (its link has expired)."""
 
 
-class Participant:
-    """A person's slot: its link key, its input device and its page's connection, if any.
-
-    Attributes
-    ----------
-    index, label, key
-        Player index, label and the secret of the slot's join link.
-    visible
-        The players its page shows: itself, then those it observes (the graph), by index.
-    source
-        The input device (`BrowserInput` for the pointer; an LSL input once opened).
-    outbox
-        The connected page's `Outbox`, or None when no page is connected.
-    connection
-        The connected page's transport (the server's WebSocket), which a page opening the same
-        link replaces; the runner only holds it.
-    joined
-        Whether a page (or the LSL device) has ever joined.
-    pings
-        The current page's pings and their round trips
-        (`mirror_avatar.realtime.latency.Pings`), or None before a page joined.
-    late_frames, frames_dropped
-        Animation frames the page drew late (its own count) and frames superseded before they
-        could be sent, over the page's earlier connections.
-    last_heard
-        When the page last sent a message (`time.monotonic`, s), or None.
-    """
-
-    def __init__(self, index: int, label: str, device: str, visible: list[int]) -> None:
-        self.index = index
-        self.label = label
-        self.device = device
-        self.visible = visible
-        self.key = secrets.token_urlsafe(16)
-        self.source: InputSource | None = BrowserInput() if device == "pointer" else None
-        self.outbox: Outbox | None = None
-        self.connection: object | None = None
-        self.joined = False
-        self.pings: Pings | None = None
-        self.late_frames = 0
-        self.frames_dropped = 0
-        self.last_heard: float | None = None
-
-    @property
-    def connected(self) -> bool:
-        """Whether a page is connected (an LSL device counts once its stream is open)."""
-        return self.outbox is not None or (self.device == "lsl" and self.source is not None)
-
-    def quality(self) -> dict[str, Any]:
-        """Return the page's round trips, frames dropped and late, and when it was last heard.
-
-        Round trips in ms: median, 95th percentile and the oldest unanswered ping's age.
-        """
-        pings = self.pings
-        values = np.asarray([] if pings is None else pings.recent)
-        dropped = self.frames_dropped + (0 if self.outbox is None else self.outbox.superseded)
-        return {
-            "rtt_median_ms": float(np.median(values)) if values.size else None,
-            "rtt_p95_ms": float(np.percentile(values, 95)) if values.size else None,
-            "rtt_waiting_ms": None if pings is None else pings.waiting(),
-            "frames_dropped": dropped,
-            "late_frames": self.late_frames,
-            "last_heard_s": None if self.last_heard is None else time.monotonic() - self.last_heard,
-        }
-
-
 class LabSession:
-    """One lab session: its plan, folder, participants, trials and clock.
+    """One lab session: its schedule, folder, participants, trials and clock.
 
     Parameters
     ----------
     session_id
         The session's name (its folder under the output folder).
-    plan
-        What it plays.
+    schedule
+        What it plays (`mirror_avatar.lab.schedule.OnePlan`, or a participant's run of a
+        protocol: `mirror_avatar.lab.study.ParticipantRun`).
     directory
-        Its folder (created).
+        Its folder (created, or resumed when the schedule finds its earlier run there).
     clock
         Stamps each sample (the LSL clock when pylsl is installed).
     countdown
@@ -175,7 +102,7 @@ class LabSession:
     def __init__(
         self,
         session_id: str,
-        plan: SessionPlan,
+        schedule: Schedule,
         directory: Path,
         clock: Clock,
         countdown: int = 3,
@@ -184,22 +111,15 @@ class LabSession:
         open_device: Callable[[Any], InputSource] | None = None,
     ) -> None:
         self.id = session_id
-        self.plan = plan
+        self.schedule = schedule
         self.directory = directory
         self.clock = clock
         self.countdown = countdown
-        self.limits = ClockLimits(max_step, plan.max_lateness)
+        self.limits = ClockLimits(max_step, schedule.plan.max_lateness)
         self.outlet = outlet
         self.open_device = open_device
-        self.created_utc = datetime.now(UTC).isoformat()
-        self.participants = {
-            k: Participant(k, plan.slots[k].label, plan.slots[k].device or "pointer",
-                           [k, *plan.neighbours(k)])
-            for k in plan.humans
-        }  # fmt: skip
         self.state = "waiting"
         self.trial: LabTrial | None = None
-        self.next_trial = 1
         self.results: list[dict[str, Any]] = []
         self.events: collections.deque[str] = collections.deque(maxlen=50)
         self.error: str | None = None
@@ -207,21 +127,25 @@ class LabSession:
         self.runner: asyncio.Task[None] | None = None
         self._stop_reason: str | None = None
         self._events_seen = self._perturbations_seen = 0
-        self._create_files()
+        opening = schedule.open(session_id, directory, datetime.now(UTC).isoformat())
+        self.created_utc, self.next_trial = opening.created_utc, opening.next_trial
+        if opening.event is not None:
+            self.log(opening.event)
 
-    def _create_files(self) -> None:
-        """Create the session's folder and its ``plan.json``."""
-        self.directory.mkdir(parents=True, exist_ok=False)
-        write_atomic_json(self.directory / PLAN_FILE, self.describe())
+    @property
+    def plan(self) -> SessionPlan:
+        """The plan of the current trial (the schedule's)."""
+        return self.schedule.plan
+
+    @property
+    def participants(self) -> dict[int, Participant]:
+        """The people playing the current plan, by player index (the schedule's)."""
+        return self.schedule.playing
 
     @property
     def total_trials(self) -> int:
         """Number of trials the session plays."""
-        return self.plan.trials
-
-    def describe(self) -> dict[str, Any]:
-        """Return the session's id, creation time and plan (as ``plan.json`` records them)."""
-        return {"id": self.id, "created_utc": self.created_utc, "plan": self.plan.to_json()}
+        return self.schedule.total_trials
 
     @property
     def ended(self) -> bool:
@@ -234,34 +158,20 @@ class LabSession:
         self.events.append(f"{stamp} {event}")
         logger.info("session %s: %s", self.id, event)
 
-    def welcome(self, participant: Participant) -> dict[str, Any]:
-        """Return what a participant's page is told on joining: its slot and the players it sees."""
-        k = participant.index
-        return {
-            "type": "welcome",
-            "label": participant.label,
-            "index": k,
-            "role": self.plan.roles[k],
-            "condition": self.plan.condition,
-            "device": participant.device,
-            "visible": [
-                {"index": j, "label": self.plan.slots[j].label, "colour": COLOURS[j]}
-                for j in participant.visible
-            ],
-            "trials": self.plan.trials,
-            "duration": self.plan.duration,
-            "state": self.state,
-        }
-
     def attach(self, participant: Participant, outbox: Outbox, connection: object) -> None:
-        """Register a participant's page (a previous page of the same slot was closed)."""
+        """Register a participant's page (a previous page of the same slot was closed).
+
+        The page is welcomed, then sent what it is owed (the questions still open to it).
+        """
         participant.outbox = outbox
         participant.connection = connection
         participant.joined = True
         if isinstance(participant.source, BrowserInput):
             participant.source.reconnected()
-        outbox.put(self.welcome(participant))
+        outbox.put(self.schedule.welcome(participant, self.state))
         self.log(f"{participant.label} joined")
+        for message in self.schedule.owed(participant):
+            outbox.put(message)
 
     def detach(self, participant: Participant, outbox: Outbox) -> None:
         """Forget a participant's page; a running trial marks them dropped."""
@@ -339,8 +249,8 @@ class LabSession:
             self.outlet.close()
 
     def everyone(self) -> list[Participant]:
-        """Every person's slot of the session (those of the current plan)."""
-        return list(self.participants.values())
+        """Every person's slot of the session (the schedule's people)."""
+        return self.schedule.people
 
     def broadcast(self, message: dict[str, Any]) -> None:
         """Queue a control message to every connected page."""
@@ -357,7 +267,8 @@ class LabSession:
                 if reason == DISK_FULL:
                     self._wait(f"{DISK_FULL}: free some space, then start the next trial")
                     return
-                await self._after_trial(self.next_trial - 1)
+                self.state = "pause"
+                await self.schedule.after_trial(self.next_trial - 1, self.log)
                 if self.next_trial <= self.total_trials:
                     self.state = "pause"
                     await asyncio.sleep(self.plan.pause)
@@ -368,17 +279,25 @@ class LabSession:
             self._wait(f"cannot run: {error}")
 
     async def _prepare(self, n: int) -> None:
-        """Get trial n's players ready: the avatars built, the LSL devices open."""
+        """Get trial n's players ready: its plan entered, the avatars built, the LSL devices open.
+
+        A new plan is announced (console, LSL marker) and every connected page welcomed again.
+        """
+        entered = self.schedule.enter(n, again=self.avatars is None)
+        if entered is not None:
+            self.avatars = None
+            for person in self.everyone():
+                if person.outbox is not None:
+                    person.outbox.put(self.schedule.welcome(person, self.state))
+            self.log(entered.event)
+            self._mark(entered.marker)
         if self.avatars is None:
             self.avatars = await asyncio.to_thread(build_avatars, self.plan)
         await asyncio.to_thread(self._open_devices)
 
-    async def _after_trial(self, n: int) -> None:
-        """Do what follows trial n before the pause (a study asks its questions)."""
-
     def answer(self, participant: Participant, answer: Any) -> str | None:
         """Take a participant's answer to a question; return why not, or None."""
-        return "no question was asked"
+        return self.schedule.answer(participant, answer)
 
     def _wait(self, problem: str) -> None:
         """Wait for the researcher, saying why."""
@@ -424,7 +343,7 @@ class LabSession:
 
     def _new_trial(self, n: int) -> LabTrial:
         inputs = {k: p.source for k, p in self.participants.items() if p.source is not None}
-        lab = self._trial_lab(n)
+        lab = self.schedule.record(self.id, n)
         assert self.avatars is not None
         return LabTrial(
             self.plan,
@@ -434,21 +353,9 @@ class LabSession:
             self.avatars,
             self.clock,
             lab,
-            self._publisher(),
-            self._perturbations(),
+            self.schedule.publisher(self.outlet),
+            self.schedule.perturbations(),
         )
-
-    def _publisher(self) -> Callable[[Array, float], None] | None:
-        """Return what receives each sample's positions and clock time (the outlet), or None."""
-        return None if self.outlet is None else self.outlet.push_positions
-
-    def _perturbations(self) -> list[tuple[int, Perturbation]]:
-        """Return the changes of avatars in the next trial, with their player indices."""
-        return []
-
-    def _trial_lab(self, n: int) -> dict[str, Any]:
-        """Return what trial n's sidecar records of the session (``metadata["lab"]``)."""
-        return {"session_id": self.id, "condition": self.plan.condition}
 
     def _after_tick(self, trial: LabTrial) -> None:
         if trial.k == 1:
@@ -467,22 +374,7 @@ class LabSession:
             now = change["sample"] == trial.k - 1
             self._mark(f"perturbation {what}", trial.tick_log.last_stamp if now else None)
         self._perturbations_seen = len(trial.perturbations)
-        self._send_frames(trial)
-
-    def _send_frames(self, trial: LabTrial) -> None:
-        positions = trial.positions()
-        progress = trial.progress
-        for participant in self.participants.values():
-            if participant.outbox is None:
-                continue
-            participant.outbox.put_frame(
-                {
-                    "type": "frame",
-                    "k": trial.k - 1,
-                    "x": [positions[j] for j in participant.visible],
-                    "progress": progress,
-                }
-            )
+        self.schedule.send_frames(trial)
 
     def _mark(self, event: str, timestamp: float | None = None) -> None:
         if self.outlet is not None:
@@ -510,15 +402,14 @@ class LabSession:
             if self.plan.show_metrics:
                 message["metrics"] = participant_metrics(summary.get("metrics", {}), k)
                 message["metrics"] |= participant_measures(summary.get("measures", {}), k)
-            message["next_in"] = self.next_in(trial.n, complete)
+            message["next_in"] = self.schedule.next_in(trial.n, complete)
             participant.outbox.put(message)
 
-    def next_in(self, n: int, complete: bool) -> float | None:
-        """Return the pause (s) before the trial after trial n, or None if none follows it."""
-        return self.plan.pause if complete and n < self.total_trials else None
-
     def status(self) -> dict[str, Any]:
-        """Return what the console shows: state, slots with their connection quality, trials."""
+        """Return what the console shows: state, slots with their connection quality, trials.
+
+        The schedule adds what it knows (a study: where the participant is in the protocol).
+        """
         trial = self.trial
         slots = []
         held = {} if trial is None else trial.held()
@@ -546,7 +437,7 @@ class LabSession:
                     row["input_live"] = alive.get(slot.label)
                     row["dropped_at"] = trial.dropped.get(slot.label)
             slots.append(row)
-        return {
+        status = {
             "id": self.id,
             "state": self.state,
             "error": self.error,
@@ -557,6 +448,8 @@ class LabSession:
             "trials": [trial_row(summary) for summary in self.results],
             "events": list(self.events),
         }
+        at = min(self.next_trial if trial is None else trial.n, self.total_trials)
+        return self.schedule.status(status, at, self.ended)
 
 
 def trial_clock(trial: LabTrial) -> dict[str, Any]:

@@ -1,12 +1,13 @@
 """A participant's run of a study protocol: its conditions in their order, resumable from disk.
 
-A `StudySession` is a `mirror_avatar.lab.runner.LabSession` whose plan changes from one
-condition to the next of a participant's schedule (`mirror_avatar.lab.protocol.Protocol.
-schedule`). Its trials are numbered across the whole protocol (``trial-01`` to ``trial-NN`` in
-one folder), each sidecar naming its block, condition, trial within the condition and the true
-kind of every player. Each person keeps one join link for the whole protocol; a person who
-does not play a condition waits. Pages are blinded: the players they see are "your partner"
-(or "partner 1", "partner 2", ...), never a label or a kind.
+A `ParticipantRun` is the schedule (`mirror_avatar.lab.schedule.Schedule`) of a
+`mirror_avatar.lab.runner.LabSession` whose plan changes from one condition to the next of a
+participant's order (`mirror_avatar.lab.protocol.Protocol.schedule`). Its trials are numbered
+across the whole protocol (``trial-01`` to ``trial-NN`` in one folder), each sidecar naming its
+block, condition, trial within the condition and the true kind of every player. Each person
+keeps one join link for the whole protocol; a person who does not play a condition waits. Pages
+are blinded: the players they see are "your partner" (or "partner 1", "partner 2", ...), never a
+label or a kind.
 
 The folder is named after the protocol and the participant (``<protocol>-p003``) and holds
 ``study.json``: the protocol's seed and source, the participant's number and the order of the
@@ -34,13 +35,13 @@ from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.files import ANSWERS_SUFFIX, STUDY_FILE, trial_stem
 from mirror_avatar.lab.messages import Answer
+from mirror_avatar.lab.participant import COLOURS, Participant
 from mirror_avatar.lab.perturbation import Perturbation
+from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.lab.protocol import Condition, Protocol, Question
-from mirror_avatar.lab.runner import COLOURS, LabSession, Participant
+from mirror_avatar.lab.schedule import Entered, Opening, Publisher, next_in, send_frames, welcome
 from mirror_avatar.lab.trial import LabTrial
-from mirror_avatar.realtime.clock import MAX_STEP
-from mirror_avatar.realtime.outbox import Outbox
-from mirror_avatar.realtime.trial import Array, Clock
+from mirror_avatar.realtime.trial import Array
 from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.trial_io import read_sidecar_text
 from mirror_avatar.trial_record import StudyRecord
@@ -64,8 +65,8 @@ def study_folder(protocol: Protocol, participant: int) -> str:
     return f"{Path(protocol.source).stem}-p{participant:03d}"
 
 
-class StudySession(LabSession):
-    """A participant's run of a protocol (see the module docstring).
+class ParticipantRun:
+    """A participant's run of a protocol: the schedule of their lab session (module docstring).
 
     Parameters
     ----------
@@ -73,21 +74,9 @@ class StudySession(LabSession):
         The protocol.
     participant
         The participant's number (0-based; their row of the counterbalancing).
-    directory
-        The session's folder (created, or resumed when it holds this participant's run).
-    clock, countdown, max_step
-        As for `mirror_avatar.lab.runner.LabSession`.
     """
 
-    def __init__(
-        self,
-        protocol: Protocol,
-        participant: int,
-        directory: Path,
-        clock: Clock,
-        countdown: int = 3,
-        max_step: float = MAX_STEP,
-    ) -> None:
+    def __init__(self, protocol: Protocol, participant: int) -> None:
         self.protocol = protocol
         self.number = participant
         self.steps = protocol.schedule(participant)
@@ -100,26 +89,29 @@ class StudySession(LabSession):
         self.first_trials = [1]
         for plan in self.plans:
             self.first_trials.append(self.first_trials[-1] + plan.trials)
-        self.people = {
+        self.by_label = {
             label: Participant(k, label, "pointer", [k]) for k, label in enumerate(protocol.people)
         }
-        self.step = 0
+        self.directory = Path()  # the session's folder, once opened
         self.asking: Asking | None = None
         self.answered: dict[int, dict[str, dict[str, object]]] = {}
         self._shown: collections.deque[list[float]] = collections.deque(maxlen=1)
-        super().__init__(directory.name, self.plans[0], directory, clock, countdown, max_step)
-        self._enter(self._step_of(self.next_trial) if self.next_trial <= self.total_trials else 0)
+        self.step = 0
+        self.plan: SessionPlan = self.plans[0]
+        self.playing: dict[int, Participant] = {}
+        self._enter(0)
+
+    @property
+    def people(self) -> list[Participant]:
+        """Every person of the protocol."""
+        return list(self.by_label.values())
 
     @property
     def total_trials(self) -> int:
         """Number of trials of the whole protocol for this participant."""
         return self.first_trials[-1] - 1
 
-    def everyone(self) -> list[Participant]:
-        """Every person of the protocol."""
-        return list(self.people.values())
-
-    def describe(self) -> dict[str, Any]:
+    def describe(self, session_id: str, created_utc: str) -> dict[str, Any]:
         """Return the participant's schedule as ``study.json`` records it."""
         order = []
         for i, (step, plan) in enumerate(zip(self.steps, self.plans, strict=True)):
@@ -135,23 +127,33 @@ class StudySession(LabSession):
                 }
             )
         return {
-            "id": self.id,
-            "created_utc": self.created_utc,
+            "id": session_id,
+            "created_utc": created_utc,
             "protocol": {"source": self.protocol.source, "title": self.protocol.title},
             "seed": self.protocol.seed,
             "participant": self.number,
             "order": order,
         }
 
-    def _create_files(self) -> None:
-        """Create the folder and ``study.json``, or resume the run recorded there."""
+    def open(self, session_id: str, directory: Path, created_utc: str) -> Opening:
+        """Create the folder and ``study.json``, or resume the run recorded there.
+
+        The step of the trial played next becomes the current one (entered at its trial).
+        """
+        self.directory = directory
+        opening = self._open(session_id, created_utc)
+        n = opening.next_trial
+        self._enter(self._step_of(n) if n <= self.total_trials else 0)
+        return opening
+
+    def _open(self, session_id: str, created_utc: str) -> Opening:
         path = self.directory / STUDY_FILE
         if not self.directory.exists():
             self.directory.mkdir(parents=True)
-            write_atomic_json(path, self.describe())
-            return
+            write_atomic_json(path, self.describe(session_id, created_utc))
+            return Opening(created_utc, 1)
         recorded = read_schedule(path)
-        expected = self.describe()
+        expected = self.describe(session_id, created_utc)
         for key in ("seed", "participant"):
             if recorded.get(key) != expected[key]:
                 raise InputError(path, f"recorded with another {key} (use another --out folder)")
@@ -163,35 +165,34 @@ class StudySession(LabSession):
         if names != [(c["condition"], c["players"]) for c in expected["order"]]:
             raise InputError(path, "recorded with another order (use another --out folder)")
         created = recorded.get("created_utc")
-        self.created_utc = created if isinstance(created, str) else self.created_utc
-        self.next_trial = first_unrecorded(self.directory, self.total_trials)
-        self.log(f"resumed at trial {self.next_trial} of {self.total_trials}")
+        next_trial = first_unrecorded(self.directory, self.total_trials)
+        resumed = f"resumed at trial {next_trial} of {self.total_trials}"
+        return Opening(created if isinstance(created, str) else created_utc, next_trial, resumed)
 
     def _step_of(self, n: int) -> int:
         """Return the index of the step trial n belongs to."""
         return max(i for i, first in enumerate(self.first_trials[:-1]) if first <= n)
 
     def _enter(self, step: int) -> None:
-        """Make step ``step``'s plan the current one: its people's slots, their pages told."""
+        """Make step ``step``'s plan the current one, with its people's slots."""
         self.step = step
         self.plan = self.plans[step]
-        self.avatars = None
-        self.participants = {}
+        self.playing = {}
         for k in self.plan.humans:
-            person = self.people[self.plan.slots[k].label]
+            person = self.by_label[self.plan.slots[k].label]
             person.index, person.visible = k, [k, *self.plan.neighbours(k)]
-            self.participants[k] = person
-        for person in self.people.values():
-            if person.outbox is not None:
-                person.outbox.put(self.welcome(person))
+            self.playing[k] = person
 
-    async def _prepare(self, n: int) -> None:
+    def enter(self, n: int, again: bool) -> Entered | None:
+        """Make trial n's condition current when it changes, or ``again`` (no avatars built yet).
+
+        Says where the trial is in the protocol and the condition's marker.
+        """
         step = self._step_of(n)
-        if step != self.step or self.avatars is None:
-            self._enter(step)
-            self.log(f"now {self.where(n)}")
-            self._mark(self.condition_marker())
-        await super()._prepare(n)
+        if step == self.step and not again:
+            return None
+        self._enter(step)
+        return Entered(f"now {self.where(n)}", self.condition_marker())
 
     def condition_marker(self) -> str:
         """Return the marker of the condition entered: its name, block and line-up.
@@ -225,9 +226,8 @@ class StudySession(LabSession):
         labels = list(roles)
         return labels, ["/".join(roles[x]) for x in labels], ["/".join(kinds[x]) for x in labels]
 
-    def _publisher(self) -> Callable[[Array, float], None] | None:
+    def publisher(self, outlet: Publisher | None) -> Callable[[Array, float], None] | None:
         """Publish each sample on the run's channels, NaN for the players not in the condition."""
-        outlet = self.outlet
         if outlet is None:
             return None
         labels = self.channels()[0]
@@ -251,9 +251,9 @@ class StudySession(LabSession):
             f"'{self.steps[step].name}', trial {within} of {self.plans[step].trials}"
         )
 
-    def welcome(self, participant: Participant) -> dict[str, Any]:
+    def welcome(self, participant: Participant, state: str) -> dict[str, Any]:
         """Return the blinded welcome: partners are "your partner", never a label or a kind."""
-        playing = participant in self.participants.values()
+        playing = participant in self.playing.values()
         if not playing:
             me = {"index": participant.index, "label": participant.label, "colour": COLOURS[0]}
             return {
@@ -268,7 +268,7 @@ class StudySession(LabSession):
                 "duration": self.plan.duration,
                 "state": "waiting",
             }
-        message = super().welcome(participant)
+        message = welcome(self.plan, participant, state)
         others = message["visible"][1:]
         for i, player in enumerate(others):
             player["label"] = "your partner" if len(others) == 1 else f"partner {i + 1}"
@@ -284,7 +284,7 @@ class StudySession(LabSession):
         """Return the partners' visual delay of the current condition (samples of T)."""
         return round(self.condition().delay / CONTROL_PERIOD)
 
-    def _send_frames(self, trial: LabTrial) -> None:
+    def send_frames(self, trial: LabTrial) -> None:
         """Send each page its frame, the partners delayed and hidden as the condition says.
 
         A page's own position is the one just recorded; each partner's is the one recorded
@@ -293,7 +293,7 @@ class StudySession(LabSession):
         """
         condition = self.condition()
         if not condition.delay and not condition.occlude:
-            super()._send_frames(trial)
+            send_frames(trial, self.playing)
             return
         lag = self.delay_samples()
         if trial.k == 1 or self._shown.maxlen != lag + 1:
@@ -303,7 +303,7 @@ class StudySession(LabSession):
         k = trial.k - 1
         hidden = any(start <= k * CONTROL_PERIOD < end for start, end in condition.occlude)
         past = self._shown[0] if len(self._shown) > lag and not hidden else None
-        for participant in self.participants.values():
+        for participant in self.playing.values():
             if participant.outbox is None:
                 continue
             own, *others = participant.visible
@@ -311,12 +311,18 @@ class StudySession(LabSession):
             frame = {"type": "frame", "k": k, "x": shown, "progress": trial.progress}
             participant.outbox.put_frame(frame)
 
-    def _perturbations(self) -> list[tuple[int, Perturbation]]:
+    def perturbations(self) -> list[tuple[int, Perturbation]]:
         """Return the condition's changes of the avatars playing now (a person is not changed)."""
         index = {slot.label: k for k, slot in enumerate(self.plan.slots) if slot.kind == "avatar"}
         return [(index[p.player], p) for p in self.condition().perturb if p.player in index]
 
-    def _trial_lab(self, n: int) -> dict[str, Any]:
+    def record(self, session_id: str, n: int) -> dict[str, Any]:
+        """Return what trial n's sidecar records: the session, the condition, the study's part.
+
+        The study's part (`mirror_avatar.trial_record.StudyRecord`): protocol, participant,
+        block, condition, trial within it, the partners' delay and occlusion as played, and every
+        player's true kind.
+        """
         step = self._step_of(n)
         condition = self.protocol.blocks[self.steps[step].block].conditions[
             self.steps[step].condition
@@ -334,7 +340,8 @@ class StudySession(LabSession):
             occluded_s=occlude,
             partners={slot.label: slot.kind for slot in self.plan.slots},
         )
-        return super()._trial_lab(n) | study.to_json()
+        lab = {"session_id": session_id, "condition": self.plan.condition}
+        return lab | study.to_json()
 
     def questions_after(self, n: int) -> dict[str, list[str]]:
         """Return the ids of the questions asked after trial n: after the trial, after the block.
@@ -355,29 +362,30 @@ class StudySession(LabSession):
     def next_in(self, n: int, complete: bool) -> float | None:
         """Return None after a trial with questions: the next trial waits for the answers."""
         after = self.questions_after(n)
-        return None if after["trial"] or after["block"] else super().next_in(n, complete)
+        if after["trial"] or after["block"]:
+            return None
+        return next_in(self.plan, n, self.total_trials, complete)
 
-    async def _after_trial(self, n: int) -> None:
+    async def after_trial(self, n: int, log: Callable[[str], None]) -> None:
         """Ask the trial's (and the block's) questions and wait for every answer."""
         after = self.questions_after(n)
         ids = list(dict.fromkeys(after["trial"] + after["block"]))
-        people = [p.label for p in self.participants.values()]
+        people = [p.label for p in self.playing.values()]
         if not ids or not people:
             return
         questions = {qid: self.protocol.questions[qid] for qid in ids}
         pending = {label: set(ids) for label in people}
         self.asking = Asking(n, questions, after, pending, {label: {} for label in people})
-        self.state = "pause"
         self._write_answers(self.asking)
-        for participant in self.participants.values():
+        for participant in self.playing.values():
             if participant.outbox is not None:
                 participant.outbox.put(self._questions_message(participant.label))
-        self.log(f"trial {n}: asking {', '.join(ids)}")
+        log(f"trial {n}: asking {', '.join(ids)}")
         try:
             await self.asking.done.wait()
         finally:
             self.asking = None
-        self.log(f"trial {n}: every answer in")
+        log(f"trial {n}: every answer in")
 
     def _questions_message(self, label: str) -> dict[str, Any]:
         asking = self.asking
@@ -421,26 +429,24 @@ class StudySession(LabSession):
             },
         )
 
-    def attach(self, participant: Participant, outbox: Outbox, connection: object) -> None:
-        """Register a participant's page; a page that rejoins is asked its open questions."""
-        super().attach(participant, outbox, connection)
+    def owed(self, participant: Participant) -> list[dict[str, Any]]:
+        """Return the questions still open to a page that (re)joins."""
         if self.asking is not None and self.asking.pending.get(participant.label):
-            outbox.put(self._questions_message(participant.label))
+            return [self._questions_message(participant.label)]
+        return []
 
-    def status(self) -> dict[str, Any]:
+    def status(self, status: dict[str, Any], at: int, ended: bool) -> dict[str, Any]:
         """Return the session's status, with where the participant is in the protocol.
 
-        While questions are open, "where" is the trial they follow; nobody waits once the run
-        has ended. Each trial's row also names its block, condition, partners and answers
-        (`trial_study`).
+        ``at`` is the trial the session is at; while questions are open, "where" is the trial
+        they follow; nobody waits once the run has ended. Each trial's row also names its block,
+        condition, partners and answers (`trial_study`).
         """
-        n = min(self.next_trial if self.trial is None else self.trial.n, self.total_trials)
-        if self.asking is not None:
-            n = self.asking.n
+        n = at if self.asking is None else self.asking.n
         order = [step.name for step in self.steps]
-        playing = self.participants.values()
-        waiting = [] if self.ended else [p.label for p in self.people.values() if p not in playing]
-        status = super().status()
+        playing = self.playing.values()
+        waiting = [] if ended else [p.label for p in self.people if p not in playing]
+        status = dict(status)
         status["trials"] = [row | self.trial_study(row["n"]) for row in status["trials"]]
         return status | {
             "study": {

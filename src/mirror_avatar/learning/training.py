@@ -274,21 +274,15 @@ def play_task(
     return total / max(task.target_x.size - 1, 1), rms
 
 
-def score_imitation(
-    player: CyberPlayer, sessions: Iterable[Session], target: int = 1
-) -> tuple[Array, Array]:
-    """Play each session greedily in the target's place (no learning, open loop).
+def greedy_tabular(player: CyberPlayer) -> Callable[[ImitationTask], tuple[float, float]]:
+    """Return how a tabular player plays a task greedily: no learning, no exploration.
 
-    Returns
-    -------
-    mean_reward, rms : ndarray, shape (n_sessions,)
-        Mean reward per step and RMS position error to the target (units) per session.
+    The function returned plays one task in the target's place and returns its mean reward per
+    step and RMS position error to the target (units), as `score_tasks` wants.
     """
     rng = np.random.default_rng(0)
     policy = policy_arguments(player)
-    return score_tasks(
-        lambda task: play_task(policy, task, 0.0, 0.0, 0.0, rng), sessions, target, player.period
-    )
+    return lambda task: play_task(policy, task, 0.0, 0.0, 0.0, rng)
 
 
 def score_tasks(

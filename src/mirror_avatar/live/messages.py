@@ -29,11 +29,11 @@ from mirror_avatar.realtime.messages import (
     PARTICIPANT_PATTERN,
     PositionUpdate,
     ProtocolError,
-    is_int,
     number_field,
     parse_json_object,
     parse_position,
 )
+from mirror_avatar.user_files import is_int
 
 MODES = ("solo", "avatar_leads", "avatar_follows", "joint")
 """Trial modes: the person alone, the avatar leading, the avatar following, joint improvisation."""

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from mirror_avatar.trials import PLAYING_RANGE
+from mirror_avatar.user_files import is_int
 
 MAX_MESSAGE_BYTES = 512
 """Longest message accepted (bytes); a position update is about 60."""
@@ -64,7 +65,7 @@ def parse_json_object(text: str | bytes | None) -> dict[str, Any]:
 def parse_position(data: dict[str, Any]) -> PositionUpdate:
     """Validate a ``position`` message's fields (``seq``, ``x``, optional ``rtt``)."""
     seq = data.get("seq")
-    if not isinstance(seq, int) or isinstance(seq, bool) or seq < 0:
+    if not is_int(seq) or seq < 0:
         raise ProtocolError("position: 'seq' must be a non-negative integer")
     x = number_field(data, "x", "position")
     low, high = PLAYING_RANGE
@@ -76,11 +77,6 @@ def parse_position(data: dict[str, Any]) -> PositionUpdate:
         if not 0.0 <= rtt <= MAX_RTT_MS:
             raise ProtocolError(f"position: rtt = {rtt:g} ms is outside [0, {MAX_RTT_MS:g}]")
     return PositionUpdate(seq=seq, x=x, rtt_ms=rtt)
-
-
-def is_int(value: object) -> bool:
-    """Whether ``value`` is an integer (a JSON ``true`` is not)."""
-    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def number_field(data: dict[str, Any], key: str, kind: str) -> float:

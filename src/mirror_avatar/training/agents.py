@@ -12,14 +12,12 @@ entry in `AGENT_KINDS`.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from mirror_avatar.deep.player import DeepCyberPlayer, deep_player_from_arrays
-from mirror_avatar.deep.training import DQNLearner, score_deep_imitation
+from mirror_avatar.deep.training import DQNLearner, greedy_deep
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import excerpt
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer, Agent
@@ -27,11 +25,11 @@ from mirror_avatar.learning.agent import CyberPlayer, cyber_player_from_arrays
 from mirror_avatar.learning.discretisation import Discretisation
 from mirror_avatar.learning.training import (
     ExponentialEpsilon,
+    ImitationTask,
     QLearner,
     SessionLearner,
-    score_imitation,
+    greedy_tabular,
 )
-from mirror_avatar.session import Session
 
 EPSILON_HALF_LIVES = 8.0
 """Half-lives of a tabular player's exploration over a training run (**choice**): epsilon decays
@@ -58,9 +56,10 @@ class AgentKind:
     make_learner
         ``make_learner(player, n_sessions, **options)``: its learner for a run of
         ``n_sessions``; ``options`` are `SessionLearner`'s keyword arguments.
-    score
-        ``score(player, sessions, target)``: mean reward per step and RMS to the target (units)
-        per session, played greedily in player ``target``'s place.
+    greedy
+        ``greedy(player)``: how the player plays a task greedily, learning nothing: a function
+        of an `mirror_avatar.learning.training.ImitationTask` returning the mean reward per step
+        and the RMS to the target (units) (`mirror_avatar.training.imitation.score_avatar`).
     from_arrays
         ``from_arrays(arrays, metadata, path)``: the player rebuilt from its part of a file.
     """
@@ -70,7 +69,7 @@ class AgentKind:
     player_class: type[AccelerationPlayer]
     make_player: Callable[..., AccelerationPlayer]
     make_learner: Callable[..., SessionLearner]
-    score: Callable[[Any, Iterable[Session], int], tuple[np.ndarray, np.ndarray]]
+    greedy: Callable[[Any], Callable[[ImitationTask], tuple[float, float]]]
     from_arrays: Callable[[dict[str, Any], dict[str, Any], str | os.PathLike[str]], Any]
 
 
@@ -113,7 +112,7 @@ AGENT_KINDS: dict[Agent, AgentKind] = {
         CyberPlayer,
         _tabular_player,
         _q_learner,
-        score_imitation,
+        greedy_tabular,
         cyber_player_from_arrays,
     ),
     "dqn": AgentKind(
@@ -122,7 +121,7 @@ AGENT_KINDS: dict[Agent, AgentKind] = {
         DeepCyberPlayer,
         _deep_player,
         _dqn_learner,
-        score_deep_imitation,
+        greedy_deep,
         deep_player_from_arrays,
     ),
 }

@@ -49,7 +49,7 @@ from mirror_avatar.learning.discretisation import (
     make_default_discretisation,
     symmetric_edges,
 )
-from mirror_avatar.learning.training import LearningCurve, SessionLearner
+from mirror_avatar.learning.training import LearningCurve, SessionLearner, score_tasks
 from mirror_avatar.players.virtual_trainer import VirtualTrainer
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.session import Session
@@ -598,16 +598,17 @@ def score_avatar(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Play each session greedily in player ``target``'s place (open loop, no learning).
 
-    Each through its agent kind's scores (`mirror_avatar.training.agents.AgentKind.score`:
-    `mirror_avatar.learning.training.score_imitation` for tabular players,
-    `mirror_avatar.deep.training.score_deep_imitation` for deep ones).
+    Each task is played by the agent kind's greedy play (`mirror_avatar.training.agents.
+    AgentKind.greedy`: `mirror_avatar.learning.training.greedy_tabular` for tabular players,
+    `mirror_avatar.deep.training.greedy_deep` for deep ones), learning nothing.
 
     Returns
     -------
     mean_reward, rms : ndarray, shape (n_sessions,)
         Mean reward per step and RMS position error to the target (units) per session.
     """
-    return kind_of(player, "score").score(player, sessions, target)
+    greedy = kind_of(player, "score").greedy(player)
+    return score_tasks(greedy, sessions, target, player.period)
 
 
 def checkpoint_path(policy: str | os.PathLike[str]) -> Path:

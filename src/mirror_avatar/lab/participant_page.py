@@ -1,0 +1,106 @@
+"""A participant's page on the lab server: its WebSocket, positions and pongs in, frames out.
+
+A join link holds the secret key of one person's slot in one session; its page's WebSocket
+(`join_socket`) replaces an earlier page of the same link, and is closed when the key is not
+valid or its session has ended. Messages are those of `mirror_avatar.lab.messages`, rate
+limited per connection (`mirror_avatar.realtime.inbox.Inbox`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+
+from starlette.websockets import WebSocket, WebSocketDisconnect
+
+from mirror_avatar.lab.messages import Answer, Pong, parse_participant_message
+from mirror_avatar.lab.participant import Participant
+from mirror_avatar.lab.runner import LabSession
+from mirror_avatar.lab.sessions import Lab, LabSettings
+from mirror_avatar.realtime.inbox import Inbox
+from mirror_avatar.realtime.inputs import BrowserInput
+from mirror_avatar.realtime.latency import Pings
+from mirror_avatar.realtime.messages import PositionUpdate
+from mirror_avatar.realtime.outbox import Outbox, Peer
+
+CLOSE_POLICY, CLOSE_REPLACED, CLOSE_UNKNOWN = 1008, 4002, 4004
+"""WebSocket close codes: too many bad messages, the link opened on another page, no such link."""
+
+
+async def join_socket(lab: Lab, websocket: WebSocket) -> None:
+    """Serve a participant's page: its position in, the frames of the players it sees out."""
+    found = lab.find(websocket.path_params["key"])
+    if found is None:
+        await websocket.close(CLOSE_UNKNOWN, "this link is not valid or its session has ended")
+        return
+    session, participant = found
+    await websocket.accept()
+    previous = participant.connection
+    if isinstance(previous, WebSocket):  # it may be gone already, or closing for another page
+        with contextlib.suppress(RuntimeError, OSError, WebSocketDisconnect):
+            await previous.close(CLOSE_REPLACED, "this link was opened on another page")
+    page = ParticipantPage(lab.settings, session, participant, websocket)
+    await page.run()
+
+
+class ParticipantPage:
+    """One participant page's connection: receive positions and pongs, ping, send frames."""
+
+    def __init__(
+        self,
+        settings: LabSettings,
+        session: LabSession,
+        participant: Participant,
+        websocket: WebSocket,
+    ) -> None:
+        self.settings = settings
+        self.session = session
+        self.participant = participant
+        self.websocket = websocket
+        self.pings = Pings()
+        self.outbox = Outbox(Peer(websocket, settings.send_timeout, participant.label))
+        self.inbox = Inbox(
+            websocket,
+            parse_participant_message,
+            settings.max_message_rate,
+            settings.max_rejected,
+            lambda problem: self.outbox.put({"type": "error", "message": problem}),
+            lambda: self.outbox.end(CLOSE_POLICY, "too many bad messages"),
+        )
+
+    async def run(self) -> None:
+        """Serve the page until it closes or the session ends."""
+        self.participant.pings = self.pings
+        self.session.attach(self.participant, self.outbox, self.websocket)
+        pinger = asyncio.get_running_loop().create_task(self._ping())
+        try:
+            await self._receive()
+        finally:
+            pinger.cancel()
+            if self.outbox.ending:
+                await self.outbox.ended()
+            self.session.detach(self.participant, self.outbox)
+            self.outbox.close()  # also when a newer page of the slot replaced this one
+
+    async def _ping(self) -> None:
+        while True:
+            self.outbox.put({"type": "ping", "id": self.pings.send()})
+            await asyncio.sleep(self.settings.ping_interval)
+
+    async def _receive(self) -> None:
+        async for message in self.inbox.messages():
+            self._handle(message)
+
+    def _handle(self, message: PositionUpdate | Pong | Answer) -> None:
+        participant = self.participant
+        participant.last_heard = time.monotonic()
+        if isinstance(message, Answer):
+            problem = self.session.answer(participant, message)
+            if problem is not None:
+                self.outbox.put({"type": "error", "message": problem})
+        elif isinstance(message, Pong):
+            self.pings.answer(message.id)
+            participant.late_frames = message.late_frames
+        elif isinstance(participant.source, BrowserInput):
+            participant.source.put(message.x, message.seq)
