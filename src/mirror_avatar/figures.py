@@ -80,7 +80,6 @@ def plot_ims(
 def plot_similarity_space(
     points: Mapping[str, ArrayLike],
     ellipses: Mapping[str, Ellipse | None] | None = None,
-    labels: Mapping[str, list[str]] | None = None,
     title: str = "Similarity space (classical MDS of EMD)",
 ) -> Figure:
     """Trials as points in the similarity space, with each group's characteristic region.
@@ -91,9 +90,6 @@ def plot_similarity_space(
         Group name -> coordinates of its trials, shape (k, 2) (EMD units).
     ellipses
         Optional group name -> its confidence ellipse (``None`` or absent: not drawn).
-    labels
-        Optional group name -> a text label for each of its points, length k; drawn as
-        ``GROUP/label`` (whose trial it is) unless it already starts so.
     title
         Axes title.
     """
@@ -102,9 +98,6 @@ def plot_similarity_space(
     for name, xy in points.items():
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         axes.scatter(xy[:, 0], xy[:, 1], s=22, color=colours[name], label=name, zorder=3)
-        for text, (x, y) in zip((labels or {}).get(name, []), xy, strict=False):
-            whose = text if text.startswith(f"{name}/") else f"{name}/{text}"
-            axes.annotate(whose, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
     _draw_ellipses(axes, ellipses or {}, colours)
     axes.set(xlabel="dimension 1 (EMD)", ylabel="dimension 2 (EMD)", title=title)
     axes.set_aspect("equal", adjustable="datalim")

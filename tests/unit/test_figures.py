@@ -30,11 +30,10 @@ def test_plot_ims_draws_one_curve_per_group_and_trial(rng):
 def test_plot_similarity_space_draws_points_and_ellipses(rng):
     points = {"a": rng.normal(size=(6, 2)), "b": rng.normal(size=(2, 2)) + 5}
     ellipses = {"a": confidence_ellipse(points["a"]), "b": None}
-    figure = plot_similarity_space(points, ellipses, labels={"a": list("uvwxyz")})
+    figure = plot_similarity_space(points, ellipses)
     (axes,) = figure.axes
     assert len(axes.collections) == 2
     assert len(axes.patches) == 1
-    assert len(axes.texts) == 6
     assert render_png(figure).startswith(b"\x89PNG")
 
 
@@ -87,13 +86,3 @@ def test_group_synchronisation_is_drawn_smoothed_with_a_legend() -> None:
     np.testing.assert_allclose(smooth.get_ydata(), moving_mean(rho, 200))
     assert np.ptp(smooth.get_ydata()[300:-300]) < 0.1 * np.ptp(raw.get_ydata())
     assert [text.get_text() for text in axes.get_legend().get_texts()] == ["with VT5"]
-
-
-def test_similarity_space_points_say_whose_trial_they_are() -> None:
-    from mirror_avatar.figures import plot_similarity_space
-
-    points = {"p1": np.array([[0.0, 0.0], [1.0, 0.0]]), "p2": np.array([[0.0, 1.0]])}
-    labels = {"p1": ["trial_05", "p1/trial_06"], "p2": ["trial_05"]}
-    figure = plot_similarity_space(points, labels=labels)
-    texts = sorted(text.get_text() for text in figure.axes[0].texts)
-    assert texts == ["p1/trial_05", "p1/trial_06", "p2/trial_05"]
