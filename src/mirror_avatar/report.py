@@ -10,6 +10,7 @@ import base64
 import io
 import math
 import os
+import re
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -113,9 +114,9 @@ def report_texts(
 ) -> dict[str, str]:
     """Render the files of a report (`REPORT_FILES`), name -> text, without writing them.
 
-    ``lead`` and ``json_only`` are as in `write_report`.
     A command that writes other files with its report writes them all together
-    (`mirror_avatar.atomic.write_atomic_files`).
+    (`mirror_avatar.atomic.write_atomic_files`). ``lead`` and ``json_only`` are as in
+    `write_report`.
     """
     keys = [section.key for section in sections]
     if len(set(keys)) != len(keys) or "metadata" in keys:
@@ -199,16 +200,16 @@ WIDE_TABLE = 10
 
 
 def _table_html(table: pd.DataFrame) -> str:
-    """Render the table as HTML, its column names breakable after each underscore."""
+    """Render the table as HTML, its headers breakable after each underscore (``<wbr>``)."""
     wide = table.shape[1] + table.index.nlevels > WIDE_TABLE
-    return table.rename(columns=_breakable).to_html(
+    html = table.to_html(
         float_format=_format_float, border=0, na_rep="-", classes="wide" if wide else None
     )
+    return _HEADER.sub(lambda m: m[1] + m[2].replace("_", "_<wbr>") + m[3], html)
 
 
-def _breakable(name: Any) -> Any:
-    """Put a zero-width space after each underscore of a string, where a line may break."""
-    return name.replace("_", "_\u200b") if isinstance(name, str) else name
+_HEADER = re.compile(r"(<th[^>]*>)([^<]*)(</th>)")
+"""A header cell of pandas' HTML; its text is escaped, so it holds no ``<``."""
 
 
 def _format_float(value: float) -> str:
