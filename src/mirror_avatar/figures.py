@@ -73,7 +73,7 @@ def plot_ims(
         axes.plot(bins.centres, density, color=colours[name], lw=1.8, label=name)
     axes.set(xlabel="velocity (units/s)", ylabel="probability density (s/unit)", title=title)
     axes.set_xlim(bins.lo, bins.hi)
-    axes.legend(frameon=False)
+    legend_beside(axes)
     return figure
 
 
@@ -101,7 +101,7 @@ def plot_similarity_space(
     _draw_ellipses(axes, ellipses or {}, colours)
     axes.set(xlabel="dimension 1 (EMD)", ylabel="dimension 2 (EMD)", title=title)
     axes.set_aspect("equal", adjustable="datalim")
-    axes.legend(frameon=False)
+    legend_beside(axes)
     return figure
 
 
@@ -145,7 +145,7 @@ def plot_skew_kurtosis(
         axes.scatter(sk[:, 0], sk[:, 1], s=5, alpha=0.35, color=colours[name], label=name)
     _draw_ellipses(axes, ellipses or {}, colours)
     axes.set(xlabel="skewness", ylabel="kurtosis (Pearson)", title=title)
-    axes.legend(frameon=False, markerscale=2)
+    legend_beside(axes, markerscale=2)
     return figure
 
 
@@ -328,6 +328,29 @@ def plot_graph(adjacency: ArrayLike, labels: list[str], title: str = "Who observ
     axes.set(xlim=(-1.6, 1.6), ylim=(-1.5, 1.5), title=title, aspect="equal")
     axes.set_axis_off()
     return figure
+
+
+LEGEND_INSIDE = 10
+"""Entries up to which a legend sits inside the axes; with more, `legend_beside` moves it out."""
+
+
+def legend_beside(axes: Axes, markerscale: float = 1.0) -> None:
+    """Draw the legend inside the axes, or for many entries beside them in small type.
+
+    Past `LEGEND_INSIDE` entries the legend goes to the right of the axes in columns of at
+    most 25, and the figure widens by each column's width, so that the axes keep their size.
+    """
+    n = len(axes.get_legend_handles_labels()[1])
+    if n <= LEGEND_INSIDE:
+        axes.legend(frameon=False, markerscale=markerscale)
+        return
+    columns = -(-n // 25)
+    axes.legend(frameon=False, markerscale=markerscale, fontsize=6, ncol=columns,
+                loc="upper left", bbox_to_anchor=(1.01, 1.0))  # fmt: skip
+    figure = axes.get_figure()
+    assert isinstance(figure, Figure)
+    width, height = figure.get_size_inches()
+    figure.set_size_inches(width + 1.5 * columns, max(height, 0.12 * min(n, 25) + 1.0))
 
 
 def _new_figure() -> tuple[Figure, Axes]:

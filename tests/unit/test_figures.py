@@ -86,3 +86,22 @@ def test_group_synchronisation_is_drawn_smoothed_with_a_legend() -> None:
     np.testing.assert_allclose(smooth.get_ydata(), moving_mean(rho, 200))
     assert np.ptp(smooth.get_ydata()[300:-300]) < 0.1 * np.ptp(raw.get_ydata())
     assert [text.get_text() for text in axes.get_legend().get_texts()] == ["with VT5"]
+
+
+def test_a_legend_of_many_people_goes_beside_the_axes_which_keep_their_size() -> None:
+    """Issue 39.3: thirty people's legend squeezed the signatures' axes to a strip."""
+    from mirror_avatar.figures import FIGSIZE
+
+    signatures = {f"participant_{k:02d}": np.full(DEFAULT_BINS.n, 1 / DEFAULT_BINS.n)
+                  for k in range(30)}  # fmt: skip
+    figure = plot_ims(signatures)
+    figure.draw_without_rendering()
+    (axes,) = figure.axes
+    legend = axes.get_legend().get_window_extent()
+    frame = axes.get_window_extent()
+    assert legend.x0 >= frame.x1 and len(axes.get_legend().get_texts()) == 30
+    assert frame.width / figure.dpi > 0.6 * FIGSIZE[0]
+    assert frame.height / figure.dpi > 0.6 * FIGSIZE[1]
+    few = plot_ims({"fast": signatures["participant_00"]})
+    few.draw_without_rendering()
+    assert few.axes[0].get_legend().get_window_extent().x1 <= few.axes[0].get_window_extent().x1
