@@ -73,14 +73,13 @@ def plot_ims(
         axes.plot(bins.centres, density, color=colours[name], lw=1.8, label=name)
     axes.set(xlabel="velocity (units/s)", ylabel="probability density (s/unit)", title=title)
     axes.set_xlim(bins.lo, bins.hi)
-    axes.legend(frameon=False)
+    legend_beside(axes)
     return figure
 
 
 def plot_similarity_space(
     points: Mapping[str, ArrayLike],
     ellipses: Mapping[str, Ellipse | None] | None = None,
-    labels: Mapping[str, list[str]] | None = None,
     title: str = "Similarity space (classical MDS of EMD)",
 ) -> Figure:
     """Trials as points in the similarity space, with each group's characteristic region.
@@ -91,9 +90,6 @@ def plot_similarity_space(
         Group name -> coordinates of its trials, shape (k, 2) (EMD units).
     ellipses
         Optional group name -> its confidence ellipse (``None`` or absent: not drawn).
-    labels
-        Optional group name -> a text label for each of its points, length k; drawn as
-        ``GROUP/label`` (whose trial it is) unless it already starts so.
     title
         Axes title.
     """
@@ -102,13 +98,10 @@ def plot_similarity_space(
     for name, xy in points.items():
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         axes.scatter(xy[:, 0], xy[:, 1], s=22, color=colours[name], label=name, zorder=3)
-        for text, (x, y) in zip((labels or {}).get(name, []), xy, strict=False):
-            whose = text if text.startswith(f"{name}/") else f"{name}/{text}"
-            axes.annotate(whose, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
     _draw_ellipses(axes, ellipses or {}, colours)
     axes.set(xlabel="dimension 1 (EMD)", ylabel="dimension 2 (EMD)", title=title)
     axes.set_aspect("equal", adjustable="datalim")
-    axes.legend(frameon=False)
+    legend_beside(axes)
     return figure
 
 
@@ -152,7 +145,7 @@ def plot_skew_kurtosis(
         axes.scatter(sk[:, 0], sk[:, 1], s=5, alpha=0.35, color=colours[name], label=name)
     _draw_ellipses(axes, ellipses or {}, colours)
     axes.set(xlabel="skewness", ylabel="kurtosis (Pearson)", title=title)
-    axes.legend(frameon=False, markerscale=2)
+    legend_beside(axes, markerscale=2)
     return figure
 
 
@@ -335,6 +328,29 @@ def plot_graph(adjacency: ArrayLike, labels: list[str], title: str = "Who observ
     axes.set(xlim=(-1.6, 1.6), ylim=(-1.5, 1.5), title=title, aspect="equal")
     axes.set_axis_off()
     return figure
+
+
+LEGEND_INSIDE = 10
+"""Entries up to which a legend sits inside the axes; with more, `legend_beside` moves it out."""
+
+
+def legend_beside(axes: Axes, markerscale: float = 1.0) -> None:
+    """Draw the legend inside the axes, or for many entries beside them in small type.
+
+    Past `LEGEND_INSIDE` entries the legend goes to the right of the axes in columns of at
+    most 25, and the figure widens by each column's width, so that the axes keep their size.
+    """
+    n = len(axes.get_legend_handles_labels()[1])
+    if n <= LEGEND_INSIDE:
+        axes.legend(frameon=False, markerscale=markerscale)
+        return
+    columns = -(-n // 25)
+    axes.legend(frameon=False, markerscale=markerscale, fontsize=6, ncol=columns,
+                loc="upper left", bbox_to_anchor=(1.01, 1.0))  # fmt: skip
+    figure = axes.get_figure()
+    assert isinstance(figure, Figure)
+    width, height = figure.get_size_inches()
+    figure.set_size_inches(width + 1.5 * columns, max(height, 0.12 * min(n, 25) + 1.0))
 
 
 def _new_figure() -> tuple[Figure, Axes]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import html
 import json
 from pathlib import Path
 
@@ -38,7 +39,11 @@ def test_the_plan_moves_from_the_patient_to_the_target(stages: Path) -> None:
     assert [s["weight"] for s in plan["stages"]] == [0.0, 0.5, 1.0]
     assert np.all(np.diff([s["EMD to patient"] for s in plan["stages"]]) > 0)
     assert np.all(np.diff([s["EMD to target"] for s in plan["stages"]]) < 0)
-    assert "Rehabilitation curriculum" in (stages / "report.html").read_text()
+    page = html.unescape((stages / "report.html").read_text())
+    assert "Rehabilitation curriculum" in page
+    # issue 39.3: the report leads with its verdict
+    lead = page[page.index('<p class="lead">') :]
+    assert lead.index("within the patient's variability") < lead.index("<section")
 
 
 def test_a_stage_is_a_spec_and_a_sampler(stages: Path, tmp_path: Path) -> None:

@@ -64,6 +64,8 @@ CASES: dict[str, Case] = {
                                           "--duration", "5", "--out", "out"], "out/session.json"),
     "signature figure": (lambda i: ["signature", str(i / "trials"), "--out", "out"],
                          "out/strokes.png"),
+    "signature report": (lambda i: ["signature", str(i / "trials"), "--out", "out"],
+                         "out/report.html"),
     "reproduce report": (lambda i: ["reproduce", "--quick", "--out", "out"], "out/report.html"),
     "convert trial": (lambda i: ["convert", str(i / "trials"), "--out", "out"],
                       "out/trials/trial1.csv"),

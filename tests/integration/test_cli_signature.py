@@ -1,3 +1,4 @@
+import html
 import json
 
 import numpy as np
@@ -5,7 +6,7 @@ import pytest
 
 from mirror_avatar.cli import main
 
-FIGURES = ["ims.png", "similarity.png", "strokes.png"]
+FIGURES = ["ims.png", "similarity.png", "distances.png", "strokes.png"]
 
 
 def write_csvs(zhai_trials, root):
@@ -41,8 +42,27 @@ def test_signature_of_bundled_data(tmp_path, capsys):
     assert set(result["ellipses"]) == {"fast", "slow"}
     assert result["overlaps"][0][0] == pytest.approx(1.0)
     assert result["stroke_statistics"]["fast"]["n_strokes"] > 0
-    assert sorted(p.name for p in out.iterdir()) == sorted([*FIGURES, "signature.json"])
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        [*FIGURES, "signature.json", "report.html"]
+    )
     assert "18 trials in 2 groups" in capsys.readouterr().out
+
+
+def test_the_report_leads_with_whether_the_people_are_told_apart(tmp_path, capsys):
+    """Issue 39.3: signature wrote no HTML and no verdict."""
+    out = tmp_path / "out"
+    assert main(["signature", "--bundled", "--out", str(out)]) == 0
+    verdict = (
+        "The 2 people are told apart: 18 of 18 trials (100%) are nearest their own person's "
+        "other trials; chance"
+    )
+    assert verdict in capsys.readouterr().out
+    page = html.unescape((out / "report.html").read_text())
+    assert page.index('<p class="lead">' + verdict) < page.index('<section id="people">')
+    assert page.count("data:image/png;base64,") == 4
+    identification = json.loads((out / "signature.json").read_text())["identification"]
+    assert identification["rate"] == 1.0 and identification["told_apart"] is True
+    assert identification["p_value"] == pytest.approx(0.001)
 
 
 @pytest.mark.parametrize(

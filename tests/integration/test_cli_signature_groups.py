@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import html
 import json
+import re
 
 import numpy as np
 import pytest
@@ -36,6 +38,9 @@ def test_fast_and_slow_people_are_told_apart(tmp_path, capsys):
     assert (out / "groups.png").read_bytes().startswith(b"\x89PNG")
     printed = capsys.readouterr().out
     assert "each is a person" in printed and "classified 100% right" in printed
+    page = html.unescape((out / "report.html").read_text())
+    lead = re.search(r'<p class="lead">(.*?)</p>', page).group(1)
+    assert "Groups: fast (9 people) and slow (9 people): different" in lead
 
 
 def test_shuffled_labels_are_at_chance(tmp_path):

@@ -18,6 +18,11 @@ def test_reproduce_quick_writes_report(tmp_path, capsys):
     assert metadata["seed"] == 3 and metadata["quick"] is True
     assert metadata["command"].startswith("mirror-avatar reproduce --out")
     assert metadata["wall_time_s"] > 0 and "version" in metadata
+    # issue 39.3: the page leads with the mode in words and each part's verdict, not "quick True"
+    assert metadata["mode"].startswith("A quick run (--quick)") and "<dt>quick</dt>" not in html
+    assert html.index('<p class="lead">A quick run') < html.index("the 2 groups are told apart")
+    assert html.index("the 2 groups are told apart") < html.index('<dl class="meta">')
+    assert html.count('<span class="verdict">') == 7
 
 
 def test_reproduce_refuses_a_file_as_output(tmp_path, capsys):

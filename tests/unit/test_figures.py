@@ -30,11 +30,10 @@ def test_plot_ims_draws_one_curve_per_group_and_trial(rng):
 def test_plot_similarity_space_draws_points_and_ellipses(rng):
     points = {"a": rng.normal(size=(6, 2)), "b": rng.normal(size=(2, 2)) + 5}
     ellipses = {"a": confidence_ellipse(points["a"]), "b": None}
-    figure = plot_similarity_space(points, ellipses, labels={"a": list("uvwxyz")})
+    figure = plot_similarity_space(points, ellipses)
     (axes,) = figure.axes
     assert len(axes.collections) == 2
     assert len(axes.patches) == 1
-    assert len(axes.texts) == 6
     assert render_png(figure).startswith(b"\x89PNG")
 
 
@@ -89,11 +88,20 @@ def test_group_synchronisation_is_drawn_smoothed_with_a_legend() -> None:
     assert [text.get_text() for text in axes.get_legend().get_texts()] == ["with VT5"]
 
 
-def test_similarity_space_points_say_whose_trial_they_are() -> None:
-    from mirror_avatar.figures import plot_similarity_space
+def test_a_legend_of_many_people_goes_beside_the_axes_which_keep_their_size() -> None:
+    """Issue 39.3: thirty people's legend squeezed the signatures' axes to a strip."""
+    from mirror_avatar.figures import FIGSIZE
 
-    points = {"p1": np.array([[0.0, 0.0], [1.0, 0.0]]), "p2": np.array([[0.0, 1.0]])}
-    labels = {"p1": ["trial_05", "p1/trial_06"], "p2": ["trial_05"]}
-    figure = plot_similarity_space(points, labels=labels)
-    texts = sorted(text.get_text() for text in figure.axes[0].texts)
-    assert texts == ["p1/trial_05", "p1/trial_06", "p2/trial_05"]
+    signatures = {f"participant_{k:02d}": np.full(DEFAULT_BINS.n, 1 / DEFAULT_BINS.n)
+                  for k in range(30)}  # fmt: skip
+    figure = plot_ims(signatures)
+    figure.draw_without_rendering()
+    (axes,) = figure.axes
+    legend = axes.get_legend().get_window_extent()
+    frame = axes.get_window_extent()
+    assert legend.x0 >= frame.x1 and len(axes.get_legend().get_texts()) == 30
+    assert frame.width / figure.dpi > 0.6 * FIGSIZE[0]
+    assert frame.height / figure.dpi > 0.6 * FIGSIZE[1]
+    few = plot_ims({"fast": signatures["participant_00"]})
+    few.draw_without_rendering()
+    assert few.axes[0].get_legend().get_window_extent().x1 <= few.axes[0].get_window_extent().x1

@@ -68,3 +68,32 @@ def test_a_lead_is_the_first_line_under_the_title():
     lead = page.index('<p class="lead">Verdict &lt;1&gt;</p>')
     assert page.index("</h1>") < lead < page.index('<dl class="meta">')
     assert 'class="lead"' not in render_report([Section("s", "S")], "T")
+
+
+def test_the_verdicts_come_before_what_the_run_was(tmp_path):
+    """Issue 39.3: a report leads with its answers; the run's details follow them."""
+    sections = [Section("a", "A", text=["details"], verdict="told apart"), Section("b", "B")]
+    path = write_report(sections, tmp_path, "T", {"seed": 1, "quick": True}, lead="Answer",
+                        json_only=("quick",))  # fmt: skip
+    page = path.read_text()
+    lead, contents = page.index("Answer"), page.index('<span class="verdict">told apart</span>')
+    assert lead < contents < page.index('<dl class="meta">')
+    section = page.index('<section id="a">')
+    assert section < page.index('<p class="verdict">told apart</p>') < page.index("details")
+    assert "<dt>quick</dt>" not in page and "<dt>seed</dt>" in page
+    metadata = json.loads((tmp_path / "metrics.json").read_text())["metadata"]
+    assert metadata == {"seed": 1, "quick": True}
+
+
+def test_wide_tables_are_set_small_and_their_names_break_after_underscores():
+    wide = pd.DataFrame(np.ones((2, 10)), columns=[f"generated_velocity_{k}" for k in range(10)])
+    narrow = pd.DataFrame({"n_strokes": [1]})
+    page = render_report([Section("s", "S", tables={"wide": wide, "narrow": narrow})], "T")
+    assert page.count('class="dataframe wide"') == 1
+    assert "<th>generated_<wbr>velocity_<wbr>0</th>" in page and "n_<wbr>strokes" in page
+
+
+def test_a_figure_already_rendered_is_embedded_as_it_is():
+    png = render_png(small_figure())
+    page = render_report([Section("s", "S", figures={"done": png})], "T")
+    assert base64.b64encode(png).decode("ascii") in page

@@ -24,6 +24,7 @@ from mirror_avatar.experiments.curriculum import (
     measure_stages,
     own_emd,
 )
+from mirror_avatar.experiments.verdicts import section_verdict
 from mirror_avatar.importing import ImportOptions, excerpt
 from mirror_avatar.report import REPORT_FILES, write_report
 
@@ -98,6 +99,8 @@ def curriculum(
          "own_emd": own, "stages": plan},
     )  # fmt: skip
     section = curriculum_section(table, own, patient_spec, target_spec)
-    report = write_report([section], out_dir, "Curriculum", {"version": __version__, "seed": seed})
+    section.verdict = section_verdict("curriculum", section.metrics)
+    metadata = {"version": __version__, "seed": seed}
+    report = write_report([section], out_dir, "Curriculum", metadata, lead=section.verdict)
     click.echo(table.loc[method].round(4).to_string())
     click.echo(f"{stages} stages ({method}) -> {out_dir}; report {report}")

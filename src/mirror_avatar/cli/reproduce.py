@@ -16,6 +16,7 @@ from mirror_avatar.cli.reading import group_option, import_options, read_and_rep
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments import AGENT_EXPERIMENTS, EXPERIMENTS, SWEEPS
+from mirror_avatar.experiments.verdicts import describe_mode, section_verdict
 from mirror_avatar.importing import ImportOptions
 from mirror_avatar.learning.acceleration_player import Agent
 from mirror_avatar.report import REPORT_FILES, write_report
@@ -88,12 +89,16 @@ def reproduce(
         begun = time.perf_counter()
         choice = {"agent": agent, "scheduler": scheduler} if name in AGENT_EXPERIMENTS else {}
         small = quick or (name in SWEEPS and not full)
-        sections.append(run(trials, quick=small, seed=seed, **choice))
+        section = run(trials, quick=small, seed=seed, **choice)
+        section.verdict = section.verdict or section_verdict(name, section.metrics)
+        sections.append(section)
         timings[name] = round(time.perf_counter() - begun, 3)
         click.echo(f"reproduce: {name} done in {timings[name]:.0f} s", err=True)
+    mode = describe_mode(quick, full, agent)
     metadata = {
         "version": version("mirror-avatar"),
         "command": _command_line(out_dir, quick, full, seed, data, agent),
+        "mode": mode,
         "seed": seed,
         "agent": agent,
         "quick": quick,
@@ -105,7 +110,12 @@ def reproduce(
         "experiment_time_s": timings,
     }
     path = write_report(
-        sections, out_dir, title="mirror-avatar: reproduction report", metadata=metadata
+        sections,
+        out_dir,
+        title="mirror-avatar: reproduction report",
+        metadata=metadata,
+        lead=mode,
+        json_only=("mode", "quick", "sweeps"),
     )
     click.echo(str(path))
 

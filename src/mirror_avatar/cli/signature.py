@@ -1,32 +1,39 @@
-"""``mirror-avatar signature``: motor-signature analysis of trial files, as JSON and figures."""
+"""``mirror-avatar signature``: motor-signature analysis of trial files: a report, JSON, figures."""
 
 from __future__ import annotations
 
+from importlib.metadata import version
 from pathlib import Path
 
 import click
 
-from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json
+from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.signature import compute_group_emd
-from mirror_avatar.figures import (
-    plot_group_comparison,
-    plot_ims,
-    plot_similarity_space,
-    plot_skew_kurtosis,
-)
+from mirror_avatar.experiments.signature_report import NO_IDENTIFICATION, signature_page
+from mirror_avatar.figures import plot_group_comparison, plot_ims, plot_skew_kurtosis
 from mirror_avatar.importing import ImportOptions
 from mirror_avatar.likeness import trial_velocity
+from mirror_avatar.people_figures import plot_emd_heatmap, plot_people_space
 from mirror_avatar.report import render_png
 from mirror_avatar.signature import SignatureAnalysis, analyse_signatures
-from mirror_avatar.signature_groups import compare_groups, place_trials, read_group_map
+from mirror_avatar.signature_groups import (
+    GroupComparison,
+    compare_groups,
+    place_trials,
+    read_group_map,
+)
+from mirror_avatar.signature_identification import identify_people
 from mirror_avatar.trials import Trial
 
-FIGURES = ("ims.png", "similarity.png", "strokes.png")
+FIGURES = ("ims.png", "similarity.png", "distances.png", "strokes.png")
 """The figures written beside ``signature.json``."""
+
+REPORT = "report.html"
+"""The report, leading with the verdict: are the people told apart, and how well."""
 
 GROUP_FILES = ("groups.json", "groups.png")
 """What ``--groups`` adds: the comparison's numbers and its figure."""
@@ -39,7 +46,8 @@ GROUP_FILES = ("groups.json", "groups.png")
     "out_dir",
     required=True,
     type=click.Path(path_type=Path),
-    help="Directory for signature.json, ims.png, similarity.png and strokes.png.",
+    help="Directory for report.html, signature.json, ims.png, similarity.png, distances.png "
+    "and strokes.png.",
 )
 @group_option()
 @click.option(
@@ -70,7 +78,11 @@ GROUP_FILES = ("groups.json", "groups.png")
     "person column says whose). Writes groups.json and groups.png.",
 )
 @click.option(
-    "--seed", type=int, default=0, show_default=True, help="Seed of the --groups permutations."
+    "--seed",
+    type=int,
+    default=0,
+    show_default=True,
+    help="Seed of the label shuffles (identification's chance, --groups permutations).",
 )
 @import_options
 def signature(
@@ -95,31 +107,19 @@ def signature(
     if not paths and not bundled:
         raise InputError(None, "give trial files or directories, or --bundled")
     group_files = list(GROUP_FILES) if groups_path is not None else []
-    check_output_dir(out_dir, files=["signature.json", *FIGURES, *group_files])
+    check_output_dir(out_dir, files=[REPORT, "signature.json", *FIGURES, *group_files])
     group_map = read_group_map(groups_path) if groups_path is not None else None
     trials = read_and_report(paths, group_by, options) if paths else []
     trials += load_zhai2017() if bundled else []
     analysis = analyse_signatures(trials, level=level, rate=rate)
     if group_map is not None:
         people, groups = place_trials(trials, analysis.labels, group_map)
+    identification = identify_people(analysis.emd, analysis.groups, seed=seed)
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_atomic_json(out_dir / "signature.json", analysis.to_json_dict())
-    ims, similarity, strokes = FIGURES
-    figures = {
-        ims: plot_ims(
-            dict(zip(analysis.group_names, analysis.group_ims, strict=True)), analysis.bins
-        ),
-        similarity: plot_similarity_space(
-            analysis.points_by_group(),
-            analysis.ellipses,
-            labels={
-                g: [analysis.labels[i] for i in analysis.members(g)] for g in analysis.group_names
-            },
-        ),
-        strokes: plot_skew_kurtosis(analysis.strokes_by_group(), analysis.stroke_ellipses),
-    }
-    for name, figure in figures.items():
-        write_atomic_bytes(out_dir / name, render_png(figure))
+    numbers = analysis.to_json_dict()
+    numbers["identification"] = identification.to_json_dict() if identification else None
+    write_atomic_json(out_dir / "signature.json", numbers)
+    pngs = _figures(analysis)
     table = compute_group_emd(analysis)
     click.echo("mean EMD between the trials of each pair of groups (diagonal: within a group)")
     click.echo(table.to_string(float_format=lambda v: f"{v:.4f}", na_rep="-"))
@@ -130,13 +130,36 @@ def signature(
                 "ellipse in the similarity space (it needs 3)",
                 err=True,
             )
+    comparison = None
     if group_map is not None:
         if group_map.trials_as_people:
             click.echo(
                 f"note: {groups_path} names trials without a person column: each is a person"
             )
-        _compare_groups(trials, analysis, people, groups, group_map.order, seed, out_dir)
-    click.echo(f"{len(trials)} trials in {len(analysis.group_names)} groups -> {out_dir}")
+        comparison = _compare_groups(trials, analysis, people, groups, group_map.order, seed)
+        pngs["groups.png"] = render_png(plot_group_comparison(comparison))
+        write_atomic_json(out_dir / "groups.json", comparison.to_json_dict())
+    for name, png in pngs.items():
+        write_atomic_bytes(out_dir / name, png)
+    metadata = {"version": version("mirror-avatar"), "seed": seed, "level": level, "rate": rate}
+    page = signature_page(analysis, identification, pngs, comparison, metadata)
+    write_atomic_text(out_dir / REPORT, page)
+    click.echo(identification.verdict() if identification else NO_IDENTIFICATION)
+    click.echo(f"{len(trials)} trials in {len(analysis.group_names)} groups -> {out_dir / REPORT}")
+
+
+def _figures(analysis: SignatureAnalysis) -> dict[str, bytes]:
+    """Render the figures written beside ``signature.json``, file name -> PNG bytes."""
+    ims, similarity, distances, strokes = FIGURES
+    figures = {
+        ims: plot_ims(
+            dict(zip(analysis.group_names, analysis.group_ims, strict=True)), analysis.bins
+        ),
+        similarity: plot_people_space(analysis),
+        distances: plot_emd_heatmap(analysis),
+        strokes: plot_skew_kurtosis(analysis.strokes_by_group(), analysis.stroke_ellipses),
+    }
+    return {name: render_png(figure) for name, figure in figures.items()}
 
 
 def _compare_groups(
@@ -146,15 +169,12 @@ def _compare_groups(
     groups: list[str],
     order: list[str],
     seed: int,
-    out_dir: Path,
-) -> None:
-    """Compare the two groups of people, print the verdict and write its file and figure."""
+) -> GroupComparison:
+    """Compare the two groups of people and print the verdict."""
     velocities = [trial_velocity(t, analysis.rate) for t in trials]
     comparison = compare_groups(
         analysis.emd, people, groups, order, seed=seed, velocities=velocities, rate=analysis.rate
     )
-    numbers, figure = GROUP_FILES
-    write_atomic_json(out_dir / numbers, comparison.to_json_dict())
-    write_atomic_bytes(out_dir / figure, render_png(plot_group_comparison(comparison)))
     for line in comparison.verdict():
         click.echo(line)
+    return comparison

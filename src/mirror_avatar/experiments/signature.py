@@ -92,7 +92,7 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
                 halves
             ),
             "Velocity strokes against human ranges (skewness "
-            f"{HUMAN_SKEWNESS}, kurtosis {HUMAN_KURTOSIS})": _stroke_table(analysis),
+            f"{HUMAN_SKEWNESS}, kurtosis {HUMAN_KURTOSIS})": stroke_table(analysis),
         },
         figures={
             "Velocity signature of each group (thin lines: single trials)": plot_ims(
@@ -168,13 +168,25 @@ def compute_half_overlaps(analysis: SignatureAnalysis, seed: int) -> pd.DataFram
     )
 
 
-def _stroke_table(analysis: SignatureAnalysis) -> pd.DataFrame:
-    table = pd.DataFrame(analysis.stroke_statistics()).T
+def stroke_table(analysis: SignatureAnalysis) -> pd.DataFrame:
+    """Each group's stroke statistics and the share of its strokes in the human ranges (%)."""
+    table = pd.DataFrame(analysis.stroke_statistics()).T.rename(columns=STROKE_COLUMNS)
+    table["strokes"] = table["strokes"].astype(int)
     moments = analysis.strokes_by_group()
     table["in human range (%)"] = [
         100 * _fraction_in_range(moments[g]) if moments[g].size else np.nan for g in table.index
     ]
     return table
+
+
+STROKE_COLUMNS = {
+    "n_strokes": "strokes",
+    "skewness_mean": "skewness mean",
+    "skewness_sd": "skewness SD",
+    "kurtosis_mean": "kurtosis mean",
+    "kurtosis_sd": "kurtosis SD",
+}
+"""The stroke statistics' names (`SignatureAnalysis.stroke_statistics`) in words."""
 
 
 def _fraction_in_range(moments: np.ndarray) -> float:
