@@ -102,7 +102,7 @@ def test_a_damaged_avatar_is_refused_in_one_line(built: Path, tmp_path: Path) ->
     [
         (["--partners", "bundled:fast"], "at least two partners"),
         (["--name", " "], "is not a name"),
-        (["--sessions", "0"], ">= 1"),
+        (["--sessions", "0"], "give a whole number in [1, "),
     ],
 )
 def test_bad_options_are_one_line_before_any_work(tmp_path, capsys, extra, message) -> None:
@@ -232,7 +232,7 @@ def test_the_avatar_replays_the_persons_partner(proved: tuple[Path, Path]) -> No
     ("extra", "message"),
     [
         (["--holdout", "3"], "3 held-out trials of 3: keep at least one to fit"),
-        (["--holdout", "-1"], "give 0 or more"),
+        (["--holdout", "-1"], "give a whole number in [0, 1000]"),
         (["--with-partner", "SESSION", "--person-label", "nobody"], "no single player labelled"),
     ],
 )

@@ -73,4 +73,4 @@ def test_too_few_stages_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixtu
                  "--stages", "1", "--out", str(tmp_path / "o")]  # fmt: skip
     assert main(arguments) == 2
     error = capsys.readouterr().err
-    assert error.count("\n") == 1 and "2 to 50 stages" in error
+    assert error.count("\n") == 1 and "give a whole number in [2, 50]" in error

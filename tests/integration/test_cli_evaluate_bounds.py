@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
-from mirror_avatar.cli.evaluate import TRIM_RANGE
+from mirror_avatar.cli.constrained import TRIM_RANGE
 from mirror_avatar.cli.measure_options import OPTIONS
 from mirror_avatar.constraints import Constraint, Options
 from mirror_avatar.metrics.analysis_rate import ANALYSIS_RATE

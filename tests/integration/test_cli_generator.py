@@ -76,4 +76,4 @@ def test_bad_input_is_one_line(tmp_path, monkeypatch, capsys, args, fragment) ->
 
 def test_sample_refuses_bad_counts(model_path: str, tmp_path, capsys) -> None:
     assert main(["generator", "sample", model_path, "--count", "0", "--out", str(tmp_path)]) == 2
-    assert "must be positive" in capsys.readouterr().err
+    assert "give a whole number in [1, 100000]" in capsys.readouterr().err

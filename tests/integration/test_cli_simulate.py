@@ -126,7 +126,10 @@ def test_a_recording_short_by_one_sampling_interval_is_its_full_length(
         (["--leader", "nobody", "--follower", "bundled:slow"], "nobody"),
         (["--leader", "bundled:slow", "--follower", "bundled:medium"], "bundled:medium"),
         (["--leader", "bundled:slow", "--follower", "bundled:slow", "--trim", "60"], "--trim"),
-        (["--leader", "bundled:slow", "--follower", "bundled:slow", "--duration", "0"], "--dur"),
+        (
+            ["--leader", "bundled:slow", "--follower", "bundled:slow", "--duration", "0"],
+            "Invalid value for '--duration'",
+        ),
     ],
 )
 def test_simulate_bad_input(

@@ -9,9 +9,11 @@ import click
 
 from mirror_avatar import __version__
 from mirror_avatar.cli.cluster import scheduler_option
+from mirror_avatar.cli.constrained import JOBS, SEED, SESSIONS, ranged
 from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.cli.train import load_generator
+from mirror_avatar.constraints import Interval
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.avatar_proof import (
     HOLDOUT_EVERY,
@@ -50,18 +52,19 @@ def avatar() -> None:
     "trainers of the bundled trials, three trials each; the sixth unseen]",
 )
 @click.option(
-    "--sessions", type=int, default=None,
-    help=f"Training sessions per role. [default: {DEFAULT_SESSIONS}; {DEFAULT_DQN_SESSIONS} "
-    "with --agent dqn]",
+    "--sessions", default=None,
+    **ranged(f"Training sessions per role. [default: {DEFAULT_SESSIONS}; "
+             f"{DEFAULT_DQN_SESSIONS} with --agent dqn]", SESSIONS),
 )  # fmt: skip
 @click.option(
     "--agent", type=click.Choice(AGENTS), default="tabular", show_default=True,
     help="tabular: the paper's Q-tables; dqn: deep Q-networks (METHODS section 8).",
 )  # fmt: skip
 @click.option(
-    "--holdout", type=int, default=None,
-    help="Solo trials kept out of fitting, to check the avatar against (0: none). [default: "
-    f"one in {HOLDOUT_EVERY}, at least one of {MIN_TRIALS_TO_HOLD_OUT} or more]",
+    "--holdout", default=None,
+    **ranged("Solo trials kept out of fitting, to check the avatar against (0: none). [default: "
+             f"one in {HOLDOUT_EVERY}, at least one of {MIN_TRIALS_TO_HOLD_OUT} or more]",
+             Interval(int, 0, 1000)),
 )  # fmt: skip
 @click.option(
     "--with-partner", "partner_paths", multiple=True, type=click.Path(path_type=Path),
@@ -74,8 +77,8 @@ def avatar() -> None:
     help="The person's label in the --with-partner sessions (LABEL or 'person LABEL'). "
     "[default: --name]",
 )  # fmt: skip
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of everything.")
-@click.option("--jobs", type=int, default=2, show_default=True, help="Local threads.")
+@click.option("--seed", default=0, show_default=True, **ranged("Seed of everything.", SEED))
+@click.option("--jobs", default=2, show_default=True, **ranged("Local threads.", JOBS))
 @scheduler_option()
 @click.option(
     "--out", "out_path", required=True, type=click.Path(path_type=Path),
@@ -110,10 +113,6 @@ def create(
         raise InputError(
             "--name", f"{excerpt(name)} is not a name of 1-{MAX_NAME_CHARS} characters"
         )
-    if (sessions is not None and sessions < 1) or jobs < 1:
-        raise InputError("--sessions", "--sessions and --jobs must be >= 1")
-    if holdout is not None and holdout < 0:
-        raise InputError("--holdout", f"{holdout} held-out trials: give 0 or more")
     dyads = [
         find_person(str(path), load_session(path), person_label or name) for path in partner_paths
     ]

@@ -53,3 +53,27 @@ def constrained_type(constraint: Constraint) -> click.ParamType:
 def with_range(text: str, constraint: Constraint) -> str:
     """Add the allowed values to an option's help ``text``."""
     return f"{text} Allowed: {constraint}."
+
+
+def ranged(text: str, constraint: Constraint) -> dict[str, Any]:
+    """Return an option's ``type`` and ``help`` keywords from its declared ``constraint``."""
+    return {"type": constrained_type(constraint), "help": with_range(text, constraint)}
+
+
+SEED = Interval(int, 0, 2**63 - 1)
+"""A seed given on the command line."""
+
+JOBS = Interval(int, 1, 256)
+"""Local threads."""
+
+SESSIONS = Interval(int, 1, 10_000_000)
+"""Training sessions."""
+
+SESSION_SECONDS = Interval(float, 0.0, 86_400.0, "right", "s")
+"""Length of a played or generated session (s)."""
+
+RATE_HZ = Interval(float, 1.0, 10_000.0, unit="Hz")
+"""A sampling rate a command writes or analyses at."""
+
+TRIM_RANGE = Interval(float, 0.0, None, "left", "s")
+"""Seconds left out at the start of a session's metrics."""

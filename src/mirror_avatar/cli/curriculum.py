@@ -10,9 +10,11 @@ import pandas as pd
 
 from mirror_avatar import __version__
 from mirror_avatar.atomic import write_atomic_json
+from mirror_avatar.cli.constrained import SEED, ranged
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import import_options
 from mirror_avatar.cli.train import load_generator
+from mirror_avatar.constraints import Interval
 from mirror_avatar.curriculum import METHODS, StageMotion, save_stage
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.curriculum import (
@@ -45,12 +47,13 @@ PERSON_HELP = "A generator model .npz or bundled:STYLE."
     required=True,
     help="The target person: a generator .npz or bundled:STYLE.",
 )
-@click.option("--stages", type=int, default=STAGES, show_default=True, help="Stages K (2 or more).")
+@click.option("--stages", default=STAGES, show_default=True,
+              **ranged("Stages K.", Interval(int, 2, MAX_STAGES)))  # fmt: skip
 @click.option(
     "--method", type=click.Choice(METHODS), default="displacement", show_default=True,
     help="How the stages move between the two people (METHODS section 10).",
 )  # fmt: skip
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the measurements.")
+@click.option("--seed", default=0, show_default=True, **ranged("Seed of the measurements.", SEED))
 @click.option("--out", "out_dir", required=True, type=click.Path(path_type=Path), help="Folder.")
 @import_options
 def curriculum(
@@ -68,8 +71,6 @@ def curriculum(
     takes), plan.json (weights and, per stage, the EMD to both people, strokes and how a
     patient-like virtual trainer coordinates with it) and report.html with both methods.
     """
-    if not 2 <= stages <= MAX_STAGES:
-        raise InputError("--stages", f"give 2 to {MAX_STAGES} stages")
     names = [f"stage-{k}.npz" for k in range(1, stages + 1)]
     check_output_dir(out_dir, files=[*names, "plan.json", *REPORT_FILES])
     patient, target = (load_generator(spec, options) for spec in (patient_spec, target_spec))

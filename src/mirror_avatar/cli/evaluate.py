@@ -13,7 +13,7 @@ import pandas as pd
 
 from mirror_avatar.atomic import json_safe, write_atomic_files
 from mirror_avatar.bids.names import MOTION_SUFFIX
-from mirror_avatar.cli.constrained import constrained_type, with_range
+from mirror_avatar.cli.constrained import TRIM_RANGE, constrained_type, with_range
 from mirror_avatar.cli.measure_options import (
     format_measures,
     measure_options,
@@ -28,7 +28,6 @@ from mirror_avatar.cli.reading import (
     session_options,
 )
 from mirror_avatar.cli.simulate import format_metrics
-from mirror_avatar.constraints import Interval
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_progress, plot_session
 from mirror_avatar.measure_figures import measures_section
@@ -53,7 +52,6 @@ SUMMARY_KEYS = (
 )  # fmt: skip
 """The columns of the table of several sessions (those that apply to each)."""
 
-TRIM_RANGE = Interval(float, 0.0, None, "left", "s")
 """Allowed ``--trim``; a trim that leaves fewer than two samples is refused when reading."""
 
 MAX_MAGNITUDE = 1e100

@@ -11,8 +11,10 @@ import numpy as np
 import pandas as pd
 
 from mirror_avatar.atomic import write_atomic_json, write_atomic_text
+from mirror_avatar.cli.constrained import RATE_HZ, SEED, SESSION_SECONDS, ranged
 from mirror_avatar.cli.outputs import check_output_dir, check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
+from mirror_avatar.constraints import Interval
 from mirror_avatar.curriculum import FORMAT_NAME as STAGE_FORMAT
 from mirror_avatar.curriculum import StageMotion, load_stage
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
@@ -42,7 +44,7 @@ def generator() -> None:
     show_default=True,
     help="Codebook size N, or auto: chosen by cross-validation on the trials (the paper: 256).",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of k-means.")
+@click.option("--seed", default=0, show_default=True, **ranged("Seed of k-means.", SEED))
 @click.option(
     "--bundled",
     type=click.Choice(BUNDLED_STYLES),
@@ -181,14 +183,17 @@ def _describe_choice(complexity: dict[str, Any]) -> str:
 
 @generator.command()
 @click.argument("model_path", type=click.Path(path_type=Path))
-@click.option("--duration", type=float, default=60.0, show_default=True, help="Seconds per trial.")
-@click.option("--count", type=int, default=1, show_default=True, help="Number of trials.")
+@click.option(
+    "--duration", default=60.0, show_default=True, **ranged("Seconds per trial.", SESSION_SECONDS)
+)
+@click.option("--count", default=1, show_default=True,
+              **ranged("Number of trials.", Interval(int, 1, 100_000)))  # fmt: skip
 @click.option(
     "--out", "out_dir", required=True, type=click.Path(path_type=Path), help="Output directory."
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the sampling.")
+@click.option("--seed", default=0, show_default=True, **ranged("Seed of the sampling.", SEED))
 @click.option(
-    "--rate", type=float, default=100.0, show_default=True, help="Rate (Hz) of the written files."
+    "--rate", default=100.0, show_default=True, **ranged("Rate of the written files.", RATE_HZ)
 )
 def sample(
     model_path: Path, duration: float, count: int, out_dir: Path, seed: int, rate: float
@@ -197,8 +202,6 @@ def sample(
 
     Also writes ``samples.json`` (model, seed, duration, rate and file names).
     """
-    if not (duration > 0 and count >= 1 and rate > 0):
-        raise InputError(None, "--duration, --count and --rate must be positive")
     names = [f"generated-{k + 1:03d}.csv" for k in range(count)]
     check_output_dir(out_dir, files=[*names, "samples.json"])
     model = _load_sampler(model_path)

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from mirror_avatar.cli.constrained import ranged
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import import_options
 from mirror_avatar.cli.simulate import (
@@ -18,11 +19,12 @@ from mirror_avatar.cli.simulate import (
     write_outputs,
 )
 from mirror_avatar.cli.train import (
-    check_training,
     finish_training,
     load_reference,
+    prepare_training_output,
     training_options,
 )
+from mirror_avatar.constraints import Interval
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.group import TRAINING_SESSIONS
@@ -55,9 +57,11 @@ def group() -> None:
 @click.option(
     "--leader",
     "leaders",
-    type=int,
     multiple=True,
-    help="Index of a player that leads (the group-leader preset); repeatable.",
+    **ranged(
+        "Index of a player that leads (the group-leader preset); repeatable.",
+        Interval(int, 0, None),
+    ),  # fmt: skip
 )
 @click.option("--graph", "graph_spec", default="complete", show_default=True, help=GRAPH_HELP)
 @session_options
@@ -147,7 +151,7 @@ def train(
     in groups and dyads) and OUT.learning_curve.csv and .png.
     """
     sessions = TRAINING_SESSIONS[agent] if sessions is None else sessions
-    check_training(out_path, sessions, jobs, checkpoint_every, duration)
+    prepare_training_output(out_path, checkpoint_every)
     target = load_reference(target_spec, options)
     partners = [load_reference(spec, options) for spec in player_specs]
     player, curve = train_group_cyber_player(

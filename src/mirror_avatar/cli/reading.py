@@ -20,7 +20,8 @@ from typing import Any
 
 import click
 
-from mirror_avatar.cli.constrained import constrained_type, with_range
+from mirror_avatar.cli.constrained import constrained_type, ranged, with_range
+from mirror_avatar.constraints import Interval
 from mirror_avatar.import_checks import check_table, check_trial
 from mirror_avatar.importing import (
     MAX_GAP,
@@ -161,12 +162,14 @@ def import_options(command: Callable[..., None]) -> Callable[..., None]:
         click.option("--position-unit", type=click.Choice(list(POSITION_UNITS)),
                      default="normalised", show_default=True,
                      help="Unit of position (BIDS-Motion files with channels.tsv name theirs)."),
-        click.option("--playing-range", type=float, default=PLAYING_RANGE_CM, show_default=True,
-                     help="Centimetres of hand travel that make one normalised unit."),
+        click.option("--playing-range", default=PLAYING_RANGE_CM, show_default=True,
+                     **ranged("Centimetres of hand travel that make one normalised unit.",
+                              Interval(float, 0.0, 10_000.0, "right", "cm"))),
         MAX_GAP_OPTION,
-        click.option("--offset", type=float, default=0.0, show_default=True,
-                     help="Subtract this from every position (in --position-unit): where the "
-                     "tracker reads the middle of the playing range."),
+        click.option("--offset", default=0.0, show_default=True,
+                     **ranged("Subtract this from every position (in --position-unit): where "
+                              "the tracker reads the middle of the playing range.",
+                              Interval(float, -1e6, 1e6))),
         click.option("--centre", is_flag=True,
                      help="Move each trial so that the middle of its positions' span is 0."),
         COLUMNS_OPTION,

@@ -8,8 +8,10 @@ from pathlib import Path
 import click
 
 from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.cli.constrained import RATE_HZ, SEED, ranged
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
+from mirror_avatar.constraints import Interval
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.signature import compute_group_emd
@@ -52,17 +54,15 @@ GROUP_FILES = ("groups.json", "groups.png")
 @group_option()
 @click.option(
     "--level",
-    type=float,
     default=0.7,
     show_default=True,
-    help="Probability of the confidence ellipses.",
+    **ranged("Probability of the confidence ellipses.", Interval(float, 0.0, 1.0, "neither")),
 )
 @click.option(
     "--rate",
-    type=float,
     default=100.0,
     show_default=True,
-    help="Rate (Hz) trials are resampled to before the analysis.",
+    **ranged("Rate trials are resampled to before the analysis.", RATE_HZ),
 )
 @click.option(
     "--bundled",
@@ -79,10 +79,9 @@ GROUP_FILES = ("groups.json", "groups.png")
 )
 @click.option(
     "--seed",
-    type=int,
     default=0,
     show_default=True,
-    help="Seed of the label shuffles (identification's chance, --groups permutations).",
+    **ranged("Seed of the label shuffles (identification's chance, --groups permutations).", SEED),
 )
 @import_options
 def signature(
@@ -100,10 +99,6 @@ def signature(
 
     Folders are searched recursively; files in them that are not trials are skipped with a note.
     """
-    if not 0.0 < level < 1.0:
-        raise InputError("--level", f"must be between 0 and 1, got {level}")
-    if not rate > 0.0:
-        raise InputError("--rate", f"must be positive, got {rate}")
     if not paths and not bundled:
         raise InputError(None, "give trial files or directories, or --bundled")
     group_files = list(GROUP_FILES) if groups_path is not None else []

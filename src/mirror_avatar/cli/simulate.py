@@ -9,6 +9,7 @@ from typing import Any
 import click
 
 from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json
+from mirror_avatar.cli.constrained import SEED, SESSION_SECONDS, TRIM_RANGE, ranged
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import import_options
 from mirror_avatar.engine.loop import play
@@ -98,12 +99,13 @@ def session_options(command: Callable[..., None]) -> Callable[..., None]:
     """Add the options of a simulated session: duration, seed, trim and output folder."""
     options = [
         click.option(
-            "--duration", type=float, default=60.0, show_default=True, help="Session length (s)."
+            "--duration", default=60.0, show_default=True,
+            **ranged("Session length.", SESSION_SECONDS),
         ),
-        click.option("--seed", type=int, default=None, help="Session seed (default: fresh)."),
+        click.option("--seed", default=None, **ranged("Session seed (default: fresh).", SEED)),
         click.option(
-            "--trim", type=float, default=TRIM, show_default=True,
-            help="Seconds left out of the metrics.",
+            "--trim", default=TRIM, show_default=True,
+            **ranged("Seconds left out of the metrics.", TRIM_RANGE),
         ),
         click.option(
             "--out", "out_dir", required=True, type=click.Path(path_type=Path),
@@ -211,9 +213,7 @@ def simulate(
     player 0 minus player 1: positive when player 0 is ahead.
     """
     check_output_dir(out_dir, files=SESSION_OUTPUTS)
-    if not duration > 0.0:
-        raise InputError("--duration", f"must be positive, got {duration:g} s")
-    if not 0.0 <= trim < duration:
+    if not trim < duration:
         raise InputError("--trim", f"must lie in [0, duration) = [0, {duration:g}) s, got {trim:g}")
     roles = ("joint", "joint") if joint else ("leader", "follower")
     players = [

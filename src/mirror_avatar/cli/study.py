@@ -15,6 +15,7 @@ from mirror_avatar.analysis.table import (
     write_study_table,
 )
 from mirror_avatar.analysis.trials import read_study_trials
+from mirror_avatar.cli.constrained import TRIM_RANGE, ranged
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.study_report import report
 from mirror_avatar.errors import InputError
@@ -33,8 +34,8 @@ def study() -> None:
     help="Write study.csv, study.parquet and the data dictionary study.json here.",
 )  # fmt: skip
 @click.option(
-    "--trim", type=float, default=TRIM, show_default=True,
-    help="Seconds left out at the start of each trial's measures (as evaluate).",
+    "--trim", default=TRIM, show_default=True,
+    **ranged("Seconds left out at the start of each trial's measures (as evaluate).", TRIM_RANGE),
 )  # fmt: skip
 @click.option(
     "--surrogates", type=click.IntRange(min=0), default=SURROGATES, show_default=True,

@@ -13,6 +13,7 @@ from mirror_avatar.analysis.study_report import (
     analyse_study,
     write_study_report,
 )
+from mirror_avatar.cli.constrained import SEED, ranged
 from mirror_avatar.cli.outputs import check_output_dir
 
 
@@ -26,7 +27,7 @@ from mirror_avatar.cli.outputs import check_output_dir
     help="Folder for report.html, results.json, conditions.csv and contrasts.csv.",
 )
 @click.option(
-    "--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap's resamples."
+    "--seed", default=0, show_default=True, **ranged("Seed of the bootstrap's resamples.", SEED)
 )
 @click.option(
     "--reference",

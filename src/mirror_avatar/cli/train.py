@@ -9,8 +9,10 @@ import click
 
 from mirror_avatar.atomic import write_atomic_bytes
 from mirror_avatar.cli.cluster import scheduler_option
+from mirror_avatar.cli.constrained import JOBS, SEED, SESSION_SECONDS, SESSIONS, ranged
 from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options
+from mirror_avatar.constraints import Interval
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_learning_curves
 from mirror_avatar.generator import IMSGenerator
@@ -81,27 +83,33 @@ def training_options(
     (None: ``--sessions`` is required; else the command receives None and picks by agent).
     """
     if sessions is None:
-        count = click.option("--sessions", type=int, required=True, help="Training sessions.")
+        count = click.option("--sessions", required=True, **ranged("Training sessions.", SESSIONS))
     else:
         defaults = ", ".join(f"{n} for {name}" for name, n in sessions.items())
         count = click.option(
-            "--sessions", type=int, default=None, help=f"Training sessions. [default: {defaults}]"
+            "--sessions",
+            default=None,
+            **ranged(f"Training sessions. [default: {defaults}]", SESSIONS),
         )
     options = [
         count,
         click.option(
-            "--duration", type=float, default=60.0, show_default=True, help="Session length (s)."
+            "--duration", default=60.0, show_default=True,
+            **ranged("Session length.", SESSION_SECONDS),
         ),
-        click.option("--seed", type=int, default=0, show_default=True, help="Run seed (recorded)."),
+        click.option(
+            "--seed", default=0, show_default=True, **ranged("Run seed (recorded).", SEED)
+        ),
         scheduler_option(),
-        click.option("--jobs", type=int, default=2, show_default=True, help="Local threads."),
+        click.option("--jobs", default=2, show_default=True, **ranged("Local threads.", JOBS)),
         click.option(
             "--agent", type=click.Choice(AGENTS), default=agent, show_default=True,
             help=agent_help,
         ),
         click.option(
-            "--checkpoint-every", type=int, default=None,
-            help="Also save the policy to OUT every N sessions: a stopped run leaves a usable one.",
+            "--checkpoint-every", default=None,
+            **ranged("Also save the policy to OUT every N sessions: a stopped run leaves a usable "
+                     "one.", Interval(int, 1, None)),
         ),
         click.option(
             "--out", "out_path", required=True, type=click.Path(path_type=Path),
@@ -117,15 +125,9 @@ def training_options(
     return decorate
 
 
-def check_training(
-    out_path: Path, sessions: int, jobs: int, checkpoint_every: int | None, duration: float
-) -> None:
-    """Refuse a training run's bad options in one line, before any work; announce checkpoints."""
+def prepare_training_output(out_path: Path, checkpoint_every: int | None) -> None:
+    """Refuse an output file that cannot be written, before any work; announce checkpoints."""
     check_output_file(out_path, ".npz", beside=training_files(out_path))
-    if sessions < 1 or jobs < 1 or (checkpoint_every is not None and checkpoint_every < 1):
-        raise InputError("--sessions", "--sessions, --jobs and --checkpoint-every must be >= 1")
-    if not duration > 0.0:
-        raise InputError("--duration", f"must be positive, got {duration:g} s")
     if checkpoint_every is not None:
         click.echo(
             f"checkpoints: {checkpoint_path(out_path).resolve()} is saved every "
@@ -191,7 +193,7 @@ def train(
     partner and is rewarded for moving like the target. Writes OUT and
     OUT.learning_curve.csv and .png (the stem of OUT, then .learning_curve.csv / .png).
     """
-    check_training(out_path, sessions, jobs, checkpoint_every, duration)
+    prepare_training_output(out_path, checkpoint_every)
     specs = [s.strip() for spec in partner_specs for s in spec.split(",") if s.strip()]
     target = load_reference(target_spec, options)
     partners = [load_reference(spec, options) for spec in specs]
