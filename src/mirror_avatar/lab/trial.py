@@ -43,8 +43,9 @@ import numpy as np
 from mirror_avatar import __version__
 from mirror_avatar.engine.loop import count_samples, row_positions, spawn_session_seeds
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.avatars import load_avatar, successor_players
 from mirror_avatar.lab.files import trial_stem
-from mirror_avatar.lab.perturbation import Perturbation, successor
+from mirror_avatar.lab.perturbation import Perturbation
 from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.metrics import compute_phase, session_metrics
 from mirror_avatar.metrics.group import compute_cluster_phase
@@ -55,10 +56,8 @@ from mirror_avatar.realtime.inputs import HumanPlayer, InputSource
 from mirror_avatar.realtime.trial import Array, Clock, ClockedTrial
 from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.session import Session
-from mirror_avatar.specs import load_player, recording_file
 from mirror_avatar.trial_record import SlotRecord, trial_record
 from mirror_avatar.trials import MIN_SAMPLES
-from mirror_avatar.user_files import check_regular
 
 logger = logging.getLogger(__name__)
 
@@ -68,47 +67,10 @@ give: the measure beat every surrogate) at a fraction of a second per minute of 
 end screens come at once; ``mirror-avatar evaluate --surrogates`` gives finer p-values later."""
 
 
-MAX_RECORDING_SPEC_BYTES = 64 * 2**20
-"""Largest recording an avatar spec may replay or follow in a lab session (bytes; **choice**:
-an hour at 1 kHz as CSV is about 40 MB), checked before the file is read, so a session's
-creation never reads a huge file into the server's memory."""
-
-
-def load_avatar(spec: str, role: str) -> Player:
-    """Load an avatar's player in its role (`mirror_avatar.specs.load_player`: checked, dry-run).
-
-    A recording the spec replays or follows is refused over `MAX_RECORDING_SPEC_BYTES` before
-    it is read.
-    """
-    recording = recording_file(spec)
-    if recording is not None and recording.is_file():
-        check_regular(recording, MAX_RECORDING_SPEC_BYTES)
-    return load_player(spec, role)
-
-
-def successor_players(
-    plan: SessionPlan, perturbations: Sequence[tuple[int, Perturbation]]
-) -> list[tuple[int, Perturbation, Player]]:
-    """Build the player each perturbation hands an avatar over to, in order (not reset).
-
-    Each is its spec's player in the latest role with every parameter set so far
-    (`mirror_avatar.lab.perturbation.successor`).
-    """
-    now: dict[int, tuple[str, dict[str, float]]] = {}
-    built = []
-    for k, perturbation in perturbations:
-        spec = plan.slots[k].spec
-        assert spec is not None
-        role, values = now.get(k, (plan.roles[k], {}))
-        role = perturbation.role or role
-        values = values | dict(perturbation.values)
-        now[k] = (role, values)
-        built.append((k, perturbation, successor(spec, role, values)))
-    return built
-
-
 def build_avatars(plan: SessionPlan) -> dict[int, Player]:
-    """Load every avatar of the plan in its role (`load_avatar`) and time its step here.
+    """Load every avatar of the plan in its role and time its step here.
+
+    Each is loaded by `mirror_avatar.lab.avatars.load_avatar`.
 
     Each avatar is stepped once untimed (compiling it off the clock) and then timed
     (`mirror_avatar.realtime.clock.time_players`); a plan whose avatars together need more than
@@ -227,9 +189,9 @@ class LabTrial(ClockedTrial):
     ) -> list[tuple[int, Perturbation, Player]]:
         """Build and reset, off the clock, the player each perturbation hands the avatar over to.
 
-        Each is `successor_players`', reset with the seed the engine gives the avatar
-        (`mirror_avatar.engine.loop.spawn_session_seeds`), so that it draws the avatar's own
-        reference.
+        Each is `mirror_avatar.lab.avatars.successor_players`', reset with the seed the engine
+        gives the avatar (`mirror_avatar.engine.loop.spawn_session_seeds`), so that it draws the
+        avatar's own reference.
         """
         seeds, _ = spawn_session_seeds(self.seed, n_players)
         built = successor_players(self.plan, perturbations)
