@@ -70,9 +70,8 @@ end screens come at once; ``mirror-avatar evaluate --surrogates`` gives finer p-
 def build_avatars(plan: SessionPlan) -> dict[int, Player]:
     """Load every avatar of the plan in its role and time its step here.
 
-    Each is loaded by `mirror_avatar.lab.avatars.load_avatar`.
-
-    Each avatar is stepped once untimed (compiling it off the clock) and then timed
+    Each avatar is loaded (`mirror_avatar.lab.avatars.load_avatar`), stepped once untimed
+    (compiling it off the clock) and then timed
     (`mirror_avatar.realtime.clock.time_players`); a plan whose avatars together need more than
     the control period per step cannot keep real time and is refused.
 
