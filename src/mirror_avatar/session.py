@@ -27,13 +27,13 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mirror_avatar import __version__
-from mirror_avatar.atomic import atomic_path, write_atomic_json
+from mirror_avatar.atomic import LineFile, atomic_path, write_atomic_json
 from mirror_avatar.bids.names import MOTION_SUFFIX
 from mirror_avatar.bids.reading import (
     LabRecording,
@@ -299,15 +299,12 @@ class SessionWriter:
         self.sidecar = make_sidecar(labels, roles, graph, period, dict(metadata))
         self.sidecar["metadata"]["complete"] = False
         self.n_samples = 0
-        self._file: IO[str] = self.path.open("x", encoding="utf-8", newline="\n")
-        self._file.write(",".join(column_names(len(labels))) + "\n")
-        self._file.flush()
+        self._file = LineFile(self.path, ",".join(column_names(len(labels))))
         write_atomic_json(self.sidecar_path, self.sidecar)
 
     def append(self, row: ArrayLike) -> None:
         """Write one sample: time, then each player's four channels (see `Session.table`)."""
-        self._file.write(format_row(row) + "\n")
-        self._file.flush()
+        self._file.write(format_row(row))
         self.n_samples += 1
 
     def annotate(self, extra: dict[str, Any]) -> None:
@@ -317,8 +314,7 @@ class SessionWriter:
 
     def close(self, complete: bool, extra: dict[str, Any] | None = None) -> dict[str, Any]:
         """Close the file and rewrite the sidecar with ``complete`` and ``extra`` metadata."""
-        if not self._file.closed:
-            self._file.close()
+        self._file.close()
         self.sidecar["n_samples"] = self.n_samples
         self.annotate((extra or {}) | {"complete": complete})
         return self.sidecar
