@@ -1,4 +1,10 @@
-"""Atomic file writes: a failure never leaves a half-written file or set, or clobbers a good one.
+"""File writes that fail cleanly, naming their file.
+
+Atomic writes (`atomic_path` and the functions on it): a failure never leaves a half-written file
+or set, or clobbers a good one. Recordings written as they happen (`LineFile`): every line is
+flushed as it is written, so a crash keeps every complete line. Either way a failed write (a
+full disk, a file-size limit) raises an `OSError` naming the file, also when the system's own
+error named none (``[Errno 27] File too large``).
 
 Also the one conversion of results to plain JSON (`json_safe`): numpy scalars and arrays become
 numbers and lists, NaN and infinities ``null``.
@@ -7,15 +13,18 @@ numbers and lists, NaN and infinities ``null``.
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import tempfile
 from collections.abc import Iterator, Mapping
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
+
+logger = logging.getLogger(__name__)
 
 
 @contextmanager
@@ -49,9 +58,59 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     except OSError as error:
         if error.filename is not None and error.filename != str(temporary):
             raise
-        raise OSError(error.errno, error.strerror or str(error), str(path)) from error
+        raise naming(error, path) from error
     finally:
         temporary.unlink(missing_ok=True)
+
+
+def naming(error: OSError, path: str | Path) -> OSError:
+    """Return ``error`` as an `OSError` of the same number naming ``path``."""
+    return OSError(error.errno, error.strerror or str(error), str(path))
+
+
+class LineFile:
+    """A new UTF-8 text file written line by line, each line flushed as it is written.
+
+    Parameters
+    ----------
+    path
+        The file; it must not exist yet.
+    header
+        Its first line (without the line end).
+
+    Raises
+    ------
+    OSError
+        From the constructor and `write` when the file cannot be written (a full disk, a
+        file-size limit), naming ``path``; the complete lines written before stay.
+    """
+
+    def __init__(self, path: str | Path, header: str) -> None:
+        self.path = Path(path)
+        self._file: IO[str] = self.path.open("x", encoding="utf-8", newline="\n")
+        try:
+            self.write(header)
+        except OSError:
+            self.close()
+            raise
+
+    def write(self, line: str) -> None:
+        """Append ``line`` and its line end, flushed to the system at once."""
+        try:
+            self._file.write(line + "\n")
+            self._file.flush()
+        except OSError as error:
+            raise naming(error, self.path) from error
+
+    def close(self) -> None:
+        """Close the file, writing what a failed write left unflushed if it now can.
+
+        If it cannot, a logged warning names the file; the complete lines stay.
+        """
+        try:
+            self._file.close()
+        except OSError as error:
+            logger.warning("%s: its last line could not be written: %s", self.path, error.strerror)
 
 
 def _file_mode(path: Path) -> int:

@@ -24,16 +24,23 @@ import io
 import logging
 import math
 import os
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mirror_avatar import __version__
-from mirror_avatar.atomic import atomic_path, write_atomic_json
+from mirror_avatar.atomic import (
+    LineFile,
+    atomic_path,
+    json_text,
+    write_atomic_json,
+    write_atomic_text,
+)
 from mirror_avatar.bids.names import MOTION_SUFFIX
 from mirror_avatar.bids.reading import (
     LabRecording,
@@ -299,26 +306,45 @@ class SessionWriter:
         self.sidecar = make_sidecar(labels, roles, graph, period, dict(metadata))
         self.sidecar["metadata"]["complete"] = False
         self.n_samples = 0
-        self._file: IO[str] = self.path.open("x", encoding="utf-8", newline="\n")
-        self._file.write(",".join(column_names(len(labels))) + "\n")
-        self._file.flush()
-        write_atomic_json(self.sidecar_path, self.sidecar)
+        self._texts = self._written = 0
+        self._writing = threading.Lock()
+        self._file = LineFile(self.path, ",".join(column_names(len(labels))))
+        try:
+            self.annotate({})
+        except OSError:
+            self._file.close()
+            raise
 
     def append(self, row: ArrayLike) -> None:
         """Write one sample: time, then each player's four channels (see `Session.table`)."""
-        self._file.write(format_row(row) + "\n")
-        self._file.flush()
+        self._file.write(format_row(row))
         self.n_samples += 1
 
     def annotate(self, extra: dict[str, Any]) -> None:
         """Add ``extra`` to the sidecar's metadata now (rewritten atomically), file still open."""
+        self.write_sidecar(self.sidecar_text(extra))
+
+    def sidecar_text(self, extra: dict[str, Any]) -> tuple[int, str]:
+        """Add ``extra`` to the sidecar's metadata; return its text to write, and its number.
+
+        Call it where nothing else changes the sidecar meanwhile (under the caller's lock);
+        `write_sidecar` may then write the text elsewhere, later (another thread).
+        """
         self.sidecar["metadata"].update(extra)
-        write_atomic_json(self.sidecar_path, self.sidecar)
+        self._texts += 1
+        return self._texts, json_text(self.sidecar)
+
+    def write_sidecar(self, numbered: tuple[int, str]) -> None:
+        """Write a text of `sidecar_text` atomically, unless a later one is on disk already."""
+        number, text = numbered
+        with self._writing:
+            if number > self._written:
+                write_atomic_text(self.sidecar_path, text)
+                self._written = number
 
     def close(self, complete: bool, extra: dict[str, Any] | None = None) -> dict[str, Any]:
         """Close the file and rewrite the sidecar with ``complete`` and ``extra`` metadata."""
-        if not self._file.closed:
-            self._file.close()
+        self._file.close()
         self.sidecar["n_samples"] = self.n_samples
         self.annotate((extra or {}) | {"complete": complete})
         return self.sidecar

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import numpy as np
@@ -34,9 +35,22 @@ def chromium_mains() -> set[int]:
     return mains
 
 
+def on_the_clock(inputs: Path, positions: np.ndarray) -> np.ndarray:
+    """Each recorded sample's position with the time the server took it, shape (n, 2).
+
+    The times are the trial's inputs file's ``clock_s``: the monotonic clock (or LSL's, the
+    same on Linux), as `time.monotonic` stamps the driven moves, so the two line up whenever
+    the trial started and however late a busy machine took its samples.
+    """
+    with inputs.open(encoding="utf-8") as file:
+        clock = [float(row["clock_s"]) for row in csv.DictReader(file)]
+    assert len(clock) == len(positions), inputs
+    return np.column_stack([clock, positions])
+
+
 def mismatch(recorded: np.ndarray, driven: np.ndarray) -> np.ndarray:
-    """|recorded - driven| (units) at the clock offset that fits best; driven positions hold
-    until the next move, the first one from time 0 (the pointer is parked there beforehand)."""
+    """|recorded - driven| (units) at the delay from a move to its sample that fits best;
+    driven positions hold until the next move."""
 
     def errors(offset: float) -> np.ndarray:
         index = np.searchsorted(driven[:, 0], recorded[:, 0] + offset, side="right") - 1
@@ -47,7 +61,13 @@ def mismatch(recorded: np.ndarray, driven: np.ndarray) -> np.ndarray:
 
 
 def assert_matches(recorded: np.ndarray, driven: np.ndarray) -> None:
-    error = mismatch(recorded[recorded[:, 0] <= driven[-1, 0]], driven)
+    """The samples taken while the mouse was driven hold the driven positions.
+
+    Both are (time, position) pairs on the monotonic clock: ``recorded`` as `on_the_clock`
+    gives them, ``driven`` as the tests' ``drive`` stamps its moves.
+    """
+    during = (recorded[:, 0] >= driven[0, 0]) & (recorded[:, 0] <= driven[-1, 0])
+    error = mismatch(recorded[during], driven)
     step = np.abs(np.diff(driven[:, 1])).max()
     # exact (sub-pixel) for most samples; a sample taken as the pointer moves is one step off,
     # and a few may be further off when the machine is busy and a mouse move arrives late

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import psutil
 import pytest
-from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains
+from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains, on_the_clock
 
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import make_avatar_factory
@@ -72,7 +72,8 @@ def drive(page: Any, seconds: float) -> np.ndarray:
     Returns
     -------
     ndarray
-        The (time, position) pairs driven, shape (n, 2), time since the first move.
+        The (time, position) pairs driven, shape (n, 2), each move's time on the monotonic
+        clock (`time.monotonic`, s), as the trial's inputs file records its samples'.
     """
     box = page.locator("#track").bounding_box()
     y = box["y"] + box["height"] / 2
@@ -81,11 +82,16 @@ def drive(page: Any, seconds: float) -> np.ndarray:
     while (t := time.monotonic() - began) < seconds:
         x = float(sway(t))
         page.mouse.move(box["x"] + (x + 0.5) * box["width"], y)
-        driven.append((t, x))
+        driven.append((began + t, x))
         if len(driven) % 15 == 0 and page.evaluate("window.mirrorGame.phase") != "running":
             break
         time.sleep(max(0.0, began + len(driven) / 60 - time.monotonic()))
     return np.asarray(driven)
+
+
+def inputs_of(summary: dict[str, Any], tmp_path: Path) -> Path:
+    """The inputs file of participant B01's trial whose summary (or sidecar metadata) is given."""
+    return tmp_path / "B01" / summary["files"]["inputs"]
 
 
 def finish(page: Any, name: str, tmp_path: Path) -> dict[str, Any]:
@@ -142,7 +148,7 @@ def test_solo_trial_records_the_driven_trajectory(chromium, server, tmp_path):
     assert summary["complete"] and summary["mode"] == "solo"
     data = load_csv(tmp_path / "B01" / summary["files"]["person"])
     assert data.shape[0] == summary["n_samples"] == round(4 / 0.03) + 1
-    assert_matches(data, driven)
+    assert_matches(on_the_clock(inputs_of(summary, tmp_path), data[:, 1]), driven)
     assert page.locator("#metrics").inner_text().count("units/s") == 1
     assert drawn(page, "positions", PERSON_RGB) > 200 and drawn(page, "positions", AVATAR_RGB) == 0
     assert page.locator("#phase-figure").is_hidden()
@@ -190,7 +196,7 @@ def test_avatar_follows_the_driven_mouse(chromium, server, tmp_path):
     summary = finish(page, "avatar_follows", tmp_path)
     assert summary["complete"] and summary["avatar_role"] == "follower"
     session = load_session(tmp_path / "B01" / summary["files"]["session"])
-    assert_matches(np.column_stack([session.times, session.positions[0]]), driven)
+    assert_matches(on_the_clock(inputs_of(summary, tmp_path), session.positions[0]), driven)
     metrics = summary["metrics"]
     assert metrics["mean_relative_phase"] > 0  # the person (player 0) is ahead
     assert metrics["phase_locking"] > 0.5 and metrics["rmse"] < 0.2
@@ -228,7 +234,7 @@ def test_killing_the_browser_mid_trial_leaves_an_incomplete_trial(playwright, se
     session = load_session(tmp_path / "B01" / record["files"]["session"])
     assert session.n_samples == json.loads(sidecar.read_text())["n_samples"] > 20
     assert session.metadata["complete"] is False
-    assert_matches(np.column_stack([session.times, session.positions[0]]), driven)
+    assert_matches(on_the_clock(inputs_of(record, tmp_path), session.positions[0]), driven)
 
 
 def test_server_keeps_serving_and_tabs_can_close(chromium, server, tmp_path):

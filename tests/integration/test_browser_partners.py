@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pytest
-from browsers import assert_matches
-from test_browser import drive, finish, start_trial
+from browsers import assert_matches, on_the_clock
+from test_browser import drive, finish, inputs_of, start_trial
 
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import make_avatar_factory
@@ -32,7 +31,7 @@ def test_adaptive_partner_follows_the_driven_mouse(chromium, tmp_path: Path) -> 
         page.close()
     assert summary["complete"] and summary["avatar_role"] == "follower"
     session = load_session(tmp_path / "B01" / summary["files"]["session"])
-    assert_matches(np.column_stack([session.times, session.positions[0]]), driven)
+    assert_matches(on_the_clock(inputs_of(summary, tmp_path), session.positions[0]), driven)
     assert session.metadata["avatar_player"] == "AdaptivePlayer"
     metrics = summary["metrics"]
     assert metrics["mean_relative_phase"] > 0  # the person (player 0) is ahead

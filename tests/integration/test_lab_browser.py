@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import psutil
 import pytest
-from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains
+from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains, on_the_clock
 
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.metrics import session_metrics
@@ -78,8 +78,9 @@ def drive(
 ) -> dict[str, np.ndarray]:
     """Move every page's mouse along `sway` (each with its lag) at 60 Hz for ``seconds``.
 
-    Returns the (time, position) pairs driven per page; ``shoot`` is called once halfway and
-    ``watch(t)`` every quarter of a second.
+    Returns the (time, position) pairs driven per page, each move's time on the monotonic clock
+    (`time.monotonic`, s) as the trial's inputs file records its samples'; ``shoot`` is called
+    once halfway and ``watch(t)`` every quarter of a second (``t`` since the first move).
     """
     began = time.monotonic()
     driven: dict[str, list[tuple[float, float]]] = {label: [] for label in pages}
@@ -88,7 +89,7 @@ def drive(
         for label, page in pages.items():
             x = sway(t, lags[label])
             pointer_at(page, x)
-            driven[label].append((t, x))
+            driven[label].append((began + t, x))
         n += 1
         if shoot is not None and t > seconds / 2:
             shoot()
@@ -154,9 +155,9 @@ def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
     session = load_session(session_dir(tmp_path) / "trial-01_session.csv")
     assert session.roles == ("leader", "follower") and session.n_samples == 201
     assert session.metadata["complete"]
+    inputs = session_dir(tmp_path) / "trial-01_inputs.csv"
     for k, label in enumerate(("P1", "P2")):
-        recorded = np.column_stack([session.times, session.positions[k]])
-        assert_matches(recorded, driven[label])
+        assert_matches(on_the_clock(inputs, session.positions[k]), driven[label])
     # how steadily the two kept pace depends on how evenly this busy process moved both mice
     # (from about 0.7 to 1): the record's metrics are those of the positions it holds
     assert session.metadata["metrics"] == pytest.approx(session_metrics(session), nan_ok=True)
@@ -247,8 +248,9 @@ def test_group_of_four_on_a_ring_two_people_two_avatars(chromium, lab, tmp_path)
     session = load_session(session_dir(tmp_path) / "trial-01_session.csv")
     assert session.labels == ("P1", "A1", "P2", "A2") and session.n_players == 4
     assert session.graph.tolist() == [[0, 1, 0, 1], [1, 0, 1, 0], [0, 1, 0, 1], [1, 0, 1, 0]]
+    inputs = session_dir(tmp_path) / "trial-01_inputs.csv"
     for k, label in ((0, "P1"), (2, "P2")):
-        assert_matches(np.column_stack([session.times, session.positions[k]]), driven[label])
+        assert_matches(on_the_clock(inputs, session.positions[k]), driven[label])
     assert np.ptp(session.positions[1]) > 0.1 and np.ptp(session.positions[3]) > 0.1
     assert 0 < session.metadata["metrics"]["group_synchronisation"] <= 1
     links_shown = console.eval_on_selector_all("img.qr", "imgs => imgs.map(i => i.naturalWidth)")

@@ -1,6 +1,6 @@
 """A disk that fills up mid-trial, on a real small file system (tmpfs, mounted for the test):
-the trial ends as "disk full" with every sample it wrote, the pages get their end message, and
-once space is freed the next trial starts with new files."""
+the trial ends as "disk full" naming the file it could not write, with every sample it wrote,
+the pages get their end message, and once space is freed the next trial starts with new files."""
 
 from __future__ import annotations
 
@@ -73,10 +73,12 @@ def test_a_full_disk_ends_the_trial_cleanly_and_the_next_starts_with_new_files(s
         assert now["state"] == "waiting" and now["error"].startswith("disk full")
         assert now["next_trial"] == 2
         (trial,) = now["trials"]
-        assert (trial["complete"], trial["end_reason"]) == (False, "disk full")
+        full = f"disk full: cannot write {out / sid}/trial-01_"
+        assert not trial["complete"] and trial["end_reason"].startswith(full)
+        assert trial["end_reason"].endswith(".csv (No space left on device)")
         for page in pages:
             (end,) = page.of_type("end")
-            assert end["reason"] == "disk full" and end["next_in"] is None
+            assert end["reason"] == trial["end_reason"] and end["next_in"] is None
         session = load_session(out / sid / "trial-01_session.csv")
         seen = max(frame["k"] for frame in pages[0].of_type("frame"))
         assert 0 < seen < session.n_samples < 12 / 0.03  # every sample shown is on disk

@@ -1,8 +1,9 @@
-"""Under a file-size limit (``ulimit -f``), a lab export and the lab server fail in one line
-naming the file they could not write, not the system's bare "File too large"."""
+"""Under a file-size limit (``ulimit -f``), a lab export, the lab server and a trial on the clock
+fail naming the file they could not write, not the system's bare "File too large"."""
 
 from __future__ import annotations
 
+import json
 import resource
 import subprocess
 import sys
@@ -59,3 +60,38 @@ def test_a_session_the_server_cannot_write_is_refused_naming_the_file(tmp_path):
     assert answer.status_code == 500
     error = answer.json()["error"]
     assert error.startswith(f"{out}/") and error.endswith("/plan.json: File too large")
+
+
+TRIAL = """
+import asyncio, json, math, resource, sys, time
+from pathlib import Path
+from mirror_avatar.lab.plan import parse_plan
+from mirror_avatar.lab.trial import LabTrial
+from mirror_avatar.realtime.clock import ClockLimits, run_on_clock
+from mirror_avatar.realtime.inputs import BrowserInput
+players = [{"label": "P1", "kind": "human"}, {"label": "P2", "kind": "human"}]
+plan = parse_plan({"condition": "joint", "duration": 20.0, "players": players})
+inputs = {k: BrowserInput() for k in plan.humans}
+lab = {"session_id": "S", "condition": "joint"}
+trial = LabTrial(plan, 1, Path(sys.argv[1]), inputs, {}, time.monotonic, lab)
+resource.setrlimit(resource.RLIMIT_FSIZE, (int(sys.argv[2]),) * 2)
+def move():
+    for i, source in inputs.items():
+        source.put(0.3 * math.sin(0.05 * trial.k + i), trial.k)
+complete, reason = asyncio.run(run_on_clock(trial, ClockLimits(), after_tick=move))
+print(json.dumps(trial.finish(complete, reason)))
+"""
+"""A lab trial played on the clock, its files limited to ``argv[2]`` bytes once it is opened;
+prints the trial's summary."""
+
+
+def test_a_trial_on_the_clock_under_a_file_size_limit_names_the_file(tmp_path):
+    played = subprocess.run([sys.executable, "-c", TRIAL, str(tmp_path), "16384"], text=True,
+                            capture_output=True, timeout=300, check=True)  # fmt: skip
+    summary = json.loads(played.stdout)
+    recording = tmp_path / "trial-01_session.csv"
+    assert summary["end_reason"] == f"disk full: cannot write {recording} (File too large)"
+    sidecar = json.loads(recording.with_suffix(".json").read_text())
+    assert sidecar["metadata"]["end_reason"] == summary["end_reason"]
+    assert sidecar["n_samples"] == summary["n_samples"] > 100
+    assert not sidecar["metadata"]["complete"]

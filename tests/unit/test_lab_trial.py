@@ -5,17 +5,20 @@ from __future__ import annotations
 import csv
 import json
 import math
+import threading
 import time
 
 import numpy as np
 import pytest
 
+from mirror_avatar import atomic
 from mirror_avatar.engine.loop import Engine
 from mirror_avatar.lab.plan import parse_plan
 from mirror_avatar.lab.trial import LabTrial, build_avatars
 from mirror_avatar.realtime.inputs import BrowserInput, HumanPlayer
 from mirror_avatar.session import load_session
 from mirror_avatar.specs import load_player
+from waiting import wait_for
 
 RING = {
     "condition": "group",
@@ -145,12 +148,56 @@ def test_a_drop_is_in_the_sidecar_at_once_and_the_files_read_mid_trial(tmp_path)
             source.put(sway(k), k)
         trial.tick()
     trial.mark_dropped("P2")
-    sidecar = json.loads(trial.session_path.with_suffix(".json").read_text())
+    sidecar_path = trial.session_path.with_suffix(".json")
+    wait_for(lambda: "P2" in json.loads(sidecar_path.read_text())["metadata"]["dropped"], 30)
+    sidecar = json.loads(sidecar_path.read_text())
     assert sidecar["metadata"]["dropped"] == {"P2": 50}
     assert sidecar["metadata"]["complete"] is False
     assert trial.session_path.name == "trial-02_session.csv"
     assert load_session(trial.session_path).n_samples == 50
     assert not trial.finish(False, "stopped")["complete"]
+
+
+def test_a_drop_written_to_a_slow_disk_holds_neither_its_caller_nor_the_clock(
+    tmp_path, monkeypatch
+):
+    plan = parse_plan(RING | {"duration": 30.0})
+    inputs = {k: BrowserInput() for k in plan.humans}
+    lab = {"session_id": "S1", "condition": "group"}
+    trial = LabTrial(plan, 1, tmp_path, inputs, build_avatars(plan), time.monotonic, lab)
+
+    def tick(n: int) -> None:
+        for _ in range(n):
+            for source in inputs.values():
+                source.put(sway(trial.k), trial.k)
+            trial.tick()
+
+    tick(10)
+    disk_answers = threading.Event()
+    write = atomic.write_atomic_bytes
+
+    def slow_disk(path, data):
+        disk_answers.wait(60)
+        write(path, data)
+
+    monkeypatch.setattr(atomic, "write_atomic_bytes", slow_disk)
+    dropping = threading.Thread(target=trial.mark_dropped, args=("P2",))
+    ticking = threading.Thread(target=tick, args=(5,))
+    try:
+        dropping.start()
+        dropping.join(10)
+        ticking.start()
+        ticking.join(10)
+        assert not dropping.is_alive() and not ticking.is_alive()
+        assert trial.k == 15 and trial.dropped == {"P2": 10}
+    finally:
+        disk_answers.set()
+        dropping.join(60)
+        ticking.join(60)
+    summary = trial.finish(False, "stopped")
+    assert summary["dropped"] == {"P2": 10}
+    sidecar = json.loads(trial.session_path.with_suffix(".json").read_text())
+    assert sidecar["metadata"]["dropped"] == {"P2": 10} and sidecar["n_samples"] == 15
 
 
 def test_recent_positions_and_group_synchronisation(tmp_path):

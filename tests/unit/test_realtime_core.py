@@ -88,9 +88,11 @@ def test_tokens_and_join_keys_are_redacted_from_log_records():
     assert socket.getMessage() == '127.0.0.1:6 - "WebSocket /ws/join/***" [accepted]'
 
 
-def test_write_failures_are_named():
-    assert write_failure(OSError(errno.ENOSPC, "No space left on device")) == DISK_FULL
-    assert write_failure(OSError(errno.EFBIG, "File too large")) == DISK_FULL
+def test_write_failures_are_named_with_their_file():
+    full = write_failure(OSError(errno.ENOSPC, "No space left on device", "/out/t_session.csv"))
+    assert full == f"{DISK_FULL}: cannot write /out/t_session.csv (No space left on device)"
+    limited = write_failure(OSError(errno.EFBIG, "File too large", "/out/t_inputs.csv"))
+    assert limited == f"{DISK_FULL}: cannot write /out/t_inputs.csv (File too large)"
     assert write_failure(OSError(errno.EIO, "Input/output error")) == (
         "cannot write the recording: Input/output error"
     )

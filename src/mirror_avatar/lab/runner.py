@@ -17,8 +17,9 @@ A participant whose connection closes mid-trial, or whose input stops delivering
 a vanished LSL stream: `mirror_avatar.realtime.inputs`), is marked in the trial's sidecar and
 the console's events at once; the trial goes on with their position held, unless the plan says
 ``on_drop: "stop"``; the researcher may stop it from the console either way. Opening the link
-again rejoins. A trial whose recording cannot be written (a full disk) ends as ``"disk full"``:
-the samples written stay, the pages get their end message, and the next trial opens new files.
+again rejoins. A trial whose recording cannot be written (a full disk, a file-size limit) ends
+as ``"disk full: cannot write FILE (...)"`` (`mirror_avatar.realtime.trial.write_failure`): the
+samples written stay, the pages get their end message, and the next trial opens new files.
 A trial whose avatar diverges ends at that sample, the player and the sample its end reason in
 the console's events and the trial's sidecar (`mirror_avatar.realtime.trial.ClockedTrial`).
 """
@@ -264,8 +265,8 @@ class LabSession:
                 await self._prepare(self.next_trial)
                 reason = await self._play(self.next_trial)
                 self.next_trial += 1
-                if reason == DISK_FULL:
-                    self._wait(f"{DISK_FULL}: free some space, then start the next trial")
+                if reason.startswith(DISK_FULL):
+                    self._wait(f"{reason}: make room, then start the next trial")
                     return
                 self.state = "pause"
                 await self.schedule.after_trial(self.next_trial - 1, self.log)

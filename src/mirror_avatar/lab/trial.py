@@ -32,8 +32,10 @@ ends well.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -161,6 +163,7 @@ class LabTrial(ClockedTrial):
         self.perturbations: list[dict[str, Any]] = []
         self._successors = self._build_successors(perturbations, len(players))
         self._taken = np.full(len(players), np.nan)
+        self._sidecar_writes = ThreadPoolExecutor(max_workers=1, thread_name_prefix="sidecar")
         super().__init__(
             players,
             [slot.label for slot in plan.slots],
@@ -248,12 +251,33 @@ class LabTrial(ClockedTrial):
         return self._taken.tolist()
 
     def mark_dropped(self, label: str) -> None:
-        """Record that ``label``'s connection dropped at the current sample (sidecar, now)."""
+        """Record that ``label``'s connection dropped at the current sample.
+
+        Returns at once, whatever thread calls it (the event loop) and however slow the disk:
+        the sidecar is rewritten in a thread of the trial's own, outside the trial's lock, so
+        the clock ticks on meanwhile.
+        """
+        if self._closed:
+            return
+        self.dropped.setdefault(label, self.k)
+        with contextlib.suppress(RuntimeError):  # finished meanwhile: its final sidecar has it
+            self._sidecar_writes.submit(self._write_drops)
+
+    def _write_drops(self) -> None:
+        """Rewrite the sidecar with the drops: its text made under the lock, written outside."""
         with self._lock:
             if self._closed:
                 return
-            self.dropped.setdefault(label, self.k)
-            self.writer.annotate({"dropped": dict(self.dropped), "held": self.held()})
+            text = self.writer.sidecar_text({"dropped": dict(self.dropped), "held": self.held()})
+        try:
+            self.writer.write_sidecar(text)
+        except OSError as error:
+            logger.warning("the drops were not written to the sidecar: %s", error)
+
+    def close_files(self) -> None:
+        """Let the drops' sidecar writes end, then close the files."""
+        self._sidecar_writes.shutdown(wait=True)
+        super().close_files()
 
     def recent(self, seconds: float = 10.0) -> dict[str, Any]:
         """Return the last ``seconds`` of positions, and the group synchronisation over them.

@@ -32,12 +32,13 @@ import time
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from mirror_avatar import __version__
+from mirror_avatar.atomic import LineFile
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.graphs import complete_graph
 from mirror_avatar.live.messages import StartRequest
@@ -97,14 +98,11 @@ class PersonTrialWriter:
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        self._file: IO[str] = path.open("x", encoding="utf-8", newline="\n")
-        self._file.write("time,position\n")
-        self._file.flush()
+        self._file = LineFile(path, "time,position")
 
     def __call__(self, row: NDArray[np.float64]) -> None:
         """Write the sample's time and the person's position."""
-        self._file.write(f"{float(row[0])!r},{float(row[1])!r}\n")
-        self._file.flush()
+        self._file.write(f"{float(row[0])!r},{float(row[1])!r}")
 
     def close(self) -> None:
         """Close the file."""
@@ -302,10 +300,7 @@ class LiveTrial(ClockedTrial):
     def close_files(self) -> None:
         """Close the person's trial file and the tick log."""
         super().close_files()
-        try:
-            self.person_writer.close()
-        except OSError as error:
-            logger.warning("closing %s: %s", self.person_path, error)
+        self.person_writer.close()
 
     def analyse(self, session: Session) -> dict[str, Any]:
         """Return the live trial's end numbers: round trips, rejected messages and metrics."""

@@ -16,8 +16,9 @@ Files, flushed line by line as each sample is taken:
   step took (``step_ms``, the file writes excluded) and, per person, the sequence number of the
   device sample used, its age (ms), whether it was held and whether the input was live.
 
-A tick that cannot write (a full disk) raises `OSError`; the lines written stay readable and
-`finish` still returns the trial's summary, writing what it can. A tick whose player diverges
+A tick that cannot write (a full disk, a file-size limit) raises `OSError` naming the file
+(`write_failure` makes it the trial's end reason); the lines written stay readable and `finish`
+still returns the trial's summary and rewrites the sidecar if it can. A tick whose player diverges
 (its position or velocity no longer finite) raises `mirror_avatar.players.base.PlayerDiverged`
 after recording it in the sidecar (``"diverged"``: sample, player, label, message): the samples
 before it stay, all finite, and the clock ends the trial with the message as its reason.
@@ -33,11 +34,12 @@ import time
 from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from mirror_avatar.atomic import LineFile
 from mirror_avatar.engine.loop import Engine, Sink
 from mirror_avatar.graphs import Graph
 from mirror_avatar.players.base import Player, PlayerDiverged
@@ -52,14 +54,21 @@ Clock = Callable[[], float]
 """A clock (s) stamping each sample, as recorded in ``clock_s``."""
 
 DISK_FULL = "disk full"
-"""The end reason of a trial whose recording could not be written for lack of space."""
+"""How the end reason of a trial whose recording ran out of room (a full disk, a quota, a
+file-size limit) begins."""
 
 
 def write_failure(error: OSError) -> str:
-    """Say why a recording could not be written: `DISK_FULL` or the system's words."""
+    """Say why a recording could not be written, naming the file, in the system's words.
+
+    Out of room (a full disk, a quota, a file-size limit) it begins with `DISK_FULL`:
+    ``disk full: cannot write FILE (File too large)``.
+    """
+    what = "the recording" if error.filename is None else str(error.filename)
+    words = error.strerror or str(error)
     if error.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
-        return DISK_FULL
-    return f"cannot write the recording: {error.strerror or error}"
+        return f"{DISK_FULL}: cannot write {what} ({words})"
+    return f"cannot write {what}: {words}"
 
 
 class TickLog:
@@ -91,13 +100,11 @@ class TickLog:
         self.first_stamp = self.last_stamp = math.nan
         self.first_utc: str | None = None
         self.lateness = self.step_time = 0.0
-        self._file: IO[str] = path.open("x", encoding="utf-8", newline="\n")
         columns = ["time", "clock_s", "late_ms", "step_ms"]
         for person in self.people:
             label = person.label
             columns += [f"seq_{label}", f"age_ms_{label}", f"held_{label}", f"alive_{label}"]
-        self._file.write(",".join(columns) + "\n")
-        self._file.flush()
+        self._file = LineFile(path, ",".join(columns))
 
     def __call__(self, row: Array) -> None:
         """Write the sample's time, clock time, lateness, step time and inputs."""
@@ -112,15 +119,11 @@ class TickLog:
             tick = person.last_input
             age = "" if math.isnan(tick.age) else f"{tick.age * 1000.0:.3f}"
             fields += [str(tick.seq), age, str(int(tick.held)), str(int(tick.alive))]
-        self._file.write(",".join(fields) + "\n")
-        self._file.flush()
+        self._file.write(",".join(fields))
 
     def close(self) -> None:
         """Close the file (what could not be flushed on a full disk is lost, the rest stays)."""
-        try:
-            self._file.close()
-        except OSError as error:
-            logger.warning("closing %s: %s", self._file.name, error)
+        self._file.close()
 
 
 def lateness_summary(lateness_s: Sequence[float], period: float) -> dict[str, Any]:
