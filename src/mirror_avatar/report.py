@@ -93,12 +93,14 @@ def write_report(
 
 
 def report_texts(
-    sections: Sequence[Section], title: str, metadata: Mapping[str, Any] | None = None
-) -> dict[str, str]:
+    sections: Sequence[Section], title: str, metadata: Mapping[str, Any] | None = None,
+    lead: str = "",
+) -> dict[str, str]:  # fmt: skip
     """Render the files of a report (`REPORT_FILES`), name -> text, without writing them.
 
     A command that writes other files with its report writes them all together
-    (`mirror_avatar.atomic.write_atomic_files`).
+    (`mirror_avatar.atomic.write_atomic_files`); ``lead`` is the report's verdict
+    (`render_report`).
     """
     keys = [section.key for section in sections]
     if len(set(keys)) != len(keys) or "metadata" in keys:
@@ -108,7 +110,7 @@ def report_texts(
     metrics_name, report_name = REPORT_FILES
     return {
         metrics_name: json_text(metrics),
-        report_name: render_report(sections, title, metadata),
+        report_name: render_report(sections, title, metadata, lead),
     }
 
 

@@ -28,6 +28,7 @@ from mirror_avatar.analysis.dictionary import (
     DESIGN_COLUMNS,
     GUESS_COLUMNS,
     MEASURES,
+    PER_PLAYER,
     measure_info,
     p_value_column,
 )
@@ -50,7 +51,7 @@ SURROGATES = LAB_SURROGATES
 MAX_LEVELS = 20
 """Most distinct values a text column may have to be listed as ``Levels`` (**choice**)."""
 
-_PER_PLAYER = ("jitter_index_player_", "influence_player_")
+_PER_PLAYER = tuple(f"{column}_player_" for column in PER_PLAYER)
 _GROUP_PLAYER_KEYS = ("phase_locking", "rmse", "time_lag", "max_cross_correlation",
                       "synchronisation", "relative_phase_to_group")  # fmt: skip
 

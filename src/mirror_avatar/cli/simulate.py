@@ -16,6 +16,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.figures import SESSION_FIGURES, plot_session
 from mirror_avatar.importing import ImportOptions
 from mirror_avatar.metrics import TRIM, session_metrics
+from mirror_avatar.metrics.registry import label, measure
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import render_png
 from mirror_avatar.session import Session
@@ -23,18 +24,11 @@ from mirror_avatar.specs import load_player
 from mirror_avatar.trials import PLAYING_RANGE, Trial
 
 METRIC_ROWS = (
-    ("phase_locking", "CV (phase locking, 0-1)", ""),
-    ("rmse", "RMSE", "units"),
-    ("mean_relative_phase", "mean relative phase (player 0 - player 1)", "rad"),
-    ("sd_relative_phase", "circular SD of relative phase", "rad"),
-    ("time_lag", "time lag (player 0 ahead > 0)", "s"),
-    ("emd_players", "EMD between the players' IMS", ""),
-    ("emd_reference_0", "EMD player 0 to its reference IMS", ""),
-    ("emd_reference_1", "EMD player 1 to its reference IMS", ""),
-    ("emd_target_0", "EMD player 0 to its target's IMS (cyber player)", ""),
-    ("emd_target_1", "EMD player 1 to its target's IMS (cyber player)", ""),
-)
-"""(key, description, unit) of the metrics `evaluate` prints, in order."""
+    "phase_locking", "rmse", "mean_relative_phase", "sd_relative_phase", "time_lag",
+    "emd_players", "emd_reference_0", "emd_reference_1", "emd_target_0", "emd_target_1",
+)  # fmt: skip
+"""The metrics of a pair `evaluate` prints, in order (words and units:
+`mirror_avatar.metrics.registry`)."""
 
 SPEC_HELP = (
     "A player spec: bundled:fast, bundled:slow, a generator or cyber-player .npz, a recorded "
@@ -51,7 +45,7 @@ def format_metrics(metrics: dict[str, Any]) -> str:
     """
     if "players" in metrics:
         return format_group_metrics(metrics)
-    rows = [row for row in METRIC_ROWS if row[0] in metrics]
+    rows = [(key, label(key), measure(key).unit) for key in METRIC_ROWS if key in metrics]
     width = max(len(description) for _, description, _ in rows)
     lines = []
     for key, description, unit in rows:
