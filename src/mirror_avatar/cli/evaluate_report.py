@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,8 @@ from mirror_avatar.session import Session
 from mirror_avatar.trial_sets import common_root
 
 ALPHA = 0.05
-"""A session whose deciding measure has a p-value below this beats its surrogates."""
+"""A session whose deciding measure has a p-value at or below this beats its surrogates (with
+``m`` surrogates, p = (k + 1) / (m + 1) <= ALPHA is a test of size at most ALPHA)."""
 
 BREAK = "\u200b"
 """A zero-width space: where a long session name may wrap in the report's tables."""
@@ -113,7 +115,7 @@ def session_verdict(values: dict[str, Any]) -> str:
     p = values[registry.p_value_key(key)]
     if not math.isfinite(p):
         return "not tested"
-    return "coordinated beyond chance" if p < ALPHA else "not beyond chance"
+    return "coordinated beyond chance" if p <= ALPHA else "not beyond chance"
 
 
 def verdict(results: list[Evaluated]) -> str:
@@ -129,7 +131,7 @@ def verdict(results: list[Evaluated]) -> str:
     if not tested or n == 0:
         return (f"No verdict on chance: no session of {len(results)} was tested against "
                 "surrogates (none drawn, too short, or players that do not move).")  # fmt: skip
-    against = f"{measures}, p < {ALPHA:g} against {n} {surrogates[0].get('kind', '')} surrogates"
+    against = f"{measures}, p <= {ALPHA:g} against {n} {surrogates[0].get('kind', '')} surrogates"
     if len(results) == 1:
         found = results[0]
         key = deciding_measure(found.values)
@@ -144,11 +146,16 @@ def verdict(results: list[Evaluated]) -> str:
             f"({against}): {shown}.")  # fmt: skip
 
 
-def _cell(key: str, values: dict[str, Any], n: int) -> str:
-    """Write one measure of one session for the report, with its p-value when tested."""
+def _cell(key: str, values: dict[str, Any], n: int, labels: Sequence[str]) -> str:
+    """Write one measure of one session for the report, with its p-value when tested.
+
+    The leader is named by its label as well as its index (``labels``: the players').
+    """
     value = values.get(key)
     if value is None:
         return "-"
+    if key == "leader" and isinstance(value, int):
+        return f"player {value} ({labels[value]})"
     if isinstance(value, float) and not math.isfinite(value):
         return registry.measure(key).missing
     shown = f"{value:.3g}" if isinstance(value, float) else str(value)
@@ -160,26 +167,43 @@ def _wrappable(name: str) -> str:
     return name.replace("/", "/" + BREAK).replace("_", "_" + BREAK)
 
 
-def glance_table(results: list[Evaluated]) -> pd.DataFrame:
-    """Each session at a glance, in words: verdict, players, length, headline metrics."""
+def glance_tables(results: list[Evaluated]) -> dict[str, pd.DataFrame]:
+    """Each session at a glance, in words: verdict, length and headline metrics.
+
+    One table per number of players (caption -> table), so that a pair's columns and a group's
+    do not make one table too wide to read.
+    """
     names = session_names([found.path for found in results])
-    rows = []
+    rows: dict[int, list[dict[str, Any]]] = {}
     for number, (name, found) in enumerate(zip(names, results, strict=True), start=1):
         values = found.values
         n = int(values.get("surrogates", {}).get("n", 0))
-        row = {"session": f"{number}: {_wrappable(name)}", "verdict": session_verdict(values),
-               "players": found.session.n_players,
+        row = {"": f"{number}: {_wrappable(name)}", "verdict": session_verdict(values),
                "length (s)": f"{found.seconds:.1f}"}  # fmt: skip
         shown = [key for key in registry.HEADLINE if key in found.metrics]
-        rows.append(row | {registry.heading(key): _cell(key, values, n) for key in shown})
-    return pd.DataFrame(rows).set_index("session").fillna("-")
+        labels = found.session.labels
+        row |= {registry.heading(key): _cell(key, values, n, labels) for key in shown}
+        rows.setdefault(found.session.n_players, []).append(row)
+    return {_players(size): _table(rows[size]) for size in sorted(rows)}
+
+
+def _players(size: int) -> str:
+    return {1: "One player", 2: "Pairs"}.get(size, f"Groups of {size}")
+
+
+def _table(rows: list[dict[str, Any]]) -> pd.DataFrame:
+    """Make a table of rows whose first cell names the row; its corner says ``session``."""
+    table = pd.DataFrame(rows).set_index("").fillna("-")
+    table.index.name = None
+    table.columns.name = "session"
+    return table
 
 
 def measures_table(results: list[Evaluated]) -> pd.DataFrame:
     """Every measure of every session, in words with units.
 
     A row per measure (in the registry's order), a column per session (numbered as in
-    `glance_table`); a tested measure's cell holds its p-value too.
+    `glance_tables`); a tested measure's cell holds its p-value too.
     """
     columns, keys = {}, []
     for number, found in enumerate(results, start=1):
@@ -187,10 +211,12 @@ def measures_table(results: list[Evaluated]) -> pd.DataFrame:
         n = int(values.get("surrogates", {}).get("n", 0))
         shown = [k for k in scalar_measures(values) if registry.find(k) is not None]
         keys += shown
-        columns[str(number)] = {key: _cell(key, values, n) for key in shown}
+        labels = found.session.labels
+        columns[str(number)] = {key: _cell(key, values, n, labels) for key in shown}
     order = sorted(set(keys), key=_rank)
     table = pd.DataFrame(columns).reindex(order).fillna("-")
-    table.index = pd.Index([registry.heading(key) for key in order], name="measure")
+    table.index = pd.Index([registry.heading(key) for key in order])
+    table.columns.name = "measure / session"
     return table
 
 
@@ -223,7 +249,7 @@ def write_evaluation(
 ) -> None:  # fmt: skip
     """Write the table (CSV), every session's metrics (JSON) and an HTML page with figures.
 
-    The page leads with the `verdict` and shows `glance_table` and `measures_table`; the CSV
+    The page leads with the `verdict` and shows `glance_tables` and `measures_table`; the CSV
     and JSON keep the raw keys. A session read with --columns or --resample says so
     (`session_note`). The three files are rendered first, then written together
     (`mirror_avatar.atomic.write_atomic_files`): a failure leaves none of them changed.
@@ -240,10 +266,10 @@ def write_evaluation(
         title=f"{len(results)} session(s)",
         text=[f"Metrics leave out the first {trim:g} s of each session. A session is "
               f"coordinated beyond chance when its CV (a group: its synchronisation) beats "
-              f"its surrogates at p < {ALPHA:g}. The same numbers, under their raw names, are "
+              f"its surrogates at p <= {ALPHA:g}. The same numbers, under their raw names, are "
               "in sessions.csv and metrics.json.", *read],  # fmt: skip
-        tables={"Each session at a glance": glance_table(results),
-                "Every measure (columns: the sessions numbered above)": measures_table(results)},
+        tables=glance_tables(results)
+        | {"Every measure (columns: the sessions numbered above)": measures_table(results)},
         figures=figures,
         metrics={"trim": trim} | {str(found.path): found.values for found in results},
     )  # fmt: skip
