@@ -24,7 +24,7 @@ def test_the_evaluate_report_leads_with_its_verdict_in_words_at_1280_px(
 ) -> None:
     shutil.copytree(SESSIONS, tmp_path / "sessions")
     monkeypatch.chdir(tmp_path)
-    assert main(["evaluate", "sessions", "--surrogates", "19", "--out", "out"]) == 0
+    assert main(["evaluate", "sessions", "--surrogates", "39", "--out", "out"]) == 0
     page = chromium.new_page(viewport={"width": WIDTH, "height": 900})
     page.goto((tmp_path / "out" / "report.html").as_uri())
     assert page.evaluate("document.documentElement.scrollWidth") <= WIDTH

@@ -26,8 +26,8 @@ from mirror_avatar.session import Session
 from mirror_avatar.trial_sets import common_root
 
 ALPHA = 0.05
-"""A session whose deciding measure has a p-value at or below this beats its surrogates (with
-``m`` surrogates, p = (k + 1) / (m + 1) <= ALPHA is a test of size at most ALPHA)."""
+"""A session whose deciding measure has a p-value below this beats its surrogates (METHODS
+section 12: a p-value of 0.05 or more does not); fewer than 1 / ALPHA surrogates can never."""
 
 BREAK = "\u200b"
 """A zero-width space: where a long session name may wrap in the report's tables."""
@@ -107,15 +107,26 @@ def deciding_measure(values: dict[str, Any]) -> str | None:
     return next((key for key in tested if registry.p_value_key(key) in values), None)
 
 
+def _surrogates(values: dict[str, Any]) -> tuple[int, str]:
+    """Return how many surrogates a session drew, and their kind."""
+    drawn = values.get("surrogates", {})
+    return int(drawn.get("n", 0)), str(drawn.get("kind", ""))
+
+
+def _too_few(n: int) -> bool:
+    """Whether ``n`` surrogates cannot give a p-value below `ALPHA` (the smallest: 1/(n+1))."""
+    return 1.0 / (n + 1) >= ALPHA
+
+
 def session_verdict(values: dict[str, Any]) -> str:
     """Say in words whether a session is coordinated beyond chance."""
     key = deciding_measure(values)
-    if key is None:
+    if key is None or not math.isfinite(values[registry.p_value_key(key)]):
         return "not tested"
+    if _too_few(_surrogates(values)[0]):
+        return "too few surrogates"
     p = values[registry.p_value_key(key)]
-    if not math.isfinite(p):
-        return "not tested"
-    return "coordinated beyond chance" if p <= ALPHA else "not beyond chance"
+    return "coordinated beyond chance" if p < ALPHA else "not beyond chance"
 
 
 def verdict(results: list[Evaluated]) -> str:
@@ -124,21 +135,24 @@ def verdict(results: list[Evaluated]) -> str:
     verdicts = [session_verdict(found.values) for found in results]
     beyond = [n for n, v in zip(names, verdicts, strict=True) if v == "coordinated beyond chance"]
     tested = [v for v in verdicts if v != "not tested"]
-    deciding = {key for found in results if (key := deciding_measure(found.values))}
-    measures = " or ".join(registry.label(key) for key in sorted(deciding))
-    surrogates = [found.measures.values.get("surrogates", {}) for found in results]
-    n = max((int(s.get("n", 0)) for s in surrogates), default=0)
+    n, kind = max(_surrogates(found.values) for found in results)
     if not tested or n == 0:
         return (f"No verdict on chance: no session of {len(results)} was tested against "
                 "surrogates (none drawn, too short, or players that do not move).")  # fmt: skip
-    against = f"{measures}, p <= {ALPHA:g} against {n} {surrogates[0].get('kind', '')} surrogates"
+    if _too_few(n):
+        return (f"No verdict on chance: {n} surrogates cannot give a p-value below {ALPHA:g} "
+                f"(the smallest is {p_text(0.0, n).removeprefix('p <= ')}); run with "
+                "--surrogates 99.")  # fmt: skip
+    deciding = {key for found in results if (key := deciding_measure(found.values))}
+    measures = " or ".join(registry.label(key) for key in sorted(deciding))
+    against = f"{measures}, p < {ALPHA:g} against {n} {kind} surrogates"
     if len(results) == 1:
-        found = results[0]
-        key = deciding_measure(found.values)
+        values = results[0].values
+        key = deciding_measure(values)
         assert key is not None
-        p = p_text(found.values[registry.p_value_key(key)], n)
-        return (f"{names[0]}: {verdicts[0]} ({registry.label(key)} "
-                f"{found.values[key]:.2f}, {p} against {n} surrogates).")  # fmt: skip
+        p = p_text(values[registry.p_value_key(key)], n)
+        return (f"{names[0]}: {verdicts[0]} ({registry.label(key)} {values[key]:.2f}, {p} "
+                f"against {n} {kind} surrogates).")  # fmt: skip
     if not beyond:
         return f"None of the {len(tested)} sessions tested beats chance ({against})."
     shown = ", ".join(beyond[:5]) + (", ..." if len(beyond) > 5 else "")
@@ -177,7 +191,7 @@ def glance_tables(results: list[Evaluated]) -> dict[str, pd.DataFrame]:
     rows: dict[int, list[dict[str, Any]]] = {}
     for number, (name, found) in enumerate(zip(names, results, strict=True), start=1):
         values = found.values
-        n = int(values.get("surrogates", {}).get("n", 0))
+        n = _surrogates(values)[0]
         row = {"": f"{number}: {_wrappable(name)}", "verdict": session_verdict(values),
                "length (s)": f"{found.seconds:.1f}"}  # fmt: skip
         shown = [key for key in registry.HEADLINE if key in found.metrics]
@@ -208,7 +222,7 @@ def measures_table(results: list[Evaluated]) -> pd.DataFrame:
     columns, keys = {}, []
     for number, found in enumerate(results, start=1):
         values = found.values
-        n = int(values.get("surrogates", {}).get("n", 0))
+        n = _surrogates(values)[0]
         shown = [k for k in scalar_measures(values) if registry.find(k) is not None]
         keys += shown
         labels = found.session.labels
@@ -266,7 +280,7 @@ def write_evaluation(
         title=f"{len(results)} session(s)",
         text=[f"Metrics leave out the first {trim:g} s of each session. A session is "
               f"coordinated beyond chance when its CV (a group: its synchronisation) beats "
-              f"its surrogates at p <= {ALPHA:g}. The same numbers, under their raw names, are "
+              f"its surrogates at p < {ALPHA:g}. The same numbers, under their raw names, are "
               "in sessions.csv and metrics.json.", *read],  # fmt: skip
         tables=glance_tables(results)
         | {"Every measure (columns: the sessions numbered above)": measures_table(results)},
