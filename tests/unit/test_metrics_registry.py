@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mirror_avatar.lab.runner import headline_measures
 from mirror_avatar.metrics import registry, session_metrics
 from mirror_avatar.metrics.jitter import JITTER_BAND
 from mirror_avatar.metrics.measures import MeasureOptions, coordination_statistics, session_measures
@@ -72,3 +73,12 @@ def test_the_headline_opens_with_the_pair_and_group_coordination():
     assert registry.HEADLINE[:4] == ("phase_locking", "rmse", "mean_relative_phase", "time_lag")
     assert registry.is_headline("jitter_index_player_3")
     assert not registry.is_headline("sd_relative_phase")
+
+
+def test_the_lab_console_lists_the_headline_measures_and_every_p_value():
+    s = session(2)
+    measures = session_measures(s, options=MeasureOptions(n_surrogates=3)).values
+    listed = headline_measures(measures | {"error": "x"})
+    assert {"leader", "co_confidence_rate", "transfer_entropy_1_to_0", "jitter_index_player_1",
+            "time_lag_p_value", "surrogates", "error"} <= set(listed)  # fmt: skip
+    assert not {"co_confidence_segments", "synchrony_share", "leadership_strength"} & set(listed)

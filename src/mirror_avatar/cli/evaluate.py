@@ -232,10 +232,11 @@ def evaluate(
         click.echo(f"weak-null test of synchrony over the sessions: {weak_null}")
     extra = []
     if progress:
-        ordered, untimed = order_by_start([(found.path, found.session) for found in results])
-        order = _order_note(untimed)
-        names = session_names([path for path, _ in ordered])
-        table = progress_table([(n, s) for n, (_, s) in zip(names, ordered, strict=True)], 0.0)
+        ordered, untimed = order_by_start([(found, found.session) for found in results])
+        order = _order_note([found.path for found in untimed])
+        names = session_names([found.path for found, _ in ordered])
+        played = [(name, found.session) for name, (found, _) in zip(names, ordered, strict=True)]
+        table = progress_table(played, 0.0, metrics=[found.metrics for found, _ in ordered])
         click.echo(f"progress of player 0 across the sessions ({order}):")
         click.echo(table.to_string(float_format=lambda v: f"{v:.4f}"))
         extra.append(progress_section(table, order))

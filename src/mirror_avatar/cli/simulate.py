@@ -16,7 +16,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.figures import SESSION_FIGURES, plot_session
 from mirror_avatar.importing import ImportOptions
 from mirror_avatar.metrics import TRIM, session_metrics
-from mirror_avatar.metrics.registry import label, measure
+from mirror_avatar.metrics.registry import label, measure, symbol
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import render_png
 from mirror_avatar.session import Session
@@ -56,15 +56,11 @@ def format_metrics(metrics: dict[str, Any]) -> str:
 
 
 GROUP_COLUMNS = (
-    ("synchronisation", "rho_k"),
-    ("relative_phase_to_group", "phase"),
-    ("phase_locking", "CV"),
-    ("rmse", "RMSE"),
-    ("time_lag", "lag"),
-    ("max_cross_correlation", "xcorr"),
-)
-"""(key, heading) of the per-player columns of a group, against the mean of each player's
-neighbours except ``synchronisation`` (rho_k) and ``relative_phase_to_group`` (rad)."""
+    "synchronisation", "relative_phase_to_group", "phase_locking", "rmse", "time_lag",
+    "max_cross_correlation",
+)  # fmt: skip
+"""The per-player columns of a group, headed by their registry symbols, against the mean of each
+player's neighbours except ``synchronisation`` (rho_k) and ``relative_phase_to_group`` (rad)."""
 
 
 def format_group_metrics(metrics: dict[str, Any]) -> str:
@@ -73,12 +69,12 @@ def format_group_metrics(metrics: dict[str, Any]) -> str:
         "group synchronisation (rho_g, 1 = synchronised)  "
         f"{metrics['group_synchronisation']:.4f} +- {metrics['group_synchronisation_sd']:.4f}",
         f"Kuramoto order parameter                        {metrics['kuramoto_order']:.4f}",
-        "player  " + "".join(f"{heading:>8}" for _, heading in GROUP_COLUMNS) + "  neighbours",
+        "player  " + "".join(f"{symbol(key):>8}" for key in GROUP_COLUMNS) + "  neighbours",
     ]
     for k, player in enumerate(metrics["players"]):
         cells = "".join(
             f"{'-' if player.get(key) is None else format(player[key], '.4f'):>8}"
-            for key, _ in GROUP_COLUMNS
+            for key in GROUP_COLUMNS
         )
         lines.append(f"{k:<6}  {cells}  {player['neighbours']} {player['label']}")
     lines.append("(CV, RMSE in units, lag in s and cross-correlation against the neighbours' mean)")

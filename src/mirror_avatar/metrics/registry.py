@@ -61,6 +61,8 @@ class Measure:
         The figure of each session in ``evaluate``'s report that draws it, or ``""``.
     missing
         How it is written when it has no value (NaN), never ``nan``.
+    symbol
+        Its short name in a narrow column (``CV``, ``rho_k``), or ``""`` (use ``label``).
     """
 
     key: str
@@ -73,6 +75,7 @@ class Measure:
     headline: bool = False
     figure: str = ""
     missing: str = "none"
+    symbol: str = ""
 
     def p_value_key(self, **indices: int) -> str:
         """Return the key of its p-value against surrogates (players' indices as ``i``, ``j``)."""
@@ -83,11 +86,11 @@ MEASURES: tuple[Measure, ...] = (
     Measure("phase_locking", "CV (phase locking, 0-1)", "",
             "Phase locking, the mean resultant length of the relative phase (the field's CV; 1: "
             "phase locked; a group: against the neighbours' mean)",
-            greater=True, players="pair", headline=True, figure="surrogates"),
+            greater=True, players="pair", headline=True, figure="surrogates", symbol="CV"),
     Measure("rmse", "RMSE", "units",
             "RMS of the difference of the two players' positions (a group: of the player's "
             "against its neighbours' mean)",
-            greater=False, players="pair", headline=True, figure="surrogates"),
+            greater=False, players="pair", headline=True, figure="surrogates", symbol="RMSE"),
     Measure("mean_relative_phase", "mean relative phase (player 0 - player 1)", "rad",
             "Circular mean of the relative phase, player 0 minus player 1", headline=True,
             figure="relative phase"),
@@ -95,10 +98,10 @@ MEASURES: tuple[Measure, ...] = (
             "Circular SD of the relative phase", figure="relative phase"),
     Measure("time_lag", "time lag (player 0 ahead > 0)", "s",
             "Time lag at the cross-correlation peak, positive when player 0 leads (a group: the "
-            "player against its neighbours' mean)", headline=True),
+            "player against its neighbours' mean)", headline=True, symbol="lag"),
     Measure("max_cross_correlation", "peak cross-correlation", "",
             "Peak of the cross-correlation of the positions", greater=True, players="pair",
-            p_value="time_lag_p_value", figure="surrogates"),
+            p_value="time_lag_p_value", figure="surrogates", symbol="xcorr"),
     Measure("emd_players", "EMD between the players' IMS", "",
             "EMD between the two players' velocity IMS"),
     Measure("emd_reference_{i}", "EMD player {i} to its reference IMS", "",
@@ -145,9 +148,9 @@ MEASURES: tuple[Measure, ...] = (
     Measure("kuramoto_order", "Kuramoto order parameter r", "",
             "Time mean of the Kuramoto order parameter r", headline=True),
     Measure("synchronisation", "synchronisation to the group (rho_k)", "",
-            "The player's synchronisation to the group, rho_k"),
+            "The player's synchronisation to the group, rho_k", symbol="rho_k"),
     Measure("relative_phase_to_group", "mean phase relative to the group", "rad",
-            "The player's mean phase relative to the group"),
+            "The player's mean phase relative to the group", symbol="phase"),
     Measure("mean_phase_locking", "mean CV to the neighbours", "",
             "Mean over the players of their phase locking to their neighbours", headline=True),
     Measure("mean_rmse", "mean RMSE to the neighbours", "units",
@@ -216,6 +219,11 @@ def description(key: str) -> str:
     if found is None:
         raise KeyError(key)
     return found[0].description.format(**found[1])
+
+
+def symbol(key: str) -> str:
+    """Return a key's short name for a narrow column (its label when it has none)."""
+    return measure(key).symbol or label(key)
 
 
 def heading(key: str) -> str:
