@@ -41,6 +41,7 @@ def test_the_evaluate_report_leads_with_its_verdict_in_words_at_1280_px(
     assert registry.heading("rmse") in headers and registry.heading("time_lag") in headers
     rows = page.eval_on_selector_all("tbody th", "hs => hs.map(h => h.innerText)")
     assert registry.heading("transfer_entropy_0_to_1") in rows
+    assert "figure" in headers  # where each measure is drawn
     raw = {key for key in json.loads((tmp_path / "out" / "metrics.json").read_text())["sessions"]
            ["sessions/bundled_pair.csv"]}  # fmt: skip
     assert not raw & set(headers + rows)  # no raw key names a column or a row

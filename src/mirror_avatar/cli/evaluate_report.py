@@ -169,7 +169,8 @@ def _cell(key: str, values: dict[str, Any], n: int, labels: Sequence[str]) -> st
     if value is None:
         return "-"
     if key == "leader" and isinstance(value, int):
-        return f"player {value} ({labels[value]})"
+        named = f"player {value}"
+        return named if labels[value] == named else f"{named} ({labels[value]})"
     if isinstance(value, float) and not math.isfinite(value):
         return registry.measure(key).missing
     shown = f"{value:.3g}" if isinstance(value, float) else str(value)
@@ -216,8 +217,9 @@ def _table(rows: list[dict[str, Any]]) -> pd.DataFrame:
 def measures_table(results: list[Evaluated]) -> pd.DataFrame:
     """Every measure of every session, in words with units.
 
-    A row per measure (in the registry's order), a column per session (numbered as in
-    `glance_tables`); a tested measure's cell holds its p-value too.
+    A row per measure (in the registry's order), the figure of each session that draws it, and
+    a column per session (numbered as in `glance_tables`); a tested measure's cell holds its
+    p-value too.
     """
     columns, keys = {}, []
     for number, found in enumerate(results, start=1):
@@ -229,6 +231,7 @@ def measures_table(results: list[Evaluated]) -> pd.DataFrame:
         columns[str(number)] = {key: _cell(key, values, n, labels) for key in shown}
     order = sorted(set(keys), key=_rank)
     table = pd.DataFrame(columns).reindex(order).fillna("-")
+    table.insert(0, "figure", [registry.measure(key).figure or "-" for key in order])
     table.index = pd.Index([registry.heading(key) for key in order])
     table.columns.name = "measure / session"
     return table

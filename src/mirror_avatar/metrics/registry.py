@@ -157,7 +157,7 @@ MEASURES: tuple[Measure, ...] = (
             "Mean over the players of their RMS against their neighbours", headline=True),
     Measure("transfer_entropy_{i}_to_{j}", "transfer entropy {i} -> {j}", "bits",
             "Transfer entropy from player {i}'s velocity to player {j}'s", greater=True,
-            headline=True),
+            headline=True, figure="surrogates"),
     Measure("influence_player_{i}", "influence of player {i} (mean TE to the others)", "bits",
             "The player's influence: mean transfer entropy to the others", headline=True),
 )  # fmt: skip
