@@ -18,6 +18,7 @@ from mirror_avatar.cli.evaluate_report import (
     progress_section,
     session_names,
     summary_row,
+    verdict,
     write_evaluation,
 )
 from mirror_avatar.cli.measure_options import format_measures, measure_options, options_from
@@ -230,6 +231,8 @@ def evaluate(
         click.echo(rows.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
     if weak_null is not None:
         click.echo(f"weak-null test of synchrony over the sessions: {weak_null}")
+    if not as_json:
+        click.echo(verdict(results))
     extra = []
     if progress:
         ordered, untimed = order_by_start([(found, found.session) for found in results])
