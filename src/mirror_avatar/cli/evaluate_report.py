@@ -103,7 +103,8 @@ def deciding_measure(values: dict[str, Any]) -> str | None:
     The first headline measure tested against surrogates that has a p-value (a pair's CV, a
     group's synchronisation).
     """
-    tested = (key for key in registry.HEADLINE if key in values)
+    present = (key for key in registry.HEADLINE if key in values)
+    tested = (key for key in present if registry.measure(key).greater is not None)
     return next((key for key in tested if registry.p_value_key(key) in values), None)
 
 
@@ -141,7 +142,7 @@ def verdict(results: list[Evaluated]) -> str:
                 "surrogates (none drawn, too short, or players that do not move).")  # fmt: skip
     if _too_few(n):
         return (f"No verdict on chance: {n} surrogates cannot give a p-value below {ALPHA:g} "
-                f"(the smallest is {p_text(0.0, n).removeprefix('p <= ')}); run with "
+                f"(the smallest is 1/{n + 1} = {1 / (n + 1):.3g}); run with "
                 "--surrogates 99.")  # fmt: skip
     deciding = {key for found in results if (key := deciding_measure(found.values))}
     measures = " or ".join(registry.label(key) for key in sorted(deciding))
