@@ -10,12 +10,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
+from textwrap import fill
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from mirror_avatar.metrics.measures import P_VALUE_KEYS, MeasureOptions, Measures
+from mirror_avatar.metrics import registry
+from mirror_avatar.metrics.measures import MeasureOptions, Measures
 from mirror_avatar.metrics.surrogates import WeakNull
 from mirror_avatar.report import Section, p_text
 from mirror_avatar.session import Session
@@ -99,8 +101,9 @@ def plot_surrogates(measures: Measures) -> Figure:
         null = measures.null[name][np.isfinite(measures.null[name])]
         axes.hist(null, bins=20, color="0.6")
         axes.axvline(measures.values[name], color="C3", lw=1.5)
-        p = measures.values.get(P_VALUE_KEYS.get(name, f"{name}_p_value"), float("nan"))
-        axes.set_title(f"{name.replace('_', ' ')}\n{p_text(p, null.size)}", fontsize="small")
+        p = measures.values.get(registry.p_value_key(name), float("nan"))
+        title = f"{fill(registry.label(name), 30)}\n{p_text(p, null.size)}"
+        axes.set_title(title, fontsize="small")
         axes.tick_params(labelsize="x-small")
     for axes in grid.ravel()[len(names) :]:
         axes.set_axis_off()
@@ -138,7 +141,7 @@ def _surrogates_text(options: MeasureOptions) -> str:
 
 def measures_section(
     sessions: Sequence[tuple[Path, Session]], measures: Sequence[Measures],
-    weak_null: WeakNull | None, trim: float, options: MeasureOptions,
+    weak_null: WeakNull | None, options: MeasureOptions,
 ) -> Section:  # fmt: skip
     """Make the report's section of the measures.
 
@@ -147,14 +150,14 @@ def measures_section(
     """
     figures = {}
     for (path, session), found in zip(sessions, measures, strict=True):
-        kept = session.trimmed(trim) if trim > 0 else session
-        for name, figure in plot_measures(kept, found).items():
+        for name, figure in plot_measures(session, found).items():
             figures[f"{path.parent.name}/{path.name}: {name}"] = figure
     text = [
         "Co-confidence (CC): stretches of at least "
         f"{options.min_duration:g} s in which the players move together (relative velocity "
         f"difference below {options.dv_threshold:g}) without jitter in their velocity "
-        "difference (2-3 Hz). Jitter index: each player's share of velocity in 2-3 Hz. "
+        f"difference ({registry.BAND}). Jitter index: each player's share of velocity in "
+        f"{registry.BAND}. "
         "Leadership: windowed lagged cross-correlation of the velocities with peak picking "
         "(positive lag: player 0 leads). Transfer entropy between velocities, in bits.",
         _surrogates_text(options),

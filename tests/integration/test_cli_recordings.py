@@ -161,8 +161,11 @@ def test_the_command_line_and_the_report_name_one_seed_and_no_nan(tmp_path, caps
         "--surrogates", "19", "--surrogate-seed", "5", "--out", str(out),
     )  # fmt: skip
     assert status == 0, error
-    assert text.splitlines()[-2] == "(19 shift surrogates, --surrogate-seed 5)"
-    assert "CV against surrogates" in text and "p <= 0.05" in text  # the players lock
+    assert "(19 shift surrogates, --surrogate-seed 5)" in text.splitlines()
+    assert "No verdict on chance: 19 surrogates cannot give a p-value below 0.05" in text
+    assert (
+        "CV (phase locking, 0-1) against surrogates" in text and "p <= 0.05" in text
+    )  # the players lock
     assert "p = 0.05" not in text and "nan" not in text.lower()
     report = (out / "report.html").read_text()
     assert "19 shift surrogates (--surrogate-seed 5:" in report

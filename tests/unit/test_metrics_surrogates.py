@@ -9,10 +9,10 @@ from scipy import stats
 
 from mirror_avatar.errors import InputError
 from mirror_avatar.metrics.measures import (
-    DYAD_TESTED,
     MeasureOptions,
     coordination_statistics,
 )
+from mirror_avatar.metrics.registry import measures_tested
 from mirror_avatar.metrics.surrogates import (
     kuramoto_weak_null,
     p_value,
@@ -104,7 +104,7 @@ def pair_p_values(x: np.ndarray, options: MeasureOptions, seed: int) -> dict[str
     draws = [coordination_statistics(shifted(x, k), shifted(v, k), RATE, options) for k in offsets]
     return {
         name: p_value(observed[name], [d[name] for d in draws], greater)
-        for name, greater in DYAD_TESTED.items()
+        for name, greater in measures_tested(2).items()
     }
 
 
@@ -118,7 +118,7 @@ def test_independent_pairs_rarely_beat_their_surrogates_and_coupled_pairs_always
     with a little noise), every measure in every pair, except the transfer entropy from the
     follower to the leader, which has nothing to transfer."""
     options = MeasureOptions(lead_window=3.0, min_shift=2.0)
-    significant = dict.fromkeys(DYAD_TESTED, 0)
+    significant = dict.fromkeys(measures_tested(2), 0)
     for seed in spawn_seeds(2026, n_pairs):
         rng = np.random.default_rng(int(seed))
         x = np.array([smooth_motion(rng, N_SAMPLES, RATE), smooth_motion(rng, N_SAMPLES, RATE)])

@@ -31,7 +31,7 @@ def test_no_p_value_is_said_in_words() -> None:
 
 
 def measures(**changes: object) -> dict[str, object]:
-    """The measures of a pair with no CC segment, as `evaluate_measures` returns them."""
+    """The measures of a pair with no CC segment, as `evaluate_sessions` returns them."""
     values: dict[str, object] = {
         "co_confidence_rate": 0.0, "co_confidence_rate_p_value": 1.0,
         "co_confidence_count": 0, "co_confidence_mean_length": math.nan,

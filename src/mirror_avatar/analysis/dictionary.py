@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from mirror_avatar.metrics import registry
+
 ROLES = ("identifier", "design", "measure", "p_value", "answer")
 """What a column is, as the dictionary's ``Role`` says."""
 
@@ -50,67 +52,49 @@ DESIGN_COLUMNS: dict[str, dict[str, Any]] = {
 }  # fmt: skip
 """The identifier and design columns, in table order."""
 
-_UNITLESS = ""
+MEASURE_COLUMNS = (
+    "rmse", "phase_locking", "mean_relative_phase", "sd_relative_phase", "time_lag",
+    "max_cross_correlation", "emd_players", "jitter_index", "co_confidence_rate",
+    "co_confidence_count", "co_confidence_mean_length", "synchrony_share", "synchrony_entries",
+    "synchrony_exits", "synchrony_mean_dwell", "synchrony_mean_gap", "leader", "leader_share",
+    "leader_lag_s", "leadership_strength", "transfer_entropy_0_to_1", "transfer_entropy_1_to_0",
+    "influence", "group_synchronisation", "group_synchronisation_sd", "kuramoto_order",
+    "synchronisation", "relative_phase_to_group", "mean_phase_locking", "mean_rmse",
+)  # fmt: skip
+"""The measure columns of the study table, in order: `mirror_avatar.metrics.registry` keys, a
+player's own (``jitter_index``, ``influence``) without ``_player_<k>``."""
 
-MEASURES: dict[str, tuple[str, str]] = {
-    "rmse": ("RMS of the difference of the two players' positions (a group: of the player's "
-             "against its neighbours' mean)", "playing range units"),
-    "phase_locking": ("Phase locking, the mean resultant length of the relative phase (the "
-                      "field's CV; 1: phase locked; a group: against the neighbours' mean)",
-                      _UNITLESS),
-    "mean_relative_phase": ("Circular mean of the relative phase, player 0 minus player 1",
-                            "rad"),
-    "sd_relative_phase": ("Circular SD of the relative phase", "rad"),
-    "time_lag": ("Time lag at the cross-correlation peak, positive when player 0 leads "
-                 "(a group: the player against its neighbours' mean)", "s"),
-    "max_cross_correlation": ("Peak of the cross-correlation of the positions", _UNITLESS),
-    "emd_players": ("EMD between the two players' velocity IMS", _UNITLESS),
-    "jitter_index": ("The player's jitter index: share of velocity power in the jitter band",
-                     _UNITLESS),
-    "co_confidence_rate": ("Share of the trial in co-confidence (moving together smoothly)",
-                           _UNITLESS),
-    "co_confidence_count": ("Co-confidence segments", _UNITLESS),
-    "co_confidence_mean_length": ("Mean length of the co-confidence segments", "s"),
-    "synchrony_share": ("Share of the trial in synchrony episodes", _UNITLESS),
-    "synchrony_entries": ("Entries into synchrony", _UNITLESS),
-    "synchrony_exits": ("Exits from synchrony", _UNITLESS),
-    "synchrony_mean_dwell": ("Mean dwell in synchrony", "s"),
-    "synchrony_mean_gap": ("Mean gap between synchrony episodes", "s"),
-    "leader": ("Label of the player who led (windowed cross-correlation), none if neither",
-               _UNITLESS),
-    "leader_share": ("Share of windows the leader leads", _UNITLESS),
-    "leader_lag_s": ("The leader's lag", "s"),
-    "leadership_strength": ("Mean picked peak of the windowed cross-correlation", _UNITLESS),
-    "transfer_entropy_0_to_1": ("Transfer entropy from player 0's velocity to player 1's",
-                                "bits"),
-    "transfer_entropy_1_to_0": ("Transfer entropy from player 1's velocity to player 0's",
-                                "bits"),
-    "influence": ("The player's influence: mean transfer entropy to the others", "bits"),
-    "group_synchronisation": ("Group synchronisation, time mean of rho_g", _UNITLESS),
-    "group_synchronisation_sd": ("SD over time of rho_g", _UNITLESS),
-    "kuramoto_order": ("Time mean of the Kuramoto order parameter r", _UNITLESS),
-    "synchronisation": ("The player's synchronisation to the group, rho_k", _UNITLESS),
-    "relative_phase_to_group": ("The player's mean phase relative to the group", "rad"),
-    "mean_phase_locking": ("Mean over the players of their phase locking to their "
-                           "neighbours", _UNITLESS),
-    "mean_rmse": ("Mean over the players of their RMS against their neighbours",
-                  "playing range units"),
-}  # fmt: skip
-"""Every measure column: its key (`mirror_avatar.metrics` names), description and units."""
+PER_PLAYER = ("jitter_index", "influence")
+"""The columns of a measure with one value per player: the player's own, on its row."""
 
-P_VALUE_OF = {"time_lag_p_value": "max_cross_correlation"}
-"""p-value columns named after another measure than the one tested."""
+
+def _registry_key(column: str) -> str:
+    return f"{column}_player_0" if column in PER_PLAYER else column
+
+
+def _described(column: str) -> tuple[str, str]:
+    key = _registry_key(column)
+    unit = registry.measure(key).unit
+    return registry.description(key), registry.UNIT_NAMES.get(unit, unit)
+
+
+MEASURES: dict[str, tuple[str, str]] = {column: _described(column) for column in MEASURE_COLUMNS}
+"""Every measure column: description and units, from `mirror_avatar.metrics.registry`."""
 
 
 def p_value_column(measure: str) -> str:
     """Return the column of a tested measure's p-value against surrogates."""
-    inverse = {tested: key for key, tested in P_VALUE_OF.items()}
-    return inverse.get(measure, f"{measure}_p_value")
+    return registry.p_value_key(measure) if registry.find(measure) else f"{measure}_p_value"
+
+
+def _tested(column: str) -> str:
+    """Return the measure column a p-value column belongs to (the column itself otherwise)."""
+    return registry.tested_of(column) or column.removesuffix("_p_value")
 
 
 def measure_info(column: str) -> dict[str, Any]:
     """Describe a measure column (a measure or a measure's p-value)."""
-    tested = P_VALUE_OF.get(column, column.removesuffix("_p_value"))
+    tested = _tested(column)
     if column != tested:
         text = MEASURES[tested][0]
         return {"Description": f"p-value against surrogates of: {text}", "Role": "p_value"}

@@ -28,6 +28,7 @@ from mirror_avatar.analysis.dictionary import (
     DESIGN_COLUMNS,
     GUESS_COLUMNS,
     MEASURES,
+    PER_PLAYER,
     measure_info,
     p_value_column,
 )
@@ -38,6 +39,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.lab.trial import LAB_SURROGATES
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.metrics.measures import MeasureOptions, session_measures
+from mirror_avatar.metrics.quantities import Quantities
 from mirror_avatar.trial_record import KIND_NAMES, SlotRecord, partner_kind
 from mirror_avatar.trials import MIN_SAMPLES
 
@@ -50,7 +52,7 @@ SURROGATES = LAB_SURROGATES
 MAX_LEVELS = 20
 """Most distinct values a text column may have to be listed as ``Levels`` (**choice**)."""
 
-_PER_PLAYER = ("jitter_index_player_", "influence_player_")
+_PER_PLAYER = tuple(f"{column}_player_" for column in PER_PLAYER)
 _GROUP_PLAYER_KEYS = ("phase_locking", "rmse", "time_lag", "max_cross_correlation",
                       "synchronisation", "relative_phase_to_group")  # fmt: skip
 
@@ -71,7 +73,7 @@ def study_table(
 
 
 def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str, Any]:
-    """Compute a trial's metrics and measures (the session trimmed once).
+    """Compute a trial's metrics and measures (the session trimmed once, each quantity once).
 
     A trial with fewer than `mirror_avatar.trials.MIN_SAMPLES` samples after the trim (a run
     stopped at once) has none: its rows keep their design and answers.
@@ -84,7 +86,9 @@ def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str,
         return {}
     seed = trial.record.seed if trial.record.seed is not None else 0
     options = MeasureOptions(n_surrogates=surrogates, seed=seed)
-    return session_metrics(session) | session_measures(session, options=options).values
+    shared = Quantities.of(session)
+    metrics = session_metrics(session, quantities=shared)
+    return metrics | session_measures(session, options=options, quantities=shared).values
 
 
 def _design(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:

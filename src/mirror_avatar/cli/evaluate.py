@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -11,15 +10,18 @@ import click
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.atomic import json_safe, write_atomic_files
+from mirror_avatar.atomic import json_safe
 from mirror_avatar.bids.names import MOTION_SUFFIX
 from mirror_avatar.cli.constrained import TRIM_RANGE, constrained_type, with_range
-from mirror_avatar.cli.measure_options import (
-    format_measures,
-    measure_options,
-    options_from,
-    scalar_measures,
+from mirror_avatar.cli.evaluate_report import (
+    Evaluated,
+    progress_section,
+    session_names,
+    summary_row,
+    verdict,
+    write_evaluation,
 )
+from mirror_avatar.cli.measure_options import format_measures, measure_options, options_from
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import (
     DEFAULT_READING,
@@ -29,30 +31,21 @@ from mirror_avatar.cli.reading import (
 )
 from mirror_avatar.cli.simulate import format_metrics
 from mirror_avatar.errors import InputError
-from mirror_avatar.figures import plot_progress, plot_session
 from mirror_avatar.measure_figures import measures_section
-from mirror_avatar.metrics import TRIM, session_metrics
+from mirror_avatar.metrics import TRIM
 from mirror_avatar.metrics.analysis_rate import (
     ANALYSIS_RATE,
     at_analysis_rate,
     decimation_factor,
     session_rate,
 )
-from mirror_avatar.metrics.measures import evaluate_measures
+from mirror_avatar.metrics.measures import evaluate_sessions
 from mirror_avatar.metrics.progress import order_by_start, progress_table
-from mirror_avatar.report import REPORT_FILES, Section, report_texts
+from mirror_avatar.report import REPORT_FILES
 from mirror_avatar.session import Session
 from mirror_avatar.trial_record import trial_record
-from mirror_avatar.trial_sets import common_root
 
 SESSION_FILES = (".csv", ".parquet")
-SUMMARY_KEYS = (
-    "phase_locking", "rmse", "mean_relative_phase", "time_lag", "group_synchronisation",
-    "kuramoto_order", "mean_phase_locking", "mean_rmse",
-)  # fmt: skip
-"""The columns of the table of several sessions (those that apply to each)."""
-
-"""Allowed ``--trim``; a trim that leaves fewer than two samples is refused when reading."""
 
 MAX_MAGNITUDE = 1e100
 """Largest position (units) or velocity (units/s) a session may hold: the measures square and
@@ -158,26 +151,6 @@ def _exported_trial(session: Session) -> tuple[str, int] | None:
     return record.session_id, record.trial
 
 
-def session_names(paths: list[Path]) -> list[str]:
-    """Name sessions by their paths below the folder they share (one file: its name).
-
-    Never by the file name alone: ``p1/session.parquet`` and ``p2/session.parquet`` stay apart.
-    """
-    root = common_root(paths)
-    return [Path(os.path.abspath(path)).relative_to(root).as_posix() for path in paths]
-
-
-def summary_row(path: Path, session: Session, metrics: dict[str, Any]) -> dict[str, Any]:
-    """One row of the table of sessions: the file, its players and the metrics that apply.
-
-    A cyber player's ``emd_target_<i>`` (its IMS against its target's) gets a column too.
-    """
-    row: dict[str, Any] = {"session": str(path), "players": session.n_players,
-                           "seconds": round(session.duration, 3)}  # fmt: skip
-    targets = {key: value for key, value in metrics.items() if key.startswith("emd_target_")}
-    return row | {key: metrics[key] for key in SUMMARY_KEYS if key in metrics} | targets
-
-
 @click.command()
 @click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option(
@@ -227,45 +200,49 @@ def evaluate(
     if out_dir is not None:
         check_output_dir(out_dir, files=["sessions.csv", *REPORT_FILES])
     found_sessions, notes = find_sessions(paths, reading)
-    sessions = []
+    read = []
     for path, session in found_sessions:
-        kept, note = analysed(path, session, trim)
-        sessions.append((path, kept))
+        at_rate, note = analysed(path, session, trim)
+        read.append((path, at_rate.duration, at_rate.trimmed(trim) if trim > 0 else at_rate))
         notes += [note] if note else []
     for note in notes:
         click.echo(note)
-    results = [(path, session, session_metrics(session, trim=trim)) for path, session in sessions]
-    measures, weak_null = evaluate_measures([s for _, s in sessions], trim, options)
-    for (path, _, metrics), found in zip(results, measures, strict=True):
-        metrics |= found.values
-        for note in found.notes:
-            click.echo(f"{path}: {note}")
-    rows = pd.DataFrame(
-        [summary_row(p, s, m) | scalar_measures(f.values)
-         for (p, s, m), f in zip(results, measures, strict=True)]
-    )  # fmt: skip
+    metrics, measures, weak_null = evaluate_sessions([kept for _, _, kept in read], options)
+    results = [
+        Evaluated(path, seconds, kept, m, f)
+        for (path, seconds, kept), m, f in zip(read, metrics, measures, strict=True)
+    ]
+    for found in results:
+        for note in found.measures.notes:
+            click.echo(f"{found.path}: {note}")
+    rows = pd.DataFrame([summary_row(found) for found in results])
     if as_json:
-        shown = results[0][2] if len(results) == 1 else {str(p): m for p, _, m in results}
+        one = len(results) == 1
+        shown = results[0].values if one else {str(f.path): f.values for f in results}
         click.echo(json.dumps(json_safe(shown), indent=2))
     elif len(results) == 1:
-        click.echo(format_metrics(results[0][2]))
+        click.echo(format_metrics(results[0].values))
         if text := format_measures(measures[0].values, options):
             click.echo(text)
     else:
         click.echo(rows.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
     if weak_null is not None:
         click.echo(f"weak-null test of synchrony over the sessions: {weak_null}")
+    if not as_json:
+        click.echo(verdict(results))
     extra = []
     if progress:
-        ordered, untimed = order_by_start([(path, s) for path, s, _ in results])
-        order = _order_note(untimed)
-        names = session_names([path for path, _ in ordered])
-        table = progress_table([(n, s) for n, (_, s) in zip(names, ordered, strict=True)], trim)
+        ordered, untimed = order_by_start([(found, found.session) for found in results])
+        order = _order_note([found.path for found in untimed])
+        names = session_names([found.path for found, _ in ordered])
+        played = [(name, found.session) for name, (found, _) in zip(names, ordered, strict=True)]
+        table = progress_table(played, 0.0, metrics=[found.metrics for found, _ in ordered])
         click.echo(f"progress of player 0 across the sessions ({order}):")
         click.echo(table.to_string(float_format=lambda v: f"{v:.4f}"))
         extra.append(progress_section(table, order))
     if out_dir is not None:
-        extra.append(measures_section(sessions, measures, weak_null, trim, options))
+        sessions = [(found.path, found.session) for found in results]
+        extra.append(measures_section(sessions, measures, weak_null, options))
         write_evaluation(out_dir, results, rows, trim, extra)
         click.echo(f"wrote {out_dir.resolve()}")
 
@@ -276,56 +253,3 @@ def _order_note(untimed: list[Path]) -> str:
         return "ordered by the start time each recorded"
     shown = ", ".join(path.name for path in untimed[:3]) + (", ..." if len(untimed) > 3 else "")
     return f"in the order given: {len(untimed)} record no start time ({shown})"
-
-
-def progress_section(table: pd.DataFrame, order: str) -> Section:
-    """Make the report section of a `progress_table`: the table and two figures.
-
-    ``order`` says how the sessions were ordered.
-    """
-    return Section(
-        key="progress",
-        title="Progress of player 0 across the sessions",
-        text=[f"Sessions {order}. EMD to first session: how far player 0's velocity "
-              "IMS has moved from their first session's; CV and RMS: their coordination."],
-        tables={"Per session": table},
-        figures={
-            "Player 0's IMS against their first session's, and against the partner's": (
-                plot_progress(table, ["EMD to first session", "EMD to partner"], "Motion")
-            ),
-            "Coordination (CV 0-1, RMS in units)": (
-                plot_progress(table, ["CV", "RMS"], "Coordination")
-            ),
-        },
-        metrics={"progress": table.reset_index().to_dict(orient="records")},
-    )  # fmt: skip
-
-
-def write_evaluation(
-    out_dir: Path, results: list[tuple[Path, Session, dict[str, Any]]], rows: pd.DataFrame,
-    trim: float, extra: list[Section] | None = None,
-) -> None:  # fmt: skip
-    """Write the table (CSV), every session's metrics (JSON) and an HTML page with figures.
-
-    A session read with --columns or --resample says so (`session_note`). The three files
-    are rendered first, then written together
-    (`mirror_avatar.atomic.write_atomic_files`): a failure leaves none of them changed.
-    """
-    names = session_names([path for path, _, _ in results])
-    read = [note for path, session, _ in results if (note := session_note(path, session))]
-    figures = {
-        f"{shown}: {name.replace('_', ' ')}": figure
-        for shown, (_, session, _) in zip(names, results, strict=True)
-        for name, figure in plot_session(session, trim).items()
-    }
-    section = Section(
-        key="sessions",
-        title=f"{len(results)} session(s)",
-        text=[f"Metrics leave out the first {trim:g} s of each session.", *read],
-        tables={"Sessions": rows.set_index("session")},
-        figures=figures,
-        metrics={"trim": trim} | {str(path): metrics for path, _, metrics in results},
-    )
-    texts = report_texts([section, *(extra or [])], title="mirror-avatar: sessions evaluated")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    write_atomic_files(out_dir, {"sessions.csv": rows.to_csv(index=False)} | texts)

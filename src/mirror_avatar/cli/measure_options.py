@@ -16,6 +16,7 @@ from typing import Any, TypeVar
 import click
 
 from mirror_avatar.cli.constrained import constrained_type, with_range
+from mirror_avatar.metrics import registry
 from mirror_avatar.metrics.measures import CONSTRAINTS, MeasureOptions
 from mirror_avatar.report import p_text
 
@@ -69,65 +70,38 @@ def options_from(kwargs: dict[str, Any]) -> MeasureOptions:
 
 
 MEASURE_ROWS = (
-    ("co_confidence_rate", "CC rate (share of time in co-confidence)", ""),
-    ("co_confidence_count", "CC segments", ""),
-    ("co_confidence_mean_length", "CC mean segment length", "s"),
-    ("synchrony_share", "share of time in synchrony", ""),
-    ("synchrony_entries", "entries into synchrony", ""),
-    ("synchrony_mean_dwell", "mean dwell in synchrony", "s"),
-    ("leader", "leader (windowed cross-correlation)", ""),
-    ("leader_share", "share of windows the leader leads", ""),
-    ("leader_lag_s", "leader's lag", "s"),
-    ("leadership_strength", "leadership strength (mean peak correlation)", ""),
-    ("group_synchronisation", "group synchronisation (rho_g)", ""),
-)
-"""(key, description, unit) of the measures printed for one session."""
+    "co_confidence_rate", "co_confidence_count", "co_confidence_mean_length", "synchrony_share",
+    "synchrony_entries", "synchrony_mean_dwell", "leader", "leader_share", "leader_lag_s",
+    "leadership_strength", "group_synchronisation",
+)  # fmt: skip
+"""The measures printed for one session, in order, besides those of each player or pair;
+their words and units are `mirror_avatar.metrics.registry`'s."""
 
-
-FAMILIES = (("jitter_index_player_", ""), ("transfer_entropy_", "bits"), ("influence_", "bits"))
-"""Key prefixes of the measures with one value per player or pair, and their units."""
-
-
-def _family_label(key: str) -> str:
-    if key.startswith("jitter_index_player_"):
-        return f"jitter index player {key.rsplit('_', 1)[1]} (2-3 Hz share)"
-    if key.startswith("transfer_entropy_"):
-        source, target = key.removeprefix("transfer_entropy_").split("_to_")
-        return f"transfer entropy {source} -> {target}"
-    return key.replace("_", " ")
-
-
-MISSING_WORDS = {
-    "co_confidence_mean_length": "no segment",
-    "synchrony_mean_dwell": "no episode",
-    "leader_lag_s": "no leader",
-    "leader_share": "no window",
-    "leadership_strength": "no window",
-}
-"""What a measure without a value (NaN) is written as; any other: ``none``."""
+FAMILIES = ("jitter_index_player_", "transfer_entropy_", "influence_")
+"""Key prefixes of the measures with one value per player or pair."""
 
 
 def _shown(key: str, value: Any) -> tuple[str, bool]:
-    """Return a measure's value as text, and whether it has one (NaN: `MISSING_WORDS`)."""
+    """Return a measure's value as text, and whether it has one (NaN: its ``missing`` words)."""
     if isinstance(value, str | int):
         return str(value), True
     if not math.isfinite(value):
-        return MISSING_WORDS.get(key, "none"), False
+        return registry.measure(key).missing, False
     return f"{value:.4f}", True
 
 
 def format_measures(values: dict[str, Any], options: MeasureOptions) -> str:
     """Render the measures of one session as aligned text, each tested one with its p-value.
 
-    A measure without a value is written in words (`MISSING_WORDS`), never ``nan``; a p-value
-    at the floor of the surrogates is written ``p <= 0.01`` (`mirror_avatar.report.p_text`);
+    Words and units are the registry's (`mirror_avatar.metrics.registry`); a measure without a
+    value is written in its ``missing`` words, never ``nan``; a p-value at the floor of the
+    surrogates is written ``p <= 0.01`` (`mirror_avatar.report.p_text`);
     the seed printed is ``options.seed``, the one the report and ``metrics.json`` name (this
     session's surrogates are drawn from a child of it).
     """
-    p_keys = {"max_cross_correlation": "time_lag_p_value"}
-    rows = [row for row in MEASURE_ROWS if row[0] in values]
-    rows += [(k, _family_label(k), unit) for k in values for prefix, unit in FAMILIES
-             if k.startswith(prefix) and not k.endswith("_p_value")]  # fmt: skip
+    keys = [key for key in MEASURE_ROWS if key in values]
+    keys += [k for k in values if k.startswith(FAMILIES) and not k.endswith("_p_value")]
+    rows = [(key, registry.label(key), registry.measure(key).unit) for key in keys]
     if not rows:
         return ""
     if values.get("leader") == "none":
@@ -137,16 +111,16 @@ def format_measures(values: dict[str, Any], options: MeasureOptions) -> str:
     lines = []
     for key, description, unit in rows:
         shown, present = _shown(key, values[key])
-        p = values.get(p_keys.get(key, f"{key}_p_value"))
+        p = values.get(registry.p_value_key(key))
         tail = "" if p is None or not present else f"  {p_text(p, n)}"
         lines.append(f"{description:<{width}}  {shown:>8}  {unit if present else '':<4}{tail}")
     lines = [line.rstrip() for line in lines]
-    tested = [("time_lag_p_value", "time lag (its cross-correlation peak)"),
-              ("phase_locking_p_value", "CV against surrogates"),
-              ("rmse_p_value", "RMSE against surrogates")]  # fmt: skip
-    for key, label in tested:
-        if key in values:
-            lines.append(f"{label:<{width}}  {p_text(values[key], n)}")
+    printed = set(keys)
+    for p_key, p in values.items():
+        tested = registry.tested_of(p_key)
+        if tested is not None and tested not in printed:
+            text = f"{registry.label(tested)} against surrogates"
+            lines.append(f"{text:<{width}}  {p_text(p, n)}")
     if "surrogates" in values:
         s = values["surrogates"]
         lines.append(f"({s['n']} {s['kind']} surrogates, --surrogate-seed {options.seed})")
@@ -161,8 +135,3 @@ def _no_leader_row(row: tuple[str, str, str], options: MeasureOptions) -> tuple[
     if key == "leader_share":
         return key, "share of windows the most-leading player leads", unit
     return row
-
-
-def scalar_measures(values: dict[str, Any]) -> dict[str, Any]:
-    """Keep the measures that fit a table cell (numbers, the leader), for the table of sessions."""
-    return {k: v for k, v in values.items() if isinstance(v, int | float | str)}

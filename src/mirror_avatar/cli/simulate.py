@@ -17,6 +17,7 @@ from mirror_avatar.errors import InputError
 from mirror_avatar.figures import SESSION_FIGURES, plot_session
 from mirror_avatar.importing import ImportOptions
 from mirror_avatar.metrics import TRIM, session_metrics
+from mirror_avatar.metrics.registry import label, measure, symbol
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import render_png
 from mirror_avatar.session import Session
@@ -24,18 +25,11 @@ from mirror_avatar.specs import load_player
 from mirror_avatar.trials import PLAYING_RANGE, Trial
 
 METRIC_ROWS = (
-    ("phase_locking", "CV (phase locking, 0-1)", ""),
-    ("rmse", "RMSE", "units"),
-    ("mean_relative_phase", "mean relative phase (player 0 - player 1)", "rad"),
-    ("sd_relative_phase", "circular SD of relative phase", "rad"),
-    ("time_lag", "time lag (player 0 ahead > 0)", "s"),
-    ("emd_players", "EMD between the players' IMS", ""),
-    ("emd_reference_0", "EMD player 0 to its reference IMS", ""),
-    ("emd_reference_1", "EMD player 1 to its reference IMS", ""),
-    ("emd_target_0", "EMD player 0 to its target's IMS (cyber player)", ""),
-    ("emd_target_1", "EMD player 1 to its target's IMS (cyber player)", ""),
-)
-"""(key, description, unit) of the metrics `evaluate` prints, in order."""
+    "phase_locking", "rmse", "mean_relative_phase", "sd_relative_phase", "time_lag",
+    "emd_players", "emd_reference_0", "emd_reference_1", "emd_target_0", "emd_target_1",
+)  # fmt: skip
+"""The metrics of a pair `evaluate` prints, in order (words and units:
+`mirror_avatar.metrics.registry`)."""
 
 SPEC_HELP = (
     "A player spec: bundled:fast, bundled:slow, a generator or cyber-player .npz, a recorded "
@@ -52,7 +46,7 @@ def format_metrics(metrics: dict[str, Any]) -> str:
     """
     if "players" in metrics:
         return format_group_metrics(metrics)
-    rows = [row for row in METRIC_ROWS if row[0] in metrics]
+    rows = [(key, label(key), measure(key).unit) for key in METRIC_ROWS if key in metrics]
     width = max(len(description) for _, description, _ in rows)
     lines = []
     for key, description, unit in rows:
@@ -63,15 +57,11 @@ def format_metrics(metrics: dict[str, Any]) -> str:
 
 
 GROUP_COLUMNS = (
-    ("synchronisation", "rho_k"),
-    ("relative_phase_to_group", "phase"),
-    ("phase_locking", "CV"),
-    ("rmse", "RMSE"),
-    ("time_lag", "lag"),
-    ("max_cross_correlation", "xcorr"),
-)
-"""(key, heading) of the per-player columns of a group, against the mean of each player's
-neighbours except ``synchronisation`` (rho_k) and ``relative_phase_to_group`` (rad)."""
+    "synchronisation", "relative_phase_to_group", "phase_locking", "rmse", "time_lag",
+    "max_cross_correlation",
+)  # fmt: skip
+"""The per-player columns of a group, headed by their registry symbols, against the mean of each
+player's neighbours except ``synchronisation`` (rho_k) and ``relative_phase_to_group`` (rad)."""
 
 
 def format_group_metrics(metrics: dict[str, Any]) -> str:
@@ -80,12 +70,12 @@ def format_group_metrics(metrics: dict[str, Any]) -> str:
         "group synchronisation (rho_g, 1 = synchronised)  "
         f"{metrics['group_synchronisation']:.4f} +- {metrics['group_synchronisation_sd']:.4f}",
         f"Kuramoto order parameter                        {metrics['kuramoto_order']:.4f}",
-        "player  " + "".join(f"{heading:>8}" for _, heading in GROUP_COLUMNS) + "  neighbours",
+        "player  " + "".join(f"{symbol(key):>8}" for key in GROUP_COLUMNS) + "  neighbours",
     ]
     for k, player in enumerate(metrics["players"]):
         cells = "".join(
             f"{'-' if player.get(key) is None else format(player[key], '.4f'):>8}"
-            for key, _ in GROUP_COLUMNS
+            for key in GROUP_COLUMNS
         )
         lines.append(f"{k:<6}  {cells}  {player['neighbours']} {player['label']}")
     lines.append("(CV, RMSE in units, lag in s and cross-correlation against the neighbours' mean)")

@@ -40,6 +40,7 @@ from mirror_avatar.lab.participant import COLOURS, Participant
 from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.lab.schedule import Schedule
 from mirror_avatar.lab.trial import LabTrial, build_avatars
+from mirror_avatar.metrics.registry import is_headline
 from mirror_avatar.players.base import Player, PlayerDiverged
 from mirror_avatar.realtime.clock import MAX_STEP, ClockLimits, run_on_clock
 from mirror_avatar.realtime.inputs import BrowserInput, InputSource
@@ -493,46 +494,17 @@ def participant_measures(measures: dict[str, Any], k: int) -> dict[str, Any]:
     return {"co_confidence_rate": measures.get("co_confidence_rate"), "led_by": led_by}
 
 
-TRIAL_SUMMARY_KEYS = (
-    "phase_locking",
-    "rmse",
-    "time_lag",
-    "emd_players",
-    "group_synchronisation",
-    "kuramoto_order",
-    "mean_phase_locking",
-    "mean_rmse",
-)
-"""The metrics listed per trial on the console."""
-
-MEASURE_SUMMARY_KEYS = (
-    "co_confidence_rate",
-    "co_confidence_count",
-    "leader",
-    "leader_lag_s",
-    "leader_share",
-    "transfer_entropy_0_to_1",
-    "transfer_entropy_1_to_0",
-    "error",
-)
-"""The measures listed per trial on the console, besides each player's jitter and influence and
-every p-value."""
-
-
 def headline_measures(measures: dict[str, Any]) -> dict[str, Any]:
-    """Select the measures the console lists of a trial (`MEASURE_SUMMARY_KEYS` and more).
+    """Select the measures the console lists of a trial: headline ones, p-values, ``error``.
 
+    The headline measures are `mirror_avatar.metrics.registry.is_headline`'s.
     The p-values come with their surrogates' description (``surrogates``: kind and count), so
     that the console writes a p-value at the floor of its surrogates as a bound.
     """
-    per_player = ("jitter_index_player_", "influence_player_")
     return {
         key: value
         for key, value in measures.items()
-        if key in MEASURE_SUMMARY_KEYS
-        or key.startswith(per_player)
-        or key.endswith("_p_value")
-        or key == "surrogates"
+        if is_headline(key) or key.endswith("_p_value") or key in ("surrogates", "error")
     }
 
 
@@ -551,7 +523,7 @@ def trial_row(summary: dict[str, Any]) -> dict[str, Any]:
         "held": summary.get("held", {}),
         "lost": summary.get("lost", {}),
         "late_ms": summary.get("tick_lateness_ms", {}),
-        "metrics": {key: metrics[key] for key in TRIAL_SUMMARY_KEYS if key in metrics},
+        "metrics": {key: value for key, value in metrics.items() if is_headline(key)},
         "measures": headline_measures(summary.get("measures", {})),
         "files": [
             summary["files"]["session"],

@@ -52,6 +52,7 @@ from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.metrics import compute_phase, session_metrics
 from mirror_avatar.metrics.group import compute_cluster_phase
 from mirror_avatar.metrics.measures import MeasureOptions, session_measures
+from mirror_avatar.metrics.quantities import Quantities
 from mirror_avatar.players.base import Player
 from mirror_avatar.realtime.clock import time_players
 from mirror_avatar.realtime.inputs import HumanPlayer, InputSource
@@ -310,13 +311,20 @@ class LabTrial(ClockedTrial):
             device = self._device(k)
             if device is not None:
                 slot["input"] = device
-        metrics = session_metrics(session) if session.n_samples >= MIN_SAMPLES else {}
-        measures = trial_measures(session, self.seed) if metrics else {}
+        if session.n_samples < MIN_SAMPLES:
+            return {"dropped": dict(self.dropped), "metrics": {}, "measures": {}}
+        shared = Quantities.of(session)
+        metrics = session_metrics(session, quantities=shared)
+        measures = trial_measures(session, self.seed, shared) if metrics else {}
         return {"dropped": dict(self.dropped), "metrics": metrics, "measures": measures}
 
 
-def trial_measures(session: Session, seed: int) -> dict[str, Any]:
+def trial_measures(
+    session: Session, seed: int, quantities: Quantities | None = None
+) -> dict[str, Any]:
     """Compute a trial's measures with `LAB_SURROGATES` surrogates drawn from ``seed``.
+
+    ``quantities``: the session's, when its metrics computed them already.
 
     Returns
     -------
@@ -326,7 +334,7 @@ def trial_measures(session: Session, seed: int) -> dict[str, Any]:
     """
     options = MeasureOptions(n_surrogates=LAB_SURROGATES, seed=seed)
     try:
-        return session_measures(session, options=options).values
+        return session_measures(session, options=options, quantities=quantities).values
     except Exception as error:  # the metrics and the recording are kept whatever this does
         logger.exception("the measures of a lab trial failed")
         return {"error": f"{type(error).__name__}: {error}"}

@@ -7,7 +7,9 @@ into `session_metrics`, the one summary of a session every part of the toolkit r
 The measures mirror-game studies report beside them (jitter, co-confidence, synchrony episodes,
 leadership, transfer entropy, surrogates; METHODS section 12) have one module each, composed by
 `measures.session_measures`, which `evaluate` calls (imported from there, since it brings
-pyinform) on sessions brought to at most 100 Hz by `analysis_rate.at_analysis_rate`.
+pyinform) on sessions brought to at most 100 Hz by `analysis_rate.at_analysis_rate`. Both compose
+one `quantities.Quantities` per session, so each shared quantity is computed once, and
+`registry` declares every key they return: its words, unit and test.
 """
 
 from mirror_avatar.metrics.coordination import (

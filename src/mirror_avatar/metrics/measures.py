@@ -15,7 +15,8 @@ surrogate distribution and a p-value (`mirror_avatar.metrics.surrogates`). Keys:
   ``max_cross_correlation``;
 - three or more: ``jitter_index_player_<k>``, ``transfer_entropy_<i>_to_<j>`` for every ordered
   pair and each player's ``influence_player_<i>`` (mean transfer entropy to the others, bits);
-- ``<measure>_p_value`` beside each tested measure (`TESTED`); ``time_lag_p_value`` is the
+- ``<measure>_p_value`` beside each tested measure (`mirror_avatar.metrics.registry`, which
+  declares every key's words, unit and test); ``time_lag_p_value`` is the
   p-value of the cross-correlation peak that fixes the time lag; ``surrogates`` records the
   kind, number, smallest shift and seed.
 """
@@ -32,17 +33,10 @@ from tqdm.auto import tqdm
 
 from mirror_avatar.constraints import Constraint, Interval, Options, check
 from mirror_avatar.errors import InputError
-from mirror_avatar.metrics import co_confidence, jitter, leadership, synchrony_episodes
+from mirror_avatar.metrics import co_confidence, jitter, leadership, registry, synchrony_episodes
 from mirror_avatar.metrics import transfer_entropy as te
-from mirror_avatar.metrics.analysis_rate import session_rate
-from mirror_avatar.metrics.coordination import (
-    compute_cross_correlation_peak,
-    compute_phase,
-    compute_phase_locking,
-    compute_relative_phase,
-    compute_rmse,
-)
-from mirror_avatar.metrics.group import compute_cluster_phase
+from mirror_avatar.metrics.quantities import Quantities
+from mirror_avatar.metrics.summary import session_metrics
 from mirror_avatar.metrics.surrogates import (
     MIN_SHIFT,
     WeakNull,
@@ -99,17 +93,6 @@ CONSTRAINTS: dict[str, Constraint] = {
 """The allowed values of each open parameter of `MeasureOptions` (the jitter band excepted: it
 is fixed by the literature). dV is at most 2, shares and the windowed CV lie in [0, 1] and
 correlations in [-1, 1]."""
-
-DYAD_TESTED = {
-    "phase_locking": True, "rmse": False, "max_cross_correlation": True,
-    "co_confidence_rate": True, "leadership_strength": True, "leader_share": True,
-    "transfer_entropy_0_to_1": True, "transfer_entropy_1_to_0": True,
-}  # fmt: skip
-"""The coordination measures of a pair tested against surrogates: name -> larger is more
-coordinated (False for RMS)."""
-
-P_VALUE_KEYS = {"max_cross_correlation": "time_lag_p_value"}
-"""Tested measures whose p-value is named after the measure they stand for."""
 
 
 @dataclass(frozen=True)
@@ -213,8 +196,20 @@ def _te(v: Array, i: int, j: int, rate: float, o: MeasureOptions) -> float:
     return te.transfer_entropy(v[i], v[j], rate, o.te_history, o.te_bins, o.te_step)
 
 
+@dataclass(frozen=True)
+class _Pair:
+    """The quantities of a pair that depend on the options, each computed once."""
+
+    co_confidence: co_confidence.CoConfidence
+    leadership: leadership.Leadership | None
+
+
+def _pair(q: Quantities, o: MeasureOptions) -> _Pair:
+    return _Pair(_cc(q.velocities, q.rate, o), _leadership(q.positions, q.velocities, q.rate, o))
+
+
 def coordination_statistics(x: Array, v: Array, rate: float, o: MeasureOptions) -> dict[str, float]:
-    """Compute the tested measures of N moving players (`tested_directions` names them).
+    """Compute the tested measures of N moving players (`registry.measures_tested` names them).
 
     Parameters
     ----------
@@ -225,37 +220,33 @@ def coordination_statistics(x: Array, v: Array, rate: float, o: MeasureOptions) 
     o
         Options.
     """
-    if x.shape[0] > 2:
-        phases = np.array([compute_phase(row) for row in x])
-        out = {"group_synchronisation": float(compute_cluster_phase(phases).group.mean())}
-        for i in range(x.shape[0]):
-            for j in range(x.shape[0]):
+    return _statistics(Quantities(x, v, rate), o)
+
+
+def _statistics(q: Quantities, o: MeasureOptions, pair: _Pair | None = None) -> dict[str, float]:
+    """Compute the tested measures from a session's quantities (a pair's: ``pair``, if known)."""
+    v, rate = q.velocities, q.rate
+    if v.shape[0] > 2:
+        out = {"group_synchronisation": float(q.cluster.group.mean())}
+        for i in range(v.shape[0]):
+            for j in range(v.shape[0]):
                 if i != j:
                     out[f"transfer_entropy_{i}_to_{j}"] = _te(v, i, j, rate, o)
         return out
-    lead = _leadership(x, v, rate, o)
+    pair = pair or _pair(q, o)
+    lead = pair.leadership
     nan = float("nan")
     return {
-        "phase_locking": compute_phase_locking(compute_relative_phase(x[0], x[1])),
-        "rmse": compute_rmse(x[0], x[1]),
-        "max_cross_correlation": compute_cross_correlation_peak(x[0], x[1], rate)[1],
-        "co_confidence_rate": _cc(v, rate, o).rate,
+        "phase_locking": q.phase_locking,
+        "rmse": q.rmse,
+        "max_cross_correlation": q.cross_correlation_peak[1],
+        "co_confidence_rate": pair.co_confidence.rate,
         "leadership_strength": nan
         if lead is None
         else float(np.nan_to_num(lead.peak_values).mean()),
         "leader_share": nan if lead is None else lead.leader(rate, o.leader_share)[1],
         "transfer_entropy_0_to_1": _te(v, 0, 1, rate, o),
         "transfer_entropy_1_to_0": _te(v, 1, 0, rate, o),
-    }
-
-
-def tested_directions(n_players: int) -> dict[str, bool]:
-    """Name the tested measures of ``n_players`` players: name -> larger is more coordinated."""
-    if n_players == 2:
-        return DYAD_TESTED
-    pairs = [(i, j) for i in range(n_players) for j in range(n_players) if i != j]
-    return {"group_synchronisation": True} | {
-        f"transfer_entropy_{i}_to_{j}": True for i, j in pairs
     }
 
 
@@ -285,7 +276,7 @@ def _surrogate_sessions(
 
 def session_measures(
     session: Session, trim: float = 0.0, options: MeasureOptions | None = None,
-    partners: Sequence[Session] = (),
+    partners: Sequence[Session] = (), quantities: Quantities | None = None,
 ) -> Measures:  # fmt: skip
     """Compute the measures of a session and their chance levels (module docstring).
 
@@ -300,11 +291,13 @@ def session_measures(
         The open parameters; defaults `MeasureOptions()`.
     partners
         Other sessions (already trimmed) for pseudo-pair surrogates.
+    quantities
+        The session's shared quantities (after the trim), when its metrics use them too.
     """
     o = options or MeasureOptions()
     kept = session.trimmed(trim) if trim > 0 else session
-    x, v = kept.positions, kept.velocities
-    rate = session_rate(kept)
+    q = quantities or Quantities.of(kept)
+    x, v, rate = q.positions, q.velocities, q.rate
     out = Measures(details={"start": float(kept.times[0])})
     if kept.n_samples < jitter.shortest_series():
         return out
@@ -312,12 +305,13 @@ def session_measures(
     out.details["jitter"] = np.array(index)
     for k, row in enumerate(v):
         out.values[f"jitter_index_player_{k}"] = jitter.jitter_value(row, rate, o.jitter_band)
-    if kept.n_players < 2 or not all(np.ptp(row) > 0 for row in x):
+    if kept.n_players < 2 or not q.moving:
         return out
-    observed = coordination_statistics(x, v, rate, o)
+    pair = _pair(q, o) if kept.n_players == 2 else None
+    observed = _statistics(q, o, pair)
     out.values |= observed
-    if kept.n_players == 2:
-        out.values |= _dyad_values(x, v, rate, o, out.details)
+    if pair is not None:
+        out.values |= _dyad_values(q, pair, o, out.details)
         if "leadership" not in out.details:
             out.notes.append(
                 f"no leadership: {kept.duration:g} s is shorter than --lead-window + 2 "
@@ -331,14 +325,13 @@ def session_measures(
 
 
 def _dyad_values(
-    x: Array, v: Array, rate: float, o: MeasureOptions, details: dict[str, Any]
+    q: Quantities, pair: _Pair, o: MeasureOptions, details: dict[str, Any]
 ) -> dict[str, Any]:
     """Compute the untested measures of a pair, and its time-resolved details for the figures."""
-    start = details["start"]
-    cc = _cc(v, rate, o)
-    lead = _leadership(x, v, rate, o)
+    start, rate = details["start"], q.rate
+    cc, lead = pair.co_confidence, pair.leadership
     sync = synchrony_episodes.find_synchrony_episodes(
-        compute_relative_phase(x[0], x[1]), rate, o.sync_window, o.sync_threshold
+        q.relative_phase, rate, o.sync_window, o.sync_threshold
     )
     details |= {"co_confidence": cc, "synchrony": sync}
     leader = None
@@ -383,7 +376,7 @@ def _add_p_values(
             f"least --min-shift ({o.min_shift:g} s) from either end"
         )
         return
-    directions = tested_directions(x.shape[0])
+    directions = registry.measures_tested(x.shape[0])
     draws: dict[str, list[float]] = {name: [] for name in directions}
     for xs, vs in _surrogate_sessions(x, v, rate, o, partners):
         draw = coordination_statistics(xs, vs, rate, o)
@@ -392,47 +385,57 @@ def _add_p_values(
     for name, greater in directions.items():
         null = np.array(draws[name], dtype=np.float64)
         out.null[name] = null
-        key = P_VALUE_KEYS.get(name, f"{name}_p_value")
-        out.values[key] = p_value(observed[name], null, greater)
+        out.values[registry.p_value_key(name)] = p_value(observed[name], null, greater)
     n = len(next(iter(draws.values())))
     out.values["surrogates"] = {
         "kind": o.surrogates, "n": n, "min_shift": o.min_shift, "seed": o.seed,
     }  # fmt: skip
 
 
-def evaluate_measures(
-    sessions: Sequence[Session], trim: float, options: MeasureOptions
-) -> tuple[list[Measures], WeakNull | None]:
-    """Compute the measures of several sessions, and the weak-null test over them.
+def evaluate_sessions(
+    sessions: Sequence[Session], options: MeasureOptions
+) -> tuple[list[dict[str, Any]], list[Measures], WeakNull | None]:
+    """Compute the metrics and measures of several sessions, and the weak-null test over them.
 
-    Session i draws its surrogates from child i of ``options.seed``
-    (`mirror_avatar.seeds.spawn_seeds`); pseudo-pairs take their partners from the other
-    sessions. A progress bar shows on a terminal when surrogates are drawn.
+    Each session's metrics (`mirror_avatar.metrics.summary.session_metrics`) and measures
+    share its `Quantities`, so each quantity is computed once. Session i draws its surrogates
+    from child i of ``options.seed`` (`mirror_avatar.seeds.spawn_seeds`); pseudo-pairs take their
+    partners from the other sessions. A progress bar shows on a terminal when surrogates are
+    drawn.
+
+    Parameters
+    ----------
+    sessions
+        The sessions, already trimmed.
+    options
+        The measures' options.
 
     Returns
     -------
-    measures, weak_null
-        One `Measures` per session, in order; the weak-null test of the most common group size
-        among the moving sessions of two or more players, when two or more have it, else None.
+    metrics, measures, weak_null
+        One dict of metrics and one `Measures` per session, in order; the weak-null test of the
+        most common group size among the moving sessions of two or more players, when two or
+        more have it, else None.
     """
-    kept = [s.trimmed(trim) if trim > 0 else s for s in sessions]
-    seeds = spawn_seeds(options.seed, len(kept))
+    quantities = [Quantities.of(s) for s in sessions]
+    seeds = spawn_seeds(options.seed, len(sessions))
     quiet = None if options.n_surrogates > 0 else True
-    found = []
-    for i, session in enumerate(tqdm(kept, disable=quiet, unit="session", leave=False)):
-        others = kept[:i] + kept[i + 1 :]
-        found.append(session_measures(session, 0.0, replace(options, seed=int(seeds[i])), others))
-    return found, _weak_null(kept)
+    metrics, measures = [], []
+    shown = tqdm(list(zip(sessions, quantities, strict=True)), disable=quiet, unit="session",
+                 leave=False)  # fmt: skip
+    for i, (session, q) in enumerate(shown):
+        others = list(sessions[:i]) + list(sessions[i + 1 :])
+        metrics.append(session_metrics(session, quantities=q))
+        seeded = replace(options, seed=int(seeds[i]))
+        measures.append(session_measures(session, 0.0, seeded, others, quantities=q))
+    return metrics, measures, _weak_null(quantities)
 
 
-def _weak_null(sessions: Sequence[Session]) -> WeakNull | None:
-    moving = [
-        s for s in sessions if s.n_players >= 2 and all(np.ptp(row) > 0 for row in s.positions)
-    ]
-    sizes = [s.n_players for s in moving]
+def _weak_null(quantities: Sequence[Quantities]) -> WeakNull | None:
+    moving = [q for q in quantities if q.positions.shape[0] >= 2 and q.moving]
+    sizes = [q.positions.shape[0] for q in moving]
     if not sizes:
         return None
     size = max(set(sizes), key=sizes.count)
-    sample = [np.array([compute_phase(row) for row in s.positions]) for s in moving
-              if s.n_players == size]  # fmt: skip
+    sample = [q.phases for q in moving if q.positions.shape[0] == size]
     return kuramoto_weak_null(sample) if len(sample) >= 2 else None

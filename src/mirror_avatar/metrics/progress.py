@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from datetime import UTC, datetime
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import pandas as pd
 
@@ -74,8 +74,9 @@ def order_by_start(
 
 
 def progress_table(
-    sessions: Sequence[tuple[str, Session]], trim: float, player: int = 0
-) -> pd.DataFrame:
+    sessions: Sequence[tuple[str, Session]], trim: float, player: int = 0,
+    metrics: Sequence[dict[str, Any]] | None = None,
+) -> pd.DataFrame:  # fmt: skip
     """One row per session, in order: drift of the player's IMS, and coordination.
 
     Parameters
@@ -86,6 +87,8 @@ def progress_table(
         Seconds left out at the start of each session.
     player
         The participant's index in every session.
+    metrics
+        Each session's `session_metrics` after the trim, when they are computed already.
 
     Returns
     -------
@@ -99,15 +102,15 @@ def progress_table(
         trimmed = session.trimmed(trim)
         ims = compute_ims(trimmed.velocities[player])
         first = ims if first is None else first
-        metrics = session_metrics(session, trim=trim)
+        found = session_metrics(trimmed) if metrics is None else metrics[number - 1]
         rows.append(
             {
                 "number": number,
                 "session": name,
                 "EMD to first session": compute_emd(ims, first),
-                "EMD to partner": metrics.get("emd_players", float("nan")),
-                "CV": metrics.get("phase_locking", float("nan")),
-                "RMS": metrics.get("rmse", float("nan")),
+                "EMD to partner": found.get("emd_players", float("nan")),
+                "CV": found.get("phase_locking", float("nan")),
+                "RMS": found.get("rmse", float("nan")),
             }
         )
     return pd.DataFrame(rows).set_index("number")

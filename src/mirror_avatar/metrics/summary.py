@@ -27,16 +27,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mirror_avatar.metrics.coordination import (
-    compute_circular_sd,
-    compute_cross_correlation_peak,
-    compute_mean_relative_phase,
-    compute_phase,
-    compute_phase_locking,
-    compute_relative_phase,
-    compute_rmse,
-)
-from mirror_avatar.metrics.group import compute_cluster_phase
+from mirror_avatar.metrics.coordination import compute_circular_sd, compute_mean_relative_phase
+from mirror_avatar.metrics.quantities import Quantities
 from mirror_avatar.session import Session
 from mirror_avatar.signature import compute_emd, compute_ims
 
@@ -47,7 +39,9 @@ TRIM = 1.0
 (**choice**: the players start at rest in the middle of the range)."""
 
 
-def session_metrics(session: Session, trim: float = 0.0) -> dict[str, Any]:
+def session_metrics(
+    session: Session, trim: float = 0.0, quantities: Quantities | None = None
+) -> dict[str, Any]:
     """All coordination metrics of a session of any number of players (see the module docstring).
 
     Parameters
@@ -56,15 +50,18 @@ def session_metrics(session: Session, trim: float = 0.0) -> dict[str, Any]:
         The session.
     trim
         Seconds dropped at the start (transient), a **choice**.
+    quantities
+        The session's shared quantities (after the trim), when its measures use them too.
     """
     if trim > 0:
         session = session.trimmed(trim)
+    q = quantities or Quantities.of(session)
     metrics: dict[str, Any] = {}
     if session.n_players == 2:
-        metrics = _dyad_metrics(session)
+        metrics = _dyad_metrics(q)
     elif session.n_players > 2:
-        metrics = _group_metrics(session)
-    ims = [compute_ims(v) for v in session.velocities]
+        metrics = _group_metrics(session, q)
+    ims = q.ims
     for i, references in enumerate(session.references):
         finite = references[np.isfinite(references)]
         metrics[f"emd_reference_{i}"] = (
@@ -77,18 +74,18 @@ def session_metrics(session: Session, trim: float = 0.0) -> dict[str, Any]:
     return metrics
 
 
-def _rate(session: Session) -> float:
-    return 1.0 / float(np.median(np.diff(session.times)))
+def _with_neighbours(
+    k: int, neighbours: NDArray[np.intp], x: Array, v: Array
+) -> tuple[Array, Array]:
+    """Return player k and the mean of its neighbours as a pair: positions, velocities."""
+    return (np.array([x[k], x[neighbours].mean(axis=0)]),
+            np.array([v[k], v[neighbours].mean(axis=0)]))  # fmt: skip
 
 
-def _moves(x: Array) -> bool:
-    return bool(np.ptp(x) > 0.0)
-
-
-def _pair_metrics(x0: Array, x1: Array, rate: float) -> dict[str, float]:
-    """RMSE, phase locking and cross-correlation of two position series (NaN without motion)."""
-    out = {"rmse": compute_rmse(x0, x1)}
-    if not (_moves(x0) and _moves(x1)):
+def _pair_metrics(q: Quantities) -> dict[str, float]:
+    """RMSE, phase locking and cross-correlation of two players (NaN without motion)."""
+    out = {"rmse": q.rmse}
+    if not q.moving:
         nan = float("nan")
         return out | {
             "phase_locking": nan,
@@ -97,35 +94,30 @@ def _pair_metrics(x0: Array, x1: Array, rate: float) -> dict[str, float]:
             "time_lag": nan,
             "max_cross_correlation": nan,
         }
-    dphi = compute_relative_phase(x0, x1)
-    cv = compute_phase_locking(dphi)
-    lag, peak = compute_cross_correlation_peak(x0, x1, rate)
+    lag, peak = q.cross_correlation_peak
     return out | {
-        "phase_locking": cv,
-        "mean_relative_phase": compute_mean_relative_phase(dphi),
-        "sd_relative_phase": compute_circular_sd(cv),
+        "phase_locking": q.phase_locking,
+        "mean_relative_phase": compute_mean_relative_phase(q.relative_phase),
+        "sd_relative_phase": compute_circular_sd(q.phase_locking),
         "time_lag": lag,
         "max_cross_correlation": peak,
     }
 
 
-def _dyad_metrics(session: Session) -> dict[str, Any]:
-    x, v = session.positions, session.velocities
-    pair = _pair_metrics(x[0], x[1], _rate(session))
+def _dyad_metrics(q: Quantities) -> dict[str, Any]:
+    pair = _pair_metrics(q)
     keys = ("rmse", "phase_locking", "mean_relative_phase", "sd_relative_phase", "time_lag")
-    return {key: pair[key] for key in keys} | {
-        "emd_players": compute_emd(compute_ims(v[0]), compute_ims(v[1]))
-    }
+    return {key: pair[key] for key in keys} | {"emd_players": compute_emd(q.ims[0], q.ims[1])}
 
 
-def _group_metrics(session: Session) -> dict[str, Any]:
-    x, rate = session.positions, _rate(session)
+def _group_metrics(session: Session, q: Quantities) -> dict[str, Any]:
+    x, v, rate = session.positions, session.velocities, q.rate
     players: list[dict[str, Any]] = []
     for k in range(session.n_players):
         neighbours = np.flatnonzero(session.graph[k])
         row: dict[str, Any] = {"label": session.labels[k], "neighbours": neighbours.tolist()}
         if neighbours.size:
-            pair = _pair_metrics(x[k], x[neighbours].mean(axis=0), rate)
+            pair = _pair_metrics(Quantities(*_with_neighbours(k, neighbours, x, v), rate))
             keys = ("phase_locking", "rmse", "time_lag", "max_cross_correlation")
             row |= {key: pair[key] for key in keys}
         players.append(row)
@@ -135,8 +127,8 @@ def _group_metrics(session: Session) -> dict[str, Any]:
         "group_synchronisation_sd": nan,
         "kuramoto_order": nan,
     }
-    if all(_moves(row) for row in x):
-        cluster = compute_cluster_phase(np.array([compute_phase(row) for row in x]))
+    if q.moving:
+        cluster = q.cluster
         out = {
             "group_synchronisation": float(cluster.group.mean()),
             "group_synchronisation_sd": float(cluster.group.std()),
