@@ -1,8 +1,8 @@
 """Reading a lab export's BIDS-Motion recording back as its session: peak memory and time.
 
 A four-player lab session (two people, two avatars) is recorded with
-`mirror_avatar.session.SessionWriter`, exported with `mirror_avatar.lab.bids.export_bids`, and
-one participant's ``_motion.tsv`` is grown to ``--megabytes`` (default 60) of rows of eight
+`mirror_avatar.session.SessionWriter`, exported with `mirror_avatar.lab.export.bids.export_bids`,
+and one participant's ``_motion.tsv`` is grown to ``--megabytes`` (default 60) of rows of eight
 channels, written as the export writes them (``repr``) or, with ``--decimals N``, rounded to N
 decimals (short cells: more rows per megabyte, the case that costs a row-by-row reader most).
 A fresh child process reads it with `mirror_avatar.session.load_session` and prints its time
@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from mirror_avatar.graphs import ring_graph
-from mirror_avatar.lab.bids import export_bids
+from mirror_avatar.lab.export.bids import export_bids
 from mirror_avatar.session import SessionWriter
 
 LAUNCHER = "import subprocess, sys; sys.exit(subprocess.call(sys.argv[1:]))"

@@ -43,8 +43,8 @@ from websockets.asyncio.client import connect
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.engine.loop import Engine, count_samples
-from mirror_avatar.lab.plan import SessionPlan, parse_plan
-from mirror_avatar.lab.trial import LabTrial, build_avatars
+from mirror_avatar.lab.design.plan import SessionPlan, parse_plan
+from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.players.base import Player
 from mirror_avatar.realtime.inputs import BrowserInput, HumanPlayer
 from mirror_avatar.realtime.outbox import encode_message

@@ -27,7 +27,7 @@ import numpy as np
 import websockets
 
 from mirror_avatar.deep.player import MAX_LAYERS, MAX_UNITS, DeepCyberPlayer
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import make_avatar_factory
 from mirror_avatar.players import Player

@@ -1,7 +1,7 @@
 """Write the lab guide's tables of protocol keys from their declarations (``make docs-tables``).
 
 Each table sits in docs/lab.md between ``<!-- keys: NAME -->`` and ``<!-- end keys -->``, NAME
-one of `mirror_avatar.lab.protocol_keys.TABLES`; tests/unit/test_lab_protocol.py checks that
+one of `mirror_avatar.lab.design.protocol_keys.TABLES`; tests/unit/test_lab_protocol.py checks that
 the guide holds them as declared.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from mirror_avatar.lab.protocol_keys import key_tables
+from mirror_avatar.lab.design.protocol_keys import key_tables
 
 GUIDE = Path(__file__).with_name("lab.md")
 MARKED = re.compile(r"(<!-- keys: (\w+) -->\n).*?(<!-- end keys -->)", re.DOTALL)

@@ -358,7 +358,7 @@ def load_session(
 ) -> Session:
     """Read a session: any file `Session.save`, `Session.save_csv` or `SessionWriter` wrote.
 
-    A lab trial exported as BIDS-Motion (a ``_motion.tsv`` of `mirror_avatar.lab.bids`) is
+    A lab trial exported as BIDS-Motion (a ``_motion.tsv`` of `mirror_avatar.lab.export.bids`) is
     read as its whole N-player session (`mirror_avatar.bids.reading.read_lab_recording`;
     controls and references NaN); another tool's ``_motion.tsv`` as one player per tracked
     point (`mirror_avatar.bids.reading.read_tracked_points`; velocities computed from the

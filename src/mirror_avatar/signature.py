@@ -538,7 +538,7 @@ def analyse_signatures(
 def distinct_labels(trials: Sequence[Trial]) -> list[str]:
     """Return the trials' labels, those that repeat qualified until each names one trial.
 
-    Trials are told apart by their source (`mirror_avatar.trial_sets` labels them by path), but
+    Trials are told apart by their source (`mirror_avatar.cli.trial_sets` labels them by path), but
     trials from elsewhere may share a label: a repeated label gets its group in front
     (``person1/trial_00``), and one still repeated its place among its twins (``trial_00 (2)``).
     """

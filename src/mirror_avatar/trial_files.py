@@ -1,7 +1,7 @@
 """One trial file of any supported format, read or written by its name.
 
 CSV, Parquet and MATLAB files are read by `mirror_avatar.trial_io`, BIDS-Motion recordings by
-`mirror_avatar.bids.reading`; folders of files by `mirror_avatar.trial_sets.read_trial_set`.
+`mirror_avatar.bids.reading`; folders of files by `mirror_avatar.cli.trial_sets.read_trial_set`.
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ def read_trial_file(
 ) -> list[Trial]:
     """Read the trials of one file by its extension (a ``.mat`` file may hold ``max_trials``).
 
-    Folders of files are read by `mirror_avatar.trial_sets.read_trial_set`.
+    Folders of files are read by `mirror_avatar.cli.trial_sets.read_trial_set`.
     """
     path = Path(path)
     suffix = MOTION_SUFFIX if path.name.endswith(MOTION_SUFFIX) else path.suffix.lower()

@@ -31,8 +31,8 @@ import httpx
 from test_lab_server import BEARER, TOKEN, Page, status, welcomed
 from test_lab_study import AnsweringPage
 
-from mirror_avatar.lab.protocol import load_protocol
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.design.protocol import load_protocol
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
-from mirror_avatar.lab.plan import parse_plan
-from mirror_avatar.lab.trial import LabTrial, build_avatars
+from mirror_avatar.lab.design.plan import parse_plan
+from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.session import load_session
 from mirror_avatar.trial_io import read_csv_trial, write_csv_trial

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
-from mirror_avatar.lab.plan import parse_plan
-from mirror_avatar.lab.trial import LabTrial, build_avatars
+from mirror_avatar.lab.design.plan import parse_plan
+from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.live.messages import StartRequest
 from mirror_avatar.live.session import make_avatar_factory, start_trial
 from mirror_avatar.realtime.inputs import BrowserInput

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
+from mirror_avatar.cli.trial_sets import read_trial_set
 from mirror_avatar.experiments.generator import (
     analyse_splits,
     compute_style_emd,
@@ -18,7 +19,6 @@ from mirror_avatar.experiments.generator import (
     split_and_generate,
 )
 from mirror_avatar.trial_io import read_csv_trial, write_csv_trial
-from mirror_avatar.trial_sets import read_trial_set
 from mirror_avatar.trials import Trial
 
 PEOPLE = 7

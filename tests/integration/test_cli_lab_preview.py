@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from mirror_avatar.cli import main
-from mirror_avatar.lab.protocol import load_protocol
+from mirror_avatar.lab.design.protocol import load_protocol
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
 THREE = """

@@ -14,8 +14,8 @@ import httpx
 from test_lab_server import BEARER, DYAD, TOKEN, command, create, socket_url
 from websockets.sync.client import connect
 
-from mirror_avatar.lab.server import LabSettings, create_lab_app
-from mirror_avatar.lab.sessions import KEEP_ENDED
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
+from mirror_avatar.lab.running.sessions import KEEP_ENDED
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 

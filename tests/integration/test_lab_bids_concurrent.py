@@ -15,10 +15,10 @@ import httpx
 from test_lab_server import BEARER, TOKEN
 
 from mirror_avatar.bids.tables import read_tsv
-from mirror_avatar.lab.bids import export_bids
-from mirror_avatar.lab.plan import parse_plan
-from mirror_avatar.lab.server import LabSettings, create_lab_app
-from mirror_avatar.lab.trial import LabTrial
+from mirror_avatar.lab.design.plan import parse_plan
+from mirror_avatar.lab.export.bids import export_bids
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
+from mirror_avatar.lab.running.trial import LabTrial
 from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.testing import ServerThread
 

@@ -17,7 +17,7 @@ import psutil
 import pytest
 from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains, on_the_clock
 
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread

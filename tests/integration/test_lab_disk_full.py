@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from test_lab_server import DYAD, TOKEN, Page, command, create, status, welcomed
 
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for

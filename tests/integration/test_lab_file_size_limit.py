@@ -35,7 +35,7 @@ def test_an_export_under_a_file_size_limit_names_the_file(tmp_path):
 SERVER = """
 import resource, sys
 from pathlib import Path
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 settings = LabSettings(out_dir=Path(sys.argv[1]), token="token", countdown=1)
 with ServerThread(create_lab_app(settings)) as lab:
@@ -65,8 +65,8 @@ def test_a_session_the_server_cannot_write_is_refused_naming_the_file(tmp_path):
 TRIAL = """
 import asyncio, json, math, resource, sys, time
 from pathlib import Path
-from mirror_avatar.lab.plan import parse_plan
-from mirror_avatar.lab.trial import LabTrial
+from mirror_avatar.lab.design.plan import parse_plan
+from mirror_avatar.lab.running.trial import LabTrial
 from mirror_avatar.realtime.clock import ClockLimits, run_on_clock
 from mirror_avatar.realtime.inputs import BrowserInput
 players = [{"label": "P1", "kind": "human"}, {"label": "P2", "kind": "human"}]

@@ -17,7 +17,7 @@ import httpx
 import pytest
 from test_lab_server import BEARER, TOKEN, status
 
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mirror_avatar.lab.protocol import load_protocol
+from mirror_avatar.lab.design.protocol import load_protocol
 
 PROTOCOL = """
 title = "Delay pilot"

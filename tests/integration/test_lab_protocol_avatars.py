@@ -9,7 +9,7 @@ import httpx
 import pytest
 from test_lab_server import BEARER, TOKEN
 
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 
 PROTOCOL = """

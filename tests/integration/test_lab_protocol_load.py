@@ -14,9 +14,9 @@ import pytest
 from test_lab_server import BEARER, TOKEN
 from test_lab_study import PROTOCOL, create_participant
 
-from mirror_avatar.lab.protocol import MAX_PROTOCOL_BYTES, load_protocol
-from mirror_avatar.lab.protocol_store import SEED_LINE
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.design.protocol import MAX_PROTOCOL_BYTES, load_protocol
+from mirror_avatar.lab.design.protocol_store import SEED_LINE
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 
 SHAPE = 'the body must be {"name": the file\'s name, "text": its TOML}'

@@ -9,7 +9,7 @@ import pytest
 from browsers import SCREENSHOTS
 from test_lab_study import PROTOCOL
 
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 
 pytestmark = pytest.mark.browser

@@ -20,8 +20,8 @@ from test_lab_study import (
     play_to_the_end,
 )
 
-from mirror_avatar.lab.protocol import load_protocol
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.design.protocol import load_protocol
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 
 HIDDEN_SPEC = "bundled:fast"

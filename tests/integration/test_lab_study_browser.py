@@ -12,8 +12,8 @@ import httpx
 import pytest
 from browsers import SCREENSHOTS
 
-from mirror_avatar.lab.protocol import load_protocol
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.design.protocol import load_protocol
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 

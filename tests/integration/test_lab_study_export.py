@@ -23,8 +23,8 @@ from test_lab_server import BEARER, TOKEN, status
 from test_lab_study import QUESTIONS, AnsweringPage, create_participant, play_to_the_end
 
 from mirror_avatar.cli import main
-from mirror_avatar.lab.protocol import load_protocol
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.design.protocol import load_protocol
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 

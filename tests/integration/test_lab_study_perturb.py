@@ -13,8 +13,8 @@ import pytest
 from test_lab_server import BEARER, TOKEN, Page, status
 from test_lab_study import play_to_the_end
 
-from mirror_avatar.lab.protocol import load_protocol
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.design.protocol import load_protocol
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.session import Session, load_session
 from mirror_avatar.specs import load_player

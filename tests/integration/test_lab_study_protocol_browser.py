@@ -14,9 +14,9 @@ from browsers import SCREENSHOTS
 from test_lab_study_browser import button, join
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.lab.order import condition_order
-from mirror_avatar.lab.protocol import load_protocol
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.design.order import condition_order
+from mirror_avatar.lab.design.protocol import load_protocol
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 

@@ -17,8 +17,8 @@ from test_lab_pilot import rehearsal
 from test_lab_study_browser import join
 from test_lab_study_protocol_browser import answer, move_until
 
-from mirror_avatar.lab.protocol import load_protocol
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.design.protocol import load_protocol
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 
 pytestmark = pytest.mark.browser

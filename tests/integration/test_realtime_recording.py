@@ -24,8 +24,8 @@ from websockets.sync.client import connect
 
 from mirror_avatar.deep.player import MAX_LAYERS, MAX_UNITS, DeepCyberPlayer
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.lab.plan import MAX_PLAYERS
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.design.plan import MAX_PLAYERS
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.players import Player
 from mirror_avatar.realtime.clock import time_players

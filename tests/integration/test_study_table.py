@@ -16,8 +16,8 @@ from test_lab_server import TOKEN
 from test_lab_study_export import PROTOCOL, Study, play
 
 from mirror_avatar.cli import main
-from mirror_avatar.lab.protocol import load_protocol
-from mirror_avatar.lab.server import LabSettings, create_lab_app
+from mirror_avatar.lab.design.protocol import load_protocol
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 
 DESIGN = [

@@ -8,9 +8,9 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from mirror_avatar.lab.balance import balancing_count, block_balance
-from mirror_avatar.lab.order import design_rows
-from mirror_avatar.lab.protocol import Protocol, parse_protocol
+from mirror_avatar.lab.design.balance import balancing_count, block_balance
+from mirror_avatar.lab.design.order import design_rows
+from mirror_avatar.lab.design.protocol import Protocol, parse_protocol
 
 SEEDS = (0, 7, 20261125, 99991)
 

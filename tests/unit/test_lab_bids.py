@@ -15,7 +15,7 @@ from mirror_avatar.bids.reading import read_lab_recording
 from mirror_avatar.bids.writing import write_bids_motion
 from mirror_avatar.errors import InputError
 from mirror_avatar.graphs import complete_graph, ring_graph
-from mirror_avatar.lab.bids import export_bids
+from mirror_avatar.lab.export.bids import export_bids
 from mirror_avatar.session import Session, SessionWriter, load_session
 from mirror_avatar.trial_files import read_trial
 from mirror_avatar.trial_record import SlotRecord, StudyRecord, TrialRecord

@@ -9,9 +9,9 @@ import time
 
 import numpy as np
 
-from mirror_avatar.lab.plan import parse_plan
-from mirror_avatar.lab.runner import LabSession
-from mirror_avatar.lab.schedule import OnePlan
+from mirror_avatar.lab.design.plan import parse_plan
+from mirror_avatar.lab.running.runner import LabSession
+from mirror_avatar.lab.running.schedule import OnePlan
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.session import load_session
 from waiting import wait_for

@@ -7,7 +7,12 @@ from collections import Counter
 
 import pytest
 
-from mirror_avatar.lab.order import block_order, condition_order, latin_square, williams_square
+from mirror_avatar.lab.design.order import (
+    block_order,
+    condition_order,
+    latin_square,
+    williams_square,
+)
 
 
 def _is_latin(rows: list[list[int]], n: int) -> bool:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.graphs import ring_graph
-from mirror_avatar.lab.plan import (
+from mirror_avatar.lab.design.plan import (
     LSL_SETTINGS,
     SESSION_SETTINGS,
     TRIAL_SETTINGS,

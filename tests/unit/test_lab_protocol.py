@@ -13,11 +13,11 @@ import pytest
 
 from mirror_avatar.constraints import REQUIRED
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.balance import block_balance
-from mirror_avatar.lab.checker import ProtocolKeyError
-from mirror_avatar.lab.messages import Answer, parse_participant_message
-from mirror_avatar.lab.protocol import MAX_PROTOCOL_BYTES, load_protocol, parse_protocol
-from mirror_avatar.lab.protocol_keys import TABLES, key_tables
+from mirror_avatar.lab.design.balance import block_balance
+from mirror_avatar.lab.design.checker import ProtocolKeyError
+from mirror_avatar.lab.design.protocol import MAX_PROTOCOL_BYTES, load_protocol, parse_protocol
+from mirror_avatar.lab.design.protocol_keys import TABLES, key_tables
+from mirror_avatar.lab.running.messages import Answer, parse_participant_message
 from mirror_avatar.realtime.messages import ProtocolError
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
@@ -241,7 +241,11 @@ def declared_refusals() -> list[tuple[tuple, object, str]]:
     return cases
 
 
-@pytest.mark.parametrize(("path", "value", "key"), declared_refusals(), ids=str)
+@pytest.mark.parametrize(
+    ("path", "value", "key"),
+    declared_refusals(),
+    ids=lambda case: "missing" if case is DELETE else str(case),
+)
 def test_every_value_a_declared_key_refuses_is_refused_in_one_line_naming_its_path(
     path, value, key
 ):

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from mirror_avatar.lab.protocol_store import MAX_NAME_BYTES, protocol_name, store_protocol
-from mirror_avatar.lab.runner import LabSession
-from mirror_avatar.lab.study import ParticipantRun, study_folder
+from mirror_avatar.lab.design.protocol_store import MAX_NAME_BYTES, protocol_name, store_protocol
+from mirror_avatar.lab.running.runner import LabSession
+from mirror_avatar.lab.running.study import ParticipantRun, study_folder
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
 

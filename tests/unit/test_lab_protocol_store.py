@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.protocol import load_protocol
-from mirror_avatar.lab.protocol_store import (
+from mirror_avatar.lab.design.protocol import load_protocol
+from mirror_avatar.lab.design.protocol_store import (
     SEED_LINE,
     protocol_name,
     same_protocol,
@@ -72,7 +72,9 @@ def test_a_bad_protocol_is_refused_by_the_chosen_files_name_and_nothing_is_kept(
     bad = SEEDED.replace('block_order = "fixed"', 'block_order = "shuffled"')
     with pytest.raises(InputError) as refused:
         store_protocol(tmp_path, "C:\\lab\\pilot.toml", bad)
-    assert str(refused.value) == "pilot.toml: block_order: must be 'fixed' or 'random' (choose one)"
+    assert str(refused.value) == (
+        "pilot.toml: block_order: 'shuffled' is not allowed (give one of fixed, random)"
+    )
     assert not (tmp_path / "protocols").exists()
 
 

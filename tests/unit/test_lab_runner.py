@@ -7,9 +7,9 @@ import asyncio
 import json
 import time
 
-from mirror_avatar.lab.plan import parse_plan
-from mirror_avatar.lab.runner import LabSession, headline_measures, participant_measures
-from mirror_avatar.lab.schedule import OnePlan
+from mirror_avatar.lab.design.plan import parse_plan
+from mirror_avatar.lab.running.runner import LabSession, headline_measures, participant_measures
+from mirror_avatar.lab.running.schedule import OnePlan
 
 SOLO = {"condition": "solo", "duration": 5.0, "players": [{"label": "P1", "kind": "human"}]}
 

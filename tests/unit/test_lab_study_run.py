@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.protocol import load_protocol
-from mirror_avatar.lab.runner import LabSession
-from mirror_avatar.lab.study import ParticipantRun, study_folder
+from mirror_avatar.lab.design.protocol import load_protocol
+from mirror_avatar.lab.running.runner import LabSession
+from mirror_avatar.lab.running.study import ParticipantRun, study_folder
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
 
@@ -105,7 +105,7 @@ def test_the_outlet_channels_are_every_label_of_the_run(tmp_path, participant):
 def _earlier_draws(protocol, participant: int) -> list[tuple[str, dict[str, str]]]:
     """The partners block's order and kinds as drawn before partner kinds were balanced over
     positions (literal-tagged streams; kinds drawn per pair of participants and condition)."""
-    from mirror_avatar.lab.order import williams_square
+    from mirror_avatar.lab.design.order import williams_square
 
     block = protocol.blocks[1]
     symbols = np.random.default_rng([protocol.seed, 3, 1]).permutation(4)

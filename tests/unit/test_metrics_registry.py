@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mirror_avatar.lab.runner import headline_measures
+from mirror_avatar.lab.running.runner import headline_measures
 from mirror_avatar.metrics import registry, session_metrics
 from mirror_avatar.metrics.jitter import JITTER_BAND
 from mirror_avatar.metrics.measures import MeasureOptions, coordination_statistics, session_measures

@@ -7,8 +7,8 @@ import time
 
 import numpy as np
 
-from mirror_avatar.lab.plan import parse_plan
-from mirror_avatar.lab.trial import LabTrial, build_avatars
+from mirror_avatar.lab.design.plan import parse_plan
+from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.session import load_session
 

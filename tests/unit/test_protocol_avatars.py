@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.protocol import load_protocol, parse_protocol
-from mirror_avatar.lab.protocol_store import store_protocol
+from mirror_avatar.lab.design.protocol import load_protocol, parse_protocol
+from mirror_avatar.lab.design.protocol_store import store_protocol
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
 

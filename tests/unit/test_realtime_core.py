@@ -10,8 +10,8 @@ import time
 
 import pytest
 
-from mirror_avatar.lab.plan import parse_plan
-from mirror_avatar.lab.trial import LabTrial
+from mirror_avatar.lab.design.plan import parse_plan
+from mirror_avatar.lab.running.trial import LabTrial
 from mirror_avatar.players import Player
 from mirror_avatar.realtime.clock import time_players
 from mirror_avatar.realtime.inputs import HumanPlayer, Sample

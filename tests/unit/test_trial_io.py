@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from mirror_avatar.atomic import atomic_path, write_atomic_text
+from mirror_avatar.cli.trial_sets import read_trial_set
 from mirror_avatar.errors import InputError
 from mirror_avatar.trial_files import read_trial, read_trial_file, write_trial
 from mirror_avatar.trial_io import read_mat_struct, write_mat_struct
-from mirror_avatar.trial_sets import read_trial_set
 from mirror_avatar.trials import make_trial
 
 

@@ -36,7 +36,7 @@ from mirror_avatar.analysis.guesses import guess
 from mirror_avatar.analysis.trials import StudyTrial
 from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.trial import LAB_SURROGATES
+from mirror_avatar.lab.running.trial import LAB_SURROGATES
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.metrics.measures import MeasureOptions, session_measures
 from mirror_avatar.metrics.quantities import Quantities

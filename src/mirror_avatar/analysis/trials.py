@@ -2,8 +2,8 @@
 
 `read_study_trials` takes any mix of the lab's run folders (a study participant's
 ``<out>/<protocol>-pNNN/``, a plain session's ``<out>/<session id>/``), folders holding them
-(the lab's ``--out``), a BIDS dataset a lab export wrote (`mirror_avatar.lab.bids`) or one of its
-subject folders. From a run folder, each trial's sidecar gives its record
+(the lab's ``--out``), a BIDS dataset a lab export wrote (`mirror_avatar.lab.export.bids`) or one of
+its subject folders. From a run folder, each trial's sidecar gives its record
 (`mirror_avatar.trial_record.read_trial_record`) and ``trial-NN_answers.json`` its answers.
 From a BIDS dataset (never its ``sourcedata/``), each trial is read once whichever of its people's
 ``_motion.tsv`` holds it (`mirror_avatar.session.load_session`): the ``MirrorGame`` key gives
@@ -26,8 +26,8 @@ from mirror_avatar.bids.names import MISSING, bids_label, entities
 from mirror_avatar.bids.reading import GAME_KEY, open_recording
 from mirror_avatar.bids.tables import read_tsv
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.bids import TASK
-from mirror_avatar.lab.bids_study import StudyRun, read_study, subject_label
+from mirror_avatar.lab.export.bids import TASK
+from mirror_avatar.lab.export.bids_study import StudyRun, read_study, subject_label
 from mirror_avatar.lab.files import ANSWERS_SUFFIX, TRIAL_PATTERN, companion, is_session_folder
 from mirror_avatar.session import Session, load_session
 from mirror_avatar.trial_io import read_sidecar_text

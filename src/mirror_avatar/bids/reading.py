@@ -10,7 +10,7 @@ arrays, so memory stays a small multiple of the file's size whichever reader is 
 
 `read_bids_motion` reads one position channel as a `mirror_avatar.trials.Trial` labelled by the
 recording's entities (`mirror_avatar.bids.names.recording_stem`), never by ``TaskName``.
-`read_lab_recording` reads a ``_motion.tsv`` that `mirror_avatar.lab.bids.export_bids` wrote,
+`read_lab_recording` reads a ``_motion.tsv`` that `mirror_avatar.lab.export.bids.export_bids` wrote,
 whose ``MirrorGame`` sidecar key describes the trial's players, back as arrays for
 `mirror_avatar.session.load_session`; `read_tracked_points` reads any other tool's recording
 the same way, one player per tracked point with a position (``POS``) channel.
@@ -252,7 +252,7 @@ def is_lab_recording(path: str | Path) -> bool:
 
 
 def read_lab_recording(path: str | Path) -> LabRecording:
-    """Read a ``_motion.tsv`` that `mirror_avatar.lab.bids.export_bids` wrote: every player.
+    """Read a ``_motion.tsv`` that `mirror_avatar.lab.export.bids.export_bids` wrote: every player.
 
     Channels are named ``position`` and ``velocity`` (the participant's) and
     ``position_<label>``, ``velocity_<label>`` (each other player's).

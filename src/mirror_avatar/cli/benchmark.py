@@ -23,6 +23,7 @@ from mirror_avatar.atomic import json_safe, write_atomic_bytes, write_atomic_jso
 from mirror_avatar.cli.benchmark_humans import read_human_followers
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import SessionReading, import_options
+from mirror_avatar.cli.trial_sets import read_trial_set
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.benchmark_ranking import (
@@ -54,7 +55,6 @@ from mirror_avatar.importing import ImportOptions
 from mirror_avatar.report import Section, render_png, render_report
 from mirror_avatar.session import Session
 from mirror_avatar.specs import MODEL_PARTNERS
-from mirror_avatar.trial_sets import read_trial_set
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 BUNDLED = "bundled"

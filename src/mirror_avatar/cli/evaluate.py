@@ -21,6 +21,7 @@ from mirror_avatar.cli.evaluate_report import (
     verdict,
     write_evaluation,
 )
+from mirror_avatar.cli.measure_figures import measures_section
 from mirror_avatar.cli.measure_options import format_measures, measure_options, options_from
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import (
@@ -31,7 +32,6 @@ from mirror_avatar.cli.reading import (
 )
 from mirror_avatar.cli.simulate import format_metrics
 from mirror_avatar.errors import InputError
-from mirror_avatar.measure_figures import measures_section
 from mirror_avatar.metrics import TRIM
 from mirror_avatar.metrics.analysis_rate import (
     ANALYSIS_RATE,

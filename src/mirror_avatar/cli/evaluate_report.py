@@ -18,12 +18,12 @@ import pandas as pd
 
 from mirror_avatar.atomic import write_atomic_files
 from mirror_avatar.cli.reading import session_note
+from mirror_avatar.cli.trial_sets import common_root
 from mirror_avatar.figures import plot_progress, plot_session
 from mirror_avatar.metrics import registry
 from mirror_avatar.metrics.measures import Measures
 from mirror_avatar.report import Section, p_text, report_texts
 from mirror_avatar.session import Session
-from mirror_avatar.trial_sets import common_root
 
 ALPHA = 0.05
 """A session whose deciding measure has a p-value below this beats its surrogates (METHODS

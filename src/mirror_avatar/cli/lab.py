@@ -47,8 +47,8 @@ def lab(
     """
     if ctx.invoked_subcommand is not None:
         return
-    from mirror_avatar.lab.protocol import load_protocol
-    from mirror_avatar.lab.server import LabSettings, create_lab_app
+    from mirror_avatar.lab.design.protocol import load_protocol
+    from mirror_avatar.lab.running.server import LabSettings, create_lab_app
     from mirror_avatar.realtime.transport import listening_socket, make_server, make_token
 
     protocol = None if protocol_file is None else load_protocol(protocol_file)
@@ -120,7 +120,7 @@ def _lsl_available() -> bool:
 
 
 DATASET_FILES = ("dataset_description.json", "README", "participants.tsv", "participants.json")
-"""The files `mirror_avatar.lab.bids.export_bids` writes at the top of a dataset (the
+"""The files `mirror_avatar.lab.export.bids.export_bids` writes at the top of a dataset (the
 recordings' own names are known once the session is read)."""
 
 
@@ -144,7 +144,7 @@ def export(session_dir: Path, out_dir: Path) -> None:
     Every exported _motion.tsv is read back by `mirror-avatar evaluate` (the whole trial) and by
     `signature` or `generator fit` (that person's own motion).
     """
-    from mirror_avatar.lab.bids import export_bids
+    from mirror_avatar.lab.export.bids import export_bids
 
     check_output_dir(out_dir, files=DATASET_FILES)
     written = export_bids(session_dir, out_dir)

@@ -94,8 +94,8 @@ def pilot(
     player SPEC on it, and answers the questions by rule. The folders are a real study's, so
     `mirror-avatar study table` and `study report` run on them before the first person comes.
     """
-    from mirror_avatar.lab.pilot import AnswerRule, run_pilot
-    from mirror_avatar.lab.protocol import load_protocol
+    from mirror_avatar.lab.design.protocol import load_protocol
+    from mirror_avatar.lab.running.pilot import AnswerRule, run_pilot
 
     protocol = load_protocol(protocol_file)
     given = _pairs(stand_in, "--stand-in")

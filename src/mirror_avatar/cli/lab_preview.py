@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING
 import click
 
 if TYPE_CHECKING:
-    from mirror_avatar.lab.balance import BlockBalance
-    from mirror_avatar.lab.protocol import Protocol, Step
+    from mirror_avatar.lab.design.balance import BlockBalance
+    from mirror_avatar.lab.design.protocol import Protocol, Step
 
 MAX_PREVIEW = 1000
 """Most participants previewed (participant numbers go up to 999)."""
@@ -39,8 +39,8 @@ def preview(protocol_file: Path, participants: int) -> None:
     whether every block is balanced, or what is not and how many participants would balance it.
     Nothing is written: the lab draws the same orders and partners from the protocol's seed.
     """
-    from mirror_avatar.lab.balance import block_balance
-    from mirror_avatar.lab.protocol import load_protocol
+    from mirror_avatar.lab.design.balance import block_balance
+    from mirror_avatar.lab.design.protocol import load_protocol
 
     protocol = load_protocol(protocol_file)
     schedules = [protocol.schedule(p) for p in range(participants)]
@@ -74,7 +74,7 @@ def preview(protocol_file: Path, participants: int) -> None:
 
 def _fix(protocol: Protocol, participants: int, balances: list[BlockBalance]) -> str:
     """Say what would balance every block: a counterbalanced order, or more participants."""
-    from mirror_avatar.lab.balance import balancing_count
+    from mirror_avatar.lab.design.balance import balancing_count
 
     unsquared = [
         f"'{balance.name}'"
@@ -107,7 +107,7 @@ def _order_line(protocol: Protocol, steps: list[Step]) -> str:
 
 def _table(balance: BlockBalance) -> list[str]:
     """Return a block's balance table: times at each position of each condition and kind."""
-    from mirror_avatar.lab.balance import KINDS
+    from mirror_avatar.lab.design.balance import KINDS
 
     names = list(balance.conditions) + [f"partner {kind}" for kind in KINDS]
     width = max(len(name) for name in names)

@@ -7,7 +7,7 @@ hands the command one `mirror_avatar.importing.ImportOptions` (with ``--offset``
 ``--max-gap`` to the commands that read sessions, as one `SessionReading`;
 `group_option` adds ``--group-by``; `read_and_report` reads the paths and prints the groups
 found, the files skipped and a table of each trial's checks
-(`mirror_avatar.import_checks`) before any analysis, warnings on standard error.
+(`mirror_avatar.cli.import_checks`) before any analysis, warnings on standard error.
 """
 
 from __future__ import annotations
@@ -21,8 +21,9 @@ from typing import Any
 import click
 
 from mirror_avatar.cli.constrained import constrained_type, ranged, with_range
+from mirror_avatar.cli.import_checks import check_table, check_trial
+from mirror_avatar.cli.trial_sets import GROUPINGS, read_trial_set
 from mirror_avatar.constraints import Interval
-from mirror_avatar.import_checks import check_table, check_trial
 from mirror_avatar.importing import (
     MAX_GAP,
     MAX_GAP_RANGE,
@@ -35,7 +36,6 @@ from mirror_avatar.importing import (
     parse_columns,
 )
 from mirror_avatar.session import Session, load_session
-from mirror_avatar.trial_sets import GROUPINGS, read_trial_set
 from mirror_avatar.trials import Trial
 
 

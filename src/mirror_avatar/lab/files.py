@@ -1,7 +1,7 @@
 """The names of a lab session's files in its folder.
 
 A session's folder holds ``plan.json`` (the plan as created), ``study.json`` in a study
-session (`mirror_avatar.lab.study`) and, for trial n, ``trial-NN_session.csv`` with its
+session (`mirror_avatar.lab.running.study`) and, for trial n, ``trial-NN_session.csv`` with its
 ``.json`` sidecar, ``trial-NN_inputs.csv`` (`mirror_avatar.realtime.trial.TickLog`) and, after
 questions, ``trial-NN_answers.json``. The server, the study runner and the BIDS export all name
 them here.

@@ -1,4 +1,4 @@
-// The researcher's console: a thin page over the lab server's HTTP/JSON API (see lab/server.py).
+// The researcher's console: a thin page over the lab server's HTTP/JSON API (see lab/running/api.py).
 (() => {
   "use strict";
   const $ = (id) => document.getElementById(id);
@@ -191,7 +191,7 @@
     });
   }
 
-  // The field's measures of a trial in words, one line each (keys: lab/runner.py headline_measures).
+  // The field's measures of a trial in words, one line each (keys: lab/running/runner.py headline_measures).
   function measureLines(measures, labels) {
     if (measures.error) return [`measures failed: ${measures.error}`];
     // At the floor of its surrogates (1 / (n + 1)) a p-value is only bounded: "p <= floor".

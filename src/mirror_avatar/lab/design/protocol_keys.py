@@ -2,18 +2,18 @@
 
 Each table of a protocol file (the file itself, a question, a block, a condition, a player) has
 its keys declared here as `mirror_avatar.constraints.Setting` records. The protocol's reader
-(`mirror_avatar.lab.protocol`) knows the keys and checks every scalar value from them; the
+(`mirror_avatar.lab.design.protocol`) knows the keys and checks every scalar value from them; the
 refusal tests are generated from them; and the lab guide's tables of keys are written from
 them (`key_tables`), so that the file format, its checks and its documents say the same.
-A condition's trial keys are the plan's (`mirror_avatar.lab.plan.TRIAL_SETTINGS`), declared
+A condition's trial keys are the plan's (`mirror_avatar.lab.design.plan.TRIAL_SETTINGS`), declared
 there once.
 """
 
 from __future__ import annotations
 
 from mirror_avatar.constraints import Interval, Options, Setting, settings_table
-from mirror_avatar.lab.order import ORDERS
-from mirror_avatar.lab.plan import CONDITIONS, MAX_PLAYERS, SEED_LIMIT, TRIAL_SETTINGS
+from mirror_avatar.lab.design.order import ORDERS
+from mirror_avatar.lab.design.plan import CONDITIONS, MAX_PLAYERS, SEED_LIMIT, TRIAL_SETTINGS
 
 PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
 """What a protocol's player slot holds."""

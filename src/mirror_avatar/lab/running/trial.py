@@ -45,10 +45,10 @@ import numpy as np
 from mirror_avatar import __version__
 from mirror_avatar.engine.loop import count_samples, row_positions, spawn_session_seeds
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.avatars import load_avatar, successor_players
+from mirror_avatar.lab.design.avatars import load_avatar, successor_players
+from mirror_avatar.lab.design.perturbation import Perturbation
+from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.lab.files import trial_stem
-from mirror_avatar.lab.perturbation import Perturbation
-from mirror_avatar.lab.plan import SessionPlan
 from mirror_avatar.metrics import compute_phase, session_metrics
 from mirror_avatar.metrics.group import compute_cluster_phase
 from mirror_avatar.metrics.measures import MeasureOptions, session_measures
@@ -73,7 +73,7 @@ end screens come at once; ``mirror-avatar evaluate --surrogates`` gives finer p-
 def build_avatars(plan: SessionPlan) -> dict[int, Player]:
     """Load every avatar of the plan in its role and time its step here.
 
-    Each avatar is loaded (`mirror_avatar.lab.avatars.load_avatar`), stepped once untimed
+    Each avatar is loaded (`mirror_avatar.lab.design.avatars.load_avatar`), stepped once untimed
     (compiling it off the clock) and then timed
     (`mirror_avatar.realtime.clock.time_players`); a plan whose avatars together need more than
     the control period per step cannot keep real time and is refused.
@@ -127,7 +127,7 @@ class LabTrial(ClockedTrial):
         Receives each sample's positions and clock time (the LSL outlet), or None.
     perturbations
         Changes of avatars during the trial, each with the avatar's player index, in order
-        of time (`mirror_avatar.lab.perturbation`).
+        of time (`mirror_avatar.lab.design.perturbation`).
 
     Attributes
     ----------
@@ -192,9 +192,9 @@ class LabTrial(ClockedTrial):
     ) -> list[tuple[int, Perturbation, Player]]:
         """Build and reset, off the clock, the player each perturbation hands the avatar over to.
 
-        Each is `mirror_avatar.lab.avatars.successor_players`', reset with the seed the engine
-        gives the avatar (`mirror_avatar.engine.loop.spawn_session_seeds`), so that it draws the
-        avatar's own reference.
+        Each is `mirror_avatar.lab.design.avatars.successor_players`', reset with the seed the
+        engine gives the avatar (`mirror_avatar.engine.loop.spawn_session_seeds`), so that it draws
+        the avatar's own reference.
         """
         seeds, _ = spawn_session_seeds(self.seed, n_players)
         built = successor_players(self.plan, perturbations)

@@ -37,8 +37,8 @@ from websockets.exceptions import ConnectionClosed
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.plan import SessionPlan
-from mirror_avatar.lab.protocol import Protocol, load_protocol
+from mirror_avatar.lab.design.plan import SessionPlan
+from mirror_avatar.lab.design.protocol import Protocol, load_protocol
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.specs import load_player
@@ -346,7 +346,8 @@ async def _wait_joined(api: httpx.AsyncClient, sid: str, timeout: float = 60.0) 
 
 
 COUNTDOWN_S = 3.0
-"""Seconds of countdown before each trial (`mirror_avatar.lab.runner.LabSession`'s default)."""
+"""Seconds of countdown before each trial (`mirror_avatar.lab.running.runner.LabSession`'s
+default)."""
 
 
 def planned_seconds(protocol: Protocol) -> float:

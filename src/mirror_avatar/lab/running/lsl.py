@@ -7,7 +7,7 @@ LabRecorder stores it next to EEG or motion capture on the same clock, and the s
 condition) as a second stream of string markers (type ``"Markers"``, named as the positions
 with `` markers`` appended), for epoching. A study session's outlet has one channel per player
 label of the participant's whole run, NaN while that player is not in the condition
-(`mirror_avatar.lab.study.ParticipantRun.channels`).
+(`mirror_avatar.lab.running.study.ParticipantRun.channels`).
 `LslInput` reads one channel of another LSL stream (a hand tracker, a slider) as a person's input
 device: a background thread keeps the newest sample, mapped to the playing range, for the
 session's clock to read.

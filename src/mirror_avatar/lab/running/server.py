@@ -5,27 +5,28 @@ Routes (`create_lab_app`):
 - ``GET /console``: the researcher's console (a page using the API below).
 - ``GET /api/sessions``: every session's status (and the protocol's title, seed and people
   when one is loaded); ``POST /api/sessions`` with a plan
-  (`mirror_avatar.lab.plan.parse_plan`) builds its avatars (a bad spec is refused here, 400),
+  (`mirror_avatar.lab.design.plan.parse_plan`) builds its avatars (a bad spec is refused here, 400),
   creates the session and answers its status and its join links; with a protocol loaded,
   ``POST /api/sessions`` with ``{"participant": p}`` creates (or resumes) participant p's run
-  of it (`mirror_avatar.lab.study.ParticipantRun`), or answers the run as it is while it is
+  of it (`mirror_avatar.lab.running.study.ParticipantRun`), or answers the run as it is while it is
   open (200: a reloaded console shows it again).
 - ``POST /api/protocol`` with ``{"name": file name, "text": TOML}``: loads a protocol from the
-  console (`mirror_avatar.lab.protocol_store.store_protocol`: validated, kept as
+  console (`mirror_avatar.lab.design.protocol_store.store_protocol`: validated, kept as
   ``OUT/protocols/<name>.toml``, used from then on); refused while a participant's run of the
   current protocol is playing (409).
-- ``GET /api/sessions/{id}``: a session's status (`mirror_avatar.lab.runner.LabSession.status`)
+- ``GET /api/sessions/{id}``: a session's status
+(`mirror_avatar.lab.running.runner.LabSession.status`)
   with its join links; ``GET /api/sessions/{id}/live``: the last 10 s of positions and ρ_g.
 - ``POST /api/sessions/{id}/start`` (body ``{"force": true}`` starts without everyone),
   ``/stop`` and ``/abort``; ``POST /api/sessions/{id}/export`` (body ``{"folder": name}``,
-  optional) exports the session's trials as BIDS (`mirror_avatar.lab.bids.export_bids`) into
+  optional) exports the session's trials as BIDS (`mirror_avatar.lab.export.bids.export_bids`) into
   ``OUT/bids`` or ``OUT/<name>`` between trials, answering the folder and its file count.
 - ``GET /api/sessions/{id}/files/{name}``: a file of the session (plan, trials' recordings;
   refused, 403, for a run of a double-blind protocol, whose statuses are blinded too:
-  `mirror_avatar.lab.blinding`);
+  `mirror_avatar.lab.running.blinding`);
   ``GET /api/sessions/{id}/qr/{label}.svg``: the QR code of a person's join link.
 - ``GET /join/{key}``: a participant's page; ``/ws/join/{key}``: its WebSocket
-  (`mirror_avatar.lab.messages`).
+  (`mirror_avatar.lab.running.messages`).
 
 Access: ``/console`` and ``/api`` need the researcher's token always, even on loopback: as the
 ``token`` query parameter (the console's URL), the cookie the console sets, or an
@@ -38,8 +39,9 @@ flood from their address does not slow them) and per connection (messages). Clie
 a path: files are written by the server into ``OUT/<session id>/`` under names it makes, and
 served only from the session's own folder by the names it lists, through the checked reader.
 
-The session registry and the settings are in `mirror_avatar.lab.sessions`, the API's handlers in
-`mirror_avatar.lab.api`, a participant page's WebSocket in `mirror_avatar.lab.participant_page`.
+The session registry and the settings are in `mirror_avatar.lab.running.sessions`, the API's
+handlers in `mirror_avatar.lab.running.api`, a participant page's WebSocket in
+`mirror_avatar.lab.running.participant_page`.
 """
 
 from __future__ import annotations
@@ -55,12 +57,12 @@ from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp
 
-from mirror_avatar.lab.api import ApiError, LabApi, api_error
-from mirror_avatar.lab.participant_page import join_socket
-from mirror_avatar.lab.sessions import Lab, LabSettings
+from mirror_avatar.lab.running.api import ApiError, LabApi, api_error
+from mirror_avatar.lab.running.participant_page import join_socket
+from mirror_avatar.lab.running.sessions import Lab, LabSettings
 from mirror_avatar.realtime.gates import JsonGate, OriginGate, RateGate, TokenGate
 
-STATIC = Path(__file__).parent / "static"
+STATIC = Path(__file__).parents[1] / "static"
 """The console's and the participants' pages."""
 
 TOKEN_COOKIE = "mirror_avatar_lab_token"

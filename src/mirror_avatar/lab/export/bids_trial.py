@@ -3,7 +3,7 @@
 `read_lab_trial` reads ``trial-NN_session.csv`` with its sidecar's record
 (`mirror_avatar.trial_record.TrialRecord`), checks the slots against the players, and reads
 each sample's true time from ``trial-NN_inputs.csv`` (`TIMING_CHANNELS`) and the answers given
-after it; `mirror_avatar.lab.bids.export_bids` writes what it holds.
+after it; `mirror_avatar.lab.export.bids.export_bids` writes what it holds.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from mirror_avatar.bids.names import bids_label
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.bids_study import StudyRun, read_answers
+from mirror_avatar.lab.export.bids_study import StudyRun, read_answers
 from mirror_avatar.lab.files import INPUTS_SUFFIX, TRIAL_PATTERN, companion
 from mirror_avatar.session import Session, load_session
 from mirror_avatar.trial_io import _first_row, _read_numbers, read_sidecar_text
@@ -34,7 +34,7 @@ class LabTrial:
     ``record`` is the trial's (`mirror_avatar.trial_record.TrialRecord`), its slots in player
     order; ``period`` the control period (s), ``timing`` the `TIMING_CHANNELS` (shape
     (4, samples)) when the trial's inputs file is there, and ``answers`` the answers given
-    after the trial (`mirror_avatar.lab.bids_study.read_answers`); ``study`` is whose run of
+    after the trial (`mirror_avatar.lab.export.bids_study.read_answers`); ``study`` is whose run of
     which protocol the trial belongs to, None outside a study.
     """
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from mirror_avatar.lab.perturbation import Perturbation, successor
-from mirror_avatar.lab.plan import SessionPlan
+from mirror_avatar.lab.design.perturbation import Perturbation, successor
+from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.players.base import Player
 from mirror_avatar.specs import load_player, recording_file
 from mirror_avatar.user_files import check_regular
@@ -40,7 +40,7 @@ def successor_players(
     """Build the player each perturbation hands an avatar over to, in order (not reset).
 
     Each is its spec's player in the latest role with every parameter set so far
-    (`mirror_avatar.lab.perturbation.successor`).
+    (`mirror_avatar.lab.design.perturbation.successor`).
     """
     now: dict[int, tuple[str, dict[str, float]]] = {}
     built = []

@@ -1,10 +1,10 @@
 """What a lab session plays: its schedule, one plan or a participant's run of a protocol.
 
-A `mirror_avatar.lab.runner.LabSession` runs the trials; its `Schedule` answers the questions
-whose answers differ from one kind of session to the other: which plan plays trial n and who
-plays it, what the pages are told and shown, what happens after a trial, and what the folder
-and each trial's record hold. `OnePlan` plays one `mirror_avatar.lab.plan.SessionPlan`; a
-participant's run of a study protocol is `mirror_avatar.lab.study.ParticipantRun`.
+A `mirror_avatar.lab.running.runner.LabSession` runs the trials; its `Schedule` answers the
+questions whose answers differ from one kind of session to the other: which plan plays trial n and
+who plays it, what the pages are told and shown, what happens after a trial, and what the folder
+and each trial's record hold. `OnePlan` plays one `mirror_avatar.lab.design.plan.SessionPlan`; a
+participant's run of a study protocol is `mirror_avatar.lab.running.study.ParticipantRun`.
 """
 
 from __future__ import annotations
@@ -14,11 +14,11 @@ from pathlib import Path
 from typing import Any, NamedTuple, Protocol
 
 from mirror_avatar.atomic import write_atomic_json
+from mirror_avatar.lab.design.perturbation import Perturbation
+from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.lab.files import PLAN_FILE
-from mirror_avatar.lab.participant import COLOURS, Participant
-from mirror_avatar.lab.perturbation import Perturbation
-from mirror_avatar.lab.plan import SessionPlan
-from mirror_avatar.lab.trial import LabTrial
+from mirror_avatar.lab.running.participant import COLOURS, Participant
+from mirror_avatar.lab.running.trial import LabTrial
 from mirror_avatar.realtime.trial import Array
 
 

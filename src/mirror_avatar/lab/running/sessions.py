@@ -1,9 +1,9 @@
 """The lab server's settings and sessions: those open and the keys of their join links.
 
-`Lab` creates a session of a plan (`mirror_avatar.lab.schedule.OnePlan`) or a participant's run
-of the protocol loaded (`mirror_avatar.lab.study.ParticipantRun`), each with its LSL outlet and
-clock when the server publishes LSL, and finds a session by the key of a join link while the
-session lasts.
+`Lab` creates a session of a plan (`mirror_avatar.lab.running.schedule.OnePlan`) or a participant's
+run of the protocol loaded (`mirror_avatar.lab.running.study.ParticipantRun`), each with its LSL
+outlet and clock when the server publishes LSL, and finds a session by the key of a join link while
+the session lasts.
 """
 
 from __future__ import annotations
@@ -17,12 +17,12 @@ from pathlib import Path
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.participant import Participant
-from mirror_avatar.lab.plan import LslDevice, SessionPlan
-from mirror_avatar.lab.protocol import Protocol
-from mirror_avatar.lab.runner import LabSession, Outlet
-from mirror_avatar.lab.schedule import OnePlan
-from mirror_avatar.lab.study import ParticipantRun, study_folder
+from mirror_avatar.lab.design.plan import LslDevice, SessionPlan
+from mirror_avatar.lab.design.protocol import Protocol
+from mirror_avatar.lab.running.participant import Participant
+from mirror_avatar.lab.running.runner import LabSession, Outlet
+from mirror_avatar.lab.running.schedule import OnePlan
+from mirror_avatar.lab.running.study import ParticipantRun, study_folder
 from mirror_avatar.players.base import Player
 from mirror_avatar.realtime.inputs import InputSource
 from mirror_avatar.realtime.settings import PageSettings
@@ -49,7 +49,7 @@ class LabSettings(PageSettings):
         Whether sessions publish an LSL outlet and take LSL input devices (needs pylsl).
     protocol
         The study protocol whose participants' sessions the console creates
-        (`mirror_avatar.lab.study.ParticipantRun`) until the console loads another, or None.
+        (`mirror_avatar.lab.running.study.ParticipantRun`) until the console loads another, or None.
     """
 
     out_dir: Path
@@ -123,7 +123,7 @@ class Lab:
         """Create (or resume from its folder) participant ``participant``'s run of the protocol.
 
         The folder is made, or its ``study.json`` read and its trials listed, in a worker
-        thread (`mirror_avatar.lab.study.read_schedule`: the checked reader), so that a bad
+        thread (`mirror_avatar.lab.running.study.read_schedule`: the checked reader), so that a bad
         folder delays no one's clock. With LSL, the session stamps its samples on the LSL
         clock and publishes one outlet for the participant's whole run (`study_outlet`).
         """
@@ -189,7 +189,7 @@ def lsl_hooks(
     """Return a session's LSL outlet, LSL device opener and clock (without LSL: monotonic)."""
     if not enabled:
         return None, None, time.monotonic
-    from mirror_avatar.lab.lsl import LslInput, SessionOutlet
+    from mirror_avatar.lab.running.lsl import LslInput, SessionOutlet
 
     outlet = SessionOutlet(
         f"mirror-avatar {session_id}",
@@ -220,13 +220,13 @@ def study_outlet(session: LabSession) -> Outlet:
     """Return the LSL outlet of a participant's run of a protocol.
 
     **Choice**: one outlet for the whole run (a recorder resolves it once), with a channel per
-    player label of the run (`mirror_avatar.lab.study.ParticipantRun.channels`; NaN while that
-    player is not in the condition), named and identified by the run's folder
+    player label of the run (`mirror_avatar.lab.running.study.ParticipantRun.channels`; NaN while
+    that player is not in the condition), named and identified by the run's folder
     (``mirror-avatar <protocol>-p003``, so a resumed run publishes under the same source id),
     and markers naming each condition and its line-up as it begins, each trial's start and
     end and each perturbation.
     """
-    from mirror_avatar.lab.lsl import SessionOutlet
+    from mirror_avatar.lab.running.lsl import SessionOutlet
 
     assert isinstance(session.schedule, ParticipantRun)
     labels, roles, kinds = session.schedule.channels()

@@ -1,11 +1,11 @@
 """A lab session on the server: its participants' connections, its trials, one clock for all.
 
-A `LabSession` runs the trials of its schedule (`mirror_avatar.lab.schedule.Schedule`: one
-`mirror_avatar.lab.plan.SessionPlan`, or a participant's run of a study protocol) one after
+A `LabSession` runs the trials of its schedule (`mirror_avatar.lab.running.schedule.Schedule`: one
+`mirror_avatar.lab.design.plan.SessionPlan`, or a participant's run of a study protocol) one after
 another (countdown, trial, end screen, what follows the trial, pause) when the researcher
 starts it; the schedule says which plan plays each trial, who plays it, what the pages see and
 what each trial's record holds. Its clock ticks every
-control period T on absolute deadlines: each tick advances the `mirror_avatar.lab.trial.
+control period T on absolute deadlines: each tick advances the `mirror_avatar.lab.running.trial.
 LabTrial` (`mirror_avatar.realtime.clock.run_on_clock`) from the positions last received, then
 sends every connected participant a frame with the players it sees. Frames go through each
 connection's `mirror_avatar.realtime.outbox.Outbox`, which keeps only the newest undelivered
@@ -36,10 +36,10 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.participant import COLOURS, Participant
-from mirror_avatar.lab.plan import SessionPlan
-from mirror_avatar.lab.schedule import Schedule
-from mirror_avatar.lab.trial import LabTrial, build_avatars
+from mirror_avatar.lab.design.plan import SessionPlan
+from mirror_avatar.lab.running.participant import COLOURS, Participant
+from mirror_avatar.lab.running.schedule import Schedule
+from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.metrics.registry import is_headline
 from mirror_avatar.players.base import Player, PlayerDiverged
 from mirror_avatar.realtime.clock import MAX_STEP, ClockLimits, run_on_clock
@@ -85,8 +85,8 @@ class LabSession:
     session_id
         The session's name (its folder under the output folder).
     schedule
-        What it plays (`mirror_avatar.lab.schedule.OnePlan`, or a participant's run of a
-        protocol: `mirror_avatar.lab.study.ParticipantRun`).
+        What it plays (`mirror_avatar.lab.running.schedule.OnePlan`, or a participant's run of a
+        protocol: `mirror_avatar.lab.running.study.ParticipantRun`).
     directory
         Its folder (created, or resumed when the schedule finds its earlier run there).
     clock
@@ -96,9 +96,9 @@ class LabSession:
     max_step
         Seconds one step of the avatars may take before the trial is ended.
     outlet
-        The session's LSL outlet (`mirror_avatar.lab.lsl.SessionOutlet`), or None.
+        The session's LSL outlet (`mirror_avatar.lab.running.lsl.SessionOutlet`), or None.
     open_device
-        Opens an LSL input device from a slot (`mirror_avatar.lab.lsl.LslInput`).
+        Opens an LSL input device from a slot (`mirror_avatar.lab.running.lsl.LslInput`).
     """
 
     def __init__(

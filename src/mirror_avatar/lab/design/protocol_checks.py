@@ -2,13 +2,13 @@
 
 When a protocol is loaded (``lab --protocol FILE`` or the console's ``POST /api/protocol``),
 each condition's avatars (``avatar`` slots and ``person-or-avatar`` slots filled by the avatar)
-are built in the role they play there (`mirror_avatar.lab.avatars.load_avatar`: the spec read,
-its parameters checked against their ranges, a dry run against a scripted partner,
+are built in the role they play there (`mirror_avatar.lab.design.avatars.load_avatar`: the spec
+read, its parameters checked against their ranges, a dry run against a scripted partner,
 `mirror_avatar.players.base.dry_run`), and so is every player a perturbation hands an avatar
-over to (`mirror_avatar.lab.avatars.successor_players`), so that a spec that names nothing, cannot
-be read or diverges is refused before any participant plays, in one line naming the condition,
-the spec and the problem (`AvatarCheck`; a spec is built once per role). A participant's run
-planned over `MAX_PLANNED_HOURS` is allowed with a warning (`long_run`).
+over to (`mirror_avatar.lab.design.avatars.successor_players`), so that a spec that names nothing,
+cannot be read or diverges is refused before any participant plays, in one line naming the
+condition, the spec and the problem (`AvatarCheck`; a spec is built once per role). A participant's
+run planned over `MAX_PLANNED_HOURS` is allowed with a warning (`long_run`).
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.avatars import load_avatar, successor_players
-from mirror_avatar.lab.checker import Checker
-from mirror_avatar.lab.perturbation import Perturbation
-from mirror_avatar.lab.plan import SessionPlan
+from mirror_avatar.lab.design.avatars import load_avatar, successor_players
+from mirror_avatar.lab.design.checker import Checker
+from mirror_avatar.lab.design.perturbation import Perturbation
+from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.players.base import dry_run
 from mirror_avatar.players.dynamical import ModelPartner
 

@@ -1,8 +1,8 @@
 """A participant's run of a study protocol: its conditions in their order, resumable from disk.
 
-A `ParticipantRun` is the schedule (`mirror_avatar.lab.schedule.Schedule`) of a
-`mirror_avatar.lab.runner.LabSession` whose plan changes from one condition to the next of a
-participant's order (`mirror_avatar.lab.protocol.Protocol.schedule`). Its trials are numbered
+A `ParticipantRun` is the schedule (`mirror_avatar.lab.running.schedule.Schedule`) of a
+`mirror_avatar.lab.running.runner.LabSession` whose plan changes from one condition to the next of a
+participant's order (`mirror_avatar.lab.design.protocol.Protocol.schedule`). Its trials are numbered
 across the whole protocol (``trial-01`` to ``trial-NN`` in one folder), each sidecar naming its
 block, condition, trial within the condition and the true kind of every player. Each person
 keeps one join link for the whole protocol; a person who does not play a condition waits. Pages
@@ -33,14 +33,21 @@ import numpy as np
 from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.errors import InputError
+from mirror_avatar.lab.design.perturbation import Perturbation
+from mirror_avatar.lab.design.plan import SessionPlan
+from mirror_avatar.lab.design.protocol import Condition, Protocol, Question
 from mirror_avatar.lab.files import ANSWERS_SUFFIX, STUDY_FILE, trial_stem
-from mirror_avatar.lab.messages import Answer
-from mirror_avatar.lab.participant import COLOURS, Participant
-from mirror_avatar.lab.perturbation import Perturbation
-from mirror_avatar.lab.plan import SessionPlan
-from mirror_avatar.lab.protocol import Condition, Protocol, Question
-from mirror_avatar.lab.schedule import Entered, Opening, Publisher, next_in, send_frames, welcome
-from mirror_avatar.lab.trial import LabTrial
+from mirror_avatar.lab.running.messages import Answer
+from mirror_avatar.lab.running.participant import COLOURS, Participant
+from mirror_avatar.lab.running.schedule import (
+    Entered,
+    Opening,
+    Publisher,
+    next_in,
+    send_frames,
+    welcome,
+)
+from mirror_avatar.lab.running.trial import LabTrial
 from mirror_avatar.realtime.trial import Array
 from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.trial_io import read_sidecar_text

@@ -2,12 +2,13 @@
 
 Subjects: the people of different participants' runs of a study are different people, so the
 BIDS subject of a person in a study session (its folder holds ``study.json``:
-`mirror_avatar.lab.study`) is the participant's number and the person's label in the protocol,
+`mirror_avatar.lab.running.study`) is the participant's number and the person's label in the
+protocol,
 ``sub-p003P1`` for person ``P1`` of participant 3 (`subject_label`); outside a study it is the
 slot's label (``sub-P1``). Labels keep only their letters and digits.
 
 Answers (BIDS 1.9.0, behavioural experiments): the answers a participant gave after trial n
-(``trial-NN_answers.json`` of a study session: `mirror_avatar.lab.study`) become
+(``trial-NN_answers.json`` of a study session: `mirror_avatar.lab.running.study`) become
 ``sub-<sub>/beh/sub-<sub>_task-mirrorgame_acq-<acq>_run-<n>_beh.tsv``, one row per question,
 its columns (`BEH_COLUMNS`) described once for the dataset in ``task-mirrorgame_beh.json``.
 

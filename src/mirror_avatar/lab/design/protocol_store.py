@@ -1,14 +1,15 @@
 """Protocols loaded from the console: validated, kept under ``OUT/protocols/`` and run from there.
 
 The console sends a protocol's TOML text with the name of the file the researcher chose
-(`store_protocol`). It is validated as a ``--protocol`` file is (`mirror_avatar.lab.protocol`),
-every mistake refused with one line naming the chosen file, and a copy is kept as
+(`store_protocol`). It is validated as a ``--protocol`` file is
+(`mirror_avatar.lab.design.protocol`), every mistake refused with one line naming the chosen file,
+and a copy is kept as
 ``OUT/protocols/<name>.toml``, ``<name>`` being the chosen file's stem in Unicode's composed
 form (NFC) with every run of characters other than letters, digits (of any script: ``études``,
 ``протокол``), ``-`` and ``_`` made one ``-`` - so no path separator, dot or control character
 stays -, cut to `MAX_NAME_CHARS` characters and `MAX_NAME_BYTES` bytes of UTF-8. The copy is the
 protocol's source: participants' folders are named after its stem
-(`mirror_avatar.lab.study.study_folder`), so a server restarted with ``--protocol
+(`mirror_avatar.lab.running.study.study_folder`), so a server restarted with ``--protocol
 OUT/protocols/<name>.toml`` resumes the same folders.
 
 **Choice**: a protocol without a ``seed`` gets the seed drawn for it written as the copy's first
@@ -32,7 +33,7 @@ from pathlib import Path, PurePosixPath
 
 from mirror_avatar.atomic import write_atomic_text
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.protocol import (
+from mirror_avatar.lab.design.protocol import (
     MAX_PROTOCOL_BYTES,
     Protocol,
     parse_protocol,

@@ -3,20 +3,21 @@
 A protocol is a TOML file (`load_protocol`; the format is in the lab guide, README "Lab
 sessions"). It has blocks, each a list of conditions; a condition is one game (``solo``,
 ``leader_follower``, ``joint``, ``group``) with its players, graph, leaders, trials, duration
-and pause, which becomes a `mirror_avatar.lab.plan.SessionPlan` once its players are decided
+and pause, which becomes a `mirror_avatar.lab.design.plan.SessionPlan` once its players are decided
 (`Condition.plan`). A player is a person (by label), an avatar (by player spec) or a
 ``person-or-avatar``: the partner's slot is filled by the person or by the avatar, balanced
 across participants and across the positions of the order
-(`mirror_avatar.lab.order.meets_person`), so that neither the participant nor the page knows
+(`mirror_avatar.lab.design.order.meets_person`), so that neither the participant nor the page knows
 which (the files record it). Questions are declared once and asked after each trial of a
 condition (``after_trial``) or after a block (``after_block``). The order of blocks and of each
 block's conditions is fixed, random or counterbalanced across participants
-(`mirror_avatar.lab.order`).
+(`mirror_avatar.lab.design.order`).
 
 Every mistake is refused with one line naming the file, the key path (such as
 ``blocks[1].conditions[0].players``), the problem and how to fix it; every avatar is built and
 dry-run in each condition's role when the protocol is read, and a run planned too long for a
-participant is read with a warning (`mirror_avatar.lab.protocol_checks`, `Protocol.warnings`).
+participant is read with a warning (`mirror_avatar.lab.design.protocol_checks`,
+`Protocol.warnings`).
 """
 
 from __future__ import annotations
@@ -29,23 +30,23 @@ from pathlib import Path
 from typing import Any
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.checker import Checker
-from mirror_avatar.lab.order import (
+from mirror_avatar.lab.design.checker import Checker
+from mirror_avatar.lab.design.order import (
     block_order,
     condition_order,
     first_meets_person,
     meets_person,
 )
-from mirror_avatar.lab.perturbation import Perturbation, parse_perturbations
-from mirror_avatar.lab.plan import (
+from mirror_avatar.lab.design.perturbation import Perturbation, parse_perturbations
+from mirror_avatar.lab.design.plan import (
     MAX_SPEC_CHARS,
     TRIAL_SETTINGS,
     PlanError,
     SessionPlan,
     parse_plan,
 )
-from mirror_avatar.lab.protocol_checks import AvatarCheck, long_run
-from mirror_avatar.lab.protocol_keys import (
+from mirror_avatar.lab.design.protocol_checks import AvatarCheck, long_run
+from mirror_avatar.lab.design.protocol_keys import (
     BLOCK,
     BLOCK_SETTINGS,
     CONDITION,
@@ -79,7 +80,7 @@ class Question:
     text
         What the page asks.
     kind
-        One of `mirror_avatar.lab.protocol_keys.QUESTION_KINDS`.
+        One of `mirror_avatar.lab.design.protocol_keys.QUESTION_KINDS`.
     options
         A choice's options.
     points
@@ -129,7 +130,8 @@ class Question:
 class Player:
     """A player slot of a condition: its label, kind, avatar spec and device.
 
-    ``kind`` is one of `mirror_avatar.lab.protocol_keys.PLAYER_KINDS`; ``spec`` is for avatars.
+    ``kind`` is one of `mirror_avatar.lab.design.protocol_keys.PLAYER_KINDS`; ``spec`` is for
+    avatars.
     """
 
     label: str
@@ -147,7 +149,7 @@ class Condition:
     name
         Its name (unique in the protocol).
     game
-        One of `mirror_avatar.lab.plan.CONDITIONS`.
+        One of `mirror_avatar.lab.design.plan.CONDITIONS`.
     players
         Its player slots, in order.
     leaders
@@ -162,7 +164,7 @@ class Condition:
         Intervals of each trial (s from its start) during which the partners are hidden.
     perturb
         Changes of its avatars at given times of each trial
-        (`mirror_avatar.lab.perturbation`), in order of time.
+        (`mirror_avatar.lab.design.perturbation`), in order of time.
     """
 
     name: str
@@ -246,11 +248,12 @@ class Protocol:
         Whether the file has no seed and ``seed`` was drawn when it was read (a restart draws
         another, and the participants' runs then no longer resume).
     blind
-        One of `mirror_avatar.lab.protocol_keys.BLINDS`: ``"single"``, the participants' pages
-        never show a partner's kind; ``"double"``, the researcher's console neither, until export
-        (`mirror_avatar.lab.blinding`).
+        One of `mirror_avatar.lab.design.protocol_keys.BLINDS`: ``"single"``, the participants'
+        pages never show a partner's kind; ``"double"``, the researcher's console neither, until
+        export (`mirror_avatar.lab.running.blinding`).
     warnings
-        What is odd but allowed, one line each (`mirror_avatar.lab.protocol_checks.long_run`).
+        What is odd but allowed, one line each
+        (`mirror_avatar.lab.design.protocol_checks.long_run`).
     """
 
     source: str
@@ -530,7 +533,7 @@ def _player(check: Checker, value: object, where: str) -> Player:
 def _check_plan(check: Checker, condition: Condition, where: str) -> None:
     """Refuse a condition whose plan would be refused, with either filling of its partners.
 
-    The plan's error names its key (`mirror_avatar.lab.plan.PlanError`): the condition's key
+    The plan's error names its key (`mirror_avatar.lab.design.plan.PlanError`): the condition's key
     of that name is at fault.
     """
     choices = [player.label for player in condition.players if player.kind == "person-or-avatar"]

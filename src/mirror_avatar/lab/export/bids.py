@@ -22,17 +22,18 @@ whole trial as that participant played it, and the answers they gave after it::
 
 Entities follow the order of the specification (sub, task, tracksys, acq, run). ``<sub>`` is the
 slot's label, in a study session after ``p`` and the participant's number (``p003P1``: the
-people of different participants' runs are different subjects; `mirror_avatar.lab.bids_study.
+people of different participants' runs are different subjects; `mirror_avatar.lab.export.bids_study.
 subject_label`), ``<acq>`` the session id and ``<device>`` the slot's input device (``pointer``
 or ``lsl``), each with its non-alphanumeric characters removed (`bids_label`); ``<n>`` is the
 trial number (in a study, numbered across the protocol: one run per trial). A study's block and
-condition are columns of the events (`mirror_avatar.lab.bids_events`) and of the scans
-(`mirror_avatar.lab.bids_study`), not entities: ``acq`` already names the session and BIDS has
-no entity for a condition. Channels are the participant's own ``position`` and ``velocity``, then
+condition are columns of the events (`mirror_avatar.lab.export.bids_events`) and of the scans
+(`mirror_avatar.lab.export.bids_study`), not entities: ``acq`` already names the session and BIDS
+has no entity for a condition. Channels are the participant's own ``position`` and ``velocity``,
+then
 ``position_<label>`` and ``velocity_<label>`` of every other player in player order, in playing
 range units (-0.5..0.5; per second for velocities), then, when the inputs file is there, the
-`mirror_avatar.lab.bids_trial.TIMING_CHANNELS`: each sample's ``latency`` from the first (type
-LATENCY, s), its ``clock`` time (the LSL clock when the lab ran with pylsl), and how ``late``
+`mirror_avatar.lab.export.bids_trial.TIMING_CHANNELS`: each sample's ``latency`` from the first
+(type LATENCY, s), its ``clock`` time (the LSL clock when the lab ran with pylsl), and how ``late``
 its tick was and how long its ``step`` took (ms). The non-standard ``MirrorGame`` key of each
 ``_motion.json`` describes the trial so that `mirror_avatar.session.load_session` rebuilds the
 N-player session (`mirror_avatar.bids.reading.read_lab_recording`); the participant's own file
@@ -59,9 +60,9 @@ from mirror_avatar.bids.reading import GAME_KEY
 from mirror_avatar.bids.tables import read_tsv
 from mirror_avatar.bids.writing import one_line, tsv_table, tsv_values
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.bids_events import EVENT_COLUMN_INFO, EVENT_COLUMNS, trial_events
-from mirror_avatar.lab.bids_lock import dataset_lock
-from mirror_avatar.lab.bids_study import (
+from mirror_avatar.lab.export.bids_events import EVENT_COLUMN_INFO, EVENT_COLUMNS, trial_events
+from mirror_avatar.lab.export.bids_lock import dataset_lock
+from mirror_avatar.lab.export.bids_study import (
     STUDY_COLUMNS,
     StudyRun,
     acq_time,
@@ -73,7 +74,7 @@ from mirror_avatar.lab.bids_study import (
     write_descriptions,
     write_scans,
 )
-from mirror_avatar.lab.bids_trial import (
+from mirror_avatar.lab.export.bids_trial import (
     TIMING_CHANNELS,
     LabTrial,
     clock_start,
@@ -108,8 +109,8 @@ CHANNEL_COLUMNS = ("name", "component", "type", "tracked_point", "units", "descr
 
 PARTICIPANT_COLUMNS = ("participant_id", "label", "device")
 """Columns `export_bids` fills in ``participants.tsv``, with the study's
-(`mirror_avatar.lab.bids_study.STUDY_COLUMNS`) when it exports a study session (others already
-there are kept)."""
+(`mirror_avatar.lab.export.bids_study.STUDY_COLUMNS`) when it exports a study session (others
+already there are kept)."""
 
 CONDITIONS = {
     "solo": "one player moves alone",
@@ -146,7 +147,7 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     ``sourcedata/<session id>/`` receives copies of the trial files (with their inputs and
     answers) and ``plan.json`` or ``study.json``. Every file is written atomically, and nothing
     is written before every trial (and every table merged into) has been read. Exports into one
-    ``out_dir`` take turns (`mirror_avatar.lab.bids_lock.dataset_lock`, across threads and
+    ``out_dir`` take turns (`mirror_avatar.lab.export.bids_lock.dataset_lock`, across threads and
     processes), so that none loses the rows another adds to the tables.
 
     Parameters

@@ -4,10 +4,10 @@ A protocol with ``blind = "double"`` hides from the researcher's console and its
 run is exported, whether a person or the avatar fills each ``person-or-avatar`` slot. Such a
 label (`hidden_labels`) is hidden everywhere in the run, also in conditions where the same label
 is a plain person, since the difference would tell. `blind_status` rewrites a run's status
-(`mirror_avatar.lab.study.ParticipantRun.status`): what only a person's slot has (its connection,
-round trips, inputs held and lost, answers, a drop) or only an avatar's (its spec, the policy it
-plays, a perturbation) is left out for those labels, their kind reads ``"hidden"``, and events
-naming them are left out; which pages are connected is said for every person of the protocol,
+(`mirror_avatar.lab.running.study.ParticipantRun.status`): what only a person's slot has (its
+connection, round trips, inputs held and lost, answers, a drop) or only an avatar's (its spec, the
+policy it plays, a perturbation) is left out for those labels, their kind reads ``"hidden"``, and
+events naming them are left out; which pages are connected is said for every person of the protocol,
 whether they play now or not. The files on disk keep the truth, and the export writes it.
 """
 
@@ -17,9 +17,9 @@ import re
 from collections.abc import Iterable
 from typing import Any
 
-from mirror_avatar.lab.protocol import Protocol
-from mirror_avatar.lab.runner import LabSession
-from mirror_avatar.lab.study import ParticipantRun
+from mirror_avatar.lab.design.protocol import Protocol
+from mirror_avatar.lab.running.runner import LabSession
+from mirror_avatar.lab.running.study import ParticipantRun
 
 HIDDEN = "hidden"
 """The kind the console is told of a hidden slot."""

@@ -2,7 +2,7 @@
 
 A join link holds the secret key of one person's slot in one session; its page's WebSocket
 (`join_socket`) replaces an earlier page of the same link, and is closed when the key is not
-valid or its session has ended. Messages are those of `mirror_avatar.lab.messages`, rate
+valid or its session has ended. Messages are those of `mirror_avatar.lab.running.messages`, rate
 limited per connection (`mirror_avatar.realtime.inbox.Inbox`).
 """
 
@@ -14,10 +14,10 @@ import time
 
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from mirror_avatar.lab.messages import Answer, Pong, parse_participant_message
-from mirror_avatar.lab.participant import Participant
-from mirror_avatar.lab.runner import LabSession
-from mirror_avatar.lab.sessions import Lab, LabSettings
+from mirror_avatar.lab.running.messages import Answer, Pong, parse_participant_message
+from mirror_avatar.lab.running.participant import Participant
+from mirror_avatar.lab.running.runner import LabSession
+from mirror_avatar.lab.running.sessions import Lab, LabSettings
 from mirror_avatar.realtime.inbox import Inbox
 from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.realtime.latency import Pings

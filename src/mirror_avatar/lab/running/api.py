@@ -1,4 +1,4 @@
-"""The researcher's HTTP/JSON API of the lab server (routes: `mirror_avatar.lab.server`).
+"""The researcher's HTTP/JSON API of the lab server (routes: `mirror_avatar.lab.running.server`).
 
 Every answer is JSON, errors ``{"error": text}``; request bodies are read up to a bound and
 parsed by the bounded parser (`mirror_avatar.user_files.parse_json`); files are served only
@@ -21,15 +21,15 @@ from starlette.responses import JSONResponse, Response, StreamingResponse
 
 from mirror_avatar.atomic import json_safe
 from mirror_avatar.errors import InputError
-from mirror_avatar.lab.blinding import console_status, hidden_of, unjoined
+from mirror_avatar.lab.design.plan import parse_plan
+from mirror_avatar.lab.design.protocol import MAX_PROTOCOL_BYTES, Protocol
+from mirror_avatar.lab.design.protocol_store import PROTOCOLS_FOLDER, store_protocol
 from mirror_avatar.lab.files import is_session_folder
-from mirror_avatar.lab.plan import parse_plan
-from mirror_avatar.lab.protocol import MAX_PROTOCOL_BYTES, Protocol
-from mirror_avatar.lab.protocol_store import PROTOCOLS_FOLDER, store_protocol
-from mirror_avatar.lab.runner import LabSession
-from mirror_avatar.lab.sessions import Lab
-from mirror_avatar.lab.study import ParticipantRun
-from mirror_avatar.lab.trial import build_avatars
+from mirror_avatar.lab.running.blinding import console_status, hidden_of, unjoined
+from mirror_avatar.lab.running.runner import LabSession
+from mirror_avatar.lab.running.sessions import Lab
+from mirror_avatar.lab.running.study import ParticipantRun
+from mirror_avatar.lab.running.trial import build_avatars
 from mirror_avatar.trial_io import MAX_FILE_BYTES
 from mirror_avatar.user_files import open_regular, parse_json
 
@@ -184,7 +184,7 @@ class LabApi:
 
         Answers the dataset's folder, its number of files and the motion files written.
         """
-        from mirror_avatar.lab.bids import export_bids
+        from mirror_avatar.lab.export.bids import export_bids
 
         folder = data.get("folder", "bids") if isinstance(data, dict) else "bids"
         if not isinstance(folder, str) or not EXPORT_FOLDER.fullmatch(folder):

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from mirror_avatar.lab.order import design_rows
-from mirror_avatar.lab.protocol import Protocol, Step
+from mirror_avatar.lab.design.order import design_rows
+from mirror_avatar.lab.design.protocol import Protocol, Step
 
 KINDS = ("person", "avatar")
 """The partner kinds counted, in the tables' order."""
@@ -32,7 +32,7 @@ class BlockBalance:
     name
         The block's name.
     order
-        Its order of conditions (`mirror_avatar.lab.order.ORDERS`).
+        Its order of conditions (`mirror_avatar.lab.design.order.ORDERS`).
     conditions
         Its conditions' names, in the file's order.
     positions

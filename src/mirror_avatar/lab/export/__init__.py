@@ -1,0 +1,1 @@
+"""A lab session's export as a BIDS-Motion dataset."""
