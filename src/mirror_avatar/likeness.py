@@ -210,8 +210,7 @@ class DistanceResult:
             return f"not measured: {self.measure} (a trial without a complete stroke or motion)"
         spread = self.spread / self.own if self.own > 0 else math.nan
         numbers = (
-            f"{self.ratio:.2f} x the person's own, spread {spread:.2f} x "
-            f"(p = {self.test.p_value:.3g})"
+            f"{self.ratio:.2f} x the person's own, spread {spread:.2f} x ({self.test.p_words()})"
         )
         if self.distinguishable:
             return f"distinguishable: {self.measure} {numbers}"
@@ -365,7 +364,7 @@ class ClassifierTest:
 
     def verdict(self) -> str:
         """One line: ``distinguishable: AUC 0.83`` or ``indistinguishable at this data size``."""
-        numbers = f"AUC {self.auc:.2f} (p = {self.test.p_value:.3g})"
+        numbers = f"AUC {self.auc:.2f} ({self.test.p_words()})"
         if self.distinguishable:
             return f"distinguishable: classifier {numbers}"
         return f"indistinguishable at this data size: classifier {numbers}"

@@ -3,7 +3,8 @@
 Units carry labels (True for one side); a statistic of a labelling is compared with its values over
 relabellings of the units: every distinct relabelling when there are few (an exact test), else
 random ones. Used by the human-likeness battery (labels permuted by trial) and by the comparison
-of groups of people (labels permuted by person).
+of groups of people (labels permuted by person). `p_text` writes a p-value drawn against random
+relabellings or surrogates as prose says it.
 """
 
 from __future__ import annotations
@@ -51,6 +52,16 @@ class PermutationTest:
     p_value: float
     exact: bool
 
+    def p_words(self) -> str:
+        """Write the p-value as prose says it.
+
+        ``p = 0.0286 (exact)`` over every relabelling, else as `p_text` writes one drawn against
+        random relabellings (``p <= 0.005`` at the floor).
+        """
+        if self.exact:
+            return f"p = {self.p_value:.3g} (exact)"
+        return p_text(self.p_value, self.null.size)
+
     def to_json_dict(self) -> dict[str, Any]:
         """Return the test's numbers (the null as its size, mean and SD)."""
         return {
@@ -61,6 +72,22 @@ class PermutationTest:
             "null_mean": float(np.mean(self.null)) if self.null.size else math.nan,
             "null_sd": float(np.std(self.null)) if self.null.size else math.nan,
         }
+
+
+def p_text(p: float, n_surrogates: int) -> str:
+    """Write a p-value against ``n_surrogates`` surrogates as a report's prose says it.
+
+    With ``m`` surrogates the smallest p-value is ``1 / (m + 1)``
+    (`mirror_avatar.metrics.surrogates.p_value`): there the surrogates bound it from above
+    only, written ``p <= 0.01`` (99 surrogates), never ``p = 0.01``. NaN (no finite
+    surrogate, or nothing to test) is ``no p-value``.
+    """
+    if not math.isfinite(p):
+        return "no p-value"
+    floor = 1.0 / (n_surrogates + 1)
+    if p <= floor * (1 + 1e-9):
+        return f"p <= {floor:.3g}"
+    return f"p = {p:.3g}"
 
 
 def permutation_test(

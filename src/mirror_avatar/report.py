@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import base64
 import io
-import math
 import os
 import re
 from collections.abc import Collection, Mapping, Sequence
@@ -151,22 +150,6 @@ def render_report(
         metadata=dict(metadata or {}),
         sections=[_render_section(section) for section in sections],
     )
-
-
-def p_text(p: float, n_surrogates: int) -> str:
-    """Write a p-value against ``n_surrogates`` surrogates as a report's prose says it.
-
-    With ``m`` surrogates the smallest p-value is ``1 / (m + 1)``
-    (`mirror_avatar.metrics.surrogates.p_value`): there the surrogates bound it from above
-    only, written ``p <= 0.01`` (99 surrogates), never ``p = 0.01``. NaN (no finite
-    surrogate, or nothing to test) is ``no p-value``.
-    """
-    if not math.isfinite(p):
-        return "no p-value"
-    floor = 1.0 / (n_surrogates + 1)
-    if p <= floor * (1 + 1e-9):
-        return f"p <= {floor:.3g}"
-    return f"p = {p:.3g}"
 
 
 def render_png(figure: Figure, dpi: int = 110) -> bytes:

@@ -306,11 +306,11 @@ class GroupComparison:
         return [
             f"{counts}: {'different' if apart else 'not told apart at this data size'}: "
             f"EMD between groups {self.between:.4f}, within {self.within:.4f} "
-            f"(ratio {self.between / self.within:.2f}, p = {self.separation.p_value:.3g})",
+            f"(ratio {self.between / self.within:.2f}, {self.separation.p_words()})",
             f"classified {c.accuracy:.0%} right (sensitivity for {positive} "
             f"{c.sensitivity:.0%}, specificity {c.specificity:.0%}); label-shuffled chance "
             f"{np.mean(self.chance.null):.0%} ({self.chance_sensitivity:.0%}, "
-            f"{self.chance_specificity:.0%}), p = {self.chance.p_value:.3g}",
+            f"{self.chance_specificity:.0%}), {self.chance.p_words()}",
         ] + ([] if self.classifier is None else [f"trial windows: {self.classifier.verdict()}"])
 
     def to_json_dict(self) -> dict[str, Any]:

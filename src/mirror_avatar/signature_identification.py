@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mirror_avatar.report import p_text
+from mirror_avatar.permutations import p_text
 
 Array = NDArray[np.float64]
 

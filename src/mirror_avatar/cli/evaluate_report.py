@@ -22,7 +22,8 @@ from mirror_avatar.cli.trial_sets import common_root
 from mirror_avatar.figures import plot_progress, plot_session
 from mirror_avatar.metrics import registry
 from mirror_avatar.metrics.measures import Measures
-from mirror_avatar.report import Section, p_text, report_texts
+from mirror_avatar.permutations import p_text
+from mirror_avatar.report import Section, report_texts
 from mirror_avatar.session import Session
 
 ALPHA = 0.05

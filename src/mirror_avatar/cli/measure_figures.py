@@ -19,7 +19,8 @@ from matplotlib.figure import Figure
 from mirror_avatar.metrics import registry
 from mirror_avatar.metrics.measures import MeasureOptions, Measures
 from mirror_avatar.metrics.surrogates import WeakNull
-from mirror_avatar.report import Section, p_text
+from mirror_avatar.permutations import p_text
+from mirror_avatar.report import Section
 from mirror_avatar.session import Session
 
 WIDE = (7.2, 4.8)
