@@ -25,9 +25,9 @@ from mirror_avatar.learning.agent import CyberPlayer, cyber_step
 from mirror_avatar.players import Observation
 from mirror_avatar.testing import make_follower_sessions
 from mirror_avatar.training.agents import AGENTS
+from mirror_avatar.training.cast import cast_virtual_trainers
 from mirror_avatar.training.imitation import (
     TRAINING_ROLES,
-    cast_virtual_trainers,
     make_cyber_player,
     make_group_cyber_player,
 )

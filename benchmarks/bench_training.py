@@ -26,14 +26,8 @@ from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.training import QLearner
 from mirror_avatar.testing import python_learn_session
-from mirror_avatar.training.imitation import (
-    SEEN_PARTNERS,
-    TARGET,
-    Reference,
-    make_pairs,
-    make_virtual_trainers,
-    train_cyber_player,
-)
+from mirror_avatar.training.cast import SEEN_PARTNERS, TARGET, make_virtual_trainers
+from mirror_avatar.training.imitation import Reference, make_pairs, train_cyber_player
 
 sys.path.insert(0, str(Path(__file__).parent))
 from traced import peak_traced_mb  # noqa: E402

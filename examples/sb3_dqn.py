@@ -25,8 +25,8 @@ from stable_baselines3 import DQN
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.env import MirrorGameEnv
+from mirror_avatar.training.cast import cast_virtual_trainers
 from mirror_avatar.training.imitation import (
-    cast_virtual_trainers,
     derive_seeds,
     make_cyber_player,
     make_pairs,

@@ -48,11 +48,8 @@ def test_paired_sessions_share_the_graph_and_the_partners(zhai_trials: list[Tria
     """Replacing the target changes nothing else: the first sample of every partner agrees."""
     from mirror_avatar.experiments.group import compare
     from mirror_avatar.graphs import random_connected_graph
-    from mirror_avatar.training.imitation import (
-        cast_virtual_trainers,
-        make_group,
-        make_group_cyber_player,
-    )
+    from mirror_avatar.training.cast import cast_virtual_trainers
+    from mirror_avatar.training.imitation import make_group, make_group_cyber_player
 
     cast = cast_virtual_trainers(zhai_trials, n_symbols=32)
     generators = [cast.trainers[i].generator for i in choose_members(cast)]
@@ -67,7 +64,7 @@ def test_paired_sessions_share_the_graph_and_the_partners(zhai_trials: list[Tria
 
 def test_members_of_the_bundled_cast_and_of_three_people(zhai_trials: list[Trial]) -> None:
     """Bundled: VT1 (fast), VT4, VT6, then the target VT5; three people: all, the target last."""
-    from mirror_avatar.training.imitation import cast_virtual_trainers
+    from mirror_avatar.training.cast import cast_virtual_trainers
 
     bundled = cast_virtual_trainers(zhai_trials, n_symbols=16)
     assert [bundled.trainers[i].label for i in choose_members(bundled)] == [

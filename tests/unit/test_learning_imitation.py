@@ -21,17 +21,19 @@ from mirror_avatar.learning.training import (
 )
 from mirror_avatar.model_files import read_archive, save_model
 from mirror_avatar.players import check_player
-from mirror_avatar.training.imitation import (
+from mirror_avatar.training.cast import (
     SEEN_PARTNERS,
     TARGET,
     UNSEEN_PARTNER,
     VirtualTrainerSpec,
+    make_virtual_trainers,
+)
+from mirror_avatar.training.imitation import (
     derive_seeds,
     learning_curve_path,
     make_cyber_player,
     make_pairs,
     make_role_discretisation,
-    make_virtual_trainers,
     score_avatar,
     train_cyber_player,
 )

@@ -1,7 +1,7 @@
 """Validation of the cyber player (paper Tables I-II, figures 8-9; METHODS section 7).
 
 A cyber player is trained to imitate a target virtual trainer (VT5 of the bundled data, see
-`mirror_avatar.training.imitation.cast_virtual_trainers`) as a follower and as a leader, then
+`mirror_avatar.training.cast.cast_virtual_trainers`) as a follower and as a leader, then
 replaces it and plays closed-loop (in the compiled loop,
 `mirror_avatar.engine.batch.play_compiled`) with the training partners and one partner never met
 in training. Each partner plays the same seeded sessions with the target and with the cyber
@@ -43,12 +43,11 @@ from mirror_avatar.signature import (
     ellipse_overlap,
 )
 from mirror_avatar.training.agents import AGENT_NAMES
+from mirror_avatar.training.cast import Cast, cast_virtual_trainers
 from mirror_avatar.training.imitation import (
     TRAINING_ROLES,
     Agent,
-    Cast,
     Role,
-    cast_virtual_trainers,
     derive_seeds,
     make_cyber_player,
     make_pairs,

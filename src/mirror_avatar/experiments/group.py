@@ -46,11 +46,9 @@ from mirror_avatar.report import Section
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.session import Session
 from mirror_avatar.training.agents import AGENT_NAMES
+from mirror_avatar.training.cast import Cast, VirtualTrainerSpec, cast_virtual_trainers
 from mirror_avatar.training.imitation import (
     Agent,
-    Cast,
-    VirtualTrainerSpec,
-    cast_virtual_trainers,
     derive_seeds,
     make_group,
     make_group_cyber_player,

@@ -46,13 +46,8 @@ from mirror_avatar.report import Section, render_report
 from mirror_avatar.signature import DEFAULT_BINS, compute_ims
 from mirror_avatar.training.agents import AGENT_NAMES
 from mirror_avatar.training.avatar import Avatar
-from mirror_avatar.training.imitation import (
-    Agent,
-    Cast,
-    Role,
-    VirtualTrainerSpec,
-    make_virtual_trainers,
-)
+from mirror_avatar.training.cast import Cast, VirtualTrainerSpec, make_virtual_trainers
+from mirror_avatar.training.imitation import Agent, Role
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 ROLES: tuple[Role, ...] = ("follower", "leader")
@@ -189,7 +184,7 @@ def default_partners(seed: int) -> list[tuple[str, IMSGenerator]]:
     """Make the bundled library of partners: VT1..VT6, each fitted on 3 trials of a style.
 
     VT1..VT5 train the avatar and VT6 is kept unseen, as in the paper's set-up
-    (`mirror_avatar.training.imitation.make_virtual_trainers`).
+    (`mirror_avatar.training.cast.make_virtual_trainers`).
     """
     trainers = make_virtual_trainers(load_zhai2017(), seed=seed)
     return [(f"{t.label} ({', '.join(t.trial_labels)})", t.generator) for t in trainers]
