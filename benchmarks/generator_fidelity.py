@@ -7,6 +7,8 @@ Protocol (issue 38, point 1; docs/METHODS.md section 4, "Fidelity"):
 - **Development and report halves**: every trial is cut into its first and its second 30 s.
   Settings are chosen on the first halves (``--part development``); the numbers reported are
   measured on the second halves (``--part report``), which no choice has looked at.
+  ``--part whole`` runs the same folds on the whole 60 s trials, as the issue measured (both
+  halves together, so not held out from the development).
 - **Folds**: for each person, `FOLDS` partitions of their nine halves drawn at random (seeded),
   each 5 halves to fit a generator on and 4 held out, as the issue's 5 fitted and 5 held-out
   trials; the fitted generator makes one trial per held-out half, as long as it.
@@ -21,7 +23,8 @@ Protocol (issue 38, point 1; docs/METHODS.md section 4, "Fidelity"):
 - **Fit time**: the longest fit of the run (seconds, wall clock on this machine).
 
 Run: ``python benchmarks/generator_fidelity.py --part report`` (prints a Markdown table); give
-``--symbols N`` or other generator settings to measure a variant.
+``--symbols N`` or other settings (``--set emission=centroid``, the paper's synthesis and the
+default before issue 38) to measure a variant.
 """
 
 from __future__ import annotations
@@ -54,8 +57,8 @@ FOLDS = 8
 N_FIT = 5
 """Halves a generator is fitted on in each fold (the other four are held out)."""
 
-PARTS = {"development": 0, "report": 1}
-"""Which half of every trial each part uses."""
+PARTS = {"development": 0, "report": 1, "whole": None}
+"""Which half of every trial each part uses (``whole``: the 60 s trials, both halves)."""
 
 Array = np.ndarray
 Factory = Callable[[int], Any]
@@ -88,9 +91,11 @@ class PersonResult:
 
 
 def halves(part: str) -> dict[str, list[Trial]]:
-    """Each person's half trials of ``part`` (``development``: first 30 s, ``report``: last)."""
+    """Each person's trials of ``part``: ``development`` first 30 s, ``report`` last, or whole."""
     which = PARTS[part]
     size = int(HALF_SECONDS * RATE)
+    if which is None:
+        which, size = 0, int(2 * HALF_SECONDS * RATE) + 1
     people: dict[str, list[Trial]] = {style: [] for style in BUNDLED_STYLES}
     for trial in load_zhai2017():
         full = trial.resampled(RATE)
@@ -122,6 +127,7 @@ def ims(trial: Trial) -> Array:
 def evaluate(factory: Factory, part: str, folds: int = FOLDS, seed: int = 0) -> list[PersonResult]:
     """Run the protocol for the generator ``factory(seed)`` makes (unfitted, `fit` / `sample`)."""
     people = halves(part)
+    duration = HALF_SECONDS * (2 if PARTS[part] is None else 1)
     names = list(people)
     held_ims: dict[str, list[list[Array]]] = {name: [] for name in names}
     generated_ims: dict[str, list[list[Array]]] = {name: [] for name in names}
@@ -134,7 +140,7 @@ def evaluate(factory: Factory, part: str, folds: int = FOLDS, seed: int = 0) -> 
             start = time.perf_counter()
             model = factory(fold_seed).fit([trials[i] for i in fit])
             seconds.append(time.perf_counter() - start)
-            generated = model.sample(HALF_SECONDS, n=len(held), random_state=fold_seed)
+            generated = model.sample(duration, n=len(held), random_state=fold_seed)
             target = [ims(trials[i]) for i in held]
             made = [ims(g) for g in generated]
             pairs = [compute_emd(g, h) for g in made for h in target]
@@ -178,7 +184,7 @@ def main() -> None:
         nargs="*",
         default=[],
         metavar="NAME=VALUE",
-        help="other generator settings (numbers), e.g. window=80",
+        help="other generator settings, e.g. window=80 emission=centroid",
     )
     args = parser.parse_args()
     settings: dict[str, Any] = {
@@ -186,13 +192,23 @@ def main() -> None:
     }
     for item in args.set:
         key, _, value = item.partition("=")
-        settings[key] = float(value) if "." in value or "e" in value else int(value)
+        settings[key] = _number(value)
     results = evaluate(
         lambda seed: IMSGenerator(random_state=seed, **settings), args.part, args.folds, args.seed
     )
     described = ", ".join(f"{k}={v}" for k, v in settings.items())
     title = f"{args.part} halves, {args.folds} folds, seed {args.seed}; {described}"
     print(markdown(results, title))
+
+
+def _number(value: str) -> int | float | str:
+    """Read a setting's value: a whole number, a real number, or else the text itself."""
+    for kind in (int, float):
+        try:
+            return kind(value)
+        except ValueError:
+            pass
+    return value
 
 
 if __name__ == "__main__":
