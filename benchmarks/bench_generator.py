@@ -17,8 +17,9 @@ from collections.abc import Callable
 
 import numpy as np
 
+from mirror_avatar.codebook_size import SYMBOL_CANDIDATES
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.generator import PAPER_SYMBOLS, SYMBOL_CANDIDATES, IMSGenerator
+from mirror_avatar.generator import PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.stft import features_to_spectra, hamming_window
 from mirror_avatar.trials import Trial, compute_velocity, make_trial
 

@@ -15,13 +15,16 @@ it. Follows METHODS section 4:
    jumps that add fast strokes to slow motion, so the default stays small. The initial symbol is
    drawn from the symbols' frequencies in training (**choice**: too few trials to estimate a
    start distribution). Baum-Welch on a hidden chain (METHODS: an option) is not implemented.
-5. synthesis: a sampled symbol sequence, each symbol's code vector inverse-transformed, weighted
-   overlap-add with the same window; positions clipped to [-0.5, 0.5], velocity as METHODS
-   section 2. Frames are generated beyond both ends and trimmed, so the window's taper never
-   shows ("no edge artefacts").
+5. synthesis: a sampled symbol sequence; each symbol stands for one of the training frames it
+   quantises (``emission="exemplar"``, the default: the frame that followed the previous one
+   in its trial when that frame has this symbol, else one of the symbol's frames drawn evenly)
+   or for its code vector (``emission="centroid"``, the paper); the frames inverse-transformed,
+   weighted overlap-add with the same window; positions clipped to [-0.5, 0.5], velocity as
+   METHODS section 2. Frames are generated beyond both ends and trimmed, so the window's taper
+   never shows ("no edge artefacts").
 
-Each code vector's windowed time-domain frame is precomputed after fitting, so generation is a
-compiled chain walk plus a compiled overlap-add.
+Each frame's windowed time-domain form is precomputed after fitting, so generation is a
+compiled chain walk, a compiled choice of frames and a compiled overlap-add.
 """
 
 from __future__ import annotations
@@ -30,17 +33,22 @@ import inspect
 import math
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
 from typing import Any, Self
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 from sklearn.cluster import KMeans
 
+from mirror_avatar.codebook_size import MIN_FRAMES_PER_SYMBOL, choose_n_symbols
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import excerpt
-from mirror_avatar.markov import count_transitions, estimate_transitions, sample_chain
+from mirror_avatar.markov import (
+    count_transitions,
+    emit_exemplars,
+    estimate_transitions,
+    group_members,
+    sample_chain,
+)
 from mirror_avatar.model_files import (
     check_array,
     check_integer,
@@ -50,8 +58,6 @@ from mirror_avatar.model_files import (
     require_arrays,
     save_model,
 )
-from mirror_avatar.progress import counted
-from mirror_avatar.signature import compute_emd, compute_ims
 from mirror_avatar.stft import (
     compute_stft,
     features_to_spectra,
@@ -71,10 +77,6 @@ from mirror_avatar.trials import (
     make_trial,
 )
 
-MIN_FRAMES_PER_SYMBOL = 4
-"""Fewest STFT frames per code vector a codebook is fitted on (**choice**: with fewer, most code
-vectors are single frames and the chain only replays the training trials)."""
-
 PARAMETER_RANGES: dict[str, tuple[float, float]] = {
     "n_symbols": (2, 4096),
     "window": (4, 4096),
@@ -91,14 +93,15 @@ up to 4096 symbols and a 4096-sample window; the rate within `mirror_avatar.tria
 restarts; a seed as k-means takes it (0 to 2^32 - 1, or None). The window must also be even and
 the hop lie in 1..window / 2 (not a choice: the features need both)."""
 
+EMISSIONS = ("exemplar", "centroid")
+"""What a symbol of the chain is synthesised from: one of the training frames it quantises, or
+its code vector (the paper's). See `IMSGenerator` (``emission``)."""
+
 PAPER_SYMBOLS = 256
 """The paper's codebook size (after a sweep over 32-256 on 30 trials per person)."""
 
-SYMBOL_CANDIDATES = (8, 16, 32, 64, 128, 256)
-"""Codebook sizes `choose_n_symbols` tries (**choice**: powers of two up to the paper's 256)."""
-
-CV_SAMPLES = 3
-"""Generated trials compared with each held-out trial when cross-validating (**choice**)."""
+PAPER_EMISSION = "centroid"
+"""The paper's synthesis: each symbol's code vector."""
 
 SIDE_BY_SIDE = 8
 """Velocity signals `IMSGenerator.sample_velocities` filters together (**choice**: enough to
@@ -106,6 +109,7 @@ overlap the filter's recursions; 8 references of a minute stay within the proces
 
 FORMAT_NAME = "mirror-avatar/ims-generator"
 FORMAT_VERSION = 1
+"""Files without ``emission`` in their parameters were written before it existed: centroid."""
 Array = NDArray[np.float64]
 Seed = int | np.random.Generator | None
 
@@ -127,6 +131,13 @@ class IMSGenerator:
         Samples between frames (paper: 15, overlap 45).
     rate
         Sampling rate of the model (Hz); training trials are resampled to it.
+    emission
+        ``"exemplar"`` (default): each generated symbol is one of the training frames it
+        quantises, continuing the previous frame's trial when the chain follows it;
+        ``"centroid"``: its code vector, as the paper. A code vector averages its frames and
+        shrinks their amplitude, so centroid motion is slower and smoother than the person's
+        (METHODS section 4, "Fidelity"); exemplar frames keep it. The fitted model then holds
+        the training frames, from which the training trials can be rebuilt.
     pseudo_count
         Added to every transition count (**choice**).
     n_init
@@ -142,6 +153,10 @@ class IMSGenerator:
         Transition probabilities, rows sum to 1.
     startprob_ : ndarray, shape (n_symbols,)
         Initial-symbol probabilities.
+    exemplars_ : ndarray, shape (n_frames, window)
+        The training frames' features (exemplar emission only; empty for centroid).
+    exemplar_next_ : ndarray of int, shape (n_frames,)
+        Index of the frame that followed each one in its trial, -1 at a trial's end.
     n_symbols_ : int
         The codebook size fitted (``n_symbols``, or the size "auto" chose).
     training_summary_ : dict
@@ -152,6 +167,8 @@ class IMSGenerator:
     codebook_: Array
     transmat_: Array
     startprob_: Array
+    exemplars_: Array
+    exemplar_next_: NDArray[np.int64]
     n_symbols_: int
     training_summary_: dict[str, Any]
 
@@ -164,11 +181,13 @@ class IMSGenerator:
         pseudo_count: float = 1e-3,
         n_init: int = 1,
         random_state: int | None = None,
+        emission: str = "exemplar",
     ) -> None:
         self.n_symbols = n_symbols
         self.window = window
         self.hop = hop
         self.rate = rate
+        self.emission = emission
         self.pseudo_count = pseudo_count
         self.n_init = n_init
         self.random_state = random_state
@@ -185,11 +204,11 @@ class IMSGenerator:
             symbol.
         """
         self._check_parameters()
-        signals = [self._signal(trial) for trial in trials]
+        signals = [self.signal(trial) for trial in trials]
         if not signals:
             raise InputError("trials", "no trials to fit the generator on")
         if self.n_symbols == "auto":
-            complexity = choose_n_symbols(trials, self.get_params())
+            complexity = choose_n_symbols(trials, self.with_symbols)
         else:
             complexity = {"rule": "fixed", "chosen": self.n_symbols}
         self.n_symbols_ = int(complexity["chosen"])
@@ -216,6 +235,7 @@ class IMSGenerator:
         )
         frequency = np.bincount(np.concatenate(sequences), minlength=self.n_symbols_) + 0.0
         self.startprob_ = frequency / frequency.sum()
+        self._keep_exemplars(features)
         self.training_summary_ = {
             "labels": [t.label for t in trials],
             "groups": sorted({t.group for t in trials}),
@@ -228,6 +248,26 @@ class IMSGenerator:
         }
         self._prepare_sampling()
         return self
+
+    def with_symbols(self, n_symbols: int) -> IMSGenerator:
+        """Return an unfitted generator with these settings and a codebook of ``n_symbols``."""
+        return type(self)(**self.get_params() | {"n_symbols": n_symbols})
+
+    def _keep_exemplars(self, features: list[Array]) -> None:
+        """Keep the training frames and each one's successor in its trial (exemplar emission)."""
+        if self.emission == "centroid":
+            self.exemplars_ = np.empty((0, self.window))
+            self.exemplar_next_ = np.empty(0, dtype=np.int64)
+            return
+        self.exemplars_ = np.vstack(features)
+        following = []
+        for start, count in zip(
+            np.cumsum([0] + [len(f) for f in features[:-1]]), map(len, features), strict=True
+        ):
+            successor = np.arange(start + 1, start + count + 1, dtype=np.int64)
+            successor[-1:] = -1
+            following.append(successor)
+        self.exemplar_next_ = np.concatenate(following)
 
     def _check_parameters(self) -> None:
         """Refuse hyper-parameters outside `PARAMETER_RANGES`; keep them as Python numbers."""
@@ -245,15 +285,24 @@ class IMSGenerator:
             source, "pseudo_count", self.pseudo_count, *ranges["pseudo_count"]
         )
         self.n_init = check_integer(source, "n_init", self.n_init, *ranges["n_init"])
+        if self.emission not in EMISSIONS:
+            raise InputError(
+                source, f"emission {excerpt(self.emission)} is not one of {', '.join(EMISSIONS)}"
+            )
         if self.random_state is not None:
             self.random_state = check_integer(
                 source, "random_state", self.random_state, *ranges["random_state"]
             )
 
-    def _signal(self, trial: Trial) -> Array:
+    def signal(self, trial: Trial) -> Array:
+        """Return a trial's positions at `rate` (units), resampled when needed."""
         if trial.is_uniform and math.isclose(trial.rate, self.rate, rel_tol=1e-6):
             return trial.positions
         return trial.resampled(self.rate).positions
+
+    def frame_features(self, trial: Trial) -> Array:
+        """Return the feature vectors of a trial's STFT frames, shape (frames, window)."""
+        return self._features(self.signal(trial))
 
     def _features(self, signal: Array) -> Array:
         return spectra_to_features(compute_stft(signal, self.window, self.hop))
@@ -267,8 +316,18 @@ class IMSGenerator:
         return np.argmin(distances, axis=1).astype(np.int64)
 
     def _prepare_sampling(self) -> None:
-        spectra = features_to_spectra(self.codebook_, self.window)
-        self._frames = synthesis_frames(spectra, self.window)
+        """Precompute the synthesis frames and the chain's cumulative probabilities.
+
+        Exemplar emission: the training frames, then the code vectors, which stand for a
+        symbol no training frame is nearest to (possible only in a file edited by hand).
+        """
+        frames = self.codebook_
+        if self.emission == "exemplar":
+            frames = np.vstack([self.exemplars_, self.codebook_])
+            symbols = self._quantise(self.exemplars_)
+            self._members = group_members(symbols, self.n_symbols_, len(self.exemplars_))
+            self._exemplar_symbols = symbols
+        self._frames = synthesis_frames(features_to_spectra(frames, self.window), self.window)
         self._window_squared = hamming_window(self.window) ** 2
         self._norms: dict[int, Array] = {}
         self._cumulative = np.cumsum(self.transmat_, axis=1)
@@ -293,7 +352,7 @@ class IMSGenerator:
             ``log_likelihood`` (mean log-probability per transition of the trials' symbols).
         """
         self._check_fitted()
-        features = [self._features(self._signal(t)) for t in trials]
+        features = [self.frame_features(t) for t in trials]
         sequences = [self._quantise(f) for f in features]
         stacked, symbols = np.vstack(features), np.concatenate(sequences)
         error = np.sum((stacked - self.codebook_[symbols]) ** 2) / stacked.size
@@ -325,6 +384,14 @@ class IMSGenerator:
         pad = self.window // self.hop
         n_frames = math.ceil(max(n_samples - self.window, 0) / self.hop) + 1 + 2 * pad
         sequence = sample_chain(self._cumulative, self._start_cumulative, rng.random(n_frames))
+        if self.emission == "exemplar":
+            sequence = emit_exemplars(
+                sequence,
+                rng.random(n_frames),
+                *self._members,
+                self.exemplar_next_,
+                self._exemplar_symbols,
+            )
         norm = self._norms.get(n_frames)
         if norm is None:
             norm = self._norms[n_frames] = overlap_norm(n_frames, self.hop, self._window_squared)
@@ -412,21 +479,25 @@ class IMSGenerator:
             "pseudo_count": float(self.pseudo_count),
             "n_init": int(self.n_init),
             "random_state": self.random_state,
+            "emission": self.emission,
         }
 
-    def to_arrays(self) -> tuple[dict[str, NDArray[np.float64]], dict[str, Any]]:
+    def to_arrays(self) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
         """Return the fitted model's arrays and metadata, as `save` writes them.
 
-        Arrays ``codebook``, ``transmat``, ``startprob``; metadata ``parameters`` (with the
+        Arrays ``codebook``, ``transmat``, ``startprob``, and for exemplar emission
+        ``exemplars`` and ``exemplar_next``; metadata ``parameters`` (with the
         codebook size fitted: a model fitted with "auto" is saved with the size it chose, the
         choice recorded in ``training``), ``training``.
         """
         self._check_fitted()
-        arrays = {
+        arrays: dict[str, NDArray[Any]] = {
             "codebook": self.codebook_,
             "transmat": self.transmat_,
             "startprob": self.startprob_,
         }
+        if self.emission == "exemplar":
+            arrays |= {"exemplars": self.exemplars_, "exemplar_next": self.exemplar_next_}
         parameters = self.get_params() | {"n_symbols": self.n_symbols_}
         return arrays, {"parameters": parameters, "training": self.training_summary_}
 
@@ -442,8 +513,10 @@ class IMSGenerator:
         The parameters must lie in `PARAMETER_RANGES`; the training summary must name its
         groups; the code vectors must be finite floats within ±``MAX_ABS_POSITION * window``
         (the largest feature of a frame of positions within
-        `mirror_avatar.trials.MAX_ABS_POSITION`); the transition and initial probabilities
-        must be distributions.
+        `mirror_avatar.trials.MAX_ABS_POSITION`), and so must the exemplars; each exemplar's
+        successor must be another exemplar or -1; the transition and initial probabilities
+        must be distributions. Parameters without ``emission`` (files written before it)
+        mean centroid emission.
 
         Raises
         ------
@@ -459,7 +532,7 @@ class IMSGenerator:
         groups = training.get("groups")
         if not (isinstance(groups, list) and all(isinstance(g, str) for g in groups)):
             raise InputError(source, f"training groups {excerpt(groups)} are not a list of names")
-        model = cls(**parameters)
+        model = cls(**{"emission": "centroid"} | parameters)
         try:
             model._check_parameters()
         except InputError as error:
@@ -482,6 +555,20 @@ class IMSGenerator:
         model.codebook_ = codebook.astype(np.float64)
         model.transmat_ = transmat.astype(np.float64)
         model.startprob_ = startprob.astype(np.float64)
+        if model.emission == "exemplar":
+            require_arrays(source, arrays, ("exemplars", "exemplar_next"))
+            following = check_array(
+                source, "exemplar_next", arrays["exemplar_next"], "integer", (None,)
+            )
+            count = len(following)
+            following = check_array(
+                source, "exemplar_next", following, "integer", (count,), -1, count - 1
+            )
+            exemplars = check_array(
+                source, "exemplars", arrays["exemplars"], "float", (count, width), -bound, bound
+            )
+            model.exemplars_ = exemplars.astype(np.float64)
+            model.exemplar_next_ = following.astype(np.int64)
         model._prepare_sampling()
         return model
 
@@ -502,187 +589,3 @@ class IMSGenerator:
             path, FORMAT_NAME, FORMAT_VERSION, ("codebook", "transmat", "startprob")
         )
         return cls.from_arrays(arrays, metadata, path)
-
-
-def sweep_codebook(
-    train_trials: Sequence[Trial],
-    test_trials: Sequence[Trial],
-    sizes: Sequence[int] = (32, 64, 128, 256),
-    random_state: int | None = 0,
-    duration: float = 60.0,
-) -> pd.DataFrame:
-    """Fit a generator for each codebook size and compare it with held-out human trials.
-
-    The paper chose N = 256 after such a sweep over 32-256 (METHODS section 4, step 3).
-
-    Parameters
-    ----------
-    train_trials
-        Trials the generators are fitted on.
-    test_trials
-        Held-out human trials of the same person or style (at least one).
-    sizes
-        Codebook sizes N to try.
-    random_state
-        Seed of k-means and of the generated trials (the same for every size).
-    duration
-        Length (s) of each generated trial; as many are generated as there are test trials.
-
-    Returns
-    -------
-    pandas.DataFrame
-        Indexed by ``n_symbols``, columns ``train_distortion`` and ``test_distortion`` (mean
-        squared quantisation error per feature), ``test_symbols_used`` (fraction of code vectors
-        the test frames use: the training frames use them all, k-means leaving no code vector
-        without one), ``test_log_likelihood`` (mean log-probability per transition of the
-        test trials' symbols) and ``emd_to_test`` (mean EMD between the IMS of each generated
-        trial and each test trial).
-    """
-    if not test_trials:
-        raise InputError("test_trials", "the codebook sweep needs held-out trials")
-    rows = []
-    for size in sizes:
-        model = IMSGenerator(n_symbols=int(size), random_state=random_state).fit(train_trials)
-        human = [compute_ims(compute_velocity(model._signal(t), model.rate)) for t in test_trials]
-        test = model.score(test_trials)
-        generated = model.sample(duration, n=len(test_trials), random_state=random_state)
-        emd = [compute_emd(compute_ims(g.velocity()), h) for g in generated for h in human]
-        rows.append(
-            {
-                "n_symbols": int(size),
-                "train_distortion": model.training_summary_["distortion"],
-                "test_distortion": test["distortion"],
-                "test_symbols_used": test["symbols_used"],
-                "test_log_likelihood": test["log_likelihood"],
-                "emd_to_test": float(np.mean(emd)),
-            }
-        )
-    return pd.DataFrame(rows).set_index("n_symbols")
-
-
-def choose_n_symbols(
-    trials: Sequence[Trial],
-    parameters: Mapping[str, Any],
-    candidates: Sequence[int] = SYMBOL_CANDIDATES,
-) -> dict[str, Any]:
-    """Choose a codebook size for ``trials`` by leave-one-trial-out cross-validation.
-
-    Each trial is held out in turn (a single trial is split into two halves); a generator of
-    each candidate size is fitted on the others and generates `CV_SAMPLES` trials as long as
-    the held-out one, and the score of a size is the mean EMD between their IMS and the
-    held-out trial's. The smallest size whose score lies within one standard error of the best
-    is chosen (the one-standard-error rule, Hastie, Tibshirani & Friedman, *The Elements of
-    Statistical Learning*, section 7.10): the simplest chain that generates motion as close to
-    the person's unseen trials as the best one. Sizes for which some fold has fewer than
-    `MIN_FRAMES_PER_SYMBOL` frames per symbol, or fewer distinct frames than symbols (motion
-    that repeats exactly), are not tried. **Choice** (the paper fixed 256
-    after a sweep on 30 trials per person; METHODS section 4).
-
-    Parameters
-    ----------
-    trials
-        The person's solo trials.
-    parameters
-        The generator's other hyper-parameters (`IMSGenerator.get_params`); ``random_state``
-        seeds every fit and every generated trial.
-    candidates
-        Codebook sizes to try.
-
-    Returns
-    -------
-    dict
-        ``rule``, ``chosen``, ``candidates`` (the sizes tried), ``emd_mean`` and ``emd_se``
-        (per size), ``folds`` and ``human_emd`` (mean EMD between the IMS of two of the
-        person's trials: the scale a score is to be read against; NaN for a single trial).
-
-    Raises
-    ------
-    InputError
-        Too few frames for the smallest candidate.
-    """
-    folds = _folds(trials)
-    settings = {k: v for k, v in parameters.items() if k != "n_symbols"}
-    seed = settings.get("random_state")
-    fitted = IMSGenerator(n_symbols=min(candidates), **settings)
-    frames = [_frame_counts(fitted, train) for train, _ in folds]
-    feasible = [
-        int(n)
-        for n in sorted(candidates)
-        if all(MIN_FRAMES_PER_SYMBOL * n <= total and n <= distinct for total, distinct in frames)
-    ]
-    if not feasible:
-        raise InputError(
-            "trials",
-            f"{min(total for total, _ in frames)} frames per cross-validation fold are too few "
-            f"for {min(candidates)} symbols: give more or longer trials",
-        )
-    human = [_trial_ims(fitted, t) for t in trials]
-    scores = np.empty((len(feasible), len(folds)))
-    for j, (train, held_out) in counted(enumerate(folds), len(folds), "choosing symbols", "fold"):
-        target = _trial_ims(fitted, held_out)
-        for i, size in enumerate(feasible):
-            model = IMSGenerator(n_symbols=size, **settings).fit(train)
-            generated = model.sample(held_out.duration, n=CV_SAMPLES, random_state=seed)
-            scores[i, j] = np.mean([compute_emd(_trial_ims(model, g), target) for g in generated])
-    mean = scores.mean(axis=1)
-    se = scores.std(axis=1, ddof=1) / math.sqrt(len(folds))
-    chosen = feasible[one_standard_error_rule(scores)]
-    pairs = [compute_emd(a, b) for k, a in enumerate(human) for b in human[k + 1 :]]
-    return {
-        "rule": "cross-validation, one standard error",
-        "chosen": chosen,
-        "candidates": feasible,
-        "emd_mean": [round(float(m), 6) for m in mean],
-        "emd_se": [round(float(e), 6) for e in se],
-        "folds": len(folds),
-        "human_emd": round(float(np.mean(pairs)), 6) if pairs else math.nan,
-    }
-
-
-def one_standard_error_rule(scores: Array) -> int:
-    """Pick the simplest model whose mean score is within one standard error of the best.
-
-    Parameters
-    ----------
-    scores
-        Cross-validation scores (lower is better), shape (models, folds), models ordered from
-        the simplest; at least two folds.
-
-    Returns
-    -------
-    int
-        The index of the first model whose mean is at most the best mean plus the best
-        model's standard error of the mean (Hastie, Tibshirani & Friedman, section 7.10).
-    """
-    mean = scores.mean(axis=1)
-    se = scores.std(axis=1, ddof=1) / math.sqrt(scores.shape[1])
-    best = int(np.argmin(mean))
-    return int(np.argmax(mean <= mean[best] + se[best]))
-
-
-def _frame_counts(model: IMSGenerator, trials: Sequence[Trial]) -> tuple[int, int]:
-    """Count the STFT frames of ``trials``, and the distinct ones (a codebook's most).
-
-    Frames equal to 9 decimals (units) count as one: motion that repeats exactly repeats its
-    frames up to rounding.
-    """
-    features = np.vstack([model._features(model._signal(t)) for t in trials])
-    return len(features), len(np.unique(np.round(features, 9), axis=0))
-
-
-def _folds(trials: Sequence[Trial]) -> list[tuple[list[Trial], Trial]]:
-    """Training trials and the held-out trial of each fold (one trial: its two halves)."""
-    if len(trials) == 1:
-        (trial,) = trials
-        middle = trial.n_samples // 2
-        halves = [
-            replace(trial, times=trial.times[part], positions=trial.positions[part])
-            for part in (slice(None, middle), slice(middle, None))
-        ]
-        return [([halves[0]], halves[1]), ([halves[1]], halves[0])]
-    return [([t for k, t in enumerate(trials) if k != j], trials[j]) for j in range(len(trials))]
-
-
-def _trial_ims(model: IMSGenerator, trial: Trial) -> Array:
-    """Compute the IMS of ``trial`` at the model's rate."""
-    return compute_ims(compute_velocity(model._signal(trial), model.rate))

@@ -54,7 +54,7 @@ from mirror_avatar.deep.player import load_deep_cyber_player
 from mirror_avatar.dynamics import HKBParams, preset
 from mirror_avatar.errors import InputError
 from mirror_avatar.generator import FORMAT_NAME as GENERATOR_FORMAT
-from mirror_avatar.generator import PAPER_SYMBOLS, IMSGenerator
+from mirror_avatar.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions, excerpt
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
@@ -253,7 +253,12 @@ def bundled_generator(style: str) -> IMSGenerator:
     style
         One of `BUNDLED_STYLES`.
     """
-    model = IMSGenerator(n_symbols=PAPER_SYMBOLS, rate=DEFAULT_RATE, random_state=BUNDLED_SEED)
+    model = IMSGenerator(
+        n_symbols=PAPER_SYMBOLS,
+        rate=DEFAULT_RATE,
+        random_state=BUNDLED_SEED,
+        emission=PAPER_EMISSION,
+    )
     key = json.dumps(
         {"style": style, "parameters": model.get_params(), "version": __version__}, sort_keys=True
     )

@@ -7,15 +7,17 @@ import pytest
 from scipy.signal import butter, sosfilt_zi, sosfiltfilt
 from sklearn.metrics import pairwise_distances_argmin
 
+from mirror_avatar.codebook_size import choose_n_symbols, one_standard_error_rule, sweep_codebook
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import (
-    PAPER_SYMBOLS,
-    IMSGenerator,
-    choose_n_symbols,
-    one_standard_error_rule,
-    sweep_codebook,
+from mirror_avatar.generator import FORMAT_NAME, FORMAT_VERSION, PAPER_SYMBOLS, IMSGenerator
+from mirror_avatar.markov import (
+    count_transitions,
+    emit_exemplars,
+    estimate_transitions,
+    group_members,
+    sample_chain,
 )
-from mirror_avatar.markov import count_transitions, estimate_transitions, sample_chain
+from mirror_avatar.model_files import save_model
 from mirror_avatar.signature import compute_emd, compute_ims, stroke_moments
 from mirror_avatar.trials import compute_velocity, make_trial, zero_phase_filter
 
@@ -148,7 +150,8 @@ def test_generated_motion_has_its_person_signature(zhai_trials_100hz: list) -> N
 
 def test_codebook_sweep_distortion_falls_with_size(zhai_trials_100hz: list) -> None:
     train, test = zhai_trials_100hz[9:11], zhai_trials_100hz[11:12]
-    sweep = sweep_codebook(train, test, sizes=(8, 32), random_state=0, duration=20.0)
+    make = IMSGenerator(random_state=0).with_symbols
+    sweep = sweep_codebook(make, train, test, sizes=(8, 32), random_state=0, duration=20.0)
     assert list(sweep.index) == [8, 32]
     assert sweep.loc[32, "train_distortion"] < sweep.loc[8, "train_distortion"]
     assert sweep.loc[32, "test_distortion"] < sweep.loc[8, "test_distortion"]
@@ -158,13 +161,13 @@ def test_codebook_sweep_distortion_falls_with_size(zhai_trials_100hz: list) -> N
     for size in (8, 32):
         model = IMSGenerator(n_symbols=size, random_state=0).fit(train)
         assert model.training_summary_["symbols_used"] == 1.0  # k-means leaves none unused
-        frames = np.vstack([model._features(model._signal(t)) for t in test])
+        frames = np.vstack([model.frame_features(t) for t in test])
         nearest = pairwise_distances_argmin(frames, model.codebook_)
         expected = np.unique(nearest).size / size
         assert sweep.loc[size, "test_symbols_used"] == pytest.approx(expected)
     assert sweep.loc[32, "test_symbols_used"] < 1.0
     with pytest.raises(InputError, match="held-out"):
-        sweep_codebook(train, [], sizes=(8,))
+        sweep_codebook(make, train, [], sizes=(8,))
 
 
 @pytest.mark.parametrize("n_samples", [6000, 37, 16, 5])
@@ -246,12 +249,12 @@ def test_auto_never_asks_for_more_symbols_than_distinct_frames() -> None:
 def test_auto_tries_only_sizes_every_fold_can_fit(zhai_trials_100hz) -> None:
     """Two 60 s trials: each fold trains on one trial (about 400 frames, so at most 99
     symbols); one trial alone is split into halves."""
-    two = choose_n_symbols(zhai_trials_100hz[:2], IMSGenerator(random_state=0).get_params())
+    two = choose_n_symbols(zhai_trials_100hz[:2], IMSGenerator(random_state=0).with_symbols)
     assert two["candidates"] == [8, 16, 32, 64] and two["folds"] == 2
     assert two["human_emd"] == pytest.approx(
         compute_emd(*(compute_ims(t.velocity()) for t in zhai_trials_100hz[:2])), abs=1e-6
     )
-    one = choose_n_symbols(zhai_trials_100hz[:1], IMSGenerator(random_state=0).get_params())
+    one = choose_n_symbols(zhai_trials_100hz[:1], IMSGenerator(random_state=0).with_symbols)
     assert one["candidates"] == [8, 16, 32] and one["folds"] == 2
     assert np.isnan(one["human_emd"])
 
@@ -273,3 +276,69 @@ def test_a_fixed_size_is_still_available(zhai_trials_100hz) -> None:
     model = IMSGenerator(n_symbols=PAPER_SYMBOLS, random_state=0).fit(zhai_trials_100hz[:6])
     assert model.n_symbols_ == 256
     assert model.training_summary_["complexity"] == {"rule": "fixed", "chosen": 256}
+
+
+def test_exemplars_are_chosen_as_worked_by_hand() -> None:
+    """Frames 0-4 with symbols 1 0 1 1 3, frame 4 the last of its trial; symbol 2 has no frame
+    (its code vector, index 5 + 2, stands for it). The walk continues a trial only where the
+    next frame carries the chain's next symbol."""
+    symbols = np.array([1, 0, 1, 1, 3])
+    starts, members = group_members(symbols, 4, 5)
+    np.testing.assert_array_equal(starts, [0, 1, 4, 5, 6])
+    np.testing.assert_array_equal(members, [1, 0, 2, 3, 7, 4])
+    chosen = emit_exemplars(
+        np.array([1, 1, 0, 2, 3, 1, 1]),
+        np.array([0.1, 0.9, 0.5, 0.5, 0.5, 0.4, 0.0]),
+        starts,
+        members,
+        np.array([1, 2, 3, 4, -1]),
+        symbols,
+    )
+    # 1: member 0.1 * 3 -> frame 0; 1: frame 0's successor 1 has symbol 0, so draw 0.9 -> 3;
+    # 0: successor 4 has symbol 3, draw -> 1; 2: successor 2 has symbol 1, draw -> 7;
+    # 3: a code vector has no successor, draw -> 4; 1: frame 4 ends its trial, draw 0.4 -> 2;
+    # 1: frame 2's successor 3 has symbol 1 -> 3 (the trial continues)
+    np.testing.assert_array_equal(chosen, [0, 3, 1, 7, 4, 2, 3])
+
+
+def test_exemplar_emission_keeps_the_persons_speed_that_code_vectors_shrink(
+    zhai_trials_100hz: list,
+) -> None:
+    """Code vectors average their frames: generated motion of the slow bundled style was 14 %
+    slower (velocity SD) and its fastest 1 % 27 % slower than the training trials; the
+    training frames themselves keep both within 10 % (METHODS section 4, "Fidelity")."""
+    train = zhai_trials_100hz[9:14]
+    human = np.concatenate([t.velocity() for t in train])
+    ratios = {}
+    for emission in ("exemplar", "centroid"):
+        model = IMSGenerator(32, random_state=0, emission=emission).fit(train)
+        generated = model.sample_velocities(6001, [1, 2, 3, 4, 5])
+        ratios[emission] = (
+            generated.std() / human.std(),
+            np.quantile(np.abs(generated), 0.99) / np.quantile(np.abs(human), 0.99),
+        )
+    assert all(0.9 < r < 1.1 for r in ratios["exemplar"])
+    assert ratios["centroid"][0] < 0.9 and ratios["centroid"][1] < 0.8
+
+
+def test_a_file_from_before_emission_loads_as_code_vectors(
+    zhai_trials_100hz: list, tmp_path: Path
+) -> None:
+    model = IMSGenerator(16, random_state=0, emission="centroid").fit(zhai_trials_100hz[9:11])
+    arrays, metadata = model.to_arrays()
+    del metadata["parameters"]["emission"]
+    save_model(tmp_path / "old.npz", FORMAT_NAME, FORMAT_VERSION, arrays, metadata)
+    loaded = IMSGenerator.load(tmp_path / "old.npz")
+    assert loaded.emission == "centroid"
+    np.testing.assert_array_equal(loaded.sample_velocity(500, 3), model.sample_velocity(500, 3))
+
+
+def test_exemplar_frames_round_trip_through_a_file(small_model: IMSGenerator, tmp_path) -> None:
+    assert small_model.emission == "exemplar"
+    small_model.save(tmp_path / "m.npz")
+    loaded = IMSGenerator.load(tmp_path / "m.npz")
+    np.testing.assert_array_equal(loaded.exemplars_, small_model.exemplars_)
+    np.testing.assert_array_equal(loaded.exemplar_next_, small_model.exemplar_next_)
+    # one trial's frames follow each other, and each trial's last frame has no successor
+    ends = np.flatnonzero(small_model.exemplar_next_ < 0)
+    assert ends.size == 3 and ends[-1] == len(small_model.exemplars_) - 1

@@ -59,12 +59,15 @@ HOSTILE_VALUES = [
 
 
 def tiny_generator() -> IMSGenerator:
-    """A valid 4-symbol generator with an 8-sample window, built without fitting."""
+    """A valid 4-symbol generator with an 8-sample window and 6 exemplars, built without fitting."""
     n, window = 4, 8
+    rng = np.random.default_rng(0)
     arrays = {
-        "codebook": np.random.default_rng(0).normal(0.0, 0.1, (n, window)),
+        "codebook": rng.normal(0.0, 0.1, (n, window)),
         "transmat": np.full((n, n), 1.0 / n),
         "startprob": np.full(n, 1.0 / n),
+        "exemplars": rng.normal(0.0, 0.1, (6, window)),
+        "exemplar_next": np.array([1, 2, -1, 4, 5, -1]),
     }
     parameters = IMSGenerator(n_symbols=n, window=window, hop=2, random_state=0).get_params()
     metadata = {"parameters": parameters, "training": {"groups": ["tiny"]}}
@@ -221,6 +224,7 @@ def test_missing_cyber_parameters_are_refused(files, key) -> None:
         ("random_state", -1, "random_state -1 is outside 0..4294967295"),
         ("random_state", "seed", "random_state must be an integer, not 'seed'"),
         ("colour", 1, "unknown generator parameter 'colour'"),
+        ("emission", "mean", "emission 'mean' is not one of exemplar, centroid"),
     ],
 )
 def test_generator_parameters_outside_their_range_are_refused(
@@ -235,7 +239,8 @@ def test_generator_parameters_outside_their_range_are_refused(
     [("cyber", key) for key in ("omega", "theta_p", "theta_v", "alpha", "beta", "gamma", "eta",
                                 "period", "n_substeps", "initial_position")]
     + [(kind, key) for kind in ("generator", "reference")
-       for key in ("n_symbols", "window", "hop", "rate", "pseudo_count", "n_init", "random_state")],
+       for key in ("n_symbols", "window", "hop", "rate", "pseudo_count", "n_init", "random_state",
+                   "emission")],
 )  # fmt: skip
 def test_every_parameter_refuses_hostile_values_in_one_short_line(files, kind, key) -> None:
     keys = ("parameters", key) if kind == "cyber" else (*GENERATOR_AT[kind], key)
@@ -288,6 +293,13 @@ def test_a_discretisation_beyond_the_q_table_limit_is_refused(files) -> None:
         ("transmat", np.eye(4) * 2 - 0.25, "not valid distributions"),
         ("startprob", np.array([1.5, -0.5, 0.0, 0.0]), "not valid distributions"),
         ("startprob", np.full(4, 0.5), "not valid distributions"),
+        ("exemplars", np.full((6, 8), math.nan), "exemplars holds nan"),
+        ("exemplars", np.zeros((6, 9)), "exemplars has shape (6, 9), expected (6, 8)"),
+        ("exemplars", np.zeros((5, 8)), "exemplars has shape (5, 8), expected (6, 8)"),
+        ("exemplar_next", np.array([1, 2, -1, 4, 6, -1]), "exemplar_next holds 6"),
+        ("exemplar_next", np.array([1, 2, -2, 4, 5, -1]), "exemplar_next holds -2"),
+        ("exemplar_next", np.zeros((6, 1), dtype=int), "exemplar_next has shape (6, 1)"),
+        ("exemplar_next", np.full(6, 0.5), "exemplar_next has dtype float64, expected integers"),
     ],
 )  # fmt: skip
 def test_generator_arrays_outside_their_range_are_refused(

@@ -14,12 +14,13 @@ from mirror_avatar.atomic import write_atomic_json, write_atomic_text
 from mirror_avatar.cli.constrained import RATE_HZ, SEED, SESSION_SECONDS, ranged
 from mirror_avatar.cli.outputs import check_output_dir, check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
+from mirror_avatar.codebook_size import sweep_codebook
 from mirror_avatar.constraints import Interval
 from mirror_avatar.curriculum import FORMAT_NAME as STAGE_FORMAT
 from mirror_avatar.curriculum import StageMotion, load_stage
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator, sweep_codebook
+from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import ImportOptions, excerpt
 from mirror_avatar.likeness import Likeness, compare_motion, trial_velocity
 from mirror_avatar.model_files import read_archive
@@ -234,4 +235,5 @@ def _sweep(trials: list[Trial], seed: int) -> pd.DataFrame:
     n_train = min(max(round(2 * len(trials) / 3), 1), len(trials) - 1)
     train = [trials[i] for i in order[:n_train]]
     test = [trials[i] for i in order[n_train:]]
-    return sweep_codebook(train, test, random_state=seed)
+    make = IMSGenerator(random_state=seed).with_symbols
+    return sweep_codebook(make, train, test, random_state=seed)

@@ -17,9 +17,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from mirror_avatar.codebook_size import sweep_codebook
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_ims, plot_similarity_space, plot_skew_kurtosis
-from mirror_avatar.generator import PAPER_SYMBOLS, IMSGenerator, sweep_codebook
+from mirror_avatar.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.report import Section
 from mirror_avatar.signature import SignatureAnalysis, analyse_signatures
 from mirror_avatar.trials import Trial, finite_difference
@@ -76,6 +77,7 @@ def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:
     sweep = pd.concat(
         {
             s: sweep_codebook(
+                lambda size: _paper_generator(size, seed),
                 splits[s].train,
                 splits[s].held_out,
                 QUICK_SWEEP_SIZES if quick else SWEEP_SIZES,
@@ -158,7 +160,7 @@ def split_and_generate(trials: Sequence[Trial], seed: int) -> dict[str, StyleSpl
         n_train = round(TRAIN_FRACTION * len(members))
         train = [members[i] for i in order[:n_train]]
         held_out = [members[i] for i in order[n_train:]]
-        model = IMSGenerator(n_symbols=PAPER_SYMBOLS, rate=RATE, random_state=seed).fit(train)
+        model = _paper_generator(PAPER_SYMBOLS, seed).fit(train)
         generated = [
             replace(t, label=f"{style} generated {k + 1}", group=_generated_group(style))
             for k, t in enumerate(model.sample(DURATION, n=len(held_out), random_state=seed))
@@ -315,6 +317,11 @@ def _overlap(analysis: SignatureAnalysis, a: str, b: str) -> float | None:
     names = analysis.group_names
     value = float(analysis.overlaps[names.index(a), names.index(b)])
     return value if np.isfinite(value) else None
+
+
+def _paper_generator(n_symbols: int, seed: int) -> IMSGenerator:
+    """Make an unfitted generator as the paper's: ``n_symbols`` code vectors, at `RATE`."""
+    return IMSGenerator(n_symbols, rate=RATE, random_state=seed, emission=PAPER_EMISSION)
 
 
 def _generated_group(style: str) -> str:

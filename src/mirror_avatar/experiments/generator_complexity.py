@@ -1,7 +1,7 @@
 """How faithful a generator is from a few trials: the codebook size chosen from the data, or fixed.
 
 A person gives n solo trials (n = 3, 5, 9 per style by default); the generator is fitted on them
-with its codebook size chosen by cross-validation (`mirror_avatar.generator.choose_n_symbols`)
+with its codebook size chosen by cross-validation (`mirror_avatar.codebook_size.choose_n_symbols`)
 and, for comparison, with the paper's fixed 256 symbols. Each generates one 60 s trial per
 held-out trial of the person, and the score is the **ratio** of the mean EMD between the
 generated and the held-out trials' IMS to the mean EMD between the person's own trials and the

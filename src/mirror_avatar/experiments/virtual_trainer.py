@@ -31,7 +31,7 @@ from mirror_avatar.dynamics import FOLLOWER, LEADER
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_ims, plot_positions, plot_relative_phase
-from mirror_avatar.generator import PAPER_SYMBOLS, IMSGenerator
+from mirror_avatar.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.metrics import TRIM, compute_relative_phase, session_metrics
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import Section
@@ -111,7 +111,9 @@ def run(
     reference_style, partner_style = choose_styles(trials, reference_style, partner_style)
     by_style = _split_styles(trials, (reference_style, partner_style))
     generators = {
-        style: IMSGenerator(PAPER_SYMBOLS, rate=DEFAULT_RATE, random_state=seed).fit(group)
+        style: IMSGenerator(
+            PAPER_SYMBOLS, rate=DEFAULT_RATE, random_state=seed, emission=PAPER_EMISSION
+        ).fit(group)
         for style, group in by_style.items()
     }
     n_lead = LEAD_SESSIONS // 4 if quick else LEAD_SESSIONS
