@@ -304,3 +304,19 @@ def test_each_call_gives_a_player_of_its_own(built: Path) -> None:
     first, second = avatar.player("group"), avatar.player("group")
     assert first is not second and first.label == second.label == "avatar P01 (follower policy)"
     assert avatar.players["follower"].label != first.label  # the file's player is untouched
+
+
+def test_an_avatar_without_held_out_trials_says_it_is_not_checked(built: Path) -> None:
+    folder = built.parent
+    out = folder / "P01-unchecked.npz"
+    status = main(["avatar", "create", str(folder / "trials"), "--name", "P01", "--partners",
+                   f"{folder / 'fast.npz'},{folder / 'slow.npz'}", "--sessions", "2",
+                   "--jobs", "1", "--holdout", "0", "--out", str(out)])  # fmt: skip
+    assert status == 0
+    avatar = load_avatar(out)
+    assert avatar.summary["proof"]["held_out"] is None
+    verdict = avatar.summary["verdict"]
+    assert verdict.startswith("The avatar is not checked against the person: no trial was held")
+    card = out.with_suffix(".html").read_text()
+    assert "<p>The avatar is not checked against the person" in card  # its text says so first
+    assert "No solo trial was held out of fitting." in card

@@ -273,7 +273,11 @@ def make_card(
         for role, r in avatar.summary["roles"].items()
     )
     held = proof.held_out
-    text = [held.role_verdict(role) for role in held.to_avatar] if held else [proof.verdict()]
+    text = (
+        [held.role_verdict(r) for r in held.to_avatar]
+        if held
+        else [f"The avatar {proof.verdict()}."]
+    )
     text += [
         f"{avatar.name}'s IMS generator was fitted on "
         f"{len(avatar.generator.training_summary_['labels'])} trials with "
@@ -342,15 +346,14 @@ CRITERIA_NAMES = {
 def _describe_check(proof: Proof) -> str:
     """How the avatar was checked against the person, in words."""
     held = proof.held_out
-    how = (
-        (held.explain_scheme() if held else "No solo trial was held out of fitting.")
-        + " Each held-out trial's velocity IMS is compared (EMD) with each session an avatar "
-        "built without it played as follower and as leader with every partner, and as a group "
-        "member; a role is flagged when the median of those EMDs is above the 95th percentile "
-        "of the person's own trial-to-trial EMD (every pair of their trials). The person's "
-        "virtual trainer in the same sessions shows how far the role itself moves anyone from "
-        "a solo trial."
-    )
+    how = "No solo trial was held out of fitting." if held is None else (
+        f"{held.explain_scheme()} Each held-out trial's velocity IMS is compared (EMD) with each "
+        "session an avatar built without it played as follower and as leader with every "
+        "partner, and as a group member; a role is flagged when the median of those EMDs is "
+        "above the 95th percentile of the person's own trial-to-trial EMD (every pair of their "
+        "trials). The person's virtual trainer in the same sessions shows how far the role "
+        "itself moves anyone from a solo trial."
+    )  # fmt: skip
     if proof.partners is not None:
         how += (
             " Sessions the person played with a partner are played again by the avatar in "
