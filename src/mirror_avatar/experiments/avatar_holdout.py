@@ -32,7 +32,7 @@ from mirror_avatar.experiments.cyber_player import SESSION_SECONDS, validate
 from mirror_avatar.experiments.group import choose_members
 from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
-from mirror_avatar.likeness import Likeness, compare_motion, trial_velocity
+from mirror_avatar.likeness import MAX_UNITS, Likeness, compare_motion, spread, trial_velocity
 from mirror_avatar.metrics import TRIM
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.session import Session
@@ -211,7 +211,8 @@ class HeldOutProof:
     likeness
         Role -> the human-likeness battery of the avatar's sessions against the held-out trials
         (`mirror_avatar.likeness.compare_motion`, the person's own variability from all their
-        trials; with several folds, the sessions of every fold against every held-out trial).
+        trials; with several folds, the sessions of every fold against every held-out trial,
+        at most `mirror_avatar.likeness.MAX_UNITS` sessions spread over the folds).
     """
 
     folds: list[list[str]]
@@ -401,7 +402,11 @@ def prove_held_out(
     everyone = [trial_velocity(t, rate) for t in trials]
     likeness = {
         role: compare_motion(
-            held, [v for fold in folds for v in fold.motion[role].avatar], everyone, rate, seed=seed
+            held,
+            spread([v for fold in folds for v in fold.motion[role].avatar], MAX_UNITS),
+            everyone,
+            rate,
+            seed=seed,
         )
         for role in roles
     }

@@ -30,6 +30,7 @@ from mirror_avatar.experiments.avatar_holdout import MIN_TRIALS_TO_HOLD_OUT, Hel
 from mirror_avatar.experiments.cyber_player import CRITERIA
 from mirror_avatar.figures import plot_positions
 from mirror_avatar.importing import excerpt
+from mirror_avatar.likeness import MAX_UNITS
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.seeds import draw_seeds
@@ -240,7 +241,8 @@ class Proof:
             if held.likeness:
                 tables[
                     "Human-likeness of the avatar in each role against the held-out trials "
-                    "(distances: mean over pairs of trials or sessions)"
+                    f"(at most {MAX_UNITS} of its sessions, spread over the folds; distances: "
+                    "mean over pairs of trials or sessions)"
                 ] = pd.concat(
                     {role: result.table() for role, result in held.likeness.items()}
                 ).rename(columns=LIKENESS_HEADERS)
