@@ -460,8 +460,13 @@ def _units(signals: Sequence[Array]) -> tuple[list[Array], bool]:
     if len(signals) == 1:
         half = signals[0].size // 2
         return [signals[0][:half], signals[0][half:]], True
-    keep = np.unique(np.linspace(0, len(signals) - 1, min(len(signals), MAX_UNITS)).round())
-    return [signals[int(k)] for k in keep], False
+    return spread(signals, MAX_UNITS), False
+
+
+def spread(signals: Sequence[Array], n: int) -> list[Array]:
+    """At most ``n`` of ``signals``, spread evenly over their order (first and last kept)."""
+    keep = np.unique(np.linspace(0, len(signals) - 1, min(len(signals), n)).round())
+    return [signals[int(k)] for k in keep]
 
 
 @dataclass(frozen=True)

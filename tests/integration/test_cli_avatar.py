@@ -147,7 +147,8 @@ def test_a_deep_avatar_is_built_saved_and_played(built: Path, tmp_path: Path) ->
 
 @pytest.fixture(scope="module")
 def proved(built: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """The person's avatar also checked against a session they played with a partner.
+    """The person's avatar also checked against a session they played with a partner, and
+    against one trial held out of its own fitting (``--holdout 1``).
 
     The dyad: the fast partner leads, the person follows as a virtual trainer driven by their
     held-out trial (trial1 of three).
@@ -162,7 +163,7 @@ def proved(built: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path,
     out = folder / "P01-proved.npz"
     status = main(["avatar", "create", str(folder / "trials"), "--name", "P01", "--partners",
                    f"{folder / 'fast.npz'},{folder / 'slow.npz'}", "--sessions", "40",
-                   "--jobs", "1", "--with-partner", str(dyad / "session.parquet"),
+                   "--jobs", "1", "--holdout", "1", "--with-partner", str(dyad / "session.parquet"),
                    "--person-label", label, "--out", str(out)])  # fmt: skip
     assert status == 0
     return out, dyad
@@ -179,27 +180,30 @@ def ims_emd(a: np.ndarray, b: np.ndarray) -> float:
     return wasserstein_distance(centres, centres, compute_ims(a), compute_ims(b)) / span
 
 
-def test_the_card_checks_the_avatar_against_held_out_trials(built: Path, capsys) -> None:
-    """One trial in four, at least one, is kept out of fitting and compared with the avatar."""
+def test_the_card_checks_the_avatar_against_each_trial_held_out(built: Path) -> None:
+    """Three trials: the avatar is fitted on all, and each is held out in turn from an avatar
+    built without it, in every role."""
     from mirror_avatar.trial_files import read_trial
 
     avatar = load_avatar(built)
-    assert avatar.generator.training_summary_["labels"] == ["trial0", "trial2"]
+    assert avatar.generator.training_summary_["labels"] == ["trial0", "trial1", "trial2"]
     held = avatar.summary["proof"]["held_out"]
-    assert held["held_out"] == ["trial1"]
+    assert held["folds"] == [["trial0"], ["trial1"], ["trial2"]]
     trials = [read_trial(built.parent / "trials" / f"trial{k}.csv") for k in range(3)]
     velocities = [t.resampled().velocity() for t in trials]
     own = [ims_emd(velocities[i], velocities[j]) for i, j in ((0, 1), (0, 2), (1, 2))]
     np.testing.assert_allclose(held["own_emd_range"], np.percentile(own, [5, 95]), rtol=1e-6)
-    lo, hi = held["own_emd_range"]
+    hi = held["own_emd_range"][1]
+    assert list(held["roles"]) == ["follower", "leader", "group member"]
+    for result in held["roles"].values():
+        assert result["flagged"] == (result["emd_to_held_out"] > hi)
+        assert result["ratio_to_own"] == pytest.approx(result["emd_to_held_out"] / np.median(own))
     verdict = avatar.summary["verdict"]
-    word = "like" if held["emd_to_held_out"] <= hi else "unlike"
-    assert verdict.startswith(f"The avatar moves {word} the person: EMD to held-out trials "
-                              f"{held['emd_to_held_out']:.4f} as leader")  # fmt: skip
-    assert f"{lo:.4f}-{hi:.4f}" in verdict and "role and partner pairs" in verdict
+    assert verdict.startswith("The avatar moves") and f"95th percentile {hi:.4f}" in verdict
+    assert "leave-one-out over 3 trials" in verdict and "role and partner pairs" in verdict
     card = built.with_suffix(".html").read_text()
     assert verdict.replace("'", "&#39;") in card
-    assert "P01 against the avatar (positions)" in card and "held-out trials (trial1)" in card
+    assert "P01 against the avatar (positions)" in card
 
 
 def test_the_avatar_replays_the_persons_partner(proved: tuple[Path, Path]) -> None:
@@ -208,6 +212,9 @@ def test_the_avatar_replays_the_persons_partner(proved: tuple[Path, Path]) -> No
 
     out, dyad = proved
     avatar = load_avatar(out)
+    assert avatar.generator.training_summary_["labels"] == ["trial0", "trial2"]
+    held = avatar.summary["proof"]["held_out"]
+    assert held["folds"] == [["trial1"]] and held["scheme"] == "1 of 3 trials held out of fitting"
     recorded = json.loads((dyad / "metrics.json").read_text())["metrics"]
     sessions = avatar.summary["proof"]["partners"]["sessions"]
     person = next(row for row in sessions if row["player"] == "person")
@@ -297,3 +304,19 @@ def test_each_call_gives_a_player_of_its_own(built: Path) -> None:
     first, second = avatar.player("group"), avatar.player("group")
     assert first is not second and first.label == second.label == "avatar P01 (follower policy)"
     assert avatar.players["follower"].label != first.label  # the file's player is untouched
+
+
+def test_an_avatar_without_held_out_trials_says_it_is_not_checked(built: Path) -> None:
+    folder = built.parent
+    out = folder / "P01-unchecked.npz"
+    status = main(["avatar", "create", str(folder / "trials"), "--name", "P01", "--partners",
+                   f"{folder / 'fast.npz'},{folder / 'slow.npz'}", "--sessions", "2",
+                   "--jobs", "1", "--holdout", "0", "--out", str(out)])  # fmt: skip
+    assert status == 0
+    avatar = load_avatar(out)
+    assert avatar.summary["proof"]["held_out"] is None
+    verdict = avatar.summary["verdict"]
+    assert verdict.startswith("The avatar is not checked against the person: no trial was held")
+    card = out.with_suffix(".html").read_text()
+    assert "<p>The avatar is not checked against the person" in card  # its text says so first
+    assert "No solo trial was held out of fitting." in card

@@ -1,9 +1,10 @@
-"""The avatar's held-out check carries the human-likeness battery (issue 38.2)."""
+"""The avatar's held-out check carries the human-likeness battery in every role (issue 38.2)."""
 
 from __future__ import annotations
 
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.experiments.avatar_proof import Proof, prove_held_out
+from mirror_avatar.experiments.avatar_holdout import Fold, RoleMotion, prove_held_out
+from mirror_avatar.experiments.avatar_proof import Proof
 from mirror_avatar.likeness import trial_velocity
 
 RATE = 1 / 0.03  # the avatar's control rate
@@ -11,22 +12,24 @@ RATE = 1 / 0.03  # the avatar's control rate
 
 def test_an_avatar_moving_as_another_style_is_distinguishable() -> None:
     trials = {t.label: t for t in load_zhai2017()}
-    fitted = [trials[f"fast-{k}"] for k in (1, 2, 3)]
-    held_out = [trials["fast-4"], trials["fast-8"]]
-    motion = {
-        "played as leader": [trial_velocity(trials[f"slow-{k}"], RATE) for k in range(1, 7)],
-        "played as follower": [trial_velocity(trials[f"fast-{k}"], RATE) for k in (5, 6, 7, 9)],
-    }
-    proof = prove_held_out(fitted, held_out, motion, RATE, seed=4)
-    leader, follower = proof.likeness["played as leader"], proof.likeness["played as follower"]
+    person = [trials[f"fast-{k}"] for k in (1, 2, 3, 4)]
+    slow = [trial_velocity(trials[f"slow-{k}"], RATE) for k in range(1, 7)]
+    fast = [trial_velocity(trials[f"fast-{k}"], RATE) for k in (5, 6, 7, 9)]
+    motion = {"leader": RoleMotion(slow, slow), "follower": RoleMotion(fast, fast)}
+    folds = [Fold(person[:2], motion), Fold(person[2:], motion)]
+    proof = prove_held_out(person, folds, RATE, seed=4)
+    leader, follower = proof.likeness["leader"], proof.likeness["follower"]
     assert leader.seed == 4
-    assert leader.classifier.auc > 0.9 and leader.distinguishable
+    assert leader.classifier is not None and leader.classifier.auc > 0.9
+    assert leader.distinguishable
     assert leader.distances[0].ratio > 2  # the IMS EMD to the held-out trials, x the person's
     assert follower.distances[0].ratio < 1.5
-    assert proof.to_json_dict()["likeness"]["played as leader"]["verdict"] == leader.verdict()
-    tables = Proof(proof, None, held_out).tables()
-    caption = "Human-likeness of the avatar played as leader, against the held-out trials"
-    assert list(tables[caption].index) == [
+    assert proof.to_json_dict()["likeness"]["leader"]["verdict"] == leader.verdict()
+    assert proof.scheme() == "2 folds over 4 trials"
+    assert "2 more avatars, each built the same way without a fold" in proof.explain_scheme()
+    tables = Proof(proof, None).tables()
+    caption = next(c for c in tables if c.startswith("Human-likeness of the avatar in each role"))
+    assert list(tables[caption].loc["leader"].index) == [
         "velocity IMS EMD",
         "amplitude (units)",
         "spectrum (Hz)",

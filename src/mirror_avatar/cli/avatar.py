@@ -15,11 +15,8 @@ from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.cli.train import load_generator
 from mirror_avatar.constraints import Interval
 from mirror_avatar.errors import InputError
-from mirror_avatar.experiments.avatar_proof import (
-    HOLDOUT_EVERY,
-    MIN_TRIALS_TO_HOLD_OUT,
-    find_person,
-)
+from mirror_avatar.experiments.avatar_holdout import MAX_FOLDS, MIN_TRIALS_TO_HOLD_OUT
+from mirror_avatar.experiments.avatar_proof import find_person
 from mirror_avatar.experiments.personal_avatar import (
     DEFAULT_DQN_SESSIONS,
     DEFAULT_SESSIONS,
@@ -62,9 +59,10 @@ def avatar() -> None:
 )  # fmt: skip
 @click.option(
     "--holdout", default=None,
-    **ranged("Solo trials kept out of fitting, to check the avatar against (0: none). [default: "
-             f"one in {HOLDOUT_EVERY}, at least one of {MIN_TRIALS_TO_HOLD_OUT} or more]",
-             Interval(int, 0, 1000)),
+    **ranged("Solo trials kept out of fitting the avatar, in one split, to check it against (0: "
+             "no check). [default: the avatar fitted on every trial, each held out in turn from "
+             f"an avatar built without it: leave-one-out up to {MAX_FOLDS} trials, {MAX_FOLDS} "
+             f"folds above; {MIN_TRIALS_TO_HOLD_OUT} trials or more]", Interval(int, 0, 1000)),
 )  # fmt: skip
 @click.option(
     "--with-partner", "partner_paths", multiple=True, type=click.Path(path_type=Path),
@@ -102,11 +100,11 @@ def create(
 ) -> None:
     """Build a person's avatar from their solo trials in FILE_OR_DIR....
 
-    Fits their IMS generator on all but the held-out trials, trains their cyber player as
-    follower and as leader against the partners, validates it against their own virtual
-    trainer (the last partner unseen), checks it against the person (held-out trials, sessions
-    with a partner) and writes OUT (playable as a SPEC: the session's role picks the player)
-    and OUT's card, the same name with .html.
+    Fits their IMS generator, trains their cyber player as follower and as leader against the
+    partners, validates it against their own virtual trainer (the last partner unseen), checks
+    it against the person in every role (each trial held out in turn, sessions with a partner)
+    and writes OUT (playable as a SPEC: the session's role picks the player) and OUT's card,
+    the same name with .html.
     """
     check_output_file(out_path, ".npz", beside=[avatar_card_path(out_path)])
     if not 0 < len(name.strip()) <= MAX_NAME_CHARS:
@@ -136,5 +134,8 @@ def create(
             f"{name} {result['emd_to_person']:.4f}; the paper's criteria "
             f"{'met' if result['criteria_met'] else 'not all met'} (see the card)"
         )
+    held = built.summary["proof"]["held_out"]
+    for result in (held or {}).get("roles", {}).values():
+        click.echo(result["verdict"])
     click.echo(built.summary["verdict"])
     click.echo(f"wrote {out_path.resolve()} and {card_path.resolve()}")
