@@ -26,20 +26,14 @@ lint: $(STAMP)
 docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
 
-# The tests print their 15 slowest; `check` is the inner loop (lint and the unit tests). `test`
-# runs the tests that keep a core busy on one worker per core, then those that mostly wait on the
-# real-time clock (servers, trials, browsers) on WAITING_WORKERS; both run even if one fails.
+# The tests print their 15 slowest; `check` is the inner loop (lint and the unit tests).
 PYTEST := $(BIN)/pytest -p no:cacheprovider --durations=15
-WAITING := realtime or browser
-WAITING_WORKERS ?= 4
 
 check: lint
 	$(PYTEST) -m "not slow" -n auto tests/unit
 
 test: lint docs
-	$(PYTEST) -m "not slow and not ($(WAITING))" -n auto; busy=$$?; \
-	$(PYTEST) -m "not slow and ($(WAITING))" -n $(WAITING_WORKERS); waiting=$$?; \
-	exit $$((busy || waiting))
+	$(PYTEST) -m "not slow" -n auto
 
 test-all: lint docs
 	$(PYTEST) -n auto

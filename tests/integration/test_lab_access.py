@@ -12,14 +12,11 @@ import time
 from pathlib import Path
 
 import httpx
-import pytest
 from test_lab_server import BEARER, DYAD, TOKEN, command, create, socket_url
 from websockets.sync.client import connect
 
 from mirror_avatar.lab.server import KEEP_ENDED, LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
-
-pytestmark = pytest.mark.realtime
 
 
 def test_a_link_with_a_wrong_token_leaves_the_researchers_cookie_alone(tmp_path):

@@ -12,7 +12,6 @@ import time
 from pathlib import Path
 
 import httpx
-import pytest
 from test_lab_server import BEARER, TOKEN
 
 from mirror_avatar.bids.tables import read_tsv
@@ -22,9 +21,6 @@ from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.lab.trial import LabTrial
 from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.testing import ServerThread
-
-pytestmark = pytest.mark.realtime
-
 
 TRIES = 3
 """Datasets each test exports its sessions into, at once (before the lock, rows were lost)."""

@@ -19,9 +19,6 @@ from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 
-pytestmark = pytest.mark.realtime
-
-
 DISK_BYTES = 256 * 1024
 ROOM_BYTES = 36 * 1024
 """Space left for the first trial: its files' first pages (tmpfs takes 4 KiB pages) and a few

@@ -8,11 +8,7 @@ import subprocess
 import sys
 
 import httpx
-import pytest
 from test_lab_bids_concurrent import CLI, dyad, record
-
-pytestmark = pytest.mark.realtime
-
 
 LIMIT_BYTES = 6 * 1024
 """The file-size limit of the export's process: above its small files, below its motion files."""

@@ -20,9 +20,6 @@ from mirror_avatar.lab.protocol import load_protocol
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 
-pytestmark = pytest.mark.realtime
-
-
 DEADLINE = 60.0
 """Seconds any request of these tests may take before the test fails (a frozen server)."""
 

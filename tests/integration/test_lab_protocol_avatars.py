@@ -12,9 +12,6 @@ from test_lab_server import BEARER, TOKEN
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 
-pytestmark = pytest.mark.realtime
-
-
 PROTOCOL = """
 title = "one dyad"
 seed = 1

@@ -19,9 +19,6 @@ from mirror_avatar.lab.protocol_store import SEED_LINE
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 
-pytestmark = pytest.mark.realtime
-
-
 SHAPE = 'the body must be {"name": the file\'s name, "text": its TOML}'
 UNSEEDED = PROTOCOL.replace("seed = 7\n", "")
 

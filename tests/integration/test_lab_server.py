@@ -32,9 +32,6 @@ from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread, raw_websocket
 from waiting import wait_for
 
-pytestmark = pytest.mark.realtime
-
-
 TOKEN = "researcher-token"
 BEARER = {"Authorization": f"Bearer {TOKEN}"}
 DYAD = {

@@ -25,9 +25,6 @@ from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 
-pytestmark = pytest.mark.realtime
-
-
 QUESTIONS = """
 [questions.partner]
 text = "Was your partner a person or a computer?"

@@ -24,9 +24,6 @@ from mirror_avatar.lab.protocol import load_protocol
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 
-pytestmark = pytest.mark.realtime
-
-
 HIDDEN_SPEC = "bundled:fast"
 """The hidden slot's avatar spec (the other avatar's is bundled:slow): never in an answer."""
 

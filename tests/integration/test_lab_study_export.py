@@ -28,9 +28,6 @@ from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 
-pytestmark = pytest.mark.realtime
-
-
 PROTOCOL = f"""
 title = "export study"
 seed = 3

@@ -20,9 +20,6 @@ from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.session import load_session
 from mirror_avatar.testing import ServerThread
 
-pytestmark = pytest.mark.realtime
-
-
 pylsl = pytest.importorskip("pylsl")
 
 PROTOCOL = """

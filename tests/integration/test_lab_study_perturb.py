@@ -20,9 +20,6 @@ from mirror_avatar.session import Session, load_session
 from mirror_avatar.specs import load_player
 from mirror_avatar.testing import ServerThread
 
-pytestmark = pytest.mark.realtime
-
-
 SWITCH_S, SWITCH = 3.0, 100
 """When the avatar is switched (s) and the sample that is (3.0 / 0.03)."""
 

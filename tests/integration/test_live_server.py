@@ -31,9 +31,6 @@ from mirror_avatar.testing import ServerThread, raw_websocket, text_frame
 from mirror_avatar.trials import make_trial
 from waiting import wait_for
 
-pytestmark = pytest.mark.realtime
-
-
 FRAME = 1 / 60
 
 

@@ -34,8 +34,6 @@ from mirror_avatar.specs import load_player
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 
-pytestmark = pytest.mark.realtime
-
 
 def read_rows(path: Path) -> list[dict[str, str]]:
     with path.open() as file:

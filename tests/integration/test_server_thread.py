@@ -7,12 +7,9 @@ import asyncio
 import time
 from typing import Any
 
-import pytest
 from websockets.sync.client import connect
 
 from mirror_avatar.testing import ServerThread
-
-pytestmark = pytest.mark.realtime
 
 
 async def stubborn(scope: dict[str, Any], receive: Any, send: Any) -> None:

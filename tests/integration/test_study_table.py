@@ -20,9 +20,6 @@ from mirror_avatar.lab.protocol import load_protocol
 from mirror_avatar.lab.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 
-pytestmark = pytest.mark.realtime
-
-
 DESIGN = [
     "participant", "session", "person", "player_kind", "block", "condition", "trial",
     "position", "partners", "partner_kind", "delay_s", "occluded", "perturbations",
