@@ -11,6 +11,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[all,dev]"
+	$(BIN)/python -m mirror_avatar.warm_up
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -29,8 +30,8 @@ docs: $(STAMP)
 docs-tables: $(STAMP)
 	$(BIN)/python docs/keys.py
 
-# The tests print their 25 slowest; `check` is the inner loop (lint and the unit tests).
-PYTEST := $(BIN)/pytest -p no:cacheprovider --durations=25
+# The tests print their 15 slowest; `check` is the inner loop (lint and the unit tests).
+PYTEST := $(BIN)/pytest -p no:cacheprovider --durations=15
 
 check: lint
 	$(PYTEST) -m "not slow" -n auto tests/unit

@@ -1,0 +1,56 @@
+"""After the warm-up, a person's first command loads every kernel it needs: it compiles nothing."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from mirror_avatar.trial_io import write_csv_trial
+from mirror_avatar.trials import Trial
+from mirror_avatar.warm_up import warm_up
+
+COUNT_COMPILATIONS = """
+import sys
+
+from numba.core import event
+
+from mirror_avatar.cli import main
+
+
+class Compilations(event.Listener):
+    def __init__(self):
+        self.names = set()
+
+    def on_start(self, started):
+        self.names.add(started.data["dispatcher"].py_func.__qualname__)
+
+    def on_end(self, ended):
+        pass
+
+
+compilations = Compilations()
+event.register("numba:compile", compilations)
+code = main(sys.argv[1:])
+print("compiled:", sorted(compilations.names))
+sys.exit(code)
+"""
+"""A fresh process running the command line with every compilation numba starts recorded."""
+
+
+def test_a_first_generator_fit_compiles_no_kernel(zhai_trials: list[Trial], tmp_path: Path) -> None:
+    warm_up()
+    folder = tmp_path / "person"
+    folder.mkdir()
+    for trial in zhai_trials[:3]:
+        write_csv_trial(trial, folder / f"{trial.label}.csv")
+    command = ["generator", "fit", str(folder), "--symbols", "8", "--out", str(tmp_path / "m.npz")]
+    done = subprocess.run(
+        [sys.executable, "-c", COUNT_COMPILATIONS, *command],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "compiled: []" in done.stdout.splitlines()
