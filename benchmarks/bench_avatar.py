@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.training.avatar import load_avatar
 from mirror_avatar.trial_io import write_csv_trial
 

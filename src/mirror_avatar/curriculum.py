@@ -2,8 +2,9 @@
 
 METHODS section 10: a patient plays, stage by stage, with an avatar whose motor signature moves
 from the patient's to a healthy target person's. `StageMotion` is the motion source of stage
-weight w (0: the patient, 1: the target), a drop-in for an `mirror_avatar.generator.IMSGenerator`
-as a virtual trainer's reference (it has ``rate`` and ``sample_velocity``). Two methods
+weight w (0: the patient, 1: the target), a drop-in for an
+`mirror_avatar.motion.generator.IMSGenerator` as a virtual trainer's reference (it has ``rate`` and
+``sample_velocity``). Two methods
 (METHODS 10, both measured by `mirror_avatar.experiments.curriculum`):
 
 - ``"mixture"``: the velocity is drawn in blocks of `BLOCK_SECONDS`, each block from the target's
@@ -39,7 +40,6 @@ from numpy.typing import NDArray
 from mirror_avatar.dynamics import preset
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator, Seed
 from mirror_avatar.model_files import (
     check_object,
     check_real,
@@ -48,6 +48,7 @@ from mirror_avatar.model_files import (
     part_arrays,
     save_model,
 )
+from mirror_avatar.motion.generator import IMSGenerator, Seed
 from mirror_avatar.players import VirtualTrainer
 from mirror_avatar.trials import Trial, make_trial
 

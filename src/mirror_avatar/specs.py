@@ -53,13 +53,13 @@ from mirror_avatar.deep.player import FORMAT_NAME as DEEP_FORMAT
 from mirror_avatar.deep.player import load_deep_cyber_player
 from mirror_avatar.dynamics import HKBParams, preset
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import FORMAT_NAME as GENERATOR_FORMAT
-from mirror_avatar.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions, excerpt
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
 from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.model_files import read_archive
+from mirror_avatar.motion.generator import FORMAT_NAME as GENERATOR_FORMAT
+from mirror_avatar.motion.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.players.adaptive import AdaptivePlayer
 from mirror_avatar.players.base import dry_run

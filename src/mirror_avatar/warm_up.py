@@ -25,8 +25,8 @@ from mirror_avatar.dynamics import (
 )
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.engine.loop import play
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.likeness import compare_motion, trial_velocity
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.signature import analyse_signatures
 from mirror_avatar.specs import MODEL_PARTNERS, model_partner

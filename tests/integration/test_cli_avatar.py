@@ -13,10 +13,10 @@ from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.deep.player import DeepCyberPlayer
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.live.session import make_avatar_factory
 from mirror_avatar.model_files import load_model, save_model
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.session import load_session
 from mirror_avatar.specs import bundled_generator, load_player

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.trial_io import read_csv_trial, write_csv_trial
 
 

@@ -10,10 +10,10 @@ import pytest
 
 from mirror_avatar.cli import main
 from mirror_avatar.deep.player import load_deep_cyber_player
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.graphs import path_graph
 from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.metrics import session_metrics
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.session import load_session
 from mirror_avatar.trials import Trial
 

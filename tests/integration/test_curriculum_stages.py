@@ -7,7 +7,7 @@ import pytest
 
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.experiments.curriculum import measure_stages, own_emd
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.motion.generator import IMSGenerator
 
 
 @pytest.mark.slow  # minutes of work: `make test-all` runs it

@@ -7,7 +7,7 @@ from mirror_avatar.dynamics import FOLLOWER, LEADER
 from mirror_avatar.engine import batch
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import VirtualTrainer
 
 distributed = pytest.importorskip("distributed")

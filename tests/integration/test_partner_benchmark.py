@@ -18,7 +18,7 @@ from mirror_avatar.experiments.partner_benchmark import (
     relative_position_error,
     run_benchmark,
 )
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.specs import bundled_generator, load_player
 from mirror_avatar.training.imitation import train_cyber_player

@@ -8,7 +8,7 @@ from scipy.stats import wasserstein_distance
 
 from mirror_avatar.curriculum import QUANTILE_SECONDS, QUANTILE_SEED, StageMotion
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.motion.generator import IMSGenerator
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,8 @@ from mirror_avatar.dynamics import FOLLOWER, JOINT, LEADER
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.graphs import random_connected_graph
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import ExternalPlayer, RecordedPlayer, VirtualTrainer
 from mirror_avatar.seeds import spawn_seeds
 from waiting import wait_for

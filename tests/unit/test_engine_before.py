@@ -18,7 +18,7 @@ from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.dynamics import FOLLOWER, JOINT, LEADER
 from mirror_avatar.engine.batch import play_compiled, run_sessions
 from mirror_avatar.engine.loop import play
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.session import Session
 from mirror_avatar.training.imitation import train_cyber_player

@@ -7,17 +7,21 @@ import pytest
 from scipy.signal import butter, sosfilt_zi, sosfiltfilt
 from sklearn.metrics import pairwise_distances_argmin
 
-from mirror_avatar.codebook_size import choose_n_symbols, one_standard_error_rule, sweep_codebook
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import FORMAT_NAME, FORMAT_VERSION, PAPER_SYMBOLS, IMSGenerator
-from mirror_avatar.markov import (
+from mirror_avatar.model_files import save_model
+from mirror_avatar.motion.codebook_size import (
+    choose_n_symbols,
+    one_standard_error_rule,
+    sweep_codebook,
+)
+from mirror_avatar.motion.generator import FORMAT_NAME, FORMAT_VERSION, PAPER_SYMBOLS, IMSGenerator
+from mirror_avatar.motion.markov import (
     count_transitions,
     emit_exemplars,
     estimate_transitions,
     group_members,
     sample_chain,
 )
-from mirror_avatar.model_files import save_model
 from mirror_avatar.signature import compute_emd, compute_ims, stroke_moments
 from mirror_avatar.trials import compute_velocity, make_trial, zero_phase_filter
 

@@ -13,11 +13,11 @@ import pytest
 
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.lab.design.perturbation import changeable, successor
 from mirror_avatar.lab.design.protocol import parse_protocol
 from mirror_avatar.lab.running.study import ParticipantRun
 from mirror_avatar.learning.agent import CyberPlayer
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.specs import load_player, model_partner

@@ -23,7 +23,6 @@ import pytest
 from mirror_avatar.cli import main
 from mirror_avatar.deep.player import DeepCyberPlayer, load_deep_cyber_player
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import ECHO_CHARS
 from mirror_avatar.learning.agent import CyberPlayer, load_cyber_player
 from mirror_avatar.learning.discretisation import make_default_discretisation
@@ -34,6 +33,7 @@ from mirror_avatar.model_files import (
     MAX_METADATA_CHARS,
     MAX_TOTAL_BYTES,
 )
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.signature import DEFAULT_BINS
 from mirror_avatar.user_files import MAX_JSON_DEPTH
 

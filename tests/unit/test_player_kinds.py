@@ -10,7 +10,7 @@ from mirror_avatar.dynamics import FOLLOWER
 from mirror_avatar.engine.compiled import run_plans
 from mirror_avatar.engine.dispatch import loop_source
 from mirror_avatar.engine.loop import play
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.players.base import PlayerPlan
 from mirror_avatar.players.kinds import PlayerKind, player_kind, register_kind

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.dynamics import FOLLOWER, JOINT, LEADER
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import (
     Observation,
     Player,

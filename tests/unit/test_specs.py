@@ -10,8 +10,8 @@ import pytest
 
 from mirror_avatar import dynamics, specs
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.agent import CyberPlayer
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import Observation, Player, RecordedPlayer, VirtualTrainer, check_player
 from mirror_avatar.specs import bundled_generator, cache_dir, load_player
 from mirror_avatar.trial_files import write_trial

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mirror_avatar.stft import (
+from mirror_avatar.motion.stft import (
     compute_stft,
     features_to_spectra,
     hamming_window,

@@ -14,16 +14,16 @@ from mirror_avatar.atomic import write_atomic_json, write_atomic_text
 from mirror_avatar.cli.constrained import RATE_HZ, SEED, SESSION_SECONDS, ranged
 from mirror_avatar.cli.outputs import check_output_dir, check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
-from mirror_avatar.codebook_size import sweep_codebook
 from mirror_avatar.constraints import Interval
 from mirror_avatar.curriculum import FORMAT_NAME as STAGE_FORMAT
 from mirror_avatar.curriculum import StageMotion, load_stage
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import ImportOptions, excerpt
 from mirror_avatar.likeness import Likeness, compare_motion, trial_velocity
 from mirror_avatar.model_files import read_archive
+from mirror_avatar.motion.codebook_size import sweep_codebook
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.trial_io import write_csv_trial
 from mirror_avatar.trials import Trial

@@ -15,10 +15,10 @@ from mirror_avatar.cli.reading import import_options
 from mirror_avatar.constraints import Interval
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_learning_curves
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.training import LearningCurve
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.players.dynamical import ModelPartner
 from mirror_avatar.report import render_png

@@ -31,7 +31,6 @@ from mirror_avatar.deep.features import count_features, encode
 from mirror_avatar.deep.network import count_parameters, greedy_action, initial_parameters
 from mirror_avatar.dynamics import FOLLOWER, HKBParams, Record, integrate_hkb
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.acceleration_player import (
     DEFAULT_ACTIONS,
     DEFAULT_SUBSTEPS,
@@ -50,6 +49,7 @@ from mirror_avatar.model_files import (
     load_model,
     require_arrays,
 )
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players.base import Observation, PlayerPlan
 from mirror_avatar.players.kinds import PlayerKind, parameter_table, register_kind
 from mirror_avatar.players.reference import ReferenceDraw

@@ -30,10 +30,10 @@ from mirror_avatar.engine.loop import count_samples
 from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.cyber_player import SESSION_SECONDS, validate
 from mirror_avatar.experiments.group import choose_members
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.likeness import MAX_UNITS, Likeness, compare_motion, spread, trial_velocity
 from mirror_avatar.metrics import TRIM
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.session import Session
 from mirror_avatar.signature import compute_emd, compute_ims

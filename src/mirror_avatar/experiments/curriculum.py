@@ -23,8 +23,8 @@ from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.engine.loop import count_samples
 from mirror_avatar.experiments.cyber_player import measure
 from mirror_avatar.figures import HUMAN_KURTOSIS, HUMAN_SKEWNESS
-from mirror_avatar.generator import PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.metrics import TRIM
+from mirror_avatar.motion.generator import PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.players import VirtualTrainer
 from mirror_avatar.progress import counted
 from mirror_avatar.report import Section

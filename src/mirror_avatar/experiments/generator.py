@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.codebook_size import sweep_codebook
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_ims, plot_similarity_space, plot_skew_kurtosis
-from mirror_avatar.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
+from mirror_avatar.motion.codebook_size import sweep_codebook
+from mirror_avatar.motion.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.report import Section
 from mirror_avatar.signature import SignatureAnalysis, analyse_signatures
 from mirror_avatar.trials import Trial, finite_difference

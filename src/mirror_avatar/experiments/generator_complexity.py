@@ -1,10 +1,11 @@
 """How faithful a generator is from a few trials: the codebook size chosen from the data, or fixed.
 
 A person gives n solo trials (n = 3, 5, 9 per style by default); the generator is fitted on them
-with its codebook size chosen by cross-validation (`mirror_avatar.codebook_size.choose_n_symbols`)
-and, for comparison, with the paper's fixed 256 symbols. Each generates one 60 s trial per
-held-out trial of the person, and the score is the **ratio** of the mean EMD between the
-generated and the held-out trials' IMS to the mean EMD between the person's own trials and the
+with its codebook size chosen by cross-validation
+(`mirror_avatar.motion.codebook_size.choose_n_symbols`) and, for comparison, with the paper's fixed
+256 symbols. Each generates one 60 s trial per held-out trial of the person, and the score is the
+**ratio** of the mean EMD between the generated and the held-out trials' IMS to the mean EMD between
+the person's own trials and the
 held-out ones (1: the generator is as close to the person's unseen motion as the person's other
 trials are). Held-out trials are the style's trials not given: for n below the style's count,
 ``repeats`` random draws of n trials; for n equal to it, each trial in turn is held out and the
@@ -21,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import PAPER_SYMBOLS, IMSGenerator
+from mirror_avatar.motion.generator import PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.progress import counted
 from mirror_avatar.report import Section
 from mirror_avatar.signature import compute_emd, compute_ims

@@ -45,7 +45,7 @@ from mirror_avatar.experiments.cyber_player import (
     run_role,
 )
 from mirror_avatar.figures import plot_ims, plot_learning_curves
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.report import Section, render_report
 from mirror_avatar.session import Session
 from mirror_avatar.signature import DEFAULT_BINS, compute_ims

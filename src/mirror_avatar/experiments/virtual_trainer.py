@@ -31,8 +31,8 @@ from mirror_avatar.dynamics import FOLLOWER, LEADER
 from mirror_avatar.engine.loop import play
 from mirror_avatar.errors import InputError
 from mirror_avatar.figures import plot_ims, plot_positions, plot_relative_phase
-from mirror_avatar.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.metrics import TRIM, compute_relative_phase, session_metrics
+from mirror_avatar.motion.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import Section
 from mirror_avatar.seeds import spawn_seeds

@@ -27,9 +27,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from mirror_avatar.dynamics import FOLLOWER, HKBParams
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import excerpt
 from mirror_avatar.model_files import Source, check_array, check_integer, check_real, save_model
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players.base import Observation, Player, PlayerPlan
 from mirror_avatar.players.reference import ReferenceDraw, ReferenceTrack
 from mirror_avatar.seeds import entropy_of

@@ -41,7 +41,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from mirror_avatar.dynamics import FOLLOWER, HKBParams, Record, integrate_hkb
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import excerpt
 from mirror_avatar.learning.acceleration_player import (
     DEFAULT_ACTIONS,
@@ -67,6 +66,7 @@ from mirror_avatar.model_files import (
     load_model,
     require_arrays,
 )
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players.base import Observation, PlayerPlan, partner_state
 from mirror_avatar.players.kinds import PlayerKind, parameter_table, register_kind
 from mirror_avatar.players.reference import ReferenceDraw

@@ -27,7 +27,7 @@ Array = NDArray[np.float64]
 class VelocitySource(Protocol):
     """Anything a reference velocity is drawn from.
 
-    An `mirror_avatar.generator.IMSGenerator`, or a curriculum stage's motion
+    An `mirror_avatar.motion.generator.IMSGenerator`, or a curriculum stage's motion
     (`mirror_avatar.curriculum.StageMotion`).
     """
 

@@ -20,7 +20,6 @@ from typing import Any
 
 from mirror_avatar.dynamics import HKBParams, preset
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.importing import excerpt
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.model_files import (
@@ -30,6 +29,7 @@ from mirror_avatar.model_files import (
     part_arrays,
     save_model,
 )
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import Player, VirtualTrainer
 from mirror_avatar.training.agents import agent_kind
 

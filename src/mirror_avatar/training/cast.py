@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from mirror_avatar import dynamics
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players.virtual_trainer import VirtualTrainer
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.trials import DEFAULT_RATE, Trial

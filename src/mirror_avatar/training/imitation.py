@@ -32,7 +32,6 @@ import numpy as np
 from mirror_avatar import dynamics
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import IMSGenerator
 from mirror_avatar.graphs import GraphSource, random_connected_graph
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer, Agent
 from mirror_avatar.learning.agent import DEFAULT_ACTIONS
@@ -42,6 +41,7 @@ from mirror_avatar.learning.discretisation import (
     symmetric_edges,
 )
 from mirror_avatar.learning.training import LearningCurve, SessionLearner, score_tasks
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players.virtual_trainer import VirtualTrainer
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.session import Session

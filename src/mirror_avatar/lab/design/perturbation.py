@@ -44,9 +44,9 @@ from mirror_avatar.curriculum import FORMAT_NAME as STAGE_FORMAT
 from mirror_avatar.dynamics import CONTROL_PERIOD, ROLES, preset
 from mirror_avatar.dynamics.parameters import HKB_FIELDS, PARAMETER_RANGES
 from mirror_avatar.errors import InputError
-from mirror_avatar.generator import FORMAT_NAME as GENERATOR_FORMAT
 from mirror_avatar.lab.design.checker import Checker
 from mirror_avatar.model_files import read_archive
+from mirror_avatar.motion.generator import FORMAT_NAME as GENERATOR_FORMAT
 from mirror_avatar.players.adaptive import AdaptivePlayer
 from mirror_avatar.players.base import Player
 from mirror_avatar.players.dynamical import parse_number, parse_options

@@ -39,16 +39,8 @@ import numpy as np
 from numpy.typing import NDArray
 from sklearn.cluster import KMeans
 
-from mirror_avatar.codebook_size import MIN_FRAMES_PER_SYMBOL, choose_n_symbols
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import excerpt
-from mirror_avatar.markov import (
-    count_transitions,
-    emit_exemplars,
-    estimate_transitions,
-    group_members,
-    sample_chain,
-)
 from mirror_avatar.model_files import (
     check_array,
     check_integer,
@@ -58,7 +50,15 @@ from mirror_avatar.model_files import (
     require_arrays,
     save_model,
 )
-from mirror_avatar.stft import (
+from mirror_avatar.motion.codebook_size import MIN_FRAMES_PER_SYMBOL, choose_n_symbols
+from mirror_avatar.motion.markov import (
+    count_transitions,
+    emit_exemplars,
+    estimate_transitions,
+    group_members,
+    sample_chain,
+)
+from mirror_avatar.motion.stft import (
     compute_stft,
     features_to_spectra,
     hamming_window,
@@ -148,7 +148,7 @@ class IMSGenerator:
     Attributes
     ----------
     codebook_ : ndarray, shape (n_symbols, window)
-        Code vectors (feature space of `mirror_avatar.stft.spectra_to_features`).
+        Code vectors (feature space of `mirror_avatar.motion.stft.spectra_to_features`).
     transmat_ : ndarray, shape (n_symbols, n_symbols)
         Transition probabilities, rows sum to 1.
     startprob_ : ndarray, shape (n_symbols,)

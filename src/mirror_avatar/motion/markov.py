@@ -1,6 +1,6 @@
 """A first-order Markov chain over symbols: counted, estimated and walked.
 
-What the IMS generator (`mirror_avatar.generator`, METHODS section 4, step 4) learns over its
+What the IMS generator (`mirror_avatar.motion.generator`, METHODS section 4, step 4) learns over its
 codebook's symbols: transitions counted over the training sequences (maximum likelihood), a
 pseudo-count in every cell so every row is a distribution, and a compiled inverse-CDF walk.
 """

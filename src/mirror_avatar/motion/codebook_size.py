@@ -3,7 +3,7 @@
 METHODS section 4, step 3: the paper fixed N = 256 after a sweep over 32-256 on 30 trials per
 person; on a person's few trials the size is chosen by leave-one-trial-out cross-validation with
 the one-standard-error rule (`choose_n_symbols`). Both work on any generator a factory makes for
-a codebook size (`mirror_avatar.generator.IMSGenerator.with_symbols`), so that this module
+a codebook size (`mirror_avatar.motion.generator.IMSGenerator.with_symbols`), so that this module
 needs no generator of its own.
 """
 
@@ -37,7 +37,7 @@ CV_SAMPLES = 3
 
 
 class SizedGenerator(Protocol):
-    """What the functions here need of a generator (`mirror_avatar.generator.IMSGenerator`)."""
+    """What the functions here need of a generator (`motion.generator.IMSGenerator`)."""
 
     rate: float
     random_state: int | None
