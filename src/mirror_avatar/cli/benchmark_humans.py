@@ -18,6 +18,7 @@ from mirror_avatar.cli.evaluate import find_sessions, session_names
 from mirror_avatar.cli.reading import SessionReading
 from mirror_avatar.errors import InputError
 from mirror_avatar.session import Session
+from mirror_avatar.trial_record import lab_trial_record
 from mirror_avatar.trials import DEFAULT_RATE, Trial, make_trial
 
 OPTION = "--humans"
@@ -77,18 +78,14 @@ def _roles(path: Path, session: Session) -> tuple[int, int]:
             "table of their positions)",
         )  # fmt: skip
     leader, follower = roles.index("leader"), roles.index("follower")
-    if _lab_kind(session, follower) == "avatar":
+    record = lab_trial_record(session.metadata, path)
+    if (
+        record is not None
+        and follower < len(record.slots)
+        and record.slots[follower].kind == "avatar"
+    ):
         raise InputError(
             OPTION, f"{path}: its follower {session.labels[follower]!r} is an avatar (the lab "
             "slot's kind), not a person",
         )  # fmt: skip
     return leader, follower
-
-
-def _lab_kind(session: Session, player: int) -> object:
-    """Return the kind (human, avatar) a lab recording's slot gives the player, else None."""
-    lab = session.metadata.get("lab")
-    slots = lab.get("slots") if isinstance(lab, dict) else None
-    if isinstance(slots, list) and player < len(slots) and isinstance(slots[player], dict):
-        return slots[player].get("kind")
-    return None
