@@ -23,6 +23,7 @@ from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.specs import bundled_generator, load_player
 from mirror_avatar.training.imitation import train_cyber_player
 from mirror_avatar.trial_files import write_trial
+from mirror_avatar.trial_record import KINDS, SlotRecord, TrialRecord
 from mirror_avatar.trials import Trial
 
 LEADER_SECONDS = 20.0
@@ -298,7 +299,9 @@ def test_bad_input_is_refused_in_one_line_before_any_work(
     error = bad([*base, "--humans", str(joint)], capsys)
     assert f"--humans: {joint}: players with roles joint, joint" in error
     session = play(players, duration=5.0, seed=0, roles=("leader", "follower"))
-    session.metadata["lab"] = {"slots": [{"kind": "human"}, {"kind": "avatar"}]}
+    slots = [SlotRecord(label, kind, role) for label, kind, role
+             in zip(session.labels, KINDS, session.roles, strict=True)]  # fmt: skip
+    session.metadata |= TrialRecord("lab-1", 1, "leader_follower", tuple(slots)).metadata_json()
     session.save_csv(tmp_path / "avatar_followed.csv")
     error = bad([*base, "--humans", str(tmp_path / "avatar_followed.csv")], capsys)
     assert f"avatar_followed.csv: its follower {session.labels[1]!r} is an avatar" in error
