@@ -65,7 +65,6 @@ def create(agent: str, quick: bool) -> dict:
     note = "; ".join(
         f"{role}: unseen CV {r['unseen_cv_difference']:+.3f}, "
         f"RMS {r['unseen_rms_difference']:+.3f}, EMD {r['emd_to_person']:.4f}, "
-        f"trained in {r['train_seconds']:.1f} s, "
         f"criteria {'met' if r['criteria_met'] else 'NOT met'}"
         for role, r in roles.items()
     )
@@ -78,5 +77,14 @@ def create(agent: str, quick: bool) -> dict:
         "ratio": round(seconds / TARGET_SECONDS, 3),
         "peak_memory_mb": round(peak_kb / 1024, 1),
         "note": f"{summary['n_symbols']} symbols chosen; {note}; "
-        f"{json.dumps(summary['n_sessions'])} sessions per role",
+        f"{json.dumps(summary['n_sessions'])} sessions per role; {_held_out(summary)}",
     }
+
+
+def _held_out(summary: dict) -> str:
+    """Say how the avatar's card checked it against held-out trials, and which roles it flags."""
+    held_out = summary["proof"]["held_out"]
+    if held_out is None:
+        return "not checked against held-out trials"
+    flagged = [role for role, r in held_out["roles"].items() if r["flagged"]]
+    return f"{held_out['scheme']}; flagged: {', '.join(flagged) or 'none'}"
