@@ -92,6 +92,28 @@ def measure(source: str, path: Path) -> tuple[float, int, int]:
     return float(seconds), int(samples), int(peak)
 
 
+def run(quick: bool) -> list[dict]:
+    """Measure reading back an export grown to 60 MB (5 MB with ``quick``), for `run.py`."""
+    here = str(Path(__file__).resolve().parents[1] / "src")
+    megabytes = 5.0 if quick else 60.0
+    with tempfile.TemporaryDirectory() as temporary:
+        folder = Path(temporary)
+        small = small_export(folder)
+        (folder / "big").mkdir()
+        big = grow(small, megabytes, None, folder / "big")
+        size = big.stat().st_size
+        _, _, base = measure(here, small)
+        seconds, samples, peak = measure(here, big)
+    return [{
+        "name": f"lab export's _motion.tsv read back as its session ({size / 2**20:.0f} MiB)",
+        "value": round((peak - base) * 1024 / size, 2),
+        "unit": "x file size",
+        "baseline": f"the small export read: peak {base / 1024:.0f} MiB",
+        "peak_memory_mb": round(peak / 1024, 1),
+        "note": f"{samples:,} samples in {seconds:.2f} s; value = (peak - baseline peak) / size",
+    }]  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--megabytes", type=float, default=60.0)

@@ -12,6 +12,7 @@ import argparse
 import importlib.util
 import os
 import platform
+import re
 import sys
 import time
 from pathlib import Path
@@ -44,24 +45,45 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="smaller sizes, for a smoke test")
     parser.add_argument("only", nargs="*", help="benchmark module names (default: all)")
     args = parser.parse_args()
-    lines = [
-        f"# Benchmark results\n\n{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; "
-        f"{machine()}\n"
-    ]
+    measured: dict[str, str] = {}
     for path in sorted(HERE.glob("bench_*.py")):
         if args.only and path.stem.removeprefix("bench_") not in args.only:
             continue
         print(f"running {path.stem} ...", file=sys.stderr, flush=True)
         rows = load(path).run(quick=args.quick)
-        lines.append(f"\n## {path.stem.removeprefix('bench_')}\n")
-        lines.append("| " + " | ".join(COLUMNS) + " |")
-        lines.append("|" + "---|" * len(COLUMNS))
-        for row in rows:
-            lines.append("| " + " | ".join(_cell(row.get(c, "")) for c in COLUMNS) + " |")
-    text = "\n".join(lines) + "\n"
-    args.out.write_text(text)
-    print(text)
+        name = path.stem.removeprefix("bench_")
+        lines = [f"## {name}\n",
+                 f"Measured {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; {machine()}\n",
+                 "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]  # fmt: skip
+        lines += ["| " + " | ".join(_cell(row.get(c, "")) for c in COLUMNS) + " |" for row in rows]
+        measured[name] = "\n".join(lines) + "\n"
+    old = args.out.read_text(encoding="utf-8") if args.out.is_file() else "# Benchmark results\n"
+    text = merge_sections(old, measured)
+    args.out.write_text(text, encoding="utf-8")
+    print("".join(measured.values()))
     return 0
+
+
+def merge_sections(text: str, measured: dict[str, str]) -> str:
+    """Put each measured section in place of the table of its ``## name`` section of ``text``.
+
+    A measured section replaces its section up to the section's first ``### `` subsection (the
+    studies measured with their own scripts, written by hand, stay), or up to the next ``## ``
+    heading; every section not measured this time stays as it is. Sections new to the file are
+    appended.
+    """
+    blocks = re.split(r"(?m)^(?=## )", text)
+    merged, seen = [], set()
+    for block in blocks:
+        name = block.split("\n", 1)[0].removeprefix("## ").strip()
+        if not block.startswith("## ") or name not in measured:
+            merged.append(block)
+            continue
+        seen.add(name)
+        kept = re.split(r"(?m)^(?=### )", block, maxsplit=1)[1:]
+        merged.append(measured[name] + "\n" + "".join(kept))
+    merged += ["\n" + section for name, section in measured.items() if name not in seen]
+    return "".join(merged)
 
 
 def _cell(value: object) -> str:
