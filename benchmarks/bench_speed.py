@@ -54,8 +54,8 @@ CHILD = """
 import json, resource, sys, time
 from mirror_avatar.datasets import load_zhai2017
 try:
+    from mirror_avatar.training.cast import SEEN_PARTNERS, TARGET, make_virtual_trainers
     from mirror_avatar.training.imitation import train_cyber_player, train_group_cyber_player
-from mirror_avatar.training.cast import SEEN_PARTNERS, TARGET, make_virtual_trainers
 except ImportError:  # a commit before the training package
     from mirror_avatar.learning.imitation import (
         SEEN_PARTNERS, TARGET, make_virtual_trainers, train_cyber_player, train_group_cyber_player)
