@@ -6,6 +6,7 @@ read back from a page's pixels."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -97,6 +98,25 @@ addEventListener("pointerdown", (event) => window.pointerTypes.add(event.pointer
 """
 
 
+def create_run(
+    chromium: Any, url: str, token: str, out: Path, participant: int
+) -> tuple[Any, dict[str, str], str, dict[str, Any]]:
+    """Create a participant's run from the console; return the console page, the people's join
+    links, the run's session id and its ``study.json``."""
+    console = chromium.new_context(viewport={"width": 1280, "height": 900}).new_page()
+    console.goto(f"{url}/console?token={token}")
+    console.wait_for_selector("#study:not([hidden])")
+    console.fill("#participant", str(participant))
+    console.click("#create-participant")
+    links = {}
+    for label in ("P1", "P2"):
+        link = console.locator(f'a.join[data-label="{label}"]')
+        link.wait_for()
+        links[label] = link.get_attribute("href")
+    sid = console.locator("#session-id").inner_text()
+    return console, links, sid, json.loads((out / sid / "study.json").read_text())
+
+
 def role(plan: dict[str, Any], label: str) -> str:
     """The role of a player in a recorded plan (its game and leaders)."""
     labels = [slot["label"] for slot in plan["slots"]]
@@ -157,18 +177,7 @@ def test_three_pages_run_a_counterbalanced_protocol_with_an_avatar(chromium, tmp
     for name in (CONSOLE, PHONE_QUESTION, PHONE_END, PHONE_WAITING):
         (SCREENSHOTS / name).unlink(missing_ok=True)
     with ServerThread(create_lab_app(settings)) as lab:
-        console = chromium.new_context(viewport={"width": 1280, "height": 900}).new_page()
-        console.goto(f"{lab.url}/console?token={TOKEN}")
-        console.wait_for_selector("#study:not([hidden])")
-        console.fill("#participant", str(PARTICIPANT))
-        console.click("#create-participant")
-        links = {}
-        for label in ("P1", "P2"):
-            link = console.locator(f'a.join[data-label="{label}"]')
-            link.wait_for()
-            links[label] = link.get_attribute("href")
-        sid = console.locator("#session-id").inner_text()
-        study = json.loads((out / sid / "study.json").read_text())
+        console, links, sid, study = create_run(chromium, lab.url, TOKEN, out, PARTICIPANT)
         desk_context = chromium.new_context(viewport={"width": 900, "height": 600})
         phone_context = chromium.new_context(
             viewport={"width": 390, "height": 780}, has_touch=True, is_mobile=True

@@ -15,7 +15,7 @@ import pytest
 from browsers import SCREENSHOTS
 from test_lab_pilot import rehearsal
 from test_lab_study_browser import join
-from test_lab_study_protocol_browser import answer, move_until
+from test_lab_study_protocol_browser import answer, create_run, move_until
 
 from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
@@ -42,18 +42,7 @@ def test_a_templated_study_runs_from_the_console_to_its_report(chromium, tmp_pat
     out = tmp_path / "out"
     settings = LabSettings(out_dir=out, token=TOKEN, countdown=1, protocol=protocol)
     with ServerThread(create_lab_app(settings)) as lab:
-        console = chromium.new_context(viewport={"width": 1280, "height": 900}).new_page()
-        console.goto(f"{lab.url}/console?token={TOKEN}")
-        console.wait_for_selector("#study:not([hidden])")
-        console.fill("#participant", "0")
-        console.click("#create-participant")
-        links = {}
-        for label in ("P1", "P2"):
-            link = console.locator(f'a.join[data-label="{label}"]')
-            link.wait_for()
-            links[label] = link.get_attribute("href")
-        sid = console.locator("#session-id").inner_text()
-        study = json.loads((out / sid / "study.json").read_text())
+        console, links, sid, study = create_run(chromium, lab.url, TOKEN, out, 0)
         pages = {
             label: join(chromium.new_context(viewport={"width": 900, "height": 600}), links[label])
             for label in ("P1", "P2")

@@ -28,7 +28,7 @@ from mirror_avatar.dynamics import preset
 from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.engine.loop import count_samples
 from mirror_avatar.errors import InputError
-from mirror_avatar.experiments.cyber_player import SESSION_SECONDS, validate
+from mirror_avatar.experiments.cyber_player import SESSION_SECONDS, train_target, validate
 from mirror_avatar.experiments.group import choose_members
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.likeness import MAX_UNITS, Likeness, compare_motion, spread, trial_velocity
@@ -38,7 +38,7 @@ from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.session import Session
 from mirror_avatar.signature import compute_emd, compute_ims
 from mirror_avatar.training.cast import Cast, VirtualTrainerSpec
-from mirror_avatar.training.imitation import Agent, train_cyber_player
+from mirror_avatar.training.imitation import Agent
 from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 Array = NDArray[np.float64]
@@ -173,16 +173,7 @@ def build_fold(
     fold_cast = Cast(trainers, cast.target, cast.seen, cast.unseen, cast.whole_people)
     motion, players, examples = {}, {}, {}
     for role in ("follower", "leader"):
-        players[role], _ = train_cyber_player(
-            generator,
-            [trainers[i].generator for i in cast.seen],
-            role=role,
-            n_sessions=n_train,
-            seed=seed,
-            scheduler=scheduler,
-            n_jobs=n_jobs,
-            agent=agent,
-        )
+        players[role], _ = train_target(fold_cast, role, n_train, seed, n_jobs, agent, scheduler)
         _, velocities, (_, examples[role]) = validate(players[role], fold_cast, role, n_check, seed)
         motion[role] = dyad_motion(velocities, label)
     motion["group member"] = play_group(fold_cast, players["follower"], n_check, seed)

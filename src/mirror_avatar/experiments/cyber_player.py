@@ -209,8 +209,31 @@ def run_role(
     """
     target = cast.trainers[cast.target]
     start = time.perf_counter()
-    player, curve = train_cyber_player(
-        target.generator,
+    player, curve = train_target(cast, role, n_train, seed, n_jobs, agent, scheduler)
+    seconds = time.perf_counter() - start
+    records, velocities, example = validate(player, cast, role, n_valid, seed)
+    baselines = compare_baselines(player, cast, role, n_base, seed, n_jobs, scheduler)
+    unseen = cast.trainers[cast.unseen].label
+    return RoleResult(
+        role, target.label, unseen, player, curve, seconds, records, velocities, example, baselines
+    )
+
+
+def train_target(
+    cast: Cast,
+    role: Role,
+    n_train: int,
+    seed: int,
+    n_jobs: int,
+    agent: Agent = "tabular",
+    scheduler: str | None = None,
+) -> tuple[AccelerationPlayer, LearningCurve]:
+    """Train a cyber player to move like the cast's target in ``role``, against its seen partners.
+
+    Sessions are played on the Dask cluster at ``scheduler`` when one is given.
+    """
+    return train_cyber_player(
+        cast.trainers[cast.target].generator,
         [cast.trainers[i].generator for i in cast.seen],
         role=role,
         n_sessions=n_train,
@@ -218,13 +241,6 @@ def run_role(
         scheduler=scheduler,
         n_jobs=n_jobs,
         agent=agent,
-    )
-    seconds = time.perf_counter() - start
-    records, velocities, example = validate(player, cast, role, n_valid, seed)
-    baselines = compare_baselines(player, cast, role, n_base, seed, n_jobs, scheduler)
-    unseen = cast.trainers[cast.unseen].label
-    return RoleResult(
-        role, target.label, unseen, player, curve, seconds, records, velocities, example, baselines
     )
 
 
