@@ -1,10 +1,11 @@
 """Constraints declared as data: what a setting accepts, checked and described from one record.
 
 A setting's allowed values are declared once, as an `Interval` (numbers between two ends, each
-open or closed, finite, whole numbers or not) or as `Options` (a fixed set of words), in the
-style of scikit-learn's ``sklearn/utils/_param_validation.py``. The declaration checks a value
-(`check`), describes the allowed values for help texts and documents (``str``), and names values
-it refuses (`Interval.refused`, `Options.refused`), from which the refusal tests are generated.
+open or closed, finite, whole numbers or not, multiples of a step or not), as `Options` (a fixed
+set of words), as a `Flag`, or as `Either` of these (``auto`` or a whole number), in the style of
+scikit-learn's ``sklearn/utils/_param_validation.py``. The declaration checks a value (`check`),
+describes the allowed values for help texts and documents (``str``), and names values it refuses
+(`Interval.refused`, `Options.refused`, ...), from which the refusal tests are generated.
 
 A refused value raises `ConstraintError`: an `InputError` of one line naming the setting, the
 value and what is allowed, which carries the setting's key, the value and the constraint as
@@ -15,7 +16,9 @@ from __future__ import annotations
 
 import math
 import numbers
+import reprlib
 from dataclasses import dataclass
+from os import PathLike
 from typing import Any, Literal
 
 from mirror_avatar.errors import InputError
@@ -38,6 +41,8 @@ class Interval:
         Which ends are allowed values themselves.
     unit
         Unit of the values, for the description (``"s"``); empty for none.
+    multiple_of
+        Whole numbers only: the step every value is a multiple of (2: even numbers); 1 for any.
     """
 
     kind: type[int] | type[float]
@@ -45,6 +50,7 @@ class Interval:
     high: float | None
     closed: Closed = "both"
     unit: str = ""
+    multiple_of: int = 1
 
     def __contains__(self, value: object) -> bool:
         """Say whether ``value`` is an allowed number (NaN and infinities never are)."""
@@ -60,11 +66,13 @@ class Interval:
         high_ok = self.high is None or (
             number <= self.high if self.closed in ("both", "right") else number < self.high
         )
-        return low_ok and high_ok
+        return low_ok and high_ok and (self.multiple_of == 1 or number % self.multiple_of == 0)
 
     def __str__(self) -> str:
         """Describe the allowed values, e.g. ``a number in (0, 600] s``."""
         what = "a whole number" if self.kind is int else "a number"
+        if self.multiple_of != 1:
+            what = f"a multiple of {self.multiple_of}"
         left = "[" if self.closed in ("both", "left") and self.low is not None else "("
         right = "]" if self.closed in ("both", "right") and self.high is not None else ")"
         low = "-inf" if self.low is None else self._shown(self.low)
@@ -86,8 +94,14 @@ class Interval:
         return int(text) if self.kind is int else float(text)
 
     def refused(self) -> list[float]:
-        """Values this interval refuses: NaN, infinities, beyond each end, open ends themselves."""
+        """Values this interval refuses: NaN, infinities, beyond each end, open ends themselves.
+
+        With a step, also a number next to the low end (or to zero) that is not its multiple.
+        """
         out = [math.nan, math.inf, -math.inf] if self.kind is float else []
+        if self.multiple_of != 1:
+            start = self.kind(self.low or 0)
+            out.append(start if start % self.multiple_of else start + 1)
         for end, step, included in (
             (self.low, -1, self.closed in ("both", "left")),
             (self.high, 1, self.closed in ("both", "right")),
@@ -136,7 +150,29 @@ class Flag:
         return [1, "yes"]
 
 
-Constraint = Interval | Options | Flag
+@dataclass(frozen=True)
+class Either:
+    """A value that one of several constraints allows, e.g. ``auto`` or a whole number."""
+
+    choices: tuple[Interval | Options | Flag, ...]
+
+    def __contains__(self, value: object) -> bool:
+        """Say whether one of the choices allows ``value``."""
+        return any(value in choice for choice in self.choices)
+
+    def __str__(self) -> str:
+        """Describe the allowed values, e.g. ``auto or a whole number in [2, 4096]``."""
+        return " or ".join(
+            " or ".join(choice.values) if isinstance(choice, Options) else str(choice)
+            for choice in self.choices
+        )
+
+    def refused(self) -> list[object]:
+        """Values every choice refuses, from those each choice names as refused."""
+        return [value for choice in self.choices for value in choice.refused() if value not in self]
+
+
+Constraint = Interval | Options | Flag | Either
 """Any declared constraint."""
 
 
@@ -220,6 +256,9 @@ def settings_table(settings: tuple[Setting, ...]) -> str:
 class ConstraintError(InputError):
     """A value outside its declared constraint: one line naming the key, the value, the range.
 
+    ``KEY: VALUE is not allowed; give ALLOWED``, or ``SOURCE: KEY: ...`` when the value was read
+    from a file; a long value is shown cut (`reprlib.repr`).
+
     Attributes
     ----------
     key
@@ -230,11 +269,21 @@ class ConstraintError(InputError):
         What is allowed.
     """
 
-    def __init__(self, key: str, value: Any, constraint: Constraint) -> None:
+    def __init__(
+        self,
+        key: str,
+        value: Any,
+        constraint: Constraint,
+        source: str | PathLike[str] | None = None,
+    ) -> None:
         self.key = key
         self.value = value
         self.constraint = constraint
-        super().__init__(key, f"{value!r} is not allowed; give {constraint}")
+        refusal = f"{reprlib.repr(value)} is not allowed; give {constraint}"
+        if source is None:
+            super().__init__(key, refusal)
+        else:
+            super().__init__(source, f"{key}: {refusal}")
 
 
 def check(key: str, value: Any, constraint: Constraint) -> Any:

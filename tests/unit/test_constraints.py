@@ -9,6 +9,7 @@ import pytest
 
 from mirror_avatar.constraints import (
     ConstraintError,
+    Either,
     Flag,
     Interval,
     Options,
@@ -54,6 +55,9 @@ def test_open_and_unbounded_ends_are_described_and_refused():
         Options(("shift", "pseudo")),
         Options(("pointer",)),
         Flag(),
+        Interval(int, 4, 4096, multiple_of=2),
+        Interval(int, None, 9, multiple_of=3),
+        Either((Options(("auto",)), Interval(int, 2, 4096))),
     ],
 )
 def test_every_value_a_constraint_names_as_refused_is_refused(constraint):
@@ -108,3 +112,29 @@ def test_a_refusal_is_one_input_error_line_carrying_its_key_value_and_constraint
     assert isinstance(error, InputError)
     assert (error.key, error.constraint) == ("--leader-share", share) and math.isnan(error.value)
     assert str(error) == "--leader-share: nan is not allowed; give a number in [0, 1]"
+
+
+def test_an_interval_with_a_step_admits_its_multiples_only():
+    even = Interval(int, 4, 64, multiple_of=2)
+    assert 4 in even and 64 in even and np.int64(10) in even
+    for refused in (5, 63, 2, 66, 10.0):
+        assert refused not in even
+    assert str(even) == "a multiple of 2 in [4, 64]"
+    assert 5 in even.refused()
+
+
+def test_either_admits_what_one_of_its_choices_admits():
+    size = Either((Options(("auto",)), Interval(int, 2, 4096)))
+    assert "auto" in size and 2 in size and np.int64(4096) in size
+    for refused in ("Auto", "", 1, 4097, 2.5, None, True):
+        assert refused not in size
+    assert str(size) == "auto or a whole number in [2, 4096]"
+    assert size.refused() == ["", "auto|", 0, 8192]
+
+
+def test_a_refusal_read_from_a_file_names_the_file_then_the_key_and_cuts_long_values():
+    error = ConstraintError("window", 10**4000, Interval(int, 4, 64), "model.npz")
+    assert (error.source, error.key, error.value) == ("model.npz", "window", 10**4000)
+    text = str(error)
+    assert text.startswith("model.npz: window: 1000") and len(text) < 120
+    assert text.endswith(" is not allowed; give a whole number in [4, 64]")
