@@ -29,7 +29,6 @@ compiled chain walk, a compiled choice of frames and a compiled overlap-add.
 
 from __future__ import annotations
 
-import inspect
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -39,18 +38,18 @@ import numpy as np
 from numpy.typing import NDArray
 from sklearn.cluster import KMeans
 
+from mirror_avatar.constraints import ConstraintError
 from mirror_avatar.errors import InputError
 from mirror_avatar.importing import excerpt
 from mirror_avatar.model_files import (
     check_array,
-    check_integer,
     check_object,
-    check_real,
     load_model,
     require_arrays,
     save_model,
 )
 from mirror_avatar.motion.codebook_size import MIN_FRAMES_PER_SYMBOL, choose_n_symbols
+from mirror_avatar.motion.hyperparameters import GENERATOR, check_hyperparameters
 from mirror_avatar.motion.markov import (
     count_transitions,
     emit_exemplars,
@@ -69,33 +68,11 @@ from mirror_avatar.motion.stft import (
 )
 from mirror_avatar.trials import (
     MAX_ABS_POSITION,
-    MAX_RATE,
-    MIN_RATE,
     PLAYING_RANGE,
     Trial,
     compute_velocity,
     make_trial,
 )
-
-PARAMETER_RANGES: dict[str, tuple[float, float]] = {
-    "n_symbols": (2, 4096),
-    "window": (4, 4096),
-    "rate": (MIN_RATE, MAX_RATE),
-    "pseudo_count": (1e-12, 1e6),
-    "n_init": (1, 1000),
-    "random_state": (0, 2**32 - 1),
-}
-"""The range, inclusive, of each hyper-parameter, given to the constructor or read from a file.
-
-A **choice**, generous around the paper's values (256 symbols, a 60-sample window at 100 Hz):
-up to 4096 symbols and a 4096-sample window; the rate within `mirror_avatar.trials.MIN_RATE` to
-`MAX_RATE` (1 Hz to 10 kHz, as recordings); a pseudo-count from 1e-12 to 1e6; 1 to 1000 k-means
-restarts; a seed as k-means takes it (0 to 2^32 - 1, or None). The window must also be even and
-the hop lie in 1..window / 2 (not a choice: the features need both)."""
-
-EMISSIONS = ("exemplar", "centroid")
-"""What a symbol of the chain is synthesised from: one of the training frames it quantises, or
-its code vector (the paper's). See `IMSGenerator` (``emission``)."""
 
 PAPER_SYMBOLS = 256
 """The paper's codebook size (after a sweep over 32-256 on 30 trials per person)."""
@@ -270,29 +247,16 @@ class IMSGenerator:
         self.exemplar_next_ = np.concatenate(following)
 
     def _check_parameters(self) -> None:
-        """Refuse hyper-parameters outside `PARAMETER_RANGES`; keep them as Python numbers."""
-        ranges, source = PARAMETER_RANGES, "generator"
-        if self.n_symbols != "auto":
-            self.n_symbols = check_integer(
-                source, "n_symbols", self.n_symbols, *ranges["n_symbols"]
-            )
-        self.window = check_integer(source, "window", self.window, *ranges["window"])
-        if self.window % 2:
-            raise InputError(source, f"window {self.window} must be even")
-        self.hop = check_integer(source, "hop", self.hop, 1, self.window // 2)
-        self.rate = check_real(source, "rate", self.rate, *ranges["rate"])
-        self.pseudo_count = check_real(
-            source, "pseudo_count", self.pseudo_count, *ranges["pseudo_count"]
-        )
-        self.n_init = check_integer(source, "n_init", self.n_init, *ranges["n_init"])
-        if self.emission not in EMISSIONS:
-            raise InputError(
-                source, f"emission {excerpt(self.emission)} is not one of {', '.join(EMISSIONS)}"
-            )
-        if self.random_state is not None:
-            self.random_state = check_integer(
-                source, "random_state", self.random_state, *ranges["random_state"]
-            )
+        """Refuse hyper-parameters their declarations refuse; keep them as Python numbers.
+
+        Raises
+        ------
+        mirror_avatar.constraints.ConstraintError
+            Naming the hyper-parameter (`mirror_avatar.motion.hyperparameters.GENERATOR_SETTINGS`).
+        """
+        given = {key: getattr(self, key) for key in GENERATOR}
+        for key, value in check_hyperparameters(given).items():
+            setattr(self, key, value)
 
     def signal(self, trial: Trial) -> Array:
         """Return a trial's positions at `rate` (units), resampled when needed."""
@@ -510,9 +474,11 @@ class IMSGenerator:
     ) -> IMSGenerator:
         """Rebuild a fitted model from `to_arrays` output, checking every value it reads.
 
-        The parameters must lie in `PARAMETER_RANGES`; the training summary must name its
-        groups; the code vectors must be finite floats within ±``MAX_ABS_POSITION * window``
-        (the largest feature of a frame of positions within
+        The parameters must be as `mirror_avatar.motion.hyperparameters.GENERATOR_SETTINGS`
+        declares them (a refused one raises a `ConstraintError` naming ``source`` and the
+        parameter); the training summary must name its groups; the code vectors must be finite
+        floats within ±``MAX_ABS_POSITION * window`` (the largest feature of a frame of
+        positions within
         `mirror_avatar.trials.MAX_ABS_POSITION`), and so must the exemplars; each exemplar's
         successor must be another exemplar or -1; the transition and initial probabilities
         must be distributions. Parameters without ``emission`` (files written before it)
@@ -525,7 +491,7 @@ class IMSGenerator:
             wrong dtype or shape, non-finite, too large or not a probability distribution.
         """
         parameters = check_object(source, "parameters", metadata.get("parameters"))
-        unknown = sorted(parameters.keys() - inspect.signature(cls).parameters.keys())
+        unknown = sorted(parameters.keys() - GENERATOR.keys())
         if unknown:
             raise InputError(source, f"unknown generator parameter {excerpt(unknown[0])}")
         training = check_object(source, "training", metadata.get("training"))
@@ -535,8 +501,8 @@ class IMSGenerator:
         model = cls(**{"emission": "centroid"} | parameters)
         try:
             model._check_parameters()
-        except InputError as error:
-            raise InputError(source, error.problem) from None
+        except ConstraintError as error:
+            raise ConstraintError(error.key, error.value, error.constraint, source) from None
         if model.n_symbols == "auto":
             raise InputError(source, "a fitted model must name its codebook size, not auto")
         model.n_symbols_ = int(model.n_symbols)
