@@ -60,7 +60,7 @@ def test_sample_writes_csv_trials(model_path: str, tmp_path) -> None:
     [
         (["fit", "--out", "m.npz"], "--bundled"),
         (["fit", "--bundled", "slow", "--out", "m.txt"], "must end in .npz"),
-        (["fit", "--bundled", "slow", "--symbols", "1", "--out", "m.npz"], "n_symbols"),
+        (["fit", "--bundled", "slow", "--symbols", "1", "--out", "m.npz"], "--symbols"),
         (["fit", "missing.csv", "--out", "m.npz"], "no such file"),
         (["sample", "missing.npz", "--out", "s"], "missing.npz"),
         (["sample", "not-a-model.npz", "--out", "s"], "not-a-model.npz"),

@@ -9,7 +9,7 @@ import click
 import pytest
 
 from mirror_avatar.cli import cli, main
-from mirror_avatar.cli.constrained import ConstrainedNumber
+from mirror_avatar.cli.constrained import ConstrainedEither, ConstrainedNumber
 
 
 def commands(
@@ -34,11 +34,24 @@ NUMERIC = [
 ]
 """Every option of the command line that takes a number."""
 
+EITHER = [
+    (words, option)
+    for words, command in commands()
+    for option in command.params
+    if isinstance(option, click.Option) and isinstance(option.type, ConstrainedEither)
+]
+"""Every option of the command line that takes a word or a number (``--symbols auto|N``)."""
+
 REFUSALS = [
     pytest.param(words, option.opts[0], value, id=f"{' '.join(words)} {option.opts[0]}={value}")
-    for words, option in NUMERIC
-    if isinstance(option.type, ConstrainedNumber)
-    for value in option.type.interval.refused()
+    for words, option in NUMERIC + EITHER
+    for value in (
+        option.type.interval.refused()
+        if isinstance(option.type, ConstrainedNumber)
+        else option.type.either.refused()
+        if isinstance(option.type, ConstrainedEither)
+        else []
+    )
 ]
 
 

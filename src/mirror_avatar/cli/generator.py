@@ -19,11 +19,12 @@ from mirror_avatar.curriculum import FORMAT_NAME as STAGE_FORMAT
 from mirror_avatar.curriculum import StageMotion, load_stage
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.errors import InputError
-from mirror_avatar.importing import ImportOptions, excerpt
+from mirror_avatar.importing import ImportOptions
 from mirror_avatar.likeness import Likeness, compare_motion, trial_velocity
 from mirror_avatar.model_files import read_archive
 from mirror_avatar.motion.codebook_size import sweep_codebook
 from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.hyperparameters import CODEBOOK_SIZES, KMEANS_SEEDS
 from mirror_avatar.seeds import draw_seeds
 from mirror_avatar.trial_io import write_csv_trial
 from mirror_avatar.trials import Trial
@@ -43,9 +44,12 @@ def generator() -> None:
     "--symbols",
     default="auto",
     show_default=True,
-    help="Codebook size N, or auto: chosen by cross-validation on the trials (the paper: 256).",
+    **ranged(
+        "Codebook size N, or auto: chosen by cross-validation on the trials (the paper: 256).",
+        CODEBOOK_SIZES,
+    ),
 )
-@click.option("--seed", default=0, show_default=True, **ranged("Seed of k-means.", SEED))
+@click.option("--seed", default=0, show_default=True, **ranged("Seed of k-means.", KMEANS_SEEDS))
 @click.option(
     "--bundled",
     type=click.Choice(BUNDLED_STYLES),
@@ -68,7 +72,7 @@ def generator() -> None:
 def fit(
     paths: tuple[Path, ...],
     out_path: Path,
-    symbols: str,
+    symbols: int | str,
     seed: int,
     bundled: str | None,
     sweep: bool,
@@ -82,7 +86,7 @@ def fit(
         raise InputError(None, "give trial files or directories, or --bundled fast|slow")
     trials = read_and_report(paths, "none", options) if paths else []
     trials += [t for t in load_zhai2017() if t.group == bundled] if bundled else []
-    model = IMSGenerator(n_symbols=_codebook_size(symbols), random_state=seed).fit(trials)
+    model = IMSGenerator(n_symbols=symbols, random_state=seed).fit(trials)
     model.save(out_path)
     summary = model.training_summary_
     if symbols == "auto":
@@ -155,16 +159,6 @@ def held_out_likeness(trials: list[Trial], model: IMSGenerator, seed: int) -> Li
         generated += [trial_velocity(t, model.rate) for t in samples]
     own = [trial_velocity(t, model.rate) for t in trials]
     return compare_motion(reference, generated, own=own, rate=model.rate, seed=seed)
-
-
-def _codebook_size(symbols: str) -> int | str:
-    """Read ``--symbols``: ``auto`` or a whole number."""
-    if symbols == "auto":
-        return symbols
-    try:
-        return int(symbols)
-    except ValueError:
-        raise InputError("--symbols", f"{excerpt(symbols)} is neither auto nor a number") from None
 
 
 def _describe_choice(complexity: dict[str, Any]) -> str:

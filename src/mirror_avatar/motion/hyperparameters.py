@@ -29,9 +29,15 @@ its code vector (the paper's). See `mirror_avatar.motion.generator.IMSGenerator`
 MAX_WINDOW = 4096
 """The longest frame (samples)."""
 
+CODEBOOK_SIZES = Either((Options(("auto",)), Interval(int, 2, 4096)))
+"""The codebook sizes a generator takes (``n_symbols``; ``generator fit --symbols``)."""
+
+KMEANS_SEEDS = Interval(int, 0, 2**32 - 1)
+"""The seeds k-means takes (``random_state``; ``generator fit --seed``)."""
+
 GENERATOR_SETTINGS = (
     Setting("n_symbols", "codebook size N; auto: chosen by cross-validation on the trials",
-            Either((Options(("auto",)), Interval(int, 2, 4096))), "auto"),
+            CODEBOOK_SIZES, "auto"),
     Setting("window", "frame length (samples)",
             Interval(int, 4, MAX_WINDOW, multiple_of=2), 60),
     Setting("hop", "samples between frames, at most half the window",
@@ -42,7 +48,7 @@ GENERATOR_SETTINGS = (
             Interval(float, 1e-12, 1e6), 1e-3),
     Setting("n_init", "k-means restarts (best distortion kept)", Interval(int, 1, 1000), 1),
     Setting("random_state", "seed of k-means and of sampling when given none",
-            Interval(int, 0, 2**32 - 1), None, default_shown="none (unseeded)"),
+            KMEANS_SEEDS, None, default_shown="none (unseeded)"),
     Setting("emission", "what a generated symbol is synthesised from", Options(EMISSIONS),
             "exemplar"),
 )  # fmt: skip
