@@ -26,7 +26,7 @@ lint: $(STAMP)
 docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
 
-# The lab guide's tables of protocol keys, written from their declarations.
+# The documents' tables of declared keys (a protocol's, the IMS generator's), written from them.
 docs-tables: $(STAMP)
 	$(BIN)/python docs/keys.py
 

@@ -1,26 +1,44 @@
-"""Write the lab guide's tables of protocol keys from their declarations (``make docs-tables``).
+"""Write the documents' tables of declared keys from their declarations (``make docs-tables``).
 
-Each table sits in docs/lab.md between ``<!-- keys: NAME -->`` and ``<!-- end keys -->``, NAME
-one of `mirror_avatar.lab.design.protocol_keys.TABLES`; tests/unit/test_lab_protocol.py checks that
-the guide holds them as declared.
+Each table sits between ``<!-- keys: NAME -->`` and ``<!-- end keys -->``: in docs/lab.md the
+protocol's tables, NAME one of `mirror_avatar.lab.design.protocol_keys.TABLES`; in
+docs/METHODS.md the IMS generator's hyper-parameters, NAME ``generator``
+(`mirror_avatar.motion.hyperparameters.GENERATOR_SETTINGS`). tests/unit/test_lab_protocol.py and
+tests/unit/test_generator_hyperparameters.py check that the documents hold them as declared.
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from pathlib import Path
 
+from mirror_avatar.constraints import settings_table
 from mirror_avatar.lab.design.protocol_keys import key_tables
+from mirror_avatar.motion.hyperparameters import GENERATOR_SETTINGS
 
-GUIDE = Path(__file__).with_name("lab.md")
+DOCS = Path(__file__).parent
 MARKED = re.compile(r"(<!-- keys: (\w+) -->\n).*?(<!-- end keys -->)", re.DOTALL)
 
 
-def with_tables(text: str) -> str:
-    """Return the guide's text with each marked table written from its declarations."""
-    tables = key_tables()
+def generator_tables() -> dict[str, str]:
+    """Return the IMS generator's hyper-parameters as a Markdown table, by table name."""
+    return {"generator": settings_table(GENERATOR_SETTINGS)}
+
+
+PAGES: dict[str, Callable[[], dict[str, str]]] = {
+    "lab.md": key_tables,
+    "METHODS.md": generator_tables,
+}
+"""Each document with tables, and what writes them."""
+
+
+def with_tables(text: str, tables: dict[str, str]) -> str:
+    """Return a document's text with each marked table written from its declarations."""
     return MARKED.sub(lambda m: m.group(1) + tables[m.group(2)] + m.group(3), text)
 
 
 if __name__ == "__main__":
-    GUIDE.write_text(with_tables(GUIDE.read_text(encoding="utf-8")), encoding="utf-8")
+    for name, tables in PAGES.items():
+        page = DOCS / name
+        page.write_text(with_tables(page.read_text(encoding="utf-8"), tables()), encoding="utf-8")
