@@ -94,6 +94,9 @@ Seed = int | np.random.Generator | None
 class IMSGenerator:
     """Generate motion with a person's individual motor signature.
 
+    The values each hyper-parameter allows are declared in
+    `mirror_avatar.motion.hyperparameters.GENERATOR_SETTINGS` (METHODS section 4 tables them).
+
     Parameters
     ----------
     n_symbols
