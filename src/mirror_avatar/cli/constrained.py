@@ -50,7 +50,7 @@ class ConstrainedNumber(click.ParamType):
 
 
 class ConstrainedEither(click.ParamType):
-    """A word or a number that one of an `Either`'s constraints allows (``auto`` or 2..4096)."""
+    """A word or a number that one of an `Either`'s constraints allows (``auto`` or a size)."""
 
     def __init__(self, either: Either) -> None:
         self.either = either
