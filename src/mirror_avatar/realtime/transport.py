@@ -127,21 +127,25 @@ class RealtimeServer(uvicorn.Server):
       ``backlog``, both for the kernel's queue (``listen``) and for the connections accepted in
       one turn of the loop; the server is configured with `ACCEPT_BATCH`, and once it listens
       its sockets are set back to queue `LISTEN_BACKLOG` connections.
-    - Once it serves, the objects that exist (the modules imported: hundreds of thousands) are
+    - Before it serves, the objects that exist (the modules imported: hundreds of thousands) are
       frozen out of garbage collection (`gc.freeze`, **choice**): a full collection would
       otherwise walk them all, holding every thread (the trials' clocks among them) while it
       runs, which a flood of connections, with all the objects it makes, triggers often.
     """
 
     async def startup(self, sockets: list[socket.socket] | None = None) -> None:
-        """Start serving, let the kernel queue `LISTEN_BACKLOG` connections, freeze the heap."""
+        """Freeze the heap, start serving, let the kernel queue `LISTEN_BACKLOG` connections.
+
+        The heap is frozen before the base class marks the server ``started``, so whoever
+        waits for that flag finds it frozen.
+        """
+        gc.collect()
+        gc.freeze()
         await super().startup(sockets)
         for server in self.servers:
             for listener in server.sockets:  # the kernel's socket through a duplicate handle
                 with socket.fromfd(listener.fileno(), listener.family, listener.type) as sock:
                     sock.listen(LISTEN_BACKLOG)
-        gc.collect()
-        gc.freeze()
 
 
 SECRETS = re.compile(r"(token=|/join/)[^&\s\"/?]+")
