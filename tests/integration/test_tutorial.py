@@ -45,8 +45,11 @@ def test_the_tutorial_runs_commands_from_install_to_report():
 def test_each_tutorial_command_and_option_exists(arguments):
     command: click.Command = cli
     words = list(arguments)
-    while isinstance(command, click.Group) and words and words[0] in command.commands:
-        command = command.commands[words.pop(0)]
+    while isinstance(command, click.Group) and words:
+        found = command.get_command(click.Context(command), words[0])
+        if found is None:
+            break
+        command, words = found, words[1:]
     declared = {name for parameter in command.params for name in parameter.opts}
     used = {word.split("=")[0] for word in words if word.startswith("--")}
     assert used <= declared, f"{' '.join(arguments)}: no option {used - declared}"

@@ -1,6 +1,6 @@
 """The ``mirror-avatar`` command line.
 
-Each command lives in its own module of this package and is registered on `cli` below. Bad input
+Each command lives in its own module of this package, imported when it runs (`COMMANDS`). Bad input
 (an `InputError`, a usage error such as an unknown option, or a file the system refuses) is
 printed as one line on standard error and ends the program with exit code 2; anything else that
 goes wrong is one line too, with exit code 1 (``MIRROR_AVATAR_DEBUG=1`` shows the traceback).
@@ -11,52 +11,49 @@ to finish), a command stops its batch workers and exits with code 130, naming th
 
 from __future__ import annotations
 
+import importlib
 import os
 
 import click
 
-from mirror_avatar.cli.avatar import avatar
-from mirror_avatar.cli.benchmark import benchmark
-from mirror_avatar.cli.convert import convert
-from mirror_avatar.cli.curriculum import curriculum
-from mirror_avatar.cli.evaluate import evaluate
-from mirror_avatar.cli.generator import generator
-from mirror_avatar.cli.group import group
-from mirror_avatar.cli.info import info
-from mirror_avatar.cli.lab import lab
-from mirror_avatar.cli.play import play
-from mirror_avatar.cli.reproduce import reproduce
-from mirror_avatar.cli.signature import signature
-from mirror_avatar.cli.simulate import simulate
-from mirror_avatar.cli.study import study
-from mirror_avatar.cli.train import train
 from mirror_avatar.errors import InputError
 from mirror_avatar.interruptions import aborted, interrupt
 
 __all__ = ["cli", "fail", "interrupt", "main"]
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+COMMANDS = (
+    "avatar", "benchmark", "convert", "curriculum", "evaluate", "generator", "group", "info",
+    "lab", "play", "reproduce", "signature", "simulate", "study", "train",
+)  # fmt: skip
+"""The commands: each is the attribute of its own name in the module ``mirror_avatar.cli.NAME``."""
+
+
+class CommandsOnDemand(click.Group):
+    """A group that imports a command's module only when that command is asked for.
+
+    Each command pulls in what it works with (SciPy, scikit-learn, Starlette, Dask, ...); a
+    command line imports one command, so the program starts in the time that command needs.
+    ``--help`` without a command imports them all, to show their one-line descriptions.
+    """
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        """Name every command, in alphabetical order."""
+        return sorted(COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        """Import and return the command ``cmd_name`` (None if there is none by that name)."""
+        if cmd_name not in COMMANDS:
+            return None
+        module = importlib.import_module(f"{__name__}.{cmd_name}")
+        command: click.Command = getattr(module, cmd_name)
+        return command
+
+
+@click.group(cls=CommandsOnDemand, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="mirror-avatar")
 def cli() -> None:
     """Build avatars that move like a specific person and play the mirror game."""
-
-
-cli.add_command(avatar)
-cli.add_command(benchmark)
-cli.add_command(convert)
-cli.add_command(curriculum)
-cli.add_command(generator)
-cli.add_command(group)
-cli.add_command(info)
-cli.add_command(lab)
-cli.add_command(play)
-cli.add_command(reproduce)
-cli.add_command(signature)
-cli.add_command(simulate)
-cli.add_command(study)
-cli.add_command(evaluate)
-cli.add_command(train)
 
 
 def main(argv: list[str] | None = None) -> int:
