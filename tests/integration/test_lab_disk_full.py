@@ -12,7 +12,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from test_lab_server import DYAD, TOKEN, Page, command, create, status, welcomed
+from test_lab_server import DYAD, TOKEN, Page, command, create, status, stopped, welcomed
 
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.session import load_session
@@ -65,8 +65,7 @@ def test_a_full_disk_ends_the_trial_cleanly_and_the_next_starts_with_new_files(s
             await welcomed(pages)
             await asyncio.to_thread(lambda: command(lab, sid, "start").raise_for_status())
             await asyncio.to_thread(wait_for, lambda: all(p.of_type("end") for p in pages), 40.0)
-            for task in tasks:
-                task.cancel()
+            await stopped(tasks)
 
         asyncio.run(first_trial())
         now = status(lab, sid)
@@ -93,8 +92,7 @@ def test_a_full_disk_ends_the_trial_cleanly_and_the_next_starts_with_new_files(s
             started = await asyncio.to_thread(command, lab, sid, "start")
             assert started.status_code == 200, started.text
             await asyncio.to_thread(wait_for, lambda: status(lab, sid)["state"] == "finished", 60)
-            for task in tasks:
-                task.cancel()
+            await stopped(tasks)
 
         asyncio.run(second_trial())
         second = status(lab, sid)["trials"][1]

@@ -106,7 +106,7 @@ class Page:
             except TimeoutError:
                 pass
             finally:
-                sender.cancel()
+                await stopped([sender])
 
     async def on_message(self, socket: Any, message: dict[str, Any]) -> None:
         """Answer a ping (pages that do more extend this)."""
@@ -131,6 +131,17 @@ async def welcomed(pages: list[Page]) -> None:
     await asyncio.to_thread(
         wait_for, lambda: all(page.of_type("welcome") for page in pages), 60.0, "every welcome"
     )
+
+
+async def stopped(tasks: list[asyncio.Task[None]]) -> None:
+    """Cancel ``tasks`` and wait until each has ended (a page closes its socket as it ends).
+
+    A task cancelled and left running would be cancelled a second time by `asyncio.run` as it
+    returns, interrupting the page's closing handshake and leaving its socket unclosed.
+    """
+    for task in tasks:
+        task.cancel()
+    await asyncio.gather(*tasks, return_exceptions=True)
 
 
 async def play_all(pages: list[Page], seconds: float, start: Any) -> None:

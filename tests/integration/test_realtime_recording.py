@@ -19,7 +19,7 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
-from test_lab_server import BEARER, DYAD, TOKEN, Page, command, create, status
+from test_lab_server import BEARER, DYAD, TOKEN, Page, command, create, status, stopped
 from websockets.sync.client import connect
 
 from mirror_avatar.deep.player import MAX_LAYERS, MAX_UNITS, DeepCyberPlayer
@@ -172,7 +172,7 @@ def test_a_frozen_page_is_seen_lost_recorded_and_stops_the_trial(lab, tmp_path):
             )
             os.kill(frozen.pid, signal.SIGSTOP)
             await asyncio.to_thread(wait_for, lambda: steady.of_type("end"), 30.0)
-            playing.cancel()
+            await stopped([playing])
 
         asyncio.run(scenario())
         now = status(lab, sid)
@@ -220,8 +220,7 @@ class LatePage(Page):
             except TimeoutError:
                 pass
             finally:
-                for task in answers:
-                    task.cancel()
+                await stopped(answers)
 
 
 def test_every_ping_is_measured_so_a_late_page_shows_its_true_round_trip(lab):
