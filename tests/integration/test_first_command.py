@@ -38,13 +38,8 @@ sys.exit(code)
 """A fresh process running the command line with every compilation numba starts recorded."""
 
 
-def test_a_first_generator_fit_compiles_no_kernel(zhai_trials: list[Trial], tmp_path: Path) -> None:
-    warm_up()
-    folder = tmp_path / "person"
-    folder.mkdir()
-    for trial in zhai_trials[:3]:
-        write_csv_trial(trial, folder / f"{trial.label}.csv")
-    command = ["generator", "fit", str(folder), "--symbols", "8", "--out", str(tmp_path / "m.npz")]
+def compilations(command: list[str]) -> str:
+    """Run ``command`` in a fresh process; return its line naming what numba compiled."""
     done = subprocess.run(
         [sys.executable, "-c", COUNT_COMPILATIONS, *command],
         capture_output=True,
@@ -53,4 +48,23 @@ def test_a_first_generator_fit_compiles_no_kernel(zhai_trials: list[Trial], tmp_
         timeout=600,
     )
     assert done.returncode == 0, done.stderr
-    assert "compiled: []" in done.stdout.splitlines()
+    return done.stdout.splitlines()[-1]
+
+
+def test_a_first_generator_fit_compiles_no_kernel(zhai_trials: list[Trial], tmp_path: Path) -> None:
+    warm_up()
+    folder = tmp_path / "person"
+    folder.mkdir()
+    for trial in zhai_trials[:3]:
+        write_csv_trial(trial, folder / f"{trial.label}.csv")
+    command = ["generator", "fit", str(folder), "--symbols", "8", "--out", str(tmp_path / "m.npz")]
+    assert compilations(command) == "compiled: []"
+
+
+def test_model_partners_in_a_fresh_process_compile_no_kernel(tmp_path: Path) -> None:
+    """The models' shared integrator, given each model's rates, is loaded from the cache too."""
+    warm_up()
+    for leader, follower in (("kuramoto", "rpc"), ("excitator", "hkb")):
+        command = ["simulate", "--leader", leader, "--follower", follower, "--duration", "2",
+                   "--out", str(tmp_path / follower)]  # fmt: skip
+        assert compilations(command) == "compiled: []"

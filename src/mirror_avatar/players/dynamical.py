@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 from numpy.typing import NDArray
 
 from mirror_avatar.errors import InputError
@@ -119,7 +119,31 @@ def describe_parameters(table: Mapping[str, Parameter]) -> str:
     )
 
 
-@njit(cache=True, nogil=True)
+RATES_SIGNATURE = types.void(
+    types.float64, types.float64[:], types.float64[:], types.float64[:], types.float64[:]
+)
+"""The signature every model's compiled ``rates(t, y, params, inputs, out)`` is declared with.
+
+Declared, the rates reach `rk4_held` as a function of this type: numba keys a cached
+specialisation on its argument types, and the type of an undeclared compiled function is the
+object itself, new in every process, so each process compiled `rk4_held` again and added it to
+the cache on disk without end (and saving that cache could fail once an earlier process's object
+was gone)."""
+
+
+@njit(
+    types.void(
+        types.FunctionType(RATES_SIGNATURE),
+        types.float64[:],
+        types.float64[:],
+        types.float64[:],
+        types.float64,
+        types.float64,
+        types.int64,
+    ),
+    cache=True,
+    nogil=True,
+)
 def rk4_held(
     rates: Callable[..., None],
     y: Array,
@@ -134,10 +158,9 @@ def rk4_held(
     Parameters
     ----------
     rates
-        Compiled ``rates(t, y, params, inputs, out)`` writing dy/dt into ``out``. Pass it from
-        Python (a compiled caller naming it as a global could not be cached). The compiled
-        specialisations are cached under this file: after editing a model's rates, clear
-        numba's cache (``make clean-cache``).
+        Compiled ``rates(t, y, params, inputs, out)`` writing dy/dt into ``out``, declared with
+        `RATES_SIGNATURE`. Pass it from Python (a compiled caller naming it as a global could
+        not be cached).
     y
         The state at time ``t``, shape (n,); the state at ``t + period`` on return.
     params, inputs

@@ -30,7 +30,13 @@ import numpy as np
 from numba import njit
 
 from mirror_avatar.players.base import Observation, partner_state
-from mirror_avatar.players.dynamical import Array, ModelPartner, Parameter, rk4_held
+from mirror_avatar.players.dynamical import (
+    RATES_SIGNATURE,
+    Array,
+    ModelPartner,
+    Parameter,
+    rk4_held,
+)
 from mirror_avatar.trials import PLAYING_RANGE
 
 N_SUBSTEPS = 8
@@ -46,7 +52,7 @@ PARAMETERS: Mapping[str, Parameter] = {
 """The excitator and its coupling (see the module docstring)."""
 
 
-@njit(cache=True, nogil=True)
+@njit(RATES_SIGNATURE, cache=True, nogil=True)
 def excitator_rates(t: float, y: Array, params: Array, inputs: Array, out: Array) -> None:
     """Rates of ``(u, w)``; params ``(a, b, tau, c, s)``, inputs ``(r_p,)``."""
     u, w = y[0], y[1]

@@ -27,7 +27,13 @@ from numba import njit
 
 from mirror_avatar.dynamics import clip_to_range
 from mirror_avatar.players.base import Observation, partner_state
-from mirror_avatar.players.dynamical import Array, ModelPartner, Parameter, rk4_held
+from mirror_avatar.players.dynamical import (
+    RATES_SIGNATURE,
+    Array,
+    ModelPartner,
+    Parameter,
+    rk4_held,
+)
 
 N_SUBSTEPS = 16
 """RK4 steps per control period."""
@@ -46,7 +52,7 @@ PARAMETERS: Mapping[str, Parameter] = {
 """The oscillator and its coupling (see the module docstring)."""
 
 
-@njit(cache=True, nogil=True)
+@njit(RATES_SIGNATURE, cache=True, nogil=True)
 def hkb_partner_rates(t: float, y: Array, params: Array, inputs: Array, out: Array) -> None:
     """Rates of ``(x, x')``; params ``(alpha, beta, gamma, omega, a, b)``, inputs ``(r_p, r_v)``."""
     x, v = y[0], y[1]

@@ -27,7 +27,13 @@ import numpy as np
 from numba import njit
 
 from mirror_avatar.players.base import Observation
-from mirror_avatar.players.dynamical import Array, ModelPartner, Parameter, rk4_held
+from mirror_avatar.players.dynamical import (
+    RATES_SIGNATURE,
+    Array,
+    ModelPartner,
+    Parameter,
+    rk4_held,
+)
 
 N_SUBSTEPS = 4
 """RK4 steps per control period."""
@@ -41,7 +47,7 @@ PARAMETERS: Mapping[str, Parameter] = {
 """The oscillator (see the module docstring)."""
 
 
-@njit(cache=True, nogil=True)
+@njit(RATES_SIGNATURE, cache=True, nogil=True)
 def kuramoto_rates(t: float, y: Array, params: Array, inputs: Array, out: Array) -> None:
     """Rate of ``(theta,)``; params ``(omega, K)``, inputs the neighbours' phases, shape (m,)."""
     pull = 0.0

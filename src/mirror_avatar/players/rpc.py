@@ -32,7 +32,13 @@ import numpy as np
 from numba import njit
 
 from mirror_avatar.players.base import Observation, partner_state
-from mirror_avatar.players.dynamical import Array, ModelPartner, Parameter, rk4_held
+from mirror_avatar.players.dynamical import (
+    RATES_SIGNATURE,
+    Array,
+    ModelPartner,
+    Parameter,
+    rk4_held,
+)
 from mirror_avatar.trials import PLAYING_RANGE
 
 N_FREQUENCIES = 5
@@ -50,7 +56,7 @@ PARAMETERS: Mapping[str, Parameter] = {
 """The parameters of Zhai et al.'s implementation (five frequencies evenly spaced)."""
 
 
-@njit(cache=True, nogil=True)
+@njit(RATES_SIGNATURE, cache=True, nogil=True)
 def rpc_rates(t: float, y: Array, params: Array, inputs: Array, out: Array) -> None:
     """Rates of the state ``(x, x', f, A_1..A_5)``; params ``(k, lambda, omega_1..5)``."""
     prediction = 0.0
