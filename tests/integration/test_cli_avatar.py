@@ -128,7 +128,8 @@ def test_a_deep_avatar_is_built_saved_and_played(built: Path, tmp_path: Path) ->
     out = tmp_path / "P01-deep.npz"
     status = main(["avatar", "create", str(folder / "trials"), "--name", "P01", "--partners",
                    f"{folder / 'fast.npz'},{folder / 'slow.npz'}", "--agent", "dqn",
-                   "--sessions", "3", "--jobs", "1", "--out", str(out)])  # fmt: skip
+                   "--sessions", "3", "--jobs", "1", "--holdout", "1",
+                   "--out", str(out)])  # fmt: skip
     assert status == 0
     avatar = load_avatar(out)
     assert avatar.summary["agent"] == "dqn" and avatar.summary["n_sessions"] == 3

@@ -128,7 +128,8 @@ def test_avatar_create_on_the_cluster_gives_the_local_file(
     IMSGenerator(n_symbols=32, random_state=0).fit(load_zhai2017()[:3]).save(fast)
     IMSGenerator(n_symbols=32, random_state=0).fit(load_zhai2017()[15:18]).save(slow)
     command = ["avatar", "create", str(tmp_path / "trials"), "--name", "P01",
-               "--partners", f"{fast},{slow}", "--sessions", "20", "--jobs", "1"]  # fmt: skip
+               "--partners", f"{fast},{slow}", "--sessions", "20", "--jobs", "1",
+               "--holdout", "1"]  # fmt: skip
     local, remote = tmp_path / "local.npz", tmp_path / "remote.npz"
     assert main([*command, "--out", str(local)]) == 0
     assert main([*command, "--scheduler", cluster.address, "--out", str(remote)]) == 0
