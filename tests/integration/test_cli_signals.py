@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from mirror_avatar.interruptions import INTERRUPTIONS
 from waiting import wait_for
 
 CONSOLE = "from mirror_avatar.console import run; run()"
@@ -26,11 +27,16 @@ LONG_RUN = ["train", "--target", "bundled:fast", "--partners", "bundled:slow", "
 
 @contextlib.contextmanager
 def started(command: list[str], ignore: tuple[int, ...] = ()) -> Iterator[subprocess.Popen[str]]:
-    """Start ``command`` in its own session, with ``ignore`` signals ignored (as nohup does)."""
+    """Start ``command`` in its own session, with ``ignore`` signals ignored (as nohup does).
+
+    The others of `INTERRUPTIONS` get their default action back: the test run itself may have
+    been started with some ignored (under ``nohup``, or in the background by a shell, which
+    ignores SIGINT), and a child inherits what its parent ignores.
+    """
 
     def ignoring() -> None:
-        for signum in ignore:
-            signal.signal(signum, signal.SIG_IGN)
+        for signum in INTERRUPTIONS:
+            signal.signal(signum, signal.SIG_IGN if signum in ignore else signal.SIG_DFL)
 
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                start_new_session=True, preexec_fn=ignoring)  # fmt: skip
