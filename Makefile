@@ -31,10 +31,10 @@ docs-tables: $(STAMP)
 	$(BIN)/python docs/keys.py
 
 # The tests print their 15 slowest; `check` is the inner loop (lint and the unit tests).
-# WORKERS: one more test process than cores, since about a third of the tests' time is spent
-# waiting on a real-time clock, a browser or a child process; a worker that runs out of tests
-# takes half of another's queue (worksteal), so no worker is left with a backlog at the end.
-WORKERS ?= $(shell echo $$(( $$(nproc) + 1 )))
+# WORKERS: one test process per core (more left real-time trials late enough to end them on
+# two cores); a worker that runs out of tests takes half of another's queue (worksteal), so no
+# worker is left with a backlog at the end.
+WORKERS ?= $(shell nproc)
 PYTEST := $(BIN)/pytest -p no:cacheprovider --durations=15 -n $(WORKERS) --dist worksteal
 
 check: lint

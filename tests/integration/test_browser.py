@@ -145,7 +145,8 @@ def test_solo_trial_records_the_driven_trajectory(chromium, server, tmp_path):
     start_trial(page, server.url, "solo", 4)
     driven = drive(page, 10)
     summary = finish(page, "solo", tmp_path)
-    assert summary["complete"] and summary["mode"] == "solo"
+    assert summary["complete"], summary.get("end_reason")
+    assert summary["mode"] == "solo"
     data = load_csv(tmp_path / "B01" / summary["files"]["person"])
     assert data.shape[0] == summary["n_samples"] == round(4 / 0.03) + 1
     assert_matches(on_the_clock(inputs_of(summary, tmp_path), data[:, 1]), driven)
@@ -194,7 +195,8 @@ def test_avatar_follows_the_driven_mouse(chromium, server, tmp_path):
     start_trial(page, server.url, "avatar_follows", 5)
     driven = drive(page, 10)
     summary = finish(page, "avatar_follows", tmp_path)
-    assert summary["complete"] and summary["avatar_role"] == "follower"
+    assert summary["complete"], summary.get("end_reason")
+    assert summary["avatar_role"] == "follower"
     session = load_session(tmp_path / "B01" / summary["files"]["session"])
     assert_matches(on_the_clock(inputs_of(summary, tmp_path), session.positions[0]), driven)
     metrics = summary["metrics"]
@@ -304,7 +306,8 @@ def test_record_solo_trials_build_your_avatar_and_play_with_it(chromium, avatar_
         # after solo trials (no phase figure) the avatar trial's relative phase is drawn
         assert page.locator("#phase-figure").is_visible() and drawn(page, "phase", PHASE_RGB) > 200
         assert_legends(page, avatar=True)
-    assert summary["complete"] and summary["avatar"].endswith("B01_avatar.npz")
+    assert summary["complete"], summary.get("end_reason")
+    assert summary["avatar"].endswith("B01_avatar.npz")
     assert summary["avatar_plays"] == "avatar B01 (follower policy)"
     assert (tmp_path / "B01" / "B01_avatar.npz").is_file()
     assert "Avatar of B01" in (tmp_path / "B01" / "B01_avatar.html").read_text()

@@ -29,7 +29,8 @@ def test_adaptive_partner_follows_the_driven_mouse(chromium, tmp_path: Path) -> 
         driven = drive(page, 10)
         summary = finish(page, "adaptive_follows", tmp_path)
         page.close()
-    assert summary["complete"] and summary["avatar_role"] == "follower"
+    assert summary["complete"], summary.get("end_reason")
+    assert summary["avatar_role"] == "follower"
     session = load_session(tmp_path / "B01" / summary["files"]["session"])
     assert_matches(on_the_clock(inputs_of(summary, tmp_path), session.positions[0]), driven)
     assert session.metadata["avatar_player"] == "AdaptivePlayer"

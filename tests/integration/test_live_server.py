@@ -192,7 +192,8 @@ def test_avatar_modes_write_a_session_with_both_players(live, tmp_path):
     player = live.open(live.serve())
     player.start("avatar_leads", 1.0)
     summary = player.play(sway)
-    assert summary["complete"] and summary["avatar_role"] == "leader"
+    assert summary["complete"], summary.get("end_reason")
+    assert summary["avatar_role"] == "leader"
     session = load_session(tmp_path / "recordings" / "P07" / summary["files"]["session"])
     assert session.labels == ("person P07", "avatar") and session.roles == ("follower", "leader")
     expected = [0.2 * math.sin(k * CONTROL_PERIOD) for k in range(session.n_samples)]
@@ -342,7 +343,7 @@ def test_default_avatar_is_the_engine_virtual_trainer(live, tmp_path):
     player = live.open(live.serve(factory=make_avatar_factory()))
     player.start("avatar_follows", 2.0)
     summary = player.play(sway)
-    assert summary["complete"]
+    assert summary["complete"], summary.get("end_reason")
     session = load_session(tmp_path / "recordings" / "P07" / summary["files"]["session"])
     assert np.ptp(session.positions[1]) > 0.1
 
