@@ -115,7 +115,7 @@ def play_to_the_end(chromium: Any, lab: ServerThread, console: Any, sid: str) ->
     def finished() -> bool:
         if console.locator("#state").inner_text() == "finished":
             return True
-        for label, page in pages.items():
+        for label, page in reversed(pages.items()):  # the later slot answers first
             answer_if_asked(page, label)
         return False
 

@@ -230,8 +230,12 @@
     return box;
   }
 
-  function answerLines(answers) {
-    return Object.entries(answers).map(([label, given]) => `${label}: ` + Object.entries(given).map(([question, value]) => `${question} ${value}`).join(", "));
+  // Each person's answers, in the order of the trial's partners whatever order they came in.
+  function answerLines(answers, partners) {
+    const slot = (label) => (partners.includes(label) ? partners.indexOf(label) : partners.length);
+    return Object.keys(answers)
+      .sort((a, b) => slot(a) - slot(b))
+      .map((label) => `${label}: ` + Object.entries(answers[label]).map(([question, value]) => `${question} ${value}`).join(", "));
   }
 
   function renderTrials(status) {
@@ -244,7 +248,7 @@
       cell(row, String(trial.n));
       cell(row, trial.condition ? `${trial.condition} (${trial.block})` : "").className = "study-only condition";
       cell(row, listed(Object.entries(trial.partners || {}).map(([label, kind]) => `${label} ${KIND_WORDS[kind] || kind}`))).className = "study-only partners";
-      cell(row, listed(answerLines(trial.answers || {}))).className = "study-only answers";
+      cell(row, listed(answerLines(trial.answers || {}, Object.keys(trial.partners || {})))).className = "study-only answers";
       cell(row, trial.complete ? "complete" : `incomplete: ${trial.end_reason}`);
       cell(row, String(trial.n_samples));
       cell(row, Object.entries(trial.metrics).filter(([k]) => names[k]).map(([k, v]) => `${names[k]} ${fmt(v, 3)}`).join(" · ")).className = "metrics";
