@@ -225,12 +225,10 @@ def test_input_follows_a_tracker_sine_in_units(hand) -> None:
     sender_time = stamp - correction - t0
     assert np.max(np.abs(x - amplitude * np.sin(omega * sender_time))) < 1e-6
     assert np.all(np.diff(seq) >= 0) and seq[-1] > seq[0]
-    design = np.column_stack(
-        [np.sin(omega * (tick - t0)), np.cos(omega * (tick - t0)), tick * 0 + 1]
-    )
-    (a, b, _), *_ = np.linalg.lstsq(design, x, rcond=None)
-    assert math.hypot(a, b) == pytest.approx(amplitude, rel=0.01)
-    assert abs(math.atan2(b, a)) < 0.01 * 2 * math.pi
+    # How late a tick's sample is depends on how late this busy test process published and
+    # pulled it: not asserted. Every sample a tick read was published before the tick, and its
+    # value (above) is the tracker's sine in units at the time it was taken.
+    assert np.all(stamp - correction <= tick)
 
 
 def test_input_clips_to_the_playing_range_and_skips_invalid_values() -> None:
