@@ -1,10 +1,13 @@
 """Bad input files through the real console entry point: one line on stderr, exit code 2."""
 
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+
+from console_child import run_console
+
+SAFETY_TIMEOUT = 300
+"""Seconds after which a child that still runs is killed (a hang, not a slow machine)."""
 
 BAD_FILES = {
     "empty.csv": b"",
@@ -23,11 +26,8 @@ def test_bad_file_is_one_line_exit_2(tmp_path: Path, name: str) -> None:
         path.write_bytes(BAD_FILES[name])
     elif name == "emptydir":
         path.mkdir()
-    command = "from mirror_avatar.console import run; run()"
     arguments = ["signature", str(path), "--out", str(tmp_path / "out")]
-    result = subprocess.run(
-        [sys.executable, "-c", command, *arguments], capture_output=True, text=True, check=False
-    )
+    result = run_console(arguments, tmp_path, timeout=SAFETY_TIMEOUT)
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr

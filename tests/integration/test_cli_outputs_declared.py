@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from console_child import run_console
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.trial_io import write_csv_trial
 
@@ -104,14 +105,9 @@ def test_a_folder_in_the_way_of_any_output_is_refused_before_work(
     (tmp_path / blocked / "kept.txt").parent.mkdir(parents=True)
     (tmp_path / blocked / "kept.txt").write_text("mine")
     before = sorted(tmp_path.rglob("*"))
-    result = subprocess.run(
-        [sys.executable, "-c", "from mirror_avatar.console import run; run()", *arguments(inputs)],
-        capture_output=True,
-        text=True,
-        check=False,
-        cwd=tmp_path,
-        env=dict(os.environ) | {"XDG_CACHE_HOME": str(tmp_path.parent / "cache")},
-        timeout=SAFETY_TIMEOUT,
+    cache = {"XDG_CACHE_HOME": str(tmp_path.parent / "cache")}
+    result = run_console(
+        arguments(inputs), tmp_path, timeout=SAFETY_TIMEOUT, env=dict(os.environ) | cache
     )
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()

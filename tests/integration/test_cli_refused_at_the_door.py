@@ -14,13 +14,13 @@ import json
 import os
 import socket
 import subprocess
-import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from console_child import run_console
 from mirror_avatar.bids.writing import write_bids_motion
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.errors import InputError
@@ -67,15 +67,7 @@ def with_out(arguments: list[str]) -> list[str]:
 
 def run_cli(arguments: list[str], folder: Path) -> subprocess.CompletedProcess[str]:
     """Run the console entry point in a child process, in ``folder``."""
-    command = "from mirror_avatar.console import run; run()"
-    return subprocess.run(
-        [sys.executable, "-c", command, *arguments],
-        capture_output=True,
-        text=True,
-        check=False,
-        cwd=folder,
-        timeout=SAFETY_TIMEOUT,
-    )
+    return run_console(arguments, folder, timeout=SAFETY_TIMEOUT)
 
 
 def one_line(result: subprocess.CompletedProcess[str], *words: str) -> str:
