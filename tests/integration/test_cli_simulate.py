@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from console_child import run_console
 from mirror_avatar.cli import main
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.session import load_session
@@ -144,16 +143,13 @@ def test_simulate_bad_input(
 def test_bad_input_through_the_console_script(tmp_path: Path) -> None:
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    command = "from mirror_avatar.console import run; run()"
     runs = [
         ["evaluate", str(tmp_path / "missing.parquet")],
         ["evaluate", str(blocker)],
         ["simulate", "--leader", "bundled:slow", "--follower", "x.npz", "--out", str(blocker)],
     ]
     for arguments in runs:
-        result = subprocess.run(
-            [sys.executable, "-c", command, *arguments], capture_output=True, text=True, check=False
-        )
+        result = run_console(arguments, tmp_path, timeout=300)
         assert result.returncode == 2, result.stderr
         assert result.stderr.startswith("mirror-avatar: error: ")
         assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
