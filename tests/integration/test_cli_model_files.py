@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from console_child import run_console
 from mirror_avatar.curriculum import FORMAT_NAME, FORMAT_VERSION, StageMotion, save_stage
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.learning.agent import CyberPlayer
@@ -40,6 +41,13 @@ def run_cli(arguments: list[str], folder: Path) -> subprocess.CompletedProcess[s
     )
 
 
+def run_refused(arguments: list[str], folder: Path) -> subprocess.CompletedProcess[str]:
+    """Run a command refused before its work in a child forked from this process, in ``folder``
+    (its own model cache)."""
+    cache = {"XDG_CACHE_HOME": str(folder / "cache")}
+    return run_console(arguments, folder, timeout=SAFETY_TIMEOUT, env=dict(os.environ) | cache)
+
+
 def one_line(result: subprocess.CompletedProcess[str]) -> str:
     """The one error line of a refused command (exit code 2)."""
     assert result.returncode == 2, result.stderr
@@ -55,7 +63,7 @@ def test_a_stage_of_two_rates_is_refused_naming_its_file(tmp_path: Path) -> None
     metadata["target"]["parameters"]["rate"] = 50.0
     del metadata["format"], metadata["version"], metadata["library_version"]
     save_model(path, FORMAT_NAME, FORMAT_VERSION, arrays, metadata)
-    result = run_cli(["simulate", "--leader", "s.npz", "--follower", "bundled:fast",
+    result = run_refused(["simulate", "--leader", "s.npz", "--follower", "bundled:fast",
                       "--duration", "5", "--out", "out"], tmp_path)  # fmt: skip
     assert one_line(result) == (
         "mirror-avatar: error: s.npz: the patient's and the target's generators differ in "
@@ -70,7 +78,7 @@ def test_a_cyber_player_of_an_unknown_role_is_refused(tmp_path: Path, role: str)
     player.target_counts_ = np.ones(DEFAULT_BINS.n)
     player.training_ = {"role": role}
     player.save(tmp_path / "cyber.npz")
-    result = run_cli(["simulate", "--leader", "cyber.npz", "--follower", "bundled:fast",
+    result = run_refused(["simulate", "--leader", "cyber.npz", "--follower", "bundled:fast",
                       "--duration", "5", "--out", "out"], tmp_path)  # fmt: skip
     assert one_line(result) == (
         f"mirror-avatar: error: cyber.npz: training role '{role}' is none of "

@@ -76,6 +76,7 @@ def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cluster]:
         with distributed.Client(scheduler_file=str(address_file), timeout=60) as client:
             client.wait_for_workers(2, timeout=120)
             yield Cluster(client.scheduler.address, [p.pid for p in processes])
+            client.shutdown()  # the scheduler and workers end at once (a SIGTERM takes seconds)
     finally:
         for process in reversed(processes):
             process.terminate()
@@ -128,7 +129,7 @@ def test_avatar_create_on_the_cluster_gives_the_local_file(
     IMSGenerator(n_symbols=32, random_state=0).fit(load_zhai2017()[:3]).save(fast)
     IMSGenerator(n_symbols=32, random_state=0).fit(load_zhai2017()[15:18]).save(slow)
     command = ["avatar", "create", str(tmp_path / "trials"), "--name", "P01",
-               "--partners", f"{fast},{slow}", "--sessions", "20", "--jobs", "1",
+               "--partners", f"{fast},{slow}", "--sessions", "6", "--jobs", "1",
                "--holdout", "1"]  # fmt: skip
     local, remote = tmp_path / "local.npz", tmp_path / "remote.npz"
     assert main([*command, "--out", str(local)]) == 0
