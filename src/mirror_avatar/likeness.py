@@ -165,6 +165,12 @@ DISTANCES: dict[str, tuple[str, Callable[[Sequence[Array], float], Array]]] = {
 """Name -> (unit, distances between signals at a rate) of each distance in the battery."""
 
 
+def verdict_line(distinguishable: bool, numbers: str) -> str:
+    """``distinguishable: NUMBERS`` or ``indistinguishable at this data size: NUMBERS``."""
+    words = "distinguishable" if distinguishable else "indistinguishable at this data size"
+    return f"{words}: {numbers}"
+
+
 @dataclass(frozen=True)
 class DistanceResult:
     """One distance of the battery: candidate against reference, beside the person's own.
@@ -212,9 +218,7 @@ class DistanceResult:
         numbers = (
             f"{self.ratio:.2f} x the person's own, spread {spread:.2f} x ({self.test.p_words()})"
         )
-        if self.distinguishable:
-            return f"distinguishable: {self.measure} {numbers}"
-        return f"indistinguishable at this data size: {self.measure} {numbers}"
+        return verdict_line(self.distinguishable, f"{self.measure} {numbers}")
 
     def to_json_dict(self) -> dict[str, Any]:
         """Return the numbers and the verdict."""
@@ -364,10 +368,9 @@ class ClassifierTest:
 
     def verdict(self) -> str:
         """One line: ``distinguishable: AUC 0.83`` or ``indistinguishable at this data size``."""
-        numbers = f"AUC {self.auc:.2f} ({self.test.p_words()})"
-        if self.distinguishable:
-            return f"distinguishable: classifier {numbers}"
-        return f"indistinguishable at this data size: classifier {numbers}"
+        return verdict_line(
+            self.distinguishable, f"classifier AUC {self.auc:.2f} ({self.test.p_words()})"
+        )
 
     def to_json_dict(self) -> dict[str, Any]:
         """Return the numbers and the verdict."""
