@@ -166,6 +166,38 @@ def test_the_console_lists_each_trials_condition_partners_and_answers(chromium, 
         page.context.close()
 
 
+def test_a_run_created_while_a_listing_is_on_its_way_stays_shown(chromium, lab):
+    """The console asked for the sessions before the run was created and got the answer after:
+    the run it shows is not taken for one the server forgot (it was hidden, its hash cleared)."""
+    console = chromium.new_context(viewport={"width": 1280, "height": 1000}).new_page()
+    held: list[tuple[Any, Any]] = []
+    holding = {"on": False}
+
+    def hold_listings(route: Any) -> None:
+        if route.request.method == "GET" and holding["on"]:
+            held.append((route, route.fetch()))  # answered now, delivered later
+        else:
+            route.continue_()
+
+    console.route(re.compile(r".*/api/sessions$"), hold_listings)
+    console.goto(f"{lab.url}/console?token={TOKEN}")
+    console.wait_for_selector("#study-run:not([hidden])")
+    holding["on"] = True
+    wait_for(lambda: console.wait_for_timeout(50) or held, 30.0, "a listing to be held")
+    console.fill("#participant", "0")
+    console.click("#create-participant")
+    console.wait_for_function("location.hash === '#console-p000'")
+    holding["on"] = False
+    for route, answer in held:
+        route.fulfill(response=answer)
+    console.wait_for_function(
+        "document.getElementById('sessions-list').textContent.includes('console-p000')"
+    )
+    assert console.evaluate("location.hash") == "#console-p000"
+    assert console.locator("#session").is_visible()
+    console.context.close()
+
+
 def test_a_double_blind_console_never_shows_the_hidden_kind(chromium, tmp_path):
     with serve(tmp_path, BLIND) as lab:
         console = chromium.new_context(viewport={"width": 1280, "height": 1000}).new_page()

@@ -326,15 +326,20 @@
     });
   }
 
+  // A session shown while an answer was on its way (just created) is not judged by that answer.
   async function poll() {
     try {
+      const asked = current;
       const listing = await api("/api/sessions");
       renderSessionList(listing.sessions);
       showProtocol(listing.protocol);
-      if (current && !listing.sessions.some((s) => s.id === current)) show(null);  // forgotten by the server
-      if (current) {
-        render(await api(`/api/sessions/${current}`));
-        drawLive(await api(`/api/sessions/${current}/live`));
+      if (asked && current === asked && !listing.sessions.some((s) => s.id === asked)) show(null);  // forgotten by the server
+      const id = current;
+      if (id) {
+        const status = await api(`/api/sessions/${id}`);
+        if (id === current) render(status);
+        const live = await api(`/api/sessions/${id}/live`);
+        if (id === current) drawLive(live);
       }
     } catch (error) {
       $("session-error").textContent = error.message;
