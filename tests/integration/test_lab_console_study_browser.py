@@ -215,7 +215,11 @@ def test_a_double_blind_console_never_shows_the_hidden_kind(chromium, tmp_path):
         for participant in chosen:  # one meets the person in 'together', the other the avatar
             console.fill("#participant", str(participant))
             console.click("#create-participant")
-            console.wait_for_function(f"location.hash === '#console-p{participant:03d}'")
+            console.wait_for_function(
+                f"location.hash === '#console-p{participant:03d}' || "
+                "document.getElementById('study-error').textContent !== ''"
+            )
+            assert console.locator("#study-error").inner_text() == ""
             console.wait_for_selector("a.join")
             sid = console.locator("#session-id").inner_text()
             pages = play_to_the_end(chromium, lab, console, sid)

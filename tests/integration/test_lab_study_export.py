@@ -345,8 +345,10 @@ def test_the_console_button_exports_the_session(study, chromium):
         console.wait_for_function("!document.getElementById('export').disabled")
         console.click("#export")
         console.wait_for_function(
-            "document.getElementById('export-result').textContent.startsWith('exported')"
+            "document.getElementById('export-result').textContent.startsWith('exported') || "
+            "document.getElementById('session-error').textContent !== ''"
         )
+        assert console.locator("#session-error").inner_text() == ""
         shown = console.locator("#export-result").inner_text()
     finally:
         console.context.close()
