@@ -6,7 +6,7 @@ test run, and the exit code and standard error must be the command line's own. A
 interpreter spends seconds importing NumPy, SciPy, scikit-learn and matplotlib before the
 command reads its first argument; a child forked from the test process starts with them
 imported and runs `mirror_avatar.console.run` at once, with the arguments, working folder and
-environment given.
+environment variables given.
 
 The child is made to behave as a fresh process would: standard output and error go to files,
 warnings are printed with Python's default filters (the test run turns them into errors), and
@@ -47,6 +47,8 @@ def run_console(
 ) -> subprocess.CompletedProcess[str]:
     """Run ``mirror-avatar ARGUMENTS`` in a forked child, in ``cwd``; wait at most ``timeout`` s.
 
+    ``env`` holds variables set in the child on top of this process's environment.
+
     Returns what `subprocess.run` with ``capture_output=True, text=True`` returns (stdout and
     stderr decoded as UTF-8); raises `subprocess.TimeoutExpired` after killing a child that
     still runs at the deadline.
@@ -81,9 +83,7 @@ def _run_in_child(
         )
         _default_error_reporting()
         os.chdir(cwd)
-        if env is not None:
-            os.environ.clear()
-            os.environ.update(env)
+        os.environ.update(env or {})
         sys.argv = [PROGRAM, *arguments]
         from mirror_avatar.console import run
 

@@ -45,7 +45,7 @@ def run_refused(arguments: list[str], folder: Path) -> subprocess.CompletedProce
     """Run a command refused before its work in a child forked from this process, in ``folder``
     (its own model cache)."""
     cache = {"XDG_CACHE_HOME": str(folder / "cache")}
-    return run_console(arguments, folder, timeout=SAFETY_TIMEOUT, env=dict(os.environ) | cache)
+    return run_console(arguments, folder, timeout=SAFETY_TIMEOUT, env=cache)
 
 
 def one_line(result: subprocess.CompletedProcess[str]) -> str:

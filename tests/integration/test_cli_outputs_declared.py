@@ -9,7 +9,6 @@ path, exit code 2, and write nothing (the folder in the way is all there is).
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from collections.abc import Callable
@@ -106,9 +105,7 @@ def test_a_folder_in_the_way_of_any_output_is_refused_before_work(
     (tmp_path / blocked / "kept.txt").write_text("mine")
     before = sorted(tmp_path.rglob("*"))
     cache = {"XDG_CACHE_HOME": str(tmp_path.parent / "cache")}
-    result = run_console(
-        arguments(inputs), tmp_path, timeout=SAFETY_TIMEOUT, env=dict(os.environ) | cache
-    )
+    result = run_console(arguments(inputs), tmp_path, timeout=SAFETY_TIMEOUT, env=cache)
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("mirror-avatar: error: "), result.stderr
