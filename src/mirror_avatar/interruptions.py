@@ -17,7 +17,7 @@ import threading
 from types import FrameType
 
 INTERRUPT_RETRY = 0.05
-"""Seconds after which an interruption that arrived while compiling is delivered again."""
+"""Seconds after which an interruption that arrived inside numba is delivered again."""
 
 INTERRUPTIONS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 """Signals that stop a command as Ctrl+C would (its clean-up runs, exit code 130)."""
@@ -27,20 +27,35 @@ ABORTED = 130
 
 
 def _compiling() -> bool:
-    """Whether numba's compiler lock is held (numba is not imported for the question)."""
+    """Whether this thread holds numba's compiler lock (numba is not imported for the question)."""
     lock_module = sys.modules.get("numba.core.compiler_lock")
     return lock_module is not None and lock_module.global_compiler_lock.is_locked()
+
+
+def _inside_numba(frame: FrameType | None) -> bool:
+    """Whether a frame of numba's own Python code is on the stack from ``frame`` down."""
+    numba = sys.modules.get("numba")
+    if numba is None or numba.__file__ is None:
+        return False
+    package = os.path.dirname(numba.__file__) + os.sep
+    while frame is not None:
+        if frame.f_code.co_filename.startswith(package):
+            return True
+        frame = frame.f_back
+    return False
 
 
 def interrupt(signum: int, frame: FrameType | None) -> None:
     """Signal handler: stop the program as Ctrl+C would, so its clean-up runs.
 
-    The `KeyboardInterrupt` carries the signal's name. Not while this thread compiles (it
-    holds numba's compiler lock): an exception raised inside the compiler leaves LLVM objects
-    half made, and the process crashes when they are freed. The signal is then sent again after
-    `INTERRUPT_RETRY`, until compiling is done.
+    The `KeyboardInterrupt` carries the signal's name. Not inside numba: while this thread
+    compiles (it holds numba's compiler lock), an exception leaves LLVM objects half made, and
+    the process crashes when they are freed; while numba's Python code converts the arguments of
+    a call to compiled code (a compiled function given as an argument is looked up in Python),
+    numba passes on a half-converted argument and the call fails with an unrelated error. The
+    signal is then sent again after `INTERRUPT_RETRY`, until numba is done.
     """
-    if _compiling():
+    if _compiling() or _inside_numba(frame):
         again = threading.Timer(INTERRUPT_RETRY, os.kill, (os.getpid(), signum))
         again.daemon = True
         again.start()

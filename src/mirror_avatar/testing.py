@@ -92,7 +92,8 @@ def python_learn_session(
     learning_rate: float,
     discount: float,
     epsilon: float,
-    rng: np.random.Generator,
+    draws: Array,
+    random_actions: NDArray[np.int64],
 ) -> tuple[float, float]:
     """Q-learn one session in plain Python, as `mirror_avatar.learning.kernels.learn_session` does.
 
@@ -121,7 +122,7 @@ def python_learn_session(
     total = squares = 0.0
     for k in range(len(partner_x) - 1):
         s = cell(x, v, k)
-        a = int(rng.integers(0, len(actions))) if rng.random() < epsilon else int(np.argmax(q[s]))
+        a = int(random_actions[k]) if draws[k] < epsilon else int(np.argmax(q[s]))
         u = actions[a]
         for _ in range(n_substeps):
             a1 = acc(x, v, u)

@@ -8,6 +8,7 @@ from mirror_avatar.learning.discretisation import make_default_discretisation
 from mirror_avatar.learning.kernels import (
     choose_action,
     compute_reward,
+    draw_exploration,
     learn_session,
     mean_track,
     update_q,
@@ -41,8 +42,8 @@ def test_q_learning_converges_to_value_iteration_on_a_chain(rng):
         )
     q = -1e-3 * rng.random((n, 2))
     s = 0
-    for _ in range(20_000):
-        a = choose_action(q, s, 1.0, rng)  # explore uniformly: Q-learning is off-policy
+    for draw, random_action in zip(*draw_exploration(rng, 20_000, 2), strict=True):
+        a = choose_action(q, s, 1.0, draw, random_action)  # explore: Q-learning is off-policy
         s_next, r = chain(s, a, n)
         update_q(q, s, a, r, s_next, 0.5, discount)
         s = s_next
@@ -53,9 +54,17 @@ def test_q_learning_converges_to_value_iteration_on_a_chain(rng):
 
 def test_choose_action_is_greedy_without_exploration(rng):
     q = rng.random((3, 9))
-    assert all(choose_action(q, s, 0.0, rng) == q[s].argmax() for s in range(3))
-    picks = [choose_action(q, 0, 1.0, rng) for _ in range(2000)]
-    assert set(picks) == set(range(9))
+    assert all(choose_action(q, s, 0.0, 0.0, 4) == q[s].argmax() for s in range(3))
+    assert choose_action(q, 0, 0.3, 0.29, 4) == 4
+    assert choose_action(q, 0, 0.3, 0.3, 4) == q[0].argmax()
+
+
+def test_exploration_draws_are_uniform(rng):
+    draws, random_actions = draw_exploration(rng, 20_000, 9)
+    assert draws.shape == random_actions.shape == (20_000,)
+    assert draws.min() >= 0.0 and draws.max() < 1.0
+    assert abs(draws.mean() - 0.5) < 0.01
+    np.testing.assert_allclose(np.bincount(random_actions, minlength=9) / 20_000, 1 / 9, atol=0.01)
 
 
 def test_mean_track_is_what_players_see(rng):
@@ -79,14 +88,12 @@ def test_learn_session_matches_the_python_reference(zhai_trials, features):
     reference.q_table_ = initial.copy()
     policy = player.policy_
     disc = policy.discretisation
+    draws = draw_exploration(np.random.default_rng(5), tx.size - 1, policy.actions.size)
     fast = learn_session(
         policy.q_table, px, pv, tx, tv, tr, disc.mode, disc.flat_edges, disc.offsets,
-        policy.actions, player.params.record()[0], policy.n_substeps, 0.2, 0.95, 0.3,
-        np.random.default_rng(5),
+        policy.actions, player.params.record()[0], policy.n_substeps, 0.2, 0.95, 0.3, *draws,
     )  # fmt: skip
-    slow = python_learn_session(
-        reference, px, pv, tx, tv, tr, 0.2, 0.95, 0.3, np.random.default_rng(5)
-    )
+    slow = python_learn_session(reference, px, pv, tx, tv, tr, 0.2, 0.95, 0.3, *draws)
     np.testing.assert_allclose(fast, slow, rtol=1e-12)
     np.testing.assert_allclose(player.q_table_, reference.q_table_, rtol=0, atol=1e-14)
     assert np.sum(player.q_table_ != initial) > 100

@@ -93,7 +93,7 @@ def test_learning_curve_improves_and_saves(slow_sessions, tmp_path):
     learner.fit(repeat(slow_sessions[0], 110))
     curve = learner.learning_curve_
     assert curve.sessions == [25, 50, 75, 100, 110]
-    assert curve.rms[-1] < 0.6 * curve.rms[0]
+    assert curve.rms[-2] < 0.6 * curve.rms[0]  # the last whole block against the first
     assert np.all(np.diff(curve.epsilon) < 0)
     with open(curve.save(tmp_path / "curve.csv")) as file:
         rows = list(csv.DictReader(file))

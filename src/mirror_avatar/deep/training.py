@@ -34,7 +34,7 @@ from mirror_avatar.deep.network import adam_step, batch_q_values, greedy_action,
 from mirror_avatar.deep.player import DeepCyberPlayer
 from mirror_avatar.dynamics import Record, advance_hkb
 from mirror_avatar.errors import InputError
-from mirror_avatar.learning.kernels import compute_reward
+from mirror_avatar.learning.kernels import compute_reward, draw_exploration
 from mirror_avatar.learning.training import ImitationTask, SessionLearner
 from mirror_avatar.session import Session
 
@@ -125,12 +125,16 @@ def _update(
     batch_size: int,
     discount: float,
     learning_rate: float,
-    rng: np.random.Generator,
+    batch_draws: Array,
 ) -> int:
-    """One DQN minibatch update of ``online`` (Adam); return the number of updates made so far."""
+    """One DQN minibatch update of ``online`` (Adam); return the number of updates made so far.
+
+    The minibatch is transitions ``floor(batch_draws * held)`` of the buffer, ``batch_draws``
+    uniform on [0, 1), shape (batch_size,).
+    """
     inputs, actions, rewards, next_inputs, counters = buffer
     first, second, gradient = adam
-    picks = rng.integers(0, held, batch_size)
+    picks = np.minimum((batch_draws * held).astype(np.int64), held - 1)
     batch_inputs = inputs[picks]
     next_values = batch_q_values(target, sizes, next_inputs[picks])
     targets = np.empty(batch_size)
@@ -161,7 +165,8 @@ def dqn_session(
     rates: tuple[float, float, float, float],
     schedule: tuple[int, int, int, int],
     learn: bool,
-    rng: np.random.Generator,
+    exploration: tuple[Array, Ints],
+    batch_draws: Array,
 ) -> tuple[float, float]:
     """Play one recorded session in the target's place, learning by DQN when ``learn``.
 
@@ -190,8 +195,13 @@ def dqn_session(
         before the first update.
     learn
         False plays greedily (with epsilon 0) and changes nothing.
-    rng
-        Exploration and minibatch draws.
+    exploration
+        The exploration's random numbers (`mirror_avatar.learning.kernels.draw_exploration`),
+        each of shape (n - 1,): step k explores with ``exploration[1][k]`` when
+        ``exploration[0][k] < epsilon``.
+    batch_draws
+        Uniform on [0, 1), shape (at least the number of updates, batch size): row j picks
+        the minibatch of the session's update j (`draw_batches`).
 
     Returns
     -------
@@ -208,13 +218,12 @@ def dqn_session(
     following = np.empty(sizes[0])
     x, v = target_x[0], target_v[0]
     encode(x, v, target_r[0], neighbour_x[0], neighbour_v[0], n_slots, use_reference, state)
+    draws, random_actions = exploration
+    n_updates = 0
     reward_sum = 0.0
     squares = 0.0
     for k in range(n - 1):
-        if rng.random() < epsilon:
-            a = int(rng.integers(0, actions.size))
-        else:
-            a = greedy_action(online, sizes, state)
+        a = int(random_actions[k]) if draws[k] < epsilon else greedy_action(online, sizes, state)
         u = actions[a]
         x, v = advance_hkb(x, v, u, p.alpha, p.beta, p.gamma, p.omega, p.period, n_substeps)
         r = compute_reward(x, v, target_x[k + 1], target_v[k + 1], u, p.eta)
@@ -241,8 +250,9 @@ def dqn_session(
                     batch_size,
                     discount,
                     learning_rate,
-                    rng,
+                    batch_draws[n_updates],
                 )
+                n_updates += 1
                 if updates % target_every == 0:
                     target[:] = online
         state[:] = following
@@ -391,7 +401,8 @@ def play_deep_task(
 ) -> tuple[float, float]:
     """Run `dqn_session` on one task with the learner's networks, buffer and settings.
 
-    ``rng`` draws the exploration and the minibatches.
+    ``rng`` draws the exploration (`mirror_avatar.learning.kernels.draw_exploration`), then the
+    minibatches (`draw_batches`).
 
     Returns
     -------
@@ -402,6 +413,7 @@ def play_deep_task(
     if policy.use_reference and not np.all(np.isfinite(task.target_r)):
         raise InputError("sessions", "reference features need the target's reference velocities")
     replay = learner.replay_
+    n_steps = task.target_x.size - 1
     total, rms = dqn_session(
         policy.weights,
         learner.target_weights_,
@@ -420,9 +432,20 @@ def play_deep_task(
         (epsilon, learner.discount, learner.learning_rate, learner.reward_scale),
         (learner.batch_size, learner.train_every, learner.target_every, learner.learning_starts),
         learn,
-        rng,
+        draw_exploration(rng, n_steps, policy.actions.size),
+        draw_batches(rng, n_steps, learner, learn),
     )
-    return total / max(task.target_x.size - 1, 1), rms
+    return total / max(n_steps, 1), rms
+
+
+def draw_batches(rng: np.random.Generator, n_steps: int, learner: DQNLearner, learn: bool) -> Array:
+    """Draw the minibatches of a session of ``n_steps`` transitions, uniform on [0, 1).
+
+    Shape (updates, batch size): one row for each update the session can make, one every
+    ``train_every`` transitions stored; none when it does not ``learn``.
+    """
+    n_updates = -(-n_steps // learner.train_every) if learn else 0
+    return rng.random((n_updates, learner.batch_size))
 
 
 def greedy_deep(player: DeepCyberPlayer) -> Callable[[ImitationTask], tuple[float, float]]:

@@ -9,6 +9,12 @@ and learns by tabular Q-learning, ``Q(s,a) += alpha [r + gamma max_a' Q(s',a') -
 epsilon-greedy exploration. `learn_session` runs a whole recorded session in one compiled call:
 the avatar takes the target's place, sees the target's neighbours as they were recorded, and
 learns off-policy from what the target did.
+
+The exploration's random numbers are drawn before the compiled call (`draw_exploration`), and
+the kernels take them as arrays. A `numpy.random.Generator` is never an argument of a compiled
+function: numba unboxes one by calling Python (``ctypes.cast``) on every call without checking
+the result, so an interruption that raises there (Ctrl+C's `KeyboardInterrupt`, the console's
+SIGTERM) crashes the process with a segmentation fault.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ from mirror_avatar.dynamics import Record, advance_hkb
 from mirror_avatar.learning.discretisation import state_index
 
 Array = NDArray[np.float64]
+Ints = NDArray[np.int64]
 
 VELOCITY_WEIGHT = 0.1
 """Weight of the velocity error in the reward (METHODS section 7)."""
@@ -52,14 +59,28 @@ def compute_reward(x: float, v: float, xt: float, vt: float, u: float, eta: floa
 
 
 @njit(cache=True)
-def choose_action(q: Array, s: int, epsilon: float, rng: np.random.Generator) -> int:
-    """Epsilon-greedy choice in state ``s``: a uniform random action with probability epsilon.
+def choose_action(q: Array, s: int, epsilon: float, draw: float, random_action: int) -> int:
+    """Epsilon-greedy choice in state ``s``: ``random_action`` if ``draw < epsilon``, else greedy.
 
-    Draws ``rng.random()`` first, then ``rng.integers(0, n_actions)`` only when exploring.
+    ``draw`` is uniform on [0, 1) and ``random_action`` uniform over the actions
+    (`draw_exploration`), so the random action comes with probability epsilon.
     """
-    if rng.random() < epsilon:
-        return int(rng.integers(0, q.shape[1]))
+    if draw < epsilon:
+        return random_action
     return int(np.argmax(q[s]))
+
+
+def draw_exploration(rng: np.random.Generator, n_steps: int, n_actions: int) -> tuple[Array, Ints]:
+    """Draw the random numbers of ``n_steps`` epsilon-greedy choices among ``n_actions``.
+
+    Returns
+    -------
+    draws : numpy.ndarray
+        Uniform on [0, 1), shape (n_steps,), drawn first.
+    random_actions : numpy.ndarray
+        Uniform integers in [0, n_actions), shape (n_steps,).
+    """
+    return rng.random(n_steps), rng.integers(0, n_actions, n_steps)
 
 
 @njit(cache=True)
@@ -100,7 +121,8 @@ def learn_session(
     learning_rate: float,
     discount: float,
     epsilon: float,
-    rng: np.random.Generator,
+    draws: Array,
+    random_actions: Ints,
 ) -> tuple[float, float]:
     """Play one recorded session in the target's place and Q-learn from it, updating ``q``.
 
@@ -130,8 +152,9 @@ def learn_session(
         the control effort in the reward.
     learning_rate, discount, epsilon
         Q-learning step size, discount factor and exploration probability.
-    rng
-        Random generator for exploration.
+    draws, random_actions
+        The exploration's random numbers (`draw_exploration`), shape (n - 1,): step k explores
+        with ``random_actions[k]`` when ``draws[k] < epsilon``.
 
     Returns
     -------
@@ -147,7 +170,7 @@ def learn_session(
     reward_sum = 0.0
     squares = 0.0
     for k in range(n - 1):
-        a = choose_action(q, s, epsilon, rng)
+        a = choose_action(q, s, epsilon, draws[k], random_actions[k])
         u = actions[a]
         x, v = advance_hkb(x, v, u, alpha, beta, gamma, omega, period, n_substeps)
         r = compute_reward(x, v, target_x[k + 1], target_v[k + 1], u, eta)

@@ -29,7 +29,7 @@ from mirror_avatar.atomic import write_atomic_bytes
 from mirror_avatar.errors import InputError
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.discretisation import REFERENCE
-from mirror_avatar.learning.kernels import learn_session, mean_track
+from mirror_avatar.learning.kernels import draw_exploration, learn_session, mean_track
 from mirror_avatar.progress import progress_bar
 from mirror_avatar.session import Session
 from mirror_avatar.signature import DEFAULT_BINS, count_velocities
@@ -237,8 +237,10 @@ def play_task(
         `policy_arguments` of the player.
     task
         The session, seen from the target's place.
-    learning_rate, discount, epsilon, rng
+    learning_rate, discount, epsilon
         As in `learn_session`.
+    rng
+        Draws the exploration (`draw_exploration`).
 
     Returns
     -------
@@ -269,7 +271,7 @@ def play_task(
         learning_rate,
         discount,
         epsilon,
-        rng,
+        *draw_exploration(rng, task.target_x.size - 1, actions.size),
     )
     return total / max(task.target_x.size - 1, 1), rms
 
