@@ -45,6 +45,29 @@ def _inside_numba(frame: FrameType | None) -> bool:
     return False
 
 
+_DUE_AGAIN: set[int] = set()
+"""The signals held back and not yet sent again."""
+
+
+def _send_again(signum: int) -> None:
+    """Send ``signum`` to this process after `INTERRUPT_RETRY`, unless it is already due.
+
+    One retry at a time: signals arriving while one is due join it, so a burst of them starts
+    one timer thread, and a signal landing while the timer starts is not handled inside it.
+    """
+    if signum in _DUE_AGAIN:
+        return
+    _DUE_AGAIN.add(signum)
+
+    def send() -> None:
+        _DUE_AGAIN.discard(signum)
+        os.kill(os.getpid(), signum)
+
+    again = threading.Timer(INTERRUPT_RETRY, send)
+    again.daemon = True
+    again.start()
+
+
 def interrupt(signum: int, frame: FrameType | None) -> None:
     """Signal handler: stop the program as Ctrl+C would, so its clean-up runs.
 
@@ -53,12 +76,10 @@ def interrupt(signum: int, frame: FrameType | None) -> None:
     the process crashes when they are freed; while numba's Python code converts the arguments of
     a call to compiled code (a compiled function given as an argument is looked up in Python),
     numba passes on a half-converted argument and the call fails with an unrelated error. The
-    signal is then sent again after `INTERRUPT_RETRY`, until numba is done.
+    signal is then sent again after `INTERRUPT_RETRY` (`_send_again`), until numba is done.
     """
-    if _compiling() or _inside_numba(frame):
-        again = threading.Timer(INTERRUPT_RETRY, os.kill, (os.getpid(), signum))
-        again.daemon = True
-        again.start()
+    if signum in _DUE_AGAIN or _compiling() or _inside_numba(frame):
+        _send_again(signum)
         return
     raise KeyboardInterrupt(signal.Signals(signum).name)
 

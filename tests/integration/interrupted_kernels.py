@@ -5,8 +5,9 @@ Python's own (Ctrl+C raises `KeyboardInterrupt` wherever the interpreter is, as 
 or ``console``, the console script's (`mirror_avatar.interruptions.interrupt`). It prints
 ``ready`` and, for ``sys.argv[3]`` seconds, plays three-sample tasks through the learner
 ``sys.argv[1]`` (``tabular`` or ``deep``), or steps a model partner whose compiled rates are an
-argument of the integrator (``dynamical``), catching every interruption. It prints how many it
-caught and exits 0 if the process survived them.
+argument of the integrator (``dynamical``), catching every interruption. It prints how many
+signals reached it during a call and how many calls they interrupted, and exits 0 if the process
+survived them.
 """
 
 from __future__ import annotations
@@ -56,17 +57,21 @@ class Calls:
 
     The handler is passed the signals that land during a call (between `playing` turning True
     and False), so every `KeyboardInterrupt` is raised inside `make`'s ``try`` and none escapes
-    from the loop around it; the others are dropped.
+    from the loop around it; the others are dropped. `reached` counts the signals passed on,
+    `interrupted` the calls they interrupted (the console's handler holds back those that land
+    inside numba, and sends them again later).
     """
 
     def __init__(self, play: Callable[[], object], handler: Callable[..., object]) -> None:
         self.play, self.handler = play, handler
         self.playing = False
+        self.reached = 0
         self.interrupted = 0
 
     def on_signal(self, signum: int, frame: FrameType | None) -> None:
         """SIGINT handler: pass the signal to `handler` while a call is under way."""
         if self.playing:
+            self.reached += 1
             self.handler(signum, frame)
 
     def make(self) -> None:
@@ -91,7 +96,7 @@ def main(kind: str, handler: str, seconds: float) -> None:
     while time.monotonic() < deadline:
         calls.make()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    print(calls.interrupted, flush=True)
+    print(calls.reached, calls.interrupted, flush=True)
 
 
 if __name__ == "__main__":
