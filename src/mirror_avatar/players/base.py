@@ -360,10 +360,15 @@ def _state_problem(x: float, v: float) -> str | None:
 
 
 def _scripted_observation(k: int, period: float, n_neighbours: int) -> Observation:
+    """Return the scripted neighbours at t_k: neighbour j moves as ``0.3 sin(2 t + 0.7 j)`` units.
+
+    Each array is a row of a C-ordered array, so C-contiguous as the engine's are: a compiled
+    step given a strided view would be compiled again for that layout.
+    """
     t = np.array([k * period, max(k - 1, 0) * period])
-    phase = np.arange(n_neighbours)[:, None] * 0.7 + 2.0 * t
+    phase = 2.0 * t[:, None] + np.arange(n_neighbours) * 0.7
     x = 0.3 * np.sin(phase)
-    return Observation(k, x[:, 0], 0.6 * np.cos(phase[:, 0]), x[:, 1])
+    return Observation(k, x[0], 0.6 * np.cos(phase[0]), x[1])
 
 
 def _trajectory(player: Player, seed: int, n_steps: int, n_neighbours: int) -> Array:
