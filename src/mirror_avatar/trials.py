@@ -17,7 +17,7 @@ from functools import cache
 from typing import Any, Literal
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import PchipInterpolator
 from scipy.signal import butter, sosfilt_zi
@@ -319,12 +319,18 @@ def zero_phase_filter(sos: Array, initial: Array, signal: Array, padlen: int) ->
     return filtered.reshape(signals.shape)
 
 
-@njit(cache=True, nogil=True)
+READ_ONLY_MATRIX = types.Array(types.float64, 2, "C", readonly=True)
+"""A C-contiguous float64 matrix the kernel only reads: writable arrays are taken as it too."""
+
+
+@njit((READ_ONLY_MATRIX, READ_ONLY_MATRIX, READ_ONLY_MATRIX, types.int64), cache=True, nogil=True)
 def _zero_phase_columns(sos: Array, initial: Array, signals: Array, padlen: int) -> Array:
     """`zero_phase_filter` of the columns of ``signals`` (n, L), C-contiguous.
 
     The signals are copied into the extended array as one flat block (numba copies a 2-D slice
-    element by element), and the filtered signals are returned as a view of it.
+    element by element), and the filtered signals are returned as a view of it. The arguments
+    are declared read-only, so one compiled version serves writable arrays and read-only ones
+    (a file's columns read without a copy) alike.
     """
     n = signals.shape[0]
     extended = np.empty((n + 2 * padlen, signals.shape[1]))

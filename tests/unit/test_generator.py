@@ -23,7 +23,12 @@ from mirror_avatar.motion.markov import (
     sample_chain,
 )
 from mirror_avatar.signature import compute_emd, compute_ims, stroke_moments
-from mirror_avatar.trials import compute_velocity, make_trial, zero_phase_filter
+from mirror_avatar.trials import (
+    _zero_phase_columns,
+    compute_velocity,
+    make_trial,
+    zero_phase_filter,
+)
 
 
 @pytest.fixture(scope="module")
@@ -204,6 +209,20 @@ def test_zero_phase_filter_matches_scipy(rng: np.random.Generator) -> None:
     for padlen in (0, 15, 40):
         ours = zero_phase_filter(sos, sosfilt_zi(sos), signal, padlen)
         np.testing.assert_allclose(ours, sosfiltfilt(sos, signal, padlen=padlen), atol=1e-12)
+
+
+def test_a_read_only_signal_is_filtered_by_the_one_compiled_kernel(
+    rng: np.random.Generator,
+) -> None:
+    """A file's columns read without a copy are read-only; they need no second compilation."""
+    sos = butter(4, 7.0, fs=100.0, output="sos")
+    signal = np.cumsum(rng.normal(size=(500, 2)), axis=0)
+    read_only = signal.copy()
+    read_only.flags.writeable = False
+    ours = zero_phase_filter(sos, sosfilt_zi(sos), read_only, 15)
+    np.testing.assert_array_equal(ours, zero_phase_filter(sos, sosfilt_zi(sos), signal, 15))
+    np.testing.assert_allclose(ours, sosfiltfilt(sos, signal, axis=0, padlen=15), atol=1e-12)
+    assert len(_zero_phase_columns.signatures) == 1
 
 
 def test_low_rate_model_skips_the_filter(zhai_trials: list) -> None:
