@@ -5,7 +5,9 @@ it (seconds each, a minute for all) and writes it beside its module (``__pycache
 later process loads it from there. ``python -m mirror_avatar.warm_up`` (`make` runs it after
 installing) calls every kernel of the package once on tiny inputs through the code that uses
 them - a generator fitted and sampled, signatures, sessions of every kind of player, both
-learners trained - so that a person's first ``mirror-avatar`` command finds them compiled.
+learners trained, and the compiled loops that play a trained player beside a virtual trainer
+or a recording, as the experiments and the avatar's checks do - so that a person's first
+``mirror-avatar`` command finds them compiled.
 A kernel whose cache is already on disk is loaded, so running it again takes seconds.
 """
 
@@ -15,6 +17,7 @@ import time
 
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.dynamics import (
+    CONTROL_PERIOD,
     FOLLOWER,
     LEADER,
     MAX_NEWTON,
@@ -23,7 +26,7 @@ from mirror_avatar.dynamics import (
     integrate_hkb,
     solve_interval,
 )
-from mirror_avatar.engine.batch import run_sessions
+from mirror_avatar.engine.batch import play_compiled, run_sessions
 from mirror_avatar.engine.loop import play
 from mirror_avatar.likeness import compare_motion, trial_velocity
 from mirror_avatar.motion.generator import IMSGenerator
@@ -34,6 +37,9 @@ from mirror_avatar.training.imitation import train_cyber_player, train_group_cyb
 
 DURATION = 1.0
 """Length (s) of the sessions played to reach the kernels: long enough to call each once."""
+
+N_SAMPLES = round(DURATION / CONTROL_PERIOD)
+"""Samples of the sessions played in the compiled loop (`DURATION` at the control rate)."""
 
 
 def warm_up() -> None:
@@ -49,12 +55,16 @@ def warm_up() -> None:
         pass
     for name in MODEL_PARTNERS:
         play([VirtualTrainer(LEADER, motion), model_partner(name)], duration=DURATION, seed=0)
-    play([RecordedPlayer(trials[0]), VirtualTrainer(FOLLOWER, motion)], duration=DURATION, seed=0)
+    recorded_pair = [RecordedPlayer(trials[0]), VirtualTrainer(FOLLOWER, motion)]
+    play(recorded_pair, duration=DURATION, seed=0)
+    play_compiled(recorded_pair, N_SAMPLES, seed=0)
     for agent in ("tabular", "dqn"):
         follower, _ = train_cyber_player(
             motion, [motion], n_sessions=2, duration=DURATION, n_jobs=1, agent=agent
         )
         play([VirtualTrainer(LEADER, motion), follower], duration=DURATION, seed=0)
+        for partner in (VirtualTrainer(LEADER, motion), RecordedPlayer(trials[0])):
+            play_compiled([partner, follower], N_SAMPLES, seed=0)
         train_group_cyber_player(
             motion, [motion] * 2, n_sessions=2, duration=DURATION, n_jobs=1, agent=agent
         )
