@@ -319,11 +319,13 @@ def zero_phase_filter(sos: Array, initial: Array, signal: Array, padlen: int) ->
     return filtered.reshape(signals.shape)
 
 
-READ_ONLY_MATRIX = types.Array(types.float64, 2, "C", readonly=True)
+_READ_ONLY_MATRIX = types.Array(types.float64, 2, "C", readonly=True)
 """A C-contiguous float64 matrix the kernel only reads: writable arrays are taken as it too."""
 
 
-@njit((READ_ONLY_MATRIX, READ_ONLY_MATRIX, READ_ONLY_MATRIX, types.int64), cache=True, nogil=True)
+@njit(
+    (_READ_ONLY_MATRIX, _READ_ONLY_MATRIX, _READ_ONLY_MATRIX, types.int64), cache=True, nogil=True
+)
 def _zero_phase_columns(sos: Array, initial: Array, signals: Array, padlen: int) -> Array:
     """`zero_phase_filter` of the columns of ``signals`` (n, L), C-contiguous.
 

@@ -43,9 +43,10 @@ def loaded():
     found = set()
     for module_name, module in list(sys.modules.items()):
         if module_name.startswith("mirror_avatar"):
-            for name, value in vars(module).items():
+            for value in vars(module).values():
                 if isinstance(value, CPUDispatcher):
-                    found |= {(module_name, name, str(s)) for s in value.signatures}
+                    kernel = f"{value.py_func.__module__}.{value.py_func.__qualname__}"
+                    found |= {(kernel, str(s)) for s in value.signatures}
     return found
 
 
@@ -55,8 +56,8 @@ for factory in FACTORIES.values():
 played = loaded()
 for factory in FACTORIES.values():
     check_player(factory, n_steps=20)
-for module_name, name, signature in sorted(loaded() - played):
-    print(f"{module_name}.{name}{signature}")
+for kernel, signature in sorted(loaded() - played):
+    print(f"{kernel}{signature}")
 """
 """A fresh process that plays every kind of the package's players, in a dyad and a group of
 four, then checks each; it prints every compiled signature the check used and play did not."""
