@@ -7,7 +7,7 @@ MirrorGame loop samples on every pass); baseline = the previous default (``sampl
 over 0.09 s). Rows per leader: the largest and the RMS position error after the 1 s transient
 (`mirror_avatar.experiments.partner_benchmark.TRIM`). The largest-error row's note says where
 the errors come from: the largest error outside the half second after each tracking drop-out
-(`mirror_avatar.trials.Trial.held_runs` of the recording), the share of errors over Zhai et
+(`mirror_avatar.files.trials.Trial.held_runs` of the recording), the share of errors over Zhai et
 al.'s 0.2 that fall there, and the share of the time the leader moves faster than the player's
 own top speed in that trial. ``quick`` runs one fast and one slow leader.
 """
@@ -20,10 +20,10 @@ from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.engine.loop import play
 from mirror_avatar.experiments.partner_benchmark import PUBLISHED_ADAPTIVE_BOUNDS, TRIM
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.players.adaptive import AdaptivePlayer
-from mirror_avatar.session import Session
-from mirror_avatar.trials import Trial
+from mirror_avatar.sessions.session import Session
 
 AFTER_DROP_OUT = 0.5
 """Seconds after a drop-out's last held sample counted as its effect."""

@@ -21,9 +21,9 @@ import time
 from pathlib import Path
 
 from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.files.trial_io import write_csv_trial
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.training.avatar import load_avatar
-from mirror_avatar.trial_io import write_csv_trial
 
 TARGET_SECONDS = 300.0
 LAUNCHER = "import subprocess, sys; sys.exit(subprocess.call(sys.argv[1:]))"

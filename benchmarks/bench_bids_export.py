@@ -1,11 +1,13 @@
 """Reading a lab export's BIDS-Motion recording back as its session: peak memory and time.
 
 A four-player lab session (two people, two avatars) is recorded with
-`mirror_avatar.session.SessionWriter`, exported with `mirror_avatar.lab.export.bids.export_bids`,
+`mirror_avatar.sessions.writer.SessionWriter`, exported with
+`mirror_avatar.lab.export.bids.export_bids`,
 and one participant's ``_motion.tsv`` is grown to ``--megabytes`` (default 60) of rows of eight
 channels, written as the export writes them (``repr``) or, with ``--decimals N``, rounded to N
 decimals (short cells: more rows per megabyte, the case that costs a row-by-row reader most).
-A fresh child process reads it with `mirror_avatar.session.load_session` and prints its time
+A fresh child process reads it with `mirror_avatar.sessions.loading.load_session` and prints its
+time
 and peak resident memory (``ru_maxrss``); a baseline child imports the package and reads the
 small export. Value =
 (peak - baseline peak) / file size. With ``--before SRC``, the same children run on the package
@@ -27,15 +29,15 @@ from pathlib import Path
 
 import numpy as np
 
-from mirror_avatar.graphs import ring_graph
 from mirror_avatar.lab.export.bids import export_bids
-from mirror_avatar.session import SessionWriter
+from mirror_avatar.sessions.graphs import ring_graph
+from mirror_avatar.sessions.writer import SessionWriter
 
 LAUNCHER = "import subprocess, sys; sys.exit(subprocess.call(sys.argv[1:]))"
 
 READER = """
 import resource, sys, time
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 start = time.perf_counter()
 session = load_session(sys.argv[1])
 print(time.perf_counter() - start, session.n_samples,

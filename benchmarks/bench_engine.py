@@ -32,7 +32,7 @@ from mirror_avatar.dynamics import (
 )
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.players import Observation, VirtualTrainer
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.specs import bundled_generator
 from mirror_avatar.testing import solve_step_bvp
 

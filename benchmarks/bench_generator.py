@@ -18,10 +18,10 @@ from collections.abc import Callable
 import numpy as np
 
 from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.files.trials import Trial, compute_velocity, make_trial
 from mirror_avatar.motion.codebook_size import SYMBOL_CANDIDATES
 from mirror_avatar.motion.generator import PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.motion.stft import features_to_spectra, hamming_window
-from mirror_avatar.trials import Trial, compute_velocity, make_trial
 
 FIT_BUDGET_S = 10.0
 REFERENCE_S = 60.0

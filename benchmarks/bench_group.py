@@ -16,8 +16,8 @@ from pathlib import Path
 
 from mirror_avatar.dynamics import GROUP
 from mirror_avatar.engine.batch import run_sessions
-from mirror_avatar.graphs import random_connected_graph
 from mirror_avatar.players import VirtualTrainer
+from mirror_avatar.sessions.graphs import random_connected_graph
 from mirror_avatar.specs import bundled_generator
 from mirror_avatar.training.imitation import train_group_cyber_player
 

@@ -24,7 +24,7 @@ from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.discretisation import make_default_discretisation
 from mirror_avatar.learning.training import QLearner
 from mirror_avatar.players import Observation
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.testing import make_follower_sessions, python_learn_session
 from mirror_avatar.training.imitation import score_avatar
 

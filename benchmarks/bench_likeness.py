@@ -1,10 +1,11 @@
 """Human-likeness and groups of people on the bundled trials (issue 38's must-show).
 
-The battery (`mirror_avatar.likeness.compare_motion`, seed 0) on the bundled trials resampled to
+The battery (`mirror_avatar.signatures.likeness.compare_motion`, seed 0) on the bundled trials
+resampled to
 100 Hz: odd against even trials of one style (held-out trials of one person against each other),
 the first four fast trials against the last five, and fast against slow; each row the
 classifier's AUC with its permutation p-value and the IMS EMD ratio, and the battery's time.
-Then `signature --groups`'s comparison (`mirror_avatar.signature_groups.compare_groups`) of fast
+Then `signature --groups`'s comparison (`mirror_avatar.signatures.groups.compare_groups`) of fast
 and slow trials, each taken as a person, with the true labels and with labels shuffled within
 each style.
 """
@@ -16,9 +17,9 @@ import time
 import numpy as np
 
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.likeness import compare_motion, trial_velocity
-from mirror_avatar.signature import analyse_signatures
-from mirror_avatar.signature_groups import compare_groups
+from mirror_avatar.signatures.groups import compare_groups
+from mirror_avatar.signatures.likeness import compare_motion, trial_velocity
+from mirror_avatar.signatures.signature import analyse_signatures
 
 
 def run(quick: bool) -> list[dict]:

@@ -25,7 +25,6 @@ from websockets.sync.client import connect
 from websockets.sync.server import serve
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.graphs import complete_graph
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import (
     DEFAULT_AVATAR,
@@ -34,7 +33,8 @@ from mirror_avatar.live.session import (
     make_avatar_factory,
 )
 from mirror_avatar.players import Observation
-from mirror_avatar.session import SessionWriter
+from mirror_avatar.sessions.graphs import complete_graph
+from mirror_avatar.sessions.writer import SessionWriter
 from mirror_avatar.testing import ServerThread
 
 

@@ -39,14 +39,14 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from numpy.typing import NDArray
 
-from mirror_avatar.bids.writing import write_bids_motion
-from mirror_avatar.trial_io import (
+from mirror_avatar.files.bids.writing import write_bids_motion
+from mirror_avatar.files.trial_io import (
     MAX_FILE_BYTES,
     write_csv_trial,
     write_mat_struct,
     write_parquet_trial,
 )
-from mirror_avatar.trials import make_trial
+from mirror_avatar.files.trials import make_trial
 
 Array = NDArray[np.float64]
 RATE = 100.0
@@ -60,7 +60,7 @@ LAUNCHER = "import subprocess, sys; sys.exit(subprocess.call(sys.argv[1:]))"
 
 READER = """
 import resource, sys, time
-from mirror_avatar.trial_files import read_trial_file
+from mirror_avatar.files.trial_files import read_trial_file
 start = time.perf_counter()
 trials = read_trial_file(sys.argv[1])
 seconds = time.perf_counter() - start
@@ -72,7 +72,7 @@ print(seconds, samples, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 REFERENCE = """
 import csv, resource, sys, time
 import numpy as np
-import mirror_avatar.trial_io
+import mirror_avatar.files.trial_io
 start = time.perf_counter()
 with open(sys.argv[1], newline="", encoding="utf-8") as handle:
     rows = list(csv.reader(handle))
@@ -84,7 +84,7 @@ print(seconds, len(values), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 
 MAT_TRIAL_SAMPLES = 2**19
 """Most samples in one element of a MATLAB struct array: the reader spreads each element's
-samples over `mirror_avatar.trial_files.MAT_DURATION` (60 s), and a trial's rate is at most
+samples over `mirror_avatar.files.trial_files.MAT_DURATION` (60 s), and a trial's rate is at most
 10 kHz."""
 
 MAT_WRITER = """

@@ -38,12 +38,12 @@ from typing import Any
 
 import numpy as np
 
+from mirror_avatar.common.seeds import draw_seeds
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
-from mirror_avatar.likeness import trial_velocity
+from mirror_avatar.files.trials import Trial, make_trial
 from mirror_avatar.motion.generator import IMSGenerator
-from mirror_avatar.seeds import draw_seeds
-from mirror_avatar.signature import compute_emd, compute_ims
-from mirror_avatar.trials import Trial, make_trial
+from mirror_avatar.signatures.likeness import trial_velocity
+from mirror_avatar.signatures.signature import compute_emd, compute_ims
 
 RATE = 100.0
 """Rate (Hz) of the halves, the generators and the IMS."""

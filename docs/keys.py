@@ -13,7 +13,7 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-from mirror_avatar.constraints import settings_table
+from mirror_avatar.common.constraints import settings_table
 from mirror_avatar.lab.design.protocol_keys import key_tables
 from mirror_avatar.motion.hyperparameters import GENERATOR_SETTINGS
 

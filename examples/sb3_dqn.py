@@ -2,7 +2,7 @@
 
 The agent takes the place of virtual trainer VT5 following a leader (the paper's follower task):
 each episode is one 60 s session that the virtual trainers played on the batch engine, and the
-agent is rewarded for moving like VT5 did (`mirror_avatar.env.MirrorGameEnv`). After training it
+agent is rewarded for moving like VT5 did (`mirror_avatar.rl.env.MirrorGameEnv`). After training it
 replays held-out sessions greedily; its RMS to VT5 is printed beside that of a player that never
 accelerates and that of mirror-avatar's own DQN player trained on the same sessions (which also
 sees its own reference velocity, here VT5's, which the Gymnasium observation does not hold).
@@ -24,7 +24,7 @@ from stable_baselines3 import DQN
 
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.engine.batch import run_sessions
-from mirror_avatar.env import MirrorGameEnv
+from mirror_avatar.rl.env import MirrorGameEnv
 from mirror_avatar.training.cast import cast_virtual_trainers
 from mirror_avatar.training.imitation import (
     derive_seeds,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.trials import Trial
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.warm_up import warm_up
 
 

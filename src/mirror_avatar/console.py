@@ -1,6 +1,6 @@
 """The ``mirror-avatar`` console script: interruption handled from the first instant.
 
-`run` installs the signal handlers (`mirror_avatar.interruptions`) before anything heavy is
+`run` installs the signal handlers (`mirror_avatar.common.interruptions`) before anything heavy is
 imported (the command line pulls in numba, SciPy and the commands, seconds of work on a busy
 machine), so a SIGTERM that arrives while the program starts ends it as one arriving later does:
 the line ``mirror-avatar: aborted (SIGTERM)`` and exit code 130. A signal that is ignored when
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import sys
 
-from mirror_avatar.interruptions import aborted, install_interruptions
+from mirror_avatar.common.interruptions import aborted, install_interruptions
 
 
 def run() -> None:

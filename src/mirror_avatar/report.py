@@ -19,7 +19,7 @@ import jinja2
 import pandas as pd
 from matplotlib.figure import Figure
 
-from mirror_avatar.atomic import json_text, write_atomic_files
+from mirror_avatar.files.atomic import json_text, write_atomic_files
 
 
 @dataclass
@@ -72,7 +72,7 @@ def write_report(
     The HTML is self-contained (figures embedded as base64 PNG, tables as HTML, all text
     escaped); ``metrics.json`` holds ``{section.key: section.metrics, ..., "metadata": metadata}``,
     with NaN and infinities written as ``null``. Both files are written together, atomically
-    (`mirror_avatar.atomic.write_atomic_files`): a failure leaves neither half-written nor one
+    (`mirror_avatar.files.atomic.write_atomic_files`): a failure leaves neither half-written nor one
     without the other. Every figure is closed once rendered.
 
     Parameters
@@ -114,7 +114,7 @@ def report_texts(
     """Render the files of a report (`REPORT_FILES`), name -> text, without writing them.
 
     A command that writes other files with its report writes them all together
-    (`mirror_avatar.atomic.write_atomic_files`). ``lead`` and ``json_only`` are as in
+    (`mirror_avatar.files.atomic.write_atomic_files`). ``lead`` and ``json_only`` are as in
     `write_report`.
     """
     keys = [section.key for section in sections]

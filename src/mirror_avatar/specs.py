@@ -15,8 +15,9 @@ A SPEC is one of:
   the follower, or the leader as group leader: `mirror_avatar.training.avatar.POLICY_FOR_ROLE`),
   or for joint improvisation the person's virtual trainer;
 - a curriculum stage ``.npz`` (format ``mirror-avatar/curriculum-stage``,
-  `mirror_avatar.curriculum`): a virtual trainer moving with the stage's motion;
-- a recorded trial file (CSV, Parquet, MAT or BIDS-Motion, `mirror_avatar.trial_files.read_trial`):
+  `mirror_avatar.training.curriculum`): a virtual trainer moving with the stage's motion;
+- a recorded trial file (CSV, Parquet, MAT or BIDS-Motion,
+`mirror_avatar.files.trial_files.read_trial`):
   the recording replayed open-loop (`RecordedPlayer`, the role is not used);
 - ``vt:FILE`` with FILE a recorded trial: a virtual trainer whose reference velocity is that
   recording's;
@@ -46,18 +47,19 @@ from functools import lru_cache
 from pathlib import Path
 
 from mirror_avatar import __version__
-from mirror_avatar.curriculum import FORMAT_NAME as STAGE_FORMAT
-from mirror_avatar.curriculum import load_stage
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
 from mirror_avatar.deep.player import FORMAT_NAME as DEEP_FORMAT
 from mirror_avatar.deep.player import load_deep_cyber_player
 from mirror_avatar.dynamics import HKBParams, preset
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions, excerpt
+from mirror_avatar.files.importing import DEFAULT_IMPORT, ImportOptions, excerpt
+from mirror_avatar.files.model_files import read_archive
+from mirror_avatar.files.trial_files import read_trial
+from mirror_avatar.files.trials import DEFAULT_RATE, Trial
+from mirror_avatar.files.user_files import check_path
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
 from mirror_avatar.learning.agent import load_cyber_player
-from mirror_avatar.model_files import read_archive
 from mirror_avatar.motion.generator import FORMAT_NAME as GENERATOR_FORMAT
 from mirror_avatar.motion.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
@@ -70,9 +72,8 @@ from mirror_avatar.players.kuramoto import KuramotoPlayer
 from mirror_avatar.players.rpc import ReactivePredictivePlayer
 from mirror_avatar.training.avatar import FORMAT_NAME as AVATAR_FORMAT
 from mirror_avatar.training.avatar import load_avatar
-from mirror_avatar.trial_files import read_trial
-from mirror_avatar.trials import DEFAULT_RATE, Trial
-from mirror_avatar.user_files import check_path
+from mirror_avatar.training.curriculum import FORMAT_NAME as STAGE_FORMAT
+from mirror_avatar.training.curriculum import load_stage
 
 __all__ = [
     "BUNDLED_SEED",

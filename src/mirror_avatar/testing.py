@@ -21,12 +21,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_bvp
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import CONTROL_PERIOD, HKBParams
-from mirror_avatar.errors import InputError
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.kernels import VELOCITY_WEIGHT
-from mirror_avatar.session import Session
-from mirror_avatar.trials import Trial
+from mirror_avatar.sessions.session import Session
 
 if TYPE_CHECKING:
     from starlette.types import ASGIApp

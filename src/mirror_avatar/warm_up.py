@@ -28,10 +28,10 @@ from mirror_avatar.dynamics import (
 )
 from mirror_avatar.engine.batch import play_compiled, run_sessions
 from mirror_avatar.engine.loop import play
-from mirror_avatar.likeness import compare_motion, trial_velocity
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
-from mirror_avatar.signature import analyse_signatures
+from mirror_avatar.signatures.likeness import compare_motion, trial_velocity
+from mirror_avatar.signatures.signature import analyse_signatures
 from mirror_avatar.specs import MODEL_PARTNERS, model_partner
 from mirror_avatar.training.imitation import train_cyber_player, train_group_cyber_player
 

@@ -2,7 +2,7 @@
 
 It ignores SIGINT while it starts, then installs the handler ``sys.argv[2]``: ``default``,
 Python's own (Ctrl+C raises `KeyboardInterrupt` wherever the interpreter is, as in a notebook),
-or ``console``, the console script's (`mirror_avatar.interruptions.interrupt`). It prints
+or ``console``, the console script's (`mirror_avatar.common.interruptions.interrupt`). It prints
 ``ready`` and, for ``sys.argv[3]`` seconds, plays three-sample tasks through the learner
 ``sys.argv[1]`` (``tabular`` or ``deep``), or steps a model partner whose compiled rates are an
 argument of the integrator (``dynamical``), catching every interruption. It prints how many
@@ -23,9 +23,9 @@ signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 import numpy as np  # noqa: E402
 
+from mirror_avatar.common.interruptions import interrupt  # noqa: E402
 from mirror_avatar.deep.player import DeepCyberPlayer  # noqa: E402
 from mirror_avatar.deep.training import greedy_deep  # noqa: E402
-from mirror_avatar.interruptions import interrupt  # noqa: E402
 from mirror_avatar.learning.agent import CyberPlayer  # noqa: E402
 from mirror_avatar.learning.training import ImitationTask, greedy_tabular  # noqa: E402
 from mirror_avatar.players.hkb_partner import hkb_partner_step  # noqa: E402

@@ -13,9 +13,9 @@ import numpy as np
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.engine.loop import play
 from mirror_avatar.experiments.partner_benchmark import PUBLISHED_ADAPTIVE_BOUNDS, TRIM
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.players.adaptive import AdaptivePlayer
-from mirror_avatar.trials import Trial
 
 AFTER_DROP_OUT = 0.5
 """Seconds after a drop-out's last held sample counted as its effect."""

@@ -10,9 +10,9 @@ import pytest
 
 from mirror_avatar.cli import main
 from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.files.trial_io import write_csv_trial
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.training.avatar import load_avatar
-from mirror_avatar.trial_io import write_csv_trial
 
 WIDTH = 1280
 

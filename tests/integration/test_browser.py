@@ -23,7 +23,7 @@ from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import make_avatar_factory
 from mirror_avatar.players import Observation
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread
 from mirror_avatar.training.avatar import load_avatar
 from waiting import wait_for

@@ -11,7 +11,7 @@ from test_browser import drive, finish, inputs_of, start_trial
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import make_avatar_factory
 from mirror_avatar.players import Observation
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread
 
 pytestmark = pytest.mark.browser

@@ -9,19 +9,19 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.deep.player import DeepCyberPlayer
 from mirror_avatar.engine.loop import play
-from mirror_avatar.errors import InputError
+from mirror_avatar.files.model_files import load_model, save_model
+from mirror_avatar.files.trial_io import write_csv_trial
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.live.session import make_avatar_factory
-from mirror_avatar.model_files import load_model, save_model
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.specs import bundled_generator, load_player
 from mirror_avatar.training.avatar import load_avatar
-from mirror_avatar.trial_io import write_csv_trial
 
 
 @pytest.fixture(autouse=True)
@@ -174,7 +174,7 @@ def ims_emd(a: np.ndarray, b: np.ndarray) -> float:
     """EMD between two velocity series' IMS by scipy (the toolkit's normalised bins)."""
     from scipy.stats import wasserstein_distance
 
-    from mirror_avatar.signature import DEFAULT_BINS, compute_ims
+    from mirror_avatar.signatures.signature import DEFAULT_BINS, compute_ims
 
     centres = DEFAULT_BINS.centres
     span = centres[-1] - centres[0]
@@ -184,7 +184,7 @@ def ims_emd(a: np.ndarray, b: np.ndarray) -> float:
 def test_the_card_checks_the_avatar_against_each_trial_held_out(built: Path) -> None:
     """Three trials: the avatar is fitted on all, and each is held out in turn from an avatar
     built without it, in every role."""
-    from mirror_avatar.trial_files import read_trial
+    from mirror_avatar.files.trial_files import read_trial
 
     avatar = load_avatar(built)
     assert avatar.generator.training_summary_["labels"] == ["trial0", "trial1", "trial2"]

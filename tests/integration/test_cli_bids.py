@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
+from mirror_avatar.files.trial_io import read_csv_trial, write_csv_trial
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.lab.design.plan import parse_plan
 from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.realtime.inputs import BrowserInput
-from mirror_avatar.session import load_session
-from mirror_avatar.trial_io import read_csv_trial, write_csv_trial
-from mirror_avatar.trials import Trial
+from mirror_avatar.sessions.loading import load_session
 
 CHANNELS = "name\tcomponent\ttype\tunits\nx\tx\tPOS\tmm\ny\ty\tPOS\tmm\n"
 

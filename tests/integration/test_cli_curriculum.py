@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
-from mirror_avatar.curriculum import StageMotion, load_stage
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.errors import InputError
-from mirror_avatar.model_files import load_model, save_model
+from mirror_avatar.files.model_files import load_model, save_model
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import VirtualTrainer
 from mirror_avatar.specs import load_player
+from mirror_avatar.training.curriculum import StageMotion, load_stage
 
 
 @pytest.fixture(scope="module")

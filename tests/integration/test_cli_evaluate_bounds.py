@@ -21,7 +21,7 @@ import pytest
 from mirror_avatar.cli import main
 from mirror_avatar.cli.constrained import TRIM_RANGE
 from mirror_avatar.cli.measure_options import OPTIONS
-from mirror_avatar.constraints import Constraint, Options
+from mirror_avatar.common.constraints import Constraint, Options
 from mirror_avatar.metrics.analysis_rate import ANALYSIS_RATE
 from mirror_avatar.metrics.measures import CONSTRAINTS
 from mirror_avatar.testing import smooth_motion

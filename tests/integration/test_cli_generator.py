@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
+from mirror_avatar.files.trial_io import read_csv_trial, write_csv_trial
 from mirror_avatar.motion.generator import IMSGenerator
-from mirror_avatar.trial_io import read_csv_trial, write_csv_trial
 
 
 @pytest.fixture(scope="module")

@@ -10,12 +10,12 @@ import pytest
 
 from mirror_avatar.cli import main
 from mirror_avatar.deep.player import load_deep_cyber_player
-from mirror_avatar.graphs import path_graph
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.motion.generator import IMSGenerator
-from mirror_avatar.session import load_session
-from mirror_avatar.trials import Trial
+from mirror_avatar.sessions.graphs import path_graph
+from mirror_avatar.sessions.loading import load_session
 
 
 @pytest.fixture(scope="module")

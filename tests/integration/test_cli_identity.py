@@ -18,8 +18,8 @@ from mirror_avatar.experiments.generator import (
     identify_styles,
     split_and_generate,
 )
-from mirror_avatar.trial_io import read_csv_trial, write_csv_trial
-from mirror_avatar.trials import Trial
+from mirror_avatar.files.trial_io import read_csv_trial, write_csv_trial
+from mirror_avatar.files.trials import Trial
 
 PEOPLE = 7
 

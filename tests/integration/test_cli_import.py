@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
-from mirror_avatar.trial_io import read_csv_trial
-from mirror_avatar.trials import Trial
+from mirror_avatar.files.trial_io import read_csv_trial
+from mirror_avatar.files.trials import Trial
 
 LEAP = ["--time-column", "timestamp_ms", "--time-unit", "ms", "--position-column", "x_mm",
         "--position-unit", "mm"]  # fmt: skip

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
-from mirror_avatar.trial_io import read_csv_trial
+from mirror_avatar.files.trial_io import read_csv_trial
 
 RATE = 10.0
 SAMPLES = 300

@@ -16,7 +16,7 @@ from mirror_avatar.cli import main
 from mirror_avatar.lab.design.plan import parse_plan
 from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.realtime.inputs import BrowserInput
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 
 RING = {
     "condition": "group",

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 import scipy.io
 
-from mirror_avatar.trial_files import MAT_DURATION
-from mirror_avatar.trial_io import MAX_MAT_TRIALS
+from mirror_avatar.files.trial_files import MAT_DURATION
+from mirror_avatar.files.trial_io import MAX_MAT_TRIALS
 
 SAFETY_TIMEOUT = 300
 """Seconds after which a child that still runs is killed."""

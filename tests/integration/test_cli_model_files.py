@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 
 from console_child import run_console
-from mirror_avatar.curriculum import FORMAT_NAME, FORMAT_VERSION, StageMotion, save_stage
 from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.files.model_files import read_archive, save_model
+from mirror_avatar.files.trial_io import write_csv_trial
 from mirror_avatar.learning.agent import CyberPlayer
-from mirror_avatar.model_files import read_archive, save_model
-from mirror_avatar.signature import DEFAULT_BINS
+from mirror_avatar.signatures.signature import DEFAULT_BINS
 from mirror_avatar.specs import POLICY_ROLES, bundled_generator
-from mirror_avatar.trial_io import write_csv_trial
+from mirror_avatar.training.curriculum import FORMAT_NAME, FORMAT_VERSION, StageMotion, save_stage
 
 SAFETY_TIMEOUT = 900
 """Seconds after which a child that still runs is killed."""

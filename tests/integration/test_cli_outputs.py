@@ -14,8 +14,8 @@ import pytest
 
 from mirror_avatar.cli import main
 from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.files.trial_io import write_csv_trial
 from mirror_avatar.motion.generator import IMSGenerator
-from mirror_avatar.trial_io import write_csv_trial
 
 Arguments = Callable[[Path, Path], list[str]]
 """Command-line arguments given the folder of inputs and the ``--out`` to try."""

@@ -18,7 +18,7 @@ import pytest
 
 from console_child import run_console
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.trial_io import write_csv_trial
+from mirror_avatar.files.trial_io import write_csv_trial
 
 SAFETY_TIMEOUT = 600
 """Seconds after which a child that still runs is killed (the refusal comes at once)."""

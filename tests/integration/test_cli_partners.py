@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from mirror_avatar.cli import main
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 
 
 def test_simulate_a_leader_with_the_adaptive_follower(tmp_path: Path) -> None:

@@ -14,7 +14,7 @@ import pytest
 from scipy.interpolate import PchipInterpolator
 
 from mirror_avatar.cli import main
-from mirror_avatar.trial_io import read_csv_trial
+from mirror_avatar.files.trial_io import read_csv_trial
 
 COLUMNS = "time=time,human=human,avatar=avatar"
 FREQUENCY = 0.4

@@ -21,13 +21,13 @@ import numpy as np
 import pytest
 
 from console_child import run_console
-from mirror_avatar.bids.writing import write_bids_motion
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import complete_graph
-from mirror_avatar.session import SessionWriter
+from mirror_avatar.files.bids.writing import write_bids_motion
+from mirror_avatar.files.user_files import MAX_PART_BYTES
+from mirror_avatar.sessions.graphs import complete_graph
+from mirror_avatar.sessions.writer import SessionWriter
 from mirror_avatar.specs import load_player
-from mirror_avatar.user_files import MAX_PART_BYTES
 
 SAFETY_TIMEOUT = 300
 """Seconds after which a child that still runs is killed (a hang, not a slow machine)."""

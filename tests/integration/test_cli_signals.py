@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from mirror_avatar.interruptions import INTERRUPTIONS
+from mirror_avatar.common.interruptions import INTERRUPTIONS
 from waiting import wait_for
 
 CONSOLE = "from mirror_avatar.console import run; run()"

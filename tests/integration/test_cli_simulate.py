@@ -10,11 +10,11 @@ import pytest
 
 from console_child import run_console
 from mirror_avatar.cli import main
+from mirror_avatar.files.trial_files import write_trial
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.metrics import session_metrics
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.specs import bundled_generator
-from mirror_avatar.trial_files import write_trial
-from mirror_avatar.trials import Trial
 
 
 @pytest.fixture(autouse=True)

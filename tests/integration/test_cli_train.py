@@ -14,13 +14,13 @@ import pytest
 from numba.core.compiler_lock import global_compiler_lock
 
 from mirror_avatar.cli import main
+from mirror_avatar.common.interruptions import interrupt
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.interruptions import interrupt
+from mirror_avatar.files.trial_io import write_csv_trial
+from mirror_avatar.files.trials import DEFAULT_RATE
 from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.specs import bundled_generator
-from mirror_avatar.trial_io import write_csv_trial
-from mirror_avatar.trials import DEFAULT_RATE
 from waiting import wait_for
 
 

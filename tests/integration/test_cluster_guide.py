@@ -22,9 +22,9 @@ import pytest
 from mirror_avatar.cli import main
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.engine import batch
-from mirror_avatar.model_files import load_model
+from mirror_avatar.files.model_files import load_model
+from mirror_avatar.files.trial_io import write_csv_trial
 from mirror_avatar.motion.generator import IMSGenerator
-from mirror_avatar.trial_io import write_csv_trial
 from waiting import wait_for
 
 distributed = pytest.importorskip("distributed")

@@ -11,11 +11,11 @@ import pytest
 
 from mirror_avatar.experiments import EXPERIMENTS
 from mirror_avatar.experiments.cyber_player import RoleResult, check_criteria, measure, run
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.training import LearningCurve
 from mirror_avatar.report import write_report
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.training.imitation import make_cyber_player
-from mirror_avatar.trials import Trial
 
 
 def test_quick_validation_runs_end_to_end(zhai_trials: list[Trial], tmp_path) -> None:

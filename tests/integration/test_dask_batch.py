@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import FOLLOWER, LEADER
 from mirror_avatar.engine import batch
 from mirror_avatar.engine.batch import run_sessions
-from mirror_avatar.errors import InputError
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import VirtualTrainer
 

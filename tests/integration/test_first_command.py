@@ -6,8 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from mirror_avatar.trial_io import write_csv_trial
-from mirror_avatar.trials import Trial
+from mirror_avatar.files.trial_io import write_csv_trial
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.warm_up import warm_up
 
 COUNT_COMPILATIONS = """

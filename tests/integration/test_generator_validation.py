@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 from shapely.geometry import Point
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.experiments import EXPERIMENTS
 from mirror_avatar.experiments.generator import fraction_inside, run, split_and_generate
 from mirror_avatar.report import Section
-from mirror_avatar.signature import analyse_signatures
+from mirror_avatar.signatures.signature import analyse_signatures
 
 
 @pytest.fixture(scope="module")

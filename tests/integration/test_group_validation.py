@@ -9,11 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mirror_avatar.atomic import json_safe
 from mirror_avatar.experiments import EXPERIMENTS
 from mirror_avatar.experiments.group import MEASURES, check_criteria, choose_members, run
+from mirror_avatar.files.atomic import json_safe
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.report import Section
-from mirror_avatar.trials import Trial
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +47,7 @@ def test_virtual_trainers_synchronise_and_the_ends_of_a_path_less(section: Secti
 def test_paired_sessions_share_the_graph_and_the_partners(zhai_trials: list[Trial]) -> None:
     """Replacing the target changes nothing else: the first sample of every partner agrees."""
     from mirror_avatar.experiments.group import compare
-    from mirror_avatar.graphs import random_connected_graph
+    from mirror_avatar.sessions.graphs import random_connected_graph
     from mirror_avatar.training.cast import cast_virtual_trainers
     from mirror_avatar.training.imitation import make_group, make_group_cyber_player
 

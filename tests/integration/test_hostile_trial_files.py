@@ -23,11 +23,11 @@ import pyarrow.parquet as pq
 import pytest
 import scipy.io
 
-from mirror_avatar import trial_io
 from mirror_avatar.cli import main
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import ECHO_CHARS
-from mirror_avatar.trial_files import read_trial, read_trial_file
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files import trial_io
+from mirror_avatar.files.importing import ECHO_CHARS
+from mirror_avatar.files.trial_files import read_trial, read_trial_file
 
 N = 200
 TIMES = (np.arange(N) / 100.0).tolist()
@@ -371,7 +371,7 @@ def test_reading_a_csv_takes_memory_near_its_size(tmp_path) -> None:
 
 
 def test_echoed_values_are_cut() -> None:
-    from mirror_avatar.importing import excerpt
+    from mirror_avatar.files.importing import excerpt
 
     assert excerpt("abc") == "'abc'" and excerpt(12.5) == "12.5"
     assert excerpt(LONG) == "'" + "1" * ECHO_CHARS + "'... (4000 characters)"

@@ -11,7 +11,7 @@ every one and exit 0.
   (`mirror_avatar.learning.kernels`).
 - A model partner, under the console's handler: numba looks up a compiled function given as an
   argument in Python, and an interruption there turned into an unrelated `TypeError`; the
-  console's handler waits until numba is done (`mirror_avatar.interruptions`).
+  console's handler waits until numba is done (`mirror_avatar.common.interruptions`).
 """
 
 from __future__ import annotations

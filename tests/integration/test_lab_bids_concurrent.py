@@ -14,7 +14,7 @@ from pathlib import Path
 import httpx
 from test_lab_server import BEARER, TOKEN
 
-from mirror_avatar.bids.tables import read_tsv
+from mirror_avatar.files.bids.tables import read_tsv
 from mirror_avatar.lab.design.plan import parse_plan
 from mirror_avatar.lab.export.bids import export_bids
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app

@@ -19,7 +19,7 @@ from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains
 
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.metrics import session_metrics
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread
 
 pytestmark = pytest.mark.browser

@@ -15,7 +15,7 @@ import pytest
 from test_lab_server import DYAD, TOKEN, Page, command, create, status, stopped, welcomed
 
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 

@@ -20,7 +20,7 @@ import pytest
 from test_lab_server import BEARER, TOKEN, Page, status, welcomed
 
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 

@@ -28,7 +28,7 @@ import websockets
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.lab.design.avatars import MAX_RECORDING_SPEC_BYTES
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread, raw_websocket
 from waiting import wait_for
 

@@ -25,7 +25,7 @@ from test_lab_study import QUESTIONS, AnsweringPage, create_participant, play_to
 from mirror_avatar.cli import main
 from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread
 
 PROTOCOL = f"""

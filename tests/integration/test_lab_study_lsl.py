@@ -17,7 +17,7 @@ from test_lab_study import play_to_the_end
 
 from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread
 
 pylsl = pytest.importorskip("pylsl")

@@ -16,7 +16,8 @@ from test_lab_study import play_to_the_end
 from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.players.base import Observation, Player
-from mirror_avatar.session import Session, load_session
+from mirror_avatar.sessions.loading import load_session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.specs import load_player
 from mirror_avatar.testing import ServerThread
 

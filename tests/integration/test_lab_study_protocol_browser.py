@@ -18,7 +18,7 @@ from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.lab.design.order import condition_order
 from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread
 
 pytestmark = pytest.mark.browser

@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.likeness import compare_motion, trial_velocity
+from mirror_avatar.signatures.likeness import compare_motion, trial_velocity
 
 
 @pytest.fixture(scope="module")

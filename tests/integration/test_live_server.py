@@ -22,13 +22,13 @@ from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
+from mirror_avatar.files.trials import make_trial
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.live.session import AvatarFactory, make_avatar_factory
 from mirror_avatar.players import Player
 from mirror_avatar.realtime.transport import ACCEPT_BATCH, RECEIVE_BUFFER_BYTES, listening_socket
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread, raw_websocket, text_frame
-from mirror_avatar.trials import make_trial
 from waiting import wait_for
 
 FRAME = 1 / 60

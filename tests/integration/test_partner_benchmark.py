@@ -18,13 +18,13 @@ from mirror_avatar.experiments.partner_benchmark import (
     relative_position_error,
     run_benchmark,
 )
+from mirror_avatar.files.trial_files import write_trial
+from mirror_avatar.files.trial_record import KINDS, SlotRecord, TrialRecord
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.specs import bundled_generator, load_player
 from mirror_avatar.training.imitation import train_cyber_player
-from mirror_avatar.trial_files import write_trial
-from mirror_avatar.trial_record import KINDS, SlotRecord, TrialRecord
-from mirror_avatar.trials import Trial
 
 LEADER_SECONDS = 20.0
 """Length of the leaders the command tests use (s)."""

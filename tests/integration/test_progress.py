@@ -9,8 +9,8 @@ import pytest
 
 from mirror_avatar.cli import main
 from mirror_avatar.metrics.progress import progress_table
-from mirror_avatar.session import load_session
-from mirror_avatar.signature import compute_emd, compute_ims
+from mirror_avatar.sessions.loading import load_session
+from mirror_avatar.signatures.signature import compute_emd, compute_ims
 
 
 @pytest.fixture(scope="module")

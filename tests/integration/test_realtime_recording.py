@@ -29,7 +29,7 @@ from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.live.server import LiveSettings, create_app
 from mirror_avatar.players import Player
 from mirror_avatar.realtime.clock import time_players
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.specs import load_player
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for

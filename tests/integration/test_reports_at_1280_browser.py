@@ -13,7 +13,7 @@ import pytest
 
 from mirror_avatar.cli import main
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.trial_io import write_csv_trial
+from mirror_avatar.files.trial_io import write_csv_trial
 
 pytestmark = pytest.mark.browser
 

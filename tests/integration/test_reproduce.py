@@ -56,7 +56,7 @@ def test_signature_experiment_without_a_second_style(zhai_trials):
 
 def test_reproduce_on_three_people_casts_them_by_name(tmp_path, zhai_trials):
     """Folders of three people: each becomes a virtual trainer and the report names them."""
-    from mirror_avatar.trial_io import write_csv_trial
+    from mirror_avatar.files.trial_io import write_csv_trial
 
     people = {"alice": zhai_trials[0:6], "bob": zhai_trials[9:15], "carol": zhai_trials[6:9]}
     people["carol"] = people["carol"] + zhai_trials[15:18]

@@ -12,12 +12,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mirror_avatar.atomic import json_safe
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.experiments import EXPERIMENTS
 from mirror_avatar.experiments.virtual_trainer import choose_styles, run
+from mirror_avatar.files.atomic import json_safe
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.report import Section
-from mirror_avatar.trials import Trial
 
 
 @pytest.fixture(scope="module")

@@ -17,9 +17,9 @@ import pytest
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.engine.loop import play
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.players import RecordedPlayer
 from mirror_avatar.players.adaptive import PARAMETERS, AdaptivePlayer
-from mirror_avatar.trials import Trial
 
 PUBLISHED = {
     "alpha": 10.0,  # parametersHC.m: a = 10

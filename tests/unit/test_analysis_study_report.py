@@ -25,7 +25,7 @@ from mirror_avatar.analysis.study_report import (
     write_study_report,
 )
 from mirror_avatar.cli.study_report import report
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 
 NO_DELAY, DELAY = CONDITIONS
 EFFECTS = {"rms": 0.05, "phase_locking": -0.1}

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy.stats import wasserstein_distance
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.avatar_holdout import (
     Fold,
     RoleMotion,
@@ -18,9 +18,9 @@ from mirror_avatar.experiments.avatar_holdout import (
     split_held_out,
 )
 from mirror_avatar.experiments.avatar_proof import Proof
-from mirror_avatar.likeness import trial_velocity
-from mirror_avatar.signature import DEFAULT_BINS, compute_ims
-from mirror_avatar.trials import make_trial
+from mirror_avatar.files.trials import make_trial
+from mirror_avatar.signatures.likeness import trial_velocity
+from mirror_avatar.signatures.signature import DEFAULT_BINS, compute_ims
 
 RATE = 1 / 0.03  # the avatar's control rate
 

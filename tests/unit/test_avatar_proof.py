@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.experiments.avatar_proof import dyad_numbers, find_person
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 
 
 @pytest.mark.parametrize("partner", [0, 1])

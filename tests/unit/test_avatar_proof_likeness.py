@@ -5,7 +5,7 @@ from __future__ import annotations
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.experiments.avatar_holdout import Fold, RoleMotion, prove_held_out
 from mirror_avatar.experiments.avatar_proof import Proof
-from mirror_avatar.likeness import trial_velocity
+from mirror_avatar.signatures.likeness import trial_velocity
 
 RATE = 1 / 0.03  # the avatar's control rate
 

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from mirror_avatar.cli.benchmark import split_specs
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.experiments.benchmark_ranking import (
     FLOORS,
     HUMAN_MEASURES,

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
-from mirror_avatar.importing import PLAYING_RANGE_CM
+from mirror_avatar.files.importing import PLAYING_RANGE_CM
 
 RATE = 100.0
 """Sampling rate of the hand-made recording (Hz)."""

@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import GAP_TOLERANCE, clock_offsets, fill_gaps
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.importing import GAP_TOLERANCE, clock_offsets, fill_gaps
 
 
 def decimal_offsets(cells: list[str]) -> list[float]:

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from mirror_avatar.constraints import (
+from mirror_avatar.common.constraints import (
     ConstraintError,
     Either,
     Flag,
@@ -17,7 +17,7 @@ from mirror_avatar.constraints import (
     check,
     settings_table,
 )
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 
 
 def test_an_interval_admits_finite_numbers_between_its_ends():

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy.stats import wasserstein_distance
 
-from mirror_avatar.curriculum import QUANTILE_SECONDS, QUANTILE_SEED, StageMotion
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.training.curriculum import QUANTILE_SECONDS, QUANTILE_SEED, StageMotion
 
 
 @pytest.fixture(scope="module")

@@ -5,6 +5,7 @@ import itertools
 import numpy as np
 import pytest
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.deep.features import (
     RELATIVE_POSITION_SCALE,
     RELATIVE_VELOCITY_SCALE,
@@ -16,11 +17,10 @@ from mirror_avatar.deep.player import DeepCyberPlayer, load_deep_cyber_player
 from mirror_avatar.dynamics import FOLLOWER, integrate_hkb
 from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.engine.loop import play
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import ring_graph
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.players import Observation, check_player
-from mirror_avatar.signature import DEFAULT_BINS
+from mirror_avatar.sessions.graphs import ring_graph
+from mirror_avatar.signatures.signature import DEFAULT_BINS
 from mirror_avatar.specs import bundled_generator, load_player
 
 SCALED_ACTIONS = tuple(4.0 * a for a in (-4.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 4.0))

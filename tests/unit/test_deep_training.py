@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.deep.player import DeepCyberPlayer, load_deep_cyber_player
 from mirror_avatar.deep.training import (
     DQNLearner,
     GeometricEpsilon,
     ReplayBuffer,
 )
-from mirror_avatar.errors import InputError
 from mirror_avatar.specs import bundled_generator
 from mirror_avatar.testing import make_follower_sessions
 from mirror_avatar.training.imitation import score_avatar, train_group_cyber_player

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import (
     FOLLOWER,
     FORCING,
@@ -36,7 +37,6 @@ from mirror_avatar.dynamics import (
 from mirror_avatar.dynamics.lanes import _frozen_guess, _keep_shot
 from mirror_avatar.dynamics.optimal_control import _shoot_with_sensitivities
 from mirror_avatar.engine.loop import play
-from mirror_avatar.errors import InputError
 from mirror_avatar.players import VirtualTrainer
 from mirror_avatar.testing import solve_step_bvp
 

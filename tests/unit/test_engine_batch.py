@@ -5,14 +5,14 @@ import threading
 import numpy as np
 import pytest
 
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.dynamics import FOLLOWER, JOINT, LEADER
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.engine.loop import play
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import random_connected_graph
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import ExternalPlayer, RecordedPlayer, VirtualTrainer
-from mirror_avatar.seeds import spawn_seeds
+from mirror_avatar.sessions.graphs import random_connected_graph
 from waiting import wait_for
 
 CHANNELS = ("positions", "velocities", "controls", "references")

@@ -20,7 +20,7 @@ from mirror_avatar.engine.batch import play_compiled, run_sessions
 from mirror_avatar.engine.loop import play
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.training.imitation import train_cyber_player
 
 FIXTURES = Path(__file__).parents[1] / "fixtures" / "engine_before"

@@ -5,17 +5,17 @@ import math
 import numpy as np
 import pytest
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import FOLLOWER, JOINT, LEADER
 from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.engine.loop import Engine, play
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import path_graph, random_connected_graph, ring_graph, star_graph
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.discretisation import make_default_discretisation
 from mirror_avatar.metrics import compute_phase_locking, compute_relative_phase
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import ExternalPlayer, RecordedPlayer, VirtualTrainer
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.graphs import path_graph, random_connected_graph, ring_graph, star_graph
+from mirror_avatar.sessions.session import Session
 
 CHANNELS = ("positions", "velocities", "controls", "references")
 

@@ -4,17 +4,17 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.deep.features import encode
 from mirror_avatar.deep.network import greedy_action
 from mirror_avatar.deep.player import DeepCyberPlayer
 from mirror_avatar.dynamics import FOLLOWER, integrate_hkb
 from mirror_avatar.engine.batch import play_compiled
-from mirror_avatar.env import MirrorGameEnv
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import random_connected_graph, star_graph
 from mirror_avatar.learning.agent import DEFAULT_ACTIONS, CyberPlayer
 from mirror_avatar.learning.kernels import compute_reward
-from mirror_avatar.session import Session
+from mirror_avatar.rl.env import MirrorGameEnv
+from mirror_avatar.sessions.graphs import random_connected_graph, star_graph
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.specs import load_player
 from mirror_avatar.training.imitation import score_avatar
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from mirror_avatar.cli.evaluate_report import Evaluated, glance_tables, verdict
 from mirror_avatar.metrics.measures import Measures
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 
 
 def evaluated(name: str, p: float, n: int, players: int = 2) -> Evaluated:

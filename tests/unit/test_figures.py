@@ -3,14 +3,10 @@ import pytest
 from matplotlib.figure import Figure
 from matplotlib.patches import StepPatch
 
-from mirror_avatar.figures import (
-    plot_ims,
-    plot_relative_phase,
-    plot_similarity_space,
-    plot_skew_kurtosis,
-)
+from mirror_avatar.figures.sessions import plot_relative_phase
+from mirror_avatar.figures.signatures import plot_ims, plot_similarity_space, plot_skew_kurtosis
 from mirror_avatar.report import render_png
-from mirror_avatar.signature import DEFAULT_BINS, confidence_ellipse
+from mirror_avatar.signatures.signature import DEFAULT_BINS, confidence_ellipse
 
 
 def test_plot_ims_draws_one_curve_per_group_and_trial(rng):
@@ -66,7 +62,7 @@ def test_plot_relative_phase_draws_densities_and_circular_means(rng):
 
 
 def test_moving_mean_matches_a_slow_loop() -> None:
-    from mirror_avatar.figures import moving_mean
+    from mirror_avatar.figures.sessions import moving_mean
 
     x = np.random.default_rng(3).random(57)
     for n in (1, 4, 5, 200):
@@ -76,7 +72,7 @@ def test_moving_mean_matches_a_slow_loop() -> None:
 
 
 def test_group_synchronisation_is_drawn_smoothed_with_a_legend() -> None:
-    from mirror_avatar.figures import moving_mean, plot_group_synchronisation
+    from mirror_avatar.figures.sessions import moving_mean, plot_group_synchronisation
 
     t = np.arange(0, 20, 0.01)
     rho = 0.7 + 0.3 * np.sign(np.sin(2 * np.pi * 7 * t))  # flickers every sample or so
@@ -90,7 +86,7 @@ def test_group_synchronisation_is_drawn_smoothed_with_a_legend() -> None:
 
 def test_a_legend_of_many_people_goes_beside_the_axes_which_keep_their_size() -> None:
     """Issue 39.3: thirty people's legend squeezed the signatures' axes to a strip."""
-    from mirror_avatar.figures import FIGSIZE
+    from mirror_avatar.figures.style import FIGSIZE
 
     signatures = {f"participant_{k:02d}": np.full(DEFAULT_BINS.n, 1 / DEFAULT_BINS.n)
                   for k in range(30)}  # fmt: skip

@@ -7,8 +7,14 @@ import pytest
 from scipy.signal import butter, sosfilt_zi, sosfiltfilt
 from sklearn.metrics import pairwise_distances_argmin
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.model_files import save_model
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.model_files import save_model
+from mirror_avatar.files.trials import (
+    _zero_phase_columns,
+    compute_velocity,
+    make_trial,
+    zero_phase_filter,
+)
 from mirror_avatar.motion.codebook_size import (
     choose_n_symbols,
     one_standard_error_rule,
@@ -22,13 +28,7 @@ from mirror_avatar.motion.markov import (
     group_members,
     sample_chain,
 )
-from mirror_avatar.signature import compute_emd, compute_ims, stroke_moments
-from mirror_avatar.trials import (
-    _zero_phase_columns,
-    compute_velocity,
-    make_trial,
-    zero_phase_filter,
-)
+from mirror_avatar.signatures.signature import compute_emd, compute_ims, stroke_moments
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli.generator import fit
-from mirror_avatar.constraints import ConstraintError, Interval, settings_table
+from mirror_avatar.common.constraints import ConstraintError, Interval, settings_table
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.motion.hyperparameters import (
     GENERATOR,

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import (
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.sessions.graphs import (
     check_graph,
     complete_graph,
     draw_graph,

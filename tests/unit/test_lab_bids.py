@@ -11,15 +11,17 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mirror_avatar.bids.reading import read_lab_recording
-from mirror_avatar.bids.writing import write_bids_motion
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import complete_graph, ring_graph
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.bids.reading import read_lab_recording
+from mirror_avatar.files.bids.writing import write_bids_motion
+from mirror_avatar.files.trial_files import read_trial
+from mirror_avatar.files.trial_record import SlotRecord, StudyRecord, TrialRecord
+from mirror_avatar.files.trials import make_trial
 from mirror_avatar.lab.export.bids import export_bids
-from mirror_avatar.session import Session, SessionWriter, load_session
-from mirror_avatar.trial_files import read_trial
-from mirror_avatar.trial_record import SlotRecord, StudyRecord, TrialRecord
-from mirror_avatar.trials import make_trial
+from mirror_avatar.sessions.graphs import complete_graph, ring_graph
+from mirror_avatar.sessions.loading import load_session
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.sessions.writer import SessionWriter
 
 T = 0.03
 N_SAMPLES = 300
@@ -70,7 +72,7 @@ def write_lab_session(
 ) -> Path:  # fmt: skip
     """Record a lab session folder as the lab does: one SessionWriter per trial.
 
-    Each sidecar's metadata is written by the trial record (`mirror_avatar.trial_record`), the
+    Each sidecar's metadata is written by the trial record (`mirror_avatar.files.trial_record`), the
     one declaration of its format: a key renamed there and not in the export breaks these tests.
     """
     folder = folder / session_id

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from mirror_avatar.files.trial_record import TrialRecord, trial_record
 from mirror_avatar.lab.export.bids_events import EVENT_COLUMN_INFO, EVENT_COLUMNS, trial_events
-from mirror_avatar.trial_record import TrialRecord, trial_record
 
 T = 0.03
 

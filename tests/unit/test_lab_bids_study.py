@@ -6,8 +6,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from mirror_avatar.files.trial_record import SlotRecord, TrialRecord, trial_record
 from mirror_avatar.lab.export.bids_study import acq_time, answer_rows, read_answers
-from mirror_avatar.trial_record import SlotRecord, TrialRecord, trial_record
 
 
 def record(**stamps: str | None) -> TrialRecord:

@@ -13,7 +13,7 @@ from mirror_avatar.lab.design.plan import parse_plan
 from mirror_avatar.lab.running.runner import LabSession
 from mirror_avatar.lab.running.schedule import OnePlan
 from mirror_avatar.players.base import Observation, Player
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from waiting import wait_for
 
 DYAD = {

@@ -14,8 +14,8 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.errors import InputError
 from mirror_avatar.lab.running.lsl import UNIT, LslInput, SessionOutlet
 from mirror_avatar.realtime.inputs import HumanPlayer
 from waiting import wait_for

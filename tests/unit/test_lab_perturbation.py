@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.errors import InputError
 from mirror_avatar.lab.design.perturbation import changeable, successor
 from mirror_avatar.lab.design.protocol import parse_protocol
 from mirror_avatar.lab.running.study import ParticipantRun

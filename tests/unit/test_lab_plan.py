@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mirror_avatar.graphs import ring_graph
 from mirror_avatar.lab.design.plan import (
     LSL_SETTINGS,
     SESSION_SETTINGS,
@@ -14,6 +13,7 @@ from mirror_avatar.lab.design.plan import (
     PlanError,
     parse_plan,
 )
+from mirror_avatar.sessions.graphs import ring_graph
 
 PERSON = {"label": "P1", "kind": "human"}
 AVATAR = {"label": "A1", "kind": "avatar", "spec": "bundled:slow"}

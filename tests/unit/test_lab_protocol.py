@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from mirror_avatar.constraints import REQUIRED
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.constraints import REQUIRED
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.lab.design.balance import block_balance
 from mirror_avatar.lab.design.checker import ProtocolKeyError
 from mirror_avatar.lab.design.protocol import MAX_PROTOCOL_BYTES, load_protocol, parse_protocol

@@ -9,11 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.trial_io import MAX_SIDECAR_BYTES
 from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.runner import LabSession
 from mirror_avatar.lab.running.study import ParticipantRun, study_folder
-from mirror_avatar.trial_io import MAX_SIDECAR_BYTES
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "protocol.toml"
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.runner import LabSession
 from mirror_avatar.lab.running.study import ParticipantRun, study_folder

@@ -11,12 +11,12 @@ import time
 import numpy as np
 import pytest
 
-from mirror_avatar import atomic
 from mirror_avatar.engine.loop import Engine
+from mirror_avatar.files import atomic
 from mirror_avatar.lab.design.plan import parse_plan
 from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.realtime.inputs import BrowserInput, HumanPlayer
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.specs import load_player
 from waiting import wait_for
 

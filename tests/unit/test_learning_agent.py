@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import CONTROL_PERIOD, FOLLOWER, LEADER, integrate_hkb
-from mirror_avatar.errors import InputError
 from mirror_avatar.learning.agent import DEFAULT_ACTIONS, CyberPlayer, load_cyber_player
 from mirror_avatar.learning.discretisation import Discretisation, make_default_discretisation
 from mirror_avatar.learning.training import QLearner

@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 
 from mirror_avatar import dynamics
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.engine.loop import play
-from mirror_avatar.errors import InputError
+from mirror_avatar.files.model_files import read_archive, save_model
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.agent import DEFAULT_ACTIONS, load_cyber_player
 from mirror_avatar.learning.discretisation import make_default_discretisation
 from mirror_avatar.learning.training import (
@@ -19,7 +21,6 @@ from mirror_avatar.learning.training import (
     play_task,
     policy_arguments,
 )
-from mirror_avatar.model_files import read_archive, save_model
 from mirror_avatar.players import check_player
 from mirror_avatar.training.cast import (
     SEEN_PARTNERS,
@@ -37,7 +38,6 @@ from mirror_avatar.training.imitation import (
     score_avatar,
     train_cyber_player,
 )
-from mirror_avatar.trials import Trial
 
 
 @pytest.fixture(scope="module")

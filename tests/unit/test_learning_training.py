@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.engine.loop import count_samples, play
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import star_graph
+from mirror_avatar.files.trials import make_trial
 from mirror_avatar.learning.agent import CyberPlayer, load_cyber_player
 from mirror_avatar.learning.discretisation import make_default_discretisation
 from mirror_avatar.learning.training import (
@@ -20,11 +20,11 @@ from mirror_avatar.learning.training import (
 )
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.players import RecordedPlayer
-from mirror_avatar.session import Session
-from mirror_avatar.signature import compute_emd, compute_ims
+from mirror_avatar.sessions.graphs import star_graph
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.signature import compute_emd, compute_ims
 from mirror_avatar.testing import make_follower_sessions
 from mirror_avatar.training.imitation import score_avatar
-from mirror_avatar.trials import make_trial
 
 
 @pytest.fixture(scope="module")

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.likeness import (
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.signatures.likeness import (
     amplitude_distances,
     classifier_test,
     compare_distances,
@@ -17,8 +17,8 @@ from mirror_avatar.likeness import (
     spectrum_distances,
     stroke_amplitudes,
 )
-from mirror_avatar.permutations import between_and_within, permutation_test
-from mirror_avatar.signature import compute_emd, compute_ims
+from mirror_avatar.signatures.permutations import between_and_within, permutation_test
+from mirror_avatar.signatures.signature import compute_emd, compute_ims
 
 RATE = 100.0
 
@@ -141,7 +141,7 @@ def test_classifier_groups_by_the_units_given(rng: np.random.Generator) -> None:
 
 def test_trials_too_short_for_the_classifier_are_judged_by_the_distances_alone():
     from mirror_avatar.datasets import load_zhai2017
-    from mirror_avatar.likeness import compare_motion, trial_velocity
+    from mirror_avatar.signatures.likeness import compare_motion, trial_velocity
 
     rate = 1 / 0.03
     short = [trial_velocity(t, rate)[: round(8 * rate)] for t in load_zhai2017()[:4]]

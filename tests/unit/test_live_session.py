@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
+from mirror_avatar.files.trials import make_trial
 from mirror_avatar.live.messages import StartRequest
 from mirror_avatar.live.session import (
     compute_trial_metrics,
@@ -19,8 +20,8 @@ from mirror_avatar.live.session import (
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.players import Player
 from mirror_avatar.realtime.latency import RoundTrips
-from mirror_avatar.session import Session, load_session
-from mirror_avatar.trials import make_trial
+from mirror_avatar.sessions.loading import load_session
+from mirror_avatar.sessions.session import Session
 
 T = CONTROL_PERIOD
 

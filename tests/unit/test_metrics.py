@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.metrics import (
     compute_cross_correlation_peak,
     compute_mean_relative_phase,
@@ -15,8 +15,8 @@ from mirror_avatar.metrics import (
     paired_ttest,
     session_metrics,
 )
-from mirror_avatar.session import Session
-from mirror_avatar.signature import DEFAULT_BINS
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.signature import DEFAULT_BINS
 
 RATE = 100.0
 T = np.arange(0, 30, 1 / RATE)

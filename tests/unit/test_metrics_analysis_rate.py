@@ -11,7 +11,7 @@ from mirror_avatar.metrics.analysis_rate import (
     decimation_factor,
     session_rate,
 )
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 
 
 def session_of(positions: np.ndarray, rate: float) -> Session:

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from multiSyncPy.synchrony_metrics import rho
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import path_graph
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.metrics import compute_cluster_phase, compute_phase, session_metrics
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.graphs import path_graph
+from mirror_avatar.sessions.session import Session
 
 RATE = 100.0
 T = np.arange(0, 40, 1 / RATE)

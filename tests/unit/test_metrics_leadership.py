@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import signal, stats
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.metrics.leadership import (
     compute_leadership,
     pick_peaks,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.metrics.measures import MeasureOptions, session_measures
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.testing import smooth_motion
 
 RATE = 50.0

@@ -9,7 +9,7 @@ from mirror_avatar.lab.running.runner import headline_measures
 from mirror_avatar.metrics import registry, session_metrics
 from mirror_avatar.metrics.jitter import JITTER_BAND
 from mirror_avatar.metrics.measures import MeasureOptions, coordination_statistics, session_measures
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.testing import smooth_motion
 
 RATE = 50.0

@@ -7,7 +7,8 @@ import pytest
 from multiSyncPy import synchrony_metrics
 from scipy import stats
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.metrics.measures import (
     MeasureOptions,
     coordination_statistics,
@@ -21,7 +22,6 @@ from mirror_avatar.metrics.surrogates import (
     shifted,
 )
 from mirror_avatar.metrics.synchrony_episodes import find_synchrony_episodes
-from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.testing import smooth_motion
 
 RATE = 25.0

@@ -12,9 +12,9 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from mirror_avatar.constraints import ConstraintError
+from mirror_avatar.common.constraints import ConstraintError
 from mirror_avatar.metrics.measures import MAX_SURROGATES, MeasureOptions, session_measures
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.testing import smooth_motion
 
 RATE = 50.0

@@ -21,21 +21,21 @@ import numpy as np
 import pytest
 
 from mirror_avatar.cli import main
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.deep.player import DeepCyberPlayer, load_deep_cyber_player
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import ECHO_CHARS
-from mirror_avatar.learning.agent import CyberPlayer, load_cyber_player
-from mirror_avatar.learning.discretisation import make_default_discretisation
-from mirror_avatar.model_files import (
+from mirror_avatar.files.importing import ECHO_CHARS
+from mirror_avatar.files.model_files import (
     MAX_DIRECTORY_BYTES,
     MAX_MEMBER_BYTES,
     MAX_MEMBERS,
     MAX_METADATA_CHARS,
     MAX_TOTAL_BYTES,
 )
+from mirror_avatar.files.user_files import MAX_JSON_DEPTH
+from mirror_avatar.learning.agent import CyberPlayer, load_cyber_player
+from mirror_avatar.learning.discretisation import make_default_discretisation
 from mirror_avatar.motion.generator import IMSGenerator
-from mirror_avatar.signature import DEFAULT_BINS
-from mirror_avatar.user_files import MAX_JSON_DEPTH
+from mirror_avatar.signatures.signature import DEFAULT_BINS
 
 Loader = Callable[[Path], object]
 LOADERS: dict[str, Loader] = {

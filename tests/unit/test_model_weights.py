@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from test_model_files_hostile import contents, write
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.deep.network import count_parameters, q_values
 from mirror_avatar.deep.player import MAX_LAYERS, MAX_UNITS, DeepCyberPlayer, load_deep_cyber_player
-from mirror_avatar.errors import InputError
-from mirror_avatar.model_files import MAX_MAGNITUDE
+from mirror_avatar.files.model_files import MAX_MAGNITUDE
 
 
 @pytest.mark.parametrize("weight", [1e308, -1e12, 2 * MAX_MAGNITUDE])

@@ -8,15 +8,15 @@ import pytest
 pytest.importorskip("pettingzoo")
 from pettingzoo.test import parallel_api_test, parallel_seed_test  # noqa: E402
 
+from mirror_avatar.common.errors import InputError  # noqa: E402
 from mirror_avatar.dynamics import GROUP  # noqa: E402
 from mirror_avatar.engine.loop import Engine  # noqa: E402
-from mirror_avatar.env import ActionPlayer  # noqa: E402
-from mirror_avatar.errors import InputError  # noqa: E402
-from mirror_avatar.graphs import ring_graph  # noqa: E402
 from mirror_avatar.learning.agent import CyberPlayer  # noqa: E402
 from mirror_avatar.learning.kernels import compute_reward  # noqa: E402
-from mirror_avatar.multi_agent import MirrorGroupEnv  # noqa: E402
 from mirror_avatar.players import VirtualTrainer  # noqa: E402
+from mirror_avatar.rl.env import ActionPlayer  # noqa: E402
+from mirror_avatar.rl.multi_agent import MirrorGroupEnv  # noqa: E402
+from mirror_avatar.sessions.graphs import ring_graph  # noqa: E402
 from mirror_avatar.specs import bundled_generator  # noqa: E402
 
 

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.engine.loop import Engine, play
-from mirror_avatar.errors import InputError
 from mirror_avatar.players.base import (
     DRY_RUN_MAX_SPEED,
     Observation,

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.engine.batch import run_sessions
 from mirror_avatar.engine.loop import play
-from mirror_avatar.errors import InputError
 from mirror_avatar.players import Observation, RecordedPlayer, check_player
 from mirror_avatar.players.adaptive import AdaptivePlayer
 from mirror_avatar.players.excitator import ExcitatorPartner

@@ -10,7 +10,7 @@ import numpy as np
 from mirror_avatar.lab.design.plan import parse_plan
 from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.realtime.inputs import BrowserInput
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 
 GROUP = {
     "condition": "group",

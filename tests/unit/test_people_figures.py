@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from matplotlib.text import Text
 
-from mirror_avatar.people_figures import plot_emd_heatmap, plot_people_space
+from mirror_avatar.figures.people import plot_emd_heatmap, plot_people_space
 from mirror_avatar.report import render_png
-from mirror_avatar.signature import DEFAULT_BINS, SignatureAnalysis, confidence_ellipse
+from mirror_avatar.signatures.signature import DEFAULT_BINS, SignatureAnalysis, confidence_ellipse
 
 
 def crowded_analysis(n_people: int, n_trials: int, seed: int = 0) -> SignatureAnalysis:

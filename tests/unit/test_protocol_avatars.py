@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.lab.design.protocol import load_protocol, parse_protocol
 from mirror_avatar.lab.design.protocol_store import store_protocol
 

@@ -7,9 +7,9 @@ import pandas as pd
 import pytest
 from scipy.interpolate import PchipInterpolator
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import ColumnMap, ImportOptions, parse_columns
-from mirror_avatar.trial_files import read_trial, read_trial_file
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.importing import ColumnMap, ImportOptions, parse_columns
+from mirror_avatar.files.trial_files import read_trial, read_trial_file
 
 
 def jittered(n: int = 200, seed: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -10,7 +10,7 @@ import pytest
 from mirror_avatar.cli.measure_options import format_measures
 from mirror_avatar.metrics.measures import MeasureOptions
 from mirror_avatar.metrics.surrogates import p_value
-from mirror_avatar.permutations import p_text
+from mirror_avatar.signatures.permutations import p_text
 
 
 @pytest.mark.parametrize(("n", "floor"), [(99, "0.01"), (19, "0.05"), (999, "0.001")])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mirror_avatar.seeds import spawn_seeds
+from mirror_avatar.common.seeds import spawn_seeds
 
 SEEDS = [0, 1, 7, 2**32 - 1, 2**32, 2**63 + 11, 2**64 - 1, 2**96 + 5, 2**128 - 1, 2**160 + 3]
 

@@ -6,9 +6,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import path_graph
-from mirror_avatar.session import Session, SessionWriter, load_session
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.sessions.graphs import path_graph
+from mirror_avatar.sessions.loading import load_session
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.sessions.writer import SessionWriter
 
 CHANNELS = ("times", "positions", "velocities", "controls", "references")
 

@@ -8,8 +8,8 @@ import scipy.stats
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.signature import (
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.signatures.signature import (
     Bins,
     Ellipse,
     analyse_signatures,

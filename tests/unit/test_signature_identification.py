@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mirror_avatar.signature import analyse_signatures
-from mirror_avatar.signature_identification import identify_people
+from mirror_avatar.signatures.identification import identify_people
+from mirror_avatar.signatures.signature import analyse_signatures
 
 
 def slow_nearest(emd: np.ndarray, people: list[str]) -> list[str]:

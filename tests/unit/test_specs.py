@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from mirror_avatar import dynamics, specs
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.trial_files import write_trial
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import Observation, Player, RecordedPlayer, VirtualTrainer, check_player
 from mirror_avatar.specs import bundled_generator, cache_dir, load_player
-from mirror_avatar.trial_files import write_trial
-from mirror_avatar.trials import Trial
 
 
 @pytest.fixture(autouse=True)

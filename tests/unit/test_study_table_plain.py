@@ -13,10 +13,10 @@ import pytest
 
 from mirror_avatar.analysis.guesses import guess, guess_of, is_identification
 from mirror_avatar.cli import main
+from mirror_avatar.files.trial_record import AnswerRecord
 from mirror_avatar.lab.design.plan import parse_plan
 from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.realtime.inputs import BrowserInput
-from mirror_avatar.trial_record import AnswerRecord
 
 RING = {
     "condition": "group", "graph": "ring", "duration": 4.0, "trials": 2, "seed": 5,

@@ -7,7 +7,8 @@ import logging
 
 import numpy as np
 
-from mirror_avatar.session import Session, load_session
+from mirror_avatar.sessions.loading import load_session
+from mirror_avatar.sessions.session import Session
 
 
 def test_a_torn_last_line_is_left_out_naming_the_file_and_line(tmp_path, caplog):
@@ -20,7 +21,7 @@ def test_a_torn_last_line_is_left_out_naming_the_file_and_line(tmp_path, caplog)
     )
     text = path.read_text()
     path.write_text(text[:-15])  # the last line cut mid-number, as a full disk leaves it
-    with caplog.at_level(logging.WARNING, logger="mirror_avatar.session"):
+    with caplog.at_level(logging.WARNING, logger="mirror_avatar.sessions.session"):
         session = load_session(path)
     assert session.n_samples == 39
     (record,) = caplog.records

@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mirror_avatar.bids.names import entities, folder_repeats_entities, recording_stem
 from mirror_avatar.cli.trial_sets import common_root, trial_identity
+from mirror_avatar.files.bids.names import entities, folder_repeats_entities, recording_stem
+from mirror_avatar.files.trials import make_trial
 from mirror_avatar.metrics.progress import order_by_start, recorded_start
-from mirror_avatar.session import Session
-from mirror_avatar.signature import distinct_labels
-from mirror_avatar.trials import make_trial
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.signature import distinct_labels
 
 
 def test_entities_of_a_bids_name() -> None:

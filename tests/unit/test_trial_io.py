@@ -5,12 +5,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mirror_avatar.atomic import atomic_path, write_atomic_text
 from mirror_avatar.cli.trial_sets import read_trial_set
-from mirror_avatar.errors import InputError
-from mirror_avatar.trial_files import read_trial, read_trial_file, write_trial
-from mirror_avatar.trial_io import read_mat_struct, write_mat_struct
-from mirror_avatar.trials import make_trial
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.atomic import atomic_path, write_atomic_text
+from mirror_avatar.files.trial_files import read_trial, read_trial_file, write_trial
+from mirror_avatar.files.trial_io import read_mat_struct, write_mat_struct
+from mirror_avatar.files.trials import make_trial
 
 
 def test_csv_round_trip(tmp_path: Path, rng: np.random.Generator) -> None:

@@ -11,9 +11,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.session import make_sidecar
-from mirror_avatar.trial_record import (
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.trial_record import (
     KINDS,
     InputEventRecord,
     PerturbationRecord,
@@ -25,6 +24,7 @@ from mirror_avatar.trial_record import (
     read_trial_record,
     trial_record,
 )
+from mirror_avatar.sessions.session import make_sidecar
 
 texts = st.text(min_size=1, max_size=8)
 counts = st.integers(min_value=0, max_value=2**32 - 1)

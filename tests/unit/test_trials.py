@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.trials import compute_velocity, finite_difference, make_trial, resample
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.trials import compute_velocity, finite_difference, make_trial, resample
 
 
 def test_finite_difference_is_exact_on_a_cubic():

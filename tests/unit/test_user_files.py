@@ -1,4 +1,4 @@
-"""The one way user files are opened and user JSON parsed (`mirror_avatar.user_files`)."""
+"""The one way user files are opened and user JSON parsed (`mirror_avatar.files.user_files`)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.user_files import (
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.user_files import (
     FLOAT_DIGITS,
     MAX_JSON_DEPTH,
     MAX_PART_BYTES,

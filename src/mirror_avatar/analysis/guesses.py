@@ -13,7 +13,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable
 
-from mirror_avatar.trial_record import AnswerRecord
+from mirror_avatar.files.trial_record import AnswerRecord
 
 PERSON_WORDS = frozenset({"person", "human", "people", "someone", "somebody", "participant"})
 """Words of an answer or a question naming a person."""

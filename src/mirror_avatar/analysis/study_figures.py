@@ -13,7 +13,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from mirror_avatar.analysis.identification import Identification, scored_answers
-from mirror_avatar.figures import FIGSIZE
+from mirror_avatar.figures.style import FIGSIZE
 
 PARTICIPANT_COLOUR = "0.6"
 MEAN_COLOUR = "C0"

@@ -17,7 +17,7 @@ from typing import Any
 
 import pandas as pd
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 
 TABLE_NAMES = ("study.csv", "study.parquet")
 """The table's file names in a folder, in the order they are looked for."""

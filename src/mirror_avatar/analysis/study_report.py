@@ -36,8 +36,8 @@ from mirror_avatar.analysis.study_text import (
     methods_paragraph,
     verdict,
 )
-from mirror_avatar.atomic import write_atomic_json, write_atomic_text
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.atomic import write_atomic_json, write_atomic_text
 from mirror_avatar.report import Section, render_report
 
 STUDY_REPORT_FILES = ("report.html", "results.json", "conditions.csv", "contrasts.csv")

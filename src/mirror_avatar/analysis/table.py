@@ -34,14 +34,14 @@ from mirror_avatar.analysis.dictionary import (
 )
 from mirror_avatar.analysis.guesses import guess
 from mirror_avatar.analysis.trials import StudyTrial
-from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.files.trial_record import KIND_NAMES, SlotRecord, partner_kind
+from mirror_avatar.files.trials import MIN_SAMPLES
 from mirror_avatar.lab.running.trial import LAB_SURROGATES
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.metrics.measures import MeasureOptions, session_measures
 from mirror_avatar.metrics.quantities import Quantities
-from mirror_avatar.trial_record import KIND_NAMES, SlotRecord, partner_kind
-from mirror_avatar.trials import MIN_SAMPLES
 
 TABLE_FILES = ("study.csv", "study.parquet", "study.json")
 """The files `write_study_table` writes."""
@@ -75,7 +75,7 @@ def study_table(
 def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str, Any]:
     """Compute a trial's metrics and measures (the session trimmed once, each quantity once).
 
-    A trial with fewer than `mirror_avatar.trials.MIN_SAMPLES` samples after the trim (a run
+    A trial with fewer than `mirror_avatar.files.trials.MIN_SAMPLES` samples after the trim (a run
     stopped at once) has none: its rows keep their design and answers.
     """
     try:

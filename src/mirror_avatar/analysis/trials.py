@@ -4,12 +4,14 @@
 ``<out>/<protocol>-pNNN/``, a plain session's ``<out>/<session id>/``), folders holding them
 (the lab's ``--out``), a BIDS dataset a lab export wrote (`mirror_avatar.lab.export.bids`) or one of
 its subject folders. From a run folder, each trial's sidecar gives its record
-(`mirror_avatar.trial_record.read_trial_record`) and ``trial-NN_answers.json`` its answers.
+(`mirror_avatar.files.trial_record.read_trial_record`) and ``trial-NN_answers.json`` its answers.
 From a BIDS dataset (never its ``sourcedata/``), each trial is read once whichever of its people's
-``_motion.tsv`` holds it (`mirror_avatar.session.load_session`): the ``MirrorGame`` key gives
+``_motion.tsv`` holds it (`mirror_avatar.sessions.loading.load_session`): the ``MirrorGame`` key
+gives
 its slots with their true kinds, the ``_events.tsv`` its block, condition, delay, occlusions and
 perturbations, ``participants.tsv`` the study participant's number and each ``_beh.tsv`` the
-answers; the record is then made by the same reader (`mirror_avatar.trial_record.trial_record`)
+answers; the record is then made by the same reader
+(`mirror_avatar.files.trial_record.trial_record`)
 as a sidecar's, so both sources give equal records.
 """
 
@@ -22,16 +24,12 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from mirror_avatar.bids.names import MISSING, bids_label, entities
-from mirror_avatar.bids.reading import GAME_KEY, open_recording
-from mirror_avatar.bids.tables import read_tsv
-from mirror_avatar.errors import InputError
-from mirror_avatar.lab.export.bids import TASK
-from mirror_avatar.lab.export.bids_study import StudyRun, read_study, subject_label
-from mirror_avatar.lab.files import ANSWERS_SUFFIX, TRIAL_PATTERN, companion, is_session_folder
-from mirror_avatar.session import Session, load_session
-from mirror_avatar.trial_io import read_sidecar_text
-from mirror_avatar.trial_record import (
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.bids.names import MISSING, bids_label, entities
+from mirror_avatar.files.bids.reading import GAME_KEY, open_recording
+from mirror_avatar.files.bids.tables import read_tsv
+from mirror_avatar.files.trial_io import read_sidecar_text
+from mirror_avatar.files.trial_record import (
     AnswerRecord,
     AnswersRecord,
     PerturbationRecord,
@@ -41,6 +39,11 @@ from mirror_avatar.trial_record import (
     read_trial_record,
     trial_record,
 )
+from mirror_avatar.lab.export.bids import TASK
+from mirror_avatar.lab.export.bids_study import StudyRun, read_study, subject_label
+from mirror_avatar.lab.files import ANSWERS_SUFFIX, TRIAL_PATTERN, companion, is_session_folder
+from mirror_avatar.sessions.loading import load_session
+from mirror_avatar.sessions.session import Session
 
 DATASET_FILE = "dataset_description.json"
 """The file that makes a folder a BIDS dataset's root."""
@@ -164,7 +167,7 @@ def _bids_trial(
     """Read one exported trial: its session, its record and every person's answers.
 
     The session's metadata holds the record the ``MirrorGame`` key gives
-    (`mirror_avatar.bids.reading.read_lab_recording`); the run's events add the study's part
+    (`mirror_avatar.files.bids.reading.read_lab_recording`); the run's events add the study's part
     and the perturbations.
     """
     session = load_session(motion)

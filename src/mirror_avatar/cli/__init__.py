@@ -16,8 +16,8 @@ import os
 
 import click
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.interruptions import aborted, interrupt
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.interruptions import aborted, interrupt
 
 __all__ = ["cli", "fail", "interrupt", "main"]
 

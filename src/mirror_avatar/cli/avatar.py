@@ -13,8 +13,8 @@ from mirror_avatar.cli.constrained import JOBS, SEED, SESSIONS, ranged
 from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.cli.train import load_generator
-from mirror_avatar.constraints import Interval
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.constraints import Interval
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.experiments.avatar_holdout import MAX_FOLDS, MIN_TRIALS_TO_HOLD_OUT
 from mirror_avatar.experiments.avatar_proof import find_person
 from mirror_avatar.experiments.personal_avatar import (
@@ -25,9 +25,9 @@ from mirror_avatar.experiments.personal_avatar import (
     default_partners,
     save_avatar,
 )
-from mirror_avatar.importing import ImportOptions, excerpt
+from mirror_avatar.files.importing import ImportOptions, excerpt
 from mirror_avatar.learning.acceleration_player import Agent
-from mirror_avatar.session import load_session
+from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.training.agents import AGENTS
 from mirror_avatar.training.avatar import MAX_NAME_CHARS
 

@@ -19,13 +19,12 @@ import click
 import pandas as pd
 from matplotlib.figure import Figure
 
-from mirror_avatar.atomic import json_safe, write_atomic_bytes, write_atomic_json, write_atomic_text
 from mirror_avatar.cli.benchmark_humans import read_human_followers
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import SessionReading, import_options
 from mirror_avatar.cli.trial_sets import read_trial_set
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.benchmark_ranking import (
     HUMANS,
     NO_HUMANS_DEFAULT,
@@ -50,12 +49,18 @@ from mirror_avatar.experiments.published_partners import (
     TABLE4,
     published_table,
 )
-from mirror_avatar.figures import plot_positions
-from mirror_avatar.importing import ImportOptions
+from mirror_avatar.figures.sessions import plot_positions
+from mirror_avatar.files.atomic import (
+    json_safe,
+    write_atomic_bytes,
+    write_atomic_json,
+    write_atomic_text,
+)
+from mirror_avatar.files.importing import ImportOptions
+from mirror_avatar.files.trials import DEFAULT_RATE, Trial
 from mirror_avatar.report import Section, render_png, render_report
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.specs import MODEL_PARTNERS
-from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 BUNDLED = "bundled"
 """The --leader value naming the bundled recordings (`mirror_avatar.datasets.load_zhai2017`)."""

@@ -16,10 +16,10 @@ from pathlib import Path
 
 from mirror_avatar.cli.evaluate import find_sessions, session_names
 from mirror_avatar.cli.reading import SessionReading
-from mirror_avatar.errors import InputError
-from mirror_avatar.session import Session
-from mirror_avatar.trial_record import lab_trial_record
-from mirror_avatar.trials import DEFAULT_RATE, Trial, make_trial
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.trial_record import lab_trial_record
+from mirror_avatar.files.trials import DEFAULT_RATE, Trial, make_trial
+from mirror_avatar.sessions.session import Session
 
 OPTION = "--humans"
 """The option naming the recordings, quoted in error lines."""

@@ -1,4 +1,4 @@
-"""Click parameter types built from declared constraints (`mirror_avatar.constraints`).
+"""Click parameter types built from declared constraints (`mirror_avatar.common.constraints`).
 
 `constrained_type` turns an `Interval` into a number type that refuses, in one line naming the
 option, any value outside it (NaN and infinities included), `Options` into a `click.Choice`
@@ -14,7 +14,7 @@ from typing import Any
 
 import click
 
-from mirror_avatar.constraints import (
+from mirror_avatar.common.constraints import (
     Constraint,
     ConstraintError,
     Either,

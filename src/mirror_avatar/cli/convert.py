@@ -8,13 +8,13 @@ from pathlib import Path
 
 import click
 
-from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import ImportOptions
-from mirror_avatar.trial_io import write_csv_trial
-from mirror_avatar.trials import Trial
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.atomic import write_atomic_json
+from mirror_avatar.files.importing import ImportOptions
+from mirror_avatar.files.trial_io import write_csv_trial
+from mirror_avatar.files.trials import Trial
 
 UNSAFE = re.compile(r"[^A-Za-z0-9_.-]+")
 """Characters replaced in folder and file names written."""

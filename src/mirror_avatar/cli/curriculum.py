@@ -9,14 +9,12 @@ import click
 import pandas as pd
 
 from mirror_avatar import __version__
-from mirror_avatar.atomic import write_atomic_json
 from mirror_avatar.cli.constrained import SEED, ranged
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import import_options
 from mirror_avatar.cli.train import load_generator
-from mirror_avatar.constraints import Interval
-from mirror_avatar.curriculum import METHODS, StageMotion, save_stage
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.constraints import Interval
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.experiments.curriculum import (
     DURATION,
     N_DRAWS,
@@ -27,8 +25,10 @@ from mirror_avatar.experiments.curriculum import (
     own_emd,
 )
 from mirror_avatar.experiments.verdicts import section_verdict
-from mirror_avatar.importing import ImportOptions, excerpt
+from mirror_avatar.files.atomic import write_atomic_json
+from mirror_avatar.files.importing import ImportOptions, excerpt
 from mirror_avatar.report import REPORT_FILES, write_report
+from mirror_avatar.training.curriculum import METHODS, StageMotion, save_stage
 
 MAX_STAGES = 50
 PERSON_HELP = "A generator model .npz or bundled:STYLE."

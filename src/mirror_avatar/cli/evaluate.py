@@ -10,8 +10,6 @@ import click
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.atomic import json_safe
-from mirror_avatar.bids.names import MOTION_SUFFIX
 from mirror_avatar.cli.constrained import TRIM_RANGE, constrained_type, with_range
 from mirror_avatar.cli.evaluate_report import (
     Evaluated,
@@ -31,7 +29,10 @@ from mirror_avatar.cli.reading import (
     session_options,
 )
 from mirror_avatar.cli.simulate import format_metrics
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.atomic import json_safe
+from mirror_avatar.files.bids.names import MOTION_SUFFIX
+from mirror_avatar.files.trial_record import trial_record
 from mirror_avatar.metrics import TRIM
 from mirror_avatar.metrics.analysis_rate import (
     ANALYSIS_RATE,
@@ -42,8 +43,7 @@ from mirror_avatar.metrics.analysis_rate import (
 from mirror_avatar.metrics.measures import evaluate_sessions
 from mirror_avatar.metrics.progress import order_by_start, progress_table
 from mirror_avatar.report import REPORT_FILES
-from mirror_avatar.session import Session
-from mirror_avatar.trial_record import trial_record
+from mirror_avatar.sessions.session import Session
 
 SESSION_FILES = (".csv", ".parquet")
 

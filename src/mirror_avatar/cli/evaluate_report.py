@@ -16,15 +16,16 @@ from typing import Any
 
 import pandas as pd
 
-from mirror_avatar.atomic import write_atomic_files
 from mirror_avatar.cli.reading import session_note
 from mirror_avatar.cli.trial_sets import common_root
-from mirror_avatar.figures import plot_progress, plot_session
+from mirror_avatar.figures.learning import plot_progress
+from mirror_avatar.figures.sessions import plot_session
+from mirror_avatar.files.atomic import write_atomic_files
 from mirror_avatar.metrics import registry
 from mirror_avatar.metrics.measures import Measures
-from mirror_avatar.permutations import p_text
 from mirror_avatar.report import Section, report_texts
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.permutations import p_text
 
 ALPHA = 0.05
 """A session whose deciding measure has a p-value below this beats its surrogates (METHODS
@@ -271,7 +272,7 @@ def write_evaluation(
     The page leads with the `verdict` and shows `glance_tables` and `measures_table`; the CSV
     and JSON keep the raw keys. A session read with --columns or --resample says so
     (`session_note`). The three files are rendered first, then written together
-    (`mirror_avatar.atomic.write_atomic_files`): a failure leaves none of them changed.
+    (`mirror_avatar.files.atomic.write_atomic_files`): a failure leaves none of them changed.
     """
     names = session_names([found.path for found in results])
     read = [note for found in results if (note := session_note(found.path, found.session))]

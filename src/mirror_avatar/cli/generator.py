@@ -10,24 +10,24 @@ import click
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.atomic import write_atomic_json, write_atomic_text
 from mirror_avatar.cli.constrained import RATE_HZ, SEED, SESSION_SECONDS, ranged
 from mirror_avatar.cli.outputs import check_output_dir, check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
-from mirror_avatar.constraints import Interval
-from mirror_avatar.curriculum import FORMAT_NAME as STAGE_FORMAT
-from mirror_avatar.curriculum import StageMotion, load_stage
+from mirror_avatar.common.constraints import Interval
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import draw_seeds
 from mirror_avatar.datasets import BUNDLED_STYLES, load_zhai2017
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import ImportOptions
-from mirror_avatar.likeness import Likeness, compare_motion, trial_velocity
-from mirror_avatar.model_files import read_archive
+from mirror_avatar.files.atomic import write_atomic_json, write_atomic_text
+from mirror_avatar.files.importing import ImportOptions
+from mirror_avatar.files.model_files import read_archive
+from mirror_avatar.files.trial_io import write_csv_trial
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.motion.codebook_size import sweep_codebook
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.motion.hyperparameters import CODEBOOK_SIZES, KMEANS_SEEDS
-from mirror_avatar.seeds import draw_seeds
-from mirror_avatar.trial_io import write_csv_trial
-from mirror_avatar.trials import Trial
+from mirror_avatar.signatures.likeness import Likeness, compare_motion, trial_velocity
+from mirror_avatar.training.curriculum import FORMAT_NAME as STAGE_FORMAT
+from mirror_avatar.training.curriculum import StageMotion, load_stage
 
 
 @click.group()

@@ -24,13 +24,13 @@ from mirror_avatar.cli.train import (
     prepare_training_output,
     training_options,
 )
-from mirror_avatar.constraints import Interval
+from mirror_avatar.common.constraints import Interval
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.engine.loop import play
-from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.group import TRAINING_SESSIONS
-from mirror_avatar.graphs import TOPOLOGIES, graph_source
-from mirror_avatar.importing import ImportOptions
+from mirror_avatar.files.importing import ImportOptions
 from mirror_avatar.metrics import session_metrics
+from mirror_avatar.sessions.graphs import TOPOLOGIES, graph_source
 from mirror_avatar.specs import load_player
 from mirror_avatar.training.imitation import Agent, checkpoint_path, train_group_cyber_player
 

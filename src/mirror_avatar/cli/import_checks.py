@@ -4,7 +4,8 @@ A recording read with the wrong options often still reads: a tracker whose zero 
 its travel gives positions in [0, 1] instead of [-0.5, 0.5], and every analysis runs on them.
 `check_trial` measures each trial (mean rate, duration, the span of its positions, the span's
 centre, the samples interpolated over drop-outs) and names what looks wrong: positions outside
-the playing range `mirror_avatar.trials.PLAYING_RANGE`, a span whose centre is off the middle of
+the playing range `mirror_avatar.files.trials.PLAYING_RANGE`, a span whose centre is off the middle
+of
 the range by more than `OFF_CENTRE`, or irregular sampling (a step longer than `IRREGULAR_STEP`
 times the median step). `check_table` lays the checks out one line per trial; a trial
 resampled on reading (``--resample``) shows its recorded and new rates (``13.1->100``).
@@ -17,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mirror_avatar.trials import PLAYING_RANGE, Trial
+from mirror_avatar.files.trials import PLAYING_RANGE, Trial
 
 OFF_CENTRE = 0.1
 """Distance (units, a tenth of the playing range) of a trial's centre from 0 that is reported

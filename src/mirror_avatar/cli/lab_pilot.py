@@ -9,8 +9,8 @@ from typing import Any
 import click
 
 from mirror_avatar.cli.outputs import check_output_dir
-from mirror_avatar.errors import InputError
-from mirror_avatar.seeds import entropy_of
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import entropy_of
 
 DEFAULT_STAND_IN = "bundled:slow"
 """The SPEC standing in for a person no --stand-in names."""

@@ -19,9 +19,9 @@ from matplotlib.figure import Figure
 from mirror_avatar.metrics import registry
 from mirror_avatar.metrics.measures import MeasureOptions, Measures
 from mirror_avatar.metrics.surrogates import WeakNull
-from mirror_avatar.permutations import p_text
 from mirror_avatar.report import Section
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.permutations import p_text
 
 WIDE = (7.2, 4.8)
 

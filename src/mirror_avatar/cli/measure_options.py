@@ -18,7 +18,7 @@ import click
 from mirror_avatar.cli.constrained import constrained_type, with_range
 from mirror_avatar.metrics import registry
 from mirror_avatar.metrics.measures import CONSTRAINTS, MeasureOptions
-from mirror_avatar.permutations import p_text
+from mirror_avatar.signatures.permutations import p_text
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -95,7 +95,7 @@ def format_measures(values: dict[str, Any], options: MeasureOptions) -> str:
 
     Words and units are the registry's (`mirror_avatar.metrics.registry`); a measure without a
     value is written in its ``missing`` words, never ``nan``; a p-value at the floor of the
-    surrogates is written ``p <= 0.01`` (`mirror_avatar.permutations.p_text`);
+    surrogates is written ``p <= 0.01`` (`mirror_avatar.signatures.permutations.p_text`);
     the seed printed is ``options.seed``, the one the report and ``metrics.json`` name (this
     session's surrogates are drawn from a child of it).
     """

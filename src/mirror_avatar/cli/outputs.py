@@ -17,8 +17,8 @@ import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.user_files import check_path
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.user_files import check_path
 
 
 def check_output_dir(
@@ -40,7 +40,7 @@ def check_output_dir(
     ------
     InputError
         When ``path`` or one of its parents is a file, the path cannot be a file's
-        (`mirror_avatar.user_files.check_path`), the folder it would be made in cannot
+        (`mirror_avatar.files.user_files.check_path`), the folder it would be made in cannot
         be written to, or a file the command will write cannot be.
     """
     check_path(path)

@@ -2,7 +2,7 @@
 
 `import_options` adds ``--time-column``, ``--time-unit``, ``--position-column``,
 ``--position-unit``, ``--playing-range``, ``--max-gap``, ``--columns`` and ``--resample`` and
-hands the command one `mirror_avatar.importing.ImportOptions` (with ``--offset`` and
+hands the command one `mirror_avatar.files.importing.ImportOptions` (with ``--offset`` and
 ``--centre`` to move positions); `session_options` adds ``--columns``, ``--resample`` and
 ``--max-gap`` to the commands that read sessions, as one `SessionReading`;
 `group_option` adds ``--group-by``; `read_and_report` reads the paths and prints the groups
@@ -23,8 +23,8 @@ import click
 from mirror_avatar.cli.constrained import constrained_type, ranged, with_range
 from mirror_avatar.cli.import_checks import check_table, check_trial
 from mirror_avatar.cli.trial_sets import GROUPINGS, read_trial_set
-from mirror_avatar.constraints import Interval
-from mirror_avatar.importing import (
+from mirror_avatar.common.constraints import Interval
+from mirror_avatar.files.importing import (
     MAX_GAP,
     MAX_GAP_RANGE,
     PLAYING_RANGE_CM,
@@ -35,8 +35,9 @@ from mirror_avatar.importing import (
     ImportOptions,
     parse_columns,
 )
-from mirror_avatar.session import Session, load_session
-from mirror_avatar.trials import Trial
+from mirror_avatar.files.trials import Trial
+from mirror_avatar.sessions.loading import load_session
+from mirror_avatar.sessions.session import Session
 
 
 def _parse_columns(

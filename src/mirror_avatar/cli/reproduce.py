@@ -13,11 +13,11 @@ import click
 from mirror_avatar.cli.cluster import scheduler_option
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.errors import InputError
 from mirror_avatar.experiments import AGENT_EXPERIMENTS, EXPERIMENTS, SWEEPS
 from mirror_avatar.experiments.verdicts import describe_mode, section_verdict
-from mirror_avatar.importing import ImportOptions
+from mirror_avatar.files.importing import ImportOptions
 from mirror_avatar.learning.acceleration_player import Agent
 from mirror_avatar.report import REPORT_FILES, write_report
 from mirror_avatar.training.agents import AGENTS

@@ -7,29 +7,29 @@ from pathlib import Path
 
 import click
 
-from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
 from mirror_avatar.cli.constrained import RATE_HZ, SEED, ranged
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import group_option, import_options, read_and_report
-from mirror_avatar.constraints import Interval
+from mirror_avatar.common.constraints import Interval
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.signature import compute_group_emd
 from mirror_avatar.experiments.signature_report import NO_IDENTIFICATION, signature_page
-from mirror_avatar.figures import plot_group_comparison, plot_ims, plot_skew_kurtosis
-from mirror_avatar.importing import ImportOptions
-from mirror_avatar.likeness import trial_velocity
-from mirror_avatar.people_figures import plot_emd_heatmap, plot_people_space
+from mirror_avatar.figures.people import plot_emd_heatmap, plot_people_space
+from mirror_avatar.figures.signatures import plot_group_comparison, plot_ims, plot_skew_kurtosis
+from mirror_avatar.files.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.files.importing import ImportOptions
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.report import render_png
-from mirror_avatar.signature import SignatureAnalysis, analyse_signatures
-from mirror_avatar.signature_groups import (
+from mirror_avatar.signatures.groups import (
     GroupComparison,
     compare_groups,
     place_trials,
     read_group_map,
 )
-from mirror_avatar.signature_identification import identify_people
-from mirror_avatar.trials import Trial
+from mirror_avatar.signatures.identification import identify_people
+from mirror_avatar.signatures.likeness import trial_velocity
+from mirror_avatar.signatures.signature import SignatureAnalysis, analyse_signatures
 
 FIGURES = ("ims.png", "similarity.png", "distances.png", "strokes.png")
 """The figures written beside ``signature.json``."""

@@ -8,21 +8,21 @@ from typing import Any
 
 import click
 
-from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json
 from mirror_avatar.cli.constrained import SEED, SESSION_SECONDS, TRIM_RANGE, ranged
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import import_options
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.engine.loop import play
-from mirror_avatar.errors import InputError
-from mirror_avatar.figures import SESSION_FIGURES, plot_session
-from mirror_avatar.importing import ImportOptions
+from mirror_avatar.figures.sessions import SESSION_FIGURES, plot_session
+from mirror_avatar.files.atomic import write_atomic_bytes, write_atomic_json
+from mirror_avatar.files.importing import ImportOptions
+from mirror_avatar.files.trials import PLAYING_RANGE, Trial
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.metrics.registry import label, measure, symbol
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import render_png
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.specs import load_player
-from mirror_avatar.trials import PLAYING_RANGE, Trial
 
 METRIC_ROWS = (
     "phase_locking", "rmse", "mean_relative_phase", "sd_relative_phase", "time_lag",

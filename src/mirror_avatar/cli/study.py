@@ -18,7 +18,7 @@ from mirror_avatar.analysis.trials import read_study_trials
 from mirror_avatar.cli.constrained import TRIM_RANGE, ranged
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.study_report import report
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.metrics import TRIM
 
 

@@ -7,15 +7,16 @@ from pathlib import Path
 
 import click
 
-from mirror_avatar.atomic import write_atomic_bytes
 from mirror_avatar.cli.cluster import scheduler_option
 from mirror_avatar.cli.constrained import JOBS, SEED, SESSION_SECONDS, SESSIONS, ranged
 from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options
-from mirror_avatar.constraints import Interval
-from mirror_avatar.errors import InputError
-from mirror_avatar.figures import plot_learning_curves
-from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions
+from mirror_avatar.common.constraints import Interval
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.figures.learning import plot_learning_curves
+from mirror_avatar.files.atomic import write_atomic_bytes
+from mirror_avatar.files.importing import DEFAULT_IMPORT, ImportOptions
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.training import LearningCurve
 from mirror_avatar.motion.generator import IMSGenerator
@@ -32,7 +33,6 @@ from mirror_avatar.training.imitation import (
     learning_curve_path,
     train_cyber_player,
 )
-from mirror_avatar.trials import Trial
 
 MODEL_HELP = "An IMS generator .npz, bundled:fast, bundled:slow or vt:TRIAL_FILE."
 

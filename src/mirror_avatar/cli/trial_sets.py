@@ -4,8 +4,8 @@ A path given is a trial file or a folder searched recursively (a BIDS dataset ro
 Inside folders, files that cannot be read as trials (a session beside the solo trials, a CSV of
 something else) are skipped with a note rather than failing the whole folder; a file named
 explicitly must be a trial, and a file reached twice is read once. Files are read within the
-limits of `mirror_avatar.trial_io`; a ``--group-by`` map, like a sidecar, up to
-`mirror_avatar.trial_io.MAX_SIDECAR_BYTES`.
+limits of `mirror_avatar.files.trial_io`; a ``--group-by`` map, like a sidecar, up to
+`mirror_avatar.files.trial_io.MAX_SIDECAR_BYTES`.
 
 A trial's identity is its source, never its base name (`trial_identity`): its label is its file's
 path relative to the folder all the paths given share (`common_root`), without the extension
@@ -35,12 +35,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from mirror_avatar.bids.names import folder_repeats_entities, recording_stem
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import DEFAULT_IMPORT, ImportOptions, excerpt
-from mirror_avatar.trial_files import SUPPORTED, read_trial_file
-from mirror_avatar.trial_io import read_sidecar_text
-from mirror_avatar.trials import Trial
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.bids.names import folder_repeats_entities, recording_stem
+from mirror_avatar.files.importing import DEFAULT_IMPORT, ImportOptions, excerpt
+from mirror_avatar.files.trial_files import SUPPORTED, read_trial_file
+from mirror_avatar.files.trial_io import read_sidecar_text
+from mirror_avatar.files.trials import Trial
 
 GROUPINGS = ("directory", "bids", "file", "none", "pattern:REGEX", "map:FILE.csv")
 """The grouping rules a ``--group-by`` names."""

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from importlib.resources import as_file, files
 
-from mirror_avatar.trial_io import read_mat_struct
-from mirror_avatar.trials import Trial
+from mirror_avatar.files.trial_io import read_mat_struct
+from mirror_avatar.files.trials import Trial
 
 ZHAI2017_STYLES = {"fast": "reference1", "slow": "reference2"}
 """Style group -> file stem. ``fast``: about 1 Hz, nearly periodic; ``slow``: about 0.1 Hz."""

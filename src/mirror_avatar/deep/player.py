@@ -27,10 +27,19 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.deep.features import count_features, encode
 from mirror_avatar.deep.network import count_parameters, greedy_action, initial_parameters
 from mirror_avatar.dynamics import FOLLOWER, HKBParams, Record, integrate_hkb
-from mirror_avatar.errors import InputError
+from mirror_avatar.files.model_files import (
+    Source,
+    check_array,
+    check_integer,
+    check_object,
+    load_model,
+    require_arrays,
+)
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.acceleration_player import (
     DEFAULT_ACTIONS,
     DEFAULT_SUBSTEPS,
@@ -41,19 +50,10 @@ from mirror_avatar.learning.acceleration_player import (
     reference_arrays,
 )
 from mirror_avatar.learning.agent import check_training
-from mirror_avatar.model_files import (
-    Source,
-    check_array,
-    check_integer,
-    check_object,
-    load_model,
-    require_arrays,
-)
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players.base import Observation, PlayerPlan
 from mirror_avatar.players.kinds import PlayerKind, parameter_table, register_kind
 from mirror_avatar.players.reference import ReferenceDraw
-from mirror_avatar.trials import Trial
 
 Array = NDArray[np.float64]
 Ints = NDArray[np.int64]

@@ -29,14 +29,14 @@ from numba import njit
 from numpy.typing import NDArray
 from threadpoolctl import threadpool_limits
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.deep.features import encode
 from mirror_avatar.deep.network import adam_step, batch_q_values, greedy_action, loss_gradient
 from mirror_avatar.deep.player import DeepCyberPlayer
 from mirror_avatar.dynamics import Record, advance_hkb
-from mirror_avatar.errors import InputError
 from mirror_avatar.learning.kernels import compute_reward, draw_exploration
 from mirror_avatar.learning.training import ImitationTask, SessionLearner
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 
 Array = NDArray[np.float64]
 Ints = NDArray[np.int64]

@@ -11,7 +11,7 @@ from typing import Any
 
 from numba import njit
 
-from mirror_avatar.trials import PLAYING_RANGE
+from mirror_avatar.files.trials import PLAYING_RANGE
 
 _LOW, _HIGH = PLAYING_RANGE
 Record = Any

@@ -14,13 +14,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics.optimal_control import (
     LINEAR_COLUMNS,
     LINEAR_GRID,
     _tabulate_linear,
 )
-from mirror_avatar.errors import InputError
-from mirror_avatar.model_files import check_real
+from mirror_avatar.files.model_files import check_real
 
 CONTROL_PERIOD = 0.03
 """The control period T of the paper (s): players are advanced every T."""

@@ -5,7 +5,7 @@ of the compiled loop (`mirror_avatar.engine.compiled.run_plans`), the sessions s
 the loop calls the same step kernels as the players' own ``step``, so a batch session is
 identical to `mirror_avatar.engine.loop.play` of the same players with the same seed. Chunks run
 on threads of this process (the compiled code releases the GIL, and nothing is pickled) or on a
-Dask cluster, and are yielded in order as lists of `mirror_avatar.session.Session`:
+Dask cluster, and are yielded in order as lists of `mirror_avatar.sessions.session.Session`:
 a 24 000-session run never holds more than a few chunks in memory. Session ``i`` uses
 ``lineups[i % len(lineups)]`` and the seed ``spawn_seeds(seed, n, bits=64)[i]``, so results depend
 neither on the chunk size nor on where they are played. The graph may be fixed or drawn for
@@ -22,14 +22,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.progress import progress_bar
+from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.engine.compiled import run_plans
 from mirror_avatar.engine.loop import check_lineup, count_samples, spawn_session_seeds
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import Graph, GraphSource, draw_graph
 from mirror_avatar.players.base import Player, PlayerPlan
-from mirror_avatar.progress import progress_bar
-from mirror_avatar.seeds import spawn_seeds
-from mirror_avatar.session import Session, default_roles
+from mirror_avatar.sessions.graphs import Graph, GraphSource, draw_graph
+from mirror_avatar.sessions.session import Session, default_roles
 
 DASK_CONNECT_TIMEOUT = 10.0
 """Seconds to wait for a Dask scheduler before giving up."""
@@ -182,7 +182,7 @@ def run_sessions(
         tqdm progress bar over sessions: True, False, or None (only on a terminal).
     graph
         Who observes whom: a fixed adjacency matrix, a function drawing one for each session
-        from its own generator (`mirror_avatar.graphs.GraphSource`), or None (complete).
+        from its own generator (`mirror_avatar.sessions.graphs.GraphSource`), or None (complete).
     roles
         The players' roles, recorded in every session.
 

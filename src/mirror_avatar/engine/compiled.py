@@ -20,12 +20,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.engine.dispatch import kind_loop
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import Graph
 from mirror_avatar.players.base import PlayerPlan
 from mirror_avatar.players.kinds import player_kind
 from mirror_avatar.players.reference import draw_references
+from mirror_avatar.sessions.graphs import Graph
 
 Array = NDArray[np.float64]
 Ints = NDArray[np.int64]

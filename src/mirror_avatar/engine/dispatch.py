@@ -29,7 +29,7 @@ try:
 except ImportError:  # not POSIX: the first calls are not serialised between processes
     fcntl = None  # type: ignore[assignment]
 
-from mirror_avatar.atomic import write_atomic_text
+from mirror_avatar.files.atomic import write_atomic_text
 from mirror_avatar.players.kinds import PlayerKind, player_kind
 
 HEADER = '''"""The compiled batch loop for the player kinds {names}.

@@ -4,7 +4,8 @@ Every player observes its neighbours' states at t_k (`mirror_avatar.players.base
 gathered by `gather_neighbours`) and all advance simultaneously to t_k + T (METHODS sections 1,
 5 and 8: no one sees the future). An `ExternalPlayer` (a person) is not stepped: its state at
 each sample is read when the sample is taken. Each completed sample is recorded and passed to
-the engine's sinks (for instance a `mirror_avatar.session.SessionWriter`, so a live recording is
+the engine's sinks (for instance a `mirror_avatar.sessions.writer.SessionWriter`, so a live
+recording is
 on disk as it happens). `play` runs a whole session; the Gymnasium environment and the live
 server call `Engine.step` themselves.
 
@@ -22,8 +23,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import GraphSource, draw_graph
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import entropy_of, spawn_seeds
 from mirror_avatar.players.base import (
     DIVERGED_BEYOND,
     ExternalPlayer,
@@ -32,8 +33,8 @@ from mirror_avatar.players.base import (
     PlayerDiverged,
     gather_neighbours,
 )
-from mirror_avatar.seeds import entropy_of, spawn_seeds
-from mirror_avatar.session import CHANNELS, Session, default_roles
+from mirror_avatar.sessions.graphs import GraphSource, draw_graph
+from mirror_avatar.sessions.session import CHANNELS, Session, default_roles
 
 Array = NDArray[np.float64]
 Sink = Callable[[Array], None]
@@ -44,7 +45,8 @@ def row_positions(row: Array) -> Array:
     """Return the players' positions (units) of a row the engine passes its sinks, shape (N,).
 
     A row is ``[t, x_0, v_0, u_0, r_0, x_1, ...]``: the time (s), then each player's
-    `mirror_avatar.session.CHANNELS` (position, velocity, control, reference) in player order.
+    `mirror_avatar.sessions.session.CHANNELS` (position, velocity, control, reference) in player
+    order.
     """
     return row[1 :: len(CHANNELS)]
 
@@ -82,7 +84,8 @@ class Engine:
         The players, all with the same control period.
     graph
         Adjacency matrix (N, N), ``graph[k, j] = 1`` when player k observes player j, or a
-        function drawing one for each session (`mirror_avatar.graphs.GraphSource`); default the
+        function drawing one for each session (`mirror_avatar.sessions.graphs.GraphSource`);
+        default the
         complete graph.
     roles
         The players' roles, recorded in the session (default `default_roles`).
@@ -116,7 +119,8 @@ class Engine:
     def reset(self, seed: int | None, n_samples: int) -> None:
         """Start a session of at most ``n_samples`` samples; reset every player.
 
-        The players are reset with seeds spawned from ``seed`` (`mirror_avatar.seeds`), so the
+        The players are reset with seeds spawned from ``seed`` (`mirror_avatar.common.seeds`), so
+        the
         same seed replays the same session; None draws fresh entropy, kept in ``seed``. A
         drawn graph is drawn from the session seed as well.
         """

@@ -24,22 +24,28 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import draw_seeds
 from mirror_avatar.dynamics import preset
 from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.engine.loop import count_samples
-from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.cyber_player import SESSION_SECONDS, train_target, validate
 from mirror_avatar.experiments.group import choose_members
+from mirror_avatar.files.trials import DEFAULT_RATE, Trial
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
-from mirror_avatar.likeness import MAX_UNITS, Likeness, compare_motion, spread, trial_velocity
 from mirror_avatar.metrics import TRIM
 from mirror_avatar.motion.generator import IMSGenerator
-from mirror_avatar.seeds import draw_seeds
-from mirror_avatar.session import Session
-from mirror_avatar.signature import compute_emd, compute_ims
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.likeness import (
+    MAX_UNITS,
+    Likeness,
+    compare_motion,
+    spread,
+    trial_velocity,
+)
+from mirror_avatar.signatures.signature import compute_emd, compute_ims
 from mirror_avatar.training.cast import Cast, VirtualTrainerSpec
 from mirror_avatar.training.imitation import Agent
-from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 Array = NDArray[np.float64]
 
@@ -197,9 +203,10 @@ class HeldOutProof:
         avatar (or the person's virtual trainer) played, shape (comparisons,).
     likeness
         Role -> the human-likeness battery of the avatar's sessions against the held-out trials
-        (`mirror_avatar.likeness.compare_motion`, the person's own variability from all their
+        (`mirror_avatar.signatures.likeness.compare_motion`, the person's own variability from all
+        their
         trials; with several folds, the sessions of every fold against every held-out trial,
-        at most `mirror_avatar.likeness.MAX_UNITS` sessions spread over the folds).
+        at most `mirror_avatar.signatures.likeness.MAX_UNITS` sessions spread over the folds).
     """
 
     folds: list[list[str]]

@@ -7,7 +7,8 @@ Two checks, both against recordings the avatar never learned from:
   velocity IMS to the avatar's sessions against the person's own trial-to-trial EMD, a role
   flagged where the avatar is further from the person than their own variability allows.
 - **Recordings with a partner.** Where the person played a dyad session (a file
-  `mirror_avatar.session.load_session` reads), the avatar plays that session again against the
+  `mirror_avatar.sessions.loading.load_session` reads), the avatar plays that session again against
+  the
   partner's recorded track replayed open-loop (`mirror_avatar.players.RecordedPlayer`), in the
   person's place and role, and its CV, RMS and lag are set beside the person's.
 """
@@ -23,20 +24,20 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import draw_seeds
 from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.engine.loop import count_samples
-from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.avatar_holdout import MIN_TRIALS_TO_HOLD_OUT, HeldOutProof
 from mirror_avatar.experiments.cyber_player import CRITERIA
-from mirror_avatar.figures import plot_positions
-from mirror_avatar.importing import excerpt
-from mirror_avatar.likeness import MAX_UNITS
+from mirror_avatar.figures.sessions import plot_positions
+from mirror_avatar.files.importing import excerpt
+from mirror_avatar.files.trials import Trial, make_trial
 from mirror_avatar.metrics import TRIM, session_metrics
 from mirror_avatar.players import RecordedPlayer
-from mirror_avatar.seeds import draw_seeds
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.likeness import MAX_UNITS
 from mirror_avatar.training.avatar import Avatar
-from mirror_avatar.trials import Trial, make_trial
 
 PARTNER_SEEDS = 5
 """Sessions the avatar plays against each replayed partner, seeded apart (**choice**: the
@@ -52,7 +53,7 @@ LIKENESS_HEADERS = {
     "spread": "between the avatar's sessions",
     "p": "p-value (permutations by trial)",
 }
-"""The card's headers of `mirror_avatar.likeness.Likeness.table`'s columns."""
+"""The card's headers of `mirror_avatar.signatures.likeness.Likeness.table`'s columns."""
 
 
 @dataclass

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.experiments.partner_benchmark import HUMAN, SCORES, BenchmarkResult
 
 HUMANS = "humans"

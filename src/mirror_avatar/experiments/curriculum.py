@@ -1,12 +1,12 @@
 """The two ways of moving between a patient's and a target's motion, measured (METHODS section 10).
 
-For K stages of weight w_k = (k - 1) / (K - 1) and each method of `mirror_avatar.curriculum`,
-a stage's motion is drawn (``n_draws`` draws of `DURATION` s) and compared with the people's own
-trials: the EMD of its velocity IMS to the patient's and to the target's pooled trials, and its
-velocity strokes' skewness and kurtosis (mean, and the share within the human ranges). Then a
-virtual trainer moving like the patient follows a virtual trainer leading with the stage's
-motion (``n_sessions`` seeded sessions), and their coordination is measured (CV and RMS): a stage
-the patient cannot coordinate with is no use however its IMS looks.
+For K stages of weight w_k = (k - 1) / (K - 1) and each method of
+`mirror_avatar.training.curriculum`, a stage's motion is drawn (``n_draws`` draws of `DURATION` s)
+and compared with the people's own trials: the EMD of its velocity IMS to the patient's and to the
+target's pooled trials, and its velocity strokes' skewness and kurtosis (mean, and the share within
+the human ranges). Then a virtual trainer moving like the patient follows a virtual trainer leading
+with the stage's motion (``n_sessions`` seeded sessions), and their coordination is measured (CV and
+RMS): a stage the patient cannot coordinate with is no use however its IMS looks.
 """
 
 from __future__ import annotations
@@ -17,20 +17,20 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.curriculum import BLOCK_SECONDS, METHODS, StageMotion
+from mirror_avatar.common.progress import counted
+from mirror_avatar.common.seeds import draw_seeds
 from mirror_avatar.dynamics import preset
 from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.engine.loop import count_samples
 from mirror_avatar.experiments.cyber_player import measure
-from mirror_avatar.figures import HUMAN_KURTOSIS, HUMAN_SKEWNESS
+from mirror_avatar.figures.signatures import HUMAN_KURTOSIS, HUMAN_SKEWNESS
+from mirror_avatar.files.trials import DEFAULT_RATE, Trial
 from mirror_avatar.metrics import TRIM
 from mirror_avatar.motion.generator import PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.players import VirtualTrainer
-from mirror_avatar.progress import counted
 from mirror_avatar.report import Section
-from mirror_avatar.seeds import draw_seeds
-from mirror_avatar.signature import compute_emd, compute_ims, stroke_moments
-from mirror_avatar.trials import DEFAULT_RATE, Trial
+from mirror_avatar.signatures.signature import compute_emd, compute_ims, stroke_moments
+from mirror_avatar.training.curriculum import BLOCK_SECONDS, METHODS, StageMotion
 
 DURATION = 60.0
 N_DRAWS, QUICK_DRAWS = 6, 2

@@ -25,16 +25,19 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from mirror_avatar.common.seeds import draw_seeds
 from mirror_avatar.engine.batch import play_compiled, run_sessions
 from mirror_avatar.engine.loop import count_samples
-from mirror_avatar.figures import plot_learning_curves, plot_positions, plot_similarity_space
+from mirror_avatar.figures.learning import plot_learning_curves
+from mirror_avatar.figures.sessions import plot_positions
+from mirror_avatar.figures.signatures import plot_similarity_space
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.training import LearningCurve
 from mirror_avatar.metrics import TRIM, paired_ttest, session_metrics
 from mirror_avatar.report import Section
-from mirror_avatar.seeds import draw_seeds
-from mirror_avatar.session import Session
-from mirror_avatar.signature import (
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.signature import (
     classical_mds,
     compute_emd,
     compute_emd_matrix,
@@ -54,7 +57,6 @@ from mirror_avatar.training.imitation import (
     score_avatar,
     train_cyber_player,
 )
-from mirror_avatar.trials import Trial
 
 TRAINING_SESSIONS: dict[Agent, int] = {"tabular": 4000, "dqn": 300}
 """Training sessions per role by default, per agent (**choice**: enough for both roles to match

@@ -17,13 +17,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.figures import plot_ims, plot_similarity_space, plot_skew_kurtosis
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.figures.signatures import plot_ims, plot_similarity_space, plot_skew_kurtosis
+from mirror_avatar.files.trials import Trial, finite_difference
 from mirror_avatar.motion.codebook_size import sweep_codebook
 from mirror_avatar.motion.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.report import Section
-from mirror_avatar.signature import SignatureAnalysis, analyse_signatures
-from mirror_avatar.trials import Trial, finite_difference
+from mirror_avatar.signatures.signature import SignatureAnalysis, analyse_signatures
 
 TRAIN_FRACTION = 2.0 / 3.0
 """Share of each style's trials the generator is fitted on (paper: two thirds)."""

@@ -21,12 +21,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.progress import counted
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.motion.generator import PAPER_SYMBOLS, IMSGenerator
-from mirror_avatar.progress import counted
 from mirror_avatar.report import Section
-from mirror_avatar.signature import compute_emd, compute_ims
-from mirror_avatar.trials import Trial
+from mirror_avatar.signatures.signature import compute_emd, compute_ims
 
 TRIALS_GIVEN = (3, 5, 9)
 QUICK_TRIALS_GIVEN = (3,)

@@ -23,16 +23,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from mirror_avatar.common.seeds import draw_seeds
 from mirror_avatar.engine.batch import play_compiled
 from mirror_avatar.engine.loop import count_samples
-from mirror_avatar.figures import (
-    plot_bars,
-    plot_graph,
-    plot_group_synchronisation,
-    plot_learning_curves,
-    plot_series,
-)
-from mirror_avatar.graphs import GraphSource, make_graph, random_connected_graph
+from mirror_avatar.figures.graphs import plot_graph
+from mirror_avatar.figures.learning import plot_bars, plot_learning_curves
+from mirror_avatar.figures.sessions import plot_group_synchronisation, plot_series
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.metrics import (
     TRIM,
@@ -43,8 +40,8 @@ from mirror_avatar.metrics import (
 )
 from mirror_avatar.players import Player
 from mirror_avatar.report import Section
-from mirror_avatar.seeds import draw_seeds
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.graphs import GraphSource, make_graph, random_connected_graph
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.training.agents import AGENT_NAMES
 from mirror_avatar.training.cast import Cast, VirtualTrainerSpec, cast_virtual_trainers
 from mirror_avatar.training.imitation import (
@@ -55,7 +52,6 @@ from mirror_avatar.training.imitation import (
     score_avatar,
     train_group_cyber_player,
 )
-from mirror_avatar.trials import Trial
 
 CYBER = "cyber player"
 """The cyber player's name in the records (the target's is its label)."""

@@ -24,14 +24,14 @@ import pandas as pd
 from numpy.typing import NDArray
 from tqdm import tqdm
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.engine.loop import play
-from mirror_avatar.errors import InputError
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.players import Player, RecordedPlayer
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.specs import MODEL_PARTNERS, load_player
-from mirror_avatar.trials import Trial
 
 Array = NDArray[np.float64]
 

@@ -21,9 +21,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.atomic import write_atomic_text
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.avatar_holdout import (
     Fold,
     RoleMotion,
@@ -44,16 +43,18 @@ from mirror_avatar.experiments.cyber_player import (
     make_table_one,
     run_role,
 )
-from mirror_avatar.figures import plot_ims, plot_learning_curves
+from mirror_avatar.figures.learning import plot_learning_curves
+from mirror_avatar.figures.signatures import plot_ims
+from mirror_avatar.files.atomic import write_atomic_text
+from mirror_avatar.files.trials import DEFAULT_RATE, Trial
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.report import Section, render_report
-from mirror_avatar.session import Session
-from mirror_avatar.signature import DEFAULT_BINS, compute_ims
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.signature import DEFAULT_BINS, compute_ims
 from mirror_avatar.training.agents import AGENT_NAMES
 from mirror_avatar.training.avatar import Avatar
 from mirror_avatar.training.cast import Cast, VirtualTrainerSpec, make_virtual_trainers
 from mirror_avatar.training.imitation import Agent, Role
-from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 ROLES: tuple[Role, ...] = ("follower", "leader")
 """The roles trained, those of `mirror_avatar.training.avatar.TRAINED_ROLES`."""

@@ -13,21 +13,21 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.figures import (
+from mirror_avatar.figures.signatures import (
     HUMAN_KURTOSIS,
     HUMAN_SKEWNESS,
     plot_ims,
     plot_similarity_space,
     plot_skew_kurtosis,
 )
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.report import Section
-from mirror_avatar.signature import (
+from mirror_avatar.signatures.signature import (
     SignatureAnalysis,
     analyse_signatures,
     confidence_ellipse,
     ellipse_overlap,
 )
-from mirror_avatar.trials import Trial
 
 
 def run(trials: Sequence[Trial], quick: bool = False, seed: int = 0) -> Section:

@@ -1,8 +1,8 @@
 """The report of ``mirror-avatar signature``: are the people told apart, how well, and how.
 
 `signature_page` renders one self-contained HTML page (`mirror_avatar.report`) that leads with
-the verdict (`mirror_avatar.signature_identification`, and with ``--groups`` the comparison of
-the two groups, `mirror_avatar.signature_groups`), then shows the similarity space and the EMD
+the verdict (`mirror_avatar.signatures.identification`, and with ``--groups`` the comparison of
+the two groups, `mirror_avatar.signatures.groups`), then shows the similarity space and the EMD
 between trials, then the signatures and strokes. The figures are the PNG files the command
 writes beside it.
 """
@@ -16,11 +16,11 @@ from typing import Any
 import pandas as pd
 
 from mirror_avatar.experiments.signature import compute_within_between, stroke_table
-from mirror_avatar.figures import HUMAN_KURTOSIS, HUMAN_SKEWNESS
+from mirror_avatar.figures.signatures import HUMAN_KURTOSIS, HUMAN_SKEWNESS
 from mirror_avatar.report import Section, render_report
-from mirror_avatar.signature import SignatureAnalysis
-from mirror_avatar.signature_groups import GroupComparison
-from mirror_avatar.signature_identification import Identification
+from mirror_avatar.signatures.groups import GroupComparison
+from mirror_avatar.signatures.identification import Identification
+from mirror_avatar.signatures.signature import SignatureAnalysis
 
 TITLE = "mirror-avatar: motor signatures"
 

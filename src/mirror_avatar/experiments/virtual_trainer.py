@@ -27,18 +27,19 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.dynamics import FOLLOWER, LEADER
 from mirror_avatar.engine.loop import play
-from mirror_avatar.errors import InputError
-from mirror_avatar.figures import plot_ims, plot_positions, plot_relative_phase
+from mirror_avatar.figures.sessions import plot_positions, plot_relative_phase
+from mirror_avatar.figures.signatures import plot_ims
+from mirror_avatar.files.trials import DEFAULT_RATE, Trial
 from mirror_avatar.metrics import TRIM, compute_relative_phase, session_metrics
 from mirror_avatar.motion.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import Section
-from mirror_avatar.seeds import spawn_seeds
-from mirror_avatar.session import Session
-from mirror_avatar.signature import DEFAULT_BINS, compute_emd, compute_ims
-from mirror_avatar.trials import DEFAULT_RATE, Trial
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.signature import DEFAULT_BINS, compute_emd, compute_ims
 
 REFERENCE_STYLE = "slow"
 """Style the VT under test learns its signature from when the data have it (**choice**)."""

@@ -25,16 +25,22 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import entropy_of
 from mirror_avatar.dynamics import FOLLOWER, HKBParams
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import excerpt
-from mirror_avatar.model_files import Source, check_array, check_integer, check_real, save_model
+from mirror_avatar.files.importing import excerpt
+from mirror_avatar.files.model_files import (
+    Source,
+    check_array,
+    check_integer,
+    check_real,
+    save_model,
+)
+from mirror_avatar.files.trials import PLAYING_RANGE, Trial
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players.base import Observation, Player, PlayerPlan
 from mirror_avatar.players.reference import ReferenceDraw, ReferenceTrack
-from mirror_avatar.seeds import entropy_of
-from mirror_avatar.signature import DEFAULT_BINS
-from mirror_avatar.trials import PLAYING_RANGE, Trial
+from mirror_avatar.signatures.signature import DEFAULT_BINS
 
 Array = NDArray[np.float64]
 Agent = Literal["tabular", "dqn"]
@@ -87,7 +93,8 @@ class AccelerationPlayer(Player):
         Summary of how the policy was trained (seed, sessions, hyper-parameters, last scores).
     target_counts_ : ndarray, shape (DEFAULT_BINS.n,)
         Velocity samples of the player it learned to imitate, per bin of the velocity signature
-        (`mirror_avatar.signature.count_velocities`), summed over the training sessions; its
+        (`mirror_avatar.signatures.signature.count_velocities`), summed over the training sessions;
+        its
         signature is `target_ims`.
     """
 
@@ -95,7 +102,7 @@ class AccelerationPlayer(Player):
     """How the subclass chooses its action (recorded with it in an avatar's file)."""
     format_name: ClassVar[str]
     format_version: ClassVar[int]
-    """Its model file's format (`mirror_avatar.model_files`)."""
+    """Its model file's format (`mirror_avatar.files.model_files`)."""
 
     training_: dict[str, Any]
     target_counts_: Array

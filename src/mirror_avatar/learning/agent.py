@@ -25,7 +25,7 @@ and a JSON metadata string (format name ``mirror-avatar/cyber-player``), read wi
 and with every value it holds checked against its range (`CyberPlayer.save`,
 `load_cyber_player`; the limits are `MAX_Q_CELLS`, `MAX_TRAINING_SESSIONS`, those of
 `mirror_avatar.learning.acceleration_player`, `mirror_avatar.dynamics.PARAMETER_RANGES` and
-`mirror_avatar.model_files`).
+`mirror_avatar.files.model_files`).
 """
 
 from __future__ import annotations
@@ -39,9 +39,18 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import FOLLOWER, HKBParams, Record, integrate_hkb
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import excerpt
+from mirror_avatar.files.importing import excerpt
+from mirror_avatar.files.model_files import (
+    Source,
+    check_array,
+    check_integer,
+    check_object,
+    load_model,
+    require_arrays,
+)
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.acceleration_player import (
     DEFAULT_ACTIONS,
     DEFAULT_SUBSTEPS,
@@ -58,19 +67,10 @@ from mirror_avatar.learning.discretisation import (
     make_default_discretisation,
     state_index,
 )
-from mirror_avatar.model_files import (
-    Source,
-    check_array,
-    check_integer,
-    check_object,
-    load_model,
-    require_arrays,
-)
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players.base import Observation, PlayerPlan, partner_state
 from mirror_avatar.players.kinds import PlayerKind, parameter_table, register_kind
 from mirror_avatar.players.reference import ReferenceDraw
-from mirror_avatar.trials import Trial
 
 if TYPE_CHECKING:
     import os
@@ -374,7 +374,8 @@ def cyber_player_arrays(
 
     The file holds arrays ``q_table`` (n_states, n_actions), ``edges`` (all interior bin edges),
     ``edge_counts`` (4,), ``actions`` (n_actions,) and the JSON metadata of
-    `mirror_avatar.model_files.save_model`: format name and version, the dynamics parameters, the
+    `mirror_avatar.files.model_files.save_model`: format name and version, the dynamics parameters,
+    the
     discretisation, the training summary and its seed; once trained, ``target_counts``
     (DEFAULT_BINS.n,), its target's velocity counts. A player with ``"reference"`` features
     also stores its reference generator (arrays prefixed ``reference_``, metadata

@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 
 Array = NDArray[np.float64]
 Features = Literal["absolute", "relative", "reference"]

@@ -1,6 +1,7 @@
 """Training a cyber player: the `QLearner` estimator, its exploration schedule and learning curve.
 
-The learner consumes recorded sessions (`mirror_avatar.session.Session`, streamed: only one is
+The learner consumes recorded sessions (`mirror_avatar.sessions.session.Session`, streamed: only
+one is
 held at a time) in which a **target player** plays with its neighbours; in each, the avatar takes
 the target's place and learns off-policy from what the target did (`learn_session`). As in
 scikit-learn's ``MiniBatchKMeans``, `QLearner.fit` (a fresh start) and `QLearner.partial_fit`
@@ -25,14 +26,14 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from mirror_avatar.atomic import write_atomic_bytes
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.progress import progress_bar
+from mirror_avatar.files.atomic import write_atomic_bytes
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.discretisation import REFERENCE
 from mirror_avatar.learning.kernels import draw_exploration, learn_session, mean_track
-from mirror_avatar.progress import progress_bar
-from mirror_avatar.session import Session
-from mirror_avatar.signature import DEFAULT_BINS, count_velocities
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.signature import DEFAULT_BINS, count_velocities
 
 Array = NDArray[np.float64]
 

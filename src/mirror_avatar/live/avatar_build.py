@@ -15,16 +15,16 @@ from pathlib import Path
 from typing import Any
 
 from mirror_avatar import __version__
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.experiments.avatar_proof import MIN_TRIALS_TO_HOLD_OUT
 from mirror_avatar.experiments.personal_avatar import (
     create_avatar,
     default_partners,
     save_avatar,
 )
+from mirror_avatar.files.trial_files import read_trial
+from mirror_avatar.files.user_files import read_text
 from mirror_avatar.training.avatar import load_avatar
-from mirror_avatar.trial_files import read_trial
-from mirror_avatar.user_files import read_text
 
 MAX_CARD_BYTES = 32 * 2**20
 """Largest avatar card sent to the page (bytes; **choice**: a card with its figures is well

@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from mirror_avatar.files.user_files import is_int
 from mirror_avatar.realtime.messages import (
     PARTICIPANT_PATTERN,
     PositionUpdate,
@@ -33,7 +34,6 @@ from mirror_avatar.realtime.messages import (
     parse_json_object,
     parse_position,
 )
-from mirror_avatar.user_files import is_int
 
 MODES = ("solo", "avatar_leads", "avatar_follows", "joint")
 """Trial modes: the person alone, the avatar leading, the avatar following, joint improvisation."""

@@ -46,8 +46,8 @@ from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp
 from starlette.websockets import WebSocket
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.errors import InputError
 from mirror_avatar.experiments.cyber_player import BASELINE_SESSIONS, VALIDATION_SESSIONS
 from mirror_avatar.experiments.personal_avatar import DEFAULT_SESSIONS
 from mirror_avatar.live.admission import Admission

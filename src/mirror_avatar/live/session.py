@@ -11,8 +11,9 @@ the engine's clock, uniform at 1/T Hz; when each sample was really taken, and ho
 was, is recorded beside it.
 
 Recording, as each sample is taken (flushed): ``<stem>_session.csv``, the session in the
-toolkit's session format (`mirror_avatar.session.SessionWriter`, read back by
-`mirror_avatar.session.load_session`, so ``mirror-avatar evaluate`` works on it) with its sidecar
+toolkit's session format (`mirror_avatar.sessions.writer.SessionWriter`, read back by
+`mirror_avatar.sessions.loading.load_session`, so ``mirror-avatar evaluate`` works on it) with its
+sidecar
 ``<stem>_session.json`` (participant, mode, avatar spec, seed, timestamps, completeness, round
 trips, lateness and, at the end, the metrics), ``<stem>_inputs.csv`` (each sample's true time,
 lateness and input, `mirror_avatar.realtime.trial.TickLog`) and ``<stem>.csv``, the person's
@@ -38,18 +39,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mirror_avatar import __version__
-from mirror_avatar.atomic import LineFile
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.graphs import complete_graph
+from mirror_avatar.files.atomic import LineFile
+from mirror_avatar.files.trials import MIN_SAMPLES
 from mirror_avatar.live.messages import StartRequest
 from mirror_avatar.metrics import compute_relative_phase, session_metrics
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.realtime.inputs import BrowserInput, HumanPlayer
 from mirror_avatar.realtime.latency import RoundTrips
 from mirror_avatar.realtime.trial import ClockedTrial
-from mirror_avatar.session import Session
-from mirror_avatar.signature import DEFAULT_BINS, compute_ims
-from mirror_avatar.trials import MIN_SAMPLES
+from mirror_avatar.sessions.graphs import complete_graph
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.signature import DEFAULT_BINS, compute_ims
 
 logger = logging.getLogger(__name__)
 

@@ -22,7 +22,7 @@ from dataclasses import replace
 import numpy as np
 from scipy import signal
 
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 
 ANALYSIS_RATE = 100.0
 """Highest rate (Hz) the metrics and measures are computed at (**choice**: ten times the

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import uniform_filter1d
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.metrics.jitter import (
     FILTER_ORDER,
     JITTER_BAND,

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal, stats
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 
 PHASE_METHODS = ("hilbert", "kralemann")
 

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.metrics.runs import find_runs
 
 Array = NDArray[np.float64]

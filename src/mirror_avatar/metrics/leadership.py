@@ -21,7 +21,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import ArrayLike, NDArray
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 
 Array = NDArray[np.float64]
 

@@ -31,8 +31,9 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm.auto import tqdm
 
-from mirror_avatar.constraints import Constraint, Interval, Options, check
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.constraints import Constraint, Interval, Options, check
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.metrics import co_confidence, jitter, leadership, registry, synchrony_episodes
 from mirror_avatar.metrics import transfer_entropy as te
 from mirror_avatar.metrics.quantities import Quantities
@@ -46,8 +47,7 @@ from mirror_avatar.metrics.surrogates import (
     shift_offsets,
     shifted,
 )
-from mirror_avatar.seeds import spawn_seeds
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.session import Session
 
 Array = NDArray[np.float64]
 
@@ -144,7 +144,7 @@ class MeasureOptions:
 
         Raises
         ------
-        mirror_avatar.constraints.ConstraintError
+        mirror_avatar.common.constraints.ConstraintError
             A parameter outside its range, or transfer entropy with more than `MAX_TE_STATES`
             joint states.
         """
@@ -399,7 +399,8 @@ def evaluate_sessions(
 
     Each session's metrics (`mirror_avatar.metrics.summary.session_metrics`) and measures
     share its `Quantities`, so each quantity is computed once. Session i draws its surrogates
-    from child i of ``options.seed`` (`mirror_avatar.seeds.spawn_seeds`); pseudo-pairs take their
+    from child i of ``options.seed`` (`mirror_avatar.common.seeds.spawn_seeds`); pseudo-pairs take
+    their
     partners from the other sessions. A progress bar shows on a terminal when surrogates are
     drawn.
 

@@ -16,10 +16,10 @@ from typing import Any, TypeVar
 
 import pandas as pd
 
+from mirror_avatar.files.trial_record import lab_trial_record
 from mirror_avatar.metrics.summary import session_metrics
-from mirror_avatar.session import Session
-from mirror_avatar.signature import compute_emd, compute_ims
-from mirror_avatar.trial_record import lab_trial_record
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.signature import compute_emd, compute_ims
 
 START_KEYS = ("started_utc", "created_utc")
 """Metadata keys of a session's start time (ISO 8601), in order of preference: a live or lab

@@ -27,8 +27,8 @@ from mirror_avatar.metrics.coordination import (
     compute_rmse,
 )
 from mirror_avatar.metrics.group import ClusterPhase, compute_cluster_phase
-from mirror_avatar.session import Session
-from mirror_avatar.signature import compute_ims
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.signature import compute_ims
 
 Array = NDArray[np.float64]
 
@@ -61,7 +61,7 @@ class Quantities:
 
     @cached_property
     def ims(self) -> list[Array]:
-        """Each player's velocity IMS (`mirror_avatar.signature.compute_ims`)."""
+        """Each player's velocity IMS (`mirror_avatar.signatures.signature.compute_ims`)."""
         return [compute_ims(row) for row in self.velocities]
 
     @cached_property

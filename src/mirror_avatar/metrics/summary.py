@@ -29,8 +29,8 @@ from numpy.typing import NDArray
 
 from mirror_avatar.metrics.coordination import compute_circular_sd, compute_mean_relative_phase
 from mirror_avatar.metrics.quantities import Quantities
-from mirror_avatar.session import Session
-from mirror_avatar.signature import compute_emd, compute_ims
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.signatures.signature import compute_emd, compute_ims
 
 Array = NDArray[np.float64]
 

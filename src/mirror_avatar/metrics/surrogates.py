@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 
 Array = NDArray[np.float64]
 

@@ -22,7 +22,7 @@ import numpy as np
 import pyinform
 from numpy.typing import ArrayLike, NDArray
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 
 BINS = 4
 """Equiprobable bins of each velocity (**choice**)."""

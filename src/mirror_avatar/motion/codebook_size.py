@@ -18,10 +18,10 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.progress import counted
-from mirror_avatar.signature import compute_emd, compute_ims
-from mirror_avatar.trials import Trial, compute_velocity
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.progress import counted
+from mirror_avatar.files.trials import Trial, compute_velocity
+from mirror_avatar.signatures.signature import compute_emd, compute_ims
 
 Array = NDArray[np.float64]
 

@@ -38,15 +38,22 @@ import numpy as np
 from numpy.typing import NDArray
 from sklearn.cluster import KMeans
 
-from mirror_avatar.constraints import ConstraintError
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import excerpt
-from mirror_avatar.model_files import (
+from mirror_avatar.common.constraints import ConstraintError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.importing import excerpt
+from mirror_avatar.files.model_files import (
     check_array,
     check_object,
     load_model,
     require_arrays,
     save_model,
+)
+from mirror_avatar.files.trials import (
+    MAX_ABS_POSITION,
+    PLAYING_RANGE,
+    Trial,
+    compute_velocity,
+    make_trial,
 )
 from mirror_avatar.motion.codebook_size import MIN_FRAMES_PER_SYMBOL, choose_n_symbols
 from mirror_avatar.motion.hyperparameters import GENERATOR, check_hyperparameters
@@ -65,13 +72,6 @@ from mirror_avatar.motion.stft import (
     overlap_norm,
     spectra_to_features,
     synthesis_frames,
-)
-from mirror_avatar.trials import (
-    MAX_ABS_POSITION,
-    PLAYING_RANGE,
-    Trial,
-    compute_velocity,
-    make_trial,
 )
 
 PAPER_SYMBOLS = 256
@@ -254,7 +254,7 @@ class IMSGenerator:
 
         Raises
         ------
-        mirror_avatar.constraints.ConstraintError
+        mirror_avatar.common.constraints.ConstraintError
             Naming the hyper-parameter (`mirror_avatar.motion.hyperparameters.GENERATOR_SETTINGS`).
         """
         given = {key: getattr(self, key) for key in GENERATOR}
@@ -371,7 +371,7 @@ class IMSGenerator:
         """Generate a velocity signal of ``n_samples`` at `rate` (units/s).
 
         The velocity of `sample_positions` (METHODS section 2,
-        `mirror_avatar.trials.compute_velocity`); this is what a virtual trainer uses as its
+        `mirror_avatar.files.trials.compute_velocity`); this is what a virtual trainer uses as its
         reference r_s.
         """
         return self.sample_velocities(n_samples, [random_state])[0]
@@ -380,7 +380,8 @@ class IMSGenerator:
         """Generate one velocity signal of ``n_samples`` per random state (units/s).
 
         Row j is ``sample_velocity(n_samples, random_states[j])``. The signals are filtered
-        `SIDE_BY_SIDE` at a time (`mirror_avatar.trials.compute_velocity` of their columns), so
+        `SIDE_BY_SIDE` at a time (`mirror_avatar.files.trials.compute_velocity` of their columns),
+        so
         the filter's recursions overlap while a group's signals stay in the processor's cache.
 
         Returns
@@ -482,7 +483,7 @@ class IMSGenerator:
         parameter); the training summary must name its groups; the code vectors must be finite
         floats within ±``MAX_ABS_POSITION * window`` (the largest feature of a frame of
         positions within
-        `mirror_avatar.trials.MAX_ABS_POSITION`), and so must the exemplars; each exemplar's
+        `mirror_avatar.files.trials.MAX_ABS_POSITION`), and so must the exemplars; each exemplar's
         successor must be another exemplar or -1; the transition and initial probabilities
         must be distributions. Parameters without ``emission`` (files written before it)
         mean centroid emission.

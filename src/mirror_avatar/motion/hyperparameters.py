@@ -1,4 +1,4 @@
-"""The IMS generator's hyper-parameters, declared once as data (`mirror_avatar.constraints`).
+"""The IMS generator's hyper-parameters, declared once as data (`mirror_avatar.common.constraints`).
 
 `GENERATOR_SETTINGS` states each hyper-parameter of `mirror_avatar.motion.generator.IMSGenerator`:
 what it sets, what it allows and its default. The constructor's values and a model file's are
@@ -8,7 +8,7 @@ are generated from it.
 
 The ranges are a **choice**, generous around the paper's values (256 symbols, a 60-sample window
 at 100 Hz): up to 4096 symbols and a 4096-sample window; the rate within
-`mirror_avatar.trials.MIN_RATE` to `MAX_RATE` (1 Hz to 10 kHz, as recordings); a pseudo-count
+`mirror_avatar.files.trials.MIN_RATE` to `MAX_RATE` (1 Hz to 10 kHz, as recordings); a pseudo-count
 from 1e-12 to 1e6; 1 to 1000 k-means restarts; a seed as k-means takes it (0 to 2^32 - 1, or
 None). The window must be even and the hop at most half the window (not a choice: the features
 need both).
@@ -19,8 +19,8 @@ from __future__ import annotations
 import numbers
 from typing import Any
 
-from mirror_avatar.constraints import Constraint, Either, Interval, Options, Setting, check
-from mirror_avatar.trials import MAX_RATE, MIN_RATE
+from mirror_avatar.common.constraints import Constraint, Either, Interval, Options, Setting, check
+from mirror_avatar.files.trials import MAX_RATE, MIN_RATE
 
 EMISSIONS = ("exemplar", "centroid")
 """What a symbol of the chain is synthesised from: one of the training frames it quantises, or
@@ -69,7 +69,7 @@ def check_hyperparameters(values: dict[str, Any]) -> dict[str, Any]:
 
     Raises
     ------
-    mirror_avatar.constraints.ConstraintError
+    mirror_avatar.common.constraints.ConstraintError
         A value its declaration refuses, or a hop longer than half the window; its ``key``
         names the hyper-parameter.
     """

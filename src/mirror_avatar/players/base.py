@@ -34,9 +34,9 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import CONTROL_PERIOD, HKBParams
-from mirror_avatar.errors import InputError
-from mirror_avatar.trials import PLAYING_RANGE
+from mirror_avatar.files.trials import PLAYING_RANGE
 
 if TYPE_CHECKING:
     from mirror_avatar.players.reference import ReferenceDraw

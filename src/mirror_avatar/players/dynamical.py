@@ -27,9 +27,9 @@ import numpy as np
 from numba import njit, types
 from numpy.typing import NDArray
 
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import excerpt
-from mirror_avatar.model_files import check_real
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.importing import excerpt
+from mirror_avatar.files.model_files import check_real
 from mirror_avatar.players.base import Player
 
 Array = NDArray[np.float64]

@@ -29,6 +29,7 @@ from collections.abc import Mapping
 import numpy as np
 from numba import njit
 
+from mirror_avatar.files.trials import PLAYING_RANGE
 from mirror_avatar.players.base import Observation, partner_state
 from mirror_avatar.players.dynamical import (
     RATES_SIGNATURE,
@@ -37,7 +38,6 @@ from mirror_avatar.players.dynamical import (
     Parameter,
     rk4_held,
 )
-from mirror_avatar.trials import PLAYING_RANGE
 
 N_SUBSTEPS = 8
 """RK4 steps per control period."""

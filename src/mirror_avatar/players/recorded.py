@@ -15,9 +15,9 @@ from numba import njit
 from numpy.typing import NDArray
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
+from mirror_avatar.files.trials import PLAYING_RANGE, Trial
 from mirror_avatar.players.base import Observation, Player, PlayerPlan
 from mirror_avatar.players.kinds import PlayerKind, register_kind
-from mirror_avatar.trials import PLAYING_RANGE, Trial
 
 Array = NDArray[np.float64]
 Ints = NDArray[np.int64]

@@ -15,8 +15,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from mirror_avatar.seeds import entropy_of
-from mirror_avatar.trials import Trial
+from mirror_avatar.common.seeds import entropy_of
+from mirror_avatar.files.trials import Trial
 
 REFERENCE_BLOCK = 65.0
 """Seconds of reference velocity a player draws from its generator at a time."""
@@ -28,7 +28,7 @@ class VelocitySource(Protocol):
     """Anything a reference velocity is drawn from.
 
     An `mirror_avatar.motion.generator.IMSGenerator`, or a curriculum stage's motion
-    (`mirror_avatar.curriculum.StageMotion`).
+    (`mirror_avatar.training.curriculum.StageMotion`).
     """
 
     rate: float

@@ -34,6 +34,7 @@ from mirror_avatar.dynamics import (
     coupling_rate,
     optimal_control_steps,
 )
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.players.base import Observation, Player, PlayerPlan, partner_state
 from mirror_avatar.players.kinds import PlayerKind, parameter_table, register_kind
 from mirror_avatar.players.reference import (
@@ -42,7 +43,6 @@ from mirror_avatar.players.reference import (
     VelocitySource,
     draw_reference,
 )
-from mirror_avatar.trials import Trial
 
 Array = NDArray[np.float64]
 Ints = NDArray[np.int64]

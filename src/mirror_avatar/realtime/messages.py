@@ -14,8 +14,8 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
-from mirror_avatar.trials import PLAYING_RANGE
-from mirror_avatar.user_files import is_int
+from mirror_avatar.files.trials import PLAYING_RANGE
+from mirror_avatar.files.user_files import is_int
 
 MAX_MESSAGE_BYTES = 512
 """Longest message accepted (bytes); a position update is about 60."""

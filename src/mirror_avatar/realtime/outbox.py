@@ -20,7 +20,7 @@ from typing import Any
 
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from mirror_avatar.atomic import json_safe
+from mirror_avatar.files.atomic import json_safe
 from mirror_avatar.realtime.transport import abort_transport, stop_reading
 
 logger = logging.getLogger(__name__)

@@ -8,7 +8,8 @@ the time ``k * T`` of the engine's clock; when it was really taken is recorded b
 
 Files, flushed line by line as each sample is taken:
 
-- ``<stem>_session.csv`` + ``.json``: the session (`mirror_avatar.session.SessionWriter`), read
+- ``<stem>_session.csv`` + ``.json``: the session (`mirror_avatar.sessions.writer.SessionWriter`),
+read
   by ``mirror-avatar evaluate``; the sidecar says ``"complete": false`` until the trial ends
   well, and at the end holds the lateness and liveness summaries (`ClockedTrial.finish`);
 - ``<stem>_inputs.csv`` (`TickLog`): per sample, the clock time at which it was really taken
@@ -39,13 +40,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mirror_avatar.atomic import LineFile
 from mirror_avatar.engine.loop import Engine, Sink
-from mirror_avatar.graphs import Graph
+from mirror_avatar.files.atomic import LineFile
 from mirror_avatar.players.base import Player, PlayerDiverged
 from mirror_avatar.realtime.inputs import HumanPlayer
 from mirror_avatar.realtime.latency import summarise
-from mirror_avatar.session import Session, SessionWriter
+from mirror_avatar.sessions.graphs import Graph
+from mirror_avatar.sessions.session import Session
+from mirror_avatar.sessions.writer import SessionWriter
 
 logger = logging.getLogger(__name__)
 
@@ -141,7 +143,7 @@ class ClockedTrial:
     players
         The engine's players, in order; the people among them are `HumanPlayer` s.
     labels, roles, graph
-        As in `mirror_avatar.session.Session`.
+        As in `mirror_avatar.sessions.session.Session`.
     n_ticks
         Samples the whole trial takes.
     seed

@@ -16,10 +16,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.deep.player import DeepCyberPlayer, deep_player_from_arrays
 from mirror_avatar.deep.training import DQNLearner, greedy_deep
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import excerpt
+from mirror_avatar.files.importing import excerpt
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer, Agent
 from mirror_avatar.learning.agent import CyberPlayer, cyber_player_from_arrays
 from mirror_avatar.learning.discretisation import Discretisation

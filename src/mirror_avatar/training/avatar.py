@@ -2,7 +2,7 @@
 
 METHODS section 10: a person's solo trials -> their IMS generator -> their virtual trainer -> cyber
 players trained, as follower and as leader, on sessions their virtual trainer plays with partners.
-The file (``.npz`` + JSON, `mirror_avatar.model_files`) holds the generator and both players
+The file (``.npz`` + JSON, `mirror_avatar.files.model_files`) holds the generator and both players
 (tabular or deep: each role's metadata names its ``agent``, tabular when absent);
 which one plays is chosen by the role a session gives it (`Avatar.player`, `POLICY_FOR_ROLE`):
 the trained follower or leader, in groups the one whose coupling the group role shares, or, in
@@ -18,17 +18,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import HKBParams, preset
-from mirror_avatar.errors import InputError
-from mirror_avatar.importing import excerpt
-from mirror_avatar.learning.acceleration_player import AccelerationPlayer
-from mirror_avatar.model_files import (
+from mirror_avatar.files.importing import excerpt
+from mirror_avatar.files.model_files import (
     check_object,
     join_parts,
     load_model,
     part_arrays,
     save_model,
 )
+from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players import Player, VirtualTrainer
 from mirror_avatar.training.agents import agent_kind

@@ -16,11 +16,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from mirror_avatar import dynamics
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import draw_seeds
+from mirror_avatar.files.trials import DEFAULT_RATE, Trial
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players.virtual_trainer import VirtualTrainer
-from mirror_avatar.seeds import draw_seeds
-from mirror_avatar.trials import DEFAULT_RATE, Trial
 
 TARGET = 4
 """Index of the target, VT5 (the paper imitates person 5)."""

@@ -30,9 +30,10 @@ from typing import Any, Literal
 import numpy as np
 
 from mirror_avatar import dynamics
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import draw_seeds
 from mirror_avatar.engine.batch import run_sessions
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import GraphSource, random_connected_graph
+from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer, Agent
 from mirror_avatar.learning.agent import DEFAULT_ACTIONS
 from mirror_avatar.learning.discretisation import (
@@ -43,10 +44,9 @@ from mirror_avatar.learning.discretisation import (
 from mirror_avatar.learning.training import LearningCurve, SessionLearner, score_tasks
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.players.virtual_trainer import VirtualTrainer
-from mirror_avatar.seeds import draw_seeds
-from mirror_avatar.session import Session
+from mirror_avatar.sessions.graphs import GraphSource, random_connected_graph
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.training.agents import agent_kind, kind_of
-from mirror_avatar.trials import Trial
 
 Role = Literal["follower", "leader"]
 Reference = IMSGenerator | Trial
@@ -298,7 +298,8 @@ def imitate(
     duration
         Session length (s).
     graph
-        Who observes whom (`mirror_avatar.graphs.GraphSource`; a function draws a new graph for
+        Who observes whom (`mirror_avatar.sessions.graphs.GraphSource`; a function draws a new
+        graph for
         every session).
     scheduler, n_jobs, chunk_size
         Where the sessions are played (see `mirror_avatar.engine.batch.run_sessions`).

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from mirror_avatar.files.user_files import check_regular
 from mirror_avatar.lab.design.perturbation import Perturbation, successor
 from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.players.base import Player
 from mirror_avatar.specs import load_player, recording_file
-from mirror_avatar.user_files import check_regular
 
 MAX_RECORDING_SPEC_BYTES = 64 * 2**20
 """Largest recording an avatar spec may replay or follow in a lab session (bytes; **choice**:

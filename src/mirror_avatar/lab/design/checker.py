@@ -5,8 +5,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from mirror_avatar.constraints import ConstraintError, Setting
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.constraints import ConstraintError, Setting
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.realtime.messages import PARTICIPANT_PATTERN
 
 MAX_TEXT_CHARS = 500
@@ -38,7 +38,7 @@ class Checker:
     def setting(self, data: dict[str, Any], where: str, setting: Setting) -> Any:
         """Return the declared ``setting`` of the table at ``where``, checked.
 
-        Its default when absent (`mirror_avatar.constraints.Setting.read`).
+        Its default when absent (`mirror_avatar.common.constraints.Setting.read`).
         """
         try:
             return setting.read(data, where)

@@ -20,14 +20,15 @@ order as well as over participants: the partner kinds form a second square cross
 first (see `meets_person`), so that neither the order nor the participant is confounded with
 the partner's kind.
 
-Every draw derives from the protocol's seed through `mirror_avatar.seeds` (`design_generator`).
+Every draw derives from the protocol's seed through `mirror_avatar.common.seeds`
+(`design_generator`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from mirror_avatar.seeds import draw_seeds, spawn_seeds
+from mirror_avatar.common.seeds import draw_seeds, spawn_seeds
 
 ORDERS = ("fixed", "random", "latin", "williams")
 """Ways of ordering a block's conditions."""
@@ -39,9 +40,11 @@ DRAWS = ("block order", "symbols", "random order", "partners")
 def design_generator(seed: int, draw: str, *path: int) -> np.random.Generator:
     """Return the generator of one of the design's `DRAWS` at ``path`` (block, participant, ...).
 
-    The draw's seed is one word of the protocol seed's stream (`mirror_avatar.seeds.draw_seeds`,
+    The draw's seed is one word of the protocol seed's stream
+    (`mirror_avatar.common.seeds.draw_seeds`,
     one word per draw); each index of ``path`` then takes that child stream
-    (`mirror_avatar.seeds.spawn_seeds`), so a block's or a participant's draws do not depend on
+    (`mirror_avatar.common.seeds.spawn_seeds`), so a block's or a participant's draws do not depend
+    on
     how many blocks or participants there are.
     """
     word = draw_seeds(seed, len(DRAWS))[DRAWS.index(draw)]

@@ -40,12 +40,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mirror_avatar.curriculum import FORMAT_NAME as STAGE_FORMAT
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import CONTROL_PERIOD, ROLES, preset
 from mirror_avatar.dynamics.parameters import HKB_FIELDS, PARAMETER_RANGES
-from mirror_avatar.errors import InputError
+from mirror_avatar.files.model_files import read_archive
 from mirror_avatar.lab.design.checker import Checker
-from mirror_avatar.model_files import read_archive
 from mirror_avatar.motion.generator import FORMAT_NAME as GENERATOR_FORMAT
 from mirror_avatar.players.adaptive import AdaptivePlayer
 from mirror_avatar.players.base import Player
@@ -53,6 +52,7 @@ from mirror_avatar.players.dynamical import parse_number, parse_options
 from mirror_avatar.specs import MODEL_PARTNERS, load_player
 from mirror_avatar.training.avatar import FORMAT_NAME as AVATAR_FORMAT
 from mirror_avatar.training.avatar import POLICY_FOR_ROLE
+from mirror_avatar.training.curriculum import FORMAT_NAME as STAGE_FORMAT
 
 MAX_PERTURBATIONS = 20
 """Most perturbations in one condition."""

@@ -23,12 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from mirror_avatar.constraints import ConstraintError, Flag, Interval, Options, Setting
-from mirror_avatar.errors import InputError
-from mirror_avatar.graphs import TOPOLOGIES, Graph, check_graph, complete_graph, make_graph
+from mirror_avatar.common.constraints import ConstraintError, Flag, Interval, Options, Setting
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.user_files import is_int
 from mirror_avatar.realtime.clock import MAX_LATENESS
 from mirror_avatar.realtime.messages import PARTICIPANT_PATTERN
-from mirror_avatar.user_files import is_int
+from mirror_avatar.sessions.graphs import TOPOLOGIES, Graph, check_graph, complete_graph, make_graph
 
 CONDITIONS = ("solo", "leader_follower", "joint", "group")
 """Kinds of lab session."""

@@ -29,7 +29,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.user_files import is_int, read_text
 from mirror_avatar.lab.design.checker import Checker
 from mirror_avatar.lab.design.order import (
     block_order,
@@ -63,7 +64,6 @@ from mirror_avatar.lab.design.protocol_keys import (
     STUDY_SETTINGS,
     keys_of,
 )
-from mirror_avatar.user_files import is_int, read_text
 
 MAX_PROTOCOL_BYTES = 256 * 1024
 """Largest protocol file read (bytes)."""
@@ -323,7 +323,7 @@ def load_protocol(path: Path) -> Protocol:
     ------
     InputError
         ``FILE: KEY.PATH: problem (fix)`` for the first mistake found; a file that is not a
-        regular UTF-8 text file of at most `MAX_PROTOCOL_BYTES` (`mirror_avatar.user_files`).
+        regular UTF-8 text file of at most `MAX_PROTOCOL_BYTES` (`mirror_avatar.files.user_files`).
     """
     text = read_text(path, MAX_PROTOCOL_BYTES)
     return parse_protocol(protocol_table(text, str(path)), str(path))

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.lab.design.avatars import load_avatar, successor_players
 from mirror_avatar.lab.design.checker import Checker
 from mirror_avatar.lab.design.perturbation import Perturbation

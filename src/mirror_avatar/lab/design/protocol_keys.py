@@ -1,7 +1,7 @@
 """The keys of a study protocol, declared once: what each sets, allows and defaults to.
 
 Each table of a protocol file (the file itself, a question, a block, a condition, a player) has
-its keys declared here as `mirror_avatar.constraints.Setting` records. The protocol's reader
+its keys declared here as `mirror_avatar.common.constraints.Setting` records. The protocol's reader
 (`mirror_avatar.lab.design.protocol`) knows the keys and checks every scalar value from them; the
 refusal tests are generated from them; and the lab guide's tables of keys are written from
 them (`key_tables`), so that the file format, its checks and its documents say the same.
@@ -11,7 +11,7 @@ there once.
 
 from __future__ import annotations
 
-from mirror_avatar.constraints import Interval, Options, Setting, settings_table
+from mirror_avatar.common.constraints import Interval, Options, Setting, settings_table
 from mirror_avatar.lab.design.order import ORDERS
 from mirror_avatar.lab.design.plan import CONDITIONS, MAX_PLAYERS, SEED_LIMIT, TRIAL_SETTINGS
 

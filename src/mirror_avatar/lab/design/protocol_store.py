@@ -31,15 +31,15 @@ import unicodedata
 from dataclasses import replace
 from pathlib import Path, PurePosixPath
 
-from mirror_avatar.atomic import write_atomic_text
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.atomic import write_atomic_text
+from mirror_avatar.files.user_files import read_text
 from mirror_avatar.lab.design.protocol import (
     MAX_PROTOCOL_BYTES,
     Protocol,
     parse_protocol,
     protocol_table,
 )
-from mirror_avatar.user_files import read_text
 
 PROTOCOLS_FOLDER = "protocols"
 """The folder of OUT holding the protocols loaded from the console."""

@@ -1,7 +1,8 @@
 """BIDS-Motion export of lab sessions and study sessions (BIDS 1.9.0, motion and beh).
 
 A lab session folder holds, per trial n, ``trial-NN_session.csv`` and its sidecar
-``trial-NN_session.json`` (`mirror_avatar.session.SessionWriter`), whose ``metadata`` describes
+``trial-NN_session.json`` (`mirror_avatar.sessions.writer.SessionWriter`), whose ``metadata``
+describes
 the trial (``lab``: session id, trial, condition, slots, and in a study session its block,
 protocol condition, delay and occlusion; ``created_utc``, ``started_utc``, ``complete``,
 ``dropped``, ``held``, ``input_events``), its ``trial-NN_inputs.csv`` (each sample's clock time:
@@ -35,11 +36,12 @@ range units (-0.5..0.5; per second for velocities), then, when the inputs file i
 `mirror_avatar.lab.export.bids_trial.TIMING_CHANNELS`: each sample's ``latency`` from the first
 (type LATENCY, s), its ``clock`` time (the LSL clock when the lab ran with pylsl), and how ``late``
 its tick was and how long its ``step`` took (ms). The non-standard ``MirrorGame`` key of each
-``_motion.json`` describes the trial so that `mirror_avatar.session.load_session` rebuilds the
-N-player session (`mirror_avatar.bids.reading.read_lab_recording`); the participant's own file
-stays readable as their solo trial by `mirror_avatar.bids.reading.read_bids_motion` (it reads
+``_motion.json`` describes the trial so that `mirror_avatar.sessions.loading.load_session` rebuilds
+the
+N-player session (`mirror_avatar.files.bids.reading.read_lab_recording`); the participant's own file
+stays readable as their solo trial by `mirror_avatar.files.bids.reading.read_bids_motion` (it reads
 the channel named ``position``), so every command that reads trials reads the export. Names,
-values and tables follow the rules of `mirror_avatar.bids`.
+values and tables follow the rules of `mirror_avatar.files.bids`.
 """
 
 from __future__ import annotations
@@ -54,12 +56,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mirror_avatar import __version__
-from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
-from mirror_avatar.bids.names import MISSING, bids_label, channel_names
-from mirror_avatar.bids.reading import GAME_KEY
-from mirror_avatar.bids.tables import read_tsv
-from mirror_avatar.bids.writing import one_line, tsv_table, tsv_values
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.files.bids.names import MISSING, bids_label, channel_names
+from mirror_avatar.files.bids.reading import GAME_KEY
+from mirror_avatar.files.bids.tables import read_tsv
+from mirror_avatar.files.bids.writing import one_line, tsv_table, tsv_values
+from mirror_avatar.files.trial_io import MAX_FILE_BYTES, read_sidecar_text
+from mirror_avatar.files.user_files import parse_json, read_bytes
 from mirror_avatar.lab.export.bids_events import EVENT_COLUMN_INFO, EVENT_COLUMNS, trial_events
 from mirror_avatar.lab.export.bids_lock import dataset_lock
 from mirror_avatar.lab.export.bids_study import (
@@ -88,8 +92,6 @@ from mirror_avatar.lab.files import (
     STUDY_FILE,
     companion,
 )
-from mirror_avatar.trial_io import MAX_FILE_BYTES, read_sidecar_text
-from mirror_avatar.user_files import parse_json, read_bytes
 
 Array = NDArray[np.float64]
 
@@ -399,7 +401,7 @@ def _artefacts(trial: LabTrial, slot: int) -> str:
 
 
 def _game_info(trial: LabTrial, slot: int) -> dict[str, Any]:
-    """Make the ``MirrorGame`` key: what `mirror_avatar.bids.reading` needs to rebuild the trial."""
+    """Make the ``MirrorGame`` key: what `mirror_avatar.files.bids.reading` rebuilds trials from."""
     record = trial.record
     info: dict[str, Any] = {
         "format": GAME_FORMAT,

@@ -16,7 +16,7 @@ order of onset (the trial first):
 - ``perturbation``: a change of an avatar mid-trial (``player``, ``change``), from the
   record's perturbations.
 
-Everything is read from the trial's record (`mirror_avatar.trial_record.TrialRecord`).
+Everything is read from the trial's record (`mirror_avatar.files.trial_record.TrialRecord`).
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from mirror_avatar.bids.names import MISSING
-from mirror_avatar.trial_record import TrialRecord
+from mirror_avatar.files.bids.names import MISSING
+from mirror_avatar.files.trial_record import TrialRecord
 
 EVENT_COLUMNS = (
     "onset", "duration", "trial_type", "sample", "trial", "block", "condition", "player",
@@ -71,7 +71,7 @@ def trial_events(record: TrialRecord, n_samples: int, period: float) -> list[dic
     Parameters
     ----------
     record
-        The trial's record (`mirror_avatar.trial_record.TrialRecord`): its study's delay and
+        The trial's record (`mirror_avatar.files.trial_record.TrialRecord`): its study's delay and
         occlusions, its input events, drops and perturbations.
     n_samples
         Samples recorded.

@@ -30,21 +30,21 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from mirror_avatar.atomic import write_atomic_json, write_atomic_text
-from mirror_avatar.bids.names import MISSING, bids_label
-from mirror_avatar.bids.tables import read_tsv
-from mirror_avatar.bids.writing import tsv_table
-from mirror_avatar.errors import InputError
-from mirror_avatar.lab.files import ANSWERS_SUFFIX, STUDY_FILE, companion
-from mirror_avatar.trial_io import read_sidecar_text
-from mirror_avatar.trial_record import (
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.atomic import write_atomic_json, write_atomic_text
+from mirror_avatar.files.bids.names import MISSING, bids_label
+from mirror_avatar.files.bids.tables import read_tsv
+from mirror_avatar.files.bids.writing import tsv_table
+from mirror_avatar.files.trial_io import read_sidecar_text
+from mirror_avatar.files.trial_record import (
     AnswersRecord,
     SlotRecord,
     TrialRecord,
     partner_kind,
     read_answers_record,
 )
-from mirror_avatar.user_files import parse_json
+from mirror_avatar.files.user_files import parse_json
+from mirror_avatar.lab.files import ANSWERS_SUFFIX, STUDY_FILE, companion
 
 BEH_COLUMNS = (
     "question", "text", "kind", "answer", "partners", "partner_kind", "after", "trial", "block",
@@ -152,7 +152,7 @@ def subject_label(
 ) -> str:
     """Return the BIDS subject label of the person labelled ``label``.
 
-    ``label`` with its non-alphanumeric characters removed (`mirror_avatar.bids.names.
+    ``label`` with its non-alphanumeric characters removed (`mirror_avatar.files.bids.names.
     bids_label`), after ``p`` and the participant's number on three digits or more in a study:
     ``P_1`` gives ``P1``, and ``p003P1`` in participant 3's run. One label gives a different
     subject label in every participant's run; two different labels may still give one
@@ -195,7 +195,7 @@ def read_answers(session_csv: Path) -> AnswersRecord | None:
     Raises
     ------
     InputError
-        As `mirror_avatar.trial_record.read_answers_record`.
+        As `mirror_avatar.files.trial_record.read_answers_record`.
     """
     path = companion(session_csv, ANSWERS_SUFFIX)
     return read_answers_record(path) if path.is_file() else None
@@ -209,7 +209,7 @@ def answer_rows(
     Questions are in the order they were asked (after the trial, then after the block); a
     question's text and kind are ``n/a`` when the file does not hold them. ``slots`` (the
     trial's records) give every row the participant's partners
-    and their true kind (`mirror_avatar.trial_record.partner_kind`).
+    and their true kind (`mirror_avatar.files.trial_record.partner_kind`).
     """
     partners = [slot for slot in slots if slot.label != label]
     beside = {

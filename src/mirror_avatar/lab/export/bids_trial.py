@@ -1,7 +1,7 @@
 """A lab trial read for its BIDS export: its session, record, clock channels and answers.
 
 `read_lab_trial` reads ``trial-NN_session.csv`` with its sidecar's record
-(`mirror_avatar.trial_record.TrialRecord`), checks the slots against the players, and reads
+(`mirror_avatar.files.trial_record.TrialRecord`), checks the slots against the players, and reads
 each sample's true time from ``trial-NN_inputs.csv`` (`TIMING_CHANNELS`) and the answers given
 after it; `mirror_avatar.lab.export.bids.export_bids` writes what it holds.
 """
@@ -15,14 +15,20 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from mirror_avatar.bids.names import bids_label
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.bids.names import bids_label
+from mirror_avatar.files.trial_io import _first_row, _read_numbers, read_sidecar_text
+from mirror_avatar.files.trial_record import (
+    AnswersRecord,
+    SlotRecord,
+    TrialRecord,
+    lab_trial_record,
+)
+from mirror_avatar.files.user_files import parse_json
 from mirror_avatar.lab.export.bids_study import StudyRun, read_answers
 from mirror_avatar.lab.files import INPUTS_SUFFIX, TRIAL_PATTERN, companion
-from mirror_avatar.session import Session, load_session
-from mirror_avatar.trial_io import _first_row, _read_numbers, read_sidecar_text
-from mirror_avatar.trial_record import AnswersRecord, SlotRecord, TrialRecord, lab_trial_record
-from mirror_avatar.user_files import parse_json
+from mirror_avatar.sessions.loading import load_session
+from mirror_avatar.sessions.session import Session
 
 Array = NDArray[np.float64]
 
@@ -31,7 +37,7 @@ Array = NDArray[np.float64]
 class LabTrial:
     """One recorded trial of a lab session, read for its export, with its record.
 
-    ``record`` is the trial's (`mirror_avatar.trial_record.TrialRecord`), its slots in player
+    ``record`` is the trial's (`mirror_avatar.files.trial_record.TrialRecord`), its slots in player
     order; ``period`` the control period (s), ``timing`` the `TIMING_CHANNELS` (shape
     (4, samples)) when the trial's inputs file is there, and ``answers`` the answers given
     after the trial (`mirror_avatar.lab.export.bids_study.read_answers`); ``study`` is whose run of

@@ -1,7 +1,7 @@
 """The researcher's HTTP/JSON API of the lab server (routes: `mirror_avatar.lab.running.server`).
 
 Every answer is JSON, errors ``{"error": text}``; request bodies are read up to a bound and
-parsed by the bounded parser (`mirror_avatar.user_files.parse_json`); files are served only
+parsed by the bounded parser (`mirror_avatar.files.user_files.parse_json`); files are served only
 from a session's own folder, by the names it lists, through the checked reader.
 """
 
@@ -19,8 +19,10 @@ from typing import IO, Any
 from starlette.requests import Request
 from starlette.responses import JSONResponse, Response, StreamingResponse
 
-from mirror_avatar.atomic import json_safe
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.atomic import json_safe
+from mirror_avatar.files.trial_io import MAX_FILE_BYTES
+from mirror_avatar.files.user_files import open_regular, parse_json
 from mirror_avatar.lab.design.plan import parse_plan
 from mirror_avatar.lab.design.protocol import MAX_PROTOCOL_BYTES, Protocol
 from mirror_avatar.lab.design.protocol_store import PROTOCOLS_FOLDER, store_protocol
@@ -30,8 +32,6 @@ from mirror_avatar.lab.running.runner import LabSession
 from mirror_avatar.lab.running.sessions import Lab
 from mirror_avatar.lab.running.study import ParticipantRun
 from mirror_avatar.lab.running.trial import build_avatars
-from mirror_avatar.trial_io import MAX_FILE_BYTES
-from mirror_avatar.user_files import open_regular, parse_json
 
 logger = logging.getLogger(__name__)
 
@@ -214,7 +214,7 @@ class LabApi:
     async def file(self, request: Request) -> Response:
         """Serve a file of the session's folder, by one of the names the session lists.
 
-        Opened in a worker thread by the checked reader (`mirror_avatar.user_files.
+        Opened in a worker thread by the checked reader (`mirror_avatar.files.user_files.
         open_regular`: a regular file of at most `MAX_FILE_BYTES`) and sent in chunks read in
         worker threads.
         """
@@ -302,7 +302,7 @@ async def _body(request: Request, allow_empty: bool = False, limit: int = MAX_BO
     Raises
     ------
     ApiError
-        400: over the limit, or not JSON (`mirror_avatar.user_files.parse_json`: not UTF-8,
+        400: over the limit, or not JSON (`mirror_avatar.files.user_files.parse_json`: not UTF-8,
         nested too deeply, NaN or a number beyond float64's range).
     """
     raw = bytearray()

@@ -27,10 +27,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.engine.loop import row_positions
-from mirror_avatar.errors import InputError
+from mirror_avatar.files.trials import PLAYING_RANGE
 from mirror_avatar.realtime.inputs import Sample
-from mirror_avatar.trials import PLAYING_RANGE
 
 STREAM_TYPE = "Position"
 """LSL content type of the session's outlet."""

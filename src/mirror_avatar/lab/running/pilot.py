@@ -35,12 +35,12 @@ import numpy as np
 from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed
 
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.errors import InputError
 from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.lab.design.protocol import Protocol, load_protocol
 from mirror_avatar.players.base import Observation, Player
-from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.specs import load_player
 
 PLAYER_ROLES = {"solo": "leader"}

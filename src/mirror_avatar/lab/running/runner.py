@@ -35,7 +35,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Protocol
 
-from mirror_avatar.errors import InputError
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.lab.running.participant import COLOURS, Participant
 from mirror_avatar.lab.running.schedule import Schedule

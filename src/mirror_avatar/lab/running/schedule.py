@@ -13,7 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NamedTuple, Protocol
 
-from mirror_avatar.atomic import write_atomic_json
+from mirror_avatar.files.atomic import write_atomic_json
 from mirror_avatar.lab.design.perturbation import Perturbation
 from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.lab.files import PLAN_FILE

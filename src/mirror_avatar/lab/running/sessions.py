@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.errors import InputError
 from mirror_avatar.lab.design.plan import LslDevice, SessionPlan
 from mirror_avatar.lab.design.protocol import Protocol
 from mirror_avatar.lab.running.participant import Participant

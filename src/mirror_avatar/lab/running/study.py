@@ -30,9 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from mirror_avatar.atomic import write_atomic_json
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.errors import InputError
+from mirror_avatar.files.atomic import write_atomic_json
+from mirror_avatar.files.trial_io import read_sidecar_text
+from mirror_avatar.files.trial_record import StudyRecord
+from mirror_avatar.files.user_files import parse_json
 from mirror_avatar.lab.design.perturbation import Perturbation
 from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.lab.design.protocol import Condition, Protocol, Question
@@ -49,10 +53,6 @@ from mirror_avatar.lab.running.schedule import (
 )
 from mirror_avatar.lab.running.trial import LabTrial
 from mirror_avatar.realtime.trial import Array
-from mirror_avatar.seeds import spawn_seeds
-from mirror_avatar.trial_io import read_sidecar_text
-from mirror_avatar.trial_record import StudyRecord
-from mirror_avatar.user_files import parse_json
 
 
 @dataclass
@@ -326,7 +326,7 @@ class ParticipantRun:
     def record(self, session_id: str, n: int) -> dict[str, Any]:
         """Return what trial n's sidecar records: the session, the condition, the study's part.
 
-        The study's part (`mirror_avatar.trial_record.StudyRecord`): protocol, participant,
+        The study's part (`mirror_avatar.files.trial_record.StudyRecord`): protocol, participant,
         block, condition, trial within it, the partners' delay and occlusion as played, and every
         player's true kind.
         """
@@ -490,11 +490,11 @@ def answers_path(directory: Path, n: int) -> Path:
 
 
 def read_schedule(path: Path) -> dict[str, Any]:
-    """Read a run's ``study.json`` through the checked reader (`mirror_avatar.user_files`).
+    """Read a run's ``study.json`` through the checked reader (`mirror_avatar.files.user_files`).
 
-    At most `mirror_avatar.trial_io.MAX_SIDECAR_BYTES`, a regular file (never a FIFO or a
+    At most `mirror_avatar.files.trial_io.MAX_SIDECAR_BYTES`, a regular file (never a FIFO or a
     device, whose read could wait for ever), JSON nested at most
-    `mirror_avatar.user_files.MAX_JSON_DEPTH` deep.
+    `mirror_avatar.files.user_files.MAX_JSON_DEPTH` deep.
 
     Raises
     ------

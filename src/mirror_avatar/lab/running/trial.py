@@ -8,7 +8,8 @@ ticks it once per control period T; sample k is the time ``k * T`` of the engine
 
 Files, in the session's folder, flushed line by line (METHODS section 9):
 
-- ``trial-NN_session.csv`` + ``.json``: the N-player session (`mirror_avatar.session`), read by
+- ``trial-NN_session.csv`` + ``.json``: the N-player session (`mirror_avatar.sessions.session`),
+read by
   ``mirror-avatar evaluate``; the sidecar's ``metadata["lab"]`` names the session, the trial,
   the condition and every slot (with an LSL device: its source id, host and counts of invalid
   and clipped samples), and ``dropped`` / ``held`` / ``lost`` are updated as they happen;
@@ -43,8 +44,11 @@ from typing import Any
 import numpy as np
 
 from mirror_avatar import __version__
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.engine.loop import count_samples, row_positions, spawn_session_seeds
-from mirror_avatar.errors import InputError
+from mirror_avatar.files.trial_record import SlotRecord, trial_record
+from mirror_avatar.files.trials import MIN_SAMPLES
 from mirror_avatar.lab.design.avatars import load_avatar, successor_players
 from mirror_avatar.lab.design.perturbation import Perturbation
 from mirror_avatar.lab.design.plan import SessionPlan
@@ -57,10 +61,7 @@ from mirror_avatar.players.base import Player
 from mirror_avatar.realtime.clock import time_players
 from mirror_avatar.realtime.inputs import HumanPlayer, InputSource
 from mirror_avatar.realtime.trial import Array, Clock, ClockedTrial
-from mirror_avatar.seeds import spawn_seeds
-from mirror_avatar.session import Session
-from mirror_avatar.trial_record import SlotRecord, trial_record
-from mirror_avatar.trials import MIN_SAMPLES
+from mirror_avatar.sessions.session import Session
 
 logger = logging.getLogger(__name__)
 
