@@ -2,12 +2,11 @@
 
 A four-player lab session (two people, two avatars) is recorded with
 `mirror_avatar.sessions.writer.SessionWriter`, exported with
-`mirror_avatar.lab.export.bids.export_bids`,
-and one participant's ``_motion.tsv`` is grown to ``--megabytes`` (default 60) of rows of eight
-channels, written as the export writes them (``repr``) or, with ``--decimals N``, rounded to N
-decimals (short cells: more rows per megabyte, the case that costs a row-by-row reader most).
-A fresh child process reads it with `mirror_avatar.sessions.loading.load_session` and prints its
-time
+`mirror_avatar.lab.export.bids.export_bids`, and one participant's ``_motion.tsv`` is grown to
+``--megabytes`` (default 60) of rows of eight channels, written as the export writes them (``repr``)
+or, with ``--decimals N``, rounded to N decimals (short cells: more rows per megabyte, the case that
+costs a row-by-row reader most). A fresh child process reads it with
+`mirror_avatar.sessions.loading.load_session` and prints its time
 and peak resident memory (``ru_maxrss``); a baseline child imports the package and reads the
 small export. Value =
 (peak - baseline peak) / file size. With ``--before SRC``, the same children run on the package

@@ -1,13 +1,12 @@
 """Human-likeness and groups of people on the bundled trials (issue 38's must-show).
 
 The battery (`mirror_avatar.signatures.likeness.compare_motion`, seed 0) on the bundled trials
-resampled to
-100 Hz: odd against even trials of one style (held-out trials of one person against each other),
-the first four fast trials against the last five, and fast against slow; each row the
-classifier's AUC with its permutation p-value and the IMS EMD ratio, and the battery's time.
-Then `signature --groups`'s comparison (`mirror_avatar.signatures.groups.compare_groups`) of fast
-and slow trials, each taken as a person, with the true labels and with labels shuffled within
-each style.
+resampled to 100 Hz: odd against even trials of one style (held-out trials of one person against
+each other), the first four fast trials against the last five, and fast against slow; each row the
+classifier's AUC with its permutation p-value and the IMS EMD ratio, and the battery's time. Then
+`signature --groups`'s comparison (`mirror_avatar.signatures.groups.compare_groups`) of fast and
+slow trials, each taken as a person, with the true labels and with labels shuffled within each
+style.
 """
 
 from __future__ import annotations

@@ -7,12 +7,11 @@ its subject folders. From a run folder, each trial's sidecar gives its record
 (`mirror_avatar.files.trial_record.read_trial_record`) and ``trial-NN_answers.json`` its answers.
 From a BIDS dataset (never its ``sourcedata/``), each trial is read once whichever of its people's
 ``_motion.tsv`` holds it (`mirror_avatar.sessions.loading.load_session`): the ``MirrorGame`` key
-gives
-its slots with their true kinds, the ``_events.tsv`` its block, condition, delay, occlusions and
-perturbations, ``participants.tsv`` the study participant's number and each ``_beh.tsv`` the
+gives its slots with their true kinds, the ``_events.tsv`` its block, condition, delay, occlusions
+and perturbations, ``participants.tsv`` the study participant's number and each ``_beh.tsv`` the
 answers; the record is then made by the same reader
-(`mirror_avatar.files.trial_record.trial_record`)
-as a sidecar's, so both sources give equal records.
+(`mirror_avatar.files.trial_record.trial_record`) as a sidecar's, so both sources give equal
+records.
 """
 
 from __future__ import annotations

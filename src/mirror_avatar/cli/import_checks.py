@@ -5,10 +5,9 @@ its travel gives positions in [0, 1] instead of [-0.5, 0.5], and every analysis 
 `check_trial` measures each trial (mean rate, duration, the span of its positions, the span's
 centre, the samples interpolated over drop-outs) and names what looks wrong: positions outside
 the playing range `mirror_avatar.files.trials.PLAYING_RANGE`, a span whose centre is off the middle
-of
-the range by more than `OFF_CENTRE`, or irregular sampling (a step longer than `IRREGULAR_STEP`
-times the median step). `check_table` lays the checks out one line per trial; a trial
-resampled on reading (``--resample``) shows its recorded and new rates (``13.1->100``).
+of the range by more than `OFF_CENTRE`, or irregular sampling (a step longer than `IRREGULAR_STEP`
+times the median step). `check_table` lays the checks out one line per trial; a trial resampled on
+reading (``--resample``) shows its recorded and new rates (``13.1->100``).
 """
 
 from __future__ import annotations

@@ -5,9 +5,8 @@ gathered by `gather_neighbours`) and all advance simultaneously to t_k + T (METH
 5 and 8: no one sees the future). An `ExternalPlayer` (a person) is not stepped: its state at
 each sample is read when the sample is taken. Each completed sample is recorded and passed to
 the engine's sinks (for instance a `mirror_avatar.sessions.writer.SessionWriter`, so a live
-recording is
-on disk as it happens). `play` runs a whole session; the Gymnasium environment and the live
-server call `Engine.step` themselves.
+recording is on disk as it happens). `play` runs a whole session; the Gymnasium environment and the
+live server call `Engine.step` themselves.
 
 A stepped player whose position or velocity stops being finite (or exceeds
 `mirror_avatar.players.base.DIVERGED_BEYOND`) ends the session: `Engine.step` raises
@@ -85,8 +84,7 @@ class Engine:
     graph
         Adjacency matrix (N, N), ``graph[k, j] = 1`` when player k observes player j, or a
         function drawing one for each session (`mirror_avatar.sessions.graphs.GraphSource`);
-        default the
-        complete graph.
+        default the complete graph.
     roles
         The players' roles, recorded in the session (default `default_roles`).
     labels
@@ -120,9 +118,8 @@ class Engine:
         """Start a session of at most ``n_samples`` samples; reset every player.
 
         The players are reset with seeds spawned from ``seed`` (`mirror_avatar.common.seeds`), so
-        the
-        same seed replays the same session; None draws fresh entropy, kept in ``seed``. A
-        drawn graph is drawn from the session seed as well.
+        the same seed replays the same session; None draws fresh entropy, kept in ``seed``. A drawn
+        graph is drawn from the session seed as well.
         """
         self.seed = entropy_of(seed)
         self.player_seeds, graph_seed = spawn_session_seeds(self.seed, len(self.players))

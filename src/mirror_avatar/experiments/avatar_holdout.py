@@ -204,8 +204,7 @@ class HeldOutProof:
     likeness
         Role -> the human-likeness battery of the avatar's sessions against the held-out trials
         (`mirror_avatar.signatures.likeness.compare_motion`, the person's own variability from all
-        their
-        trials; with several folds, the sessions of every fold against every held-out trial,
+        their trials; with several folds, the sessions of every fold against every held-out trial,
         at most `mirror_avatar.signatures.likeness.MAX_UNITS` sessions spread over the folds).
     """
 

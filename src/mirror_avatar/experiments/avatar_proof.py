@@ -8,8 +8,7 @@ Two checks, both against recordings the avatar never learned from:
   flagged where the avatar is further from the person than their own variability allows.
 - **Recordings with a partner.** Where the person played a dyad session (a file
   `mirror_avatar.sessions.loading.load_session` reads), the avatar plays that session again against
-  the
-  partner's recorded track replayed open-loop (`mirror_avatar.players.RecordedPlayer`), in the
+  the partner's recorded track replayed open-loop (`mirror_avatar.players.RecordedPlayer`), in the
   person's place and role, and its CV, RMS and lag are set beside the person's.
 """
 

@@ -94,8 +94,7 @@ class AccelerationPlayer(Player):
     target_counts_ : ndarray, shape (DEFAULT_BINS.n,)
         Velocity samples of the player it learned to imitate, per bin of the velocity signature
         (`mirror_avatar.signatures.signature.count_velocities`), summed over the training sessions;
-        its
-        signature is `target_ims`.
+        its signature is `target_ims`.
     """
 
     agent: ClassVar[Agent]

@@ -375,11 +375,10 @@ def cyber_player_arrays(
     The file holds arrays ``q_table`` (n_states, n_actions), ``edges`` (all interior bin edges),
     ``edge_counts`` (4,), ``actions`` (n_actions,) and the JSON metadata of
     `mirror_avatar.files.model_files.save_model`: format name and version, the dynamics parameters,
-    the
-    discretisation, the training summary and its seed; once trained, ``target_counts``
-    (DEFAULT_BINS.n,), its target's velocity counts. A player with ``"reference"`` features
-    also stores its reference generator (arrays prefixed ``reference_``, metadata
-    ``reference``), so the file alone plays.
+    the discretisation, the training summary and its seed; once trained, ``target_counts``
+    (DEFAULT_BINS.n,), its target's velocity counts. A player with ``"reference"`` features also
+    stores its reference generator (arrays prefixed ``reference_``, metadata ``reference``), so the
+    file alone plays.
 
     Raises
     ------

@@ -1,13 +1,11 @@
 """Training a cyber player: the `QLearner` estimator, its exploration schedule and learning curve.
 
 The learner consumes recorded sessions (`mirror_avatar.sessions.session.Session`, streamed: only
-one is
-held at a time) in which a **target player** plays with its neighbours; in each, the avatar takes
-the target's place and learns off-policy from what the target did (`learn_session`). As in
-scikit-learn's ``MiniBatchKMeans``, `QLearner.fit` (a fresh start) and `QLearner.partial_fit`
-(more sessions) share one per-session step, and the learner owns its state (trailing
-underscores). Exploration decreases monotonically from session to session; the Q-table starts
-random (seeded).
+one is held at a time) in which a **target player** plays with its neighbours; in each, the avatar
+takes the target's place and learns off-policy from what the target did (`learn_session`). As in
+scikit-learn's ``MiniBatchKMeans``, `QLearner.fit` (a fresh start) and `QLearner.partial_fit` (more
+sessions) share one per-session step, and the learner owns its state (trailing underscores).
+Exploration decreases monotonically from session to session; the Q-table starts random (seeded).
 """
 
 from __future__ import annotations

@@ -13,11 +13,10 @@ was, is recorded beside it.
 Recording, as each sample is taken (flushed): ``<stem>_session.csv``, the session in the
 toolkit's session format (`mirror_avatar.sessions.writer.SessionWriter`, read back by
 `mirror_avatar.sessions.loading.load_session`, so ``mirror-avatar evaluate`` works on it) with its
-sidecar
-``<stem>_session.json`` (participant, mode, avatar spec, seed, timestamps, completeness, round
-trips, lateness and, at the end, the metrics), ``<stem>_inputs.csv`` (each sample's true time,
-lateness and input, `mirror_avatar.realtime.trial.TickLog`) and ``<stem>.csv``, the person's
-trial alone
+sidecar ``<stem>_session.json`` (participant, mode, avatar spec, seed, timestamps, completeness,
+round trips, lateness and, at the end, the metrics), ``<stem>_inputs.csv`` (each sample's true time,
+lateness and input, `mirror_avatar.realtime.trial.TickLog`) and ``<stem>.csv``, the person's trial
+alone
 (``time,position``, the trial exchange format: solo trials feed ``mirror-avatar generator fit``
 directly). The sidecar
 says ``"complete": false`` until the trial ends well, so a crash, a dropped connection or a closed

@@ -400,8 +400,7 @@ def evaluate_sessions(
     Each session's metrics (`mirror_avatar.metrics.summary.session_metrics`) and measures
     share its `Quantities`, so each quantity is computed once. Session i draws its surrogates
     from child i of ``options.seed`` (`mirror_avatar.common.seeds.spawn_seeds`); pseudo-pairs take
-    their
-    partners from the other sessions. A progress bar shows on a terminal when surrogates are
+    their partners from the other sessions. A progress bar shows on a terminal when surrogates are
     drawn.
 
     Parameters

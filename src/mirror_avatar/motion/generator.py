@@ -381,8 +381,7 @@ class IMSGenerator:
 
         Row j is ``sample_velocity(n_samples, random_states[j])``. The signals are filtered
         `SIDE_BY_SIDE` at a time (`mirror_avatar.files.trials.compute_velocity` of their columns),
-        so
-        the filter's recursions overlap while a group's signals stay in the processor's cache.
+        so the filter's recursions overlap while a group's signals stay in the processor's cache.
 
         Returns
         -------

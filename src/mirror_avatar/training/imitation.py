@@ -299,8 +299,7 @@ def imitate(
         Session length (s).
     graph
         Who observes whom (`mirror_avatar.sessions.graphs.GraphSource`; a function draws a new
-        graph for
-        every session).
+        graph for every session).
     scheduler, n_jobs, chunk_size
         Where the sessions are played (see `mirror_avatar.engine.batch.run_sessions`).
     checkpoint, checkpoint_every

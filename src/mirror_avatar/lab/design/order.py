@@ -41,10 +41,9 @@ def design_generator(seed: int, draw: str, *path: int) -> np.random.Generator:
     """Return the generator of one of the design's `DRAWS` at ``path`` (block, participant, ...).
 
     The draw's seed is one word of the protocol seed's stream
-    (`mirror_avatar.common.seeds.draw_seeds`,
-    one word per draw); each index of ``path`` then takes that child stream
-    (`mirror_avatar.common.seeds.spawn_seeds`), so a block's or a participant's draws do not depend
-    on
+    (`mirror_avatar.common.seeds.draw_seeds`, one word per draw); each index of ``path`` then takes
+    that child stream (`mirror_avatar.common.seeds.spawn_seeds`), so a block's or a participant's
+    draws do not depend on
     how many blocks or participants there are.
     """
     word = draw_seeds(seed, len(DRAWS))[DRAWS.index(draw)]

@@ -2,8 +2,7 @@
 
 A lab session folder holds, per trial n, ``trial-NN_session.csv`` and its sidecar
 ``trial-NN_session.json`` (`mirror_avatar.sessions.writer.SessionWriter`), whose ``metadata``
-describes
-the trial (``lab``: session id, trial, condition, slots, and in a study session its block,
+describes the trial (``lab``: session id, trial, condition, slots, and in a study session its block,
 protocol condition, delay and occlusion; ``created_utc``, ``started_utc``, ``complete``,
 ``dropped``, ``held``, ``input_events``), its ``trial-NN_inputs.csv`` (each sample's clock time:
 `mirror_avatar.realtime.trial.TickLog`) and, in a study session, ``trial-NN_answers.json``.
@@ -37,10 +36,9 @@ range units (-0.5..0.5; per second for velocities), then, when the inputs file i
 (type LATENCY, s), its ``clock`` time (the LSL clock when the lab ran with pylsl), and how ``late``
 its tick was and how long its ``step`` took (ms). The non-standard ``MirrorGame`` key of each
 ``_motion.json`` describes the trial so that `mirror_avatar.sessions.loading.load_session` rebuilds
-the
-N-player session (`mirror_avatar.files.bids.reading.read_lab_recording`); the participant's own file
-stays readable as their solo trial by `mirror_avatar.files.bids.reading.read_bids_motion` (it reads
-the channel named ``position``), so every command that reads trials reads the export. Names,
+the N-player session (`mirror_avatar.files.bids.reading.read_lab_recording`); the participant's own
+file stays readable as their solo trial by `mirror_avatar.files.bids.reading.read_bids_motion` (it
+reads the channel named ``position``), so every command that reads trials reads the export. Names,
 values and tables follow the rules of `mirror_avatar.files.bids`.
 """
 
