@@ -46,6 +46,7 @@ from mirror_avatar.players.base import Player, PlayerDiverged
 from mirror_avatar.realtime.inputs import HumanPlayer
 from mirror_avatar.realtime.latency import summarise
 from mirror_avatar.session import Session, SessionWriter
+from mirror_avatar.trial_record import InputEventRecord
 
 logger = logging.getLogger(__name__)
 
@@ -316,9 +317,7 @@ class ClockedTrial:
             if tick.alive != self._alive[person.label]:
                 self._alive[person.label] = tick.alive
                 event = "live" if tick.alive else "lost"
-                self.events.append(
-                    {"sample": k, "label": person.label, "event": event, "seq": tick.seq}
-                )
+                self.events.append(InputEventRecord(k, person.label, event, tick.seq).to_json())
                 changed = True
         if changed:
             self.writer.annotate({"input_events": list(self.events), "lost": self.lost()})

@@ -59,7 +59,7 @@ from mirror_avatar.realtime.inputs import HumanPlayer, InputSource
 from mirror_avatar.realtime.trial import Array, Clock, ClockedTrial
 from mirror_avatar.seeds import spawn_seeds
 from mirror_avatar.session import Session
-from mirror_avatar.trial_record import SlotRecord, trial_record
+from mirror_avatar.trial_record import PerturbationRecord, SlotRecord, trial_record
 from mirror_avatar.trials import MIN_SAMPLES
 
 logger = logging.getLogger(__name__)
@@ -208,14 +208,10 @@ class LabTrial(ClockedTrial):
             i, perturbation, player = self._successors.pop(0)
             player.take_over(self.engine.players[i])
             self.engine.players[i] = self.players[i] = player
-            self.perturbations.append(
-                {
-                    "sample": k,
-                    "time_s": round(k * self.period, 9),
-                    "player": perturbation.player,
-                    "change": perturbation.change,
-                }
+            change = PerturbationRecord(
+                k, round(k * self.period, 9), perturbation.player, perturbation.change
             )
+            self.perturbations.append(change.to_json())
             self.writer.annotate({"perturbations": list(self.perturbations)})
 
     def _metadata(self, lab: dict[str, Any], period: float) -> dict[str, Any]:
