@@ -139,5 +139,5 @@ def test_a_double_blind_run_hides_the_partner_kinds_until_export(lab, tmp_path, 
         kinds = set()
         for path in motions:
             game = json.loads(path.read_text())["MirrorGame"]
-            kinds |= {slot["kind"] for slot in game["slots"] if slot["label"] == "P2"}
+            kinds |= {slot["kind"] for slot in game["lab"]["slots"] if slot["label"] == "P2"}
         assert kinds == {kind}  # the export restores it

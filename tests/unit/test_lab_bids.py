@@ -45,8 +45,7 @@ REQUIRED_SIDECAR = {
     "RecordingType", "SubjectArtefactDescription", "MirrorGame",
 }  # fmt: skip
 GAME_KEYS = {
-    "session_id", "trial", "condition", "participant", "slot", "slots", "graph", "complete",
-    "dropped", "held", "seed",
+    "lab", "participant", "slot", "graph", "complete", "dropped", "held", "seed", "perturbations",
 }  # fmt: skip
 
 
@@ -159,8 +158,8 @@ def exported(tmp_path_factory: pytest.TempPathFactory) -> Exported:
 def source_of(motion: Path, exported: Exported) -> Session:
     info = json.loads(motion.with_name(motion.name.replace(".tsv", ".json")).read_text())
     game = info["MirrorGame"]
-    folder = exported.dyad if game["session_id"].endswith("dyad") else exported.ring
-    return load_session(folder / f"trial-{game['trial']:02d}_session.csv")
+    folder = exported.dyad if game["lab"]["session_id"].endswith("dyad") else exported.ring
+    return load_session(folder / f"trial-{game['lab']['trial']:02d}_session.csv")
 
 
 def test_every_human_gets_a_file_per_trial_named_as_bids_says(exported: Exported) -> None:
@@ -266,12 +265,12 @@ def test_sidecar_holds_the_required_keys(exported: Exported) -> None:
         assert 1.0 / info["SamplingFrequency"] == T
         assert info["RecordingType"] == "continuous"
         assert info["RecordingDuration"] == pytest.approx(N_SAMPLES * T)
-        n_players = len(info["MirrorGame"]["slots"])
+        n_players = len(info["MirrorGame"]["lab"]["slots"])
         assert info["MotionChannelCount"] == 2 * n_players
         assert info["POSChannelCount"] == info["VELChannelCount"] == n_players
         assert info["TrackingSystemName"] in ("pointer", "lsl")
         assert f"tracksys-{info['TrackingSystemName']}_" in motion.name
-        slots = info["MirrorGame"]["slots"]
+        slots = info["MirrorGame"]["lab"]["slots"]
         assert slots[info["MirrorGame"]["slot"]]["label"] == info["MirrorGame"]["participant"]
         assert {s["kind"] for s in slots} == {"human", "avatar"}
         assert all(s["spec"] for s in slots if s["kind"] == "avatar")

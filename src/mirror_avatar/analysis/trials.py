@@ -7,11 +7,9 @@ its subject folders. From a run folder, each trial's sidecar gives its record
 (`mirror_avatar.files.trial_record.read_trial_record`) and ``trial-NN_answers.json`` its answers.
 From a BIDS dataset (never its ``sourcedata/``), each trial is read once whichever of its people's
 ``_motion.tsv`` holds it (`mirror_avatar.sessions.loading.load_session`): the ``MirrorGame`` key
-gives its slots with their true kinds, the ``_events.tsv`` its block, condition, delay, occlusions
-and perturbations, ``participants.tsv`` the study participant's number and each ``_beh.tsv`` the
-answers; the record is then made by the same reader
-(`mirror_avatar.files.trial_record.trial_record`) as a sidecar's, so both sources give equal
-records.
+carries its record whole, read by the same reader (`mirror_avatar.files.trial_record.trial_record`)
+as a sidecar's, so both sources give equal records; ``participants.tsv`` gives the study
+participant's number and each ``_beh.tsv`` the answers.
 """
 
 from __future__ import annotations
@@ -21,22 +19,18 @@ import io
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.bids.names import MISSING, bids_label, entities
-from mirror_avatar.files.bids.reading import GAME_KEY, open_recording
+from mirror_avatar.files.bids.reading import GAME_KEY, game_record, open_recording
 from mirror_avatar.files.bids.tables import read_tsv
 from mirror_avatar.files.trial_io import read_sidecar_text
 from mirror_avatar.files.trial_record import (
     AnswerRecord,
     AnswersRecord,
-    PerturbationRecord,
-    StudyRecord,
     TrialRecord,
     read_answers_record,
     read_trial_record,
-    trial_record,
 )
 from mirror_avatar.lab.export.bids import TASK
 from mirror_avatar.lab.export.bids_study import StudyRun, read_study, subject_label
@@ -144,13 +138,15 @@ def read_bids_trials(path: Path) -> list[StudyTrial]:
     by_trial: dict[tuple[str, int], StudyTrial] = {}
     holders: dict[tuple[str, int], set[str]] = {}
     for motion in (m for s in subjects for m in sorted(s.glob(f"motion/*{_MOTION}"))):
-        game = open_recording(motion).info.get(GAME_KEY)
+        recording = open_recording(motion)
+        game = recording.info.get(GAME_KEY)
         if not isinstance(game, dict):
             continue
-        key = (str(game.get("session_id")), int(game.get("trial", -1)))
+        record = game_record(recording.sidecar, game)
+        key = (record.session_id, record.trial)
         holders.setdefault(key, set()).add(motion.parents[1].name)
         if key not in by_trial:
-            by_trial[key] = _bids_trial(root, motion, game, participants)
+            by_trial[key] = _bids_trial(root, motion, record, participants)
     numbered = _number(list(by_trial.values()))
     if not path.name.startswith("sub-"):
         return numbered
@@ -161,28 +157,25 @@ _MOTION = "_motion.tsv"
 
 
 def _bids_trial(
-    root: Path, motion: Path, game: dict[str, Any], participants: dict[str, dict[str, str]]
+    root: Path, motion: Path, record: TrialRecord, participants: dict[str, dict[str, str]]
 ) -> StudyTrial:
-    """Read one exported trial: its session, its record and every person's answers.
+    """Read one exported trial of ``record`` (its ``MirrorGame`` key's): session and answers.
 
-    The session's metadata holds the record the ``MirrorGame`` key gives
-    (`mirror_avatar.files.bids.reading.read_lab_recording`); the run's events add the study's part
-    and the perturbations.
+    Raises
+    ------
+    InputError
+        A study's trial whose key carries no study (an export by a version before the record
+        was carried whole).
     """
     session = load_session(motion)
     subject = f"sub-{entities(motion.name).get('sub', '')}"
     study = _study_run(participants.get(subject, {}))
-    events = _rows(motion.with_name(motion.name.replace(_MOTION, "_events.tsv")))
-    record = trial_record(session.metadata, motion.with_name(motion.name.replace(".tsv", ".json")))
-    record = replace(
-        record,
-        study=None if study is None else _study_record(record, events, study),
-        perturbations=tuple(
-            PerturbationRecord(int(e["sample"]), float(e["onset"]), e["player"], e["change"])
-            for e in events
-            if e["trial_type"] == "perturbation"
-        ),
-    )
+    if study is not None and record.study is None:
+        raise InputError(
+            motion.with_name(motion.name.replace(".tsv", ".json")),
+            f"{GAME_KEY} carries no study record (an export by an earlier version): read the "
+            f"run folder sourcedata/{record.session_id}/ instead, or export it again",
+        )
     answers = _bids_answers(root, record, study)
     return StudyTrial(participant_name(study, record.session_id), record, session, answers, motion)
 
@@ -191,26 +184,6 @@ def _study_run(row: dict[str, str]) -> StudyRun | None:
     """Return the study run a ``participants.tsv`` row names, None outside a study."""
     number = row.get("study_participant", MISSING)
     return None if not number.isdigit() else StudyRun(int(number), row.get("protocol", ""))
-
-
-def _study_record(record: TrialRecord, events: list[dict[str, str]], study: StudyRun
-                  ) -> StudyRecord:  # fmt: skip
-    """Make a trial's study part from its run's events (``condition_trial`` counted later)."""
-    first = events[0] if events else {}
-    return StudyRecord(
-        protocol=study.protocol,
-        participant=study.participant,
-        block=first.get("block", MISSING),
-        condition=first.get("condition", MISSING),
-        condition_trial=0,
-        delay_s=next((float(e["delay_s"]) for e in events if e["trial_type"] == "delay"), 0.0),
-        occluded_s=tuple(
-            (float(e["onset"]), float(e["onset"]) + float(e["duration"]))
-            for e in events
-            if e["trial_type"] == "occlusion"
-        ),
-        partners={slot.label: slot.kind for slot in record.slots},
-    )
 
 
 def _rows(path: Path) -> list[dict[str, str]]:
@@ -248,16 +221,16 @@ def _answer_value(cell: str, kind: str) -> object:
 
 
 def _number(trials: Iterable[StudyTrial]) -> list[StudyTrial]:
-    """Place each trial in its participant's run: its block, position and condition_trial.
+    """Place each trial in its participant's run: its block and position.
 
-    The three are counted over the run's trials in order; a plain session's trials are of one
-    block, a condition being the game.
+    The two are counted over the run's trials in order; a plain session's trials are of one
+    block, a condition being the game. A trial's number within its condition is its record's
+    (`mirror_avatar.files.trial_record.StudyRecord.condition_trial`), as the lab played it.
     """
     numbered: list[StudyTrial] = []
     blocks: list[str] = []
     conditions: list[tuple[str, str]] = []
     run: tuple[str, str] | None = None
-    count = 0
     for trial in sorted(trials, key=lambda t: (t.participant, t.record.session_id, t.record.trial)):
         record, study = trial.record, trial.record.study
         if run != (trial.participant, record.session_id):
@@ -265,10 +238,7 @@ def _number(trials: Iterable[StudyTrial]) -> list[StudyTrial]:
         here = ("", record.condition) if study is None else (study.block, study.condition)
         if not blocks or blocks[-1] != here[0]:
             blocks.append(here[0])
-        count = count + 1 if conditions and conditions[-1] == here else 1
-        if count == 1:
+        if not conditions or conditions[-1] != here:
             conditions.append(here)
-        if study is not None:
-            record = replace(record, study=replace(study, condition_trial=count))
-        numbered.append(replace(trial, record=record, block=len(blocks), position=len(conditions)))
+        numbered.append(replace(trial, block=len(blocks), position=len(conditions)))
     return numbered

@@ -7,11 +7,14 @@ and every slot, and in a study session the participant's run: protocol, particip
 block, the protocol's condition, the trial's number in it, the partners' delay, the occlusions
 and every player's true kind. Beside it are the trial's seed, the clock's start, whether it
 completed, the drops, held samples and perturbations. `TrialRecord` declares that content once:
-`read_trial_record` is its one reader (version 1 of the format: the files the lab writes, and
-has written, with one-line errors naming the file and the key), `lab_json` its one writer of
-the ``lab`` object, key for key and in the order the lab has always written it, so files stay
-byte-identical. `AnswersRecord` does the same for the answers given after a trial
-(``trial-NN_answers.json``).
+`trial_record` is its one reader (version 1 of the format: the files the lab writes, and has
+written, with one-line errors naming the file and the key; `read_trial_record` reads a
+sidecar's), `TrialRecord.metadata_json` its one writer (the ``lab`` object through `lab_json`,
+key for key and in the order the lab has always written it, so files stay byte-identical). A
+BIDS export carries the record whole in each ``_motion.json``'s ``MirrorGame`` key
+(`mirror_avatar.lab.export.bids`) and its readers read it back with `trial_record`, so a
+trial's record is equal from its run folder and from its export. `AnswersRecord` does the same
+for the answers given after a trial (``trial-NN_answers.json``).
 """
 
 from __future__ import annotations
@@ -242,16 +245,19 @@ def lab_trial_record(
 
 
 def trial_record(
-    metadata: dict[str, Any], source: str | Path = "the trial's metadata"
+    metadata: dict[str, Any], source: str | Path = "the trial's metadata", key: str = "metadata"
 ) -> TrialRecord:
     """Make the record of a trial from its sidecar's ``metadata`` (version 1).
+
+    ``key`` names the object that holds the record in ``source`` (a BIDS export's
+    ``MirrorGame``), for the errors.
 
     Raises
     ------
     InputError
-        As `read_trial_record`, naming ``source``.
+        As `read_trial_record`, naming ``source`` and the key in ``key``.
     """
-    keys = _Keys(Path(source), "metadata")
+    keys = _Keys(Path(source), key)
     lab = keys.within("lab").object(metadata.get("lab"))
     at = keys.within("lab")
     slots = lab.get("slots")

@@ -9,8 +9,7 @@ the time ``k * T`` of the engine's clock; when it was really taken is recorded b
 Files, flushed line by line as each sample is taken:
 
 - ``<stem>_session.csv`` + ``.json``: the session (`mirror_avatar.sessions.writer.SessionWriter`),
-read
-  by ``mirror-avatar evaluate``; the sidecar says ``"complete": false`` until the trial ends
+  read by ``mirror-avatar evaluate``; the sidecar says ``"complete": false`` until the trial ends
   well, and at the end holds the lateness and liveness summaries (`ClockedTrial.finish`);
 - ``<stem>_inputs.csv`` (`TickLog`): per sample, the clock time at which it was really taken
   (``clock_s``), how late its tick was against the schedule (``late_ms``), how long the players'
@@ -42,6 +41,7 @@ from numpy.typing import NDArray
 
 from mirror_avatar.engine.loop import Engine, Sink
 from mirror_avatar.files.atomic import LineFile
+from mirror_avatar.files.trial_record import InputEventRecord
 from mirror_avatar.players.base import Player, PlayerDiverged
 from mirror_avatar.realtime.inputs import HumanPlayer
 from mirror_avatar.realtime.latency import summarise
@@ -318,9 +318,7 @@ class ClockedTrial:
             if tick.alive != self._alive[person.label]:
                 self._alive[person.label] = tick.alive
                 event = "live" if tick.alive else "lost"
-                self.events.append(
-                    {"sample": k, "label": person.label, "event": event, "seq": tick.seq}
-                )
+                self.events.append(InputEventRecord(k, person.label, event, tick.seq).to_json())
                 changed = True
         if changed:
             self.writer.annotate({"input_events": list(self.events), "lost": self.lost()})

@@ -3,20 +3,17 @@
 A recording is ``<entities>_motion.tsv`` (no header, one column per channel, ``n/a`` missing)
 beside ``<entities>_motion.json`` (``SamplingFrequency`` in Hz, between
 `mirror_avatar.files.trials.MIN_RATE` and `mirror_avatar.files.trials.MAX_RATE`) and, when it holds
-more
-than one channel, ``<entities>_channels.tsv`` naming them in column order. One set of rules
+more than one channel, ``<entities>_channels.tsv`` naming them in column order. One set of rules
 serves both readers: the sidecar and channels are read as `mirror_avatar.files.trial_io` reads
 sidecars (size bound, one-line errors), the values with pandas' C parser straight into float64
 arrays, so memory stays a small multiple of the file's size whichever reader is used.
 
 `read_bids_motion` reads one position channel as a `mirror_avatar.files.trials.Trial` labelled by
-the
-recording's entities (`mirror_avatar.files.bids.names.recording_stem`), never by ``TaskName``.
+the recording's entities (`mirror_avatar.files.bids.names.recording_stem`), never by ``TaskName``.
 `read_lab_recording` reads a ``_motion.tsv`` that `mirror_avatar.lab.export.bids.export_bids` wrote,
 whose ``MirrorGame`` sidecar key describes the trial's players, back as arrays for
 `mirror_avatar.sessions.loading.load_session`; `read_tracked_points` reads any other tool's
-recording
-the same way, one player per tracked point with a position (``POS``) channel.
+recording the same way, one player per tracked point with a position (``POS``) channel.
 """
 
 from __future__ import annotations
@@ -52,7 +49,7 @@ from mirror_avatar.files.trial_io import (
     import_trial,
     read_sidecar_text,
 )
-from mirror_avatar.files.trial_record import trial_record
+from mirror_avatar.files.trial_record import TrialRecord, trial_record
 from mirror_avatar.files.trials import MAX_RATE, MIN_RATE, Trial
 from mirror_avatar.files.user_files import check_regular, open_regular
 
@@ -229,9 +226,9 @@ class LabRecording:
     graph
         The coupling graph as the sidecar gives it (checked by the session).
     metadata
-        ``lab`` (session id, trial, condition, creation time, slots), ``complete``,
-        ``dropped``, ``held``, ``seed`` when known, and ``bids`` (this file, its participant,
-        their slot index and the entities).
+        The trial's record as a sidecar's metadata holds it
+        (`mirror_avatar.files.trial_record.TrialRecord.metadata_json`), and ``bids`` (this file, its
+        participant, their slot index and the entities).
     """
 
     times: Array
@@ -274,15 +271,16 @@ def read_lab_recording(path: str | Path) -> LabRecording:
             f"no {GAME_KEY} key: not a mirror-avatar lab export (`mirror-avatar signature` and "
             "`mirror-avatar generator fit` read single-participant motion files)",
         )
-    game = _check_game(recording.sidecar, recording.info[GAME_KEY])
+    game, record = _check_game(recording.sidecar, recording.info[GAME_KEY])
+    slot = game["slot"]
     if not recording.channels:
         raise InputError(recording.motion, "no channels file naming its columns")
     names = recording.names
     _check_widths(recording.motion, len(names))
     values = _read_numbers(recording.motion, list(range(len(names))), names, "\t", 1)
     columns = {name: values[k] for k, name in enumerate(names)}
-    slots, own = game["slots"], game["slot"]
-    pairs = [_player_channels(recording.motion, columns, s["label"], j == own)
+    slots = record.slots
+    pairs = [_player_channels(recording.motion, columns, s.label, j == slot)
              for j, s in enumerate(slots)]  # fmt: skip
     n = values[0].size
     times = _sample_times(recording, float(game.get("start_time", 0.0)), n)
@@ -290,10 +288,10 @@ def read_lab_recording(path: str | Path) -> LabRecording:
         times=times,
         positions=np.vstack([p for p, _ in pairs]) if n else np.empty((len(slots), 0)),
         velocities=np.vstack([v for _, v in pairs]) if n else np.empty((len(slots), 0)),
-        labels=tuple(s["label"] for s in slots),
-        roles=tuple(s["role"] for s in slots),
+        labels=tuple(s.label for s in slots),
+        roles=tuple(s.role for s in slots),
         graph=game["graph"],
-        metadata=_lab_metadata(recording.motion, game),
+        metadata=record.metadata_json() | {"bids": _bids_origin(recording.motion, game)},
     )
 
 
@@ -310,26 +308,43 @@ def _sample_times(recording: Recording, start: float, n: int) -> Array:
     return times
 
 
-def _check_game(sidecar: Path, game: object) -> dict[str, Any]:
-    """Check the slots, slot index, graph and start time of a ``MirrorGame`` key."""
+def _check_game(sidecar: Path, game: object) -> tuple[dict[str, Any], TrialRecord]:
+    """Check a ``MirrorGame`` key's slot index, graph and start time; return it and its record."""
     if not isinstance(game, dict):
         raise InputError(sidecar, f"{GAME_KEY} is not a JSON object")
-    slots = game.get("slots")
-    if not isinstance(slots, list) or not slots:
-        raise InputError(sidecar, f"{GAME_KEY}: slots must be a non-empty list")
-    for k, slot in enumerate(slots):
-        if not (isinstance(slot, dict) and isinstance(slot.get("label"), str)
-                and isinstance(slot.get("role"), str)):  # fmt: skip
-            raise InputError(sidecar, f"{GAME_KEY}: slot {k} has no text label and role")
+    record = game_record(sidecar, game)
+    n_slots = len(record.slots)
     slot = game.get("slot")
-    if isinstance(slot, bool) or not isinstance(slot, int) or not 0 <= slot < len(slots):
-        raise InputError(sidecar, f"{GAME_KEY}: slot {slot!r} is not one of {len(slots)} slots")
+    if isinstance(slot, bool) or not isinstance(slot, int) or not 0 <= slot < n_slots:
+        raise InputError(sidecar, f"{GAME_KEY}: slot {slot!r} is not one of {n_slots} slots")
     if not isinstance(game.get("graph"), list):
         raise InputError(sidecar, f"{GAME_KEY}: graph must be a list of lists")
     start = game.get("start_time", 0.0)
     if isinstance(start, bool) or not isinstance(start, int | float) or not math.isfinite(start):
         raise InputError(sidecar, f"{GAME_KEY}: start_time {start!r} is not a number of seconds")
-    return game
+    return game, record
+
+
+def game_record(sidecar: Path, game: dict[str, Any]) -> TrialRecord:
+    """Read the trial's record a ``MirrorGame`` key carries, by the record's one reader.
+
+    The key holds the record as a trial sidecar's metadata does; version 1 of the key (exports
+    before the record was carried whole) held the ``lab`` object's keys at its top.
+
+    Raises
+    ------
+    InputError
+        A record that is not one (`mirror_avatar.files.trial_record.trial_record`), naming
+        ``sidecar`` and the key.
+    """
+    metadata = {"lab": game} | game if game.get("version") == 1 else game
+    return trial_record(metadata, sidecar, GAME_KEY)
+
+
+def _bids_origin(motion: Path, game: dict[str, Any]) -> dict[str, Any]:
+    """Return where a lab recording was read: the file, its participant, slot and entities."""
+    return {"path": str(motion), "participant": game.get("participant"), "slot": game["slot"],
+            "entities": entities(motion.name)}  # fmt: skip
 
 
 def _check_widths(path: Path, width: int) -> None:
@@ -356,23 +371,6 @@ def _player_channels(
     if missing:
         raise InputError(path, f"missing channel(s) {', '.join(missing)} of player {label!r}")
     return columns[names[0]], columns[names[1]]
-
-
-def _lab_metadata(path: Path, game: dict[str, Any]) -> dict[str, Any]:
-    """Make the session metadata from a ``MirrorGame`` key: the trial's record, as a sidecar's.
-
-    The record (`mirror_avatar.files.trial_record`) is read from the key's ``session_id``,
-    ``condition``, ``trial``, ``slots``, times, ``seed``, ``complete``, ``dropped`` and
-    ``held``; where the file is (``bids``) is added.
-    """
-    lab = {key: game.get(key) for key in ("session_id", "condition", "trial", "slots")}
-    kept = ("created_utc", "started_utc", "seed", "complete", "dropped", "held")
-    record = trial_record({"lab": lab} | {key: game[key] for key in kept if key in game},
-                          path.with_name(f"{recording_stem(path.name)}_motion.json"))  # fmt: skip
-    return record.metadata_json() | {
-        "bids": {"path": str(path), "participant": game.get("participant"), "slot": game["slot"],
-                 "entities": entities(path.name)},
-    }  # fmt: skip
 
 
 @dataclass(frozen=True)

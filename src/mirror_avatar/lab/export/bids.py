@@ -35,10 +35,12 @@ range units (-0.5..0.5; per second for velocities), then, when the inputs file i
 `mirror_avatar.lab.export.bids_trial.TIMING_CHANNELS`: each sample's ``latency`` from the first
 (type LATENCY, s), its ``clock`` time (the LSL clock when the lab ran with pylsl), and how ``late``
 its tick was and how long its ``step`` took (ms). The non-standard ``MirrorGame`` key of each
-``_motion.json`` describes the trial so that `mirror_avatar.sessions.loading.load_session` rebuilds
-the N-player session (`mirror_avatar.files.bids.reading.read_lab_recording`); the participant's own
-file stays readable as their solo trial by `mirror_avatar.files.bids.reading.read_bids_motion` (it
-reads the channel named ``position``), so every command that reads trials reads the export. Names,
+``_motion.json`` carries the trial's record whole, as its sidecar's metadata holds it
+(`mirror_avatar.files.trial_record.TrialRecord`), with the recording's slot, graph and start, so
+that `mirror_avatar.sessions.loading.load_session` rebuilds the N-player session and its record
+(`mirror_avatar.files.bids.reading.read_lab_recording`); the participant's own file
+stays readable as their solo trial by `mirror_avatar.files.bids.reading.read_bids_motion` (it reads
+the channel named ``position``), so every command that reads trials reads the export. Names,
 values and tables follow the rules of `mirror_avatar.files.bids`.
 """
 
@@ -101,8 +103,10 @@ TASK = "mirrorgame"
 
 """Trial files of a lab session folder."""
 
-GAME_FORMAT, GAME_VERSION = "mirror-avatar/lab-bids", 1
-"""Format name and version written under `GAME_KEY`."""
+GAME_FORMAT, GAME_VERSION = "mirror-avatar/lab-bids", 2
+"""Format name and version written under `GAME_KEY` (version 1 kept the ``lab`` object's
+session id, condition, trial and slots at the top, and no study, perturbations, input events
+or companion files)."""
 
 CHANNEL_COLUMNS = ("name", "component", "type", "tracked_point", "units", "description")
 """Columns of a ``_channels.tsv``."""
@@ -399,29 +403,23 @@ def _artefacts(trial: LabTrial, slot: int) -> str:
 
 
 def _game_info(trial: LabTrial, slot: int) -> dict[str, Any]:
-    """Make the ``MirrorGame`` key: what `mirror_avatar.files.bids.reading` rebuilds trials from."""
-    record = trial.record
-    info: dict[str, Any] = {
+    """Make the ``MirrorGame`` key: the trial's record whole, and how this recording holds it.
+
+    The record is written by its one writer (`mirror_avatar.files.trial_record.TrialRecord.
+    metadata_json`: ``lab`` with the session, condition, study and slots, then the times,
+    seed, drops, perturbations, held samples, input events, clock and companion files), so
+    `mirror_avatar.files.bids.reading` reads it back with the record's one reader.
+    """
+    return {
         "format": GAME_FORMAT,
         "version": GAME_VERSION,
         "library_version": __version__,
-        "session_id": record.session_id,
-        "trial": record.trial,
-        "condition": record.condition,
-        "created_utc": record.created_utc,
-        "started_utc": record.started_utc,
-        "clock": record.clock,
         "clock_start_s": clock_start(trial.timing),
         "participant": trial.slots[slot].label,
         "slot": slot,
-        "slots": [each.to_json() for each in trial.slots],
         "graph": trial.session.graph.tolist(),
         "start_time": float(trial.session.times[0]),
-        "complete": record.complete,
-        "dropped": dict(record.dropped),
-        "held": dict(record.held),
-    }
-    return info if record.seed is None else info | {"seed": record.seed}
+    } | trial.record.metadata_json()
 
 
 def _copy_sources(session_dir: Path, files: list[Path], target: Path) -> None:

@@ -9,9 +9,8 @@ ticks it once per control period T; sample k is the time ``k * T`` of the engine
 Files, in the session's folder, flushed line by line (METHODS section 9):
 
 - ``trial-NN_session.csv`` + ``.json``: the N-player session (`mirror_avatar.sessions.session`),
-read by
-  ``mirror-avatar evaluate``; the sidecar's ``metadata["lab"]`` names the session, the trial,
-  the condition and every slot (with an LSL device: its source id, host and counts of invalid
+  read by ``mirror-avatar evaluate``; the sidecar's ``metadata["lab"]`` names the session, the
+  trial, the condition and every slot (with an LSL device: its source id, host and counts of invalid
   and clipped samples), and ``dropped`` / ``held`` / ``lost`` are updated as they happen;
 - ``trial-NN_inputs.csv`` (`mirror_avatar.realtime.trial.TickLog`): per sample, the clock time at
   which it was taken (``clock_s``: the LSL clock when pylsl is installed, so the samples line up
@@ -47,7 +46,7 @@ from mirror_avatar import __version__
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.engine.loop import count_samples, row_positions, spawn_session_seeds
-from mirror_avatar.files.trial_record import SlotRecord, trial_record
+from mirror_avatar.files.trial_record import PerturbationRecord, SlotRecord, trial_record
 from mirror_avatar.files.trials import MIN_SAMPLES
 from mirror_avatar.lab.design.avatars import load_avatar, successor_players
 from mirror_avatar.lab.design.perturbation import Perturbation
@@ -209,14 +208,10 @@ class LabTrial(ClockedTrial):
             i, perturbation, player = self._successors.pop(0)
             player.take_over(self.engine.players[i])
             self.engine.players[i] = self.players[i] = player
-            self.perturbations.append(
-                {
-                    "sample": k,
-                    "time_s": round(k * self.period, 9),
-                    "player": perturbation.player,
-                    "change": perturbation.change,
-                }
+            change = PerturbationRecord(
+                k, round(k * self.period, 9), perturbation.player, perturbation.change
             )
+            self.perturbations.append(change.to_json())
             self.writer.annotate({"perturbations": list(self.perturbations)})
 
     def _metadata(self, lab: dict[str, Any], period: float) -> dict[str, Any]:
