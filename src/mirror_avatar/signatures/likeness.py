@@ -49,6 +49,7 @@ from mirror_avatar.signatures.permutations import (
     between_minus_within,
     permutation_test,
 )
+from mirror_avatar.signatures.separation import Separation, separation
 from mirror_avatar.signatures.signature import compute_emd_matrix, compute_ims, velocity_strokes
 
 Array = NDArray[np.float64]
@@ -292,12 +293,37 @@ def _mean_off_diagonal(matrix: Array) -> float:
     return float(matrix[i, j].mean()) if i.size else math.nan
 
 
+FEATURE_NAMES = (
+    *(f"{q}th percentile of velocity (units/s)" for q in (5, 25, 50, 75, 95)),
+    "mean speed (units/s)",
+    "90th percentile of speed (units/s)",
+    "median |acceleration| (units/s²)",
+    "90th percentile of |acceleration| (units/s²)",
+    *(
+        f"share of velocity power in {lo:g}-{hi:g} Hz"
+        for lo, hi in itertools.pairwise(SPECTRUM_BANDS)
+    ),
+    "amplitude: SD of position (units)",
+)
+"""The words of each column of `window_features`, in order."""
+
+FEATURE_GROUPS: dict[str, tuple[int, ...]] = {
+    "velocity distribution": tuple(range(7)),
+    "acceleration": (7, 8),
+    "spectrum": tuple(range(9, 9 + len(SPECTRUM_BANDS) - 1)),
+    "amplitude": (8 + len(SPECTRUM_BANDS),),
+}
+"""Groups of `window_features` columns whose separating power is reported apart
+(`mirror_avatar.signatures.separation`)."""
+
+
 def window_features(velocity: Array, rate: float) -> Array:
     """Features of each `WINDOW_SECONDS` window of a velocity, shape (k, 17).
 
     Per window: velocity quantiles (5, 25, 50, 75, 95 %), mean and 90th-percentile speed,
     median and 90th-percentile |acceleration|, the share of velocity power in each band of
-    `SPECTRUM_BANDS` (7), and the SD of the position (the velocity integrated).
+    `SPECTRUM_BANDS` (7), and the SD of the position (the velocity integrated). The columns'
+    words are `FEATURE_NAMES`, their groups `FEATURE_GROUPS`.
     """
     width = round(WINDOW_SECONDS * rate)
     hop = max(1, round(width * HOP_FRACTION))
@@ -348,6 +374,9 @@ class ClassifierTest:
         Cross-validation folds.
     halves
         Whether a side with a single trial had it cut into two halves, each its own group.
+    separation
+        Which features separate the sets and which way (each group of `FEATURE_GROUPS` alone,
+        the features that moved most).
     """
 
     test: PermutationTest
@@ -356,6 +385,7 @@ class ClassifierTest:
     n_windows: tuple[int, int]
     folds: int
     halves: bool
+    separation: Separation
 
     @property
     def auc(self) -> float:
@@ -368,10 +398,15 @@ class ClassifierTest:
         return self.test.p_value < ALPHA
 
     def verdict(self) -> str:
-        """One line: ``distinguishable: AUC 0.83`` or ``indistinguishable at this data size``."""
-        return verdict_line(
-            self.distinguishable, f"classifier AUC {self.auc:.2f} ({self.test.p_words()})"
-        )
+        """One line: ``distinguishable: AUC 0.83 (...); told apart by ...`` or not.
+
+        ``indistinguishable at this data size: AUC 0.55 (...)``; only a distinguishable verdict
+        says why (`Separation.words`).
+        """
+        numbers = f"classifier AUC {self.auc:.2f} ({self.test.p_words()})"
+        if self.distinguishable:
+            numbers += f"; {self.separation.words()}"
+        return verdict_line(self.distinguishable, numbers)
 
     def to_json_dict(self) -> dict[str, Any]:
         """Return the numbers and the verdict."""
@@ -383,6 +418,7 @@ class ClassifierTest:
             "n_windows": list(self.n_windows),
             "folds": self.folds,
             "halves": self.halves,
+            "separation": self.separation.to_json_dict(),
             "verdict": self.verdict(),
         }
 
@@ -437,16 +473,10 @@ def classifier_test(
     fold_seed, permutation_seed = draw_seeds(seed, 2)
 
     def auc(side: NDArray[np.bool_]) -> float:
-        y = side[groups]
-        splitter = StratifiedGroupKFold(folds, shuffle=True, random_state=fold_seed % 2**31)
-        aucs = []
-        for train, test in splitter.split(x, y, groups):
-            model = make_pipeline(StandardScaler(), RidgeClassifier())
-            model.fit(x[train], y[train])
-            aucs.append(roc_auc_score(y[test], model.decision_function(x[test])))
-        return float(np.mean(aucs))
+        return _cross_validated_auc(x, side[groups], groups, folds, fold_seed)
 
     windows = (sum(len(f) for f in features[: len(ref)]), sum(len(f) for f in features[len(ref) :]))
+    is_candidate = labels[groups]
     return ClassifierTest(
         test=permutation_test(auc, labels, n_permutations, permutation_seed),
         n_reference=int((~labels).sum()),
@@ -454,7 +484,32 @@ def classifier_test(
         n_windows=windows,
         folds=folds,
         halves=ref_halves or cand_halves,
+        separation=separation(
+            x,
+            is_candidate,
+            FEATURE_NAMES,
+            FEATURE_GROUPS,
+            lambda columns: _cross_validated_auc(
+                x[:, list(columns)], is_candidate, groups, folds, fold_seed
+            ),
+        ),
     )
+
+
+def _cross_validated_auc(
+    x: Array, y: NDArray[np.bool_], groups: NDArray[np.int_], folds: int, seed: int
+) -> float:
+    """Mean over folds of each test fold's AUC: folds stratified and grouped by unit.
+
+    ``x`` has shape (n_windows, n_features), ``y`` and ``groups`` shape (n_windows,).
+    """
+    splitter = StratifiedGroupKFold(folds, shuffle=True, random_state=seed % 2**31)
+    aucs = []
+    for train, test in splitter.split(x, y, groups):
+        model = make_pipeline(StandardScaler(), RidgeClassifier())
+        model.fit(x[train], y[train])
+        aucs.append(roc_auc_score(y[test], model.decision_function(x[test])))
+    return float(np.mean(aucs))
 
 
 def _units(signals: Sequence[Array]) -> tuple[list[Array], bool]:
