@@ -44,8 +44,9 @@ def assert_close(found: Any, expected: Any, where: str = "") -> None:
     """Assert that ``found`` is ``expected`` up to the rounding of floats.
 
     Dicts must have the same keys in the same order, lists the same length, strings, integers,
-    booleans and None the same values; floats, strings that read as floats (`FLOAT_TEXT`) and
-    float arrays must agree within ``ATOL + RTOL * abs(expected)``.
+    booleans and None the same values; floats (against floats or integers, as ``==`` compares
+    them), strings that read as floats (`FLOAT_TEXT`) and float arrays must agree within
+    ``ATOL + RTOL * abs(expected)``.
 
     Parameters
     ----------
@@ -71,8 +72,10 @@ def assert_close(found: Any, expected: Any, where: str = "") -> None:
         assert len(found) == len(expected), f"{where}: length {len(found)} != {len(expected)}"
         for k, (one, other) in enumerate(zip(found, expected, strict=True)):
             assert_close(one, other, f"{where}[{k}]")
-    elif isinstance(expected, float) or _is_float_text(expected):
-        assert type(found) is type(expected), f"{where}: {found!r} != {expected!r}"
+    elif _is_number(expected) and _is_number(found) and float in (type(found), type(expected)):
+        assert _close(float(found), float(expected)), f"{where}: {found!r} != {expected!r}"
+    elif _is_float_text(expected):
+        assert _is_float_text(found), f"{where}: {found!r} != {expected!r}"
         assert _close(float(found), float(expected)), f"{where}: {found!r} != {expected!r}"
     else:
         assert type(found) is type(expected) and found == expected, (
@@ -82,6 +85,10 @@ def assert_close(found: Any, expected: Any, where: str = "") -> None:
 
 def _close(found: float, expected: float) -> bool:
     return math.isclose(found, expected, rel_tol=0.0, abs_tol=ATOL + RTOL * abs(expected))
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 def _is_float_text(value: Any) -> bool:

@@ -31,7 +31,7 @@ def test_every_number_moved_by_its_last_digit_is_close() -> None:
         lambda d: d["session"].update(rmse=d["session"]["rmse"] * (1 + 1e-6)),
         lambda d: d["rows"][1].__setitem__(1, "-0.1234561"),
         lambda d: d["rows"][2].__setitem__(0, "-2"),
-        lambda d: d["session"].update(leader=0.0),
+        lambda d: d["session"].update(leader=1),
         lambda d: d["session"].update(label="P2"),
         lambda d: d["session"].pop("missing"),
         lambda d: d["session"].update(extra=1),
@@ -40,7 +40,7 @@ def test_every_number_moved_by_its_last_digit_is_close() -> None:
         lambda d: d["flags"].__setitem__(0, 1),
         lambda d: d.update(session=[]),
     ],
-    ids=["float", "float text", "integer text", "int to float", "text", "key missing",
+    ids=["float", "float text", "integer text", "integer", "text", "key missing",
          "key added", "near zero", "length", "bool to int", "structure"],
 )  # fmt: skip
 def test_any_other_change_fails_naming_its_place(change) -> None:
@@ -48,6 +48,12 @@ def test_any_other_change_fails_naming_its_place(change) -> None:
     change(changed)
     with pytest.raises(AssertionError):
         assert_close(changed, DOCUMENT)
+
+
+def test_an_integer_and_a_float_compare_as_numbers() -> None:
+    assert_close({"duration": 2.0, "n": 3}, {"duration": 2, "n": 3.0000000000000004})
+    with pytest.raises(AssertionError):
+        assert_close(2.000001, 2)
 
 
 def test_keys_in_another_order_fail() -> None:
