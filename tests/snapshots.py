@@ -46,7 +46,7 @@ def assert_close(found: Any, expected: Any, where: str = "") -> None:
     Dicts must have the same keys in the same order, lists the same length, strings, integers,
     booleans and None the same values; floats (against floats or integers, as ``==`` compares
     them), strings that read as floats (`FLOAT_TEXT`) and float arrays must agree within
-    ``ATOL + RTOL * abs(expected)``.
+    ``ATOL + RTOL * abs(expected)``; other arrays must be equal, of the same shape and dtype.
 
     Parameters
     ----------
@@ -60,8 +60,10 @@ def assert_close(found: Any, expected: Any, where: str = "") -> None:
     AssertionError
         Naming the first place where they differ.
     """
-    if isinstance(expected, np.ndarray):
+    if isinstance(expected, np.ndarray) and expected.dtype.kind == "f":
         np.testing.assert_allclose(found, expected, rtol=RTOL, atol=ATOL, err_msg=where)
+    elif isinstance(expected, np.ndarray):
+        np.testing.assert_array_equal(found, expected, err_msg=where, strict=True)
     elif isinstance(expected, dict):
         assert isinstance(found, dict), f"{where}: {found!r} is not a dict"
         assert list(found) == list(expected), f"{where}: keys {list(found)} != {list(expected)}"

@@ -68,6 +68,13 @@ def test_a_float_array_is_compared_to_rounding() -> None:
         assert_close(perturbed(array, 1.0 + 1e-6), array)
 
 
+def test_an_integer_array_is_compared_exactly() -> None:
+    seeds = np.array([2**63 + 1, 7], dtype=np.uint64)
+    assert_close(seeds.copy(), seeds)
+    with pytest.raises(AssertionError):
+        assert_close(seeds + np.uint64(1), seeds)
+
+
 @pytest.mark.parametrize("suffix", [".json", ".csv", ".tsv", ".npz"])
 def test_a_fixture_written_reads_back_as_it_was(tmp_path, suffix) -> None:
     value = {
