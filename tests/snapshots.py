@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 
 RTOL = 1e-9
-"""Relative tolerance of a float: rounding moves a result by a few units in the last place
-(relative 1e-16 each), amplified by the conditioning of what computes it (a session of a few
-thousand RK4 steps, a cross-correlation's sums over the samples); 1e-9 leaves six orders of
-magnitude above that and three below a change at relative 1e-6, which must fail."""
+"""Relative tolerance of a float: one rounding moves a result by relative 1e-16, and a result
+of many (a session of a few thousand RK4 steps, a cross-correlation's sums over the samples)
+by that times the conditioning of its computation; 1e-9 is seven orders of magnitude above one
+rounding and three below a change at relative 1e-6, which must fail."""
 
 ATOL = 1e-12
 """Absolute tolerance of a float, in its own units: a result that is 0 on one machine comes out
@@ -74,7 +74,7 @@ def assert_close(found: Any, expected: Any, where: str = "") -> None:
         assert len(found) == len(expected), f"{where}: length {len(found)} != {len(expected)}"
         for k, (one, other) in enumerate(zip(found, expected, strict=True)):
             assert_close(one, other, f"{where}[{k}]")
-    elif _is_number(expected) and _is_number(found) and float in (type(found), type(expected)):
+    elif _is_number(expected) and _is_number(found) and _either_float(found, expected):
         assert _close(float(found), float(expected)), f"{where}: {found!r} != {expected!r}"
     elif _is_float_text(expected):
         assert _is_float_text(found), f"{where}: {found!r} != {expected!r}"
@@ -91,6 +91,10 @@ def _close(found: float, expected: float) -> bool:
 
 def _is_number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _either_float(found: Any, expected: Any) -> bool:
+    return isinstance(found, float) or isinstance(expected, float)
 
 
 def _is_float_text(value: Any) -> bool:
