@@ -31,6 +31,16 @@ CONFIDENCE = 0.95
 
 BootstrapMethod = Literal["BCa", "percentile"]
 
+EXACT_RESIDUAL = 1e-9
+"""Largest residual, in the measure's SDs, of a measure its model's terms explain exactly
+(rounding leaves 1e-15 or so; any noise a measure of people carries is many orders above)."""
+
+NOISELESS = (
+    "no variation beyond what participant, condition and position explain exactly, "
+    "so no mixed model was fitted"
+)
+"""The note of a measure its model's terms explain exactly (`fit_contrasts`)."""
+
 
 def has_spread(values: NDArray[np.float64]) -> bool:
     """Whether ``values`` differ by more than rounding (relative 1e-12): a spread to scale by."""
@@ -239,7 +249,10 @@ def fit_contrasts(
     changes but the fit's boundary check: statsmodels flags a random-intercept variance under
     0.01 in the outcome's units squared, here under 1 % of the measure's variance). Each
     contrast is cross-checked by a paired t-test and a Wilcoxon signed-rank test of the
-    participants' means in the two conditions.
+    participants' means in the two conditions. A measure with the same value in every trial, or
+    one that participant, condition and position explain exactly (no residual variance: a
+    singular model), is not fitted, and a note says which: its contrasts have NaN estimates and
+    keep their paired tests.
 
     Returns
     -------
@@ -258,7 +271,10 @@ def fit_contrasts(
     if not has_spread(values):
         return _unfitted(data, measure, means, reference, notes + ["the same value in every trial"])
     sd = float(np.std(values))
-    model = MixedLM((values - values.mean()) / sd, design, groups=data["participant"])
+    scaled = (values - values.mean()) / sd
+    if _explained_exactly(scaled, design, data["participant"]):
+        return _unfitted(data, measure, means, reference, notes + [NOISELESS])
+    model = MixedLM(scaled, design, groups=data["participant"])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -332,6 +348,24 @@ def _design(data: pd.DataFrame, others: list[str]) -> tuple[pd.DataFrame, list[s
     else:
         why = "it is confounded with condition (every participant met the conditions in one order)"
     return design, [f"order not checked: position left out of the model, {why}"]
+
+
+def _explained_exactly(
+    scaled: NDArray[np.float64], design: pd.DataFrame, participants: pd.Series
+) -> bool:
+    """Whether the fixed effects and a mean per participant explain ``scaled`` to rounding.
+
+    Least squares of the values (centred, in SDs) on the fixed effects' ``design`` and a dummy
+    per participant. With rows to spare (rank under the row count) and every residual within
+    `EXACT_RESIDUAL` SDs, the mixed model has no residual variance to estimate: its likelihood
+    is singular, and what statsmodels makes of it (an error, or a fit that does not converge)
+    depends on the machine's BLAS.
+    """
+    dummies = pd.get_dummies(participants, dtype=np.float64).to_numpy()
+    terms = np.column_stack([design.to_numpy(np.float64), dummies])
+    solution, _, rank, _ = np.linalg.lstsq(terms, scaled, rcond=None)
+    residuals = scaled - terms @ solution
+    return bool(rank < scaled.size and np.max(np.abs(residuals)) <= EXACT_RESIDUAL)
 
 
 def _fit_notes(caught: list[warnings.WarningMessage], converged: bool) -> list[str]:
