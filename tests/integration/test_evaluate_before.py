@@ -3,7 +3,9 @@
 `tests/fixtures/evaluate_before/` holds sessions (bundled trials as a pair and a group, a
 simulated dyad, a seeded lab trial) and the ``metrics.json`` and ``sessions.csv`` that
 ``evaluate`` wrote of them at commit 8afeb03 (its ``make.py``): every run is compared byte for
-byte, so computing each quantity once and trimming a session once changed no number.
+byte, so computing each quantity once and trimming a session once changed no number. Since a
+session's surrogates are drawn from the seed it records (`mirror_avatar.metrics.measuring`),
+the lab trial's surrogate seed, and with it one of its p-values, are the ones it records.
 """
 
 from __future__ import annotations
