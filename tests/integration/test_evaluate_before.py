@@ -5,7 +5,9 @@ simulated dyad, a seeded lab trial) and the ``metrics.json`` and ``sessions.csv`
 ``evaluate`` wrote of them at commit 8afeb03 (its ``make.py``): every run is compared with them,
 keys, text and structure exactly and numbers within the rounding another machine may give
 (`snapshots.assert_close`), so computing each quantity once and trimming a session once changed
-no number.
+no number. Since a
+session's surrogates are drawn from the seed it records (`mirror_avatar.metrics.measuring`),
+the lab trial's surrogate seed, and with it one of its p-values, are the ones it records.
 """
 
 from __future__ import annotations

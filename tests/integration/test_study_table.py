@@ -1,6 +1,7 @@
 """The study table of a protocol played through the real lab server: one row per trial and
 player with the design, the measures and the answers; the same table from the run folders and
-from their BIDS export; the answers' behavioural files carrying the partners' true kind."""
+from their BIDS export; the answers' behavioural files carrying the partners' true kind; a
+trial's measures the same in the console, its sidecar, ``evaluate`` and the table."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from test_lab_server import TOKEN
+from test_lab_server import TOKEN, status
 from test_lab_study_export import PROTOCOL, Study, play
 
 from mirror_avatar.cli import main
@@ -128,3 +129,31 @@ def test_evaluate_reads_the_export_from_its_motion_files_once_per_trial(study, t
         for key in ("rmse", "phase_locking", "time_lag", "co_confidence_rate"):
             assert exported[key] == recorded[key]
     assert len(evaluated(bids / "sub-p000P1")) == 2
+
+
+def test_a_trials_measures_are_the_same_in_the_console_sidecar_evaluate_and_table(
+    study, tmp_path, capsys
+):
+    """The lab's own analysis, ``evaluate`` and ``study table`` measure a trial one way (the same
+    trim, rate and surrogates' seed): the follow trial's CV, RMS and CC rate, as the console's JSON
+    (the server's answer), its sidecar, ``evaluate --json`` and ``study.csv`` give them, and
+    its surrogates drawn from its recorded seed."""
+    (console,) = [row for row in status(study.server, study.sid)["trials"] if row["n"] == 1]
+    trial = study.folder / "trial-01_session.csv"
+    sidecar = json.loads(trial.with_suffix(".json").read_text())["metadata"]
+    assert main(["evaluate", str(trial), "--json", "--surrogates", "19"]) == 0
+    out = capsys.readouterr().out
+    evaluated, _ = json.JSONDecoder().raw_decode(out[out.index("{") :])
+    assert main(["study", "table", str(study.folder), "--out", str(tmp_path)]) == 0
+    with (tmp_path / "study.csv").open() as handle:
+        (row, _) = [r for r in csv.DictReader(handle) if r["trial"] == "1"]
+    cv = console["metrics"]["phase_locking"]
+    assert 0.0 < cv <= 1.0
+    assert sidecar["metrics"]["phase_locking"] == evaluated["phase_locking"] == cv
+    assert float(row["phase_locking"]) == cv
+    for key in ("rmse", "co_confidence_rate"):
+        shown = console["metrics"] | console["measures"]
+        assert float(row[key]) == evaluated[key] == shown[key]
+    drawn = sidecar["measures"]["surrogates"]  # 1 s after the trim: too short for shifts
+    assert drawn == evaluated["surrogates"] == console["measures"]["surrogates"]
+    assert drawn["seed"] == sidecar["seed"]

@@ -64,6 +64,13 @@ def test_without_a_dictionary_measures_are_the_numeric_non_design_columns(tmp_pa
     assert table.units("rms") == ""
 
 
+def test_without_a_dictionary_a_numeric_session_id_is_no_measure(tmp_path: Path) -> None:
+    """Every identifier and design column of the study table's dictionary is never a measure."""
+    rows = make_study_rows(0).assign(session=7)
+    table = read_study_table(write_study_table(rows, tmp_path, with_dictionary=False))
+    assert table.measures == ["rms", "phase_locking"]
+
+
 def bad_table(folder: Path, case: str) -> Path:
     """Write the bad table ``case`` in ``folder`` and return the path to give the reader."""
     if case == "empty folder":

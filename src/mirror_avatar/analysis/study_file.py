@@ -17,6 +17,7 @@ from typing import Any
 
 import pandas as pd
 
+from mirror_avatar.analysis.dictionary import DESIGN_COLUMNS, GUESS_COLUMNS
 from mirror_avatar.common.errors import InputError
 
 TABLE_NAMES = ("study.csv", "study.parquet")
@@ -27,11 +28,9 @@ TEXT_COLUMNS = (
 )  # fmt: skip
 """Columns read as text whatever they hold (a participant "001" stays "001")."""
 
-DESIGN_COLUMNS = (
-    *TEXT_COLUMNS, "block", "trial", "position", "delay_s", "occluded", "perturbations",
-    "guess_correct", "guess_confidence",
-)  # fmt: skip
-"""The columns that are never a measure."""
+NOT_MEASURES = (*DESIGN_COLUMNS, *GUESS_COLUMNS)
+"""The columns that are never a measure: the study table's identifiers, design and guesses
+(`mirror_avatar.analysis.dictionary`)."""
 
 REQUIRED_COLUMNS = ("participant", "condition", "position")
 """The columns the statistics cannot do without."""
@@ -64,7 +63,7 @@ class StudyTable:
         return [
             name
             for name in self.rows.columns
-            if name not in DESIGN_COLUMNS
+            if name not in NOT_MEASURES
             and not name.startswith("answer_")
             and not name.endswith("_p_value")
             and self._numeric(name)

@@ -7,8 +7,9 @@ participant's run (``block`` and ``position``: 1-based order of the block and of
 in the run, counted from the trials as played; ``trial``), what the protocol set (``condition``,
 ``partners``, ``partner_kind``, ``delay_s``, ``occluded``, ``perturbations``), the measures of
 the player's trial (`mirror_avatar.metrics.session_metrics` and
-`mirror_avatar.metrics.measures.session_measures` after the same trim as ``evaluate``, with
-``surrogates`` circular-shift surrogates seeded by the trial's own seed: a pair's measures on
+`mirror_avatar.metrics.measures.session_measures`, measured as ``evaluate`` and the lab measure
+a trial: `mirror_avatar.metrics.measuring.measure_trial`, with ``surrogates`` circular-shift
+surrogates seeded by the trial's own seed: a pair's measures on
 both players' rows, a player's own - jitter index, influence, a group member's measures against
 its neighbours - on its row), then each answer (``answer_<question id>``) and, for a
 person-or-computer question, the guess (`mirror_avatar.analysis.guesses`).
@@ -34,19 +35,15 @@ from mirror_avatar.analysis.dictionary import (
 )
 from mirror_avatar.analysis.guesses import guess
 from mirror_avatar.analysis.trials import StudyTrial
-from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
 from mirror_avatar.files.trial_record import KIND_NAMES, SlotRecord, partner_kind
-from mirror_avatar.files.trials import MIN_SAMPLES
-from mirror_avatar.lab.running.trial import LAB_SURROGATES
-from mirror_avatar.metrics import TRIM, session_metrics
-from mirror_avatar.metrics.measures import MeasureOptions, session_measures
-from mirror_avatar.metrics.quantities import Quantities
+from mirror_avatar.metrics import TRIM
+from mirror_avatar.metrics.measuring import TRIAL_SURROGATES, measure_trial
 
 TABLE_FILES = ("study.csv", "study.parquet", "study.json")
 """The files `write_study_table` writes."""
 
-SURROGATES = LAB_SURROGATES
+SURROGATES = TRIAL_SURROGATES
 """Surrogates per trial by default: the lab's own (p-values down to 0.05)."""
 
 MAX_LEVELS = 20
@@ -73,22 +70,13 @@ def study_table(
 
 
 def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str, Any]:
-    """Compute a trial's metrics and measures (the session trimmed once, each quantity once).
+    """Compute a trial's metrics and measures (`mirror_avatar.metrics.measuring.measure_trial`).
 
     A trial with fewer than `mirror_avatar.files.trials.MIN_SAMPLES` samples after the trim (a run
     stopped at once) has none: its rows keep their design and answers.
     """
-    try:
-        session = trial.session.trimmed(trim) if trim > 0 else trial.session
-    except InputError:
-        return {}
-    if session.n_samples < MIN_SAMPLES:
-        return {}
-    seed = trial.record.seed if trial.record.seed is not None else 0
-    options = MeasureOptions(n_surrogates=surrogates, seed=seed)
-    shared = Quantities.of(session)
-    metrics = session_metrics(session, quantities=shared)
-    return metrics | session_measures(session, options=options, quantities=shared).values
+    measured = measure_trial(trial.session, surrogates, trim)
+    return {} if measured is None else measured.metrics | measured.measures.values
 
 
 def _design(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:

@@ -34,13 +34,8 @@ from mirror_avatar.files.atomic import json_safe
 from mirror_avatar.files.bids.names import MOTION_SUFFIX
 from mirror_avatar.files.trial_record import trial_record
 from mirror_avatar.metrics import TRIM
-from mirror_avatar.metrics.analysis_rate import (
-    ANALYSIS_RATE,
-    at_analysis_rate,
-    decimation_factor,
-    session_rate,
-)
-from mirror_avatar.metrics.measures import evaluate_sessions
+from mirror_avatar.metrics.analysis_rate import ANALYSIS_RATE, decimation_factor, session_rate
+from mirror_avatar.metrics.measuring import measure_sessions
 from mirror_avatar.metrics.progress import order_by_start, progress_table
 from mirror_avatar.report import REPORT_FILES
 from mirror_avatar.sessions.session import Session
@@ -98,8 +93,8 @@ def find_sessions(
     return found, notes
 
 
-def analysed(path: Path, session: Session, trim: float) -> tuple[Session, str | None]:
-    """Check a session's magnitudes and bring it to the analysis rate, with a note if it changed.
+def check_session(path: Path, session: Session, trim: float) -> str | None:
+    """Check a session's magnitudes and trim; note the rate it is analysed at, if not its own.
 
     Raises
     ------
@@ -121,12 +116,11 @@ def analysed(path: Path, session: Session, trim: float) -> tuple[Session, str | 
     rate = session_rate(session)
     q = decimation_factor(rate)
     if q == 1:
-        return session, None
-    note = (
+        return None
+    return (
         f"{path}: sampled at {rate:g} Hz, analysed at {rate / q:g} Hz (every {q}th sample after "
         f"an anti-aliasing filter; the measures need at most {ANALYSIS_RATE:g} Hz)"
     )
-    return at_analysis_rate(session), note
 
 
 def session_files(folder: Path) -> list[Path]:
@@ -200,18 +194,18 @@ def evaluate(
     if out_dir is not None:
         check_output_dir(out_dir, files=["sessions.csv", *REPORT_FILES])
     found_sessions, notes = find_sessions(paths, reading)
-    read = []
     for path, session in found_sessions:
-        at_rate, note = analysed(path, session, trim)
-        read.append((path, at_rate.duration, at_rate.trimmed(trim) if trim > 0 else at_rate))
-        notes += [note] if note else []
+        notes += [note] if (note := check_session(path, session, trim)) else []
     for note in notes:
         click.echo(note)
-    metrics, measures, weak_null = evaluate_sessions([kept for _, _, kept in read], options)
+    measured, weak_null = measure_sessions(
+        [session for _, session in found_sessions], options, trim
+    )
     results = [
-        Evaluated(path, seconds, kept, m, f)
-        for (path, seconds, kept), m, f in zip(read, metrics, measures, strict=True)
+        Evaluated(path, session.duration, m.session, m.metrics, m.measures)
+        for (path, session), m in zip(found_sessions, measured, strict=True)
     ]
+    measures = [m.measures for m in measured]
     for found in results:
         for note in found.measures.notes:
             click.echo(f"{found.path}: {note}")

@@ -134,7 +134,8 @@ def _surrogates_text(options: MeasureOptions) -> str:
     return (
         f"Every coordination measure is tested against {options.n_surrogates} "
         f"{options.surrogates} surrogates (--surrogate-seed {options.seed}: session k draws "
-        "from child k of it); a p-value at or above 0.05 means the measure does not beat its "
+        "from child k of it, a session that records its seed, as lab trials and simulations "
+        "do, from that seed); a p-value at or above 0.05 means the measure does not beat its "
         f"surrogates, and the smallest p-value {options.n_surrogates} surrogates can give is "
         f"written {p_text(0.0, options.n_surrogates)}."
     )

@@ -26,7 +26,8 @@ OPTIONS = (
     ("n_surrogates", "--surrogates", "Surrogates per session for the p-values (0: none)."),
     ("surrogates", "--surrogate-kind",
      "shift: circular shifts of the partners; pseudo: player 0 with other sessions' partners."),
-    ("seed", "--surrogate-seed", "Seed of the surrogate draws (recorded)."),
+    ("seed", "--surrogate-seed", "Seed of the surrogate draws of sessions that record none "
+     "(recorded)."),
     ("min_shift", "--min-shift", "Smallest circular shift (s)."),
     ("min_duration", "--cc-min-duration", "Shortest co-confidence segment (s)."),
     ("jitter_threshold", "--jitter-threshold",
@@ -96,8 +97,9 @@ def format_measures(values: dict[str, Any], options: MeasureOptions) -> str:
     Words and units are the registry's (`mirror_avatar.metrics.registry`); a measure without a
     value is written in its ``missing`` words, never ``nan``; a p-value at the floor of the
     surrogates is written ``p <= 0.01`` (`mirror_avatar.signatures.permutations.p_text`);
-    the seed printed is ``options.seed``, the one the report and ``metrics.json`` name (this
-    session's surrogates are drawn from a child of it).
+    the seed printed is ``options.seed``, the one the report names (this session's
+    surrogates are drawn from a child of it, or from the seed the session records:
+    `mirror_avatar.metrics.measuring`; ``metrics.json`` names the seed drawn from).
     """
     keys = [key for key in MEASURE_ROWS if key in values]
     keys += [k for k in values if k.startswith(FAMILIES) and not k.endswith("_p_value")]

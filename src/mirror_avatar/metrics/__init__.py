@@ -6,9 +6,11 @@ synchronisation of N players (cluster phase, METHODS section 8), and `summary` c
 into `session_metrics`, the one summary of a session every part of the toolkit reports.
 The measures mirror-game studies report beside them (jitter, co-confidence, synchrony episodes,
 leadership, transfer entropy, surrogates; METHODS section 12) have one module each, composed by
-`measures.session_measures`, which `evaluate` calls (imported from there, since it brings
-pyinform) on sessions brought to at most 100 Hz by `analysis_rate.at_analysis_rate`. Both compose
-one `quantities.Quantities` per session, so each shared quantity is computed once, and
+`measures.session_measures` (imported from there, since it brings pyinform). `measuring`
+measures a session one way for `evaluate`, `study table` and the lab: brought to at most 100 Hz
+by `analysis_rate.at_analysis_rate`, trimmed once, its surrogates drawn from its recorded seed.
+Both compose one `quantities.Quantities` per session, so each shared quantity is computed once,
+and
 `registry` declares every key they return: its words, unit and test.
 """
 

@@ -24,20 +24,17 @@ surrogate distribution and a p-value (`mirror_avatar.metrics.surrogates`). Keys:
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from tqdm.auto import tqdm
 
 from mirror_avatar.common.constraints import Constraint, Interval, Options, check
 from mirror_avatar.common.errors import InputError
-from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.metrics import co_confidence, jitter, leadership, registry, synchrony_episodes
 from mirror_avatar.metrics import transfer_entropy as te
 from mirror_avatar.metrics.quantities import Quantities
-from mirror_avatar.metrics.summary import session_metrics
 from mirror_avatar.metrics.surrogates import (
     MIN_SHIFT,
     WeakNull,
@@ -392,46 +389,15 @@ def _add_p_values(
     }  # fmt: skip
 
 
-def evaluate_sessions(
-    sessions: Sequence[Session], options: MeasureOptions
-) -> tuple[list[dict[str, Any]], list[Measures], WeakNull | None]:
-    """Compute the metrics and measures of several sessions, and the weak-null test over them.
-
-    Each session's metrics (`mirror_avatar.metrics.summary.session_metrics`) and measures
-    share its `Quantities`, so each quantity is computed once. Session i draws its surrogates
-    from child i of ``options.seed`` (`mirror_avatar.common.seeds.spawn_seeds`); pseudo-pairs take
-    their partners from the other sessions. A progress bar shows on a terminal when surrogates are
-    drawn.
-
-    Parameters
-    ----------
-    sessions
-        The sessions, already trimmed.
-    options
-        The measures' options.
+def weak_null_of(quantities: Sequence[Quantities]) -> WeakNull | None:
+    """Test the synchrony of sessions together (`surrogates.kuramoto_weak_null`).
 
     Returns
     -------
-    metrics, measures, weak_null
-        One dict of metrics and one `Measures` per session, in order; the weak-null test of the
-        most common group size among the moving sessions of two or more players, when two or
-        more have it, else None.
+    WeakNull or None
+        The test of the most common group size among the moving sessions of two or more
+        players, when two or more have it, else None.
     """
-    quantities = [Quantities.of(s) for s in sessions]
-    seeds = spawn_seeds(options.seed, len(sessions))
-    quiet = None if options.n_surrogates > 0 else True
-    metrics, measures = [], []
-    shown = tqdm(list(zip(sessions, quantities, strict=True)), disable=quiet, unit="session",
-                 leave=False)  # fmt: skip
-    for i, (session, q) in enumerate(shown):
-        others = list(sessions[:i]) + list(sessions[i + 1 :])
-        metrics.append(session_metrics(session, quantities=q))
-        seeded = replace(options, seed=int(seeds[i]))
-        measures.append(session_measures(session, 0.0, seeded, others, quantities=q))
-    return metrics, measures, _weak_null(quantities)
-
-
-def _weak_null(quantities: Sequence[Quantities]) -> WeakNull | None:
     moving = [q for q in quantities if q.positions.shape[0] >= 2 and q.moving]
     sizes = [q.positions.shape[0] for q in moving]
     if not sizes:

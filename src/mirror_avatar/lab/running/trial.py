@@ -19,10 +19,11 @@ Files, in the session's folder, flushed line by line (METHODS section 9):
   new sample since the previous tick: the last position is kept, never extrapolated) and whether
   the input was live.
 
-When a trial ends, its sidecar records the session's metrics (``metrics``:
-`mirror_avatar.metrics.session_metrics`) and the field's measures (``measures``:
-`mirror_avatar.metrics.measures.session_measures` with `LAB_SURROGATES` circular-shift
-surrogates seeded by the trial's seed), computed in the worker thread that finishes the trial.
+When a trial ends, its sidecar records the session's metrics (``metrics``) and the field's
+measures (``measures``), as ``evaluate`` and ``study table`` compute them
+(`mirror_avatar.metrics.measuring.measure_trial`: the first second left out,
+`mirror_avatar.metrics.measuring.TRIAL_SURROGATES` circular-shift surrogates seeded by the
+trial's seed), computed in the worker thread that finishes the trial.
 
 Whatever happens - a participant drops, the disk fills, the server is killed, an avatar
 diverges (the trial ends at that sample, its sidecar's ``diverged`` saying which player and
@@ -52,10 +53,9 @@ from mirror_avatar.lab.design.avatars import load_avatar, successor_players
 from mirror_avatar.lab.design.perturbation import Perturbation
 from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.lab.files import trial_stem
-from mirror_avatar.metrics import compute_phase, session_metrics
+from mirror_avatar.metrics import compute_phase
 from mirror_avatar.metrics.group import compute_cluster_phase
-from mirror_avatar.metrics.measures import MeasureOptions, session_measures
-from mirror_avatar.metrics.quantities import Quantities
+from mirror_avatar.metrics.measuring import measure_trial
 from mirror_avatar.players.base import Player
 from mirror_avatar.realtime.clock import time_players
 from mirror_avatar.realtime.inputs import HumanPlayer, InputSource
@@ -63,11 +63,6 @@ from mirror_avatar.realtime.trial import Array, Clock, ClockedTrial
 from mirror_avatar.sessions.session import Session
 
 logger = logging.getLogger(__name__)
-
-LAB_SURROGATES = 19
-"""Surrogates per lab trial (**choice**): enough for a p-value of 0.05 (the smallest that 19
-give: the measure beat every surrogate) at a fraction of a second per minute of trial, so the
-end screens come at once; ``mirror-avatar evaluate --surrogates`` gives finer p-values later."""
 
 
 def build_avatars(plan: SessionPlan) -> dict[int, Player]:
@@ -299,41 +294,19 @@ class LabTrial(ClockedTrial):
     def analyse(self, session: Session) -> dict[str, Any]:
         """Return the drops, the input devices' final counts, the metrics and the measures.
 
-        The metrics are `mirror_avatar.metrics.session_metrics`'s, the measures
-        `trial_measures`'.
+        The metrics and measures are `mirror_avatar.metrics.measuring.measure_trial`'s, as
+        ``evaluate`` and ``study table`` compute them; none when too few samples remain.
         """
         slots = self.writer.sidecar["metadata"]["lab"]["slots"]
         for k, slot in enumerate(slots):
             device = self._device(k)
             if device is not None:
                 slot["input"] = device
-        if session.n_samples < MIN_SAMPLES:
+        measured = measure_trial(session)
+        if measured is None:
             return {"dropped": dict(self.dropped), "metrics": {}, "measures": {}}
-        shared = Quantities.of(session)
-        metrics = session_metrics(session, quantities=shared)
-        measures = trial_measures(session, self.seed, shared) if metrics else {}
-        return {"dropped": dict(self.dropped), "metrics": metrics, "measures": measures}
-
-
-def trial_measures(
-    session: Session, seed: int, quantities: Quantities | None = None
-) -> dict[str, Any]:
-    """Compute a trial's measures with `LAB_SURROGATES` surrogates drawn from ``seed``.
-
-    ``quantities``: the session's, when its metrics computed them already.
-
-    Returns
-    -------
-    dict
-        `mirror_avatar.metrics.measures.Measures.values`, or ``{"error": ...}`` when they
-        cannot be computed (the metrics are kept).
-    """
-    options = MeasureOptions(n_surrogates=LAB_SURROGATES, seed=seed)
-    try:
-        return session_measures(session, options=options, quantities=quantities).values
-    except Exception as error:  # the metrics and the recording are kept whatever this does
-        logger.exception("the measures of a lab trial failed")
-        return {"error": f"{type(error).__name__}: {error}"}
+        measures = measured.measures.values if measured.metrics else {}
+        return {"dropped": dict(self.dropped), "metrics": measured.metrics, "measures": measures}
 
 
 def _group_sync(x: Array) -> float | None:
