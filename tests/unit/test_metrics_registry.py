@@ -41,6 +41,36 @@ def test_every_key_the_measures_return_is_declared_once(n_players):
     assert len(patterns) == len(set(patterns))
 
 
+def test_the_metric_flag_names_exactly_what_session_metrics_returns():
+    """`Measure.metric`, which `simulate` and `evaluate` print from, against the code."""
+    returned = set()
+    for n_players in (2, 3):
+        metrics = session_metrics(session(n_players))
+        returned |= {registry.find(key)[0].key for key in keys_of(metrics)}
+        for row in metrics.get("players", []):
+            returned |= {registry.find(key)[0].key for key in set(row) - {"label", "neighbours"}}
+    declared = {m.key for m in registry.MEASURES if m.metric}
+    assert declared - {"emd_target_{i}"} == returned  # only a cyber player has a target
+
+
+def test_a_group_players_row_holds_exactly_the_group_player_measures():
+    metrics = session_metrics(session(4))
+    for row in metrics["players"]:
+        assert set(row) - {"label", "neighbours"} == set(registry.GROUP_PLAYER)
+
+
+def test_the_table_columns_cover_every_tabled_measure_once():
+    columns = registry.TABLE_COLUMNS
+    assert len(columns) == len(set(columns))
+    for m in registry.MEASURES:
+        if m.in_table and "{" not in m.key:
+            assert m.key in columns
+    assert {f"{c}_player_0" for c in registry.OWN_COLUMNS} <= {
+        m.key.format(i=0, j=1) for m in registry.MEASURES
+    }
+    assert "transfer_entropy_0_to_1" in columns and "transfer_entropy_1_to_0" in columns
+
+
 @pytest.mark.parametrize("n_players", [2, 3])
 def test_the_measures_tested_are_those_the_surrogates_draw(n_players):
     s = session(n_players)

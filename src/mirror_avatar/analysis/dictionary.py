@@ -52,19 +52,10 @@ DESIGN_COLUMNS: dict[str, dict[str, Any]] = {
 }  # fmt: skip
 """The identifier and design columns, in table order."""
 
-MEASURE_COLUMNS = (
-    "rmse", "phase_locking", "mean_relative_phase", "sd_relative_phase", "time_lag",
-    "max_cross_correlation", "emd_players", "jitter_index", "co_confidence_rate",
-    "co_confidence_count", "co_confidence_mean_length", "synchrony_share", "synchrony_entries",
-    "synchrony_exits", "synchrony_mean_dwell", "synchrony_mean_gap", "leader", "leader_share",
-    "leader_lag_s", "leadership_strength", "transfer_entropy_0_to_1", "transfer_entropy_1_to_0",
-    "influence", "group_synchronisation", "group_synchronisation_sd", "kuramoto_order",
-    "synchronisation", "relative_phase_to_group", "mean_phase_locking", "mean_rmse",
-)  # fmt: skip
-"""The measure columns of the study table, in order: `mirror_avatar.metrics.registry` keys, a
-player's own (``jitter_index``, ``influence``) without ``_player_<k>``."""
+MEASURE_COLUMNS = registry.TABLE_COLUMNS
+"""The measure columns of the study table, in order (`mirror_avatar.metrics.registry`)."""
 
-PER_PLAYER = ("jitter_index", "influence")
+PER_PLAYER = registry.OWN_COLUMNS
 """The columns of a measure with one value per player: the player's own, on its row."""
 
 

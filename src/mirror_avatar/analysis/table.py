@@ -37,7 +37,7 @@ from mirror_avatar.analysis.guesses import guess
 from mirror_avatar.analysis.trials import StudyTrial
 from mirror_avatar.files.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
 from mirror_avatar.files.trial_record import KIND_NAMES, SlotRecord, partner_kind
-from mirror_avatar.metrics import TRIM
+from mirror_avatar.metrics import TRIM, registry
 from mirror_avatar.metrics.measuring import TRIAL_SURROGATES, measure_trial
 
 TABLE_FILES = ("study.csv", "study.parquet", "study.json")
@@ -50,8 +50,6 @@ MAX_LEVELS = 20
 """Most distinct values a text column may have to be listed as ``Levels`` (**choice**)."""
 
 _PER_PLAYER = tuple(f"{column}_player_" for column in PER_PLAYER)
-_GROUP_PLAYER_KEYS = ("phase_locking", "rmse", "time_lag", "max_cross_correlation",
-                      "synchronisation", "relative_phase_to_group")  # fmt: skip
 
 
 def study_table(
@@ -112,7 +110,7 @@ def _player_measures(measures: dict[str, Any], k: int, trial: StudyTrial) -> dic
             row[key] = value
     group = measures.get("players")
     if isinstance(group, list):
-        row |= {key: group[k][key] for key in _GROUP_PLAYER_KEYS if key in group[k]}
+        row |= {key: group[k][key] for key in registry.GROUP_PLAYER if key in group[k]}
     return row
 
 

@@ -18,18 +18,18 @@ from mirror_avatar.files.atomic import write_atomic_bytes, write_atomic_json
 from mirror_avatar.files.importing import ImportOptions
 from mirror_avatar.files.trials import PLAYING_RANGE, Trial
 from mirror_avatar.metrics import TRIM, session_metrics
-from mirror_avatar.metrics.registry import label, measure, symbol
+from mirror_avatar.metrics.registry import (
+    GROUP_PLAYER,
+    is_metric,
+    label,
+    measure,
+    registry_order,
+    symbol,
+)
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.report import render_png
 from mirror_avatar.sessions.session import Session
 from mirror_avatar.specs import load_player
-
-METRIC_ROWS = (
-    "phase_locking", "rmse", "mean_relative_phase", "sd_relative_phase", "time_lag",
-    "emd_players", "emd_reference_0", "emd_reference_1", "emd_target_0", "emd_target_1",
-)  # fmt: skip
-"""The metrics of a pair `evaluate` prints, in order (words and units:
-`mirror_avatar.metrics.registry`)."""
 
 SPEC_HELP = (
     "A player spec: bundled:fast, bundled:slow, a generator or cyber-player .npz, a recorded "
@@ -46,7 +46,8 @@ def format_metrics(metrics: dict[str, Any]) -> str:
     """
     if "players" in metrics:
         return format_group_metrics(metrics)
-    rows = [(key, label(key), measure(key).unit) for key in METRIC_ROWS if key in metrics]
+    keys = sorted((key for key in metrics if is_metric(key)), key=registry_order)
+    rows = [(key, label(key), measure(key).unit) for key in keys]
     width = max(len(description) for _, description, _ in rows)
     lines = []
     for key, description, unit in rows:
@@ -56,26 +57,18 @@ def format_metrics(metrics: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-GROUP_COLUMNS = (
-    "synchronisation", "relative_phase_to_group", "phase_locking", "rmse", "time_lag",
-    "max_cross_correlation",
-)  # fmt: skip
-"""The per-player columns of a group, headed by their registry symbols, against the mean of each
-player's neighbours except ``synchronisation`` (rho_k) and ``relative_phase_to_group`` (rad)."""
-
-
 def format_group_metrics(metrics: dict[str, Any]) -> str:
     """Render the metrics of a group: synchronisation, then a table of the players."""
     lines = [
         "group synchronisation (rho_g, 1 = synchronised)  "
         f"{metrics['group_synchronisation']:.4f} +- {metrics['group_synchronisation_sd']:.4f}",
         f"Kuramoto order parameter                        {metrics['kuramoto_order']:.4f}",
-        "player  " + "".join(f"{symbol(key):>8}" for key in GROUP_COLUMNS) + "  neighbours",
+        "player  " + "".join(f"{symbol(key):>8}" for key in GROUP_PLAYER) + "  neighbours",
     ]
     for k, player in enumerate(metrics["players"]):
         cells = "".join(
             f"{'-' if player.get(key) is None else format(player[key], '.4f'):>8}"
-            for key in GROUP_COLUMNS
+            for key in GROUP_PLAYER
         )
         lines.append(f"{k:<6}  {cells}  {player['neighbours']} {player['label']}")
     lines.append("(CV, RMSE in units, lag in s and cross-correlation against the neighbours' mean)")

@@ -63,6 +63,17 @@ class Measure:
         How it is written when it has no value (NaN), never ``nan``.
     symbol
         Its short name in a narrow column (``CV``, ``rho_k``), or ``""`` (use ``label``).
+    in_table
+        Whether it is a column of the study table (`TABLE_COLUMNS`); a value per player is the
+        player's own column, on its row.
+    group_player
+        Whether a group has one value per player (the player against its neighbours' mean, or to
+        the group), on the player's row (`GROUP_PLAYER`).
+    end_screen
+        Whether a participant's end screen shows it after a trial (`END_SCREEN`).
+    metric
+        Whether `mirror_avatar.metrics.summary.session_metrics` computes it (the others are
+        `mirror_avatar.metrics.measures.session_measures`'s).
     """
 
     key: str
@@ -76,6 +87,10 @@ class Measure:
     figure: str = ""
     missing: str = "none"
     symbol: str = ""
+    in_table: bool = True
+    group_player: bool = False
+    end_screen: bool = False
+    metric: bool = False
 
     def p_value_key(self, **indices: int) -> str:
         """Return the key of its p-value against surrogates (players' indices as ``i``, ``j``)."""
@@ -86,28 +101,34 @@ MEASURES: tuple[Measure, ...] = (
     Measure("phase_locking", "CV (phase locking, 0-1)", "",
             "Phase locking, the mean resultant length of the relative phase (the field's CV; 1: "
             "phase locked; a group: against the neighbours' mean)",
-            greater=True, players="pair", headline=True, figure="surrogates", symbol="CV"),
+            greater=True, players="pair", headline=True, figure="surrogates", symbol="CV",
+            group_player=True, end_screen=True, metric=True),
     Measure("rmse", "RMSE", "units",
             "RMS of the difference of the two players' positions (a group: of the player's "
             "against its neighbours' mean)",
-            greater=False, players="pair", headline=True, figure="surrogates", symbol="RMSE"),
+            greater=False, players="pair", headline=True, figure="surrogates", symbol="RMSE",
+            group_player=True, end_screen=True, metric=True),
     Measure("mean_relative_phase", "mean relative phase (player 0 - player 1)", "rad",
             "Circular mean of the relative phase, player 0 minus player 1", headline=True,
-            figure="relative phase"),
+            figure="relative phase", metric=True),
     Measure("sd_relative_phase", "circular SD of relative phase", "rad",
-            "Circular SD of the relative phase", figure="relative phase"),
+            "Circular SD of the relative phase", figure="relative phase", metric=True),
     Measure("time_lag", "time lag (player 0 ahead > 0)", "s",
             "Time lag at the cross-correlation peak, positive when player 0 leads (a group: the "
-            "player against its neighbours' mean)", headline=True, symbol="lag"),
+            "player against its neighbours' mean)", headline=True, symbol="lag",
+            group_player=True, metric=True),
     Measure("max_cross_correlation", "peak cross-correlation", "",
             "Peak of the cross-correlation of the positions", greater=True, players="pair",
-            p_value="time_lag_p_value", figure="surrogates", symbol="xcorr"),
+            p_value="time_lag_p_value", figure="surrogates", symbol="xcorr",
+            group_player=True, metric=True),
     Measure("emd_players", "EMD between the players' IMS", "",
-            "EMD between the two players' velocity IMS"),
+            "EMD between the two players' velocity IMS", metric=True),
     Measure("emd_reference_{i}", "EMD player {i} to its reference IMS", "",
-            "EMD between the player's velocity IMS and its reference velocities' IMS"),
+            "EMD between the player's velocity IMS and its reference velocities' IMS",
+            in_table=False, metric=True),
     Measure("emd_target_{i}", "EMD player {i} to its target's IMS (cyber player)", "",
-            "EMD between the cyber player's velocity IMS and its target's"),
+            "EMD between the cyber player's velocity IMS and its target's",
+            in_table=False, metric=True),
     Measure("jitter_index_player_{i}", f"jitter index player {{i}} ({BAND} share)", "",
             "The player's jitter index: share of velocity power in the jitter band",
             headline=True, figure="timeline"),
@@ -120,7 +141,7 @@ MEASURES: tuple[Measure, ...] = (
             "Mean length of the co-confidence segments", figure="timeline", missing="no segment"),
     Measure("co_confidence_segments", "CC segments (start, end, dV, dt)", "s",
             "Each co-confidence segment: start and end in session time, dV and dt",
-            figure="timeline"),
+            figure="timeline", in_table=False),
     Measure("synchrony_share", "share of time in synchrony", "",
             "Share of the trial in synchrony episodes"),
     Measure("synchrony_entries", "entries into synchrony", "", "Entries into synchrony"),
@@ -142,19 +163,23 @@ MEASURES: tuple[Measure, ...] = (
             figure="leadership", missing="no leader"),
     Measure("group_synchronisation", "group synchronisation (rho_g)", "",
             "Group synchronisation, time mean of rho_g", greater=True, players="group",
-            headline=True, figure="group synchronisation"),
+            headline=True, figure="group synchronisation", end_screen=True, metric=True),
     Measure("group_synchronisation_sd", "SD of group synchronisation", "",
-            "SD over time of rho_g", figure="group synchronisation"),
+            "SD over time of rho_g", figure="group synchronisation", metric=True),
     Measure("kuramoto_order", "Kuramoto order parameter r", "",
-            "Time mean of the Kuramoto order parameter r", headline=True),
+            "Time mean of the Kuramoto order parameter r", headline=True, metric=True),
     Measure("synchronisation", "synchronisation to the group (rho_k)", "",
-            "The player's synchronisation to the group, rho_k", symbol="rho_k"),
+            "The player's synchronisation to the group, rho_k", symbol="rho_k",
+            group_player=True, end_screen=True, metric=True),
     Measure("relative_phase_to_group", "mean phase relative to the group", "rad",
-            "The player's mean phase relative to the group", symbol="phase"),
+            "The player's mean phase relative to the group", symbol="phase",
+            group_player=True, metric=True),
     Measure("mean_phase_locking", "mean CV to the neighbours", "",
-            "Mean over the players of their phase locking to their neighbours", headline=True),
+            "Mean over the players of their phase locking to their neighbours", headline=True,
+            metric=True),
     Measure("mean_rmse", "mean RMSE to the neighbours", "units",
-            "Mean over the players of their RMS against their neighbours", headline=True),
+            "Mean over the players of their RMS against their neighbours", headline=True,
+            metric=True),
     Measure("transfer_entropy_{i}_to_{j}", "transfer entropy {i} -> {j}", "bits",
             "Transfer entropy from player {i}'s velocity to player {j}'s", greater=True,
             headline=True, figure="surrogates"),
@@ -165,6 +190,32 @@ MEASURES: tuple[Measure, ...] = (
 
 HEADLINE = tuple(m.key for m in MEASURES if m.headline)
 """The keys that head a session's summary, in order (``{i}``, ``{j}``: one per player or pair)."""
+
+GROUP_PLAYER = tuple(m.key for m in MEASURES if m.group_player)
+"""The keys a group has one value of per player, on the player's row, in order."""
+
+END_SCREEN = tuple(m.key for m in MEASURES if m.end_screen)
+"""The keys a participant's end screen shows, in order (a group's own ones on the player's row)."""
+
+OWN_SUFFIX = "_player_{i}"
+"""The end of the key of a measure with one value per player, left out of its table column."""
+
+
+def _table_columns(measure: Measure) -> tuple[str, ...]:
+    """Name a measure's columns in the study table: a pair's both ways, a player's own."""
+    if "{j}" in measure.key:
+        return (measure.key.format(i=0, j=1), measure.key.format(i=1, j=0))
+    return (measure.key.removesuffix(OWN_SUFFIX),)
+
+
+TABLE_COLUMNS = tuple(c for m in MEASURES if m.in_table for c in _table_columns(m))
+"""The measure columns of the study table, in order: keys, a player's own without
+``_player_{i}`` (`OWN_COLUMNS`), a pair's measure for players 0 and 1 both ways."""
+
+OWN_COLUMNS = tuple(
+    m.key.removesuffix(OWN_SUFFIX) for m in MEASURES if m.in_table and m.key.endswith(OWN_SUFFIX)
+)
+"""The table columns of a measure with one value per player: the player's own, on its row."""
 
 
 @cache
@@ -183,6 +234,20 @@ def find(key: str) -> tuple[Measure, dict[str, int]] | None:
         if found:
             return measure, {name: int(value) for name, value in found.groupdict().items()}
     return None
+
+
+def registry_order(key: str) -> tuple[int, tuple[int, ...]]:
+    """Sort key of a measure's key: its measure's place in `MEASURES`, then its players."""
+    found = find(key)
+    if found is None:
+        raise KeyError(key)
+    return MEASURES.index(found[0]), tuple(found[1].values())
+
+
+def is_metric(key: str) -> bool:
+    """Whether a key names a number of `mirror_avatar.metrics.summary.session_metrics`."""
+    found = find(key)
+    return found is not None and found[0].metric
 
 
 def is_headline(key: str) -> bool:

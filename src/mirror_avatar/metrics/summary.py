@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from mirror_avatar.metrics.coordination import compute_circular_sd, compute_mean_relative_phase
 from mirror_avatar.metrics.quantities import Quantities
+from mirror_avatar.metrics.registry import GROUP_PLAYER
 from mirror_avatar.sessions.session import Session
 from mirror_avatar.signatures.signature import compute_emd, compute_ims
 
@@ -118,8 +119,7 @@ def _group_metrics(session: Session, q: Quantities) -> dict[str, Any]:
         row: dict[str, Any] = {"label": session.labels[k], "neighbours": neighbours.tolist()}
         if neighbours.size:
             pair = _pair_metrics(Quantities(*_with_neighbours(k, neighbours, x, v), rate))
-            keys = ("phase_locking", "rmse", "time_lag", "max_cross_correlation")
-            row |= {key: pair[key] for key in keys}
+            row |= {key: pair[key] for key in GROUP_PLAYER if key in pair}
         players.append(row)
     nan = float("nan")
     out: dict[str, Any] = {

@@ -40,7 +40,7 @@ from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.lab.running.participant import COLOURS, Participant
 from mirror_avatar.lab.running.schedule import Schedule
 from mirror_avatar.lab.running.trial import LabTrial, build_avatars
-from mirror_avatar.metrics.registry import is_headline
+from mirror_avatar.metrics.registry import END_SCREEN, GROUP_PLAYER, is_headline
 from mirror_avatar.players.base import Player, PlayerDiverged
 from mirror_avatar.realtime.clock import MAX_STEP, ClockLimits, run_on_clock
 from mirror_avatar.realtime.inputs import BrowserInput, InputSource
@@ -474,11 +474,10 @@ def participant_metrics(metrics: dict[str, Any], k: int) -> dict[str, Any]:
     synchronisation, CV and RMS to its neighbours.
     """
     if "players" not in metrics:
-        return {key: metrics[key] for key in ("phase_locking", "rmse") if key in metrics}
+        return {key: metrics[key] for key in END_SCREEN if key in metrics}
     own = metrics["players"][k]
-    shown = {"group_synchronisation": metrics.get("group_synchronisation")}
-    keys = ("synchronisation", "phase_locking", "rmse")
-    return shown | {key: own[key] for key in keys if key in own}
+    shown = {key: metrics.get(key) for key in END_SCREEN if key not in GROUP_PLAYER}
+    return shown | {key: own[key] for key in END_SCREEN if key in own}
 
 
 def participant_measures(measures: dict[str, Any], k: int) -> dict[str, Any]:
