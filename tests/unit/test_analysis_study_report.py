@@ -6,6 +6,7 @@ data dictionary study.json); the command run through click's runner on the comma
 
 from __future__ import annotations
 
+import csv
 import json
 import re
 from html import escape as html_escape
@@ -24,6 +25,8 @@ from mirror_avatar.analysis.study_report import (
     analyse_study,
     write_study_report,
 )
+from mirror_avatar.analysis.table import table_dictionary
+from mirror_avatar.analysis.table import write_study_table as write_table_files
 from mirror_avatar.cli.study_report import report
 from mirror_avatar.errors import InputError
 
@@ -240,3 +243,38 @@ def test_ratings_are_compared_like_measures(tmp_path: Path, with_dictionary: boo
     (enjoy,) = [c for c in analysis.contrasts if c.measure == "answer_enjoy"]
     assert enjoy.p < 0.05 and enjoy.difference == pytest.approx(-1.0, abs=0.3)
     assert analysis.sentences()[-1].startswith("Delay 0.5 s lowered answer_enjoy from")
+
+
+FORMULAS = ("=cmd|' /C calc'!A0", "+1+1", "-2+3", "@SUM(A1)", "\tx", "\rx", "'quoted", "a\rb")
+
+
+def test_text_cells_never_open_as_formulas_and_read_back_as_given(tmp_path: Path) -> None:
+    """OWASP's rule on every CSV the study writes: a text cell that a spreadsheet would run (or
+    one starting with the quote itself) gets a quote before it; numbers, negative ones too, are
+    written as they are; a carriage return stays inside its cell; the Parquet and the report
+    read back the text as given."""
+    rows = make_study_rows(0, conditions=(FORMULAS[0], "plain")).rename(columns={"rms": "rmse"})
+    rows["rmse"] = -rows["rmse"]
+    rows["answer_why"] = [FORMULAS[i % len(FORMULAS)] for i in range(len(rows))]
+    out = tmp_path / "table"
+    write_table_files(rows, table_dictionary(rows, {"why": "Why?"}), out)
+    with (out / "study.csv").open(newline="", encoding="utf-8") as file:
+        header, *cells = list(csv.reader(file))
+    texts = [cell for row in cells for name, cell in zip(header, row, strict=True)
+             if name in ("condition", "answer_why")]  # fmt: skip
+    assert not [cell for cell in texts if cell.startswith(("=", "+", "-", "@", "\t", "\r"))]
+    assert "'" + FORMULAS[0] in texts and "''quoted" in texts
+    negative = [float(row[header.index("rmse")]) for row in cells]
+    assert negative == pytest.approx(rows["rmse"].tolist(), rel=1e-12)
+    pd.testing.assert_series_equal(pd.read_parquet(out / "study.parquet")["answer_why"],
+                                   rows["answer_why"], check_dtype=False)  # fmt: skip
+    table = read_study_table(out)
+    assert table.conditions() == [FORMULAS[0], "plain"]
+    assert table.rows["answer_why"].tolist() == rows["answer_why"].tolist()
+    assert "a spreadsheet shows it as text" in json.loads((out / "study.json").read_text())[
+        "answer_why"]["Description"]  # fmt: skip
+    html = write_study_report(analyse_study(table, resamples=200), tmp_path / "report")
+    for name in ("conditions.csv", "contrasts.csv"):
+        text = (html.parent / name).read_text(encoding="utf-8")
+        assert "'" + FORMULAS[0] in text and "\n" + FORMULAS[0] not in text
+        assert "," + FORMULAS[0] not in text

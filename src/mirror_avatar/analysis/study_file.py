@@ -17,6 +17,7 @@ from typing import Any
 
 import pandas as pd
 
+from mirror_avatar.atomic import csv_cells
 from mirror_avatar.errors import InputError
 
 TABLE_NAMES = ("study.csv", "study.parquet")
@@ -168,7 +169,7 @@ def _read_rows(file: Path) -> pd.DataFrame:
     if file.suffix.lower() == ".parquet":
         return pd.read_parquet(file)
     header = pd.read_csv(file, nrows=0).columns
-    return pd.read_csv(file, dtype={c: str for c in TEXT_COLUMNS if c in header})
+    return csv_cells(pd.read_csv(file, dtype={c: str for c in TEXT_COLUMNS if c in header}))
 
 
 def _read_dictionary(file: Path) -> dict[str, dict[str, Any]]:

@@ -36,7 +36,7 @@ from mirror_avatar.analysis.study_text import (
     methods_paragraph,
     verdict,
 )
-from mirror_avatar.atomic import write_atomic_json, write_atomic_text
+from mirror_avatar.atomic import csv_text, write_atomic_json, write_atomic_text
 from mirror_avatar.errors import InputError
 from mirror_avatar.report import Section, render_report
 
@@ -186,8 +186,8 @@ def write_study_report(analysis: StudyAnalysis, out_dir: str | Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     html, results, conditions, contrasts = (out / name for name in STUDY_REPORT_FILES)
     write_atomic_json(results, analysis.results())
-    write_atomic_text(conditions, analysis.summaries.to_csv(index=False))
-    write_atomic_text(contrasts, _contrast_table(analysis).to_csv(index=False))
+    write_atomic_text(conditions, csv_text(analysis.summaries, index=False))
+    write_atomic_text(contrasts, csv_text(_contrast_table(analysis), index=False))
     metadata = {
         "table": str(analysis.table.source),
         "participants": analysis.parameters["participants"],

@@ -25,6 +25,7 @@ from typing import Any
 import pandas as pd
 
 from mirror_avatar.analysis.dictionary import (
+    CSV_TEXT,
     DESIGN_COLUMNS,
     GUESS_COLUMNS,
     MEASURES,
@@ -34,7 +35,7 @@ from mirror_avatar.analysis.dictionary import (
 )
 from mirror_avatar.analysis.guesses import guess
 from mirror_avatar.analysis.trials import StudyTrial
-from mirror_avatar.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.atomic import csv_text, write_atomic_bytes, write_atomic_json, write_atomic_text
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.running.trial import LAB_SURROGATES
 from mirror_avatar.metrics import TRIM, session_metrics
@@ -210,6 +211,8 @@ def table_dictionary(table: pd.DataFrame, questions: dict[str, str]) -> dict[str
                             "Role": "answer"}  # fmt: skip
         else:
             info[column] = measure_info(column)
+        if any(isinstance(value, str) for value in table[column]):
+            info[column]["Description"] += CSV_TEXT
         if table[column].dtype == object and "Levels" not in info[column]:
             values = sorted({str(v) for v in table[column].dropna()})
             categorical = column in ("condition", "leader") or column.startswith("answer_")
@@ -226,7 +229,7 @@ def question_texts(trials: Sequence[StudyTrial]) -> dict[str, str]:
 def write_study_table(table: pd.DataFrame, dictionary: dict[str, Any], out_dir: Path) -> None:
     """Write ``study.csv`` (empty cells: NA), ``study.parquet`` and ``study.json``."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_atomic_text(out_dir / "study.csv", table.to_csv(index=False, na_rep="NA"))
+    write_atomic_text(out_dir / "study.csv", csv_text(table, index=False, na_rep="NA"))
     write_atomic_bytes(out_dir / "study.parquet", _parquet(table))
     write_atomic_json(out_dir / "study.json", dictionary)
 

@@ -19,7 +19,13 @@ import click
 import pandas as pd
 from matplotlib.figure import Figure
 
-from mirror_avatar.atomic import json_safe, write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.atomic import (
+    csv_text,
+    json_safe,
+    write_atomic_bytes,
+    write_atomic_json,
+    write_atomic_text,
+)
 from mirror_avatar.cli.benchmark_humans import read_human_followers
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.reading import SessionReading, import_options
@@ -203,9 +209,9 @@ def write_benchmark(
     """Write the tables, results.json, one PNG per follower and report.html."""
     out_dir.mkdir(parents=True, exist_ok=True)
     table = result.summary()
-    write_atomic_text(out_dir / "table.csv", table.to_csv(index_label="follower"))
-    write_atomic_text(out_dir / "ranking.csv", ranking.table.to_csv(index_label="follower"))
-    write_atomic_text(out_dir / "trials.csv", result.trials.to_csv(index=False))
+    write_atomic_text(out_dir / "table.csv", csv_text(table, index_label="follower"))
+    write_atomic_text(out_dir / "ranking.csv", csv_text(ranking.table, index_label="follower"))
+    write_atomic_text(out_dir / "trials.csv", csv_text(result.trials, index=False))
     write_atomic_text(out_dir / PUBLISHED_FILE, published_table().to_csv())
     results = {
         "inputs": inputs,

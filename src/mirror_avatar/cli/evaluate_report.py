@@ -16,7 +16,7 @@ from typing import Any
 
 import pandas as pd
 
-from mirror_avatar.atomic import write_atomic_files
+from mirror_avatar.atomic import csv_text, write_atomic_files
 from mirror_avatar.cli.reading import session_note
 from mirror_avatar.cli.trial_sets import common_root
 from mirror_avatar.figures import plot_progress, plot_session
@@ -296,4 +296,4 @@ def write_evaluation(
         [section, *(extra or [])], title="mirror-avatar: sessions evaluated", lead=verdict(results)
     )
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_atomic_files(out_dir, {"sessions.csv": rows.to_csv(index=False)} | texts)
+    write_atomic_files(out_dir, {"sessions.csv": csv_text(rows, index=False)} | texts)
