@@ -144,26 +144,29 @@ def write_atomic_text(path: str | Path, text: str) -> None:
     write_atomic_bytes(path, text.encode("utf-8"))
 
 
-def write_atomic_files(folder: str | Path, texts: Mapping[str, str]) -> None:
-    """Write several UTF-8 files in ``folder`` as a set: all of them, or none.
+def write_atomic_files(folder: str | Path, contents: Mapping[str, str | bytes]) -> None:
+    """Write several files in ``folder`` as a set: all of them, or none.
 
     Every file is written to its temporary file first; only when all are written are they
     renamed over their names, so a failure while writing (a full disk, a size limit) leaves
-    every file as it was.
+    every file as it was, and its error names the file that could not be written.
 
     Parameters
     ----------
     folder
         The folder, which must exist.
-    texts
-        Each file's name in ``folder`` and its text.
+    contents
+        Each file's name in ``folder`` and its content: bytes, or text written as UTF-8.
     """
     with ExitStack() as stack:
-        temporaries = {
-            name: stack.enter_context(atomic_path(Path(folder) / name)) for name in texts
-        }
-        for name, text in texts.items():
-            temporaries[name].write_bytes(text.encode("utf-8"))
+        paths = {name: Path(folder) / name for name in contents}
+        temporaries = {name: stack.enter_context(atomic_path(paths[name])) for name in contents}
+        for name, content in contents.items():
+            data = content.encode("utf-8") if isinstance(content, str) else content
+            try:
+                temporaries[name].write_bytes(data)
+            except OSError as error:
+                raise naming(error, paths[name]) from error
 
 
 def write_atomic_json(path: str | Path, value: Any) -> None:

@@ -9,6 +9,8 @@ from __future__ import annotations
 import csv
 import json
 import re
+import subprocess
+import sys
 from html import escape as html_escape
 from pathlib import Path
 
@@ -278,3 +280,68 @@ def test_text_cells_never_open_as_formulas_and_read_back_as_given(tmp_path: Path
         text = (html.parent / name).read_text(encoding="utf-8")
         assert "'" + FORMULAS[0] in text and "\n" + FORMULAS[0] not in text
         assert "," + FORMULAS[0] not in text
+
+
+LIMITED = """
+import json, resource, sys
+from pathlib import Path
+import pandas as pd
+limit = int(sys.argv[1])
+if sys.argv[2] == "table":
+    from mirror_avatar.analysis.table import table_dictionary, write_study_table
+    rows = pd.read_parquet(sys.argv[3])
+    dictionary = table_dictionary(rows, {"why": "Why? " * 20_000})
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    write_study_table(rows, dictionary, Path(sys.argv[4]))
+else:
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    from mirror_avatar.console import run
+    sys.argv[1:3] = []
+    run()
+"""
+"""Child: the study table's writer or the command line under a file-size limit of ``argv[1]``
+bytes (a write beyond it fails with EFBIG: Python ignores SIGXFSZ)."""
+
+
+def limited(limit: int, *arguments: str | Path) -> subprocess.CompletedProcess[str]:
+    """Run `LIMITED` with ``arguments`` in a fresh interpreter."""
+    command = [sys.executable, "-c", LIMITED, str(limit), *map(str, arguments)]
+    return subprocess.run(command, capture_output=True, text=True, check=False, timeout=300)
+
+
+def contents(folder: Path) -> dict[str, bytes]:
+    return {path.name: path.read_bytes() for path in sorted(folder.iterdir())}
+
+
+def test_a_table_without_room_for_its_dictionary_writes_no_file(tmp_path: Path) -> None:
+    """Under a file-size limit that study.csv and study.parquet fit in and the dictionary does
+    not, no file is written, and a table written before stays whole."""
+    rows = make_study_rows(0).rename(columns={"rms": "rmse"}).assign(answer_why="because")
+    rows.to_parquet(tmp_path / "rows.parquet")
+    fresh, kept = tmp_path / "fresh", tmp_path / "kept"
+    write_table_files(rows.iloc[:4], table_dictionary(rows.iloc[:4], {}), kept)
+    before = contents(kept)
+    for out in (fresh, kept):
+        done = limited(60_000, "table", tmp_path / "rows.parquet", out)
+        assert done.returncode == 1, done.stderr
+        assert f"File too large: '{out / 'study.json'}'" in done.stderr
+    assert contents(fresh) == {}
+    assert contents(kept) == before
+
+
+def test_a_report_without_room_for_its_page_writes_no_file(table_dir: Path, tmp_path: Path) -> None:
+    """Under a file-size limit that results.json and the CSVs fit in and report.html does not,
+    the command fails in one line naming the page, and a report written before stays whole."""
+    out = tmp_path / "report"
+    assert CliRunner().invoke(report, [str(table_dir), "--out", str(out), "--resamples", "200"],
+                              catch_exceptions=False).exit_code == 0  # fmt: skip
+    before = contents(out)
+    for folder in (tmp_path / "fresh", out):
+        command = ["study", "report", table_dir, "--out", folder, "--seed", "3"]
+        done = limited(100_000, "report", *command, "--resamples", "200")
+        assert done.returncode == 2, done.stderr
+        assert done.stderr.splitlines() == [
+            f"mirror-avatar: error: {folder / 'report.html'}: File too large"
+        ]
+    assert contents(tmp_path / "fresh") == {}
+    assert contents(out) == before

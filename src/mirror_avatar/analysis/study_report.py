@@ -36,7 +36,7 @@ from mirror_avatar.analysis.study_text import (
     methods_paragraph,
     verdict,
 )
-from mirror_avatar.atomic import csv_text, write_atomic_json, write_atomic_text
+from mirror_avatar.atomic import csv_text, json_text, write_atomic_files
 from mirror_avatar.errors import InputError
 from mirror_avatar.report import Section, render_report
 
@@ -181,13 +181,14 @@ def analyse_study(
 
 
 def write_study_report(analysis: StudyAnalysis, out_dir: str | Path) -> Path:
-    """Write `STUDY_REPORT_FILES` in ``out_dir`` (created if missing); return the HTML's path."""
+    """Write `STUDY_REPORT_FILES` in ``out_dir`` (created if missing); return the HTML's path.
+
+    All four or none (`mirror_avatar.atomic.write_atomic_files`): a failure leaves each file as
+    it was.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    html, results, conditions, contrasts = (out / name for name in STUDY_REPORT_FILES)
-    write_atomic_json(results, analysis.results())
-    write_atomic_text(conditions, csv_text(analysis.summaries, index=False))
-    write_atomic_text(contrasts, csv_text(_contrast_table(analysis), index=False))
+    html, results, conditions, contrasts = STUDY_REPORT_FILES
     metadata = {
         "table": str(analysis.table.source),
         "participants": analysis.parameters["participants"],
@@ -196,8 +197,14 @@ def write_study_report(analysis: StudyAnalysis, out_dir: str | Path) -> Path:
     }
     page = render_report(_sections(analysis), "mirror-avatar: study report", metadata,
                          lead=analysis.verdict())  # fmt: skip
-    write_atomic_text(html, page)
-    return html
+    contents = {
+        html: page,
+        results: json_text(analysis.results()),
+        conditions: csv_text(analysis.summaries, index=False),
+        contrasts: csv_text(_contrast_table(analysis), index=False),
+    }
+    write_atomic_files(out, contents)
+    return out / html
 
 
 def _participants_rows(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:

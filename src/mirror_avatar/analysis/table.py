@@ -35,7 +35,7 @@ from mirror_avatar.analysis.dictionary import (
 )
 from mirror_avatar.analysis.guesses import guess
 from mirror_avatar.analysis.trials import StudyTrial
-from mirror_avatar.atomic import csv_text, write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.atomic import csv_text, json_text, write_atomic_files
 from mirror_avatar.errors import InputError
 from mirror_avatar.lab.running.trial import LAB_SURROGATES
 from mirror_avatar.metrics import TRIM, session_metrics
@@ -227,11 +227,14 @@ def question_texts(trials: Sequence[StudyTrial]) -> dict[str, str]:
 
 
 def write_study_table(table: pd.DataFrame, dictionary: dict[str, Any], out_dir: Path) -> None:
-    """Write ``study.csv`` (empty cells: NA), ``study.parquet`` and ``study.json``."""
+    """Write ``study.csv`` (empty cells: NA), ``study.parquet`` and ``study.json`` together.
+
+    All three or none (`mirror_avatar.atomic.write_atomic_files`): a failure leaves each file
+    as it was, so no table is left without its dictionary.
+    """
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_atomic_text(out_dir / "study.csv", csv_text(table, index=False, na_rep="NA"))
-    write_atomic_bytes(out_dir / "study.parquet", _parquet(table))
-    write_atomic_json(out_dir / "study.json", dictionary)
+    contents = (csv_text(table, index=False, na_rep="NA"), _parquet(table), json_text(dictionary))
+    write_atomic_files(out_dir, dict(zip(TABLE_FILES, contents, strict=True)))
 
 
 def _parquet(table: pd.DataFrame) -> bytes:
