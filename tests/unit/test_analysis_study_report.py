@@ -345,3 +345,23 @@ def test_a_report_without_room_for_its_page_writes_no_file(table_dir: Path, tmp_
         ]
     assert contents(tmp_path / "fresh") == {}
     assert contents(out) == before
+
+
+def test_values_that_are_not_finite_are_left_out_and_counted(tmp_path: Path) -> None:
+    """An infinite value (a measure divided by a zero spread) would make its condition's mean
+    infinite beside a finite interval, with numpy's warnings on stderr (errors here): it is left
+    out of every statistic, and a note says how many and why."""
+    rows = make_study_rows(0, effects=EFFECTS)
+    persons = rows.index[rows["player_kind"] == "person"]
+    rows.loc[persons[:3], "rms"] = [np.inf, -np.inf, np.inf]
+    finite = make_study_rows(0, effects=EFFECTS)
+    finite.loc[persons[:3], "rms"] = np.nan
+    analysis = analyse_study(
+        read_study_table(write_study_table(rows, tmp_path / "inf")), resamples=200
+    )
+    expected = analyse_study(
+        read_study_table(write_study_table(finite, tmp_path / "nan")), resamples=200
+    )
+    pd.testing.assert_frame_equal(analysis.summaries, expected.summaries)
+    assert np.isfinite(analysis.summaries[["mean", "ci_low", "ci_high", "sd"]].to_numpy()).all()
+    assert "rms: 3 of 96 values left out, not finite (infinite)" in analysis.notes

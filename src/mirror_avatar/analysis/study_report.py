@@ -15,6 +15,7 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from mirror_avatar.analysis.identification import Identification, identify
@@ -146,6 +147,8 @@ def analyse_study(
         raise InputError("--reference", f"no condition {reference!r} in {table.source}; its "
                          f"conditions are {', '.join(conditions)}")  # fmt: skip
     rows, notes = _participants_rows(table.rows)
+    rows, left_out = _finite(rows, table.outcomes)
+    notes += left_out
     if table.skipped_measures:
         notes.append(f"not numbers, so not averaged: {', '.join(table.skipped_measures)}")
     summaries = condition_summaries(rows, table.outcomes, conditions, seed, resamples, confidence)
@@ -216,6 +219,21 @@ def _participants_rows(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     return persons, [
         f"{left} rows of avatars left out: only persons are participants"
     ] if left else []
+
+
+def _finite(rows: pd.DataFrame, outcomes: list[str]) -> tuple[pd.DataFrame, list[str]]:
+    """Make the outcomes' infinite values missing, so no statistic uses them; say how many."""
+    infinite = {
+        name: np.isinf(rows[name].to_numpy(np.float64, na_value=np.nan)) for name in outcomes
+    }
+    notes = [
+        f"{name}: {found.sum()} of {found.size} values left out, not finite (infinite)"
+        for name, found in infinite.items()
+        if found.any()
+    ]
+    if not notes:
+        return rows, []
+    return rows.assign(**{name: rows[name].mask(found) for name, found in infinite.items()}), notes
 
 
 def _contrast_table(analysis: StudyAnalysis) -> pd.DataFrame:
