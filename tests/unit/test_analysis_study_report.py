@@ -6,8 +6,11 @@ data dictionary study.json); the command run through click's runner on the comma
 
 from __future__ import annotations
 
+import csv
 import json
 import re
+import subprocess
+import sys
 from html import escape as html_escape
 from pathlib import Path
 
@@ -24,6 +27,8 @@ from mirror_avatar.analysis.study_report import (
     analyse_study,
     write_study_report,
 )
+from mirror_avatar.analysis.table import table_dictionary
+from mirror_avatar.analysis.table import write_study_table as write_table_files
 from mirror_avatar.cli.study_report import report
 from mirror_avatar.common.errors import InputError
 
@@ -247,3 +252,123 @@ def test_ratings_are_compared_like_measures(tmp_path: Path, with_dictionary: boo
     (enjoy,) = [c for c in analysis.contrasts if c.measure == "answer_enjoy"]
     assert enjoy.p < 0.05 and enjoy.difference == pytest.approx(-1.0, abs=0.3)
     assert analysis.sentences()[-1].startswith("Delay 0.5 s lowered answer_enjoy from")
+
+
+FORMULAS = ("=cmd|' /C calc'!A0", "+1+1", "-2+3", "@SUM(A1)", "\tx", "\rx", "'quoted", "a\rb")
+
+
+def test_text_cells_never_open_as_formulas_and_read_back_as_given(tmp_path: Path) -> None:
+    """OWASP's rule on every CSV the study writes: a text cell that a spreadsheet would run (or
+    one starting with the quote itself) gets a quote before it; numbers, negative ones too, are
+    written as they are; a carriage return stays inside its cell; the Parquet and the report
+    read back the text as given."""
+    rows = make_study_rows(0, conditions=(FORMULAS[0], "plain")).rename(columns={"rms": "rmse"})
+    rows["rmse"] = -rows["rmse"]
+    rows["answer_why"] = [FORMULAS[i % len(FORMULAS)] for i in range(len(rows))]
+    out = tmp_path / "table"
+    write_table_files(rows, table_dictionary(rows, {"why": "Why?"}), out)
+    with (out / "study.csv").open(newline="", encoding="utf-8") as file:
+        header, *cells = list(csv.reader(file))
+    texts = [cell for row in cells for name, cell in zip(header, row, strict=True)
+             if name in ("condition", "answer_why")]  # fmt: skip
+    assert not [cell for cell in texts if cell.startswith(("=", "+", "-", "@", "\t", "\r"))]
+    assert "'" + FORMULAS[0] in texts and "''quoted" in texts
+    negative = [float(row[header.index("rmse")]) for row in cells]
+    assert negative == pytest.approx(rows["rmse"].tolist(), rel=1e-12)
+    pd.testing.assert_series_equal(pd.read_parquet(out / "study.parquet")["answer_why"],
+                                   rows["answer_why"], check_dtype=False)  # fmt: skip
+    table = read_study_table(out)
+    assert table.conditions() == [FORMULAS[0], "plain"]
+    assert table.rows["answer_why"].tolist() == rows["answer_why"].tolist()
+    assert "a spreadsheet shows it as text" in json.loads((out / "study.json").read_text())[
+        "answer_why"]["Description"]  # fmt: skip
+    html = write_study_report(analyse_study(table, resamples=200), tmp_path / "report")
+    for name in ("conditions.csv", "contrasts.csv"):
+        text = (html.parent / name).read_text(encoding="utf-8")
+        assert "'" + FORMULAS[0] in text and "\n" + FORMULAS[0] not in text
+        assert "," + FORMULAS[0] not in text
+
+
+LIMITED = """
+import json, resource, sys
+from pathlib import Path
+import pandas as pd
+limit = int(sys.argv[1])
+if sys.argv[2] == "table":
+    from mirror_avatar.analysis.table import table_dictionary, write_study_table
+    rows = pd.read_parquet(sys.argv[3])
+    dictionary = table_dictionary(rows, {"why": "Why? " * 20_000})
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    write_study_table(rows, dictionary, Path(sys.argv[4]))
+else:
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    from mirror_avatar.console import run
+    sys.argv[1:3] = []
+    run()
+"""
+"""Child: the study table's writer or the command line under a file-size limit of ``argv[1]``
+bytes (a write beyond it fails with EFBIG: Python ignores SIGXFSZ)."""
+
+
+def limited(limit: int, *arguments: str | Path) -> subprocess.CompletedProcess[str]:
+    """Run `LIMITED` with ``arguments`` in a fresh interpreter."""
+    command = [sys.executable, "-c", LIMITED, str(limit), *map(str, arguments)]
+    return subprocess.run(command, capture_output=True, text=True, check=False, timeout=300)
+
+
+def contents(folder: Path) -> dict[str, bytes]:
+    return {path.name: path.read_bytes() for path in sorted(folder.iterdir())}
+
+
+def test_a_table_without_room_for_its_dictionary_writes_no_file(tmp_path: Path) -> None:
+    """Under a file-size limit that study.csv and study.parquet fit in and the dictionary does
+    not, no file is written, and a table written before stays whole."""
+    rows = make_study_rows(0).rename(columns={"rms": "rmse"}).assign(answer_why="because")
+    rows.to_parquet(tmp_path / "rows.parquet")
+    fresh, kept = tmp_path / "fresh", tmp_path / "kept"
+    write_table_files(rows.iloc[:4], table_dictionary(rows.iloc[:4], {}), kept)
+    before = contents(kept)
+    for out in (fresh, kept):
+        done = limited(60_000, "table", tmp_path / "rows.parquet", out)
+        assert done.returncode == 1, done.stderr
+        assert f"File too large: '{out / 'study.json'}'" in done.stderr
+    assert contents(fresh) == {}
+    assert contents(kept) == before
+
+
+def test_a_report_without_room_for_its_page_writes_no_file(table_dir: Path, tmp_path: Path) -> None:
+    """Under a file-size limit that results.json and the CSVs fit in and report.html does not,
+    the command fails in one line naming the page, and a report written before stays whole."""
+    out = tmp_path / "report"
+    assert CliRunner().invoke(report, [str(table_dir), "--out", str(out), "--resamples", "200"],
+                              catch_exceptions=False).exit_code == 0  # fmt: skip
+    before = contents(out)
+    for folder in (tmp_path / "fresh", out):
+        command = ["study", "report", table_dir, "--out", folder, "--seed", "3"]
+        done = limited(100_000, "report", *command, "--resamples", "200")
+        assert done.returncode == 2, done.stderr
+        assert done.stderr.splitlines() == [
+            f"mirror-avatar: error: {folder / 'report.html'}: File too large"
+        ]
+    assert contents(tmp_path / "fresh") == {}
+    assert contents(out) == before
+
+
+def test_values_that_are_not_finite_are_left_out_and_counted(tmp_path: Path) -> None:
+    """An infinite value (a measure divided by a zero spread) would make its condition's mean
+    infinite beside a finite interval, with numpy's warnings on stderr (errors here): it is left
+    out of every statistic, and a note says how many and why."""
+    rows = make_study_rows(0, effects=EFFECTS)
+    persons = rows.index[rows["player_kind"] == "person"]
+    rows.loc[persons[:3], "rms"] = [np.inf, -np.inf, np.inf]
+    finite = make_study_rows(0, effects=EFFECTS)
+    finite.loc[persons[:3], "rms"] = np.nan
+    analysis = analyse_study(
+        read_study_table(write_study_table(rows, tmp_path / "inf")), resamples=200
+    )
+    expected = analyse_study(
+        read_study_table(write_study_table(finite, tmp_path / "nan")), resamples=200
+    )
+    pd.testing.assert_frame_equal(analysis.summaries, expected.summaries)
+    assert np.isfinite(analysis.summaries[["mean", "ci_low", "ci_high", "sd"]].to_numpy()).all()
+    assert "rms: 3 of 96 values left out, not finite (infinite)" in analysis.notes

@@ -73,3 +73,19 @@ def test_a_refused_value_is_one_line_naming_the_option(capsys, words, flag, valu
     assert main([*words, flag, str(value)]) == 2
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1 and flag in error, error
+
+
+@pytest.mark.parametrize(
+    ("words", "flag", "value"),
+    [(("study", "table"), "--surrogates", 100_000), (("study", "report"), "--resamples", 10**8)],
+)
+def test_a_count_beyond_its_range_is_refused_before_the_input_is_read(
+    capsys, tmp_path, words, flag, value
+):
+    """``--resamples 1e8`` ran out of memory, ``--surrogates 100000`` failed late naming the
+    internal ``n_surrogates``: both are refused at once, naming the option and its range."""
+    out = tmp_path / "out"
+    assert main([*words, str(tmp_path / "missing"), "--out", str(out), flag, str(value)]) == 2
+    (error,) = capsys.readouterr().err.strip().splitlines()
+    assert flag in error and "missing" not in error and "n_surrogates" not in error, error
+    assert not out.exists()

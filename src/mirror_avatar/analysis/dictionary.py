@@ -103,3 +103,10 @@ GUESS_COLUMNS: dict[str, dict[str, Any]] = {
                          "with the guess (empty when none was asked)", "Role": "answer"},
 }  # fmt: skip
 """The columns of the person-or-computer question."""
+
+CSV_TEXT = (
+    " In study.csv a text cell that starts with =, +, -, @, a tab, a carriage return or ' has a "
+    "' put before it, so that a spreadsheet shows it as text and never runs it as a formula; "
+    "study.parquet holds the text as given."
+)
+"""What a text column's description adds: how `mirror_avatar.files.atomic.csv_text` writes it."""

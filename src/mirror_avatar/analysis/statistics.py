@@ -23,8 +23,14 @@ from statsmodels.regression.mixed_linear_model import MixedLM
 from statsmodels.stats.multitest import multipletests
 from statsmodels.tools.sm_exceptions import ConvergenceWarning
 
+from mirror_avatar.common.constraints import Interval
+
 BOOTSTRAP_RESAMPLES = 9999
 """Bootstrap resamples of the participants' means (**choice**: scipy's default)."""
+
+RESAMPLES = Interval(int, 100, 100_000)
+"""The bootstrap resamples a report may ask for: scipy holds every resample's participants' means
+in memory together (**choice**)."""
 
 CONFIDENCE = 0.95
 """Confidence level of every interval."""

@@ -19,6 +19,7 @@ import pandas as pd
 
 from mirror_avatar.analysis.dictionary import DESIGN_COLUMNS, GUESS_COLUMNS
 from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.atomic import csv_cells
 
 TABLE_NAMES = ("study.csv", "study.parquet")
 """The table's file names in a folder, in the order they are looked for."""
@@ -167,7 +168,7 @@ def _read_rows(file: Path) -> pd.DataFrame:
     if file.suffix.lower() == ".parquet":
         return pd.read_parquet(file)
     header = pd.read_csv(file, nrows=0).columns
-    return pd.read_csv(file, dtype={c: str for c in TEXT_COLUMNS if c in header})
+    return csv_cells(pd.read_csv(file, dtype={c: str for c in TEXT_COLUMNS if c in header}))
 
 
 def _read_dictionary(file: Path) -> dict[str, dict[str, Any]]:

@@ -15,6 +15,7 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from mirror_avatar.analysis.identification import Identification, identify
@@ -37,7 +38,11 @@ from mirror_avatar.analysis.study_text import (
     verdict,
 )
 from mirror_avatar.common.errors import InputError
-from mirror_avatar.files.atomic import write_atomic_json, write_atomic_text
+from mirror_avatar.files.atomic import (
+    csv_text,
+    json_text,
+    write_atomic_files,
+)
 from mirror_avatar.report import Section, render_report
 
 STUDY_REPORT_FILES = ("report.html", "results.json", "conditions.csv", "contrasts.csv")
@@ -146,6 +151,8 @@ def analyse_study(
         raise InputError("--reference", f"no condition {reference!r} in {table.source}; its "
                          f"conditions are {', '.join(conditions)}")  # fmt: skip
     rows, notes = _participants_rows(table.rows)
+    rows, left_out = _finite(rows, table.outcomes)
+    notes += left_out
     if table.skipped_measures:
         notes.append(f"not numbers, so not averaged: {', '.join(table.skipped_measures)}")
     summaries = condition_summaries(rows, table.outcomes, conditions, seed, resamples, confidence)
@@ -181,13 +188,14 @@ def analyse_study(
 
 
 def write_study_report(analysis: StudyAnalysis, out_dir: str | Path) -> Path:
-    """Write `STUDY_REPORT_FILES` in ``out_dir`` (created if missing); return the HTML's path."""
+    """Write `STUDY_REPORT_FILES` in ``out_dir`` (created if missing); return the HTML's path.
+
+    All four or none (`mirror_avatar.files.atomic.write_atomic_files`): a failure leaves each file
+    as it was.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    html, results, conditions, contrasts = (out / name for name in STUDY_REPORT_FILES)
-    write_atomic_json(results, analysis.results())
-    write_atomic_text(conditions, analysis.summaries.to_csv(index=False))
-    write_atomic_text(contrasts, _contrast_table(analysis).to_csv(index=False))
+    html, results, conditions, contrasts = STUDY_REPORT_FILES
     metadata = {
         "table": str(analysis.table.source),
         "participants": analysis.parameters["participants"],
@@ -196,8 +204,14 @@ def write_study_report(analysis: StudyAnalysis, out_dir: str | Path) -> Path:
     }
     page = render_report(_sections(analysis), "mirror-avatar: study report", metadata,
                          lead=analysis.verdict())  # fmt: skip
-    write_atomic_text(html, page)
-    return html
+    contents = {
+        html: page,
+        results: json_text(analysis.results()),
+        conditions: csv_text(analysis.summaries, index=False),
+        contrasts: csv_text(_contrast_table(analysis), index=False),
+    }
+    write_atomic_files(out, contents)
+    return out / html
 
 
 def _participants_rows(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
@@ -209,6 +223,21 @@ def _participants_rows(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     return persons, [
         f"{left} rows of avatars left out: only persons are participants"
     ] if left else []
+
+
+def _finite(rows: pd.DataFrame, outcomes: list[str]) -> tuple[pd.DataFrame, list[str]]:
+    """Make the outcomes' infinite values missing, so no statistic uses them; say how many."""
+    infinite = {
+        name: np.isinf(rows[name].to_numpy(np.float64, na_value=np.nan)) for name in outcomes
+    }
+    notes = [
+        f"{name}: {found.sum()} of {found.size} values left out, not finite (infinite)"
+        for name, found in infinite.items()
+        if found.any()
+    ]
+    if not notes:
+        return rows, []
+    return rows.assign(**{name: rows[name].mask(found) for name, found in infinite.items()}), notes
 
 
 def _contrast_table(analysis: StudyAnalysis) -> pd.DataFrame:

@@ -26,6 +26,7 @@ from typing import Any
 import pandas as pd
 
 from mirror_avatar.analysis.dictionary import (
+    CSV_TEXT,
     DESIGN_COLUMNS,
     GUESS_COLUMNS,
     MEASURES,
@@ -35,7 +36,11 @@ from mirror_avatar.analysis.dictionary import (
 )
 from mirror_avatar.analysis.guesses import guess
 from mirror_avatar.analysis.trials import StudyTrial
-from mirror_avatar.files.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.files.atomic import (
+    csv_text,
+    json_text,
+    write_atomic_files,
+)
 from mirror_avatar.files.trial_record import KIND_NAMES, SlotRecord, partner_kind
 from mirror_avatar.metrics import TRIM, registry
 from mirror_avatar.metrics.measuring import TRIAL_SURROGATES, measure_trial
@@ -196,6 +201,8 @@ def table_dictionary(table: pd.DataFrame, questions: dict[str, str]) -> dict[str
                             "Role": "answer"}  # fmt: skip
         else:
             info[column] = measure_info(column)
+        if any(isinstance(value, str) for value in table[column]):
+            info[column]["Description"] += CSV_TEXT
         if table[column].dtype == object and "Levels" not in info[column]:
             values = sorted({str(v) for v in table[column].dropna()})
             categorical = column in ("condition", "leader") or column.startswith("answer_")
@@ -210,11 +217,14 @@ def question_texts(trials: Sequence[StudyTrial]) -> dict[str, str]:
 
 
 def write_study_table(table: pd.DataFrame, dictionary: dict[str, Any], out_dir: Path) -> None:
-    """Write ``study.csv`` (empty cells: NA), ``study.parquet`` and ``study.json``."""
+    """Write ``study.csv`` (empty cells: NA), ``study.parquet`` and ``study.json`` together.
+
+    All three or none (`mirror_avatar.files.atomic.write_atomic_files`): a failure leaves each file
+    as it was, so no table is left without its dictionary.
+    """
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_atomic_text(out_dir / "study.csv", table.to_csv(index=False, na_rep="NA"))
-    write_atomic_bytes(out_dir / "study.parquet", _parquet(table))
-    write_atomic_json(out_dir / "study.json", dictionary)
+    contents = (csv_text(table, index=False, na_rep="NA"), _parquet(table), json_text(dictionary))
+    write_atomic_files(out_dir, dict(zip(TABLE_FILES, contents, strict=True)))
 
 
 def _parquet(table: pd.DataFrame) -> bytes:

@@ -51,6 +51,7 @@ from mirror_avatar.experiments.published_partners import (
 )
 from mirror_avatar.figures.sessions import plot_positions
 from mirror_avatar.files.atomic import (
+    csv_text,
     json_safe,
     write_atomic_bytes,
     write_atomic_json,
@@ -208,9 +209,9 @@ def write_benchmark(
     """Write the tables, results.json, one PNG per follower and report.html."""
     out_dir.mkdir(parents=True, exist_ok=True)
     table = result.summary()
-    write_atomic_text(out_dir / "table.csv", table.to_csv(index_label="follower"))
-    write_atomic_text(out_dir / "ranking.csv", ranking.table.to_csv(index_label="follower"))
-    write_atomic_text(out_dir / "trials.csv", result.trials.to_csv(index=False))
+    write_atomic_text(out_dir / "table.csv", csv_text(table, index_label="follower"))
+    write_atomic_text(out_dir / "ranking.csv", csv_text(ranking.table, index_label="follower"))
+    write_atomic_text(out_dir / "trials.csv", csv_text(result.trials, index=False))
     write_atomic_text(out_dir / PUBLISHED_FILE, published_table().to_csv())
     results = {
         "inputs": inputs,

@@ -20,7 +20,7 @@ from mirror_avatar.cli.reading import session_note
 from mirror_avatar.cli.trial_sets import common_root
 from mirror_avatar.figures.learning import plot_progress
 from mirror_avatar.figures.sessions import plot_session
-from mirror_avatar.files.atomic import write_atomic_files
+from mirror_avatar.files.atomic import csv_text, write_atomic_files
 from mirror_avatar.metrics import registry
 from mirror_avatar.metrics.measures import Measures
 from mirror_avatar.report import Section, report_texts
@@ -297,4 +297,4 @@ def write_evaluation(
         [section, *(extra or [])], title="mirror-avatar: sessions evaluated", lead=verdict(results)
     )
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_atomic_files(out_dir, {"sessions.csv": rows.to_csv(index=False)} | texts)
+    write_atomic_files(out_dir, {"sessions.csv": csv_text(rows, index=False)} | texts)

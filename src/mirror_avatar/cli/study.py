@@ -20,6 +20,7 @@ from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.study_report import report
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.metrics import TRIM
+from mirror_avatar.metrics.measures import CONSTRAINTS as MEASURE_CONSTRAINTS
 
 
 @click.group()
@@ -38,9 +39,9 @@ def study() -> None:
     **ranged("Seconds left out at the start of each trial's measures (as evaluate).", TRIM_RANGE),
 )  # fmt: skip
 @click.option(
-    "--surrogates", type=click.IntRange(min=0), default=SURROGATES, show_default=True,
-    help="Circular-shift surrogates per trial for the measures' p-values (0: none), drawn "
-    "from each trial's recorded seed.",
+    "--surrogates", default=SURROGATES, show_default=True,
+    **ranged("Circular-shift surrogates per trial for the measures' p-values (0: none), drawn "
+             "from each trial's recorded seed.", MEASURE_CONSTRAINTS["n_surrogates"]),
 )  # fmt: skip
 def table(paths: tuple[Path, ...], out_dir: Path, trim: float, surrogates: int) -> None:
     """Write one long table of a study: a row per trial and player.

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from mirror_avatar.analysis.statistics import BOOTSTRAP_RESAMPLES
+from mirror_avatar.analysis.statistics import BOOTSTRAP_RESAMPLES, RESAMPLES
 from mirror_avatar.analysis.study_file import read_study_table
 from mirror_avatar.analysis.study_report import (
     STUDY_REPORT_FILES,
@@ -36,10 +36,9 @@ from mirror_avatar.cli.outputs import check_output_dir
 )
 @click.option(
     "--resamples",
-    type=click.IntRange(min=100),
     default=BOOTSTRAP_RESAMPLES,
     show_default=True,
-    help="Bootstrap resamples of the participants' means.",
+    **ranged("Bootstrap resamples of the participants' means.", RESAMPLES),
 )
 def report(table: Path, out_dir: Path, seed: int, reference: str | None, resamples: int) -> None:
     """Statistics of a study table (a folder holding study.csv, or the table itself).

@@ -7,11 +7,13 @@ full disk, a file-size limit) raises an `OSError` naming the file, also when the
 error named none (``[Errno 27] File too large``).
 
 Also the one conversion of results to plain JSON (`json_safe`): numpy scalars and arrays become
-numbers and lists, NaN and infinities ``null``.
+numbers and lists, NaN and infinities ``null``; and of tables to CSV a spreadsheet opens as text
+(`csv_text`, read back by `csv_cells`).
 """
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import math
@@ -20,11 +22,20 @@ import tempfile
 from collections.abc import Iterator, Mapping
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
+if TYPE_CHECKING:
+    import pandas as pd
+
 logger = logging.getLogger(__name__)
+
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+"""The first characters that make a spreadsheet read a CSV cell as a formula (OWASP)."""
+
+TEXT_MARK = "'"
+"""What `csv_text` puts before a text cell a spreadsheet would read as a formula."""
 
 
 @contextmanager
@@ -133,26 +144,29 @@ def write_atomic_text(path: str | Path, text: str) -> None:
     write_atomic_bytes(path, text.encode("utf-8"))
 
 
-def write_atomic_files(folder: str | Path, texts: Mapping[str, str]) -> None:
-    """Write several UTF-8 files in ``folder`` as a set: all of them, or none.
+def write_atomic_files(folder: str | Path, contents: Mapping[str, str | bytes]) -> None:
+    """Write several files in ``folder`` as a set: all of them, or none.
 
     Every file is written to its temporary file first; only when all are written are they
     renamed over their names, so a failure while writing (a full disk, a size limit) leaves
-    every file as it was.
+    every file as it was, and its error names the file that could not be written.
 
     Parameters
     ----------
     folder
         The folder, which must exist.
-    texts
-        Each file's name in ``folder`` and its text.
+    contents
+        Each file's name in ``folder`` and its content: bytes, or text written as UTF-8.
     """
     with ExitStack() as stack:
-        temporaries = {
-            name: stack.enter_context(atomic_path(Path(folder) / name)) for name in texts
-        }
-        for name, text in texts.items():
-            temporaries[name].write_bytes(text.encode("utf-8"))
+        paths = {name: Path(folder) / name for name in contents}
+        temporaries = {name: stack.enter_context(atomic_path(paths[name])) for name in contents}
+        for name, content in contents.items():
+            data = content.encode("utf-8") if isinstance(content, str) else content
+            try:
+                temporaries[name].write_bytes(data)
+            except OSError as error:
+                raise naming(error, paths[name]) from error
 
 
 def write_atomic_json(path: str | Path, value: Any) -> None:
@@ -178,3 +192,42 @@ def json_safe(value: Any) -> Any:
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
+
+
+def csv_text(frame: pd.DataFrame, **options: Any) -> str:
+    """Return ``frame`` as CSV text (`pandas.DataFrame.to_csv` with ``options``), safe to open.
+
+    A text cell (a value, column name or index label) that starts with one of `FORMULA_STARTS`
+    gets `TEXT_MARK` before it (OWASP's rule against CSV injection), and so does one that starts
+    with the mark itself: a spreadsheet shows the text as given, never runs it as a formula, and
+    `csv_cells` reads it back unchanged. Numbers are written as they are. A table with a carriage
+    return inside a text cell ends its lines with CR LF (RFC 4180), so that the cell is quoted
+    and stays one cell (Python's CSV writer quotes only the line end's characters).
+    """
+    safe = frame.rename(columns=_marked, index=_marked)
+    text = safe.select_dtypes(include=["object", "string"]).columns
+    safe[text] = safe[text].map(_marked)
+    returns = any("\r" in str(label) for label in [*safe.columns, *safe.index]) or any(
+        isinstance(value, str) and "\r" in value for value in safe[text].to_numpy().ravel()
+    )
+    buffer = io.StringIO()
+    safe.to_csv(buffer, lineterminator="\r\n" if returns else None, **options)
+    return buffer.getvalue()
+
+
+def csv_cells(frame: pd.DataFrame) -> pd.DataFrame:
+    """Return a table read from `csv_text`'s CSV with its text cells as they were given."""
+    plain = frame.rename(columns=_unmarked)
+    text = plain.select_dtypes(include=["object", "string"]).columns
+    plain[text] = plain[text].map(_unmarked)
+    return plain
+
+
+def _marked(value: Any) -> Any:
+    if isinstance(value, str) and value.startswith((*FORMULA_STARTS, TEXT_MARK)):
+        return TEXT_MARK + value
+    return value
+
+
+def _unmarked(value: Any) -> Any:
+    return value.removeprefix(TEXT_MARK) if isinstance(value, str) else value
