@@ -8,6 +8,7 @@ words (README "Title", the lab guide, Title; METHODS section N) or by address (d
 from __future__ import annotations
 
 import re
+from functools import cache
 from pathlib import Path
 
 import pytest
@@ -17,12 +18,14 @@ ROOT = Path(__file__).parents[2]
 GUIDES = {"user": "docs/guide.md", "lab": "docs/lab.md"}
 
 
+@cache
 def headings(path: Path) -> list[str]:
     """The headings of a Markdown file (outside code blocks), as written."""
     text = re.sub(r"(?ms)^```.*?^```", "", path.read_text(encoding="utf-8"))
     return [found.strip() for found in re.findall(r"(?m)^#{1,6} (.+)$", text)]
 
 
+@cache
 def anchors(path: Path) -> set[str]:
     return {slugify(heading, "-") for heading in headings(path)}
 
