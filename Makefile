@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 OUT ?= output/demo
 
-.PHONY: demo check test test-all bench lint docs docs-tables clean clean-cache
+.PHONY: demo check test test-all extras bench lint docs docs-tables clean clean-cache
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -45,6 +45,11 @@ test: lint docs
 
 test-all: lint docs
 	$(PYTEST)
+
+# Each optional extra on a fresh virtual environment, with the commands it serves (minutes of
+# installing from the registries, so not part of `test`; .ci/run runs it after `make test`).
+extras: $(STAMP)
+	$(BIN)/python tests/extras/check_extras.py
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py --out benchmarks/results.md

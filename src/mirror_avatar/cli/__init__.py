@@ -4,6 +4,8 @@ Each command lives in its own module of this package, imported when it runs (`CO
 (an `InputError`, a usage error such as an unknown option, or a file the system refuses) is
 printed as one line on standard error and ends the program with exit code 2; anything else that
 goes wrong is one line too, with exit code 1 (``MIRROR_AVATAR_DEBUG=1`` shows the traceback).
+A command that needs a package of an optional extra that is not installed (`OPTIONAL_MODULES`)
+says in one line which extra to install, with exit code 2.
 Interrupted (Ctrl+C, SIGTERM or SIGHUP, unless ignored when the program started: the console
 script `mirror_avatar.console.run` handles them from its first instant, and waits for compiling
 to finish), a command stops its batch workers and exits with code 130, naming the signal.
@@ -27,6 +29,14 @@ COMMANDS = (
     "lab", "play", "reproduce", "signature", "simulate", "study", "train",
 )  # fmt: skip
 """The commands: each is the attribute of its own name in the module ``mirror_avatar.cli.NAME``."""
+
+OPTIONAL_MODULES = {
+    "dask": "cluster", "distributed": "cluster",
+    "gymnasium": "rl", "pettingzoo": "rl", "stable_baselines3": "sb3",
+    "starlette": "live", "uvicorn": "live", "websockets": "live", "segno": "live", "httpx": "live",
+    "pylsl": "lsl",
+}  # fmt: skip
+"""The top-level modules of the optional extras' packages, each with the extra that installs it."""
 
 
 class CommandsOnDemand(click.Group):
@@ -75,6 +85,9 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as error:
         if os.environ.get("MIRROR_AVATAR_DEBUG"):
             raise
+        extra = missing_extra(error)
+        if extra is not None:
+            return fail(extra)
         words = " ".join(str(error).split())
         click.echo(
             f"mirror-avatar: internal error: {type(error).__name__}: {words[:200]} "
@@ -83,6 +96,17 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 1
     return 0
+
+
+def missing_extra(error: BaseException) -> str | None:
+    """Return the line naming the extra to install when ``error`` is one's module missing."""
+    if not isinstance(error, ModuleNotFoundError) or not error.name:
+        return None
+    module = error.name.partition(".")[0]
+    extra = OPTIONAL_MODULES.get(module)
+    if extra is None:
+        return None
+    return f"this command needs {module}: pip install 'mirror-avatar[{extra}]'"
 
 
 def fail(problem: str) -> int:

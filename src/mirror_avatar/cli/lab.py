@@ -25,8 +25,9 @@ from mirror_avatar.cli.play import server_options
     "protocol_file",
     type=click.Path(path_type=Path),
     default=None,
-    help="A study protocol (TOML, README 'Study protocols'): the console then creates each "
-    "participant's run of it, in their counterbalanced order (the console can also load one).",
+    help="A study protocol (TOML; see the lab guide, Study protocols): the console then "
+    "creates each participant's run of it, in their counterbalanced order (the console can "
+    "also load one).",
 )
 @click.pass_context
 def lab(

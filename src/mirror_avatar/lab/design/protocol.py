@@ -1,17 +1,16 @@
 """A study protocol: blocks of conditions, who plays in each, the questions, the order.
 
-A protocol is a TOML file (`load_protocol`; the format is in the lab guide, README "Lab
-sessions"). It has blocks, each a list of conditions; a condition is one game (``solo``,
-``leader_follower``, ``joint``, ``group``) with its players, graph, leaders, trials, duration
-and pause, which becomes a `mirror_avatar.lab.design.plan.SessionPlan` once its players are decided
-(`Condition.plan`). A player is a person (by label), an avatar (by player spec) or a
-``person-or-avatar``: the partner's slot is filled by the person or by the avatar, balanced
-across participants and across the positions of the order
-(`mirror_avatar.lab.design.order.meets_person`), so that neither the participant nor the page knows
-which (the files record it). Questions are declared once and asked after each trial of a
-condition (``after_trial``) or after a block (``after_block``). The order of blocks and of each
-block's conditions is fixed, random or counterbalanced across participants
-(`mirror_avatar.lab.design.order`).
+A protocol is a TOML file (`load_protocol`; the format is in the lab guide,
+docs/lab.md#study-protocols). It has blocks, each a list of conditions; a condition is one game
+(``solo``, ``leader_follower``, ``joint``, ``group``) with its players, graph, leaders, trials,
+duration and pause, which becomes a `mirror_avatar.lab.design.plan.SessionPlan` once its players
+are decided (`Condition.plan`). A player is a person (by label), an avatar (by player spec) or a
+``person-or-avatar``: the partner's slot is filled by the person or by the avatar, balanced across
+participants and across the positions of the order (`mirror_avatar.lab.design.order.meets_person`),
+so that neither the participant nor the page knows which (the files record it). Questions are
+declared once and asked after each trial of a condition (``after_trial``) or after a block
+(``after_block``). The order of blocks and of each block's conditions is fixed, random or
+counterbalanced across participants (`mirror_avatar.lab.design.order`).
 
 Every mistake is refused with one line naming the file, the key path (such as
 ``blocks[1].conditions[0].players``), the problem and how to fix it; every avatar is built and
