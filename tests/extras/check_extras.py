@@ -50,9 +50,9 @@ TIMEOUT = 600
 SHORT_TRIAL = 2
 
 RL_STEPS = """
-from mirror_avatar.env import MirrorGameEnv
-from mirror_avatar.multi_agent import MirrorGroupEnv
-from mirror_avatar.session import load_session
+from mirror_avatar.rl.env import MirrorGameEnv
+from mirror_avatar.rl.multi_agent import MirrorGroupEnv
+from mirror_avatar.sessions.loading import load_session
 
 env = MirrorGameEnv([load_session("session/session.parquet")])
 observation, info = env.reset(seed=1)
