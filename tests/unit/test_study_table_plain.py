@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 
 from mirror_avatar.analysis.guesses import guess, guess_of, is_identification
+from mirror_avatar.analysis.table import table_dictionary
 from mirror_avatar.cli import main
 from mirror_avatar.files.trial_record import AnswerRecord
 from mirror_avatar.lab.design.plan import parse_plan
@@ -133,3 +134,17 @@ def test_a_measure_s_p_value_is_described_as_a_p_value_not_a_measure():
     assert measure_info(p_value_column("rmse"))["Role"] == "p_value"
     assert measure_info("rmse")["Role"] == "measure"
     assert p_value_column("max_cross_correlation") == "time_lag_p_value"
+
+
+def test_the_dictionary_lists_the_levels_of_a_text_column_whatever_pandas_calls_its_type():
+    """pandas 3 gives text the ``str`` dtype, not ``object``: the levels are listed for both."""
+    for dtype in (object, "str"):
+        table = pd.DataFrame(
+            {
+                "condition": pd.Series(["mirror", "free", "mirror"], dtype=dtype),
+                "leader": pd.Series(["P1", "none", "P1"], dtype=dtype),
+            }
+        )
+        info = table_dictionary(table, {})
+        assert info["condition"]["Levels"] == {"free": "free", "mirror": "mirror"}
+        assert set(info["leader"]["Levels"]) == {"P1", "none"}

@@ -203,7 +203,10 @@ def table_dictionary(table: pd.DataFrame, questions: dict[str, str]) -> dict[str
             info[column] = measure_info(column)
         if any(isinstance(value, str) for value in table[column]):
             info[column]["Description"] += CSV_TEXT
-        if table[column].dtype == object and "Levels" not in info[column]:
+        text = pd.api.types.is_object_dtype(table[column]) or pd.api.types.is_string_dtype(
+            table[column]
+        )
+        if text and "Levels" not in info[column]:
             values = sorted({str(v) for v in table[column].dropna()})
             categorical = column in ("condition", "leader") or column.startswith("answer_")
             if categorical and 0 < len(values) <= MAX_LEVELS:
