@@ -116,8 +116,8 @@ def measure(n_sessions: int, rounds: int) -> list[dict[str, Any]]:
         if baseline is not None:
             trees.insert(0, (BASELINE_COMMIT, baseline))
         for name, source in trees:
-            print(f"round {round_}: {name} ...", file=sys.stderr, flush=True)
             runs.append({"tree": name, "round": round_} | run_child(source, n_sessions))
+            print(f"round {round_}, {name}: {runs[-1]}", file=sys.stderr, flush=True)
     return runs
 
 
