@@ -9,6 +9,7 @@ clone without that commit, a shallow one, skips the baseline and says so). The r
 baseline then this tree, for ``rounds`` rounds, so both see the same load; each round's ratio is
 baseline seconds over this tree's. Peak memory is each child's peak resident size (``wait4``);
 the baseline's two worker processes are not counted (on Linux they inherit the parent's peak).
+The machine's 1-minute load average is sampled every `LOAD_EVERY` seconds during each run.
 
 ``python benchmarks/bench_training_paper.py`` prints a table of every run (``--sessions``,
 ``--rounds``, ``--quick``: 2400 sessions; ``--out FILE`` also writes it); ``benchmarks/run.py
@@ -34,6 +35,8 @@ ROOT = Path(__file__).parents[1]
 BASELINE_TREE = Path("/tmp") / BASELINE_COMMIT
 PAPER_SESSIONS = 24_000
 QUICK_SESSIONS = 2_400
+LOAD_EVERY = 5.0
+"""Seconds between the samples of the 1-minute load average taken while a child runs."""
 TARGET_SECONDS = 20.0
 """The issue's target for the paper's sessions on two idle cores."""
 
@@ -96,14 +99,18 @@ def run_child(source: Path, n_sessions: int) -> dict[str, Any]:
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=environment,
         cwd=source.parent,
     )  # fmt: skip
-    load = os.getloadavg()[0]
-    _, status, usage = os.wait4(child.pid, 0)
+    loads = [os.getloadavg()[0]]
+    pid, status, usage = os.wait4(child.pid, os.WNOHANG)
+    while pid == 0:
+        time.sleep(LOAD_EVERY)
+        loads.append(os.getloadavg()[0])
+        pid, status, usage = os.wait4(child.pid, os.WNOHANG)
     child.returncode = os.waitstatus_to_exitcode(status)
     stdout, stderr = child.communicate()
     if child.returncode != 0:
         raise RuntimeError(f"training under {source} failed:\n{stderr}")
     result: dict[str, Any] = json.loads(stdout.strip().splitlines()[-1])
-    load = max(load, os.getloadavg()[0])
+    load = f"{sum(loads) / len(loads):.1f} (max {max(loads):.1f})"
     return result | {"peak_mb": usage.ru_maxrss / 1024, "load": load}
 
 
@@ -137,7 +144,7 @@ def rows(n_sessions: int, runs: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 "ratio": round(before["seconds"] / run["seconds"], 2) if before else "",
                 "peak_memory_mb": round(run["peak_mb"]),
                 "note": f"{n_sessions / run['seconds']:.0f} sessions/s; final RMS "
-                f"{run['final_rms']:.4f}, Q-table {run['q_sha256']}; load {run['load']:.1f}; "
+                f"{run['final_rms']:.4f}, Q-table {run['q_sha256']}; load {run['load']}; "
                 + (
                     f"baseline: commit {BASELINE_COMMIT}, same run, peak "
                     f"{before['peak_mb']:.0f} MB (its 2 worker processes not counted)"
@@ -166,7 +173,7 @@ def table(n_sessions: int, runs: list[dict[str, Any]]) -> str:
     """Make a Markdown table of every run, in the order run."""
     lines = [
         "| run | tree | seconds | sessions/s | ratio (baseline / new) | peak RSS (MB) | "
-        "final RMS | Q-table | load average |",
+        "final RMS | Q-table | load average, mean (max) |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     old = {r["round"]: r["seconds"] for r in runs if r["tree"] != "new"}
@@ -179,7 +186,7 @@ def table(n_sessions: int, runs: list[dict[str, Any]]) -> str:
         lines.append(
             f"| {i} | {run['tree']} | {run['seconds']:.1f} | {n_sessions / run['seconds']:.0f} | "
             f"{ratio} | {run['peak_mb']:.0f} | {run['final_rms']:.4f} | {run['q_sha256']} | "
-            f"{run['load']:.1f} |"
+            f"{run['load']} |"
         )
     return "\n".join(lines) + "\n"
 
