@@ -35,6 +35,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any, Self
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from sklearn.cluster import KMeans
 
@@ -89,6 +90,44 @@ FORMAT_VERSION = 1
 """Files without ``emission`` in their parameters were written before it existed: centroid."""
 Array = NDArray[np.float64]
 Seed = int | np.random.Generator | None
+
+
+_NO_FRAMES = np.empty(0, dtype=np.int64)
+"""The exemplar arguments of `synthesise_columns` under centroid emission (unread)."""
+
+
+@njit(cache=True, nogil=True)
+def synthesise_columns(
+    cumulative: Array,
+    start_cumulative: Array,
+    uniforms: Array,
+    starts: NDArray[np.int64],
+    members: NDArray[np.int64],
+    following: NDArray[np.int64],
+    frame_symbols: NDArray[np.int64],
+    frames: Array,
+    hop: int,
+    norm: Array,
+    start: int,
+    low: float,
+    high: float,
+    positions: Array,
+) -> None:
+    """Synthesise one position signal per column of ``positions`` (n, L) from its uniforms.
+
+    Column j walks the chain on ``uniforms[j, 0]`` (`sample_chain`), picks its frames with
+    ``uniforms[j, 1]`` under exemplar emission (`emit_exemplars`, when ``uniforms`` has two
+    rows per column; ``starts`` to ``frame_symbols`` are then its arguments) or takes the
+    symbols' code vectors, and overlap-adds them (`overlap_add_into`, ``frames`` to ``high``
+    its arguments). One call for a group of signals: each column is what it is alone.
+    """
+    for j in range(uniforms.shape[0]):
+        sequence = sample_chain(cumulative, start_cumulative, uniforms[j, 0])
+        if uniforms.shape[1] > 1:
+            sequence = emit_exemplars(
+                sequence, uniforms[j, 1], starts, members, following, frame_symbols
+            )
+        overlap_add_into(frames, sequence, hop, norm, start, low, high, positions[:, j])
 
 
 class IMSGenerator:
@@ -335,37 +374,42 @@ class IMSGenerator:
     def sample_positions(self, n_samples: int, random_state: Seed = None) -> Array:
         """Generate ``n_samples`` positions at `rate` (units, clipped to [-0.5, 0.5])."""
         self._check_sampling(n_samples)
-        positions = np.empty(n_samples)
-        self._sample_positions_into(positions, random_state)
-        return positions
+        positions = np.empty((n_samples, 1))
+        self._sample_positions_into(positions, [random_state])
+        return positions[:, 0]
 
     def _check_sampling(self, n_samples: int) -> None:
         self._check_fitted()
         if n_samples < 1:
             raise InputError("generator", f"n_samples must be positive, got {n_samples}")
 
-    def _sample_positions_into(self, positions: Array, random_state: Seed) -> None:
-        """`sample_positions` of ``positions.size`` samples, written into ``positions``."""
-        n_samples = positions.size
-        rng = np.random.default_rng(self.random_state if random_state is None else random_state)
+    def _sample_positions_into(self, positions: Array, random_states: Sequence[Seed]) -> None:
+        """`sample_positions` from each random state, written into the columns of ``positions``.
+
+        Column j, shape (n,), draws only from ``random_states[j]``: each generator's uniforms
+        are drawn first (the chain's, then the emission's), and every column is then
+        synthesised in one compiled call (`synthesise_columns`).
+        """
+        n_samples = positions.shape[0]
         pad = self.window // self.hop
         n_frames = math.ceil(max(n_samples - self.window, 0) / self.hop) + 1 + 2 * pad
-        sequence = sample_chain(self._cumulative, self._start_cumulative, rng.random(n_frames))
-        if self.emission == "exemplar":
-            sequence = emit_exemplars(
-                sequence,
-                rng.random(n_frames),
-                *self._members,
-                self.exemplar_next_,
-                self._exemplar_symbols,
-            )
+        exemplar = self.emission == "exemplar"
+        uniforms = np.empty((len(random_states), 2 if exemplar else 1, n_frames))
+        for column, random_state in enumerate(random_states):
+            rng = np.random.default_rng(self.random_state if random_state is None else random_state)
+            for row in uniforms[column]:
+                rng.random(out=row)
         norm = self._norms.get(n_frames)
         if norm is None:
             norm = self._norms[n_frames] = overlap_norm(n_frames, self.hop, self._window_squared)
+        starts, members = self._members if exemplar else (_NO_FRAMES, _NO_FRAMES)
         low, high = PLAYING_RANGE
-        overlap_add_into(
-            self._frames, sequence, self.hop, norm, pad * self.hop, low, high, positions
-        )
+        synthesise_columns(
+            self._cumulative, self._start_cumulative, uniforms, starts, members,
+            self.exemplar_next_ if exemplar else _NO_FRAMES,
+            self._exemplar_symbols if exemplar else _NO_FRAMES, self._frames, self.hop, norm,
+            pad * self.hop, low, high, positions,
+        )  # fmt: skip
 
     def sample_velocity(self, n_samples: int, random_state: Seed = None) -> Array:
         """Generate a velocity signal of ``n_samples`` at `rate` (units/s).
@@ -393,8 +437,7 @@ class IMSGenerator:
         for first in range(0, len(random_states), SIDE_BY_SIDE):
             group = random_states[first : first + SIDE_BY_SIDE]
             positions = np.empty((n_samples, len(group)))
-            for column, random_state in enumerate(group):
-                self._sample_positions_into(positions[:, column], random_state)
+            self._sample_positions_into(positions, group)
             velocities[first : first + len(group)] = compute_velocity(positions, self.rate).T
         return velocities
 

@@ -135,9 +135,18 @@ def _generated_references(
     block = int(round(REFERENCE_BLOCK * rate))
     n_samples = int(math.ceil(times[-1] * rate)) + 2 if n_steps > 1 else 2
     blocks = [source.sample_velocities(block, rngs) for _ in range(-(-n_samples // block))]
-    velocities = np.concatenate(blocks, axis=1)
+    velocities = blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
     grid = np.arange(velocities.shape[1], dtype=np.float64) / rate
-    return [interpolate_on_grid(times, grid, rate, velocity) for velocity in velocities]
+    return list(interpolate_rows(times, grid, rate, velocities))
+
+
+@njit(cache=True, nogil=True)
+def interpolate_rows(times: Array, grid: Array, rate: float, values: Array) -> Array:
+    """`interpolate_on_grid` of each row of ``values`` (L, n): shape (L, m), in one call."""
+    out = np.empty((values.shape[0], times.size))
+    for j in range(values.shape[0]):
+        out[j] = interpolate_on_grid(times, grid, rate, values[j])
+    return out
 
 
 @njit(cache=True, nogil=True)
