@@ -12,7 +12,8 @@ import pandas as pd
 import pytest
 
 from mirror_avatar.analysis.guesses import guess, guess_of, is_identification
-from mirror_avatar.analysis.table import table_dictionary
+from mirror_avatar.analysis.table import study_table, table_dictionary
+from mirror_avatar.analysis.trials import read_study_trials
 from mirror_avatar.cli import main
 from mirror_avatar.files.trial_record import AnswerRecord
 from mirror_avatar.lab.design.plan import parse_plan
@@ -74,12 +75,20 @@ def test_a_plain_sessions_table_is_the_same_from_its_folder_and_its_export(ring_
 
 def test_a_trial_too_short_to_measure_keeps_its_rows(ring_session, tmp_path):
     full = table([ring_session], tmp_path / "full")
-    trimmed = tmp_path / "trimmed"
-    assert main(["study", "table", str(ring_session), "--out", str(trimmed), "--trim", "60",
-                 "--surrogates", "0"]) == 0  # fmt: skip
-    rows = pd.read_parquet(trimmed / "study.parquet")
+    trials = read_study_trials([ring_session])
+    longest = max(trial.session.duration for trial in trials)
+    rows = study_table(trials, trim=longest - 0.01, surrogates=0)
     assert list(rows.columns) == list(full.columns[: len(rows.columns)])
     assert len(rows) == len(full) and "rmse" not in rows
+
+
+@pytest.mark.parametrize("trim", ["60", "1e9"])
+def test_a_trim_that_leaves_no_trial_to_measure_is_refused(ring_session, tmp_path, capsys, trim):
+    out = tmp_path / "out"
+    assert main(["study", "table", str(ring_session), "--out", str(out), "--trim", trim]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "--trim" in error and "the longest lasts" in error
+    assert not out.exists()
 
 
 def test_paths_that_hold_no_study_are_one_line(tmp_path, capsys):

@@ -21,6 +21,7 @@ from mirror_avatar.cli.study_report import report
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.metrics import TRIM
 from mirror_avatar.metrics.measures import CONSTRAINTS as MEASURE_CONSTRAINTS
+from mirror_avatar.metrics.measuring import measurable
 
 
 @click.group()
@@ -61,6 +62,13 @@ def table(paths: tuple[Path, ...], out_dir: Path, trim: float, surrogates: int) 
     trials = read_study_trials(paths)
     if not trials:
         raise InputError(paths[0], "no lab trial in it (run folders or a lab's BIDS export)")
+    if all(measurable(trial.session, trim) is None for trial in trials):
+        longest = max(trial.session.duration for trial in trials)
+        raise InputError(
+            "--trim",
+            f"{trim:g} s leaves no trial enough samples to measure (the longest lasts "
+            f"{longest:.3g} s): give a shorter trim",
+        )
     rows = study_table(trials, trim=trim, surrogates=surrogates)
     write_study_table(rows, table_dictionary(rows, question_texts(trials)), out_dir)
     participants = rows["participant"].nunique()

@@ -134,13 +134,22 @@ def measure_trial(
         None when fewer than `mirror_avatar.files.trials.MIN_SAMPLES` samples remain after the trim
         (a trial stopped at once).
     """
+    kept = measurable(session, trim)
+    if kept is None:
+        return None
+    return _measured([kept], MeasureOptions(n_surrogates=surrogates))[0][0]
+
+
+def measurable(session: Session, trim: float = TRIM) -> Session | None:
+    """Return the session as it is measured (`analysed`), or None when it is too short to be.
+
+    None when fewer than `mirror_avatar.files.trials.MIN_SAMPLES` samples remain after the trim.
+    """
     try:
         kept = analysed(session, trim)
     except InputError:
         return None
-    if kept.n_samples < MIN_SAMPLES:
-        return None
-    return _measured([kept], MeasureOptions(n_surrogates=surrogates))[0][0]
+    return kept if kept.n_samples >= MIN_SAMPLES else None
 
 
 def _measured(
