@@ -105,6 +105,7 @@
       pause: Number($("pause").value),
       show_metrics: $("show-metrics").checked,
       on_drop: $("on-drop").value,
+      max_lateness: Number($("max-lateness").value),
       players,
     };
   }
