@@ -15,7 +15,8 @@ from mirror_avatar.analysis.guesses import guess, guess_of, is_identification
 from mirror_avatar.analysis.table import study_table, table_dictionary
 from mirror_avatar.analysis.trials import read_study_trials
 from mirror_avatar.cli import main
-from mirror_avatar.files.trial_record import AnswerRecord
+from mirror_avatar.dynamics import CONTROL_PERIOD
+from mirror_avatar.files.trial_record import AnswerRecord, read_trial_record
 from mirror_avatar.lab.design.plan import parse_plan
 from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.realtime.inputs import BrowserInput
@@ -157,3 +158,23 @@ def test_the_dictionary_lists_the_levels_of_a_text_column_whatever_pandas_calls_
         info = table_dictionary(table, {})
         assert info["condition"]["Levels"] == {"free": "free", "mirror": "mirror"}
         assert set(info["leader"]["Levels"]) == {"P1", "none"}
+
+
+def test_an_input_that_never_delivers_is_recorded_lost_and_its_record_reads_back(tmp_path):
+    """A page that sends nothing has no message number: the lost event's seq is None, not -1."""
+    folder = tmp_path / "20261127T010203-002"
+    folder.mkdir()
+    plan = parse_plan(RING)
+    inputs = {k: BrowserInput() for k in plan.humans}
+    silent, speaking = sorted(inputs)
+    lab = {"session_id": folder.name, "condition": plan.condition}
+    trial = LabTrial(plan, 1, folder, inputs, build_avatars(plan), time.monotonic, lab)
+    while not trial.finished:  # at least real time, so the silent input outlives its timeout
+        inputs[speaking].put(0.3 * math.sin(0.2 * trial.k), trial.k)
+        time.sleep(CONTROL_PERIOD)
+        trial.tick()
+    trial.finish(True, "completed")
+    record = read_trial_record(folder / "trial-01_session.json")
+    lost = [event for event in record.input_events if event.event == "lost"]
+    assert [event.label for event in lost] == [plan.slots[silent].label]
+    assert lost[0].seq is None

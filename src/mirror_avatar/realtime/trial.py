@@ -318,7 +318,8 @@ class ClockedTrial:
             if tick.alive != self._alive[person.label]:
                 self._alive[person.label] = tick.alive
                 event = "live" if tick.alive else "lost"
-                self.events.append(InputEventRecord(k, person.label, event, tick.seq).to_json())
+                seq = tick.seq if tick.seq >= 0 else None  # a page that has sent nothing
+                self.events.append(InputEventRecord(k, person.label, event, seq).to_json())
                 changed = True
         if changed:
             self.writer.annotate({"input_events": list(self.events), "lost": self.lost()})
