@@ -367,7 +367,7 @@ class LabSession:
             lost = event["event"] == "lost"
             self.log(f"{label}: input {'lost' if lost else 'live again'} at sample {k}")
             self._mark(f"{label} input {event['event']}")
-            if lost and event["seq"] >= 0 and self.plan.on_drop == "stop":
+            if lost and event["seq"] is not None and self.plan.on_drop == "stop":
                 self._stop_reason = f"{label}'s input was lost"
         self._events_seen = len(trial.events)
         for change in trial.perturbations[self._perturbations_seen :]:
