@@ -206,7 +206,7 @@ def live(checks: Checks) -> None:
     )  # fmt: skip
     checks.command(
         "generator fit (tutorial)", "mirror-avatar", "generator", "fit", "--bundled", "slow",
-        "--symbols", "64", "--seed", "1", "--out", "slow.npz",
+        "--kind", "ims", "--symbols", "64", "--seed", "1", "--out", "slow.npz",
     )  # fmt: skip
     checks.command(
         "lab pilot (tutorial, 2 s trials)", "mirror-avatar", "lab", "pilot", "--protocol",

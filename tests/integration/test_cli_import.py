@@ -66,7 +66,7 @@ def test_epoch_time_stamps(zhai_trials, tmp_path, capsys) -> None:
     ]
     (tmp_path / "epoch.csv").write_text("\n".join(lines) + "\n")
     arguments = ["generator", "fit", str(tmp_path / "epoch.csv"), "--out", str(tmp_path / "g.npz"),
-                 "--symbols", "32"]  # fmt: skip
+                 "--kind", "ims", "--symbols", "32"]  # fmt: skip
     status, _, error = run(capsys, *arguments)
     assert status == 2 and "--time-unit epoch" in error
     status, _, _ = run(capsys, *arguments, "--time-unit", "epoch")
@@ -137,7 +137,7 @@ def test_a_live_recording_folder(zhai_trials, tmp_path, capsys) -> None:
             trial.tick()
         trial.finish(True, "completed")
     folder = tmp_path / "P01"
-    status, printed, _ = run(capsys, "generator", "fit", str(folder), "--symbols", "32",
+    status, printed, _ = run(capsys, "generator", "fit", str(folder), "--kind", "ims", "--symbols", "32",
                              "--out", str(tmp_path / "p01.npz"))  # fmt: skip
     assert status == 0 and printed.count("a session file (read it with evaluate)") == 2
     session = next(folder.glob("*_session.csv"))

@@ -45,7 +45,7 @@ CASES: dict[str, Case] = {
                          "out/stage-3.npz"),
     "curriculum report": (lambda i: ["curriculum", "--patient", "bundled:slow", "--target",
                                      "bundled:fast", "--out", "out"], "out/report.html"),
-    "generator fit sweep": (lambda i: ["generator", "fit", str(i / "trials"), "--sweep",
+    "generator fit sweep": (lambda i: ["generator", "fit", str(i / "trials"), "--kind", "ims", "--sweep",
                                        "--out", "out.npz"], "out.sweep.csv"),
     "generator sample manifest": (lambda i: ["generator", "sample", str(i / "model.npz"),
                                              "--count", "3", "--out", "out"],
@@ -86,7 +86,7 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     for k, trial in enumerate(load_zhai2017()[:3]):
         write_csv_trial(trial, folder / "trials" / f"trial{k}.csv")
     command = "from mirror_avatar.console import run; run()"
-    arguments = ["generator", "fit", str(folder / "trials"), "--symbols", "16"]
+    arguments = ["generator", "fit", str(folder / "trials"), "--kind", "ims", "--symbols", "16"]
     subprocess.run(
         [sys.executable, "-c", command, *arguments, "--out", str(folder / "model.npz")],
         check=True,

@@ -1,4 +1,4 @@
-"""``mirror-avatar generator``: fit an IMS generator on trial files and sample new trials."""
+"""``mirror-avatar generator``: fit a motion model on trial files and sample new trials."""
 
 from __future__ import annotations
 
@@ -25,6 +25,8 @@ from mirror_avatar.files.trials import Trial
 from mirror_avatar.motion.codebook_size import sweep_codebook
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.motion.hyperparameters import CODEBOOK_SIZES, KMEANS_SEEDS
+from mirror_avatar.motion.models import DEFAULT_KIND, MODEL_KINDS, MotionModel, load_motion
+from mirror_avatar.motion.strokes import StrokeGenerator
 from mirror_avatar.signatures.likeness import Likeness, compare_motion, trial_velocity
 from mirror_avatar.training.curriculum import FORMAT_NAME as STAGE_FORMAT
 from mirror_avatar.training.curriculum import StageMotion, load_stage
@@ -32,7 +34,7 @@ from mirror_avatar.training.curriculum import StageMotion, load_stage
 
 @click.group()
 def generator() -> None:
-    """Learn a person's motor signature (IMS generator) and generate motion with it."""
+    """Learn a person's motion (stroke or IMS generator) and generate motion with it."""
 
 
 @generator.command()
@@ -49,7 +51,17 @@ def generator() -> None:
         CODEBOOK_SIZES,
     ),
 )
-@click.option("--seed", default=0, show_default=True, **ranged("Seed of k-means.", KMEANS_SEEDS))
+@click.option(
+    "--kind",
+    type=click.Choice(tuple(MODEL_KINDS)),
+    default=DEFAULT_KIND,
+    show_default=True,
+    help="strokes: chain the person's strokes (METHODS section 4b); ims: the paper's Markov "
+    "chain over STFT frames (METHODS section 4).",
+)
+@click.option(
+    "--seed", default=0, show_default=True, **ranged("Seed of the fit and sampling.", KMEANS_SEEDS)
+)
 @click.option(
     "--bundled",
     type=click.Choice(BUNDLED_STYLES),
@@ -59,7 +71,7 @@ def generator() -> None:
     "--sweep",
     is_flag=True,
     help="Also sweep codebook sizes 32-256 on a 2/3 : 1/3 split of the trials and write "
-    "MODEL.sweep.csv.",
+    "MODEL.sweep.csv (--kind ims).",
 )
 @click.option(
     "--likeness/--no-likeness",
@@ -73,6 +85,7 @@ def fit(
     paths: tuple[Path, ...],
     out_path: Path,
     symbols: int | str,
+    kind: str,
     seed: int,
     bundled: str | None,
     sweep: bool,
@@ -80,21 +93,22 @@ def fit(
     options: ImportOptions,
 ) -> None:
     """Fit a generator on the trials in FILE_OR_DIR... (CSV, MAT, Parquet, BIDS motion)."""
+    if kind != "ims" and (sweep or symbols != "auto"):
+        option = "--sweep" if sweep else "--symbols"
+        raise InputError(option, "sets the IMS generator's codebook: give --kind ims")
     beside = [path for path, wanted in ((sweep_path, sweep), (likeness_path, likeness)) if wanted]
     check_output_file(out_path, ".npz", beside=[path(out_path) for path in beside])
     if not paths and bundled is None:
         raise InputError(None, "give trial files or directories, or --bundled fast|slow")
     trials = read_and_report(paths, "none", options) if paths else []
     trials += [t for t in load_zhai2017() if t.group == bundled] if bundled else []
-    model = IMSGenerator(n_symbols=symbols, random_state=seed).fit(trials)
+    model: MotionModel
+    if kind == "ims":
+        model = IMSGenerator(n_symbols=symbols, random_state=seed).fit(trials)
+    else:
+        model = StrokeGenerator(random_state=seed).fit(trials)
     model.save(out_path)
-    summary = model.training_summary_
-    if symbols == "auto":
-        click.echo(_describe_choice(summary["complexity"]))
-    click.echo(
-        f"{len(trials)} trials, {summary['n_frames']} frames, {model.n_symbols_} symbols, "
-        f"distortion {summary['distortion']:.4g} -> {out_path}"
-    )
+    click.echo(_describe_fit(model, len(trials), out_path))
     if likeness:
         _report_likeness(trials, model, seed, out_path)
     if sweep:
@@ -102,6 +116,20 @@ def fit(
         write_atomic_text(sweep_path(out_path), table.to_csv())
         click.echo(table.to_string())
         click.echo(f"sweep -> {sweep_path(out_path)}")
+
+
+def _describe_fit(model: MotionModel, n_trials: int, out_path: Path) -> str:
+    """Describe the fit in a line (with the codebook size's choice for an IMS generator)."""
+    summary = model.training_summary_
+    if isinstance(model, StrokeGenerator):
+        return f"{n_trials} trials, {summary['n_strokes']} strokes -> {out_path}"
+    choice = summary["complexity"]
+    lines = [_describe_choice(choice)] if choice["rule"] != "fixed" else []
+    lines.append(
+        f"{n_trials} trials, {summary['n_frames']} frames, {model.n_symbols_} symbols, "
+        f"distortion {summary['distortion']:.4g} -> {out_path}"
+    )
+    return "\n".join(lines)
 
 
 def sweep_path(model: Path) -> Path:
@@ -123,7 +151,7 @@ each generated trial comes from its own model as each held-out trial is its own 
 the permutation tests relabel independent units)."""
 
 
-def _report_likeness(trials: list[Trial], model: IMSGenerator, seed: int, out_path: Path) -> None:
+def _report_likeness(trials: list[Trial], model: MotionModel, seed: int, out_path: Path) -> None:
     """Print and write the battery of generated against held-out trials (or why it is not run)."""
     if len(trials) < 2:
         click.echo("likeness not measured: it needs 2 trials, one to hold out")
@@ -139,21 +167,18 @@ def _report_likeness(trials: list[Trial], model: IMSGenerator, seed: int, out_pa
     click.echo(f"likeness: {result.verdict()} -> {likeness_path(out_path)}")
 
 
-def held_out_likeness(trials: list[Trial], model: IMSGenerator, seed: int) -> Likeness:
+def held_out_likeness(trials: list[Trial], model: MotionModel, seed: int) -> Likeness:
     """Run the human-likeness battery on generated trials against held-out ones.
 
     Up to `LIKENESS_FOLDS` trials, spread over the order, are held out in turn; a generator
-    with ``model``'s settings and codebook size is fitted on the others and makes
+    with ``model``'s settings (and codebook size) is fitted on the others and makes
     `SAMPLES_PER_FOLD` trials as long as the held-out one. The person's own variability is that
     of all their trials. Fold ``k`` is seeded by ``draw_seeds([seed, 38], folds)[k]``.
     """
     held = np.unique(np.linspace(0, len(trials) - 1, min(len(trials), LIKENESS_FOLDS)).round())
-    settings = model.get_params() | {"n_symbols": model.n_symbols_}
     reference, generated = [], []
     for k, fold_seed in zip(held.astype(int), draw_seeds([seed, 38], held.size), strict=True):
-        fitted = IMSGenerator(**settings | {"random_state": fold_seed}).fit(
-            trials[:k] + trials[k + 1 :]
-        )
+        fitted = model.unfitted(fold_seed).fit(trials[:k] + trials[k + 1 :])
         reference.append(trial_velocity(trials[k], model.rate))
         samples = fitted.sample(trials[k].duration, SAMPLES_PER_FOLD, random_state=fold_seed)
         generated += [trial_velocity(t, model.rate) for t in samples]
@@ -216,10 +241,10 @@ def sample(
     click.echo(f"{count} trials of {duration:g} s -> {out_dir}")
 
 
-def _load_sampler(path: Path) -> IMSGenerator | StageMotion:
+def _load_sampler(path: Path) -> MotionModel | StageMotion:
     """Load a generator, or a curriculum stage (its motion sampled alone), by the file's format."""
     _, metadata = read_archive(path)
-    return load_stage(path) if metadata.get("format") == STAGE_FORMAT else IMSGenerator.load(path)
+    return load_stage(path) if metadata.get("format") == STAGE_FORMAT else load_motion(path)
 
 
 def _sweep(trials: list[Trial], seed: int) -> pd.DataFrame:

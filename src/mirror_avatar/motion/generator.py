@@ -268,6 +268,12 @@ class IMSGenerator:
         self._prepare_sampling()
         return self
 
+    def unfitted(self, random_state: int | None) -> IMSGenerator:
+        """Return an unfitted generator with these settings, the codebook size fitted and a seed."""
+        return type(self)(
+            **self.get_params() | {"n_symbols": self.n_symbols_, "random_state": random_state}
+        )
+
     def with_symbols(self, n_symbols: int) -> IMSGenerator:
         """Return an unfitted generator with these settings and a codebook of ``n_symbols``."""
         return type(self)(**self.get_params() | {"n_symbols": n_symbols})

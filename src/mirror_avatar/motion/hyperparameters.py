@@ -17,6 +17,7 @@ need both).
 from __future__ import annotations
 
 import numbers
+from collections.abc import Iterable
 from typing import Any
 
 from mirror_avatar.common.constraints import Constraint, Either, Interval, Options, Setting, check
@@ -59,6 +60,42 @@ GENERATOR = {setting.key: setting for setting in GENERATOR_SETTINGS}
 """The hyper-parameters by name."""
 
 
+STROKE_SETTINGS = (
+    Setting("neighbours", "training strokes the next stroke is drawn from; auto: the square "
+            "root of their number", Either((Options(("auto",)), Interval(int, 1, 100_000))),
+            "auto"),
+    Setting("jitter", "SD of the log-normal factor on a generated stroke's length and size",
+            Interval(float, 0.0, 2.0), 0.1),
+    Setting("rate", "sampling rate of the model; trials are resampled to it",
+            Interval(float, MIN_RATE, MAX_RATE, unit="Hz"), 100.0),
+    Setting("random_state", "seed of sampling when given none", KMEANS_SEEDS, None,
+            default_shown="none (unseeded)"),
+)  # fmt: skip
+"""Every hyper-parameter of the stroke generator (`mirror_avatar.motion.strokes`), in the
+constructor's order. The ranges are a **choice**: up to 100 000 neighbours (more strokes than
+hours of motion hold) and a jitter up to 2 (a factor of e^2 at one SD)."""
+
+STROKES = {setting.key: setting for setting in STROKE_SETTINGS}
+"""The stroke generator's hyper-parameters by name."""
+
+
+def check_settings(values: dict[str, Any], settings: Iterable[Setting]) -> dict[str, Any]:
+    """Return ``values`` checked against ``settings``, as Python numbers.
+
+    A key left out takes its default; None is allowed where it is the default.
+
+    Raises
+    ------
+    mirror_avatar.common.constraints.ConstraintError
+        A value its declaration refuses; its ``key`` names the hyper-parameter.
+    """
+    checked: dict[str, Any] = {}
+    for setting in settings:
+        unset = values.get(setting.key) is None and setting.default is None
+        checked[setting.key] = None if unset else _plain(setting.read(values), setting.constraint)
+    return checked
+
+
 def check_hyperparameters(values: dict[str, Any]) -> dict[str, Any]:
     """Return the hyper-parameters checked against `GENERATOR_SETTINGS`, as Python numbers.
 
@@ -73,10 +110,7 @@ def check_hyperparameters(values: dict[str, Any]) -> dict[str, Any]:
         A value its declaration refuses, or a hop longer than half the window; its ``key``
         names the hyper-parameter.
     """
-    checked: dict[str, Any] = {}
-    for setting in GENERATOR_SETTINGS:
-        unset = values.get(setting.key) is None and setting.default is None
-        checked[setting.key] = None if unset else _plain(setting.read(values), setting.constraint)
+    checked = check_settings(values, GENERATOR_SETTINGS)
     check("hop", checked["hop"], Interval(int, 1, checked["window"] // 2))
     return checked
 

@@ -1,0 +1,158 @@
+"""The stroke generator (`mirror_avatar.motion.strokes`): strokes, chaining, files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.signal
+
+from mirror_avatar.common.errors import InputError
+from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.files.trials import compute_velocity, make_trial
+from mirror_avatar.motion.models import load_motion, model_arrays, motion_from_arrays
+from mirror_avatar.motion.strokes import StrokeGenerator, reversals, room_ahead
+
+RATE = 100.0
+
+
+def sine_trial(seconds: float = 30.0, frequency: float = 0.5, amplitude: float = 0.3):
+    times = np.arange(round(seconds * RATE) + 1) / RATE
+    positions = amplitude * np.sin(2 * np.pi * frequency * times)
+    return make_trial(times, positions, label="sine", group="sine")
+
+
+def test_reversals_are_the_turning_points_and_a_pause_keeps_its_stroke() -> None:
+    positions = np.array([0.0, 1, 2, 2, 2, 3, 2, 1, 1, 0, 1])
+    assert reversals(positions).tolist() == [0, 5, 9, 10]
+    assert reversals(np.zeros(5)).tolist() == [0, 4]
+
+
+def test_room_ahead_is_the_distance_to_the_edge_moved_towards() -> None:
+    assert room_ahead(0.2, 1.0) == pytest.approx(0.3)
+    assert room_ahead(0.2, -1.0) == pytest.approx(0.7)
+
+
+def test_a_periodic_person_without_jitter_is_played_back_periodic() -> None:
+    """One neighbour, no jitter, one sine: every stroke is the sine's half period (truth)."""
+    model = StrokeGenerator(neighbours=1, jitter=0.0, random_state=3).fit([sine_trial()])
+    positions = model.sample_positions(3001)
+    edges = reversals(positions)[1:-1]
+    assert np.diff(edges) == pytest.approx(np.full(edges.size - 1, 100.0), abs=1)
+    assert np.abs(positions[edges]) == pytest.approx(np.full(edges.size, 0.3), abs=1e-3)
+
+
+def test_generated_strokes_have_the_training_strokes_lengths_and_sizes() -> None:
+    """Medians of generated stroke lengths and sizes within 10 % of the training trials'."""
+    trials = [t for t in load_zhai2017() if t.group == "fast"]
+    model = StrokeGenerator(random_state=0).fit(trials)
+    trained_lengths = model.lengths_[model.previous_ >= 0]
+    trained_sizes = np.abs(model.displacements_[model.previous_ >= 0])
+    lengths, sizes = [], []
+    for seed in range(5):
+        positions = model.sample_positions(6001, seed)
+        edges = reversals(positions)[1:-1]
+        lengths.append(np.diff(edges))
+        sizes.append(np.abs(np.diff(positions[edges])))
+    assert np.median(np.concatenate(lengths)) == pytest.approx(np.median(trained_lengths), rel=0.1)
+    assert np.median(np.concatenate(sizes)) == pytest.approx(np.median(trained_sizes), rel=0.1)
+
+
+def test_generated_motion_has_no_ripple_the_person_does_not_make() -> None:
+    """The 2-8 Hz share of velocity power within 1.5 x the training trials' (slow style)."""
+    trials = [t for t in load_zhai2017() if t.group == "slow"]
+    model = StrokeGenerator(random_state=0).fit(trials)
+
+    def ripple(velocity: np.ndarray) -> float:
+        frequencies, power = scipy.signal.welch(velocity, fs=RATE, nperseg=1000)
+        return power[(frequencies >= 2) & (frequencies <= 8)].sum() / power.sum()
+
+    person = np.mean([ripple(t.resampled(RATE).velocity()) for t in trials])
+    generated = np.mean([ripple(v) for v in model.sample_velocities(6001, list(range(5)))])
+    assert generated < 1.5 * person
+
+
+def test_samples_stay_in_range_and_repeat_with_their_seed() -> None:
+    model = StrokeGenerator(random_state=1).fit([sine_trial(amplitude=0.5)])
+    first = model.sample_positions(2000, 7)
+    assert np.all(np.abs(first) <= 0.5)
+    assert np.array_equal(first, model.sample_positions(2000, 7))
+    velocities = model.sample_velocities(500, [4, 5])
+    assert np.array_equal(velocities[1], model.sample_velocity(500, 5))
+    assert np.array_equal(velocities[0], compute_velocity(model.sample_positions(500, 4), RATE))
+
+
+def test_the_next_stroke_is_drawn_from_the_nearest_neighbours() -> None:
+    """With one neighbour the draw is the nearest by a brute-force search."""
+    trials = [t for t in load_zhai2017() if t.group == "slow"][:3]
+    model = StrokeGenerator(neighbours=1, random_state=0).fit(trials)
+    rng = np.random.default_rng(0)
+    for length, size, position, direction in [(40.0, 0.1, 0.0, 1.0), (80.0, 0.3, 0.3, -1.0)]:
+        best, best_distance = -1, np.inf
+        for i in np.flatnonzero(model.previous_ >= 0):
+            has_next = np.any(model.previous_ == i)
+            if not has_next or np.sign(model.displacements_[i]) != direction:
+                continue
+            before = model.previous_[i]
+            features = np.array(
+                [
+                    np.log(model.lengths_[before]),
+                    np.log(abs(model.displacements_[before]) + 1e-4),
+                    float(room_ahead(model.starts_[i], direction)),
+                ]
+            )
+            state = np.array(
+                [np.log(length), np.log(size + 1e-4), float(room_ahead(position, direction))]
+            )
+            distance = np.sum(((features - state) / model._scale) ** 2)
+            if distance < best_distance:
+                best, best_distance = i, distance
+        assert model._next_stroke(length, size, position, direction, rng) == best
+
+
+def test_a_saved_model_loads_and_samples_the_same(tmp_path: Path) -> None:
+    model = StrokeGenerator(random_state=2).fit([sine_trial(), sine_trial(frequency=0.7)])
+    model.save(tmp_path / "m.npz")
+    loaded = load_motion(tmp_path / "m.npz")
+    assert isinstance(loaded, StrokeGenerator)
+    assert np.array_equal(loaded.sample_positions(999, 1), model.sample_positions(999, 1))
+    arrays, metadata = model_arrays(model)
+    assert metadata["kind"] == "strokes"
+    again = motion_from_arrays(arrays, metadata, "avatar.npz")
+    assert np.array_equal(again.sample_positions(99, 1), model.sample_positions(99, 1))
+
+
+@pytest.mark.parametrize(
+    ("name", "change", "words"),
+    [
+        ("previous", lambda a: a.__setitem__(0, 3), "earlier stroke"),
+        ("lengths", lambda a: a.__setitem__(0, 2.5), "whole numbers"),
+        ("profiles", lambda a: a.__setitem__(0, np.nan), "profiles"),
+    ],
+)
+def test_a_tampered_model_is_refused_naming_the_file(name, change, words) -> None:
+    model = StrokeGenerator(random_state=2).fit([sine_trial()])
+    arrays, metadata = model.to_arrays()
+    arrays = {key: value.copy() for key, value in arrays.items()}
+    change(arrays[name])
+    with pytest.raises(InputError, match=words) as raised:
+        StrokeGenerator.from_arrays(arrays, metadata, "person.npz")
+    assert "person.npz" in str(raised.value)
+
+
+def test_profiles_of_another_size_are_refused() -> None:
+    arrays, metadata = StrokeGenerator(random_state=2).fit([sine_trial()]).to_arrays()
+    with pytest.raises(InputError, match="profiles"):
+        StrokeGenerator.from_arrays(arrays | {"profiles": arrays["profiles"][:-1]}, metadata, "m")
+
+
+def test_too_few_strokes_are_refused_with_what_to_do() -> None:
+    with pytest.raises(InputError, match="longer trials or more"):
+        StrokeGenerator().fit([sine_trial(seconds=1.5)])
+
+
+def test_an_unknown_kind_is_refused() -> None:
+    arrays, metadata = model_arrays(StrokeGenerator(random_state=2).fit([sine_trial()]))
+    with pytest.raises(InputError, match="unknown motion model kind"):
+        motion_from_arrays(arrays, metadata | {"kind": "lstm"}, "m.npz")
