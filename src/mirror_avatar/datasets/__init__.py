@@ -5,6 +5,9 @@ with Zhai et al., "Design and Validation of a Virtual Player for Studying Interp
 Coordination in the Mirror Game", IEEE Transactions on Cybernetics 48:1018-1029 (2018),
 from the repository diBernardoGroup/MirrorGame (commit 0b78206, folder "Optimal control/"),
 Apache License 2.0: see ``zhai2017/LICENSE`` and ``zhai2017/README.md`` in this folder.
+
+``synthetic``: synthetic people whose generating processes and parameters are known, split into
+development and held-out people (`mirror_avatar.datasets.synthetic`).
 """
 
 from __future__ import annotations
