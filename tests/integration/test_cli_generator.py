@@ -14,7 +14,21 @@ from mirror_avatar.motion.generator import IMSGenerator
 def model_path(tmp_path_factory) -> str:
     path = tmp_path_factory.mktemp("model") / "slow.npz"
     assert (
-        main(["generator", "fit", "--bundled", "slow", "--kind", "ims", "--symbols", "32", "--out", str(path)]) == 0
+        main(
+            [
+                "generator",
+                "fit",
+                "--bundled",
+                "slow",
+                "--kind",
+                "ims",
+                "--symbols",
+                "32",
+                "--out",
+                str(path),
+            ]
+        )
+        == 0
     )
     return str(path)
 
@@ -32,7 +46,19 @@ def test_fit_on_files_with_sweep(zhai_trials, tmp_path, capsys) -> None:
     for trial in zhai_trials[:4]:
         write_csv_trial(trial, folder / f"{trial.label}.csv")
     out = tmp_path / "fast.npz"
-    args = ["generator", "fit", str(folder), "--kind", "ims", "--symbols", "16", "--seed", "3", "--out", str(out)]
+    args = [
+        "generator",
+        "fit",
+        str(folder),
+        "--kind",
+        "ims",
+        "--symbols",
+        "16",
+        "--seed",
+        "3",
+        "--out",
+        str(out),
+    ]
     assert main([*args, "--sweep"]) == 0
     assert IMSGenerator.load(out).training_summary_["labels"] == [f"fast-{k}" for k in range(1, 5)]
     sweep = (tmp_path / "fast.sweep.csv").read_text().splitlines()
@@ -60,7 +86,10 @@ def test_sample_writes_csv_trials(model_path: str, tmp_path) -> None:
     [
         (["fit", "--out", "m.npz"], "--bundled"),
         (["fit", "--bundled", "slow", "--out", "m.txt"], "must end in .npz"),
-        (["fit", "--bundled", "slow", "--kind", "ims", "--symbols", "1", "--out", "m.npz"], "--symbols"),
+        (
+            ["fit", "--bundled", "slow", "--kind", "ims", "--symbols", "1", "--out", "m.npz"],
+            "--symbols",
+        ),
         (["fit", "missing.csv", "--out", "m.npz"], "no such file"),
         (["sample", "missing.npz", "--out", "s"], "missing.npz"),
         (["sample", "not-a-model.npz", "--out", "s"], "not-a-model.npz"),

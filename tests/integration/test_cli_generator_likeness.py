@@ -9,7 +9,18 @@ from mirror_avatar.cli import main
 
 def test_fit_reports_the_battery_on_held_out_trials(tmp_path, capsys):
     model = tmp_path / "slow.npz"
-    args = ["generator", "fit", "--bundled", "slow", "--kind", "ims", "--symbols", "16", "--out", str(model)]
+    args = [
+        "generator",
+        "fit",
+        "--bundled",
+        "slow",
+        "--kind",
+        "ims",
+        "--symbols",
+        "16",
+        "--out",
+        str(model),
+    ]
     assert main(args) == 0
     result = json.loads((tmp_path / "slow.likeness.json").read_text())
     assert result["seed"] == 0
@@ -26,7 +37,17 @@ def test_fit_reports_the_battery_on_held_out_trials(tmp_path, capsys):
 
 def test_no_likeness_writes_no_battery(tmp_path, capsys):
     model = tmp_path / "slow.npz"
-    args = ["generator", "fit", "--bundled", "slow", "--kind", "ims", "--symbols", "16", "--no-likeness"]
+    args = [
+        "generator",
+        "fit",
+        "--bundled",
+        "slow",
+        "--kind",
+        "ims",
+        "--symbols",
+        "16",
+        "--no-likeness",
+    ]
     assert main([*args, "--out", str(model)]) == 0
     assert not (tmp_path / "slow.likeness.json").exists()
     assert "generated trials against held-out ones" not in capsys.readouterr().out

@@ -57,7 +57,17 @@ def test_a_first_generator_fit_compiles_no_kernel(zhai_trials: list[Trial], tmp_
     folder.mkdir()
     for trial in zhai_trials[:3]:
         write_csv_trial(trial, folder / f"{trial.label}.csv")
-    command = ["generator", "fit", str(folder), "--kind", "ims", "--symbols", "8", "--out", str(tmp_path / "m.npz")]
+    command = [
+        "generator",
+        "fit",
+        str(folder),
+        "--kind",
+        "ims",
+        "--symbols",
+        "8",
+        "--out",
+        str(tmp_path / "m.npz"),
+    ]
     assert compilations(command) == "compiled: []"
 
 

@@ -27,6 +27,18 @@ def test_reversals_are_the_turning_points_and_a_pause_keeps_its_stroke() -> None
     positions = np.array([0.0, 1, 2, 2, 2, 3, 2, 1, 1, 0, 1])
     assert reversals(positions).tolist() == [0, 5, 9, 10]
     assert reversals(np.zeros(5)).tolist() == [0, 4]
+    held = np.array([0.0, 1, 3, 3, 2, 0])
+    assert reversals(held).tolist() == [0, 3, 5]
+
+
+def test_a_small_turn_back_is_not_a_reversal() -> None:
+    """Tremor of 0.004 units on a ramp up and down: one turn at the top, none in the wiggles."""
+    ramp = np.concatenate([np.linspace(-0.3, 0.3, 301), np.linspace(0.3, -0.3, 301)[1:]])
+    wiggles = 0.004 * np.sin(2 * np.pi * np.arange(ramp.size) / 11)
+    assert reversals(ramp + wiggles, 0.01).tolist()[0] == 0
+    assert len(reversals(ramp + wiggles, 0.01)) == 3
+    assert abs(reversals(ramp + wiggles, 0.01)[1] - 300) <= 6
+    assert len(reversals(ramp + wiggles, 0.0)) > 50
 
 
 def test_room_ahead_is_the_distance_to_the_edge_moved_towards() -> None:
@@ -44,7 +56,10 @@ def test_a_periodic_person_without_jitter_is_played_back_periodic() -> None:
 
 
 def test_generated_strokes_have_the_training_strokes_lengths_and_sizes() -> None:
-    """Medians of generated stroke lengths and sizes within 10 % of the training trials'."""
+    """Medians of generated stroke lengths and sizes within 10 % of the training trials'.
+
+    Strokes of the generated motion cut as the fit cuts them.
+    """
     trials = [t for t in load_zhai2017() if t.group == "fast"]
     model = StrokeGenerator(random_state=0).fit(trials)
     trained_lengths = model.lengths_[model.previous_ >= 0]
@@ -52,7 +67,7 @@ def test_generated_strokes_have_the_training_strokes_lengths_and_sizes() -> None
     lengths, sizes = [], []
     for seed in range(5):
         positions = model.sample_positions(6001, seed)
-        edges = reversals(positions)[1:-1]
+        edges = reversals(positions, model.min_reversal)[1:-1]
         lengths.append(np.diff(edges))
         sizes.append(np.abs(np.diff(positions[edges])))
     assert np.median(np.concatenate(lengths)) == pytest.approx(np.median(trained_lengths), rel=0.1)

@@ -66,6 +66,8 @@ STROKE_SETTINGS = (
             "auto"),
     Setting("jitter", "SD of the log-normal factor on a generated stroke's length and size",
             Interval(float, 0.0, 2.0), 0.1),
+    Setting("min_reversal", "how far the position must come back from a turning point for it "
+            "to count as a reversal (units)", Interval(float, 0.0, 1.0), 0.01),
     Setting("rate", "sampling rate of the model; trials are resampled to it",
             Interval(float, MIN_RATE, MAX_RATE, unit="Hz"), 100.0),
     Setting("random_state", "seed of sampling when given none", KMEANS_SEEDS, None,

@@ -1,13 +1,13 @@
 """The stroke generator: a person's strokes chained by nearest neighbours (METHODS section 4b).
 
 Motion along a line is a sequence of **strokes**: the stretches between reversals, where the
-position moves one way (a pause inside a stroke, or a tracking drop-out, keeps it one stroke). A
-stroke is its length in samples ``n``, its signed displacement ``D`` (units) and its **profile**:
-its positions from its start, divided by ``D``, which rise from 0 to 1 (pauses and the hold at a
-reversal included).
-
-Fitting cuts each training trial at its reversals (the sign of the position's difference, a run of
-equal samples taking the sign before it) and keeps every stroke with the one before it in its trial.
+position moves one way (a pause inside a stroke, or a tracking drop-out, keeps it one stroke).
+Fitting cuts each training trial at its reversals (`reversals`): a turning point counts once the
+position has moved back from it by more than ``min_reversal`` units (**choice**: tremor and sensor
+noise turn back by less and would otherwise cut a stroke into pieces). A stroke is its length in
+samples ``n``, its signed displacement ``D`` (units) and its **profile**: its positions from its
+start divided by ``D``, which rise from 0 to 1 (pauses, the hold at a reversal and the small
+turns back included). Every stroke is kept with the one before it in its trial.
 
 Generation is a nearest-neighbour bootstrap of that sequence (Lall & Sharma 1996, "A nearest
 neighbor bootstrap for resampling hydrologic time series"): after a stroke of ``n`` samples and
@@ -17,7 +17,8 @@ displacement ``D`` ending at position ``x``, the next stroke is one of the ``k``
 of each feature's SD, drawn with probability proportional to 1/rank (Lall & Sharma's kernel).
 Its length and displacement are then each multiplied by ``exp(jitter * z)`` with ``z`` standard
 normal (**choice**, a smoothed bootstrap: a generated stroke is not any training stroke), the
-displacement capped at the room ahead, and its profile stretched to the new length. Strokes
+displacement capped at the room ahead, and its profile and residual stretched to the new
+length. Strokes
 meet at reversals, where the velocity passes through zero, so no seam adds motion the person
 never made (the IMS generator's overlap-add of frames from different trials does, METHODS
 section 4, "Fidelity"). A generated trial starts at a random point of a random stroke.
@@ -67,21 +68,31 @@ _LOG_FLOOR = 1e-4
 """Added to |D| (units) before its logarithm, so a stroke of no displacement has a feature."""
 
 
-def reversals(positions: Array) -> NDArray[np.int64]:
+def reversals(positions: Array, min_reversal: float = 0.0) -> NDArray[np.int64]:
     """Sample indices where a trial's strokes begin and end, shape (m + 1,) for m strokes.
 
-    The first and last samples, and every sample where the sign of the position's difference
-    changes; a run of equal positions takes the sign before it (the first nonzero sign at the
-    start). A signal that never moves is one stroke.
+    The first and last samples, and each turning point: the furthest position of a stroke (the
+    last sample of a hold there) once the position has come back from it by more than
+    ``min_reversal`` (units). The first stroke's direction is the first move beyond
+    ``min_reversal`` from the start. A signal that never moves that far is one stroke. With
+    ``min_reversal`` 0, every change of the sign of the position's difference is a reversal (a
+    run of equal positions keeping the sign before it).
     """
-    sign = np.sign(np.diff(positions))
-    moving = np.flatnonzero(sign)
-    if moving.size == 0:
-        return np.array([0, positions.size - 1], dtype=np.int64)
-    last_moving = np.maximum.accumulate(np.where(sign != 0, np.arange(sign.size), moving[0]))
-    sign = sign[last_moving]
-    turns = np.flatnonzero(sign[1:] != sign[:-1]) + 1
-    return np.concatenate([[0], turns, [positions.size - 1]]).astype(np.int64)
+    edges = [0]
+    direction, turn = 0.0, 0
+    for i in range(1, positions.size):
+        step = positions[i] - positions[turn]
+        if direction == 0.0:
+            if abs(positions[i] - positions[0]) > min_reversal:
+                direction = math.copysign(1.0, positions[i] - positions[0])
+                turn = i
+        elif step * direction >= 0:
+            turn = i
+        elif -step * direction > min_reversal:
+            edges.append(turn)
+            direction, turn = -direction, i
+    edges.append(positions.size - 1)
+    return np.array(edges, dtype=np.int64)
 
 
 def room_ahead(position: Array | float, direction: Array | float) -> Array:
@@ -103,6 +114,9 @@ class StrokeGenerator:
         square root of the number of training strokes (Lall & Sharma's rule).
     jitter
         SD of the log-normal factor on each generated stroke's length and displacement.
+    min_reversal
+        How far (units) the position must move back from a turning point for it to count as a
+        reversal (`reversals`).
     rate
         Sampling rate of the model (Hz); training trials are resampled to it.
     random_state
@@ -135,11 +149,13 @@ class StrokeGenerator:
         self,
         neighbours: int | str = "auto",
         jitter: float = 0.1,
+        min_reversal: float = 0.01,
         rate: float = 100.0,
         random_state: int | None = None,
     ) -> None:
         self.neighbours = neighbours
         self.jitter = jitter
+        self.min_reversal = min_reversal
         self.rate = rate
         self.random_state = random_state
 
@@ -164,7 +180,7 @@ class StrokeGenerator:
         profiles: list[Array] = []
         for trial in trials:
             positions = self.signal(trial)
-            edges = reversals(positions)
+            edges = reversals(positions, self.min_reversal)
             for number, (first, last) in enumerate(zip(edges[:-1], edges[1:], strict=True)):
                 if last == first:  # a trial of one sample
                     continue
@@ -293,9 +309,9 @@ class StrokeGenerator:
         if stop <= first:
             return filled
         begin, end = self._profile_bounds[stroke]
-        profile = self.profiles_[begin:end]
         phase = (np.arange(first, stop) - time) / length
-        grid = np.linspace(0.0, 1.0, profile.size)
+        grid = np.linspace(0.0, 1.0, end - begin)
+        profile = self.profiles_[begin:end]
         positions[first:stop] = position + displacement * np.interp(phase, grid, profile)
         return stop
 
@@ -360,6 +376,7 @@ class StrokeGenerator:
         return {
             "neighbours": self.neighbours,
             "jitter": float(self.jitter),
+            "min_reversal": float(self.min_reversal),
             "rate": float(self.rate),
             "random_state": self.random_state,
         }

@@ -1,0 +1,193 @@
+"""Generated motion against each person's held-out trials: the whole likeness battery, per person.
+
+Protocol (issue 47; docs/METHODS.md sections 3 and 4b):
+
+- **People**: the two bundled styles (`mirror_avatar.datasets.load_zhai2017`, nine trials of
+  60 s each, each style taken as one person) and the synthetic people
+  (`mirror_avatar.datasets.synthetic.SYNTHETIC_PEOPLE`, ten trials of 60 s each, seed 0).
+  ``--people development`` runs the bundled styles and `DEVELOPMENT_PEOPLE`, the only people any
+  choice of a generator's design or settings looked at; ``--people test`` runs `TEST_PEOPLE`,
+  held out of every choice; ``--people all`` both.
+- **Split**: a person's first `FITTED` trials fit the generator (timed: wall clock of ``fit``);
+  the others are held out. The generator makes one trial per held-out trial, as long as it
+  (seeds 1, 2, ...).
+- **Battery** (`compare_motion`, seed 0, `PERMUTATIONS` permutations): generated against held-out
+  trials, the person's own variability from all their trials; the classifier's AUC and p, and the
+  ratio of each distance (velocity IMS EMD, amplitude, spectrum) to the person's own.
+- **Data-copying** (`copying_test`): the fitted trials as training, the held-out trials as fresh
+  motion, the generated trials; C_T and the median nearest-training distance ratio.
+- **The person's own**: kind ``person`` takes the fitted trials as the generated ones, the
+  battery's values for a generator that played the training trials back.
+- **Identification**: each generated trial is put with the person whose held-out trials are
+  nearest on average (mean velocity-IMS EMD, every person of the run a candidate); the ceiling is
+  the same rule for each held-out trial against the other held-out trials (its own left out).
+
+Run: ``python benchmarks/likeness_people.py --people development --kinds ims strokes`` (prints a
+Markdown table, and writes ``--json`` rows when given).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mirror_avatar.datasets import load_zhai2017
+from mirror_avatar.datasets.synthetic import DEVELOPMENT_PEOPLE, SYNTHETIC_PEOPLE, TEST_PEOPLE
+from mirror_avatar.files.trials import Trial
+from mirror_avatar.motion.models import MODEL_KINDS, MotionModel
+from mirror_avatar.signatures.copying import copying_test
+from mirror_avatar.signatures.likeness import compare_motion, ims_distances, trial_velocity
+
+FITTED = 5
+"""Trials each generator is fitted on (issue 47: 5 trials)."""
+
+SYNTHETIC_TRIALS = 10
+"""Trials of each synthetic person (5 fitted, 5 held out)."""
+
+PERMUTATIONS = 199
+"""Permutations of each test of the battery."""
+
+RATE = 100.0
+
+
+def people(which: str) -> dict[str, list[Trial]]:
+    """Each person's trials, bundled styles first (``development``, ``test`` or ``all``)."""
+    chosen: dict[str, list[Trial]] = {}
+    if which in ("development", "all"):
+        bundled = load_zhai2017()
+        for style in ("slow", "fast"):
+            chosen[f"bundled {style}"] = [t for t in bundled if t.group == style]
+    names = {"development": DEVELOPMENT_PEOPLE, "test": TEST_PEOPLE}.get(
+        which, DEVELOPMENT_PEOPLE + TEST_PEOPLE
+    )
+    for name in names:
+        chosen[name] = SYNTHETIC_PEOPLE[name].trials(SYNTHETIC_TRIALS, 60.0, seed=0)
+    return chosen
+
+
+def make(kind: str, seed: int, settings: dict[str, Any]) -> MotionModel:
+    """An unfitted generator of ``kind`` with these settings (defaults for the rest)."""
+    return MODEL_KINDS[kind](random_state=seed, **settings)
+
+
+def measure(
+    name: str, trials: Sequence[Trial], kind: str, settings: dict[str, Any]
+) -> tuple[dict[str, Any], list]:
+    """The battery, data-copying test and fit time of one person and one generator kind.
+
+    Kind ``person`` takes the fitted trials themselves as the generated ones (each cut to its
+    held-out trial's length): what a perfect copy of the training trials would score.
+    """
+    fitted, held = list(trials[:FITTED]), list(trials[FITTED:])
+    start = time.perf_counter()
+    if kind == "person":
+        generated = [
+            trial_velocity(f, RATE)[: round(t.duration * RATE) + 1]
+            for f, t in zip(fitted, held, strict=False)
+        ]
+    else:
+        model = make(kind, 0, settings).fit(fitted)
+        generated = [
+            model.sample_velocity(round(t.duration * RATE) + 1, seed)
+            for seed, t in enumerate(held, start=1)
+        ]
+    fit_seconds = time.perf_counter() - start
+    reference = [trial_velocity(t, RATE) for t in held]
+    own = [trial_velocity(t, RATE) for t in trials]
+    result = compare_motion(reference, generated, own=own, rate=RATE, n_permutations=PERMUTATIONS)
+    copying = copying_test([trial_velocity(t, RATE) for t in fitted], reference, generated, RATE)
+    ratios = {d.measure: d.ratio for d in result.distances}
+    classifier = result.classifier
+    row = {
+        "person": name,
+        "kind": kind,
+        "auc": classifier.auc if classifier else float("nan"),
+        "auc_p": classifier.test.p_value if classifier else float("nan"),
+        "emd_ratio": ratios["velocity IMS EMD"],
+        "amplitude_ratio": ratios["amplitude"],
+        "spectrum_ratio": ratios["spectrum"],
+        "copying_ct": copying.c_t,
+        "copying_distance_ratio": copying.distance_ratio,
+        "fit_seconds": fit_seconds,
+        "verdict": result.verdict(),
+    }
+    return row, [reference, generated]
+
+
+def identification(signals: dict[str, list]) -> tuple[dict[str, float], float]:
+    """Share of each person's generated trials put with them, and the held-out ceiling."""
+    names = list(signals)
+    held = [v for name in names for v in signals[name][0]]
+    owner = np.array([k for k, name in enumerate(names) for _ in signals[name][0]])
+    generated = [v for name in names for v in signals[name][1]]
+    creator = np.array([k for k, name in enumerate(names) for _ in signals[name][1]])
+    emd = ims_distances([*held, *generated])
+    n = len(held)
+    to_held = emd[:, :n]
+    rates = {}
+    for k, name in enumerate(names):
+        rows = n + np.flatnonzero(creator == k)
+        means = np.stack([to_held[rows][:, owner == q].mean(axis=1) for q in range(len(names))])
+        rates[name] = float(np.mean(np.argmin(means, axis=0) == k))
+    hits = []
+    for i in range(n):
+        others = np.arange(n) != i
+        means = [to_held[i, others & (owner == q)].mean() for q in range(len(names))]
+        hits.append(int(np.argmin(means)) == owner[i])
+    return rates, float(np.mean(hits))
+
+
+def table(rows: Sequence[dict[str, Any]]) -> str:
+    """The rows as a Markdown table."""
+    head = (
+        "| person | generator | AUC (p) | IMS EMD ratio | amplitude ratio | spectrum ratio | "
+        "identified | data-copying C_T (distance ratio) | fit (s) |\n"
+        "|---|---|---|---|---|---|---|---|---|"
+    )
+    lines = [
+        f"| {r['person']} | {r['kind']} | {r['auc']:.2f} ({r['auc_p']:.3f}) | "
+        f"{r['emd_ratio']:.2f} | {r['amplitude_ratio']:.2f} | {r['spectrum_ratio']:.2f} | "
+        f"{r['identified']:.0%} | {r['copying_ct']:.1f} ({r['copying_distance_ratio']:.2f}) | "
+        f"{r['fit_seconds']:.1f} |"
+        for r in rows
+    ]
+    return "\n".join([head, *lines])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--people", choices=("development", "test", "all"), default="development")
+    parser.add_argument("--kinds", nargs="+", choices=(*MODEL_KINDS, "person"), default=["strokes"])
+    parser.add_argument(
+        "--set", nargs="*", default=[], help="generator settings KEY=VALUE (numbers)"
+    )
+    parser.add_argument("--json", type=Path, help="also write the rows to this file")
+    args = parser.parse_args()
+    settings = {k: float(v) for k, v in (item.split("=") for item in args.set)}
+    everyone = people(args.people)
+    rows = []
+    for kind in args.kinds:
+        signals, kind_rows = {}, []
+        for name, trials in everyone.items():
+            row, signals[name] = measure(name, trials, kind, settings if kind == "strokes" else {})
+            kind_rows.append(row)
+            print(f"{name} {kind}: {row['verdict']}", flush=True)
+        rates, ceiling = identification(signals)
+        for row in kind_rows:
+            row["identified"] = rates[row["person"]]
+            row["identification_ceiling"] = ceiling
+        rows += kind_rows
+    print(table(rows))
+    print(f"identification ceiling (held-out trials among held-out trials): {ceiling:.0%}")
+    if args.json:
+        args.json.write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()
