@@ -72,14 +72,14 @@ def people(which: str) -> dict[str, list[Trial]]:
 
 
 def make(kind: str, seed: int, settings: dict[str, Any]) -> MotionModel:
-    """An unfitted generator of ``kind`` with these settings (defaults for the rest)."""
+    """Return an unfitted generator of ``kind`` with these settings (defaults for the rest)."""
     return MODEL_KINDS[kind](random_state=seed, **settings)
 
 
 def measure(
     name: str, trials: Sequence[Trial], kind: str, settings: dict[str, Any]
 ) -> tuple[dict[str, Any], list]:
-    """The battery, data-copying test and fit time of one person and one generator kind.
+    """Measure the battery, data-copying test and fit time of one person and one generator kind.
 
     Kind ``person`` takes the fitted trials themselves as the generated ones (each cut to its
     held-out trial's length): what a perfect copy of the training trials would score.
@@ -144,7 +144,7 @@ def identification(signals: dict[str, list]) -> tuple[dict[str, float], float]:
 
 
 def table(rows: Sequence[dict[str, Any]]) -> str:
-    """The rows as a Markdown table."""
+    """Return the rows as a Markdown table."""
     head = (
         "| person | generator | AUC (p) | IMS EMD ratio | amplitude ratio | spectrum ratio | "
         "identified | data-copying C_T (distance ratio) | fit (s) |\n"

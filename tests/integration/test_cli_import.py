@@ -137,8 +137,8 @@ def test_a_live_recording_folder(zhai_trials, tmp_path, capsys) -> None:
             trial.tick()
         trial.finish(True, "completed")
     folder = tmp_path / "P01"
-    status, printed, _ = run(capsys, "generator", "fit", str(folder), "--kind", "ims", "--symbols", "32",
-                             "--out", str(tmp_path / "p01.npz"))  # fmt: skip
+    status, printed, _ = run(capsys, "generator", "fit", str(folder), "--kind", "ims",
+                             "--symbols", "32", "--out", str(tmp_path / "p01.npz"))  # fmt: skip
     assert status == 0 and printed.count("a session file (read it with evaluate)") == 2
     session = next(folder.glob("*_session.csv"))
     status, printed, _ = run(capsys, "evaluate", str(session))

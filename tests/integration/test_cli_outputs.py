@@ -60,7 +60,8 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     write_csv_trial(trials[0], folder / "trial.csv")
     write_csv_trial(trials[1], folder / "trial2.csv")
     assert main(["generator", "fit", str(folder / "trial.csv"), str(folder / "trial2.csv"),
-                 "--kind", "ims", "--symbols", "16", "--out", str(folder / "model.npz")]) == 0  # fmt: skip
+                 "--kind", "ims", "--symbols", "16",
+                 "--out", str(folder / "model.npz")]) == 0  # fmt: skip
     assert main(FOLDER_OUTPUTS["simulate"](folder, folder / "session")[:-2]
                 + ["--seed", "1", "--out", str(folder / "session")]) == 0  # fmt: skip
     return folder
@@ -126,7 +127,8 @@ def test_an_internal_error_is_one_line_with_exit_1(capsys, monkeypatch, inputs) 
     monkeypatch.setattr(IMSGenerator, "fit", broken)
     monkeypatch.delenv("MIRROR_AVATAR_DEBUG", raising=False)
     status = main(["generator", "fit", str(inputs / "trial.csv"), str(inputs / "trial2.csv"),
-                   "--kind", "ims", "--symbols", "16", "--out", str(inputs / "broken.npz")])  # fmt: skip
+                   "--kind", "ims", "--symbols", "16",
+                   "--out", str(inputs / "broken.npz")])  # fmt: skip
     error = capsys.readouterr().err
     assert status == 1 and error.count("\n") == 1, error
     assert "ZeroDivisionError" in error and "MIRROR_AVATAR_DEBUG=1" in error
