@@ -42,7 +42,12 @@ from mirror_avatar.datasets.synthetic import DEVELOPMENT_PEOPLE, SYNTHETIC_PEOPL
 from mirror_avatar.files.trials import Trial
 from mirror_avatar.motion.models import MODEL_KINDS, MotionModel
 from mirror_avatar.signatures.copying import copying_test
-from mirror_avatar.signatures.likeness import compare_motion, ims_distances, trial_velocity
+from mirror_avatar.signatures.likeness import (
+    compare_motion,
+    ims_distances,
+    trial_velocity,
+    velocity_spectrum,
+)
 
 FITTED = 5
 """Trials each generator is fitted on (issue 47: 5 trials)."""
@@ -143,6 +148,40 @@ def identification(signals: dict[str, list]) -> tuple[dict[str, float], float]:
     return rates, float(np.mean(hits))
 
 
+def mean_spectrum(velocities: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Return the frequencies (Hz) and the mean of the signals' normalised velocity spectra."""
+    spectra = [velocity_spectrum(v, RATE) for v in velocities]
+    return spectra[0][0], np.mean([power for _, power in spectra], axis=0)
+
+
+def draw_spectra(spectra: dict[str, dict[str, list]], path: Path) -> None:
+    """Draw each person's held-out and generated velocity spectra, one panel a person."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(next(iter(spectra.values())))
+    columns = min(3, len(names))
+    rows = -(-len(names) // columns)
+    figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.2 * rows), squeeze=False)
+    for axis, name in zip(axes.flat, names, strict=False):
+        frequencies, held = mean_spectrum(next(iter(spectra.values()))[name][0])
+        axis.semilogy(frequencies, held, color="black", lw=2, label="held-out trials")
+        for kind, signals in spectra.items():
+            if kind != "person":
+                axis.semilogy(*mean_spectrum(signals[name][1]), lw=1.2, label=f"{kind} generator")
+        axis.set_title(name)
+        axis.set_xlabel("frequency (Hz)")
+        axis.set_ylabel("share of velocity power")
+        axis.set_ylim(1e-6, 1)
+    for axis in list(axes.flat)[len(names) :]:
+        axis.axis("off")
+    axes.flat[0].legend(fontsize=8)
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+
+
 def table(rows: Sequence[dict[str, Any]]) -> str:
     """Return the rows as a Markdown table."""
     head = (
@@ -168,16 +207,20 @@ def main() -> None:
         "--set", nargs="*", default=[], help="generator settings KEY=VALUE (numbers)"
     )
     parser.add_argument("--json", type=Path, help="also write the rows to this file")
+    parser.add_argument(
+        "--figure", type=Path, help="also draw each person's velocity spectra (PNG) to this file"
+    )
     args = parser.parse_args()
     settings = {k: float(v) for k, v in (item.split("=") for item in args.set)}
     everyone = people(args.people)
-    rows = []
+    rows, spectra = [], {}
     for kind in args.kinds:
         signals, kind_rows = {}, []
         for name, trials in everyone.items():
             row, signals[name] = measure(name, trials, kind, settings if kind == "strokes" else {})
             kind_rows.append(row)
             print(f"{name} {kind}: {row['verdict']}", flush=True)
+        spectra[kind] = signals
         rates, ceiling = identification(signals)
         for row in kind_rows:
             row["identified"] = rates[row["person"]]
@@ -187,6 +230,8 @@ def main() -> None:
     print(f"identification ceiling (held-out trials among held-out trials): {ceiling:.0%}")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
+    if args.figure:
+        draw_spectra(spectra, args.figure)
 
 
 if __name__ == "__main__":

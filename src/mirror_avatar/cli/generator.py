@@ -121,13 +121,18 @@ def fit(
 def _describe_fit(model: MotionModel, n_trials: int, out_path: Path) -> str:
     """Describe the fit in a line (with the codebook size's choice for an IMS generator)."""
     summary = model.training_summary_
+    holds = "; the file holds the training {}, from which the trials can be rebuilt: share it as "
+    holds += "you would share the recordings"
     if isinstance(model, StrokeGenerator):
-        return f"{n_trials} trials, {summary['n_strokes']} strokes -> {out_path}"
+        return f"{n_trials} trials, {summary['n_strokes']} strokes -> {out_path}" + holds.format(
+            "strokes"
+        )
     choice = summary["complexity"]
     lines = [_describe_choice(choice)] if choice["rule"] != "fixed" else []
     lines.append(
         f"{n_trials} trials, {summary['n_frames']} frames, {model.n_symbols_} symbols, "
         f"distortion {summary['distortion']:.4g} -> {out_path}"
+        + (holds.format("frames") if model.emission == "exemplar" else "")
     )
     return "\n".join(lines)
 

@@ -17,11 +17,10 @@ displacement ``D`` ending at position ``x``, the next stroke is one of the ``k``
 of each feature's SD, drawn with probability proportional to 1/rank (Lall & Sharma's kernel).
 Its length and displacement are then each multiplied by ``exp(jitter * z)`` with ``z`` standard
 normal (**choice**, a smoothed bootstrap: a generated stroke is not any training stroke), the
-displacement capped at the room ahead, and its profile and residual stretched to the new
-length. Strokes
+displacement capped at the room ahead, and its profile stretched to the new length. Strokes
 meet at reversals, where the velocity passes through zero, so no seam adds motion the person
 never made (the IMS generator's overlap-add of frames from different trials does, METHODS
-section 4, "Fidelity"). A generated trial starts at a random point of a random stroke.
+section 4b). A generated trial starts at a random point of a random stroke.
 
 The fitted model holds the training strokes, from which the training trials can be rebuilt.
 """
