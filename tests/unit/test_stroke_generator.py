@@ -7,12 +7,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.signal
+import scipy.stats
 
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.files.trials import compute_velocity, make_trial
 from mirror_avatar.motion.models import load_motion, model_arrays, motion_from_arrays
-from mirror_avatar.motion.strokes import StrokeGenerator, reversals, room_ahead
+from mirror_avatar.motion.strokes import (
+    StrokeGenerator,
+    reversals,
+    room_ahead,
+    silverman_bandwidth,
+)
 
 RATE = 100.0
 
@@ -171,3 +177,18 @@ def test_an_unknown_kind_is_refused() -> None:
     arrays, metadata = model_arrays(StrokeGenerator(random_state=2).fit([sine_trial()]))
     with pytest.raises(InputError, match="unknown motion model kind"):
         motion_from_arrays(arrays, metadata | {"kind": "lstm"}, "m.npz")
+
+
+def test_the_jitter_bandwidth_is_silvermans_rule_as_scipy_computes_it() -> None:
+    """1.06 SD m^(-1/5) against scipy's gaussian_kde Silverman factor (d = 1), within 0.2 %."""
+    samples = np.random.default_rng(0).normal(size=(5000, 1)) * 0.3
+    kde = scipy.stats.gaussian_kde(samples[:, 0], bw_method="silverman")
+    expected = kde.factor * samples[:, 0].std(ddof=1)
+    assert silverman_bandwidth(samples)[0] == pytest.approx(expected, rel=2e-3)
+
+
+def test_a_regular_person_gets_less_jitter_than_an_irregular_one() -> None:
+    regular = StrokeGenerator().fit([sine_trial(60.0)])
+    irregular = StrokeGenerator().fit([t for t in load_zhai2017() if t.group == "slow"])
+    assert np.all(regular._bandwidth < 1e-6)
+    assert np.all(irregular._bandwidth > 0.05)

@@ -64,8 +64,8 @@ STROKE_SETTINGS = (
     Setting("neighbours", "training strokes the next stroke is drawn from; auto: the square "
             "root of their number", Either((Options(("auto",)), Interval(int, 1, 100_000))),
             "auto"),
-    Setting("jitter", "SD of the log-normal factor on a generated stroke's length and size",
-            Interval(float, 0.0, 2.0), 0.1),
+    Setting("jitter", "multiple of Silverman's bandwidth of the log-normal factors on a "
+            "generated stroke's length and size", Interval(float, 0.0, 10.0), 0.5),
     Setting("min_reversal", "how far the position must come back from a turning point for it "
             "to count as a reversal (units)", Interval(float, 0.0, 1.0), 0.01),
     Setting("rate", "sampling rate of the model; trials are resampled to it",
@@ -75,7 +75,7 @@ STROKE_SETTINGS = (
 )  # fmt: skip
 """Every hyper-parameter of the stroke generator (`mirror_avatar.motion.strokes`), in the
 constructor's order. The ranges are a **choice**: up to 100 000 neighbours (more strokes than
-hours of motion hold) and a jitter up to 2 (a factor of e^2 at one SD)."""
+hours of motion hold) and a jitter up to 10 times Silverman's bandwidth."""
 
 STROKES = {setting.key: setting for setting in STROKE_SETTINGS}
 """The stroke generator's hyper-parameters by name."""

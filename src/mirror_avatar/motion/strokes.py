@@ -15,8 +15,10 @@ displacement ``D`` ending at position ``x``, the next stroke is one of the ``k``
 (of the opposite direction) whose predecessors' ``(log n, log |D|)`` and whose own room ahead
 (the distance from their start to the edge they move towards) are nearest to the state's, in units
 of each feature's SD, drawn with probability proportional to 1/rank (Lall & Sharma's kernel).
-Its length and displacement are then each multiplied by ``exp(jitter * z)`` with ``z`` standard
-normal (**choice**, a smoothed bootstrap: a generated stroke is not any training stroke), the
+Its length and displacement are then multiplied by ``exp(h z)`` with ``z`` standard normal, ``h``
+being ``jitter`` times Silverman's rule-of-thumb bandwidth of the training strokes' log lengths
+(log sizes), `silverman_bandwidth` (**choice**, a smoothed bootstrap: a generated stroke is not
+any training stroke, and a person whose strokes are regular gets little jitter), the
 displacement capped at the room ahead, and its profile stretched to the new length. Strokes
 meet at reversals, where the velocity passes through zero, so no seam adds motion the person
 never made (the IMS generator's overlap-add of frames from different trials does, METHODS
@@ -112,7 +114,8 @@ class StrokeGenerator:
         How many nearest training strokes the next stroke is drawn from, or ``"auto"``: the
         square root of the number of training strokes (Lall & Sharma's rule).
     jitter
-        SD of the log-normal factor on each generated stroke's length and displacement.
+        Multiple of Silverman's bandwidth (`silverman_bandwidth`) of the log-normal factors on
+        each generated stroke's length and displacement.
     min_reversal
         How far (units) the position must move back from a turning point for it to count as a
         reversal (`reversals`).
@@ -147,7 +150,7 @@ class StrokeGenerator:
     def __init__(
         self,
         neighbours: int | str = "auto",
-        jitter: float = 0.1,
+        jitter: float = 0.5,
         min_reversal: float = 0.01,
         rate: float = 100.0,
         random_state: int | None = None,
@@ -246,6 +249,11 @@ class StrokeGenerator:
             ]
         )
         self._scale = np.maximum(self._features.std(axis=0), 1e-9)
+        self._bandwidth = self.jitter * silverman_bandwidth(
+            np.column_stack(
+                [_log_length(self.lengths_[drawable]), _log_size(self.displacements_[drawable])]
+            )
+        )
         ends = np.cumsum(self.lengths_ + 1.0).astype(np.int64)
         self._profile_bounds = np.column_stack([ends - (self.lengths_ + 1).astype(np.int64), ends])
         self._k = (
@@ -275,8 +283,10 @@ class StrokeGenerator:
         time = -rng.random() * self.lengths_[stroke]
         filled = 0
         while filled < n_samples:
-            length = self.lengths_[stroke] * math.exp(self.jitter * rng.standard_normal())
-            size = abs(self.displacements_[stroke]) * math.exp(self.jitter * rng.standard_normal())
+            length = self.lengths_[stroke] * math.exp(self._bandwidth[0] * rng.standard_normal())
+            size = abs(self.displacements_[stroke]) * math.exp(
+                self._bandwidth[1] * rng.standard_normal()
+            )
             size = min(size, float(room_ahead(position, direction)))
             filled = self._draw_stroke(
                 positions, filled, time, length, position, direction * size, stroke
@@ -481,6 +491,15 @@ def _profile(positions: Array, displacement: float) -> Array:
     if displacement == 0:
         return np.linspace(0.0, 1.0, positions.size)
     return (positions - positions[0]) / displacement
+
+
+def silverman_bandwidth(samples: Array) -> Array:
+    """Return Silverman's rule-of-thumb bandwidth of each column, ``1.06 SD m^(-1/5)``, (d,).
+
+    ``samples`` has shape (m, d) (Silverman 1986, "Density estimation for statistics and data
+    analysis", eq. 3.28).
+    """
+    return 1.06 * samples.std(axis=0) * samples.shape[0] ** (-0.2)
 
 
 def _log_length(length: Array | float) -> Array:
