@@ -5,8 +5,9 @@ A SPEC is one of:
 - ``bundled:fast`` / ``bundled:slow``: a virtual trainer whose IMS generator is fitted on all nine
   bundled trials of that style (`mirror_avatar.datasets.load_zhai2017`, resampled to 100 Hz, k-means
   seed `BUNDLED_SEED`). Fitted generators are cached in-process and on disk (`cache_dir`).
-- a generator model ``.npz`` (format ``mirror-avatar/ims-generator``): a virtual trainer with that
-  signature;
+- a motion model ``.npz`` (format ``mirror-avatar/stroke-generator`` or
+  ``mirror-avatar/ims-generator``, `mirror_avatar.motion.models.load_motion`): a virtual trainer
+  moving like that person;
 - a cyber-player policy ``.npz`` (format ``mirror-avatar/cyber-player``, or
   ``mirror-avatar/deep-cyber-player`` for a deep one): the trained player (its dynamics are its
   own, so the role is not used);
@@ -62,6 +63,8 @@ from mirror_avatar.learning.agent import FORMAT_NAME as CYBER_FORMAT
 from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.motion.generator import FORMAT_NAME as GENERATOR_FORMAT
 from mirror_avatar.motion.generator import PAPER_EMISSION, PAPER_SYMBOLS, IMSGenerator
+from mirror_avatar.motion.models import load_motion
+from mirror_avatar.motion.strokes import FORMAT_NAME as STROKES_FORMAT
 from mirror_avatar.players import Player, RecordedPlayer, VirtualTrainer
 from mirror_avatar.players.adaptive import AdaptivePlayer
 from mirror_avatar.players.base import dry_run
@@ -206,9 +209,9 @@ def _read_recording(path: str, options: ImportOptions) -> Trial:
 def _load_model(path: Path, role: str | HKBParams, label: str) -> Player:
     _, metadata = read_archive(path)
     kind = metadata.get("format")
-    if kind == GENERATOR_FORMAT:
+    if kind in (STROKES_FORMAT, GENERATOR_FORMAT):
         params = preset(role) if isinstance(role, str) else role
-        return VirtualTrainer(params, IMSGenerator.load(path), label=label)
+        return VirtualTrainer(params, load_motion(path), label=label)
     if kind in (CYBER_FORMAT, DEEP_FORMAT):
         player = load_cyber_player(path) if kind == CYBER_FORMAT else load_deep_cyber_player(path)
         if isinstance(role, str):
@@ -219,7 +222,14 @@ def _load_model(path: Path, role: str | HKBParams, label: str) -> Player:
     if kind == STAGE_FORMAT:
         params = preset(role) if isinstance(role, str) else role
         return VirtualTrainer(params, load_stage(path), label=label)
-    formats = (GENERATOR_FORMAT, CYBER_FORMAT, DEEP_FORMAT, AVATAR_FORMAT, STAGE_FORMAT)
+    formats = (
+        STROKES_FORMAT,
+        GENERATOR_FORMAT,
+        CYBER_FORMAT,
+        DEEP_FORMAT,
+        AVATAR_FORMAT,
+        STAGE_FORMAT,
+    )
     known = ", ".join(repr(k) for k in formats)
     raise InputError(path, f"model format {excerpt(kind)} is none of {known}")
 

@@ -18,6 +18,7 @@ from mirror_avatar.files.trial_io import write_csv_trial
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.live.session import make_avatar_factory
 from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.strokes import StrokeGenerator
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.specs import bundled_generator, load_player
@@ -61,11 +62,14 @@ def test_the_avatar_file_holds_both_roles_and_its_card(built: Path) -> None:
     assert avatar.name == "P01" and set(avatar.players) == {"follower", "leader"}
     assert avatar.summary["unseen_partner"].endswith("slow.npz")
     assert avatar.summary["n_sessions"] == 40 and avatar.summary["seed"] == 0
-    assert avatar.generator.training_summary_["complexity"]["rule"].startswith("cross-validation")
+    assert isinstance(avatar.generator, StrokeGenerator)  # the default kind moves the avatar
+    assert avatar.summary["generator"] == "strokes" and "n_symbols" not in avatar.summary
     for role in ("follower", "leader"):
         assert set(avatar.summary["roles"][role]) >= {"emd_to_person", "unseen_cv_difference"}
     card = built.with_suffix(".html").read_text()
     assert "Avatar of P01" in card and "Table I" in card and "data:image/png;base64" in card
+    strokes = avatar.generator.training_summary_["n_strokes"]
+    assert f"stroke generator was fitted on 3 trials ({strokes} strokes)" in card
 
 
 def test_the_session_role_picks_the_player(built: Path) -> None:

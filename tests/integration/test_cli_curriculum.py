@@ -14,6 +14,7 @@ from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.files.model_files import load_model, save_model
 from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.strokes import StrokeGenerator
 from mirror_avatar.players import VirtualTrainer
 from mirror_avatar.specs import load_player
 from mirror_avatar.training.curriculum import StageMotion, load_stage
@@ -74,3 +75,16 @@ def test_too_few_stages_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert main(arguments) == 2
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "give a whole number in [2, 50]" in error
+
+
+def test_a_stroke_generator_is_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Stages blend IMS generators: the default kind of ``generator fit`` is refused, saying so."""
+    StrokeGenerator(random_state=0).fit(load_zhai2017()[9:12]).save(tmp_path / "patient.npz")
+    arguments = ["curriculum", "--patient", str(tmp_path / "patient.npz"), "--target",
+                 "bundled:fast", "--out", str(tmp_path / "o")]  # fmt: skip
+    assert main(arguments) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "is a stroke generator" in error and "--kind ims" in error
+    assert not (tmp_path / "o").exists()

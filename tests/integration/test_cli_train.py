@@ -20,6 +20,7 @@ from mirror_avatar.files.trial_io import write_csv_trial
 from mirror_avatar.files.trials import DEFAULT_RATE
 from mirror_avatar.learning.agent import load_cyber_player
 from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.strokes import StrokeGenerator
 from mirror_avatar.specs import bundled_generator
 from waiting import wait_for
 
@@ -79,6 +80,24 @@ def test_train_writes_policy_and_curve(
     assert _train(again, models[0], str(models[1]), str(models[2]),
                   extra=("--role", "leader", "--seed", "4")) == 0  # fmt: skip
     np.testing.assert_array_equal(load_cyber_player(again).q_table_, player.q_table_)
+
+
+def test_train_takes_stroke_generator_files(tmp_path: Path, models: list[Path]) -> None:
+    """A person's model fitted with the default kind trains a leader that carries it."""
+    trials = [t.resampled(DEFAULT_RATE) for t in load_zhai2017()]
+    target, partner = tmp_path / "strokes.npz", tmp_path / "strokes-partner.npz"
+    StrokeGenerator(random_state=3).fit(trials[9:12]).save(target)
+    StrokeGenerator(random_state=4).fit(trials[:3]).save(partner)
+    out = tmp_path / "leader.npz"
+    status = _train(out, target, str(partner), str(models[2]), extra=("--role", "leader"))
+    assert status == 0
+    player = load_cyber_player(out)
+    assert player.training_["role"] == "leader" and player.stochastic
+    assert isinstance(player.reference, StrokeGenerator)
+    np.testing.assert_array_equal(
+        player.reference.sample_velocity(500, 1),
+        StrokeGenerator.load(target).sample_velocity(500, 1),
+    )
 
 
 def test_train_accepts_bundled_styles(tmp_path: Path) -> None:

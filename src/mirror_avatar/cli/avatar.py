@@ -100,11 +100,11 @@ def create(
 ) -> None:
     """Build a person's avatar from their solo trials in FILE_OR_DIR....
 
-    Fits their IMS generator, trains their cyber player as follower and as leader against the
-    partners, validates it against their own virtual trainer (the last partner unseen), checks
-    it against the person in every role (each trial held out in turn, sessions with a partner)
-    and writes OUT (playable as a SPEC: the session's role picks the player) and OUT's card,
-    the same name with .html.
+    Fits their motion model (a stroke generator), trains their cyber player as follower and as
+    leader against the partners, validates it against their own virtual trainer (the last
+    partner unseen), checks it against the person in every role (each trial held out in turn,
+    sessions with a partner) and writes OUT (playable as a SPEC: the session's role picks the
+    player) and OUT's card, the same name with .html.
     """
     check_output_file(out_path, ".npz", beside=[avatar_card_path(out_path)])
     if not 0 < len(name.strip()) <= MAX_NAME_CHARS:

@@ -27,6 +27,7 @@ from mirror_avatar.experiments.curriculum import (
 from mirror_avatar.experiments.verdicts import section_verdict
 from mirror_avatar.files.atomic import write_atomic_json
 from mirror_avatar.files.importing import ImportOptions, excerpt
+from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.report import REPORT_FILES, write_report
 from mirror_avatar.training.curriculum import METHODS, StageMotion, save_stage
 
@@ -73,7 +74,8 @@ def curriculum(
     """
     names = [f"stage-{k}.npz" for k in range(1, stages + 1)]
     check_output_dir(out_dir, files=[*names, "plan.json", *REPORT_FILES])
-    patient, target = (load_generator(spec, options) for spec in (patient_spec, target_spec))
+    patient = _ims_generator("--patient", patient_spec, options)
+    target = _ims_generator("--target", target_spec, options)
     if not math.isclose(patient.rate, target.rate):
         raise InputError(
             "--target",
@@ -105,3 +107,15 @@ def curriculum(
     report = write_report([section], out_dir, "Curriculum", metadata, lead=section.verdict)
     click.echo(table.loc[method].round(4).to_string())
     click.echo(f"{stages} stages ({method}) -> {out_dir}; report {report}")
+
+
+def _ims_generator(option: str, spec: str, options: ImportOptions) -> IMSGenerator:
+    """Return the IMS generator a spec names; InputError for a stroke generator."""
+    model = load_generator(spec, options)
+    if not isinstance(model, IMSGenerator):
+        raise InputError(
+            option,
+            f"{excerpt(spec)} is a stroke generator: curriculum stages blend IMS generators "
+            "(mirror-avatar generator fit --kind ims)",
+        )
+    return model

@@ -19,7 +19,7 @@ from mirror_avatar.files.importing import DEFAULT_IMPORT, ImportOptions
 from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.learning.training import LearningCurve
-from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.models import MotionModel
 from mirror_avatar.players import RecordedPlayer, VirtualTrainer
 from mirror_avatar.players.dynamical import ModelPartner
 from mirror_avatar.report import render_png
@@ -34,7 +34,7 @@ from mirror_avatar.training.imitation import (
     train_cyber_player,
 )
 
-MODEL_HELP = "An IMS generator .npz, bundled:fast, bundled:slow or vt:TRIAL_FILE."
+MODEL_HELP = "A motion model .npz (generator fit), bundled:fast, bundled:slow or vt:TRIAL_FILE."
 
 
 def load_reference(spec: str, options: ImportOptions = DEFAULT_IMPORT) -> Reference:
@@ -55,18 +55,18 @@ def load_reference(spec: str, options: ImportOptions = DEFAULT_IMPORT) -> Refere
         kind = "a partner model" if isinstance(player, ModelPartner) else "a cyber-player policy"
         raise InputError(
             spec,
-            f"is {kind}; training needs a virtual trainer: an IMS generator .npz, "
+            f"is {kind}; training needs a virtual trainer: a motion model .npz, "
             "bundled:fast, bundled:slow or vt:TRIAL_FILE",
         )
-    if not isinstance(player.reference, IMSGenerator | Trial):
+    if not isinstance(player.reference, MotionModel | Trial):
         raise InputError(spec, "is a curriculum stage; training needs a person's generator")
     return player.reference
 
 
-def load_generator(spec: str, options: ImportOptions = DEFAULT_IMPORT) -> IMSGenerator:
-    """Return the IMS generator a model spec names (a generator .npz or bundled:STYLE)."""
+def load_generator(spec: str, options: ImportOptions = DEFAULT_IMPORT) -> MotionModel:
+    """Return the motion model a spec names (a stroke or IMS generator .npz, or bundled:STYLE)."""
     reference = load_reference(spec, options)
-    if not isinstance(reference, IMSGenerator):
+    if not isinstance(reference, MotionModel):
         raise InputError(spec, "give a generator model .npz or bundled:STYLE, not a recording")
     return reference
 

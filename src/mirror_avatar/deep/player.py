@@ -50,7 +50,7 @@ from mirror_avatar.learning.acceleration_player import (
     reference_arrays,
 )
 from mirror_avatar.learning.agent import check_training
-from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.models import MotionModel
 from mirror_avatar.players.base import Observation, PlayerPlan
 from mirror_avatar.players.kinds import PlayerKind, parameter_table, register_kind
 from mirror_avatar.players.reference import ReferenceDraw
@@ -280,7 +280,7 @@ class DeepCyberPlayer(AccelerationPlayer):
         params: HKBParams = FOLLOWER,
         n_substeps: int = DEFAULT_SUBSTEPS,
         initial_position: float = 0.0,
-        reference: IMSGenerator | Trial | None = None,
+        reference: MotionModel | Trial | None = None,
         label: str = "deep cyber player",
     ) -> None:
         super().__init__(actions, params, n_substeps, initial_position, reference, label)

@@ -34,7 +34,7 @@ from mirror_avatar.experiments.group import choose_members
 from mirror_avatar.files.trials import DEFAULT_RATE, Trial
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.metrics import TRIM
-from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.strokes import StrokeGenerator
 from mirror_avatar.sessions.session import Session
 from mirror_avatar.signatures.likeness import (
     MAX_UNITS,
@@ -168,11 +168,12 @@ def build_fold(
     """Build an avatar on ``fitted`` as `create_avatar` does and play it in every role.
 
     ``cast`` is the avatar's own (its partners); the person in it is replaced by a virtual
-    trainer of a generator fitted on ``fitted`` alone, the same seed. ``sessions``: training
+    trainer of a stroke generator (the default motion model) fitted on ``fitted`` alone, the same
+    seed. ``sessions``: training
     sessions per role, and sessions per partner (and groups) played for the check.
     """
     n_train, n_check = sessions
-    generator = IMSGenerator(rate=DEFAULT_RATE, random_state=seed).fit(fitted)
+    generator = StrokeGenerator(rate=DEFAULT_RATE, random_state=seed).fit(fitted)
     label = cast.trainers[cast.target].label
     trainers = list(cast.trainers)
     trainers[cast.target] = VirtualTrainerSpec(label, (), generator)

@@ -1,6 +1,7 @@
 """A person's avatar from their solo trials, validated as the paper's Table I (METHODS 10).
 
-`create_avatar` fits the person's IMS generator (codebook size chosen from their trials), makes
+`create_avatar` fits the person's motion model (a stroke generator, the default kind of
+`mirror_avatar.motion.models`: it chains the person's own strokes), makes
 their virtual trainer, trains a cyber player to imitate it as follower and as leader on sessions
 it plays with the training partners (`mirror_avatar.experiments.cyber_player.run_role`, the
 paper's set-up with the person as the target), and validates each closed-loop against the
@@ -48,6 +49,8 @@ from mirror_avatar.figures.signatures import plot_ims
 from mirror_avatar.files.atomic import write_atomic_text
 from mirror_avatar.files.trials import DEFAULT_RATE, Trial
 from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.models import MotionModel, kind_of
+from mirror_avatar.motion.strokes import StrokeGenerator
 from mirror_avatar.report import Section, render_report
 from mirror_avatar.sessions.session import Session
 from mirror_avatar.signatures.signature import DEFAULT_BINS, compute_ims
@@ -72,7 +75,7 @@ DEFAULT_DQN_SESSIONS = 300
 def create_avatar(
     trials: Sequence[Trial],
     name: str,
-    partners: Sequence[tuple[str, IMSGenerator]],
+    partners: Sequence[tuple[str, MotionModel]],
     n_sessions: int | None = None,
     n_validation: int = VALIDATION_SESSIONS,
     n_baseline: int = BASELINE_SESSIONS,
@@ -93,14 +96,14 @@ def create_avatar(
     name
         Whom the avatar stands for.
     partners
-        (label, generator) of the partners: all but the last train the avatar, the last is
+        (label, motion model) of the partners: all but the last train the avatar, the last is
         met only in validation (at least two).
     n_sessions, n_validation, n_baseline
         Training sessions per role (default `DEFAULT_SESSIONS`, or `DEFAULT_DQN_SESSIONS`
         for deep players); validation sessions per partner and role; held-out sessions of the
         baselines.
     seed
-        Seeds the generator, training, validation and baselines (recorded in the avatar).
+        Seeds the motion model, training, validation and baselines (recorded in the avatar).
     n_jobs
         Local threads generating training sessions.
     progress
@@ -122,7 +125,7 @@ def create_avatar(
     ------
     InputError
         Fewer than two partners, a held-out count leaving nothing to fit, or trials the
-        generator cannot be fitted on.
+        stroke generator cannot be fitted on.
     """
     if len(partners) < 2:
         raise InputError("--partners", "give at least two partners: the last is kept unseen")
@@ -132,8 +135,8 @@ def create_avatar(
     fitted, held_out = (
         (list(trials), []) if n_held_out is None else split_held_out(trials, n_held_out)
     )
-    report("fitting the generator")
-    generator = IMSGenerator(rate=DEFAULT_RATE, random_state=seed).fit(fitted)
+    report("fitting the stroke generator")
+    generator = StrokeGenerator(rate=DEFAULT_RATE, random_state=seed).fit(fitted)
     trainers = [VirtualTrainerSpec(label, (), model) for label, model in partners]
     person = VirtualTrainerSpec(name, tuple(t.label for t in fitted), generator)
     n = len(trainers)
@@ -234,7 +237,7 @@ def avatar_card_path(path: Path) -> Path:
     return path.with_suffix(".html")
 
 
-def default_partners(seed: int) -> list[tuple[str, IMSGenerator]]:
+def default_partners(seed: int) -> list[tuple[str, MotionModel]]:
     """Make the bundled library of partners: VT1..VT6, each fitted on 3 trials of a style.
 
     VT1..VT5 train the avatar and VT6 is kept unseen, as in the paper's set-up
@@ -260,7 +263,6 @@ def make_card(
     avatar_ims = compute_ims(
         np.concatenate([v for r in results for v in r.velocities["cyber player"]])
     )
-    complexity = avatar.generator.training_summary_["complexity"]
     criteria = pd.concat(per_role)
     partners = [_short(p) for p in avatar.summary["partners"]]
     unseen = ", ".join(
@@ -275,9 +277,7 @@ def make_card(
         else [f"The avatar {proof.verdict()}."]
     )
     text += [
-        f"{avatar.name}'s IMS generator was fitted on "
-        f"{len(avatar.generator.training_summary_['labels'])} trials with "
-        f"{avatar.generator.n_symbols_} symbols ({complexity['rule']}); their "
+        f"{avatar.name}'s {describe_model(avatar.generator)}; their "
         f"{AGENT_NAMES[avatar.summary.get('agent', 'tabular')]} "
         f"learned to move like their virtual trainer as follower and as leader, playing with "
         f"{', '.join(partners[:-1])}. Each partner then played the same seeded sessions with "
@@ -405,7 +405,7 @@ def _summary(
     results: Sequence[RoleResult],
     per_role: dict[str, pd.DataFrame],
     cast: Cast,
-    generator: IMSGenerator,
+    generator: MotionModel,
     n_sessions: int,
     n_validation: int,
     seed: int,
@@ -422,13 +422,27 @@ def _summary(
             "criteria_met": bool(criteria["all"].all()),
             "per_partner": criteria.drop(columns="all").to_dict(orient="index"),
         }
-    return {
+    summary: dict[str, Any] = {
         "partners": [t.label for t in cast.trainers[:-1]],
         "unseen_partner": cast.trainers[cast.unseen].label,
         "trials": generator.training_summary_["labels"],
-        "n_symbols": generator.n_symbols_,
+        "generator": kind_of(generator),
+    }
+    if isinstance(generator, IMSGenerator):
+        summary["n_symbols"] = generator.n_symbols_
+    return summary | {
         "n_sessions": n_sessions,
         "n_validation": n_validation,
         "seed": seed,
         "roles": roles,
     }
+
+
+def describe_model(model: MotionModel) -> str:
+    """Say what a person's motion model is and what it was fitted on, for the card."""
+    summary = model.training_summary_
+    n_trials = len(summary["labels"])
+    if isinstance(model, StrokeGenerator):
+        return f"stroke generator was fitted on {n_trials} trials ({summary['n_strokes']} strokes)"
+    rule = summary["complexity"]["rule"]
+    return f"IMS generator was fitted on {n_trials} trials with {model.n_symbols_} symbols ({rule})"

@@ -37,7 +37,7 @@ from mirror_avatar.files.model_files import (
     save_model,
 )
 from mirror_avatar.files.trials import PLAYING_RANGE, Trial
-from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.models import MotionModel, model_arrays, motion_from_arrays
 from mirror_avatar.players.base import Observation, Player, PlayerPlan
 from mirror_avatar.players.reference import ReferenceDraw, ReferenceTrack
 from mirror_avatar.signatures.signature import DEFAULT_BINS
@@ -81,9 +81,10 @@ class AccelerationPlayer(Player):
     initial_position
         Position (units) returned by `reset`; the avatar starts at rest.
     reference
-        The avatar's own motion source when its policy reads it (`needs_reference`): an
-        `IMSGenerator` (a reference velocity is drawn at each `reset` from its seed, as a
-        virtual trainer does) or a recorded `Trial`.
+        The avatar's own motion source when its policy reads it (`needs_reference`): a motion
+        model (`mirror_avatar.motion.models.MotionModel`, a stroke or IMS generator: a reference
+        velocity is drawn at each `reset` from its seed, as a virtual trainer does) or a recorded
+        `Trial`.
     label
         A name for the player (recorded in sessions).
 
@@ -114,7 +115,7 @@ class AccelerationPlayer(Player):
         params: HKBParams = FOLLOWER,
         n_substeps: int = DEFAULT_SUBSTEPS,
         initial_position: float = 0.0,
-        reference: IMSGenerator | Trial | None = None,
+        reference: MotionModel | Trial | None = None,
         label: str = "cyber player",
     ) -> None:
         self.actions = actions
@@ -135,7 +136,7 @@ class AccelerationPlayer(Player):
     @property
     def stochastic(self) -> bool:  # type: ignore[override]
         """True when every `reset` draws a fresh reference from a generator."""
-        return self.needs_reference and isinstance(self.reference, IMSGenerator)
+        return self.needs_reference and isinstance(self.reference, MotionModel)
 
     @property
     def actions_(self) -> Array:
@@ -184,7 +185,7 @@ class AccelerationPlayer(Player):
             return None
         return ReferenceTrack(self._motion_source(), float(self.period), seed)
 
-    def _motion_source(self) -> IMSGenerator | Trial:
+    def _motion_source(self) -> MotionModel | Trial:
         if self.reference is None:
             raise InputError("cyber player", "its policy needs a reference generator")
         return self.reference
@@ -292,20 +293,23 @@ def reference_arrays(
     Raises
     ------
     InputError
-        ``source: problem`` if the policy reads a reference that is not an `IMSGenerator`.
+        ``source: problem`` if the policy reads a reference that is not a motion model.
     """
     if not player.needs_reference:
         return {}, {}
-    if not isinstance(player.reference, IMSGenerator):
-        raise InputError(source, "only a reference IMS generator can be saved with the player")
-    arrays, metadata = player.reference.to_arrays()
+    if not isinstance(player.reference, MotionModel):
+        raise InputError(source, "only a reference motion model can be saved with the player")
+    arrays, metadata = model_arrays(player.reference)
     return {f"{REFERENCE_PREFIX}{k}": a for k, a in arrays.items()}, {"reference": metadata}
 
 
 def read_reference(
     source: Source, arrays: Mapping[str, NDArray[Any]], metadata: Mapping[str, Any]
-) -> IMSGenerator:
+) -> MotionModel:
     """Rebuild the motion source `reference_arrays` saved, checking it.
+
+    Its metadata names its kind (`mirror_avatar.motion.models.motion_from_arrays`); a file
+    without one, written before the stroke generator, holds an IMS generator.
 
     Raises
     ------
@@ -319,7 +323,7 @@ def read_reference(
         for k, a in arrays.items()
         if k.startswith(REFERENCE_PREFIX)
     }
-    return IMSGenerator.from_arrays(prefixed, metadata["reference"], source)
+    return motion_from_arrays(prefixed, metadata["reference"], source)
 
 
 def read_target_counts(source: Source, arrays: Mapping[str, NDArray[Any]]) -> Array | None:

@@ -67,7 +67,7 @@ from mirror_avatar.learning.discretisation import (
     make_default_discretisation,
     state_index,
 )
-from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.models import MotionModel
 from mirror_avatar.players.base import Observation, PlayerPlan, partner_state
 from mirror_avatar.players.kinds import PlayerKind, parameter_table, register_kind
 from mirror_avatar.players.reference import ReferenceDraw
@@ -285,7 +285,7 @@ class CyberPlayer(AccelerationPlayer):
         params: HKBParams = FOLLOWER,
         n_substeps: int = DEFAULT_SUBSTEPS,
         initial_position: float = 0.0,
-        reference: IMSGenerator | Trial | None = None,
+        reference: MotionModel | Trial | None = None,
         label: str = "cyber player",
     ) -> None:
         super().__init__(actions, params, n_substeps, initial_position, reference, label)
@@ -383,8 +383,8 @@ def cyber_player_arrays(
     Raises
     ------
     InputError
-        ``source: problem`` if a player with ``"reference"`` features has no `IMSGenerator` as
-        its reference.
+        ``source: problem`` if a player with ``"reference"`` features has no motion model
+        (`mirror_avatar.motion.models.MotionModel`) as its reference.
     """
     disc = player.discretisation_
     training = getattr(player, "training_", {})
@@ -424,8 +424,8 @@ def cyber_player_from_arrays(
     The dynamics parameters must lie in `mirror_avatar.dynamics.PARAMETER_RANGES`, n_substeps
     in 1..`MAX_SUBSTEPS` and the initial position in the playing range; the actions as
     `CyberPlayer.actions_` requires; the bin edges finite and strictly increasing per feature;
-    the Q-table finite, of at most `MAX_Q_CELLS` entries; a reference generator as
-    `IMSGenerator.from_arrays` requires.
+    the Q-table finite, of at most `MAX_Q_CELLS` entries; a reference motion model as
+    `mirror_avatar.motion.models.motion_from_arrays` requires.
 
     Raises
     ------

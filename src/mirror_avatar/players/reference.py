@@ -1,7 +1,8 @@
 """Reference velocities: the motion a player draws from its own motor signature (METHODS section 5).
 
 A virtual trainer (and a cyber player with reference features) takes its reference velocity r_s
-from an IMS generator or a recorded trial, on the control grid ``k * period``.
+from a motion model (stroke or IMS generator) or a recorded trial, on the control grid
+``k * period``.
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ Array = NDArray[np.float64]
 class VelocitySource(Protocol):
     """Anything a reference velocity is drawn from.
 
-    An `mirror_avatar.motion.generator.IMSGenerator`, or a curriculum stage's motion
+    A motion model (`mirror_avatar.motion.strokes.StrokeGenerator` or
+    `mirror_avatar.motion.generator.IMSGenerator`), or a curriculum stage's motion
     (`mirror_avatar.training.curriculum.StageMotion`).
     """
 
@@ -57,7 +59,7 @@ class ReferenceDraw:
     Attributes
     ----------
     source
-        An IMS generator (any `VelocitySource`) or a recorded `Trial`.
+        A motion model (any `VelocitySource`) or a recorded `Trial`.
     n_steps
         Control steps to draw.
     period
@@ -206,7 +208,7 @@ class ReferenceTrack:
     Parameters
     ----------
     reference
-        An `IMSGenerator` or a recorded `Trial`.
+        A motion model (a stroke or IMS generator, any `VelocitySource`) or a recorded `Trial`.
     period
         Control period (s).
     seed

@@ -3,7 +3,7 @@
 Every period it responds to the mean of its neighbours (the partner of a dyad, METHODS section 8
 in a group): it predicts their mean position at the end of the interval by constant velocity from
 the last two samples, ``2 m(t_k) - m(t_k - T)`` (``m(t_k)`` at the first step), takes their mean
-velocity as r_v (joint improvisation) and its reference velocity r_s from its IMS generator (or a
+velocity as r_v (joint improvisation) and its reference velocity r_s from its motion model (or a
 recorded trial), held over the interval, and applies
 `mirror_avatar.dynamics.optimal_control_steps`. For a dyad this is METHODS section 5 exactly; in a
 group it **departs** from section 8's velocity prediction ``m + T mean x'_j`` so that a dyad is
@@ -117,9 +117,9 @@ class VirtualTrainer(Player):
         End-effector and cost parameters (`mirror_avatar.dynamics.LEADER`, ``FOLLOWER``,
         ``JOINT``...).
     reference
-        An `IMSGenerator` or another `VelocitySource` (a fresh reference is drawn at each
-        `reset` from its seed) or a recorded
-        `Trial` (its velocity, the same at every reset).
+        A motion model (a stroke or IMS generator) or another `VelocitySource` (a fresh
+        reference is drawn at each `reset` from its seed) or a recorded `Trial` (its velocity,
+        the same at every reset).
     start
         Initial position (units) and velocity (units/s).
     label

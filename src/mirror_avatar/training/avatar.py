@@ -1,8 +1,10 @@
 """A personal avatar: one file holding a person's motor signature and their trained cyber players.
 
-METHODS section 10: a person's solo trials -> their IMS generator -> their virtual trainer -> cyber
+METHODS section 10: a person's solo trials -> their motion model -> their virtual trainer -> cyber
 players trained, as follower and as leader, on sessions their virtual trainer plays with partners.
-The file (``.npz`` + JSON, `mirror_avatar.files.model_files`) holds the generator and both players
+The file (``.npz`` + JSON, `mirror_avatar.files.model_files`) holds the motion model (its metadata
+names its kind, `mirror_avatar.motion.models`: stroke generator by default, IMS generator when
+absent, as in files written before the stroke generator) and both players
 (tabular or deep: each role's metadata names its ``agent``, tabular when absent);
 which one plays is chosen by the role a session gives it (`Avatar.player`, `POLICY_FOR_ROLE`):
 the trained follower or leader, in groups the one whose coupling the group role shares, or, in
@@ -29,7 +31,7 @@ from mirror_avatar.files.model_files import (
     save_model,
 )
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
-from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.models import MotionModel, model_arrays, motion_from_arrays
 from mirror_avatar.players import Player, VirtualTrainer
 from mirror_avatar.training.agents import agent_kind
 
@@ -54,14 +56,15 @@ MAX_NAME_CHARS = 100
 
 @dataclass
 class Avatar:
-    """A person's avatar: their generator and their cyber players as follower and leader.
+    """A person's avatar: their motion model and their cyber players as follower and leader.
 
     Attributes
     ----------
     name
         Whom the avatar stands for.
     generator
-        The person's IMS generator.
+        The person's motion model (`mirror_avatar.motion.models.MotionModel`: a stroke
+        generator, or an IMS generator).
     players
         ``"follower"`` and ``"leader"`` -> the trained `CyberPlayer` or `DeepCyberPlayer`.
     summary
@@ -69,7 +72,7 @@ class Avatar:
     """
 
     name: str
-    generator: IMSGenerator
+    generator: MotionModel
     players: dict[str, AccelerationPlayer]
     summary: dict[str, Any] = field(default_factory=dict)
 
@@ -95,7 +98,7 @@ class Avatar:
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the avatar to one ``.npz`` file, atomically."""
-        arrays, generator_metadata = self.generator.to_arrays()
+        arrays, generator_metadata = model_arrays(self.generator)
         parts = {"generator": arrays}
         metadata: dict[str, Any] = {
             "name": self.name,
@@ -116,7 +119,7 @@ def load_avatar(path: str | os.PathLike[str]) -> Avatar:
     ------
     InputError
         ``path: problem`` for a missing, corrupt or inconsistent file, or a part that its own
-        loader (`IMSGenerator.from_arrays`, the agent kind's
+        loader (`mirror_avatar.motion.models.motion_from_arrays`, the agent kind's
         `mirror_avatar.training.agents.AgentKind.from_arrays`) refuses.
     """
     arrays, metadata = load_model(path, FORMAT_NAME, FORMAT_VERSION, ())
@@ -124,7 +127,7 @@ def load_avatar(path: str | os.PathLike[str]) -> Avatar:
     if not isinstance(name, str) or not 0 < len(name) <= MAX_NAME_CHARS:
         raise InputError(path, f"avatar name {excerpt(name)} is not a name")
     part = {name: part_arrays(arrays, name) for name in ("generator", *TRAINED_ROLES)}
-    generator = IMSGenerator.from_arrays(
+    generator = motion_from_arrays(
         part["generator"], check_object(path, "generator", metadata.get("generator")), path
     )
     players = {

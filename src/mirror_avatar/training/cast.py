@@ -20,6 +20,7 @@ from mirror_avatar.common.errors import InputError
 from mirror_avatar.common.seeds import draw_seeds
 from mirror_avatar.files.trials import DEFAULT_RATE, Trial
 from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.models import MotionModel
 from mirror_avatar.players.virtual_trainer import VirtualTrainer
 
 TARGET = 4
@@ -34,7 +35,7 @@ UNSEEN_PARTNER = 5
 
 @dataclass(frozen=True, eq=False)
 class VirtualTrainerSpec:
-    """One virtual "person": a label, the trials it was fitted on and its IMS generator.
+    """One virtual "person": a label, the trials it was fitted on and its motion model.
 
     Attributes
     ----------
@@ -43,12 +44,13 @@ class VirtualTrainerSpec:
     trial_labels
         Labels of the trials its generator was fitted on.
     generator
-        The fitted `IMSGenerator` (100 Hz).
+        The fitted motion model (100 Hz): an `IMSGenerator` for the paper's VT1..VT6, a
+        `mirror_avatar.motion.strokes.StrokeGenerator` for a personal avatar's person.
     """
 
     label: str
     trial_labels: tuple[str, ...]
-    generator: IMSGenerator
+    generator: MotionModel
 
     def player(self, role: str | dynamics.HKBParams) -> VirtualTrainer:
         """Make a virtual trainer with this person's generator and a role preset (or parameters)."""

@@ -42,15 +42,15 @@ from mirror_avatar.learning.discretisation import (
     symmetric_edges,
 )
 from mirror_avatar.learning.training import LearningCurve, SessionLearner, score_tasks
-from mirror_avatar.motion.generator import IMSGenerator
+from mirror_avatar.motion.models import MotionModel
 from mirror_avatar.players.virtual_trainer import VirtualTrainer
 from mirror_avatar.sessions.graphs import GraphSource, random_connected_graph
 from mirror_avatar.sessions.session import Session
 from mirror_avatar.training.agents import agent_kind, kind_of
 
 Role = Literal["follower", "leader"]
-Reference = IMSGenerator | Trial
-"""What a virtual trainer draws its reference velocity from: a generator or a recorded trial."""
+Reference = MotionModel | Trial
+"""What a virtual trainer draws its reference velocity from: a motion model or a recorded trial."""
 TRAINING_ROLES: tuple[Role, ...] = ("follower", "leader")
 
 CURVE_POINTS = 100
@@ -218,13 +218,15 @@ def train_cyber_player(
     Parameters
     ----------
     target, partners
-        IMS generators (or recorded trials) of the person to imitate and of the partners.
+        Motion models (stroke or IMS generators) or recorded trials of the person to imitate
+        and of the partners.
     role
         ``"follower"`` or ``"leader"``.
     n_sessions, seed, duration, scheduler, n_jobs, chunk_size, checkpoint,
     checkpoint_every, progress
         As in `imitate`. A leader's file holds its motion source, so with a ``checkpoint``
-        ``target`` must be an `IMSGenerator` (checked before training).
+        ``target`` must be a motion model (`mirror_avatar.motion.models.MotionModel`, checked
+        before training).
     agent
         ``"tabular"`` or ``"dqn"`` (`make_cyber_player`).
 
@@ -236,10 +238,10 @@ def train_cyber_player(
         Mean reward per step and RMS to the target (units) per block of sessions.
     """
     player = make_cyber_player(role, target, agent=agent)
-    if checkpoint is not None and player.needs_reference and not isinstance(target, IMSGenerator):
+    if checkpoint is not None and player.needs_reference and not isinstance(target, MotionModel):
         raise InputError(
             "target",
-            "a leader or a deep player saved to a file needs an IMS generator, not a trial",
+            "a leader or a deep player saved to a file needs a motion model, not a trial",
         )
     player.label = f"cyber player ({role})"
     curve = imitate(
@@ -393,7 +395,8 @@ def train_group_cyber_player(
     Parameters
     ----------
     target, partners
-        IMS generators (or recorded trials) of the person to imitate and of the others.
+        Motion models (stroke or IMS generators) or recorded trials of the person to imitate
+        and of the others.
     n_sessions, seed, duration, graph
         As in `imitate`.
     agent
