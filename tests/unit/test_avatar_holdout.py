@@ -94,8 +94,14 @@ def test_a_follower_four_times_further_than_its_person_is_flagged(slow_person: l
     assert proof.verdict() == (
         "moves like the person as leader and group member, but is FLAGGED as follower "
         f"({proof.ratio('follower'):.1f} x the person's own EMD): median EMD to held-out trials "
-        f"above the person's own 95th percentile {hi:.4f} (leave-one-out over 5 trials)"
+        f"above the person's own 95th percentile {hi:.4f} (leave-one-out over 5 trials); the "
+        "person's virtual trainer is as far as follower (no human reference)"
     )
+    assert "No human reference exists for the follower" in sentence
+    assert sentence.endswith(
+        "record the person in this role (--with-partner) for a human reference."
+    )
+    assert "No human reference" not in proof.role_verdict("leader")
     table = Proof(proof, None).tables()
     emd = next(t for caption, t in table.items() if caption.startswith("Velocity IMS EMD"))
     assert emd.loc["the avatar as follower", "verdict"].startswith("FLAGGED")
@@ -104,3 +110,22 @@ def test_a_follower_four_times_further_than_its_person_is_flagged(slow_person: l
     likeness = next(t for caption, t in table.items() if caption.startswith("Human-likeness"))
     assert list(likeness.index.get_level_values(0).unique()) == list(motion)
     assert "p-value (permutations by trial)" in likeness.columns
+
+
+def test_a_flagged_role_ends_with_the_next_step_a_person_can_take(slow_person: list) -> None:
+    """A leader and a follower 1.4 x faster than the person, their virtual trainer not: the
+    leader asks for more solo trials, the follower (further than the trainer) for training."""
+    trials = {t.label: t for t in load_zhai2017()}
+    others = [trial_velocity(trials[f"slow-{k}"], RATE) for k in (6, 7, 8)]
+    fast = [1.4 * v for v in others]
+    motion = {"follower": RoleMotion(fast, others), "leader": RoleMotion(fast, others)}
+    folds = [Fold([trial], dict(motion)) for trial in slow_person]
+    proof = prove_held_out(slow_person, folds, RATE, seed=1)
+    assert proof.flagged("leader") and proof.flagged("follower")
+    assert proof.role_verdict("leader").endswith(
+        "Next: record more or longer solo trials (five of a minute or more) and create the "
+        "avatar again."
+    )
+    assert not proof.as_far_as_trainer("follower")
+    assert "train longer (--sessions above the default)" in proof.role_verdict("follower")
+    assert proof.verdict().endswith("; next: train longer (--sessions)")

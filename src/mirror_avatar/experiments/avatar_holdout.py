@@ -57,6 +57,10 @@ MIN_TRIALS_TO_HOLD_OUT = 3
 size is still chosen by leaving out whole trials (**choice**: short trials split in halves are
 too few frames for it)."""
 
+TRAINER_MARGIN = 1.1
+"""A flagged follower or group member within this factor of the person's virtual trainer's
+median EMD is as far as the trainer (**choice**, the fidelity goal of METHODS section 4)."""
+
 MAX_FOLDS = 5
 """Most avatars built for the check (**choice**: leave-one-out up to this many trials, then as
 many folds, so that the check costs at most this many extra trainings)."""
@@ -264,23 +268,72 @@ class HeldOutProof:
             "they never saw."
         )
 
+    def trainer_median(self, role: str) -> float:
+        """Median EMD from the person's virtual trainer in ``role`` to the held-out trials."""
+        return float(np.median(self.to_trainer[role]))
+
+    def as_far_as_trainer(self, role: str) -> bool:
+        """Whether the avatar in ``role`` is within `TRAINER_MARGIN` of the trainer's median EMD."""
+        return self.median(role) <= TRAINER_MARGIN * self.trainer_median(role)
+
     def role_verdict(self, role: str) -> str:
-        """Say in a sentence whether the avatar in ``role`` moves like the person, and how far."""
+        """Say in a sentence whether the avatar in ``role`` moves like the person, and how far.
+
+        The sentence names its reference: the person's held-out solo trials, a human reference
+        for the leader (who moves as in solo play); for a follower or a group member, no human
+        reference exists (the person was not recorded in that role), and the person's virtual
+        trainer in the same sessions is set beside it. A flagged role ends with the next step
+        (`next_step`).
+        """
         hi = self.own_range[1]
-        median, trainer = self.median(role), float(np.median(self.to_trainer[role]))
+        median, trainer = self.median(role), self.trainer_median(role)
         numbers = (
-            f"its median EMD to the person's held-out trials is {median:.4f}, "
+            f"its median EMD to the person's held-out solo trials is {median:.4f}, "
             f"{self.ratio(role):.1f} x their own trial-to-trial median {np.median(self.own):.4f}"
         )
         context = f" (the person's virtual trainer in the same sessions: {trainer:.4f})."
+        if role != "leader":
+            context = (
+                f" No human reference exists for the {role}: the person was not recorded in this "
+                f"role, so the person's virtual trainer in the same sessions, {trainer:.4f}, is "
+                "the reference beside it."
+            )
         if self.flagged(role):
             return (
                 f"As {role}, FLAGGED: the avatar is further from the person than their own "
-                f"variability allows: {numbers}, above their 95th percentile {hi:.4f}" + context
+                f"variability allows: {numbers}, above their 95th percentile {hi:.4f}."
+                + context
+                + f" {self.next_step(role)}"
             )
         return (
             f"As {role}, the avatar moves like the person: {numbers}, within their own range "
-            f"(95th percentile {hi:.4f})" + context
+            f"(95th percentile {hi:.4f})." + context
+        )
+
+    def short_step(self, role: str) -> str:
+        """Say `next_step` in a few words, for the one-line verdict."""
+        if role == "leader":
+            return "next: record more or longer solo trials"
+        if self.as_far_as_trainer(role):
+            return f"the person's virtual trainer is as far as {role} (no human reference)"
+        return "next: train longer (--sessions)"
+
+    def next_step(self, role: str) -> str:
+        """Say what a person can do about a flagged role, in a sentence."""
+        if role == "leader":
+            return (
+                "Next: record more or longer solo trials (five of a minute or more) and create "
+                "the avatar again."
+            )
+        if self.as_far_as_trainer(role):
+            return (
+                "The person's virtual trainer is as far, so the distance is the role's, not the "
+                f"avatar's: trust the avatar as {role} as far as the virtual trainer, and record "
+                "the person in this role (--with-partner) for a human reference."
+            )
+        return (
+            "It is further than the person's virtual trainer too: train longer (--sessions "
+            "above the default) or trust the avatar in the roles not flagged."
         )
 
     def verdict(self) -> str:
@@ -296,11 +349,12 @@ class HeldOutProof:
         times = [f"{flagged[0]} ({self.ratio(flagged[0]):.1f} x the person's own EMD)"]
         times += [f"{role} ({self.ratio(role):.1f} x)" for role in flagged[1:]]
         rule = f"median EMD to held-out trials above the person's own 95th percentile {hi:.4f}"
+        step = "; " + self.short_step(flagged[0])
         if not like:
-            return f"moves unlike the person, FLAGGED as {_join(times)}: {rule} ({scheme})"
+            return f"moves unlike the person, FLAGGED as {_join(times)}: {rule} ({scheme}){step}"
         return (
             f"moves like the person as {_join(like)}, but is FLAGGED as {_join(times)}: {rule} "
-            f"({scheme})"
+            f"({scheme}){step}"
         )
 
     def table(self) -> pd.DataFrame:
