@@ -156,8 +156,8 @@ players = [
   { label = "A1", kind = "avatar", spec = "bundled:slow" },
 ]
 trials = 1
-duration = 5
-occlude = [[2.0, 3.5]]
+duration = 7
+occlude = [[2.0, 4.5]]
 """
 
 PARTNER_PIXELS = """async () => {
