@@ -291,7 +291,7 @@ class HeldOutProof:
             f"its median EMD to the person's held-out solo trials is {median:.4f}, "
             f"{self.ratio(role):.1f} x their own trial-to-trial median {np.median(self.own):.4f}"
         )
-        context = f" (the person's virtual trainer in the same sessions: {trainer:.4f})."
+        context = f" The person's virtual trainer in the same sessions: {trainer:.4f}."
         if role != "leader":
             context = (
                 f" No human reference exists for the {role}: the person was not recorded in this "
