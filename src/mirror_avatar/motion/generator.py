@@ -54,7 +54,6 @@ from mirror_avatar.files.trials import (
     PLAYING_RANGE,
     Trial,
     compute_velocity,
-    make_trial,
 )
 from mirror_avatar.motion.codebook_size import MIN_FRAMES_PER_SYMBOL, choose_n_symbols
 from mirror_avatar.motion.hyperparameters import GENERATOR, check_hyperparameters
@@ -65,6 +64,7 @@ from mirror_avatar.motion.markov import (
     group_members,
     sample_chain,
 )
+from mirror_avatar.motion.sampling import sample_trials
 from mirror_avatar.motion.stft import (
     compute_stft,
     features_to_spectra,
@@ -465,23 +465,11 @@ class IMSGenerator:
         list of Trial
             Labelled ``generated-1..n``, group = the training group(s), seed in the metadata.
         """
-        if not (duration > 0 and n >= 1):
-            raise InputError("generator", "duration and n must be positive")
-        rng = np.random.default_rng(self.random_state if random_state is None else random_state)
-        n_samples = int(round(duration * self.rate)) + 1
-        times = np.arange(n_samples) / self.rate
-        group = "+".join(self.training_summary_["groups"])
-        seed = random_state if isinstance(random_state, int) else None
-        return [
-            make_trial(
-                times,
-                self.sample_positions(n_samples, rng),
-                label=f"generated-{k + 1}",
-                group=group,
-                metadata={"generator": "ims-markov-chain", "seed": seed, "index": k},
-            )
-            for k in range(n)
-        ]
+        return sample_trials(
+            self.sample_positions, self.rate, self.training_summary_["groups"],
+            "ims-markov-chain", duration, n,
+            self.random_state if random_state is None else random_state,
+        )  # fmt: skip
 
     # -- persistence --------------------------------------------------------------------------
 

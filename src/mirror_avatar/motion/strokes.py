@@ -52,9 +52,9 @@ from mirror_avatar.files.trials import (
     PLAYING_RANGE,
     Trial,
     compute_velocity,
-    make_trial,
 )
 from mirror_avatar.motion.hyperparameters import STROKES, check_settings
+from mirror_avatar.motion.sampling import sample_trials
 
 Array = NDArray[np.float64]
 Seed = int | np.random.Generator | None
@@ -360,23 +360,10 @@ class StrokeGenerator:
         same seed gives the same trials.
         """
         self._check_fitted()
-        if not (duration > 0 and n >= 1):
-            raise InputError("generator", "duration and n must be positive")
-        rng = np.random.default_rng(self.random_state if random_state is None else random_state)
-        n_samples = int(round(duration * self.rate)) + 1
-        times = np.arange(n_samples) / self.rate
-        group = "+".join(self.training_summary_["groups"])
-        seed = random_state if isinstance(random_state, int) else None
-        return [
-            make_trial(
-                times,
-                self.sample_positions(n_samples, rng),
-                label=f"generated-{k + 1}",
-                group=group,
-                metadata={"generator": "strokes", "seed": seed, "index": k},
-            )
-            for k in range(n)
-        ]
+        return sample_trials(
+            self.sample_positions, self.rate, self.training_summary_["groups"], "strokes",
+            duration, n, self.random_state if random_state is None else random_state,
+        )  # fmt: skip
 
     # -- persistence --------------------------------------------------------------------------
 
