@@ -4,6 +4,7 @@ the rounding another machine may give (`snapshots.assert_close`)."""
 
 from __future__ import annotations
 
+import difflib
 import json
 import shutil
 from typing import Any
@@ -17,13 +18,22 @@ MOST_FRAMES_DROPPED = 0.1
 """Share of a page's frames that may be superseded before they were sent (a busy machine)."""
 
 
+def outline(messages: list[dict[str, Any]]) -> list[str]:
+    """Return each message as one line: its type, trial, state, condition and text."""
+    keys = ("type", "trial", "state", "condition", "message")
+    return [" ".join(str(m[key]) for key in keys if key in m) for m in messages]
+
+
 def assert_pages_saw_the_same(pages: list[dict[str, Any]], pinned: list[dict[str, Any]]) -> None:
     """Each page was sent the same messages, and every frame it got is the frame pinned.
 
     A frame superseded before it could be sent is not there: at most `MOST_FRAMES_DROPPED`.
+    Messages that differ in number or kind are shown as a diff of their outlines.
     """
     assert len(pages) == len(pinned)
     for page, expected in zip(pages, pinned, strict=True):
+        found, wanted = outline(page["messages"]), outline(expected["messages"])
+        assert found == wanted, "\n".join(difflib.unified_diff(wanted, found, "pinned", "sent"))
         assert_close(page["messages"], expected["messages"], "messages")
         frames, pinned_frames = page["frames"], expected["frames"]
         assert set(frames) <= set(pinned_frames)
