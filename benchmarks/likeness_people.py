@@ -16,6 +16,11 @@ Protocol (issue 47; docs/METHODS.md sections 3 and 4b):
   ratio of each distance (velocity IMS EMD, amplitude, spectrum) to the person's own.
 - **Data-copying** (`copying_test`): the fitted trials as training, the held-out trials as fresh
   motion, the generated trials; C_T and the median nearest-training distance ratio.
+- **Shared**: kind ``shared`` is the stroke generator written shareable
+  (`mirror_avatar.motion.sharing.shareable`, groups of `DEFAULT_GROUP_SIZE`); for both stroke
+  kinds, the rebuild ratio is the median `rebuild_errors` of the fitted trials' strokes over the
+  held-out trials' (0: the training trials rebuilt exactly; about 1: no better than trials never
+  seen).
 - **The person's own**: kind ``person`` takes the fitted trials as the generated ones, the
   battery's values for a generator that played the training trials back.
 - **Identification**: each generated trial is put with the person whose held-out trials are
@@ -41,6 +46,8 @@ from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.datasets.synthetic import DEVELOPMENT_PEOPLE, SYNTHETIC_PEOPLE, TEST_PEOPLE
 from mirror_avatar.files.trials import Trial
 from mirror_avatar.motion.models import MODEL_KINDS, MotionModel
+from mirror_avatar.motion.sharing import DEFAULT_GROUP_SIZE, rebuild_errors, shareable
+from mirror_avatar.motion.strokes import StrokeGenerator
 from mirror_avatar.signatures.copying import copying_test
 from mirror_avatar.signatures.likeness import (
     compare_motion,
@@ -76,9 +83,23 @@ def people(which: str) -> dict[str, list[Trial]]:
     return chosen
 
 
-def make(kind: str, seed: int, settings: dict[str, Any]) -> MotionModel:
-    """Return an unfitted generator of ``kind`` with these settings (defaults for the rest)."""
-    return MODEL_KINDS[kind](random_state=seed, **settings)
+KINDS = (*MODEL_KINDS, "shared", "person")
+"""What plays the generated trials: a generator kind, its shareable stroke model, the person."""
+
+
+def fit(kind: str, trials: Sequence[Trial], settings: dict[str, Any]) -> MotionModel:
+    """Return a generator of ``kind`` (``shared``: strokes, then made shareable) fitted, seed 0."""
+    if kind == "shared":
+        return shareable(fit("strokes", trials, settings), DEFAULT_GROUP_SIZE)
+    return MODEL_KINDS[kind](random_state=0, **settings).fit(trials)
+
+
+def rebuild_ratio(model: MotionModel, fitted: Sequence[Trial], held: Sequence[Trial]) -> float:
+    """Median rebuild error of the fitted trials' strokes over the held-out trials' (NaN: IMS)."""
+    if not isinstance(model, StrokeGenerator):
+        return float("nan")
+    training = np.median(rebuild_errors(model, list(fitted)))
+    return float(training / np.median(rebuild_errors(model, list(held))))
 
 
 def measure(
@@ -91,18 +112,21 @@ def measure(
     """
     fitted, held = list(trials[:FITTED]), list(trials[FITTED:])
     start = time.perf_counter()
+    rebuilt = float("nan")
     if kind == "person":
         generated = [
             trial_velocity(f, RATE)[: round(t.duration * RATE) + 1]
             for f, t in zip(fitted, held, strict=False)
         ]
     else:
-        model = make(kind, 0, settings).fit(fitted)
+        model = fit(kind, fitted, settings)
         generated = [
             model.sample_velocity(round(t.duration * RATE) + 1, seed)
             for seed, t in enumerate(held, start=1)
         ]
     fit_seconds = time.perf_counter() - start
+    if kind != "person":
+        rebuilt = rebuild_ratio(model, fitted, held)
     reference = [trial_velocity(t, RATE) for t in held]
     own = [trial_velocity(t, RATE) for t in trials]
     result = compare_motion(reference, generated, own=own, rate=RATE, n_permutations=PERMUTATIONS)
@@ -119,6 +143,7 @@ def measure(
         "spectrum_ratio": ratios["spectrum"],
         "copying_ct": copying.c_t,
         "copying_distance_ratio": copying.distance_ratio,
+        "rebuild_ratio": rebuilt,
         "fit_seconds": fit_seconds,
         "verdict": result.verdict(),
     }
@@ -186,14 +211,14 @@ def table(rows: Sequence[dict[str, Any]]) -> str:
     """Return the rows as a Markdown table."""
     head = (
         "| person | generator | AUC (p) | IMS EMD ratio | amplitude ratio | spectrum ratio | "
-        "identified | data-copying C_T (distance ratio) | fit (s) |\n"
-        "|---|---|---|---|---|---|---|---|---|"
+        "identified | data-copying C_T (distance ratio) | rebuild ratio | fit (s) |\n"
+        "|---|---|---|---|---|---|---|---|---|---|"
     )
     lines = [
         f"| {r['person']} | {r['kind']} | {r['auc']:.2f} ({r['auc_p']:.3f}) | "
         f"{r['emd_ratio']:.2f} | {r['amplitude_ratio']:.2f} | {r['spectrum_ratio']:.2f} | "
         f"{r['identified']:.0%} | {r['copying_ct']:.1f} ({r['copying_distance_ratio']:.2f}) | "
-        f"{r['fit_seconds']:.1f} |"
+        f"{r['rebuild_ratio']:.2f} | {r['fit_seconds']:.1f} |"
         for r in rows
     ]
     return "\n".join([head, *lines])
@@ -202,7 +227,7 @@ def table(rows: Sequence[dict[str, Any]]) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--people", choices=("development", "test", "all"), default="development")
-    parser.add_argument("--kinds", nargs="+", choices=(*MODEL_KINDS, "person"), default=["strokes"])
+    parser.add_argument("--kinds", nargs="+", choices=KINDS, default=["strokes"])
     parser.add_argument(
         "--set", nargs="*", default=[], help="generator settings KEY=VALUE (numbers)"
     )
@@ -217,7 +242,9 @@ def main() -> None:
     for kind in args.kinds:
         signals, kind_rows = {}, []
         for name, trials in everyone.items():
-            row, signals[name] = measure(name, trials, kind, settings if kind == "strokes" else {})
+            row, signals[name] = measure(
+                name, trials, kind, settings if kind in ("strokes", "shared") else {}
+            )
             kind_rows.append(row)
             print(f"{name} {kind}: {row['verdict']}", flush=True)
         spectra[kind] = signals

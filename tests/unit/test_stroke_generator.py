@@ -68,8 +68,7 @@ def test_generated_strokes_have_the_training_strokes_lengths_and_sizes() -> None
     """
     trials = [t for t in load_zhai2017() if t.group == "fast"]
     model = StrokeGenerator(random_state=0).fit(trials)
-    trained_lengths = model.lengths_[model.previous_ >= 0]
-    trained_sizes = np.abs(model.displacements_[model.previous_ >= 0])
+    trained_lengths, trained_sizes = model.lengths_, np.abs(model.displacements_)
     lengths, sizes = [], []
     for seed in range(5):
         positions = model.sample_positions(6001, seed)
@@ -104,29 +103,59 @@ def test_samples_stay_in_range_and_repeat_with_their_seed() -> None:
     assert np.array_equal(velocities[0], compute_velocity(model.sample_positions(500, 4), RATE))
 
 
+def drawable_strokes(trials, rate: float = RATE, min_reversal: float = 0.01) -> list[dict]:
+    """Each stroke with one before and one after it in its trial, cut as the fit cuts them."""
+    strokes = []
+    for trial in trials:
+        positions = trial.resampled(rate).positions
+        edges = reversals(positions, min_reversal)
+        for i in range(1, edges.size - 2):
+            first, last = edges[i], edges[i + 1]
+            strokes.append(
+                {
+                    "length": float(last - first),
+                    "displacement": positions[last] - positions[first],
+                    "start": positions[first],
+                    "before_length": float(first - edges[i - 1]),
+                    "before_size": abs(positions[first] - positions[edges[i - 1]]),
+                }
+            )
+    return strokes
+
+
+def test_the_fit_keeps_each_drawable_stroke_with_its_predecessor() -> None:
+    trials = [t for t in load_zhai2017() if t.group == "slow"][:3]
+    model = StrokeGenerator(random_state=0).fit(trials)
+    strokes = drawable_strokes(trials)
+    for key, values in [
+        ("length", model.lengths_), ("displacement", model.displacements_),
+        ("start", model.starts_), ("before_length", model.before_lengths_),
+        ("before_size", model.before_sizes_),
+    ]:  # fmt: skip
+        assert values == pytest.approx([stroke[key] for stroke in strokes], abs=1e-12), key
+
+
 def test_the_next_stroke_is_drawn_from_the_nearest_neighbours() -> None:
-    """With one neighbour the draw is the nearest by a brute-force search."""
+    """With one neighbour the draw is the nearest by a brute-force search over the strokes cut
+    from the trials."""
     trials = [t for t in load_zhai2017() if t.group == "slow"][:3]
     model = StrokeGenerator(neighbours=1, random_state=0).fit(trials)
+    strokes = drawable_strokes(trials)
+    features = np.array(
+        [[np.log(s["before_length"]), np.log(s["before_size"] + 1e-4), s["start"]] for s in strokes]
+    )
     rng = np.random.default_rng(0)
     for length, size, position, direction in [(40.0, 0.1, 0.0, 1.0), (80.0, 0.3, 0.3, -1.0)]:
         best, best_distance = -1, np.inf
-        for i in np.flatnonzero(model.previous_ >= 0):
-            has_next = np.any(model.previous_ == i)
-            if not has_next or np.sign(model.displacements_[i]) != direction:
+        for i, stroke in enumerate(strokes):
+            if np.sign(stroke["displacement"]) != direction:
                 continue
-            before = model.previous_[i]
-            features = np.array(
-                [
-                    np.log(model.lengths_[before]),
-                    np.log(abs(model.displacements_[before]) + 1e-4),
-                    float(room_ahead(model.starts_[i], direction)),
-                ]
-            )
+            own = features[i].copy()
+            own[2] = float(room_ahead(stroke["start"], direction))
             state = np.array(
                 [np.log(length), np.log(size + 1e-4), float(room_ahead(position, direction))]
             )
-            distance = np.sum(((features - state) / model._scale) ** 2)
+            distance = np.sum(((own - state) / model._scale) ** 2)
             if distance < best_distance:
                 best, best_distance = i, distance
         assert model._next_stroke(length, size, position, direction, rng) == best
@@ -147,7 +176,8 @@ def test_a_saved_model_loads_and_samples_the_same(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("name", "change", "words"),
     [
-        ("previous", lambda a: a.__setitem__(0, 3), "earlier stroke"),
+        ("before_sizes", lambda a: a.__setitem__(0, -1.0), "before_sizes"),
+        ("bandwidth", lambda a: a.__setitem__(0, np.inf), "bandwidth"),
         ("lengths", lambda a: a.__setitem__(0, 2.5), "whole numbers"),
         ("profiles", lambda a: a.__setitem__(0, np.nan), "profiles"),
     ],
@@ -190,5 +220,33 @@ def test_the_jitter_bandwidth_is_silvermans_rule_as_scipy_computes_it() -> None:
 def test_a_regular_person_gets_less_jitter_than_an_irregular_one() -> None:
     regular = StrokeGenerator().fit([sine_trial(60.0)])
     irregular = StrokeGenerator().fit([t for t in load_zhai2017() if t.group == "slow"])
-    assert np.all(regular._bandwidth < 1e-6)
-    assert np.all(irregular._bandwidth > 0.05)
+    assert np.all(regular.bandwidth_ < 1e-6)
+    assert np.all(irregular.bandwidth_ > 0.05)
+
+
+def test_arrays_that_link_each_stroke_to_the_one_before_are_read_as_the_fit_keeps_them() -> None:
+    """Model arrays written with every training stroke and its ``previous`` (avatar files made
+    before the predecessors' features were kept) sample as the model fitted now does."""
+    trials = [t for t in load_zhai2017() if t.group == "slow"][:3]
+    model = StrokeGenerator(random_state=0).fit(trials)
+    lengths, displacements, starts, previous, profiles = [], [], [], [], []
+    for trial in trials:
+        positions = trial.resampled(RATE).positions
+        edges = reversals(positions, 0.01)
+        for number, (first, last) in enumerate(zip(edges[:-1], edges[1:], strict=True)):
+            previous.append(len(lengths) - 1 if number else -1)
+            lengths.append(float(last - first))
+            displacements.append(positions[last] - positions[first])
+            starts.append(positions[first])
+            profiles.append((positions[first : last + 1] - positions[first]) / displacements[-1])
+    arrays = {
+        "lengths": np.array(lengths), "displacements": np.array(displacements),
+        "starts": np.array(starts), "previous": np.array(previous),
+        "profiles": np.concatenate(profiles),
+    }  # fmt: skip
+    _, metadata = model.to_arrays()
+    legacy = StrokeGenerator.from_arrays(arrays, metadata, "avatar.npz")
+    assert np.array_equal(legacy.sample_positions(3000, 5), model.sample_positions(3000, 5))
+    arrays["previous"][3] = 3
+    with pytest.raises(InputError, match="earlier stroke"):
+        StrokeGenerator.from_arrays(arrays, metadata, "avatar.npz")

@@ -10,6 +10,7 @@ import click
 from mirror_avatar import __version__
 from mirror_avatar.cli.cluster import scheduler_option
 from mirror_avatar.cli.constrained import JOBS, SEED, SESSIONS, ranged
+from mirror_avatar.cli.generator import group_size_option
 from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.cli.train import load_generator
@@ -29,7 +30,7 @@ from mirror_avatar.files.importing import ImportOptions, excerpt
 from mirror_avatar.learning.acceleration_player import Agent
 from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.training.agents import AGENTS
-from mirror_avatar.training.avatar import MAX_NAME_CHARS
+from mirror_avatar.training.avatar import MAX_NAME_CHARS, load_avatar, shareable_avatar
 
 
 @click.group()
@@ -139,3 +140,27 @@ def create(
         click.echo(result["verdict"])
     click.echo(built.summary["verdict"])
     click.echo(f"wrote {out_path.resolve()} and {card_path.resolve()}")
+
+
+@avatar.command()
+@click.argument("avatar_path", type=click.Path(path_type=Path))
+@click.option(
+    "--out", "out_path", required=True, type=click.Path(path_type=Path),
+    help="The shareable avatar file (.npz).",
+)  # fmt: skip
+@group_size_option()
+def share(avatar_path: Path, out_path: Path, group_size: int) -> None:
+    """Write the avatar without the person's strokes: its motion model averaged in groups.
+
+    The players are kept; the motion model (and the references the players read) becomes
+    averages of GROUP_SIZE or more of the person's strokes (METHODS section 4c), and the card's
+    trial names their number. The card is not copied: it names what the person recorded.
+    """
+    check_output_file(out_path, ".npz")
+    shared = shareable_avatar(load_avatar(avatar_path), group_size)
+    shared.save(out_path)
+    click.echo(
+        f"{shared.name}'s avatar with its strokes averaged in groups of {group_size} or more -> "
+        f"{out_path}; the file holds no stroke of the person's trials, and no trial can be "
+        "rebuilt from it"
+    )

@@ -26,6 +26,7 @@ from mirror_avatar.motion.codebook_size import sweep_codebook
 from mirror_avatar.motion.generator import IMSGenerator
 from mirror_avatar.motion.hyperparameters import CODEBOOK_SIZES, KMEANS_SEEDS
 from mirror_avatar.motion.models import DEFAULT_KIND, MODEL_KINDS, MotionModel, load_motion
+from mirror_avatar.motion.sharing import DEFAULT_GROUP_SIZE, shareable
 from mirror_avatar.motion.strokes import StrokeGenerator
 from mirror_avatar.signatures.likeness import Likeness, compare_motion, trial_velocity
 from mirror_avatar.training.curriculum import FORMAT_NAME as STAGE_FORMAT
@@ -124,8 +125,10 @@ def _describe_fit(model: MotionModel, n_trials: int, out_path: Path) -> str:
     holds = "; the file holds the training {}, from which the trials can be rebuilt: share it as "
     holds += "you would share the recordings"
     if isinstance(model, StrokeGenerator):
-        return f"{n_trials} trials, {summary['n_strokes']} strokes -> {out_path}" + holds.format(
-            "strokes"
+        return (
+            f"{n_trials} trials, {summary['n_strokes']} strokes -> {out_path}"
+            + holds.format("strokes")
+            + ", or write a file without them with `generator share`"
         )
     choice = summary["complexity"]
     lines = [_describe_choice(choice)] if choice["rule"] != "fixed" else []
@@ -204,6 +207,49 @@ def _describe_choice(complexity: dict[str, Any]) -> str:
         chosen = "  <- chosen" if size == complexity["chosen"] else ""
         lines.append(f"  {size:4d} symbols: {mean:.4f} +- {se:.4f}{chosen}")
     return "\n".join(lines)
+
+
+GROUP_SIZES = Interval(int, 2, 100)
+"""Strokes averaged into each stroke of a shared model (``--group-size``)."""
+
+
+def group_size_option() -> Any:
+    """Return the ``--group-size`` option of the commands that write shareable files."""
+    return click.option(
+        "--group-size", default=DEFAULT_GROUP_SIZE, show_default=True,
+        **ranged("Fewest of the person's strokes averaged into each stroke of the file "
+                 "(microaggregation's k; METHODS section 4c).", GROUP_SIZES),
+    )  # fmt: skip
+
+
+@generator.command()
+@click.argument("model_path", type=click.Path(path_type=Path))
+@click.option(
+    "--out", "out_path", required=True, type=click.Path(path_type=Path),
+    help="The shareable model file (.npz).",
+)  # fmt: skip
+@group_size_option()
+def share(model_path: Path, out_path: Path, group_size: int) -> None:
+    """Write a stroke model that does not hold the person's trials (strokes averaged in groups).
+
+    MODEL_PATH is a stroke generator fitted by ``generator fit``; OUT samples as a generator
+    does, from averages of GROUP_SIZE or more of the person's strokes (METHODS section 4c).
+    """
+    check_output_file(out_path, ".npz")
+    model = load_motion(model_path)
+    if not isinstance(model, StrokeGenerator):
+        raise InputError(
+            model_path,
+            "an IMS generator's frames are the person's recordings: only a stroke generator "
+            "can be shared (generator fit --kind strokes)",
+        )
+    shared = shareable(model, group_size)
+    shared.save(out_path)
+    click.echo(
+        f"{model.lengths_.size} strokes averaged into {shared.lengths_.size}, each of "
+        f"{group_size} or more -> {out_path}; the file holds no stroke of the person's trials, "
+        "and no trial can be rebuilt from it"
+    )
 
 
 @generator.command()

@@ -24,7 +24,10 @@ meet at reversals, where the velocity passes through zero, so no seam adds motio
 never made (the IMS generator's overlap-add of frames from different trials does, METHODS
 section 4b). A generated trial starts at a random point of a random stroke.
 
-The fitted model holds the training strokes, from which the training trials can be rebuilt.
+The fitted model keeps the strokes the chain may draw (those with a stroke before and after them
+in their trial), each with its predecessor's length and displacement: from them the training
+trials can be rebuilt. `mirror_avatar.motion.sharing` writes a model of averaged strokes instead,
+from which they cannot.
 """
 
 from __future__ import annotations
@@ -65,7 +68,10 @@ FORMAT_VERSION = 1
 MIN_STROKES = 3
 """Fewest training strokes with a predecessor that a fit needs."""
 
-_LOG_FLOOR = 1e-4
+TRAINING_STROKES = "training strokes"
+"""What a fitted model's strokes are (``training_summary_["holds"]``): the person's own."""
+
+LOG_FLOOR = 1e-4
 """Added to |D| (units) before its logarithm, so a stroke of no displacement has a feature."""
 
 
@@ -127,24 +133,32 @@ class StrokeGenerator:
     Attributes
     ----------
     lengths_ : ndarray, shape (m,)
-        Each training stroke's length (samples at `rate`).
+        Each stroke's length (samples at `rate`): the m strokes the chain may draw.
     displacements_ : ndarray, shape (m,)
-        Each training stroke's signed displacement (units).
+        Each stroke's signed displacement (units).
     starts_ : ndarray, shape (m,)
-        Each training stroke's start position (units).
-    previous_ : ndarray of int, shape (m,)
-        Index of the stroke before each one in its trial, -1 for a trial's first.
+        Each stroke's start position (units).
+    before_lengths_ : ndarray, shape (m,)
+        The length of the stroke before each one in its trial (samples).
+    before_sizes_ : ndarray, shape (m,)
+        The size (absolute displacement, units) of the stroke before each one.
     profiles_ : ndarray, shape (sum(lengths_) + m,)
         The strokes' profiles, one after another (stroke i's has ``lengths_[i] + 1`` values).
+    bandwidth_ : ndarray, shape (2,)
+        ``jitter`` times Silverman's bandwidth of the drawable training strokes' log lengths and
+        log sizes: the SDs of the log-normal factors on a generated stroke's length and size.
     training_summary_ : dict
-        Labels, groups and durations of the training trials, the number of strokes and the seed.
+        Labels, groups and durations of the training trials, the number of strokes cut from
+        them, what the strokes are (``holds``) and the seed.
     """
 
     lengths_: Array
     displacements_: Array
     starts_: Array
-    previous_: NDArray[np.int64]
+    before_lengths_: Array
+    before_sizes_: Array
     profiles_: Array
+    bandwidth_: Array
     training_summary_: dict[str, Any]
 
     def __init__(
@@ -192,17 +206,20 @@ class StrokeGenerator:
                 lengths.append(float(last - first))
                 displacements.append(float(displacement))
                 starts.append(float(positions[first]))
-        self.lengths_ = np.array(lengths)
-        self.displacements_ = np.array(displacements)
-        self.starts_ = np.array(starts)
-        self.previous_ = np.array(previous, dtype=np.int64)
-        self.profiles_ = np.concatenate(profiles)
-        self._prepare_sampling(source="trials")
+        self._keep_drawable(
+            np.array(lengths), np.array(displacements), np.array(starts),
+            np.array(previous, dtype=np.int64), np.concatenate(profiles), "trials",
+        )  # fmt: skip
+        self.bandwidth_ = self.jitter * silverman_bandwidth(
+            np.column_stack([log_length(self.lengths_), log_size(self.displacements_)])
+        )
+        self._prepare_sampling()
         self.training_summary_ = {
             "labels": [t.label for t in trials],
             "groups": sorted({t.group for t in trials}),
             "durations": [round(t.duration, 6) for t in trials],
-            "n_strokes": int(self.lengths_.size),
+            "n_strokes": len(lengths),
+            "holds": TRAINING_STROKES,
             "random_state": self.random_state,
         }
         return self
@@ -223,43 +240,62 @@ class StrokeGenerator:
         for key, value in check_settings(given, STROKES.values()).items():
             setattr(self, key, value)
 
-    def _prepare_sampling(self, source: str | os.PathLike[str]) -> None:
-        """Index the strokes the chain may draw and their features (`_state`).
+    def _keep_drawable(
+        self,
+        lengths: Array,
+        displacements: Array,
+        starts: Array,
+        previous: NDArray[np.int64],
+        profiles: Array,
+        source: str | os.PathLike[str],
+    ) -> None:
+        """Keep the strokes the chain may draw, each with its predecessor's length and size.
 
-        A stroke may be drawn next when another precedes it in its trial and one follows it
-        (the last stroke of a trial is cut short by the trial's end).
+        A stroke may be drawn when another precedes it in its trial (``previous`` >= 0: the
+        index of the stroke before, -1 for a trial's first) and one follows it (the last stroke
+        of a trial is cut short by the trial's end).
+
+        Raises
+        ------
+        InputError
+            Fewer than `MIN_STROKES` drawable strokes.
         """
-        following = np.zeros(self.lengths_.size, dtype=bool)
-        following[self.previous_[self.previous_ >= 0]] = True
-        drawable = np.flatnonzero((self.previous_ >= 0) & following)
+        following = np.zeros(lengths.size, dtype=bool)
+        following[previous[previous >= 0]] = True
+        drawable = np.flatnonzero((previous >= 0) & following)
         if drawable.size < MIN_STROKES:
             raise InputError(
                 source,
                 f"{drawable.size} strokes follow another in their trial; the stroke generator "
                 f"needs {MIN_STROKES}: give longer trials or more of them",
             )
-        before = self.previous_[drawable]
-        self._drawable = drawable
-        self._directions = np.sign(self.displacements_[drawable])
+        ends = np.cumsum(lengths + 1.0).astype(np.int64)
+        firsts = ends - (lengths + 1).astype(np.int64)
+        self.lengths_ = lengths[drawable]
+        self.displacements_ = displacements[drawable]
+        self.starts_ = starts[drawable]
+        self.before_lengths_ = lengths[previous[drawable]]
+        self.before_sizes_ = np.abs(displacements[previous[drawable]])
+        self.profiles_ = np.concatenate([profiles[firsts[i] : ends[i]] for i in drawable])
+
+    def _prepare_sampling(self) -> None:
+        """Index the strokes' features (`_next_stroke`), profiles and rank weights."""
+        self._directions = np.sign(self.displacements_)
         self._features = np.column_stack(
             [
-                _log_length(self.lengths_[before]),
-                _log_size(self.displacements_[before]),
-                room_ahead(self.starts_[drawable], self._directions),
+                log_length(self.before_lengths_),
+                log_size(self.before_sizes_),
+                room_ahead(self.starts_, self._directions),
             ]
         )
         self._scale = np.maximum(self._features.std(axis=0), 1e-9)
-        self._bandwidth = self.jitter * silverman_bandwidth(
-            np.column_stack(
-                [_log_length(self.lengths_[drawable]), _log_size(self.displacements_[drawable])]
-            )
-        )
         ends = np.cumsum(self.lengths_ + 1.0).astype(np.int64)
         self._profile_bounds = np.column_stack([ends - (self.lengths_ + 1).astype(np.int64), ends])
+        count = self.lengths_.size
         self._k = (
-            max(1, round(math.sqrt(drawable.size)))
+            max(1, round(math.sqrt(count)))
             if self.neighbours == "auto"
-            else min(int(self.neighbours), drawable.size)
+            else min(int(self.neighbours), count)
         )
         weights = 1.0 / np.arange(1, self._k + 1)
         self._rank_weights = weights / weights.sum()
@@ -277,15 +313,15 @@ class StrokeGenerator:
             raise InputError("generator", f"n_samples must be positive, got {n_samples}")
         rng = np.random.default_rng(self.random_state if random_state is None else random_state)
         positions = np.empty(n_samples)
-        stroke = int(self._drawable[rng.integers(self._drawable.size)])
+        stroke = int(rng.integers(self.lengths_.size))
         position = float(self.starts_[stroke])
         direction = float(np.sign(self.displacements_[stroke])) or 1.0
         time = -rng.random() * self.lengths_[stroke]
         filled = 0
         while filled < n_samples:
-            length = self.lengths_[stroke] * math.exp(self._bandwidth[0] * rng.standard_normal())
+            length = self.lengths_[stroke] * math.exp(self.bandwidth_[0] * rng.standard_normal())
             size = abs(self.displacements_[stroke]) * math.exp(
-                self._bandwidth[1] * rng.standard_normal()
+                self.bandwidth_[1] * rng.standard_normal()
             )
             size = min(size, float(room_ahead(position, direction)))
             filled = self._draw_stroke(
@@ -317,12 +353,18 @@ class StrokeGenerator:
         stop = min(positions.size, math.ceil(time + length))
         if stop <= first:
             return filled
-        begin, end = self._profile_bounds[stroke]
         phase = (np.arange(first, stop) - time) / length
-        grid = np.linspace(0.0, 1.0, end - begin)
-        profile = self.profiles_[begin:end]
-        positions[first:stop] = position + displacement * np.interp(phase, grid, profile)
+        positions[first:stop] = position + displacement * self.profile_at(stroke, phase)
         return stop
+
+    def profile_at(self, stroke: int, phase: NDArray[np.floating[Any]]) -> Array:
+        """Return stroke ``stroke``'s profile at phases from 0 (its start) to 1 (its end).
+
+        The profile's ``lengths_[stroke] + 1`` values are taken at evenly spaced phases and
+        interpolated linearly between them.
+        """
+        begin, end = self._profile_bounds[stroke]
+        return np.interp(phase, np.linspace(0.0, 1.0, end - begin), self.profiles_[begin:end])
 
     def _next_stroke(
         self,
@@ -334,7 +376,7 @@ class StrokeGenerator:
     ) -> int:
         """Draw the training stroke that follows a generated one (Lall & Sharma's kernel)."""
         state = np.array(
-            [_log_length(length), _log_size(size), float(room_ahead(position, direction))]
+            [log_length(length), log_size(size), float(room_ahead(position, direction))]
         )
         distance = np.sum(((self._features - state) / self._scale) ** 2, axis=1)
         distance[self._directions != direction] = np.inf
@@ -342,7 +384,7 @@ class StrokeGenerator:
         nearest = np.argpartition(distance, k - 1)[:k]
         nearest = nearest[np.argsort(distance[nearest], kind="stable")]
         weights = self._rank_weights[:k] / self._rank_weights[:k].sum()
-        return int(self._drawable[nearest[rng.choice(k, p=weights)]])
+        return int(nearest[rng.choice(k, p=weights)])
 
     def sample_velocity(self, n_samples: int, random_state: Seed = None) -> Array:
         """Generate a velocity signal of ``n_samples`` at `rate` (units/s), METHODS section 2."""
@@ -380,16 +422,18 @@ class StrokeGenerator:
     def to_arrays(self) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
         """Return the fitted model's arrays and metadata, as `save` writes them.
 
-        Arrays ``lengths``, ``displacements``, ``starts``, ``previous``, ``profiles``; metadata
-        ``parameters`` and ``training``.
+        Arrays ``lengths``, ``displacements``, ``starts``, ``before_lengths``,
+        ``before_sizes``, ``profiles``, ``bandwidth``; metadata ``parameters`` and ``training``.
         """
         self._check_fitted()
         arrays: dict[str, NDArray[Any]] = {
             "lengths": self.lengths_,
             "displacements": self.displacements_,
             "starts": self.starts_,
-            "previous": self.previous_,
+            "before_lengths": self.before_lengths_,
+            "before_sizes": self.before_sizes_,
             "profiles": self.profiles_,
+            "bandwidth": self.bandwidth_,
         }
         return arrays, {"parameters": self.get_params(), "training": self.training_summary_}
 
@@ -403,55 +447,79 @@ class StrokeGenerator:
         """Rebuild a fitted model from `to_arrays` output, checking every value it reads.
 
         Lengths must be whole numbers of samples from 1 to the longest session, positions and
-        displacements within ±`MAX_ABS_POSITION`, each predecessor an earlier stroke or -1, and
-        the profiles as many as the lengths need, finite and within ±`MAX_ABS_POSITION`.
+        displacements within ±`MAX_ABS_POSITION`, the profiles as many as the lengths need,
+        finite and within ±`MAX_ABS_POSITION`, and at least `MIN_STROKES` strokes. Arrays
+        written before the predecessors' features were kept (each stroke's ``previous``
+        stroke instead, every training stroke, no ``bandwidth``) are read as the fit would
+        have kept them.
 
         Raises
         ------
         InputError
             ``source: problem`` when a parameter, array or value is not as above.
         """
-        parameters = check_object(source, "parameters", metadata.get("parameters"))
-        unknown = sorted(parameters.keys() - STROKES.keys())
-        if unknown:
-            raise InputError(source, f"unknown generator parameter {excerpt(unknown[0])}")
+        where = source if source is not None else "model"
+        model = cls(**_parameters(metadata, where))
         training = check_object(source, "training", metadata.get("training"))
         groups = training.get("groups")
         if not (isinstance(groups, list) and all(isinstance(g, str) for g in groups)):
             raise InputError(source, f"training groups {excerpt(groups)} are not a list of names")
-        model = cls(**parameters)
-        try:
-            model._check_parameters()
-        except ConstraintError as error:
-            raise ConstraintError(error.key, error.value, error.constraint, source) from None
-        names = ("lengths", "displacements", "starts", "previous", "profiles")
+        legacy = "previous" in arrays
+        names = ("lengths", "displacements", "starts", "profiles") + (
+            ("previous",) if legacy else ("before_lengths", "before_sizes", "bandwidth")
+        )
         require_arrays(source, arrays, names)
-        count = len(check_array(source, "lengths", arrays["lengths"], "float", (None,)))
-        bound = MAX_ABS_POSITION
-        lengths = check_array(source, "lengths", arrays["lengths"], "float", (count,), 1, 1e7)
-        if np.any(lengths != np.round(lengths)):
-            raise InputError(source, "stroke lengths must be whole numbers of samples")
-        model.lengths_ = lengths.astype(np.float64)
-        model.displacements_ = check_array(
-            source, "displacements", arrays["displacements"], "float", (count,), -2 * bound,
-            2 * bound,
-        ).astype(np.float64)  # fmt: skip
-        model.starts_ = check_array(
-            source, "starts", arrays["starts"], "float", (count,), -bound, bound
-        ).astype(np.float64)
+        checked = _checked_strokes(arrays, source)
+        if legacy:
+            model._read_previous(checked, arrays["previous"], where)
+        else:
+            model._read_drawable(checked, arrays, where)
+        model.training_summary_ = training
+        model._prepare_sampling()
+        return model
+
+    def _read_previous(
+        self, strokes: dict[str, Array], previous: NDArray[Any], source: str | os.PathLike[str]
+    ) -> None:
+        """Keep the drawable strokes of arrays that link each stroke to the one before it."""
+        count = strokes["lengths"].size
         previous = check_array(
-            source, "previous", arrays["previous"], "integer", (count,), -1, count - 1
+            source, "previous", previous, "integer", (count,), -1, count - 1
         ).astype(np.int64)
         if np.any(previous >= np.arange(count)):
             raise InputError(source, "each stroke's predecessor must be an earlier stroke or -1")
-        model.previous_ = previous
-        size = int(model.lengths_.sum()) + count
-        model.profiles_ = check_array(
-            source, "profiles", arrays["profiles"], "float", (size,), -bound, bound
+        self._keep_drawable(
+            strokes["lengths"], strokes["displacements"], strokes["starts"], previous,
+            strokes["profiles"], source,
+        )  # fmt: skip
+        self.bandwidth_ = self.jitter * silverman_bandwidth(
+            np.column_stack([log_length(self.lengths_), log_size(self.displacements_)])
+        )
+
+    def _read_drawable(
+        self,
+        strokes: dict[str, Array],
+        arrays: Mapping[str, NDArray[Any]],
+        source: str | os.PathLike[str],
+    ) -> None:
+        """Take the drawable strokes and their predecessors' features as the arrays hold them."""
+        count = strokes["lengths"].size
+        if count < MIN_STROKES:
+            raise InputError(source, f"{count} strokes; the stroke generator needs {MIN_STROKES}")
+        bound = MAX_ABS_POSITION
+        self.lengths_ = strokes["lengths"]
+        self.displacements_ = strokes["displacements"]
+        self.starts_ = strokes["starts"]
+        self.profiles_ = strokes["profiles"]
+        self.before_lengths_ = check_array(
+            source, "before_lengths", arrays["before_lengths"], "float", (count,), 1, 1e7
         ).astype(np.float64)
-        model.training_summary_ = training
-        model._prepare_sampling(source=source if source is not None else "model")
-        return model
+        self.before_sizes_ = check_array(
+            source, "before_sizes", arrays["before_sizes"], "float", (count,), 0, 2 * bound
+        ).astype(np.float64)
+        self.bandwidth_ = check_array(
+            source, "bandwidth", arrays["bandwidth"], "float", (2,), 0, 10
+        ).astype(np.float64)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the fitted model to ``path`` (``.npz`` + JSON metadata), atomically."""
@@ -468,6 +536,49 @@ class StrokeGenerator:
         """
         arrays, metadata = load_model(path, FORMAT_NAME, FORMAT_VERSION, ("lengths", "profiles"))
         return cls.from_arrays(arrays, metadata, path)
+
+
+def _parameters(metadata: Mapping[str, Any], source: str | os.PathLike[str]) -> dict[str, Any]:
+    """Return a model file's hyper-parameters, refusing what `STROKE_SETTINGS` refuses."""
+    parameters = check_object(source, "parameters", metadata.get("parameters"))
+    unknown = sorted(parameters.keys() - STROKES.keys())
+    if unknown:
+        raise InputError(source, f"unknown generator parameter {excerpt(unknown[0])}")
+    try:
+        return check_settings(dict(parameters), STROKES.values())
+    except ConstraintError as error:
+        raise ConstraintError(error.key, error.value, error.constraint, source) from None
+
+
+def _checked_strokes(
+    arrays: Mapping[str, NDArray[Any]], source: str | os.PathLike[str] | None
+) -> dict[str, Array]:
+    """Return a model file's stroke lengths, displacements, starts and profiles, checked.
+
+    Raises
+    ------
+    InputError
+        A length that is not a whole number from 1 to 1e7 samples, a position, displacement or
+        profile value beyond ±`MAX_ABS_POSITION` (displacements ±2x), or profiles of a size
+        the lengths do not need.
+    """
+    count = len(check_array(source, "lengths", arrays["lengths"], "float", (None,)))
+    bound = MAX_ABS_POSITION
+    lengths = check_array(source, "lengths", arrays["lengths"], "float", (count,), 1, 1e7)
+    if np.any(lengths != np.round(lengths)):
+        raise InputError(source, "stroke lengths must be whole numbers of samples")
+    displacements = check_array(
+        source, "displacements", arrays["displacements"], "float", (count,), -2 * bound, 2 * bound
+    )
+    starts = check_array(source, "starts", arrays["starts"], "float", (count,), -bound, bound)
+    size = int(lengths.sum()) + count
+    profiles = check_array(source, "profiles", arrays["profiles"], "float", (size,), -bound, bound)
+    return {
+        "lengths": lengths.astype(np.float64),
+        "displacements": displacements.astype(np.float64),
+        "starts": starts.astype(np.float64),
+        "profiles": profiles.astype(np.float64),
+    }
 
 
 def _profile(positions: Array, displacement: float) -> Array:
@@ -489,9 +600,11 @@ def silverman_bandwidth(samples: Array) -> Array:
     return 1.06 * samples.std(axis=0) * samples.shape[0] ** (-0.2)
 
 
-def _log_length(length: Array | float) -> Array:
+def log_length(length: Array | float) -> Array:
+    """Return the logarithm of stroke lengths (samples): the chain's first feature."""
     return np.log(np.asarray(length, dtype=np.float64))
 
 
-def _log_size(displacement: Array | float) -> Array:
-    return np.log(np.abs(np.asarray(displacement, dtype=np.float64)) + _LOG_FLOOR)
+def log_size(displacement: Array | float) -> Array:
+    """Return ``log(|D| + LOG_FLOOR)`` of displacements (units): the chain's second feature."""
+    return np.log(np.abs(np.asarray(displacement, dtype=np.float64)) + LOG_FLOOR)

@@ -32,6 +32,8 @@ from mirror_avatar.files.model_files import (
 )
 from mirror_avatar.learning.acceleration_player import AccelerationPlayer
 from mirror_avatar.motion.models import MotionModel, model_arrays, motion_from_arrays
+from mirror_avatar.motion.sharing import shareable
+from mirror_avatar.motion.strokes import StrokeGenerator
 from mirror_avatar.players import Player, VirtualTrainer
 from mirror_avatar.training.agents import agent_kind
 
@@ -141,6 +143,36 @@ def load_avatar(path: str | os.PathLike[str]) -> Avatar:
             )
     summary = check_object(path, "summary", metadata.get("summary", {}))
     return Avatar(name, generator, players, summary)
+
+
+def shareable_avatar(avatar: Avatar, group_size: int) -> Avatar:
+    """Return the avatar with its motion model's strokes averaged (`motion.sharing.shareable`).
+
+    The motion model, and each player's reference motion when it is the same model, are
+    replaced by one shareable model; the summary's trial labels by their number. The players'
+    policies are kept: they were trained on sessions, not on the person's trials.
+
+    Raises
+    ------
+    InputError
+        The motion model is not a stroke generator, or `shareable` refuses it.
+    """
+    if not isinstance(avatar.generator, StrokeGenerator):
+        raise InputError(
+            "avatar",
+            "its motion model is an IMS generator, whose frames are the person's recordings: "
+            "only an avatar on a stroke generator can be shared (avatar create makes one)",
+        )
+    shared = shareable(avatar.generator, group_size)
+    players = {}
+    for role, player in avatar.players.items():
+        players[role] = copy.copy(player)
+        if player.reference is avatar.generator:
+            players[role].reference = shared
+    summary = dict(avatar.summary)
+    if isinstance(summary.get("trials"), list):
+        summary["trials"] = len(summary["trials"])
+    return Avatar(avatar.name, shared, players, summary)
 
 
 def _player_from_arrays(
