@@ -111,14 +111,19 @@ def test_a_shared_model_saves_and_loads_and_a_shared_model_shares_again(fitted, 
     assert again.training_summary_["n_trials"] == FITTED
 
 
-def test_a_shared_avatar_keeps_its_policies_and_reads_the_shared_model(fitted, tmp_path) -> None:
+def untrained_avatar(generator: StrokeGenerator) -> Avatar:
+    """An avatar of fresh Q-tables, its leader reading the generator as its reference."""
     players = {}
-    for role, reference in (("follower", None), ("leader", fitted)):
+    for role, reference in (("follower", None), ("leader", generator)):
         features = "reference" if reference is not None else "relative"
         players[role] = CyberPlayer(make_default_discretisation(features), reference=reference)
         players[role].initialise_q(0, 1.0)
         players[role].training_ = {"role": role, "seed": 0}
-    avatar = Avatar("P01", fitted, players, {"trials": ["a", "b"]})
+    return Avatar("P01", generator, players, {"trials": ["a", "b"]})
+
+
+def test_a_shared_avatar_keeps_its_policies_and_reads_the_shared_model(fitted, tmp_path) -> None:
+    avatar = untrained_avatar(fitted)
     shared = shareable_avatar(avatar, 3)
     shared.save(tmp_path / "shared.npz")
     loaded = load_avatar(tmp_path / "shared.npz")
@@ -145,3 +150,13 @@ def test_generator_share_writes_a_shareable_file_and_refuses_an_ims_model(
     assert main(["generator", "share", str(ims), "--out", str(tmp_path / "x.npz")]) == 2
     assert "only a stroke generator can be shared" in capsys.readouterr().err
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_avatar_share_writes_the_avatar_shared(fitted, tmp_path: Path, capsys) -> None:
+    untrained_avatar(fitted).save(tmp_path / "P01.npz")
+    out = tmp_path / "P01-shared.npz"
+    assert main(["avatar", "share", str(tmp_path / "P01.npz"), "--out", str(out),
+                 "--group-size", "4"]) == 0  # fmt: skip
+    assert "no trial can be rebuilt" in capsys.readouterr().out
+    holds = load_avatar(out).generator.training_summary_["holds"]
+    assert holds == "averages of 4 or more strokes"

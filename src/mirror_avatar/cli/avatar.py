@@ -140,6 +140,11 @@ def create(
         click.echo(result["verdict"])
     click.echo(built.summary["verdict"])
     click.echo(f"wrote {out_path.resolve()} and {card_path.resolve()}")
+    click.echo(
+        "the avatar file holds the person's strokes, from which their trials can be rebuilt: "
+        "share it as you would share the recordings, or write one without them with "
+        "`avatar share`"
+    )
 
 
 @avatar.command()
