@@ -82,3 +82,14 @@ def test_bad_options_are_refused_in_one_line(tmp_path, capsys):
     assert main(["lab", "preview", "--protocol", str(EXAMPLE), "--participants", "0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert "--participants" in err[-1]
+
+
+def test_a_protocol_nested_by_dotted_keys_is_refused_in_one_line(tmp_path, capsys):
+    path = tmp_path / "dotted.toml"
+    dotted = "{" + ".".join(["k"] * 2000) + " = 1}"
+    path.write_text(EXAMPLE.read_text().replace('label = "P1"', f"label = {dotted}", 1))
+    assert main(["lab", "preview", "--protocol", str(path)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert (
+        error == f"mirror-avatar: error: {path}: is TOML nested deeper than the limit of 32 levels"
+    )
