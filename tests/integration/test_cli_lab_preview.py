@@ -93,3 +93,14 @@ def test_a_protocol_nested_by_dotted_keys_is_refused_in_one_line(tmp_path, capsy
     assert (
         error == f"mirror-avatar: error: {path}: is TOML nested deeper than the limit of 32 levels"
     )
+
+
+def test_control_characters_in_the_protocols_name_are_printed_escaped(tmp_path, capsys):
+    path = tmp_path / "\x1b[31mred\x07.toml"
+    path.write_text(EXAMPLE.read_text())
+    assert main(["lab", "preview", "--protocol", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"protocol {tmp_path}/\\x1b[31mred\\x07.toml: ")
+    assert "\x1b" not in out and "\x07" not in out
+    assert main(["lab", "preview", "--protocol", str(tmp_path / "\x1b[2Jgone.toml")]) == 2
+    assert capsys.readouterr().err.strip().endswith("\\x1b[2Jgone.toml: no such file")
