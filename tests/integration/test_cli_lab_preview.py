@@ -82,3 +82,25 @@ def test_bad_options_are_refused_in_one_line(tmp_path, capsys):
     assert main(["lab", "preview", "--protocol", str(EXAMPLE), "--participants", "0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert "--participants" in err[-1]
+
+
+def test_a_protocol_nested_by_dotted_keys_is_refused_in_one_line(tmp_path, capsys):
+    path = tmp_path / "dotted.toml"
+    dotted = "{" + ".".join(["k"] * 2000) + " = 1}"
+    path.write_text(EXAMPLE.read_text().replace('label = "P1"', f"label = {dotted}", 1))
+    assert main(["lab", "preview", "--protocol", str(path)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert (
+        error == f"mirror-avatar: error: {path}: is TOML nested deeper than the limit of 32 levels"
+    )
+
+
+def test_control_characters_in_the_protocols_name_are_printed_escaped(tmp_path, capsys):
+    path = tmp_path / "\x1b[31mred\x07.toml"
+    path.write_text(EXAMPLE.read_text())
+    assert main(["lab", "preview", "--protocol", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"protocol {tmp_path}/\\x1b[31mred\\x07.toml: ")
+    assert "\x1b" not in out and "\x07" not in out
+    assert main(["lab", "preview", "--protocol", str(tmp_path / "\x1b[2Jgone.toml")]) == 2
+    assert capsys.readouterr().err.strip().endswith("\\x1b[2Jgone.toml: no such file")

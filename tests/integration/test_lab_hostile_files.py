@@ -23,8 +23,10 @@ from mirror_avatar.testing import ServerThread
 DEADLINE = 60.0
 """Seconds any request of these tests may take before the test fails (a frozen server)."""
 
-TOO_DEEP = "arrays or tables nested too deeply (flatten them)"
+TOO_DEEP = "is TOML nested deeper than the limit of 32 levels"
 DEEP_TOML = "x = " + "[" * 60_000 + "]" * 60_000 + "\n"
+DOTTED_TOML = PROTOCOL.replace('label = "P1"', "label = {" + ".".join(["k"] * 3000) + " = 1}", 1)
+"""The study protocol with a player's label a table nested by dotted keys (``{k.k.k = 1}``)."""
 
 
 @pytest.fixture
@@ -93,20 +95,16 @@ def test_deeply_nested_bodies_and_protocols_are_refused_in_one_line(lab, tmp_pat
                       | {"Content-Type": "application/json"}, timeout=DEADLINE)  # fmt: skip
     assert deep.status_code == 400
     assert deep.json()["error"].startswith("the request body is JSON nested deeper than the limit")
-    body = {"name": "deep.toml", "text": DEEP_TOML}
-    loaded = httpx.post(f"{lab.url}/api/protocol", json=body, headers=BEARER, timeout=DEADLINE)
-    assert loaded.status_code == 400
-    assert loaded.json() == {
-        "error": "deep.toml: arrays or tables nested too deeply (flatten them)"
-    }
+    for text in (DOTTED_TOML, DEEP_TOML):
+        body = {"name": "deep.toml", "text": text}
+        loaded = httpx.post(f"{lab.url}/api/protocol", json=body, headers=BEARER,
+                            timeout=DEADLINE)  # fmt: skip
+        assert loaded.status_code == 400
+        assert loaded.json() == {"error": f"deep.toml: {TOO_DEEP}"}
     path = tmp_path / "deep.toml"
     path.write_text(DEEP_TOML)
     assert main(["lab", "--protocol", str(path), "--out", str(tmp_path / "cli")]) == 2
-    assert (
-        capsys.readouterr()
-        .err.strip()
-        .endswith(f"{path}: arrays or tables nested too deeply (flatten them)")
-    )
+    assert capsys.readouterr().err.strip().endswith(f"{path}: {TOO_DEEP}")
 
 
 def test_the_researchers_token_keeps_its_rate_while_its_address_floods(lab):

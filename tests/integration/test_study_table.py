@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -94,6 +95,27 @@ def test_the_table_from_the_runs_equals_the_table_from_their_bids_export(study, 
     run = from_runs[(from_runs["participant"] == "p000") & (from_runs["trial"] == 2)]
     pd.testing.assert_frame_equal(subject, run[subject.columns].reset_index(drop=True))
     assert run.drop(columns=subject.columns).isna().all(axis=None)  # no confidence asked
+
+
+HOSTILE_ANSWER = 'a\tcomputer,\r\n  "it said" C:\\new\\ \x1b[31m\\t '
+"""A typed answer with what a TSV cell cannot hold as it is: a tab, line breaks, a backslash
+before a t or an n, and spaces and quotes a reader may eat."""
+
+
+def test_a_typed_answer_is_the_same_from_the_runs_and_from_their_bids_export(
+    study, tmp_path, capsys
+):
+    folder = tmp_path / "out" / study.folder.name
+    shutil.copytree(study.folder, folder)
+    answers = folder / "trial-01_answers.json"
+    recorded = json.loads(answers.read_text())
+    recorded["answers"]["P1"]["partner"]["value"] = HOSTILE_ANSWER
+    answers.write_text(json.dumps(recorded))
+    assert main(["lab", "export", str(folder), "--out", str(tmp_path / "bids")]) == 0
+    from_runs = table_of([folder], tmp_path / "runs", capsys)
+    from_bids = table_of([tmp_path / "bids"], tmp_path / "from_bids", capsys)
+    pd.testing.assert_frame_equal(from_runs, from_bids)
+    assert from_bids["answer_partner"].iloc[0] == HOSTILE_ANSWER
 
 
 def test_the_answers_carry_the_partners_true_kind(study, tmp_path):

@@ -92,6 +92,8 @@ def bad_table(folder: Path, case: str) -> Path:
     write_study_table(rows, folder)
     if case == "bad dictionary":
         (folder / "study.json").write_text("{not json")
+    if case == "deep dictionary":
+        (folder / "study.json").write_text('{"a": ' * 5000 + "1" + "}" * 5000)
     return folder / "study.csv"
 
 
@@ -104,7 +106,8 @@ def bad_table(folder: Path, case: str) -> Path:
         ("no position", "no position column"),
         ("no measure", "no measure column"),
         ("no condition", "no row has a condition"),
-        ("bad dictionary", "cannot be read as the table's data dictionary"),
+        ("bad dictionary", "study.json: is not valid JSON"),
+        ("deep dictionary", "study.json: is JSON nested deeper than the limit of 32 levels"),
     ],
 )
 def test_bad_tables_are_refused_in_one_line(tmp_path: Path, case: str, problem: str) -> None:

@@ -6,6 +6,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from mirror_avatar.files.bids.tables import read_tsv, tsv_rows
+from mirror_avatar.files.bids.writing import tsv_table
 from mirror_avatar.files.trial_record import SlotRecord, TrialRecord, trial_record
 from mirror_avatar.lab.export.bids_study import acq_time, answer_rows, read_answers
 
@@ -63,3 +65,16 @@ def test_answers_without_the_questions_text_keep_their_values_and_order(tmp_path
     assert answer_rows(answers, "P2", slots) == [] and answer_rows(answers, "P3", slots) == []
     alone = answer_rows(answers, "P1", slots[:1])
     assert {(r["partners"], r["partner_kind"]) for r in alone} == {("n/a", "none")}
+
+
+def test_a_tsv_cell_reads_back_as_the_text_written(tmp_path: Path) -> None:
+    texts = ["a\tb", "two\r\nlines\n", "C:\\new\\table", '"quoted" ', "  ", "\\t typed", "é\x1b[0m"]
+    path = tmp_path / "t.tsv"
+    path.write_text(
+        tsv_table(["key", "text"], [{"key": str(i), "text": t} for i, t in enumerate(texts)])
+    )
+    assert len(path.read_text().splitlines()) == len(texts) + 1
+    header, rows = tsv_rows(path)
+    assert header == ["key", "text"]
+    assert [row["text"] for row in rows] == texts
+    assert read_tsv(path, "key")[1]["2"]["text"] == "C:\\new\\table"

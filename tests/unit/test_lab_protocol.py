@@ -200,6 +200,17 @@ REFUSALS = [
         [{"label": "P1", "kind": "person"}],
         "blocks[1].conditions[2].players: a group needs at least two players",
     ),
+    (
+        ("blocks", 1, "conditions", 0, "name"),
+        "fol\tlow",
+        "blocks[1].conditions[0].name: holds the control character '\\t'",
+    ),
+    (("blocks", 0, "name"), "al\none", "blocks[0].name: holds the control character '\\n'"),
+    (
+        ("questions", "partner", "options", 0),
+        "a \x1b[31mperson",
+        "questions.partner.options[0]: holds the control character '\\x1b'",
+    ),
 ]
 
 

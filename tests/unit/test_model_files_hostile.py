@@ -31,7 +31,7 @@ from mirror_avatar.files.model_files import (
     MAX_METADATA_CHARS,
     MAX_TOTAL_BYTES,
 )
-from mirror_avatar.files.user_files import MAX_JSON_DEPTH
+from mirror_avatar.files.user_files import MAX_DEPTH
 from mirror_avatar.learning.agent import CyberPlayer, load_cyber_player
 from mirror_avatar.learning.discretisation import make_default_discretisation
 from mirror_avatar.motion.generator import IMSGenerator
@@ -496,13 +496,13 @@ def test_deeply_nested_metadata_is_refused(files, kind, brackets) -> None:
     opening, closing = ('{"a":', "}") if brackets == "{}" else ("[", "]")
     deep = opening * 100_000 + "1" + closing * 100_000
     write(files[kind], arrays, json.dumps(metadata)[:-1] + f', "deep": {deep}}}')
-    refused(files[kind], kind, f"metadata is JSON nested deeper than the limit of {MAX_JSON_DEPTH}")
+    refused(files[kind], kind, f"metadata is JSON nested deeper than the limit of {MAX_DEPTH}")
 
 
 @pytest.mark.parametrize("kind", ["generator", "cyber"])
 def test_metadata_at_the_depth_limit_and_brackets_in_strings_still_load(files, kind) -> None:
     arrays, metadata = contents(files[kind])
-    deep = "[" * (MAX_JSON_DEPTH - 1) + "]" * (MAX_JSON_DEPTH - 1)
+    deep = "[" * (MAX_DEPTH - 1) + "]" * (MAX_DEPTH - 1)
     text = json.dumps(metadata | {"note": "[{" * 10_000 + '\\"[['})[:-1] + f', "deep": {deep}}}'
     write(files[kind], arrays, text)
     LOADERS[kind](files[kind])

@@ -1,4 +1,4 @@
-"""The one way user files are opened and user JSON parsed (`mirror_avatar.files.user_files`)."""
+"""The one way user files are opened and user JSON and TOML parsed (`files.user_files`)."""
 
 from __future__ import annotations
 
@@ -11,11 +11,13 @@ import pytest
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.user_files import (
     FLOAT_DIGITS,
-    MAX_JSON_DEPTH,
+    MAX_DEPTH,
     MAX_PART_BYTES,
     check_path,
+    nesting_depth,
     open_regular,
     parse_json,
+    parse_toml,
     read_bytes,
     read_json,
     read_text,
@@ -61,12 +63,12 @@ def test_paths_no_system_can_open_are_named_without_their_nul(tmp_path: Path) ->
 
 
 def test_json_at_the_depth_limit_and_brackets_in_strings_are_read() -> None:
-    deep = "[" * MAX_JSON_DEPTH + "]" * MAX_JSON_DEPTH
+    deep = "[" * MAX_DEPTH + "]" * MAX_DEPTH
     text = json.dumps({"note": '[{"\\'})[:-1] + f', "deep": {deep[1:-1]}}}'
     assert parse_json(text, "f.json")["note"] == '[{"\\'
     with pytest.raises(InputError, match=f"f.json: is JSON nested deeper than the limit of "
-                                         f"{MAX_JSON_DEPTH}"):  # fmt: skip
-        parse_json("[" * (MAX_JSON_DEPTH + 1) + "]" * (MAX_JSON_DEPTH + 1), "f.json")
+                                         f"{MAX_DEPTH}"):  # fmt: skip
+        parse_json("[" * (MAX_DEPTH + 1) + "]" * (MAX_DEPTH + 1), "f.json")
 
 
 @pytest.mark.parametrize(
@@ -98,3 +100,26 @@ def test_read_json_reads_a_file_within_its_limit(tmp_path: Path) -> None:
     assert read_json(path, 100) == {"a": [1, 2.5]}
     with pytest.raises(InputError, match="over the limit"):
         read_json(path, 5)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "label = {" + ".".join(["k"] * 3000) + " = 1}",
+        "[" + ".".join(["t"] * (MAX_DEPTH + 1)) + "]",
+        "x = " + "{a = " * 3000 + "1" + "}" * 3000,
+        "x = " + "[" * 60_000 + "]" * 60_000,
+    ],
+    ids=["dotted keys in an inline table", "a table header", "inline tables", "arrays"],
+)
+def test_toml_nested_deeper_than_the_limit_is_refused_in_one_line(text: str) -> None:
+    with pytest.raises(InputError, match=f"^p.toml: is TOML nested deeper than the limit of "
+                                         f"{MAX_DEPTH} levels$"):  # fmt: skip
+        parse_toml(text, "p.toml")
+
+
+def test_toml_at_the_depth_limit_is_read() -> None:
+    keys = ".".join(["k"] * (MAX_DEPTH - 1))
+    assert nesting_depth(parse_toml(f"{keys} = [1]", "p.toml")) == MAX_DEPTH
+    with pytest.raises(InputError, match="p.toml: not valid TOML: "):
+        parse_toml("x = [", "p.toml")

@@ -10,7 +10,6 @@ outside the known design, answer and p-value (``*_p_value``) columns as a measur
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,6 +19,8 @@ import pandas as pd
 from mirror_avatar.analysis.dictionary import DESIGN_COLUMNS, GUESS_COLUMNS
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.atomic import csv_cells
+from mirror_avatar.files.trial_io import MAX_SIDECAR_BYTES
+from mirror_avatar.files.user_files import parse_json, read_text
 
 TABLE_NAMES = ("study.csv", "study.parquet")
 """The table's file names in a folder, in the order they are looked for."""
@@ -125,8 +126,10 @@ def read_study_table(path: str | Path) -> StudyTable:
     Raises
     ------
     InputError
-        No table at ``path``, a file that is not a CSV or Parquet table, an unreadable
-        dictionary, a required column missing, no condition, or no measure column.
+        No table at ``path``, a file that is not a CSV or Parquet table, a dictionary that
+        cannot be read (`mirror_avatar.files.user_files`: not a regular file, too large, not
+        JSON, nested too deeply), a required column missing, no condition, or no
+        measure column.
     """
     path = Path(path)
     file = _table_file(path)
@@ -174,10 +177,7 @@ def _read_rows(file: Path) -> pd.DataFrame:
 def _read_dictionary(file: Path) -> dict[str, dict[str, Any]]:
     if not file.is_file():
         return {}
-    try:
-        dictionary = json.loads(file.read_text(encoding="utf-8"))
-    except (ValueError, OSError) as error:
-        raise InputError(file, f"cannot be read as the table's data dictionary ({error})") from None
+    dictionary = parse_json(read_text(file, MAX_SIDECAR_BYTES), file, finite=False)
     if not isinstance(dictionary, dict) or not all(
         isinstance(v, dict) for v in dictionary.values()
     ):

@@ -14,8 +14,6 @@ participant's number and each ``_beh.tsv`` the answers.
 
 from __future__ import annotations
 
-import csv
-import io
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -23,8 +21,7 @@ from pathlib import Path
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.bids.names import MISSING, bids_label, entities
 from mirror_avatar.files.bids.reading import GAME_KEY, game_record, open_recording
-from mirror_avatar.files.bids.tables import read_tsv
-from mirror_avatar.files.trial_io import read_sidecar_text
+from mirror_avatar.files.bids.tables import read_tsv, tsv_rows
 from mirror_avatar.files.trial_record import (
     AnswerRecord,
     AnswersRecord,
@@ -190,7 +187,7 @@ def _rows(path: Path) -> list[dict[str, str]]:
     """Read a TSV table's rows (none when the file is absent)."""
     if not path.is_file():
         return []
-    return list(csv.DictReader(io.StringIO(read_sidecar_text(path)), delimiter="\t"))
+    return tsv_rows(path)[1]
 
 
 def _bids_answers(root: Path, record: TrialRecord, study: StudyRun | None) -> AnswersRecord | None:

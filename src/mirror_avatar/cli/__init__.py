@@ -20,6 +20,7 @@ import click
 
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.common.interruptions import aborted, interrupt
+from mirror_avatar.common.text import printable
 
 __all__ = ["cli", "fail", "interrupt", "main"]
 
@@ -110,6 +111,10 @@ def missing_extra(error: BaseException) -> str | None:
 
 
 def fail(problem: str) -> int:
-    """Print ``problem`` as the one error line and return the bad-input exit code, 2."""
-    click.echo(f"mirror-avatar: error: {problem}", err=True)
+    """Print ``problem`` as the one error line and return the bad-input exit code, 2.
+
+    Its control characters are escaped (`mirror_avatar.common.text.printable`): a file name
+    quoted in it may not act on the terminal.
+    """
+    click.echo(f"mirror-avatar: error: {printable(problem)}", err=True)
     return 2

@@ -7,6 +7,8 @@ from typing import TYPE_CHECKING
 
 import click
 
+from mirror_avatar.common.text import printable
+
 if TYPE_CHECKING:
     from mirror_avatar.lab.design.balance import BlockBalance
     from mirror_avatar.lab.design.protocol import Protocol, Step
@@ -44,32 +46,40 @@ def preview(protocol_file: Path, participants: int) -> None:
 
     protocol = load_protocol(protocol_file)
     schedules = [protocol.schedule(p) for p in range(participants)]
-    click.echo(
+    lines = [
         f"protocol {protocol_file}: {protocol.title!r}, seed {protocol.seed}, "
-        f"{participants} participant(s)"
-    )
+        f"{participants} participant(s)",
+        "",
+        *(f"p{p:03d}  {_order_line(protocol, steps)}" for p, steps in enumerate(schedules)),
+    ]
     if protocol.seed_drawn:
-        click.echo(
+        _show(
             f"warning: {protocol_file} has no seed: these draws are seed {protocol.seed}'s; add "
             f"'seed = {protocol.seed}' to the protocol for the lab to draw the same",
             err=True,
         )
-    click.echo("")
-    for p, steps in enumerate(schedules):
-        click.echo(f"p{p:03d}  {_order_line(protocol, steps)}")
     balances = block_balance(protocol, schedules)
     for balance in balances:
-        click.echo("")
-        click.echo("\n".join(_table(balance)))
-    click.echo("")
+        lines += ["", *_table(balance)]
+    lines += ["", _verdict(protocol, participants, balances)]
+    for line in lines:
+        _show(line)
+
+
+def _show(line: str, err: bool = False) -> None:
+    """Print a line with its control characters escaped: a name may not act on the terminal."""
+    click.echo(printable(line), err=err)
+
+
+def _verdict(protocol: Protocol, participants: int, balances: list[BlockBalance]) -> str:
+    """Say whether every block is balanced, or what is not and what would balance it."""
     problems = [problem for balance in balances for problem in balance.problems()]
     if not problems:
-        click.echo(
+        return (
             "balanced: every condition at every position equally often, each partner kind at "
             "each position equally often, each person-or-avatar slot as often each kind"
         )
-        return
-    click.echo(f"not balanced: {'; '.join(problems)} ({_fix(protocol, participants, balances)})")
+    return f"not balanced: {'; '.join(problems)} ({_fix(protocol, participants, balances)})"
 
 
 def _fix(protocol: Protocol, participants: int, balances: list[BlockBalance]) -> str:

@@ -20,7 +20,7 @@ A model file may come from anyone, so `read_archive` reads nothing it has not bo
 - the archive must be a regular file of at most `MAX_FILE_BYTES`
   (`mirror_avatar.files.user_files.open_regular`: a named pipe or a device is refused unopened);
 - the metadata JSON is parsed by `mirror_avatar.files.user_files.parse_json`: at most
-  `mirror_avatar.files.user_files.MAX_JSON_DEPTH` arrays and objects deep.
+  `mirror_avatar.files.user_files.MAX_DEPTH` arrays and objects deep.
 
 The loaders then check every value they read with `check_integer`, `check_real`, `check_array`
 (every array value finite and at most `MAX_MAGNITUDE` in size unless a tighter range is given)

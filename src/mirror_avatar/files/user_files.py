@@ -13,10 +13,16 @@ all of these in one `InputError` line before any byte is read:
 - `read_bytes` and `read_text` then read at most the limit (and one byte more, to notice a file
   that grew past it).
 
-JSON a user gives (sidecars, session descriptions, graphs, model metadata) is parsed by
-`parse_json`, which bounds its nesting to `MAX_JSON_DEPTH` before parsing (a deeply nested text
-would otherwise exhaust Python's recursion limit) and refuses numbers JSON cannot hold (NaN,
-Infinity, or a value beyond float64's range, which Python would read as infinite).
+JSON and TOML a user gives (sidecars, session descriptions, graphs, model metadata, study
+protocols, data dictionaries, request bodies) are parsed by `parse_json` and `parse_toml`, which
+bound their nesting to `MAX_DEPTH` levels in one way (`bounded`): the text is parsed, a parser
+that exhausts Python's recursion limit is refused, and the value read is measured without
+recursion and refused when deeper than the limit. The value is measured rather than the text
+pre-scanned because TOML nests without brackets (dotted keys, ``[a.b.c]`` headers, quoted keys
+with dots), which only the parser reads right; whatever reads the value after (checks, error
+lines naming it) never recurses deeper than `MAX_DEPTH`. `parse_json` also refuses numbers JSON
+cannot hold (NaN, Infinity, or a value beyond float64's range, which Python would read as
+infinite).
 """
 
 from __future__ import annotations
@@ -24,10 +30,11 @@ from __future__ import annotations
 import json
 import math
 import os
-import re
 import stat
+import tomllib
+from collections.abc import Callable
 from pathlib import Path
-from typing import IO, Any, TypeGuard
+from typing import IO, Any, TypeGuard, TypeVar
 
 from mirror_avatar.common.errors import InputError
 
@@ -35,9 +42,9 @@ MAX_PART_BYTES = 255
 """Longest part of a path, in bytes of its file-system encoding (``NAME_MAX`` of Linux, macOS
 and Windows file systems)."""
 
-MAX_JSON_DEPTH = 32
-"""Deepest nesting of arrays and objects in JSON a user gives (**choice**: the deepest the
-package writes is 4)."""
+MAX_DEPTH = 32
+"""Deepest nesting of arrays, objects and tables in JSON or TOML a user gives (**choice**: the
+deepest the package writes is 4, a study protocol's is 7)."""
 
 KINDS = {
     stat.S_IFDIR: "a folder",
@@ -48,11 +55,10 @@ KINDS = {
 }
 """What each kind of file that is not a regular file is called in an error line."""
 
+Parsed = TypeVar("Parsed")
+
 FLOAT_DIGITS = 308
 """Most digits of a JSON integer read: larger ones are beyond float64's range (about 1.8e308)."""
-
-_JSON_STRING = re.compile(r'"[^"\\]*+(?:\\.[^"\\]*+)*+"', re.DOTALL)
-_NOT_BRACKET = re.compile(r"[^\[\]{}]")
 
 
 def check_path(path: str | os.PathLike[str]) -> Path:
@@ -186,14 +192,47 @@ def read_text(path: str | os.PathLike[str], limit: int) -> str:
         raise InputError(path, "not UTF-8 text (save it as UTF-8)") from None
 
 
-def nesting_exceeds(text: str, limit: int) -> bool:
-    """Return True when the arrays and objects of a JSON text nest more than ``limit`` deep."""
-    depth = 0
-    for bracket in _NOT_BRACKET.sub("", _JSON_STRING.sub("", text)):
-        depth += 1 if bracket in "[{" else -1
-        if depth > limit:
-            return True
-    return False
+def nesting_depth(value: object) -> int:
+    """Return how many lists and dicts nest in ``value`` (0 for a scalar), without recursion."""
+    deepest, pending = 0, [(value, 0)]
+    while pending:
+        item, depth = pending.pop()
+        if isinstance(item, dict):
+            item = list(item.values())
+        if isinstance(item, list):
+            deepest = max(deepest, depth + 1)
+            pending.extend((child, depth + 1) for child in item)
+    return deepest
+
+
+def bounded(
+    load: Callable[[], Parsed], source: str | os.PathLike[str] | None, subject: str
+) -> Parsed:
+    """Return what ``load`` parses, refused when nested deeper than `MAX_DEPTH` levels.
+
+    Parameters
+    ----------
+    load
+        Parses the text (its own syntax errors are its to report).
+    source
+        Where the text comes from (a file path), named in errors.
+    subject
+        What the text is, as the error line says it (e.g. ``"is TOML"``).
+
+    Raises
+    ------
+    InputError
+        The parser exhausted Python's recursion limit, or the value read nests deeper than
+        `MAX_DEPTH` levels (`nesting_depth`).
+    """
+    too_deep = InputError(source, f"{subject} nested deeper than the limit of {MAX_DEPTH} levels")
+    try:
+        value = load()
+    except RecursionError:
+        raise too_deep from None
+    if nesting_depth(value) > MAX_DEPTH:
+        raise too_deep
+    return value
 
 
 def _finite(text: str) -> float:
@@ -227,7 +266,7 @@ def parse_json(
     what: str = "",
     finite: bool = True,
 ) -> Any:
-    """Parse JSON a user gave, nested at most `MAX_JSON_DEPTH` deep, with finite numbers only.
+    """Parse JSON a user gave, nested at most `MAX_DEPTH` deep (`bounded`), with finite numbers.
 
     Parameters
     ----------
@@ -254,22 +293,44 @@ def parse_json(
         decoded = text.decode("utf-8-sig") if isinstance(text, bytes) else text
     except UnicodeDecodeError:
         raise InputError(source, f"{subject} not UTF-8 text") from None
-    if nesting_exceeds(decoded, MAX_JSON_DEPTH):
-        raise InputError(
-            source, f"{subject} JSON nested deeper than the limit of {MAX_JSON_DEPTH} levels"
-        )
+    return bounded(lambda: _json_value(decoded, source, subject, finite), source, f"{subject} JSON")
+
+
+def _json_value(
+    text: str, source: str | os.PathLike[str] | None, subject: str, finite: bool
+) -> Any:
+    """Parse a JSON text for `parse_json`, refusing its syntax and, if ``finite``, its numbers."""
     try:
         if not finite:
-            return json.loads(decoded)
+            return json.loads(text)
         return json.loads(
-            decoded, parse_float=_finite, parse_int=_integer, parse_constant=_no_constant
+            text, parse_float=_finite, parse_int=_integer, parse_constant=_no_constant
         )
     except json.JSONDecodeError as error:
         raise InputError(
             source, f"{subject} not valid JSON ({error.msg} at line {error.lineno})"
         ) from None
-    except (ValueError, RecursionError) as error:
+    except ValueError as error:
         raise InputError(source, f"{subject} not valid JSON ({error})") from None
+
+
+def parse_toml(text: str, source: str | os.PathLike[str]) -> dict[str, Any]:
+    """Parse TOML a user gave (a study protocol), nested at most `MAX_DEPTH` deep (`bounded`).
+
+    Raises
+    ------
+    InputError
+        ``SOURCE: not valid TOML: ...`` with where the syntax fails, or nested too deeply.
+    """
+    return bounded(lambda: _toml_table(text, source), source, "is TOML")
+
+
+def _toml_table(text: str, source: str | os.PathLike[str]) -> dict[str, Any]:
+    """Parse a TOML text for `parse_toml`, refusing its syntax in one line."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise InputError(source, f"not valid TOML: {error} (fix the syntax there)") from None
 
 
 def read_json(path: str | os.PathLike[str], limit: int) -> Any:

@@ -1,12 +1,15 @@
-"""Writing BIDS-Motion files: values, tables and a single trial's recording.
+r"""Writing BIDS-Motion files: values, tables and a single trial's recording.
 
 Values are written exactly (``repr``), a missing one as ``n/a``; TSV tables have a header and
-cells on one line. Every file is written atomically (`mirror_avatar.files.atomic`).
+cells on one line, text kept whole: a tab, a line break or a backslash in it is written as in a
+string literal (``\t``, ``\n``, ``\r``, ``\\``) and read back by `cell_text`. Every file is
+written atomically (`mirror_avatar.files.atomic`).
 """
 
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -32,16 +35,30 @@ def tsv_values(rows: Array) -> str:
     )
 
 
-def one_line(text: str) -> str:
-    """``text`` without tabs or line breaks, so that it fits one TSV cell."""
-    return " ".join(text.split())
+TSV_ESCAPES = {"\\": "\\\\", "\t": "\\t", "\n": "\\n", "\r": "\\r"}
+"""How a TSV cell writes what would end it or its row: a backslash, a tab and the line breaks
+as in a string literal, so that `cell_text` reads back the text as given."""
+
+_ESCAPED = re.compile(r"[\\\t\n\r]")
+_ESCAPE = re.compile(r"\\([\\tnr])")
+_UNESCAPES = {escape[1]: character for character, escape in TSV_ESCAPES.items()}
+
+
+def tsv_cell(text: str) -> str:
+    """Write ``text`` as one TSV cell, every character kept (`TSV_ESCAPES`)."""
+    return _ESCAPED.sub(lambda found: TSV_ESCAPES[found.group()], text)
+
+
+def cell_text(cell: str) -> str:
+    """Read back the text `tsv_cell` wrote; a backslash before any other character stays."""
+    return _ESCAPE.sub(lambda found: _UNESCAPES[found.group(1)], cell)
 
 
 def tsv_table(columns: Iterable[str], rows: Iterable[dict[str, str]]) -> str:
-    """Write a TSV table with a header; cells missing from a row are ``n/a``."""
+    """Write a TSV table with a header; cells missing from a row or empty are ``n/a``."""
     columns = list(columns)
     lines = ["\t".join(columns)]
-    lines += ["\t".join(one_line(row.get(c, MISSING)) or MISSING for c in columns) for row in rows]
+    lines += ["\t".join(tsv_cell(row.get(c, MISSING)) or MISSING for c in columns) for row in rows]
     return "\n".join(lines) + "\n"
 
 

@@ -7,6 +7,7 @@ from typing import Any
 
 from mirror_avatar.common.constraints import ConstraintError, Setting
 from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.text import first_control
 from mirror_avatar.realtime.messages import PARTICIPANT_PATTERN
 
 MAX_TEXT_CHARS = 500
@@ -76,9 +77,18 @@ class Checker:
         return value
 
     def text(self, value: object, where: str, allow_empty: bool = False) -> str:
-        """Return ``value`` if it is text of at most `MAX_TEXT_CHARS` characters."""
+        """Return ``value`` if it is text of at most `MAX_TEXT_CHARS` characters on one line.
+
+        A control character (`mirror_avatar.common.text.CONTROL`: a tab, a line break, an
+        escape) is refused: names become table cells and lines of output.
+        """
         if not isinstance(value, str) or len(value) > MAX_TEXT_CHARS or not (value or allow_empty):
             raise self.error(where, f"must be text of 1 to {MAX_TEXT_CHARS} characters", "quote it")
+        control = first_control(value)
+        if control is not None:
+            raise self.error(
+                where, f"holds the control character '{control}'", "write it on one line without it"
+            )
         return value
 
     def label(self, value: object, where: str) -> str:

@@ -23,13 +23,11 @@ from __future__ import annotations
 
 import math
 import secrets
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from mirror_avatar.common.errors import InputError
-from mirror_avatar.files.user_files import is_int, read_text
+from mirror_avatar.files.user_files import is_int, parse_toml, read_text
 from mirror_avatar.lab.design.checker import Checker
 from mirror_avatar.lab.design.order import (
     block_order,
@@ -325,24 +323,19 @@ def load_protocol(path: Path) -> Protocol:
         regular UTF-8 text file of at most `MAX_PROTOCOL_BYTES` (`mirror_avatar.files.user_files`).
     """
     text = read_text(path, MAX_PROTOCOL_BYTES)
-    return parse_protocol(protocol_table(text, str(path)), str(path))
+    return protocol_from_text(text, str(path))
 
 
-def protocol_table(text: str, source: str) -> dict[str, Any]:
-    """Parse a protocol's TOML text (``source`` names it in errors).
+def protocol_from_text(text: str, source: str) -> Protocol:
+    """Read and validate a protocol's TOML text (``source`` names it in errors).
 
     Raises
     ------
     InputError
-        ``FILE: not valid TOML: ...`` with where the syntax fails, or arrays and tables nested
-        deeper than Python's recursion limit.
+        ``SOURCE: not valid TOML: ...`` with where the syntax fails, TOML nested too deeply
+        (`mirror_avatar.files.user_files.parse_toml`), or the first mistake in the protocol.
     """
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise InputError(source, f"not valid TOML: {error} (fix the syntax there)") from None
-    except RecursionError:  # tomllib reads nested arrays and tables recursively
-        raise InputError(source, "arrays or tables nested too deeply (flatten them)") from None
+    return parse_protocol(parse_toml(text, source), source)
 
 
 def parse_protocol(data: dict[str, Any], source: str) -> Protocol:

@@ -37,8 +37,7 @@ from mirror_avatar.files.user_files import read_text
 from mirror_avatar.lab.design.protocol import (
     MAX_PROTOCOL_BYTES,
     Protocol,
-    parse_protocol,
-    protocol_table,
+    protocol_from_text,
 )
 
 PROTOCOLS_FOLDER = "protocols"
@@ -113,7 +112,7 @@ def store_protocol(out_dir: Path, file_name: str, text: str) -> Protocol:
     shown = file_part(file_name) or "protocol"
     if len(text.encode("utf-8")) > MAX_PROTOCOL_BYTES:
         raise InputError(shown, f"the protocol is over {MAX_PROTOCOL_BYTES} bytes (shorten it)")
-    protocol = parse_protocol(protocol_table(text, shown), shown)
+    protocol = protocol_from_text(text, shown)
     copy = out_dir / PROTOCOLS_FOLDER / f"{protocol_name(file_name)}.toml"
     if copy.exists():
         kept = read_text(copy, MAX_PROTOCOL_BYTES + len(SEED_LINE) + 20)
@@ -122,7 +121,7 @@ def store_protocol(out_dir: Path, file_name: str, text: str) -> Protocol:
                 shown,
                 f"{copy} holds another protocol of that name (rename the file, or load that one)",
             )
-        return parse_protocol(protocol_table(kept, str(copy)), str(copy))
+        return protocol_from_text(kept, str(copy))
     kept = SEED_LINE.format(seed=protocol.seed) + text if protocol.seed_drawn else text
     copy.parent.mkdir(parents=True, exist_ok=True)
     write_atomic_text(copy, kept)

@@ -61,7 +61,7 @@ from mirror_avatar.files.atomic import write_atomic_bytes, write_atomic_json, wr
 from mirror_avatar.files.bids.names import MISSING, bids_label, channel_names
 from mirror_avatar.files.bids.reading import GAME_KEY
 from mirror_avatar.files.bids.tables import read_tsv
-from mirror_avatar.files.bids.writing import one_line, tsv_table, tsv_values
+from mirror_avatar.files.bids.writing import tsv_table, tsv_values
 from mirror_avatar.files.trial_io import MAX_FILE_BYTES, read_sidecar_text
 from mirror_avatar.files.user_files import parse_json, read_bytes
 from mirror_avatar.lab.export.bids_events import EVENT_COLUMN_INFO, EVENT_COLUMNS, trial_events
@@ -343,7 +343,7 @@ def _player_order(slot: int, n_players: int) -> list[int]:
 def _channel_rows(trial: LabTrial, player: int, own: bool) -> list[dict[str, str]]:
     """Make a player's ``_channels.tsv`` rows: position (POS), then velocity (VEL)."""
     slot = trial.slots[player]
-    who = one_line(f"{slot.label} ({slot.kind}, {slot.role})")
+    who = f"{slot.label} ({slot.kind}, {slot.role})"
     position, velocity = channel_names(slot.label, own)
     common = {"component": "x", "tracked_point": slot.label, "units": MISSING}
     return [

@@ -494,7 +494,7 @@ def read_schedule(path: Path) -> dict[str, Any]:
 
     At most `mirror_avatar.files.trial_io.MAX_SIDECAR_BYTES`, a regular file (never a FIFO or a
     device, whose read could wait for ever), JSON nested at most
-    `mirror_avatar.files.user_files.MAX_JSON_DEPTH` deep.
+    `mirror_avatar.files.user_files.MAX_DEPTH` deep.
 
     Raises
     ------
