@@ -58,7 +58,7 @@ def test_a_shared_model_averages_each_stroke_over_a_group_of_its_direction(fitte
         ups = np.sum(np.sign(fitted.displacements_) == direction)
         assert ups // 5 <= np.sum(np.sign(shared.displacements_) == direction) <= ups // 3
     assert np.median(shared.lengths_) == pytest.approx(np.median(fitted.lengths_), rel=0.15)
-    assert np.array_equal(shared.bandwidth_, fitted.bandwidth_)
+    assert np.all(shared.bandwidth_ >= fitted.bandwidth_)
     assert "labels" not in shared.training_summary_
     assert shared.training_summary_["holds"] == "averages of 3 or more strokes"
     positions = shared.sample_positions(3000, 4)
@@ -81,13 +81,15 @@ def test_the_training_trials_cannot_be_rebuilt_from_a_shared_model(slow, fitted)
 
 
 def test_a_shared_model_moves_like_the_fitted_one(slow, fitted) -> None:
-    """Generated stroke lengths and sizes: medians within 15 % of the fitted model's."""
+    """Generated strokes' median length and size, and the SD of their logarithms (the spread
+    the averaging takes away and the jitter adds back), within 15 % of the fitted model's."""
     shared = shareable(fitted, 3)
 
-    def strokes(model: StrokeGenerator) -> tuple[float, float]:
+    def strokes(model: StrokeGenerator) -> list[float]:
         positions = model.sample_positions(30000, 1)
         edges = reversals(positions, model.min_reversal)[1:-1]
-        return np.median(np.diff(edges)), np.median(np.abs(np.diff(positions[edges])))
+        lengths, sizes = np.diff(edges), np.abs(np.diff(positions[edges]))
+        return [np.median(lengths), np.median(sizes), np.log(lengths).std(), np.log(sizes).std()]
 
     assert strokes(shared) == pytest.approx(strokes(fitted), rel=0.15)
 

@@ -10,8 +10,9 @@ Domingo-Ferrer & Torra 2005, Data Mining and Knowledge Discovery 11(2)), `mdav_g
 are grouped by their standardised log length, log size, predecessor's log length and log size,
 and start; a group's stroke has the geometric mean length (rounded to whole samples) and size,
 the mean start and predecessor's features, and the mean of its members' profiles each
-stretched to that length. The jitter bandwidths (two numbers describing the spread of every
-stroke) and the hyper-parameters are kept; the trials' labels and durations are left out.
+stretched to that length. The jitter bandwidths add back the spread of log lengths and log
+sizes the averaging took away (`_restored_bandwidth`); the hyper-parameters are kept; the
+trials' labels and durations are left out.
 
 Whether a model rebuilds a trial is measured by `rebuild_errors`: each of the trial's strokes set
 against the model stroke that reproduces it best, as the model holds it (its start, displacement
@@ -155,7 +156,7 @@ def _averaged(
     )
     shared.before_sizes_ = np.array([_mean_size(model.before_sizes_[g]) for g in groups])
     shared.profiles_ = np.concatenate(profiles)
-    shared.bandwidth_ = model.bandwidth_.copy()
+    shared.bandwidth_ = _restored_bandwidth(model, shared, groups)
     summary = model.training_summary_
     shared.training_summary_ = {
         "groups": summary["groups"],
@@ -166,6 +167,27 @@ def _averaged(
     }
     shared._prepare_sampling()
     return shared
+
+
+def _restored_bandwidth(
+    model: StrokeGenerator, shared: StrokeGenerator, groups: list[NDArray[np.int64]]
+) -> Array:
+    """Return jitter bandwidths that add back the spread the averaging took away, (2,).
+
+    For log length and log size each: ``sqrt(h^2 + var(strokes) - var(groups))``, ``h`` the
+    model's bandwidth, ``var(groups)`` the variance of the groups' values weighted by their
+    sizes (never below ``h``).
+    """
+    weights = np.array([group.size for group in groups], dtype=np.float64)
+    lost = []
+    for own, averaged in (
+        (log_length(model.lengths_), log_length(shared.lengths_)),
+        (log_size(model.displacements_), log_size(shared.displacements_)),
+    ):
+        centre = np.average(averaged, weights=weights)
+        kept = np.average((averaged - centre) ** 2, weights=weights)
+        lost.append(max(0.0, float(own.var()) - float(kept)))
+    return np.sqrt(model.bandwidth_**2 + np.array(lost))
 
 
 def _mean_size(displacements: Array) -> float:
