@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -172,3 +173,42 @@ def test_each_template_is_piloted_through_the_server(template, tmp_path):
         assert sorted(played) == sorted(conditions), run
         for sidecar in sidecars:
             assert json.loads(sidecar.read_text())["metadata"]["complete"], sidecar
+
+
+def _huge_file(folder: Path) -> str:
+    huge = folder / "huge.csv"
+    with huge.open("wb") as handle:
+        handle.truncate(2 * 2**30)  # sparse: 2 GB on paper, nothing on disk
+    return str(huge)
+
+
+def _fifo(folder: Path) -> str:
+    fifo = folder / "pipe.csv"
+    os.mkfifo(fifo)
+    return str(fifo)
+
+
+HOSTILE_STAND_INS = {
+    "device": (lambda folder: "/dev/zero", "character device"),
+    "fifo": (_fifo, "named pipe"),
+    "huge file": (_huge_file, "over the limit"),
+    "out of range": (lambda folder: "kuramoto:coupling=1e308", "coupling"),
+    "process file": (lambda folder: "/proc/self/environ", "/proc/self/environ"),
+}
+
+
+@pytest.mark.parametrize("kind", HOSTILE_STAND_INS)
+def test_a_stand_in_that_cannot_play_is_refused_before_anything_starts(kind, tmp_path):
+    make, problem = HOSTILE_STAND_INS[kind]
+    protocol = tmp_path / "delay.toml"
+    protocol.write_text(PROTOCOL, encoding="utf-8")
+    out = tmp_path / "out"
+    result = run_command(
+        "lab", "pilot", "--protocol", str(protocol), "--stand-in", f"P1={make(tmp_path)}",
+        "--out", str(out),
+    )  # fmt: skip
+    assert result.returncode == 2, result.stderr
+    error = result.stderr.strip()
+    assert error.count("\n") == 0, error
+    assert "--stand-in" in error and "P1=" in error and problem in error, error
+    assert not out.exists(), "the server started for a stand-in that cannot play"

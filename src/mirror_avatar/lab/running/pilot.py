@@ -11,6 +11,11 @@ its visible partners' (delayed and hidden as the condition says; a hidden partne
 It is any player SPEC (`mirror_avatar.specs.load_player`) in the role its page is told, stepped
 once per frame received: the partners shown are its observation, and the position it returns is
 sent as the pointer's. Questions are answered by an `AnswerRule` per question.
+
+The stand-ins are checked as a protocol's avatars are (`check_stand_ins`: each built and dry-run
+in every role its person plays, by `mirror_avatar.lab.design.avatars.load_avatar`) before the
+server starts, so that a spec naming a device, a FIFO, a huge file or a diverging partner is
+refused in one line naming the stand-in, and nothing is started or written.
 """
 
 from __future__ import annotations
@@ -38,10 +43,11 @@ from websockets.exceptions import ConnectionClosed
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.lab.design.plan import SessionPlan
+from mirror_avatar.files.importing import excerpt
+from mirror_avatar.lab.design.avatars import load_avatar
+from mirror_avatar.lab.design.plan import MAX_SPEC_CHARS, SessionPlan
 from mirror_avatar.lab.design.protocol import Protocol, load_protocol
 from mirror_avatar.players.base import Observation, Player
-from mirror_avatar.specs import load_player
 
 PLAYER_ROLES = {"solo": "leader"}
 """The role preset a stand-in plays for a page's role where they differ (alone: it leads)."""
@@ -127,7 +133,7 @@ class StandIn:
             return
         role = PLAYER_ROLES.get(self.role, self.role)
         if role not in self._players:
-            self._players[role] = _warmed(load_player(self.spec, role))
+            self._players[role] = _warmed(load_avatar(self.spec, role))
         self.player = self._players[role]
 
     def start(self, trial: int) -> str | None:
@@ -362,6 +368,54 @@ def planned_seconds(protocol: Protocol) -> float:
     return total
 
 
+def person_roles(protocol: Protocol) -> dict[str, set[str]]:
+    """Return the roles each person of a protocol plays, as their stand-in plays them."""
+    roles: dict[str, set[str]] = {label: set() for label in protocol.people}
+    for block in protocol.blocks:
+        for condition in block.conditions:
+            plan = condition.with_avatars()
+            for player, role in zip(condition.players, plan.roles, strict=True):
+                if player.kind != "avatar":
+                    roles[player.label].add(PLAYER_ROLES.get(role, role))
+    return roles
+
+
+def check_stand_ins(protocol: Protocol, stand_ins: Mapping[str, str]) -> None:
+    """Check that every stand-in names a person and plays each of their roles.
+
+    Each spec is built and dry-run in every role its person plays (`person_roles`) as a
+    protocol's avatars are (`mirror_avatar.lab.design.avatars.load_avatar`).
+
+    Raises
+    ------
+    InputError
+        ``--stand-in: LABEL=SPEC: problem (fix)`` for a label that is no person of the
+        protocol, a spec longer than `MAX_SPEC_CHARS`, or one that cannot be read, built or
+        dry-run (a device, a FIFO, a file too large, a parameter out of its range, ...).
+    """
+    unknown = sorted(set(stand_ins) - set(protocol.people))
+    if unknown:
+        raise InputError(
+            "--stand-in",
+            f"{', '.join(unknown)}: no such person in {Path(protocol.source).name} "
+            f"(its people: {', '.join(protocol.people)})",
+        )
+    roles = person_roles(protocol)
+    for label, spec in stand_ins.items():
+        named = f"{label}={excerpt(spec, quote=False)}"
+        if len(spec) > MAX_SPEC_CHARS:
+            raise InputError(
+                "--stand-in", f"{named}: over {MAX_SPEC_CHARS} characters (give a shorter SPEC)"
+            )
+        for role in sorted(roles[label]):
+            try:
+                load_avatar(spec, role)
+            except InputError as error:
+                raise InputError(
+                    "--stand-in", f"{named}: {error} (give another SPEC for {label})"
+                ) from None
+
+
 def run_pilot(
     protocol_file: Path,
     out_dir: Path,
@@ -396,15 +450,15 @@ def run_pilot(
     -------
     list of dict
         Each participant's final status (as ``GET /api/sessions/ID`` answers).
+
+    Raises
+    ------
+    InputError
+        A stand-in refused (`check_stand_ins`), before the server starts; a run that cannot
+        start or end (`pilot_participant`).
     """
     protocol = load_protocol(protocol_file)
-    unknown = sorted(set(stand_ins) - set(protocol.people))
-    if unknown:
-        raise InputError(
-            "--stand-in",
-            f"{', '.join(unknown)}: no such person in {protocol_file.name} "
-            f"(its people: {', '.join(protocol.people)})",
-        )
+    check_stand_ins(protocol, stand_ins)
     out_dir.mkdir(parents=True, exist_ok=True)
     planned = planned_seconds(protocol)
     with lab_server(protocol_file, out_dir, out_dir / "pilot-server.log") as (base, token):
