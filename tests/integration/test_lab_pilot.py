@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -14,6 +15,7 @@ import pandas as pd
 import pytest
 
 from mirror_avatar.lab.design.protocol import load_protocol
+from waiting import wait_for
 
 PROTOCOL = """
 title = "Delay pilot"
@@ -62,10 +64,12 @@ delay = 0.5
 """
 
 
+COMMAND = [sys.executable, "-c", "from mirror_avatar.console import run; run()"]
+
+
 def run_command(*arguments: str) -> subprocess.CompletedProcess[str]:
-    command = "from mirror_avatar.console import run; run()"
     return subprocess.run(
-        [sys.executable, "-c", command, *arguments],
+        [*COMMAND, *arguments],
         capture_output=True, text=True, check=False, timeout=600,
     )  # fmt: skip
 
@@ -123,6 +127,42 @@ def test_the_virtual_participants_answer_by_their_rules(piloted):
         answers = json.loads(path.read_text())["answers"]["P1"]
         assert answers["partner"]["value"] == "a person"
         assert answers["sure"]["value"] in range(1, 6)
+
+
+def test_the_server_s_log_ends_as_finished_after_a_normal_pilot(piloted):
+    out, result = piloted
+    assert result.returncode == 0, result.stderr
+    log = (out / "pilot-server.log").read_text()
+    assert "aborted" not in log, log
+    assert "Finished server process" in log.strip().splitlines()[-1], log
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=lambda s: s.name)
+def test_an_interrupted_pilot_ends_with_its_one_line(signum, tmp_path):
+    protocol = tmp_path / "delay.toml"
+    protocol.write_text(PROTOCOL.replace("duration = 3", "duration = 60"), encoding="utf-8")
+    out = tmp_path / "out"
+    arguments = ["lab", "pilot", "--protocol", str(protocol), "--participants", "1"]
+    process = subprocess.Popen(
+        [*COMMAND, *arguments, "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        wait_for(
+            lambda: any(out.glob("delay-p000/trial-*")) or process.poll() is not None,
+            timeout=300,
+            what="the first trial to be recorded, the stand-in's page playing it",
+        )
+        process.send_signal(signum)
+        _, stderr = process.communicate(timeout=300)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    assert process.returncode == 130, stderr
+    assert "Traceback" not in stderr, stderr
+    assert stderr.strip() == f"mirror-avatar: aborted ({signum.name})"
+    assert "aborted" in (out / "pilot-server.log").read_text().strip().splitlines()[-1]
 
 
 def test_a_stand_in_for_nobody_is_refused_in_one_line(tmp_path):

@@ -26,6 +26,7 @@ import json
 import os
 import queue
 import re
+import signal
 import subprocess
 import sys
 import threading
@@ -41,6 +42,7 @@ from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed
 
 from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.interruptions import run_interruptible
 from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.files.importing import excerpt
@@ -224,16 +226,30 @@ def _answer(stand_in: StandIn, message: Mapping[str, Any]) -> list[str]:
     return []
 
 
+SERVER_ENTRY = (
+    "import signal; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
+    "from mirror_avatar.console import run; run()"
+)
+"""How the pilot starts its lab server: the console script with SIGTERM ignored, which is the
+pilot's normal stop (uvicorn shuts down on it and then leaves the ignored signal be, so the
+server finishes with exit code 0); SIGINT is its stop when the pilot is interrupted or fails (the
+server's log then ends ``aborted (SIGINT)``)."""
+
+STOP_TIMEOUT = 30.0
+"""Seconds the lab server may take to shut down before it is killed."""
+
+
 @contextlib.contextmanager
 def lab_server(protocol_file: Path, out_dir: Path, log: Path) -> Iterator[tuple[str, str]]:
     """Run ``mirror-avatar lab --protocol`` on loopback; yield its base URL and token.
 
-    Its output goes to ``log``; it is terminated on leaving.
+    Its output goes to ``log``. On leaving it is stopped: as finished (SIGTERM), or as aborted
+    (SIGINT) when leaving by an exception (`SERVER_ENTRY`).
     """
     command = [
         sys.executable,
         "-c",
-        "from mirror_avatar.console import run; run()",
+        SERVER_ENTRY,
         "lab",
         "--host",
         "127.0.0.1",
@@ -255,15 +271,22 @@ def lab_server(protocol_file: Path, out_dir: Path, log: Path) -> Iterator[tuple[
         )
     try:
         yield _console_link(process, log)
-    finally:
-        process.terminate()
-        try:
-            process.wait(30)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-        if process.stdout is not None:
-            process.stdout.close()
+    except BaseException:
+        _stop(process, signal.SIGINT)
+        raise
+    _stop(process, signal.SIGTERM)
+
+
+def _stop(process: subprocess.Popen[str], signum: int) -> None:
+    """Send ``signum`` to the lab server and wait for its end (killed after `STOP_TIMEOUT`)."""
+    process.send_signal(signum)
+    try:
+        process.wait(STOP_TIMEOUT)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+    if process.stdout is not None:
+        process.stdout.close()
 
 
 def _console_link(process: subprocess.Popen[str], log: Path) -> tuple[str, str]:
@@ -318,11 +341,15 @@ async def pilot_participant(
         started = await api.post(f"/api/sessions/{status['id']}/start", json={})
         if not started.is_success:
             raise InputError(f"participant {number}", _refusal(started))
-        await asyncio.wait_for(asyncio.gather(*pages), planned_s + SLACK)
-    except TimeoutError:
-        raise InputError(
-            f"participant {number}", f"the run did not end within {planned_s + SLACK:.0f} s"
-        ) from None
+        ended, late = await asyncio.wait(
+            pages, timeout=planned_s + SLACK, return_when=asyncio.FIRST_EXCEPTION
+        )
+        for page in ended:
+            page.result()
+        if late:
+            raise InputError(
+                f"participant {number}", f"the run did not end within {planned_s + SLACK:.0f} s"
+            )
     finally:
         for page in pages:
             page.cancel()
@@ -462,7 +489,7 @@ def run_pilot(
     out_dir.mkdir(parents=True, exist_ok=True)
     planned = planned_seconds(protocol)
     with lab_server(protocol_file, out_dir, out_dir / "pilot-server.log") as (base, token):
-        return asyncio.run(
+        return run_interruptible(
             _pilot_all(
                 base,
                 token,
