@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
 import re
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -13,6 +15,7 @@ import pandas as pd
 import pytest
 
 from mirror_avatar.lab.design.protocol import load_protocol
+from waiting import wait_for
 
 PROTOCOL = """
 title = "Delay pilot"
@@ -61,10 +64,12 @@ delay = 0.5
 """
 
 
+COMMAND = [sys.executable, "-c", "from mirror_avatar.console import run; run()"]
+
+
 def run_command(*arguments: str) -> subprocess.CompletedProcess[str]:
-    command = "from mirror_avatar.console import run; run()"
     return subprocess.run(
-        [sys.executable, "-c", command, *arguments],
+        [*COMMAND, *arguments],
         capture_output=True, text=True, check=False, timeout=600,
     )  # fmt: skip
 
@@ -124,6 +129,42 @@ def test_the_virtual_participants_answer_by_their_rules(piloted):
         assert answers["sure"]["value"] in range(1, 6)
 
 
+def test_the_server_s_log_ends_as_finished_after_a_normal_pilot(piloted):
+    out, result = piloted
+    assert result.returncode == 0, result.stderr
+    log = (out / "pilot-server.log").read_text()
+    assert "aborted" not in log, log
+    assert "Finished server process" in log.strip().splitlines()[-1], log
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=lambda s: s.name)
+def test_an_interrupted_pilot_ends_with_its_one_line(signum, tmp_path):
+    protocol = tmp_path / "delay.toml"
+    protocol.write_text(PROTOCOL.replace("duration = 3", "duration = 60"), encoding="utf-8")
+    out = tmp_path / "out"
+    arguments = ["lab", "pilot", "--protocol", str(protocol), "--participants", "1"]
+    process = subprocess.Popen(
+        [*COMMAND, *arguments, "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        wait_for(
+            lambda: any(out.glob("delay-p000/trial-*")) or process.poll() is not None,
+            timeout=300,
+            what="the first trial to be recorded, the stand-in's page playing it",
+        )
+        process.send_signal(signum)
+        _, stderr = process.communicate(timeout=300)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    assert process.returncode == 130, stderr
+    assert "Traceback" not in stderr, stderr
+    assert stderr.strip() == f"mirror-avatar: aborted ({signum.name})"
+    assert "aborted" in (out / "pilot-server.log").read_text().strip().splitlines()[-1]
+
+
 def test_a_stand_in_for_nobody_is_refused_in_one_line(tmp_path):
     protocol = tmp_path / "delay.toml"
     protocol.write_text(PROTOCOL, encoding="utf-8")
@@ -172,3 +213,42 @@ def test_each_template_is_piloted_through_the_server(template, tmp_path):
         assert sorted(played) == sorted(conditions), run
         for sidecar in sidecars:
             assert json.loads(sidecar.read_text())["metadata"]["complete"], sidecar
+
+
+def _huge_file(folder: Path) -> str:
+    huge = folder / "huge.csv"
+    with huge.open("wb") as handle:
+        handle.truncate(2 * 2**30)  # sparse: 2 GB on paper, nothing on disk
+    return str(huge)
+
+
+def _fifo(folder: Path) -> str:
+    fifo = folder / "pipe.csv"
+    os.mkfifo(fifo)
+    return str(fifo)
+
+
+HOSTILE_STAND_INS = {
+    "device": (lambda folder: "/dev/zero", "character device"),
+    "fifo": (_fifo, "named pipe"),
+    "huge file": (_huge_file, "over the limit"),
+    "out of range": (lambda folder: "kuramoto:coupling=1e308", "coupling"),
+    "process file": (lambda folder: "/proc/self/environ", "/proc/self/environ"),
+}
+
+
+@pytest.mark.parametrize("kind", HOSTILE_STAND_INS)
+def test_a_stand_in_that_cannot_play_is_refused_before_anything_starts(kind, tmp_path):
+    make, problem = HOSTILE_STAND_INS[kind]
+    protocol = tmp_path / "delay.toml"
+    protocol.write_text(PROTOCOL, encoding="utf-8")
+    out = tmp_path / "out"
+    result = run_command(
+        "lab", "pilot", "--protocol", str(protocol), "--stand-in", f"P1={make(tmp_path)}",
+        "--out", str(out),
+    )  # fmt: skip
+    assert result.returncode == 2, result.stderr
+    error = result.stderr.strip()
+    assert error.count("\n") == 0, error
+    assert "--stand-in" in error and "P1=" in error and problem in error, error
+    assert not out.exists(), "the server started for a stand-in that cannot play"

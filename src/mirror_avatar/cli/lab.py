@@ -9,7 +9,7 @@ import click
 from mirror_avatar.cli.lab_pilot import pilot
 from mirror_avatar.cli.lab_preview import preview
 from mirror_avatar.cli.outputs import check_output_dir
-from mirror_avatar.cli.play import server_options
+from mirror_avatar.cli.play import listen, server_options
 
 
 @click.group(invoke_without_command=True)
@@ -50,19 +50,19 @@ def lab(
         return
     from mirror_avatar.lab.design.protocol import load_protocol
     from mirror_avatar.lab.running.server import LabSettings, create_lab_app
-    from mirror_avatar.realtime.transport import listening_socket, make_server, make_token
+    from mirror_avatar.realtime.transport import make_server, make_token
 
     protocol = None if protocol_file is None else load_protocol(protocol_file)
     check_output_dir(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     use_lsl = _lsl_available() if lsl is None else lsl
     if use_lsl and not _lsl_available():
         raise click.UsageError("--lsl needs pylsl: pip install 'mirror-avatar[lsl]'")
+    sock = listen(host, port)
+    out_dir.mkdir(parents=True, exist_ok=True)
     if use_lsl:
         _quiet_lsl()
     token = make_token()
     settings = LabSettings(out_dir=out_dir, token=token, lsl=use_lsl, protocol=protocol)
-    sock = listening_socket(host, port)
     port = sock.getsockname()[1]
     server = make_server(create_lab_app(settings), host, port, "info")
     shown = _reachable_name() if host in ("0.0.0.0", "::") else host

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import errno
+import socket
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -9,6 +11,7 @@ from typing import Any, TypeVar
 import click
 
 from mirror_avatar.cli.outputs import check_output_dir
+from mirror_avatar.common.errors import InputError
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -44,6 +47,28 @@ def server_options(port: int, out: str, out_help: str) -> Callable[[F], F]:
         return command
 
     return decorate
+
+
+def listen(host: str, port: int) -> socket.socket:
+    """Bind the listening socket of a command that serves pages (`server_options`).
+
+    Raises
+    ------
+    InputError
+        ``--port: port PORT on HOST is in use ...`` when another program listens there.
+    """
+    from mirror_avatar.realtime.transport import listening_socket
+
+    try:
+        return listening_socket(host, port)
+    except OSError as error:
+        if error.errno != errno.EADDRINUSE:
+            raise
+        raise InputError(
+            "--port",
+            f"port {port} on {host} is in use by another program: stop it, or choose another "
+            "port with --port (0: any free port)",
+        ) from None
 
 
 @click.command()
@@ -96,14 +121,15 @@ def play(
     from mirror_avatar.live.server import LiveSettings, create_app
     from mirror_avatar.live.session import DEFAULT_AVATAR, make_avatar_factory
     from mirror_avatar.realtime.gates import is_loopback
-    from mirror_avatar.realtime.transport import listening_socket, make_server, make_token
+    from mirror_avatar.realtime.transport import make_server, make_token
 
     spec = avatar_spec or DEFAULT_AVATAR
     token = make_token() if require_token or not is_loopback(host) else None
     check_output_dir(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     factory = make_avatar_factory(spec)
     factory("avatar_follows")  # a bad spec fails here, before the server starts
+    sock = listen(host, port)
+    out_dir.mkdir(parents=True, exist_ok=True)
     settings = LiveSettings(
         out_dir=out_dir,
         avatar_spec=spec,
@@ -112,7 +138,6 @@ def play(
         max_sessions=max_sessions,
         max_per_address=max_per_address,
     )
-    sock = listening_socket(host, port)
     port = sock.getsockname()[1]
     server = make_server(create_app(settings, factory), host, port, "info")
     shown = "localhost" if host in ("0.0.0.0", "::") else host

@@ -6,6 +6,10 @@ and a shell ignores SIGINT in the jobs it starts in the background). `interrupt`
 `KeyboardInterrupt` carrying the signal's name, so clean-up runs, and `aborted` prints the one
 line ``mirror-avatar: aborted (SIGTERM)`` and returns exit code 130. This module imports nothing
 of the package, so the console script installs the handlers before anything heavy is imported.
+
+An event loop is run by `run_interruptible`: there the loop takes the signals, and an
+interruption cancels the loop's main coroutine, so that its clean-up runs as the cancellation
+unwinds and no task is left to fail at the loop's close.
 """
 
 from __future__ import annotations
@@ -14,7 +18,11 @@ import os
 import signal
 import sys
 import threading
+from collections.abc import Coroutine
 from types import FrameType
+from typing import Any, TypeVar
+
+T = TypeVar("T")
 
 INTERRUPT_RETRY = 0.05
 """Seconds after which an interruption that arrived inside numba is delivered again."""
@@ -104,3 +112,50 @@ def aborted(stop: BaseException) -> int:
     reason = f" ({name})" if name.startswith("SIG") else ""
     print(f"mirror-avatar: aborted{reason}", file=sys.stderr, flush=True)
     return ABORTED
+
+
+def run_interruptible(main: Coroutine[Any, Any, T]) -> T:
+    """Run ``main`` in a new event loop; an interruption cancels it, then stops the program.
+
+    `interrupt` would raise `KeyboardInterrupt` wherever the loop happens to be (waiting for
+    its sockets, or in one task's step), and the tasks left behind would be cancelled at the
+    loop's close, their failures printed as tracebacks. Here each of `INTERRUPTIONS` that
+    `interrupt` handles is taken by the loop while ``main`` runs: it cancels ``main``, whose
+    clean-up runs as the cancellation unwinds, and the `KeyboardInterrupt` naming the signal
+    is raised once the loop is closed.
+    """
+    import asyncio
+
+    caught: list[str] = []
+    try:
+        result = asyncio.run(_cancelled_by_interruptions(main, caught))
+    except asyncio.CancelledError:
+        if not caught:
+            raise
+    if caught:
+        raise KeyboardInterrupt(caught[0])
+    return result
+
+
+async def _cancelled_by_interruptions(main: Coroutine[Any, Any, T], caught: list[str]) -> T:
+    """Await ``main``, each interruption cancelling it and adding its name to ``caught``."""
+    import asyncio
+
+    loop = asyncio.get_running_loop()
+    task = asyncio.current_task()
+    assert task is not None
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    handled = [s for s in INTERRUPTIONS if in_main_thread and signal.getsignal(s) is interrupt]
+
+    def cancel(signum: int) -> None:
+        caught.append(signal.Signals(signum).name)
+        task.cancel()
+
+    for signum in handled:
+        loop.add_signal_handler(signum, cancel, signum)
+    try:
+        return await main
+    finally:
+        for signum in handled:
+            loop.remove_signal_handler(signum)
+            signal.signal(signum, interrupt)

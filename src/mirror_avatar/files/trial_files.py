@@ -53,7 +53,7 @@ def read_trial_file(
         raise InputError(
             path,
             f"unknown extension {suffix!r}; trial files are {', '.join(SUPPORTED)}"
-            + (" (a folder name? it does not exist)" if not suffix else ""),
+            + (" (a folder name? it does not exist)" if not (suffix or path.exists()) else ""),
         )
     if suffix == ".csv":
         return read_csv_trials(path, options)

@@ -25,11 +25,12 @@ creation never reads a huge file into the server's memory."""
 def load_avatar(spec: str, role: str) -> Player:
     """Load an avatar's player in its role (`mirror_avatar.specs.load_player`: checked, dry-run).
 
-    A recording the spec replays or follows is refused over `MAX_RECORDING_SPEC_BYTES` before
-    it is read.
+    A recording the spec replays or follows is refused before it is read when it is over
+    `MAX_RECORDING_SPEC_BYTES` or no regular file (a device, a FIFO, a socket; a folder is left
+    to `mirror_avatar.specs.load_player`, which says what to give instead).
     """
     recording = recording_file(spec)
-    if recording is not None and recording.is_file():
+    if recording is not None and recording.exists() and not recording.is_dir():
         check_regular(recording, MAX_RECORDING_SPEC_BYTES)
     return load_player(spec, role)
 

@@ -11,6 +11,11 @@ its visible partners' (delayed and hidden as the condition says; a hidden partne
 It is any player SPEC (`mirror_avatar.specs.load_player`) in the role its page is told, stepped
 once per frame received: the partners shown are its observation, and the position it returns is
 sent as the pointer's. Questions are answered by an `AnswerRule` per question.
+
+The stand-ins are checked as a protocol's avatars are (`check_stand_ins`: each built and dry-run
+in every role its person plays, by `mirror_avatar.lab.design.avatars.load_avatar`) before the
+server starts, so that a spec naming a device, a FIFO, a huge file or a diverging partner is
+refused in one line naming the stand-in, and nothing is started or written.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ import json
 import os
 import queue
 import re
+import signal
 import subprocess
 import sys
 import threading
@@ -36,12 +42,14 @@ from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed
 
 from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.interruptions import run_interruptible
 from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.lab.design.plan import SessionPlan
+from mirror_avatar.files.importing import excerpt
+from mirror_avatar.lab.design.avatars import load_avatar
+from mirror_avatar.lab.design.plan import MAX_SPEC_CHARS, SessionPlan
 from mirror_avatar.lab.design.protocol import Protocol, load_protocol
 from mirror_avatar.players.base import Observation, Player
-from mirror_avatar.specs import load_player
 
 PLAYER_ROLES = {"solo": "leader"}
 """The role preset a stand-in plays for a page's role where they differ (alone: it leads)."""
@@ -127,7 +135,7 @@ class StandIn:
             return
         role = PLAYER_ROLES.get(self.role, self.role)
         if role not in self._players:
-            self._players[role] = _warmed(load_player(self.spec, role))
+            self._players[role] = _warmed(load_avatar(self.spec, role))
         self.player = self._players[role]
 
     def start(self, trial: int) -> str | None:
@@ -218,16 +226,30 @@ def _answer(stand_in: StandIn, message: Mapping[str, Any]) -> list[str]:
     return []
 
 
+SERVER_ENTRY = (
+    "import signal; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
+    "from mirror_avatar.console import run; run()"
+)
+"""How the pilot starts its lab server: the console script with SIGTERM ignored, which is the
+pilot's normal stop (uvicorn shuts down on it and then leaves the ignored signal be, so the
+server finishes with exit code 0); SIGINT is its stop when the pilot is interrupted or fails (the
+server's log then ends ``aborted (SIGINT)``)."""
+
+STOP_TIMEOUT = 30.0
+"""Seconds the lab server may take to shut down before it is killed."""
+
+
 @contextlib.contextmanager
 def lab_server(protocol_file: Path, out_dir: Path, log: Path) -> Iterator[tuple[str, str]]:
     """Run ``mirror-avatar lab --protocol`` on loopback; yield its base URL and token.
 
-    Its output goes to ``log``; it is terminated on leaving.
+    Its output goes to ``log``. On leaving it is stopped: as finished (SIGTERM), or as aborted
+    (SIGINT) when leaving by an exception (`SERVER_ENTRY`).
     """
     command = [
         sys.executable,
         "-c",
-        "from mirror_avatar.console import run; run()",
+        SERVER_ENTRY,
         "lab",
         "--host",
         "127.0.0.1",
@@ -249,15 +271,22 @@ def lab_server(protocol_file: Path, out_dir: Path, log: Path) -> Iterator[tuple[
         )
     try:
         yield _console_link(process, log)
-    finally:
-        process.terminate()
-        try:
-            process.wait(30)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-        if process.stdout is not None:
-            process.stdout.close()
+    except BaseException:
+        _stop(process, signal.SIGINT)
+        raise
+    _stop(process, signal.SIGTERM)
+
+
+def _stop(process: subprocess.Popen[str], signum: int) -> None:
+    """Send ``signum`` to the lab server and wait for its end (killed after `STOP_TIMEOUT`)."""
+    process.send_signal(signum)
+    try:
+        process.wait(STOP_TIMEOUT)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+    if process.stdout is not None:
+        process.stdout.close()
 
 
 def _console_link(process: subprocess.Popen[str], log: Path) -> tuple[str, str]:
@@ -312,11 +341,15 @@ async def pilot_participant(
         started = await api.post(f"/api/sessions/{status['id']}/start", json={})
         if not started.is_success:
             raise InputError(f"participant {number}", _refusal(started))
-        await asyncio.wait_for(asyncio.gather(*pages), planned_s + SLACK)
-    except TimeoutError:
-        raise InputError(
-            f"participant {number}", f"the run did not end within {planned_s + SLACK:.0f} s"
-        ) from None
+        ended, late = await asyncio.wait(
+            pages, timeout=planned_s + SLACK, return_when=asyncio.FIRST_EXCEPTION
+        )
+        for page in ended:
+            page.result()
+        if late:
+            raise InputError(
+                f"participant {number}", f"the run did not end within {planned_s + SLACK:.0f} s"
+            )
     finally:
         for page in pages:
             page.cancel()
@@ -362,6 +395,54 @@ def planned_seconds(protocol: Protocol) -> float:
     return total
 
 
+def person_roles(protocol: Protocol) -> dict[str, set[str]]:
+    """Return the roles each person of a protocol plays, as their stand-in plays them."""
+    roles: dict[str, set[str]] = {label: set() for label in protocol.people}
+    for block in protocol.blocks:
+        for condition in block.conditions:
+            plan = condition.with_avatars()
+            for player, role in zip(condition.players, plan.roles, strict=True):
+                if player.kind != "avatar":
+                    roles[player.label].add(PLAYER_ROLES.get(role, role))
+    return roles
+
+
+def check_stand_ins(protocol: Protocol, stand_ins: Mapping[str, str]) -> None:
+    """Check that every stand-in names a person and plays each of their roles.
+
+    Each spec is built and dry-run in every role its person plays (`person_roles`) as a
+    protocol's avatars are (`mirror_avatar.lab.design.avatars.load_avatar`).
+
+    Raises
+    ------
+    InputError
+        ``--stand-in: LABEL=SPEC: problem (fix)`` for a label that is no person of the
+        protocol, a spec longer than `MAX_SPEC_CHARS`, or one that cannot be read, built or
+        dry-run (a device, a FIFO, a file too large, a parameter out of its range, ...).
+    """
+    unknown = sorted(set(stand_ins) - set(protocol.people))
+    if unknown:
+        raise InputError(
+            "--stand-in",
+            f"{', '.join(unknown)}: no such person in {Path(protocol.source).name} "
+            f"(its people: {', '.join(protocol.people)})",
+        )
+    roles = person_roles(protocol)
+    for label, spec in stand_ins.items():
+        named = f"{label}={excerpt(spec, quote=False)}"
+        if len(spec) > MAX_SPEC_CHARS:
+            raise InputError(
+                "--stand-in", f"{named}: over {MAX_SPEC_CHARS} characters (give a shorter SPEC)"
+            )
+        for role in sorted(roles[label]):
+            try:
+                load_avatar(spec, role)
+            except InputError as error:
+                raise InputError(
+                    "--stand-in", f"{named}: {error} (give another SPEC for {label})"
+                ) from None
+
+
 def run_pilot(
     protocol_file: Path,
     out_dir: Path,
@@ -396,19 +477,19 @@ def run_pilot(
     -------
     list of dict
         Each participant's final status (as ``GET /api/sessions/ID`` answers).
+
+    Raises
+    ------
+    InputError
+        A stand-in refused (`check_stand_ins`), before the server starts; a run that cannot
+        start or end (`pilot_participant`).
     """
     protocol = load_protocol(protocol_file)
-    unknown = sorted(set(stand_ins) - set(protocol.people))
-    if unknown:
-        raise InputError(
-            "--stand-in",
-            f"{', '.join(unknown)}: no such person in {protocol_file.name} "
-            f"(its people: {', '.join(protocol.people)})",
-        )
+    check_stand_ins(protocol, stand_ins)
     out_dir.mkdir(parents=True, exist_ok=True)
     planned = planned_seconds(protocol)
     with lab_server(protocol_file, out_dir, out_dir / "pilot-server.log") as (base, token):
-        return asyncio.run(
+        return run_interruptible(
             _pilot_all(
                 base,
                 token,
