@@ -59,7 +59,7 @@ from mirror_avatar import __version__
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
 from mirror_avatar.files.bids.names import MISSING, bids_label, channel_names
-from mirror_avatar.files.bids.reading import GAME_KEY
+from mirror_avatar.files.bids.reading import GAME_FORMAT, GAME_KEY, GAME_VERSION
 from mirror_avatar.files.bids.tables import read_tsv
 from mirror_avatar.files.bids.writing import one_line, tsv_table, tsv_values
 from mirror_avatar.files.trial_io import MAX_FILE_BYTES, read_sidecar_text
@@ -102,11 +102,6 @@ TASK = "mirrorgame"
 """The ``task-`` label and ``TaskName`` of every recording."""
 
 """Trial files of a lab session folder."""
-
-GAME_FORMAT, GAME_VERSION = "mirror-avatar/lab-bids", 2
-"""Format name and version written under `GAME_KEY` (version 1 kept the ``lab`` object's
-session id, condition, trial and slots at the top, and no study, perturbations, input events
-or companion files)."""
 
 CHANNEL_COLUMNS = ("name", "component", "type", "tracked_point", "units", "description")
 """Columns of a ``_channels.tsv``."""
