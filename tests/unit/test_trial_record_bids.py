@@ -149,6 +149,13 @@ def test_an_export_of_a_newer_format_is_refused_in_one_line_naming_it(tmp_path: 
         read_study_trials([root])
 
 
+def test_a_record_kept_without_its_recording_is_refused_not_left_out(tmp_path: Path) -> None:
+    folder = write_run_folder(tmp_path / "lab", RECORD)
+    (folder / "trial-04_session.csv").unlink()
+    with pytest.raises(InputError, match=r"trial-04_session\.csv: missing, but its record"):
+        read_study_trials([folder])
+
+
 def test_the_record_sets_every_field() -> None:
     """A field added to the record is set here, so an export that misses it fails above."""
     assert _left_at_default(RECORD) == set()
