@@ -208,3 +208,17 @@ def test_an_aborted_trial_is_marked_incomplete_and_left_out_of_the_report_saying
     assert "2 rows of incomplete trials, stopped before their end, left out" in results["methods"]
     assert "2 rows of incomplete trials left out (complete false" in " ".join(results["notes"])
 
+
+def test_the_table_and_its_report_never_hold_the_researchers_folders(ring_session, tmp_path):
+    """Every file `study table` and `study report` write names files by their base names only:
+    neither the recordings' folder nor the output's appears in any of them."""
+    table([ring_session], tmp_path / "table")
+    assert (
+        main(["study", "report", str(tmp_path / "table"), "--out", str(tmp_path / "report")]) == 0
+    )
+    folders = (str(tmp_path), str(ring_session.parent))
+    written = [p for p in tmp_path.rglob("*") if p.is_file()]
+    assert {p.parent.name for p in written} == {"table", "report"}
+    assert [p.name for p in written if any(f.encode() in p.read_bytes() for f in folders)] == []
+    results = json.loads((tmp_path / "report" / "results.json").read_text())
+    assert results["parameters"]["source"] == "study.csv"

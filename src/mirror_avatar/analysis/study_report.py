@@ -70,7 +70,8 @@ class StudyAnalysis:
     identification
         The "person or avatar?" answers scored, None when there are none.
     parameters
-        Every parameter, the seed and the software's versions.
+        Every parameter, the seed and the software's versions; the table by its file's name
+        (``source``), as a report to be shared never holds the researcher's folders.
     notes
         What was left out or could not be computed, in plain words.
     """
@@ -171,7 +172,7 @@ def analyse_study(
             f"no comparison (fewer than two conditions or participants): {', '.join(untested)}"
         )
     parameters = {
-        "source": str(table.source), "participants": int(rows["participant"].nunique()),
+        "source": table.source.name, "participants": int(rows["participant"].nunique()),
         "rows": len(rows), "incomplete_rows": incomplete, "conditions": conditions,
         "reference": reference,
         "measures": table.measures, "rated_answers": table.rated_answers, "seed": seed,
@@ -200,7 +201,7 @@ def write_study_report(analysis: StudyAnalysis, out_dir: str | Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     html, results, conditions, contrasts = STUDY_REPORT_FILES
     metadata = {
-        "table": str(analysis.table.source),
+        "table": analysis.parameters["source"],
         "participants": analysis.parameters["participants"],
         "seed": analysis.parameters["seed"],
         "mirror-avatar": analysis.parameters["versions"]["mirror-avatar"],
