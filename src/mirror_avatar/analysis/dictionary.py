@@ -3,7 +3,7 @@
 Each column of `mirror_avatar.analysis.table` is described BIDS-style (``Description``,
 ``Units`` where it has units, ``Levels`` for a categorical one) plus ``Role``: ``identifier``
 (who and which trial), ``design`` (what the protocol set: the factors), ``measure`` (computed
-from the recording), ``p_value`` (a measure's p-value against its surrogates) or ``answer``
+from the recording), ``p_value`` (a measure's p-value against its surrogates), ``answer``
 (what the person answered) or ``quality`` (how the trial was recorded: whether it ran to its
 end), so a report finds its measures, factors and the trials to leave out by role.
 """

@@ -147,6 +147,11 @@ def _trials(parameters: Mapping[str, Any]) -> str:
             f"{rows} trials (the persons' rows of the study table; avatars' rows left out; the "
             "table does not say which trials ran to their end, so all were kept)"
         )
+    if not left:
+        return (
+            f"{rows} complete trials (the persons' rows of the study table; avatars' rows left "
+            "out; every trial ran to its end)"
+        )
     return (
         f"{rows} complete trials (the persons' rows of the study table; avatars' rows and "
         f"{left} rows of incomplete trials, stopped before their end, left out)"
