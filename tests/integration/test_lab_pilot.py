@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -163,6 +164,26 @@ def test_an_interrupted_pilot_ends_with_its_one_line(signum, tmp_path):
     assert "Traceback" not in stderr, stderr
     assert stderr.strip() == f"mirror-avatar: aborted ({signum.name})"
     assert "aborted" in (out / "pilot-server.log").read_text().strip().splitlines()[-1]
+
+
+def test_a_resumed_pilot_refuses_a_trial_whose_recording_was_deleted(piloted, tmp_path):
+    """Participant 0's second recording deleted, its sidecar kept: resuming their run names the
+    recording in one line, never counts the trial as played, and plays nothing."""
+    out, _ = piloted
+    copy = tmp_path / "out"
+    shutil.copytree(out / "delay-p000", copy / "delay-p000")
+    (copy / "delay-p000" / "trial-02_session.csv").unlink()
+    protocol = tmp_path / "delay.toml"
+    protocol.write_text(PROTOCOL, encoding="utf-8")
+    result = run_command(
+        "lab", "pilot", "--protocol", str(protocol), "--participants", "1",
+        "--stand-in", "P1=bundled:slow", "--out", str(copy),
+    )  # fmt: skip
+    assert result.returncode == 2, result.stdout
+    assert result.stderr.strip().count("\n") == 0, result.stderr
+    assert "trial-02_session.csv: missing, but trial 2's other files" in result.stderr
+    assert "complete" not in result.stdout
+    assert not (copy / "delay-p000" / "trial-02_session.csv").exists()
 
 
 def test_a_stand_in_for_nobody_is_refused_in_one_line(tmp_path):

@@ -24,7 +24,7 @@ from mirror_avatar.testing import ServerThread
 
 DESIGN = [
     "participant", "session", "person", "player_kind", "block", "condition", "trial",
-    "position", "partners", "partner_kind", "delay_s", "occluded", "perturbations",
+    "position", "partners", "partner_kind", "delay_s", "occluded", "perturbations", "complete",
 ]  # fmt: skip
 
 
@@ -63,6 +63,7 @@ def test_a_row_per_trial_and_player_with_design_measures_and_answers(study, tmp_
     assert first["delay_s"].tolist() == pytest.approx([0, 0, 0.3, 0.3])
     assert list(first["occluded"]) == [False, False, True, True]
     assert list(first["perturbations"]) == [0, 0, 0, 0]
+    assert list(first["complete"]) == [True] * 4
     assert np.isfinite(first["rmse"]).all() and np.isfinite(first["phase_locking"]).all()
     # the AnsweringPage says "a computer" with confidence 5: right of the avatar, wrong of P2
     people = first[first["player_kind"] == "person"]
@@ -77,7 +78,7 @@ def test_a_row_per_trial_and_player_with_design_measures_and_answers(study, tmp_
     dictionary = json.loads((tmp_path / "table" / "study.json").read_text())
     assert list(dictionary) == list(table.columns)
     assert {info["Role"] for info in dictionary.values()} == {
-        "identifier", "design", "measure", "answer"
+        "identifier", "design", "quality", "measure", "answer"
     }  # fmt: skip
     assert dictionary["rmse"]["Units"] == "playing range units"
     assert dictionary["partner_kind"]["Levels"]["avatar"]

@@ -56,7 +56,7 @@ def make_study_rows(
                     "participant": f"p{i:03d}", "block": position, "condition": condition,
                     "trial": trial, "position": position, "partners": "A1",
                     "partner_kind": "avatar", "delay_s": 0.5 * k, "occluded": False,
-                    "perturbations": 0,
+                    "perturbations": 0, "complete": True,
                 }  # fmt: skip
                 rows.append(design | values | {"person": "P1", "player_kind": "person"})
                 avatar = {m: AVATAR_VALUE for m in BASE} | {"person": "A1", "partners": "P1"}

@@ -18,7 +18,12 @@ from mirror_avatar.analysis.statistics import Contrast, condition_summaries, par
 from mirror_avatar.analysis.study_figures import plot_identification, plot_participants
 from mirror_avatar.analysis.study_file import read_study_table
 from mirror_avatar.analysis.study_report import analyse_study, write_study_report
-from mirror_avatar.analysis.study_text import comparison_sentence, format_p, verdict
+from mirror_avatar.analysis.study_text import (
+    comparison_sentence,
+    format_p,
+    methods_paragraph,
+    verdict,
+)
 
 CONTRAST = Contrast(
     measure="rms", condition="delay 0.5 s", reference="no delay", difference=0.07,
@@ -128,3 +133,23 @@ def test_an_untested_comparison_says_so() -> None:
     assert comparison_sentence(untested, "units", several=False) == (
         "Delay 0.5 s against no delay: rms 0.12 and 0.19 units, not tested (see the notes below)."
     )
+
+
+@pytest.mark.parametrize(
+    ("incomplete", "said"),
+    [(None, "12 trials (the persons' rows of the study table; avatars' rows left out; the table "
+            "does not say which trials ran to their end, so all were kept)"),
+     (0, "12 complete trials (the persons' rows of the study table; avatars' rows left out; "
+         "every trial ran to its end)"),
+     (3, "12 complete trials (the persons' rows of the study table; avatars' rows and 3 rows of "
+         "incomplete trials, stopped before their end, left out)")],
+)  # fmt: skip
+def test_the_methods_count_complete_trials_and_say_what_was_left_out(
+    incomplete: int | None, said: str
+) -> None:
+    versions = dict.fromkeys(("mirror-avatar", "python", "numpy", "pandas", "scipy",
+                              "statsmodels"), "1")  # fmt: skip
+    parameters = {"versions": versions, "participants": 3, "rows": 12,
+                  "incomplete_rows": incomplete, "confidence": 0.95, "bootstrap_resamples": 99,
+                  "seed": 0, "reference": "a"}  # fmt: skip
+    assert f"from 3 participants' {said}. Each" in methods_paragraph(parameters)

@@ -17,7 +17,7 @@ from mirror_avatar.files.bids.writing import write_bids_motion
 from mirror_avatar.files.trial_files import read_trial
 from mirror_avatar.files.trial_record import SlotRecord, StudyRecord, TrialRecord
 from mirror_avatar.files.trials import make_trial
-from mirror_avatar.lab.export.bids import export_bids
+from mirror_avatar.lab.export.bids import export_bids, without_folders
 from mirror_avatar.sessions.graphs import complete_graph, ring_graph
 from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.sessions.session import Session
@@ -521,3 +521,41 @@ def test_a_trial_of_another_participant_or_a_damaged_study_file_is_refused(
     with pytest.raises(InputError, match="study.json.*'3' is not a participant number"):
         export_bids(folder, tmp_path / "bids")
     assert not (tmp_path / "bids").exists()
+
+
+def test_a_shared_dataset_never_holds_the_researchers_folders(tmp_path: Path) -> None:
+    """Avatars' specs naming files and the protocol's path, all absolute on the researcher's
+    machine, appear in the export by their base names only, in every file of it."""
+    home = tmp_path / "home" / "researcher"
+    folder = write_study_session(tmp_path / "out", "pilot", 3, ("P1",), 1)
+    for sidecar in folder.glob("trial-*_session.json"):
+        data = json.loads(sidecar.read_text())
+        data["metadata"]["lab"]["slots"][-1]["spec"] = f"vt:{home}/recordings/anna.csv"
+        sidecar.write_text(json.dumps(data))
+    study = json.loads((folder / "study.json").read_text())
+    study["protocol"]["source"] = str(home / "protocols" / "pilot.toml")
+    study["order"] = [{"plan": {"slots": [{"label": "A1", "spec": str(home / "anna.npz")}]}}]
+    (folder / "study.json").write_text(json.dumps(study))
+    root = tmp_path / "bids"
+    [motion] = export_bids(folder, root)
+    leaking = [p for p in root.rglob("*") if p.is_file() and str(tmp_path) in p.read_text()]
+    assert leaking == []
+    game = json.loads(motion.with_name(motion.name.replace(".tsv", ".json")).read_text())
+    assert game["MirrorGame"]["lab"]["slots"][-1]["spec"] == "vt:anna.csv"
+    shared = json.loads((root / "sourcedata" / folder.name / "study.json").read_text())
+    assert shared["protocol"]["source"] == "pilot.toml"
+    assert shared["order"][0]["plan"]["slots"][0]["spec"] == "anna.npz"
+    assert (root / "sourcedata" / folder.name / "trial-01_session.csv").read_bytes() == (
+        folder / "trial-01_session.csv"
+    ).read_bytes()
+
+
+@pytest.mark.parametrize(
+    ("spec", "shared"),
+    [("/home/me/a.npz", "a.npz"), ("vt:/home/me/t.csv", "vt:t.csv"),
+     ("vt:C:\\me\\t.csv", "vt:t.csv"), ("C:\\Users\\me\\a.npz", "a.npz"),
+     ("avatars/a.npz", "a.npz"), ("bundled:slow", "bundled:slow"),
+     ("adaptive:k=1,tau=0.2", "adaptive:k=1,tau=0.2"), ("a.npz", "a.npz")],
+)  # fmt: skip
+def test_a_spec_keeps_its_files_base_name_only(spec: str, shared: str) -> None:
+    assert without_folders(spec) == shared

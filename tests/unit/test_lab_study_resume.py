@@ -66,9 +66,29 @@ def test_a_run_with_a_trial_missing_before_a_recorded_one_is_refused_naming_the_
     (session.directory / "trial-02_session.csv").write_text("t\n")
     with pytest.raises(InputError, match=r"p000: trial 1 has no files \(trial-01_\*\) but trial 2"):
         _session(tmp_path)
-    (session.directory / "trial-01_inputs.csv").write_text("t\n")
+    (session.directory / "trial-01_session.csv").write_text("t\n")
     (session.directory / "trial-04_session.csv").write_text("t\n")
     with pytest.raises(InputError, match="trial 3 has no files"):
         _session(tmp_path)
-    (session.directory / "trial-03_session.json").write_text("{}")
+    (session.directory / "trial-03_session.csv").write_text("t\n")
     assert _session(tmp_path).next_trial == 5
+
+
+def test_a_trial_whose_recording_is_missing_is_refused_never_counted_as_played(tmp_path):
+    """Its sidecar (record) and inputs kept, its recording deleted: resume names the recording."""
+    directory = _session(tmp_path).directory
+    for n in (1, 2, 3):
+        for suffix in ("_session.csv", "_session.json", "_inputs.csv"):
+            (directory / f"trial-{n:02d}{suffix}").write_text("t\n")
+    (directory / "trial-02_session.csv").unlink()
+    with pytest.raises(InputError, match=r"trial-02_session\.csv: missing, but trial 2's other "
+                       "files .* or move the folder away") as refused:  # fmt: skip
+        _session(tmp_path)
+    assert "\n" not in str(refused.value)
+    (directory / "trial-02_session.csv").write_text("t\n")
+    (directory / "trial-03_session.csv").unlink()
+    with pytest.raises(InputError, match=r"trial-03_session\.csv: .*move its other files away"):
+        _session(tmp_path)
+    for leftover in directory.glob("trial-03_*"):
+        leftover.unlink()
+    assert _session(tmp_path).next_trial == 3

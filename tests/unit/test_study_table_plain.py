@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import time
 from pathlib import Path
 
@@ -37,19 +38,23 @@ def ring_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp_path_factory.mktemp("lab") / "20261127T010203-001"
     folder.mkdir()
     (folder / "plan.json").write_text(json.dumps({"session_id": folder.name}))
-    plan = parse_plan(RING)
-    avatars = build_avatars(plan)
     for n in (1, 2):
-        inputs = {k: BrowserInput() for k in plan.humans}
-        lab = {"session_id": folder.name, "condition": plan.condition}
-        trial = LabTrial(plan, n, folder, inputs, avatars, time.monotonic, lab)
-        while not trial.finished:
-            for i, source in inputs.items():
-                phase = 2 * math.pi * (0.4 + 0.1 * n) * trial.k * 0.03 + i
-                source.put(0.3 * math.sin(phase), trial.k)
-            trial.tick()
-        trial.finish(True, "completed")
+        record_trial(folder, n)
     return folder
+
+
+def record_trial(folder: Path, n: int, seconds: float | None = None) -> None:
+    """Record trial n of `RING` in ``folder``: whole, or aborted after ``seconds``."""
+    plan = parse_plan(RING)
+    inputs = {k: BrowserInput() for k in plan.humans}
+    lab = {"session_id": folder.name, "condition": plan.condition}
+    trial = LabTrial(plan, n, folder, inputs, build_avatars(plan), time.monotonic, lab)
+    ticks = trial.n_ticks if seconds is None else round(seconds / CONTROL_PERIOD)
+    while trial.k < ticks and not trial.finished:
+        for i, source in inputs.items():
+            source.put(0.3 * math.sin(2 * math.pi * (0.4 + 0.1 * n) * trial.k * 0.03 + i), trial.k)
+        trial.tick()
+    trial.finish(seconds is None, "completed" if seconds is None else "aborted")
 
 
 def table(paths: list[Path], out: Path) -> pd.DataFrame:
@@ -178,3 +183,42 @@ def test_an_input_that_never_delivers_is_recorded_lost_and_its_record_reads_back
     lost = [event for event in record.input_events if event.event == "lost"]
     assert [event.label for event in lost] == [plan.slots[silent].label]
     assert lost[0].seq is None
+
+
+def test_an_aborted_trial_is_marked_incomplete_and_left_out_of_the_report_saying_so(
+    ring_session, tmp_path, capsys
+):
+    """A trial aborted after 0.9 s has every measure missing: its rows say complete false, the
+    dictionary describes the column, and the report's methods count complete trials only."""
+    folder = tmp_path / ring_session.name
+    shutil.copytree(ring_session, folder)
+    record_trial(folder, 3, seconds=0.9)
+    rows = table([folder], tmp_path / "table")
+    assert "(3 trials, 1 of them incomplete, 1 participant)" in capsys.readouterr().out
+    assert list(rows["complete"]) == [True] * 6 + [False] * 3
+    assert rows.loc[rows["trial"] == 3, ["rmse", "synchronisation"]].isna().all(axis=None)
+    described = json.loads((tmp_path / "table" / "study.json").read_text())
+    assert described["complete"]["Role"] == "quality"
+    assert pd.read_csv(tmp_path / "table" / "study.csv")["complete"].dtype == bool
+    out = tmp_path / "report"
+    assert main(["study", "report", str(tmp_path / "table"), "--out", str(out)]) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert (results["parameters"]["rows"], results["parameters"]["incomplete_rows"]) == (4, 2)
+    assert "participants' 4 complete trials" in results["methods"]
+    assert "2 rows of incomplete trials, stopped before their end, left out" in results["methods"]
+    assert "2 rows of incomplete trials left out (complete false" in " ".join(results["notes"])
+
+
+def test_the_table_and_its_report_never_hold_the_researchers_folders(ring_session, tmp_path):
+    """Every file `study table` and `study report` write names files by their base names only:
+    neither the recordings' folder nor the output's appears in any of them."""
+    table([ring_session], tmp_path / "table")
+    assert (
+        main(["study", "report", str(tmp_path / "table"), "--out", str(tmp_path / "report")]) == 0
+    )
+    folders = (str(tmp_path), str(ring_session.parent))
+    written = [p for p in tmp_path.rglob("*") if p.is_file()]
+    assert {p.parent.name for p in written} == {"table", "report"}
+    assert [p.name for p in written if any(f.encode() in p.read_bytes() for f in folders)] == []
+    results = json.loads((tmp_path / "report" / "results.json").read_text())
+    assert results["parameters"]["source"] == "study.csv"

@@ -125,6 +125,37 @@ def test_an_export_by_an_earlier_version_is_read_as_far_as_it_carried_the_record
         read_study_trials([root / "sub-p003P1"])
 
 
+def test_a_sidecar_of_a_newer_format_is_refused_in_one_line_naming_it(tmp_path: Path) -> None:
+    folder = write_run_folder(tmp_path / "lab", RECORD)
+    sidecar = folder / "trial-04_session.json"
+    info = json.loads(sidecar.read_text())
+    sidecar.write_text(json.dumps(info | {"version": 99}))
+    with pytest.raises(InputError, match=r"trial-04_session\.json: version 99: .*newer") as refused:
+        read_study_trials([folder])
+    assert "\n" not in str(refused.value)
+    sidecar.write_text(json.dumps(info | {"version": "2"}))
+    with pytest.raises(InputError, match="version '2' is not a whole number"):
+        load_session(folder / "trial-04_session.csv")
+
+
+def test_an_export_of_a_newer_format_is_refused_in_one_line_naming_it(tmp_path: Path) -> None:
+    root = tmp_path / "bids"
+    [motion, _] = export_bids(write_run_folder(tmp_path / "lab", RECORD), root)
+    sidecar = motion.with_name(motion.name.replace(".tsv", ".json"))
+    info = json.loads(sidecar.read_text())
+    info["MirrorGame"]["version"] = 99
+    sidecar.write_text(json.dumps(info))
+    with pytest.raises(InputError, match=f"{sidecar.name}: MirrorGame.version 99: .*newer"):
+        read_study_trials([root])
+
+
+def test_a_record_kept_without_its_recording_is_refused_not_left_out(tmp_path: Path) -> None:
+    folder = write_run_folder(tmp_path / "lab", RECORD)
+    (folder / "trial-04_session.csv").unlink()
+    with pytest.raises(InputError, match=r"trial-04_session\.csv: missing, but its record"):
+        read_study_trials([folder])
+
+
 def test_the_record_sets_every_field() -> None:
     """A field added to the record is set here, so an export that misses it fails above."""
     assert _left_at_default(RECORD) == set()

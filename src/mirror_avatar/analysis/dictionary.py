@@ -3,8 +3,9 @@
 Each column of `mirror_avatar.analysis.table` is described BIDS-style (``Description``,
 ``Units`` where it has units, ``Levels`` for a categorical one) plus ``Role``: ``identifier``
 (who and which trial), ``design`` (what the protocol set: the factors), ``measure`` (computed
-from the recording), ``p_value`` (a measure's p-value against its surrogates) or ``answer``
-(what the person answered), so a report finds its measures and factors by role.
+from the recording), ``p_value`` (a measure's p-value against its surrogates), ``answer``
+(what the person answered) or ``quality`` (how the trial was recorded: whether it ran to its
+end), so a report finds its measures, factors and the trials to leave out by role.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from typing import Any
 
 from mirror_avatar.metrics import registry
 
-ROLES = ("identifier", "design", "measure", "p_value", "answer")
+ROLES = ("identifier", "design", "quality", "measure", "p_value", "answer")
 """What a column is, as the dictionary's ``Role`` says."""
 
 DESIGN_COLUMNS: dict[str, dict[str, Any]] = {
@@ -49,8 +50,11 @@ DESIGN_COLUMNS: dict[str, dict[str, Any]] = {
                  "Role": "design"},
     "perturbations": {"Description": "Changes of an avatar during the trial",
                       "Role": "design"},
+    "complete": {"Description": "Whether the trial ran to its end (false: it stopped early - "
+                 "aborted, ended by a drop or a crash - and its measures, if any, are of what "
+                 "was recorded; study report leaves it out)", "Role": "quality"},
 }  # fmt: skip
-"""The identifier and design columns, in table order."""
+"""The identifier, design and quality columns, in table order."""
 
 MEASURE_COLUMNS = registry.TABLE_COLUMNS
 """The measure columns of the study table, in order (`mirror_avatar.metrics.registry`)."""

@@ -70,7 +70,8 @@ class StudyAnalysis:
     identification
         The "person or avatar?" answers scored, None when there are none.
     parameters
-        Every parameter, the seed and the software's versions.
+        Every parameter, the seed and the software's versions; the table by its file's name
+        (``source``), as a report to be shared never holds the researcher's folders.
     notes
         What was left out or could not be computed, in plain words.
     """
@@ -151,6 +152,8 @@ def analyse_study(
         raise InputError("--reference", f"no condition {reference!r} in {table.source}; its "
                          f"conditions are {', '.join(conditions)}")  # fmt: skip
     rows, notes = _participants_rows(table.rows)
+    rows, incomplete = _complete_rows(rows, table.source)
+    notes += _incomplete_note(incomplete)
     rows, left_out = _finite(rows, table.outcomes)
     notes += left_out
     if table.skipped_measures:
@@ -169,8 +172,9 @@ def analyse_study(
             f"no comparison (fewer than two conditions or participants): {', '.join(untested)}"
         )
     parameters = {
-        "source": str(table.source), "participants": int(rows["participant"].nunique()),
-        "rows": len(rows), "conditions": conditions, "reference": reference,
+        "source": table.source.name, "participants": int(rows["participant"].nunique()),
+        "rows": len(rows), "incomplete_rows": incomplete, "conditions": conditions,
+        "reference": reference,
         "measures": table.measures, "rated_answers": table.rated_answers, "seed": seed,
         "bootstrap_resamples": resamples,
         "bootstrap_method": "BCa", "confidence": confidence,
@@ -197,7 +201,7 @@ def write_study_report(analysis: StudyAnalysis, out_dir: str | Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     html, results, conditions, contrasts = STUDY_REPORT_FILES
     metadata = {
-        "table": str(analysis.table.source),
+        "table": analysis.parameters["source"],
         "participants": analysis.parameters["participants"],
         "seed": analysis.parameters["seed"],
         "mirror-avatar": analysis.parameters["versions"]["mirror-avatar"],
@@ -223,6 +227,37 @@ def _participants_rows(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     return persons, [
         f"{left} rows of avatars left out: only persons are participants"
     ] if left else []
+
+
+def _complete_rows(rows: pd.DataFrame, source: Path) -> tuple[pd.DataFrame, int | None]:
+    """Leave out the rows of trials that stopped before their end; return how many.
+
+    **Choice**: a trial whose ``complete`` is false (aborted, ended by a drop or a crash) is
+    left out, its measures being of part of a trial or none. None: the table has no
+    ``complete`` column (every row kept, as nothing says which trials ran to their end).
+
+    Raises
+    ------
+    InputError
+        Every row is of an incomplete trial.
+    """
+    if "complete" not in rows:
+        return rows, None
+    complete = rows["complete"].eq(True)
+    if len(rows) and not complete.any():
+        raise InputError(source, "every trial stopped before its end (complete false): no trial "
+                         "to analyse")  # fmt: skip
+    return rows[complete], int((~complete).sum())
+
+
+def _incomplete_note(incomplete: int | None) -> list[str]:
+    """Say what `_complete_rows` left out, or that the table cannot tell."""
+    if incomplete is None:
+        return ["the table has no complete column: every trial kept, complete or not"]
+    if not incomplete:
+        return []
+    return [f"{incomplete} rows of incomplete trials left out (complete false: stopped before "
+            "their end)"]  # fmt: skip
 
 
 def _finite(rows: pd.DataFrame, outcomes: list[str]) -> tuple[pd.DataFrame, list[str]]:

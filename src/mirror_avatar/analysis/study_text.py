@@ -112,9 +112,8 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         f"Statistics were computed with mirror-avatar {v['mirror-avatar']} (Python "
         f"{v['python']}, NumPy {v['numpy']}, pandas {v['pandas']}, SciPy {v['scipy']}, "
         f"statsmodels {v['statsmodels']}) from {parameters['participants']} participants' "
-        f"{parameters['rows']} trials (the persons' rows of the study table; avatars' rows left "
-        "out). Each participant's measures were first averaged over their trials in each "
-        "condition. Each condition's mean over participants is given with a "
+        f"{_trials(parameters)}. Each participant's measures were first averaged over their "
+        "trials in each condition. Each condition's mean over participants is given with a "
         f"{parameters['confidence']:.0%} bias-corrected and accelerated (BCa) bootstrap "
         f"confidence interval ({parameters['bootstrap_resamples']} resamples of the "
         f"participants' means, scipy.stats.bootstrap, random seed {parameters['seed']}; Efron "
@@ -137,6 +136,25 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         "Hautus 1995) when a rate is 0 or 1; each person's own d' tested against 0 by a "
         "one-sample t-test; confidence in right and in wrong answers compared by a two-sided "
         f"Mann-Whitney U test. Significance level {ALPHA}."
+    )
+
+
+def _trials(parameters: Mapping[str, Any]) -> str:
+    """Say which trials were analysed: the complete ones, and the incomplete ones left out."""
+    rows, left = parameters["rows"], parameters["incomplete_rows"]
+    if left is None:
+        return (
+            f"{rows} trials (the persons' rows of the study table; avatars' rows left out; the "
+            "table does not say which trials ran to their end, so all were kept)"
+        )
+    if not left:
+        return (
+            f"{rows} complete trials (the persons' rows of the study table; avatars' rows left "
+            "out; every trial ran to its end)"
+        )
+    return (
+        f"{rows} complete trials (the persons' rows of the study table; avatars' rows and "
+        f"{left} rows of incomplete trials, stopped before their end, left out)"
     )
 
 

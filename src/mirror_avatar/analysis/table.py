@@ -5,14 +5,15 @@ one long `pandas.DataFrame` (columns in `mirror_avatar.analysis.dictionary`): wh
 (``participant``, ``session``, ``person``, ``player_kind``), where the trial stands in the
 participant's run (``block`` and ``position``: 1-based order of the block and of the condition
 in the run, counted from the trials as played; ``trial``), what the protocol set (``condition``,
-``partners``, ``partner_kind``, ``delay_s``, ``occluded``, ``perturbations``), the measures of
-the player's trial (`mirror_avatar.metrics.session_metrics` and
+``partners``, ``partner_kind``, ``delay_s``, ``occluded``, ``perturbations``), whether the trial
+ran to its end (``complete``, its record's: an aborted trial's rows are kept, saying so), the
+measures of the player's trial (`mirror_avatar.metrics.session_metrics` and
 `mirror_avatar.metrics.measures.session_measures`, measured as ``evaluate`` and the lab measure
 a trial: `mirror_avatar.metrics.measuring.measure_trial`, with ``surrogates`` circular-shift
-surrogates seeded by the trial's own seed: a pair's measures on
-both players' rows, a player's own - jitter index, influence, a group member's measures against
-its neighbours - on its row), then each answer (``answer_<question id>``) and, for a
-person-or-computer question, the guess (`mirror_avatar.analysis.guesses`).
+surrogates seeded by the trial's own seed: a pair's measures on both players' rows, a player's
+own - jitter index, influence, a group member's measures against its neighbours - on its row),
+then each answer (``answer_<question id>``) and, for a person-or-computer question, the guess
+(`mirror_avatar.analysis.guesses`).
 `write_study_table` writes ``study.csv``, ``study.parquet`` and the dictionary ``study.json``.
 """
 
@@ -97,6 +98,7 @@ def _design(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:
         "delay_s": 0.0 if study is None else float(study.delay_s),
         "occluded": study is not None and bool(study.occluded_s),
         "perturbations": len(record.perturbations),
+        "complete": record.complete,
     }
 
 
@@ -167,7 +169,7 @@ def _ordered(table: pd.DataFrame) -> pd.DataFrame:
     table = table[design + measured + answers + guesses]
     table = table.sort_values(["participant", "session", "trial"], kind="stable")
     types = {"block": "int64", "trial": "int64", "position": "int64", "perturbations": "int64",
-             "delay_s": "float64", "occluded": "bool"}  # fmt: skip
+             "delay_s": "float64", "occluded": "bool", "complete": "bool"}  # fmt: skip
     table = table.astype(types)
     for column in [*measured, "guess_confidence"]:
         if column in table and column != "leader":

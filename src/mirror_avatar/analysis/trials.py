@@ -31,7 +31,13 @@ from mirror_avatar.files.trial_record import (
 )
 from mirror_avatar.lab.export.bids import TASK
 from mirror_avatar.lab.export.bids_study import StudyRun, read_study, subject_label
-from mirror_avatar.lab.files import ANSWERS_SUFFIX, TRIAL_PATTERN, companion, is_session_folder
+from mirror_avatar.lab.files import (
+    ANSWERS_SUFFIX,
+    RECORD_PATTERN,
+    TRIAL_PATTERN,
+    companion,
+    is_session_folder,
+)
 from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.sessions.session import Session
 
@@ -105,8 +111,16 @@ def participant_name(study: StudyRun | None, session_id: str) -> str:
 
 
 def read_run_folder(folder: Path) -> list[StudyTrial]:
-    """Read the trials of one lab run folder, in trial order."""
+    """Read the trials of one lab run folder, in trial order.
+
+    Raises
+    ------
+    InputError
+        A trial's file that cannot be read, or a trial's record kept without its recording
+        (never read as if the trial had not been played).
+    """
     study = read_study(folder)
+    _check_recordings(folder)
     trials: list[StudyTrial] = []
     for path in sorted(folder.glob(TRIAL_PATTERN)):
         record = read_trial_record(path.with_suffix(".json"))
@@ -122,6 +136,18 @@ def read_run_folder(folder: Path) -> list[StudyTrial]:
             )  # fmt: skip
         )
     return _number(trials)
+
+
+def _check_recordings(folder: Path) -> None:
+    """Refuse a trial's record (sidecar) whose recording is missing."""
+    for sidecar in sorted(folder.glob(RECORD_PATTERN)):
+        recording = sidecar.with_suffix(".csv")
+        if not recording.is_file():
+            raise InputError(
+                recording,
+                f"missing, but its record {sidecar.name} is kept: restore the recording, or "
+                "move the record away to leave the trial out",
+            )
 
 
 def read_bids_trials(path: Path) -> list[StudyTrial]:

@@ -72,9 +72,10 @@ def table(paths: tuple[Path, ...], out_dir: Path, trim: float, surrogates: int) 
     rows = study_table(trials, trim=trim, surrogates=surrogates)
     write_study_table(rows, table_dictionary(rows, question_texts(trials)), out_dir)
     participants = rows["participant"].nunique()
+    incomplete = sum(not trial.record.complete for trial in trials)
     click.echo(
-        f"wrote {out_dir.resolve()}: {len(rows)} rows ({len(trials)} trials, "
-        f"{participants} participant{'s' * (participants != 1)})"
+        f"wrote {out_dir.resolve()}: {len(rows)} rows ({len(trials)} trials, {incomplete} of "
+        f"them incomplete, {participants} participant{'s' * (participants != 1)})"
     )
 
 

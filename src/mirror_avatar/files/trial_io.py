@@ -139,6 +139,31 @@ def read_sidecar_text(path: Path) -> str:
     return read_text(path, MAX_SIDECAR_BYTES)
 
 
+def check_version(info: dict[str, Any], known: int, source: Path, within: str = "") -> None:
+    """Refuse a file whose format ``version`` (``info``'s key) is newer than ``known``.
+
+    A reader reads its format's versions up to the one it writes; a newer file may mean what
+    this reader cannot tell, so it is refused rather than read as if it were known. A file
+    without the key is of the first version. ``within`` names the object holding ``info`` in
+    the file (``MirrorGame``), for the error.
+
+    Raises
+    ------
+    InputError
+        A version that is not a whole number, or is newer than ``known`` (naming ``source``).
+    """
+    version = info.get("version", 1)
+    key = f"{within}.version" if within else "version"
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise InputError(source, f"{key} {excerpt(version)} is not a whole number")
+    if version > known:
+        raise InputError(
+            source,
+            f"{key} {version}: written in a newer format than this mirror-avatar reads (version "
+            f"{known} at most); read it with a newer mirror-avatar",
+        )
+
+
 def _listing(values: Sequence[object], count: int = 8) -> str:
     """Show the first ``count`` values, each cut by `excerpt`, as a bracketed list."""
     shown = ", ".join(excerpt(value) for value in values[:count])

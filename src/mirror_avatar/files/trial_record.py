@@ -13,8 +13,9 @@ sidecar's), `TrialRecord.metadata_json` its one writer (the ``lab`` object throu
 key for key and in the order the lab has always written it, so files stay byte-identical). A
 BIDS export carries the record whole in each ``_motion.json``'s ``MirrorGame`` key
 (`mirror_avatar.lab.export.bids`) and its readers read it back with `trial_record`, so a
-trial's record is equal from its run folder and from its export. `AnswersRecord` does the same
-for the answers given after a trial (``trial-NN_answers.json``).
+trial's record is equal from its run folder and from its export (but for the folders of a file
+a slot's spec names: a dataset to be shared names it by its base name). `AnswersRecord` does
+the same for the answers given after a trial (``trial-NN_answers.json``).
 """
 
 from __future__ import annotations

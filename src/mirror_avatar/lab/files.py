@@ -29,10 +29,19 @@ ANSWERS_SUFFIX = "_answers.json"
 TRIAL_PATTERN = f"trial-*{SESSION_SUFFIX}"
 """Glob of the trials' recordings in a session's folder."""
 
+RECORD_PATTERN = TRIAL_PATTERN.replace(".csv", ".json")
+"""Glob of the trials' sidecars (their records) in a session's folder."""
+
 
 def trial_stem(directory: Path, n: int) -> Path:
     """Path of trial n's files without their suffixes: ``directory/trial-NN``."""
     return directory / f"trial-{n:02d}"
+
+
+def trial_file(directory: Path, n: int, suffix: str) -> Path:
+    """Path of trial n's file named with ``suffix``: ``directory/trial-NN<suffix>``."""
+    stem = trial_stem(directory, n)
+    return stem.with_name(stem.name + suffix)
 
 
 def companion(session_csv: Path, suffix: str) -> Path:

@@ -31,10 +31,16 @@ from mirror_avatar.files.bids.reading import (
     read_tracked_points,
 )
 from mirror_avatar.files.importing import MAX_GAP, ColumnMap, check_steps, excerpt
-from mirror_avatar.files.trial_io import MAX_FILE_BYTES, MAX_SIDECAR_BYTES
+from mirror_avatar.files.trial_io import MAX_FILE_BYTES, MAX_SIDECAR_BYTES, check_version
 from mirror_avatar.files.trials import compute_velocity, make_trial
 from mirror_avatar.files.user_files import check_regular, open_regular, read_json, read_text
-from mirror_avatar.sessions.session import CHANNELS, MIN_SESSION_SAMPLES, Session
+from mirror_avatar.sessions.session import (
+    CHANNELS,
+    FORMAT_NAME,
+    FORMAT_VERSION,
+    MIN_SESSION_SAMPLES,
+    Session,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -75,9 +81,10 @@ def load_session(
     Raises
     ------
     InputError
-        Missing or unreadable file, no players, missing columns, non-finite positions, time
-        not increasing, too few samples, irregular sampling without ``resample`` or a step
-        over ``max_gap`` with it; each naming the option that fixes it.
+        Missing or unreadable file, a sidecar of a session format newer than
+        `mirror_avatar.sessions.session.FORMAT_VERSION`, no players, missing columns,
+        non-finite positions, time not increasing, too few samples, irregular sampling without
+        ``resample`` or a step over ``max_gap`` with it; each naming the option that fixes it.
     """
     path = Path(path)
     check_regular(path, MAX_FILE_BYTES)
@@ -276,10 +283,13 @@ def _read_columns(path: Path) -> dict[str, Array]:
 
 
 def _read_sidecar(path: Path) -> dict[str, Any]:
+    """Read the sidecar beside ``path`` ({} when none); a session's of a known version only."""
     sidecar = path.with_suffix(".json")
     if not sidecar.is_file():
         return {}
     info = read_json(sidecar, MAX_SIDECAR_BYTES)
     if not isinstance(info, dict):
         raise InputError(sidecar, "not a JSON object")
+    if info.get("format") == FORMAT_NAME:
+        check_version(info, FORMAT_VERSION, sidecar)
     return info

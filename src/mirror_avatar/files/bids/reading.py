@@ -46,6 +46,7 @@ from mirror_avatar.files.trial_io import (
     _name_in,
     _read_numbers,
     _reading,
+    check_version,
     import_trial,
     read_sidecar_text,
 )
@@ -57,6 +58,11 @@ Array = NDArray[np.float64]
 
 GAME_KEY = "MirrorGame"
 """Non-standard ``_motion.json`` key of a lab export describing the trial (players, graph)."""
+
+GAME_FORMAT, GAME_VERSION = "mirror-avatar/lab-bids", 2
+"""Format name and version written under `GAME_KEY` (version 1 kept the ``lab`` object's
+session id, condition, trial and slots at the top, and no study, perturbations, input events
+or companion files); a newer version is refused."""
 
 
 @dataclass(frozen=True)
@@ -334,9 +340,10 @@ def game_record(sidecar: Path, game: dict[str, Any]) -> TrialRecord:
     Raises
     ------
     InputError
-        A record that is not one (`mirror_avatar.files.trial_record.trial_record`), naming
-        ``sidecar`` and the key.
+        A record that is not one (`mirror_avatar.files.trial_record.trial_record`), or a key
+        of a version newer than `GAME_VERSION`, naming ``sidecar`` and the key.
     """
+    check_version(game, GAME_VERSION, sidecar, GAME_KEY)
     metadata = {"lab": game} | game if game.get("version") == 1 else game
     return trial_record(metadata, sidecar, GAME_KEY)
 

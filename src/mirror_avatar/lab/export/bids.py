@@ -42,6 +42,11 @@ that `mirror_avatar.sessions.loading.load_session` rebuilds the N-player session
 stays readable as their solo trial by `mirror_avatar.files.bids.reading.read_bids_motion` (it reads
 the channel named ``position``), so every command that reads trials reads the export. Names,
 values and tables follow the rules of `mirror_avatar.files.bids`.
+
+A dataset is made to be shared: it never holds the researcher's folders. A file named under
+`PATH_KEYS` (an avatar's ``spec``, a protocol's ``source``) is named by its base name
+(`without_folders`) in the ``MirrorGame`` key and in the JSON files of ``sourcedata/``; the
+other files are copied as they are.
 """
 
 from __future__ import annotations
@@ -57,9 +62,14 @@ from numpy.typing import NDArray
 
 from mirror_avatar import __version__
 from mirror_avatar.common.errors import InputError
-from mirror_avatar.files.atomic import write_atomic_bytes, write_atomic_json, write_atomic_text
+from mirror_avatar.files.atomic import (
+    json_text,
+    write_atomic_bytes,
+    write_atomic_json,
+    write_atomic_text,
+)
 from mirror_avatar.files.bids.names import MISSING, bids_label, channel_names
-from mirror_avatar.files.bids.reading import GAME_KEY
+from mirror_avatar.files.bids.reading import GAME_FORMAT, GAME_KEY, GAME_VERSION
 from mirror_avatar.files.bids.tables import read_tsv
 from mirror_avatar.files.bids.writing import tsv_table, tsv_values
 from mirror_avatar.files.trial_io import MAX_FILE_BYTES, read_sidecar_text
@@ -103,11 +113,6 @@ TASK = "mirrorgame"
 
 """Trial files of a lab session folder."""
 
-GAME_FORMAT, GAME_VERSION = "mirror-avatar/lab-bids", 2
-"""Format name and version written under `GAME_KEY` (version 1 kept the ``lab`` object's
-session id, condition, trial and slots at the top, and no study, perturbations, input events
-or companion files)."""
-
 CHANNEL_COLUMNS = ("name", "component", "type", "tracked_point", "units", "description")
 """Columns of a ``_channels.tsv``."""
 
@@ -149,7 +154,8 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     absent; each subject's ``_scans.tsv`` gains their files with their acquisition times
     (existing rows kept); a trial's answers become each participant's ``_beh.tsv``;
     ``sourcedata/<session id>/`` receives copies of the trial files (with their inputs and
-    answers) and ``plan.json`` or ``study.json``. Every file is written atomically, and nothing
+    answers) and ``plan.json`` or ``study.json``, a file they name by its base name only
+    (`shared_json`), as in each ``MirrorGame`` key. Every file is written atomically, and nothing
     is written before every trial (and every table merged into) has been read. Exports into one
     ``out_dir`` take turns (`mirror_avatar.lab.export.bids_lock.dataset_lock`, across threads and
     processes), so that none loses the rows another adds to the tables.
@@ -183,6 +189,7 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     study = read_study(session_dir)
     trials = [read_lab_trial(path, study) for path in files]
     session_id = _one_session(session_dir, trials)
+    copies = _source_copies(session_dir, files)
     with dataset_lock(out_dir):  # the tables are read, merged and written by one export at once
         _check_acquisition(out_dir, session_id)
         columns, participants = _read_participants(out_dir / "participants.tsv", study)
@@ -193,7 +200,7 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
         for subject in sorted(subjects):  # a damaged table is refused before anything is written
             read_tsv(out_dir / subject / f"{subject}_scans.tsv", "filename")
         written, answered = _write_trials(trials, out_dir)
-        _copy_sources(session_dir, files, out_dir / "sourcedata" / session_id)
+        _write_sources(copies, out_dir / "sourcedata" / session_id)
         _write_participants(out_dir, columns, participants, described)
         _write_description(out_dir)
         write_atomic_json(out_dir / f"task-{TASK}_events.json", EVENT_COLUMN_INFO)
@@ -419,12 +426,47 @@ def _game_info(trial: LabTrial, slot: int) -> dict[str, Any]:
         "slot": slot,
         "graph": trial.session.graph.tolist(),
         "start_time": float(trial.session.times[0]),
-    } | trial.record.metadata_json()
+    } | shared_json(trial.record.metadata_json())
 
 
-def _copy_sources(session_dir: Path, files: list[Path], target: Path) -> None:
-    """Copy the trial files (with inputs and answers), ``plan.json``, ``study.json``."""
-    target.mkdir(parents=True, exist_ok=True)
+PATH_KEYS = ("spec", "source")
+"""Keys of the lab's JSON files whose text may name a file on the researcher's machine: an
+avatar's spec (a model, a recording, ``vt:`` and a recording) and a protocol's source."""
+
+_FOLDERS = re.compile(r"(?:\b[A-Za-z]:)?[^\s:=,]*[/\\]")
+"""A path's folders (a drive, names and separators, POSIX or Windows) up to its base name."""
+
+
+def without_folders(text: str) -> str:
+    """Drop the folders of every path in ``text``: ``vt:/home/me/trial.csv`` is ``vt:trial.csv``."""
+    return _FOLDERS.sub("", text)
+
+
+def shared_json(value: Any) -> Any:
+    """Return a JSON value with the text under every `PATH_KEYS` key `without_folders`."""
+    if isinstance(value, dict):
+        return {
+            key: without_folders(item)
+            if key in PATH_KEYS and isinstance(item, str)
+            else shared_json(item)
+            for key, item in value.items()
+        }
+    if isinstance(value, list):
+        return [shared_json(item) for item in value]
+    return value
+
+
+def _source_copies(session_dir: Path, files: list[Path]) -> dict[str, bytes]:
+    """Read what ``sourcedata/`` holds of a session, by name (trial files, plan, study).
+
+    The trial files are each trial's recording, sidecar, inputs and answers. A JSON file that
+    names a file under `PATH_KEYS` is held `shared_json`; every other file byte for byte.
+
+    Raises
+    ------
+    InputError
+        A JSON file that cannot be read as JSON.
+    """
     sources = [
         path
         for f in files
@@ -433,9 +475,24 @@ def _copy_sources(session_dir: Path, files: list[Path], target: Path) -> None:
         )
     ]  # fmt: skip
     sources += [session_dir / PLAN_FILE, session_dir / STUDY_FILE]
-    for source in sources:
-        if source.is_file():
-            write_atomic_bytes(target / source.name, read_bytes(source, MAX_FILE_BYTES))
+    return {source.name: _shared_copy(source) for source in sources if source.is_file()}
+
+
+def _shared_copy(source: Path) -> bytes:
+    """Return the bytes of ``source``, or of a JSON file's text `shared_json` when it differs."""
+    data = read_bytes(source, MAX_FILE_BYTES)
+    if source.suffix != ".json":
+        return data
+    value = parse_json(read_sidecar_text(source), source)
+    shared = shared_json(value)
+    return data if shared == value else json_text(shared).encode()
+
+
+def _write_sources(copies: dict[str, bytes], target: Path) -> None:
+    """Write the ``sourcedata/`` copies (`_source_copies`) into ``target``."""
+    target.mkdir(parents=True, exist_ok=True)
+    for name, data in copies.items():
+        write_atomic_bytes(target / name, data)
 
 
 def _read_column_info(path: Path) -> dict[str, Any]:

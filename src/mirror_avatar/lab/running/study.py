@@ -14,7 +14,8 @@ The folder is named after the protocol and the participant (``<protocol>-p003``)
 conditions as run, with each condition's trial numbers and partners. Creating the same
 participant's session again (after a crash, a server restart) resumes it: ``study.json`` must
 match the protocol (same seed, same order), and play continues at the first trial whose files
-are not on disk; the trial a crash interrupted keeps what it recorded.
+are not on disk; the trial a crash interrupted keeps what it recorded, and a trial whose
+recording is missing beside its other files is refused (`first_unrecorded`).
 """
 
 from __future__ import annotations
@@ -40,7 +41,13 @@ from mirror_avatar.files.user_files import parse_json
 from mirror_avatar.lab.design.perturbation import Perturbation
 from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.lab.design.protocol import Condition, Protocol, Question
-from mirror_avatar.lab.files import ANSWERS_SUFFIX, STUDY_FILE, trial_stem
+from mirror_avatar.lab.files import (
+    ANSWERS_SUFFIX,
+    SESSION_SUFFIX,
+    STUDY_FILE,
+    trial_file,
+    trial_stem,
+)
 from mirror_avatar.lab.running.messages import Answer
 from mirror_avatar.lab.running.participant import COLOURS, Participant
 from mirror_avatar.lab.running.schedule import (
@@ -485,8 +492,7 @@ class ParticipantRun:
 
 def answers_path(directory: Path, n: int) -> Path:
     """Return the file of the answers given after trial n."""
-    stem = trial_stem(directory, n)
-    return stem.with_name(stem.name + ANSWERS_SUFFIX)
+    return trial_file(directory, n, ANSWERS_SUFFIX)
 
 
 def read_schedule(path: Path) -> dict[str, Any]:
@@ -517,12 +523,15 @@ def first_unrecorded(directory: Path, total: int) -> int:
     """Return the trial a run resumes at: the first of 1..``total`` with no file on disk.
 
     **Choice**: a trial with no file before one with files (a gap: files deleted or moved) is
-    refused rather than played out of the order recorded in ``study.json``.
+    refused rather than played out of the order recorded in ``study.json``, and so is a trial
+    whose files are kept without its recording (``trial-NN_session.csv``): it is neither
+    counted as played nor played again over what is left of it.
 
     Raises
     ------
     InputError
-        A gap, naming the missing trial and the next one recorded.
+        A gap, naming the missing trial and the next one recorded; a recording missing,
+        naming it.
     """
     recorded = [n for n in range(1, total + 1) if _recorded(directory, n)]
     following = len(recorded) + 1
@@ -535,7 +544,25 @@ def first_unrecorded(directory: Path, total: int) -> int:
             f"trial {gaps[0]} has no files ({stem}_*) but trial {later} has: restore "
             f"{stem}'s files, or move the folder away to run the participant afresh",
         )
+    lost = [n for n in recorded if not trial_file(directory, n, SESSION_SUFFIX).is_file()]
+    if lost:
+        raise _lost_recording(directory, lost[0], last=lost[0] == recorded[-1])
     return following
+
+
+def _lost_recording(directory: Path, n: int, last: bool) -> InputError:
+    """Say that trial n's recording is missing beside its other files, and what to do."""
+    stem = trial_stem(directory, n).name
+    again = (
+        "move its other files away to play it again"
+        if last
+        else "move the folder away to run the participant afresh"
+    )
+    return InputError(
+        trial_file(directory, n, SESSION_SUFFIX),
+        f"missing, but trial {n}'s other files ({stem}_*) are kept: the trial is not recorded; "
+        f"restore its recording, or {again}",
+    )
 
 
 def _recorded(directory: Path, n: int) -> bool:
