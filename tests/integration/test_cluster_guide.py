@@ -7,17 +7,14 @@ file as the local run: every array and every metadata value but the build timing
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import psutil
 import pytest
+from dask_processes import Cluster, loopback_cluster
 
 from mirror_avatar.cli import main
 from mirror_avatar.datasets import load_zhai2017
@@ -25,63 +22,16 @@ from mirror_avatar.engine import batch
 from mirror_avatar.files.model_files import load_model
 from mirror_avatar.files.trial_io import write_csv_trial
 from mirror_avatar.motion.generator import IMSGenerator
-from waiting import wait_for
 
 distributed = pytest.importorskip("distributed")
-
-DASK = Path(sys.executable).with_name("dask")
-SOURCE = Path(__file__).parents[2] / "src"
-
-
-def _environment(cache: Path) -> dict[str, str]:
-    """The workers' environment: this tree's package first, a private numba cache."""
-    path = os.pathsep.join(filter(None, [str(SOURCE), os.environ.get("PYTHONPATH")]))
-    return os.environ | {"PYTHONPATH": path, "XDG_CACHE_HOME": str(cache)}
-
-
-@dataclass(frozen=True)
-class Cluster:
-    """A loopback rehearsal's scheduler address and its processes' ids."""
-
-    address: str
-    pids: list[int]
 
 
 @pytest.fixture(scope="module")
 def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cluster]:
     """Start ``dask scheduler`` and two ``dask worker`` processes on loopback, as the guide's
     rehearsal does."""
-    folder = tmp_path_factory.mktemp("cluster")
-    address_file = folder / "scheduler.json"
-    environment = _environment(folder / "cache")
-    common = {"env": environment, "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
-    processes = [
-        subprocess.Popen(
-            [str(DASK), "scheduler", "--host", "127.0.0.1", "--port", "0",
-             "--dashboard-address", "127.0.0.1:0", "--scheduler-file", str(address_file)],
-            **common,
-        )
-    ]  # fmt: skip
-    try:
-        wait_for(address_file.is_file, 60.0, "the scheduler to start", interval=0.2)
-        for _ in range(2):
-            processes.append(
-                subprocess.Popen(
-                    [str(DASK), "worker", "--scheduler-file", str(address_file),
-                     "--host", "127.0.0.1", "--nthreads", "1",
-                     "--dashboard-address", "127.0.0.1:0"],
-                    **common,
-                )
-            )  # fmt: skip
-        with distributed.Client(scheduler_file=str(address_file), timeout=60) as client:
-            client.wait_for_workers(2, timeout=120)
-            yield Cluster(client.scheduler.address, [p.pid for p in processes])
-            client.shutdown()  # the scheduler and workers end at once (a SIGTERM takes seconds)
-    finally:
-        for process in reversed(processes):
-            process.terminate()
-        for process in processes:
-            process.wait(30)
+    with loopback_cluster(tmp_path_factory.mktemp("cluster"), workers=2) as started:
+        yield started
 
 
 def _without_timings(value: Any) -> Any:

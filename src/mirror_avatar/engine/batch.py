@@ -171,8 +171,8 @@ def run_sessions(
     seed
         Seed of the run (session seeds are spawned from it).
     scheduler
-        Address of the Dask scheduler (``tcp://host:port``) whose cluster plays the sessions;
-        None plays them on ``n_jobs`` threads of this process.
+        Address of the Dask scheduler (``tls://host:port`` or ``tcp://host:port``) whose
+        cluster plays the sessions; None plays them on ``n_jobs`` threads of this process.
     n_jobs
         Local worker threads (``1`` plays in the calling thread).
     chunk_size
@@ -246,20 +246,48 @@ def _run_on_threads(tasks: Iterator[tuple[Any, ...]], n_jobs: int) -> Iterator[l
         pool.shutdown(wait=False, cancel_futures=True)
 
 
+TLS_CREDENTIALS = (
+    "DASK_DISTRIBUTED__COMM__TLS__CA_FILE",
+    "DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT",
+    "DASK_DISTRIBUTED__COMM__TLS__CLIENT__KEY",
+)
+"""Environment variables that give the client its TLS credentials (Dask's configuration keys
+``distributed.comm.tls.ca-file``, ``.client.cert`` and ``.client.key``; docs/cluster.md)."""
+
+
 def connect_to_scheduler(scheduler: str) -> Any:
-    """Connect a Dask client to ``scheduler`` (``tcp://host:port``), waiting `DASK_CONNECT_TIMEOUT`.
+    """Connect a Dask client to ``scheduler``, waiting `DASK_CONNECT_TIMEOUT`.
+
+    A ``tls://host:port`` address is connected to with the credentials of Dask's configuration
+    (`TLS_CREDENTIALS`), a ``tcp://host:port`` one in plain text.
 
     Raises
     ------
     InputError
-        The scheduler cannot be reached (one line naming its address).
+        The scheduler cannot be reached, refuses the client's certificate, or is a TLS one and
+        the configuration gives no credentials (one line naming its address).
     """
     from distributed import Client
 
+    if scheduler.startswith("tls://"):
+        _check_tls_credentials(scheduler)
     try:
         return Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError) as error:
         raise InputError(scheduler, f"cannot reach the Dask scheduler ({error})") from None
+
+
+def _check_tls_credentials(scheduler: str) -> None:
+    """Refuse a TLS scheduler when Dask's configuration has no CA file or client certificate."""
+    from distributed.security import Security
+
+    tls = Security().get_tls_config_for_role("client")
+    if not (tls["ca_file"] and tls["cert"]):
+        raise InputError(
+            scheduler,
+            f"a TLS scheduler needs the client's credentials: set {', '.join(TLS_CREDENTIALS)} "
+            "(docs/cluster.md)",
+        )
 
 
 def check_scheduler(scheduler: str) -> None:
