@@ -14,7 +14,12 @@ from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.discretisation import make_default_discretisation
 from mirror_avatar.motion.models import load_motion
-from mirror_avatar.motion.sharing import mdav_groups, rebuild_errors, shareable
+from mirror_avatar.motion.sharing import (
+    blended_profile,
+    mdav_groups,
+    rebuild_errors,
+    shareable,
+)
 from mirror_avatar.motion.strokes import StrokeGenerator, reversals
 from mirror_avatar.training.avatar import Avatar, load_avatar, shareable_avatar
 
@@ -49,6 +54,19 @@ def test_mdav_partitions_every_point_into_groups_of_k_to_2k_minus_1(n: int, k: i
     groups = mdav_groups(points, k)
     assert sorted(np.concatenate(groups).tolist()) == list(range(n))
     assert all(k <= g.size <= 2 * k - 1 for g in groups)
+
+
+def test_a_blended_profile_keeps_its_members_detail_and_runs_from_0_to_1() -> None:
+    """Three ramps with independent fine detail (SD 0.01, white): the blend's detail keeps its
+    SD (within 15 %) where the mean's is divided by sqrt(3); the smooth part is the ramp."""
+    rng = np.random.default_rng(0)
+    ramp = np.linspace(0.0, 1.0, 4001)
+    profiles = ramp + rng.normal(scale=0.01, size=(3, ramp.size))
+    blended = blended_profile(profiles, np.array([1.0, -1.0, 1.0]))
+    assert blended[0] == pytest.approx(0.0, abs=1e-12)
+    assert blended[-1] == pytest.approx(1.0, abs=1e-12)
+    assert np.std(blended - ramp) == pytest.approx(0.01 * np.sqrt(8 / 9), rel=0.15)
+    assert np.std(profiles.mean(axis=0) - ramp) == pytest.approx(0.01 / np.sqrt(3), rel=0.15)
 
 
 def test_a_shared_model_averages_each_stroke_over_a_group_of_its_direction(fitted) -> None:
