@@ -181,6 +181,11 @@ def recording_file(spec: str) -> Path | None:
     return None if path.suffix.lower() == ".npz" else path
 
 
+def replays_recording(spec: str) -> bool:
+    """Whether a spec replays a recorded trial open-loop (a trial file; ``vt:FILE`` follows one)."""
+    return recording_file(spec) is not None and not spec.startswith("vt:")
+
+
 def model_partner(spec: str, role: str = "follower") -> ModelPartner:
     """Build the partner from the literature that ``NAME[:key=value,...]`` names, dry-run.
 

@@ -198,21 +198,27 @@ def test_a_stand_in_for_nobody_is_refused_in_one_line(tmp_path):
     assert "P9" in result.stderr and "P1" in result.stderr
 
 
-TEMPLATES = sorted((Path(__file__).parents[2] / "examples" / "protocols").glob("*.toml"))
+ROOT = Path(__file__).parents[2]
+TEMPLATES = sorted((ROOT / "examples" / "protocols").glob("*.toml"))
 
 
 def rehearsal(template: Path, folder: Path) -> Path:
-    """Copy a template with every trial shortened to 2 s, one per condition, and no pauses."""
+    """Copy a template with every trial shortened to 2 s, one per condition, and no pauses.
+
+    Its specs' paths, relative to the repository's root where the lab runs from, are made
+    absolute, so that the copy runs from any folder.
+    """
     text = template.read_text(encoding="utf-8")
     for key, value in (("duration", "2"), ("trials", "1"), ("pause", "0")):
         text = re.sub(rf"^{key} = .*$", f"{key} = {value}", text, flags=re.MULTILINE)
+    text = text.replace('spec = "examples/', f'spec = "{ROOT.as_posix()}/examples/')
     copy = folder / template.name
     copy.write_text(text, encoding="utf-8")
     return copy
 
 
 def test_the_field_s_designs_are_templates():
-    assert [t.stem for t in TEMPLATES] == ["brezis2017", "llobera2022", "slowinski2017"]
+    assert [t.stem for t in TEMPLATES] == ["brezis2017", "llobera2022", "slowinski2017", "turing"]
 
 
 @pytest.mark.slow

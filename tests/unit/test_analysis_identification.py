@@ -157,3 +157,13 @@ def test_per_condition_rates_of_a_three_arm_design() -> None:
                  for k in (8, 4, 9)]  # fmt: skip
     assert list(table["binomial_p"]) == pytest.approx(two_sided)
     assert found.to_dict()["per_condition"][2]["condition"] == "uncoupled"
+
+
+def test_a_recording_replayed_is_scored_as_a_person_s_motion() -> None:
+    answers = forty_eight_answers()
+    recorded = answers.assign(partner_kind=answers["partner_kind"].replace({"person": "recording"}))
+    found, as_persons = identify(recorded), identify(answers)
+    assert found is not None and as_persons is not None
+    assert (found.correct, found.binomial_p) == (36, as_persons.binomial_p)
+    assert found.detection == as_persons.detection
+    assert set(found.per_condition["partners"]) == {"avatar, recording"}

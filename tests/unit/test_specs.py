@@ -173,3 +173,18 @@ def test_a_policy_plays_only_the_role_it_was_trained_for(tmp_path, trained, allo
     assert isinstance(load_player(str(path), allowed), CyberPlayer)
     with pytest.raises(InputError, match=f"trained as {trained} cannot play {refused}"):
         load_player(str(path), refused)
+
+
+@pytest.mark.parametrize(
+    ("spec", "replays"),
+    [
+        ("trials/P07.csv", True),
+        ("./kuramoto", True),
+        ("vt:trials/P07.csv", False),
+        ("P07.npz", False),
+        ("bundled:slow", False),
+        ("kuramoto:coupling=0.5", False),
+    ],
+)
+def test_only_a_trial_file_given_as_a_spec_replays_a_recording(spec: str, replays: bool):
+    assert specs.replays_recording(spec) is replays

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.trial_record import (
+    KIND_NAMES,
     KINDS,
     InputEventRecord,
     PerturbationRecord,
@@ -169,7 +170,8 @@ def test_a_damaged_record_is_one_line_naming_the_file_and_key(tmp_path, damage, 
 
 
 def test_partner_kinds_name_persons_avatars_mixed_or_none() -> None:
-    assert partner_kind(["human", "human"]) == "person"
-    assert partner_kind(["avatar"]) == "avatar"
-    assert partner_kind(["avatar", "human"]) == "mixed"
+    assert partner_kind([KIND_NAMES["human"], KIND_NAMES["human"]]) == "person"
+    assert partner_kind([KIND_NAMES["avatar"]]) == "avatar"
+    assert partner_kind(["recording", "recording"]) == "recording"
+    assert partner_kind(["avatar", "person"]) == "mixed"
     assert partner_kind([]) == "none"

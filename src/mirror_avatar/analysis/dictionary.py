@@ -26,7 +26,8 @@ DESIGN_COLUMNS: dict[str, dict[str, Any]] = {
                "Role": "identifier"},
     "player_kind": {"Description": "Who played in this slot",
                     "Levels": {"person": "a person at a page or device",
-                               "avatar": "a computer player"},
+                               "avatar": "a computer player",
+                               "recording": "a person's recorded trial replayed"},
                     "Role": "design"},
     "block": {"Description": "The block's position in the participant's run (1-based)",
               "Role": "design"},
@@ -41,7 +42,8 @@ DESIGN_COLUMNS: dict[str, dict[str, Any]] = {
     "partner_kind": {"Description": "The true kind of the player's partners",
                      "Levels": {"person": "every partner a person",
                                 "avatar": "every partner a computer player",
-                                "mixed": "persons and computer players",
+                                "recording": "every partner a person's recorded trial replayed",
+                                "mixed": "partners of several kinds",
                                 "none": "no partner (a solo trial)"},
                      "Role": "design"},
     "delay_s": {"Description": "Visual delay of the partners on the persons' pages",
@@ -101,8 +103,8 @@ GUESS_COLUMNS: dict[str, dict[str, Any]] = {
     "guess_kind": {"Description": "What the person said their partner was, from their answer "
                    "to the person-or-computer question",
                    "Levels": {"person": "a person", "avatar": "a computer"}, "Role": "answer"},
-    "guess_correct": {"Description": "Whether guess_kind is the partners' true kind "
-                      "(partner_kind)", "Role": "answer"},
+    "guess_correct": {"Description": "Whether guess_kind names whose motion the partners "
+                      "showed (partner_kind; a recording is a person's)", "Role": "answer"},
     "guess_confidence": {"Description": "The Likert point of the confidence question asked "
                          "with the guess (empty when none was asked)", "Role": "answer"},
 }  # fmt: skip

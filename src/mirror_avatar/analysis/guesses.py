@@ -3,7 +3,9 @@
 A protocol asks it as a choice question (``kind = "choice"``) whose text names both a person and
 a machine ("Was your partner a person or a computer?"); the answer's words say the guess
 (`PERSON_WORDS`, `MACHINE_WORDS`). Its confidence is the Likert question asked with it whose id
-or text speaks of confidence ("How confident are you?"). Both rules read only what every copy
+or text speaks of confidence ("How confident are you?"). A guess is right when it names whose
+motion the partners showed (`MOTION_OF`): a person's recorded trial replayed is a person's. Both
+rules read only what every copy
 of the answers keeps (the question's text and kind and the answer), so run folders and BIDS
 ``_beh.tsv`` files give the same guesses.
 """
@@ -22,6 +24,14 @@ MACHINE_WORDS = frozenset(
     {"computer", "avatar", "machine", "robot", "program", "algorithm", "bot", "ai", "agent"}
 )
 """Words of an answer or a question naming a computer player."""
+
+MOTION_OF = {"person": "person", "recording": "person", "avatar": "avatar"}
+"""The right guess about partners of each kind (`mirror_avatar.analysis.table.slot_kind`).
+
+**Choice**: a recording replayed is a person's motion, so "a person" is right about it, as in a
+Turing test of motion; the lab cannot tell a recording of a person from one of a computer
+player, so replay only people's recordings where answers are scored.
+"""
 
 
 def _words(text: str) -> set[str]:

@@ -1,9 +1,10 @@
 """Telling a person from a computer: the answers to "person or avatar?" scored (METHODS 15).
 
 An answer is a row with a guess (``guess_kind``, "person" or "avatar") about a partner whose
-true kind (``partner_kind``) is "person" or "avatar"; rows whose partners were mixed are left
-out. Scored as signal detection with the person as the signal: a hit is "person" said of a
-person, a false alarm "person" said of an avatar.
+true kind (``partner_kind``) is "person", "recording" (a person's recorded trial replayed: a
+person's motion, `mirror_avatar.analysis.guesses.MOTION_OF`) or "avatar"; rows whose partners
+were mixed are left out. Scored as signal detection with the person as the signal: a hit is
+"person" said of a person's motion, a false alarm "person" said of an avatar.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from mirror_avatar.analysis.guesses import MOTION_OF
 from mirror_avatar.analysis.statistics import CONFIDENCE, has_spread
 
 CHANCE = 0.5
@@ -108,8 +110,8 @@ class Identification:
         criterion, corrected.
     per_condition
         Per condition (a partner's kind may be fixed by the condition, as in a three-arm
-        design): answers, the true kinds answered about, correct, rate, binomial_p (against
-        `CHANCE`) and said_person, the share of answers "person".
+        design): answers, the partners' true kinds answered about (``partner_kind``), correct,
+        rate, binomial_p (against `CHANCE`) and said_person, the share of answers "person".
     left_out
         Answers about mixed partners (persons and avatars together), not scored.
     """
@@ -147,20 +149,22 @@ def scored_answers(rows: pd.DataFrame) -> tuple[pd.DataFrame, int]:
     Returns
     -------
     tuple
-        The answers (columns person, condition, truth, guess, right, confidence; a row
-        each with a guess of "person" or "avatar" about a partner of one true kind) and the
-        number of guesses about mixed partners.
+        The answers (columns person, condition, partner (its true kind), truth (the right
+        guess about it, `MOTION_OF`), guess, right, confidence; a row each with a guess of
+        "person" or "avatar" about a partner of one true kind) and the number of guesses about
+        mixed partners.
     """
     if "guess_kind" not in rows or "partner_kind" not in rows:
-        columns = ["person", "condition", "truth", "guess", "right", "confidence"]
+        columns = ["person", "condition", "partner", "truth", "guess", "right", "confidence"]
         return pd.DataFrame(columns=columns), 0
     guessed = rows[rows["guess_kind"].isin(KINDS)]
-    scored = guessed[guessed["partner_kind"].isin(KINDS)]
+    scored = guessed[guessed["partner_kind"].isin(MOTION_OF)]
     confidence = scored.get("guess_confidence", pd.Series(np.nan, index=scored.index))
+    truth = scored["partner_kind"].map(MOTION_OF)
     answers = pd.DataFrame({
         "person": _answerers(scored), "condition": scored["condition"],
-        "truth": scored["partner_kind"],
-        "guess": scored["guess_kind"], "right": scored["guess_kind"] == scored["partner_kind"],
+        "partner": scored["partner_kind"], "truth": truth,
+        "guess": scored["guess_kind"], "right": scored["guess_kind"] == truth,
         "confidence": pd.to_numeric(confidence, errors="coerce"),
     })  # fmt: skip
     return answers, len(guessed) - len(scored)
@@ -225,7 +229,7 @@ def _person_row(answers: pd.DataFrame) -> dict[str, Any]:
 def _condition_row(answers: pd.DataFrame) -> dict[str, Any]:
     correct = int(answers["right"].sum())
     return {
-        "answers": len(answers), "partners": ", ".join(sorted(set(answers["truth"]))),
+        "answers": len(answers), "partners": ", ".join(sorted(set(answers["partner"]))),
         "correct": correct, "rate": correct / len(answers),
         "binomial_p": float(stats.binomtest(correct, len(answers), CHANCE).pvalue),
         "said_person": float((answers["guess"] == "person").mean()),

@@ -2,12 +2,12 @@
 
 `study_table` turns a study's trials (`mirror_avatar.analysis.trials.read_study_trials`) into
 one long `pandas.DataFrame` (columns in `mirror_avatar.analysis.dictionary`): who played
-(``participant``, ``session``, ``person``, ``player_kind``), where the trial stands in the
-participant's run (``block`` and ``position``: 1-based order of the block and of the condition
-in the run, counted from the trials as played; ``trial``), what the protocol set (``condition``,
-``partners``, ``partner_kind``, ``delay_s``, ``occluded``, ``perturbations``), whether the trial
-ran to its end (``complete``, its record's: an aborted trial's rows are kept, saying so), the
-measures of the player's trial (`mirror_avatar.metrics.session_metrics` and
+(``participant``, ``session``, ``person``, ``player_kind``: `slot_kind`), where the trial
+stands in the participant's run (``block`` and ``position``: 1-based order of the block and of
+the condition in the run, counted from the trials as played; ``trial``), what the protocol set
+(``condition``, ``partners``, ``partner_kind``, ``delay_s``, ``occluded``, ``perturbations``),
+whether the trial ran to its end (``complete``, its record's: an aborted trial's rows are kept,
+saying so), the measures of the player's trial (`mirror_avatar.metrics.session_metrics` and
 `mirror_avatar.metrics.measures.session_measures`, measured as ``evaluate`` and the lab measure
 a trial: `mirror_avatar.metrics.measuring.measure_trial`, with ``surrogates`` circular-shift
 surrogates seeded by the trial's own seed: a pair's measures on both players' rows, a player's
@@ -35,7 +35,7 @@ from mirror_avatar.analysis.dictionary import (
     measure_info,
     p_value_column,
 )
-from mirror_avatar.analysis.guesses import guess
+from mirror_avatar.analysis.guesses import MOTION_OF, guess
 from mirror_avatar.analysis.trials import StudyTrial
 from mirror_avatar.files.atomic import (
     csv_text,
@@ -45,6 +45,7 @@ from mirror_avatar.files.atomic import (
 from mirror_avatar.files.trial_record import KIND_NAMES, SlotRecord, partner_kind
 from mirror_avatar.metrics import TRIM, registry
 from mirror_avatar.metrics.measuring import TRIAL_SURROGATES, measure_trial
+from mirror_avatar.specs import replays_recording
 
 TABLE_FILES = ("study.csv", "study.parquet", "study.json")
 """The files `write_study_table` writes."""
@@ -83,6 +84,18 @@ def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str,
     return {} if measured is None else measured.metrics | measured.measures.values
 
 
+def slot_kind(slot: SlotRecord) -> str:
+    """Name a slot's kind as the study's tables do: ``person``, ``avatar`` or ``recording``.
+
+    **Choice**: an avatar slot that replays a recorded trial file (`replays_recording`) is a
+    ``recording``, a person's motion that nobody plays live; a person-or-computer guess about it
+    is right when it says a person (`mirror_avatar.analysis.guesses.MOTION_OF`).
+    """
+    if slot.spec is not None and slot.kind == "avatar" and replays_recording(slot.spec):
+        return "recording"
+    return KIND_NAMES[slot.kind]
+
+
 def _design(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:
     record, study = trial.record, trial.record.study
     partners = record.partners_of(slot.label)
@@ -90,11 +103,11 @@ def _design(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:
         "participant": trial.participant,
         "session": record.session_id,
         "person": slot.label,
-        "player_kind": KIND_NAMES[slot.kind],
+        "player_kind": slot_kind(slot),
         "condition": record.condition if study is None else study.condition,
         "trial": record.trial,
         "partners": "+".join(p.label for p in partners),
-        "partner_kind": partner_kind(p.kind for p in partners),
+        "partner_kind": partner_kind(slot_kind(p) for p in partners),
         "delay_s": 0.0 if study is None else float(study.delay_s),
         "occluded": study is not None and bool(study.occluded_s),
         "perturbations": len(record.perturbations),
@@ -141,8 +154,8 @@ def _answers(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:
         row |= {
             "guess_kind": kind,
             "guess_correct": None
-            if kind is None or partners not in KIND_NAMES.values()
-            else kind == partners,
+            if kind is None or partners not in MOTION_OF
+            else kind == MOTION_OF[partners],
             "guess_confidence": confidence,
         }
     return row

@@ -41,12 +41,12 @@ KIND_NAMES = {"human": "person", "avatar": "avatar"}
 
 
 def partner_kind(kinds: Iterable[str]) -> str:
-    """Name the true kind of a player's partners from their slots' kinds (`KINDS`).
+    """Name the true kind of a player's partners from their kinds as a table names them.
 
-    ``person`` or ``avatar`` when every partner is one, ``mixed`` when both, ``none`` for no
-    partner (a solo trial).
+    The partners' kind (``person`` or ``avatar``, `KIND_NAMES`) when every partner is of one,
+    ``mixed`` when of several, ``none`` for no partner (a solo trial).
     """
-    named = {KIND_NAMES[kind] for kind in kinds}
+    named = set(kinds)
     if len(named) == 1:
         return named.pop()
     return "mixed" if named else "none"

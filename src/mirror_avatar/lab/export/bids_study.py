@@ -37,6 +37,7 @@ from mirror_avatar.files.bids.tables import read_tsv
 from mirror_avatar.files.bids.writing import tsv_table
 from mirror_avatar.files.trial_io import read_sidecar_text
 from mirror_avatar.files.trial_record import (
+    KIND_NAMES,
     AnswersRecord,
     SlotRecord,
     TrialRecord,
@@ -214,7 +215,7 @@ def answer_rows(
     partners = [slot for slot in slots if slot.label != label]
     beside = {
         "partners": "+".join(slot.label for slot in partners) or MISSING,
-        "partner_kind": partner_kind(slot.kind for slot in partners),
+        "partner_kind": partner_kind(KIND_NAMES[slot.kind] for slot in partners),
     }
     return [
         {
