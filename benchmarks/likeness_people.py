@@ -7,7 +7,8 @@ Protocol (issue 47; docs/METHODS.md sections 3 and 4b):
   (`mirror_avatar.datasets.synthetic.SYNTHETIC_PEOPLE`, ten trials of 60 s each, seed 0).
   ``--people development`` runs the bundled styles and `DEVELOPMENT_PEOPLE`, the only people any
   choice of a generator's design or settings looked at; ``--people test`` runs `TEST_PEOPLE`,
-  held out of every choice; ``--people all`` both.
+  held out of every choice; ``--people all`` both; ``--people fresh`` runs `FRESH_PEOPLE`, held
+  out for the next round of choices.
 - **Split**: a person's first `FITTED` trials fit the generator (timed: wall clock of ``fit``);
   the others are held out. The generator makes one trial per held-out trial, as long as it
   (seeds 1, 2, ...).
@@ -43,7 +44,12 @@ from typing import Any
 import numpy as np
 
 from mirror_avatar.datasets import load_zhai2017
-from mirror_avatar.datasets.synthetic import DEVELOPMENT_PEOPLE, SYNTHETIC_PEOPLE, TEST_PEOPLE
+from mirror_avatar.datasets.synthetic import (
+    DEVELOPMENT_PEOPLE,
+    FRESH_PEOPLE,
+    SYNTHETIC_PEOPLE,
+    TEST_PEOPLE,
+)
 from mirror_avatar.files.trials import Trial
 from mirror_avatar.motion.models import MODEL_KINDS, MotionModel
 from mirror_avatar.motion.sharing import DEFAULT_GROUP_SIZE, rebuild_errors, shareable
@@ -75,7 +81,7 @@ def people(which: str) -> dict[str, list[Trial]]:
         bundled = load_zhai2017()
         for style in ("slow", "fast"):
             chosen[f"bundled {style}"] = [t for t in bundled if t.group == style]
-    names = {"development": DEVELOPMENT_PEOPLE, "test": TEST_PEOPLE}.get(
+    names = {"development": DEVELOPMENT_PEOPLE, "test": TEST_PEOPLE, "fresh": FRESH_PEOPLE}.get(
         which, DEVELOPMENT_PEOPLE + TEST_PEOPLE
     )
     for name in names:
@@ -226,7 +232,9 @@ def table(rows: Sequence[dict[str, Any]]) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--people", choices=("development", "test", "all"), default="development")
+    parser.add_argument(
+        "--people", choices=("development", "test", "fresh", "all"), default="development"
+    )
     parser.add_argument("--kinds", nargs="+", choices=KINDS, default=["strokes"])
     parser.add_argument(
         "--set", nargs="*", default=[], help="generator settings KEY=VALUE (numbers)"

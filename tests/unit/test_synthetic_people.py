@@ -15,6 +15,7 @@ import scipy.signal
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.datasets.synthetic import (
     DEVELOPMENT_PEOPLE,
+    FRESH_PEOPLE,
     LEAP_RATE,
     SYNTHETIC_PEOPLE,
     TEST_PEOPLE,
@@ -252,11 +253,12 @@ def test_tremor_adds_to_an_unchanged_motion():
         )
 
 
-def test_registry_splits_into_disjoint_development_and_test_people():
-    assert not set(DEVELOPMENT_PEOPLE) & set(TEST_PEOPLE)
-    assert set(DEVELOPMENT_PEOPLE) | set(TEST_PEOPLE) == set(SYNTHETIC_PEOPLE)
+def test_registry_splits_into_disjoint_development_test_and_fresh_people():
+    sets = (DEVELOPMENT_PEOPLE, TEST_PEOPLE, FRESH_PEOPLE)
+    assert sum(len(names) for names in sets) == len(set().union(*sets))
+    assert set().union(*sets) == set(SYNTHETIC_PEOPLE)
     assert all(person.name == name for name, person in SYNTHETIC_PEOPLE.items())
-    for names in (DEVELOPMENT_PEOPLE, TEST_PEOPLE):
+    for names in sets:
         people = [SYNTHETIC_PEOPLE[name] for name in names]
         assert {p.kind for p in people} == {"strokes", "oscillator", "wander"}
         assert {round(p.rate) for p in people} == {13, 60, 100}
