@@ -244,7 +244,7 @@ def main() -> None:
         "--figure", type=Path, help="also draw each person's velocity spectra (PNG) to this file"
     )
     args = parser.parse_args()
-    settings = {k: float(v) for k, v in (item.split("=") for item in args.set)}
+    settings = {k: int(v) if v.isdigit() else float(v) for k, v in (i.split("=") for i in args.set)}
     everyone = people(args.people)
     rows, spectra = [], {}
     for kind in args.kinds:
