@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import time
 
+from mirror_avatar.common.progress import silenced
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.dynamics import (
     CONTROL_PERIOD,
@@ -43,7 +44,13 @@ N_SAMPLES = round(DURATION / CONTROL_PERIOD)
 
 
 def warm_up() -> None:
-    """Call every compiled kernel of the package once, so numba caches it on disk."""
+    """Call every compiled kernel of the package once, so numba caches it on disk (silently)."""
+    with silenced():
+        _warm_up()
+
+
+def _warm_up() -> None:
+    """Call the kernels: a generator, signatures, sessions of every kind of player, trainings."""
     trials = [trial.resampled(100.0) for trial in load_zhai2017()[:3]]
     motion = IMSGenerator(n_symbols=8, random_state=0).fit(trials[:2])
     generated = motion.sample(trials[2].duration, n=2, random_state=0)

@@ -140,3 +140,25 @@ def test_a_file_given_twice_is_read_once(zhai_trials, tmp_path, twice) -> None:
     found = read_trial_set([*folders, again], "directory")
     assert len(found.trials) == 21 and len({t.label for t in found.trials}) == 21
     assert any("given more than once" in note for note in found.notes)
+
+
+@pytest.mark.parametrize("given", ["people", "sessions"])
+def test_two_folders_of_one_name_are_refused_not_merged_into_one_person(
+    zhai_trials, tmp_path, capsys, given
+) -> None:
+    """``a/alice`` and ``b/alice``, given as such or as ``a`` and ``b``: two people or one?"""
+    for session, trials in (("a", zhai_trials[:3]), ("b", zhai_trials[9:12])):
+        (tmp_path / session / "alice").mkdir(parents=True)
+        for k, trial in enumerate(trials):
+            write_csv_trial(trial, tmp_path / session / "alice" / f"trial_{k:02d}.csv")
+    paths = ["a/alice", "b/alice"] if given == "people" else ["a", "b"]
+    out = tmp_path / "s"
+    arguments = ["signature", *(str(tmp_path / path) for path in paths), "--out", str(out)]
+    assert main(arguments) == 2
+    error = capsys.readouterr().err
+    assert error == (
+        f"mirror-avatar: error: {tmp_path / 'a' / 'alice'} and {tmp_path / 'b' / 'alice'} would "
+        "both be group 'alice' (one person): rename one folder, or say whose trials are whose "
+        "with --group-by map:FILE.csv\n"
+    )
+    assert not out.exists()

@@ -64,6 +64,29 @@ def test_blank_cells_in_an_epoch_clock(clock: str, tmp_path: Path, capsys) -> No
                                sway()[[39, 42]]), atol=1e-12)  # fmt: skip
 
 
+LEAP_CLOCK_US = 5_812_345_678_901
+"""A Leap Motion frame's timestamp: microseconds since its service started (67 days here)."""
+
+
+@pytest.mark.parametrize(("unit", "first"), [("us", 0), ("epoch_us", LEAP_CLOCK_US)])
+def test_microsecond_stamps_are_read_in_seconds(
+    unit: str, first: int, tmp_path: Path, capsys
+) -> None:
+    """A time column in microseconds from 0 (``us``) or on Leap Motion's clock (``epoch_us``)."""
+    source = tmp_path / "leap.csv"
+    stamps = first + 100_000 * np.arange(SAMPLES)
+    rows = (
+        f"{stamp},{position!r}" for stamp, position in zip(stamps, sway().tolist(), strict=True)
+    )
+    source.write_text("\n".join(["timestamp,position", *rows]) + "\n")
+    arguments = ["convert", str(source), "--time-column", "timestamp", "--time-unit", unit]
+    status, _, error = run(capsys, *arguments, "--out", str(tmp_path / "out"))
+    assert status == 0, error
+    trial = read_csv_trial(next((tmp_path / "out").rglob("leap.csv")))
+    np.testing.assert_allclose(trial.times, np.arange(SAMPLES) / RATE, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(trial.positions, sway())
+
+
 def test_a_gap_just_over_the_limit_is_refused(tmp_path: Path, capsys) -> None:
     """Three blank cells (0.4 s between positions) are refused at --max-gap 0.3."""
     source = tmp_path / "rec.csv"

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import httpx
+import pytest
 from test_lab_server import BEARER, DYAD, TOKEN, command, create, socket_url
 from websockets.sync.client import connect
 
@@ -85,3 +86,21 @@ def test_ended_sessions_leave_memory_their_links_stop_and_their_files_stay(tmp_p
         assert (tmp_path / first["id"] / "plan.json").is_file()
         again = create(lab, DYAD)  # a new session gets a new folder, never an old one's
         assert again["id"] not in {s["id"] for s in ended}
+
+
+@pytest.mark.parametrize(("options", "said"), [([], "LSL off"), (["--lsl"], "LSL on")])
+def test_lsl_streams_are_published_only_when_asked(tmp_path, options, said):
+    """An LSL outlet is discoverable on the whole network: a lab on loopback publishes none."""
+    if options:
+        pytest.importorskip("pylsl")
+    server = subprocess.Popen(
+        [sys.executable, "-c", "from mirror_avatar.console import run; run()", "lab",
+         "--port", "0", "--out", str(tmp_path / "out"), *options],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+    )  # fmt: skip
+    try:
+        first = server.stdout.readline()  # type: ignore[union-attr]
+    finally:
+        server.send_signal(signal.SIGINT)
+        server.communicate(timeout=20)
+    assert first.startswith("mirror-avatar lab: recording to") and first.endswith(f"; {said}\n")

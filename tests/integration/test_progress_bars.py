@@ -1,5 +1,6 @@
 """Progress bars on long commands, through the console script: shown with the time left under a
-terminal (a pseudo-terminal, as a user's shell gives), and nothing when output is not a terminal."""
+terminal (a pseudo-terminal, as a user's shell gives), and as plain lines when standard error is
+a file or a pipe."""
 
 from __future__ import annotations
 
@@ -71,11 +72,19 @@ def test_a_long_command_shows_progress_on_a_terminal(name: str, tmp_path: Path) 
 
 
 @pytest.mark.parametrize("name", list(COMMANDS))
-def test_nothing_is_drawn_off_a_terminal(name: str, tmp_path: Path) -> None:
-    arguments, label, _ = COMMANDS[name]
-    result = subprocess.run(
-        [sys.executable, "-c", CONSOLE, *(a.format(out=tmp_path) for a in arguments)],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
-    assert result.returncode == 0, result.stderr
-    assert label not in result.stderr and "%|" not in result.stderr + result.stdout
+def test_off_a_terminal_plain_lines_say_the_progress(name: str, tmp_path: Path) -> None:
+    """Standard error to a file: a plain line at each tenth of the work, no bar drawn in place."""
+    arguments, label, last = COMMANDS[name]
+    log = tmp_path / "stderr.log"
+    with log.open("w") as stderr:
+        result = subprocess.run(
+            [sys.executable, "-c", CONSOLE, *(a.format(out=tmp_path) for a in arguments)],
+            stdout=subprocess.PIPE, stderr=stderr, text=True, check=False,
+        )  # fmt: skip
+    errors = log.read_text()
+    assert result.returncode == 0, errors
+    lines = [line for line in errors.splitlines() if line.startswith(label)]
+    assert lines, errors
+    assert lines[-1].startswith(f"{label} {last} ") and "(100 %)" in lines[-1], lines
+    assert "left" in lines[0] and "%|" not in errors + result.stdout
+    assert b"\r" not in log.read_bytes()  # read as text, a carriage return would end a line

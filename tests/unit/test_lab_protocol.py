@@ -98,6 +98,24 @@ def test_a_protocol_is_single_blind_unless_it_says_double():
     assert parse_protocol(data | {"blind": "double"}, "p.toml").blind == "double"
 
 
+def test_blind_pages_show_no_metrics_unless_a_condition_asks_and_is_warned():
+    """Who led and how long the players moved together may tell a partner's kind."""
+    quiet = parse_protocol(_example(), "study.toml")
+    joint = quiet.blocks[1].conditions[1]
+    assert not joint.plan({"P2": True}, 1).show_metrics
+    assert not joint.plan({"P2": False}, 1).show_metrics
+    assert quiet.warnings == ()
+    shown = parse_protocol(_set(("blocks", 1, "conditions", 1, "show_metrics"), True), "study.toml")
+    assert shown.blocks[1].conditions[1].plan({"P2": False}, 1).show_metrics
+    assert shown.warnings == (
+        "study.toml: blocks[1].conditions[1].show_metrics = true tells the participants who led "
+        "and how long they moved together, which may give away a partner's kind: leave it out "
+        "to keep them blind",
+    )
+    alone = _set(("blocks", 0, "conditions", 0, "show_metrics"), True)
+    assert parse_protocol(alone, "study.toml").warnings == ()  # no partner to give away
+
+
 def test_a_protocol_without_a_seed_draws_one():
     data = _example()
     del data["seed"]

@@ -16,9 +16,10 @@ from mirror_avatar.cli.play import listen, server_options
 @server_options(8766, "lab", "Where sessions are recorded (one folder per session).")
 @click.option(
     "--lsl/--no-lsl",
-    default=None,
-    help="Publish each session as an LSL stream and accept LSL input devices "
-    "(default: when pylsl is installed).",
+    default=False,
+    show_default=True,
+    help="Publish each session as an LSL stream, which every machine on the network can "
+    "discover, and accept LSL input devices (needs pylsl).",
 )
 @click.option(
     "--protocol",
@@ -35,7 +36,7 @@ def lab(
     host: str,
     port: int,
     out_dir: Path,
-    lsl: bool | None,
+    lsl: bool,
     protocol_file: Path | None,
 ) -> None:
     """Run lab sessions: people at their own screens and avatars, from a researcher's console.
@@ -54,21 +55,18 @@ def lab(
 
     protocol = None if protocol_file is None else load_protocol(protocol_file)
     check_output_dir(out_dir)
-    use_lsl = _lsl_available() if lsl is None else lsl
-    if use_lsl and not _lsl_available():
+    if lsl and not _lsl_available():
         raise click.UsageError("--lsl needs pylsl: pip install 'mirror-avatar[lsl]'")
     sock = listen(host, port)
     out_dir.mkdir(parents=True, exist_ok=True)
-    if use_lsl:
+    if lsl:
         _quiet_lsl()
     token = make_token()
-    settings = LabSettings(out_dir=out_dir, token=token, lsl=use_lsl, protocol=protocol)
+    settings = LabSettings(out_dir=out_dir, token=token, lsl=lsl, protocol=protocol)
     port = sock.getsockname()[1]
     server = make_server(create_lab_app(settings), host, port, "info")
     shown = _reachable_name() if host in ("0.0.0.0", "::") else host
-    click.echo(
-        f"mirror-avatar lab: recording to {out_dir.resolve()}; LSL {'on' if use_lsl else 'off'}"
-    )
+    click.echo(f"mirror-avatar lab: recording to {out_dir.resolve()}; LSL {'on' if lsl else 'off'}")
     if protocol is not None:
         people = ", ".join(protocol.people)
         click.echo(

@@ -157,7 +157,8 @@ def import_options(command: Callable[..., None]) -> Callable[..., None]:
                      help="Name of the time column."),
         click.option("--time-unit", type=click.Choice(list(TIME_UNITS)), default="s",
                      show_default=True,
-                     help="Unit of time; epoch (Unix seconds) and epoch_ms count from the first."),
+                     help="Unit of time (us: microseconds); epoch (Unix seconds), epoch_ms and "
+                     "epoch_us are a clock's stamps, counted from the first."),
         click.option("--position-column", default="position", show_default=True,
                      help="Name of the position column (BIDS-Motion: of the channel)."),
         click.option("--position-unit", type=click.Choice(list(POSITION_UNITS)),

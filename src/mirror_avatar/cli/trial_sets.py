@@ -16,12 +16,14 @@ the path as found.
 
 Trials are grouped (the person, or style, each belongs to) by one rule (`GROUPINGS`):
 ``directory`` (the folder a file is in, relative to the folder given: ``sub-01/motion`` and
-``sub-02/motion`` stay apart), ``bids`` (the ``sub-`` entity of the file name or a parent
-folder), ``file`` (each trial its own group, named by its label), ``none`` (one group),
-``pattern:REGEX`` (the first group of REGEX searched in the file name, or its whole match) or
-``map:FILE.csv`` (a table with columns ``file`` and ``group``). A map's ``file`` is a path,
-relative to the map's own folder or as given on the command line (relative to the working
-folder, or absolute); a bare file name is accepted only while it names one file of the set.
+``sub-02/motion`` stay apart; two folders of one name, such as ``a/alice`` and ``b/alice`` given
+as two paths, are refused rather than merged into one person), ``bids`` (the ``sub-`` entity of
+the file name or a parent folder), ``file`` (each trial its own group, named by its label),
+``none`` (one group), ``pattern:REGEX`` (the first group of REGEX searched in the file name, or
+its whole match) or ``map:FILE.csv`` (a table with columns ``file`` and ``group``). A map's
+``file`` is a path, relative to the map's own folder or as given on the command line (relative
+to the working folder, or absolute); a bare file name is accepted only while it names one file
+of the set.
 """
 
 from __future__ import annotations
@@ -236,6 +238,11 @@ def _grouping(group_by: str) -> _Rule:
 
 
 class _Directory(_Rule):
+    """The folder a file is in, relative to the folder given: one group is one folder."""
+
+    def __init__(self) -> None:
+        self.folders: dict[str, tuple[Path, Path]] = {}
+
     def __call__(self, trial: Trial, file: Path, root: Path) -> str:
         if trial.group:
             return trial.group
@@ -243,9 +250,19 @@ class _Directory(_Rule):
         inside = (
             parent.relative_to(root.resolve()) if parent.is_relative_to(root.resolve()) else None
         )
-        if inside is None or inside == Path("."):
-            return parent.name
-        return inside.as_posix()
+        group = parent.name if inside is None or inside == Path(".") else inside.as_posix()
+        self._check_one_folder(group, parent, file.parent)
+        return group
+
+    def _check_one_folder(self, group: str, folder: Path, shown: Path) -> None:
+        """Refuse a second folder (resolved ``folder``, given as ``shown``) named ``group``."""
+        first, first_shown = self.folders.setdefault(group, (folder, shown))
+        if first != folder:
+            raise InputError(
+                None,
+                f"{first_shown} and {shown} would both be group {excerpt(group)} (one person): "
+                "rename one folder, or say whose trials are whose with --group-by map:FILE.csv",
+            )
 
 
 class _Bids(_Rule):

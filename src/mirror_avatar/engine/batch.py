@@ -179,7 +179,8 @@ def run_sessions(
         Sessions per chunk (the unit of work and of memory: 6.4 MB of session arrays per 50
         dyads of 60 s, played side by side in one compiled loop).
     progress
-        tqdm progress bar over sessions: True, False, or None (only on a terminal).
+        Progress over sessions: True, False, or None (a tqdm bar on a terminal, plain lines off
+        one; `mirror_avatar.common.progress.progress_bar`).
     graph
         Who observes whom: a fixed adjacency matrix, a function drawing one for each session
         from its own generator (`mirror_avatar.sessions.graphs.GraphSource`), or None (complete).

@@ -3,7 +3,8 @@
 The toolkit's exchange format is a ``time,position`` CSV in seconds and normalised units (the
 playing range [-0.5, 0.5]; the Bristol set-up maps 60 cm of hand travel to one unit). Recordings
 from other set-ups are read with `ImportOptions`: the time and position columns by name, time in
-seconds, milliseconds or Unix-epoch seconds or milliseconds, positions normalised or in mm, cm or
+seconds, milliseconds or microseconds (Leap Motion's frames), or a clock's stamps in any of them
+counted from the first sample (Unix time, a tracker's clock), positions normalised or in mm, cm or
 m with the playing range as a setting. Nothing is guessed: a file that does not fit the options
 is refused with one line naming the option that would read it. Short drop-outs (blank cells or
 NaN, where tracking was lost) are interpolated linearly up to `ImportOptions.max_gap` seconds and
@@ -33,8 +34,9 @@ from mirror_avatar.common.errors import InputError
 
 Array = NDArray[np.float64]
 
-TIME_UNITS = {"s": 1.0, "ms": 1e-3, "epoch": 1.0, "epoch_ms": 1e-3}
-"""Time units and their length in seconds; the epoch ones count from the first sample."""
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "epoch": 1.0, "epoch_ms": 1e-3, "epoch_us": 1e-6}
+"""Time units and their length in seconds; the epoch ones, a clock's stamps (Unix time, a
+tracker's clock such as Leap Motion's microseconds), count from the first sample."""
 
 POSITION_UNITS = {"normalised": None, "mm": 0.1, "cm": 1.0, "m": 100.0}
 """Position units and their length in cm (None: already normalised)."""
@@ -136,7 +138,8 @@ class ImportOptions:
     time_column, position_column
         Column names (CSV and Parquet) or, for BIDS-Motion, the position channel's name.
     time_unit
-        One of `TIME_UNITS`: ``s``, ``ms``, ``epoch`` (Unix seconds) or ``epoch_ms``.
+        One of `TIME_UNITS`: ``s``, ``ms``, ``us``, or a clock's stamps counted from the first
+        sample, ``epoch`` (Unix seconds), ``epoch_ms`` or ``epoch_us``.
     position_unit
         One of `POSITION_UNITS`: ``normalised``, ``mm``, ``cm`` or ``m``. BIDS-Motion files
         with a ``channels.tsv`` take the unit named there.
@@ -209,7 +212,7 @@ class ImportOptions:
             raise InputError(
                 source,
                 f"time starts at {seconds[0]:.6g} s, a clock rather than a trial's time: for "
-                "Unix-epoch time stamps give --time-unit epoch (or epoch_ms)",
+                "a clock's stamps give --time-unit epoch, epoch_ms or epoch_us",
             )
         return seconds
 

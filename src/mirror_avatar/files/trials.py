@@ -163,7 +163,7 @@ def make_trial(
         raise InputError(
             source,
             f"mean sampling rate {rate:.3g} Hz is outside {MIN_RATE:g}-{MAX_RATE:g} Hz: if time "
-            "is not in seconds, give --time-unit ms, epoch or epoch_ms",
+            "is not in seconds, give --time-unit ms, us, epoch, epoch_ms or epoch_us",
         )
     peak = float(np.max(np.abs(x)))
     if peak > MAX_ABS_POSITION:

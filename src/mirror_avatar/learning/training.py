@@ -324,7 +324,8 @@ class SessionLearner:
     checkpoint_every, checkpoint_path
         Save the player to ``checkpoint_path`` every ``checkpoint_every`` sessions (and at the end).
     progress
-        Show a tqdm progress bar: True, False, or None (only on a terminal).
+        Show progress: True (a tqdm bar), False, or None (a tqdm bar on a terminal, plain lines
+        off one; `mirror_avatar.common.progress.progress_bar`).
     random_state
         Seed of the initial policy and of exploration; the same seed and sessions give the same
         policy. None draws fresh entropy (recorded in ``player.training_["seed"]``).

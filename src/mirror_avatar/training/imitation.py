@@ -307,7 +307,7 @@ def imitate(
     checkpoint, checkpoint_every
         Save the player to ``checkpoint`` every ``checkpoint_every`` sessions and at the end.
     progress
-        Progress bar: True, False, or None (only on a terminal).
+        Progress bar: True, False, or None (a bar on a terminal, plain lines off one).
     summary
         More to record in ``player.training_``.
 

@@ -15,7 +15,8 @@ counterbalanced across participants (`mirror_avatar.lab.design.order`).
 Every mistake is refused with one line naming the file, the key path (such as
 ``blocks[1].conditions[0].players``), the problem and how to fix it; every avatar is built and
 dry-run in each condition's role when the protocol is read, and a run planned too long for a
-participant is read with a warning (`mirror_avatar.lab.design.protocol_checks`,
+participant, or a condition whose end screens show a trial's metrics (off unless asked: they may
+tell the partner's kind), is read with a warning (`mirror_avatar.lab.design.protocol_checks`,
 `Protocol.warnings`).
 """
 
@@ -38,17 +39,18 @@ from mirror_avatar.lab.design.order import (
 from mirror_avatar.lab.design.perturbation import Perturbation, parse_perturbations
 from mirror_avatar.lab.design.plan import (
     MAX_SPEC_CHARS,
-    TRIAL_SETTINGS,
     PlanError,
     SessionPlan,
     parse_plan,
 )
-from mirror_avatar.lab.design.protocol_checks import AvatarCheck, long_run
+from mirror_avatar.lab.design.protocol_checks import AvatarCheck, long_run, metrics_shown
 from mirror_avatar.lab.design.protocol_keys import (
+    BLIND_METRICS,
     BLOCK,
     BLOCK_SETTINGS,
     CONDITION,
     CONDITION_SETTINGS,
+    CONDITION_TRIAL_SETTINGS,
     MAX_BLOCKS,
     MAX_CONDITIONS,
     MAX_OCCLUSION_END,
@@ -357,13 +359,13 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
             if names.count(condition.name) > 1:
                 where = f"blocks[{b}].conditions[{c}].name"
                 raise check.error(where, f"{condition.name!r} names two conditions", "rename one")
-    avatars, plans = AvatarCheck(check), []
+    avatars, plans, warnings = AvatarCheck(check), [], list[str]()
     for b, block in enumerate(parsed):
         for c, condition in enumerate(block.conditions):
+            where = f"blocks[{b}].conditions[{c}]"
             plans.append(condition.with_avatars())
-            avatars.condition(
-                f"blocks[{b}].conditions[{c}]", condition.name, plans[-1], condition.perturb
-            )
+            avatars.condition(where, condition.name, plans[-1], condition.perturb)
+            warnings += metrics_shown(source, where, plans[-1])
     return Protocol(
         source,
         title,
@@ -373,7 +375,7 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
         parsed,
         seed_drawn="seed" not in data,
         blind=str(blind),
-        warnings=long_run(source, plans),
+        warnings=(*warnings, *long_run(source, plans)),
     )
 
 
@@ -457,8 +459,8 @@ def _condition(
         )
     settings = {
         setting.key: check.setting(data, where, setting)
-        for setting in TRIAL_SETTINGS
-        if setting.key in data
+        for setting in CONDITION_TRIAL_SETTINGS
+        if setting.key in data or setting is BLIND_METRICS  # the plan's default is on
     }
     if "graph" in data:
         settings["graph"] = data["graph"]

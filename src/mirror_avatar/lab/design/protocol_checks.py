@@ -108,3 +108,17 @@ def long_run(source: str, plans: Sequence[SessionPlan]) -> tuple[str, ...]:
         f"days) of trials and pauses, over {MAX_PLANNED_HOURS:g} h: check the trials, durations "
         "and pauses",
     )
+
+
+def metrics_shown(source: str, where: str, plan: SessionPlan) -> tuple[str, ...]:
+    """Warn of a condition at ``where`` whose end screens show a trial's metrics to partners.
+
+    **Choice**: a warning, not a refusal: a study that tells its participants who their
+    partners are may show them how they did.
+    """
+    if not plan.show_metrics or plan.condition == "solo":
+        return ()
+    return (
+        f"{source}: {where}.show_metrics = true tells the participants who led and how long they "
+        "moved together, which may give away a partner's kind: leave it out to keep them blind",
+    )

@@ -6,12 +6,12 @@ its keys declared here as `mirror_avatar.common.constraints.Setting` records. Th
 refusal tests are generated from them; and the lab guide's tables of keys are written from
 them (`key_tables`), so that the file format, its checks and its documents say the same.
 A condition's trial keys are the plan's (`mirror_avatar.lab.design.plan.TRIAL_SETTINGS`), declared
-there once.
+there once, but for ``show_metrics``, off unless asked (`BLIND_METRICS`).
 """
 
 from __future__ import annotations
 
-from mirror_avatar.common.constraints import Interval, Options, Setting, settings_table
+from mirror_avatar.common.constraints import Flag, Interval, Options, Setting, settings_table
 from mirror_avatar.lab.design.order import ORDERS
 from mirror_avatar.lab.design.plan import CONDITIONS, MAX_PLAYERS, SEED_LIMIT, TRIAL_SETTINGS
 
@@ -75,6 +75,21 @@ BLOCK_SETTINGS = (
 )  # fmt: skip
 """The keys of a block (``[[blocks]]``)."""
 
+BLIND_METRICS = Setting(
+    "show_metrics",
+    "the end screen shows the trial's metrics (who led, how long the players "
+    "moved together: they may tell a partner's kind, which the pages hide)",
+    Flag(),
+    False,
+)
+"""A condition's ``show_metrics``: off unless asked, a protocol's pages being blind to the partners'
+kinds (a plan's is on, `mirror_avatar.lab.design.plan.TRIAL_SETTINGS`)."""
+
+CONDITION_TRIAL_SETTINGS = tuple(
+    BLIND_METRICS if setting.key == BLIND_METRICS.key else setting for setting in TRIAL_SETTINGS
+)
+"""A condition's trial keys: the plan's, ``show_metrics`` off unless asked (`BLIND_METRICS`)."""
+
 CONDITION_SETTINGS = (
     Setting("name", "the condition's name, unique in the protocol", allowed="text"),
     Setting("game", "what the players play", Options(CONDITIONS)),
@@ -83,7 +98,7 @@ CONDITION_SETTINGS = (
     Setting("leaders", "the leading players", default=None, allowed="labels of its players"),
     Setting("graph", "who sees and follows whom, in a group", default="complete",
             allowed="complete, ring, path, star or an adjacency matrix"),
-    *TRIAL_SETTINGS,
+    *CONDITION_TRIAL_SETTINGS,
     Setting("after_trial", "questions asked after each trial", default=None,
             allowed="question ids"),
     Setting("delay", "the partners drawn this late on the people's pages (whole control "

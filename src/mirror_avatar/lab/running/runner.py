@@ -313,7 +313,7 @@ class LabSession:
             lsl = self.plan.slots[k].lsl
             if lsl is not None and participant.source is None:
                 if self.open_device is None:
-                    raise InputError(participant.label, "LSL input needs pylsl")
+                    raise InputError(participant.label, "an LSL input needs the lab run with --lsl")
                 participant.source = self.open_device(lsl)
                 participant.joined = True
                 self.log(f"{participant.label}: LSL stream {lsl.stream!r} open")
