@@ -10,7 +10,7 @@ import click
 from mirror_avatar import __version__
 from mirror_avatar.cli.cluster import scheduler_option
 from mirror_avatar.cli.constrained import JOBS, SEED, SESSIONS, ranged
-from mirror_avatar.cli.generator import group_size_option
+from mirror_avatar.cli.generator import SHARED_HOLDS, share_options
 from mirror_avatar.cli.outputs import check_output_file
 from mirror_avatar.cli.reading import import_options, read_and_report
 from mirror_avatar.cli.train import load_generator
@@ -149,11 +149,7 @@ def create(
 
 @avatar.command()
 @click.argument("avatar_path", type=click.Path(path_type=Path))
-@click.option(
-    "--out", "out_path", required=True, type=click.Path(path_type=Path),
-    help="The shareable avatar file (.npz).",
-)  # fmt: skip
-@group_size_option()
+@share_options("The shareable avatar file (.npz).")
 def share(avatar_path: Path, out_path: Path, group_size: int) -> None:
     """Write the avatar without the person's strokes: its motion model averaged in groups.
 
@@ -166,6 +162,5 @@ def share(avatar_path: Path, out_path: Path, group_size: int) -> None:
     shared.save(out_path)
     click.echo(
         f"{shared.name}'s avatar with its strokes averaged in groups of {group_size} or more -> "
-        f"{out_path}; the file holds no stroke of the person's trials, and no trial can be "
-        "rebuilt from it"
+        f"{out_path}; {SHARED_HOLDS}"
     )

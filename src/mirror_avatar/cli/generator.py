@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -213,22 +214,31 @@ GROUP_SIZES = Interval(int, 2, 100)
 """Strokes averaged into each stroke of a shared model (``--group-size``)."""
 
 
-def group_size_option() -> Any:
-    """Return the ``--group-size`` option of the commands that write shareable files."""
-    return click.option(
+SHARED_HOLDS = (
+    "the file holds no stroke of the person's trials, and no trial can be rebuilt from it"
+)
+"""What a shared file holds, as ``generator share`` and ``avatar share`` say it."""
+
+
+def share_options(what: str) -> Callable[[Callable[..., None]], Callable[..., None]]:
+    """Return the options of a command that writes a shareable file.
+
+    They are ``--out`` (``what``: the file's description for its help) and ``--group-size``.
+    """
+    out = click.option(
+        "--out", "out_path", required=True, type=click.Path(path_type=Path), help=what
+    )
+    group_size = click.option(
         "--group-size", default=DEFAULT_GROUP_SIZE, show_default=True,
         **ranged("Fewest of the person's strokes averaged into each stroke of the file "
                  "(microaggregation's k; METHODS section 4c).", GROUP_SIZES),
     )  # fmt: skip
+    return lambda command: out(group_size(command))
 
 
 @generator.command()
 @click.argument("model_path", type=click.Path(path_type=Path))
-@click.option(
-    "--out", "out_path", required=True, type=click.Path(path_type=Path),
-    help="The shareable model file (.npz).",
-)  # fmt: skip
-@group_size_option()
+@share_options("The shareable model file (.npz).")
 def share(model_path: Path, out_path: Path, group_size: int) -> None:
     """Write a stroke model that does not hold the person's trials (strokes averaged in groups).
 
@@ -247,8 +257,7 @@ def share(model_path: Path, out_path: Path, group_size: int) -> None:
     shared.save(out_path)
     click.echo(
         f"{model.lengths_.size} strokes averaged into {shared.lengths_.size}, each of "
-        f"{group_size} or more -> {out_path}; the file holds no stroke of the person's trials, "
-        "and no trial can be rebuilt from it"
+        f"{group_size} or more -> {out_path}; {SHARED_HOLDS}"
     )
 
 
