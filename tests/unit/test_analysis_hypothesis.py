@@ -136,7 +136,7 @@ def test_the_report_leads_with_the_hypothesis(protocol: Protocol, tmp_path: Path
     )
     (sentence,) = analysis.hypothesis_sentences()
     assert sentence.startswith(
-        "Hypothesis (delay 0.5 s lowers CV (phase locking, 0-1) than no delay): CV (phase "
+        "Hypothesis (CV (phase locking, 0-1) lower in delay 0.5 s than in no delay): CV (phase "
         "locking, 0-1) 0.82 (no delay) and "
     )
     assert "one-sided paired t-test p < 0.001, n = 12" in sentence
@@ -184,4 +184,4 @@ def test_the_command_takes_the_protocol(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     lines = result.output.splitlines()
     assert lines[0].startswith("Hypothesis (delay 0.5 s against no delay): CV")
-    assert lines[1].strip().startswith("Hypothesis (delay 0.5 s lowers CV")
+    assert lines[1].strip().startswith("Hypothesis (CV (phase locking, 0-1) lower in delay")

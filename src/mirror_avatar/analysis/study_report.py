@@ -181,8 +181,8 @@ def analyse_study(
     """
     conditions = _ordered_conditions(table, protocol)
     hypothesis = None if protocol is None else protocol.analysis
-    if hypothesis is not None:
-        _check_hypothesis(table, hypothesis, conditions, protocol)
+    if protocol is not None and hypothesis is not None:
+        _check_hypothesis(table, hypothesis, conditions, protocol.source)
     if reference is None:
         reference = conditions[0] if hypothesis is None else hypothesis.reference
     elif reference not in conditions:
@@ -216,8 +216,8 @@ def analyse_study(
         "model": "measure ~ C(condition, reference) + position, random intercept per "
                  "participant, REML, Wald z tests, Holm over a measure's contrasts",
         "exploratory": "Benjamini-Hochberg q-values over every exploratory contrast",
-        "hypothesis": None if hypothesis is None
-        else asdict(hypothesis) | {"source": protocol.source if protocol else ""},
+        "protocol": None if protocol is None else protocol.source,
+        "hypothesis": None if hypothesis is None else asdict(hypothesis),
         "identification": "exact binomial against 0.5; d' and c with log-linear correction "
                           "when a rate is 0 or 1; Mann-Whitney U for confidence",
         "versions": _versions(),
@@ -239,10 +239,12 @@ def _ordered_conditions(table: StudyTable, protocol: Protocol | None) -> list[st
 
 
 def _check_hypothesis(
-    table: StudyTable, hypothesis: Analysis, conditions: list[str], protocol: Protocol | None
+    table: StudyTable, hypothesis: Analysis, conditions: list[str], source: str
 ) -> None:
-    """Refuse a hypothesis about conditions or measures the table does not have."""
-    source = protocol.source if protocol is not None else "--protocol"
+    """Refuse a hypothesis about conditions or measures the table does not have.
+
+    ``source``: the protocol's file, named in the error.
+    """
     for condition in (hypothesis.condition, hypothesis.reference):
         if condition not in conditions:
             raise InputError(source, f"analysis: no condition {condition!r} in {table.source}; "
@@ -292,6 +294,7 @@ def write_study_report(analysis: StudyAnalysis, out_dir: str | Path) -> Path:
     html, results, conditions, contrasts = STUDY_REPORT_FILES
     metadata = {
         "table": str(analysis.table.source),
+        "protocol": analysis.parameters["protocol"] or "none given",
         "participants": analysis.parameters["participants"],
         "seed": analysis.parameters["seed"],
         "mirror-avatar": analysis.parameters["versions"]["mirror-avatar"],
@@ -405,6 +408,8 @@ def _hypothesis_section(analysis: StudyAnalysis) -> Section:
         "reaches it": "yes" if t.exceeds_smallest else "no",
         "supported": "yes" if t.supported else "no",
     } for t in analysis.confirmatory]).set_index("measure")  # fmt: skip
+    if len(tests) == 1:
+        tests = tests.drop(columns="p Holm")  # one primary measure: nothing to correct
     return Section("hypothesis", "Confirmatory test: the declared hypothesis",
                    text=analysis.hypothesis_sentences(),
                    tables={"The declared test (paired t-test of the participants' means, "

@@ -79,7 +79,7 @@ def confirmatory_sentence(test: ConfirmatoryTest, label: str, units: str) -> str
     """Say the declared test's result: the estimate, its interval, p, the smallest effect."""
     t = test
     sided = "two-sided" if t.direction == "two-sided" else "one-sided"
-    claim = f"{t.condition} {_direction_words(t.direction)} {label} than {t.reference}"
+    claim = f"{label} {_direction_words(t.direction)} in {t.condition} than in {t.reference}"
     if not t.tested:
         return _capitalised(
             f"Hypothesis ({claim}): not tested, {t.participants} participants with a mean in "
@@ -103,7 +103,7 @@ def confirmatory_sentence(test: ConfirmatoryTest, label: str, units: str) -> str
 
 
 def _direction_words(direction: str) -> str:
-    return {"lower": "lowers", "higher": "raises"}.get(direction, "changes")
+    return {"lower": "lower", "higher": "higher"}.get(direction, "other")
 
 
 def identification_sentence(found: Identification) -> str:
@@ -206,11 +206,11 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         "Hautus 1995) when a rate is 0 or 1; each person's own d' tested against 0 by a "
         "one-sample t-test; confidence in right and in wrong answers compared by a two-sided "
         f"Mann-Whitney U test. Significance level and false discovery rate {ALPHA}."
-        + _hypothesis_methods(parameters.get("hypothesis"))
+        + _hypothesis_methods(parameters.get("hypothesis"), parameters.get("protocol"))
     )
 
 
-def _hypothesis_methods(hypothesis: Mapping[str, Any] | None) -> str:
+def _hypothesis_methods(hypothesis: Mapping[str, Any] | None, protocol: str | None) -> str:
     """Say the declared hypothesis and its test, for the methods paragraph."""
     if hypothesis is None:
         return " No hypothesis was declared: every comparison is exploratory."
@@ -218,7 +218,7 @@ def _hypothesis_methods(hypothesis: Mapping[str, Any] | None) -> str:
     sided = "two-sided" if h["direction"] == "two-sided" else f"one-sided ({h['direction']})"
     several = len(h["primary"]) > 1
     return (
-        f" The hypothesis declared in the protocol's analysis section ({h['source']}) was "
+        f" The hypothesis declared in the protocol's analysis section ({protocol}) was "
         f"tested first: {' and '.join(h['primary'])} in {h['condition']!r} against "
         f"{h['reference']!r}, by a {sided} paired t-test of the participants' means at alpha "
         f"{h['alpha']:g}{', Holm-corrected over the primary measures' if several else ''}, "
