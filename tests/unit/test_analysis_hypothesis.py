@@ -20,6 +20,7 @@ from study_tables import CONDITIONS, make_study_rows, write_study_table
 from mirror_avatar.analysis.hypothesis import benjamini_hochberg, confirm
 from mirror_avatar.analysis.study_file import read_study_table
 from mirror_avatar.analysis.study_report import analyse_study, write_study_report
+from mirror_avatar.analysis.study_text import confirmatory_sentence
 from mirror_avatar.cli.study_report import report
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.lab.design.protocol import Analysis, Protocol, protocol_from_text
@@ -185,3 +186,28 @@ def test_the_command_takes_the_protocol(tmp_path: Path) -> None:
     lines = result.output.splitlines()
     assert lines[0].startswith("Hypothesis (delay 0.5 s against no delay): CV")
     assert lines[1].strip().startswith("Hypothesis (CV (phase locking, 0-1) lower in delay")
+
+
+def test_each_outcome_in_words() -> None:
+    """Supported, significant but under the smallest effect, not significant, not tested."""
+    rows = persons(0, -0.03)
+    said = {
+        name: confirmatory_sentence(confirm(data, analysis)[0], "CV", "")
+        for name, data, analysis in (
+            ("supported", rows, declared()),
+            ("small", rows, declared(smallest=0.1)),
+            ("wrong way", rows, declared("higher")),
+            ("one participant", persons(0, -0.03, participants=1), declared()),
+        )
+    }
+    assert said["supported"].endswith("at least the smallest effect of interest, 0: the "
+                                      "hypothesis is supported.")  # fmt: skip
+    assert said["small"].endswith("significant at alpha = 0.05 but under the smallest effect of "
+                                  "interest, 0.1: not supported.")  # fmt: skip
+    assert said["wrong way"].startswith("Hypothesis (CV higher in delay 0.5 s than in no delay)")
+    assert said["wrong way"].endswith("not significant at alpha = 0.05: the hypothesis is not "
+                                      "supported.")  # fmt: skip
+    assert said["one participant"] == (
+        "Hypothesis (CV lower in delay 0.5 s than in no delay): not tested (n = 1 with a mean in "
+        "both conditions; two or more whose differences differ are needed)."
+    )

@@ -117,8 +117,8 @@ class ConfirmatoryTest:
 def confirm(rows: pd.DataFrame, analysis: Analysis) -> list[ConfirmatoryTest]:
     """Run the declared test of each primary measure on the participants' rows.
 
-    ``rows``: one per trial and person (`mirror_avatar.analysis.study_report.analyse_study`'s);
-    a primary measure missing from them is tested on no pair (NaN).
+    ``rows``: one per trial and person (`mirror_avatar.analysis.study_report.analyse_study`'s),
+    with a column per primary measure.
     """
     pairs = [_pairs(rows, measure, analysis) for measure in analysis.primary]
     tests = [_paired_test(pair, analysis) for pair in pairs]
@@ -137,8 +137,6 @@ def confirm(rows: pd.DataFrame, analysis: Analysis) -> list[ConfirmatoryTest]:
 
 def _pairs(rows: pd.DataFrame, measure: str, analysis: Analysis) -> pd.DataFrame:
     """Each participant's means in the reference and the tested condition, both present."""
-    if measure not in rows:
-        return pd.DataFrame(columns=[analysis.reference, analysis.condition], dtype=np.float64)
     means = participant_means(rows, measure, [analysis.reference, analysis.condition])
     return means.dropna()
 
@@ -170,13 +168,11 @@ def _result(
 ) -> ConfirmatoryTest:
     t, p, (low, high), confidence = test
     before, after = pairs[analysis.reference], pairs[analysis.condition]
-    nan = float("nan")
     return ConfirmatoryTest(
         measure=measure, condition=analysis.condition, reference=analysis.reference,
         direction=analysis.direction, participants=len(pairs),
-        reference_mean=float(before.mean()) if len(pairs) else nan,
-        condition_mean=float(after.mean()) if len(pairs) else nan,
-        estimate=float((after - before).mean()) if len(pairs) else nan,
+        reference_mean=float(before.mean()), condition_mean=float(after.mean()),
+        estimate=float((after - before).mean()),
         ci_low=low, ci_high=high, confidence=confidence, t=t, p=p, p_holm=p_holm,
         smallest_effect=analysis.smallest_effect, alpha=analysis.alpha,
     )  # fmt: skip

@@ -82,8 +82,8 @@ def confirmatory_sentence(test: ConfirmatoryTest, label: str, units: str) -> str
     claim = f"{label} {_direction_words(t.direction)} in {t.condition} than in {t.reference}"
     if not t.tested:
         return _capitalised(
-            f"Hypothesis ({claim}): not tested, {t.participants} participants with a mean in "
-            "both conditions (two with different differences needed)."
+            f"Hypothesis ({claim}): not tested (n = {t.participants} with a mean in both "
+            "conditions; two or more whose differences differ are needed)."
         )
     p = format_p(t.p) if t.p == t.p_holm else f"{format_p(t.p_holm)} Holm-corrected"
     found = (
