@@ -127,8 +127,8 @@ def test_analysis_leaves_out_the_avatars_rows_and_finds_the_effects(table_dir: P
     assert summary["mean"].max() < 1.0  # no avatar value (100) in any mean
     rms, locking = analysis.sentences()
     assert rms.startswith(f"Delay 0.5 s raised rms from {means[NO_DELAY].mean():.3g} (no delay)")
-    assert locking.startswith("Delay 0.5 s lowered phase_locking from")
-    assert analysis.verdict().startswith("2 of 2 comparisons changed a measure")
+    assert locking.startswith("Delay 0.5 s lowered CV (phase locking, 0-1) from")
+    assert "Exploratory: 2 of 2 comparisons changed a measure" in analysis.verdict()
     assert "Partners identified above chance" in analysis.verdict()
 
 
@@ -137,7 +137,10 @@ def test_identical_conditions_are_said_not_to_differ(tmp_path: Path) -> None:
     analysis = analyse_study(read_study_table(write_study_table(rows, tmp_path)), resamples=999)
     assert all(c.p >= 0.05 for c in analysis.contrasts)
     assert all("did not change" in line for line in analysis.sentences())
-    assert analysis.verdict() == "None of 2 comparisons changed a measure (p < 0.05 in none)."
+    assert analysis.verdict() == (
+        "No hypothesis declared: every comparison is exploratory. "
+        "Exploratory: none of 2 comparisons changed a measure (q < 0.05 in none)."
+    )
     assert analysis.identification is None
 
 
@@ -156,7 +159,7 @@ def test_one_condition_has_means_and_no_comparison(tmp_path: Path) -> None:
     rows = rows.assign(condition=rows["condition"].where(rows["condition"] == NO_DELAY))
     analysis = analyse_study(read_study_table(write_study_table(rows, tmp_path)), resamples=999)
     assert analysis.models == [] and len(analysis.summaries) == 2
-    assert analysis.verdict() == "No conditions to compare."
+    assert analysis.verdict().endswith("No conditions to compare.")
     write_study_report(analysis, tmp_path / "out")
 
 
@@ -196,7 +199,7 @@ def test_the_command_writes_the_report(table_dir: Path, tmp_path: Path) -> None:
     )
     assert result.exit_code == 0, result.output
     lines = result.output.splitlines()
-    assert lines[0].startswith("2 of 2 comparisons changed a measure")
+    assert lines[0].startswith("No hypothesis declared: every comparison is exploratory.")
     assert lines[1].strip().startswith("Delay 0.5 s raised rms")
     assert lines[-1] == f"wrote {(out / 'report.html').resolve()}"
     results = json.loads((out / "results.json").read_text())

@@ -29,21 +29,24 @@ CONTRAST = Contrast(
     measure="rms", condition="delay 0.5 s", reference="no delay", difference=0.07,
     ci_low=0.03, ci_high=0.11, p=0.003, p_holm=0.003, standardised=1.1, participants=12,
     reference_mean=0.12, condition_mean=0.19, d_z=1.4, t=4.0, t_p=0.002, wilcoxon_p=0.004,
+    q=0.006,
 )  # fmt: skip
 
 
 def test_a_change_and_no_change_in_words() -> None:
-    assert comparison_sentence(CONTRAST, "units", several=False) == (
-        "Delay 0.5 s raised rms from 0.12 (no delay) to 0.19 units (p = 0.003, d_z = 1.4, n = 12)."
+    """Exploratory lines name the measure by its label and judge it by its q-value."""
+    assert comparison_sentence(CONTRAST, "RMS", "units") == (
+        "Delay 0.5 s raised RMS from 0.12 (no delay) to 0.19 units "
+        "(exploratory: q = 0.006, p = 0.003, d_z = 1.4, n = 12)."
     )
     lowered = replace(CONTRAST, difference=-0.07, reference_mean=0.19, condition_mean=0.12)
-    assert comparison_sentence(lowered, "1", several=True).startswith(
-        "Delay 0.5 s lowered rms from 0.19 (no delay) to 0.12 (p = 0.003 Holm-corrected"
+    assert comparison_sentence(lowered, "RMS", "1").startswith(
+        "Delay 0.5 s lowered RMS from 0.19 (no delay) to 0.12 (exploratory: q = 0.006"
     )
-    unchanged = replace(CONTRAST, p=0.2, p_holm=0.4)
-    assert comparison_sentence(unchanged, "units", several=True) == (
-        "Delay 0.5 s did not change rms detectably from no delay: 0.12 and 0.19 units "
-        "(p = 0.400 Holm-corrected, d_z = 1.4, n = 12)."
+    unchanged = replace(CONTRAST, p=0.02, q=0.4)
+    assert comparison_sentence(unchanged, "RMS", "units") == (
+        "Delay 0.5 s did not change RMS detectably from no delay: 0.12 and 0.19 units "
+        "(exploratory: q = 0.400, p = 0.020, d_z = 1.4, n = 12)."
     )
 
 
@@ -58,15 +61,17 @@ def test_verdict_says_above_below_or_at_chance() -> None:
     wrong = ["avatar"] * 18 + ["person"] * 2 + ["person"] * 18 + ["avatar"] * 2
     below = identify(scripted_answers(truth, wrong, [np.nan] * 40))
     assert below is not None
-    assert verdict([CONTRAST], below) == (
-        "1 of 1 comparisons changed a measure (p < 0.05): delay 0.5 s on rms. "
+    assert verdict([CONTRAST], below, labels={"rms": "RMS"}) == (
+        "No hypothesis declared: every comparison is exploratory. Exploratory: 1 of 1 "
+        "comparisons changed a measure (q < 0.05, Benjamini-Hochberg): delay 0.5 s on RMS. "
         "Partners identified below chance: 10% right (p < 0.001)."
     )
     guesses = ["person"] * 6 + ["avatar"] * 4
     six_of_ten = identify(scripted_answers(["person"] * 10, guesses, [0.5] * 10))
     assert six_of_ten is not None
     assert verdict([], six_of_ten) == (
-        "No conditions to compare. Partners identified at chance: 60% right (p = 0.754)."
+        "No hypothesis declared: every comparison is exploratory. No conditions to compare. "
+        "Partners identified at chance: 60% right (p = 0.754)."
     )
 
 
@@ -129,8 +134,8 @@ def test_identification_figure_has_a_line_per_person() -> None:
 
 def test_an_untested_comparison_says_so() -> None:
     nan = float("nan")
-    untested = replace(CONTRAST, difference=nan, p=nan, p_holm=nan, d_z=nan)
-    assert comparison_sentence(untested, "units", several=False) == (
+    untested = replace(CONTRAST, difference=nan, p=nan, p_holm=nan, d_z=nan, q=nan)
+    assert comparison_sentence(untested, "rms", "units") == (
         "Delay 0.5 s against no delay: rms 0.12 and 0.19 units, not tested (see the notes below)."
     )
 

@@ -182,6 +182,16 @@ REFUSALS = [
     ((*C0, "occlude"), [[3, 2]], "blocks[1].conditions[0].occlude[0]: must be [start, end] with"),
     ((*C0, "occlude"), [[1, 2, 3]], "blocks[1].conditions[0].occlude[0]: must be [start, end]"),
     ((*C0, "after_trial"), ["mood"], "blocks[1].conditions[0].after_trial: no question 'mood'"),
+    (("analysis",), "rmse", "analysis: must be a table"),
+    (("analysis", "test"), "t", "analysis.test: unknown key (known keys: primary, direction"),
+    (("analysis", "primary"), "cv", "analysis.primary: 'cv' is not a measure (one of phase_lo"),
+    (("analysis", "primary"), ["rmse", 3], "analysis.primary: 3 is not a measure"),
+    (("analysis", "primary"), DELETE, "analysis.primary: None is not a measure"),
+    (("analysis", "primary"), [], "analysis.primary: must name 1 to 5 measures"),
+    (("analysis", "contrast"), ["follow"], "analysis.contrast: must name two different cond"),
+    (("analysis", "contrast", 1), "near", "analysis.contrast[1]: 'near' is not a condition (one"),
+    (("analysis", "reference"), "lead", "analysis.reference: the contrast names the reference"),
+    (("analysis", "contrast"), DELETE, "analysis.contrast: 5 conditions: which one is tested is"),
     (
         ("blocks", 1, "conditions", 2, "graph"),
         "star-ish",
@@ -248,6 +258,7 @@ TABLE_PATHS = {
     "block": ("blocks", 1),
     "condition": C0,
     "player": (*C0, "players", 0),
+    "analysis": ("analysis",),
 }
 """Where each table of the example protocol is (a Likert question; a person of a condition)."""
 

@@ -10,6 +10,7 @@ end), so a report finds its measures, factors and the trials to leave out by rol
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from mirror_avatar.metrics import registry
@@ -77,6 +78,17 @@ def _described(column: str) -> tuple[str, str]:
 
 MEASURES: dict[str, tuple[str, str]] = {column: _described(column) for column in MEASURE_COLUMNS}
 """Every measure column: description and units, from `mirror_avatar.metrics.registry`."""
+
+
+def column_label(column: str) -> str:
+    """Name a column in words: a measure's registry label, any other column by its name.
+
+    A player's own measure is named without the player's number: ``jitter index (2-3 Hz share)``.
+    """
+    if column not in MEASURES:
+        return column
+    label = registry.label(_registry_key(column))
+    return re.sub(r" (of )?player 0", "", label) if column in PER_PLAYER else label
 
 
 def p_value_column(measure: str) -> str:

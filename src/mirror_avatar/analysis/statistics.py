@@ -183,6 +183,11 @@ class Contrast:
         Cohen's d_z: mean of the paired differences over their SD.
     t, t_p
         Paired t-test of the participants' means; ``wilcoxon_p`` the Wilcoxon signed-rank test's.
+    exploratory
+        False for the declared hypothesis's contrast (`mirror_avatar.analysis.hypothesis`).
+    q
+        ``p`` adjusted by Benjamini-Hochberg across the study's exploratory contrasts; NaN for
+        the confirmatory one and one not tested.
     """
 
     measure: str
@@ -201,6 +206,8 @@ class Contrast:
     t: float
     t_p: float
     wilcoxon_p: float
+    exploratory: bool = True
+    q: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -419,7 +426,7 @@ def _contrast(
         ci_low=float(interval[0]), ci_high=float(interval[1]), p=p, p_holm=p_holm,
         standardised=float(difference) / total_sd if total_sd > 0 else float("nan"),
         participants=len(paired), reference_mean=_mean(before), condition_mean=_mean(after),
-        **effect,
+        d_z=effect["d_z"], t=effect["t"], t_p=effect["t_p"], wilcoxon_p=effect["wilcoxon_p"],
     )  # fmt: skip
 
 

@@ -16,7 +16,7 @@ from typing import Any
 
 import pandas as pd
 
-from mirror_avatar.analysis.dictionary import DESIGN_COLUMNS, GUESS_COLUMNS
+from mirror_avatar.analysis.dictionary import DESIGN_COLUMNS, GUESS_COLUMNS, column_label
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.atomic import csv_cells
 from mirror_avatar.files.trial_io import MAX_SIDECAR_BYTES
@@ -110,6 +110,10 @@ class StudyTable:
     def units(self, column: str) -> str:
         """Return the column's units from the dictionary, or "" when it has none."""
         return str(self.dictionary.get(column, {}).get("Units", ""))
+
+    def label(self, column: str) -> str:
+        """Name a column in words (`mirror_avatar.analysis.dictionary.column_label`)."""
+        return column_label(column)
 
     def conditions(self) -> list[str]:
         """List the conditions in the dictionary's order of levels, then as they appear."""

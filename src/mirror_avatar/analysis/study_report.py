@@ -1,16 +1,18 @@
 """A study's statistics as a paper reports them: analysed, then written as HTML, JSON and CSV.
 
 `analyse_study` runs every statistic on a study table (`mirror_avatar.analysis.statistics`,
-`mirror_avatar.analysis.identification`); `write_study_report` writes ``report.html`` (its
-verdict first, a plain-language line per comparison, tables, figures of every participant, the
-methods paragraph), ``results.json`` (every number, every parameter), ``conditions.csv`` and
-``contrasts.csv``.
+`mirror_avatar.analysis.identification`), the protocol's declared hypothesis first when one is
+given (`mirror_avatar.analysis.hypothesis`: the confirmatory test, every other comparison
+exploratory with Benjamini-Hochberg q-values); `write_study_report` writes ``report.html`` (its
+verdict first, the confirmatory test, a plain-language line per exploratory comparison, tables,
+figures of every participant, the methods paragraph), ``results.json`` (every number, every
+parameter), ``conditions.csv`` and ``contrasts.csv``.
 """
 
 from __future__ import annotations
 
 import platform
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
@@ -18,6 +20,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from mirror_avatar.analysis.hypothesis import ConfirmatoryTest, benjamini_hochberg, confirm
 from mirror_avatar.analysis.identification import Identification, identify
 from mirror_avatar.analysis.statistics import (
     BOOTSTRAP_RESAMPLES,
@@ -31,10 +34,13 @@ from mirror_avatar.analysis.statistics import (
 from mirror_avatar.analysis.study_figures import plot_identification, plot_participants
 from mirror_avatar.analysis.study_file import StudyTable
 from mirror_avatar.analysis.study_text import (
+    NO_UNITS,
     comparison_sentence,
+    confirmatory_sentence,
     format_p,
     identification_sentence,
     methods_paragraph,
+    number,
     verdict,
 )
 from mirror_avatar.common.errors import InputError
@@ -43,6 +49,7 @@ from mirror_avatar.files.atomic import (
     json_text,
     write_atomic_files,
 )
+from mirror_avatar.lab.design.protocol import Analysis, Protocol
 from mirror_avatar.report import Section, render_report
 
 STUDY_REPORT_FILES = ("report.html", "results.json", "conditions.csv", "contrasts.csv")
@@ -74,6 +81,8 @@ class StudyAnalysis:
         (``source``), as a report to be shared never holds the researcher's folders.
     notes
         What was left out or could not be computed, in plain words.
+    confirmatory
+        The declared hypothesis's test per primary measure, None when none was declared.
     """
 
     table: StudyTable
@@ -85,28 +94,47 @@ class StudyAnalysis:
     identification: Identification | None
     parameters: dict[str, Any]
     notes: list[str]
+    confirmatory: list[ConfirmatoryTest] | None = None
 
     @property
     def contrasts(self) -> list[Contrast]:
         """Every model's contrasts, measure by measure."""
         return [c for model in self.models for c in model.contrasts]
 
-    def sentences(self) -> list[str]:
-        """Say each comparison in a plain-language line."""
+    @property
+    def exploratory(self) -> list[Contrast]:
+        """Every contrast but the declared hypothesis's."""
+        return [c for c in self.contrasts if c.exploratory]
+
+    def hypothesis_sentences(self) -> list[str]:
+        """Say the confirmatory test of each primary measure (none without a hypothesis)."""
+        table = self.table
         return [
-            comparison_sentence(c, self.table.units(c.measure), len(model.contrasts) > 1)
-            for model in self.models
-            for c in model.contrasts
+            confirmatory_sentence(t, table.label(t.measure), table.units(t.measure))
+            for t in self.confirmatory or []
+        ]
+
+    def sentences(self) -> list[str]:
+        """Say each exploratory comparison in a plain-language line."""
+        table = self.table
+        return [
+            comparison_sentence(c, table.label(c.measure), table.units(c.measure))
+            for c in self.exploratory
         ]
 
     def verdict(self) -> str:
         """Return the report's first line."""
-        return verdict(self.contrasts, self.identification)
+        labels = {measure: self.table.label(measure) for measure in self.table.outcomes}
+        return verdict(self.exploratory, self.identification, self.confirmatory, labels)
 
     def results(self) -> dict[str, Any]:
         """Every number, for ``results.json``."""
         return {
             "verdict": self.verdict(),
+            "hypothesis": self.hypothesis_sentences(),
+            "confirmatory": None
+            if self.confirmatory is None
+            else [asdict(t) | _judged(t) for t in self.confirmatory],
             "sentences": self.sentences(),
             "methods": methods_paragraph(self.parameters),
             "parameters": self.parameters,
@@ -125,8 +153,9 @@ def analyse_study(
     reference: str | None = None,
     resamples: int = BOOTSTRAP_RESAMPLES,
     confidence: float = CONFIDENCE,
+    protocol: Protocol | None = None,
 ) -> StudyAnalysis:
-    """Run every statistic on ``table``.
+    """Run every statistic on ``table``, the protocol's declared hypothesis first.
 
     Parameters
     ----------
@@ -135,19 +164,28 @@ def analyse_study(
     seed
         Seed of the bootstrap's generator.
     reference
-        The condition the others are compared with; default the first (the dictionary's first
-        level of ``condition``, else the first in the table).
+        The condition the others are compared with; default the hypothesis's reference, else
+        the first condition (the protocol's first, else the dictionary's first level of
+        ``condition``, else the first in the table).
     resamples, confidence
         Bootstrap resamples and the confidence level of every interval.
+    protocol
+        The study's protocol: its conditions' order and its ``[analysis]``, the hypothesis
+        tested first (`mirror_avatar.analysis.hypothesis.confirm`); without one, or without an
+        analysis, every comparison is exploratory.
 
     Raises
     ------
     InputError
-        ``reference`` is not a condition of the table.
+        ``reference`` is not a condition of the table; the hypothesis names a condition or a
+        primary measure the table does not have.
     """
-    conditions = table.conditions()
+    conditions = _ordered_conditions(table, protocol)
+    hypothesis = None if protocol is None else protocol.analysis
+    if protocol is not None and hypothesis is not None:
+        _check_hypothesis(table, hypothesis, conditions, protocol.source)
     if reference is None:
-        reference = conditions[0]
+        reference = conditions[0] if hypothesis is None else hypothesis.reference
     elif reference not in conditions:
         raise InputError("--reference", f"no condition {reference!r} in {table.source}; its "
                          f"conditions are {', '.join(conditions)}")  # fmt: skip
@@ -167,6 +205,7 @@ def analyse_study(
         else:
             models.append(model)
             notes += [f"{measure}: {note}" for note in model.notes]
+    models = _with_q_values(models, hypothesis)
     if untested:
         notes.append(
             f"no comparison (fewer than two conditions or participants): {', '.join(untested)}"
@@ -180,6 +219,9 @@ def analyse_study(
         "bootstrap_method": "BCa", "confidence": confidence,
         "model": "measure ~ C(condition, reference) + position, random intercept per "
                  "participant, REML, Wald z tests, Holm over a measure's contrasts",
+        "exploratory": "Benjamini-Hochberg q-values over every exploratory contrast",
+        "protocol": None if protocol is None else Path(protocol.source).name,
+        "hypothesis": None if hypothesis is None else asdict(hypothesis),
         "identification": "exact binomial against 0.5; d' and c with log-linear correction "
                           "when a rate is 0 or 1; Mann-Whitney U for confidence",
         "versions": _versions(),
@@ -187,8 +229,62 @@ def analyse_study(
     return StudyAnalysis(
         table=table, rows=rows, conditions=conditions, reference=reference, summaries=summaries,
         models=models, identification=identify(rows, confidence), parameters=parameters,
-        notes=notes,
+        notes=notes, confirmatory=None if hypothesis is None else confirm(rows, hypothesis),
     )  # fmt: skip
+
+
+def _ordered_conditions(table: StudyTable, protocol: Protocol | None) -> list[str]:
+    """List the table's conditions, in the protocol's order when one is given (the rest after)."""
+    found = table.conditions()
+    if protocol is None:
+        return found
+    ordered = [c for c in protocol.conditions if c in found]
+    return ordered + [c for c in found if c not in ordered]
+
+
+def _check_hypothesis(
+    table: StudyTable, hypothesis: Analysis, conditions: list[str], source: str
+) -> None:
+    """Refuse a hypothesis about conditions or measures the table does not have.
+
+    ``source``: the protocol's file, named in the error.
+    """
+    for condition in (hypothesis.condition, hypothesis.reference):
+        if condition not in conditions:
+            raise InputError(source, f"analysis: no condition {condition!r} in {table.source}; "
+                             f"its conditions are {', '.join(conditions)}")  # fmt: skip
+    missing = [m for m in hypothesis.primary if m not in table.outcomes]
+    if missing:
+        raise InputError(source, f"analysis.primary: no measure {', '.join(missing)} in "
+                         f"{table.source} (a measure of a pair or a group only?)")  # fmt: skip
+
+
+def _with_q_values(models: list[MeasureModel], hypothesis: Analysis | None) -> list[MeasureModel]:
+    """Mark the hypothesis's contrasts, and give every other its Benjamini-Hochberg q-value.
+
+    A confirmatory contrast enters as NaN: left out of the count, its q NaN.
+    """
+    p = [np.nan if _is_confirmatory(c, hypothesis) else c.p for m in models for c in m.contrasts]
+    q = iter(benjamini_hochberg(p))
+    return [
+        replace(model, contrasts=[
+            replace(c, exploratory=not _is_confirmatory(c, hypothesis), q=float(next(q)))
+            for c in model.contrasts
+        ]) for model in models
+    ]  # fmt: skip
+
+
+def _is_confirmatory(contrast: Contrast, hypothesis: Analysis | None) -> bool:
+    return hypothesis is not None and (
+        contrast.measure in hypothesis.primary
+        and (contrast.condition, contrast.reference) == (hypothesis.condition, hypothesis.reference)
+    )
+
+
+def _judged(test: ConfirmatoryTest) -> dict[str, bool]:
+    """Say what a confirmatory test concluded, for ``results.json``."""
+    return {"significant": test.significant, "exceeds_smallest_effect": test.exceeds_smallest,
+            "supported": test.supported}  # fmt: skip
 
 
 def write_study_report(analysis: StudyAnalysis, out_dir: str | Path) -> Path:
@@ -202,6 +298,7 @@ def write_study_report(analysis: StudyAnalysis, out_dir: str | Path) -> Path:
     html, results, conditions, contrasts = STUDY_REPORT_FILES
     metadata = {
         "table": analysis.parameters["source"],
+        "protocol": analysis.parameters["protocol"] or "none given",
         "participants": analysis.parameters["participants"],
         "seed": analysis.parameters["seed"],
         "mirror-avatar": analysis.parameters["versions"]["mirror-avatar"],
@@ -277,21 +374,30 @@ def _finite(rows: pd.DataFrame, outcomes: list[str]) -> tuple[pd.DataFrame, list
 
 def _contrast_table(analysis: StudyAnalysis) -> pd.DataFrame:
     columns = ["measure", "condition", "reference", "participants", "reference_mean",
-               "condition_mean", "difference", "ci_low", "ci_high", "p", "p_holm",
-               "standardised", "d_z", "t", "t_p", "wilcoxon_p"]  # fmt: skip
+               "condition_mean", "difference", "ci_low", "ci_high", "p", "p_holm", "exploratory",
+               "q", "standardised", "d_z", "t", "t_p", "wilcoxon_p"]  # fmt: skip
     return pd.DataFrame([asdict(c) for c in analysis.contrasts], columns=columns)
+
+
+def _heading(table: StudyTable, column: str) -> str:
+    """Name a column in words with its units: ``RMSE (playing range units)``."""
+    units = table.units(column)
+    return table.label(column) + ("" if units in NO_UNITS else f" ({units})")
 
 
 def _contrast_displays(analysis: StudyAnalysis) -> dict[str, pd.DataFrame]:
     """Show the contrasts in two narrow tables: the model's, and the participants' means'."""
     table = _contrast_table(analysis)
-    index = pd.MultiIndex.from_frame(table[["measure", "condition"]])
+    measures = table["measure"].map(lambda m: _heading(analysis.table, m))
+    index = pd.MultiIndex.from_arrays([measures, table["condition"]],
+                                      names=["measure", "condition"])  # fmt: skip
     interval = [f"{low:.4g} to {high:.4g}" for low, high in zip(table["ci_low"], table["ci_high"],
                                                                strict=True)]  # fmt: skip
     model = {
+        "test": table["exploratory"].map({True: "exploratory", False: "confirmatory"}),
         "difference": table["difference"], "95 % CI": interval,
-        "p": table["p"].map(_p_cell), "p Holm": table["p_holm"].map(_p_cell),
-        "standardised": table["standardised"],
+        "p": table["p"].map(_p_cell), "q (BH)": table["q"].map(_p_cell),
+        "p Holm": table["p_holm"].map(_p_cell), "standardised": table["standardised"],
     }  # fmt: skip
     paired = {
         "n": table["participants"], analysis.reference: table["reference_mean"],
@@ -300,7 +406,8 @@ def _contrast_displays(analysis: StudyAnalysis) -> dict[str, pd.DataFrame]:
     }  # fmt: skip
     return {
         f"Mixed model: each condition's difference from {analysis.reference!r} (measure units), "
-        "its 95 % CI, p (Holm-corrected over a measure's contrasts) and the difference over "
+        "its 95 % CI, p, q (p adjusted by Benjamini-Hochberg across every exploratory "
+        "comparison), p Holm-corrected over a measure's contrasts, and the difference over "
         "the model's SD": pd.DataFrame(model).set_index(index),
         "Participants' means: the reference's and the condition's, Cohen's d_z, paired t-test "
         "and Wilcoxon signed-rank test": pd.DataFrame(paired).set_index(index),
@@ -313,28 +420,60 @@ def _p_cell(p: float) -> str:
 
 def _model_table(analysis: StudyAnalysis) -> pd.DataFrame:
     return pd.DataFrame([{
-        "measure": m.measure, "trials": m.rows, "participants": m.participants,
-        "order slope per position": m.position_slope, "order p": m.position_p,
-        "participant variance": m.participant_variance, "residual variance": m.residual_variance,
+        "measure": _heading(analysis.table, m.measure), "trials": m.rows,
+        "participants": m.participants, "order slope per position": m.position_slope,
+        "order p": m.position_p, "participant variance": m.participant_variance,
+        "residual variance": m.residual_variance,
     } for m in analysis.models]).set_index("measure")  # fmt: skip
+
+
+def _hypothesis_section(analysis: StudyAnalysis) -> Section:
+    """Show the declared hypothesis's test first: its result per primary measure."""
+    if analysis.confirmatory is None:
+        text = ["No hypothesis was declared (no [analysis] in the protocol, or no --protocol "
+                "given): every comparison below is exploratory."]  # fmt: skip
+        return Section("hypothesis", "Confirmatory test", text=text)
+    tests = pd.DataFrame([{
+        "measure": _heading(analysis.table, t.measure), "condition": t.condition,
+        "reference": t.reference, "direction": t.direction, "n": t.participants,
+        "difference": number(t.estimate),
+        f"{t.confidence:.0%} CI": f"{number(t.ci_low)} to {number(t.ci_high)}",
+        "p": _p_cell(t.p), "p Holm": _p_cell(t.p_holm), "alpha": f"{t.alpha:g}",
+        "smallest effect": f"{t.smallest_effect:g}",
+        "reaches it": "yes" if t.exceeds_smallest else "no",
+        "supported": "yes" if t.supported else "no",
+    } for t in analysis.confirmatory]).set_index("measure")  # fmt: skip
+    if len(tests) == 1:
+        tests = tests.drop(columns="p Holm")  # one primary measure: nothing to correct
+    return Section("hypothesis", "Confirmatory test: the declared hypothesis",
+                   text=analysis.hypothesis_sentences(),
+                   tables={"The declared test (paired t-test of the participants' means, "
+                           "condition minus reference)": tests})  # fmt: skip
 
 
 def _sections(analysis: StudyAnalysis) -> list[Section]:
     table = analysis.table
-    summaries = analysis.summaries.set_index(["measure", "condition"])
+    summaries = analysis.summaries.assign(
+        measure=analysis.summaries["measure"].map(lambda m: _heading(table, m))
+    ).set_index(["measure", "condition"])
     figures = {
-        f"{measure}: each participant's mean per condition (grey lines), the mean over "
-        f"participants with its {analysis.parameters['confidence']:.0%} bootstrap CI": (
+        f"{table.label(measure)}: each participant's mean per condition (grey lines), the mean "
+        f"over participants with its {analysis.parameters['confidence']:.0%} bootstrap CI": (
             plot_participants(
                 participant_means(analysis.rows, measure, analysis.conditions),
                 analysis.summaries[analysis.summaries["measure"] == measure],
-                f"{measure} ({table.units(measure)})" if table.units(measure) else measure,
+                _heading(table, measure),
             )
         )
         for measure in table.outcomes
     }
+    exploratory = ("Exploratory: every comparison below but the declared hypothesis's, its "
+                   "p-value adjusted for the false discovery rate across measures "
+                   "(Benjamini-Hochberg q-values).")  # fmt: skip
     sections = [
-        Section("comparisons", "In words", text=analysis.sentences() + analysis.notes),
+        _hypothesis_section(analysis),
+        Section("comparisons", "Exploratory comparisons",
+                text=[exploratory, *analysis.sentences(), *analysis.notes]),
         Section("conditions", "Each condition: mean over participants and its CI",
                 tables={"Mean, bootstrap CI and SD of the participants' means": summaries},
                 figures=figures),

@@ -1,8 +1,12 @@
-"""A study's results in words: a line per comparison, the identification, a methods paragraph.
+"""A study's results in words: the hypothesis, a line per comparison, the identification, methods.
 
 Numbers keep three significant digits; p-values three decimals ("p < 0.001" below that).
-A comparison is called a change when its p-value (Holm-corrected when a measure has several
-contrasts) is below `ALPHA`.
+Measures are named by their labels and units (`mirror_avatar.metrics.registry`, through the
+study table's data dictionary). The declared hypothesis is said supported when its test's
+p-value is below its alpha and the estimate reaches the smallest effect of interest
+(`mirror_avatar.analysis.hypothesis.ConfirmatoryTest`); an exploratory comparison is called a
+change when its q-value (p adjusted by Benjamini-Hochberg across the exploratory comparisons)
+is below `ALPHA`.
 """
 
 from __future__ import annotations
@@ -11,21 +15,23 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from mirror_avatar.analysis.hypothesis import ConfirmatoryTest
 from mirror_avatar.analysis.identification import CHANCE, Identification
 from mirror_avatar.analysis.statistics import Contrast
 
 ALPHA = 0.05
-"""The significance level the sentences use (**choice**: the field's convention)."""
+"""The significance level, and the false discovery rate, of the exploratory sentences
+(**choice**: the field's convention)."""
 
 NO_UNITS = ("", "1", "n/a", "dimensionless")
 """Units not written after a number (BIDS writes "1" for a ratio)."""
 
 
-def format_p(p: float) -> str:
-    """``p = 0.003``, ``p < 0.001``, or ``p = n/a`` for NaN."""
+def format_p(p: float, name: str = "p") -> str:
+    """``p = 0.003``, ``p < 0.001``, or ``p = n/a`` for NaN (``name``: ``q`` for a q-value)."""
     if math.isnan(p):
-        return "p = n/a"
-    return "p < 0.001" if p < 0.001 else f"p = {p:.3f}"
+        return f"{name} = n/a"
+    return f"{name} < 0.001" if p < 0.001 else f"{name} = {p:.3f}"
 
 
 def number(value: float) -> str:
@@ -34,34 +40,70 @@ def number(value: float) -> str:
 
 
 def is_change(contrast: Contrast) -> bool:
-    """Whether the contrast's (Holm-corrected) p-value is below `ALPHA`."""
-    return contrast.p_holm < ALPHA
+    """Whether the contrast's q-value (Benjamini-Hochberg) is below `ALPHA`."""
+    return contrast.q < ALPHA
 
 
-def comparison_sentence(contrast: Contrast, units: str, several: bool) -> str:
+def with_unit(value: float, units: str) -> str:
+    """Write a number with its unit (none for `NO_UNITS`)."""
+    return number(value) + ("" if units in NO_UNITS else f" {units}")
+
+
+def comparison_sentence(contrast: Contrast, label: str, units: str) -> str:
     """One plain-language line: did the condition change the measure, by how much, how surely.
 
-    ``several``: the measure has more than one contrast, so the p-value is Holm-corrected.
+    ``label`` and ``units`` name the measure; the evidence is the q-value (Benjamini-Hochberg
+    across the exploratory comparisons), the model's p, d_z and n.
     """
     c = contrast
-    unit = "" if units in NO_UNITS else f" {units}"
-    p = format_p(c.p_holm) + (" Holm-corrected" if several else "")
-    evidence = f"({p}, d_z = {number(c.d_z)}, n = {c.participants})"
-    if math.isnan(c.p_holm):
+    evidence = (f"(exploratory: {format_p(c.q, 'q')}, {format_p(c.p)}, d_z = {number(c.d_z)}, "
+                f"n = {c.participants})")  # fmt: skip
+    if math.isnan(c.q):
         return _capitalised(
-            f"{c.condition} against {c.reference}: {c.measure} {number(c.reference_mean)} and "
-            f"{number(c.condition_mean)}{unit}, not tested (see the notes below)."
+            f"{c.condition} against {c.reference}: {label} {number(c.reference_mean)} and "
+            f"{with_unit(c.condition_mean, units)}, not tested (see the notes below)."
         )
     if is_change(c):
         verb = "raised" if c.difference > 0 else "lowered"
         return _capitalised(
-            f"{c.condition} {verb} {c.measure} from {number(c.reference_mean)} "
-            f"({c.reference}) to {number(c.condition_mean)}{unit} {evidence}."
+            f"{c.condition} {verb} {label} from {number(c.reference_mean)} "
+            f"({c.reference}) to {with_unit(c.condition_mean, units)} {evidence}."
         )
     return _capitalised(
-        f"{c.condition} did not change {c.measure} detectably from {c.reference}: "
-        f"{number(c.reference_mean)} and {number(c.condition_mean)}{unit} {evidence}."
+        f"{c.condition} did not change {label} detectably from {c.reference}: "
+        f"{number(c.reference_mean)} and {with_unit(c.condition_mean, units)} {evidence}."
     )
+
+
+def confirmatory_sentence(test: ConfirmatoryTest, label: str, units: str) -> str:
+    """Say the declared test's result: the estimate, its interval, p, the smallest effect."""
+    t = test
+    sided = "two-sided" if t.direction == "two-sided" else "one-sided"
+    claim = f"{label} {_direction_words(t.direction)} in {t.condition} than in {t.reference}"
+    if not t.tested:
+        return _capitalised(
+            f"Hypothesis ({claim}): not tested (n = {t.participants} with a mean in both "
+            "conditions; two or more whose differences differ are needed)."
+        )
+    p = format_p(t.p) if t.p == t.p_holm else f"{format_p(t.p_holm)} Holm-corrected"
+    found = (
+        f"{label} {number(t.reference_mean)} ({t.reference}) and "
+        f"{with_unit(t.condition_mean, units)} ({t.condition}), a difference of "
+        f"{with_unit(t.estimate, units)} ({t.confidence:.0%} CI {number(t.ci_low)} to "
+        f"{number(t.ci_high)}; {sided} paired t-test {p}, n = {t.participants})"
+    )
+    smallest = f"the smallest effect of interest, {with_unit(t.smallest_effect, units)}"
+    if t.supported:
+        outcome = f"at least {smallest}: the hypothesis is supported"
+    elif t.significant:
+        outcome = f"significant at alpha = {t.alpha:g} but under {smallest}: not supported"
+    else:
+        outcome = f"not significant at alpha = {t.alpha:g}: the hypothesis is not supported"
+    return f"Hypothesis ({claim}): {found}, {outcome}."
+
+
+def _direction_words(direction: str) -> str:
+    return {"lower": "lower", "higher": "higher"}.get(direction, "other")
 
 
 def identification_sentence(found: Identification) -> str:
@@ -88,21 +130,46 @@ def identification_sentence(found: Identification) -> str:
     return text
 
 
-def verdict(contrasts: list[Contrast], identification: Identification | None) -> str:
-    """Write the report's first line: which comparisons changed a measure, the identification."""
-    changed = [f"{c.condition} on {c.measure}" for c in contrasts if is_change(c)]
+def verdict(
+    contrasts: list[Contrast],
+    identification: Identification | None,
+    confirmatory: list[ConfirmatoryTest] | None = None,
+    labels: Mapping[str, str] | None = None,
+) -> str:
+    """Write the report's first line: the hypothesis, the exploratory changes, the identification.
+
+    ``confirmatory`` None: no hypothesis was declared, and every comparison is exploratory.
+    ``labels`` names the measures in words (their keys otherwise).
+    """
+    named = dict(labels or {})
+    line = _hypothesis_line(confirmatory, named)
+    changed = [f"{c.condition} on {named.get(c.measure, c.measure)}"
+               for c in contrasts if is_change(c)]  # fmt: skip
     if not contrasts:
-        line = "No conditions to compare."
+        line += "No exploratory comparison." if confirmatory else "No conditions to compare."
     elif changed:
-        line = (f"{len(changed)} of {len(contrasts)} comparisons changed a measure "
-                f"(p < {ALPHA}): {', '.join(changed)}.")  # fmt: skip
+        line += (f"Exploratory: {len(changed)} of {len(contrasts)} comparisons changed a measure "
+                 f"(q < {ALPHA}, Benjamini-Hochberg): {'; '.join(changed)}.")  # fmt: skip
     else:
-        line = f"None of {len(contrasts)} comparisons changed a measure (p < {ALPHA} in none)."
+        line += (f"Exploratory: none of {len(contrasts)} comparisons changed a measure "
+                 f"(q < {ALPHA} in none).")  # fmt: skip
     if identification is not None:
         said = _against_chance(identification)
         line += (f" Partners identified {said}: {identification.rate:.0%} right "
                  f"({format_p(identification.binomial_p)}).")  # fmt: skip
     return line
+
+
+def _hypothesis_line(confirmatory: list[ConfirmatoryTest] | None, labels: dict[str, str]) -> str:
+    """Open the verdict: the hypothesis supported or not, or none declared."""
+    if confirmatory is None:
+        return "No hypothesis declared: every comparison is exploratory. "
+    said = "; ".join(
+        f"{labels.get(t.measure, t.measure)} {'supported' if t.supported else 'not supported'}"
+        for t in confirmatory
+    )
+    first = confirmatory[0]
+    return f"Hypothesis ({first.condition} against {first.reference}): {said}. "
 
 
 def methods_paragraph(parameters: Mapping[str, Any]) -> str:
@@ -122,8 +189,10 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         "participant (statsmodels MixedLM, REML), condition in treatment coding against "
         f"{parameters['reference']!r} and position the condition's place in the participant's "
         "order (1, 2, ...), a covariate that checks order effects; fixed effects were tested "
-        "by Wald z tests, Holm-corrected over a measure's contrasts when it has several "
-        "(Holm 1979). Effect sizes: Cohen's d_z of the participants' paired means, and the "
+        "by Wald z tests, and every comparison but the declared hypothesis's is exploratory: "
+        "its p-value adjusted for the false discovery rate across measures and conditions "
+        "(Benjamini & Hochberg 1995; q-values). Effect sizes: Cohen's d_z of the "
+        "participants' paired means, and the "
         "model's coefficient over its total standard deviation (participant and residual "
         "variances summed; Westfall, Kenny & Judd 2014); paired t-tests and Wilcoxon "
         "signed-rank tests of the participants' means cross-check each contrast. Answers to "
@@ -135,7 +204,8 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         "log-linear corrected (0.5 added to hits and false alarms, 1 to each kind's count; "
         "Hautus 1995) when a rate is 0 or 1; each person's own d' tested against 0 by a "
         "one-sample t-test; confidence in right and in wrong answers compared by a two-sided "
-        f"Mann-Whitney U test. Significance level {ALPHA}."
+        f"Mann-Whitney U test. Significance level and false discovery rate {ALPHA}."
+        + _hypothesis_methods(parameters.get("hypothesis"), parameters.get("protocol"))
     )
 
 
@@ -156,6 +226,29 @@ def _trials(parameters: Mapping[str, Any]) -> str:
         f"{rows} complete trials (the persons' rows of the study table; avatars' rows and "
         f"{left} rows of incomplete trials, stopped before their end, left out)"
     )
+
+
+def _hypothesis_methods(hypothesis: Mapping[str, Any] | None, protocol: str | None) -> str:
+    """Say the declared hypothesis and its test, for the methods paragraph."""
+    if hypothesis is None:
+        return " No hypothesis was declared: every comparison is exploratory."
+    h = hypothesis
+    sided = "two-sided" if h["direction"] == "two-sided" else f"one-sided ({h['direction']})"
+    several = len(h["primary"]) > 1
+    return (
+        f" The hypothesis declared in the protocol's analysis section ({protocol}) was "
+        f"tested first: {' and '.join(h['primary'])} in {h['condition']!r} against "
+        f"{h['reference']!r}, by a {sided} paired t-test of the participants' means at alpha "
+        f"{h['alpha']:g}{', Holm-corrected over the primary measures' if several else ''}, "
+        f"with a {_level(h)} t interval of the mean difference, the smallest effect of "
+        f"interest {h['smallest_effect']:g} in the measure's units."
+    )
+
+
+def _level(hypothesis: Mapping[str, Any]) -> str:
+    """Write the confidence level matching the declared test (1 - 2 alpha when one-sided)."""
+    sides = 1.0 if hypothesis["direction"] == "two-sided" else 2.0
+    return f"{1.0 - sides * hypothesis['alpha']:.0%}"
 
 
 def _capitalised(sentence: str) -> str:

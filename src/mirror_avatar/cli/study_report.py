@@ -15,6 +15,7 @@ from mirror_avatar.analysis.study_report import (
 )
 from mirror_avatar.cli.constrained import SEED, ranged
 from mirror_avatar.cli.outputs import check_output_dir
+from mirror_avatar.lab.design.protocol import load_protocol
 
 
 @click.command()
@@ -40,10 +41,29 @@ from mirror_avatar.cli.outputs import check_output_dir
     show_default=True,
     **ranged("Bootstrap resamples of the participants' means.", RESAMPLES),
 )
-def report(table: Path, out_dir: Path, seed: int, reference: str | None, resamples: int) -> None:
+@click.option(
+    "--protocol",
+    "protocol_file",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="The study's protocol: its conditions' order and its [analysis], the hypothesis tested "
+    "first [default: none; every comparison exploratory].",
+)
+def report(
+    table: Path,
+    out_dir: Path,
+    seed: int,
+    reference: str | None,
+    resamples: int,
+    protocol_file: Path | None,
+) -> None:
     """Statistics of a study table (a folder holding study.csv, or the table itself).
 
-    Per condition and measure (and each answer given as a number, a rating), the mean over
+    With --protocol, the protocol's declared hypothesis ([analysis]) is tested first: a paired
+    t-test of the participants' means of each primary measure, one-sided as declared, against
+    the smallest effect of interest; every other comparison is exploratory, its p-value adjusted
+    by Benjamini-Hochberg across measures. Per condition and measure (and each answer given as
+    a number, a rating), the mean over
     participants with a 95 % bootstrap CI; each condition against the reference within
     participants (linear mixed model, random intercept per participant, the condition's
     position in the order as a covariate) with effect sizes and paired tests; the "person or
@@ -52,10 +72,11 @@ def report(table: Path, out_dir: Path, seed: int, reference: str | None, resampl
     results.json with every number.
     """
     check_output_dir(out_dir, files=STUDY_REPORT_FILES)
+    protocol = None if protocol_file is None else load_protocol(protocol_file)
     analysis = analyse_study(read_study_table(table), seed=seed, reference=reference,
-                             resamples=resamples)  # fmt: skip
+                             resamples=resamples, protocol=protocol)  # fmt: skip
     click.echo(analysis.verdict())
-    for line in analysis.sentences():
+    for line in analysis.hypothesis_sentences() + analysis.sentences():
         click.echo(f"  {line}")
     path = write_study_report(analysis, out_dir)
     click.echo(f"wrote {path.resolve()}")

@@ -10,7 +10,8 @@ participants and across the positions of the order (`mirror_avatar.lab.design.or
 so that neither the participant nor the page knows which (the files record it). Questions are
 declared once and asked after each trial of a condition (``after_trial``) or after a block
 (``after_block``). The order of blocks and of each block's conditions is fixed, random or
-counterbalanced across participants (`mirror_avatar.lab.design.order`).
+counterbalanced across participants (`mirror_avatar.lab.design.order`). An ``[analysis]``
+table declares the hypothesis `study report` tests first (`Analysis`).
 
 Every mistake is refused with one line naming the file, the key path (such as
 ``blocks[1].conditions[0].players``), the problem and how to fix it; every avatar is built and
@@ -45,6 +46,8 @@ from mirror_avatar.lab.design.plan import (
 )
 from mirror_avatar.lab.design.protocol_checks import AvatarCheck, long_run, metrics_shown
 from mirror_avatar.lab.design.protocol_keys import (
+    ANALYSIS,
+    ANALYSIS_SETTINGS,
     BLIND_METRICS,
     BLOCK,
     BLOCK_SETTINGS,
@@ -55,6 +58,7 @@ from mirror_avatar.lab.design.protocol_keys import (
     MAX_CONDITIONS,
     MAX_OCCLUSION_END,
     MAX_OPTIONS,
+    MAX_PRIMARY,
     MAX_QUESTIONS,
     PLAYER,
     PLAYER_SETTINGS,
@@ -63,6 +67,7 @@ from mirror_avatar.lab.design.protocol_keys import (
     STUDY_SETTINGS,
     keys_of,
 )
+from mirror_avatar.metrics.registry import TABLE_COLUMNS
 
 MAX_PROTOCOL_BYTES = 256 * 1024
 """Largest protocol file read (bytes)."""
@@ -226,6 +231,34 @@ class Block:
 
 
 @dataclass(frozen=True)
+class Analysis:
+    """A protocol's hypothesis: the confirmatory test `study report` leads with.
+
+    Attributes
+    ----------
+    primary
+        The primary measures: study table columns (`mirror_avatar.metrics.registry.TABLE_COLUMNS`).
+    direction
+        One of `mirror_avatar.lab.design.protocol_keys.DIRECTIONS`: ``condition``'s mean
+        ``"lower"`` or ``"higher"`` than ``reference``'s, or ``"two-sided"``.
+    condition, reference
+        The tested condition and the one it is compared with (also the reference of every
+        exploratory comparison).
+    smallest_effect
+        The smallest difference of interest, in the primary measures' units.
+    alpha
+        The confirmatory test's significance level (family-wise over the primary measures).
+    """
+
+    primary: tuple[str, ...]
+    direction: str
+    condition: str
+    reference: str
+    smallest_effect: float
+    alpha: float = 0.05
+
+
+@dataclass(frozen=True)
 class Protocol:
     """A study protocol (see the module docstring).
 
@@ -253,6 +286,8 @@ class Protocol:
     warnings
         What is odd but allowed, one line each
         (`mirror_avatar.lab.design.protocol_checks.long_run`).
+    analysis
+        Its hypothesis (``[analysis]``), None when it declares none.
     """
 
     source: str
@@ -264,6 +299,12 @@ class Protocol:
     seed_drawn: bool = field(default=False, compare=False)
     blind: str = "single"
     warnings: tuple[str, ...] = field(default=(), compare=False)
+    analysis: Analysis | None = None
+
+    @property
+    def conditions(self) -> tuple[str, ...]:
+        """The conditions' names in the file's order."""
+        return tuple(c.name for block in self.blocks for c in block.conditions)
 
     @property
     def people(self) -> tuple[str, ...]:
@@ -376,7 +417,48 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
         seed_drawn="seed" not in data,
         blind=str(blind),
         warnings=(*warnings, *long_run(source, plans)),
+        analysis=None if "analysis" not in data else _analysis(check, data["analysis"], names),
     )
+
+
+def _analysis(check: Checker, value: object, conditions: list[str]) -> Analysis:
+    """Read ``[analysis]``: primary measures of the study table, conditions of the protocol."""
+    data = check.table(value, "analysis")
+    check.keys(data, "analysis", keys_of(ANALYSIS_SETTINGS))
+    direction, smallest, alpha = (check.setting(data, "analysis", ANALYSIS[key])
+                                  for key in ("direction", "smallest_effect", "alpha"))  # fmt: skip
+    primary = data.get("primary")
+    listed = primary if isinstance(primary, list) else [primary]
+    if not 1 <= len(listed) <= MAX_PRIMARY:
+        raise check.error("analysis.primary", f"must name 1 to {MAX_PRIMARY} measures",
+                          'e.g. primary = "rmse"')  # fmt: skip
+    measures = tuple(check.one_of(m, "analysis.primary", TABLE_COLUMNS, "measure") for m in listed)
+    if "contrast" in data and "reference" in data:
+        raise check.error("analysis.reference", "the contrast names the reference already",
+                          "give contrast or reference, not both")  # fmt: skip
+    condition, reference = _contrast(check, data, conditions)
+    return Analysis(measures, str(direction), condition, reference, float(smallest),
+                    float(alpha))  # fmt: skip
+
+
+def _contrast(check: Checker, data: dict[str, Any], conditions: list[str]) -> tuple[str, str]:
+    """Return the tested condition and its reference, each a condition of the protocol."""
+    contrast = data.get("contrast")
+    if contrast is not None:
+        if not isinstance(contrast, list) or len(contrast) != 2 or contrast[0] == contrast[1]:
+            raise check.error("analysis.contrast", "must name two different conditions",
+                              f'e.g. ["{conditions[-1]}", "{conditions[0]}"]')  # fmt: skip
+        return (check.one_of(contrast[0], "analysis.contrast[0]", tuple(conditions), "condition"),
+                check.one_of(contrast[1], "analysis.contrast[1]", tuple(conditions),
+                             "condition"))  # fmt: skip
+    reference = check.one_of(data.get("reference", conditions[0]), "analysis.reference",
+                             tuple(conditions), "condition")  # fmt: skip
+    others = [c for c in conditions if c != reference]
+    if len(others) != 1:
+        which = f"{len(conditions)} conditions: which one is tested is not clear"
+        raise check.error("analysis.contrast", which,
+                          f'give contrast = ["{others[0]}", "{reference}"]')  # fmt: skip
+    return others[0], reference
 
 
 def _questions(check: Checker, value: object) -> dict[str, Question]:

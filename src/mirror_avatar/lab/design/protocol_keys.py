@@ -6,7 +6,8 @@ its keys declared here as `mirror_avatar.common.constraints.Setting` records. Th
 refusal tests are generated from them; and the lab guide's tables of keys are written from
 them (`key_tables`), so that the file format, its checks and its documents say the same.
 A condition's trial keys are the plan's (`mirror_avatar.lab.design.plan.TRIAL_SETTINGS`), declared
-there once, but for ``show_metrics``, off unless asked (`BLIND_METRICS`).
+there once, but for ``show_metrics``, off unless asked (`BLIND_METRICS`); the analysis's primary
+measures are the study table's measure columns (`mirror_avatar.metrics.registry.TABLE_COLUMNS`).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from __future__ import annotations
 from mirror_avatar.common.constraints import Flag, Interval, Options, Setting, settings_table
 from mirror_avatar.lab.design.order import ORDERS
 from mirror_avatar.lab.design.plan import CONDITIONS, MAX_PLAYERS, SEED_LIMIT, TRIAL_SETTINGS
+from mirror_avatar.metrics.registry import TABLE_COLUMNS
 
 PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
 """What a protocol's player slot holds."""
@@ -36,6 +38,13 @@ MAX_ANSWER_CHARS = 120
 MAX_OCCLUSION_END = 600.0
 """Latest end of an occlusion interval (s from the trial's start: the longest trial)."""
 
+DIRECTIONS = ("lower", "higher", "two-sided")
+"""The directions of a hypothesis: the tested condition's mean lower or higher than the
+reference's, or different either way."""
+
+MAX_PRIMARY = 5
+"""Most primary measures of an analysis (each a confirmatory test, Holm-corrected together)."""
+
 STUDY_SETTINGS = (
     Setting("title", "the study's name", default="", allowed="text"),
     Setting("seed", "every draw (orders, partners) follows from it",
@@ -47,8 +56,28 @@ STUDY_SETTINGS = (
             allowed=f"up to {MAX_QUESTIONS} tables"),
     Setting("blocks", "the blocks, one `[[blocks]]` table each",
             allowed=f"1 to {MAX_BLOCKS} tables"),
+    Setting("analysis", "the hypothesis `study report` tests first, one `[analysis]` table",
+            default=None, allowed="a table (its keys below)"),
 )  # fmt: skip
 """The keys of the protocol file itself."""
+
+ANALYSIS_SETTINGS = (
+    Setting("primary", "the primary measure, or measures, of the confirmatory test",
+            allowed=f"a measure column of the study table (`{TABLE_COLUMNS[0]}`, "
+            f"`{TABLE_COLUMNS[1]}`, ...) or a list of 1 to {MAX_PRIMARY}"),
+    Setting("direction", "the tested condition's mean against the reference's",
+            Options(DIRECTIONS)),
+    Setting("contrast", "the tested condition, then its reference", default=None,
+            allowed="two condition names",
+            default_shown="the condition other than the reference (two conditions only)"),
+    Setting("reference", "the condition every other is compared with", default=None,
+            allowed="a condition's name", default_shown="the protocol's first condition"),
+    Setting("smallest_effect", "the smallest difference of interest, in the primary "
+            "measure's units", Interval(float, 0.0, None)),
+    Setting("alpha", "the confirmatory test's significance level",
+            Interval(float, 0.0, 0.5, closed="right"), 0.05),
+)  # fmt: skip
+"""The keys of a protocol's analysis (``[analysis]``): its hypothesis (docs/METHODS.md, 15)."""
 
 QUESTION_SETTINGS = (
     Setting("text", "what the page asks", allowed="text"),
@@ -125,6 +154,7 @@ TABLES = {
     "block": BLOCK_SETTINGS,
     "condition": CONDITION_SETTINGS,
     "player": PLAYER_SETTINGS,
+    "analysis": ANALYSIS_SETTINGS,
 }
 """Every table of a protocol file and its declared keys."""
 
@@ -139,7 +169,7 @@ def by_key(settings: tuple[Setting, ...]) -> dict[str, Setting]:
     return {setting.key: setting for setting in settings}
 
 
-STUDY, QUESTION, BLOCK, CONDITION, PLAYER = (by_key(t) for t in TABLES.values())
+STUDY, QUESTION, BLOCK, CONDITION, PLAYER, ANALYSIS = (by_key(t) for t in TABLES.values())
 """Each table's settings by key."""
 
 

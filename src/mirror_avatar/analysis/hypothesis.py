@@ -1,0 +1,178 @@
+"""A study's declared hypothesis tested, and its other comparisons corrected for discovery.
+
+The confirmatory test (`confirm`) is the one a protocol's ``[analysis]`` declares
+(`mirror_avatar.lab.design.protocol.Analysis`): per primary measure, a paired t-test of the
+participants' means in the tested condition against the reference, one-sided when the
+hypothesis names a direction, its interval at the matching level, the primary measures
+Holm-corrected together, and the estimate set against the smallest effect of interest. Every
+other comparison is exploratory: its p-values adjusted across measures by Benjamini and
+Hochberg's step-up procedure (`benjamini_hochberg`). docs/METHODS.md, section 15.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from numpy.typing import ArrayLike, NDArray
+from scipy import stats
+from statsmodels.stats.multitest import multipletests
+
+from mirror_avatar.analysis.statistics import has_spread, participant_means
+from mirror_avatar.lab.design.protocol import Analysis
+
+ALTERNATIVES = {"lower": "less", "higher": "greater", "two-sided": "two-sided"}
+"""Each direction of a hypothesis as scipy's ``alternative`` of condition minus reference."""
+
+
+def benjamini_hochberg(p_values: ArrayLike) -> NDArray[np.float64]:
+    """Adjust p-values for the false discovery rate (Benjamini & Hochberg 1995): the q-values.
+
+    The i-th smallest of m p-values becomes min over j >= i of p_(j) m / j, capped at 1; a
+    comparison is a discovery at FDR q when its adjusted p-value is below q. NaN (a comparison
+    not tested) stays NaN and is not counted in m.
+
+    Returns
+    -------
+    numpy.ndarray
+        The adjusted p-values, in the order given.
+    """
+    p = np.asarray(p_values, dtype=np.float64)
+    adjusted = np.full(p.shape, np.nan)
+    tested = np.flatnonzero(~np.isnan(p))
+    if tested.size == 0:
+        return adjusted
+    order = tested[np.argsort(p[tested], kind="stable")]
+    scaled = p[order] * tested.size / np.arange(1, tested.size + 1)
+    adjusted[order] = np.minimum(np.minimum.accumulate(scaled[::-1])[::-1], 1.0)
+    return adjusted
+
+
+@dataclass(frozen=True)
+class ConfirmatoryTest:
+    """The declared test of one primary measure.
+
+    Parameters
+    ----------
+    measure, condition, reference, direction
+        What the hypothesis declares (``direction``: lower, higher or two-sided).
+    participants
+        Participants with a mean in both conditions (the test's n).
+    reference_mean, condition_mean
+        The means of their means.
+    estimate
+        The mean of the paired differences, condition minus reference, in the measure's units.
+    ci_low, ci_high, confidence
+        Its t interval at ``confidence``: 1 - alpha two-sided, 1 - 2 alpha one-sided (its bound
+        on the hypothesis's side excludes 0 exactly when the one-sided p is below alpha).
+    t, p
+        The paired t statistic and its p-value, one-sided as declared.
+    p_holm
+        ``p`` Holm-corrected over the primary measures (``p`` with one).
+    smallest_effect, alpha
+        As declared.
+    """
+
+    measure: str
+    condition: str
+    reference: str
+    direction: str
+    participants: int
+    reference_mean: float
+    condition_mean: float
+    estimate: float
+    ci_low: float
+    ci_high: float
+    confidence: float
+    t: float
+    p: float
+    p_holm: float
+    smallest_effect: float
+    alpha: float
+
+    @property
+    def tested(self) -> bool:
+        """Whether the test could be run (two or more pairs with a spread)."""
+        return not math.isnan(self.p)
+
+    @property
+    def significant(self) -> bool:
+        """Whether the Holm-corrected p is below alpha."""
+        return self.p_holm < self.alpha
+
+    @property
+    def exceeds_smallest(self) -> bool:
+        """Whether the estimate, in the declared direction, is the smallest effect or more."""
+        signed = {"lower": -self.estimate, "higher": self.estimate}
+        return bool(signed.get(self.direction, abs(self.estimate)) >= self.smallest_effect)
+
+    @property
+    def supported(self) -> bool:
+        """Whether the hypothesis holds: significant, and at least the smallest effect."""
+        return self.significant and self.exceeds_smallest
+
+
+def confirm(rows: pd.DataFrame, analysis: Analysis) -> list[ConfirmatoryTest]:
+    """Run the declared test of each primary measure on the participants' rows.
+
+    ``rows``: one per trial and person (`mirror_avatar.analysis.study_report.analyse_study`'s),
+    with a column per primary measure.
+    """
+    pairs = [_pairs(rows, measure, analysis) for measure in analysis.primary]
+    tests = [_paired_test(pair, analysis) for pair in pairs]
+    p = [test[1] for test in tests]
+    tested = [k for k, value in enumerate(p) if not math.isnan(value)]
+    holm = list(p)
+    if tested:
+        corrected = multipletests([p[k] for k in tested], method="holm")[1]
+        for k, value in zip(tested, corrected, strict=True):
+            holm[k] = float(value)
+    return [
+        _result(measure, pair, test, p_holm, analysis)
+        for measure, pair, test, p_holm in zip(analysis.primary, pairs, tests, holm, strict=True)
+    ]
+
+
+def _pairs(rows: pd.DataFrame, measure: str, analysis: Analysis) -> pd.DataFrame:
+    """Each participant's means in the reference and the tested condition, both present."""
+    means = participant_means(rows, measure, [analysis.reference, analysis.condition])
+    return means.dropna()
+
+
+def _paired_test(
+    pairs: pd.DataFrame, analysis: Analysis
+) -> tuple[float, float, tuple[float, float], float]:
+    """Return the paired t-test's statistic, p (as declared), interval and its level."""
+    one_sided = analysis.direction != "two-sided"
+    confidence = 1.0 - analysis.alpha * (2.0 if one_sided else 1.0)
+    after = pairs[analysis.condition].to_numpy(np.float64)
+    before = pairs[analysis.reference].to_numpy(np.float64)
+    nan = float("nan")
+    if after.size < 2 or not has_spread(after - before):
+        return nan, nan, (nan, nan), confidence
+    alternative = ALTERNATIVES[analysis.direction]
+    declared = stats.ttest_rel(after, before, alternative=alternative)
+    interval = stats.ttest_rel(after, before).confidence_interval(confidence)
+    limits = (float(interval.low), float(interval.high))
+    return float(declared.statistic), float(declared.pvalue), limits, confidence
+
+
+def _result(
+    measure: str,
+    pairs: pd.DataFrame,
+    test: tuple[float, float, tuple[float, float], float],
+    p_holm: float,
+    analysis: Analysis,
+) -> ConfirmatoryTest:
+    t, p, (low, high), confidence = test
+    before, after = pairs[analysis.reference], pairs[analysis.condition]
+    return ConfirmatoryTest(
+        measure=measure, condition=analysis.condition, reference=analysis.reference,
+        direction=analysis.direction, participants=len(pairs),
+        reference_mean=float(before.mean()), condition_mean=float(after.mean()),
+        estimate=float((after - before).mean()),
+        ci_low=low, ci_high=high, confidence=confidence, t=t, p=p, p_holm=p_holm,
+        smallest_effect=analysis.smallest_effect, alpha=analysis.alpha,
+    )  # fmt: skip
