@@ -29,7 +29,11 @@ from mirror_avatar.signatures.groups import (
 )
 from mirror_avatar.signatures.identification import identify_people
 from mirror_avatar.signatures.likeness import trial_velocity
-from mirror_avatar.signatures.signature import SignatureAnalysis, analyse_signatures
+from mirror_avatar.signatures.signature import (
+    SignatureAnalysis,
+    analyse_signatures,
+    distinct_labels,
+)
 
 FIGURES = ("ims.png", "similarity.png", "distances.png", "strokes.png")
 """The figures written beside ``signature.json``."""
@@ -106,9 +110,9 @@ def signature(
     group_map = read_group_map(groups_path) if groups_path is not None else None
     trials = read_and_report(paths, group_by, options) if paths else []
     trials += load_zhai2017() if bundled else []
+    if group_map is not None:  # before the signatures: a bad table is said at once
+        people, groups = place_trials(trials, distinct_labels(trials), group_map)
     analysis = analyse_signatures(trials, level=level, rate=rate)
-    if group_map is not None:
-        people, groups = place_trials(trials, analysis.labels, group_map)
     identification = identify_people(analysis.emd, analysis.groups, seed=seed)
     out_dir.mkdir(parents=True, exist_ok=True)
     numbers = analysis.to_json_dict()
