@@ -48,15 +48,20 @@ def on_the_clock(inputs: Path, positions: np.ndarray) -> np.ndarray:
     return np.column_stack([clock, positions])
 
 
+MOST_LATE_S = 1.0
+"""Longest delay from a driven mouse move to the samples that hold it (s): on a machine busy
+with other work the page's events and the server's samples were seen to lag by more than 0.3 s."""
+
+
 def mismatch(recorded: np.ndarray, driven: np.ndarray) -> np.ndarray:
-    """|recorded - driven| (units) at the delay from a move to its sample that fits best;
-    driven positions hold until the next move."""
+    """|recorded - driven| (units) at the delay from a move to its sample that fits best
+    (from -0.3 s to `MOST_LATE_S`); driven positions hold until the next move."""
 
     def errors(offset: float) -> np.ndarray:
         index = np.searchsorted(driven[:, 0], recorded[:, 0] + offset, side="right") - 1
         return np.abs(recorded[:, 1] - driven[np.maximum(index, 0), 1])
 
-    offsets = np.arange(-0.3, 0.3, 0.002)
+    offsets = np.arange(-0.3, MOST_LATE_S, 0.002)
     return min((errors(offset) for offset in offsets), key=lambda e: float(np.mean(e)))
 
 
