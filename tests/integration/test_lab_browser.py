@@ -88,7 +88,9 @@ def drive(
     """Move every page's mouse along `sway` (each with its lag) at 60 Hz for ``seconds``.
 
     Returns the (time, position) pairs driven per page, each move's time on the monotonic clock
-    (`time.monotonic`, s) as the trial's inputs file records its samples'; ``shoot`` is called
+    (`time.monotonic`, s) as the trial's inputs file records its samples', taken once the page
+    has the move (on a busy machine a move takes a large part of a second, and the pages are
+    moved one after the other); ``shoot`` is called
     once halfway and ``watch(t)`` every quarter of a second (``t`` since the first move).
     """
     began = time.monotonic()
@@ -98,7 +100,7 @@ def drive(
         for label, page in pages.items():
             x = sway(t, lags[label])
             pointer_at(page, x)
-            driven[label].append((began + t, x))
+            driven[label].append((time.monotonic(), x))
         n += 1
         if shoot is not None and t > seconds / 2:
             shoot()
