@@ -90,8 +90,9 @@ def drive(
     Returns the (time, position) pairs driven per page, each move's time on the monotonic clock
     (`time.monotonic`, s) as the trial's inputs file records its samples', taken once the page
     has the move (on a busy machine a move takes a large part of a second, and the pages are
-    moved one after the other); ``shoot`` is called
-    once halfway and ``watch(t)`` every quarter of a second (``t`` since the first move).
+    moved one after the other); ``shoot`` is called once, after the moves that pass halfway
+    (however long one round of moves takes), and ``watch(t)`` every quarter of a second (``t``
+    since the first move).
     """
     began = time.monotonic()
     driven: dict[str, list[tuple[float, float]]] = {label: [] for label in pages}
@@ -102,7 +103,7 @@ def drive(
             pointer_at(page, x)
             driven[label].append((time.monotonic(), x))
         n += 1
-        if shoot is not None and t > seconds / 2:
+        if shoot is not None and time.monotonic() - began > seconds / 2:
             shoot()
             shoot = None
         if watch is not None and t >= watched + 0.25:
