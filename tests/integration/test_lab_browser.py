@@ -160,7 +160,8 @@ def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
 
     driven = drive(pages, {"P1": 0.0, "P2": 0.25}, 7.5, shoot, watch)
     seen = np.array([(t, x) for t, x in leader_seen if t < 6.0], dtype=float)
-    assert len(seen) >= 5 and np.ptp(seen[:, 1]) > 0.3  # the follower sees the leader move
+    # the follower sees the leader move (a round of moves can take most of a second when busy)
+    assert len(seen) >= 3 and np.ptp(seen[:, 1]) > 0.3
     assert np.median(np.abs(seen[:, 1] - [sway(t) for t in seen[:, 0]])) < 0.1
     row = wait_trial_listed(console, 1)
     assert "complete" in row and "CV" in row and "RMS" in row
