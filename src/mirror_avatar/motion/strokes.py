@@ -210,9 +210,6 @@ class StrokeGenerator:
             np.array(lengths), np.array(displacements), np.array(starts),
             np.array(previous, dtype=np.int64), np.concatenate(profiles), "trials",
         )  # fmt: skip
-        self.bandwidth_ = self.jitter * silverman_bandwidth(
-            np.column_stack([log_length(self.lengths_), log_size(self.displacements_)])
-        )
         self._prepare_sampling()
         self.training_summary_ = {
             "labels": [t.label for t in trials],
@@ -249,11 +246,12 @@ class StrokeGenerator:
         profiles: Array,
         source: str | os.PathLike[str],
     ) -> None:
-        """Keep the strokes the chain may draw, each with its predecessor's length and size.
+        """Keep the strokes the chain may draw with their predecessors' lengths and sizes.
 
-        A stroke may be drawn when another precedes it in its trial (``previous`` >= 0: the
-        index of the stroke before, -1 for a trial's first) and one follows it (the last stroke
-        of a trial is cut short by the trial's end).
+        Their jitter bandwidths (``bandwidth_``) are set from them. A stroke may be drawn when
+        another precedes it in its trial (``previous`` >= 0: the index of the stroke before, -1
+        for a trial's first) and one follows it (the last stroke of a trial is cut short by the
+        trial's end).
 
         Raises
         ------
@@ -277,6 +275,9 @@ class StrokeGenerator:
         self.before_lengths_ = lengths[previous[drawable]]
         self.before_sizes_ = np.abs(displacements[previous[drawable]])
         self.profiles_ = np.concatenate([profiles[firsts[i] : ends[i]] for i in drawable])
+        self.bandwidth_ = self.jitter * silverman_bandwidth(
+            np.column_stack([log_length(self.lengths_), log_size(self.displacements_)])
+        )
 
     def _prepare_sampling(self) -> None:
         """Index the strokes' features (`_next_stroke`), profiles and rank weights."""
@@ -492,9 +493,6 @@ class StrokeGenerator:
             strokes["lengths"], strokes["displacements"], strokes["starts"], previous,
             strokes["profiles"], source,
         )  # fmt: skip
-        self.bandwidth_ = self.jitter * silverman_bandwidth(
-            np.column_stack([log_length(self.lengths_), log_size(self.displacements_)])
-        )
 
     def _read_drawable(
         self,
