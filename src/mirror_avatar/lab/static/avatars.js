@@ -7,13 +7,14 @@
 export const FORMAT = "mirror-avatar/browser-player";
 export const VERSION = 1;
 
-// The message's {shape, data} as a Float64Array, checked against its shape.
-function array(message, name) {
+// The message's {shape, data} as a typed array (Float64Array unless told), checked against its
+// shape.
+function array(message, name, Type = Float64Array) {
   const entry = message.arrays[name];
   if (!entry) throw new Error(`${message.label}: the message has no array ${name}`);
   const size = entry.shape.reduce((a, b) => a * b, 1);
   if (entry.data.length !== size) throw new Error(`${message.label}: ${name} is not of its shape`);
-  return Float64Array.from(entry.data);
+  return Type.from(entry.data);
 }
 
 // mirror_avatar.dynamics.hkb.hkb_acceleration
@@ -81,7 +82,7 @@ function stateIndex(values, edges, offsets) {
 // The tabular policy: mirror_avatar.learning.agent.cyber_step's choice of action.
 function tabularPolicy(message) {
   const q = array(message, "q_table"), edges = array(message, "edges");
-  const offsets = array(message, "offsets");
+  const offsets = array(message, "offsets", Int32Array);
   const nActions = message.arrays.q_table.shape[1];
   return (x, v, positions, velocities, r) => {
     let xp = x, vp = v;
@@ -126,13 +127,14 @@ function encode(layout, x, v, r, positions, velocities, out) {
   });
 }
 
-// mirror_avatar.deep.network.q_values: ReLU layers, a linear output, each sum in order.
-function qValues(weights, sizes, input) {
+// mirror_avatar.deep.network.q_values: ReLU layers, a linear output, each sum in order. The
+// layers' outputs are written into buffers, one per layer (Float64Array), the last returned.
+function qValues(weights, sizes, input, buffers) {
   let activation = input, start = 0;
   const last = sizes.length - 2;
   for (let layer = 0; layer <= last; layer++) {
     const fanIn = sizes[layer], fanOut = sizes[layer + 1];
-    const out = new Float64Array(fanOut);
+    const out = buffers[layer];
     for (let o = 0; o < fanOut; o++) {
       let total = weights[start + fanIn * fanOut + o];
       const row = start + o * fanIn;
@@ -147,12 +149,13 @@ function qValues(weights, sizes, input) {
 
 // The deep policy: mirror_avatar.deep.player.deep_step's choice of action.
 function deepPolicy(message) {
-  const weights = array(message, "weights"), sizes = array(message, "sizes");
+  const weights = array(message, "weights"), sizes = array(message, "sizes", Int32Array);
   const input = new Float64Array(sizes[0]);
+  const buffers = Array.from(sizes.subarray(1), (width) => new Float64Array(width));
   const nActions = sizes[sizes.length - 1];
   return (x, v, positions, velocities, r) => {
     encode(message.network, x, v, r, positions, velocities, input);
-    return argmax(qValues(weights, sizes, input), 0, nActions);
+    return argmax(qValues(weights, sizes, input, buffers), 0, nActions);
   };
 }
 
