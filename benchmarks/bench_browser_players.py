@@ -1,6 +1,6 @@
 """An avatar's players stepped in Chromium: load time and step time, beside the Python step.
 
-Each kind the page steps (``lab/static/avatars.js``, METHODS section 13) is built in a fresh
+Each kind the page steps (``lab/static/avatars.js``, METHODS section 16) is built in a fresh
 page of Debian's Chromium from its message (`mirror_avatar.browser.browser_arrays`, sent as JSON
 text: the load time is parsing it and building the player) and stepped for one 60 s session
 (2000 control periods) against a recorded person, timed in blocks of `BLOCK` steps (the page's

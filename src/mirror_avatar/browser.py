@@ -2,7 +2,7 @@
 
 `browser_arrays` turns a player into a JSON-serialisable message that the page's player module
 (``lab/static/avatars.js``) builds the same player from and steps with the observations the
-Python player gets, position for position (METHODS section 13). The numbers come from the
+Python player gets, position for position (METHODS section 16). The numbers come from the
 player's plan for the compiled batch loop (`mirror_avatar.players.base.PlayerPlan`), which holds
 the arrays its model file holds (a Q-table and its bin edges, a network's flat parameters, a
 recording on the control grid), and from the constants of the modules that define the step

@@ -1,4 +1,4 @@
-"""An avatar's players stepped in Chromium equal the Python players (METHODS section 13).
+"""An avatar's players stepped in Chromium equal the Python players (METHODS section 16).
 
 Each kind the page steps (``lab/static/avatars.js``) is built in a real Chromium from the
 message `mirror_avatar.browser.browser_arrays` makes of the player (the learned ones read back

@@ -1,7 +1,7 @@
 // An avatar's player stepped in the page, built from the message the server sends
 // (mirror_avatar.browser.browser_arrays): a recording, the tabular cyber player's greedy step or
 // the deep cyber player's. Each function repeats its Python twin's arithmetic in the same order
-// (named beside it), so the page's positions are the Python player's (METHODS section 13).
+// (named beside it), so the page's positions are the Python player's (METHODS section 16).
 // The page holds no number of a model: every array and constant comes in the message.
 
 export const FORMAT = "mirror-avatar/browser-player";
