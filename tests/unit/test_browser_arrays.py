@@ -80,15 +80,15 @@ def test_a_recording_sends_its_track_on_the_control_grid() -> None:
 
 
 @pytest.mark.parametrize(
-    ("player", "kind"),
+    ("make", "kind"),
     [
-        (VirtualTrainer(FOLLOWER, bundled_generator("slow"), label="vt"), "VirtualTrainer"),
-        (model_partner("hkb"), "HKBPartner"),
+        (lambda: VirtualTrainer(FOLLOWER, bundled_generator("slow")), "VirtualTrainer"),
+        (lambda: model_partner("hkb"), "HKBPartner"),
     ],
 )
-def test_a_player_the_page_cannot_step_is_refused_in_one_line(player, kind: str) -> None:
+def test_a_player_the_page_cannot_step_is_refused_in_one_line(make, kind: str) -> None:
     with pytest.raises(InputError) as error:
-        browser_arrays(player, 0, 10)
+        browser_arrays(make(), 0, 10)
     assert "\n" not in str(error.value)
     assert f"a {kind} cannot be stepped in the browser" in str(error.value)
     assert "run it on the server" in str(error.value)
