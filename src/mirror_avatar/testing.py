@@ -3,7 +3,9 @@
 Slow, obvious reference implementations the compiled code is checked and timed against
 (`solve_step_bvp`, `python_learn_session`, `plug_in_transfer_entropy`), tasks with known answers
 (`make_follower_sessions`, `swapped_roles`),
-and a real live server on a loopback port (`ServerThread`). Nothing else in the package uses it.
+a real live server on a loopback port (`ServerThread`), and an avatar's player stepped in a
+browser page and in Python on the same neighbours (`static_app`, `step_in_page`,
+`step_in_python`, `partner_motion`). Nothing else in the package uses it.
 """
 
 from __future__ import annotations
