@@ -164,7 +164,7 @@ function deepPolicy(message) {
 function learnedPlayer(message, policy) {
   const actions = array(message, "actions");
   const reference = message.arrays.reference ? array(message, "reference") : null;
-  const player = {
+  return {
     lastControl: NaN,
     lastReference: NaN,
     reset() {
@@ -187,7 +187,6 @@ function learnedPlayer(message, policy) {
       return this.state;
     },
   };
-  return player;
 }
 
 // mirror_avatar.players.recorded.RecordedPlayer: the recording, then its last position at rest.
