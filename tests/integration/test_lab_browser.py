@@ -9,16 +9,29 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 import numpy as np
+import pandas as pd
 import psutil
 import pytest
-from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains, on_the_clock
+from browsers import (
+    ARGS,
+    CHROMIUM,
+    SCREENSHOTS,
+    assert_matches,
+    chromium_mains,
+    fitted_lag,
+    on_the_clock,
+)
 
 from mirror_avatar.lab.design.plan import SESSION_SETTINGS
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.metrics.measuring import analysed
+from mirror_avatar.remote.network import parse_network
+from mirror_avatar.remote.proxy import ProxyThread
+from mirror_avatar.remote.truth import fingerprint
 from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread
 
@@ -192,6 +205,38 @@ def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
     summary = console.locator("#session-summary").inner_text()
     assert summary.endswith("finished: 1 of 1 trial(s) played") and "next trial" not in summary
     screenshot(console, "lab-console-finished")
+
+
+def test_a_page_behind_an_emulated_internet_is_recorded_later_by_its_delay(chromium, lab, tmp_path):
+    """P2's page joins through the emulated internet (150 +- 20 ms one way), P1's directly, and
+    both mice make the same moves: P2's recorded positions lag P1's by the one-way delay its
+    page's messages took up to the server, as the proxy's truth log has it (generously: 50 ms)."""
+    console = open_console(chromium, lab.url)
+    links = create_session(console, "people", 6)
+    log = tmp_path / "truth.csv"
+    with ProxyThread(parse_network("150+-20"), ("127.0.0.1", lab.port), log, 48) as internet:
+        behind = internet.url + urlsplit(links["P2"]).path
+        pages = {"P1": join(chromium, links["P1"]), "P2": join(chromium, behind)}
+        for page in pages.values():
+            pointer_at(page, 0.0)
+        start_when_joined(console, 2)
+        pages["P2"].wait_for_function("window.mirrorLab.others.size === 1", timeout=60_000)
+        driven = drive(pages, {"P1": 0.0, "P2": 0.0}, 7.5)
+        wait_trial_listed(console, 1)
+    session = load_session(session_dir(tmp_path) / "trial-01_session.csv")
+    inputs = session_dir(tmp_path) / "trial-01_inputs.csv"
+    lags = {
+        label: fitted_lag(on_the_clock(inputs, session.positions[k]), driven[label])
+        for k, label in enumerate(("P1", "P2"))
+    }
+    truth = pd.read_csv(log, keep_default_na=False)
+    key = urlsplit(links["P2"]).path.rsplit("/", 1)[1]  # the log names P2's socket, not its key
+    (socket,) = truth[truth.request == f"GET /ws/join/{fingerprint(key)} HTTP/1.1"].connection
+    up = truth[(truth.connection == socket) & (truth.direction == "up") & (truth.bytes > 0)]
+    moving = up[up.received_s.between(driven["P2"][0, 0], driven["P2"][-1, 0])]
+    one_way = float((moving.delivered_s - moving.received_s).mean())
+    assert 0.13 < one_way < 0.3  # 150 +- 20 ms drawn, more when queued behind the one before
+    assert lags["P2"] - lags["P1"] == pytest.approx(one_way, abs=0.05)
 
 
 def test_a_participant_following_an_avatar_sees_the_measures_listed(chromium, lab, tmp_path):
