@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mirror_avatar.common.errors import InputError
+from mirror_avatar.common.seeds import spawn_seeds
 
 MAX_DELAY_MS = 10_000.0
 """Largest mean or SD of a one-way delay (ms)."""
@@ -205,4 +206,5 @@ def lane_rng(seed: int, connection: int, direction: str) -> np.random.Generator:
     Its delays depend on the seed, the connection's number and the direction only, however the
     connections interleave.
     """
-    return np.random.default_rng([seed, connection, DIRECTIONS.index(direction)])
+    lanes = spawn_seeds([seed, connection], len(DIRECTIONS))
+    return np.random.default_rng(int(lanes[DIRECTIONS.index(direction)]))
