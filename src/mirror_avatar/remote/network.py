@@ -1,4 +1,4 @@
-"""An emulated internet as declared: one-way delays per direction, and stalls (METHODS 16).
+"""An emulated internet as declared: one-way delays per direction, and stalls (METHODS 17).
 
 A network spec is one string, parsed here and nowhere else (`parse_network`)::
 
