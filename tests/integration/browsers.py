@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -80,18 +81,15 @@ def assert_matches(recorded: np.ndarray, driven: np.ndarray) -> None:
     assert np.mean(error < step + 0.002) > 0.9
 
 
-def fitted_lag(recorded: np.ndarray, driven: np.ndarray) -> float:
-    """How long after its driven move a recorded sample holds the position (s), fitted.
+def fitted_lag(
+    recorded: np.ndarray, motion: Callable[[np.ndarray], np.ndarray], latest: float = MOST_LATE_S
+) -> float:
+    """How long after ``motion`` had a position a recorded sample holds it (s), fitted.
 
-    The driven positions are joined by straight lines, so that the fit has one minimum however
-    irregularly a busy machine drove them; the lag minimises the mean squared difference of the
-    recorded positions (sampled from the first second of driving on) from those lines, searched
-    from -0.3 s to `MOST_LATE_S` in 1 ms steps.
+    ``recorded`` is (time, position) pairs and ``motion`` the position at any time (s, vectorised),
+    on one clock; the lag minimises the mean squared difference of the recorded positions from
+    the motion that late, searched from -0.3 s to ``latest`` in 1 ms steps.
     """
-    during = recorded[recorded[:, 0] >= driven[0, 0] + 1.0]
-    lags = np.arange(-0.3, MOST_LATE_S, 0.001)
-    costs = [
-        np.mean((during[:, 1] - np.interp(during[:, 0] - lag, driven[:, 0], driven[:, 1])) ** 2)
-        for lag in lags
-    ]
+    lags = np.arange(-0.3, latest, 0.001)
+    costs = [np.mean((recorded[:, 1] - motion(recorded[:, 0] - lag)) ** 2) for lag in lags]
     return float(lags[int(np.argmin(costs))])
