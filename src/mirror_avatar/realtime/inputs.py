@@ -23,11 +23,17 @@ from typing import Protocol
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.players.base import ExternalPlayer
+from mirror_avatar.realtime.page_clock import PageClock
 
 LIVENESS_TIMEOUT = 1.0
 """Seconds without a new sample after which an input is judged lost (**choice**: a page sends
 one position per animation frame, 60 a second; a hand tracker 100 or more; a second is over
 30 control periods, far beyond a network's hiccup, short enough to act on within a trial)."""
+
+STALL_GAP = 0.5
+"""Seconds without a page's samples recorded as a stall (**choice**: a page sends at least one
+batch per animation frame, 60 a second; half a second is eight times an 80 +- 25 ms network's
+jitter of three SDs, and far beyond a late frame)."""
 
 
 @dataclass(frozen=True)
@@ -57,22 +63,121 @@ class InputSource(Protocol):
         ...
 
 
-class BrowserInput:
-    """The latest pointer position a participant's page sent (thread-safe).
+@dataclass(frozen=True)
+class PointerSample:
+    """One pointer sample as its page read it and the server received it.
 
-    A page numbers its positions from 0 on each connection; `reconnected` makes a new
+    Attributes
+    ----------
+    seq
+        Number of the batch that carried it (as `Sample.seq`).
+    page_ms
+        When the page read it (ms, its own clock).
+    server_s
+        The same time on the server's clock (s; NaN before the page's first clock exchange).
+    received_s
+        When its batch reached the server (s, the server's clock).
+    x
+        Position (units).
+    """
+
+    seq: int
+    page_ms: float
+    server_s: float
+    received_s: float
+    x: float
+
+
+@dataclass(frozen=True)
+class Batch:
+    """A page's message of samples, as the server received it.
+
+    When it reached the server (``received_s``: s, the server's clock), when the page sent it
+    (``sent_ms``: ms, its clock; one animation frame) and how many samples it held (``n``).
+    """
+
+    received_s: float
+    sent_ms: float
+    n: int
+
+
+class BrowserInput:
+    """The pointer samples a participant's page sent and the page's clock (thread-safe).
+
+    A page numbers its batches from 0 on each connection; `reconnected` makes a new
     connection's numbers continue after the last sample's, so ``seq`` keeps growing.
+
+    Attributes
+    ----------
+    clock
+        The page's clock on the server's (`mirror_avatar.realtime.page_clock.PageClock`).
+    batches
+        Every batch of samples received (`Batch`).
+    stalls
+        Each gap longer than `STALL_GAP` between two batches: its start (s, the server's
+        clock) and length (s).
     """
 
     def __init__(self) -> None:
         self._latest: Sample | None = None
         self._base = 0
         self._lock = threading.Lock()
+        self.clock = PageClock()
+        self.batches: list[Batch] = []
+        self.stalls: list[tuple[float, float]] = []
+        self._unread: list[PointerSample] = []
 
     def reconnected(self) -> None:
         """Start numbering the next connection's positions after the newest sample."""
         with self._lock:
             self._base = 0 if self._latest is None else self._latest.seq + 1
+            self.clock.forget()
+
+    def put_batch(
+        self, seq: int, sent_ms: float, samples: list[tuple[float, float]], received_s: float
+    ) -> None:
+        """Store batch ``seq``: its samples (page time in ms, position in units), oldest first.
+
+        Each sample's time is mapped onto the server's clock with the page's current offset;
+        the newest becomes the position the server's clock reads (`put`).
+        """
+        with self._lock:
+            if self.batches and received_s - self.batches[-1].received_s > STALL_GAP:
+                start = self.batches[-1].received_s
+                self.stalls.append((start, received_s - start))
+            self.batches.append(Batch(received_s, sent_ms, len(samples)))
+            self._unread += [
+                PointerSample(seq + self._base, t, self.clock.to_server(t), received_s, x)
+                for t, x in samples
+            ]
+        self.put(samples[-1][1], seq)
+
+    def unread(self) -> list[PointerSample]:
+        """Return the samples received since the previous call, oldest first."""
+        with self._lock:
+            samples, self._unread = self._unread, []
+        return samples
+
+    def rates(self, start_s: float, end_s: float) -> dict[str, object]:
+        """Summarise the page between server times ``start_s`` and ``end_s`` (s).
+
+        Returns
+        -------
+        dict
+            ``sample_rate_hz`` (samples received per second), ``frame_rate_hz`` (the page's
+            animation frames, one batch each, per second; None when the span is empty) and
+            ``stalls`` (``{"start_s", "length_s"}`` of those that began within it).
+        """
+        span = end_s - start_s
+        with self._lock:
+            during = [b for b in self.batches if start_s <= b.received_s <= end_s]
+            stalls = [(s, n) for s, n in self.stalls if start_s <= s <= end_s]
+        frames = len({b.sent_ms for b in during})
+        return {
+            "sample_rate_hz": sum(b.n for b in during) / span if span > 0 else None,
+            "frame_rate_hz": frames / span if span > 0 else None,
+            "stalls": [{"start_s": s, "length_s": n} for s, n in stalls],
+        }
 
     def put(self, x: float, seq: int) -> None:
         """Store a position (units) numbered ``seq``; an older or repeated ``seq`` is ignored."""

@@ -2,8 +2,17 @@
 
 The page sends JSON text messages (at most `mirror_avatar.realtime.messages.MAX_MESSAGE_BYTES`):
 
-- ``{"type": "position", "seq": n, "x": x}``: the pointer's latest position (units), numbered
-  ``n`` from 0 on each connection, sent once per animation frame while a trial runs;
+- ``{"type": "pointer", "seq": n, "sent": s, "ago": [a, ...], "x": [x, ...]}``: the pointer's
+  samples (units) read since the previous batch, at the device's rate (coalesced pointer
+  events), oldest first, each read ``a`` ms before the batch was sent at ``s`` (ms, the page's
+  clock: ``performance.timeOrigin + performance.now()``); numbered ``n`` from 0 on each
+  connection, at least one per animation frame (the current position when the pointer did not
+  move);
+- ``{"type": "position", "seq": n, "x": x}``: a position without its time (as the live page);
+- ``{"type": "clock", "id": i, "t0": t}``: an NTP-style request sent at ``t`` (ms, the page's
+  clock), which the server answers at once with ``t0`` and its own receipt and send times
+  ``t1`` and ``t2`` (ms, its clock); ``{"type": "clocked", "id": i, "t3": t}``: when the answer
+  arrived (ms, the page's clock) (`mirror_avatar.realtime.page_clock`);
 - ``{"type": "pong", "id": i, "late_frames": f}``: the answer to the server's ``ping`` ``i``
   (the server measures the round trip), with the number of animation frames the page drew
   late so far (more than twice the display's frame interval);
@@ -24,12 +33,19 @@ from dataclasses import dataclass
 from mirror_avatar.realtime.messages import (
     PositionUpdate,
     ProtocolError,
+    number_field,
     parse_json_object,
     parse_position,
 )
 
 MAX_COUNT = 2**31
 """Largest ping id or late-frame count accepted."""
+
+MAX_BATCH = 20
+"""Most samples in one ``pointer`` message (a 1000 Hz mouse at 60 frames a second sends 17)."""
+
+MAX_AGO_MS = 10_000.0
+"""Longest a sample may have been read before its batch was sent (ms)."""
 
 
 @dataclass(frozen=True)
@@ -49,7 +65,35 @@ class Answer:
     value: str | int
 
 
-ParticipantMessage = PositionUpdate | Pong | Answer
+@dataclass(frozen=True)
+class PointerBatch:
+    """Pointer samples: batch ``seq`` sent at ``sent_ms`` (ms, the page's clock).
+
+    Its ``samples`` are (page time in ms, position in units), oldest first.
+    """
+
+    seq: int
+    sent_ms: float
+    samples: list[tuple[float, float]]
+
+
+@dataclass(frozen=True)
+class ClockRequest:
+    """NTP-style request ``id`` sent at ``t0`` (ms, the page's clock)."""
+
+    id: int
+    t0: float
+
+
+@dataclass(frozen=True)
+class ClockReport:
+    """The page's receipt ``t3`` (ms, its clock) of the answer to request ``id``."""
+
+    id: int
+    t3: float
+
+
+ParticipantMessage = PositionUpdate | Pong | Answer | PointerBatch | ClockRequest | ClockReport
 
 
 def parse_participant_message(text: str | bytes | None) -> ParticipantMessage:
@@ -64,6 +108,12 @@ def parse_participant_message(text: str | bytes | None) -> ParticipantMessage:
     kind = data.get("type")
     if kind == "position":
         return parse_position(data)
+    if kind == "pointer":
+        return _pointer(data)
+    if kind == "clock":
+        return ClockRequest(_count(data, "id"), number_field(data, "t0", "clock"))
+    if kind == "clocked":
+        return ClockReport(_count(data, "id"), number_field(data, "t3", "clocked"))
     if kind == "pong":
         return Pong(_count(data, "id"), _count(data, "late_frames"))
     if kind == "answer":
@@ -74,8 +124,26 @@ def parse_participant_message(text: str | bytes | None) -> ParticipantMessage:
     raise ProtocolError(f"unknown message type {kind!r}")
 
 
+def _pointer(data: dict[str, object]) -> PointerBatch:
+    """Validate a ``pointer`` message: as many ages as positions, 1 to `MAX_BATCH`."""
+    ago, xs = data.get("ago"), data.get("x")
+    if not isinstance(ago, list) or not isinstance(xs, list) or len(ago) != len(xs):
+        raise ProtocolError("pointer: 'ago' and 'x' must be lists of the same length")
+    if not 1 <= len(xs) <= MAX_BATCH:
+        raise ProtocolError(f"pointer: 1 to {MAX_BATCH} samples per message")
+    sent = number_field(data, "sent", "pointer")
+    samples = []
+    for a, x in zip(ago, xs, strict=True):
+        position = parse_position({"seq": 0, "x": x}).x
+        age = number_field({"ago": a}, "ago", "pointer")
+        if not 0.0 <= age <= MAX_AGO_MS:
+            raise ProtocolError(f"pointer: ago = {age:g} ms is outside [0, {MAX_AGO_MS:g}]")
+        samples.append((sent - age, position))
+    return PointerBatch(_count(data, "seq"), sent, samples)
+
+
 def _count(data: dict[str, object], key: str) -> int:
     value = data.get(key, 0)
     if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value < MAX_COUNT:
-        raise ProtocolError(f"pong: {key!r} must be a non-negative integer")
+        raise ProtocolError(f"{data.get('type')}: {key!r} must be a non-negative integer")
     return value

@@ -14,14 +14,21 @@ import time
 
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from mirror_avatar.lab.running.messages import Answer, Pong, parse_participant_message
+from mirror_avatar.lab.running.messages import (
+    Answer,
+    ClockReport,
+    ClockRequest,
+    ParticipantMessage,
+    PointerBatch,
+    Pong,
+    parse_participant_message,
+)
 from mirror_avatar.lab.running.participant import Participant
 from mirror_avatar.lab.running.runner import LabSession
 from mirror_avatar.lab.running.sessions import Lab, LabSettings
 from mirror_avatar.realtime.inbox import Inbox
 from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.realtime.latency import Pings
-from mirror_avatar.realtime.messages import PositionUpdate
 from mirror_avatar.realtime.outbox import Outbox, Peer
 
 CLOSE_POLICY, CLOSE_REPLACED, CLOSE_UNKNOWN = 1008, 4002, 4004
@@ -92,15 +99,37 @@ class ParticipantPage:
         async for message in self.inbox.messages():
             self._handle(message)
 
-    def _handle(self, message: PositionUpdate | Pong | Answer) -> None:
+    def _handle(self, message: ParticipantMessage) -> None:
         participant = self.participant
         participant.last_heard = time.monotonic()
-        if isinstance(message, Answer):
+        received_ms = self.session.clock() * 1000.0
+        source = participant.source
+        if isinstance(message, ClockRequest | ClockReport | PointerBatch):
+            if isinstance(source, BrowserInput):
+                self._clocked(source, message, received_ms)
+        elif isinstance(message, Answer):
             problem = self.session.answer(participant, message)
             if problem is not None:
                 self.outbox.put({"type": "error", "message": problem})
         elif isinstance(message, Pong):
             self.pings.answer(message.id)
             participant.late_frames = message.late_frames
-        elif isinstance(participant.source, BrowserInput):
-            participant.source.put(message.x, message.seq)
+        elif isinstance(source, BrowserInput):
+            source.put(message.x, message.seq)
+
+    def _clocked(
+        self,
+        source: BrowserInput,
+        message: ClockRequest | ClockReport | PointerBatch,
+        received_ms: float,
+    ) -> None:
+        """Answer a clock request, complete an exchange or store a batch of timed samples."""
+        if isinstance(message, ClockRequest):
+            sent_ms = self.session.clock() * 1000.0
+            source.clock.answer(message.id, message.t0, received_ms, sent_ms)
+            reply = {"t0": message.t0, "t1": received_ms, "t2": sent_ms}
+            self.outbox.put({"type": "clock", "id": message.id} | reply)
+        elif isinstance(message, ClockReport):
+            source.clock.complete(message.id, message.t3)
+        else:
+            source.put_batch(message.seq, message.sent_ms, message.samples, received_ms / 1000.0)

@@ -12,6 +12,9 @@ Files, in the session's folder, flushed line by line (METHODS section 9):
   read by ``mirror-avatar evaluate``; the sidecar's ``metadata["lab"]`` names the session, the
   trial, the condition and every slot (with an LSL device: its source id, host and counts of invalid
   and clipped samples), and ``dropped`` / ``held`` / ``lost`` are updated as they happen;
+- ``trial-NN_pointer.csv`` (`PointerLog`, when a person plays with a page's pointer): every
+  pointer sample a page sent, with its time on the page's clock and on the server's (METHODS
+  section 18), written at the tick that first could use it;
 - ``trial-NN_inputs.csv`` (`mirror_avatar.realtime.trial.TickLog`): per sample, the clock time at
   which it was taken (``clock_s``: the LSL clock when pylsl is installed, so the samples line up
   with EEG recorded through LSL; otherwise the monotonic clock), how late its tick was, and per
@@ -19,7 +22,8 @@ Files, in the session's folder, flushed line by line (METHODS section 9):
   new sample since the previous tick: the last position is kept, never extrapolated) and whether
   the input was live.
 
-When a trial ends, its sidecar records the session's metrics (``metrics``) and the field's
+When a trial ends, its sidecar records each page's clock and rates (``pages``: `page_record`)
+and  the session's metrics (``metrics``) and the field's
 measures (``measures``), as ``evaluate`` and ``study table`` compute them
 (`mirror_avatar.metrics.measuring.measure_trial`: the first second left out,
 `mirror_avatar.metrics.measuring.TRIAL_SURROGATES` circular-shift surrogates seeded by the
@@ -47,6 +51,7 @@ from mirror_avatar import __version__
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.engine.loop import count_samples, row_positions, spawn_session_seeds
+from mirror_avatar.files.atomic import LineFile
 from mirror_avatar.files.trial_record import PerturbationRecord, SlotRecord, trial_record
 from mirror_avatar.files.trials import MIN_SAMPLES
 from mirror_avatar.lab.design.avatars import load_avatar, successor_players
@@ -58,7 +63,7 @@ from mirror_avatar.metrics.group import compute_cluster_phase
 from mirror_avatar.metrics.measuring import measure_trial
 from mirror_avatar.players.base import Player
 from mirror_avatar.realtime.clock import time_players
-from mirror_avatar.realtime.inputs import HumanPlayer, InputSource
+from mirror_avatar.realtime.inputs import BrowserInput, HumanPlayer, InputSource
 from mirror_avatar.realtime.trial import Array, Clock, ClockedTrial
 from mirror_avatar.sessions.session import Session
 
@@ -96,6 +101,51 @@ def build_avatars(plan: SessionPlan) -> dict[int, Player]:
                 f"period of {period * 1000:.0f} ms: choose a smaller model",
             )
     return avatars
+
+
+POINTER_COLUMNS = ("label", "seq", "page_ms", "server_s", "received_s", "x")
+"""Columns of a trial's pointer file (`PointerLog`)."""
+
+
+class PointerLog:
+    """Engine sink writing ``trial-NN_pointer.csv``: the pages' samples, at each tick.
+
+    Each sample received since the previous tick, with its page time (ms), its server time and
+    its batch's receipt (s, the server's clock) and its position (units).
+
+    Parameters
+    ----------
+    path
+        The file; it must not exist yet.
+    pages
+        Each pointer's label and input.
+    """
+
+    def __init__(self, path: Path, pages: Mapping[str, BrowserInput]) -> None:
+        self.pages = dict(pages)
+        self.path = path
+        self._file = LineFile(path, ",".join(POINTER_COLUMNS))
+
+    def __call__(self, row: Array) -> None:
+        """Write the samples received since the previous tick."""
+        for label, source in self.pages.items():
+            for s in source.unread():
+                times = f"{s.page_ms:.3f},{s.server_s:.6f},{s.received_s:.6f}"
+                self._file.write(f"{label},{s.seq},{times},{s.x!r}")
+
+    def close(self) -> None:
+        """Close the file."""
+        self._file.close()
+
+
+def page_record(source: BrowserInput, start_s: float, end_s: float) -> dict[str, Any]:
+    """Return what the sidecar records of a page's clock and rates.
+
+    Its clock (`mirror_avatar.realtime.page_clock.PageClock.summary`) and rates
+    (`mirror_avatar.realtime.inputs.BrowserInput.rates`) between server times ``start_s`` and
+    ``end_s`` (s).
+    """
+    return source.clock.summary(start_s, end_s) | source.rates(start_s, end_s)
 
 
 class LabTrial(ClockedTrial):
@@ -160,6 +210,15 @@ class LabTrial(ClockedTrial):
         self._successors = self._build_successors(perturbations, len(players))
         self._taken = np.full(len(players), np.nan)
         self._sidecar_writes = ThreadPoolExecutor(max_workers=1, thread_name_prefix="sidecar")
+        self.pages = {
+            slot.label: source
+            for k, slot in enumerate(plan.slots)
+            if isinstance(source := self.inputs.get(k), BrowserInput)
+        }
+        stem = trial_stem(directory, n)
+        self.pointer_log = PointerLog(stem.with_name(stem.name + "_pointer.csv"), self.pages)
+        for source in self.pages.values():
+            source.unread()  # what came before the trial is not its
         super().__init__(
             players,
             [slot.label for slot in plan.slots],
@@ -167,10 +226,10 @@ class LabTrial(ClockedTrial):
             plan.graph,
             count_samples(plan.duration, period),
             self.seed,
-            trial_stem(directory, n),
+            stem,
             self._metadata(lab, period),
             clock,
-            [self._remember],
+            [self._remember, self.pointer_log],
         )
         players_now = {
             "player_seeds": self.engine.player_seeds,
@@ -226,6 +285,7 @@ class LabTrial(ClockedTrial):
             "dropped": {},
             "held": {},
             "perturbations": [],
+            "files": {"pointer": self.pointer_log.path.name},
         }
 
     def _device(self, k: int) -> dict[str, Any] | None:
@@ -269,6 +329,7 @@ class LabTrial(ClockedTrial):
     def close_files(self) -> None:
         """Let the drops' sidecar writes end, then close the files."""
         self._sidecar_writes.shutdown(wait=True)
+        self.pointer_log.close()
         super().close_files()
 
     def recent(self, seconds: float = 10.0) -> dict[str, Any]:
@@ -302,11 +363,14 @@ class LabTrial(ClockedTrial):
             device = self._device(k)
             if device is not None:
                 slot["input"] = device
+        span = (self.tick_log.first_stamp, self.tick_log.last_stamp)
+        pages = {label: page_record(source, *span) for label, source in self.pages.items()}
+        done = {"dropped": dict(self.dropped), "pages": pages}
         measured = measure_trial(session)
         if measured is None:
-            return {"dropped": dict(self.dropped), "metrics": {}, "measures": {}}
+            return done | {"metrics": {}, "measures": {}}
         measures = measured.measures.values if measured.metrics else {}
-        return {"dropped": dict(self.dropped), "metrics": measured.metrics, "measures": measures}
+        return done | {"metrics": measured.metrics, "measures": measures}
 
 
 def _group_sync(x: Array) -> float | None:

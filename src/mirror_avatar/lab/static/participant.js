@@ -17,7 +17,7 @@
     bar: document.getElementById("progress-bar"),
   };
   const key = location.pathname.split("/").pop();
-  const me = { x: 0, seq: 0, keys: new Set(), lastFrame: null, lateFrames: 0 };
+  const me = { x: 0, keys: new Set(), lastFrame: null, lateFrames: 0 };
   let socket = null;
   let welcome = null;
   let others = new Map();      // player index -> latest position from the server
@@ -91,7 +91,7 @@
       if (direction) me.x = Math.max(-RANGE, Math.min(RANGE, me.x + direction * KEY_SPEED * dt));
     }
     me.lastFrame = now;
-    if (welcome && welcome.device === "pointer") send({ type: "position", seq: me.seq++, x: me.x });
+    if (welcome && welcome.device === "pointer") mirrorClock.batches(me.x).forEach(send);
     draw();
     requestAnimationFrame(animate);
   }
@@ -152,6 +152,7 @@
   function onMessage(event) {
     const message = JSON.parse(event.data);
     switch (message.type) {
+      case "clock": mirrorClock.answered(message, event, send); break;
       case "welcome": {
         welcome = message;
         const colour = message.visible[0].colour;
@@ -248,9 +249,10 @@
   function connect() {
     const scheme = location.protocol === "https:" ? "wss" : "ws";
     socket = new WebSocket(`${scheme}://${location.host}/ws/join/${key}`);
-    me.seq = 0;
+    socket.addEventListener("open", () => mirrorClock.start(send));
     socket.addEventListener("message", onMessage);
     socket.addEventListener("close", (event) => {
+      mirrorClock.stop();
       if (event.code === 4002) {
         say("This link was opened on another page.");
         ended = true;
@@ -263,8 +265,8 @@
 
   const KEYS = { ArrowLeft: "left", ArrowRight: "right", a: "left", d: "right" };
   window.addEventListener("resize", resize);
-  canvas.addEventListener("pointermove", (event) => { me.x = fromClient(event.clientX); });
-  canvas.addEventListener("pointerdown", (event) => { me.x = fromClient(event.clientX); });
+  canvas.addEventListener("pointermove", (event) => { me.x = mirrorClock.read(event, fromClient); });
+  canvas.addEventListener("pointerdown", (event) => { me.x = mirrorClock.read(event, fromClient); });
   window.addEventListener("keydown", (event) => { if (KEYS[event.key]) { me.keys.add(KEYS[event.key]); event.preventDefault(); } });
   window.addEventListener("keyup", (event) => me.keys.delete(KEYS[event.key]));
   window.addEventListener("blur", () => me.keys.clear());
