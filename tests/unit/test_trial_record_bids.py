@@ -19,6 +19,7 @@ from mirror_avatar.analysis.trials import read_study_trials
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.trial_record import (
     InputEventRecord,
+    PageRecord,
     PerturbationRecord,
     SlotRecord,
     StudyRecord,
@@ -63,6 +64,17 @@ RECORD = TrialRecord(
     input_events=(InputEventRecord(120, "P1", "lost", 118), InputEventRecord(130, "P1", "live")),
     clock="local_clock",
     files={"session": "trial-04_session.csv", "inputs": "trial-04_inputs.csv"},
+    pages={
+        "P2": PageRecord(
+            exchanges=98,
+            rtt_ms={"n": 98, "mean": 171.0, "median": 168.5, "p95": 230.0, "max": 2100.0},
+            offset_ms={"first": -3.5, "median": -1.0, "min": -4.0, "max": 2.5},
+            uncertainty_ms={"first": 60.0, "median": 55.0, "min": 54.0, "max": 60.0},
+            sample_rate_hz=240.5,
+            frame_rate_hz=59.8,
+            stalls=({"start_s": 12.25, "length_s": 2.0},),
+        )
+    },
 )
 """A record with every field of every part set (`test_the_record_sets_every_field`)."""
 
@@ -119,7 +131,9 @@ def test_an_export_by_an_earlier_version_is_read_as_far_as_it_carried_the_record
                           "complete": True, "dropped": RECORD.dropped, "held": RECORD.held,
                           "seed": RECORD.seed}  # fmt: skip
     sidecar.write_text(json.dumps(info))
-    carried = dataclasses.replace(RECORD, study=None, perturbations=(), input_events=(), files={})
+    carried = dataclasses.replace(
+        RECORD, study=None, perturbations=(), input_events=(), files={}, pages={}
+    )
     assert lab_trial_record(load_session(motion).metadata) == carried
     with pytest.raises(InputError, match="carries no study record.*sourcedata/following-p003/"):
         read_study_trials([root / "sub-p003P1"])

@@ -59,6 +59,31 @@ DESIGN_COLUMNS: dict[str, dict[str, Any]] = {
 }  # fmt: skip
 """The identifier, design and quality columns, in table order."""
 
+PAGE_COLUMNS: dict[str, dict[str, Any]] = {
+    "page_rtt_median_ms": {"Description": "Median round trip of the person's page to the "
+                           "server during the trial (NTP-style exchanges, METHODS section 18)",
+                           "Units": "ms", "Role": "quality"},
+    "page_rtt_p95_ms": {"Description": "95th percentile of the page's round trips",
+                        "Units": "ms", "Role": "quality"},
+    "page_rtt_max_ms": {"Description": "Longest round trip of the page", "Units": "ms",
+                        "Role": "quality"},
+    "page_offset_ms": {"Description": "Median offset of the page's clock during the trial "
+                       "(server time minus page time)", "Units": "ms", "Role": "quality"},
+    "page_uncertainty_ms": {"Description": "Median uncertainty of the page clock's offset "
+                            "(half the smallest round trip of its window)", "Units": "ms",
+                            "Role": "quality"},
+    "page_sample_rate_hz": {"Description": "Pointer samples the page sent per second (its "
+                            "device's rate)", "Units": "Hz", "Role": "quality"},
+    "page_frame_rate_hz": {"Description": "Animation frames the page drew per second",
+                           "Units": "Hz", "Role": "quality"},
+    "page_stalls": {"Description": "Gaps of over half a second in the page's samples",
+                    "Role": "quality"},
+    "page_stalled_s": {"Description": "The page's stalls' total length", "Units": "s",
+                       "Role": "quality"},
+}  # fmt: skip
+"""The quality columns of a person's page (`mirror_avatar.files.trial_record.PageRecord.cells`),
+in table order; empty on the rows of avatars, devices and trials recorded before them."""
+
 MEASURE_COLUMNS = registry.TABLE_COLUMNS
 """The measure columns of the study table, in order (`mirror_avatar.metrics.registry`)."""
 

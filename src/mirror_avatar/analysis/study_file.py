@@ -16,7 +16,12 @@ from typing import Any
 
 import pandas as pd
 
-from mirror_avatar.analysis.dictionary import DESIGN_COLUMNS, GUESS_COLUMNS, column_label
+from mirror_avatar.analysis.dictionary import (
+    DESIGN_COLUMNS,
+    GUESS_COLUMNS,
+    PAGE_COLUMNS,
+    column_label,
+)
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.atomic import csv_cells
 from mirror_avatar.files.trial_io import MAX_SIDECAR_BYTES
@@ -30,8 +35,8 @@ TEXT_COLUMNS = (
 )  # fmt: skip
 """Columns read as text whatever they hold (a participant "001" stays "001")."""
 
-NOT_MEASURES = (*DESIGN_COLUMNS, *GUESS_COLUMNS)
-"""The columns that are never a measure: the study table's identifiers, design and guesses
+NOT_MEASURES = (*DESIGN_COLUMNS, *PAGE_COLUMNS, *GUESS_COLUMNS)
+"""The columns that are never a measure: the study table's identifiers, design, pages and guesses
 (`mirror_avatar.analysis.dictionary`)."""
 
 REQUIRED_COLUMNS = ("participant", "condition", "position")

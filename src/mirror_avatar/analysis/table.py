@@ -31,6 +31,7 @@ from mirror_avatar.analysis.dictionary import (
     DESIGN_COLUMNS,
     GUESS_COLUMNS,
     MEASURES,
+    PAGE_COLUMNS,
     PER_PLAYER,
     measure_info,
     p_value_column,
@@ -68,6 +69,7 @@ def study_table(
         measures = trial_measures(trial, trim, surrogates)
         for k, slot in enumerate(trial.record.slots):
             row = _design(trial, slot) | {"block": trial.block, "position": trial.position}
+            row |= _page(trial, slot)
             row |= _player_measures(measures, k, trial)
             row |= _answers(trial, slot)
             rows.append(row)
@@ -113,6 +115,12 @@ def _design(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:
         "perturbations": len(record.perturbations),
         "complete": record.complete,
     }
+
+
+def _page(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:
+    """Return the quality columns of the person's page (`PAGE_COLUMNS`), none without one."""
+    page = trial.record.pages.get(slot.label)
+    return {} if page is None else page.cells()
 
 
 def _player_measures(measures: dict[str, Any], k: int, trial: StudyTrial) -> dict[str, Any]:
@@ -177,14 +185,15 @@ def _ordered(table: pd.DataFrame) -> pd.DataFrame:
     measured = list(dict.fromkeys(tested))  # time_lag and its peak share one p-value
     answers = sorted(c for c in table.columns if c.startswith("answer_"))
     guesses = [c for c in GUESS_COLUMNS if c in table.columns]
+    pages = [c for c in PAGE_COLUMNS if c in table.columns]
     if table.empty:
         return pd.DataFrame(columns=design)
-    table = table[design + measured + answers + guesses]
+    table = table[design + pages + measured + answers + guesses]
     table = table.sort_values(["participant", "session", "trial"], kind="stable")
     types = {"block": "int64", "trial": "int64", "position": "int64", "perturbations": "int64",
              "delay_s": "float64", "occluded": "bool", "complete": "bool"}  # fmt: skip
     table = table.astype(types)
-    for column in [*measured, "guess_confidence"]:
+    for column in [*pages, *measured, "guess_confidence"]:
         if column in table and column != "leader":
             table[column] = pd.to_numeric(table[column], errors="coerce").astype("float64")
     for column in [c for c in answers if table[c].map(_is_number).all()]:
@@ -210,6 +219,8 @@ def table_dictionary(table: pd.DataFrame, questions: dict[str, str]) -> dict[str
             info[column] = dict(DESIGN_COLUMNS[column])
         elif column in GUESS_COLUMNS:
             info[column] = dict(GUESS_COLUMNS[column])
+        elif column in PAGE_COLUMNS:
+            info[column] = dict(PAGE_COLUMNS[column])
         elif column.startswith("answer_"):
             qid = column.removeprefix("answer_")
             info[column] = {"Description": f"The answer to {qid}: {questions.get(qid, qid)}",

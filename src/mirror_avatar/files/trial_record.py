@@ -140,6 +140,56 @@ class InputEventRecord:
 
 
 @dataclass(frozen=True)
+class PageRecord:
+    """A participant page's clock and rates over the trial (the sidecar's ``pages``).
+
+    As `mirror_avatar.lab.running.trial.page_record` writes them (METHODS section 18):
+    ``exchanges`` (NTP-style exchanges during the trial), ``rtt_ms`` (their round trips: n,
+    mean, median, p95, max; ms), ``offset_ms`` and ``uncertainty_ms`` (the page clock's
+    estimates, server minus page: first, median, min, max; ms; None without an exchange),
+    ``sample_rate_hz`` and ``frame_rate_hz`` (pointer samples and animation frames received per
+    second) and ``stalls`` (each gap in the page's samples: ``start_s`` on the server's clock and
+    ``length_s``).
+    """
+
+    exchanges: int
+    rtt_ms: dict[str, float | int | None]
+    offset_ms: dict[str, float] | None
+    uncertainty_ms: dict[str, float] | None
+    sample_rate_hz: float | None
+    frame_rate_hz: float | None
+    stalls: tuple[dict[str, float], ...] = ()
+
+    def to_json(self) -> dict[str, Any]:
+        """Return the page as the sidecar's ``pages`` holds it."""
+        return {
+            "exchanges": self.exchanges,
+            "rtt_ms": dict(self.rtt_ms),
+            "offset_ms": None if self.offset_ms is None else dict(self.offset_ms),
+            "uncertainty_ms": None if self.uncertainty_ms is None else dict(self.uncertainty_ms),
+            "sample_rate_hz": self.sample_rate_hz,
+            "frame_rate_hz": self.frame_rate_hz,
+            "stalls": [dict(stall) for stall in self.stalls],
+        }
+
+    def cells(self) -> dict[str, float | int | None]:
+        """Return its cells in the study table (`mirror_avatar.analysis.dictionary`)."""
+        return {
+            "page_rtt_median_ms": self.rtt_ms.get("median"),
+            "page_rtt_p95_ms": self.rtt_ms.get("p95"),
+            "page_rtt_max_ms": self.rtt_ms.get("max"),
+            "page_offset_ms": None if self.offset_ms is None else self.offset_ms["median"],
+            "page_uncertainty_ms": None
+            if self.uncertainty_ms is None
+            else self.uncertainty_ms["median"],
+            "page_sample_rate_hz": self.sample_rate_hz,
+            "page_frame_rate_hz": self.frame_rate_hz,
+            "page_stalls": len(self.stalls),
+            "page_stalled_s": sum(stall["length_s"] for stall in self.stalls),
+        }
+
+
+@dataclass(frozen=True)
 class TrialRecord:
     """One lab trial as its sidecar declares it (see the module docstring).
 
@@ -147,8 +197,9 @@ class TrialRecord:
     is None outside a study; ``seed`` and ``started_utc`` are None when unknown; ``dropped``
     gives the sample at which each dropped participant's connection dropped, ``held`` each
     person's samples held because nothing new arrived, ``input_events`` when inputs were lost
-    or came back, ``clock`` the clock that stamped the samples and ``files`` the trial's
-    companion files by role (``inputs``, ...), as names beside the sidecar.
+    or came back, ``clock`` the clock that stamped the samples, ``files`` the trial's
+    companion files by role (``inputs``, ...), as names beside the sidecar, and ``pages`` each
+    participant page's clock and rates (`PageRecord`), by label.
     """
 
     session_id: str
@@ -166,6 +217,7 @@ class TrialRecord:
     input_events: tuple[InputEventRecord, ...] = ()
     clock: str | None = None
     files: dict[str, str] = field(default_factory=dict)
+    pages: dict[str, PageRecord] = field(default_factory=dict)
     version: int = RECORD_VERSION
 
     def lab_json(self) -> dict[str, Any]:
@@ -197,7 +249,11 @@ class TrialRecord:
             metadata["input_events"] = [event.to_json() for event in self.input_events]
         if self.clock is not None:
             metadata["clock"] = self.clock
-        return metadata | ({"files": dict(self.files)} if self.files else {})
+        if self.files:
+            metadata["files"] = dict(self.files)
+        if self.pages:
+            metadata["pages"] = {label: page.to_json() for label, page in self.pages.items()}
+        return metadata
 
     @property
     def block(self) -> str | None:
@@ -270,6 +326,7 @@ def trial_record(
     events = _list(keys, metadata, "input_events")
     held = keys.object(metadata.get("held", {}), "held")
     files = keys.object(metadata.get("files", {}), "files")
+    pages = keys.object(metadata.get("pages", {}), "pages")
     return TrialRecord(
         session_id=at.text(lab, "session_id"),
         trial=at.count(lab, "trial"),
@@ -291,6 +348,7 @@ def trial_record(
         ),
         clock=keys.optional_text(metadata, "clock"),
         files={str(role): keys.within("files").text(files, role) for role in files},
+        pages={str(who): _page(keys.within(f"pages.{who}"), page) for who, page in pages.items()},
     )
 
 
@@ -317,6 +375,32 @@ def _input_event(keys: _Keys, value: object) -> InputEventRecord:
         event=keys.text(event, "event"),
         seq=None if seq is None else keys.count(event, "seq"),
     )
+
+
+def _page(keys: _Keys, value: object) -> PageRecord:
+    page = keys.object(value)
+    offset, uncertainty = page.get("offset_ms"), page.get("uncertainty_ms")
+    stalls = page.get("stalls", [])
+    if not isinstance(stalls, list):
+        raise keys.error("stalls", "is not a list")
+    return PageRecord(
+        exchanges=keys.count(page, "exchanges"),
+        rtt_ms=keys.object(page.get("rtt_ms"), "rtt_ms"),
+        offset_ms=None if offset is None else keys.object(offset, "offset_ms"),
+        uncertainty_ms=None if uncertainty is None else keys.object(uncertainty, "uncertainty_ms"),
+        sample_rate_hz=_optional_number(keys, page, "sample_rate_hz"),
+        frame_rate_hz=_optional_number(keys, page, "frame_rate_hz"),
+        stalls=tuple(_stall(keys.within(f"stalls[{k}]"), s) for k, s in enumerate(stalls)),
+    )
+
+
+def _stall(keys: _Keys, value: object) -> dict[str, float]:
+    stall = keys.object(value)
+    return {key: keys.number(stall, key) for key in ("start_s", "length_s")}
+
+
+def _optional_number(keys: _Keys, obj: dict[str, Any], key: str) -> float | None:
+    return None if obj.get(key) is None else keys.number(obj, key)
 
 
 def _slot(keys: _Keys, value: object) -> SlotRecord:
