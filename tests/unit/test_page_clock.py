@@ -51,7 +51,7 @@ def test_the_minimum_delay_exchanges_are_kept_against_queueing():
 
 def test_a_window_of_normal_legs_averages_to_the_offset():
     """80 +- 25 ms each way (the browser test's network): one exchange errs with an SD of
-    25 / sqrt(2) = 17.7 ms; the kept half of 200 averages it to about 1.8 ms."""
+    25 / sqrt(2) = 17.7 ms; the kept quarter of 200 averages it to about 2.5 ms."""
     rng = np.random.default_rng(3)
     legs = rng.normal(80.0, 25.0, size=(200, 2)).clip(0.0)
     clock = PageClock()

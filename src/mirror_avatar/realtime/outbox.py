@@ -97,7 +97,9 @@ class Outbox:
 
     def __init__(self, peer: Peer) -> None:
         self.peer = peer
-        self._control: collections.deque[str] = collections.deque(maxlen=CONTROL_BACKLOG)
+        self._control: collections.deque[str | Callable[[], dict[str, Any]]] = collections.deque(
+            maxlen=CONTROL_BACKLOG
+        )
         self._frame: str | None = None
         self._ending: tuple[int, str, bool] | None = None
         self.superseded = 0
@@ -108,6 +110,11 @@ class Outbox:
     def put(self, message: dict[str, Any]) -> None:
         """Queue a control message."""
         self._control.append(encode_message(message))
+        self._ready.set()
+
+    def put_timed(self, make: Callable[[], dict[str, Any]]) -> None:
+        """Queue a control message made as it is sent (one that says when it was sent)."""
+        self._control.append(make)
         self._ready.set()
 
     def put_frame(self, message: dict[str, Any]) -> None:
@@ -123,7 +130,10 @@ class Outbox:
             self._ready.clear()
             while (self._control or self._frame is not None) and not self._closed:
                 if self._control:
-                    await self.peer.send(self._control.popleft())
+                    message = self._control.popleft()
+                    await self.peer.send(
+                        message if isinstance(message, str) else encode_message(message())
+                    )
                 elif self._frame is not None:
                     frame, self._frame = self._frame, None
                     await self.peer.send(frame)

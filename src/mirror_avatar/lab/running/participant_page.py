@@ -125,11 +125,17 @@ class ParticipantPage:
     ) -> None:
         """Answer a clock request, complete an exchange or store a batch of timed samples."""
         if isinstance(message, ClockRequest):
-            sent_ms = self.session.clock() * 1000.0
-            source.clock.answer(message.id, message.t0, received_ms, sent_ms)
-            reply = {"t0": message.t0, "t1": received_ms, "t2": sent_ms}
-            self.outbox.put({"type": "clock", "id": message.id} | reply)
+            self.outbox.put_timed(lambda: self._clock_reply(source, message, received_ms))
         elif isinstance(message, ClockReport):
             source.clock.complete(message.id, message.t3)
         else:
             source.put_batch(message.seq, message.sent_ms, message.samples, received_ms / 1000.0)
+
+    def _clock_reply(
+        self, source: BrowserInput, request: ClockRequest, received_ms: float
+    ) -> dict[str, object]:
+        """Answer a clock request as the answer leaves: its receipt and send times (ms)."""
+        sent_ms = self.session.clock() * 1000.0
+        source.clock.answer(request.id, request.t0, received_ms, sent_ms)
+        times = {"t0": request.t0, "t1": received_ms, "t2": sent_ms}
+        return {"type": "clock", "id": request.id} | times
