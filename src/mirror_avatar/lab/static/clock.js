@@ -1,13 +1,16 @@
 // The page's clock against the server's, and its pointer read at the device's rate (METHODS
 // section 18). Every time is the page's own, in ms: performance.timeOrigin + performance.now().
-// The page asks the server's time every REQUEST_MS (an NTP-style exchange: the server answers
-// with its receipt and send times, the page reports when the answer came); the server estimates
+// The page asks the server's time BURST times every BURST_MS once connected, then every
+// REQUEST_MS (an NTP-style exchange: the server answers with its receipt and send times, the
+// page reports when the answer came); the server estimates
 // the offset and maps every sample's time onto its clock. The pointer is read from the coalesced
 // pointer events (every one the device delivered since the last event dispatched), batched into
 // one message per animation frame.
 window.mirrorClock = (() => {
   "use strict";
-  const REQUEST_MS = 100;       // one exchange every 100 ms, at the start and during play
+  const BURST = 100;            // exchanges at the start, BURST_MS apart: a first estimate in 2 s
+  const BURST_MS = 20;
+  const REQUEST_MS = 100;       // then one exchange every 100 ms, waiting and playing
   const MAX_BATCH = 20;         // samples per message (the server's bound)
   const now = () => performance.timeOrigin + performance.now();
   let nextId = 0;
@@ -20,9 +23,12 @@ window.mirrorClock = (() => {
     stop();
     nextId = 0;
     seq = 0;
-    const request = () => send({ type: "clock", id: ++nextId, t0: now() });
+    const request = () => {
+      send({ type: "clock", id: ++nextId, t0: now() });
+      if (nextId === BURST) { clearInterval(timer); timer = setInterval(request, REQUEST_MS); }
+    };
     request();
-    timer = setInterval(request, REQUEST_MS);
+    timer = setInterval(request, BURST_MS);
   }
 
   function stop() {
