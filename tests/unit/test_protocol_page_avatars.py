@@ -71,6 +71,13 @@ def test_a_perturbation_of_an_avatar_in_the_browser_is_refused(tmp_path):
     assert ".perturb: condition 'follow': A1 runs in the browser" in text
 
 
+@pytest.mark.parametrize("more", ["delay = 0.2", "occlude = [[1, 2]]"])
+def test_a_partner_delayed_or_hidden_is_refused_beside_an_avatar_in_the_browser(tmp_path, more):
+    key = more.split()[0]
+    text = refusal(protocol(tmp_path, more=more))
+    assert f".{key}: A1 runs in the browser, whose page draws it as it steps it" in text
+
+
 def test_a_person_has_no_runs(tmp_path):
     path = protocol(tmp_path)
     path.write_text(

@@ -562,6 +562,14 @@ def _condition(
         name, str(game), players, tuple(leaders), settings, after, float(delay), occlude
     )
     _check_plan(check, condition, where)
+    in_page = [player.label for player in players if player.runs == "browser"]
+    for key in ("delay", "occlude"):
+        if in_page and key in data:
+            raise check.error(
+                f"{where}.{key}",
+                f"{in_page[0]} runs in the browser, whose page draws it as it steps it",
+                f'leave out {key}, or set runs = "server" on {in_page[0]}',
+            )
     if "perturb" not in data:
         return condition
     plan = condition.plan({p.label: False for p in players if p.kind == "person-or-avatar"}, 0)
