@@ -1,0 +1,117 @@
+"""An avatar stepped in its person's page (``runs = "browser"``), in a real Chromium against a
+real lab server: a leader's page drives a tabular cyber follower, and the recording says where it
+ran and holds the positions the page stepped it to, equal to the Python player's fed the
+person's positions as the page saw them (METHODS section 16)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+import pytest
+from test_lab_browser import join, pointer_at, sway
+
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
+from mirror_avatar.players import Player
+from mirror_avatar.sessions.loading import load_session
+from mirror_avatar.testing import ServerThread, seeded_avatar, step_in_python
+
+pytestmark = pytest.mark.browser
+
+TOKEN = "page-avatar-token"
+BEARER = {"Authorization": f"Bearer {TOKEN}"}
+TOLERANCE = 1e-9
+"""Largest |recorded - Python| avatar position or velocity allowed (units, units/s)."""
+
+SHOWN = """() => {
+  window.shown = [];  // what the page draws at each animation frame: time (ms), own x, avatar x
+  const sample = (now) => {
+    const lab = window.mirrorLab;
+    if (lab.others.has(1)) window.shown.push([now, lab.me.x, lab.others.get(1)]);
+    requestAnimationFrame(sample);
+  };
+  requestAnimationFrame(sample);
+}"""
+
+
+@pytest.fixture
+def lab(tmp_path: Path) -> Iterator[ServerThread]:
+    settings = LabSettings(out_dir=tmp_path / "out", token=TOKEN, countdown=1)
+    with ServerThread(create_lab_app(settings)) as running:
+        yield running
+
+
+def dyad(spec: str, runs: str, duration: float) -> dict[str, Any]:
+    """A plan: person P1 leads, avatar A1 follows, run where ``runs`` says."""
+    players = [{"label": "P1", "kind": "human"},
+               {"label": "A1", "kind": "avatar", "spec": spec, "runs": runs}]  # fmt: skip
+    return {"condition": "leader_follower", "players": players, "leaders": [0],
+            "duration": duration, "pause": 0, "max_lateness": 10.0}  # fmt: skip
+
+
+def play(
+    chromium: Any, lab: ServerThread, plan: dict[str, Any], out: Path
+) -> tuple[Path, np.ndarray]:
+    """Play the plan's one trial, P1's mouse swaying; return its session's folder (in ``out``)
+    and what P1's page drew at each animation frame (time in s, own x, avatar x), shape (n, 3)."""
+    created = httpx.post(f"{lab.url}/api/sessions", json=plan, headers=BEARER)
+    assert created.status_code == 201, created.text
+    sid, link = created.json()["id"], created.json()["links"]["P1"]
+    page = join(chromium, link)
+    page.evaluate(SHOWN)
+    started = httpx.post(f"{lab.url}/api/sessions/{sid}/start", json={}, headers=BEARER)
+    assert started.status_code == 200, started.text
+    began = time.monotonic()
+    while httpx.get(f"{lab.url}/api/sessions/{sid}", headers=BEARER).json()["state"] != "finished":
+        for _ in range(20):
+            pointer_at(page, sway(time.monotonic() - began))
+            page.wait_for_timeout(15)
+    shown = np.asarray(page.evaluate("window.shown"), dtype=np.float64)
+    page.context.close()
+    shown[:, 0] /= 1000.0
+    return out / sid, shown
+
+
+def read_rows(path: Path) -> list[dict[str, str]]:
+    with path.open(encoding="utf-8") as file:
+        return list(csv.DictReader(file))
+
+
+def in_python(player: Player, seed: int, steps: list[dict[str, str]]) -> np.ndarray:
+    """The player's states at ticks 0..n fed the person's positions the page stepped it from,
+    their velocities (x_k - x_{k-1}) / T as the page took them, shape (n + 1, 2)."""
+    assert [int(row["tick"]) for row in steps] == list(range(len(steps)))
+    seen = np.array([float(row["seen"]) for row in steps[1:]])
+    velocity = np.diff(seen, prepend=seen[0]) / player.period
+    fed = np.append(seen, seen[-1]), np.append(velocity, 0.0)  # the last is not stepped from
+    return step_in_python(player, seed, fed[0][:, None], fed[1][:, None])
+
+
+def test_an_avatar_run_in_the_page_is_recorded_as_the_page_stepped_it(chromium, lab, tmp_path):
+    avatar = seeded_avatar("tabular", tmp_path)
+    plan = dyad(str(tmp_path / "tabular.npz"), "browser", 4.0)
+    folder, _ = play(chromium, lab, plan, tmp_path / "out")
+    sidecar = json.loads((folder / "trial-01_session.json").read_text())
+    metadata = sidecar["metadata"]
+    assert [slot.get("runs") for slot in metadata["lab"]["slots"]] == [None, "browser"]
+    assert metadata["players"][1]["runs"] == "browser"
+    steps = read_rows(folder / "trial-01_page.csv")
+    expected = in_python(avatar.player("follower"), metadata["player_seeds"][1], steps)
+    reported = np.array([[float(row["x"]), float(row["v"])] for row in steps])
+    assert np.max(np.abs(reported - expected)) <= TOLERANCE
+    assert np.ptp(expected[:, 0]) > 0.01  # it moved
+    # each sample holds the tick it records: its position and velocity the page's for that tick
+    inputs = read_rows(folder / "trial-01_inputs.csv")
+    session = load_session(folder / "trial-01_session.csv")
+    ticks = np.array([int(row["tick_A1"]) for row in inputs])
+    recorded = np.column_stack([session.positions[1], session.velocities[1]])
+    assert np.array_equal(recorded, reported[ticks])
+    missing = np.array([int(row["missing_A1"]) for row in inputs])
+    assert metadata["missing"] == {"A1": int(missing.sum())}
+    assert np.all(missing == (np.diff(ticks, prepend=-1) == 0))
