@@ -63,7 +63,7 @@ class PageAvatar(ExternalPlayer):
     ----------
     player
         The avatar's player, as the server would run it (a kind the page steps).
-    label
+    slot
         The avatar's slot's label (its columns and counts are named by it).
     n_steps
         Control periods of a trial (its references are drawn for them).
@@ -83,11 +83,12 @@ class PageAvatar(ExternalPlayer):
         The start (tick 0), then every step the page reported in the trial, in order of tick.
     """
 
-    def __init__(self, player: Player, label: str, n_steps: int) -> None:
+    def __init__(self, player: Player, slot: str, n_steps: int) -> None:
         browser_arrays(player, 0, 1)  # a kind the page cannot step is refused here
         self.player = player
+        self.slot = slot
         self.n_steps = n_steps
-        self.label = label
+        self.label = player.label
         self.period = player.period
         self.message: dict[str, Any] = {}
         self.ready = threading.Event()
@@ -129,7 +130,7 @@ class PageAvatar(ExternalPlayer):
 
     def tick_columns(self) -> list[str]:
         """Return the avatar's columns of the trial's ``inputs.csv``."""
-        return [f"{name}_{self.label}" for name in ("tick", "seen", "missing")]
+        return [f"{name}_{self.slot}" for name in ("tick", "seen", "missing")]
 
     def tick_fields(self) -> list[str]:
         """Return the latest sample's fields of `tick_columns`."""

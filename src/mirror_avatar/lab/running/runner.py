@@ -359,7 +359,7 @@ class LabSession:
                 owner.outbox.put({"type": "avatar", "index": k, "player": avatar.message})
                 if await asyncio.to_thread(avatar.ready.wait, READY_TIMEOUT):
                     continue
-            self.log(f"{avatar.label}: {owner.label}'s page has not built it: samples missing")
+            self.log(f"{avatar.slot}: {owner.label}'s page has not built it: samples missing")
 
     def page_step(self, participant: Participant, step: PageStep) -> None:
         """Take the avatar's state at a tick from the page of the person who steps it."""

@@ -327,7 +327,7 @@ class LabTrial(ClockedTrial):
                 slot["input"] = device
         counts: dict[str, Any] = {"dropped": dict(self.dropped)}
         if self.page_avatars:
-            counts["missing"] = {p.label: p.missing for p in self.page_avatars.values()}
+            counts["missing"] = {p.slot: p.missing for p in self.page_avatars.values()}
         measured = measure_trial(session)
         if measured is None:
             return counts | {"metrics": {}, "measures": {}}
