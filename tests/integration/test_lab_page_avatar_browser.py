@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 from test_lab_browser import join, pointer_at, sway
 
+from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.players import Player
 from mirror_avatar.sessions.loading import load_session
@@ -67,9 +68,12 @@ def play(
     out: Path,
     motion: Callable[[float], float] = sway,
 ) -> tuple[Path, np.ndarray]:
-    """Play the plan's one trial, P1's mouse at ``motion(t)`` (units, t in s from the start);
+    """Play the session's one trial, P1's mouse at ``motion(t)`` (units, t in s from the start);
     return its session's folder (in ``out``) and what P1's page drew at each animation frame
-    (time in s, own x, avatar x), shape (n, 3)."""
+    (time in s, own x, avatar x), shape (n, 3).
+
+    ``plan`` is what creates the session: a plan, or ``{"participant": N}`` for a participant's
+    run of the lab's protocol."""
     created = httpx.post(f"{lab.url}/api/sessions", json=plan, headers=BEARER)
     assert created.status_code == 201, created.text
     sid, link = created.json()["id"], created.json()["links"]["P1"]
@@ -103,20 +107,17 @@ def in_python(player: Player, seed: int, steps: list[dict[str, str]]) -> np.ndar
     return step_in_python(player, seed, fed[0][:, None], fed[1][:, None])
 
 
-def test_an_avatar_run_in_the_page_is_recorded_as_the_page_stepped_it(chromium, lab, tmp_path):
-    avatar = seeded_avatar("tabular", tmp_path)
-    plan = dyad(str(tmp_path / "tabular.npz"), "browser", 4.0)
-    folder, _ = play(chromium, lab, plan, tmp_path / "out")
-    sidecar = json.loads((folder / "trial-01_session.json").read_text())
-    metadata = sidecar["metadata"]
+def assert_recorded_as_stepped(folder: Path, player: Player) -> None:
+    """The trial's record says A1 ran in the browser; the ticks its page reported equal
+    ``player`` fed the person's positions as the page saw them; each sample holds its tick's."""
+    metadata = json.loads((folder / "trial-01_session.json").read_text())["metadata"]
     assert [slot.get("runs") for slot in metadata["lab"]["slots"]] == [None, "browser"]
     assert metadata["players"][1]["runs"] == "browser"
     steps = read_rows(folder / "trial-01_page.csv")
-    expected = in_python(avatar.player("follower"), metadata["player_seeds"][1], steps)
+    expected = in_python(player, metadata["player_seeds"][1], steps)
     reported = np.array([[float(row["x"]), float(row["v"])] for row in steps])
     assert np.max(np.abs(reported - expected)) <= TOLERANCE
     assert np.ptp(expected[:, 0]) > 0.01  # it moved
-    # each sample holds the tick it records: its position and velocity the page's for that tick
     inputs = read_rows(folder / "trial-01_inputs.csv")
     session = load_session(folder / "trial-01_session.csv")
     ticks = np.array([int(row["tick_A1"]) for row in inputs])
@@ -125,6 +126,44 @@ def test_an_avatar_run_in_the_page_is_recorded_as_the_page_stepped_it(chromium, 
     missing = np.array([int(row["missing_A1"]) for row in inputs])
     assert metadata["missing"] == {"A1": int(missing.sum())}
     assert np.all(missing == (np.diff(ticks, prepend=-1) == 0))
+
+
+def test_an_avatar_run_in_the_page_is_recorded_as_the_page_stepped_it(chromium, lab, tmp_path):
+    avatar = seeded_avatar("tabular", tmp_path)
+    plan = dyad(str(tmp_path / "tabular.npz"), "browser", 4.0)
+    folder, _ = play(chromium, lab, plan, tmp_path / "out")
+    assert_recorded_as_stepped(folder, avatar.player("follower"))
+
+
+PROTOCOL = """
+title = "an avatar in the page"
+seed = 3
+
+[[blocks]]
+name = "main"
+
+[[blocks.conditions]]
+name = "follow"
+game = "leader_follower"
+players = [
+  {{ label = "P1", kind = "person" }},
+  {{ label = "A1", kind = "avatar", spec = "{spec}", runs = "browser" }},
+]
+leaders = ["P1"]
+duration = 3
+pause = 0
+"""
+
+
+def test_a_protocol_s_avatar_runs_in_the_page_it_says(chromium, tmp_path):
+    avatar = seeded_avatar("tabular", tmp_path)
+    path = tmp_path / "study.toml"
+    path.write_text(PROTOCOL.format(spec=tmp_path / "tabular.npz"))
+    out = tmp_path / "out"
+    settings = LabSettings(out_dir=out, token=TOKEN, countdown=1, protocol=load_protocol(path))
+    with ServerThread(create_lab_app(settings)) as lab:
+        folder, _ = play(chromium, lab, {"participant": 1}, out)
+    assert_recorded_as_stepped(folder, avatar.player("follower"))
 
 
 GRID = 0.005
