@@ -27,10 +27,7 @@
   let pageAvatar = null;       // the avatar this page steps: index, player, tick, seen, state
   let ended = false;
   let lastNumbers = [];        // the last trial's numbers, each with its words
-  window.mirrorLab = {
-    get welcome() { return welcome; }, get others() { return others; },
-    get pageAvatar() { return pageAvatar; }, me,
-  };
+  window.mirrorLab = { get welcome() { return welcome; }, get others() { return others; }, me };
 
   function resize() {
     const ratio = window.devicePixelRatio || 1;
