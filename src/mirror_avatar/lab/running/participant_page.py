@@ -14,14 +14,19 @@ import time
 
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from mirror_avatar.lab.running.messages import Answer, Pong, parse_participant_message
+from mirror_avatar.lab.running.messages import (
+    Answer,
+    AvatarPosition,
+    ParticipantMessage,
+    Pong,
+    parse_participant_message,
+)
 from mirror_avatar.lab.running.participant import Participant
 from mirror_avatar.lab.running.runner import LabSession
 from mirror_avatar.lab.running.sessions import Lab, LabSettings
 from mirror_avatar.realtime.inbox import Inbox
 from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.realtime.latency import Pings
-from mirror_avatar.realtime.messages import PositionUpdate
 from mirror_avatar.realtime.outbox import Outbox, Peer
 
 CLOSE_POLICY, CLOSE_REPLACED, CLOSE_UNKNOWN = 1008, 4002, 4004
@@ -92,7 +97,7 @@ class ParticipantPage:
         async for message in self.inbox.messages():
             self._handle(message)
 
-    def _handle(self, message: PositionUpdate | Pong | Answer) -> None:
+    def _handle(self, message: ParticipantMessage) -> None:
         participant = self.participant
         participant.last_heard = time.monotonic()
         if isinstance(message, Answer):
@@ -102,5 +107,9 @@ class ParticipantPage:
         elif isinstance(message, Pong):
             self.pings.answer(message.id)
             participant.late_frames = message.late_frames
-        elif isinstance(participant.source, BrowserInput):
-            participant.source.put(message.x, message.seq)
+        else:
+            if isinstance(message, AvatarPosition):
+                self.session.page_step(participant, message.step)
+                message = message.position
+            if isinstance(participant.source, BrowserInput):
+                participant.source.put(message.x, message.seq)
