@@ -18,6 +18,7 @@ import socket
 import threading
 import time
 from collections.abc import Iterable, Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -31,6 +32,9 @@ from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.kernels import VELOCITY_WEIGHT
 from mirror_avatar.players import Observation, Player, RecordedPlayer
 from mirror_avatar.sessions.session import Session
+from mirror_avatar.specs import bundled_generator
+from mirror_avatar.training.avatar import Avatar, load_avatar
+from mirror_avatar.training.imitation import make_cyber_player
 
 if TYPE_CHECKING:
     from starlette.types import ASGIApp
@@ -327,6 +331,21 @@ def partner_motion(trials: Sequence[Trial], n_steps: int) -> tuple[Array, Array]
         for k in range(n_steps):
             states[k + 1, j] = player.step(Observation(k, *[np.empty(0)] * 3))
     return states[..., 0].copy(), states[..., 1].copy()
+
+
+def seeded_avatar(agent: str, folder: Path) -> Avatar:
+    """Return a personal avatar of untrained, seeded ``agent`` policies, saved and read back.
+
+    Its file is ``folder / f"{agent}.npz"`` (a player spec for the lab).
+    """
+    generator = bundled_generator("slow")
+    players = {}
+    for seed, role in enumerate(("follower", "leader")):
+        players[role] = make_cyber_player(role, generator, agent=agent)  # type: ignore[arg-type]
+        players[role].initialise_policy(seed)
+        players[role].training_ = {"role": role}
+    path = Avatar("P01", generator, players).save(folder / f"{agent}.npz")
+    return load_avatar(path)
 
 
 def step_in_python(player: Player, seed: int, positions: Array, velocities: Array) -> Array:

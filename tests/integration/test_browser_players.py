@@ -9,7 +9,6 @@ recorded people, and compared with the same player stepped in Python from the sa
 from __future__ import annotations
 
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,12 +22,13 @@ from mirror_avatar.specs import bundled_generator
 from mirror_avatar.testing import (
     ServerThread,
     partner_motion,
+    seeded_avatar,
     static_app,
     step_in_page,
     step_in_python,
 )
-from mirror_avatar.training.avatar import Avatar, load_avatar
-from mirror_avatar.training.imitation import make_cyber_player, make_group_cyber_player
+from mirror_avatar.training.avatar import Avatar
+from mirror_avatar.training.imitation import make_group_cyber_player
 
 pytestmark = pytest.mark.browser
 
@@ -53,18 +53,6 @@ def page(chromium: Any) -> Iterator[Any]:
         page.goto(f"{server.url}/")
         yield page
         page.close()
-
-
-def seeded_avatar(agent: str, folder: Path) -> Avatar:
-    """A personal avatar of untrained, seeded policies, written to its file and read back."""
-    generator = bundled_generator("slow")
-    players = {}
-    for seed, role in enumerate(("follower", "leader")):
-        players[role] = make_cyber_player(role, generator, agent=agent)  # type: ignore[arg-type]
-        players[role].initialise_policy(seed)
-        players[role].training_ = {"role": role}
-    path = Avatar("P01", generator, players).save(folder / f"{agent}.npz")
-    return load_avatar(path)
 
 
 @pytest.fixture(scope="module", params=["tabular", "dqn"])

@@ -5,12 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.metrics.analysis_rate import (
     ANALYSIS_RATE,
     at_analysis_rate,
     decimation_factor,
     session_rate,
 )
+from mirror_avatar.metrics.measuring import measure_trial
 from mirror_avatar.sessions.session import Session
 
 
@@ -30,6 +32,17 @@ def session_of(positions: np.ndarray, rate: float) -> Session:
 def test_the_factor_is_the_smallest_whole_one_reaching_the_analysis_rate(rate, factor):
     assert decimation_factor(rate) == factor
     assert rate / factor <= ANALYSIS_RATE * 1.001
+
+
+@pytest.mark.parametrize("n", [0, 1])
+def test_a_session_too_short_for_a_rate_is_refused_in_words_and_not_measured(n: int) -> None:
+    """A lab trial ended at its first tick has one sample: measuring it once crashed the
+    server with a NaN rate; now it has no rate (one line) and no measures."""
+    none = np.zeros((2, n))
+    session = Session(np.arange(n) / 100.0, none, none, none, none)
+    with pytest.raises(InputError, match=f"a session of {n} sample"):
+        session_rate(session)
+    assert measure_trial(session) is None
 
 
 def test_a_session_at_or_below_the_analysis_rate_is_returned_as_it_is():

@@ -41,7 +41,7 @@ RECORD = TrialRecord(
     condition="joint",
     slots=(
         SlotRecord("P1", "human", "joint", None, "lsl", {"source_id": "hand", "invalid": 2}),
-        SlotRecord("A1", "avatar", "joint", "ims:seed=3", None),
+        SlotRecord("A1", "avatar", "joint", "ims:seed=3", None, runs="browser"),
         SlotRecord("P2", "human", "joint", None, "pointer"),
     ),
     study=StudyRecord(
@@ -61,6 +61,7 @@ RECORD = TrialRecord(
     dropped={"P2": 150},
     perturbations=(PerturbationRecord(100, 3.0, "A1", "coupling 0.5"),),
     held={"P1": 4, "P2": 1},
+    missing={"A1": 3},
     input_events=(InputEventRecord(120, "P1", "lost", 118), InputEventRecord(130, "P1", "live")),
     clock="local_clock",
     files={"session": "trial-04_session.csv", "inputs": "trial-04_inputs.csv"},
@@ -132,7 +133,7 @@ def test_an_export_by_an_earlier_version_is_read_as_far_as_it_carried_the_record
                           "seed": RECORD.seed}  # fmt: skip
     sidecar.write_text(json.dumps(info))
     carried = dataclasses.replace(
-        RECORD, study=None, perturbations=(), input_events=(), files={}, pages={}
+        RECORD, study=None, perturbations=(), input_events=(), files={}, missing={}, pages={}
     )
     assert lab_trial_record(load_session(motion).metadata) == carried
     with pytest.raises(InputError, match="carries no study record.*sourcedata/following-p003/"):

@@ -57,7 +57,9 @@ class SlotRecord:
     """One player's slot: label, true kind, role, avatar spec, input device and its report.
 
     ``input`` is what an input device says of itself (an LSL stream's source id, host and
-    counts), None for the pointer of a page.
+    counts), None for the pointer of a page. ``runs`` is where an avatar ran: ``"server"`` or
+    ``"browser"`` (its person's page); None for a person, and for an avatar of a trial recorded
+    before avatars ran anywhere but the server.
     """
 
     label: str
@@ -66,11 +68,13 @@ class SlotRecord:
     spec: str | None = None
     device: str | None = None
     input: dict[str, Any] | None = None
+    runs: str | None = None
 
     def to_json(self) -> dict[str, Any]:
         """Return the slot as the sidecar writes it."""
         slot = {"label": self.label, "kind": self.kind, "role": self.role,
                 "spec": self.spec, "device": self.device}  # fmt: skip
+        slot |= {} if self.runs is None else {"runs": self.runs}
         return slot if self.input is None else slot | {"input": self.input}
 
 
@@ -196,7 +200,8 @@ class TrialRecord:
     ``condition`` is the game (``solo``, ``leader_follower``, ``joint``, ``group``); ``study``
     is None outside a study; ``seed`` and ``started_utc`` are None when unknown; ``dropped``
     gives the sample at which each dropped participant's connection dropped, ``held`` each
-    person's samples held because nothing new arrived, ``input_events`` when inputs were lost
+    person's samples held because nothing new arrived, ``missing`` each avatar run in a page's
+    samples at which the page had reported no newer tick, ``input_events`` when inputs were lost
     or came back, ``clock`` the clock that stamped the samples, ``files`` the trial's
     companion files by role (``inputs``, ...), as names beside the sidecar, and ``pages`` each
     participant page's clock and rates (`PageRecord`), by label.
@@ -214,6 +219,7 @@ class TrialRecord:
     dropped: dict[str, int] = field(default_factory=dict)
     perturbations: tuple[PerturbationRecord, ...] = ()
     held: dict[str, int] = field(default_factory=dict)
+    missing: dict[str, int] = field(default_factory=dict)
     input_events: tuple[InputEventRecord, ...] = ()
     clock: str | None = None
     files: dict[str, str] = field(default_factory=dict)
@@ -245,6 +251,8 @@ class TrialRecord:
             "perturbations": [change.to_json() for change in self.perturbations],
             "held": dict(self.held),
         }
+        if self.missing:
+            metadata["missing"] = dict(self.missing)
         if self.input_events:
             metadata["input_events"] = [event.to_json() for event in self.input_events]
         if self.clock is not None:
@@ -325,6 +333,7 @@ def trial_record(
     changes = _list(keys, metadata, "perturbations")
     events = _list(keys, metadata, "input_events")
     held = keys.object(metadata.get("held", {}), "held")
+    missing = keys.object(metadata.get("missing", {}), "missing")
     files = keys.object(metadata.get("files", {}), "files")
     pages = keys.object(metadata.get("pages", {}), "pages")
     return TrialRecord(
@@ -343,6 +352,7 @@ def trial_record(
             _perturbation(keys.within(f"perturbations[{k}]"), c) for k, c in enumerate(changes)
         ),
         held={str(who): keys.within("held").count(held, who) for who in held},
+        missing={str(who): keys.within("missing").count(missing, who) for who in missing},
         input_events=tuple(
             _input_event(keys.within(f"input_events[{k}]"), e) for k, e in enumerate(events)
         ),
@@ -416,6 +426,7 @@ def _slot(keys: _Keys, value: object) -> SlotRecord:
         spec=keys.optional_text(slot, "spec"),
         device=keys.optional_text(slot, "device"),
         input=None if device is None else keys.object(device, "input"),
+        runs=keys.optional_text(slot, "runs"),
     )
 
 

@@ -22,6 +22,7 @@ from dataclasses import replace
 import numpy as np
 from scipy import signal
 
+from mirror_avatar.common.errors import InputError
 from mirror_avatar.sessions.session import Session
 
 ANALYSIS_RATE = 100.0
@@ -33,7 +34,15 @@ RATE_TOLERANCE = 1e-3
 
 
 def session_rate(session: Session) -> float:
-    """Return the sampling rate (Hz) of a session: one over its median sample interval."""
+    """Return the sampling rate (Hz) of a session: one over its median sample interval.
+
+    Raises
+    ------
+    mirror_avatar.common.errors.InputError
+        A session of fewer than two samples (it has no interval).
+    """
+    if session.n_samples < 2:
+        raise InputError(None, f"a session of {session.n_samples} sample(s) has no sampling rate")
     return 1.0 / float(np.median(np.diff(session.times)))
 
 

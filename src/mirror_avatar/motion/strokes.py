@@ -307,6 +307,8 @@ class StrokeGenerator:
         weights = 1.0 / np.arange(1, self._k + 1)
         self._rank_weights = weights / weights.sum()
         self._rank_cdfs: dict[int, Array] = {}
+        self._grids: dict[int, Array] = {}
+        self._other_way = {d: self._directions != d for d in (-1.0, 1.0)}
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "lengths_"):
@@ -372,7 +374,13 @@ class StrokeGenerator:
         interpolated linearly between them.
         """
         begin, end = self._profile_bounds[stroke]
-        return np.interp(phase, np.linspace(0.0, 1.0, end - begin), self.profiles_[begin:end])
+        return np.interp(phase, self._grid(end - begin), self.profiles_[begin:end])
+
+    def _grid(self, n: int) -> Array:
+        """Return ``n`` evenly spaced phases from 0 to 1 (``np.linspace``, made once per n)."""
+        if n not in self._grids:
+            self._grids[n] = np.linspace(0.0, 1.0, n)
+        return self._grids[n]
 
     def _next_stroke(
         self,
@@ -384,8 +392,8 @@ class StrokeGenerator:
     ) -> int:
         """Draw the training stroke that follows a generated one (Lall & Sharma's kernel)."""
         state = np.array([log_length(length), log_size(size), _room_ahead(position, direction)])
-        distance = np.sum(((self._features - state) / self._scale) ** 2, axis=1)
-        distance[self._directions != direction] = np.inf
+        distance = (((self._features - state) / self._scale) ** 2).sum(axis=1)
+        distance[self._other_way[direction]] = np.inf
         k = min(self._k, int(np.isfinite(distance).sum())) or self._k
         nearest = np.argpartition(distance, k - 1)[:k]
         nearest = nearest[np.argsort(distance[nearest], kind="stable")]

@@ -14,7 +14,8 @@ Files, flushed line by line as each sample is taken:
 - ``<stem>_inputs.csv`` (`TickLog`): per sample, the clock time at which it was really taken
   (``clock_s``), how late its tick was against the schedule (``late_ms``), how long the players'
   step took (``step_ms``, the file writes excluded) and, per person, the sequence number of the
-  device sample used, its age (ms), whether it was held and whether the input was live.
+  device sample used, its age (ms), whether it was held and whether the input was live; a
+  player with columns of its own (`LoggedPlayer`: an avatar stepped in a page) adds them.
 
 A tick that cannot write (a full disk, a file-size limit) raises `OSError` naming the file
 (`write_failure` makes it the trial's end reason); the lines written stay readable and `finish`
@@ -34,7 +35,7 @@ import time
 from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -73,6 +74,19 @@ def write_failure(error: OSError) -> str:
     return f"cannot write {what}: {words}"
 
 
+@runtime_checkable
+class LoggedPlayer(Protocol):
+    """A player that writes columns of its own to ``<stem>_inputs.csv`` (an avatar in a page)."""
+
+    def tick_columns(self) -> list[str]:
+        """Return the names of its columns."""
+        ...
+
+    def tick_fields(self) -> list[str]:
+        """Return its fields of the sample just taken."""
+        ...
+
+
 class TickLog:
     """Engine sink writing ``<stem>_inputs.csv``: each sample's true time, lateness and inputs.
 
@@ -84,6 +98,8 @@ class TickLog:
         The people, in player order.
     clock
         Stamps each sample (s).
+    logged
+        The other players with columns of their own (`LoggedPlayer`), after the people's.
 
     Attributes
     ----------
@@ -96,8 +112,15 @@ class TickLog:
         before the row is written.
     """
 
-    def __init__(self, path: Path, people: Sequence[HumanPlayer], clock: Clock) -> None:
+    def __init__(
+        self,
+        path: Path,
+        people: Sequence[HumanPlayer],
+        clock: Clock,
+        logged: Sequence[LoggedPlayer] = (),
+    ) -> None:
         self.people = list(people)
+        self.logged = list(logged)
         self.clock = clock
         self.first_stamp = self.last_stamp = math.nan
         self.first_utc: str | None = None
@@ -106,6 +129,8 @@ class TickLog:
         for person in self.people:
             label = person.label
             columns += [f"seq_{label}", f"age_ms_{label}", f"held_{label}", f"alive_{label}"]
+        for player in self.logged:
+            columns += player.tick_columns()
         self._file = LineFile(path, ",".join(columns))
 
     def __call__(self, row: Array) -> None:
@@ -121,6 +146,8 @@ class TickLog:
             tick = person.last_input
             age = "" if math.isnan(tick.age) else f"{tick.age * 1000.0:.3f}"
             fields += [str(tick.seq), age, str(int(tick.held)), str(int(tick.alive))]
+        for player in self.logged:
+            fields += player.tick_fields()
         self._file.write(",".join(fields))
 
     def close(self) -> None:
@@ -198,7 +225,8 @@ class ClockedTrial:
         }
         self.writer = SessionWriter(self.session_path, labels, roles, graph, self.period, metadata)
         try:
-            self.tick_log = TickLog(self.inputs_path, self.people, clock)
+            logged = [p for p in self.players if isinstance(p, LoggedPlayer)]
+            self.tick_log = TickLog(self.inputs_path, self.people, clock, logged)
         except OSError:
             self.writer.close(False, {"end_reason": "the trial's files could not be opened"})
             raise

@@ -11,8 +11,9 @@ seed it drew, in the session's ``plan.json``. Conditions (METHODS section 9):
 
 A slot is a person (``kind: "human"``; ``device: "pointer"`` - mouse, touch or keyboard on the
 participant's page - or ``"lsl"``, an LSL stream with its channel and unit mapping) or an avatar
-(``kind: "avatar"``; ``spec`` any player spec, `mirror_avatar.specs.load_player`). The graph is
-also who sees whom on the participants' pages.
+(``kind: "avatar"``; ``spec`` any player spec, `mirror_avatar.specs.load_player`; ``runs``
+``"server"``, the default, or ``"browser"``: stepped in the page of the dyad's one person, `RUNS`).
+The graph is also who sees whom on the participants' pages.
 """
 
 from __future__ import annotations
@@ -32,6 +33,10 @@ from mirror_avatar.sessions.graphs import TOPOLOGIES, Graph, check_graph, comple
 
 CONDITIONS = ("solo", "leader_follower", "joint", "group")
 """Kinds of lab session."""
+
+RUNS = ("server", "browser")
+"""Where an avatar's player runs: stepped by the server's clock, or in its person's page
+(`mirror_avatar.lab.running.page_avatar`; the kinds `mirror_avatar.browser.BROWSER_KINDS`)."""
 
 DEVICES = ("pointer", "lsl")
 """A person's input devices: their page's pointer (mouse, touch, keyboard) or an LSL stream."""
@@ -118,6 +123,8 @@ class Slot:
         A person's device (`DEVICES`); None for avatars.
     lsl
         The LSL stream of a person whose device is ``"lsl"``.
+    runs
+        Where an avatar's player runs (`RUNS`); None for people.
     """
 
     label: str
@@ -125,6 +132,7 @@ class Slot:
     spec: str | None = None
     device: str | None = None
     lsl: LslDevice | None = None
+    runs: str | None = None
 
 
 @dataclass(frozen=True)
@@ -295,7 +303,12 @@ def _parse_slot(item: object, k: int) -> Slot:
         spec = item.get("spec")
         if not isinstance(spec, str) or not 0 < len(spec) <= MAX_SPEC_CHARS:
             raise PlanError(f"{where}.spec", "must name the avatar", "give a player spec")
-        return Slot(label, "avatar", spec=spec)
+        runs = item.get("runs", "server")
+        if runs not in RUNS:
+            raise PlanError(
+                f"{where}.runs", f"{runs!r} is not where an avatar runs", "'server' or 'browser'"
+            )
+        return Slot(label, "avatar", spec=spec, runs=runs)
     if kind != "human":
         raise PlanError(f"{where}.kind", f"{kind!r} is not a kind of player", "'human' or 'avatar'")
     device = item.get("device", "pointer")
@@ -355,6 +368,14 @@ def _check_condition(condition: str, slots: tuple[Slot, ...], leaders: tuple[int
         raise PlanError("players", "a group needs at least two players", PLAYERS_FIX)
     if not any(slot.kind == "human" for slot in slots):
         raise PlanError("players", "a lab session needs at least one person", PLAYERS_FIX)
+    in_page = [slot.label for slot in slots if slot.runs == "browser"]
+    if in_page and (n != 2 or len(in_page) != 1):
+        raise PlanError(
+            "players",
+            f"{in_page[0]} runs in the browser, which needs a dyad of one person and that avatar "
+            "(the person's page steps it)",
+            "set runs = 'server', or make the game a person and this avatar",
+        )
 
 
 def _parse_graph(value: object, condition: str, n: int) -> Graph:

@@ -44,7 +44,12 @@ from mirror_avatar.lab.design.plan import (
     SessionPlan,
     parse_plan,
 )
-from mirror_avatar.lab.design.protocol_checks import AvatarCheck, long_run, metrics_shown
+from mirror_avatar.lab.design.protocol_checks import (
+    AvatarCheck,
+    long_run,
+    metrics_shown,
+    page_knows,
+)
 from mirror_avatar.lab.design.protocol_keys import (
     ANALYSIS,
     ANALYSIS_SETTINGS,
@@ -132,16 +137,17 @@ class Question:
 
 @dataclass(frozen=True)
 class Player:
-    """A player slot of a condition: its label, kind, avatar spec and device.
+    """A player slot of a condition: its label, kind, avatar spec, device and where it runs.
 
-    ``kind`` is one of `mirror_avatar.lab.design.protocol_keys.PLAYER_KINDS`; ``spec`` is for
-    avatars.
+    ``kind`` is one of `mirror_avatar.lab.design.protocol_keys.PLAYER_KINDS`; ``spec`` and
+    ``runs`` (`mirror_avatar.lab.design.plan.RUNS`) are for avatars.
     """
 
     label: str
     kind: str
     spec: str | None = None
     device: str = "pointer"
+    runs: str = "server"
 
 
 @dataclass(frozen=True)
@@ -213,7 +219,10 @@ class Condition:
             if human:
                 slots.append({"label": player.label, "kind": "human", "device": player.device})
             else:
-                slots.append({"label": player.label, "kind": "avatar", "spec": player.spec})
+                slots.append(
+                    {"label": player.label, "kind": "avatar", "spec": player.spec,
+                     "runs": player.runs}
+                )  # fmt: skip
         labels = [player.label for player in self.players]
         leaders = [labels.index(label) for label in self.leaders]
         data: dict[str, Any] = {"condition": self.game, "players": slots, "leaders": leaders}
@@ -407,6 +416,7 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
             plans.append(condition.with_avatars())
             avatars.condition(where, condition.name, plans[-1], condition.perturb)
             warnings += metrics_shown(source, where, plans[-1])
+            warnings += page_knows(source, where, plans[-1])
     return Protocol(
         source,
         title,
@@ -552,6 +562,14 @@ def _condition(
         name, str(game), players, tuple(leaders), settings, after, float(delay), occlude
     )
     _check_plan(check, condition, where)
+    in_page = [player.label for player in players if player.runs == "browser"]
+    for key in ("delay", "occlude"):
+        if in_page and key in data:
+            raise check.error(
+                f"{where}.{key}",
+                f"{in_page[0]} runs in the browser, whose page draws it as it steps it",
+                f'leave out {key}, or set runs = "server" on {in_page[0]}',
+            )
     if "perturb" not in data:
         return condition
     plan = condition.plan({p.label: False for p in players if p.kind == "person-or-avatar"}, 0)
@@ -596,6 +614,9 @@ def _player(check: Checker, value: object, where: str) -> Player:
             f"{'an' if kind == 'avatar' else 'a'} {kind} needs the avatar's player spec",
             'e.g. spec = "bundled:slow"',
         )
+    runs = check.setting(data, where, PLAYER["runs"])
+    if kind == "person" and "runs" in data:
+        raise check.error(f"{where}.runs", "a person's page is where a person plays", "remove it")
     device = data.get("device", "pointer")
     if device != "pointer":
         raise check.error(
@@ -603,7 +624,7 @@ def _player(check: Checker, value: object, where: str) -> Player:
             f"{device!r} is not available in a protocol",
             "use 'pointer': LSL devices are set in single plans",
         )
-    return Player(label, str(kind), spec, device)
+    return Player(label, str(kind), spec, device, str(runs))
 
 
 def _check_plan(check: Checker, condition: Condition, where: str) -> None:

@@ -7,14 +7,18 @@ read, its parameters checked against their ranges, a dry run against a scripted 
 `mirror_avatar.players.base.dry_run`), and so is every player a perturbation hands an avatar
 over to (`mirror_avatar.lab.design.avatars.successor_players`), so that a spec that names nothing,
 cannot be read or diverges is refused before any participant plays, in one line naming the
-condition, the spec and the problem (`AvatarCheck`; a spec is built once per role). A participant's
-run planned over `MAX_PLANNED_HOURS` is allowed with a warning (`long_run`).
+condition, the spec and the problem (`AvatarCheck`; a spec is built once per role). An avatar that
+runs in the browser (``runs = "browser"``) must be of a kind the page steps
+(`mirror_avatar.browser.browser_arrays`), and no perturbation may change it. A participant's run
+planned over `MAX_PLANNED_HOURS` is allowed with a warning (`long_run`), and so is an avatar run
+in the browser, whose page knows its partner is an avatar (`page_knows`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
+from mirror_avatar.browser import browser_arrays
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.lab.design.avatars import load_avatar, successor_players
 from mirror_avatar.lab.design.checker import Checker
@@ -30,6 +34,9 @@ MAX_PLANNED_HOURS = 4.0
 FIX = "fix the avatar's spec, or choose another"
 """How to fix an avatar the check refuses."""
 
+ON_SERVER = 'set runs = "server"'
+"""How to fix an avatar the browser cannot run."""
+
 
 class AvatarCheck:
     """Checks the avatars of a protocol's conditions, each spec once per role.
@@ -42,7 +49,7 @@ class AvatarCheck:
 
     def __init__(self, check: Checker) -> None:
         self.check = check
-        self._seen: set[tuple[str, str]] = set()
+        self._seen: set[tuple[str | None, str, str | None]] = set()
 
     def condition(
         self, where: str, name: str, plan: SessionPlan, perturb: Sequence[Perturbation]
@@ -67,17 +74,34 @@ class AvatarCheck:
             ``WHERE.perturb`` for a successor.
         """
         for k, slot in enumerate(plan.slots):
-            if slot.spec is None or (slot.spec, plan.roles[k]) in self._seen:
+            built = (slot.spec, plan.roles[k], slot.runs)
+            if slot.spec is None or built in self._seen:
                 continue
+            where_k = f"{where}.players[{k}]"
             try:
-                load_avatar(slot.spec, plan.roles[k])
+                player = load_avatar(slot.spec, plan.roles[k])
             except InputError as error:
                 raise self.check.error(
-                    f"{where}.players[{k}].spec", f"condition {name!r}: {error}", FIX
+                    f"{where_k}.spec", f"condition {name!r}: {error}", FIX
                 ) from None
-            self._seen.add((slot.spec, plan.roles[k]))
+            if slot.runs == "browser":
+                try:
+                    browser_arrays(player, 0, 1)
+                except InputError as error:
+                    raise self.check.error(
+                        f"{where_k}.runs", f"condition {name!r}: {error}", ON_SERVER
+                    ) from None
+            self._seen.add(built)
         labels = [slot.label for slot in plan.slots]
         indexed = [(labels.index(p.player), p) for p in perturb]
+        for k, perturbation in indexed:
+            if plan.slots[k].runs == "browser":
+                raise self.check.error(
+                    f"{where}.perturb",
+                    f"condition {name!r}: {perturbation.player} runs in the browser, where no "
+                    "perturbation can change it",
+                    f"{ON_SERVER} on {perturbation.player}, or leave out its perturbations",
+                )
         try:
             successors = successor_players(plan, indexed)
         except InputError as error:
@@ -121,4 +145,20 @@ def metrics_shown(source: str, where: str, plan: SessionPlan) -> tuple[str, ...]
     return (
         f"{source}: {where}.show_metrics = true tells the participants who led and how long they "
         "moved together, which may give away a partner's kind: leave it out to keep them blind",
+    )
+
+
+def page_knows(source: str, where: str, plan: SessionPlan) -> tuple[str, ...]:
+    """Warn of a condition at ``where`` whose avatar runs in its person's page.
+
+    **Choice**: a warning, not a refusal: the page receives the avatar's player to step it, so a
+    participant who reads the page's messages can tell their partner is an avatar.
+    """
+    in_page = [slot.label for slot in plan.slots if slot.runs == "browser"]
+    if not in_page:
+        return ()
+    return (
+        f"{source}: {where}: {in_page[0]} runs in the browser, so its person's page receives "
+        "the avatar's player and could tell the partner's kind: set runs = \"server\" to keep "
+        "the page blind",
     )

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from mirror_avatar.common.constraints import Flag, Interval, Options, Setting, settings_table
 from mirror_avatar.lab.design.order import ORDERS
-from mirror_avatar.lab.design.plan import CONDITIONS, MAX_PLAYERS, SEED_LIMIT, TRIAL_SETTINGS
+from mirror_avatar.lab.design.plan import CONDITIONS, MAX_PLAYERS, RUNS, SEED_LIMIT, TRIAL_SETTINGS
 from mirror_avatar.metrics.registry import TABLE_COLUMNS
 
 PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
@@ -144,6 +144,9 @@ PLAYER_SETTINGS = (
     Setting("kind", "a person, an avatar, or either (balanced across participants)",
             Options(PLAYER_KINDS)),
     Setting("spec", "an avatar's player SPEC", default=None, allowed="a SPEC"),
+    Setting("runs", "where an avatar's player runs: stepped by the server, or in the page of "
+            "the dyad's one person (a recording, a tabular or deep cyber player)",
+            Options(RUNS), "server"),
     Setting("device", "a person's input device", Options(("pointer",)), "pointer"),
 )  # fmt: skip
 """The keys of a player of a condition."""

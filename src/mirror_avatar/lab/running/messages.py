@@ -8,7 +8,11 @@ The page sends JSON text messages (at most `mirror_avatar.realtime.messages.MAX_
   clock: ``performance.timeOrigin + performance.now()``); numbered ``n`` from 0 on each
   connection, at least one per animation frame (the current position when the pointer did not
   move);
-- ``{"type": "position", "seq": n, "x": x}``: a position without its time (as the live page);
+- ``{"type": "position", "seq": n, "x": x}``: a position without its time, numbered with the
+  ``pointer`` batches; the page that steps an avatar (`mirror_avatar.lab.running.page_avatar`)
+  sends one per tick, with
+  ``"avatar": {"tick": j, "x": a, "v": w}``: the avatar's position (units) and velocity
+  (units/s) at tick j, stepped from the person's position ``x`` (`AvatarPosition`);
 - ``{"type": "clock", "id": i, "t0": t}``: an NTP-style request sent at ``t`` (ms, the page's
   clock), which the server answers at once with ``t0`` and its own receipt and send times
   ``t1`` and ``t2`` (ms, its clock); ``{"type": "clocked", "id": i, "t3": t}``: when the answer
@@ -20,16 +24,22 @@ The page sends JSON text messages (at most `mirror_avatar.realtime.messages.MAX_
   a question asked after trial ``n`` (a study protocol's ``questions`` message).
 
 The server sends ``welcome`` (the participant's slot, the players it sees and their colours),
-``ping``, ``countdown``, ``go``, ``frame`` (once per tick: the sample ``k``, the visible
-players' positions and the trial's progress), ``end`` (the trial's metrics when the researcher
-shows them), ``state`` (waiting, paused, ended) and ``error``. A participant cannot control
-the session: no message it sends does more than move its own point.
+``ping``, ``countdown``, ``avatar`` (the player index and message of the avatar the page
+steps, `mirror_avatar.browser.browser_arrays`), ``go``, ``frame`` (once per tick: the sample
+``k``, the visible players' positions and the trial's progress), ``end`` (the trial's metrics
+when the researcher shows them), ``state`` (waiting, paused, ended) and ``error``. A participant
+cannot control the session: no message it sends does more than move its own point (and the
+avatar its page steps).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+from mirror_avatar.files.trials import PLAYING_RANGE
+from mirror_avatar.files.user_files import is_int
+from mirror_avatar.lab.running.page_avatar import PageStep
 from mirror_avatar.realtime.messages import (
     PositionUpdate,
     ProtocolError,
@@ -66,6 +76,14 @@ class Answer:
 
 
 @dataclass(frozen=True)
+class AvatarPosition:
+    """The person's position and the avatar's state at a tick, stepped from that position."""
+
+    position: PositionUpdate
+    step: PageStep
+
+
+@dataclass(frozen=True)
 class PointerBatch:
     """Pointer samples: batch ``seq`` sent at ``sent_ms`` (ms, the page's clock).
 
@@ -93,7 +111,9 @@ class ClockReport:
     t3: float
 
 
-ParticipantMessage = PositionUpdate | Pong | Answer | PointerBatch | ClockRequest | ClockReport
+ParticipantMessage = (
+    PositionUpdate | AvatarPosition | Pong | Answer | PointerBatch | ClockRequest | ClockReport
+)
 
 
 def parse_participant_message(text: str | bytes | None) -> ParticipantMessage:
@@ -107,7 +127,8 @@ def parse_participant_message(text: str | bytes | None) -> ParticipantMessage:
     data = parse_json_object(text)
     kind = data.get("type")
     if kind == "position":
-        return parse_position(data)
+        position = parse_position(data)
+        return position if "avatar" not in data else _avatar(data["avatar"], position)
     if kind == "pointer":
         return _pointer(data)
     if kind == "clock":
@@ -147,3 +168,18 @@ def _count(data: dict[str, object], key: str) -> int:
     if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value < MAX_COUNT:
         raise ProtocolError(f"{data.get('type')}: {key!r} must be a non-negative integer")
     return value
+
+
+def _avatar(value: object, position: PositionUpdate) -> AvatarPosition:
+    """Read a position's ``avatar``: a tick, a position in the playing range, a finite velocity."""
+    if not isinstance(value, dict):
+        raise ProtocolError("position: 'avatar' must be an object {tick, x, v}")
+    tick = value.get("tick")
+    if not is_int(tick) or not 0 <= tick < MAX_COUNT:
+        raise ProtocolError("avatar: 'tick' must be a non-negative integer")
+    x, v = number_field(value, "x", "avatar"), number_field(value, "v", "avatar")
+    low, high = PLAYING_RANGE
+    if not low <= x <= high:
+        raise ProtocolError(f"avatar: x = {x:g} is outside the playing range [{low}, {high}]")
+    seen = position.x if tick > 0 else math.nan
+    return AvatarPosition(position, PageStep(tick, x, v, seen))

@@ -16,6 +16,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from mirror_avatar.lab.running.messages import (
     Answer,
+    AvatarPosition,
     ClockReport,
     ClockRequest,
     ParticipantMessage,
@@ -114,8 +115,12 @@ class ParticipantPage:
         elif isinstance(message, Pong):
             self.pings.answer(message.id)
             participant.late_frames = message.late_frames
-        elif isinstance(source, BrowserInput):
-            source.put(message.x, message.seq)
+        else:
+            if isinstance(message, AvatarPosition):
+                self.session.page_step(participant, message.step)
+                message = message.position
+            if isinstance(source, BrowserInput):
+                source.put(message.x, message.seq)
 
     def _clocked(
         self,

@@ -22,6 +22,8 @@ as ``"disk full: cannot write FILE (...)"`` (`mirror_avatar.realtime.trial.write
 samples written stay, the pages get their end message, and the next trial opens new files.
 A trial whose avatar diverges ends at that sample, the player and the sample its end reason in
 the console's events and the trial's sidecar (`mirror_avatar.realtime.trial.ClockedTrial`).
+An avatar that runs in the browser is sent to its person's page before the trial's clock starts,
+and its states are taken from that page (`mirror_avatar.lab.running.page_avatar`).
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from typing import Any, Protocol
 
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.lab.design.plan import SessionPlan
+from mirror_avatar.lab.running.page_avatar import READY_TIMEOUT, PageStep
 from mirror_avatar.lab.running.participant import COLOURS, Participant
 from mirror_avatar.lab.running.schedule import Schedule
 from mirror_avatar.lab.running.trial import LabTrial, build_avatars
@@ -335,6 +338,7 @@ class LabSession:
             raise
         self.trial, self.state, self._stop_reason = trial, "running", None
         self._events_seen = self._perturbations_seen = 0
+        await self._hand_avatars(trial)
         self.log(f"trial {n} started")
         self.broadcast({"type": "go", "trial": n, "duration": self.plan.duration})
         complete, reason = await run_on_clock(
@@ -342,6 +346,27 @@ class LabSession:
         )
         await self._end_trial(trial, complete, reason)
         return reason
+
+    async def _hand_avatars(self, trial: LabTrial) -> None:
+        """Send the page of the dyad's person the avatar it steps; wait until it has built it.
+
+        A page that has not built it within `READY_TIMEOUT` (or is not connected) leaves the
+        avatar at its start, each sample counted missing, until it reports a tick.
+        """
+        for k, avatar in trial.page_avatars.items():
+            (owner,) = self.participants.values()
+            if owner.outbox is not None:
+                owner.outbox.put({"type": "avatar", "index": k, "player": avatar.message})
+                if await asyncio.to_thread(avatar.ready.wait, READY_TIMEOUT):
+                    continue
+            self.log(f"{avatar.slot}: {owner.label}'s page has not built it: samples missing")
+
+    def page_step(self, participant: Participant, step: PageStep) -> None:
+        """Take the avatar's state at a tick from the page of the person who steps it."""
+        trial = self.trial
+        if trial is not None and participant in self.participants.values():
+            for avatar in trial.page_avatars.values():
+                avatar.put(step)
 
     def _new_trial(self, n: int) -> LabTrial:
         inputs = {k: p.source for k, p in self.participants.items() if p.source is not None}

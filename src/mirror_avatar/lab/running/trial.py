@@ -11,7 +11,12 @@ Files, in the session's folder, flushed line by line (METHODS section 9):
 - ``trial-NN_session.csv`` + ``.json``: the N-player session (`mirror_avatar.sessions.session`),
   read by ``mirror-avatar evaluate``; the sidecar's ``metadata["lab"]`` names the session, the
   trial, the condition and every slot (with an LSL device: its source id, host and counts of invalid
-  and clipped samples), and ``dropped`` / ``held`` / ``lost`` are updated as they happen;
+  and clipped samples; with an avatar: where it ran, ``runs``), and ``dropped`` / ``held`` /
+  ``lost`` are updated as they happen, and ``missing`` counts the samples of an avatar run in
+  its person's page at which the page had reported no newer tick
+  (`mirror_avatar.lab.running.page_avatar`);
+- ``trial-NN_page.csv``, with an avatar run in its person's page: every tick the page reported
+  (`mirror_avatar.lab.running.page_avatar.PageAvatar.write_steps`), written when the trial ends;
 - ``trial-NN_pointer.csv`` (`PointerLog`, when a person plays with a page's pointer): every
   pointer sample a page sent, with its time on the page's clock and on the server's (METHODS
   section 18), written at the tick that first could use it;
@@ -57,7 +62,8 @@ from mirror_avatar.files.trials import MIN_SAMPLES
 from mirror_avatar.lab.design.avatars import load_avatar, successor_players
 from mirror_avatar.lab.design.perturbation import Perturbation
 from mirror_avatar.lab.design.plan import SessionPlan
-from mirror_avatar.lab.files import trial_stem
+from mirror_avatar.lab.files import trial_file, trial_stem
+from mirror_avatar.lab.running.page_avatar import PageAvatar
 from mirror_avatar.metrics import compute_phase
 from mirror_avatar.metrics.group import compute_cluster_phase
 from mirror_avatar.metrics.measuring import measure_trial
@@ -71,23 +77,28 @@ logger = logging.getLogger(__name__)
 
 
 def build_avatars(plan: SessionPlan) -> dict[int, Player]:
-    """Load every avatar of the plan in its role and time its step here.
+    """Load every avatar of the plan in its role and time the server's avatars' step here.
 
-    Each avatar is loaded (`mirror_avatar.lab.design.avatars.load_avatar`), stepped once untimed
-    (compiling it off the clock) and then timed
+    Each avatar is loaded (`mirror_avatar.lab.design.avatars.load_avatar`); one that runs in
+    the browser becomes a `mirror_avatar.lab.running.page_avatar.PageAvatar`. The others are
+    stepped once untimed (compiling them off the clock) and then timed
     (`mirror_avatar.realtime.clock.time_players`); a plan whose avatars together need more than
     the control period per step cannot keep real time and is refused.
 
     Raises
     ------
     InputError
-        An avatar spec that names no player or a role its model cannot play, or avatars too
-        slow for the control period on this machine.
+        An avatar spec that names no player or a role its model cannot play, an avatar the page
+        cannot step set to run there, or avatars too slow for the control period on this machine.
     """
-    avatars: dict[int, Player] = {}
+    built: dict[int, Player] = {}
     for k, slot in enumerate(plan.slots):
         if slot.kind == "avatar" and slot.spec is not None:
-            avatars[k] = load_avatar(slot.spec, plan.roles[k])
+            built[k] = load_avatar(slot.spec, plan.roles[k])
+            if slot.runs == "browser":
+                n_steps = count_samples(plan.duration, built[k].period)
+                built[k] = PageAvatar(built[k], slot.label, n_steps)
+    avatars = {k: p for k, p in built.items() if not isinstance(p, PageAvatar)}
     if avatars:
         medians = time_players(list(avatars.values()))
         period = next(iter(avatars.values())).period
@@ -100,7 +111,7 @@ def build_avatars(plan: SessionPlan) -> dict[int, Player]:
                 f"({plan.slots[k].label}: {medians[slowest] * 1000:.1f} ms), over the control "
                 f"period of {period * 1000:.0f} ms: choose a smaller model",
             )
-    return avatars
+    return built
 
 
 POINTER_COLUMNS = ("label", "seq", "page_ms", "server_s", "received_s", "x")
@@ -179,6 +190,8 @@ class LabTrial(ClockedTrial):
     perturbations
         The changes made so far, as the sidecar's ``"perturbations"`` lists them:
         ``{"sample", "time_s", "player", "change"}``.
+    page_avatars
+        The avatars stepped in their person's page, by player index.
     """
 
     def __init__(
@@ -203,6 +216,8 @@ class LabTrial(ClockedTrial):
             else:
                 players.append(avatars[k])
         period = players[0].period
+        self.page_avatars = {k: p for k, p in enumerate(players) if isinstance(p, PageAvatar)}
+        self.page_path = trial_file(directory, n, "_page.csv")
         self.seed = int(spawn_seeds(plan.seed, n)[n - 1])
         self.dropped: dict[str, int] = {}
         self.publish = publish
@@ -215,8 +230,7 @@ class LabTrial(ClockedTrial):
             for k, slot in enumerate(plan.slots)
             if isinstance(source := self.inputs.get(k), BrowserInput)
         }
-        stem = trial_stem(directory, n)
-        self.pointer_log = PointerLog(stem.with_name(stem.name + "_pointer.csv"), self.pages)
+        self.pointer_log = PointerLog(trial_file(directory, n, "_pointer.csv"), self.pages)
         for source in self.pages.values():
             source.unread()  # what came before the trial is not its
         super().__init__(
@@ -226,7 +240,7 @@ class LabTrial(ClockedTrial):
             plan.graph,
             count_samples(plan.duration, period),
             self.seed,
-            stem,
+            trial_stem(directory, n),
             self._metadata(lab, period),
             clock,
             [self._remember, self.pointer_log],
@@ -271,12 +285,16 @@ class LabTrial(ClockedTrial):
     def _metadata(self, lab: dict[str, Any], period: float) -> dict[str, Any]:
         """Return the sidecar's first metadata; its ``lab`` written by the trial's record."""
         slots = tuple(
-            SlotRecord(slot.label, slot.kind, role, slot.spec, slot.device, self._device(k))
+            SlotRecord(slot.label, slot.kind, role, slot.spec, slot.device, self._device(k),
+                       slot.runs)
             for k, (slot, role) in enumerate(zip(self.plan.slots, self.plan.roles, strict=True))
-        )
+        )  # fmt: skip
         lab = lab | {"trial": self.n, "slots": [slot.to_json() for slot in slots]}
+        files = {"page": self.page_path.name} if self.page_avatars else {}
+        files["pointer"] = self.pointer_log.path.name
         return {
             "lab": trial_record({"lab": lab}).lab_json(),
+            "files": files,
             "seed": self.seed,
             "duration_requested_s": self.plan.duration,
             "period_s": period,
@@ -285,7 +303,6 @@ class LabTrial(ClockedTrial):
             "dropped": {},
             "held": {},
             "perturbations": [],
-            "files": {"pointer": self.pointer_log.path.name},
         }
 
     def _device(self, k: int) -> dict[str, Any] | None:
@@ -327,10 +344,15 @@ class LabTrial(ClockedTrial):
             logger.warning("the drops were not written to the sidecar: %s", error)
 
     def close_files(self) -> None:
-        """Let the drops' sidecar writes end, then close the files."""
+        """Let the drops' sidecar writes end, close the files, write the page's avatar's steps."""
         self._sidecar_writes.shutdown(wait=True)
         self.pointer_log.close()
         super().close_files()
+        for avatar in self.page_avatars.values():
+            try:
+                avatar.write_steps(self.page_path)
+            except OSError as error:
+                logger.warning("the page's avatar's steps were not written: %s", error)
 
     def recent(self, seconds: float = 10.0) -> dict[str, Any]:
         """Return the last ``seconds`` of positions, and the group synchronisation over them.
@@ -365,12 +387,14 @@ class LabTrial(ClockedTrial):
                 slot["input"] = device
         span = (self.tick_log.first_stamp, self.tick_log.last_stamp)
         pages = {label: page_record(source, *span) for label, source in self.pages.items()}
-        done = {"dropped": dict(self.dropped), "pages": pages}
+        counts: dict[str, Any] = {"dropped": dict(self.dropped), "pages": pages}
+        if self.page_avatars:
+            counts["missing"] = {p.slot: p.missing for p in self.page_avatars.values()}
         measured = measure_trial(session)
         if measured is None:
-            return done | {"metrics": {}, "measures": {}}
+            return counts | {"metrics": {}, "measures": {}}
         measures = measured.measures.values if measured.metrics else {}
-        return done | {"metrics": measured.metrics, "measures": measures}
+        return counts | {"metrics": measured.metrics, "measures": measures}
 
 
 def _group_sync(x: Array) -> float | None:

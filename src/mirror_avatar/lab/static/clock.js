@@ -16,13 +16,11 @@ window.mirrorClock = (() => {
   let nextId = 0;
   let timer = null;
   let unsent = [];              // [page time (ms), position (units)] read since the last batch
-  let seq = 0;
 
-  // Start exchanging with a new connection's `send`; numbers start again from 0.
+  // Start exchanging with a new connection's `send`; its exchanges are numbered from 1.
   function start(send) {
     stop();
     nextId = 0;
-    seq = 0;
     const request = () => {
       send({ type: "clock", id: ++nextId, t0: now() });
       if (nextId === BURST) { clearInterval(timer); timer = setInterval(request, REQUEST_MS); }
@@ -51,8 +49,8 @@ window.mirrorClock = (() => {
   }
 
   // The messages of one animation frame: the samples read since the last, or the position `x`
-  // now when the pointer did not move.
-  function batches(x) {
+  // now when the pointer did not move; `next()` numbers each (with the page's other positions).
+  function batches(x, next) {
     const sent = now();
     const samples = unsent.length ? unsent : [[sent, x]];
     unsent = [];
@@ -60,7 +58,7 @@ window.mirrorClock = (() => {
     for (let i = 0; i < samples.length; i += MAX_BATCH) {
       const part = samples.slice(i, i + MAX_BATCH);
       messages.push({
-        type: "pointer", seq: seq++, sent,
+        type: "pointer", seq: next(), sent,
         ago: part.map(([t]) => Math.max(0, Math.round((sent - t) * 10) / 10)),
         x: part.map(([, value]) => Number(value.toFixed(5))),
       });

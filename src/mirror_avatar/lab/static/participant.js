@@ -1,5 +1,8 @@
 // A participant's page: their own point follows the pointer (mouse, touch) or the arrow keys;
-// the points of the players they are coupled to come from the server's clock, one frame per tick.
+// the points of the players they are coupled to come from the server's clock, one frame per tick,
+// but for an avatar the page steps itself (runs = "browser"): built from the server's message
+// (avatars.js), stepped on each frame from the person's position as the page shows it, its state
+// sent with that position (mirror_avatar.lab.running.page_avatar).
 (() => {
   "use strict";
   const RANGE = 0.5;            // positions lie in [-RANGE, RANGE] (playing range units)
@@ -17,10 +20,11 @@
     bar: document.getElementById("progress-bar"),
   };
   const key = location.pathname.split("/").pop();
-  const me = { x: 0, keys: new Set(), lastFrame: null, lateFrames: 0 };
+  const me = { x: 0, seq: 0, keys: new Set(), lastFrame: null, lateFrames: 0 };
   let socket = null;
   let welcome = null;
   let others = new Map();      // player index -> latest position from the server
+  let pageAvatar = null;       // the avatar this page steps: index, player, tick, seen, state
   let ended = false;
   let lastNumbers = [];        // the last trial's numbers, each with its words
   window.mirrorLab = { get welcome() { return welcome; }, get others() { return others; }, me };
@@ -91,7 +95,7 @@
       if (direction) me.x = Math.max(-RANGE, Math.min(RANGE, me.x + direction * KEY_SPEED * dt));
     }
     me.lastFrame = now;
-    if (welcome && welcome.device === "pointer") mirrorClock.batches(me.x).forEach(send);
+    if (welcome && welcome.device === "pointer") mirrorClock.batches(me.x, () => me.seq++).forEach(send);
     draw();
     requestAnimationFrame(animate);
   }
@@ -149,6 +153,35 @@
     say(["The session has ended. Thank you!", ...numbers]);
   }
 
+  // Build the avatar the server sends, at its tick 0, and report that tick: the page is ready.
+  async function buildAvatar(message) {
+    const { makePlayer } = await import("/static/avatars.js");
+    const player = makePlayer(message.player);
+    pageAvatar = { index: message.index, player, tick: 0, seen: null, state: player.reset() };
+    others.set(message.index, pageAvatar.state[0]);
+    reportAvatar();
+  }
+
+  function reportAvatar() {
+    const [x, v] = pageAvatar.state;
+    send({ type: "position", seq: me.seq++, x: me.x, avatar: { tick: pageAvatar.tick, x, v } });
+  }
+
+  // Step the avatar to tick k + 1 (each tick a late frame skipped too) from the person's position
+  // as the page shows it now, its velocity (x_k - x_{k-1}) / T as the server's, reporting each.
+  function stepAvatar(k) {
+    const avatar = pageAvatar;
+    while (avatar.tick < k + 1) {
+      const seen = me.x;
+      const velocity = avatar.seen === null ? 0 : (seen - avatar.seen) / avatar.player.period;
+      avatar.seen = seen;
+      avatar.state = avatar.player.step({ positions: [seen], velocities: [velocity] });
+      avatar.tick += 1;
+      reportAvatar();
+    }
+    others.set(avatar.index, avatar.state[0]);
+  }
+
   function onMessage(event) {
     const message = JSON.parse(event.data);
     switch (message.type) {
@@ -171,14 +204,20 @@
       case "countdown":
         ui.trial.textContent = `Trial ${message.trial} of ${welcome ? welcome.trials : "?"}`;
         others = new Map();
+        pageAvatar = null;
         say(String(message.remaining));
         break;
+      case "avatar": buildAvatar(message); break;
       case "go": say(""); ui.bar.style.width = "0%"; break;
       case "frame":
-        welcome.visible.forEach((player, i) => { if (i > 0) others.set(player.index, message.x[i]); });
+        welcome.visible.forEach((player, i) => {
+          if (i > 0 && !(pageAvatar && player.index === pageAvatar.index)) others.set(player.index, message.x[i]);
+        });
+        if (pageAvatar) stepAvatar(message.k);
         ui.bar.style.width = `${(100 * message.progress).toFixed(1)}%`;
         break;
       case "end": {
+        pageAvatar = null;
         lastNumbers = [...metricLines(message.metrics), ...measureLines(message.metrics)];
         const next = message.next_in === null ? "Please wait." : `Next trial in ${Math.round(message.next_in)} s.`;
         say([`Trial ${message.trial} done.`, ...lastNumbers, next]);
@@ -249,6 +288,7 @@
   function connect() {
     const scheme = location.protocol === "https:" ? "wss" : "ws";
     socket = new WebSocket(`${scheme}://${location.host}/ws/join/${key}`);
+    me.seq = 0;
     socket.addEventListener("open", () => mirrorClock.start(send));
     socket.addEventListener("message", onMessage);
     socket.addEventListener("close", (event) => {
