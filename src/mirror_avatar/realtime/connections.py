@@ -1,0 +1,127 @@
+"""The connections a server holds: caps per client address and in total, and their log.
+
+`Connections` admits each new connection before anything of it is read, or refuses it: an
+address holding `ConnectionSettings.max_per_address` connections gets no more, and when the
+server holds `ConnectionSettings.max_connections` a newcomer takes the place of the oldest
+connection still waiting for a request of the address holding the most (`Holder.waiting`), or
+is refused when none waits. Connections that carry a request or a WebSocket are never closed
+to make room: a participant's page, once joined, and a request being answered keep their
+connection. Refusals and the connections closed for a late request are logged once per
+address per `ConnectionSettings.log_interval` (`QuietLog`), so a flood does not flood the log.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import resource
+import time
+from collections.abc import Callable
+from typing import Protocol
+
+from mirror_avatar.realtime.settings import ConnectionSettings
+
+LOG = logging.getLogger("uvicorn.error")
+"""The servers' log (uvicorn's, which the real-time servers print)."""
+
+
+MADE_ROOM = "waiting connections closed to make room, the server is full"
+"""The log's phrase for connections closed by `Connections` to admit another."""
+
+
+class Holder(Protocol):
+    """What `Connections` needs of a connection: its address, whether it waits, how to close it."""
+
+    address: str
+
+    @property
+    def waiting(self) -> bool:
+        """Whether it waits for a request (none begun): it may be closed to make room."""
+        ...
+
+    def close_now(self) -> None:
+        """Close the connection at once, discarding what it has not sent."""
+        ...
+
+
+def descriptor_share() -> int:
+    """Half this process's soft limit of open file descriptors (``ulimit -n``)."""
+    soft = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
+    return soft // 2 if soft != resource.RLIM_INFINITY else 2**31
+
+
+class QuietLog:
+    """Log lines about one address at most once per ``interval`` seconds, counting the others.
+
+    The first event of a kind from an address is logged at once; later ones are counted and
+    logged, with their number, with the first one after the interval has passed.
+    """
+
+    def __init__(self, interval: float, clock: Callable[[], float] = time.monotonic) -> None:
+        self.interval = interval
+        self.clock = clock
+        self.counts: collections.Counter[tuple[str, str]] = collections.Counter()
+        self.logged: dict[tuple[str, str], float] = {}
+
+    def event(self, address: str, what: str) -> None:
+        """Count one event ``what`` (a phrase) of ``address``; log it if its interval passed."""
+        key = (address, what)
+        self.counts[key] += 1
+        now = self.clock()
+        if now - self.logged.get(key, -self.interval) >= self.interval:
+            LOG.warning("%s: %s: %d (one line per address per %g s at most)", address, what,
+                        self.counts[key], self.interval)  # fmt: skip
+            self.logged[key] = now
+            del self.counts[key]
+
+
+class Connections:
+    """The connections a server holds, by client address (see the module docstring).
+
+    Parameters
+    ----------
+    settings
+        The caps and the log's interval.
+    """
+
+    def __init__(self, settings: ConnectionSettings) -> None:
+        self.max_per_address = settings.max_per_address
+        self.max_connections = min(settings.max_connections, descriptor_share())
+        self.log = QuietLog(settings.log_interval)
+        self.held: dict[str, dict[object, Holder]] = {}
+        self.total = 0
+
+    def admit(self, key: object, holder: Holder) -> bool:
+        """Hold ``holder`` under ``key`` (its transport) if there is room; whether it is held."""
+        mine = self.held.get(holder.address, {})
+        if len(mine) >= self.max_per_address:
+            self.log.event(holder.address, "connections refused, too many from this address")
+            return False
+        if self.total >= self.max_connections and not self._make_room():
+            self.log.event(holder.address, "connections refused, the server is full")
+            return False
+        self.held[holder.address] = mine
+        mine[key] = holder
+        self.total += 1
+        return True
+
+    def release(self, key: object, address: str) -> None:
+        """Forget the connection held under ``key`` (closed)."""
+        mine = self.held.get(address, {})
+        if mine.pop(key, None) is not None:
+            self.total -= 1
+        if not mine:
+            self.held.pop(address, None)
+
+    def _make_room(self) -> bool:
+        """Close the oldest waiting connection of the address holding the most; whether any."""
+        for address in sorted(self.held, key=lambda a: len(self.held[a]), reverse=True):
+            for key, holder in self.held[address].items():
+                if holder.waiting:
+                    self.release(key, address)
+                    holder.close_now()
+                    self.log.event(
+                        address, "waiting connections closed to make room, the server is full"
+                    )
+                    return True
+        return False
