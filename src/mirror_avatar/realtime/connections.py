@@ -3,11 +3,13 @@
 `Connections` admits each new connection before anything of it is read, or refuses it: an
 address holding `ConnectionSettings.max_per_address` connections gets no more, and when the
 server holds `ConnectionSettings.max_connections` a newcomer takes the place of the oldest
-connection still waiting for a request of the address holding the most (`Holder.waiting`), or
-is refused when none waits. Connections that carry a request or a WebSocket are never closed
-to make room: a participant's page, once joined, and a request being answered keep their
-connection. Refusals and the connections closed for a late request are logged once per
-address per `ConnectionSettings.log_interval` (`QuietLog`), so a flood does not flood the log.
+connection waiting for its first request (`Holder.waiting`, not `Holder.served`), else of the
+oldest kept alive between two requests, or is refused when none waits. Connections that carry a
+request or a WebSocket are never closed to make room: a participant's page, once joined, and a
+request being answered keep their connection, and a flood of connections, from however many
+addresses, cannot keep a newcomer (the researcher's console, a page) out. Refusals and the
+connections closed for a late request are logged once per address per
+`ConnectionSettings.log_interval` (`QuietLog`), so a flood does not flood the log.
 """
 
 from __future__ import annotations
@@ -30,13 +32,18 @@ MADE_ROOM = "waiting connections closed to make room, the server is full"
 
 
 class Holder(Protocol):
-    """What `Connections` needs of a connection: its address, whether it waits, how to close it."""
+    """What `Connections` needs of a connection: its address, its state, how to close it."""
 
     address: str
 
     @property
     def waiting(self) -> bool:
-        """Whether it waits for a request (none begun): it may be closed to make room."""
+        """Whether it waits for a request (none under way, not a WebSocket)."""
+        ...
+
+    @property
+    def served(self) -> bool:
+        """Whether it has carried a request before."""
         ...
 
     def close_now(self) -> None:
@@ -76,7 +83,7 @@ class QuietLog:
 
 
 class Connections:
-    """The connections a server holds, by client address (see the module docstring).
+    """The connections a server holds, in the order they came (see the module docstring).
 
     Parameters
     ----------
@@ -88,40 +95,39 @@ class Connections:
         self.max_per_address = settings.max_per_address
         self.max_connections = min(settings.max_connections, descriptor_share())
         self.log = QuietLog(settings.log_interval)
-        self.held: dict[str, dict[object, Holder]] = {}
-        self.total = 0
+        self.held: dict[object, Holder] = {}
+        self.per_address: collections.Counter[str] = collections.Counter()
 
     def admit(self, key: object, holder: Holder) -> bool:
         """Hold ``holder`` under ``key`` (its transport) if there is room; whether it is held."""
-        mine = self.held.get(holder.address, {})
-        if len(mine) >= self.max_per_address:
+        if self.per_address[holder.address] >= self.max_per_address:
             self.log.event(holder.address, "connections refused, too many from this address")
             return False
-        if self.total >= self.max_connections and not self._make_room():
+        if len(self.held) >= self.max_connections and not self._make_room():
             self.log.event(holder.address, "connections refused, the server is full")
             return False
-        self.held[holder.address] = mine
-        mine[key] = holder
-        self.total += 1
+        self.held[key] = holder
+        self.per_address[holder.address] += 1
         return True
 
-    def release(self, key: object, address: str) -> None:
+    def release(self, key: object) -> None:
         """Forget the connection held under ``key`` (closed)."""
-        mine = self.held.get(address, {})
-        if mine.pop(key, None) is not None:
-            self.total -= 1
-        if not mine:
-            self.held.pop(address, None)
+        holder = self.held.pop(key, None)
+        if holder is not None:
+            self.per_address[holder.address] -= 1
+            if not self.per_address[holder.address]:
+                del self.per_address[holder.address]
 
     def _make_room(self) -> bool:
-        """Close the oldest waiting connection of the address holding the most; whether any."""
-        for address in sorted(self.held, key=lambda a: len(self.held[a]), reverse=True):
-            for key, holder in self.held[address].items():
-                if holder.waiting:
-                    self.release(key, address)
-                    holder.close_now()
-                    self.log.event(
-                        address, "waiting connections closed to make room, the server is full"
-                    )
-                    return True
+        """Close the oldest connection waiting for its first request, else for its next one.
+
+        Returns whether one was closed.
+        """
+        waiting = [(key, holder) for key, holder in self.held.items() if holder.waiting]
+        fresh = [(key, holder) for key, holder in waiting if not holder.served]
+        for key, holder in (fresh or waiting)[:1]:
+            self.release(key)
+            holder.close_now()
+            self.log.event(holder.address, MADE_ROOM)
+            return True
         return False

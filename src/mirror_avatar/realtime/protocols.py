@@ -85,6 +85,11 @@ class GuardedHttp(H11Protocol):
         """Whether no request has arrived whole (before the first one, or kept alive)."""
         return not self.upgraded and self.conn.their_state is h11.IDLE
 
+    @property
+    def served(self) -> bool:
+        """Whether a request has arrived whole before (the connection is kept alive)."""
+        return self.cycle is not None
+
     def close_now(self) -> None:
         """Close the connection at once."""
         self.transport.abort()
@@ -103,7 +108,7 @@ class GuardedHttp(H11Protocol):
         """Forget a closed connection (one refused was never held)."""
         if self.admitted:
             self._set_deadline("")
-            self.guard.connections.release(self.transport, self.address)
+            self.guard.connections.release(self.transport)
             super().connection_lost(exc)
 
     def data_received(self, data: bytes) -> None:
@@ -162,4 +167,4 @@ class GuardedWebSocket(WebSocketsSansIOProtocol):
     def connection_lost(self, exc: Exception | None) -> None:
         """Close as uvicorn does, then forget the connection."""
         super().connection_lost(exc)
-        _guarded(self.config).connections.release(self.transport, _address(self.transport))
+        _guarded(self.config).connections.release(self.transport)

@@ -54,8 +54,8 @@ class ConnectionSettings:
     max_connections
         Connections the server holds open at once, at most half its limit of open file
         descriptors (``ulimit -n``: the other half is left for its files). A newcomer beyond it
-        takes the place of the oldest connection waiting for a request (no request begun) of the
-        address holding the most, or is closed at once when none waits.
+        takes the place of the oldest connection waiting for its first request (else for its
+        next one), or is closed at once when none waits.
     log_interval
         Seconds between two log lines about one address's refused or timed-out connections
         (the first is logged at once, the next ones counted).
