@@ -136,6 +136,15 @@ def test_the_per_address_cap_refuses_one_more_while_another_address_is_served(tm
                         "line per address per 10 s at most)"]  # fmt: skip
 
 
+def test_an_address_opening_connections_too_fast_is_refused_while_another_is_served(tmp_path):
+    with serve(tmp_path, connection_rate=0.01) as server, heard() as warnings:  # burst 2 * CAP
+        assert [answered(server, "127.0.0.2", "/") for _ in range(2 * CAP)] == [200] * 2 * CAP
+        with open_from(server, "127.0.0.2", b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n") as late:
+            assert closed(late)
+        assert answered(server, "127.0.0.3", "/") == 200
+    assert any("127.0.0.2: connections refused, opened too fast" in line for line in warnings)
+
+
 def test_the_researcher_and_a_joined_page_are_served_while_the_server_is_full(tmp_path):
     full = serve(tmp_path, max_connections=2 * CAP + 1)
     with full as server, heard() as warnings, contextlib.ExitStack() as stack:

@@ -1,7 +1,8 @@
 """The connections a server holds: caps per client address and in total, and their log.
 
 `Connections` admits each new connection before anything of it is read, or refuses it: an
-address holding `ConnectionSettings.max_per_address` connections gets no more, and when the
+address opening more than `ConnectionSettings.connection_rate` connections per second, or
+holding `ConnectionSettings.max_per_address`, gets no more, and when the
 server holds `ConnectionSettings.max_connections` a newcomer takes the place of the oldest
 connection waiting for its first request (`Holder.waiting`, not `Holder.served`), else of the
 oldest kept alive between two requests, or is refused when none waits. Connections that carry a
@@ -21,6 +22,7 @@ import time
 from collections.abc import Callable
 from typing import Protocol
 
+from mirror_avatar.realtime.rates import MAX_TRACKED, TokenBucket, bucket_for
 from mirror_avatar.realtime.settings import ConnectionSettings
 
 LOG = logging.getLogger("uvicorn.error")
@@ -73,6 +75,9 @@ class QuietLog:
     def event(self, address: str, what: str) -> None:
         """Count one event ``what`` (a phrase) of ``address``; log it if its interval passed."""
         key = (address, what)
+        if len(self.logged) > MAX_TRACKED:
+            self.logged.clear()
+            self.counts.clear()
         self.counts[key] += 1
         now = self.clock()
         if now - self.logged.get(key, -self.interval) >= self.interval:
@@ -97,9 +102,15 @@ class Connections:
         self.log = QuietLog(settings.log_interval)
         self.held: dict[object, Holder] = {}
         self.per_address: collections.Counter[str] = collections.Counter()
+        self.rate = settings.connection_rate
+        self.rates: dict[str, TokenBucket] = {}
 
     def admit(self, key: object, holder: Holder) -> bool:
         """Hold ``holder`` under ``key`` (its transport) if there is room; whether it is held."""
+        bucket = bucket_for(self.rates, holder.address, self.rate, 2.0 * self.max_per_address)
+        if bucket.take() > 0.0:
+            self.log.event(holder.address, "connections refused, opened too fast")
+            return False
         if self.per_address[holder.address] >= self.max_per_address:
             self.log.event(holder.address, "connections refused, too many from this address")
             return False

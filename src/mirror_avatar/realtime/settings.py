@@ -51,6 +51,10 @@ class ConnectionSettings:
     max_per_address
         Connections one client address may hold open at once (HTTP requests and WebSockets);
         one more is closed at once.
+    connection_rate
+        New connections per second one client address may open (sustained; bursts of twice
+        ``max_per_address``); one more is closed at once, before anything of it is read, which
+        costs the server far less than refusing its request once read (the gates' rates).
     max_connections
         Connections the server holds open at once, at most half its limit of open file
         descriptors (``ulimit -n``: the other half is left for its files). A newcomer beyond it
@@ -64,5 +68,6 @@ class ConnectionSettings:
     header_timeout: float = 10.0
     body_timeout: float = 20.0
     max_per_address: int = 32
+    connection_rate: float = 20.0
     max_connections: int = 1000
     log_interval: float = 10.0
