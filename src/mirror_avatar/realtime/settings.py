@@ -68,6 +68,6 @@ class ConnectionSettings:
     header_timeout: float = 10.0
     body_timeout: float = 20.0
     max_per_address: int = 32
-    connection_rate: float = 20.0
+    connection_rate: float = 50.0
     max_connections: int = 1000
     log_interval: float = 10.0
