@@ -474,7 +474,7 @@ async def scenario(
             *((case, functools.partial(hostiles.resume, case)) for case in RESUMES),
         ]
         cases = [(case, hostile) for case, hostile in cases if not only or case in only]
-        duration = len(cases) * 4 * window + 30.0
+        duration = len(cases) * (4 * window + 60.0) + 30.0  # the researcher stops it
         people = [person("G1"), person("S1"), avatar("A1", AVATAR)]
         good = await create(api, {"condition": "group", "graph": "complete", "seed": 1,
                                   "duration": duration, "players": people})  # fmt: skip
