@@ -15,6 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
+import pytest
 from websockets.sync.client import connect
 
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
@@ -145,7 +146,8 @@ def test_an_address_opening_connections_too_fast_is_refused_while_another_is_ser
     assert any("127.0.0.2: connections refused, opened too fast" in line for line in warnings)
 
 
-def test_the_researcher_and_a_joined_page_are_served_while_the_server_is_full(tmp_path):
+@pytest.mark.parametrize("held", [HALF_SENT, SLOW_BODY], ids=["half-sent", "slow body"])
+def test_the_researcher_and_a_joined_page_are_served_while_the_server_is_full(tmp_path, held):
     full = serve(tmp_path, max_connections=2 * CAP + 1)
     with full as server, heard() as warnings, contextlib.ExitStack() as stack:
         people = [{"label": "P1", "kind": "human"}, {"label": "P2", "kind": "human"}]
@@ -156,7 +158,7 @@ def test_the_researcher_and_a_joined_page_are_served_while_the_server_is_full(tm
         assert '"welcome"' in str(page.recv(timeout=CLOSED_WITHIN))
         for source in ("127.0.0.2", "127.0.0.3"):  # together with the page: full
             for _ in range(CAP):
-                stack.enter_context(open_from(server, source))
+                stack.enter_context(open_from(server, source, held))
         for _ in range(3):
             assert answered(server) == 200
         status = httpx.get(f"{server.url}/api/sessions/{created['id']}", headers=BEARER).json()

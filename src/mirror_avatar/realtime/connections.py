@@ -4,11 +4,11 @@
 address opening more than `ConnectionSettings.connection_rate` connections per second, or
 holding `ConnectionSettings.max_per_address`, gets no more, and when the
 server holds `ConnectionSettings.max_connections` a newcomer takes the place of the oldest
-connection waiting for its first request (`Holder.waiting`, not `Holder.served`), else of the
-oldest kept alive between two requests, or is refused when none waits. Connections that carry a
-request or a WebSocket are never closed to make room: a participant's page, once joined, and a
-request being answered keep their connection, and a flood of connections, from however many
-addresses, cannot keep a newcomer (the researcher's console, a page) out. Refusals and the
+connection waiting for its first request, else of the oldest kept alive between two requests,
+else of the oldest whose request's body is still arriving (`Holder.spare`), or is refused when
+there is none. A request being answered and a WebSocket are never closed to make room: a
+participant's page, once joined, keeps its connection, and a flood of connections, from however
+many addresses, cannot keep a newcomer (the researcher's console, a page) out. Refusals and the
 connections closed for a late request are logged once per address per
 `ConnectionSettings.log_interval` (`QuietLog`), so a flood does not flood the log.
 """
@@ -29,7 +29,7 @@ LOG = logging.getLogger("uvicorn.error")
 """The servers' log (uvicorn's, which the real-time servers print)."""
 
 
-MADE_ROOM = "waiting connections closed to make room, the server is full"
+MADE_ROOM = "connections closed to make room, the server is full"
 """The log's phrase for connections closed by `Connections` to admit another."""
 
 
@@ -39,13 +39,12 @@ class Holder(Protocol):
     address: str
 
     @property
-    def waiting(self) -> bool:
-        """Whether it waits for a request (none under way, not a WebSocket)."""
-        ...
+    def spare(self) -> int | None:
+        """In what turn it may be closed to make room, or ``None`` when it must not be.
 
-    @property
-    def served(self) -> bool:
-        """Whether it has carried a request before."""
+        0: it waits for its first request; 1: it is kept alive between two requests; 2: its
+        request's body is still arriving; ``None``: a request being answered, a WebSocket.
+        """
         ...
 
     def close_now(self) -> None:
@@ -130,15 +129,14 @@ class Connections:
                 del self.per_address[holder.address]
 
     def _make_room(self) -> bool:
-        """Close the oldest connection waiting for its first request, else for its next one.
-
-        Returns whether one was closed.
-        """
-        waiting = [(key, holder) for key, holder in self.held.items() if holder.waiting]
-        fresh = [(key, holder) for key, holder in waiting if not holder.served]
-        for key, holder in (fresh or waiting)[:1]:
-            self.release(key)
-            holder.close_now()
-            self.log.event(holder.address, MADE_ROOM)
-            return True
-        return False
+        """Close the connection spared least (`Holder.spare`), the oldest of those; whether any."""
+        turns = [(turn, n, key) for n, (key, holder) in enumerate(self.held.items())
+                 if (turn := holder.spare) is not None]  # fmt: skip
+        if not turns:
+            return False
+        key = min(turns)[2]
+        holder = self.held[key]
+        self.release(key)
+        holder.close_now()
+        self.log.event(holder.address, MADE_ROOM)
+        return True

@@ -81,14 +81,13 @@ class GuardedHttp(H11Protocol):
         self.deadline: asyncio.TimerHandle | None = None
 
     @property
-    def waiting(self) -> bool:
-        """Whether no request has arrived whole (before the first one, or kept alive)."""
-        return not self.upgraded and self.conn.their_state is h11.IDLE
-
-    @property
-    def served(self) -> bool:
-        """Whether a request has arrived whole before (the connection is kept alive)."""
-        return self.cycle is not None
+    def spare(self) -> int | None:
+        """In what turn it may be closed to make room (`Connections`), or ``None``."""
+        if self.upgraded:
+            return None
+        if self.conn.their_state is h11.IDLE:
+            return 0 if self.cycle is None else 1
+        return 2 if self.conn.their_state is h11.SEND_BODY else None
 
     def close_now(self) -> None:
         """Close the connection at once."""

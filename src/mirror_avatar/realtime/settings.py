@@ -59,7 +59,8 @@ class ConnectionSettings:
         Connections the server holds open at once, at most half its limit of open file
         descriptors (``ulimit -n``: the other half is left for its files). A newcomer beyond it
         takes the place of the oldest connection waiting for its first request (else for its
-        next one), or is closed at once when none waits.
+        next one, else for the rest of its request's body), or is closed at once when there is
+        none.
     log_interval
         Seconds between two log lines about one address's refused or timed-out connections
         (the first is logged at once, the next ones counted).
