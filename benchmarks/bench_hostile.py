@@ -15,6 +15,12 @@ input-to-frame p50 and p95 and its longest frame gap are reported in three windo
   fast as they open, to an unknown join key and to a real one of another session, holding 50
   each unread and closing the oldest; meanwhile a newcomer joins that session by its other
   link every half second, and how long it waits for its welcome is noted;
+- ``40-address flood``: the same from 40 addresses (127.0.2.1-40, ten per process);
+- ``half-open requests``: four processes (normal priority) from 140 addresses (127.0.1.1-140)
+  open connections and send part of a request (a request line, headers without their end, or
+  a JSON body shorter than its declared length), a byte more each second, up to `HALF_OPEN`
+  at once, replacing those the server closes; the server runs at ``ulimit -n 1024``
+  (`SERVER_FILES`) throughout;
 - ``slow reader``: a page that never reads its socket (4 KB receive buffer) takes the second
   person's slot of the good participant's own session;
 - ``frozen page``: the page of another running session, a process of its own, is stopped
@@ -29,7 +35,9 @@ input-to-frame p50 and p95 and its longest frame gap are reported in three windo
   of the protocol loaded from the console (`RESUME_PROTOCOL`) whose folder's ``study.json`` is
   a FIFO, a 600 MB file (its JSON padded with real spaces), or JSON nested 200 000 deep.
 
-The baseline of each case is its own "before" window. The server's peak resident memory, the
+The researcher's API is asked every `API_INTERVAL` s on a new connection throughout
+(`ApiProbe`); each window reports its median and longest answer. The baseline of each case is
+its own "before" window. The server's peak resident memory, the
 machine's load average and, per window, how long the server's main thread waited for a CPU
 (`CpuWaits`: time it could not run at all) are reported too.
 """
@@ -241,10 +249,14 @@ class Hostiles:
         )
 
     async def half_open(self, seconds: float) -> str:
-        """Hold up to `HALF_OPEN` half-sent requests from the 140 `HALF_OPEN_ADDRESSES`."""
+        """Hold up to `HALF_OPEN` half-sent requests from the 140 `HALF_OPEN_ADDRESSES`.
+
+        The holding processes run at normal priority: they mostly sleep, and at the lowest
+        one a busy machine left them too little time to open their connections.
+        """
         sources = _shares(HALF_OPEN_ADDRESSES)
         most = [str(HALF_OPEN // len(sources))]
-        holders = await self._processes("hold", seconds, sources, most)
+        holders = await self._processes("hold", seconds, sources, most, priority=None)
         answers = [(await holder.communicate())[0].split() for holder in holders]
         opened, closed = (sum(int(answer[k]) for answer in answers) for k in (0, 1))
         return (
@@ -253,15 +265,23 @@ class Hostiles:
         )
 
     async def _processes(
-        self, kind: str, seconds: float, sources: list[list[str]], rest: list[str]
+        self,
+        kind: str,
+        seconds: float,
+        sources: list[list[str]],
+        rest: list[str],
+        priority: Callable[[], None] | None = lowest,
     ) -> list[asyncio.subprocess.Process]:
-        """Start a `probe_clients` process of ``kind`` per list of sources; note when all began."""
+        """Start a `probe_clients` process of ``kind`` per list of sources; note when all began.
+
+        ``priority`` is run in each before it starts (default `lowest`).
+        """
         processes = []
         for share in sources:
             command = [str(CLIENTS), kind, str(self.port), ",".join(share), str(seconds), *rest]
             processes.append(
                 await asyncio.create_subprocess_exec(
-                    sys.executable, *command, stdout=asyncio.subprocess.PIPE, preexec_fn=lowest
+                    sys.executable, *command, stdout=asyncio.subprocess.PIPE, preexec_fn=priority
                 )
             )
         for process in processes:
@@ -536,13 +556,15 @@ def measure(quick: bool, only: list[str]) -> dict[str, Any]:
             peak = stop_process(lab)
         lines = log.read_text().splitlines()
         warnings = [line for line in lines if line.startswith("WARNING")]
-        errors = [line for line in lines if line.startswith("ERROR") or "destroyed" in line]
+        errors = [line for line in lines if line.startswith("ERROR") or "destroyed" in line
+                  or "Too many open files" in line]  # fmt: skip
     return result | {
         "window": window,
         "peak_mb": peak,
         "cpu_waits": waits,
         "load": (load_before, os.getloadavg()),
         "warnings": warnings,
+        "log_lines": len(lines),
         "errors": errors,
     }
 
@@ -617,7 +639,8 @@ def report(result: dict[str, Any]) -> tuple[str, list[dict]]:
         f"server peak resident memory {peak} MB; the good trial ended: {trial['end_reason']} "
         f"({trial['n_samples']} samples, held {trial['held']}); longest gap of all windows "
         f"{longest:.1f} ms (bound {GAP_BOUND_MS:g} ms); server log: "
-        f"{len(result['warnings'])} warnings, {len(result['errors'])} errors."
+        f"{result['log_lines']} lines, {len(result['warnings'])} warnings, "
+        f"{len(result['errors'])} errors (or out of descriptors)."
     )
     notes = "\n".join(f"- {mark.case}: {mark.note}" for mark in result["marks"])
     kinds = collections.Counter(re.sub(r"[\d.]+", "N", line) for line in result["warnings"])
