@@ -3,18 +3,21 @@
 Slow, obvious reference implementations the compiled code is checked and timed against
 (`solve_step_bvp`, `python_learn_session`, `plug_in_transfer_entropy`), tasks with known answers
 (`make_follower_sessions`, `swapped_roles`),
-and a real live server on a loopback port (`ServerThread`). Nothing else in the package uses it.
+a real live server on a loopback port (`ServerThread`), and an avatar's player stepped in a
+browser page and in Python on the same neighbours (`static_app`, `step_in_page`,
+`step_in_python`, `partner_motion`). Nothing else in the package uses it.
 """
 
 from __future__ import annotations
 
 import base64
+import json
 import math
 import os
 import socket
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -26,6 +29,7 @@ from mirror_avatar.dynamics import CONTROL_PERIOD, HKBParams
 from mirror_avatar.files.trials import Trial
 from mirror_avatar.learning.agent import CyberPlayer
 from mirror_avatar.learning.kernels import VELOCITY_WEIGHT
+from mirror_avatar.players import Observation, Player, RecordedPlayer
 from mirror_avatar.sessions.session import Session
 
 if TYPE_CHECKING:
@@ -312,3 +316,131 @@ def plug_in_transfer_entropy(source: ArrayLike, target: ArrayLike, k: int) -> fl
         marginal = past_next[(following, history)] / past[history]
         te += count / total * math.log2(conditional / marginal)
     return te
+
+
+def partner_motion(trials: Sequence[Trial], n_steps: int) -> tuple[Array, Array]:
+    """Return the motion of recorded neighbours on the control grid, one per trial.
+
+    Each trial replayed as `mirror_avatar.players.RecordedPlayer` replays it (still at its last
+    position once it ends).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        Positions (units) and velocities (units/s) at samples 0..n_steps, shape
+        (n_steps + 1, len(trials)).
+    """
+    states = np.empty((n_steps + 1, len(trials), 2))
+    for j, trial in enumerate(trials):
+        player = RecordedPlayer(trial)
+        states[0, j] = player.reset()
+        for k in range(n_steps):
+            states[k + 1, j] = player.step(Observation(k, *[np.empty(0)] * 3))
+    return states[..., 0].copy(), states[..., 1].copy()
+
+
+def step_in_python(player: Player, seed: int, positions: Array, velocities: Array) -> Array:
+    """Positions of ``player`` reset with ``seed`` and stepped against neighbours' motion.
+
+    Parameters
+    ----------
+    positions, velocities
+        The neighbours' states at samples 0..n (units, units/s), shape (n + 1, m).
+
+    Returns
+    -------
+    numpy.ndarray
+        The player's position and velocity at samples 0..n, shape (n + 1, 2).
+    """
+    states = [player.reset(seed)]
+    for k in range(positions.shape[0] - 1):
+        previous = positions[max(k - 1, 0)]
+        states.append(player.step(Observation(k, positions[k], velocities[k], previous)))
+    return np.asarray(states, dtype=np.float64)
+
+
+STEP_IN_PAGE = """async ({text, positions, velocities, block}) => {
+  const { makePlayer } = await import("/static/avatars.js");
+  const began = performance.now();
+  const player = makePlayer(JSON.parse(text));
+  const load = performance.now() - began;
+  const states = [player.reset()];
+  const blocks = [];
+  for (let first = 0; first < positions.length - 1; first += block) {
+    const start = performance.now();
+    const stop = Math.min(first + block, positions.length - 1);
+    for (let k = first; k < stop; k++) {
+      states.push(player.step({ positions: positions[k], velocities: velocities[k] }));
+    }
+    blocks.push((performance.now() - start) / (stop - first));
+  }
+  return { states, load, blocks };
+}"""
+"""Build a player in the page from its message's text and step it (`step_in_page`)."""
+
+
+def step_in_page(
+    page: Any, message: dict[str, Any], positions: Array, velocities: Array, block: int = 1
+) -> tuple[Array, float, Array]:
+    """Build a player in a browser page from its message (`mirror_avatar.browser`) and step it.
+
+    The page must be at a server mounting the lab's static folder at ``/static`` (`static_app`).
+
+    Parameters
+    ----------
+    page
+        A Playwright page.
+    message
+        What `mirror_avatar.browser.browser_arrays` returned, sent as its JSON text.
+    positions, velocities
+        The neighbours' states, as `step_in_python` takes them.
+    block
+        Steps timed together (the page's clock is coarse).
+
+    Returns
+    -------
+    tuple
+        The player's states at samples 0..n, shape (n + 1, 2); the time to parse the message
+        and build the player (ms); each block's time per step (ms).
+    """
+    answer = page.evaluate(
+        STEP_IN_PAGE,
+        {
+            "text": json.dumps(message),
+            "positions": positions.tolist(),
+            "velocities": velocities.tolist(),
+            "block": block,
+        },
+    )
+    return (
+        np.asarray(answer["states"], dtype=np.float64),
+        answer["load"],
+        np.asarray(answer["blocks"]),
+    )
+
+
+BLANK_PAGE = "<!doctype html><title>players</title>"
+
+
+def static_app() -> ASGIApp:
+    """Return an app serving a blank page at ``/`` and the lab's static folder at ``/static``.
+
+    The page is cross-origin isolated (COOP and COEP headers), so its clock
+    (``performance.now``) ticks in 5 µs rather than 100 µs.
+    """
+    from starlette.applications import Starlette
+    from starlette.responses import HTMLResponse
+    from starlette.routing import Mount, Route
+    from starlette.staticfiles import StaticFiles
+
+    from mirror_avatar.lab.running.server import STATIC
+
+    isolated = {"Cross-Origin-Opener-Policy": "same-origin",
+                "Cross-Origin-Embedder-Policy": "require-corp"}  # fmt: skip
+
+    async def blank(request: object) -> HTMLResponse:
+        return HTMLResponse(BLANK_PAGE, headers=isolated)
+
+    return Starlette(
+        routes=[Route("/", blank), Mount("/static", StaticFiles(directory=STATIC), name="static")]
+    )

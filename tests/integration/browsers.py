@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -78,3 +79,17 @@ def assert_matches(recorded: np.ndarray, driven: np.ndarray) -> None:
     # and a few may be further off when the machine is busy and a mouse move arrives late
     assert np.median(error) < 0.001
     assert np.mean(error < step + 0.002) > 0.9
+
+
+def fitted_lag(
+    recorded: np.ndarray, motion: Callable[[np.ndarray], np.ndarray], latest: float = MOST_LATE_S
+) -> float:
+    """How long after ``motion`` had a position a recorded sample holds it (s), fitted.
+
+    ``recorded`` is (time, position) pairs and ``motion`` the position at any time (s, vectorised),
+    on one clock; the lag minimises the mean squared difference of the recorded positions from
+    the motion that late, searched from -0.3 s to ``latest`` in 1 ms steps.
+    """
+    lags = np.arange(-0.3, latest, 0.001)
+    costs = [np.mean((recorded[:, 1] - motion(recorded[:, 0] - lag)) ** 2) for lag in lags]
+    return float(lags[int(np.argmin(costs))])

@@ -9,16 +9,29 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 import numpy as np
+import pandas as pd
 import psutil
 import pytest
-from browsers import ARGS, CHROMIUM, SCREENSHOTS, assert_matches, chromium_mains, on_the_clock
+from browsers import (
+    ARGS,
+    CHROMIUM,
+    SCREENSHOTS,
+    assert_matches,
+    chromium_mains,
+    fitted_lag,
+    on_the_clock,
+)
 
 from mirror_avatar.lab.design.plan import SESSION_SETTINGS
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.metrics.measuring import analysed
+from mirror_avatar.remote.network import parse_network
+from mirror_avatar.remote.proxy import ProxyThread
+from mirror_avatar.remote.truth import fingerprint
 from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread
 
@@ -192,6 +205,65 @@ def test_leader_follower_dyad_of_two_people(chromium, lab, tmp_path):
     summary = console.locator("#session-summary").inner_text()
     assert summary.endswith("finished: 1 of 1 trial(s) played") and "next trial" not in summary
     screenshot(console, "lab-console-finished")
+
+
+SWAYING = """t0 => {
+  const field = document.getElementById("field");
+  setInterval(() => {
+    const x = 0.3 * Math.sin(2 * Math.PI * 0.4 * (Date.now() / 1000 - t0));
+    const box = field.getBoundingClientRect();
+    const clientX = box.left + box.width * (0.05 + 0.9 * (x + 0.5));
+    field.dispatchEvent(new PointerEvent("pointermove", { clientX, clientY: box.top + 100 }));
+  }, 4);
+}"""
+"""A page's pointer swaying as `sway` of the wall clock (s since ``t0``), moved by the page
+itself, so that no round trip of the test process's comes between a move and its message."""
+
+
+def test_a_page_behind_an_emulated_internet_is_recorded_later_by_its_delay(chromium, lab, tmp_path):
+    """P2's page joins through the emulated internet (300 +- 30 ms one way), P1's directly, and
+    both pointers make the same moves at the same times: P2's recorded positions lag P1's by
+    the one-way delay its page's messages took up to the server, as the proxy's truth log has
+    it, lateness included (the lags fitted on the wall clock, through the log's anchor).
+
+    Generously, within 0.1 s: each page's own lag from a move to its message varies with the
+    machine's load (the lags' difference came 6 to 82 ms above the delay in six runs at loads
+    of 13 to 17), and no delay would be 0.3 s off.
+    """
+    console = open_console(chromium, lab.url)
+    links = create_session(console, "people", 6)
+    log = tmp_path / "truth.csv"
+    t0 = time.time()
+    with ProxyThread(parse_network("300+-30"), ("127.0.0.1", lab.port), log, 48) as internet:
+        behind = internet.url + urlsplit(links["P2"]).path
+        pages = {"P1": join(chromium, links["P1"]), "P2": join(chromium, behind)}
+        for page in pages.values():
+            page.evaluate(SWAYING, t0)
+        start_when_joined(console, 2)
+        wait_trial_listed(console, 1)
+    anchor = json.loads(log.with_suffix(".json").read_text())["anchor"]
+    to_wall = (anchor["wall_ns"] - anchor["monotonic_ns"]) / 1e9
+    session = load_session(session_dir(tmp_path) / "trial-01_session.csv")
+    inputs = session_dir(tmp_path) / "trial-01_inputs.csv"
+    lags = {
+        label: fitted_lag(
+            on_the_clock(inputs, session.positions[k]) + [to_wall, 0.0],
+            lambda t: 0.3 * np.sin(2 * np.pi * 0.4 * (t - t0)),
+            2.0,
+        )
+        for k, label in enumerate(("P1", "P2"))
+    }
+    truth = pd.read_csv(log, keep_default_na=False)
+    key = urlsplit(links["P2"]).path.rsplit("/", 1)[1]  # the log names P2's socket, not its key
+    (socket,) = truth[truth.request == f"GET /ws/join/{fingerprint(key)} HTTP/1.1"].connection
+    up = truth[(truth.connection == socket) & (truth.direction == "up") & (truth.bytes > 0)]
+    trial = on_the_clock(inputs, session.positions[1])[:, 0]
+    playing = up[up.received_s.between(trial[0], trial[-1])]
+    one_way = float((playing.delivered_s - playing.received_s).mean())
+    drawn = playing.delay_ms / 1000
+    assert abs(drawn.mean() - 0.3) < 4 * 0.03 / np.sqrt(len(drawn))  # the declared delay
+    assert one_way >= drawn.mean()  # more when queued behind the one before, or when late
+    assert lags["P2"] - lags["P1"] == pytest.approx(one_way, abs=0.1)
 
 
 def test_a_participant_following_an_avatar_sees_the_measures_listed(chromium, lab, tmp_path):

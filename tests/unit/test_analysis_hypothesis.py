@@ -17,7 +17,8 @@ from click.testing import CliRunner
 from statsmodels.stats.multitest import multipletests
 from study_tables import CONDITIONS, make_study_rows, write_study_table
 
-from mirror_avatar.analysis.hypothesis import benjamini_hochberg, confirm
+from mirror_avatar.analysis.hypothesis import confirm
+from mirror_avatar.analysis.multiple_tests import benjamini_hochberg, holm
 from mirror_avatar.analysis.study_file import read_study_table
 from mirror_avatar.analysis.study_report import analyse_study, write_study_report
 from mirror_avatar.analysis.study_text import confirmatory_sentence
@@ -57,22 +58,27 @@ def protocol() -> Protocol:
     return protocol_from_text(protocol_text(), "delay.toml")
 
 
+ADJUSTMENTS = [(benjamini_hochberg, "fdr_bh"), (holm, "holm")]
+
+
+@pytest.mark.parametrize(("adjust", "method"), ADJUSTMENTS)
 @pytest.mark.parametrize("size", [1, 2, 7, 50, 400])
-def test_benjamini_hochberg_equals_statsmodels(size: int) -> None:
+def test_adjusted_p_values_equal_statsmodels(adjust, method: str, size: int) -> None:
     rng = np.random.default_rng(size)
     p = np.concatenate([rng.uniform(0, 1, size), rng.uniform(0, 0.01, size // 3)])
     p[: size // 4] = p[0]  # ties
-    expected = multipletests(p, method="fdr_bh")[1]
-    np.testing.assert_allclose(benjamini_hochberg(p), expected, rtol=1e-12, atol=0)
+    expected = multipletests(p, method=method)[1]
+    np.testing.assert_allclose(adjust(p), expected, rtol=1e-12, atol=0)
 
 
-def test_benjamini_hochberg_leaves_untested_out() -> None:
+@pytest.mark.parametrize(("adjust", "method"), ADJUSTMENTS)
+def test_adjusted_p_values_leave_untested_out(adjust, method: str) -> None:
     p = np.array([0.01, np.nan, 0.04, 0.03, np.nan])
-    expected = multipletests([0.01, 0.04, 0.03], method="fdr_bh")[1]
-    found = benjamini_hochberg(p)
+    expected = multipletests([0.01, 0.04, 0.03], method=method)[1]
+    found = adjust(p)
     np.testing.assert_allclose(found[[0, 2, 3]], expected)
     assert np.isnan(found[[1, 4]]).all()
-    assert np.isnan(benjamini_hochberg([np.nan])).all()
+    assert np.isnan(adjust([np.nan])).all()
 
 
 def declared(direction: str = "lower", smallest: float = 0.0) -> Analysis:

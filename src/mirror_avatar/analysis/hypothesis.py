@@ -6,7 +6,8 @@ participants' means in the tested condition against the reference, one-sided whe
 hypothesis names a direction, its interval at the matching level, the primary measures
 Holm-corrected together, and the estimate set against the smallest effect of interest. Every
 other comparison is exploratory: its p-values adjusted across measures by Benjamini and
-Hochberg's step-up procedure (`benjamini_hochberg`). docs/METHODS.md, section 15.
+Hochberg's step-up procedure
+(`mirror_avatar.analysis.multiple_tests.benjamini_hochberg`). docs/METHODS.md, section 15.
 """
 
 from __future__ import annotations
@@ -16,38 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from numpy.typing import ArrayLike, NDArray
 from scipy import stats
-from statsmodels.stats.multitest import multipletests
 
+from mirror_avatar.analysis.multiple_tests import holm
 from mirror_avatar.analysis.statistics import has_spread, participant_means
 from mirror_avatar.lab.design.protocol import Analysis
 
 ALTERNATIVES = {"lower": "less", "higher": "greater", "two-sided": "two-sided"}
 """Each direction of a hypothesis as scipy's ``alternative`` of condition minus reference."""
-
-
-def benjamini_hochberg(p_values: ArrayLike) -> NDArray[np.float64]:
-    """Adjust p-values for the false discovery rate (Benjamini & Hochberg 1995): the q-values.
-
-    The i-th smallest of m p-values becomes min over j >= i of p_(j) m / j, capped at 1; a
-    comparison is a discovery at FDR q when its adjusted p-value is below q. NaN (a comparison
-    not tested) stays NaN and is not counted in m.
-
-    Returns
-    -------
-    numpy.ndarray
-        The adjusted p-values, in the order given.
-    """
-    p = np.asarray(p_values, dtype=np.float64)
-    adjusted = np.full(p.shape, np.nan)
-    tested = np.flatnonzero(~np.isnan(p))
-    if tested.size == 0:
-        return adjusted
-    order = tested[np.argsort(p[tested], kind="stable")]
-    scaled = p[order] * tested.size / np.arange(1, tested.size + 1)
-    adjusted[order] = np.minimum(np.minimum.accumulate(scaled[::-1])[::-1], 1.0)
-    return adjusted
 
 
 @dataclass(frozen=True)
@@ -122,16 +99,12 @@ def confirm(rows: pd.DataFrame, analysis: Analysis) -> list[ConfirmatoryTest]:
     """
     pairs = [_pairs(rows, measure, analysis) for measure in analysis.primary]
     tests = [_paired_test(pair, analysis) for pair in pairs]
-    p = [test[1] for test in tests]
-    tested = [k for k, value in enumerate(p) if not math.isnan(value)]
-    holm = list(p)
-    if tested:
-        corrected = multipletests([p[k] for k in tested], method="holm")[1]
-        for k, value in zip(tested, corrected, strict=True):
-            holm[k] = float(value)
+    adjusted = holm([test[1] for test in tests])
     return [
-        _result(measure, pair, test, p_holm, analysis)
-        for measure, pair, test, p_holm in zip(analysis.primary, pairs, tests, holm, strict=True)
+        _result(measure, pair, test, float(p_holm), analysis)
+        for measure, pair, test, p_holm in zip(
+            analysis.primary, pairs, tests, adjusted, strict=True
+        )
     ]
 
 

@@ -20,9 +20,9 @@ import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 from statsmodels.regression.mixed_linear_model import MixedLM
-from statsmodels.stats.multitest import multipletests
 from statsmodels.tools.sm_exceptions import ConvergenceWarning
 
+from mirror_avatar.analysis.multiple_tests import holm
 from mirror_avatar.common.constraints import Interval
 
 BOOTSTRAP_RESAMPLES = 9999
@@ -302,9 +302,9 @@ def fit_contrasts(
     residual_variance = float(result.scale) * sd**2
     total_sd = float(np.sqrt(participant_variance + residual_variance))
     p_values = [float(result.pvalues[c]) for c in others]
-    holm = multipletests(p_values, method="holm")[1]
+    adjusted = holm(p_values)
     contrasts = []
-    for condition, p, p_holm in zip(others, p_values, holm, strict=True):
+    for condition, p, p_holm in zip(others, p_values, adjusted, strict=True):
         limits = interval.loc[condition].to_numpy(np.float64)
         estimate = (float(coefficients[condition]), limits, p, float(p_holm))
         contrasts.append(_contrast(measure, condition, reference, means, estimate, total_sd))

@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.analysis.hypothesis import ConfirmatoryTest, benjamini_hochberg, confirm
+from mirror_avatar.analysis.hypothesis import ConfirmatoryTest, confirm
 from mirror_avatar.analysis.identification import Identification, identify
+from mirror_avatar.analysis.multiple_tests import benjamini_hochberg
 from mirror_avatar.analysis.statistics import (
     BOOTSTRAP_RESAMPLES,
     CONFIDENCE,

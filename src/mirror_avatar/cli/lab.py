@@ -8,6 +8,7 @@ import click
 
 from mirror_avatar.cli.lab_pilot import pilot
 from mirror_avatar.cli.lab_preview import preview
+from mirror_avatar.cli.lab_proxy import proxy
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.play import listen, server_options
 
@@ -152,3 +153,4 @@ def export(session_dir: Path, out_dir: Path) -> None:
 
 lab.add_command(pilot)
 lab.add_command(preview)
+lab.add_command(proxy)

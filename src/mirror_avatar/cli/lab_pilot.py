@@ -71,6 +71,15 @@ def _pairs(values: tuple[str, ...], option: str) -> dict[str, str]:
     help="The pilot's seed (the stand-ins' own seeds; default: drawn and printed).",
 )
 @click.option(
+    "--network",
+    "network_spec",
+    default=None,
+    metavar="SPEC",
+    help="Put an emulated internet between the virtual participants' pages and the server: "
+    "one-way delay in ms and stalls, such as 80+-25 or 120+-40,stall=5:1 (its truth in "
+    "OUT/pilot-network.csv).",
+)
+@click.option(
     "--out",
     "out_dir",
     required=True,
@@ -84,6 +93,7 @@ def pilot(
     stand_in: tuple[str, ...],
     answer: tuple[str, ...],
     seed: int | None,
+    network_spec: str | None,
     out_dir: Path,
 ) -> None:
     """Play a protocol with virtual participants through the real lab server.
@@ -93,20 +103,27 @@ def pilot(
     what a person's page sees (partners delayed and hidden as the condition says) and moves a
     player SPEC on it, and answers the questions by rule. The folders are a real study's, so
     `mirror-avatar study table` and `study report` run on them before the first person comes.
+    With --network, the pages reach the server through an emulated internet, as participants
+    at home would (see `mirror-avatar lab proxy`).
     """
     from mirror_avatar.lab.design.protocol import load_protocol
-    from mirror_avatar.lab.running.pilot import AnswerRule, run_pilot
+    from mirror_avatar.lab.running.pilot import NETWORK_LOG, AnswerRule, run_pilot
+    from mirror_avatar.remote.network import parse_network
+    from mirror_avatar.remote.truth import companion
 
     protocol = load_protocol(protocol_file)
     given = _pairs(stand_in, "--stand-in")
     stand_ins = {label: given.get(label, DEFAULT_STAND_IN) for label in protocol.people} | given
     rules = {q: AnswerRule.parse(rule) for q, rule in _pairs(answer, "--answer").items()}
-    check_output_dir(out_dir)
+    network = None if network_spec is None else parse_network(network_spec)
+    logs: list[str | Path] = [] if network is None else [NETWORK_LOG, companion(Path(NETWORK_LOG))]
+    check_output_dir(out_dir, files=logs)
     seed = entropy_of(seed)
     people = ", ".join(f"{label}={spec}" for label, spec in stand_ins.items())
     click.echo(
         f"pilot of {protocol_file}: participants {first}-{first + participants - 1}, "
         f"stand-ins {people}, seed {seed}"
+        + ("" if network is None else f"; network {network}, its truth in {NETWORK_LOG}")
     )
     started = time.monotonic()
 
@@ -120,7 +137,14 @@ def pilot(
         )
 
     run_pilot(
-        protocol_file, out_dir, range(first, first + participants), stand_ins, seed, rules, done
+        protocol_file,
+        out_dir,
+        range(first, first + participants),
+        stand_ins,
+        seed,
+        rules,
+        done,
+        network,
     )
     click.echo(
         f"recorded in {out_dir.resolve()}; next: mirror-avatar study table {out_dir} --out RESULTS"

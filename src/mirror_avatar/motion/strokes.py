@@ -108,6 +108,12 @@ def room_ahead(position: Array | float, direction: Array | float) -> Array:
     return np.where(np.asarray(direction) > 0, high - position, position - low)
 
 
+def _room_ahead(position: float, direction: float) -> float:
+    """`room_ahead` of one position moving in one direction (+1 or -1)."""
+    low, high = PLAYING_RANGE
+    return high - position if direction > 0 else position - low
+
+
 class StrokeGenerator:
     """Generate motion by chaining a person's strokes (module docstring; METHODS section 4b).
 
@@ -300,6 +306,7 @@ class StrokeGenerator:
         )
         weights = 1.0 / np.arange(1, self._k + 1)
         self._rank_weights = weights / weights.sum()
+        self._rank_cdfs: dict[int, Array] = {}
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "lengths_"):
@@ -324,7 +331,7 @@ class StrokeGenerator:
             size = abs(self.displacements_[stroke]) * math.exp(
                 self.bandwidth_[1] * rng.standard_normal()
             )
-            size = min(size, float(room_ahead(position, direction)))
+            size = min(size, _room_ahead(position, direction))
             filled = self._draw_stroke(
                 positions, filled, time, length, position, direction * size, stroke
             )
@@ -376,16 +383,24 @@ class StrokeGenerator:
         rng: np.random.Generator,
     ) -> int:
         """Draw the training stroke that follows a generated one (Lall & Sharma's kernel)."""
-        state = np.array(
-            [log_length(length), log_size(size), float(room_ahead(position, direction))]
-        )
+        state = np.array([log_length(length), log_size(size), _room_ahead(position, direction)])
         distance = np.sum(((self._features - state) / self._scale) ** 2, axis=1)
         distance[self._directions != direction] = np.inf
         k = min(self._k, int(np.isfinite(distance).sum())) or self._k
         nearest = np.argpartition(distance, k - 1)[:k]
         nearest = nearest[np.argsort(distance[nearest], kind="stable")]
-        weights = self._rank_weights[:k] / self._rank_weights[:k].sum()
-        return int(nearest[rng.choice(k, p=weights)])
+        return int(nearest[np.searchsorted(self._rank_cdf(k), rng.random(), side="right")])
+
+    def _rank_cdf(self, k: int) -> Array:
+        """Return the cumulative rank weights of ``k`` neighbours, ending at 1.
+
+        Searched with one uniform draw, they pick a rank as ``rng.choice(k, p=weights)`` does
+        with the same generator (the same draw and the same index), without its checks.
+        """
+        if k not in self._rank_cdfs:
+            cdf = np.cumsum(self._rank_weights[:k] / self._rank_weights[:k].sum())
+            self._rank_cdfs[k] = cdf / cdf[-1]
+        return self._rank_cdfs[k]
 
     def sample_velocity(self, n_samples: int, random_state: Seed = None) -> Array:
         """Generate a velocity signal of ``n_samples`` at `rate` (units/s), METHODS section 2."""

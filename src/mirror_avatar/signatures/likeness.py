@@ -34,11 +34,7 @@ import pandas as pd
 import scipy.signal
 import scipy.stats
 from numpy.typing import NDArray
-from sklearn.linear_model import RidgeClassifier
-from sklearn.metrics import roc_auc_score
 from sklearn.model_selection import StratifiedGroupKFold
-from sklearn.pipeline import make_pipeline
-from sklearn.preprocessing import StandardScaler
 
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.common.seeds import draw_seeds
@@ -49,6 +45,7 @@ from mirror_avatar.signatures.permutations import (
     between_minus_within,
     permutation_test,
 )
+from mirror_avatar.signatures.ridge import ridge_scores, roc_auc
 from mirror_avatar.signatures.separation import Separation, separation
 from mirror_avatar.signatures.signature import compute_emd_matrix, compute_ims, velocity_strokes
 
@@ -433,8 +430,9 @@ def classifier_test(
 ) -> ClassifierTest:
     """Classifier two-sample test of windows of reference against candidate signals.
 
-    A linear classifier (ridge-regularised least squares, ``RidgeClassifier``, on standardised
-    `window_features`); `FOLDS`-fold cross-validation stratified and grouped by trial (a trial's
+    A linear classifier (ridge-regularised least squares on standardised `window_features`,
+    `mirror_avatar.signatures.ridge`: scikit-learn's ``RidgeClassifier`` in numpy); `FOLDS`-fold
+    cross-validation stratified and grouped by trial (a trial's
     windows all in one fold); the mean over folds of each test fold's AUC (**choice**: the AUC
     of scores pooled over folds sits below 0.5 under the null with few trials, as each fold's
     model has its own offset); labels permuted by trial for the p-value, each relabelling
@@ -506,9 +504,7 @@ def _cross_validated_auc(
     splitter = StratifiedGroupKFold(folds, shuffle=True, random_state=seed % 2**31)
     aucs = []
     for train, test in splitter.split(x, y, groups):
-        model = make_pipeline(StandardScaler(), RidgeClassifier())
-        model.fit(x[train], y[train])
-        aucs.append(roc_auc_score(y[test], model.decision_function(x[test])))
+        aucs.append(roc_auc(y[test], ridge_scores(x[train], y[train], x[test])))
     return float(np.mean(aucs))
 
 

@@ -16,6 +16,10 @@ The stand-ins are checked as a protocol's avatars are (`check_stand_ins`: each b
 in every role its person plays, by `mirror_avatar.lab.design.avatars.load_avatar`) before the
 server starts, so that a spec naming a device, a FIFO, a huge file or a diverging partner is
 refused in one line naming the stand-in, and nothing is started or written.
+
+Under a declared network (`mirror_avatar.remote.network`) the stand-ins' pages reach the server
+through an emulated internet (`mirror_avatar.remote.proxy`), as participants at home would; the
+researcher's API does not. Its truth log is `NETWORK_LOG` in the output folder.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit, urlunsplit
 
 import httpx
 import numpy as np
@@ -50,6 +55,8 @@ from mirror_avatar.lab.design.avatars import load_avatar
 from mirror_avatar.lab.design.plan import MAX_SPEC_CHARS, SessionPlan
 from mirror_avatar.lab.design.protocol import Protocol, load_protocol
 from mirror_avatar.players.base import Observation, Player
+from mirror_avatar.remote.network import Network
+from mirror_avatar.remote.proxy import ProxyThread
 
 PLAYER_ROLES = {"solo": "leader"}
 """The role preset a stand-in plays for a page's role where they differ (alone: it leads)."""
@@ -59,6 +66,10 @@ START_TIMEOUT = 120.0
 
 SLACK = 60.0
 """Seconds a participant's run may take beyond its planned time before the pilot gives up."""
+
+NETWORK_LOG = "pilot-network.csv"
+"""The emulated internet's truth log in a pilot's output folder (its JSON companion beside it:
+the network, the seed, the clock's anchor)."""
 
 
 @dataclass(frozen=True)
@@ -277,6 +288,22 @@ def lab_server(protocol_file: Path, out_dir: Path, log: Path) -> Iterator[tuple[
     _stop(process, signal.SIGTERM)
 
 
+@contextlib.contextmanager
+def emulated_internet(network: Network | None, base: str, log: Path, seed: int) -> Iterator[str]:
+    """Yield the base URL pages join at, for as long as the block runs.
+
+    That is the server's ``base``, or under ``network`` the address of an emulated internet to
+    it (`mirror_avatar.remote.proxy.ProxyThread`, its truth in ``log``).
+    """
+    if network is None:
+        yield base
+        return
+    server = urlsplit(base)
+    assert server.hostname is not None and server.port is not None
+    with ProxyThread(network, (server.hostname, server.port), log, seed) as internet:
+        yield internet.url
+
+
 def _stop(process: subprocess.Popen[str], signum: int) -> None:
     """Send ``signum`` to the lab server and wait for its end (killed after `STOP_TIMEOUT`)."""
     process.send_signal(signum)
@@ -315,9 +342,16 @@ def _console_link(process: subprocess.Popen[str], log: Path) -> tuple[str, str]:
 
 
 async def pilot_participant(
-    api: httpx.AsyncClient, number: int, stand_ins: Mapping[str, StandIn], planned_s: float
+    api: httpx.AsyncClient,
+    number: int,
+    stand_ins: Mapping[str, StandIn],
+    planned_s: float,
+    join_base: str | None = None,
 ) -> dict[str, Any]:
     """Play participant ``number``'s run with the stand-ins; return its final status.
+
+    ``join_base`` is the base URL the stand-ins' pages join at (default: the server's own, as its
+    join links give it; an emulated internet's to join through it).
 
     Raises
     ------
@@ -333,7 +367,7 @@ async def pilot_participant(
     if missing:
         raise InputError("--stand-in", f"no stand-in for {', '.join(missing)}: add LABEL=SPEC")
     pages = [
-        asyncio.create_task(play_page(_socket_url(link), stand_ins[label]))
+        asyncio.create_task(play_page(_socket_url(link, join_base), stand_ins[label]))
         for label, link in status["links"].items()
     ]
     try:
@@ -364,8 +398,10 @@ def _refusal(response: httpx.Response) -> str:
         return response.text.strip() or f"HTTP {response.status_code}"
 
 
-def _socket_url(link: str) -> str:
-    return link.replace("http://", "ws://").replace("/join/", "/ws/join/")
+def _socket_url(link: str, join_base: str | None = None) -> str:
+    """Return a join link's WebSocket URL, at the base URL ``join_base`` when given."""
+    parts = urlsplit(link if join_base is None else join_base + urlsplit(link).path)
+    return urlunsplit(("ws", parts.netloc, parts.path.replace("/join/", "/ws/join/"), "", ""))
 
 
 async def _wait_joined(api: httpx.AsyncClient, sid: str, timeout: float = 60.0) -> None:
@@ -451,6 +487,7 @@ def run_pilot(
     seed: int,
     answers: Mapping[str, AnswerRule] | None = None,
     on_done: Callable[[int, dict[str, Any]], None] | None = None,
+    network: Network | None = None,
 ) -> list[dict[str, Any]]:
     """Play ``participants``' runs of a protocol with virtual participants, in turn.
 
@@ -472,6 +509,9 @@ def run_pilot(
         The rule for each question id (default: random answers).
     on_done
         Called with each participant's number and final status as their run ends.
+    network
+        The emulated internet between the stand-ins' pages and the server (seeded with
+        ``seed``; its truth in ``OUT/`` `NETWORK_LOG`), or None for none.
 
     Returns
     -------
@@ -488,10 +528,14 @@ def run_pilot(
     check_stand_ins(protocol, stand_ins)
     out_dir.mkdir(parents=True, exist_ok=True)
     planned = planned_seconds(protocol)
-    with lab_server(protocol_file, out_dir, out_dir / "pilot-server.log") as (base, token):
+    with (
+        lab_server(protocol_file, out_dir, out_dir / "pilot-server.log") as (base, token),
+        emulated_internet(network, base, out_dir / NETWORK_LOG, seed) as join_base,
+    ):
         return run_interruptible(
             _pilot_all(
                 base,
+                join_base,
                 token,
                 protocol,
                 participants,
@@ -506,6 +550,7 @@ def run_pilot(
 
 async def _pilot_all(
     base: str,
+    join_base: str,
     token: str,
     protocol: Protocol,
     participants: range,
@@ -525,7 +570,7 @@ async def _pilot_all(
                 for j, label in enumerate(protocol.people)
                 if label in stand_ins
             }
-            status = await pilot_participant(api, number, people, planned)
+            status = await pilot_participant(api, number, people, planned, join_base)
             if on_done is not None:
                 on_done(number, status)
             results.append(status)

@@ -1,0 +1,71 @@
+"""`mirror-avatar lab pilot --network`: the virtual participants' pages behind an emulated
+internet, its truth log in the pilot's folder."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+
+from mirror_avatar.cli import main
+
+PROTOCOL = """
+title = "Network pilot"
+seed = 5
+
+[[blocks]]
+name = "main"
+order = "fixed"
+
+[[blocks.conditions]]
+name = "solo"
+game = "solo"
+players = [{ label = "P1", kind = "person" }]
+trials = 1
+duration = 4
+pause = 0
+"""
+
+
+def test_a_pilot_under_an_emulated_internet_writes_its_truth_beside_the_runs(tmp_path):
+    protocol = tmp_path / "net.toml"
+    protocol.write_text(PROTOCOL, encoding="utf-8")
+    out = tmp_path / "out"
+    result = subprocess.run(
+        [
+            sys.executable, "-c", "from mirror_avatar.console import run; run()", "lab", "pilot",
+            "--protocol", str(protocol), "--participants", "1", "--seed", "3",
+            "--network", "60+-10", "--out", str(out),
+        ],
+        capture_output=True, text=True, check=False, timeout=600,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "network 60+-10, its truth in pilot-network.csv" in result.stdout
+    assert "participant 0: finished, 1 of 1 trial(s) complete" in result.stdout, result.stdout
+    facts = json.loads((out / "pilot-network.json").read_text())
+    assert facts["network"] == "60+-10" and facts["seed"] == 3
+    truth = pd.read_csv(out / "pilot-network.csv", keep_default_na=False)
+    (page,) = truth[truth.request.str.startswith("GET /ws/join/sha256:")].connection
+    carried = truth[(truth.connection == page) & (truth.bytes > 0)]
+    # the stand-in's positions (33 a second for 4 s) went up, the frames down, each delayed
+    for direction in ("up", "down"):
+        drawn = carried[carried.direction == direction].delay_ms.to_numpy()
+        assert len(drawn) > 100, direction
+        assert abs(drawn.mean() - 60.0) < 4 * 10.0 / np.sqrt(len(drawn)), direction
+        took = carried[carried.direction == direction].eval("delivered_s - received_s")
+        assert np.all(took >= drawn / 1000 - 1e-6), direction
+    assert (out / "net-p000" / "trial-01_session.csv").exists()
+
+
+def test_a_pilot_refuses_a_bad_network_before_anything_starts(tmp_path, capsys):
+    out = tmp_path / "out"
+    protocol = tmp_path / "net.toml"
+    protocol.write_text(PROTOCOL, encoding="utf-8")
+    arguments = ["--protocol", str(protocol), "--network", "60+-10,stall=3", "--out", str(out)]
+    assert main(["lab", "pilot", *arguments]) == 2
+    error = capsys.readouterr().err.strip()
+    assert "--network: stall='3' is not START:SECONDS" in error and "\n" not in error
+    assert not out.exists()
