@@ -15,6 +15,12 @@ input-to-frame p50 and p95 and its longest frame gap are reported in three windo
   fast as they open, to an unknown join key and to a real one of another session, holding 50
   each unread and closing the oldest; meanwhile a newcomer joins that session by its other
   link every half second, and how long it waits for its welcome is noted;
+- ``40-address flood``: the same from 40 addresses (127.0.2.1-40, ten per process);
+- ``half-open requests``: four processes (normal priority) from 140 addresses (127.0.1.1-140)
+  open connections and send part of a request (a request line, headers without their end, or
+  a JSON body shorter than its declared length), a byte more each second, up to `HALF_OPEN`
+  at once, replacing those the server closes; the server runs at ``ulimit -n 1024``
+  (`SERVER_FILES`) throughout;
 - ``slow reader``: a page that never reads its socket (4 KB receive buffer) takes the second
   person's slot of the good participant's own session;
 - ``frozen page``: the page of another running session, a process of its own, is stopped
@@ -29,7 +35,9 @@ input-to-frame p50 and p95 and its longest frame gap are reported in three windo
   of the protocol loaded from the console (`RESUME_PROTOCOL`) whose folder's ``study.json`` is
   a FIFO, a 600 MB file (its JSON padded with real spaces), or JSON nested 200 000 deep.
 
-The baseline of each case is its own "before" window. The server's peak resident memory, the
+The researcher's API is asked every `API_INTERVAL` s on a new connection throughout
+(`ApiProbe`); each window reports its median and longest answer. The baseline of each case is
+its own "before" window. The server's peak resident memory, the
 machine's load average and, per window, how long the server's main thread waited for a CPU
 (`CpuWaits`: time it could not run at all) are reported too.
 """
@@ -37,10 +45,13 @@ machine's load average and, per window, how long the server's main thread waited
 from __future__ import annotations
 
 import asyncio
+import collections
 import csv
 import functools
 import io
+import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -56,6 +67,7 @@ from urllib.parse import urlsplit
 import httpx
 import numpy as np
 from websockets.asyncio.client import connect
+from websockets.exceptions import WebSocketException
 
 from mirror_avatar.deep.player import MAX_LAYERS, MAX_UNITS, DeepCyberPlayer
 from mirror_avatar.lab.files import STUDY_FILE
@@ -84,6 +96,27 @@ FIFOS = 7
 
 FLOOD_ADDRESSES = ("127.0.0.2", "127.0.0.3", "127.0.0.4", "127.0.0.5")
 """Loopback addresses of the flooding processes (the server limits rates per address)."""
+
+WIDE_FLOOD_ADDRESSES = tuple(f"127.0.2.{k}" for k in range(1, 41))
+"""The 40 loopback addresses of the wide connection flood (shared by `FLOOD_PROCESSES`)."""
+
+HALF_OPEN_ADDRESSES = tuple(f"127.0.1.{k}" for k in range(1, 141))
+"""The 140 loopback addresses of the half-open requests (shared by `FLOOD_PROCESSES`)."""
+
+HALF_OPEN = 18_000
+"""Half-sent requests the half-open case tries to hold at once (all its processes)."""
+
+FLOOD_PROCESSES = 4
+"""Processes sending the wide flood, and those holding the half-open requests."""
+
+SERVER_FILES = 1024
+"""The lab server's limit of open file descriptors (``ulimit -n``: a common default)."""
+
+API_INTERVAL = 0.25
+"""Seconds between the researcher's probing API requests (each on a new connection)."""
+
+API_TIMEOUT = 5.0
+"""Seconds a probing API request is given before it counts as unanswered."""
 
 BIG_AVATARS = 8
 """The largest legal DQN avatars in the too slow plan."""
@@ -193,35 +226,81 @@ class Hostiles:
 
     async def connection_flood(self, seconds: float) -> str:
         """Flood the server with connections from `FLOOD_ADDRESSES` (a process each)."""
+        return await self._flood(seconds, [[source] for source in FLOOD_ADDRESSES])
+
+    async def wide_flood(self, seconds: float) -> str:
+        """Flood the server with connections from the 40 `WIDE_FLOOD_ADDRESSES`."""
+        return await self._flood(seconds, _shares(WIDE_FLOOD_ADDRESSES))
+
+    async def _flood(self, seconds: float, sources: list[list[str]]) -> str:
+        """Flood from ``sources`` (a process each), a newcomer joining every half second."""
         paths = [self.flood_target, "/ws/join/not-a-key"]
-        floods = []
-        for source in FLOOD_ADDRESSES:
-            command = [str(CLIENTS), "flood", str(self.port), source, str(seconds), *paths]
-            floods.append(
-                await asyncio.create_subprocess_exec(
-                    sys.executable, *command, stdout=asyncio.subprocess.PIPE, preexec_fn=lowest
-                )
-            )
-        for flood in floods:
-            assert flood.stdout is not None
-            await flood.stdout.readline()  # its imports done: the flood begins
-        self.began = time.monotonic()
+        floods = await self._processes("flood", seconds, sources, paths)
         waits = []
         while time.monotonic() < self.began + seconds - 1.0:
             await asyncio.sleep(0.5)
             waits.append(await self._join_wait())
         counts = [int((await flood.communicate())[0] or 0) for flood in floods]
-        joins = ", ".join(f"{wait * 1e3:.0f}" for wait in waits)
+        joins = ", ".join("refused" if math.isinf(wait) else f"{wait * 1e3:.0f}" for wait in waits)
         return (
-            f"{sum(counts):,} handshakes from {len(floods)} processes; a newcomer joining "
-            f"another session meanwhile waited {joins} ms for its welcome"
+            f"{sum(counts):,} handshakes from {len(floods)} processes and "
+            f"{sum(map(len, sources))} addresses; a newcomer joining another session meanwhile "
+            f"waited {joins} ms for its welcome"
         )
 
+    async def half_open(self, seconds: float) -> str:
+        """Hold up to `HALF_OPEN` half-sent requests from the 140 `HALF_OPEN_ADDRESSES`.
+
+        The holding processes run at normal priority: they mostly sleep, and at the lowest
+        one a busy machine left them too little time to open their connections.
+        """
+        sources = _shares(HALF_OPEN_ADDRESSES)
+        most = [str(HALF_OPEN // len(sources))]
+        holders = await self._processes("hold", seconds, sources, most, priority=None)
+        answers = [(await holder.communicate())[0].split() for holder in holders]
+        opened, closed = (sum(int(answer[k]) for answer in answers) for k in (0, 1))
+        return (
+            f"{opened:,} half-sent requests (headers, request line, body; a byte more each "
+            f"second) from {len(HALF_OPEN_ADDRESSES)} addresses, {closed:,} closed by the server"
+        )
+
+    async def _processes(
+        self,
+        kind: str,
+        seconds: float,
+        sources: list[list[str]],
+        rest: list[str],
+        priority: Callable[[], None] | None = lowest,
+    ) -> list[asyncio.subprocess.Process]:
+        """Start a `probe_clients` process of ``kind`` per list of sources; note when all began.
+
+        ``priority`` is run in each before it starts (default `lowest`).
+        """
+        processes = []
+        for share in sources:
+            command = [str(CLIENTS), kind, str(self.port), ",".join(share), str(seconds), *rest]
+            processes.append(
+                await asyncio.create_subprocess_exec(
+                    sys.executable, *command, stdout=asyncio.subprocess.PIPE, preexec_fn=priority
+                )
+            )
+        for process in processes:
+            assert process.stdout is not None
+            await process.stdout.readline()  # its imports done: it begins
+        self.began = time.monotonic()
+        return processes
+
     async def _join_wait(self) -> float:
-        """Seconds from opening the newcomer's join link to its first message (the welcome)."""
+        """Seconds from opening the newcomer's join link to its first message (the welcome).
+
+        ``inf`` when its connection was closed or refused before.
+        """
         began = time.monotonic()
-        async with connect(self.newcomer, proxy=None, open_timeout=30) as ws:
-            await ws.recv()
+        try:
+            async with connect(self.newcomer, proxy=None, open_timeout=30) as ws:
+                await ws.recv()
+        except (OSError, WebSocketException):
+            return math.inf
         return time.monotonic() - began
 
     async def slow_reader(self, seconds: float) -> str:
@@ -302,6 +381,49 @@ class Hostiles:
         )
 
 
+def _shares(addresses: tuple[str, ...]) -> list[list[str]]:
+    """Split ``addresses`` between `FLOOD_PROCESSES` processes."""
+    return [list(addresses[k::FLOOD_PROCESSES]) for k in range(FLOOD_PROCESSES)]
+
+
+class ApiProbe:
+    """The researcher's API, asked every `API_INTERVAL` s on a new connection: answer times.
+
+    Each request (``GET /api/sessions`` with the token) opens a connection of its own, as a
+    console reloaded or a script would, so that a server refusing or not accepting connections
+    shows. `samples` holds (sending time, seconds to the answer or ``inf`` when none came
+    within `API_TIMEOUT` s or the connection failed).
+    """
+
+    def __init__(self, base: str, token: str) -> None:
+        self.samples: list[tuple[float, float]] = []
+        self.client = httpx.AsyncClient(
+            base_url=base,
+            headers={"Authorization": f"Bearer {token}"},
+            timeout=API_TIMEOUT,
+            limits=httpx.Limits(max_keepalive_connections=0),
+        )
+
+    async def run(self) -> None:
+        """Ask until cancelled."""
+        async with self.client:
+            while True:
+                began = time.monotonic()
+                try:
+                    (await self.client.get("/api/sessions")).raise_for_status()
+                    self.samples.append((began, time.monotonic() - began))
+                except httpx.HTTPError:
+                    self.samples.append((began, float("inf")))
+                await asyncio.sleep(max(0.0, began + API_INTERVAL - time.monotonic()))
+
+    def within(self, low: float, high: float) -> tuple[float, float, int]:
+        """Median and longest answer (ms) of the requests sent in [low, high), and their count."""
+        times = np.array([t for began, t in self.samples if low <= began < high]) * 1e3
+        if times.size == 0:
+            return float("nan"), float("nan"), 0
+        return float(np.median(times)), float(times.max()), int(times.size)
+
+
 class CpuWaits:
     """Samples of how long a process's main thread has waited for a CPU (Linux ``schedstat``).
 
@@ -349,8 +471,12 @@ async def create(api: httpx.AsyncClient, plan: dict[str, Any]) -> dict[str, Any]
 async def scenario(
     base: str, token: str, folder: Path, window: float, only: list[str]
 ) -> dict[str, Any]:
-    """Play the good session through every hostile case; return its log, marks and inputs."""
+    """Play the good session through every hostile case; return its log, marks and inputs.
+
+    The researcher's API is probed throughout (`ApiProbe`).
+    """
     headers = {"Authorization": f"Bearer {token}"}
+    probe = ApiProbe(base, token)
     async with httpx.AsyncClient(base_url=base, headers=headers, timeout=300) as api:
         hostiles = Hostiles(api, base, folder, folder / "lab")
         await asyncio.to_thread(hostiles.prepare)
@@ -358,6 +484,8 @@ async def scenario(
         (await api.post("/api/protocol", json=body)).raise_for_status()
         cases: list[tuple[str, Callable[[float], Awaitable[str]]]] = [
             ("connection flood", hostiles.connection_flood),
+            ("40-address flood", hostiles.wide_flood),
+            ("half-open requests", hostiles.half_open),
             ("slow reader", hostiles.slow_reader),
             ("frozen page", hostiles.frozen_page),
             ("FIFO specs", hostiles.fifo_specs),
@@ -366,7 +494,7 @@ async def scenario(
             *((case, functools.partial(hostiles.resume, case)) for case in RESUMES),
         ]
         cases = [(case, hostile) for case, hostile in cases if not only or case in only]
-        duration = len(cases) * 4 * window + 30.0
+        duration = len(cases) * (4 * window + 60.0) + 30.0  # the researcher stops it
         people = [person("G1"), person("S1"), avatar("A1", AVATAR)]
         good = await create(api, {"condition": "group", "graph": "complete", "seed": 1,
                                   "duration": duration, "players": people})  # fmt: skip
@@ -379,6 +507,7 @@ async def scenario(
         hostiles.newcomer = socket_url(target["links"]["T2"])
         log = PageLog("G1")
         page = asyncio.create_task(page_client(socket_url(good["links"]["G1"]), log, 0.0))
+        probing = asyncio.create_task(probe.run())
         hostiles.frozen = subprocess.Popen(
             [sys.executable, str(CLIENTS), "page", socket_url(frozen["links"]["F1"])]
         )
@@ -402,13 +531,14 @@ async def scenario(
             await asyncio.wait([page], timeout=10)
         finally:
             page.cancel()
+            probing.cancel()
             hostiles.frozen.kill()
             hostiles.frozen.wait()
         trial = (await api.get(f"/api/sessions/{good['id']}")).json()["trials"][0]
         inputs = await api.get(f"/api/sessions/{good['id']}/files/{trial['files'][2]}")
         inputs.raise_for_status()
     rows = list(csv.DictReader(io.StringIO(inputs.text)))
-    return {"log": log, "marks": marks, "inputs": rows, "trial": trial}
+    return {"log": log, "marks": marks, "inputs": rows, "trial": trial, "api": probe}
 
 
 def measure(quick: bool, only: list[str]) -> dict[str, Any]:
@@ -417,7 +547,7 @@ def measure(quick: bool, only: list[str]) -> dict[str, Any]:
     load_before = os.getloadavg()
     with tempfile.TemporaryDirectory() as folder:
         log = Path(folder) / "server.log"
-        lab, base, token = start_lab(Path(folder) / "lab", log)
+        lab, base, token = start_lab(Path(folder) / "lab", log, SERVER_FILES)
         waits = CpuWaits(lab.pid)
         try:
             result = asyncio.run(scenario(base, token, Path(folder), window, only))
@@ -426,13 +556,15 @@ def measure(quick: bool, only: list[str]) -> dict[str, Any]:
             peak = stop_process(lab)
         lines = log.read_text().splitlines()
         warnings = [line for line in lines if line.startswith("WARNING")]
-        errors = [line for line in lines if line.startswith("ERROR") or "destroyed" in line]
+        errors = [line for line in lines if line.startswith("ERROR") or "destroyed" in line
+                  or "Too many open files" in line]  # fmt: skip
     return result | {
         "window": window,
         "peak_mb": peak,
         "cpu_waits": waits,
         "load": (load_before, os.getloadavg()),
         "warnings": warnings,
+        "log_lines": len(lines),
         "errors": errors,
     }
 
@@ -465,17 +597,18 @@ def window_stats(
 def table(result: dict[str, Any]) -> tuple[str, dict[str, dict[str, dict[str, float]]]]:
     """Make the Markdown table and return it with its numbers.
 
-    Columns: case, window, n inputs, input-to-frame p50 and p95, longest frame gap, and the
-    time the server's main thread waited for a CPU (`CpuWaits`) during that gap and during the
-    whole window.
+    Columns: case, window, n inputs, input-to-frame p50 and p95, longest frame gap, the
+    researcher's API answer times (median and longest, `ApiProbe`; ``inf``: unanswered), and
+    the time the server's main thread waited for a CPU (`CpuWaits`) during that gap and during
+    the whole window.
     """
     log: PageLog = result["log"]
     latency = input_to_frame(log, result["inputs"])
     arrivals = np.array(sorted(t for _, t in log.frames))
     window = result["window"]
     lines = ["| case | window | n inputs | p50 ms | p95 ms | longest gap ms | "
-             "server's CPU wait in it, ms | in the window, ms |",
-             "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+             "API median / longest ms (n) | server's CPU wait in it, ms | in the window, ms |",
+             "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     stats: dict[str, dict[str, dict[str, float]]] = {}
     for mark in result["marks"]:
         spans = {"before": (mark.called - window, mark.called), "during": (mark.began, mark.ended),
@@ -485,9 +618,11 @@ def table(result: dict[str, Any]) -> tuple[str, dict[str, dict[str, dict[str, fl
             s = window_stats(latency, arrivals, low, high)
             s["wait"] = result["cpu_waits"].within(low, high)
             s["gap_wait"] = result["cpu_waits"].within(s["gap_from"], s["gap_to"])
+            s["api"], s["api_max"], asked = result["api"].within(low, high)
             stats[mark.case][name] = s
             lines.append(f"| {mark.case} | {name} ({high - low:.1f} s) | {s['n']} | "
                          f"{s['p50']:.1f} | {s['p95']:.1f} | {s['gap']:.1f} | "
+                         f"{s['api']:.0f} / {s['api_max']:.0f} ({asked}) | "
                          f"{s['gap_wait']:.0f} | {s['wait']:.0f} |")  # fmt: skip
     return "\n".join(lines), stats
 
@@ -504,9 +639,12 @@ def report(result: dict[str, Any]) -> tuple[str, list[dict]]:
         f"server peak resident memory {peak} MB; the good trial ended: {trial['end_reason']} "
         f"({trial['n_samples']} samples, held {trial['held']}); longest gap of all windows "
         f"{longest:.1f} ms (bound {GAP_BOUND_MS:g} ms); server log: "
-        f"{len(result['warnings'])} warnings, {len(result['errors'])} errors."
+        f"{result['log_lines']} lines, {len(result['warnings'])} warnings, "
+        f"{len(result['errors'])} errors (or out of descriptors)."
     )
     notes = "\n".join(f"- {mark.case}: {mark.note}" for mark in result["marks"])
+    kinds = collections.Counter(re.sub(r"[\d.]+", "N", line) for line in result["warnings"])
+    notes += "".join(f"\n- server log, {n} times: {kind}" for kind, n in kinds.most_common(8))
     rows = []
     for case, windows in stats.items():
         before, during, after = windows["before"], windows["during"], windows["after"]
@@ -519,7 +657,9 @@ def report(result: dict[str, Any]) -> tuple[str, list[dict]]:
             "peak_memory_mb": peak,
             "note": f"input-to-frame p50/p95 before {before['p50']:.1f}/{before['p95']:.1f}, "
                     f"during {during['p50']:.1f}/{during['p95']:.1f}, after "
-                    f"{after['p50']:.1f}/{after['p95']:.1f} ms; gap after {after['gap']:.1f} ms",
+                    f"{after['p50']:.1f}/{after['p95']:.1f} ms; gap after {after['gap']:.1f} ms; "
+                    f"researcher's API longest answer before/during/after {before['api_max']:.0f}/"
+                    f"{during['api_max']:.0f}/{after['api_max']:.0f} ms",
         })  # fmt: skip
     rows.append({"name": "longest frame gap, all windows", "value": round(longest, 1),
                  "unit": "ms", "baseline": f"bound {GAP_BOUND_MS:g} ms",

@@ -12,10 +12,12 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import functools
 import json
 import math
 import os
 import queue
+import resource
 import socket
 import subprocess
 import sys
@@ -45,14 +47,19 @@ def socket_url(link: str) -> str:
     return link.replace("http://", "ws://").replace("/join/", "/ws/join/")
 
 
-def start_process(command: list[str], log: Path, marker: str) -> tuple[subprocess.Popen, str]:
+def start_process(
+    command: list[str], log: Path, marker: str, files: int | None = None
+) -> tuple[subprocess.Popen, str]:
     """Start ``command`` and return it with the first stdout line starting with ``marker``.
 
     Its stdout keeps being drained (into ``log``, with its stderr) so that it never blocks.
+    ``files`` sets its limit of open file descriptors (``ulimit -n``; default: this process's).
     """
+    limit = None if files is None else functools.partial(_limit_files, files)
     with log.open("ab") as errors:
         process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=errors, text=True,
-                                   env={**os.environ, "PYTHONUNBUFFERED": "1"})  # fmt: skip
+                                   env={**os.environ, "PYTHONUNBUFFERED": "1"},
+                                   preexec_fn=limit)  # fmt: skip
     lines: queue.Queue[str] = queue.Queue()
     threading.Thread(target=_drain, args=(process, lines, log), daemon=True).start()
     deadline = time.monotonic() + 60
@@ -67,6 +74,13 @@ def start_process(command: list[str], log: Path, marker: str) -> tuple[subproces
             break
     process.kill()
     raise RuntimeError(f"{command[:4]} did not start: see {log.read_text()[-2000:]}")
+
+
+def _limit_files(files: int) -> None:
+    """Set this process's soft limit of open file descriptors (in a child, before its exec)."""
+    resource.setrlimit(
+        resource.RLIMIT_NOFILE, (files, resource.getrlimit(resource.RLIMIT_NOFILE)[1])
+    )
 
 
 def _drain(process: subprocess.Popen, lines: queue.Queue[str], log: Path) -> None:
@@ -97,11 +111,14 @@ def stop_process(process: subprocess.Popen) -> float:
     return peak
 
 
-def start_lab(out: Path, log: Path) -> tuple[subprocess.Popen, str, str]:
-    """Run ``mirror-avatar lab --port 0``; return it, its base URL and the researcher's token."""
+def start_lab(out: Path, log: Path, files: int | None = None) -> tuple[subprocess.Popen, str, str]:
+    """Run ``mirror-avatar lab --port 0``; return it, its base URL and the researcher's token.
+
+    ``files``: its limit of open file descriptors (as `start_process`).
+    """
     command = [sys.executable, "-c", "from mirror_avatar.console import run; run()", "lab",
                "--port", "0", "--out", str(out), "--no-lsl"]  # fmt: skip
-    process, line = start_process(command, log, "console: ")
+    process, line = start_process(command, log, "console: ", files)
     url = line.split()[1]
     base, token = url.split("/console?token=")
     return process, base, token
@@ -189,8 +206,8 @@ def input_to_frame(log: PageLog, inputs: list[dict[str, str]]) -> np.ndarray:
     return np.asarray(pairs, dtype=float).reshape(-1, 2)
 
 
-def flood(port: int, source: str, seconds: float, paths: list[str]) -> int:
-    """Open WebSockets to ``paths`` from ``source`` for ``seconds``, as fast as they open.
+def flood(port: int, sources: list[str], seconds: float, paths: list[str]) -> int:
+    """Open WebSockets to ``paths`` from ``sources`` in turn for ``seconds``, as fast as they open.
 
     At most `CROWD` stay open (unread); each one beyond closes the oldest. Returns how many
     handshakes were sent (the server's rate gate refuses most of a flood's). A connection that
@@ -201,7 +218,7 @@ def flood(port: int, source: str, seconds: float, paths: list[str]) -> int:
     while time.monotonic() < end:
         for path in paths:
             try:
-                held.append(raw_websocket(port, source, path=path))
+                held.append(raw_websocket(port, sources[opened % len(sources)], path=path))
                 opened += 1
             except OSError:
                 time.sleep(0.001)
@@ -212,19 +229,88 @@ def flood(port: int, source: str, seconds: float, paths: list[str]) -> int:
     return opened
 
 
+PARTIAL_REQUESTS = (
+    b"GET /api/sessions HTTP/1.1\r\nHost: 127.0.0.1\r\nX-",
+    b"GET /join/",
+    b"POST /api/sessions HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+    b"Content-Length: 100000\r\n\r\n{",
+)
+"""Requests a half-open client starts and never finishes: headers, request line, body."""
+
+
+def hold(port: int, sources: list[str], seconds: float, most: int) -> tuple[int, int]:
+    """Hold up to ``most`` half-sent requests (`PARTIAL_REQUESTS`) from ``sources`` in turn.
+
+    Every second, each held request is sent one more byte (slowloris); a connection the server
+    closed is replaced. Returns how many connections were opened and how many the server closed.
+    """
+    held: list[socket.socket] = []
+    opened = closed = 0
+    end, trickle = time.monotonic() + seconds, time.monotonic() + 1.0
+    while time.monotonic() < end:
+        if len(held) < most:
+            try:
+                sock = socket.create_connection(
+                    ("127.0.0.1", port), source_address=(sources[opened % len(sources)], 0)
+                )
+                sock.sendall(PARTIAL_REQUESTS[opened % len(PARTIAL_REQUESTS)])
+                sock.setblocking(False)  # `_still_open` must not wait on it
+                held.append(sock)
+                opened += 1
+            except OSError:
+                time.sleep(0.001)
+        else:
+            time.sleep(0.01)
+        if time.monotonic() >= trickle:
+            trickle += 1.0
+            alive = [sock for sock in held if _still_open(sock)]
+            closed += len(held) - len(alive)
+            held = alive
+    for sock in held:
+        sock.close()
+    return opened, closed
+
+
+def _still_open(sock: socket.socket) -> bool:
+    """Send one more byte of a half-sent request; whether the server still holds it open."""
+    try:
+        if sock.recv(1, socket.MSG_PEEK) == b"":
+            raise ConnectionResetError
+    except BlockingIOError:
+        pass
+    except OSError:
+        sock.close()
+        return False
+    try:
+        sock.send(b"a")
+    except BlockingIOError:
+        pass
+    except OSError:
+        sock.close()
+        return False
+    return True
+
+
 def main(argv: list[str]) -> None:
     """Run a client in a process of its own (the hostile clients of ``bench_hostile``).
 
     ``page URL``: play a participant's page until its connection closes.
-    ``flood PORT SOURCE SECONDS PATH...``: `flood`; print ``ready`` before it begins and the
-    count at the end (the caller runs it at the lowest priority, ``nice 19``).
+    ``flood PORT SOURCES SECONDS PATH...``: `flood` (SOURCES comma-separated); print ``ready``
+    before it begins and the count at the end (the caller runs it at the lowest priority,
+    ``nice 19``).
+    ``hold PORT SOURCES SECONDS MOST``: `hold`; print ``ready``, then its two counts.
     """
     if argv[0] == "page":
         asyncio.run(page_client(argv[1], PageLog("page"), 0.0))
     elif argv[0] == "flood":
         socket.setdefaulttimeout(CONNECT_TIMEOUT)
         print("ready", flush=True)
-        print(flood(int(argv[1]), argv[2], float(argv[3]), argv[4:]), flush=True)
+        print(flood(int(argv[1]), argv[2].split(","), float(argv[3]), argv[4:]), flush=True)
+    elif argv[0] == "hold":
+        socket.setdefaulttimeout(CONNECT_TIMEOUT)
+        print("ready", flush=True)
+        opened, closed = hold(int(argv[1]), argv[2].split(","), float(argv[3]), int(argv[4]))
+        print(opened, closed, flush=True)
 
 
 if __name__ == "__main__":

@@ -39,6 +39,8 @@ from mirror_avatar.training.imitation import make_cyber_player
 if TYPE_CHECKING:
     from starlette.types import ASGIApp
 
+    from mirror_avatar.realtime.settings import ConnectionSettings
+
 Array = NDArray[np.float64]
 
 
@@ -190,6 +192,8 @@ class ServerThread:
     stop_timeout
         Seconds the server is given to stop gracefully when the block ends; then it is stopped
         without waiting for its connections, and given as long again.
+    guard
+        Its request deadlines and connection caps (default: the servers' own).
 
     Raises
     ------
@@ -197,13 +201,19 @@ class ServerThread:
         When the server did not start within 10 s, or did not stop (on leaving the block).
     """
 
-    def __init__(self, app: ASGIApp, host: str = "127.0.0.1", stop_timeout: float = 15.0) -> None:
+    def __init__(
+        self,
+        app: ASGIApp,
+        host: str = "127.0.0.1",
+        stop_timeout: float = 15.0,
+        guard: ConnectionSettings | None = None,
+    ) -> None:
         # Imported here so that the rest of this module works without the live extra.
         from mirror_avatar.realtime.transport import listening_socket, make_server
 
         self.socket = listening_socket(host, 0)
         self.host, self.port = self.socket.getsockname()[:2]
-        self.server = make_server(app, self.host, self.port)
+        self.server = make_server(app, self.host, self.port, guard=guard)
         self.stop_timeout = stop_timeout
         self.thread = threading.Thread(
             target=self.server.run, kwargs={"sockets": [self.socket]}, daemon=True

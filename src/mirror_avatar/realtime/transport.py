@@ -1,13 +1,14 @@
 """The servers' sockets: listening, aborting a connection that stopped reading, quiet logs.
 
 Both real-time servers run under uvicorn (`make_server`) on a socket bound before the server
-starts (`listening_socket`). Its event loop accepts at most `ACCEPT_BATCH` connections at a time
-and the objects that exist once it serves are left out of garbage collection
-(`RealtimeServer`), so that neither a flood of connections nor a collection holds it for long.
-A connection whose client stopped reading is aborted (`abort_transport`), not closed
-gracefully, so its socket cannot linger; the transport is
-reached through the server's own ASGI ``send`` callable, which the gates keep in the scope under
-`SERVER_SEND` (`mirror_avatar.realtime.gates`). The access log leaves secrets out
+starts (`listening_socket`), with protocols that time each request's arrival and cap the
+connections per client address and in total (`mirror_avatar.realtime.protocols`). Its event
+loop accepts at most `ACCEPT_BATCH` connections at a time and the objects that exist once it
+serves are left out of garbage collection (`RealtimeServer`), so that neither a flood of
+connections nor a collection holds it for long. A connection whose client stopped reading is
+aborted (`abort_transport`), not closed gracefully, so its socket cannot linger; the transport
+is reached through the server's own ASGI ``send`` callable, which the gates keep in the scope
+under `SERVER_SEND` (`mirror_avatar.realtime.gates`). The access log leaves secrets out
 (`RedactSecrets`): tokens in query strings and the keys of join links.
 """
 
@@ -23,6 +24,9 @@ import socket
 import uvicorn
 from starlette.types import ASGIApp
 from starlette.websockets import WebSocket
+
+from mirror_avatar.realtime.protocols import GuardedConfig
+from mirror_avatar.realtime.settings import ConnectionSettings
 
 MAX_FRAME_BYTES = 16 * 1024
 """Largest WebSocket frame the servers read at all (bytes); larger ones close the connection."""
@@ -105,16 +109,24 @@ def listening_socket(host: str, port: int) -> socket.socket:
     return sock
 
 
-def make_server(app: ASGIApp, host: str, port: int, log_level: str = "warning") -> uvicorn.Server:
+def make_server(
+    app: ASGIApp,
+    host: str,
+    port: int,
+    log_level: str = "warning",
+    guard: ConnectionSettings | None = None,
+) -> uvicorn.Server:
     """Configure a uvicorn server for ``app`` (sans-I/O WebSockets, `MAX_FRAME_BYTES` frames).
 
-    Its logs leave secrets out (`keep_secrets_out_of_logs`).
+    Its connections are guarded by ``guard`` (request deadlines, caps: `GuardedConfig`;
+    default: `ConnectionSettings`'s defaults); its logs leave secrets out
+    (`keep_secrets_out_of_logs`).
     """
-    config = uvicorn.Config(
+    config = GuardedConfig(
         app,
+        guard or ConnectionSettings(),
         host=host,
         port=port,
-        ws="websockets-sansio",
         ws_max_size=MAX_FRAME_BYTES,
         log_level=log_level,
         lifespan="off",

@@ -16,7 +16,7 @@ import re
 from collections.abc import AsyncIterator
 from typing import IO, Any
 
-from starlette.requests import Request
+from starlette.requests import ClientDisconnect, Request
 from starlette.responses import JSONResponse, Response, StreamingResponse
 
 from mirror_avatar.common.errors import InputError
@@ -303,13 +303,18 @@ async def _body(request: Request, allow_empty: bool = False, limit: int = MAX_BO
     ------
     ApiError
         400: over the limit, or not JSON (`mirror_avatar.files.user_files.parse_json`: not UTF-8,
-        nested too deeply, NaN or a number beyond float64's range).
+        nested too deeply, NaN or a number beyond float64's range), or the connection closed
+        before the body's end (its client left, or the server closed it: its body came too
+        slowly); the answer then goes nowhere, and nothing is logged as an error.
     """
     raw = bytearray()
-    async for chunk in request.stream():  # read no further than the limit
-        raw += chunk
-        if len(raw) > limit:
-            raise ApiError(400, f"request body over {limit} bytes")
+    try:
+        async for chunk in request.stream():  # read no further than the limit
+            raw += chunk
+            if len(raw) > limit:
+                raise ApiError(400, f"request body over {limit} bytes")
+    except ClientDisconnect:
+        raise ApiError(400, "the connection closed before the request's body ended") from None
     if not raw and allow_empty:
         return {}
     try:
