@@ -316,7 +316,7 @@ def test_two_pages_behind_an_emulated_internet_are_timed_on_the_server_clock(
     samples' server times are within the uncertainty the sidecar claims (half the smallest
     round trip, about 60 ms) and within 15 ms at the median, the page's offsets within 15 ms:
     the issue asked for 5 and 10 ms, and on this 2-core machine at loads of 9 to 14 the median
-    error was 2 to 9.8 ms and the largest 4 to 14 ms in eight runs (the two ends' own latency
+    error was 2 to 9.8 ms and the largest 4 to 14 ms in nine runs (the two ends' own latency
     skews the exchanges). The pointer is read faster than the page draws; the stall is recorded
     ending where the proxy released it (within 0.15 s), at least half as long (a second's
     freeze of the machine just before it was seen to hide its first 0.4 s). Each page's median
