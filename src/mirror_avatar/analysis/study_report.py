@@ -190,11 +190,7 @@ def analyse_study(
     elif reference not in conditions:
         raise InputError("--reference", f"no condition {reference!r} in {table.source}; its "
                          f"conditions are {', '.join(conditions)}")  # fmt: skip
-    rows, notes = _participants_rows(table.rows)
-    rows, incomplete = _complete_rows(rows, table.source)
-    notes += _incomplete_note(incomplete)
-    rows, left_out = _finite(rows, table.outcomes)
-    notes += left_out
+    rows, notes, incomplete = analysed_rows(table)
     if table.skipped_measures:
         notes.append(f"not numbers, so not averaged: {', '.join(table.skipped_measures)}")
     summaries = condition_summaries(rows, table.outcomes, conditions, seed, resamples, confidence)
@@ -232,6 +228,25 @@ def analyse_study(
         models=models, identification=identify(rows, confidence), parameters=parameters,
         notes=notes, confirmatory=None if hypothesis is None else confirm(rows, hypothesis),
     )  # fmt: skip
+
+
+def analysed_rows(table: StudyTable) -> tuple[pd.DataFrame, list[str], int | None]:
+    """Return the rows every statistic uses, what was left out in words, and the incomplete rows.
+
+    The persons' rows (avatars are not participants) of complete trials, every infinite value
+    of an outcome made missing; the count of incomplete rows left out is None when the table
+    has no ``complete`` column.
+
+    Raises
+    ------
+    InputError
+        Every row is of an incomplete trial.
+    """
+    rows, notes = _participants_rows(table.rows)
+    rows, incomplete = _complete_rows(rows, table.source)
+    notes += _incomplete_note(incomplete)
+    rows, left_out = _finite(rows, table.outcomes)
+    return rows, notes + left_out, incomplete
 
 
 def _ordered_conditions(table: StudyTable, protocol: Protocol | None) -> list[str]:
