@@ -27,6 +27,15 @@ from mirror_avatar.lab.design.protocol import Analysis
 ALTERNATIVES = {"lower": "less", "higher": "greater", "two-sided": "two-sided"}
 """Each direction of a hypothesis as scipy's ``alternative`` of condition minus reference."""
 
+CONFIRMATORY_MODEL = (
+    "paired t-test of the participants' means, condition minus reference, one-sided as "
+    "declared, Holm over the primary measures"
+)
+"""The declared hypothesis's test in words, as the report and the registered plan name it."""
+
+EXPLORATORY_MODEL = "Benjamini-Hochberg q-values over every exploratory contrast"
+"""How every other comparison is corrected, in words."""
+
 
 @dataclass(frozen=True)
 class ConfirmatoryTest:
