@@ -96,11 +96,14 @@ def registered_plan(protocol: Protocol, power: dict[str, Any] | None) -> dict[st
 
 def _hypotheses(analysis: Analysis) -> list[str]:
     """Say each primary measure's hypothesis in words."""
-    side = {"lower": "lower than", "higher": "higher than", "two-sided": "different from"}
+    compared = {
+        "lower": f"is lower in {analysis.condition!r} than in {analysis.reference!r}",
+        "higher": f"is higher in {analysis.condition!r} than in {analysis.reference!r}",
+        "two-sided": f"differs between {analysis.condition!r} and {analysis.reference!r}",
+    }[analysis.direction]
     return [
-        f"{column_label(m)} is {side[analysis.direction]} in {analysis.condition!r} than in "
-        f"{analysis.reference!r}, by at least {analysis.smallest_effect:g} (the smallest effect "
-        f"of interest), at alpha {analysis.alpha:g}"
+        f"{column_label(m)} {compared}, by at least {analysis.smallest_effect:g} (the smallest "
+        f"effect of interest), at alpha {analysis.alpha:g}"
         for m in analysis.primary
     ]
 
@@ -218,7 +221,7 @@ def plan_markdown(content: dict[str, Any], sha256: str) -> str:
 def _design_lines(design: dict[str, Any]) -> list[str]:
     lines = [f"Blocks in {design['block_order']} order (seed {design['seed']})."]
     for block in design["blocks"]:
-        lines.append(f"- Block {block['name'] or ''}: conditions in {block['order']} order")
+        lines.append(f"- {block['name']}: conditions in {block['order']} order")
         lines += [f"  - {c['name']}: {c['game']}, {c['trials']} trial(s) of "
                   f"{c['duration_s']} s, delay {c['delay_s']:g} s, players "
                   f"{', '.join(c['players'])}" for c in block["conditions"]]  # fmt: skip

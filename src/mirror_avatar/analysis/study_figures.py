@@ -113,7 +113,7 @@ def plot_power(
     axes.errorbar(participants, power, yerr=np.vstack([below, above]), color=MEAN_COLOUR,
                   marker="o", ms=4, capsize=3, lw=1.2)  # fmt: skip
     axes.axhline(target, color=PARTICIPANT_COLOUR, ls="--", lw=1.0, label=f"target {target:g}")
-    axes.set(xlabel="participants", ylabel="power", ylim=(0.0, 1.0))
+    axes.set(xlabel="participants", ylabel="power", ylim=(0.0, 1.03), xticks=participants)
     axes.legend(loc="lower right", frameon=False)
     return figure
 

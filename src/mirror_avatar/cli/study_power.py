@@ -34,9 +34,9 @@ EFFECT = Interval(float, 0.0, None, "neither")
               help="The study's protocol: its [analysis] declares the test.")  # fmt: skip
 @click.option("--participants", default="6,8,12,16,24", show_default=True,
               help="The numbers of participants simulated, separated by commas.")  # fmt: skip
-@click.option("--effect", type=float, default=None,
-              help="The planned effect in the primary measures' units, in the declared "
-                   "direction [default: the protocol's smallest_effect].")  # fmt: skip
+@click.option("--effect", default=None,
+              **ranged("The planned effect in the primary measures' units, in the declared "
+                       "direction [default: the protocol's smallest_effect].", EFFECT))  # fmt: skip
 @click.option("--target", default=0.8, show_default=True, **ranged("The power aimed at.", TARGET))
 @click.option("--simulations", default=1000, show_default=True,
               **ranged("Simulated studies per number of participants.", SIMULATIONS))  # fmt: skip
@@ -65,8 +65,6 @@ def power(
     curve (power.png).
     """
     sizes = _sizes(participants)
-    if effect is not None and effect not in EFFECT:
-        raise InputError("--effect", "must be a number above 0 (in the declared direction)")
     check_output_dir(out_dir, files=POWER_FILES)
     analysis = _declared(protocol_file)
     study = read_study_table(table)
