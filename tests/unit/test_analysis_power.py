@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from statsmodels.stats.power import TTestPower
-from study_tables import CONDITIONS, make_study_rows, write_study_table
+from study_tables import CONDITIONS, TRIAL_SD, make_study_rows, write_study_table
 from test_analysis_hypothesis import protocol_text
 
 from mirror_avatar.analysis.hypothesis import confirm
@@ -34,7 +34,7 @@ from mirror_avatar.common.errors import InputError
 from mirror_avatar.lab.design.protocol import Analysis
 
 NO_DELAY, DELAY = CONDITIONS
-UNIT_SPREAD = Spread(("rms",), np.array([[1.0]]), 10, np.zeros(1))
+UNIT_SPREAD = Spread(("rms",), np.array([[1.0]]), 10, np.zeros(1), np.array([[0.0]]), 0.5)
 STATSMODELS = {"higher": "larger", "lower": "smaller", "two-sided": "two-sided"}
 
 
@@ -73,8 +73,8 @@ def test_no_effect_rejects_at_alpha() -> None:
 
 def test_the_simulated_test_is_the_reports_confirm() -> None:
     analysis = hypothesis("lower", 0.02, ("rms", "phase_locking"))
-    spread = Spread(analysis.primary, np.array([[1e-3, 4e-4], [4e-4, 2e-3]]), 10, np.zeros(2))
-    differences = simulate_differences(spread, 0.02, "lower", 9, 40, np.random.default_rng(5))
+    covariance = np.array([[1e-3, 4e-4], [4e-4, 2e-3]])
+    differences = simulate_differences(covariance, 0.02, "lower", 9, 40, np.random.default_rng(5))
     rejected = rejections(differences, analysis)
     for study, expected in zip(differences, rejected, strict=True):
         found = [test.significant for test in confirm(study_rows(study, analysis), analysis)]
@@ -115,6 +115,22 @@ def test_pilot_spread_is_the_sd_of_the_participants_differences(tmp_path: Path) 
     assert spread.covariance.shape == (2, 2)
 
 
+def test_trial_noise_is_estimated_and_planned(tmp_path: Path) -> None:
+    rows = make_study_rows(seed=6, participants=40, trials=4)
+    table = read_study_table(write_study_table(rows, tmp_path / "pilot"))
+    analysis = hypothesis("higher", 0.01)
+    spread = pilot_spread(table, analysis)
+    assert spread.trial_factor == pytest.approx(0.5)
+    assert np.sqrt(spread.trial_covariance[0, 0]) == pytest.approx(TRIAL_SD["rms"], rel=0.1)
+    # the synthetic participants differ by trial noise alone: their own spread is clipped to 0
+    noise = spread.trial_factor * spread.trial_covariance[0, 0]
+    pilot = spread.covariance[0, 0]
+    assert spread.with_trials(4)[0, 0] == pytest.approx(max(pilot, noise), rel=1e-9)
+    assert spread.with_trials(16)[0, 0] < spread.covariance[0, 0]
+    few, many = (simulate_power(spread, analysis, 12, 2000, 1, trials=k).power for k in (1, 16))
+    assert few < many
+
+
 def test_pilot_without_the_primary_measure_is_refused(tmp_path: Path) -> None:
     table = read_study_table(write_study_table(make_study_rows(seed=1), tmp_path / "pilot"))
     with pytest.raises(InputError, match="no primary measure rmse"):
@@ -141,12 +157,16 @@ def test_study_power_writes_its_files(pilot: tuple[Path, Path], tmp_path: Path) 
     assert (found["ci_low"] <= found["power"]).all() and (found["power"] <= found["ci_high"]).all()
     written = json.loads((tmp_path / "power.json").read_text())
     assert written["seed"] == 7 and written["simulations"] == 400
+    assert written["trials_per_condition"] is None
     assert written["effect"] == 0.05 and written["hypothesis"]["direction"] == "lower"
     assert len(written["table_sha256"]) == 64
     assert (tmp_path / "power.png").read_bytes().startswith(b"\x89PNG")
     again = tmp_path / "again"
     assert main([*arguments[:-1], str(again)]) == 0
     assert (again / "power.csv").read_text() == (tmp_path / "power.csv").read_text()
+    planned = tmp_path / "planned"
+    assert main([*arguments[:-1], str(planned), "--trials", "16"]) == 0
+    assert json.loads((planned / "power.json").read_text())["trials_per_condition"] == 16
 
 
 @pytest.mark.parametrize(

@@ -23,7 +23,7 @@ from scipy import stats
 
 from mirror_avatar.analysis.hypothesis import declared_test
 from mirror_avatar.analysis.multiple_tests import holm
-from mirror_avatar.analysis.statistics import participant_means
+from mirror_avatar.analysis.statistics import TRIAL_KEYS, participant_means, trial_values
 from mirror_avatar.analysis.study_file import StudyTable
 from mirror_avatar.analysis.study_report import analysed_rows
 from mirror_avatar.common.errors import InputError
@@ -51,12 +51,33 @@ class Spread:
         The pilot's participants with a difference in every primary measure.
     pilot_differences
         Shape (m,): the pilot's mean difference per measure (reported, not simulated).
+    trial_covariance
+        Shape (m, m): the covariance of a trial's values about their participant's mean in the
+        condition (pooled within participants and conditions), in squared units.
+    trial_factor
+        The pilot's mean over participants of 1/k_reference + 1/k_condition (k: their trials
+        in the condition): the trial noise's share of a difference's variance is
+        ``trial_factor * trial_covariance``.
     """
 
     measures: tuple[str, ...]
     covariance: NDArray[np.float64]
     participants: int
     pilot_differences: NDArray[np.float64]
+    trial_covariance: NDArray[np.float64]
+    trial_factor: float
+
+    def with_trials(self, trials: int) -> NDArray[np.float64]:
+        """Return the differences' covariance with ``trials`` trials per condition.
+
+        The participants' own spread (the covariance less the pilot's trial noise, its
+        negative eigenvalues set to 0) plus the trial noise over ``trials`` in each condition.
+        """
+        values, vectors = np.linalg.eigh(
+            self.covariance - self.trial_factor * self.trial_covariance
+        )
+        participants = (vectors * np.clip(values, 0.0, None)) @ vectors.T
+        return participants + (2.0 / trials) * self.trial_covariance
 
     @property
     def sd(self) -> NDArray[np.float64]:
@@ -134,12 +155,34 @@ def pilot_spread(table: StudyTable, analysis: Analysis) -> Spread:
                          f"{analysis.reference!r} and {analysis.condition!r}: the spread needs "
                          "two or more")  # fmt: skip
     values = differences.to_numpy(np.float64)
+    kept = rows[rows["participant"].isin(differences.index) & rows["condition"].isin(conditions)]
+    noise, factor = _trial_noise(kept, analysis)
     return Spread(
         measures=analysis.primary,
         covariance=np.atleast_2d(np.cov(values, rowvar=False, ddof=1)),
         participants=len(differences),
         pilot_differences=values.mean(axis=0),
+        trial_covariance=noise,
+        trial_factor=factor,
     )
+
+
+def _trial_noise(rows: pd.DataFrame, analysis: Analysis) -> tuple[NDArray[np.float64], float]:
+    """Return the pooled within-cell covariance of the trials' values, and `Spread.trial_factor`.
+
+    A cell is a participant in a condition; its trials' values (`trial_values`) about their
+    mean, pooled with the cells' degrees of freedom (trials less cells).
+    """
+    keys = [key for key in TRIAL_KEYS if key in rows]
+    trials = pd.concat(
+        [trial_values(rows, m).set_index(keys)[m] for m in analysis.primary], axis=1
+    ).dropna()
+    cells = trials.groupby(level=["participant", "condition"])
+    residuals = (trials - cells.transform("mean")).to_numpy(np.float64)
+    freedom = max(len(trials) - cells.ngroups, 1)
+    counts = cells.size().unstack("condition")
+    factor = float((1.0 / counts).sum(axis=1).mean())
+    return residuals.T @ residuals / freedom, factor
 
 
 def _check_table(table: StudyTable, analysis: Analysis) -> None:
@@ -155,7 +198,7 @@ def _check_table(table: StudyTable, analysis: Analysis) -> None:
 
 
 def simulate_differences(
-    spread: Spread,
+    covariance: NDArray[np.float64],
     effect: float,
     direction: str,
     participants: int,
@@ -166,8 +209,8 @@ def simulate_differences(
 
     Parameters
     ----------
-    spread
-        Their covariance across the primary measures.
+    covariance
+        Shape (m, m): their covariance across the primary measures.
     effect
         The planned effect, in the measures' units, in the declared direction (> 0).
     direction
@@ -182,8 +225,8 @@ def simulate_differences(
     numpy.ndarray
         Shape (simulations, m, participants).
     """
-    mean = np.full(len(spread.measures), SIGNS[direction] * effect)
-    drawn = rng.multivariate_normal(mean, spread.covariance, size=(simulations, participants))
+    mean = np.full(len(covariance), SIGNS[direction] * effect)
+    drawn = rng.multivariate_normal(mean, covariance, size=(simulations, participants))
     return np.moveaxis(drawn, 1, 2)
 
 
@@ -214,17 +257,20 @@ def simulate_power(
     simulations: int,
     seed: int,
     effect: float | None = None,
+    trials: int | None = None,
 ) -> PowerPoint:
     """Simulate the declared test's power with ``participants`` participants.
 
     The generator is seeded by (``seed``, ``participants``): a number of participants gives the
     same studies whichever others are simulated with it. ``effect`` defaults to the
-    hypothesis's smallest effect of interest.
+    hypothesis's smallest effect of interest; ``trials``, the trials per condition, to the
+    pilot's (`Spread.with_trials`).
     """
     rng = np.random.default_rng([seed, participants])
     planned = analysis.smallest_effect if effect is None else effect
+    covariance = spread.covariance if trials is None else spread.with_trials(trials)
     differences = simulate_differences(
-        spread, planned, analysis.direction, participants, simulations, rng
+        covariance, planned, analysis.direction, participants, simulations, rng
     )
     rejected = rejections(differences, analysis)
     return PowerPoint(

@@ -52,6 +52,8 @@ class PowerAnalysis:
         The power at each number of participants simulated, in increasing order.
     table, protocol
         The pilot's table and the protocol, as files.
+    trials
+        The planned trials per condition, None for the pilot's.
     """
 
     analysis: Analysis
@@ -62,6 +64,7 @@ class PowerAnalysis:
     points: list[PowerPoint]
     table: Path
     protocol: Path
+    trials: int | None = None
 
     @property
     def smallest(self) -> int | None:
@@ -84,10 +87,12 @@ class PowerAnalysis:
                 "participants": self.spread.participants,
                 "sd_of_differences": dict(zip(self.spread.measures, sd, strict=True)),
                 "covariance": self.spread.covariance.tolist(),
+                "trial_covariance": self.spread.trial_covariance.tolist(),
+                "trial_factor": self.spread.trial_factor,
                 "mean_differences": dict(zip(self.spread.measures,
                                              self.spread.pilot_differences, strict=True)),
             },
-            "target": self.target, "seed": self.seed,
+            "trials_per_condition": self.trials, "target": self.target, "seed": self.seed,
             "simulations": self.points[0].simulations, "interval": f"Wilson {INTERVAL:.0%}",
             "power": self.frame().to_dict(orient="records"),
             "smallest_participants": self.smallest,

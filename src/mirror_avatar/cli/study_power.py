@@ -27,6 +27,9 @@ TARGET = Interval(float, 0.0, 1.0, "neither")
 EFFECT = Interval(float, 0.0, None, "neither")
 """A planned effect, in the primary measures' units."""
 
+TRIALS = Interval(int, 1, 10_000)
+"""Planned trials per condition."""
+
 
 @click.command()
 @click.argument("table", type=click.Path(path_type=Path))
@@ -37,6 +40,9 @@ EFFECT = Interval(float, 0.0, None, "neither")
 @click.option("--effect", default=None,
               **ranged("The planned effect in the primary measures' units, in the declared "
                        "direction [default: the protocol's smallest_effect].", EFFECT))  # fmt: skip
+@click.option("--trials", default=None,
+              **ranged("Planned trials per participant and condition [default: the pilot's].",
+                       TRIALS))  # fmt: skip
 @click.option("--target", default=0.8, show_default=True, **ranged("The power aimed at.", TARGET))
 @click.option("--simulations", default=1000, show_default=True,
               **ranged("Simulated studies per number of participants.", SIMULATIONS))  # fmt: skip
@@ -48,6 +54,7 @@ def power(
     protocol_file: Path,
     participants: str,
     effect: float | None,
+    trials: int | None,
     target: float,
     simulations: int,
     seed: int,
@@ -58,7 +65,8 @@ def power(
     TABLE is a pilot's study table (a folder holding study.csv, or the table). Per primary
     measure, the spread of the participants' paired differences (condition minus reference)
     is estimated from it; studies of each number of participants are simulated with the
-    planned effect and that spread, and tested as `study report` tests the hypothesis (paired
+    planned effect and that spread (with --trials, the pilot's trial noise rescaled to that
+    number of trials per condition), and tested as `study report` tests the hypothesis (paired
     t-test, one-sided as declared, Holm over the primary measures). Writes the power, its Monte
     Carlo standard error and 95 % Wilson interval per number (power.csv), every input with the
     table's SHA-256 and the smallest number reaching the target (power.json), and the power
@@ -71,13 +79,13 @@ def power(
     spread = pilot_spread(study, analysis)
     points = []
     for n in sizes:
-        points.append(simulate_power(spread, analysis, n, simulations, seed, effect))
+        points.append(simulate_power(spread, analysis, n, simulations, seed, effect, trials))
         click.echo(f"{n} participants: power {points[-1].power:.3f} ({simulations} studies)",
                    err=True)  # fmt: skip
     found = PowerAnalysis(
         analysis=analysis, spread=spread,
         effect=analysis.smallest_effect if effect is None else effect, target=target,
-        seed=seed, points=points, table=study.source, protocol=protocol_file,
+        seed=seed, points=points, table=study.source, protocol=protocol_file, trials=trials,
     )  # fmt: skip
     write_power(found, out_dir)
     smallest = found.smallest
