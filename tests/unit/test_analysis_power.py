@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 from statsmodels.stats.power import TTestPower
 from study_tables import CONDITIONS, TRIAL_SD, make_study_rows, write_study_table
-from test_analysis_hypothesis import protocol_text
+from test_analysis_hypothesis import ANALYSIS, protocol_text
 
 from mirror_avatar.analysis.hypothesis import confirm
 from mirror_avatar.analysis.power import (
@@ -105,7 +105,7 @@ def test_smallest_number_reaching_the_target() -> None:
 def test_pilot_spread_is_the_sd_of_the_participants_differences(tmp_path: Path) -> None:
     rows = make_study_rows(seed=4, participants=10, effects={"rms": 0.03})
     table = read_study_table(write_study_table(rows, tmp_path / "pilot"))
-    spread = pilot_spread(table, hypothesis("higher", 0.02, ("rms", "phase_locking")))
+    spread = pilot_spread(table, hypothesis("higher", 0.02, ("rms", "phase_locking")), "p.toml")
     persons = rows[rows["player_kind"] == "person"]
     means = persons.groupby(["participant", "condition"])["rms"].mean().unstack()
     differences = means[DELAY] - means[NO_DELAY]
@@ -119,7 +119,7 @@ def test_trial_noise_is_estimated_and_planned(tmp_path: Path) -> None:
     rows = make_study_rows(seed=6, participants=40, trials=4)
     table = read_study_table(write_study_table(rows, tmp_path / "pilot"))
     analysis = hypothesis("higher", 0.01)
-    spread = pilot_spread(table, analysis)
+    spread = pilot_spread(table, analysis, "p.toml")
     assert spread.trial_factor == pytest.approx(0.5)
     assert np.sqrt(spread.trial_covariance[0, 0]) == pytest.approx(TRIAL_SD["rms"], rel=0.1)
     # the synthetic participants differ by trial noise alone: their own spread is clipped to 0
@@ -131,10 +131,17 @@ def test_trial_noise_is_estimated_and_planned(tmp_path: Path) -> None:
     assert few < many
 
 
+def test_pilot_without_a_condition_of_the_contrast_is_refused(tmp_path: Path) -> None:
+    rows = make_study_rows(seed=1, conditions=(NO_DELAY, "delay 1 s"))
+    table = read_study_table(write_study_table(rows, tmp_path / "pilot"))
+    with pytest.raises(InputError, match="p.toml: analysis: no condition 'delay 0.5 s'"):
+        pilot_spread(table, hypothesis("higher"), "p.toml")
+
+
 def test_pilot_without_the_primary_measure_is_refused(tmp_path: Path) -> None:
     table = read_study_table(write_study_table(make_study_rows(seed=1), tmp_path / "pilot"))
-    with pytest.raises(InputError, match="no primary measure rmse"):
-        pilot_spread(table, hypothesis("higher", primary=("rmse",)))
+    with pytest.raises(InputError, match="p.toml: analysis.primary: no measure rmse"):
+        pilot_spread(table, hypothesis("higher", primary=("rmse",)), "p.toml")
 
 
 @pytest.fixture(scope="module")
@@ -170,26 +177,28 @@ def test_study_power_writes_its_files(pilot: tuple[Path, Path], tmp_path: Path) 
 
 
 @pytest.mark.parametrize(
-    ("options", "problem"),
+    ("analysis", "options", "problem"),
     [
-        (["--participants", "4,x"], "--participants"),
-        (["--participants", "1,8"], "--participants"),
-        (["--effect", "-1"], "--effect"),
-        (["--analysis-less"], "no [analysis]"),
+        (ANALYSIS, ["--participants", "4,x"], "--participants"),
+        (ANALYSIS, ["--participants", "1,8"], "--participants"),
+        (ANALYSIS, ["--effect", "-1"], "--effect"),
+        (ANALYSIS, ["--trials", "0"], "--trials"),
+        ("", [], "no [analysis]"),
+        (ANALYSIS.replace("phase_locking", "rmse"), [], "no measure rmse"),
+        (ANALYSIS.replace("no delay", "fast"), [], "'fast' is not a condition"),
     ],
 )
 def test_study_power_refuses_bad_input(
     pilot: tuple[Path, Path],
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
+    analysis: str,
     options: list[str],
     problem: str,
 ) -> None:
-    table, protocol = pilot
-    if options == ["--analysis-less"]:
-        protocol = tmp_path / "plain.toml"
-        protocol.write_text(protocol_text(analysis=""))
-        options = []
+    table, _ = pilot
+    protocol = tmp_path / "edited.toml"
+    protocol.write_text(protocol_text(analysis))
     arguments = [
         "study",
         "power",

@@ -25,7 +25,7 @@ from mirror_avatar.analysis.hypothesis import declared_test
 from mirror_avatar.analysis.multiple_tests import holm
 from mirror_avatar.analysis.statistics import TRIAL_KEYS, participant_means, trial_values
 from mirror_avatar.analysis.study_file import StudyTable
-from mirror_avatar.analysis.study_report import analysed_rows
+from mirror_avatar.analysis.study_report import analysed_rows, check_hypothesis
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.lab.design.protocol import Analysis
 
@@ -125,12 +125,14 @@ class PowerPoint:
         return float(found.low), float(found.high)
 
 
-def pilot_spread(table: StudyTable, analysis: Analysis) -> Spread:
+def pilot_spread(table: StudyTable, analysis: Analysis, protocol: str) -> Spread:
     """Estimate the spread of the paired differences of the hypothesis's primary measures.
 
     The rows are those the report analyses (`analysed_rows`: persons, complete trials, finite
     values); a participant counts when they have a mean in both conditions of every primary
     measure.
+
+    ``protocol``: the protocol's file, named when the table lacks what it declares.
 
     Raises
     ------
@@ -138,7 +140,7 @@ def pilot_spread(table: StudyTable, analysis: Analysis) -> Spread:
         The table lacks a primary measure or a condition of the contrast, or fewer than two
         participants have both conditions.
     """
-    _check_table(table, analysis)
+    check_hypothesis(table, analysis, table.conditions(), protocol)
     rows, _, _ = analysed_rows(table)
     conditions = [analysis.reference, analysis.condition]
     differences = pd.concat(
@@ -183,18 +185,6 @@ def _trial_noise(rows: pd.DataFrame, analysis: Analysis) -> tuple[NDArray[np.flo
     counts = cells.size().unstack("condition")
     factor = float((1.0 / counts).sum(axis=1).mean())
     return residuals.T @ residuals / freedom, factor
-
-
-def _check_table(table: StudyTable, analysis: Analysis) -> None:
-    missing = [m for m in analysis.primary if m not in table.outcomes]
-    if missing:
-        raise InputError(table.source, f"no primary measure {', '.join(missing)}: the "
-                         "protocol's [analysis] names measures the table lacks")  # fmt: skip
-    conditions = table.conditions()
-    absent = [c for c in (analysis.condition, analysis.reference) if c not in conditions]
-    if absent:
-        raise InputError(table.source, f"no condition {', '.join(map(repr, absent))}; its "
-                         f"conditions are {', '.join(conditions)}")  # fmt: skip
 
 
 def simulate_differences(

@@ -200,7 +200,7 @@ def analyse_study(
     conditions = _ordered_conditions(table, protocol)
     hypothesis = None if protocol is None else protocol.analysis
     if protocol is not None and hypothesis is not None:
-        _check_hypothesis(table, hypothesis, conditions, protocol.source)
+        check_hypothesis(table, hypothesis, conditions, protocol.source)
     if reference is None:
         reference = conditions[0] if hypothesis is None else hypothesis.reference
     elif reference not in conditions:
@@ -275,7 +275,7 @@ def _ordered_conditions(table: StudyTable, protocol: Protocol | None) -> list[st
     return ordered + [c for c in found if c not in ordered]
 
 
-def _check_hypothesis(
+def check_hypothesis(
     table: StudyTable, hypothesis: Analysis, conditions: list[str], source: str
 ) -> None:
     """Refuse a hypothesis about conditions or measures the table does not have.

@@ -76,7 +76,7 @@ def power(
     check_output_dir(out_dir, files=POWER_FILES)
     analysis = _declared(protocol_file)
     study = read_study_table(table)
-    spread = pilot_spread(study, analysis)
+    spread = pilot_spread(study, analysis, str(protocol_file))
     points = []
     for n in sizes:
         points.append(simulate_power(spread, analysis, n, simulations, seed, effect, trials))
