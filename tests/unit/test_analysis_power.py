@@ -20,6 +20,7 @@ from test_analysis_hypothesis import ANALYSIS, protocol_text
 
 from mirror_avatar.analysis.hypothesis import confirm
 from mirror_avatar.analysis.power import (
+    CHUNK_VALUES,
     PowerPoint,
     Spread,
     pilot_spread,
@@ -57,6 +58,15 @@ def test_simulated_power_equals_the_noncentral_t_power(direction: str) -> None:
         low, high = found.interval
         assert low < found.power < high
         assert found.standard_error < 0.0036
+
+
+def test_studies_drawn_in_chunks_keep_the_noncentral_t_power() -> None:
+    # 5000 studies of 1000 participants: three chunks of CHUNK_VALUES, Monte Carlo SE 0.0055
+    assert 2 * CHUNK_VALUES < 5000 * 1000
+    found = simulate_power(UNIT_SPREAD, hypothesis("higher", 0.08), 1000, 5000, seed=1)
+    assert found.simulations == 5000
+    expected = TTestPower().power(effect_size=0.08, nobs=1000, alpha=0.05, alternative="larger")
+    assert found.power == pytest.approx(expected, abs=0.03)
 
 
 def test_power_grows_with_participants() -> None:

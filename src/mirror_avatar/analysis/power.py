@@ -32,6 +32,9 @@ from mirror_avatar.lab.design.protocol import Analysis
 INTERVAL = 0.95
 """The level of the Wilson interval of each simulated power."""
 
+CHUNK_VALUES = 2_000_000
+"""The simulated differences drawn at once, at most (16 MB): studies are drawn in chunks."""
+
 SIGNS = {"lower": -1.0, "higher": 1.0, "two-sided": 1.0}
 """The sign of a planned effect in each declared direction (condition minus reference)."""
 
@@ -252,17 +255,20 @@ def simulate_power(
     """Simulate the declared test's power with ``participants`` participants.
 
     The generator is seeded by (``seed``, ``participants``): a number of participants gives the
-    same studies whichever others are simulated with it. ``effect`` defaults to the
+    same studies whichever others are simulated with it. The studies are drawn in chunks of at
+    most `CHUNK_VALUES` differences. ``effect`` defaults to the
     hypothesis's smallest effect of interest; ``trials``, the trials per condition, to the
     pilot's (`Spread.with_trials`).
     """
     rng = np.random.default_rng([seed, participants])
     planned = analysis.smallest_effect if effect is None else effect
     covariance = spread.covariance if trials is None else spread.with_trials(trials)
-    differences = simulate_differences(
-        covariance, planned, analysis.direction, participants, simulations, rng
-    )
-    rejected = rejections(differences, analysis)
+    chunk = max(1, CHUNK_VALUES // (participants * len(covariance)))
+    rejected = np.concatenate([
+        rejections(simulate_differences(covariance, planned, analysis.direction, participants,
+                                        min(chunk, simulations - start), rng), analysis)
+        for start in range(0, simulations, chunk)
+    ])  # fmt: skip
     return PowerPoint(
         participants=participants,
         simulations=simulations,

@@ -15,7 +15,7 @@ from mirror_avatar.common.constraints import Interval
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.lab.design.protocol import Analysis, load_protocol
 
-PARTICIPANTS = Interval(int, 2, 100_000)
+PARTICIPANTS = Interval(int, 2, 10_000)
 """A simulated study's participants."""
 
 SIMULATIONS = Interval(int, 100, 1_000_000)
@@ -106,7 +106,7 @@ def _sizes(text: str) -> list[int]:
             "--participants", f"{text!r} is not whole numbers separated by commas"
         ) from None
     if not all(n in PARTICIPANTS for n in sizes):
-        raise InputError("--participants", "each number must be from 2 to 100000")
+        raise InputError("--participants", "each number must be from 2 to 10000")
     return sizes
 
 
