@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from numpy.typing import NDArray
 from scipy import stats
 
 from mirror_avatar.analysis.multiple_tests import holm
@@ -25,6 +26,15 @@ from mirror_avatar.lab.design.protocol import Analysis
 
 ALTERNATIVES = {"lower": "less", "higher": "greater", "two-sided": "two-sided"}
 """Each direction of a hypothesis as scipy's ``alternative`` of condition minus reference."""
+
+CONFIRMATORY_MODEL = (
+    "paired t-test of the participants' means, condition minus reference, one-sided as "
+    "declared, Holm over the primary measures"
+)
+"""The declared hypothesis's test in words, as the report and the registered plan name it."""
+
+EXPLORATORY_MODEL = "Benjamini-Hochberg q-values over every exploratory contrast"
+"""How every other comparison is corrected, in words."""
 
 
 @dataclass(frozen=True)
@@ -125,11 +135,32 @@ def _paired_test(
     nan = float("nan")
     if after.size < 2 or not has_spread(after - before):
         return nan, nan, (nan, nan), confidence
-    alternative = ALTERNATIVES[analysis.direction]
-    declared = stats.ttest_rel(after, before, alternative=alternative)
+    t, p = declared_test(after - before, analysis.direction)
     interval = stats.ttest_rel(after, before).confidence_interval(confidence)
     limits = (float(interval.low), float(interval.high))
-    return float(declared.statistic), float(declared.pvalue), limits, confidence
+    return float(t), float(p), limits, confidence
+
+
+def declared_test(
+    differences: NDArray[np.float64], direction: str
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return the paired t statistic and its p-value, one-sided as declared, of each study.
+
+    Parameters
+    ----------
+    differences
+        Shape (..., n): each study's n paired differences, condition minus reference.
+    direction
+        The hypothesis's direction (`ALTERNATIVES`).
+
+    Returns
+    -------
+    t, p
+        Shape (...): the one-sample t-test of the differences against 0, which is the paired
+        t-test of the two conditions (`scipy.stats.ttest_rel`).
+    """
+    found = stats.ttest_1samp(differences, 0.0, axis=-1, alternative=ALTERNATIVES[direction])
+    return np.asarray(found.statistic, np.float64), np.asarray(found.pvalue, np.float64)
 
 
 def _result(

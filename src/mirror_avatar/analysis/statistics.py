@@ -35,6 +35,12 @@ in memory together (**choice**)."""
 CONFIDENCE = 0.95
 """Confidence level of every interval."""
 
+MIXED_MODEL = (
+    "measure ~ C(condition, reference) + position, random intercept per participant, REML, "
+    "Wald z tests, Holm over a measure's contrasts"
+)
+"""Each measure's model of the conditions, in words (`fit_contrasts`)."""
+
 BootstrapMethod = Literal["BCa", "percentile"]
 
 EXACT_RESIDUAL = 1e-9

@@ -1,4 +1,4 @@
-"""Figures of a study's statistics: every participant's values, and the identification answers.
+"""Figures of a study's statistics: every participant's values, the identification answers, power.
 
 As `mirror_avatar.figures`: each function builds a `matplotlib.figure.Figure` on the Agg canvas
 and never touches pyplot's global state.
@@ -11,6 +11,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from numpy.typing import NDArray
 
 from mirror_avatar.analysis.identification import Identification, scored_answers
 from mirror_avatar.figures.style import FIGSIZE
@@ -87,6 +88,34 @@ def _plot_confidence(axes: Axes, rows: pd.DataFrame) -> None:
     axes.set(xlim=(-0.5, 1.5), ylabel="confidence")
     if rated.empty:
         axes.text(0.5, 0.5, "no confidence asked", ha="center", transform=axes.transAxes)
+
+
+def plot_power(
+    participants: NDArray[np.int64],
+    power: NDArray[np.float64],
+    intervals: NDArray[np.float64],
+    target: float,
+) -> Figure:
+    """Plot the simulated power at each number of participants, its interval, the target.
+
+    Parameters
+    ----------
+    participants, power
+        Shape (k,): each n simulated and its power (a share, 0 to 1).
+    intervals
+        Shape (k, 2): each power's interval, low and high.
+    target
+        The power aimed at, drawn as a dashed line.
+    """
+    figure = _new_figure(1.0)
+    axes = figure.add_subplot()
+    below, above = power - intervals[:, 0], intervals[:, 1] - power
+    axes.errorbar(participants, power, yerr=np.vstack([below, above]), color=MEAN_COLOUR,
+                  marker="o", ms=4, capsize=3, lw=1.2)  # fmt: skip
+    axes.axhline(target, color=PARTICIPANT_COLOUR, ls="--", lw=1.0, label=f"target {target:g}")
+    axes.set(xlabel="participants", ylabel="power", ylim=(0.0, 1.03), xticks=participants)
+    axes.legend(loc="lower right", frameon=False)
+    return figure
 
 
 def _new_figure(widen: float) -> Figure:

@@ -20,12 +20,19 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mirror_avatar.analysis.hypothesis import ConfirmatoryTest, confirm
+from mirror_avatar.analysis.hypothesis import (
+    CONFIRMATORY_MODEL,
+    EXPLORATORY_MODEL,
+    ConfirmatoryTest,
+    confirm,
+)
 from mirror_avatar.analysis.identification import Identification, identify
 from mirror_avatar.analysis.multiple_tests import benjamini_hochberg
+from mirror_avatar.analysis.plan import RegisteredPlan, plan_deviations
 from mirror_avatar.analysis.statistics import (
     BOOTSTRAP_RESAMPLES,
     CONFIDENCE,
+    MIXED_MODEL,
     Contrast,
     MeasureModel,
     condition_summaries,
@@ -84,6 +91,9 @@ class StudyAnalysis:
         What was left out or could not be computed, in plain words.
     confirmatory
         The declared hypothesis's test per primary measure, None when none was declared.
+    deviations
+        Each way the analysis run differs from the registered plan
+        (`mirror_avatar.analysis.plan.plan_deviations`), None when no plan was given.
     """
 
     table: StudyTable
@@ -96,6 +106,7 @@ class StudyAnalysis:
     parameters: dict[str, Any]
     notes: list[str]
     confirmatory: list[ConfirmatoryTest] | None = None
+    deviations: list[str] | None = None
 
     @property
     def contrasts(self) -> list[Contrast]:
@@ -145,6 +156,7 @@ class StudyAnalysis:
             if self.identification is None
             else self.identification.to_dict(),
             "notes": self.notes,
+            "deviations_from_plan": self.deviations,
         }
 
 
@@ -155,6 +167,7 @@ def analyse_study(
     resamples: int = BOOTSTRAP_RESAMPLES,
     confidence: float = CONFIDENCE,
     protocol: Protocol | None = None,
+    plan: RegisteredPlan | None = None,
 ) -> StudyAnalysis:
     """Run every statistic on ``table``, the protocol's declared hypothesis first.
 
@@ -174,6 +187,9 @@ def analyse_study(
         The study's protocol: its conditions' order and its ``[analysis]``, the hypothesis
         tested first (`mirror_avatar.analysis.hypothesis.confirm`); without one, or without an
         analysis, every comparison is exploratory.
+    plan
+        The registered plan the analysis is checked against (`plan_deviations`); the report is
+        written whatever differs.
 
     Raises
     ------
@@ -184,17 +200,13 @@ def analyse_study(
     conditions = _ordered_conditions(table, protocol)
     hypothesis = None if protocol is None else protocol.analysis
     if protocol is not None and hypothesis is not None:
-        _check_hypothesis(table, hypothesis, conditions, protocol.source)
+        check_hypothesis(table, hypothesis, conditions, protocol.source)
     if reference is None:
         reference = conditions[0] if hypothesis is None else hypothesis.reference
     elif reference not in conditions:
         raise InputError("--reference", f"no condition {reference!r} in {table.source}; its "
                          f"conditions are {', '.join(conditions)}")  # fmt: skip
-    rows, notes = _participants_rows(table.rows)
-    rows, incomplete = _complete_rows(rows, table.source)
-    notes += _incomplete_note(incomplete)
-    rows, left_out = _finite(rows, table.outcomes)
-    notes += left_out
+    rows, notes, incomplete = analysed_rows(table)
     if table.skipped_measures:
         notes.append(f"not numbers, so not averaged: {', '.join(table.skipped_measures)}")
     summaries = condition_summaries(rows, table.outcomes, conditions, seed, resamples, confidence)
@@ -218,10 +230,10 @@ def analyse_study(
         "measures": table.measures, "rated_answers": table.rated_answers, "seed": seed,
         "bootstrap_resamples": resamples,
         "bootstrap_method": "BCa", "confidence": confidence,
-        "model": "measure ~ C(condition, reference) + position, random intercept per "
-                 "participant, REML, Wald z tests, Holm over a measure's contrasts",
-        "exploratory": "Benjamini-Hochberg q-values over every exploratory contrast",
+        "model": MIXED_MODEL, "confirmatory_model": CONFIRMATORY_MODEL,
+        "exploratory": EXPLORATORY_MODEL,
         "protocol": None if protocol is None else Path(protocol.source).name,
+        "plan": None if plan is None else {"file": plan.source.name, "sha256": plan.sha256},
         "hypothesis": None if hypothesis is None else asdict(hypothesis),
         "identification": "exact binomial against 0.5; d' and c with log-linear correction "
                           "when a rate is 0 or 1; Mann-Whitney U for confidence",
@@ -231,7 +243,27 @@ def analyse_study(
         table=table, rows=rows, conditions=conditions, reference=reference, summaries=summaries,
         models=models, identification=identify(rows, confidence), parameters=parameters,
         notes=notes, confirmatory=None if hypothesis is None else confirm(rows, hypothesis),
+        deviations=None if plan is None else plan_deviations(plan, hypothesis),
     )  # fmt: skip
+
+
+def analysed_rows(table: StudyTable) -> tuple[pd.DataFrame, list[str], int | None]:
+    """Return the rows every statistic uses, what was left out in words, and the incomplete rows.
+
+    The persons' rows (avatars are not participants) of complete trials, every infinite value
+    of an outcome made missing; the count of incomplete rows left out is None when the table
+    has no ``complete`` column.
+
+    Raises
+    ------
+    InputError
+        Every row is of an incomplete trial.
+    """
+    rows, notes = _participants_rows(table.rows)
+    rows, incomplete = _complete_rows(rows, table.source)
+    notes += _incomplete_note(incomplete)
+    rows, left_out = _finite(rows, table.outcomes)
+    return rows, notes + left_out, incomplete
 
 
 def _ordered_conditions(table: StudyTable, protocol: Protocol | None) -> list[str]:
@@ -243,7 +275,7 @@ def _ordered_conditions(table: StudyTable, protocol: Protocol | None) -> list[st
     return ordered + [c for c in found if c not in ordered]
 
 
-def _check_hypothesis(
+def check_hypothesis(
     table: StudyTable, hypothesis: Analysis, conditions: list[str], source: str
 ) -> None:
     """Refuse a hypothesis about conditions or measures the table does not have.
@@ -428,11 +460,21 @@ def _model_table(analysis: StudyAnalysis) -> pd.DataFrame:
     } for m in analysis.models]).set_index("measure")  # fmt: skip
 
 
+def plan_lines(deviations: list[str] | None) -> list[str]:
+    """Say how the analysis run follows the registered plan: nothing when no plan was given."""
+    if deviations is None:
+        return []
+    if not deviations:
+        return ["The analysis run follows the registered plan."]
+    return [f"Deviation from the registered plan: {line}." for line in deviations]
+
+
 def _hypothesis_section(analysis: StudyAnalysis) -> Section:
     """Show the declared hypothesis's test first: its result per primary measure."""
+    plan = plan_lines(analysis.deviations)
     if analysis.confirmatory is None:
         text = ["No hypothesis was declared (no [analysis] in the protocol, or no --protocol "
-                "given): every comparison below is exploratory."]  # fmt: skip
+                "given): every comparison below is exploratory.", *plan]  # fmt: skip
         return Section("hypothesis", "Confirmatory test", text=text)
     tests = pd.DataFrame([{
         "measure": _heading(analysis.table, t.measure), "condition": t.condition,
@@ -447,7 +489,7 @@ def _hypothesis_section(analysis: StudyAnalysis) -> Section:
     if len(tests) == 1:
         tests = tests.drop(columns="p Holm")  # one primary measure: nothing to correct
     return Section("hypothesis", "Confirmatory test: the declared hypothesis",
-                   text=analysis.hypothesis_sentences(),
+                   text=[*analysis.hypothesis_sentences(), *plan],
                    tables={"The declared test (paired t-test of the participants' means, "
                            "condition minus reference)": tests})  # fmt: skip
 

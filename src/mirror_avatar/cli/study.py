@@ -17,6 +17,8 @@ from mirror_avatar.analysis.table import (
 from mirror_avatar.analysis.trials import read_study_trials
 from mirror_avatar.cli.constrained import TRIM_RANGE, ranged
 from mirror_avatar.cli.outputs import check_output_dir
+from mirror_avatar.cli.study_plan import plan
+from mirror_avatar.cli.study_power import power
 from mirror_avatar.cli.study_report import report
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.metrics import TRIM
@@ -80,3 +82,5 @@ def table(paths: tuple[Path, ...], out_dir: Path, trim: float, surrogates: int) 
 
 
 study.add_command(report)
+study.add_command(power)
+study.add_command(plan)
