@@ -422,7 +422,9 @@ def test_group_of_four_on_a_ring_two_people_two_avatars(chromium, lab, tmp_path)
     group_sync: list[str] = []
 
     def shoot() -> None:
-        console.wait_for_function("document.getElementById('sync').textContent !== '-'")
+        console.wait_for_function(
+            "document.getElementById('sync').textContent !== '-'", timeout=60_000
+        )
         group_sync.append(console.locator("#sync").inner_text())
         screenshot(console, "lab-console-group")
         screenshot(pages["P1"], "lab-participant-group")
