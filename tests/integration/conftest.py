@@ -5,6 +5,7 @@ In CI (``CI=true``) the browser tests fail when Chromium is missing; elsewhere t
 
 from __future__ import annotations
 
+import fcntl
 import os
 from collections.abc import Iterator
 from typing import Any
@@ -30,3 +31,21 @@ def chromium(playwright: Any) -> Iterator[Any]:
     browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
     yield browser
     browser.close()
+
+
+@pytest.fixture(autouse=True)
+def one_browser_test_at_a_time(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[None]:
+    """Run the browser tests of all workers one after another (a lock file they share).
+
+    Two Chromium tests at once on two cores left real-time clocks over a second late; the other
+    worker goes on with tests that need no browser while one runs.
+    """
+    if request.node.get_closest_marker("browser") is None:
+        yield
+        return
+    lock = tmp_path_factory.getbasetemp().parent / "browser-tests.lock"
+    with lock.open("w") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        yield
