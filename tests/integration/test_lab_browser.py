@@ -314,15 +314,13 @@ def test_two_pages_behind_an_emulated_internet_are_timed_on_the_server_clock(
     during the trial (METHODS section 18). The page's clock is the wall clock (checked), so the
     truth log's anchor gives each page time on the server's monotonic clock. The recorded
     samples' server times and the page's offsets are within the uncertainty the sidecar claims
-    (half the smallest round trip, about 60 ms). The issue asked for 5 and 10 ms: alone at loads
-    of 9 to 14 the samples' median error was 2 to 9.8 ms and the offsets within 11 ms in nine
-    runs; beside the other browser tests of a full run, medians of 13 and 65 ms and an offset
-    16 ms off, within the claimed bound (the two ends' own latency
-    skews the exchanges). The pointer is read faster than the page draws; the stall is recorded
-    ending where the proxy released it (within 0.15 s), at least half as long (a second's
-    freeze of the machine just before it was seen to hide its first 0.4 s). Each page's median
-    round trip holds the proxy's two median one-way delays and the two ends' own latency
-    besides (21 to 140 ms more), so it is asserted no shorter than the network's.
+    (half the smallest round trip): how close they come depends on how busy the machine is, as
+    the two ends' own latency skews the exchanges (METHODS section 18 gives the errors measured).
+    The pointer is read faster than the page draws; the stall is recorded ending where the proxy
+    released it (within 0.15 s), at least half as long (a freeze of the machine just before it
+    can hide its start). Each page's median round trip holds the proxy's two median one-way
+    delays and the two ends' own latency besides, so it is asserted no shorter than the
+    network's.
     """
     console = open_console(chromium, lab.url)
     links = create_session(console, "people", 40)

@@ -4,7 +4,7 @@ Both take p-values in any order, NaN for a comparison not tested (kept NaN and n
 the number of tests m), and return the adjusted p-values in the order given; a comparison is
 rejected at level a when its adjusted p-value is below a. They equal statsmodels'
 ``multipletests`` (methods ``holm`` and ``fdr_bh``; tested), which collects the interpreter's
-garbage on every Holm call (over a second in a process holding a test suite's objects).
+garbage on every Holm call, at a cost that grows with every object the process holds.
 docs/METHODS.md, section 15.
 """
 
