@@ -153,6 +153,47 @@ def test_a_trim_longer_than_a_session_is_refused_naming_the_file(tmp_path, capsy
     )
 
 
+@pytest.mark.parametrize(("resample", "refused"), [("1", True), ("6", True), ("7", False)])
+def test_a_rate_too_slow_for_the_jitter_band_names_the_resample_option(
+    tmp_path, capsys, resample, refused
+):
+    pair = tmp_path / "pair.csv"
+    write_pair(pair, 50.0, 20.0)
+    status, _, error = evaluate(capsys, str(pair), "--surrogates", "0", "--resample", resample)
+    if refused:
+        assert status == 2 and error.strip() == (
+            f"mirror-avatar: error: {pair}: --resample {resample} Hz is too slow: the measures "
+            "need more than 6 Hz (the jitter band, 2-3 Hz)"
+        )
+    else:
+        assert status == 0, error
+
+
+def test_a_slow_recording_is_refused_as_unmeasurable(tmp_path, capsys):
+    pair = tmp_path / "pair.csv"
+    write_pair(pair, 5.0, 60.0)
+    status, _, error = evaluate(capsys, str(pair), "--surrogates", "0")
+    assert status == 2
+    assert f"{pair}: sampled at 5 Hz: the measures need more than 6 Hz" in error
+
+
+def test_a_folder_whose_every_file_is_refused_says_why(tmp_path, capsys):
+    folder = tmp_path / "sessions"
+    folder.mkdir()
+    write_pair(folder / "back.csv", 50.0, 20.0)
+    lines = (folder / "back.csv").read_text().splitlines()
+    lines[5], lines[6] = lines[6], lines[5]
+    (folder / "back.csv").write_text("\n".join(lines) + "\n")
+    (folder / "ragged.csv").write_text("time,position_0,position_1\n0,0.1,0.2\n0.02,0.1\n")
+    status, _, error = evaluate(capsys, str(folder))
+    assert status == 2 and len(error.strip().splitlines()) == 1
+    assert (
+        f"{folder}: no session read: its 2 files were refused (back.csv: row 7: time goes back"
+        in error
+    )
+    assert "ragged.csv: line 3 holds 2 values where the first row holds 3" in error
+
+
 def test_a_session_too_short_for_leadership_says_so(tmp_path, capsys):
     pair = tmp_path / "short.csv"
     write_pair(pair, 50.0, 8.0)

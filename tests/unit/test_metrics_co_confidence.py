@@ -105,6 +105,16 @@ def test_zero_velocity_events_and_timing_gap_by_hand():
     assert np.isnan(timing_gap(np.array([20.0]), np.array([1.0]), 0.0, 10.0))
 
 
+def test_timing_gap_equals_the_gap_to_every_event_of_the_other():
+    rng = np.random.default_rng(3)
+    for size in (1, 2, 3, 50):
+        events0 = np.sort(rng.uniform(0, 60, 80))
+        events1 = np.sort(rng.uniform(0, 60, size))
+        own = events0[(events0 >= 5.0) & (events0 <= 40.0)]
+        every = np.abs(own[:, None] - events1[None, :]).min(axis=1).mean()
+        assert timing_gap(events0, events1, 5.0, 40.0) == pytest.approx(every, rel=1e-15)
+
+
 def test_runs_by_hand():
     mask = np.array([1, 1, 0, 1, 0, 0, 1, 1, 1], dtype=bool)
     np.testing.assert_array_equal(find_runs(mask), [[0, 2], [3, 4], [6, 9]])

@@ -71,7 +71,7 @@ def test_a_streamed_recording_reads_back_while_written_and_after_a_crash(tmp_pat
         file.write("0.6,0.1,0.2")
     assert load_session(path).n_samples == 20
     path.write_text(path.read_text() + "\n")
-    with pytest.raises(InputError, match="positions must be finite"):
+    with pytest.raises(InputError, match="line 22 holds 3 values where the first row holds 13"):
         load_session(path)  # a whole line with fields missing is damage, not a cut
     writer.close(True, {"metrics": {"rmse": 0.1}})
 
@@ -132,8 +132,12 @@ def test_trimming() -> None:
     [
         ("time,position\n0,0\n0.1,0\n0.2,0\n", "no 'position_0' column"),
         ("t,position_0\n0,0\n", "no 'time' column"),
-        ("time,position_0\n0,0\n0,0\n0.2,0\n", "increasing"),
-        ("time,position_0,velocity_0,velocity_1,position_1\n0,0,0,0,0\n", "increasing"),
+        ("time,position_0\n0,0\n0,0\n0.2,0\n", r"row 3: time repeats \(0 s after 0 s\)"),
+        ("time,position_0\n0,0\n0.2,0\n0.1,0\n", r"row 4: time goes back \(0.1 s after 0.2 s\)"),
+        ("time,position_0\n0,0\nn/a,0\n0.2,0\n", r"row 3: no time \(nan\)"),
+        ("time,position_0,velocity_0,velocity_1,position_1\n0,0,0,0,0\n", "1 samples; a session"),
+        ("time,position_0\n0,0\n0.1,0,5\n0.2,0\n", "line 3 holds 3 values where the first"),
+        ("time,position_0\n0,0\n0.1\n0.2,0\n", "line 3 holds 1 value where the first"),
         ("time,position_0,position_1,velocity_0\n0,0,0,0\n0.1,0,0,0\n0.2,0,0,0\n", "velocity_1"),
         ("time,position_0\n0,a\n0.1,0\n0.2,0\n", "numeric"),
         ("time,position_0\n0,\n0.1,0\n0.2,0\n", "finite"),

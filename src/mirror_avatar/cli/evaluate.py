@@ -35,6 +35,7 @@ from mirror_avatar.files.bids.names import MOTION_SUFFIX
 from mirror_avatar.files.trial_record import trial_record
 from mirror_avatar.metrics import TRIM
 from mirror_avatar.metrics.analysis_rate import ANALYSIS_RATE, decimation_factor, session_rate
+from mirror_avatar.metrics.jitter import JITTER_BAND
 from mirror_avatar.metrics.measuring import measure_sessions
 from mirror_avatar.metrics.progress import order_by_start, progress_table
 from mirror_avatar.report import REPORT_FILES
@@ -65,7 +66,7 @@ def find_sessions(
             found.append((path, reading.load(path)))
             notes += [note] if (note := session_note(path, found[-1][1])) else []
             continue
-        before = len(found)
+        before, refused = len(found), []
         trials: dict[tuple[str, int], Path] = {}
         for file in session_files(path):
             if file.suffix.lower() == ".csv" and file.with_suffix(".parquet").is_file():
@@ -76,6 +77,7 @@ def find_sessions(
                 notes += [note] if (note := session_note(file, session)) else []
             except InputError as error:
                 notes.append(f"skipped {file}: {error.problem}")
+                refused.append(f"{file.relative_to(path)}: {error.problem}")
                 continue
             trial = _exported_trial(session)
             if trial in trials:
@@ -85,12 +87,20 @@ def find_sessions(
                 trials[trial] = file
             found.append((file, session))
         if len(found) == before:
-            raise InputError(
-                path,
-                "no session files in it (time, position_0, ... columns, or BIDS-Motion "
-                "_motion.tsv files; sourcedata/ is read only when named)",
-            )
+            raise InputError(path, _no_sessions(refused))
     return found, notes
+
+
+def _no_sessions(refused: list[str], shown: int = 3) -> str:
+    """Say why a folder gave no session: it has no session files, or each was refused (why)."""
+    if not refused:
+        return (
+            "no session files in it (time, position_0, ... columns, or BIDS-Motion "
+            "_motion.tsv files; sourcedata/ is read only when named)"
+        )
+    more = f"; and {len(refused) - shown} more" if len(refused) > shown else ""
+    files = "file was" if len(refused) == 1 else f"{len(refused)} files were"
+    return f"no session read: its {files} refused ({'; '.join(refused[:shown])}{more})"
 
 
 def check_session(path: Path, session: Session, trim: float) -> str | None:
@@ -115,12 +125,25 @@ def check_session(path: Path, session: Session, trim: float) -> str | None:
             )  # fmt: skip
     rate = session_rate(session)
     q = decimation_factor(rate)
+    _check_rate(path, session, rate / q)
     if q == 1:
         return None
     return (
         f"{path}: sampled at {rate:g} Hz, analysed at {rate / q:g} Hz (every {q}th sample after "
         f"an anti-aliasing filter; the measures need at most {ANALYSIS_RATE:g} Hz)"
     )
+
+
+def _check_rate(path: Path, session: Session, rate: float) -> None:
+    """Refuse a session analysed at a rate (Hz) too low for the jitter band (and co-confidence)."""
+    lowest = 2 * JITTER_BAND[1]
+    if rate > lowest * (1 + 1e-6):  # a grid's mean rate is not exact
+        return
+    low, high = JITTER_BAND
+    need = f"the measures need more than {lowest:g} Hz (the jitter band, {low:g}-{high:g} Hz)"
+    if "import" in session.metadata and "resample" in session.metadata["import"]:
+        raise InputError(path, f"--resample {rate:g} Hz is too slow: {need}")
+    raise InputError(path, f"sampled at {rate:g} Hz: {need}; it cannot be measured")
 
 
 def session_files(folder: Path) -> list[Path]:

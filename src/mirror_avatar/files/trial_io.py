@@ -67,6 +67,7 @@ from mirror_avatar.files.importing import (
     read_clock_offsets,
 )
 from mirror_avatar.files.mat_check import TooManyElements, mat_problem
+from mirror_avatar.files.row_widths import ragged_line
 from mirror_avatar.files.trials import Trial, make_trial
 from mirror_avatar.files.user_files import (
     check_regular,
@@ -232,9 +233,13 @@ def _read_numbers(
     Raises
     ------
     InputError
-        Not UTF-8, not parseable, more than `MAX_SAMPLES` rows, or a cell that is neither a
-        number nor missing (naming its row and column).
+        Not UTF-8, not parseable, more than `MAX_SAMPLES` rows, a line holding more values
+        than the first row or, after a header, too few for the columns read (without one:
+        fewer than the first row; `refuse_ragged`; a last line without its line end may hold
+        fewer, its missing cells then missing), or a cell that is neither a number nor
+        missing (naming its row and column).
     """
+    refuse_ragged(path, sep, None if first_row == 1 else max(columns) + 1)
     usecols = sorted(set(columns))
     common: dict[str, Any] = {
         "sep": sep, "header": 0 if first_row == 2 else None, "usecols": usecols,
@@ -258,6 +263,30 @@ def _read_numbers(
     if values[0].size > MAX_SAMPLES:
         raise InputError(path, f"more than {MAX_SAMPLES:,} rows, the limit for trial files")
     return [values[usecols.index(column)] for column in columns]
+
+
+def refuse_ragged(path: Path, sep: str, fewest: int | None = None) -> None:
+    """Refuse a CSV or TSV file with a line of too many or too few values.
+
+    Too many: more than the first row holds; too few: fewer than ``fewest`` (the first row's
+    number when None). `mirror_avatar.files.row_widths.ragged_line` finds the line.
+    """
+    width = len(_first_row(path, sep))
+    with _reading(path, "CSV" if sep == "," else "TSV"):
+        found = ragged_line(path, sep, width, MAX_FILE_BYTES, fewest)
+    if found is None:
+        return
+    line, cells = found
+    needed = (
+        f"the first row holds {width}"
+        if cells > width or fewest is None
+        else (f"the columns read need {fewest}")
+    )
+    raise InputError(
+        path,
+        f"line {line} holds {cells} value{'s' * (cells != 1)} where {needed}: every row needs "
+        "one value per column (n/a or an empty cell for a missing one)",
+    )
 
 
 def _parse_chunks(

@@ -130,11 +130,20 @@ def zero_velocity_times(velocity: Array, rate: float) -> Array:
 
 
 def timing_gap(events0: Array, events1: Array, start: float, end: float) -> float:
-    """Mean gap (s) from each event of player 0 in [start, end] to the nearest of player 1."""
+    """Mean gap (s) from each event of player 0 in [start, end] to the nearest of player 1.
+
+    ``events1`` must be sorted (as `zero_velocity_times` gives them): each event's nearest is
+    one of the two around it (`numpy.searchsorted`), so time and memory grow with the events'
+    number, not with its square.
+    """
     own = events0[(events0 >= start) & (events0 <= end)]
     if own.size == 0 or events1.size == 0:
         return float("nan")
-    return float(np.mean(np.min(np.abs(own[:, None] - events1[None, :]), axis=1)))
+    if events1.size == 1:
+        return float(np.mean(np.abs(own - events1[0])))
+    after = np.clip(np.searchsorted(events1, own), 1, events1.size - 1)
+    gaps = np.minimum(np.abs(own - events1[after]), np.abs(own - events1[after - 1]))
+    return float(np.mean(gaps))
 
 
 def find_co_confidence(

@@ -18,7 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import ArrayLike, NDArray
 
 from mirror_avatar.common.errors import InputError
@@ -134,15 +133,14 @@ def windowed_cross_correlation(
             f"need two equal series longer than --lead-window + 2 --lead-max-lag, got {a.shape}",
         )
     starts = np.arange(m, a.size - w - m + 1, h)
-    views_a = _standardised(sliding_window_view(a, w)[starts])
     sd_b = _window_sd(b, w)[starts[:, None] + np.arange(-m, m + 1)[None, :]]
     dot = (
         np.array(
             [
-                np.correlate(b[i - m : i + m + w], row, mode="valid")
-                for i, row in zip(starts, views_a, strict=True)
+                np.correlate(b[i - m : i + m + w], _standardised(a[i : i + w]), mode="valid")
+                for i in starts
             ]
-        )
+        )  # fmt: skip
         / w
     )
     corr = np.divide(dot, sd_b, out=np.zeros_like(dot), where=sd_b > 1e-12 * (1 + np.abs(b).max()))

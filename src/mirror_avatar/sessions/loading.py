@@ -31,7 +31,12 @@ from mirror_avatar.files.bids.reading import (
     read_tracked_points,
 )
 from mirror_avatar.files.importing import MAX_GAP, ColumnMap, check_steps, excerpt
-from mirror_avatar.files.trial_io import MAX_FILE_BYTES, MAX_SIDECAR_BYTES, check_version
+from mirror_avatar.files.trial_io import (
+    MAX_FILE_BYTES,
+    MAX_SIDECAR_BYTES,
+    check_version,
+    refuse_ragged,
+)
 from mirror_avatar.files.trials import compute_velocity, make_trial
 from mirror_avatar.files.user_files import check_regular, open_regular, read_json, read_text
 from mirror_avatar.sessions.session import (
@@ -97,8 +102,7 @@ def load_session(
         table = _mapped(path, table, columns)
     n_players = _count_players(path, table)
     times = table["time"]
-    if times.size < MIN_SESSION_SAMPLES or not np.all(np.diff(times) > 0):
-        raise InputError(path, f"time must hold at least {MIN_SESSION_SAMPLES} increasing samples")
+    _check_times(path, times)
     read: dict[str, Any] = {} if columns is None else {"columns": str(columns)}
     if resample is not None:
         table, recorded = _resampled(path, table, n_players, resample, max_gap)
@@ -123,6 +127,35 @@ def load_session(
         )
     except InputError as error:
         raise InputError(path, error.problem) from None
+
+
+def _check_times(path: Path, times: Array) -> None:
+    """Refuse too few samples, or a time that is missing, repeated or earlier than the last.
+
+    The row named is the file's: a CSV file's line (its header is line 1), a Parquet file's
+    row from 1.
+    """
+    if times.size < MIN_SESSION_SAMPLES:
+        raise InputError(
+            path, f"{times.size} samples; a session needs at least {MIN_SESSION_SAMPLES}"
+        )
+    first_row = 2 if path.suffix.lower() == ".csv" else 1
+    missing = np.flatnonzero(~np.isfinite(times))
+    if missing.size:
+        k = int(missing[0])
+        raise InputError(
+            path, f"row {k + first_row}: no time ({times[k]}); every sample needs its time (s)"
+        )
+    steps = np.diff(times)
+    wrong = np.flatnonzero(steps <= 0)
+    if wrong.size:
+        k = int(wrong[0]) + 1
+        what = "repeats" if steps[k - 1] == 0 else "goes back"
+        raise InputError(
+            path,
+            f"row {k + first_row}: time {what} ({times[k]:.9g} s after {times[k - 1]:.9g} s); "
+            "the samples must be in time order, each at a time of its own",
+        )
 
 
 def _lab_recording_session(recording: LabRecording) -> Session:
@@ -252,6 +285,7 @@ def _read_columns(path: Path) -> dict[str, Array]:
     if path.suffix.lower() == ".csv":
         import pandas as pd
 
+        refuse_ragged(path, ",")
         text = read_text(path, MAX_FILE_BYTES)
         complete = text if text.endswith("\n") else text[: text.rfind("\n") + 1]
         if text[len(complete) :].strip():
