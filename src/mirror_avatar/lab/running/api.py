@@ -28,6 +28,7 @@ from mirror_avatar.lab.design.protocol import MAX_PROTOCOL_BYTES, Protocol
 from mirror_avatar.lab.design.protocol_store import PROTOCOLS_FOLDER, store_protocol
 from mirror_avatar.lab.files import is_session_folder
 from mirror_avatar.lab.running.blinding import console_status, hidden_of, unjoined
+from mirror_avatar.lab.running.public import base_address
 from mirror_avatar.lab.running.runner import LabSession
 from mirror_avatar.lab.running.sessions import Lab
 from mirror_avatar.lab.running.study import ParticipantRun
@@ -241,7 +242,7 @@ class LabApi:
         """Serve the QR code (SVG) of a person's join link."""
         import segno
 
-        links = join_links(self._session(request), request)
+        links = join_links(self._session(request), self._base(request))
         label = request.path_params["label"]
         if label not in links:
             return _json({"error": "no such person in this session"}, 404)
@@ -251,9 +252,13 @@ class LabApi:
             svg.getvalue(), media_type="image/svg+xml", headers={"Cache-Control": "no-store"}
         )
 
+    def _base(self, request: Request) -> str:
+        """Return the address join links are built on (`mirror_avatar.lab.running.public`)."""
+        return base_address(self.lab.settings.public_url, request)
+
     def _status(self, session: LabSession, request: Request) -> dict[str, Any]:
         """Return a session's status and links, blinded for a double-blind protocol's run."""
-        links = {} if session.ended else join_links(session, request)
+        links = {} if session.ended else join_links(session, self._base(request))
         return console_status(session, session.status() | {"links": links})
 
 
@@ -269,9 +274,8 @@ def protocol_summary(protocol: Protocol) -> dict[str, Any]:
     }
 
 
-def join_links(session: LabSession, request: Request) -> dict[str, str]:
-    """Each person's join link, on the address the researcher reached the server by."""
-    base = str(request.base_url).rstrip("/")
+def join_links(session: LabSession, base: str) -> dict[str, str]:
+    """Each person's join link, on the address ``base`` (``https://NAME[:PORT]``)."""
     return {p.label: f"{base}/join/{p.key}" for p in session.everyone()}
 
 

@@ -24,7 +24,8 @@ Routes (`create_lab_app`):
 - ``GET /api/sessions/{id}/files/{name}``: a file of the session (plan, trials' recordings;
   refused, 403, for a run of a double-blind protocol, whose statuses are blinded too:
   `mirror_avatar.lab.running.blinding`);
-  ``GET /api/sessions/{id}/qr/{label}.svg``: the QR code of a person's join link.
+  ``GET /api/sessions/{id}/qr/{label}.svg``: the QR code of a person's join link (join links are
+  built on the server's public address when it has one: `mirror_avatar.lab.running.public`).
 - ``GET /join/{key}``: a participant's page; ``/ws/join/{key}``: its WebSocket
   (`mirror_avatar.lab.running.messages`).
 
@@ -33,9 +34,10 @@ Access: ``/console`` and ``/api`` need the researcher's token always, even on lo
 ``Authorization: Bearer`` header (scripts). POSTs must be JSON (a cross-site form cannot send
 one). A join link holds the secret key of one person's slot in one session: it shows that
 session only, moves that person's point only, and expires when the session ends. WebSocket
-handshakes from another origin are refused. Rates are limited per client address (API
-requests, connections; the researcher's token-carrying requests have a budget of their own, so a
-flood from their address does not slow them) and per connection (messages). Clients never name
+handshakes from another origin than the server's (or its public address's) are refused. Rates
+are limited per client address (API requests, connections; the researcher's token-carrying
+requests have a budget of their own, so a flood from their address does not slow them) and per
+connection (messages). Clients never name
 a path: files are written by the server into ``OUT/<session id>/`` under names it makes, and
 served only from the session's own folder by the names it lists, through the checked reader.
 
@@ -48,6 +50,7 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
+from urllib.parse import urlsplit
 
 from starlette.applications import Starlette
 from starlette.middleware import Middleware
@@ -59,6 +62,7 @@ from starlette.types import ASGIApp
 
 from mirror_avatar.lab.running.api import ApiError, LabApi, api_error
 from mirror_avatar.lab.running.participant_page import join_socket
+from mirror_avatar.lab.running.public import is_secure
 from mirror_avatar.lab.running.sessions import Lab, LabSettings
 from mirror_avatar.realtime.gates import JsonGate, OriginGate, RateGate, TokenGate
 
@@ -78,7 +82,7 @@ def create_lab_app(settings: LabSettings) -> ASGIApp:
     app = Starlette(
         routes=[
             Route("/", index_page),
-            Route("/console", console_page),
+            Route("/console", functools.partial(console_page, settings.public_url)),
             Route("/join/{key}", functools.partial(join_page, lab)),
             Route("/api/sessions", api.sessions, methods=["GET", "POST"]),
             Route("/api/protocol", api.protocol, methods=["POST"]),
@@ -107,7 +111,7 @@ def create_lab_app(settings: LabSettings) -> ASGIApp:
                 paths=("/api", "/console"),
                 problem=researcher,
             ),
-            Middleware(OriginGate),
+            Middleware(OriginGate, also=public_hosts(settings.public_url)),
             Middleware(JsonGate),
         ],
     )
@@ -120,16 +124,23 @@ async def index_page(request: Request) -> Response:
     return PlainTextResponse("mirror-avatar lab: open the console link it printed, or a join link.")
 
 
-async def console_page(request: Request) -> Response:
+def public_hosts(public_url: str | None) -> frozenset[str]:
+    """Return the host (``name[:port]``) of the public address, whose pages may connect."""
+    return frozenset() if public_url is None else frozenset({urlsplit(public_url).netloc})
+
+
+async def console_page(public_url: str | None, request: Request) -> Response:
     """Serve the console; the token in its URL goes into a cookie and out of the URL.
 
     The gate checked the token: a wrong one never reaches here, so it cannot replace the
-    researcher's cookie.
+    researcher's cookie. Over TLS (`mirror_avatar.lab.running.public.is_secure`) the cookie is
+    marked secure: the browser never sends it over plain HTTP.
     """
     if "token" in request.query_params:
         token = request.query_params["token"]
         response: Response = RedirectResponse("/console", status_code=303)
-        response.set_cookie(TOKEN_COOKIE, token, httponly=True, samesite="strict")
+        secure = is_secure(public_url, request)
+        response.set_cookie(TOKEN_COOKIE, token, httponly=True, samesite="strict", secure=secure)
         return response
     return FileResponse(STATIC / "console.html", headers={"Cache-Control": "no-store"})
 

@@ -50,6 +50,10 @@ class LabSettings(PageSettings):
     protocol
         The study protocol whose participants' sessions the console creates
         (`mirror_avatar.lab.running.study.ParticipantRun`) until the console loads another, or None.
+    public_url
+        The address participants reach the server at, ``https://NAME[:PORT]`` behind a reverse
+        proxy (`mirror_avatar.lab.running.public`): the join links are built on it; None: on the
+        address the console reached the server by.
     """
 
     out_dir: Path
@@ -59,6 +63,7 @@ class LabSettings(PageSettings):
     requests_per_second: float = 40.0
     lsl: bool = False
     protocol: Protocol | None = None
+    public_url: str | None = None
 
 
 KEEP_ENDED = 8
