@@ -18,16 +18,20 @@ Routes (`create_lab_app`):
 (`mirror_avatar.lab.running.runner.LabSession.status`)
   with its join links; ``GET /api/sessions/{id}/live``: the last 10 s of positions and ρ_g.
 - ``POST /api/sessions/{id}/start`` (body ``{"force": true}`` starts without everyone),
-  ``/stop`` and ``/abort``; ``POST /api/sessions/{id}/export`` (body ``{"folder": name}``,
-  optional) exports the session's trials as BIDS (`mirror_avatar.lab.export.bids.export_bids`) into
-  ``OUT/bids`` or ``OUT/<name>`` between trials, answering the folder and its file count.
+  ``/stop`` and ``/abort``; ``/refuse`` (body ``{"person": label, "reason": text}``) screens a
+  person out (`mirror_avatar.lab.running.sessions.Lab.refuse`);
+  ``POST /api/sessions/{id}/export`` (body ``{"folder": name}``, optional) exports the
+  session's trials as BIDS (`mirror_avatar.lab.export.bids.export_bids`) into ``OUT/bids`` or
+  ``OUT/<name>`` between trials, answering the folder and its file count.
 - ``GET /api/sessions/{id}/files/{name}``: a file of the session (plan, trials' recordings;
   refused, 403, for a run of a double-blind protocol, whose statuses are blinded too:
   `mirror_avatar.lab.running.blinding`);
   ``GET /api/sessions/{id}/qr/{label}.svg``: the QR code of a person's join link (join links are
   built on the server's public address when it has one: `mirror_avatar.lab.running.public`).
-- ``GET /join/{key}``: a participant's page; ``/ws/join/{key}``: its WebSocket
-  (`mirror_avatar.lab.running.messages`).
+- ``GET /join/{key}``: a participant's page (its panel identifiers, in a protocol's run, taken
+  from the query: `join_page`); ``GET /join/{key}/intro`` and ``POST /join/{key}/consent``: the
+  pages before the game and the consent answer (`mirror_avatar.lab.running.consent`);
+  ``/ws/join/{key}``: its WebSocket (`mirror_avatar.lab.running.messages`).
 
 Access: ``/console`` and ``/api`` need the researcher's token always, even on loopback: as the
 ``token`` query parameter (the console's URL), the cookie the console sets, or an
@@ -60,10 +64,13 @@ from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp
 
+from mirror_avatar.lab.design.online import panel_values
 from mirror_avatar.lab.running.api import ApiError, LabApi, api_error
+from mirror_avatar.lab.running.consent import consent, intro
 from mirror_avatar.lab.running.participant_page import join_socket
 from mirror_avatar.lab.running.public import is_secure
 from mirror_avatar.lab.running.sessions import Lab, LabSettings
+from mirror_avatar.lab.running.study import ParticipantRun
 from mirror_avatar.realtime.gates import JsonGate, OriginGate, RateGate, TokenGate
 
 STATIC = Path(__file__).parents[1] / "static"
@@ -84,6 +91,8 @@ def create_lab_app(settings: LabSettings) -> ASGIApp:
             Route("/", index_page),
             Route("/console", functools.partial(console_page, settings.public_url)),
             Route("/join/{key}", functools.partial(join_page, lab)),
+            Route("/join/{key}/intro", functools.partial(intro, lab)),
+            Route("/join/{key}/consent", functools.partial(consent, lab), methods=["POST"]),
             Route("/api/sessions", api.sessions, methods=["GET", "POST"]),
             Route("/api/protocol", api.protocol, methods=["POST"]),
             Route("/api/sessions/{sid}", api.session),
@@ -100,7 +109,7 @@ def create_lab_app(settings: LabSettings) -> ASGIApp:
                 RateGate,
                 rate=rate,
                 burst=4 * rate,
-                paths=("/api", "/ws"),
+                paths=("/api", "/ws", "/join"),
                 token=settings.token,
                 cookie=TOKEN_COOKIE,
             ),
@@ -146,7 +155,20 @@ async def console_page(public_url: str | None, request: Request) -> Response:
 
 
 async def join_page(lab: Lab, request: Request) -> Response:
-    """Serve a participant's page while its link is valid."""
-    if lab.find(request.path_params["key"]) is None:
+    """Serve a participant's page while its link is valid, recording its panel identifiers.
+
+    In a participant's run of a protocol with ``panel_ids`` (`mirror_avatar.lab.design.online`),
+    the identifiers the link's query gives are kept for its person (a link opened again without
+    them keeps those given before); a value that is not a safe identifier is refused (400).
+    """
+    found = lab.find(request.path_params["key"])
+    if found is None:
         return PlainTextResponse("this link is not valid or its session has ended", 404)
+    session, participant = found
+    if isinstance(session.schedule, ParticipantRun):
+        names = session.schedule.protocol.online.panel_ids
+        values = panel_values(names, request.query_params)
+        if isinstance(values, str):
+            return PlainTextResponse(values, 400)
+        participant.panel |= values
     return FileResponse(STATIC / "participant.html", headers={"Cache-Control": "no-store"})
