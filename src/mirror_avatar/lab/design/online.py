@@ -1,5 +1,7 @@
 """A protocol's ``[online]`` table: a study served to a recruitment panel's participants.
 
+As docs/METHODS.md, section 9 (*Served on the internet*), describes.
+
 A panel (Prolific, for instance) opens each participant's link with identifiers as query
 parameters (``/join/KEY?PROLIFIC_PID=...&STUDY_ID=...``): the protocol names those to record
 (``panel_ids``), and each value is checked (`panel_values`: at most `MAX_PANEL_VALUE_CHARS`

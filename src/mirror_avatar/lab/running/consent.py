@@ -1,5 +1,7 @@
 """A participant's pages before the game: the instructions, the consent and its answer recorded.
 
+What is recorded is in docs/METHODS.md, section 9 (*Served on the internet*).
+
 A protocol's ``[online]`` table may give an instructions page and a consent page
 (`mirror_avatar.lab.design.online`). A participant's page asks for them first (`intro`) and shows
 them; only after the participant agrees (`consent`) does it open its WebSocket and join its slot

@@ -176,8 +176,8 @@
 
   function refuse(message) {
     refused = ended = true;
-    ui.task.textContent = "";
-    say(["Thank you for your interest.", message.message]);
+    ui.task.textContent = ui.who.textContent = "";
+    say(message.message);
     showEnding(message, { code: "Your code:", link: "Return to the study's site" });
   }
 
