@@ -73,6 +73,11 @@ def create_session(console: Any, preset: str, duration: float) -> dict[str, str]
     console.fill("#duration", str(duration))
     console.fill("#max-lateness", str(MAX_LATENESS))
     console.click("#create-session")
+    return shown_links(console)
+
+
+def shown_links(console: Any) -> dict[str, str]:
+    """Return the join links the console shows, by label (once it shows them)."""
     console.wait_for_selector("a.join")
     return dict(
         console.eval_on_selector_all("a.join", "links => links.map(a => [a.dataset.label, a.href])")

@@ -27,10 +27,7 @@ from mirror_avatar.lab.running.sessions import CLOSE_REFUSED
 from mirror_avatar.testing import ServerThread
 
 COMPLETE = "https://app.prolific.com/submissions/complete?cc=C1A2B3C4"
-PROTOCOL = f"""
-title = "online study"
-seed = 3
-
+ONLINE = f"""
 [online]
 panel_ids = ["PROLIFIC_PID", "STUDY_ID", "SESSION_ID"]
 completion_code = "C1A2B3C4"
@@ -39,7 +36,12 @@ refusal_code = "NOFIT123"
 instructions = '''Move your point with the mouse.
 Follow your partner as closely as you can.'''
 consent_file = "consent.txt"
-
+"""
+"""The ``[online]`` table of the tests' protocols (the consent text in a file beside them)."""
+PROTOCOL = f"""
+title = "online study"
+seed = 3
+{ONLINE}
 [[blocks]]
 [[blocks.conditions]]
 name = "alone"
@@ -59,6 +61,17 @@ def agree(link: str, agreed: bool = True) -> dict[str, object]:
     answer = httpx.post(f"{link}/consent", json={"agree": agreed})
     assert answer.status_code == 200, answer.text
     return answer.json()
+
+
+async def opened(link: str) -> tuple[list[dict[str, object]], int | None]:
+    """Open a join link's WebSocket: the messages received until it closes, and its close code."""
+    received = []
+    socket_url = link.replace("http://", "ws://").replace("/join/", "/ws/join/")
+    async with websockets.connect(socket_url) as page:
+        with contextlib.suppress(websockets.ConnectionClosed):
+            async for text in page:
+                received.append(json.loads(text))
+        return received, page.close_code
 
 
 @pytest.fixture
@@ -131,16 +144,7 @@ def test_a_person_screened_out_sees_the_refusal_code_now_and_on_return(lab):
     assert page.closed is not None and page.closed.rcvd.code == CLOSE_REFUSED
     assert any("P1 screened out" in event for event in status(lab, sid)["events"])
 
-    async def returns() -> tuple[list[dict[str, object]], int | None]:
-        socket_url = link.replace("http://", "ws://").replace("/join/", "/ws/join/")
-        received = []
-        async with websockets.connect(socket_url) as again:
-            with contextlib.suppress(websockets.ConnectionClosed):
-                async for text in again:
-                    received.append(json.loads(text))
-            return received, again.close_code
-
-    assert asyncio.run(returns()) == ([refusal], CLOSE_REFUSED)
+    assert asyncio.run(opened(link)) == ([refusal], CLOSE_REFUSED)
     unknown = httpx.post(
         f"{lab.url}/api/sessions/{sid}/refuse", json={"person": "P9"}, headers=BEARER
     )
@@ -157,17 +161,7 @@ def test_the_pages_before_the_game_and_a_participant_who_does_not_agree(lab, tmp
         "consented": False,
         "refused": None,
     }
-    socket_url = link.replace("http://", "ws://").replace("/join/", "/ws/join/")
-
-    async def opened() -> tuple[list[dict[str, object]], int | None]:
-        received = []
-        async with websockets.connect(socket_url) as page:
-            with contextlib.suppress(websockets.ConnectionClosed):
-                async for text in page:
-                    received.append(json.loads(text))
-            return received, page.close_code
-
-    assert asyncio.run(opened()) == ([], CLOSE_CONSENT)  # no game before the answer
+    assert asyncio.run(opened(link)) == ([], CLOSE_CONSENT)  # no game before the answer
     bad = httpx.post(f"{link}/consent", json={"agree": "yes"})
     assert bad.status_code == 400 and "agree" in bad.text
     refusal = {
@@ -179,7 +173,7 @@ def test_the_pages_before_the_game_and_a_participant_who_does_not_agree(lab, tmp
     assert agree(link, False) == {"refused": refusal}
     assert agree(link, True) == {"refused": refusal}  # the first answer counts
     assert httpx.get(f"{link}/intro").json()["refused"] == refusal
-    assert asyncio.run(opened()) == ([refusal], CLOSE_REFUSED)
+    assert asyncio.run(opened(link)) == ([refusal], CLOSE_REFUSED)
     folder = tmp_path / "out" / sid
     (answer,) = json.loads((folder / "consent-P1.json").read_text())["answers"]
     assert answer["agree"] is False

@@ -15,7 +15,8 @@ from typing import Any
 
 import httpx
 import pytest
-from test_lab_browser import TrustingBrowser, screenshot
+from test_lab_browser import TrustingBrowser, screenshot, shown_links
+from test_lab_online import COMPLETE, ONLINE
 from tls_servers import free_port, self_signed
 
 from mirror_avatar.lab.design.protocol import load_protocol
@@ -27,21 +28,10 @@ pytestmark = pytest.mark.browser
 
 TOKEN = "online-browser-token"
 BEARER = {"Authorization": f"Bearer {TOKEN}"}
-COMPLETE = "https://app.prolific.com/submissions/complete?cc=C1A2B3C4"
 PROTOCOL = f"""
 title = "mirror game online"
 seed = 5
-
-[online]
-panel_ids = ["PROLIFIC_PID", "STUDY_ID", "SESSION_ID"]
-completion_code = "C1A2B3C4"
-completion_url = "{COMPLETE}"
-refusal_code = "NOCONSENT"
-instructions = '''You and a partner each move a point along a line, with the mouse.
-Move together with your partner: neither of you leads.
-The game lasts a few seconds.'''
-consent_file = "consent.txt"
-
+{ONLINE}
 [[blocks]]
 [[blocks.conditions]]
 name = "together"
@@ -86,10 +76,7 @@ def create_run(console: Any, participant: int) -> dict[str, str]:
     console.wait_for_function(
         f"document.getElementById('session-id').textContent === 'study-p{participant:03d}'"
     )
-    console.wait_for_selector("a.join")
-    return dict(
-        console.eval_on_selector_all("a.join", "links => links.map(a => [a.dataset.label, a.href])")
-    )
+    return shown_links(console)
 
 
 def open_intro(browser: Any, link: str) -> Any:
@@ -111,7 +98,7 @@ def test_panel_participants_consent_play_and_get_the_completion_code_over_https(
     assert all(link.startswith(f"{public}/join/") for link in links.values()), links
     pages = {label: open_intro(trusting, f"{link}?{PANEL[label]}") for label, link in links.items()}
     intro = pages["P1"].locator("#intro").inner_text()
-    assert "Move together with your partner" in intro and "Do you agree to take part?" in intro
+    assert "Follow your partner as closely as you can" in intro and "Do you agree to take part?" in intro
     screenshot(pages["P1"], "lab-online-consent")
     assert not console.locator("#slots td.state.connected").count()  # no one joined before agreeing
     for page in pages.values():
@@ -146,7 +133,7 @@ def test_panel_participants_consent_play_and_get_the_completion_code_over_https(
     declining = open_intro(trusting, f"{create_run(console, 1)['P1']}?{PANEL['P1']}")
     declining.click("#decline")
     declining.wait_for_selector("#ending:not([hidden]) #ending-code")
-    assert declining.locator("#ending-code").inner_text() == "NOCONSENT"
+    assert declining.locator("#ending-code").inner_text() == "NOFIT123"
     assert "You chose not to take part" in declining.locator("#message").inner_text()
     screenshot(declining, "lab-online-declined")
     trusted = ssl.create_default_context(cafile=tls.certfile)

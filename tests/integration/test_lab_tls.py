@@ -13,21 +13,13 @@ from pathlib import Path
 import httpx
 import pytest
 import websockets
+from test_lab_server import BEARER, DYAD, TOKEN
 from tls_servers import free_port, new_key, self_signed, write_key
 
 from mirror_avatar.cli import main
 from mirror_avatar.lab.running.server import TOKEN_COOKIE, LabSettings, create_lab_app
 from mirror_avatar.realtime.tls import TlsFiles
 from mirror_avatar.testing import ServerThread
-
-TOKEN = "tls-researcher-token"
-BEARER = {"Authorization": f"Bearer {TOKEN}"}
-DYAD = {
-    "condition": "leader_follower",
-    "leaders": [0],
-    "duration": 3.0,
-    "players": [{"label": "P1", "kind": "human"}, {"label": "P2", "kind": "human"}],
-}
 
 
 @pytest.fixture
