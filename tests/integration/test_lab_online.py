@@ -16,6 +16,7 @@ import httpx
 import pytest
 import websockets
 from test_cli_lab import bids_validated
+from test_lab_pilot import run_command
 from test_lab_server import BEARER, TOKEN, Page, status, welcomed
 from test_lab_study import create_participant, play_to_the_end
 
@@ -180,3 +181,18 @@ def test_the_pages_before_the_game_and_a_participant_who_does_not_agree(lab, tmp
     events = status(lab, sid)["events"]
     assert any("P1 did not agree to take part" in event for event in events)
     assert status(lab, sid)["state"] == "waiting" and not (folder / "trial-01_session.csv").exists()
+
+
+def test_a_pilot_s_stand_ins_agree_to_the_consent_page_as_participants_do(tmp_path):
+    protocol = tmp_path / "online.toml"
+    protocol.write_text(PROTOCOL)
+    (tmp_path / "consent.txt").write_text(CONSENT)
+    out = tmp_path / "out"
+    result = run_command(
+        "lab", "pilot", "--protocol", str(protocol), "--participants", "1",
+        "--stand-in", "P1=bundled:slow", "--out", str(out),
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "participant 0: finished" in result.stdout
+    (answer,) = json.loads((out / "online-p000" / "consent-P1.json").read_text())["answers"]
+    assert answer["agree"] is True

@@ -98,7 +98,8 @@ def test_panel_participants_consent_play_and_get_the_completion_code_over_https(
     assert all(link.startswith(f"{public}/join/") for link in links.values()), links
     pages = {label: open_intro(trusting, f"{link}?{PANEL[label]}") for label, link in links.items()}
     intro = pages["P1"].locator("#intro").inner_text()
-    assert "Follow your partner as closely as you can" in intro and "Do you agree to take part?" in intro
+    assert "Follow your partner as closely as you can" in intro
+    assert "Do you agree to take part?" in intro
     screenshot(pages["P1"], "lab-online-consent")
     assert not console.locator("#slots td.state.connected").count()  # no one joined before agreeing
     for page in pages.values():
