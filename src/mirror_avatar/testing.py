@@ -40,6 +40,7 @@ if TYPE_CHECKING:
     from starlette.types import ASGIApp
 
     from mirror_avatar.realtime.settings import ConnectionSettings
+    from mirror_avatar.realtime.tls import TlsFiles
 
 Array = NDArray[np.float64]
 
@@ -194,6 +195,10 @@ class ServerThread:
         without waiting for its connections, and given as long again.
     guard
         Its request deadlines and connection caps (default: the servers' own).
+    tls
+        Its certificate and key: it serves HTTPS and secure WebSockets (default: plain HTTP).
+    port
+        The port to bind (0: one the operating system chooses).
 
     Raises
     ------
@@ -207,13 +212,16 @@ class ServerThread:
         host: str = "127.0.0.1",
         stop_timeout: float = 15.0,
         guard: ConnectionSettings | None = None,
+        tls: TlsFiles | None = None,
+        port: int = 0,
     ) -> None:
         # Imported here so that the rest of this module works without the live extra.
         from mirror_avatar.realtime.transport import listening_socket, make_server
 
-        self.socket = listening_socket(host, 0)
+        self.socket = listening_socket(host, port)
         self.host, self.port = self.socket.getsockname()[:2]
-        self.server = make_server(app, self.host, self.port, guard=guard)
+        self.scheme = "http" if tls is None else "https"
+        self.server = make_server(app, self.host, self.port, guard=guard, tls=tls)
         self.stop_timeout = stop_timeout
         self.thread = threading.Thread(
             target=self.server.run, kwargs={"sockets": [self.socket]}, daemon=True
@@ -221,8 +229,8 @@ class ServerThread:
 
     @property
     def url(self) -> str:
-        """The server's base HTTP URL."""
-        return f"http://{self.host}:{self.port}"
+        """The server's base URL (``http://`` or, with a certificate, ``https://``)."""
+        return f"{self.scheme}://{self.host}:{self.port}"
 
     def __enter__(self) -> ServerThread:
         self.thread.start()

@@ -75,22 +75,30 @@ def test_export_of_a_folder_without_trials_is_one_line(tmp_path, capsys):
     assert error.count("\n") == 1 and "empty" in error
 
 
-def test_the_export_passes_the_bids_validator(lab_session, tmp_path):
-    """The official BIDS validator (its deno build) finds no error in the exported dataset."""
-    bids = tmp_path / "bids"
-    assert main(["lab", "export", str(lab_session), "--out", str(bids)]) == 0
+def bids_validated(bids: Path) -> dict:
+    """The official BIDS validator's (its deno build) report on a dataset, after checking it
+    found no error."""
     validator = Path(sys.executable).parent / "bids-validator-deno"
     report = subprocess.run(
         [validator, str(bids), "--format", "json"], capture_output=True, text=True, timeout=300
     )
-    issues = json.loads(report.stdout)["issues"]["issues"]
-    errors = [issue for issue in issues if issue["severity"] == "error"]
+    validated = json.loads(report.stdout)
+    errors = [i for i in validated["issues"]["issues"] if i["severity"] == "error"]
     assert errors == [], errors[:3]
+    return validated
+
+
+def test_the_export_passes_the_bids_validator(lab_session, tmp_path):
+    """The official BIDS validator (its deno build) finds no error in the exported dataset."""
+    bids = tmp_path / "bids"
+    assert main(["lab", "export", str(lab_session), "--out", str(bids)]) == 0
+    report = bids_validated(bids)
+    issues = report["issues"]["issues"]
     warnings = {issue["code"] for issue in issues}
     # only what a researcher adds (authors) or optional keys the game has no value for
     assert warnings <= {"NO_AUTHORS", "TOO_FEW_AUTHORS", "JSON_KEY_RECOMMENDED",
                         "SIDECAR_KEY_RECOMMENDED"}  # fmt: skip
-    assert json.loads(report.stdout)["summary"]["dataTypes"] == ["motion"]
+    assert report["summary"]["dataTypes"] == ["motion"]
     (events,) = bids.glob("sub-P1/motion/*run-1_events.tsv")
     assert events.read_text().splitlines() == [
         "onset\tduration\ttrial_type\tsample\ttrial\tblock\tcondition\tplayer\tdelay_s\tchange",

@@ -9,7 +9,6 @@ certificate another authority signed are each refused in one line.
 
 from __future__ import annotations
 
-import datetime
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -18,10 +17,8 @@ from pathlib import Path
 import dask
 import pytest
 from cryptography import x509
-from cryptography.hazmat.primitives import hashes, serialization
-from cryptography.hazmat.primitives.asymmetric import ec
-from cryptography.x509.oid import NameOID
 from dask_processes import Cluster, Credentials, environment, loopback_cluster
+from tls_servers import certificate, new_key, write_key
 
 from mirror_avatar.cli import main
 from mirror_avatar.datasets import load_zhai2017
@@ -31,46 +28,16 @@ from mirror_avatar.motion.generator import IMSGenerator
 
 distributed = pytest.importorskip("distributed")
 
-Key = ec.EllipticCurvePrivateKey
-
-
-def _certificate(subject: str, key: Key, issuer: x509.Certificate | None, signer: Key) -> bytes:
-    """A PEM certificate of ``key`` for ``subject``, self-signed when ``issuer`` is None."""
-    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, subject)])
-    now = datetime.datetime.now(datetime.UTC)
-    certificate = (
-        x509.CertificateBuilder()
-        .subject_name(name)
-        .issuer_name(name if issuer is None else issuer.subject)
-        .public_key(key.public_key())
-        .serial_number(x509.random_serial_number())
-        .not_valid_before(now - datetime.timedelta(hours=1))
-        .not_valid_after(now + datetime.timedelta(days=1))
-        .add_extension(x509.BasicConstraints(ca=issuer is None, path_length=None), critical=True)
-        .sign(signer, hashes.SHA256())
-    )
-    return certificate.public_bytes(serialization.Encoding.PEM)
-
 
 def make_credentials(folder: Path) -> Credentials:
     """Write a new self-signed CA and a certificate and key it signed into ``folder``."""
-    authority_key, key = (
-        ec.generate_private_key(ec.SECP256R1()),
-        ec.generate_private_key(ec.SECP256R1()),
-    )
-    authority = _certificate("mirror-avatar test CA", authority_key, None, authority_key)
+    authority_key, key = new_key(), new_key()
+    authority = certificate("mirror-avatar test CA", authority_key, None, authority_key)
     credentials = Credentials(folder / "ca.crt", folder / "cluster.crt", folder / "cluster.key")
     credentials.ca_file.write_bytes(authority)
     issuer = x509.load_pem_x509_certificate(authority)
-    credentials.cert.write_bytes(_certificate("cluster", key, issuer, authority_key))
-    credentials.key.write_bytes(
-        key.private_bytes(
-            serialization.Encoding.PEM,
-            serialization.PrivateFormat.PKCS8,
-            serialization.NoEncryption(),
-        )
-    )
-    credentials.key.chmod(0o600)
+    credentials.cert.write_bytes(certificate("cluster", key, issuer, authority_key))
+    write_key(key, credentials.key)
     return credentials
 
 

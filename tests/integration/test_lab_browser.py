@@ -27,11 +27,13 @@ from browsers import (
     fitted_lag,
     on_the_clock,
 )
+from tls_servers import free_port, self_signed
 
 from mirror_avatar.lab.design.plan import SESSION_SETTINGS
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.metrics import session_metrics
 from mirror_avatar.metrics.measuring import analysed
+from mirror_avatar.realtime.tls import TlsFiles
 from mirror_avatar.remote.network import parse_network
 from mirror_avatar.remote.proxy import ProxyThread
 from mirror_avatar.remote.truth import fingerprint
@@ -71,6 +73,11 @@ def create_session(console: Any, preset: str, duration: float) -> dict[str, str]
     console.fill("#duration", str(duration))
     console.fill("#max-lateness", str(MAX_LATENESS))
     console.click("#create-session")
+    return shown_links(console)
+
+
+def shown_links(console: Any) -> dict[str, str]:
+    """Return the join links the console shows, by label (once it shows them)."""
     console.wait_for_selector("a.join")
     return dict(
         console.eval_on_selector_all("a.join", "links => links.map(a => [a.dataset.label, a.href])")
@@ -517,3 +524,50 @@ def test_a_phone_plays_by_touch(chromium, lab, tmp_path):
     session = load_session(session_dir(tmp_path) / "trial-01_session.csv")
     recorded = set(np.round(session.positions[0], 2))
     assert all(round(x, 2) in recorded for x in taps)
+
+
+class TrustingBrowser:
+    """A browser whose contexts accept the test's self-signed certificate."""
+
+    def __init__(self, browser: Any) -> None:
+        self.browser = browser
+
+    def new_context(self, **options: Any) -> Any:
+        return self.browser.new_context(ignore_https_errors=True, **options)
+
+
+def test_a_dyad_over_https_with_the_servers_own_certificate(chromium, tmp_path):
+    """The server serves HTTPS with a certificate the test made; the console at 127.0.0.1 hands
+    out links at the public address (localhost); both pages play over secure WebSockets.
+
+    The trial is far longer than the test, which stops it once both pages have played.
+    """
+    port = free_port()
+    public = f"https://localhost:{port}"
+    out = tmp_path / "out"
+    settings = LabSettings(out_dir=out, token=TOKEN, countdown=1, public_url=public)
+    tls = TlsFiles(*self_signed(tmp_path))
+    trusting = TrustingBrowser(chromium)
+    with ServerThread(create_lab_app(settings), tls=tls, port=port) as server:
+        assert server.url.startswith("https://127.0.0.1:")
+        console = open_console(trusting, server.url)
+        (cookie,) = console.context.cookies()
+        assert cookie["secure"] and cookie["httpOnly"]
+        links = create_session(console, "people", 120)
+        assert all(link.startswith(f"{public}/join/") for link in links.values()), links
+        pages = {label: join(trusting, link) for label, link in links.items()}
+        for page in pages.values():  # welcomed: its WebSocket is a secure one (no mixed content)
+            assert page.evaluate("location.origin") == public
+            pointer_at(page, 0.0)
+        start_when_joined(console, 2)
+        pages["P2"].wait_for_function("window.mirrorLab.others.size === 1", timeout=60_000)
+        driven = drive(pages, {"P1": 0.0, "P2": 0.25}, 3.0)
+        console.click("#stop")
+        row = wait_trial_listed(console, 1, timeout=60_000)
+        assert "stopped by the researcher" in row, row
+        for page in (console, *pages.values()):  # the browser closes its TLS connections first
+            page.context.close()
+    session = load_session(session_dir(out) / "trial-01_session.csv")
+    inputs = session_dir(out) / "trial-01_inputs.csv"
+    for k, label in enumerate(("P1", "P2")):
+        assert_matches(on_the_clock(inputs, session.positions[k]), driven[label])

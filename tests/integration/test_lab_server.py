@@ -485,7 +485,8 @@ def test_api_errors_are_one_json_line(lab):
     assert missing.status_code == 404 and missing.json() == {"error": "no such session"}
     sid = create(lab, DYAD)["id"]
     unknown = command(lab, sid, "dance")
-    assert unknown.status_code == 404 and "start, stop, abort or export" in unknown.json()["error"]
+    assert unknown.status_code == 404
+    assert "start, stop, abort, export or refuse" in unknown.json()["error"]
 
 
 def test_a_huge_recording_as_an_avatar_is_refused_before_it_is_read(lab, tmp_path):

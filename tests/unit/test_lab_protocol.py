@@ -15,6 +15,7 @@ from mirror_avatar.common.constraints import REQUIRED
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.lab.design.balance import block_balance
 from mirror_avatar.lab.design.checker import ProtocolKeyError
+from mirror_avatar.lab.design.online import panel_values
 from mirror_avatar.lab.design.protocol import MAX_PROTOCOL_BYTES, load_protocol, parse_protocol
 from mirror_avatar.lab.design.protocol_keys import TABLES, key_tables
 from mirror_avatar.lab.running.messages import Answer, parse_participant_message
@@ -234,6 +235,30 @@ REFUSALS = [
         "blocks[1].conditions[0].name: holds the control character '\\t'",
     ),
     (("blocks", 0, "name"), "al\none", "blocks[0].name: holds the control character '\\n'"),
+    (("online",), "prolific", "online: must be a table"),
+    (("online",), {"panel": ["PROLIFIC_PID"]}, "online.panel: unknown key (known keys: panel_ids"),
+    (("online",), {"panel_ids": "PROLIFIC_PID"}, "online.panel_ids: must be a list of at most 8"),
+    (("online",), {"panel_ids": ["PROLIFIC-PID"]}, "online.panel_ids[0]: 'PROLIFIC-PID' is not"),
+    (("online",), {"panel_ids": ["A", "A"]}, "online.panel_ids[1]: 'A' is not a new query"),
+    (("online",), {"completion_code": "C 1"}, "online.completion_code: must be 1-64 letters"),
+    (("online",), {"refusal_code": 7}, "online.refusal_code: must be 1-64 letters"),
+    (("online",), {"completion_url": "http://x.org/?cc=1"}, "online.completion_url: must be an"),
+    (("online",), {"refusal_url": "javascript:alert(1)"}, "online.refusal_url: must be an https"),
+    (("online",), {"consent": ""}, "online.consent: must be text of 1 to 10000 characters"),
+    (("online",), {"consent": "x" * 10_001}, "online.consent: must be text of 1 to 10000"),
+    (("online",), {"instructions": "a\x1b[2Jb"}, "online.instructions: holds the control char"),
+    (
+        ("online",),
+        {"consent": "a", "consent_file": "c.txt"},
+        "online.consent: consent and consent_",
+    ),
+    (
+        ("online",),
+        {"consent_file": "../consent.txt"},
+        "online.consent_file: '../consent.txt' is not",
+    ),
+    (("online",), {"instructions_file": ".env"}, "online.instructions_file: '.env' is not a file"),
+    (("online",), {"consent_file": "absent.txt"}, "online.consent_file: absent.txt: no such file"),
     (
         ("questions", "partner", "options", 0),
         "a \x1b[31mperson",
@@ -259,6 +284,7 @@ TABLE_PATHS = {
     "condition": C0,
     "player": (*C0, "players", 0),
     "analysis": ("analysis",),
+    "online": ("online",),
 }
 """Where each table of the example protocol is (a Likert question; a person of a condition)."""
 
@@ -364,3 +390,45 @@ def test_a_page_answer_message_is_parsed_and_bounded():
     ):
         with pytest.raises(ProtocolError):
             parse_participant_message(json.dumps(bad))
+
+
+def test_an_online_table_is_read_and_old_protocols_have_none():
+    online = {
+        "panel_ids": ["PROLIFIC_PID", "STUDY_ID", "SESSION_ID"],
+        "completion_url": "https://app.prolific.com/submissions/complete?cc=C1A2B3C4",
+        "refusal_code": "NOFIT123",
+    }
+    protocol = parse_protocol(_example() | {"online": online}, "study.toml")
+    assert protocol.online.panel_ids == ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID")
+    assert protocol.online.completion.to_json() == {"code": None, "url": online["completion_url"]}
+    assert protocol.online.refusal.to_json() == {"code": "NOFIT123", "url": None}
+    assert (protocol.online.consent, protocol.online.instructions) == (None, None)
+    empty = load_protocol(EXAMPLE).online
+    assert empty.panel_ids == () and not empty.completion and not empty.refusal
+
+
+@pytest.mark.parametrize(
+    ("query", "expected"),
+    [
+        ({"PROLIFIC_PID": "5f1a2b3c", "other": "x"}, {"PROLIFIC_PID": "5f1a2b3c"}),
+        ({"STUDY_ID": "s_1-2"}, {"STUDY_ID": "s_1-2"}),
+        ({}, {}),
+        ({"PROLIFIC_PID": "../etc/passwd"}, "PROLIFIC_PID must be 1 to 64 letters"),
+        ({"PROLIFIC_PID": "a" * 65}, "PROLIFIC_PID must be 1 to 64 letters"),
+        ({"STUDY_ID": ""}, "STUDY_ID must be 1 to 64 letters"),
+        ({"STUDY_ID": "x y"}, "STUDY_ID must be 1 to 64 letters"),
+    ],
+)
+def test_panel_values_are_safe_identifiers_or_refused(query, expected):
+    values = panel_values(("PROLIFIC_PID", "STUDY_ID"), query)
+    if isinstance(expected, str):
+        assert isinstance(values, str) and values.startswith(expected)
+    else:
+        assert values == expected
+
+
+def test_the_pages_text_is_read_from_a_file_beside_the_protocol(tmp_path):
+    (tmp_path / "consent.txt").write_text("I agree to\n\n  take part.\n", encoding="utf-8")
+    data = _example() | {"online": {"consent_file": "consent.txt", "instructions": "Move.\nStop."}}
+    online = parse_protocol(data, str(tmp_path / "study.toml")).online
+    assert (online.consent, online.instructions) == ("I agree to\n\n  take part.", "Move.\nStop.")

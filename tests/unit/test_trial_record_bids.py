@@ -7,6 +7,7 @@ equal field for field, from the run folder and from the export alike.
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import json
 from pathlib import Path
@@ -53,6 +54,8 @@ RECORD = TrialRecord(
         delay_s=0.3,
         occluded_s=((1.0, 2.5),),
         partners={"P1": "human", "A1": "avatar", "P2": "human"},
+        panel={"P1": {"PROLIFIC_PID": "5f1a2b3c4d5e6f7a8b9c0d1e", "STUDY_ID": "s-42"}},
+        consented={"P1": "2025-03-01T09:58:00+00:00", "P2": "2025-03-01T09:59:30+00:00"},
     ),
     seed=17,
     created_utc="2025-03-01T10:00:00+00:00",
@@ -112,6 +115,13 @@ def test_a_lab_trial_exported_to_bids_is_read_back_as_its_record(tmp_path: Path)
     [from_run] = read_study_trials([folder])
     assert from_bids.record == RECORD
     assert from_run.record == RECORD
+    with (root / "participants.tsv").open(encoding="utf-8") as table:
+        rows = {row["label"]: row for row in csv.DictReader(table, delimiter="\t")}
+    assert (rows["P1"]["PROLIFIC_PID"], rows["P1"]["STUDY_ID"]) == (
+        "5f1a2b3c4d5e6f7a8b9c0d1e",
+        "s-42",
+    )
+    assert (rows["P2"]["PROLIFIC_PID"], rows["P2"]["STUDY_ID"]) == ("n/a", "n/a")
 
 
 def test_an_export_by_an_earlier_version_is_read_as_far_as_it_carried_the_record(

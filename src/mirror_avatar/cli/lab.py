@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -11,6 +12,10 @@ from mirror_avatar.cli.lab_preview import preview
 from mirror_avatar.cli.lab_proxy import proxy
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.play import listen, server_options
+from mirror_avatar.common.errors import InputError
+
+if TYPE_CHECKING:
+    from mirror_avatar.realtime.tls import TlsFiles
 
 
 @click.group(invoke_without_command=True)
@@ -31,6 +36,27 @@ from mirror_avatar.cli.play import listen, server_options
     "creates each participant's run of it, in their counterbalanced order (the console can "
     "also load one).",
 )
+@click.option(
+    "--certfile",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="The server's TLS certificate (PEM, with its chain): it serves HTTPS and secure "
+    "WebSockets itself (needs --keyfile). Behind a reverse proxy that holds the certificate, "
+    "leave it out.",
+)
+@click.option(
+    "--keyfile",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="The private key of --certfile (PEM, unencrypted).",
+)
+@click.option(
+    "--public-url",
+    default=None,
+    metavar="URL",
+    help="The address participants reach the server at (https://study.example.org behind a "
+    "reverse proxy): join links, QR codes and the printed console link use it.",
+)
 @click.pass_context
 def lab(
     ctx: click.Context,
@@ -39,34 +65,47 @@ def lab(
     out_dir: Path,
     lsl: bool,
     protocol_file: Path | None,
+    certfile: Path | None,
+    keyfile: Path | None,
+    public_url: str | None,
 ) -> None:
     """Run lab sessions: people at their own screens and avatars, from a researcher's console.
 
-    Serves on http://HOST:PORT and prints the console's URL with the researcher's token (the
-    console always needs it). From the console, or its HTTP/JSON API, create a session
-    (condition, people and avatars, graph, trials), hand each person their join link or QR
-    code, then start, stop or abort; every sample is written to OUT/<session>/ as it is taken.
-    `mirror-avatar lab export` turns a session into a BIDS-Motion dataset.
+    Serves on http://HOST:PORT (https:// with --certfile and --keyfile) and prints the console's
+    URL with the researcher's token (the console always needs it). From the console, or its
+    HTTP/JSON API, create a session (condition, people and avatars, graph, trials), hand each
+    person their join link or QR code, then start, stop or abort; every sample is written to
+    OUT/<session>/ as it is taken. `mirror-avatar lab export` turns a session into a
+    BIDS-Motion dataset.
     """
     if ctx.invoked_subcommand is not None:
         return
     from mirror_avatar.lab.design.protocol import load_protocol
+    from mirror_avatar.lab.running.public import parse_public_url
     from mirror_avatar.lab.running.server import LabSettings, create_lab_app
     from mirror_avatar.realtime.transport import make_server, make_token
 
+    tls = _tls_files(certfile, keyfile)
+    public = None if public_url is None else parse_public_url(public_url)
     protocol = None if protocol_file is None else load_protocol(protocol_file)
     check_output_dir(out_dir)
     if lsl and not _lsl_available():
         raise click.UsageError("--lsl needs pylsl: pip install 'mirror-avatar[lsl]'")
+    if tls is not None:
+        tls.check()
     sock = listen(host, port)
     out_dir.mkdir(parents=True, exist_ok=True)
     if lsl:
         _quiet_lsl()
     token = make_token()
-    settings = LabSettings(out_dir=out_dir, token=token, lsl=lsl, protocol=protocol)
+    settings = LabSettings(
+        out_dir=out_dir, token=token, lsl=lsl, protocol=protocol, public_url=public
+    )
     port = sock.getsockname()[1]
-    server = make_server(create_lab_app(settings), host, port, "info")
+    server = make_server(create_lab_app(settings), host, port, "info", tls=tls)
     shown = _reachable_name() if host in ("0.0.0.0", "::") else host
+    scheme = "http" if tls is None else "https"
+    console = public or f"{scheme}://{shown}:{port}"
     click.echo(f"mirror-avatar lab: recording to {out_dir.resolve()}; LSL {'on' if lsl else 'off'}")
     if protocol is not None:
         people = ", ".join(protocol.people)
@@ -82,11 +121,31 @@ def lab(
                 err=True,
             )
     click.echo(f"researcher's token: {token}")
-    click.echo(f"console: http://{shown}:{port}/console?token={token}  (Ctrl+C to stop)")
-    if host in ("0.0.0.0", "::"):
+    click.echo(f"console: {console}/console?token={token}  (Ctrl+C to stop)")
+    if host in ("0.0.0.0", "::") and public is None:
         click.echo("join links use the address the console is opened at: open it at one the "
                    "participants' devices reach")  # fmt: skip
     server.run(sockets=[sock])
+
+
+def _tls_files(certfile: Path | None, keyfile: Path | None) -> TlsFiles | None:
+    """Return the server's certificate and key, or None without either (plain HTTP).
+
+    Raises
+    ------
+    InputError
+        One is given without the other.
+    """
+    from mirror_avatar.realtime.tls import TlsFiles
+
+    if certfile is None and keyfile is None:
+        return None
+    if certfile is None or keyfile is None:
+        given, missing = (
+            ("--certfile", "--keyfile") if keyfile is None else ("--keyfile", "--certfile")
+        )
+        raise InputError(given, f"needs {missing} too (the certificate and its private key)")
+    return TlsFiles(certfile, keyfile)
 
 
 LSL_LOG_LEVEL = -1

@@ -84,7 +84,9 @@ class StudyRecord:
 
     ``delay_s`` is the partners' visual delay on the pages (s), ``occluded_s`` the
     ``[start, end]`` intervals (s) during which they were hidden, ``partners`` each player's
-    label and true kind (`KINDS`).
+    label and true kind (`KINDS`), ``panel`` each person's identifiers on their recruitment
+    panel by label (as their join link gave them), ``consented`` when each person agreed on the
+    consent page (UTC, ISO 8601) by label; those two are written only when there are any.
     """
 
     protocol: str
@@ -95,19 +97,27 @@ class StudyRecord:
     delay_s: float
     occluded_s: tuple[tuple[float, float], ...]
     partners: dict[str, str]
+    panel: dict[str, dict[str, str]] = field(default_factory=dict)
+    consented: dict[str, str] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         """Return the study's keys of the ``lab`` object, in the order the lab writes them."""
-        return {
-            "partner_delay_s": self.delay_s,
-            "occluded_s": [list(pair) for pair in self.occluded_s],
-            "protocol": self.protocol,
-            "participant": self.participant,
-            "block": self.block,
-            "protocol_condition": self.condition,
-            "condition_trial": self.condition_trial,
-            "partners": dict(self.partners),
-        }
+        panel = {"panel": {label: dict(ids) for label, ids in self.panel.items()}}
+        consented = {"consented": dict(self.consented)}
+        return (
+            {
+                "partner_delay_s": self.delay_s,
+                "occluded_s": [list(pair) for pair in self.occluded_s],
+                "protocol": self.protocol,
+                "participant": self.participant,
+                "block": self.block,
+                "protocol_condition": self.condition,
+                "condition_trial": self.condition_trial,
+                "partners": dict(self.partners),
+            }
+            | (panel if self.panel else {})
+            | (consented if self.consented else {})
+        )
 
 
 @dataclass(frozen=True)
@@ -449,7 +459,23 @@ def _study(keys: _Keys, lab: dict[str, Any]) -> StudyRecord:
         delay_s=keys.number(lab, "partner_delay_s"),
         occluded_s=tuple((pair[0], pair[1]) for pair in occluded),
         partners={str(label): str(kind) for label, kind in partners.items()},
+        panel=_panel(keys, lab.get("panel", {})),
+        consented=_texts(keys, lab.get("consented", {}), "consented"),
     )
+
+
+def _panel(keys: _Keys, value: object) -> dict[str, dict[str, str]]:
+    """Read the people's panel identifiers: text values, by label and identifier."""
+    people = keys.object(value, "panel")
+    return {str(label): _texts(keys, ids, f"panel.{label}") for label, ids in people.items()}
+
+
+def _texts(keys: _Keys, value: object, key: str) -> dict[str, str]:
+    """Read an object of texts at ``key``."""
+    texts = keys.object(value, key)
+    if not all(isinstance(text, str) for text in texts.values()):
+        raise keys.error(key, "holds a value that is not a text")
+    return {str(name): str(text) for name, text in texts.items()}
 
 
 def _perturbation(keys: _Keys, value: object) -> PerturbationRecord:

@@ -188,7 +188,20 @@ class TokenGate(Gate):
 
 
 class OriginGate(Gate):
-    """Refuse WebSocket handshakes sent by a page of another origin than the server's."""
+    """Refuse WebSocket handshakes sent by a page of another origin than the server's.
+
+    Parameters
+    ----------
+    app
+        As in `Gate`.
+    also
+        Further hosts (``name[:port]``) whose pages may connect: the server's public address
+        behind a reverse proxy that does not pass the ``Host`` header on.
+    """
+
+    def __init__(self, app: ASGIApp, also: frozenset[str] = frozenset()) -> None:
+        super().__init__(app)
+        self.also = also
 
     def check(self, connection: HTTPConnection) -> None:
         """Refuse a cross-origin WebSocket handshake (close 1008)."""
@@ -196,7 +209,7 @@ class OriginGate(Gate):
         if (
             connection.scope["type"] == "websocket"
             and origin is not None
-            and urlsplit(origin).netloc != connection.headers.get("host")
+            and urlsplit(origin).netloc not in {connection.headers.get("host"), *self.also}
         ):
             raise Refusal("cross-origin WebSocket refused")
 

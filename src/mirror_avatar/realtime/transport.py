@@ -27,6 +27,7 @@ from starlette.websockets import WebSocket
 
 from mirror_avatar.realtime.protocols import GuardedConfig
 from mirror_avatar.realtime.settings import ConnectionSettings
+from mirror_avatar.realtime.tls import TlsFiles
 
 MAX_FRAME_BYTES = 16 * 1024
 """Largest WebSocket frame the servers read at all (bytes); larger ones close the connection."""
@@ -115,12 +116,14 @@ def make_server(
     port: int,
     log_level: str = "warning",
     guard: ConnectionSettings | None = None,
+    tls: TlsFiles | None = None,
 ) -> uvicorn.Server:
     """Configure a uvicorn server for ``app`` (sans-I/O WebSockets, `MAX_FRAME_BYTES` frames).
 
     Its connections are guarded by ``guard`` (request deadlines, caps: `GuardedConfig`;
-    default: `ConnectionSettings`'s defaults); its logs leave secrets out
-    (`keep_secrets_out_of_logs`).
+    default: `ConnectionSettings`'s defaults); with ``tls`` it serves HTTPS and secure
+    WebSockets with that certificate (its files checked by the caller: `TlsFiles.check`); its
+    logs leave secrets out (`keep_secrets_out_of_logs`).
     """
     config = GuardedConfig(
         app,
@@ -131,6 +134,7 @@ def make_server(
         log_level=log_level,
         lifespan="off",
         backlog=ACCEPT_BATCH,
+        **({} if tls is None else tls.uvicorn_options()),
     )
     keep_secrets_out_of_logs()
     return RealtimeServer(config)

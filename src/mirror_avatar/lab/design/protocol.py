@@ -31,6 +31,7 @@ from typing import Any
 
 from mirror_avatar.files.user_files import is_int, parse_toml, read_text
 from mirror_avatar.lab.design.checker import Checker
+from mirror_avatar.lab.design.online import Online, parse_online
 from mirror_avatar.lab.design.order import (
     block_order,
     condition_order,
@@ -297,6 +298,9 @@ class Protocol:
         (`mirror_avatar.lab.design.protocol_checks.long_run`).
     analysis
         Its hypothesis (``[analysis]``), None when it declares none.
+    online
+        Its panel identifiers and end codes (``[online]``,
+        `mirror_avatar.lab.design.online`); empty when it declares none.
     """
 
     source: str
@@ -309,6 +313,7 @@ class Protocol:
     blind: str = "single"
     warnings: tuple[str, ...] = field(default=(), compare=False)
     analysis: Analysis | None = None
+    online: Online = Online()
 
     @property
     def conditions(self) -> tuple[str, ...]:
@@ -428,6 +433,9 @@ def parse_protocol(data: dict[str, Any], source: str) -> Protocol:
         blind=str(blind),
         warnings=(*warnings, *long_run(source, plans)),
         analysis=None if "analysis" not in data else _analysis(check, data["analysis"], names),
+        online=Online()
+        if "online" not in data
+        else parse_online(check, data["online"], Path(source).parent),
     )
 
 

@@ -58,8 +58,39 @@ STUDY_SETTINGS = (
             allowed=f"1 to {MAX_BLOCKS} tables"),
     Setting("analysis", "the hypothesis `study report` tests first, one `[analysis]` table",
             default=None, allowed="a table (its keys below)"),
+    Setting("online", "a study served to a recruitment panel: its identifiers and codes, one "
+            "`[online]` table", default=None, allowed="a table (its keys below)"),
 )  # fmt: skip
 """The keys of the protocol file itself."""
+
+MAX_PANEL_IDS = 8
+"""Most panel identifiers a protocol records."""
+
+MAX_PAGE_CHARS = 10_000
+"""Longest text of an instructions or consent page (characters)."""
+
+ONLINE_SETTINGS = (
+    Setting("panel_ids", "the join link's query parameters recorded for its participant",
+            default=None, allowed=f"up to {MAX_PANEL_IDS} names (letters, digits, _)",
+            default_shown="none"),
+    Setting("completion_code", "the code the end page shows", default=None,
+            allowed="1-64 letters, digits, _ or -"),
+    Setting("completion_url", "the link back to the panel the end page shows", default=None,
+            allowed="an https link"),
+    Setting("refusal_code", "the code shown to a participant screened out", default=None,
+            allowed="1-64 letters, digits, _ or -"),
+    Setting("refusal_url", "the link back shown to a participant screened out", default=None,
+            allowed="an https link"),
+    Setting("instructions", "the instructions page, shown before the game", default=None,
+            allowed=f"text of at most {MAX_PAGE_CHARS} characters (lines kept)"),
+    Setting("instructions_file", "the instructions page's text in a file beside the protocol",
+            default=None, allowed="a UTF-8 text file's name"),
+    Setting("consent", "the consent page: a participant who does not agree is not played",
+            default=None, allowed=f"text of at most {MAX_PAGE_CHARS} characters (lines kept)"),
+    Setting("consent_file", "the consent page's text in a file beside the protocol",
+            default=None, allowed="a UTF-8 text file's name"),
+)  # fmt: skip
+"""The keys of a protocol's ``[online]`` table (`mirror_avatar.lab.design.online`)."""
 
 ANALYSIS_SETTINGS = (
     Setting("primary", "the primary measure, or measures, of the confirmatory test",
@@ -158,6 +189,7 @@ TABLES = {
     "condition": CONDITION_SETTINGS,
     "player": PLAYER_SETTINGS,
     "analysis": ANALYSIS_SETTINGS,
+    "online": ONLINE_SETTINGS,
 }
 """Every table of a protocol file and its declared keys."""
 
@@ -172,7 +204,7 @@ def by_key(settings: tuple[Setting, ...]) -> dict[str, Setting]:
     return {setting.key: setting for setting in settings}
 
 
-STUDY, QUESTION, BLOCK, CONDITION, PLAYER, ANALYSIS = (by_key(t) for t in TABLES.values())
+STUDY, QUESTION, BLOCK, CONDITION, PLAYER, ANALYSIS, ONLINE = (by_key(t) for t in TABLES.values())
 """Each table's settings by key."""
 
 

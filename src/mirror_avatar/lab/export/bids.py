@@ -148,14 +148,15 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     becomes ``sub-P1``), in a study session (``session_dir`` holds ``study.json``) after ``p``
     and the participant's number (``sub-p003P1``), and likewise the ``acq-`` label from the
     session id. An incomplete trial (a crash) is exported as far as it was recorded,
-    ``complete`` being false in its ``MirrorGame`` key. ``participants.tsv`` gains the
-    session's participants (one row each, with the study's participant number and protocol in
-    a study; existing rows kept); ``dataset_description.json`` and ``README`` are written only when
-    absent; each subject's ``_scans.tsv`` gains their files with their acquisition times
-    (existing rows kept); a trial's answers become each participant's ``_beh.tsv``;
-    ``sourcedata/<session id>/`` receives copies of the trial files (with their inputs and
-    answers) and ``plan.json`` or ``study.json``, a file they name by its base name only
-    (`shared_json`), as in each ``MirrorGame`` key. Every file is written atomically, and nothing
+    ``complete`` being false in its ``MirrorGame`` key. ``participants.tsv`` gains the session's
+    participants (one row each, with the study's participant number and protocol in a study, and
+    the panel identifiers their join links gave; existing rows kept);
+    ``dataset_description.json`` and ``README`` are written only when absent; each subject's
+    ``_scans.tsv`` gains their files with their acquisition times (existing rows kept); a
+    trial's answers become each participant's ``_beh.tsv``; ``sourcedata/<session id>/``
+    receives copies of the trial files (with their inputs and answers) and ``plan.json`` or
+    ``study.json``, a file they name by its base name only (`shared_json`), as in each
+    ``MirrorGame`` key. Every file is written atomically, and nothing
     is written before every trial (and every table merged into) has been read. Exports into one
     ``out_dir`` take turns (`mirror_avatar.lab.export.bids_lock.dataset_lock`, across threads and
     processes), so that none loses the rows another adds to the tables.
@@ -195,7 +196,9 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
         columns, participants = _read_participants(out_dir / "participants.tsv", study)
         for trial in trials:
             _add_participants(participants, trial, out_dir / "participants.tsv")
-        described = _read_column_info(out_dir / "participants.json")
+        panel = _panel_ids(trials)
+        columns += [name for name in panel if name not in columns]
+        described = _read_column_info(out_dir / "participants.json") | panel_info(panel)
         subjects = {_subject(trial, k) for trial in trials for k in trial.humans()}
         for subject in sorted(subjects):  # a damaged table is refused before anything is written
             read_tsv(out_dir / subject / f"{subject}_scans.tsv", "filename")
@@ -290,6 +293,27 @@ def _add_participants(rows: dict[str, dict[str, str]], trial: LabTrial, path: Pa
             )
         devices = set(row.get("device", MISSING).split(",")) - {MISSING, ""}
         row |= person | {"device": ",".join(sorted(devices | {device}))}
+        row |= {} if trial.record.study is None else trial.record.study.panel.get(label, {})
+
+
+def _panel_ids(trials: list[LabTrial]) -> list[str]:
+    """Return the names of the panel identifiers the trials record, in order of appearance."""
+    names: dict[str, None] = {}
+    for trial in trials:
+        for ids in ({} if trial.record.study is None else trial.record.study.panel).values():
+            names |= dict.fromkeys(ids)
+    return list(names)
+
+
+def panel_info(names: list[str]) -> dict[str, Any]:
+    """Describe the panel identifiers' columns of ``participants.tsv`` (``participants.json``)."""
+    return {
+        name: {
+            "Description": f"The participant's {name} on their recruitment panel, from the query "
+            "of their join link (n/a: the link had none)"
+        }
+        for name in names
+    }
 
 
 def _who(cells: dict[str, str]) -> str:

@@ -28,6 +28,7 @@ from mirror_avatar.lab.design.protocol import MAX_PROTOCOL_BYTES, Protocol
 from mirror_avatar.lab.design.protocol_store import PROTOCOLS_FOLDER, store_protocol
 from mirror_avatar.lab.files import is_session_folder
 from mirror_avatar.lab.running.blinding import console_status, hidden_of, unjoined
+from mirror_avatar.lab.running.public import base_address
 from mirror_avatar.lab.running.runner import LabSession
 from mirror_avatar.lab.running.sessions import Lab
 from mirror_avatar.lab.running.study import ParticipantRun
@@ -51,6 +52,12 @@ MAX_PROTOCOL_BODY_BYTES = 2 * MAX_PROTOCOL_BYTES + 1024
 
 EXPORT_FOLDER = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 """Name of a folder of OUT the console may export into (one path part, no dots)."""
+
+DEFAULT_REFUSAL = "You cannot take part in this study."
+"""What a screened-out person is told when the researcher gives no reason."""
+
+MAX_REASON_CHARS = 200
+"""Longest reason a screened-out person is told (characters)."""
 
 PLAYING = ("countdown", "running", "pause")
 """States in which a session's trials are being played (no export then)."""
@@ -79,14 +86,14 @@ class LabApi:
             }
             if self.lab.protocol is not None:
                 listing["protocol"] = protocol_summary(self.lab.protocol)
-            return _json(listing)
+            return json_answer(listing)
         try:
-            data = await _body(request)
+            data = await read_body(request)
             if isinstance(data, dict) and "participant" in data:
                 participant = self._participant(data["participant"])
                 running = self.lab.open_study(participant)
                 if running is not None:
-                    return _json(self._status(running, request))
+                    return json_answer(self._status(running, request))
                 session = await self.lab.create_study(participant)
             else:
                 plan = parse_plan(data)
@@ -96,7 +103,7 @@ class LabApi:
             raise ApiError(400, str(error)) from None
         except OSError as error:
             raise unwritable(error) from None
-        return _json(self._status(session, request), 201)
+        return json_answer(self._status(session, request), 201)
 
     def _participant(self, participant: object) -> int:
         """Check a participant's number for a run of the server's protocol."""
@@ -116,7 +123,7 @@ class LabApi:
         Answers the protocol's title, seed, people and kept copy; refused while a participant's
         run of the current protocol is playing (409).
         """
-        data = await _body(request, limit=MAX_PROTOCOL_BODY_BYTES)
+        data = await read_body(request, limit=MAX_PROTOCOL_BODY_BYTES)
         if not isinstance(data, dict) or not all(
             isinstance(data.get(key), str) for key in ("name", "text")
         ):
@@ -132,7 +139,7 @@ class LabApi:
             ]
             if playing:
                 problem = f"{playing[0]} is playing: load a protocol when no trial runs"
-                return _json({"error": problem}, 409)
+                return json_answer({"error": problem}, 409)
             try:
                 protocol = await asyncio.to_thread(
                     store_protocol, self.lab.settings.out_dir, data["name"], data["text"]
@@ -143,41 +150,61 @@ class LabApi:
                 raise unwritable(error) from None
             self.lab.protocol = protocol
         logger.info("protocol %s loaded from the console", protocol.source)
-        return _json({"protocol": protocol_summary(protocol)})
+        return json_answer({"protocol": protocol_summary(protocol)})
 
     async def session(self, request: Request) -> Response:
         """One session's status and join links."""
-        return _json(self._status(self._session(request), request))
+        return json_answer(self._status(self._session(request), request))
 
     async def live(self, request: Request) -> Response:
         """Answer the running trial's last 10 s of positions and group synchronisation."""
         session = self._session(request)
         trial = session.trial
         if trial is None:
-            return _json({"state": session.state, "trial": None})
+            return json_answer({"state": session.state, "trial": None})
         data = await asyncio.to_thread(trial.recent, 10.0)
-        return _json({"state": session.state, "trial": trial.n, "progress": trial.progress} | data)
+        return json_answer(
+            {"state": session.state, "trial": trial.n, "progress": trial.progress} | data
+        )
 
     async def command(self, request: Request) -> Response:
         """Start, stop or abort a session."""
         action = request.path_params["action"]
         session = self._session(request)
-        data = await _body(request, allow_empty=True)
+        data = await read_body(request, allow_empty=True)
         if action == "start":
             force = bool(isinstance(data, dict) and data.get("force"))
             problem = unjoined(session) if hidden_of(session) and not force else None
             problem = problem or session.start(force=force)
             if problem is not None:
-                return _json({"error": problem}, 409)
+                return json_answer({"error": problem}, 409)
         elif action == "stop":
             await session.stop()
         elif action == "abort":
             await session.abort()
         elif action == "export":
             return await self._export(session, data)
+        elif action == "refuse":
+            self._refuse(session, data)
         else:
-            return _json({"error": f"unknown action {action!r}: start, stop, abort or export"}, 404)
-        return _json(self._status(session, request))
+            problem = f"unknown action {action!r}: start, stop, abort, export or refuse"
+            return json_answer({"error": problem}, 404)
+        return json_answer(self._status(session, request))
+
+    def _refuse(self, session: LabSession, data: Any) -> None:
+        """Screen out the person labelled ``data["person"]``, telling them ``data["reason"]``.
+
+        `mirror_avatar.lab.running.sessions.Lab.refuse`: their page shows the reason and the
+        protocol's refusal code or link.
+        """
+        body = data if isinstance(data, dict) else {}
+        people = {p.label: p for p in session.everyone()}
+        reason = body.get("reason", DEFAULT_REFUSAL)
+        if body.get("person") not in people:
+            raise ApiError(400, f"person: one of {', '.join(people)}")
+        if not isinstance(reason, str) or not 0 < len(reason) <= MAX_REASON_CHARS:
+            raise ApiError(400, f"reason: one line of 1 to {MAX_REASON_CHARS} characters")
+        self.lab.refuse(people[body["person"]].key, " ".join(reason.split()))
 
     async def _export(self, session: LabSession, data: Any) -> Response:
         """Export the session as BIDS into ``OUT/bids`` or ``OUT/<folder>`` (not while playing).
@@ -196,7 +223,7 @@ class LabApi:
             raise ApiError(400, f"folder: {folder} is a session's folder, not a BIDS dataset")
         if session.state in PLAYING:
             problem = f"the session is playing ({session.state}): export when it waits or has ended"
-            return _json({"error": problem}, 409)
+            return json_answer({"error": problem}, 409)
 
         def export() -> tuple[int, int]:  # off the event loop: the trials' clocks run on it
             written = export_bids(session.directory, target)
@@ -209,7 +236,7 @@ class LabApi:
         except OSError as error:
             raise unwritable(error) from None
         session.log(f"exported {motion_files} motion files to {target}")
-        return _json({"folder": str(target), "files": files, "motion_files": motion_files})
+        return json_answer({"folder": str(target), "files": files, "motion_files": motion_files})
 
     async def file(self, request: Request) -> Response:
         """Serve a file of the session's folder, by one of the names the session lists.
@@ -222,14 +249,14 @@ class LabApi:
         session = self._session(request)
         if hidden_of(session):
             problem = "the protocol is double blind: a run's files are hidden until its export"
-            return _json({"error": problem}, 403)
+            return json_answer({"error": problem}, 403)
         path = session.directory / name
         if not FILE_NAME.fullmatch(name):
-            return _json({"error": "no such file in this session"}, 404)
+            return json_answer({"error": "no such file in this session"}, 404)
         try:
             handle = await asyncio.to_thread(open_regular, path, MAX_FILE_BYTES)
         except InputError:
-            return _json({"error": "no such file in this session"}, 404)
+            return json_answer({"error": "no such file in this session"}, 404)
         size = os.fstat(handle.fileno()).st_size
         return StreamingResponse(
             file_chunks(handle),
@@ -241,19 +268,23 @@ class LabApi:
         """Serve the QR code (SVG) of a person's join link."""
         import segno
 
-        links = join_links(self._session(request), request)
+        links = join_links(self._session(request), self._base(request))
         label = request.path_params["label"]
         if label not in links:
-            return _json({"error": "no such person in this session"}, 404)
+            return json_answer({"error": "no such person in this session"}, 404)
         svg = io.BytesIO()
         segno.make(links[label], error="m").save(svg, kind="svg", scale=4, border=2)
         return Response(
             svg.getvalue(), media_type="image/svg+xml", headers={"Cache-Control": "no-store"}
         )
 
+    def _base(self, request: Request) -> str:
+        """Return the address join links are built on (`mirror_avatar.lab.running.public`)."""
+        return base_address(self.lab.settings.public_url, request)
+
     def _status(self, session: LabSession, request: Request) -> dict[str, Any]:
         """Return a session's status and links, blinded for a double-blind protocol's run."""
-        links = {} if session.ended else join_links(session, request)
+        links = {} if session.ended else join_links(session, self._base(request))
         return console_status(session, session.status() | {"links": links})
 
 
@@ -269,9 +300,8 @@ def protocol_summary(protocol: Protocol) -> dict[str, Any]:
     }
 
 
-def join_links(session: LabSession, request: Request) -> dict[str, str]:
-    """Each person's join link, on the address the researcher reached the server by."""
-    base = str(request.base_url).rstrip("/")
+def join_links(session: LabSession, base: str) -> dict[str, str]:
+    """Each person's join link, on the address ``base`` (``https://NAME[:PORT]``)."""
     return {p.label: f"{base}/join/{p.key}" for p in session.everyone()}
 
 
@@ -293,10 +323,12 @@ def unwritable(error: OSError) -> ApiError:
 async def api_error(request: Request, error: Exception) -> Response:
     """Answer an `ApiError` as JSON."""
     assert isinstance(error, ApiError)
-    return _json({"error": str(error)}, error.status)
+    return json_answer({"error": str(error)}, error.status)
 
 
-async def _body(request: Request, allow_empty: bool = False, limit: int = MAX_BODY_BYTES) -> Any:
+async def read_body(
+    request: Request, allow_empty: bool = False, limit: int = MAX_BODY_BYTES
+) -> Any:
     """Read a request's JSON body: at most ``limit`` bytes, parsed by the bounded parser.
 
     Raises
@@ -332,5 +364,6 @@ async def file_chunks(handle: IO[bytes], size: int = 2**16) -> AsyncIterator[byt
         handle.close()
 
 
-def _json(data: dict[str, Any], status: int = 200) -> JSONResponse:
+def json_answer(data: dict[str, Any], status: int = 200) -> JSONResponse:
+    """Answer ``data`` as JSON (never cached)."""
     return JSONResponse(json_safe(data), status_code=status, headers={"Cache-Control": "no-store"})

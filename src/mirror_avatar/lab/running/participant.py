@@ -47,6 +47,15 @@ class Participant:
         could be sent, over the page's earlier connections.
     last_heard
         When the page last sent a message (`time.monotonic`, s), or None.
+    panel
+        The person's identifiers on their recruitment panel, from their join link's query
+        (`mirror_avatar.lab.design.online.panel_values`), by name.
+    consented
+        When the person agreed to take part (UTC, ISO 8601) on the protocol's consent page
+        (`mirror_avatar.lab.running.consent`), or None.
+    refused
+        Why the person was screened out (`mirror_avatar.lab.running.sessions.Lab.refuse`), one
+        line their page shows, or None: a refused person's link shows only that.
     """
 
     def __init__(self, index: int, label: str, device: str, visible: list[int]) -> None:
@@ -63,6 +72,9 @@ class Participant:
         self.late_frames = 0
         self.frames_dropped = 0
         self.last_heard: float | None = None
+        self.panel: dict[str, str] = {}
+        self.consented: str | None = None
+        self.refused: str | None = None
 
     @property
     def connected(self) -> bool:

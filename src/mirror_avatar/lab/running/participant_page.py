@@ -14,6 +14,7 @@ import time
 
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
+from mirror_avatar.lab.running.consent import needs_consent
 from mirror_avatar.lab.running.messages import (
     Answer,
     AvatarPosition,
@@ -26,14 +27,15 @@ from mirror_avatar.lab.running.messages import (
 )
 from mirror_avatar.lab.running.participant import Participant
 from mirror_avatar.lab.running.runner import LabSession
-from mirror_avatar.lab.running.sessions import Lab, LabSettings
+from mirror_avatar.lab.running.sessions import CLOSE_REFUSED, Lab, LabSettings, refusal
 from mirror_avatar.realtime.inbox import Inbox
 from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.realtime.latency import Pings
-from mirror_avatar.realtime.outbox import Outbox, Peer
+from mirror_avatar.realtime.outbox import Outbox, Peer, encode_message
 
-CLOSE_POLICY, CLOSE_REPLACED, CLOSE_UNKNOWN = 1008, 4002, 4004
-"""WebSocket close codes: too many bad messages, the link opened on another page, no such link."""
+CLOSE_POLICY, CLOSE_REPLACED, CLOSE_UNKNOWN, CLOSE_CONSENT = 1008, 4002, 4004, 4005
+"""WebSocket close codes: too many bad messages, the link opened on another page, no such link,
+no consent given yet (and `mirror_avatar.lab.running.sessions.CLOSE_REFUSED`: screened out)."""
 
 
 async def join_socket(lab: Lab, websocket: WebSocket) -> None:
@@ -44,6 +46,13 @@ async def join_socket(lab: Lab, websocket: WebSocket) -> None:
         return
     session, participant = found
     await websocket.accept()
+    if participant.refused is not None:
+        await websocket.send_text(encode_message(refusal(session, participant.refused)))
+        await websocket.close(CLOSE_REFUSED, "screened out")
+        return
+    if needs_consent(session, participant):
+        await websocket.close(CLOSE_CONSENT, "consent first")
+        return
     previous = participant.connection
     if isinstance(previous, WebSocket):  # it may be gone already, or closing for another page
         with contextlib.suppress(RuntimeError, OSError, WebSocketDisconnect):

@@ -366,6 +366,8 @@ async def pilot_participant(
     missing = sorted(set(status["links"]) - set(stand_ins))
     if missing:
         raise InputError("--stand-in", f"no stand-in for {', '.join(missing)}: add LABEL=SPEC")
+    for link in status["links"].values():
+        await _agree(api, link)
     pages = [
         asyncio.create_task(play_page(_socket_url(link, join_base), stand_ins[label]))
         for label, link in status["links"].items()
@@ -389,6 +391,19 @@ async def pilot_participant(
             page.cancel()
         await asyncio.gather(*pages, return_exceptions=True)
     return dict((await api.get(f"/api/sessions/{status['id']}")).json())
+
+
+async def _agree(api: httpx.AsyncClient, link: str) -> None:
+    """Agree on the link's consent page, if the protocol has one, as its participant would.
+
+    The stand-in's agreement is recorded as a person's is (`mirror_avatar.lab.running.consent`).
+    """
+    path = urlsplit(link).path
+    intro = (await api.get(f"{path}/intro")).json()
+    if intro.get("consent") is not None and not intro.get("consented"):
+        answer = await api.post(f"{path}/consent", json={"agree": True})
+        if not answer.is_success:
+            raise InputError(link.split("/join/")[0], _refusal(answer))
 
 
 def _refusal(response: httpx.Response) -> str:

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.dynamics import CONTROL_PERIOD
@@ -50,6 +51,10 @@ class LabSettings(PageSettings):
     protocol
         The study protocol whose participants' sessions the console creates
         (`mirror_avatar.lab.running.study.ParticipantRun`) until the console loads another, or None.
+    public_url
+        The address participants reach the server at, ``https://NAME[:PORT]`` behind a reverse
+        proxy (`mirror_avatar.lab.running.public`): the join links are built on it; None: on the
+        address the console reached the server by.
     """
 
     out_dir: Path
@@ -59,6 +64,7 @@ class LabSettings(PageSettings):
     requests_per_second: float = 40.0
     lsl: bool = False
     protocol: Protocol | None = None
+    public_url: str | None = None
 
 
 KEEP_ENDED = 8
@@ -168,6 +174,24 @@ class Lab:
         for participant in session.everyone():
             self.keys[participant.key] = (session, participant)
 
+    def refuse(self, key: str, reason: str) -> bool:
+        """End the visit of the person whose join key is ``key``: they are screened out.
+
+        Their page is sent `refusal` (why, in one line, and the protocol's refusal code or link)
+        and closed, now if it is connected, and each time their link is opened again. Returns
+        whether the key names a person of an open session.
+        """
+        found = self.find(key)
+        if found is None:
+            return False
+        session, participant = found
+        participant.refused = reason
+        if participant.outbox is not None:
+            participant.outbox.put(refusal(session, reason))
+            participant.outbox.end(CLOSE_REFUSED, "screened out")
+        session.log(f"{participant.label} screened out: {reason}")
+        return True
+
     def find(self, key: str) -> tuple[LabSession, Participant] | None:
         """Return the session and slot of a join key, while the session lasts."""
         self.forget_ended()
@@ -181,6 +205,23 @@ class Lab:
         ended = [sid for sid, session in self.sessions.items() if session.ended]
         for sid in ended[: max(0, len(ended) - KEEP_ENDED)]:
             del self.sessions[sid]
+
+
+CLOSE_REFUSED = 4003
+"""WebSocket close code of a page whose person was screened out (`Lab.refuse`)."""
+
+
+def refusal(session: LabSession, reason: str) -> dict[str, Any]:
+    """Return the message telling a screened-out person why, with the refusal code or link.
+
+    The code and link are the protocol's (``[online]``: `mirror_avatar.lab.design.online`);
+    a session of a plan has neither.
+    """
+    schedule = session.schedule
+    ending = schedule.protocol.online.refusal if isinstance(schedule, ParticipantRun) else None
+    return {"type": "refused", "message": reason} | (
+        {"code": None, "url": None} if ending is None else ending.to_json()
+    )
 
 
 def lsl_hooks(

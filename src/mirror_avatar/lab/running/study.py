@@ -266,6 +266,15 @@ class ParticipantRun:
         )
 
     def welcome(self, participant: Participant, state: str) -> dict[str, Any]:
+        """Return the blinded welcome, with the protocol's completion code or link.
+
+        ``completion`` is in it when the protocol has one: the end page shows it.
+        """
+        message = self.blinded_welcome(participant, state)
+        ending = self.protocol.online.completion
+        return message | ({"completion": ending.to_json()} if ending else {})
+
+    def blinded_welcome(self, participant: Participant, state: str) -> dict[str, Any]:
         """Return the blinded welcome: partners are "your partner", never a label or a kind."""
         playing = participant in self.playing.values()
         if not playing:
@@ -334,8 +343,9 @@ class ParticipantRun:
         """Return what trial n's sidecar records: the session, the condition, the study's part.
 
         The study's part (`mirror_avatar.files.trial_record.StudyRecord`): protocol, participant,
-        block, condition, trial within it, the partners' delay and occlusion as played, and every
-        player's true kind.
+        block, condition, trial within it, the partners' delay and occlusion as played, every
+        player's true kind, the people's panel identifiers (their join links') and when each
+        agreed on the consent page.
         """
         step = self._step_of(n)
         condition = self.protocol.blocks[self.steps[step].block].conditions[
@@ -353,6 +363,8 @@ class ParticipantRun:
             delay_s=round(condition.delay / CONTROL_PERIOD) * CONTROL_PERIOD,
             occluded_s=occlude,
             partners={slot.label: slot.kind for slot in self.plan.slots},
+            panel={p.label: dict(p.panel) for p in self.people if p.panel},
+            consented={p.label: p.consented for p in self.people if p.consented is not None},
         )
         lab = {"session_id": session_id, "condition": self.plan.condition}
         return lab | study.to_json()

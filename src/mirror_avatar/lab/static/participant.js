@@ -8,7 +8,7 @@
   const RANGE = 0.5;            // positions lie in [-RANGE, RANGE] (playing range units)
   const KEY_SPEED = 0.6;        // units per second while an arrow key is held
   const LATE_FRAME_MS = 50;     // an animation frame drawn later than this counts as late
-  const ENDED_CODES = new Set([4001, 4002, 4004, 1008]);
+  const ENDED_CODES = new Set([4001, 4002, 4003, 4004, 1008]);
   const canvas = document.getElementById("field");
   const ctx = canvas.getContext("2d");
   const ui = {
@@ -26,6 +26,7 @@
   let others = new Map();      // player index -> latest position from the server
   let pageAvatar = null;       // the avatar this page steps: index, player, tick, seen, state
   let ended = false;
+  let refused = false;         // screened out: the page shows why and the refusal code, only
   let lastNumbers = [];        // the last trial's numbers, each with its words
   window.mirrorLab = { get welcome() { return welcome; }, get others() { return others; }, me };
 
@@ -146,11 +147,38 @@
     return lines;
   }
 
-  function finish() {
+  // A code to copy and a link back to the panel, as the protocol gives them (either may be null).
+  function showEnding(ending, words) {
+    const box = document.getElementById("ending");
+    box.replaceChildren();
+    if (!ending || (!ending.code && !ending.url)) { box.hidden = true; return; }
+    if (ending.code) {
+      const code = Object.assign(document.createElement("code"), { id: "ending-code", textContent: ending.code });
+      box.append(Object.assign(document.createElement("p"), { textContent: words.code }), code);
+    }
+    if (ending.url) {
+      const link = Object.assign(document.createElement("a"), { id: "ending-link", href: ending.url, textContent: words.link });
+      box.append(link);
+    }
+    box.hidden = false;
+  }
+
+  function finish(state) {
     ended = true;
+    if (refused) return;
     ui.task.textContent = "";
     const numbers = lastNumbers.length ? ["Your last trial:", ...lastNumbers] : [];
     say(["The session has ended. Thank you!", ...numbers]);
+    if (state === "finished" && welcome) {
+      showEnding(welcome.completion, { code: "Your completion code:", link: "Return to the study's site to complete" });
+    }
+  }
+
+  function refuse(message) {
+    refused = ended = true;
+    ui.task.textContent = ui.who.textContent = "";
+    say(message.message);
+    showEnding(message, { code: "Your code:", link: "Return to the study's site" });
   }
 
   // Build the avatar the server sends, at its tick 0, and report that tick: the page is ready.
@@ -224,8 +252,9 @@
         break;
       }
       case "questions": ask(message); break;
+      case "refused": refuse(message); break;
       case "state":
-        if (message.state === "finished" || message.state === "aborted") finish();
+        if (message.state === "finished" || message.state === "aborted") finish(message.state);
         else say(message.message);
         break;
       case "error": console.warn(message.message); break;
@@ -303,6 +332,57 @@
     });
   }
 
+  // The pages before the game, as the protocol gives them: its instructions, and its consent,
+  // which the participant answers; the game joins only once they agree, and one who does not is
+  // shown the refusal (mirror_avatar.lab.running.consent).
+  async function introduce() {
+    let intro = {};
+    try {
+      const answer = await fetch(`/join/${key}/intro`, { cache: "no-store" });
+      if (answer.ok) intro = await answer.json();
+    } catch (error) {
+      intro = {};
+    }
+    if (intro.refused) { refuse(intro.refused); return; }
+    if (intro.consented || (!intro.consent && !intro.instructions)) { connect(); return; }
+    const page = document.getElementById("intro");
+    const section = (id, title, text) => {
+      if (!text) return;
+      const part = Object.assign(document.createElement("section"), { id });
+      part.append(Object.assign(document.createElement("h2"), { textContent: title }),
+        Object.assign(document.createElement("p"), { textContent: text }));
+      page.append(part);
+    };
+    section("instructions", "Instructions", intro.instructions);
+    section("consent", "Consent", intro.consent);
+    const row = Object.assign(document.createElement("div"), { className: "choices" });
+    const choice = (id, text, agree) => {
+      const b = Object.assign(document.createElement("button"), { id, type: "button", textContent: text });
+      b.addEventListener("click", () => answerIntro(agree));
+      row.append(b);
+    };
+    if (intro.consent) {
+      choice("agree", "I agree to take part", true);
+      choice("decline", "I do not agree", false);
+    } else choice("continue", "Continue", true);
+    page.append(row);
+    say("");
+    page.hidden = false;
+  }
+
+  async function answerIntro(agree) {
+    const page = document.getElementById("intro");
+    page.querySelectorAll("button").forEach((b) => { b.disabled = true; });
+    if (!page.querySelector("#consent")) { page.hidden = true; connect(); return; }
+    const answer = await fetch(`/join/${key}/consent`, {
+      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ agree }),
+    });
+    const result = answer.ok ? await answer.json() : {};
+    page.hidden = true;
+    if (result.refused) refuse(result.refused);
+    else connect();
+  }
+
   const KEYS = { ArrowLeft: "left", ArrowRight: "right", a: "left", d: "right" };
   window.addEventListener("resize", resize);
   canvas.addEventListener("pointermove", (event) => { me.x = mirrorClock.read(event, fromClient); });
@@ -311,6 +391,6 @@
   window.addEventListener("keyup", (event) => me.keys.delete(KEYS[event.key]));
   window.addEventListener("blur", () => me.keys.clear());
   resize();
-  connect();
+  introduce();
   requestAnimationFrame(animate);
 })();
