@@ -3,9 +3,10 @@
 Per condition and measure, the mean over participants with a bootstrap confidence interval
 (`condition_summaries`); per measure, each condition against the reference condition in a
 linear mixed model with a random intercept per participant and the condition's position in the
-participant's order as a covariate, with effect sizes and paired tests of the participants'
-means as a cross-check (`fit_contrasts`). Rows are a participant's trials (one per trial and
-player); every participant's mean is taken over their trials first.
+participant's order as a covariate, its fixed effects tested by t tests with Satterthwaite's
+degrees of freedom (`mirror_avatar.analysis.small_sample`), with effect sizes and paired tests
+of the participants' means as a cross-check (`fit_contrasts`). Rows are a participant's trials
+(one per trial and player); every participant's mean is taken over their trials first.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -23,6 +24,7 @@ from statsmodels.regression.mixed_linear_model import MixedLM
 from statsmodels.tools.sm_exceptions import ConvergenceWarning
 
 from mirror_avatar.analysis.multiple_tests import holm
+from mirror_avatar.analysis.small_sample import SmallSampleTest, satterthwaite_tests
 from mirror_avatar.common.constraints import Interval
 
 BOOTSTRAP_RESAMPLES = 9999
@@ -37,7 +39,7 @@ CONFIDENCE = 0.95
 
 MIXED_MODEL = (
     "measure ~ C(condition, reference) + position, random intercept per participant, REML, "
-    "Wald z tests, Holm over a measure's contrasts"
+    "t tests with Satterthwaite degrees of freedom, Holm over a measure's contrasts"
 )
 """Each measure's model of the conditions, in words (`fit_contrasts`)."""
 
@@ -176,9 +178,10 @@ class Contrast:
         The mixed model's coefficient of the condition: its mean minus the reference's, in the
         measure's units, at equal position.
     ci_low, ci_high
-        Its Wald confidence interval.
+        Its t confidence interval on ``df``.
     p
-        Its Wald test's p-value; ``p_holm`` the same, Holm-corrected over the measure's contrasts.
+        Its t test's p-value on ``df``; ``p_holm`` the same, Holm-corrected over the measure's
+        contrasts.
     standardised
         ``difference`` over the model's total SD (participant and residual variances summed).
     participants
@@ -194,6 +197,8 @@ class Contrast:
     q
         ``p`` adjusted by Benjamini-Hochberg across the study's exploratory contrasts; NaN for
         the confirmatory one and one not tested.
+    df
+        The t test's Satterthwaite degrees of freedom; NaN when not tested.
     """
 
     measure: str
@@ -214,6 +219,7 @@ class Contrast:
     wilcoxon_p: float
     exploratory: bool = True
     q: float = float("nan")
+    df: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -230,7 +236,8 @@ class MeasureModel:
         Whether the position covariate was in the model (left out when it is constant or
         confounded with condition, which ``notes`` says).
     position_slope, position_p
-        Change of the measure per step later in the order (measure units), its Wald p-value.
+        Change of the measure per step later in the order (measure units), its t test's p-value
+        (Satterthwaite degrees of freedom).
     participant_variance, residual_variance
         The random intercept's variance and the residual variance (units squared).
     contrasts
@@ -251,6 +258,16 @@ class MeasureModel:
     notes: list[str] = field(default_factory=list)
 
 
+class Estimate(NamedTuple):
+    """A contrast's estimate in the measure's units: value, t interval, p-value and its df."""
+
+    value: float
+    low: float
+    high: float
+    p: float
+    df: float
+
+
 def fit_contrasts(
     rows: pd.DataFrame,
     measure: str,
@@ -263,8 +280,10 @@ def fit_contrasts(
     The observations are the participant's trials (`trial_values`).
 
     statsmodels' `MixedLM` fitted by REML; the reference condition is the treatment coding's
-    baseline. Wald tests (z) of the fixed effects. The model is fitted to the measure centred
-    and divided by its SD, and its estimates scaled back (REML is equivariant, so nothing
+    baseline. The fixed effects are tested by t tests with Satterthwaite's degrees of freedom,
+    with t intervals (`satterthwaite_tests`; docs/METHODS.md, section 15.3). The model is
+    fitted to the measure centred and divided by its SD, and its estimates scaled back (REML
+    is equivariant, so nothing
     changes but the fit's boundary check: statsmodels flags a random-intercept variance under
     0.01 in the outcome's units squared, here under 1 % of the measure's variance). Each
     contrast is cross-checked by a paired t-test and a Wilcoxon signed-rank test of the
@@ -302,26 +321,25 @@ def fit_contrasts(
             failed = f"the mixed model could not be fitted ({' '.join(str(error).split())})"
             return _unfitted(data, measure, means, reference, notes + [failed])
     notes += _fit_notes(caught, bool(result.converged))
-    interval = result.conf_int(alpha=1.0 - confidence) * sd
-    coefficients = result.fe_params * sd
+    tests = dict(zip(design.columns[1:], satterthwaite_tests(result, np.eye(design.shape[1])[1:]),
+                     strict=True))  # fmt: skip
     participant_variance = float(np.asarray(result.cov_re)[0, 0]) * sd**2
     residual_variance = float(result.scale) * sd**2
     total_sd = float(np.sqrt(participant_variance + residual_variance))
-    p_values = [float(result.pvalues[c]) for c in others]
-    adjusted = holm(p_values)
-    contrasts = []
-    for condition, p, p_holm in zip(others, p_values, adjusted, strict=True):
-        limits = interval.loc[condition].to_numpy(np.float64)
-        estimate = (float(coefficients[condition]), limits, p, float(p_holm))
-        contrasts.append(_contrast(measure, condition, reference, means, estimate, total_sd))
-    has_position = "position" in design
+    adjusted = holm([tests[c].p for c in others])
+    contrasts = [
+        _contrast(measure, condition, reference, means, _scaled(tests[condition], sd, confidence),
+                  total_sd, float(p_holm))
+        for condition, p_holm in zip(others, adjusted, strict=True)
+    ]  # fmt: skip
+    position = tests.get("position")
     return MeasureModel(
         measure=measure,
         rows=len(data),
         participants=int(data["participant"].nunique()),
-        position_in_model=has_position,
-        position_slope=float(coefficients["position"]) if has_position else float("nan"),
-        position_p=float(result.pvalues["position"]) if has_position else float("nan"),
+        position_in_model=position is not None,
+        position_slope=float("nan") if position is None else position.estimate * sd,
+        position_p=float("nan") if position is None else position.p,
         participant_variance=participant_variance,
         residual_variance=residual_variance,
         contrasts=contrasts,
@@ -398,18 +416,24 @@ def _fit_notes(caught: list[warnings.WarningMessage], converged: bool) -> list[s
     return notes
 
 
+def _scaled(test: SmallSampleTest, sd: float, confidence: float) -> Estimate:
+    """Put a test of the model fitted in SDs back in the measure's units (estimate, interval)."""
+    low, high = test.interval(confidence)
+    return Estimate(test.estimate * sd, low * sd, high * sd, test.p, test.df)
+
+
 def _unfitted(
     data: pd.DataFrame, measure: str, means: pd.DataFrame, reference: str, notes: list[str]
 ) -> MeasureModel:
     """Make the model of a measure that could not be fitted: NaN estimates, the paired tests."""
     nan = float("nan")
-    estimate = (nan, np.array([nan, nan]), nan, nan)
+    estimate = Estimate(nan, nan, nan, nan, nan)
     others = [c for c in means.columns if c != reference]
     return MeasureModel(
         measure=measure, rows=len(data), participants=int(data["participant"].nunique()),
         position_in_model=False, position_slope=nan, position_p=nan, participant_variance=nan,
         residual_variance=nan,
-        contrasts=[_contrast(measure, c, reference, means, estimate, nan) for c in others],
+        contrasts=[_contrast(measure, c, reference, means, estimate, nan, nan) for c in others],
         notes=notes,
     )  # fmt: skip
 
@@ -419,17 +443,18 @@ def _contrast(
     condition: str,
     reference: str,
     means: pd.DataFrame,
-    estimate: tuple[float, NDArray[np.float64], float, float],
+    estimate: Estimate,
     total_sd: float,
+    p_holm: float,
 ) -> Contrast:
-    """Build a contrast from the model's ``estimate`` (coefficient, CI, p, Holm p)."""
-    difference, interval, p, p_holm = estimate
+    """Build a contrast from the model's ``estimate`` and its Holm-corrected p."""
+    difference = estimate.value
     paired = means[[reference, condition]].dropna()
     before, after = paired[reference].to_numpy(), paired[condition].to_numpy()
     effect = paired_effect(before, after)
     return Contrast(
         measure=measure, condition=condition, reference=reference, difference=float(difference),
-        ci_low=float(interval[0]), ci_high=float(interval[1]), p=p, p_holm=p_holm,
+        ci_low=estimate.low, ci_high=estimate.high, p=estimate.p, p_holm=p_holm, df=estimate.df,
         standardised=float(difference) / total_sd if total_sd > 0 else float("nan"),
         participants=len(paired), reference_mean=_mean(before), condition_mean=_mean(after),
         d_z=effect["d_z"], t=effect["t"], t_p=effect["t_p"], wilcoxon_p=effect["wilcoxon_p"],
