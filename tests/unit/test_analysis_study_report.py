@@ -155,6 +155,9 @@ def test_few_participants_are_warned_of_and_the_df_are_shown(tmp_path: Path) -> 
     contrasts = pd.read_csv(html.parent / "contrasts.csv")
     assert list(contrasts["df"]) == pytest.approx([c.df for c in analysis.contrasts])
     assert "Satterthwaite" in html.read_text()
+    assert analysis.parameters["random_effects"] == {
+        analysis.table.label(m.measure): m.random_effects for m in analysis.models
+    }
     many = analyse_study(read_study_table(write_study_table(make_study_rows(0), tmp_path / "all")),
                          resamples=999)  # fmt: skip
     assert not any("participants (fewer than" in note for note in many.notes)

@@ -11,7 +11,6 @@ of the participants' means as a cross-check (`fit_contrasts`). Rows are a partic
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
@@ -20,10 +19,9 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats
-from statsmodels.regression.mixed_linear_model import MixedLM
-from statsmodels.tools.sm_exceptions import ConvergenceWarning
 
 from mirror_avatar.analysis.multiple_tests import holm
+from mirror_avatar.analysis.random_effects import INTERCEPT, SLOPES, fit_random_effects
 from mirror_avatar.analysis.small_sample import SmallSampleTest, satterthwaite_tests
 from mirror_avatar.common.constraints import Interval
 
@@ -38,8 +36,9 @@ CONFIDENCE = 0.95
 """Confidence level of every interval."""
 
 MIXED_MODEL = (
-    "measure ~ C(condition, reference) + position, random intercept per participant, REML, "
-    "t tests with Satterthwaite degrees of freedom, Holm over a measure's contrasts"
+    f"measure ~ C(condition, reference) + position, {SLOPES} where the data support them, "
+    f"else {INTERCEPT}, REML, t tests with Satterthwaite degrees of freedom, Holm over a "
+    "measure's contrasts"
 )
 """Each measure's model of the conditions, in words (`fit_contrasts`)."""
 
@@ -239,11 +238,15 @@ class MeasureModel:
         Change of the measure per step later in the order (measure units), its t test's p-value
         (Satterthwaite degrees of freedom).
     participant_variance, residual_variance
-        The random intercept's variance and the residual variance (units squared).
+        The random intercept's variance (with slopes, the reference condition's participant
+        variance) and the residual variance (units squared).
     contrasts
         Each condition against the reference.
     notes
         What the fit said (boundary, convergence) and what was left out, in plain words.
+    random_effects
+        The random effects fitted, in words (`mirror_avatar.analysis.random_effects`); empty
+        when no model was fitted.
     """
 
     measure: str
@@ -256,6 +259,7 @@ class MeasureModel:
     residual_variance: float
     contrasts: list[Contrast]
     notes: list[str] = field(default_factory=list)
+    random_effects: str = ""
 
 
 class Estimate(NamedTuple):
@@ -275,17 +279,19 @@ def fit_contrasts(
     reference: str,
     confidence: float = CONFIDENCE,
 ) -> MeasureModel | None:
-    """Fit ``measure ~ C(condition) + position`` with a random intercept per participant.
+    """Fit ``measure ~ C(condition) + position`` with random effects per participant.
 
     The observations are the participant's trials (`trial_values`).
 
     statsmodels' `MixedLM` fitted by REML; the reference condition is the treatment coding's
-    baseline. The fixed effects are tested by t tests with Satterthwaite's degrees of freedom,
-    with t intervals (`satterthwaite_tests`; docs/METHODS.md, section 15.3). The model is
-    fitted to the measure centred and divided by its SD, and its estimates scaled back (REML
-    is equivariant, so nothing
-    changes but the fit's boundary check: statsmodels flags a random-intercept variance under
-    0.01 in the outcome's units squared, here under 1 % of the measure's variance). Each
+    baseline. The random effects are a random intercept, with random slopes for condition
+    where the data support them (`fit_random_effects`; docs/METHODS.md, section 15.4). The
+    fixed effects are tested by t tests with Satterthwaite's degrees of freedom, with t
+    intervals (`satterthwaite_tests`; section 15.3). The model is fitted to the measure
+    centred and divided by its SD, and its estimates scaled back (REML is equivariant, so
+    nothing changes but the fit's boundary check: statsmodels flags a random-intercept
+    variance under 0.01 in the outcome's units squared, here under 1 % of the measure's
+    variance). Each
     contrast is cross-checked by a paired t-test and a Wilcoxon signed-rank test of the
     participants' means in the two conditions. A measure with the same value in every trial, or
     one that participant, condition and position explain exactly (no residual variance: a
@@ -312,15 +318,15 @@ def fit_contrasts(
     scaled = (values - values.mean()) / sd
     if _explained_exactly(scaled, design, data["participant"]):
         return _unfitted(data, measure, means, reference, notes + [NOISELESS])
-    model = MixedLM(scaled, design, groups=data["participant"])
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            result = model.fit(reml=True)
-        except (np.linalg.LinAlgError, ValueError) as error:
-            failed = f"the mixed model could not be fitted ({' '.join(str(error).split())})"
-            return _unfitted(data, measure, means, reference, notes + [failed])
-    notes += _fit_notes(caught, bool(result.converged))
+    try:
+        fitted = fit_random_effects(
+            pd.Series(scaled, index=data.index), design, data["participant"], data["condition"]
+        )
+    except (np.linalg.LinAlgError, ValueError) as error:
+        failed = f"the mixed model could not be fitted ({' '.join(str(error).split())})"
+        return _unfitted(data, measure, means, reference, notes + [failed])
+    result = fitted.result
+    notes += fitted.notes
     tests = dict(zip(design.columns[1:], satterthwaite_tests(result, np.eye(design.shape[1])[1:]),
                      strict=True))  # fmt: skip
     participant_variance = float(np.asarray(result.cov_re)[0, 0]) * sd**2
@@ -344,6 +350,7 @@ def fit_contrasts(
         residual_variance=residual_variance,
         contrasts=contrasts,
         notes=notes,
+        random_effects=fitted.structure,
     )
 
 
@@ -403,17 +410,6 @@ def _explained_exactly(
     solution, _, rank, _ = np.linalg.lstsq(terms, scaled, rcond=None)
     residuals = scaled - terms @ solution
     return bool(rank < scaled.size and np.max(np.abs(residuals)) <= EXACT_RESIDUAL)
-
-
-def _fit_notes(caught: list[warnings.WarningMessage], converged: bool) -> list[str]:
-    """Say what the fit's warnings mean: a boundary fit, a fit that did not converge."""
-    texts = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
-    notes = []
-    if any("boundary" in text for text in texts):
-        notes.append("mixed model: the participants' variance is near 0 (a boundary fit)")
-    if not converged:
-        notes.append("mixed model: the fit did not converge, so its p-values are not reliable")
-    return notes
 
 
 def _scaled(test: SmallSampleTest, sd: float, confidence: float) -> Estimate:

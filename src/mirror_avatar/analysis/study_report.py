@@ -238,6 +238,8 @@ def analyse_study(
         "bootstrap_resamples": resamples,
         "bootstrap_method": "BCa", "confidence": confidence,
         "model": MIXED_MODEL, "confirmatory_model": CONFIRMATORY_MODEL,
+        "random_effects": {table.label(m.measure): m.random_effects for m in models
+                           if m.random_effects},
         "exploratory": EXPLORATORY_MODEL,
         "protocol": None if protocol is None else Path(protocol.source).name,
         "plan": None if plan is None else {"file": plan.source.name, "sha256": plan.sha256},
@@ -476,7 +478,8 @@ def _p_cell(p: float) -> str:
 def _model_table(analysis: StudyAnalysis) -> pd.DataFrame:
     return pd.DataFrame([{
         "measure": _heading(analysis.table, m.measure), "trials": m.rows,
-        "participants": m.participants, "order slope per position": m.position_slope,
+        "participants": m.participants, "random effects": m.random_effects or "not fitted",
+        "order slope per position": m.position_slope,
         "order p": m.position_p, "participant variance": m.participant_variance,
         "residual variance": m.residual_variance,
     } for m in analysis.models]).set_index("measure")  # fmt: skip
@@ -544,7 +547,8 @@ def _sections(analysis: StudyAnalysis) -> list[Section]:
                 figures=figures),
         Section("contrasts", "Contrasts within participants (mixed models)", tables={
             **_contrast_displays(analysis),
-            "Order (position in the participant's order) and variances": _model_table(analysis),
+            "Each measure's random effects, order (position in the participant's order) and "
+            "variances": _model_table(analysis),
         } if analysis.models else {}),
     ]  # fmt: skip
     if analysis.identification is not None:
