@@ -6,18 +6,20 @@ trials' noise, and a handful of participants with many trials each gives tiny p-
 that the data do not support costs power instead (Matuschek, Kliegl, Vasishth, Baayen & Bates
 2017), so `fit_random_effects` keeps the slopes only when the data can estimate them and a
 likelihood-ratio test against the random intercept alone supports them; otherwise it fits the
-random intercept and says why. docs/METHODS.md, section 15.4.
+random intercept and says why. When several partners (the table's ``partners``) are each met
+by several participants, partner identity is a second random factor, crossed with the
+participants, kept on the same terms. docs/METHODS.md, section 15.4.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
 from scipy import stats
-from statsmodels.regression.mixed_linear_model import MixedLM, MixedLMResults
+from statsmodels.regression.mixed_linear_model import MixedLM, MixedLMResults, VCSpec
 from statsmodels.tools.sm_exceptions import ConvergenceWarning
 
 from mirror_avatar.analysis.small_sample import BOUNDARY
@@ -27,13 +29,20 @@ SLOPE_OPTIMISERS = ("lbfgs", "powell")
 statsmodels' default, BFGS, stops short of the REML optimum of such fits more often, and
 slower)."""
 
-SLOPE_ALPHA = 0.2
-"""Level of the likelihood-ratio test that keeps the slopes (**choice**: Matuschek et al.
-2017's, which kept the type 1 error at its nominal level and most of the power)."""
+SELECTION_ALPHA = 0.2
+"""Level of the likelihood-ratio tests that keep the slopes or the partners (**choice**:
+Matuschek et al. 2017's, which kept the type 1 error at its nominal level and most of the
+power)."""
 
 INTERCEPT = "random intercept per participant"
 SLOPES = "random intercept and correlated random slopes for condition per participant"
-"""The two random-effects structures, in words."""
+CROSSED = "a random intercept per partner, crossed with the participants"
+"""The random-effects structures, in words (the slopes uncorrelated with the intercept when
+crossed with partners)."""
+
+CROSSED_PARTNERS = 3
+"""Fewest partners, each met by two participants or more, for partner identity as a random
+factor (**choice**: a variance from two partners has one degree of freedom)."""
 
 
 @dataclass(frozen=True)
@@ -48,20 +57,43 @@ class RandomEffects:
         Whether it has random slopes for condition.
     notes
         What the fit said (boundary, convergence) and, without slopes, why, in plain words.
+    partners
+        Whether partner identity is a crossed random factor: then ``result`` is one group of
+        variance components (participants, each slope, partners).
     """
 
     result: MixedLMResults
     slopes: bool
     notes: list[str]
+    partners: bool = False
 
     @property
     def structure(self) -> str:
-        """Say the random effects in words (`INTERCEPT` or `SLOPES`)."""
-        return SLOPES if self.slopes else INTERCEPT
+        """Say the random effects in words (`INTERCEPT` or `SLOPES`, and `CROSSED`)."""
+        words = SLOPES if self.slopes else INTERCEPT
+        if not self.partners:
+            return words
+        return f"{words.replace('correlated', 'uncorrelated')}, and {CROSSED}"
+
+    @property
+    def participant_variance(self) -> float:
+        """The participants' intercept variance, in the fitted outcome's units squared."""
+        if self.partners:
+            return float(np.asarray(self.result.vcomp)[0])
+        return float(np.asarray(self.result.cov_re)[0, 0])
+
+    @property
+    def partner_variance(self) -> float:
+        """The partners' variance (NaN without them), in the fitted outcome's units squared."""
+        return float(np.asarray(self.result.vcomp)[-1]) if self.partners else float("nan")
 
 
 def fit_random_effects(
-    values: pd.Series, design: pd.DataFrame, participants: pd.Series, conditions: pd.Series
+    values: pd.Series,
+    design: pd.DataFrame,
+    participants: pd.Series,
+    conditions: pd.Series,
+    partners: pd.Series | None = None,
 ) -> RandomEffects:
     """Fit ``values`` on ``design`` with slopes for condition if supported, else without.
 
@@ -74,22 +106,34 @@ def fit_random_effects(
         any covariates.
     participants, conditions
         Each trial's participant and condition (N).
+    partners
+        Each trial's partner identity (N); None, or one partner, for none.
 
     The slopes are the non-reference conditions' dummies as random effects with the intercept,
     their covariance unstructured. They are tried when every condition's values can vary by
     participant apart from the trials' noise (`unsupported`), and kept when their fit
     converged, their covariance is not singular (each pivot of its Cholesky factor above
     `BOUNDARY` of the residual variance, a random-effects variance not on 0) and the REML
-    likelihood-ratio test against the intercept alone has p < `SLOPE_ALPHA` (chi-square on the
+    likelihood-ratio test against the intercept alone has p < `SELECTION_ALPHA` (chi-square on the
     added covariance parameters; both fits have the same fixed effects, so their REML
-    likelihoods compare).
+    likelihoods compare). Partners are then tried (`fit_partners`).
 
     Raises
     ------
     numpy.linalg.LinAlgError, ValueError
         The random intercept's fit failed (statsmodels' errors).
     """
-    effects = [c for c in design.columns if c != "Intercept" and c in set(conditions)]
+    chosen = _participant_effects(values, design, participants, conditions)
+    if partners is None or partners.nunique() < 2:
+        return chosen
+    return fit_partners(chosen, values, design, participants, conditions, partners)
+
+
+def _participant_effects(
+    values: pd.Series, design: pd.DataFrame, participants: pd.Series, conditions: pd.Series
+) -> RandomEffects:
+    """Fit the participants' random effects: slopes if supported, else the intercept."""
+    effects = _effects(design, conditions)
     intercept, caught = _fit(values, design, participants, None)
     why = unsupported(participants, conditions)
     if why is None:
@@ -105,6 +149,45 @@ def fit_random_effects(
                 return RandomEffects(slopes, True, fit_notes(slope_caught, slopes))
     fallback = f"no random slopes for condition: {why}; a random intercept only"
     return RandomEffects(intercept, False, [*fit_notes(caught, intercept), fallback])
+
+
+def fit_partners(
+    chosen: RandomEffects,
+    values: pd.Series,
+    design: pd.DataFrame,
+    participants: pd.Series,
+    conditions: pd.Series,
+    partners: pd.Series,
+) -> RandomEffects:
+    """Add partner identity as a random factor crossed with the participants, if supported.
+
+    statsmodels fits crossed factors as variance components of a single group: each
+    participant's intercept, each participant's slope per non-reference condition (when
+    ``chosen`` has slopes; uncorrelated here), and each partner's intercept. The partners are
+    tried when at least `CROSSED_PARTNERS` partners are each met by two participants or more,
+    and kept when the fit converged, the partners' variance is above `BOUNDARY` of the residual
+    variance and the REML likelihood-ratio test against the same model without partners has
+    p < `SELECTION_ALPHA` (chi-square on 1). Otherwise ``chosen`` is returned with a note why.
+    """
+    met = participants.groupby(partners).nunique()
+    crossed = int((met >= 2).sum())
+    why: str | None
+    if crossed < CROSSED_PARTNERS:
+        why = (f"{crossed} partners met by two participants or more, fewer than "
+               f"{CROSSED_PARTNERS}")  # fmt: skip
+    else:
+        slopes = _effects(design, conditions) if chosen.slopes else []
+        try:
+            with_partners, caught = _fit_crossed(values, design, participants, slopes, partners)
+            without, _ = _fit_crossed(values, design, participants, slopes, None)
+        except (np.linalg.LinAlgError, ValueError) as error:
+            why = f"its fit failed ({' '.join(str(error).split())})"
+        else:
+            why = _partners_rejected(with_partners, without)
+            if why is None:
+                notes = fit_notes(caught, with_partners)
+                return RandomEffects(with_partners, chosen.slopes, notes, partners=True)
+    return replace(chosen, notes=[*chosen.notes, f"no random effect of partner identity: {why}"])
 
 
 def unsupported(participants: pd.Series, conditions: pd.Series) -> str | None:
@@ -155,6 +238,56 @@ def _fit(
     return result, caught
 
 
+def _effects(design: pd.DataFrame, conditions: pd.Series) -> list[str]:
+    """List the design's columns of the non-reference conditions."""
+    return [c for c in design.columns if c != "Intercept" and c in set(conditions)]
+
+
+def _fit_crossed(
+    values: pd.Series,
+    design: pd.DataFrame,
+    participants: pd.Series,
+    slopes: list[str],
+    partners: pd.Series | None,
+) -> tuple[MixedLMResults, list[warnings.WarningMessage]]:
+    """Fit one group of variance components by REML: participants, their slopes, partners."""
+    dummies = pd.get_dummies(participants, dtype=np.float64)
+    components = {"participant": dummies.to_numpy()}
+    for effect in slopes:
+        components[f"participant:{effect}"] = dummies.to_numpy() * design[[effect]].to_numpy()
+    if partners is not None:
+        components["partner"] = pd.get_dummies(partners, dtype=np.float64).to_numpy()
+    names = list(components)
+    spec = VCSpec(names, [[f"{n}{j}" for j in range(m.shape[1])] for n, m in components.items()],
+                  [[m] for m in components.values()])  # fmt: skip
+    rows = len(values)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = MixedLM(values, design, groups=np.zeros(rows), exog_re=np.zeros((rows, 0)),
+                        exog_vc=spec)  # fmt: skip
+        result = model.fit(reml=True, method=list(SLOPE_OPTIMISERS))
+    return result, caught
+
+
+def _partners_rejected(with_partners: MixedLMResults, without: MixedLMResults) -> str | None:
+    """Say why the fit with partners is not kept, or None when it is."""
+    if not with_partners.converged:
+        return "its fit did not converge"
+    if float(np.asarray(with_partners.vcomp)[-1]) <= BOUNDARY * float(with_partners.scale):
+        return "the partners' variance is on 0"
+    return _not_supported(with_partners, without, 1)
+
+
+def _not_supported(larger: MixedLMResults, smaller: MixedLMResults, added: int) -> str | None:
+    """Say why the REML likelihood-ratio test does not support ``larger``, or None."""
+    ratio = max(0.0, 2.0 * (float(larger.llf) - float(smaller.llf)))
+    p = float(stats.chi2.sf(ratio, added))
+    if p >= SELECTION_ALPHA:
+        return (f"not supported by the data (REML likelihood-ratio test p = {p:.2f}, at "
+                f"least {SELECTION_ALPHA:g})")  # fmt: skip
+    return None
+
+
 def _rejected(slopes: MixedLMResults, intercept: MixedLMResults) -> str | None:
     """Say why the fit with slopes is not kept, or None when it is."""
     if not slopes.converged:
@@ -167,9 +300,4 @@ def _rejected(slopes: MixedLMResults, intercept: MixedLMResults) -> str | None:
     if np.min(pivots) <= BOUNDARY:
         return "their covariance is singular (a variance on 0)"
     added = covariance.shape[0] * (covariance.shape[0] + 1) // 2 - 1
-    ratio = max(0.0, 2.0 * (float(slopes.llf) - float(intercept.llf)))
-    p = float(stats.chi2.sf(ratio, added))
-    if p >= SLOPE_ALPHA:
-        return (f"the data do not support them (REML likelihood-ratio test p = {p:.2f}, at least "
-                f"{SLOPE_ALPHA:g})")  # fmt: skip
-    return None
+    return _not_supported(slopes, intercept, added)

@@ -21,7 +21,12 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 
 from mirror_avatar.analysis.multiple_tests import holm
-from mirror_avatar.analysis.random_effects import INTERCEPT, SLOPES, fit_random_effects
+from mirror_avatar.analysis.random_effects import (
+    CROSSED,
+    INTERCEPT,
+    SLOPES,
+    fit_random_effects,
+)
 from mirror_avatar.analysis.small_sample import SmallSampleTest, satterthwaite_tests
 from mirror_avatar.common.constraints import Interval
 
@@ -37,8 +42,8 @@ CONFIDENCE = 0.95
 
 MIXED_MODEL = (
     f"measure ~ C(condition, reference) + position, {SLOPES} where the data support them, "
-    f"else {INTERCEPT}, REML, t tests with Satterthwaite degrees of freedom, Holm over a "
-    "measure's contrasts"
+    f"else {INTERCEPT}; {CROSSED} where several partners are met by several participants; "
+    "REML, t tests with Satterthwaite degrees of freedom, Holm over a measure's contrasts"
 )
 """Each measure's model of the conditions, in words (`fit_contrasts`)."""
 
@@ -83,6 +88,23 @@ def trial_values(rows: pd.DataFrame, measure: str) -> pd.DataFrame:
         return rows[[*keys, measure]]
     grouped = rows.groupby(keys, sort=False, dropna=False)[measure].mean()
     return grouped.reset_index()
+
+
+def trial_partners(rows: pd.DataFrame) -> pd.Series | None:
+    """Each trial's partner identity, in `trial_values`'s order and index; None without one.
+
+    The ``partners`` labels of the trial's rows (its persons'), each once, sorted and joined by
+    +: a person playing with avatar A2 has A2; the two persons of a pair, P1+P2.
+    """
+    if "partners" not in rows:
+        return None
+    keys = [key for key in TRIAL_KEYS if key in rows]
+    if "trial" not in keys:
+        return rows["partners"].astype(str)
+    joined = rows.groupby(keys, sort=False, dropna=False)["partners"].agg(
+        lambda labels: "+".join(sorted({str(label) for label in labels}))
+    )
+    return joined.reset_index(drop=True)
 
 
 def participant_means(rows: pd.DataFrame, measure: str, conditions: Sequence[str]) -> pd.DataFrame:
@@ -247,6 +269,9 @@ class MeasureModel:
     random_effects
         The random effects fitted, in words (`mirror_avatar.analysis.random_effects`); empty
         when no model was fitted.
+    partner_variance
+        The variance of partner identity as a crossed random factor (units squared); NaN when
+        it is not in the model.
     """
 
     measure: str
@@ -260,6 +285,7 @@ class MeasureModel:
     contrasts: list[Contrast]
     notes: list[str] = field(default_factory=list)
     random_effects: str = ""
+    partner_variance: float = float("nan")
 
 
 class Estimate(NamedTuple):
@@ -303,7 +329,9 @@ def fit_contrasts(
     MeasureModel or None
         None when fewer than two conditions or two participants have values of ``measure``.
     """
-    data = trial_values(rows.dropna(subset=[measure, "position"]), measure)
+    valid = rows.dropna(subset=[measure, "position"])
+    data = trial_values(valid, measure)
+    partners = trial_partners(valid)
     data = data[data["condition"].isin(conditions)]
     present = [c for c in conditions if c in set(data["condition"])]
     if reference not in present or len(present) < 2 or data["participant"].nunique() < 2:
@@ -320,8 +348,9 @@ def fit_contrasts(
         return _unfitted(data, measure, means, reference, notes + [NOISELESS])
     try:
         fitted = fit_random_effects(
-            pd.Series(scaled, index=data.index), design, data["participant"], data["condition"]
-        )
+            pd.Series(scaled, index=data.index), design, data["participant"], data["condition"],
+            None if partners is None else partners.loc[data.index],
+        )  # fmt: skip
     except (np.linalg.LinAlgError, ValueError) as error:
         failed = f"the mixed model could not be fitted ({' '.join(str(error).split())})"
         return _unfitted(data, measure, means, reference, notes + [failed])
@@ -329,7 +358,7 @@ def fit_contrasts(
     notes += fitted.notes
     tests = dict(zip(design.columns[1:], satterthwaite_tests(result, np.eye(design.shape[1])[1:]),
                      strict=True))  # fmt: skip
-    participant_variance = float(np.asarray(result.cov_re)[0, 0]) * sd**2
+    participant_variance = fitted.participant_variance * sd**2
     residual_variance = float(result.scale) * sd**2
     total_sd = float(np.sqrt(participant_variance + residual_variance))
     adjusted = holm([tests[c].p for c in others])
@@ -351,6 +380,7 @@ def fit_contrasts(
         contrasts=contrasts,
         notes=notes,
         random_effects=fitted.structure,
+        partner_variance=fitted.partner_variance * sd**2,
     )
 
 

@@ -481,6 +481,7 @@ def _model_table(analysis: StudyAnalysis) -> pd.DataFrame:
         "participants": m.participants, "random effects": m.random_effects or "not fitted",
         "order slope per position": m.position_slope,
         "order p": m.position_p, "participant variance": m.participant_variance,
+        "partner variance": m.partner_variance,
         "residual variance": m.residual_variance,
     } for m in analysis.models]).set_index("measure")  # fmt: skip
 

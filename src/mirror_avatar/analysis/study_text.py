@@ -17,7 +17,7 @@ from typing import Any
 
 from mirror_avatar.analysis.hypothesis import ConfirmatoryTest
 from mirror_avatar.analysis.identification import CHANCE, Identification
-from mirror_avatar.analysis.random_effects import SLOPE_ALPHA
+from mirror_avatar.analysis.random_effects import CROSSED_PARTNERS, SELECTION_ALPHA
 from mirror_avatar.analysis.statistics import Contrast
 
 ALPHA = 0.05
@@ -191,8 +191,11 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         "slopes for condition (Barr, Levy, Scheepers & Tily 2013) where the data supported "
         "them (participants with every condition outnumbering the conditions, repeated trials, "
         "a fit that converged with a non-singular covariance, and a REML likelihood-ratio test "
-        f"against the random intercept alone at p < {SLOPE_ALPHA:g}; Matuschek, Kliegl, "
-        "Vasishth, Baayen & Bates 2017), else a random intercept alone"
+        f"against the random intercept alone at p < {SELECTION_ALPHA:g}; Matuschek, Kliegl, "
+        "Vasishth, Baayen & Bates 2017), else a random intercept alone; with at least "
+        f"{CROSSED_PARTNERS} partners each met by two participants or more, a random intercept "
+        "per partner crossed with the participants, kept on the same terms (variance "
+        "components of one group, the slopes then uncorrelated with the intercept)"
         f"{_fitted_models(parameters.get('random_effects', {}))}; condition in treatment "
         f"coding against {parameters['reference']!r} and position the condition's place in "
         "the participant's order (1, 2, ...), a covariate that checks order effects; fixed "
