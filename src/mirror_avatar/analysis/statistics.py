@@ -2,11 +2,13 @@
 
 Per condition and measure, the mean over participants with a bootstrap confidence interval
 (`condition_summaries`); per measure, each condition against the reference condition in a
-linear mixed model with a random intercept per participant and the condition's position in the
-participant's order as a covariate, its fixed effects tested by t tests with Satterthwaite's
-degrees of freedom (`mirror_avatar.analysis.small_sample`), with effect sizes and paired tests
-of the participants' means as a cross-check (`fit_contrasts`). Rows are a participant's trials
-(one per trial and player); every participant's mean is taken over their trials first.
+linear mixed model with the condition's position in the participant's order as a covariate
+and random effects per participant (slopes for condition and crossed partners where the data
+support them: `mirror_avatar.analysis.random_effects`), its fixed effects tested by t tests
+with Satterthwaite's degrees of freedom (`mirror_avatar.analysis.small_sample`), with effect
+sizes and paired tests of the participants' means as a cross-check (`fit_contrasts`). Rows are
+a participant's trials (one per trial and player); every participant's mean is taken over
+their trials first.
 """
 
 from __future__ import annotations
