@@ -40,6 +40,12 @@ CROSSED = "a random intercept per partner, crossed with the participants"
 """The random-effects structures, in words (the slopes uncorrelated with the intercept when
 crossed with partners)."""
 
+DEGENERATE_SHARE = 0.01
+"""Smallest share of the random effects' variance the last principal component of their
+covariance may hold (**choice**: Bates, Kliegl, Vasishth & Baayen 2015's rePCA reads a
+component with next to none as a model too rich for its data; a correlation of -0.997 between
+intercept and slope holds 0.1 %)."""
+
 CROSSED_PARTNERS = 3
 """Fewest partners, each met by two participants or more, for partner identity as a random
 factor (**choice**: a variance from two partners has one degree of freedom)."""
@@ -113,10 +119,11 @@ def fit_random_effects(
     their covariance unstructured. They are tried when every condition's values can vary by
     participant apart from the trials' noise (`unsupported`), and kept when their fit
     converged, their covariance is not singular (each pivot of its Cholesky factor above
-    `BOUNDARY` of the residual variance, a random-effects variance not on 0) and the REML
-    likelihood-ratio test against the intercept alone has p < `SELECTION_ALPHA` (chi-square on the
-    added covariance parameters; both fits have the same fixed effects, so their REML
-    likelihoods compare). Partners are then tried (`fit_partners`).
+    `BOUNDARY` of the residual variance, a random-effects variance not on 0) nor degenerate
+    (its smallest principal component holds `DEGENERATE_SHARE` of the variance or more) and the
+    REML likelihood-ratio test against the intercept alone has p < `SELECTION_ALPHA`
+    (chi-square on the added covariance parameters; both fits have the same fixed effects, so
+    their REML likelihoods compare). Partners are then tried (`fit_partners`).
 
     Raises
     ------
@@ -299,5 +306,9 @@ def _rejected(slopes: MixedLMResults, intercept: MixedLMResults) -> str | None:
         pivots = np.zeros(1)
     if np.min(pivots) <= BOUNDARY:
         return "their covariance is singular (a variance on 0)"
+    shares = np.linalg.eigvalsh(covariance) / np.trace(covariance)
+    if shares[0] < DEGENERATE_SHARE:
+        return (f"their covariance is degenerate (its smallest principal component holds "
+                f"{shares[0]:.1%} of the random effects' variance)")  # fmt: skip
     added = covariance.shape[0] * (covariance.shape[0] + 1) // 2 - 1
     return _not_supported(slopes, intercept, added)
