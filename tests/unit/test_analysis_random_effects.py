@@ -110,8 +110,10 @@ def with_partners(rows: pd.DataFrame, seed: int, partner_sd: float, count: int) 
                        rms=rows["rms"] + level[turn.to_numpy()])  # fmt: skip
 
 
-def partner_model(seed: int, partner_sd: float, count: int = 4) -> MeasureModel:
-    rows = with_partners(persons(seed, 0.03, None), seed, partner_sd, count)
+def partner_model(
+    seed: int, partner_sd: float, count: int = 4, slope_sd: float | None = None
+) -> MeasureModel:
+    rows = with_partners(persons(seed, 0.03, slope_sd), seed, partner_sd, count)
     found = fit_contrasts(rows, "rms", CONDITIONS, NO_DELAY)
     assert found is not None
     return found
@@ -137,3 +139,13 @@ def test_partners_without_their_own_levels_are_left_out_and_said() -> None:
     two = partner_model(0, 0.03, count=2)
     assert CROSSED not in two.random_effects
     assert any("2 partners met by two participants or more, fewer than 3" in n for n in two.notes)
+
+
+def test_slopes_and_partners_together() -> None:
+    """Participants' own effects and avatars' levels: slopes (uncorrelated) and partners."""
+    both = partner_model(0, 0.03, slope_sd=0.03)
+    assert both.random_effects == (f"{SLOPES.replace('correlated', 'uncorrelated')}, and "
+                                   f"{CROSSED}")  # fmt: skip
+    (contrast,) = both.contrasts
+    assert contrast.df == pytest.approx(10.0, abs=1.0)
+    assert contrast.ci_low < 0.03 < contrast.ci_high
