@@ -31,12 +31,14 @@ def make_study_rows(
     effects: Mapping[str, float] | None = None,
     order_effect: float = 0.0,
     conditions: tuple[str, ...] = CONDITIONS,
+    slope_sd: Mapping[str, float] | None = None,
 ) -> pd.DataFrame:
     """Rows of a study: per participant, condition and trial, the person's and the avatar's.
 
     ``effects`` is each measure's true effect of every condition but the first (added once per
     condition index: condition k gets k times it); ``order_effect`` is added per position after
-    the first.
+    the first; ``slope_sd`` is the SD over participants of each measure's effect (a
+    participant's own effect drawn around ``effects``; none when not given, and then no draw).
     """
     effects = dict(effects or {})
     rng = np.random.default_rng(seed)
@@ -44,11 +46,13 @@ def make_study_rows(
     for i in range(participants):
         order = list(conditions) if i % 2 == 0 else list(reversed(conditions))
         level = {m: rng.normal(0.0, PARTICIPANT_SD[m]) for m in BASE}
+        own = {m: effects.get(m, 0.0) + (rng.normal(0.0, slope_sd.get(m, 0.0)) if slope_sd else 0.0)
+               for m in BASE}  # fmt: skip
         for position, condition in enumerate(order, start=1):
             k = conditions.index(condition)
             for trial in range(1, trials + 1):
                 values = {
-                    m: BASE[m] + level[m] + k * effects.get(m, 0.0) + order_effect * (position - 1)
+                    m: BASE[m] + level[m] + k * own[m] + order_effect * (position - 1)
                     + rng.normal(0.0, TRIAL_SD[m])
                     for m in BASE
                 }  # fmt: skip

@@ -23,6 +23,8 @@ from mirror_avatar.analysis.statistics import (
     fit_contrasts,
     paired_effect,
     participant_means,
+    trial_partners,
+    trial_values,
 )
 
 NO_DELAY, DELAY = CONDITIONS
@@ -92,9 +94,12 @@ def test_mixed_model_equals_statsmodels_formula() -> None:
     name = f"C(condition, Treatment(reference='{NO_DELAY}'))[T.{DELAY}]"
     (contrast,) = model.contrasts
     assert contrast.difference == pytest.approx(direct.fe_params[name], rel=1e-4)
-    assert contrast.p == pytest.approx(direct.pvalues[name], rel=1e-3)
+    t = direct.tvalues[name]  # statsmodels' z, tested here on Satterthwaite's df
+    assert 50 < contrast.df < len(rows) - 2
+    assert contrast.p == pytest.approx(2 * stats.t.sf(abs(t), contrast.df), rel=1e-2)
+    half = stats.t.ppf(0.975, contrast.df) * direct.bse[name]
     assert (contrast.ci_low, contrast.ci_high) == pytest.approx(
-        tuple(direct.conf_int().loc[name]), rel=1e-3
+        (direct.fe_params[name] - half, direct.fe_params[name] + half), rel=1e-3
     )
     assert model.position_slope == pytest.approx(direct.fe_params["position"], rel=1e-3)
     assert model.participant_variance == pytest.approx(direct.cov_re.iloc[0, 0], rel=1e-3)
@@ -118,6 +123,18 @@ def test_mixed_model_recovers_known_condition_and_order_effects() -> None:
     assert np.mean(differences) == pytest.approx(0.05, abs=0.003)
     assert np.mean(slopes) == pytest.approx(0.02, abs=0.003)
     assert covered >= 17
+
+
+def test_one_trial_per_condition_in_one_order_is_the_paired_t_test() -> None:
+    """Position confounded with condition is left out: the model is the paired t-test."""
+    rows = persons(make_study_rows(3, participants=7, trials=1, effects={"rms": 0.02}))
+    rows = rows.assign(position=np.where(rows["condition"] == NO_DELAY, 1, 2))
+    model = fit_contrasts(rows, "rms", CONDITIONS, NO_DELAY)
+    assert model is not None and not model.position_in_model
+    (contrast,) = model.contrasts
+    assert contrast.df == pytest.approx(6.0, abs=0.01)
+    assert contrast.p == pytest.approx(contrast.t_p, abs=1e-4)
+    assert 0.001 < contrast.p < 0.5
 
 
 def test_paired_effect_against_hand_and_scipy() -> None:
@@ -234,3 +251,17 @@ def test_a_measure_with_noise_below_its_scale_is_still_fitted() -> None:
     assert model is not None
     (contrast,) = model.contrasts
     assert contrast.difference == pytest.approx(0.05, rel=0.02) and contrast.p < 1e-6
+
+
+def test_trial_partners_name_each_trials_partners_once_in_trial_values_order() -> None:
+    """A pair's two persons name each other: the trial's partners are both, once."""
+    rows = pd.DataFrame({
+        "participant": ["a", "a", "a", "a", "b"], "condition": "x", "position": 1,
+        "trial": [1, 1, 2, 2, 1], "partners": ["P2", "P1", "P2", "P1", "A3"],
+        "rms": [0.1, 0.1, 0.2, 0.2, 0.3],
+    })  # fmt: skip
+    partners = trial_partners(rows)
+    assert partners is not None
+    assert list(partners) == ["P1+P2", "P1+P2", "A3"]
+    assert list(partners.index) == list(trial_values(rows, "rms").index)
+    assert trial_partners(rows.drop(columns="partners")) is None

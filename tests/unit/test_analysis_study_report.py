@@ -144,6 +144,25 @@ def test_identical_conditions_are_said_not_to_differ(tmp_path: Path) -> None:
     assert analysis.identification is None
 
 
+def test_few_participants_are_warned_of_and_the_df_are_shown(tmp_path: Path) -> None:
+    """Five participants: the notes warn; twelve: they do not. The df reach the contrasts.csv."""
+    few = make_study_rows(0, participants=5, effects=EFFECTS)
+    analysis = analyse_study(read_study_table(write_study_table(few, tmp_path / "few")),
+                             resamples=999)  # fmt: skip
+    (warning,) = [note for note in analysis.notes if note.startswith("only 5 participants")]
+    assert "fewer than 6" in warning
+    html = write_study_report(analysis, tmp_path / "out")
+    contrasts = pd.read_csv(html.parent / "contrasts.csv")
+    assert list(contrasts["df"]) == pytest.approx([c.df for c in analysis.contrasts])
+    assert "Satterthwaite" in html.read_text()
+    assert analysis.parameters["random_effects"] == {
+        analysis.table.label(m.measure): m.random_effects for m in analysis.models
+    }
+    many = analyse_study(read_study_table(write_study_table(make_study_rows(0), tmp_path / "all")),
+                         resamples=999)  # fmt: skip
+    assert not any("participants (fewer than" in note for note in many.notes)
+
+
 def test_another_reference_and_an_unknown_one(table_dir: Path) -> None:
     table = read_study_table(table_dir)
     analysis = analyse_study(table, reference=DELAY, resamples=999)

@@ -14,6 +14,7 @@ from study_tables import CONDITIONS, dictionary, make_study_rows, scripted_answe
 from study_tables import write_study_table as write_table
 
 from mirror_avatar.analysis.identification import identify
+from mirror_avatar.analysis.random_effects import INTERCEPT, SLOPES
 from mirror_avatar.analysis.statistics import Contrast, condition_summaries, participant_means
 from mirror_avatar.analysis.study_figures import plot_identification, plot_participants
 from mirror_avatar.analysis.study_file import read_study_table
@@ -158,3 +159,16 @@ def test_the_methods_count_complete_trials_and_say_what_was_left_out(
                   "incomplete_rows": incomplete, "confidence": 0.95, "bootstrap_resamples": 99,
                   "seed": 0, "reference": "a"}  # fmt: skip
     assert f"from 3 participants' {said}. Each" in methods_paragraph(parameters)
+
+
+def test_the_methods_say_each_measures_random_effects_by_its_label() -> None:
+    versions = dict.fromkeys(("mirror-avatar", "python", "numpy", "pandas", "scipy",
+                              "statsmodels"), "1")  # fmt: skip
+    fitted = {"RMSE": SLOPES, "CV (phase locking, 0-1)": SLOPES, "Lag": INTERCEPT}
+    parameters = {"versions": versions, "participants": 3, "rows": 12, "incomplete_rows": 0,
+                  "confidence": 0.95, "bootstrap_resamples": 99, "seed": 0, "reference": "a",
+                  "random_effects": fitted}  # fmt: skip
+    said = methods_paragraph(parameters)
+    assert (f"(fitted: {SLOPES} for RMSE and CV (phase locking, 0-1); {INTERCEPT} for Lag)"
+            in said)  # fmt: skip
+    assert "Satterthwaite's degrees of freedom" in said

@@ -2,27 +2,34 @@
 
 Per condition and measure, the mean over participants with a bootstrap confidence interval
 (`condition_summaries`); per measure, each condition against the reference condition in a
-linear mixed model with a random intercept per participant and the condition's position in the
-participant's order as a covariate, with effect sizes and paired tests of the participants'
-means as a cross-check (`fit_contrasts`). Rows are a participant's trials (one per trial and
-player); every participant's mean is taken over their trials first.
+linear mixed model with the condition's position in the participant's order as a covariate
+and random effects per participant (slopes for condition and crossed partners where the data
+support them: `mirror_avatar.analysis.random_effects`), its fixed effects tested by t tests
+with Satterthwaite's degrees of freedom (`mirror_avatar.analysis.small_sample`), with effect
+sizes and paired tests of the participants' means as a cross-check (`fit_contrasts`). Rows are
+a participant's trials (one per trial and player); every participant's mean is taken over
+their trials first.
 """
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats
-from statsmodels.regression.mixed_linear_model import MixedLM
-from statsmodels.tools.sm_exceptions import ConvergenceWarning
 
 from mirror_avatar.analysis.multiple_tests import holm
+from mirror_avatar.analysis.random_effects import (
+    CROSSED,
+    INTERCEPT,
+    SLOPES,
+    fit_random_effects,
+)
+from mirror_avatar.analysis.small_sample import SmallSampleTest, satterthwaite_tests
 from mirror_avatar.common.constraints import Interval
 
 BOOTSTRAP_RESAMPLES = 9999
@@ -36,8 +43,9 @@ CONFIDENCE = 0.95
 """Confidence level of every interval."""
 
 MIXED_MODEL = (
-    "measure ~ C(condition, reference) + position, random intercept per participant, REML, "
-    "Wald z tests, Holm over a measure's contrasts"
+    f"measure ~ C(condition, reference) + position, {SLOPES} where the data support them, "
+    f"else {INTERCEPT}; {CROSSED} where several partners are met by several participants; "
+    "REML, t tests with Satterthwaite degrees of freedom, Holm over a measure's contrasts"
 )
 """Each measure's model of the conditions, in words (`fit_contrasts`)."""
 
@@ -82,6 +90,23 @@ def trial_values(rows: pd.DataFrame, measure: str) -> pd.DataFrame:
         return rows[[*keys, measure]]
     grouped = rows.groupby(keys, sort=False, dropna=False)[measure].mean()
     return grouped.reset_index()
+
+
+def trial_partners(rows: pd.DataFrame) -> pd.Series | None:
+    """Each trial's partner identity, in `trial_values`'s order and index; None without one.
+
+    The ``partners`` labels of the trial's rows (its persons'), each once, sorted and joined by
+    +: a person playing with avatar A2 has A2; the two persons of a pair, P1+P2.
+    """
+    if "partners" not in rows:
+        return None
+    keys = [key for key in TRIAL_KEYS if key in rows]
+    if "trial" not in keys:
+        return rows["partners"].astype(str)
+    joined = rows.groupby(keys, sort=False, dropna=False)["partners"].agg(
+        lambda labels: "+".join(sorted({str(label) for label in labels}))
+    )
+    return joined.reset_index(drop=True)
 
 
 def participant_means(rows: pd.DataFrame, measure: str, conditions: Sequence[str]) -> pd.DataFrame:
@@ -176,9 +201,10 @@ class Contrast:
         The mixed model's coefficient of the condition: its mean minus the reference's, in the
         measure's units, at equal position.
     ci_low, ci_high
-        Its Wald confidence interval.
+        Its t confidence interval on ``df``.
     p
-        Its Wald test's p-value; ``p_holm`` the same, Holm-corrected over the measure's contrasts.
+        Its t test's p-value on ``df``; ``p_holm`` the same, Holm-corrected over the measure's
+        contrasts.
     standardised
         ``difference`` over the model's total SD (participant and residual variances summed).
     participants
@@ -194,6 +220,8 @@ class Contrast:
     q
         ``p`` adjusted by Benjamini-Hochberg across the study's exploratory contrasts; NaN for
         the confirmatory one and one not tested.
+    df
+        The t test's Satterthwaite degrees of freedom; NaN when not tested.
     """
 
     measure: str
@@ -214,6 +242,7 @@ class Contrast:
     wilcoxon_p: float
     exploratory: bool = True
     q: float = float("nan")
+    df: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -230,13 +259,21 @@ class MeasureModel:
         Whether the position covariate was in the model (left out when it is constant or
         confounded with condition, which ``notes`` says).
     position_slope, position_p
-        Change of the measure per step later in the order (measure units), its Wald p-value.
+        Change of the measure per step later in the order (measure units), its t test's p-value
+        (Satterthwaite degrees of freedom).
     participant_variance, residual_variance
-        The random intercept's variance and the residual variance (units squared).
+        The random intercept's variance (with slopes, the reference condition's participant
+        variance) and the residual variance (units squared).
     contrasts
         Each condition against the reference.
     notes
         What the fit said (boundary, convergence) and what was left out, in plain words.
+    random_effects
+        The random effects fitted, in words (`mirror_avatar.analysis.random_effects`); empty
+        when no model was fitted.
+    partner_variance
+        The variance of partner identity as a crossed random factor (units squared); NaN when
+        it is not in the model.
     """
 
     measure: str
@@ -249,6 +286,18 @@ class MeasureModel:
     residual_variance: float
     contrasts: list[Contrast]
     notes: list[str] = field(default_factory=list)
+    random_effects: str = ""
+    partner_variance: float = float("nan")
+
+
+class Estimate(NamedTuple):
+    """A contrast's estimate in the measure's units: value, t interval, p-value and its df."""
+
+    value: float
+    low: float
+    high: float
+    p: float
+    df: float
 
 
 def fit_contrasts(
@@ -258,15 +307,19 @@ def fit_contrasts(
     reference: str,
     confidence: float = CONFIDENCE,
 ) -> MeasureModel | None:
-    """Fit ``measure ~ C(condition) + position`` with a random intercept per participant.
+    """Fit ``measure ~ C(condition) + position`` with random effects per participant.
 
     The observations are the participant's trials (`trial_values`).
 
     statsmodels' `MixedLM` fitted by REML; the reference condition is the treatment coding's
-    baseline. Wald tests (z) of the fixed effects. The model is fitted to the measure centred
-    and divided by its SD, and its estimates scaled back (REML is equivariant, so nothing
-    changes but the fit's boundary check: statsmodels flags a random-intercept variance under
-    0.01 in the outcome's units squared, here under 1 % of the measure's variance). Each
+    baseline. The random effects are a random intercept, with random slopes for condition
+    where the data support them (`fit_random_effects`; docs/METHODS.md, section 15.4). The
+    fixed effects are tested by t tests with Satterthwaite's degrees of freedom, with t
+    intervals (`satterthwaite_tests`; section 15.3). The model is fitted to the measure
+    centred and divided by its SD, and its estimates scaled back (REML is equivariant, so
+    nothing changes but the fit's boundary check: statsmodels flags a random-intercept
+    variance under 0.01 in the outcome's units squared, here under 1 % of the measure's
+    variance). Each
     contrast is cross-checked by a paired t-test and a Wilcoxon signed-rank test of the
     participants' means in the two conditions. A measure with the same value in every trial, or
     one that participant, condition and position explain exactly (no residual variance: a
@@ -278,7 +331,9 @@ def fit_contrasts(
     MeasureModel or None
         None when fewer than two conditions or two participants have values of ``measure``.
     """
-    data = trial_values(rows.dropna(subset=[measure, "position"]), measure)
+    valid = rows.dropna(subset=[measure, "position"])
+    data = trial_values(valid, measure)
+    partners = trial_partners(valid)
     data = data[data["condition"].isin(conditions)]
     present = [c for c in conditions if c in set(data["condition"])]
     if reference not in present or len(present) < 2 or data["participant"].nunique() < 2:
@@ -293,39 +348,41 @@ def fit_contrasts(
     scaled = (values - values.mean()) / sd
     if _explained_exactly(scaled, design, data["participant"]):
         return _unfitted(data, measure, means, reference, notes + [NOISELESS])
-    model = MixedLM(scaled, design, groups=data["participant"])
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            result = model.fit(reml=True)
-        except (np.linalg.LinAlgError, ValueError) as error:
-            failed = f"the mixed model could not be fitted ({' '.join(str(error).split())})"
-            return _unfitted(data, measure, means, reference, notes + [failed])
-    notes += _fit_notes(caught, bool(result.converged))
-    interval = result.conf_int(alpha=1.0 - confidence) * sd
-    coefficients = result.fe_params * sd
-    participant_variance = float(np.asarray(result.cov_re)[0, 0]) * sd**2
+    try:
+        fitted = fit_random_effects(
+            pd.Series(scaled, index=data.index), design, data["participant"], data["condition"],
+            None if partners is None else partners.loc[data.index],
+        )  # fmt: skip
+    except (np.linalg.LinAlgError, ValueError) as error:
+        failed = f"the mixed model could not be fitted ({' '.join(str(error).split())})"
+        return _unfitted(data, measure, means, reference, notes + [failed])
+    result = fitted.result
+    notes += fitted.notes
+    tests = dict(zip(design.columns[1:], satterthwaite_tests(result, np.eye(design.shape[1])[1:]),
+                     strict=True))  # fmt: skip
+    participant_variance = fitted.participant_variance * sd**2
     residual_variance = float(result.scale) * sd**2
     total_sd = float(np.sqrt(participant_variance + residual_variance))
-    p_values = [float(result.pvalues[c]) for c in others]
-    adjusted = holm(p_values)
-    contrasts = []
-    for condition, p, p_holm in zip(others, p_values, adjusted, strict=True):
-        limits = interval.loc[condition].to_numpy(np.float64)
-        estimate = (float(coefficients[condition]), limits, p, float(p_holm))
-        contrasts.append(_contrast(measure, condition, reference, means, estimate, total_sd))
-    has_position = "position" in design
+    adjusted = holm([tests[c].p for c in others])
+    contrasts = [
+        _contrast(measure, condition, reference, means, _scaled(tests[condition], sd, confidence),
+                  total_sd, float(p_holm))
+        for condition, p_holm in zip(others, adjusted, strict=True)
+    ]  # fmt: skip
+    position = tests.get("position")
     return MeasureModel(
         measure=measure,
         rows=len(data),
         participants=int(data["participant"].nunique()),
-        position_in_model=has_position,
-        position_slope=float(coefficients["position"]) if has_position else float("nan"),
-        position_p=float(result.pvalues["position"]) if has_position else float("nan"),
+        position_in_model=position is not None,
+        position_slope=float("nan") if position is None else position.estimate * sd,
+        position_p=float("nan") if position is None else position.p,
         participant_variance=participant_variance,
         residual_variance=residual_variance,
         contrasts=contrasts,
         notes=notes,
+        random_effects=fitted.structure,
+        partner_variance=fitted.partner_variance * sd**2,
     )
 
 
@@ -387,15 +444,10 @@ def _explained_exactly(
     return bool(rank < scaled.size and np.max(np.abs(residuals)) <= EXACT_RESIDUAL)
 
 
-def _fit_notes(caught: list[warnings.WarningMessage], converged: bool) -> list[str]:
-    """Say what the fit's warnings mean: a boundary fit, a fit that did not converge."""
-    texts = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
-    notes = []
-    if any("boundary" in text for text in texts):
-        notes.append("mixed model: the participants' variance is near 0 (a boundary fit)")
-    if not converged:
-        notes.append("mixed model: the fit did not converge, so its p-values are not reliable")
-    return notes
+def _scaled(test: SmallSampleTest, sd: float, confidence: float) -> Estimate:
+    """Put a test of the model fitted in SDs back in the measure's units (estimate, interval)."""
+    low, high = test.interval(confidence)
+    return Estimate(test.estimate * sd, low * sd, high * sd, test.p, test.df)
 
 
 def _unfitted(
@@ -403,13 +455,13 @@ def _unfitted(
 ) -> MeasureModel:
     """Make the model of a measure that could not be fitted: NaN estimates, the paired tests."""
     nan = float("nan")
-    estimate = (nan, np.array([nan, nan]), nan, nan)
+    estimate = Estimate(nan, nan, nan, nan, nan)
     others = [c for c in means.columns if c != reference]
     return MeasureModel(
         measure=measure, rows=len(data), participants=int(data["participant"].nunique()),
         position_in_model=False, position_slope=nan, position_p=nan, participant_variance=nan,
         residual_variance=nan,
-        contrasts=[_contrast(measure, c, reference, means, estimate, nan) for c in others],
+        contrasts=[_contrast(measure, c, reference, means, estimate, nan, nan) for c in others],
         notes=notes,
     )  # fmt: skip
 
@@ -419,17 +471,18 @@ def _contrast(
     condition: str,
     reference: str,
     means: pd.DataFrame,
-    estimate: tuple[float, NDArray[np.float64], float, float],
+    estimate: Estimate,
     total_sd: float,
+    p_holm: float,
 ) -> Contrast:
-    """Build a contrast from the model's ``estimate`` (coefficient, CI, p, Holm p)."""
-    difference, interval, p, p_holm = estimate
+    """Build a contrast from the model's ``estimate`` and its Holm-corrected p."""
+    difference = estimate.value
     paired = means[[reference, condition]].dropna()
     before, after = paired[reference].to_numpy(), paired[condition].to_numpy()
     effect = paired_effect(before, after)
     return Contrast(
         measure=measure, condition=condition, reference=reference, difference=float(difference),
-        ci_low=float(interval[0]), ci_high=float(interval[1]), p=p, p_holm=p_holm,
+        ci_low=estimate.low, ci_high=estimate.high, p=estimate.p, p_holm=p_holm, df=estimate.df,
         standardised=float(difference) / total_sd if total_sd > 0 else float("nan"),
         participants=len(paired), reference_mean=_mean(before), condition_mean=_mean(after),
         d_z=effect["d_z"], t=effect["t"], t_p=effect["t_p"], wilcoxon_p=effect["wilcoxon_p"],

@@ -65,6 +65,12 @@ STUDY_REPORT_FILES = ("report.html", "results.json", "conditions.csv", "contrast
 
 SOFTWARE = ("mirror-avatar", "numpy", "pandas", "scipy", "statsmodels")
 
+FEW_PARTICIPANTS = 6
+"""Fewer participants than this get a warning in the report's notes (**choice**: the smallest
+number at which the two-sided Wilcoxon signed-rank cross-check can reach p < 0.05, as its
+smallest p is 2 / 2^n, 0.0625 with 5; below it, only the normal-theory tests can, on too few
+participants to check their normality)."""
+
 
 @dataclass(frozen=True)
 class StudyAnalysis:
@@ -219,6 +225,7 @@ def analyse_study(
             models.append(model)
             notes += [f"{measure}: {note}" for note in model.notes]
     models = _with_q_values(models, hypothesis)
+    notes += few_participants_note(int(rows["participant"].nunique()))
     if untested:
         notes.append(
             f"no comparison (fewer than two conditions or participants): {', '.join(untested)}"
@@ -231,6 +238,8 @@ def analyse_study(
         "bootstrap_resamples": resamples,
         "bootstrap_method": "BCa", "confidence": confidence,
         "model": MIXED_MODEL, "confirmatory_model": CONFIRMATORY_MODEL,
+        "random_effects": {table.label(m.measure): m.random_effects for m in models
+                           if m.random_effects},
         "exploratory": EXPLORATORY_MODEL,
         "protocol": None if protocol is None else Path(protocol.source).name,
         "plan": None if plan is None else {"file": plan.source.name, "sha256": plan.sha256},
@@ -245,6 +254,19 @@ def analyse_study(
         notes=notes, confirmatory=None if hypothesis is None else confirm(rows, hypothesis),
         deviations=None if plan is None else plan_deviations(plan, hypothesis),
     )  # fmt: skip
+
+
+def few_participants_note(participants: int) -> list[str]:
+    """Warn, in the notes, of a study with fewer than `FEW_PARTICIPANTS` participants."""
+    if participants >= FEW_PARTICIPANTS:
+        return []
+    return [
+        f"only {participants} participants (fewer than {FEW_PARTICIPANTS}): every p-value here "
+        "rests on normal distributions that so few participants cannot check (the Wilcoxon "
+        f"cross-check cannot reach p < 0.05 with fewer than {FEW_PARTICIPANTS}), and the "
+        "participants' variance, and so the degrees of freedom, are poorly estimated; read "
+        "the tests as a pilot's, not as evidence"
+    ]
 
 
 def analysed_rows(table: StudyTable) -> tuple[pd.DataFrame, list[str], int | None]:
@@ -407,8 +429,8 @@ def _finite(rows: pd.DataFrame, outcomes: list[str]) -> tuple[pd.DataFrame, list
 
 def _contrast_table(analysis: StudyAnalysis) -> pd.DataFrame:
     columns = ["measure", "condition", "reference", "participants", "reference_mean",
-               "condition_mean", "difference", "ci_low", "ci_high", "p", "p_holm", "exploratory",
-               "q", "standardised", "d_z", "t", "t_p", "wilcoxon_p"]  # fmt: skip
+               "condition_mean", "difference", "ci_low", "ci_high", "df", "p", "p_holm",
+               "exploratory", "q", "standardised", "d_z", "t", "t_p", "wilcoxon_p"]  # fmt: skip
     return pd.DataFrame([asdict(c) for c in analysis.contrasts], columns=columns)
 
 
@@ -428,7 +450,7 @@ def _contrast_displays(analysis: StudyAnalysis) -> dict[str, pd.DataFrame]:
                                                                strict=True)]  # fmt: skip
     model = {
         "test": table["exploratory"].map({True: "exploratory", False: "confirmatory"}),
-        "difference": table["difference"], "95 % CI": interval,
+        "difference": table["difference"], "95 % CI": interval, "df": table["df"].round(1),
         "p": table["p"].map(_p_cell), "q (BH)": table["q"].map(_p_cell),
         "p Holm": table["p_holm"].map(_p_cell), "standardised": table["standardised"],
     }  # fmt: skip
@@ -439,9 +461,11 @@ def _contrast_displays(analysis: StudyAnalysis) -> dict[str, pd.DataFrame]:
     }  # fmt: skip
     return {
         f"Mixed model: each condition's difference from {analysis.reference!r} (measure units), "
-        "its 95 % CI, p, q (p adjusted by Benjamini-Hochberg across every exploratory "
-        "comparison), p Holm-corrected over a measure's contrasts, and the difference over "
-        "the model's SD": pd.DataFrame(model).set_index(index),
+        "its 95 % CI, the t test's Satterthwaite degrees of freedom, p, q (p adjusted by "
+        "Benjamini-Hochberg across every exploratory comparison), p Holm-corrected over a "
+        "measure's contrasts, and the difference over the model's SD": pd.DataFrame(
+            model
+        ).set_index(index),
         "Participants' means: the reference's and the condition's, Cohen's d_z, paired t-test "
         "and Wilcoxon signed-rank test": pd.DataFrame(paired).set_index(index),
     }
@@ -454,8 +478,10 @@ def _p_cell(p: float) -> str:
 def _model_table(analysis: StudyAnalysis) -> pd.DataFrame:
     return pd.DataFrame([{
         "measure": _heading(analysis.table, m.measure), "trials": m.rows,
-        "participants": m.participants, "order slope per position": m.position_slope,
+        "participants": m.participants, "random effects": m.random_effects or "not fitted",
+        "order slope per position": m.position_slope,
         "order p": m.position_p, "participant variance": m.participant_variance,
+        "partner variance": m.partner_variance,
         "residual variance": m.residual_variance,
     } for m in analysis.models]).set_index("measure")  # fmt: skip
 
@@ -522,7 +548,8 @@ def _sections(analysis: StudyAnalysis) -> list[Section]:
                 figures=figures),
         Section("contrasts", "Contrasts within participants (mixed models)", tables={
             **_contrast_displays(analysis),
-            "Order (position in the participant's order) and variances": _model_table(analysis),
+            "Each measure's random effects, order (position in the participant's order) and "
+            "variances": _model_table(analysis),
         } if analysis.models else {}),
     ]  # fmt: skip
     if analysis.identification is not None:

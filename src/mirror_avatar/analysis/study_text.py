@@ -17,6 +17,7 @@ from typing import Any
 
 from mirror_avatar.analysis.hypothesis import ConfirmatoryTest
 from mirror_avatar.analysis.identification import CHANCE, Identification
+from mirror_avatar.analysis.random_effects import CROSSED_PARTNERS, SELECTION_ALPHA
 from mirror_avatar.analysis.statistics import Contrast
 
 ALPHA = 0.05
@@ -185,11 +186,24 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         f"confidence interval ({parameters['bootstrap_resamples']} resamples of the "
         f"participants' means, scipy.stats.bootstrap, random seed {parameters['seed']}; Efron "
         "& Tibshirani 1993). Conditions were compared within participants by a linear mixed "
-        "model per measure, measure ~ condition + position with a random intercept per "
-        "participant (statsmodels MixedLM, REML), condition in treatment coding against "
-        f"{parameters['reference']!r} and position the condition's place in the participant's "
-        "order (1, 2, ...), a covariate that checks order effects; fixed effects were tested "
-        "by Wald z tests, and every comparison but the declared hypothesis's is exploratory: "
+        "model per measure, measure ~ condition + position with random effects per "
+        "participant (statsmodels MixedLM, REML): a random intercept and correlated random "
+        "slopes for condition (Barr, Levy, Scheepers & Tily 2013) where the data supported "
+        "them (participants with every condition outnumbering the conditions, repeated trials, "
+        "a fit that converged with a non-singular covariance, and a REML likelihood-ratio test "
+        f"against the random intercept alone at p < {SELECTION_ALPHA:g}; Matuschek, Kliegl, "
+        "Vasishth, Baayen & Bates 2017), else a random intercept alone; with at least "
+        f"{CROSSED_PARTNERS} partners each met by two participants or more, a random intercept "
+        "per partner crossed with the participants, kept on the same terms (variance "
+        "components of one group, the slopes then uncorrelated with the intercept)"
+        f"{_fitted_models(parameters.get('random_effects', {}))}; condition in treatment "
+        f"coding against {parameters['reference']!r} and position the condition's place in "
+        "the participant's order (1, 2, ...), a covariate that checks order effects; fixed "
+        "effects were tested "
+        "by t tests with Satterthwaite's degrees of freedom, computed from the REML fit's "
+        "variance parameters (Satterthwaite 1946; the method of lmerTest, Kuznetsova, "
+        "Brockhoff & Christensen 2017), with t confidence intervals on the same degrees of "
+        "freedom, and every comparison but the declared hypothesis's is exploratory: "
         "its p-value adjusted for the false discovery rate across measures and conditions "
         "(Benjamini & Hochberg 1995; q-values). Effect sizes: Cohen's d_z of the "
         "participants' paired means, and the "
@@ -207,6 +221,21 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         f"Mann-Whitney U test. Significance level and false discovery rate {ALPHA}."
         + _hypothesis_methods(parameters.get("hypothesis"), parameters.get("protocol"))
     )
+
+
+def _fitted_models(fitted: Mapping[str, str]) -> str:
+    """Say which measures (by label) got which random effects: ``fitted`` maps label to words."""
+    if not fitted:
+        return ""
+    kinds = {kind: [label for label, k in fitted.items() if k == kind]
+             for kind in dict.fromkeys(fitted.values())}  # fmt: skip
+    said = "; ".join(f"{kind} for {_listed(labels)}" for kind, labels in kinds.items())
+    return f" (fitted: {said})"
+
+
+def _listed(labels: list[str]) -> str:
+    """Join labels as prose: ``a``, ``a and b``, ``a, b and c``."""
+    return labels[0] if len(labels) == 1 else f"{', '.join(labels[:-1])} and {labels[-1]}"
 
 
 def _trials(parameters: Mapping[str, Any]) -> str:
