@@ -87,7 +87,7 @@ def shown_links(console: Any) -> dict[str, str]:
 def join(browser: Any, link: str) -> Any:
     page = browser.new_context(viewport={"width": 900, "height": 500}).new_page()
     page.goto(link)
-    page.wait_for_function("window.mirrorLab && window.mirrorLab.welcome !== null")
+    page.wait_for_function("window.mirrorLab && window.mirrorLab.welcome !== null", timeout=60_000)
     return page
 
 
@@ -487,11 +487,12 @@ def test_killing_a_participants_browser_marks_them_dropped(playwright, chromium,
     psutil.wait_procs(family, timeout=10)
     console.wait_for_function(
         "[...document.querySelectorAll('#slots td.state')]"
-        ".some(td => td.textContent.includes('dropped'))"
+        ".some(td => td.textContent.includes('dropped'))",
+        timeout=60_000,
     )
     screenshot(console, "lab-console-dropped")
     console.click("#stop")
-    row = wait_trial_listed(console, 1)
+    row = wait_trial_listed(console, 1, timeout=60_000)
     assert "P2 dropped at" in row and "stopped by the researcher" in row, row
     sidecar = session_dir(tmp_path) / "trial-01_session.json"
     record = json.loads(sidecar.read_text())["metadata"]
