@@ -39,18 +39,25 @@ Follow your partner as closely as you can.'''
 consent_file = "consent.txt"
 """
 """The ``[online]`` table of the tests' protocols (the consent text in a file beside them)."""
-PROTOCOL = f"""
-title = "online study"
-seed = 3
-{ONLINE}
+
+
+def solo_protocol(title: str, seed: int, online: str, duration: float) -> str:
+    """A protocol of one solo trial of ``duration`` seconds with the ``[online]`` table given."""
+    return f"""
+title = "{title}"
+seed = {seed}
+{online}
 [[blocks]]
 [[blocks.conditions]]
 name = "alone"
 game = "solo"
 players = [{{ label = "P1", kind = "person" }}]
 trials = 1
-duration = 2
+duration = {duration:g}
 """
+
+
+PROTOCOL = solo_protocol("online study", 3, ONLINE, 2)
 
 
 INSTRUCTIONS = "Move your point with the mouse.\nFollow your partner as closely as you can."

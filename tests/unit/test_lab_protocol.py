@@ -127,8 +127,8 @@ def test_a_protocol_without_a_seed_draws_one():
 def _set(path: tuple, value: object) -> dict:
     data = copy.deepcopy(_example())
     node = data
-    for key in path[:-1]:
-        node = node[key]
+    for key in path[:-1]:  # a table the example lacks is added
+        node = node.setdefault(key, {}) if isinstance(key, str) else node[key]
     if value is DELETE:
         del node[path[-1]]
     else:

@@ -139,6 +139,12 @@ def test_a_session_of_another_source_has_no_lab_record() -> None:
     assert lab_trial_record({"seed": 3}) is None
 
 
+def _page(interruptions: list[dict[str, object]]) -> dict[str, object]:
+    """A page's record in a sidecar with these interruptions."""
+    page = {"exchanges": 0, "rtt_ms": {}, "offset_ms": None, "uncertainty_ms": None}
+    return page | {"sample_rate_hz": None, "frame_rate_hz": None, "interruptions": interruptions}
+
+
 @pytest.mark.parametrize(
     ("damage", "problem"),
     [
@@ -152,6 +158,11 @@ def test_a_session_of_another_source_has_no_lab_record() -> None:
         (lambda m: m.update(held={"P1": -1}), "metadata.held.P1: -1 is not a whole number"),
         (lambda m: m.update(input_events=[{"sample": 3, "label": "P1"}]),
          "metadata.input_events[0].event: None is not a text"),
+        (lambda m: m.update(pages={"P1": _page([{"kind": "minimised", "start_s": 1,
+                                                  "end_s": 2}])}),
+         "metadata.pages.P1.interruptions[0].kind: 'minimised' is not one of hidden, blur"),
+        (lambda m: m.update(pages={"P1": _page([{"kind": "hidden", "start_s": 2, "end_s": 1}])}),
+         "metadata.pages.P1.interruptions[0].end_s: is before start_s"),
     ],
 )  # fmt: skip
 def test_a_damaged_record_is_one_line_naming_the_file_and_key(tmp_path, damage, problem):

@@ -80,6 +80,14 @@ PAGE_COLUMNS: dict[str, dict[str, Any]] = {
                     "Role": "quality"},
     "page_stalled_s": {"Description": "The page's stalls' total length", "Units": "s",
                        "Role": "quality"},
+    "page_hidden": {"Description": "Times the page's tab was hidden during the trial "
+                    "(METHODS section 9)", "Role": "quality"},
+    "page_hidden_s": {"Description": "How long the page's tab was hidden during the trial",
+                      "Units": "s", "Role": "quality"},
+    "page_blur": {"Description": "Times the page's window lost the focus during the trial",
+                  "Role": "quality"},
+    "page_blur_s": {"Description": "How long the page's window was out of focus during the "
+                    "trial", "Units": "s", "Role": "quality"},
 }  # fmt: skip
 """The quality columns of a person's page (`mirror_avatar.files.trial_record.PageRecord.cells`),
 in table order; empty on the rows of avatars, devices and trials recorded before them."""

@@ -153,6 +153,10 @@ class InputEventRecord:
         return {"sample": self.sample, "label": self.label, "event": self.event, "seq": self.seq}
 
 
+INTERRUPTION_KINDS = ("hidden", "blur")
+"""A page's interruptions: its tab hidden, its window out of focus."""
+
+
 @dataclass(frozen=True)
 class PageRecord:
     """A participant page's clock and rates over the trial (the sidecar's ``pages``).
@@ -162,8 +166,11 @@ class PageRecord:
     mean, median, p95, max; ms), ``offset_ms`` and ``uncertainty_ms`` (the page clock's
     estimates, server minus page: first, median, min, max; ms; None without an exchange),
     ``sample_rate_hz`` and ``frame_rate_hz`` (pointer samples and animation frames received per
-    second) and ``stalls`` (each gap in the page's samples: ``start_s`` on the server's clock and
-    ``length_s``).
+    second), ``stalls`` (each gap in the page's samples: ``start_s`` on the server's clock and
+    ``length_s``) and ``interruptions`` (each time the page's tab was hidden or its window out
+    of focus: ``kind``, one of `INTERRUPTION_KINDS`, ``start_s`` and ``end_s`` on the server's
+    clock, cut to the trial; ``open`` when it had not ended by the trial's end; the key absent
+    when there were none, as in the records written before it).
     """
 
     exchanges: int
@@ -173,6 +180,7 @@ class PageRecord:
     sample_rate_hz: float | None
     frame_rate_hz: float | None
     stalls: tuple[dict[str, float], ...] = ()
+    interruptions: tuple[dict[str, Any], ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         """Return the page as the sidecar's ``pages`` holds it."""
@@ -184,7 +192,7 @@ class PageRecord:
             "sample_rate_hz": self.sample_rate_hz,
             "frame_rate_hz": self.frame_rate_hz,
             "stalls": [dict(stall) for stall in self.stalls],
-        }
+        } | ({"interruptions": [dict(s) for s in self.interruptions]} if self.interruptions else {})
 
     def cells(self) -> dict[str, float | int | None]:
         """Return its cells in the study table (`mirror_avatar.analysis.dictionary`)."""
@@ -200,7 +208,16 @@ class PageRecord:
             "page_frame_rate_hz": self.frame_rate_hz,
             "page_stalls": len(self.stalls),
             "page_stalled_s": sum(stall["length_s"] for stall in self.stalls),
-        }
+        } | self._interruption_cells()
+
+    def _interruption_cells(self) -> dict[str, float | int]:
+        """Count each kind of interruption and sum its length (s)."""
+        cells: dict[str, float | int] = {}
+        for kind in INTERRUPTION_KINDS:
+            spans = [span for span in self.interruptions if span["kind"] == kind]
+            cells[f"page_{kind}"] = len(spans)
+            cells[f"page_{kind}_s"] = sum(span["end_s"] - span["start_s"] for span in spans)
+        return cells
 
 
 @dataclass(frozen=True)
@@ -400,9 +417,10 @@ def _input_event(keys: _Keys, value: object) -> InputEventRecord:
 def _page(keys: _Keys, value: object) -> PageRecord:
     page = keys.object(value)
     offset, uncertainty = page.get("offset_ms"), page.get("uncertainty_ms")
-    stalls = page.get("stalls", [])
-    if not isinstance(stalls, list):
-        raise keys.error("stalls", "is not a list")
+    stalls, interruptions = page.get("stalls", []), page.get("interruptions", [])
+    for name, listed in (("stalls", stalls), ("interruptions", interruptions)):
+        if not isinstance(listed, list):
+            raise keys.error(name, "is not a list")
     return PageRecord(
         exchanges=keys.count(page, "exchanges"),
         rtt_ms=keys.object(page.get("rtt_ms"), "rtt_ms"),
@@ -411,6 +429,23 @@ def _page(keys: _Keys, value: object) -> PageRecord:
         sample_rate_hz=_optional_number(keys, page, "sample_rate_hz"),
         frame_rate_hz=_optional_number(keys, page, "frame_rate_hz"),
         stalls=tuple(_stall(keys.within(f"stalls[{k}]"), s) for k, s in enumerate(stalls)),
+        interruptions=tuple(
+            _interruption(keys.within(f"interruptions[{k}]"), span)
+            for k, span in enumerate(interruptions)
+        ),
+    )
+
+
+def _interruption(keys: _Keys, value: object) -> dict[str, Any]:
+    span = keys.object(value)
+    kind = keys.text(span, "kind")
+    if kind not in INTERRUPTION_KINDS:
+        raise keys.error("kind", f"{kind!r} is not one of {', '.join(INTERRUPTION_KINDS)}")
+    start, end = keys.number(span, "start_s"), keys.number(span, "end_s")
+    if end < start:
+        raise keys.error("end_s", "is before start_s")
+    return {"kind": kind, "start_s": start, "end_s": end} | (
+        {"open": True} if span.get("open") is True else {}
     )
 
 

@@ -23,6 +23,7 @@ from typing import Protocol
 
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.players.base import ExternalPlayer
+from mirror_avatar.realtime.interruptions import Interruptions
 from mirror_avatar.realtime.page_clock import PageClock
 
 LIVENESS_TIMEOUT = 1.0
@@ -116,6 +117,9 @@ class BrowserInput:
     stalls
         Each gap longer than `STALL_GAP` between two batches: its start (s, the server's
         clock) and length (s).
+    interruptions
+        The page's tab hidden and its window out of focus
+        (`mirror_avatar.realtime.interruptions.Interruptions`).
     """
 
     def __init__(self) -> None:
@@ -125,6 +129,7 @@ class BrowserInput:
         self.clock = PageClock()
         self.batches: list[Batch] = []
         self.stalls: list[tuple[float, float]] = []
+        self.interruptions = Interruptions()
         self._unread: list[PointerSample] = []
 
     def reconnected(self) -> None:

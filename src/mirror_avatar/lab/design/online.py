@@ -13,6 +13,10 @@ participant screened out is shown the refusal code or link instead
 Before the game the page shows the instructions and the consent text, each written in the
 protocol or in a text file beside it (a name, never a path: `_page_text`); a participant who does
 not agree is not played and is shown the refusal (`mirror_avatar.lab.running.consent`).
+
+The protocol may screen its participants (`Screening`, applied by
+`mirror_avatar.lab.running.screening`): on the round trips of a page's first clock exchanges,
+and on a tab hidden during a trial.
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ from mirror_avatar.lab.design.protocol_keys import (
     MAX_PAGE_CHARS,
     MAX_PANEL_IDS,
     ONLINE_SETTINGS,
+    by_key,
     keys_of,
 )
 
@@ -52,6 +57,9 @@ MAX_URL_CHARS = 500
 
 FILE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 """The name of a page's text file beside the protocol (no folder, no leading dot)."""
+
+SCREENING = by_key(ONLINE_SETTINGS)
+"""The ``[online]`` table's settings by key (its screening keys are read from them)."""
 
 MAX_PAGE_BYTES = 4 * MAX_PAGE_CHARS
 """Largest page text file read (bytes: UTF-8 takes up to 4 a character)."""
@@ -74,6 +82,23 @@ class Ending:
 
 
 @dataclass(frozen=True)
+class Screening:
+    """Who a protocol screens out (`mirror_avatar.lab.running.screening`).
+
+    Attributes
+    ----------
+    round_trip_p95_ms
+        The bound (ms) on the 95th percentile of a page's round trips at connect, or None.
+    hidden_tab
+        ``"record"`` (a tab hidden during a trial is recorded and the person told) or
+        ``"refuse"`` (the person is refused).
+    """
+
+    round_trip_p95_ms: float | None = None
+    hidden_tab: str = "record"
+
+
+@dataclass(frozen=True)
 class Online:
     """A protocol's ``[online]`` table (see the module docstring).
 
@@ -87,6 +112,8 @@ class Online:
         Shown to a participant screened out.
     instructions, consent
         The texts of the pages shown before the game (None: no such page).
+    screening
+        Who is screened out (`Screening`).
     """
 
     panel_ids: tuple[str, ...] = ()
@@ -94,6 +121,7 @@ class Online:
     refusal: Ending = Ending()
     instructions: str | None = None
     consent: str | None = None
+    screening: Screening = Screening()
 
 
 def parse_online(check: Checker, value: object, folder: Path) -> Online:
@@ -120,6 +148,10 @@ def parse_online(check: Checker, value: object, folder: Path) -> Online:
         _ending(check, data, "refusal"),
         _page_text(check, data, "instructions", folder),
         _page_text(check, data, "consent", folder),
+        Screening(
+            check.setting(data, "online", SCREENING["screen_round_trip_p95_ms"]),
+            check.setting(data, "online", SCREENING["screen_hidden_tab"]),
+        ),
     )
 
 

@@ -69,6 +69,9 @@ MAX_PANEL_IDS = 8
 MAX_PAGE_CHARS = 10_000
 """Longest text of an instructions or consent page (characters)."""
 
+HIDDEN_TAB_RULES = ("record", "refuse")
+"""What a hidden tab during a trial does: recorded and the person told, or the person refused."""
+
 ONLINE_SETTINGS = (
     Setting("panel_ids", "the join link's query parameters recorded for its participant",
             default=None, allowed=f"up to {MAX_PANEL_IDS} names (letters, digits, _)",
@@ -89,6 +92,11 @@ ONLINE_SETTINGS = (
             default=None, allowed=f"text of at most {MAX_PAGE_CHARS} characters (lines kept)"),
     Setting("consent_file", "the consent page's text in a file beside the protocol",
             default=None, allowed="a UTF-8 text file's name"),
+    Setting("screen_round_trip_p95_ms", "a page whose connect-time round trips' 95th "
+            "percentile is above it is refused at entry",
+            Interval(float, 1.0, 10_000.0, unit="ms"), None, default_shown="no screening"),
+    Setting("screen_hidden_tab", "a tab hidden during a trial: record: recorded and the "
+            "person told; refuse: the person is refused", Options(HIDDEN_TAB_RULES), "record"),
 )  # fmt: skip
 """The keys of a protocol's ``[online]`` table (`mirror_avatar.lab.design.online`)."""
 

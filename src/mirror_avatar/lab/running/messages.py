@@ -20,6 +20,9 @@ The page sends JSON text messages (at most `mirror_avatar.realtime.messages.MAX_
 - ``{"type": "pong", "id": i, "late_frames": f}``: the answer to the server's ``ping`` ``i``
   (the server measures the round trip), with the number of animation frames the page drew
   late so far (more than twice the display's frame interval);
+- ``{"type": "focus", "event": e, "t": t}``: the page's tab was hidden or shown again
+  (``e``: ``hidden``, ``visible``) or its window lost or regained the focus (``blur``,
+  ``focus``) at ``t`` (ms, the page's clock) (`mirror_avatar.realtime.interruptions`);
 - ``{"type": "answer", "trial": n, "question": id, "value": v}``: the participant's answer to
   a question asked after trial ``n`` (a study protocol's ``questions`` message).
 
@@ -27,9 +30,10 @@ The server sends ``welcome`` (the participant's slot, the players it sees and th
 ``ping``, ``countdown``, ``avatar`` (the player index and message of the avatar the page
 steps, `mirror_avatar.browser.browser_arrays`), ``go``, ``frame`` (once per tick: the sample
 ``k``, the visible players' positions and the trial's progress), ``end`` (the trial's metrics
-when the researcher shows them), ``state`` (waiting, paused, ended) and ``error``. A participant
-cannot control the session: no message it sends does more than move its own point (and the
-avatar its page steps).
+when the researcher shows them), ``state`` (waiting, paused, ended), ``notice`` (one line to
+show the participant: `mirror_avatar.lab.running.screening`), ``refused`` and ``error``. A
+participant cannot control the session: no message it sends does more than move its own point
+(and the avatar its page steps).
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ from dataclasses import dataclass
 from mirror_avatar.files.trials import PLAYING_RANGE
 from mirror_avatar.files.user_files import is_int
 from mirror_avatar.lab.running.page_avatar import PageStep
+from mirror_avatar.realtime.interruptions import EVENTS
 from mirror_avatar.realtime.messages import (
     PositionUpdate,
     ProtocolError,
@@ -111,8 +116,27 @@ class ClockReport:
     t3: float
 
 
+@dataclass(frozen=True)
+class FocusChange:
+    """The page's tab hidden or shown, or its window blurred or focused (``event``), at ``t_ms``.
+
+    ``t_ms``: ms, the page's clock; ``event``: one of
+    `mirror_avatar.realtime.interruptions.EVENTS`.
+    """
+
+    event: str
+    t_ms: float
+
+
 ParticipantMessage = (
-    PositionUpdate | AvatarPosition | Pong | Answer | PointerBatch | ClockRequest | ClockReport
+    PositionUpdate
+    | AvatarPosition
+    | Pong
+    | Answer
+    | PointerBatch
+    | ClockRequest
+    | ClockReport
+    | FocusChange
 )
 
 
@@ -135,6 +159,11 @@ def parse_participant_message(text: str | bytes | None) -> ParticipantMessage:
         return ClockRequest(_count(data, "id"), number_field(data, "t0", "clock"))
     if kind == "clocked":
         return ClockReport(_count(data, "id"), number_field(data, "t3", "clocked"))
+    if kind == "focus":
+        event = data.get("event")
+        if event not in EVENTS:
+            raise ProtocolError(f"focus: 'event' must be one of {', '.join(EVENTS)}")
+        return FocusChange(str(event), number_field(data, "t", "focus"))
     if kind == "pong":
         return Pong(_count(data, "id"), _count(data, "late_frames"))
     if kind == "answer":

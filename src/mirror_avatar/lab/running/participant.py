@@ -56,6 +56,9 @@ class Participant:
     refused
         Why the person was screened out (`mirror_avatar.lab.running.sessions.Lab.refuse`), one
         line their page shows, or None: a refused person's link shows only that.
+    entry_rtt_p95_ms
+        The 95th percentile (ms) of their first page's round trips at entry, once judged
+        (`mirror_avatar.lab.running.screening`), or None.
     """
 
     def __init__(self, index: int, label: str, device: str, visible: list[int]) -> None:
@@ -75,6 +78,7 @@ class Participant:
         self.panel: dict[str, str] = {}
         self.consented: str | None = None
         self.refused: str | None = None
+        self.entry_rtt_p95_ms: float | None = None
 
     @property
     def connected(self) -> bool:

@@ -3,23 +3,27 @@
 A join link holds the secret key of one person's slot in one session; its page's WebSocket
 (`join_socket`) replaces an earlier page of the same link, and is closed when the key is not
 valid or its session has ended. Messages are those of `mirror_avatar.lab.running.messages`, rate
-limited per connection (`mirror_avatar.realtime.inbox.Inbox`).
+limited per connection (`mirror_avatar.realtime.inbox.Inbox`). The page's person is screened as
+the protocol declares (`mirror_avatar.lab.running.screening`): on the round trips of their first
+page's first clock exchanges, and on their tab hidden during a trial.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 import time
 
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from mirror_avatar.lab.running.consent import needs_consent
+from mirror_avatar.lab.running.consent import needs_consent, online_of
 from mirror_avatar.lab.running.messages import (
     Answer,
     AvatarPosition,
     ClockReport,
     ClockRequest,
+    FocusChange,
     ParticipantMessage,
     PointerBatch,
     Pong,
@@ -27,9 +31,17 @@ from mirror_avatar.lab.running.messages import (
 )
 from mirror_avatar.lab.running.participant import Participant
 from mirror_avatar.lab.running.runner import LabSession
-from mirror_avatar.lab.running.sessions import CLOSE_REFUSED, Lab, LabSettings, refusal
+from mirror_avatar.lab.running.screening import (
+    BACK_NOTICE,
+    ENTRY_EXCHANGES,
+    HIDDEN_REFUSAL,
+    entry_refusal,
+    round_trip_p95,
+)
+from mirror_avatar.lab.running.sessions import CLOSE_REFUSED, Lab, refusal
 from mirror_avatar.realtime.inbox import Inbox
 from mirror_avatar.realtime.inputs import BrowserInput
+from mirror_avatar.realtime.interruptions import KINDS
 from mirror_avatar.realtime.latency import Pings
 from mirror_avatar.realtime.outbox import Outbox, Peer, encode_message
 
@@ -57,21 +69,27 @@ async def join_socket(lab: Lab, websocket: WebSocket) -> None:
     if isinstance(previous, WebSocket):  # it may be gone already, or closing for another page
         with contextlib.suppress(RuntimeError, OSError, WebSocketDisconnect):
             await previous.close(CLOSE_REPLACED, "this link was opened on another page")
-    page = ParticipantPage(lab.settings, session, participant, websocket)
+    page = ParticipantPage(lab, session, participant, websocket)
     await page.run()
 
 
 class ParticipantPage:
-    """One participant page's connection: receive positions and pongs, ping, send frames."""
+    """One participant page's connection: receive positions and pongs, ping, send frames.
+
+    ``entry_delays`` holds the round trips (ms) of the connection's clock exchanges until the
+    person's entry is judged; ``interrupted`` the kinds of interruption that began during a trial
+    and have not ended.
+    """
 
     def __init__(
-        self,
-        settings: LabSettings,
-        session: LabSession,
-        participant: Participant,
-        websocket: WebSocket,
+        self, lab: Lab, session: LabSession, participant: Participant, websocket: WebSocket
     ) -> None:
+        settings = lab.settings
+        self.lab = lab
         self.settings = settings
+        self.screening = online_of(session).screening
+        self.entry_delays: list[float] = []
+        self.interrupted: set[str] = set()
         self.session = session
         self.participant = participant
         self.websocket = websocket
@@ -117,6 +135,9 @@ class ParticipantPage:
         if isinstance(message, ClockRequest | ClockReport | PointerBatch):
             if isinstance(source, BrowserInput):
                 self._clocked(source, message, received_ms)
+        elif isinstance(message, FocusChange):
+            if isinstance(source, BrowserInput):
+                self._focus(source, message, received_ms)
         elif isinstance(message, Answer):
             problem = self.session.answer(participant, message)
             if problem is not None:
@@ -141,7 +162,9 @@ class ParticipantPage:
         if isinstance(message, ClockRequest):
             self.outbox.put_timed(lambda: self._clock_reply(source, message, received_ms))
         elif isinstance(message, ClockReport):
-            source.clock.complete(message.id, message.t3)
+            exchange = source.clock.complete(message.id, message.t3)
+            if exchange is not None:
+                self._screen_entry(exchange.delay)
         else:
             source.put_batch(message.seq, message.sent_ms, message.samples, received_ms / 1000.0)
 
@@ -153,3 +176,50 @@ class ParticipantPage:
         source.clock.answer(request.id, request.t0, received_ms, sent_ms)
         times = {"t0": request.t0, "t1": received_ms, "t2": sent_ms}
         return {"type": "clock", "id": request.id} | times
+
+    def _screen_entry(self, delay_ms: float) -> None:
+        """Judge the person's entry on their page's first `ENTRY_EXCHANGES` round trips (ms).
+
+        Judged once a person: a page that reconnects is not judged again.
+        """
+        participant, bound = self.participant, self.screening.round_trip_p95_ms
+        if bound is None or participant.entry_rtt_p95_ms is not None:
+            return
+        self.entry_delays.append(delay_ms)
+        if len(self.entry_delays) < ENTRY_EXCHANGES:
+            return
+        p95 = participant.entry_rtt_p95_ms = round_trip_p95(self.entry_delays)
+        reason = entry_refusal(self.entry_delays, bound)
+        if reason is None:
+            self.session.log(f"{participant.label} admitted: round trip p95 {p95:.0f} ms")
+            return
+        measured = {
+            "rtt_p95_ms": p95,
+            "bound_ms": bound,
+            "rtt_ms": [round(delay, 3) for delay in self.entry_delays],
+        }
+        self.lab.refuse(participant.key, reason, measured)
+
+    def _focus(self, source: BrowserInput, change: FocusChange, received_ms: float) -> None:
+        """Record the page's tab hidden or shown, its window blurred or focused.
+
+        Its time is the page's, mapped onto the server's clock (the receipt's before the first
+        clock exchange). An interruption that begins during a trial is logged, and refuses the
+        person when it is a hidden tab and the protocol says so; when it ends, the person is
+        told `BACK_NOTICE`.
+        """
+        at_s = source.clock.to_server(change.t_ms)
+        at_s = received_ms / 1000.0 if math.isnan(at_s) else at_s
+        ended = source.interruptions.event(change.event, at_s)
+        participant, trial = self.participant, self.session.playing_in(self.participant)
+        if change.event in KINDS and trial is not None and change.event not in self.interrupted:
+            self.interrupted.add(change.event)
+            self.session.log(f"{participant.label}: {change.event} during trial {trial.n}")
+            if change.event == "hidden" and self.screening.hidden_tab == "refuse":
+                measured = {"trial": trial.n, "hidden_at_s": at_s}
+                self.lab.refuse(participant.key, HIDDEN_REFUSAL, measured)
+        elif ended is not None and ended[0] in self.interrupted:
+            self.interrupted.discard(ended[0])
+            kind, start_s, end_s = ended
+            self.session.log(f"{participant.label}: back after {end_s - start_s:.1f} s ({kind})")
+            self.outbox.put({"type": "notice", "message": BACK_NOTICE})

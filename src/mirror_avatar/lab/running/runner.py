@@ -186,9 +186,8 @@ class LabSession:
         participant.outbox = None
         participant.connection = None
         outbox.close()
-        trial = self.trial
-        playing = participant in self.participants.values()
-        if trial is not None and self.state == "running" and playing:
+        trial = self.playing_in(participant)
+        if trial is not None:
             trial.mark_dropped(participant.label)
             self.log(f"{participant.label} dropped at sample {trial.k} of trial {trial.n}")
             self._mark(f"{participant.label} dropped")
@@ -196,6 +195,12 @@ class LabSession:
                 self._stop_reason = f"{participant.label} dropped"
         else:
             self.log(f"{participant.label} left")
+
+    def playing_in(self, participant: Participant) -> LabTrial | None:
+        """Return the trial running with ``participant`` in it, or None."""
+        trial = self.trial
+        playing = participant in self.participants.values()
+        return trial if trial is not None and self.state == "running" and playing else None
 
     def missing(self) -> list[str]:
         """Labels of the people whose page has not joined (LSL devices are opened at start)."""

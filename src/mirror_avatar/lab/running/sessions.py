@@ -9,6 +9,7 @@ the session lasts.
 from __future__ import annotations
 
 import asyncio
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -23,11 +24,14 @@ from mirror_avatar.lab.design.protocol import Protocol
 from mirror_avatar.lab.running.participant import Participant
 from mirror_avatar.lab.running.runner import LabSession, Outlet
 from mirror_avatar.lab.running.schedule import OnePlan
+from mirror_avatar.lab.running.screening import record_refusal
 from mirror_avatar.lab.running.study import ParticipantRun, study_folder
 from mirror_avatar.players.base import Player
 from mirror_avatar.realtime.inputs import InputSource
 from mirror_avatar.realtime.settings import PageSettings
 from mirror_avatar.realtime.trial import Clock
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -174,12 +178,15 @@ class Lab:
         for participant in session.everyone():
             self.keys[participant.key] = (session, participant)
 
-    def refuse(self, key: str, reason: str) -> bool:
+    def refuse(self, key: str, reason: str, measured: dict[str, Any] | None = None) -> bool:
         """End the visit of the person whose join key is ``key``: they are screened out.
 
         Their page is sent `refusal` (why, in one line, and the protocol's refusal code or link)
-        and closed, now if it is connected, and each time their link is opened again. Returns
-        whether the key names a person of an open session.
+        and closed, now if it is connected, and each time their link is opened again. The
+        refusal, with what was ``measured`` of the person (by name), is logged and written to
+        ``refusal-<label>.json`` in the run's folder, in a worker thread
+        (`mirror_avatar.lab.running.screening.record_refusal`). Returns whether the key names a
+        person of an open session.
         """
         found = self.find(key)
         if found is None:
@@ -190,6 +197,10 @@ class Lab:
             participant.outbox.put(refusal(session, reason))
             participant.outbox.end(CLOSE_REFUSED, "screened out")
         session.log(f"{participant.label} screened out: {reason}")
+        writing = asyncio.get_running_loop().run_in_executor(
+            None, record_refusal, session.directory, participant.label, reason, measured or {}
+        )
+        writing.add_done_callback(_report_unwritten)
         return True
 
     def find(self, key: str) -> tuple[LabSession, Participant] | None:
@@ -205,6 +216,13 @@ class Lab:
         ended = [sid for sid, session in self.sessions.items() if session.ended]
         for sid in ended[: max(0, len(ended) - KEEP_ENDED)]:
             del self.sessions[sid]
+
+
+def _report_unwritten(writing: asyncio.Future[None]) -> None:
+    """Log a refusal's file that could not be written (the refusal itself stands)."""
+    error = writing.exception()
+    if error is not None:
+        logger.warning("a refusal was not written to its file: %s", error)
 
 
 CLOSE_REFUSED = 4003

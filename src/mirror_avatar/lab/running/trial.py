@@ -152,11 +152,14 @@ class PointerLog:
 def page_record(source: BrowserInput, start_s: float, end_s: float) -> dict[str, Any]:
     """Return what the sidecar records of a page's clock and rates.
 
-    Its clock (`mirror_avatar.realtime.page_clock.PageClock.summary`) and rates
-    (`mirror_avatar.realtime.inputs.BrowserInput.rates`) between server times ``start_s`` and
-    ``end_s`` (s).
+    Its clock (`mirror_avatar.realtime.page_clock.PageClock.summary`), rates
+    (`mirror_avatar.realtime.inputs.BrowserInput.rates`) and interruptions (its tab hidden, its
+    window out of focus: `mirror_avatar.realtime.interruptions.Interruptions.between`, the key
+    absent when there were none) between server times ``start_s`` and ``end_s`` (s).
     """
-    return source.clock.summary(start_s, end_s) | source.rates(start_s, end_s)
+    interruptions = source.interruptions.between(start_s, end_s)
+    page = source.clock.summary(start_s, end_s) | source.rates(start_s, end_s)
+    return page | ({"interruptions": interruptions} if interruptions else {})
 
 
 class LabTrial(ClockedTrial):

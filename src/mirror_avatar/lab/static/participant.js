@@ -18,6 +18,7 @@
     overlay: document.getElementById("overlay"),
     message: document.getElementById("message"),
     bar: document.getElementById("progress-bar"),
+    notice: document.getElementById("notice"),
   };
   const key = location.pathname.split("/").pop();
   const me = { x: 0, seq: 0, keys: new Set(), lastFrame: null, lateFrames: 0 };
@@ -174,6 +175,13 @@
     }
   }
 
+  // One line the server tells the participant (their tab came back during a trial), kept until
+  // the next trial starts.
+  function notify(text) {
+    ui.notice.textContent = text;
+    ui.notice.hidden = !text;
+  }
+
   function refuse(message) {
     refused = ended = true;
     ui.task.textContent = ui.who.textContent = "";
@@ -236,7 +244,7 @@
         say(String(message.remaining));
         break;
       case "avatar": buildAvatar(message); break;
-      case "go": say(""); ui.bar.style.width = "0%"; break;
+      case "go": say(""); notify(""); ui.bar.style.width = "0%"; break;
       case "frame":
         welcome.visible.forEach((player, i) => {
           if (i > 0 && !(pageAvatar && player.index === pageAvatar.index)) others.set(player.index, message.x[i]);
@@ -253,6 +261,7 @@
       }
       case "questions": ask(message); break;
       case "refused": refuse(message); break;
+      case "notice": notify(message.message); break;
       case "state":
         if (message.state === "finished" || message.state === "aborted") finish(message.state);
         else say(message.message);
@@ -389,7 +398,12 @@
   canvas.addEventListener("pointerdown", (event) => { me.x = mirrorClock.read(event, fromClient); });
   window.addEventListener("keydown", (event) => { if (KEYS[event.key]) { me.keys.add(KEYS[event.key]); event.preventDefault(); } });
   window.addEventListener("keyup", (event) => me.keys.delete(KEYS[event.key]));
-  window.addEventListener("blur", () => me.keys.clear());
+  // The tab hidden or shown, the window blurred or focused, each with the page's own time: the
+  // server records them (mirror_avatar.realtime.interruptions).
+  const focusChange = (name) => send({ type: "focus", event: name, t: mirrorClock.now() });
+  document.addEventListener("visibilitychange", () => focusChange(document.visibilityState === "hidden" ? "hidden" : "visible"));
+  window.addEventListener("blur", () => { me.keys.clear(); focusChange("blur"); });
+  window.addEventListener("focus", () => focusChange("focus"));
   resize();
   introduce();
   requestAnimationFrame(animate);

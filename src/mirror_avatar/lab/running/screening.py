@@ -1,0 +1,67 @@
+"""Screening a participant as the protocol declares it: round trips at entry, a hidden tab.
+
+As docs/METHODS.md, section 9 (*Screening*), describes. A protocol's ``[online]`` table
+(`mirror_avatar.lab.design.online.Screening`) may bound the 95th percentile of a page's round
+trips over its first `ENTRY_EXCHANGES` clock exchanges (the burst the page sends as it connects,
+``clock.js``): a page above it is refused (`entry_refusal`, one line naming both numbers). A tab
+hidden or a window out of focus during a trial is recorded in the trial's sidecar
+(`mirror_avatar.realtime.interruptions`) and the person told `BACK_NOTICE` when they come back;
+with ``screen_hidden_tab = "refuse"`` a tab hidden during a trial refuses the person instead
+(`HIDDEN_REFUSAL`; a window out of focus alone never does: a click on the browser's own bar
+takes the focus). Every refusal is written to ``refusal-<label>.json`` in the run's folder
+(`record_refusal`) and the session's log.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mirror_avatar.files.atomic import write_atomic_json
+
+ENTRY_EXCHANGES = 100
+"""Clock exchanges a page's entry is judged on: the burst it sends as it connects
+(``BURST`` in ``clock.js``)."""
+
+BACK_NOTICE = "The study needs this tab visible during trials."
+"""What a person is told when their tab or window comes back during, or after, a trial."""
+
+HIDDEN_REFUSAL = "Your tab was hidden during a trial; the study needs it visible throughout."
+"""Why a person is refused whose tab was hidden during a trial (``screen_hidden_tab =
+"refuse"``)."""
+
+
+def round_trip_p95(delays_ms: Sequence[float]) -> float:
+    """Return the 95th percentile (ms) of round trips ``delays_ms`` (ms; linear interpolation)."""
+    return float(np.percentile(np.asarray(delays_ms, dtype=float), 95))
+
+
+def entry_refusal(delays_ms: Sequence[float], bound_ms: float) -> str | None:
+    """Return why a page is refused at entry, or None when it is admitted.
+
+    Parameters
+    ----------
+    delays_ms
+        The round trips (ms) of the page's first clock exchanges.
+    bound_ms
+        The protocol's ``screen_round_trip_p95_ms`` (ms): a 95th percentile above it refuses.
+    """
+    p95 = round_trip_p95(delays_ms)
+    if p95 <= bound_ms:
+        return None
+    return f"Your connection's round trip (p95 {p95:.0f} ms) is above the study's {bound_ms:g} ms."
+
+
+def refusal_path(directory: Path, label: str) -> Path:
+    """Return the file of a person's refusal in a run's folder."""
+    return directory / f"refusal-{label}.json"
+
+
+def record_refusal(directory: Path, label: str, reason: str, measured: dict[str, Any]) -> None:
+    """Write the person's refusal (why, when in UTC, what was measured) to their file (blocking)."""
+    record = {"label": label, "reason": reason, "utc": datetime.now(UTC).isoformat()}
+    write_atomic_json(refusal_path(directory, label), record | measured)

@@ -1,0 +1,153 @@
+"""Screening declared in the protocol, through the real lab server: a page whose round trips at
+entry are above the bound refused with both numbers, the refusal in its file and the log; a tab
+hidden during a trial recorded in the sidecar and the person told on return, or refused."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import websockets
+from test_lab_online import opened, solo_protocol
+from test_lab_server import BEARER, TOKEN, Page, socket_url, status
+from test_lab_study import create_participant, play_to_the_end
+
+from mirror_avatar.lab.design.protocol import load_protocol
+from mirror_avatar.lab.running.screening import BACK_NOTICE, ENTRY_EXCHANGES, HIDDEN_REFUSAL
+from mirror_avatar.lab.running.server import LabSettings, create_lab_app
+from mirror_avatar.lab.running.sessions import CLOSE_REFUSED
+from mirror_avatar.testing import ServerThread
+
+
+def protocol(hidden_tab: str) -> str:
+    """A one-trial protocol screening at 150 ms and treating a hidden tab as ``hidden_tab``."""
+    online = f"""[online]
+refusal_code = "NOFIT123"
+screen_round_trip_p95_ms = 150
+screen_hidden_tab = "{hidden_tab}"
+"""
+    return solo_protocol("screened study", 5, online, 3)
+
+
+def serve(tmp_path: Path, hidden_tab: str) -> ServerThread:
+    path = tmp_path / f"screened-{hidden_tab}.toml"
+    path.write_text(protocol(hidden_tab))
+    settings = LabSettings(
+        out_dir=tmp_path / "out", token=TOKEN, countdown=1, protocol=load_protocol(path)
+    )
+    return ServerThread(create_lab_app(settings))
+
+
+@pytest.fixture
+def lab(tmp_path: Path) -> Iterator[ServerThread]:
+    with serve(tmp_path, "record") as running:
+        yield running
+
+
+async def exchanged(link: str, delay_ms: float, stay: bool) -> list[dict[str, Any]]:
+    """Make the page's `ENTRY_EXCHANGES` clock exchanges, 20 ms apart as ``clock.js`` does, as
+    a page whose answers arrive ``delay_ms`` after its requests leave (its own clock says so).
+
+    Then read until the socket closes (``stay``), or leave half a second after the last report.
+    """
+    received: list[dict[str, Any]] = []
+    async with asyncio.timeout(60), websockets.connect(socket_url(link)) as page:
+
+        async def request() -> None:
+            for n in range(1, ENTRY_EXCHANGES + 1):
+                await page.send(json.dumps({"type": "clock", "id": n, "t0": 1000.0 * n}))
+                await asyncio.sleep(0.02)
+
+        requests = asyncio.create_task(request())
+        answered = 0
+        with contextlib.suppress(websockets.ConnectionClosed):
+            async for text in page:
+                message = json.loads(text)
+                received.append(message)
+                if message["type"] == "clock":
+                    t3 = message["t0"] + delay_ms
+                    await page.send(json.dumps({"type": "clocked", "id": message["id"], "t3": t3}))
+                    answered += 1
+                if answered == ENTRY_EXCHANGES and not stay:
+                    await asyncio.sleep(0.5)
+                    break
+        await requests
+    return received
+
+
+def test_a_page_at_300_ms_is_refused_at_entry_with_both_numbers(lab, tmp_path):
+    created = create_participant(lab.url, 0, BEARER)
+    sid, link = created["id"], created["links"]["P1"]
+    received = asyncio.run(exchanged(link, 300.0, stay=True))
+    (refused,) = [m for m in received if m["type"] == "refused"]
+    # the round trip the server measures is the page's 300 ms less its own time to answer
+    assert refused["message"].startswith("Your connection's round trip (p95 ")
+    p95 = int(refused["message"].split("p95 ")[1].split(" ms")[0])
+    assert 290 <= p95 <= 300
+    assert refused["message"].endswith(" ms) is above the study's 150 ms.")
+    assert refused["code"] == "NOFIT123"
+    record = json.loads((tmp_path / "out" / sid / "refusal-P1.json").read_text())
+    assert record["reason"] == refused["message"] and record["bound_ms"] == 150
+    assert len(record["rtt_ms"]) == 100 and round(record["rtt_p95_ms"]) == p95
+    assert any("P1 screened out: Your connection's" in e for e in status(lab, sid)["events"])
+    assert asyncio.run(opened(link)) == ([refused], CLOSE_REFUSED)
+
+
+def test_a_page_within_the_bound_is_admitted_and_not_judged_again(lab):
+    created = create_participant(lab.url, 1, BEARER)
+    sid, link = created["id"], created["links"]["P1"]
+
+    for _ in range(2):
+        received = asyncio.run(exchanged(link, 40.0, stay=False))
+        assert not [m for m in received if m["type"] == "refused"]
+    admitted = [e for e in status(lab, sid)["events"] if "admitted" in e]
+    assert len(admitted) == 1 and "P1 admitted: round trip p95 " in admitted[0]
+
+
+class HidingPage(Page):
+    """A page whose tab is hidden for ``hidden_s`` seconds once the trial starts."""
+
+    hidden_s = 0.6
+
+    async def on_message(self, socket: Any, message: dict[str, Any]) -> None:
+        await super().on_message(socket, message)
+        if message["type"] == "go":
+            asyncio.get_running_loop().create_task(self._hide(socket))
+
+    async def _hide(self, socket: Any) -> None:
+        await socket.send(json.dumps({"type": "focus", "event": "hidden", "t": 0.0}))
+        await asyncio.sleep(self.hidden_s)
+        await socket.send(json.dumps({"type": "focus", "event": "visible", "t": 1.0}))
+
+
+def test_a_tab_hidden_during_a_trial_is_recorded_and_the_person_told(lab, tmp_path):
+    created = create_participant(lab.url, 2, BEARER)
+    sid, link = created["id"], created["links"]["P1"]
+    page = HidingPage(link)
+    play_to_the_end(lab, sid, [page])
+    assert page.of_type("notice") == [{"type": "notice", "message": BACK_NOTICE}]
+    sidecar = json.loads((tmp_path / "out" / sid / "trial-01_session.json").read_text())
+    (hidden,) = sidecar["metadata"]["pages"]["P1"]["interruptions"]
+    # this page never exchanged clocks: its events are timed on their receipt
+    assert hidden["kind"] == "hidden" and 0.5 <= hidden["end_s"] - hidden["start_s"] <= 3.0
+    events = status(lab, sid)["events"]
+    assert any("P1: hidden during trial 1" in e for e in events)
+    assert any("P1: back after" in e for e in events)
+
+
+def test_a_tab_hidden_during_a_trial_refuses_the_person_when_the_protocol_says_so(tmp_path):
+    with serve(tmp_path, "refuse") as lab:
+        created = create_participant(lab.url, 0, BEARER)
+        sid, link = created["id"], created["links"]["P1"]
+        page = HidingPage(link)
+        play_to_the_end(lab, sid, [page], force=True)
+    (refused,) = page.of_type("refused")
+    assert refused["message"] == HIDDEN_REFUSAL and refused["code"] == "NOFIT123"
+    assert page.closed is not None and page.closed.rcvd.code == CLOSE_REFUSED
+    record = json.loads((tmp_path / "out" / sid / "refusal-P1.json").read_text())
+    assert record["reason"] == HIDDEN_REFUSAL and record["trial"] == 1
