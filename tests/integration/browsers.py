@@ -73,6 +73,7 @@ def assert_matches(recorded: np.ndarray, driven: np.ndarray) -> None:
     gives them, ``driven`` as the tests' ``drive`` stamps its moves.
     """
     during = (recorded[:, 0] >= driven[0, 0]) & (recorded[:, 0] <= driven[-1, 0])
+    assert during.any(), "no sample was recorded while the mouse was driven"
     error = mismatch(recorded[during], driven)
     step = np.abs(np.diff(driven[:, 1])).max()
     # exact (sub-pixel) for most samples; a sample taken as the pointer moves is one step off,

@@ -185,6 +185,7 @@
   function refuse(message) {
     refused = ended = true;
     ui.task.textContent = ui.who.textContent = "";
+    canvas.hidden = true;  // no playing field behind the reason and the code
     say(message.message);
     showEnding(message, { code: "Your code:", link: "Return to the study's site" });
   }
