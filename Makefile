@@ -31,20 +31,25 @@ docs-tables: $(STAMP)
 	$(BIN)/python docs/keys.py
 
 # The tests print their 15 slowest; `check` is the inner loop (lint and the unit tests).
-# WORKERS: one test process per core (more left real-time trials late enough to end them on
-# two cores); a worker that runs out of tests takes half of another's queue (worksteal), so no
-# worker is left with a backlog at the end.
+# WORKERS: one test process per core; a worker that runs out of tests takes half of another's
+# queue (worksteal), so no worker is left with a backlog at the end. The tests whose trials run
+# on the wall clock (browser, realtime) run after the others, one at a time: beside a worker's
+# CPU-bound tests on two cores, a lab server's ticks fell seconds behind and ended its trials.
 WORKERS ?= $(shell nproc)
-PYTEST := $(BIN)/pytest -p no:cacheprovider --durations=15 -n $(WORKERS) --dist worksteal
+PYTEST := $(BIN)/pytest -p no:cacheprovider --durations=15
+PARALLEL := $(PYTEST) -n $(WORKERS) --dist worksteal
+ON_THE_CLOCK := browser or realtime
 
 check: lint
-	$(PYTEST) -m "not slow" tests/unit
+	$(PARALLEL) -m "not slow" tests/unit
 
 test: lint docs
-	$(PYTEST) -m "not slow"
+	$(PARALLEL) -m "not slow and not ($(ON_THE_CLOCK))"
+	$(PYTEST) -m "not slow and ($(ON_THE_CLOCK))"
 
 test-all: lint docs
-	$(PYTEST)
+	$(PARALLEL) -m "not ($(ON_THE_CLOCK))"
+	$(PYTEST) -m "$(ON_THE_CLOCK)"
 
 # Each optional extra on a fresh virtual environment, with the commands it serves (minutes of
 # installing from the registries, so not part of `test`; .ci/run runs it after `make test`).

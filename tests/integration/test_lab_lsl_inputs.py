@@ -21,6 +21,8 @@ from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 
+pytestmark = pytest.mark.realtime
+
 pylsl = pytest.importorskip("pylsl")
 
 

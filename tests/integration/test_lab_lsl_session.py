@@ -24,6 +24,8 @@ from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 
+pytestmark = pytest.mark.realtime
+
 pylsl = pytest.importorskip("pylsl")
 
 AMPLITUDE_MM, FREQUENCY_HZ, PHASE, RATE_HZ = 150.0, 0.5, 0.7, 250.0

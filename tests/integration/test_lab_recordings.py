@@ -14,6 +14,8 @@ from lab_recordings import RECORDED, record
 
 from snapshots import LAST_DIGIT, assert_close, perturb_file, read_snapshot
 
+pytestmark = pytest.mark.realtime
+
 MOST_FRAMES_DROPPED = 0.1
 """Share of a page's frames that may be superseded before they were sent (a busy machine)."""
 

@@ -20,6 +20,8 @@ from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.testing import ServerThread
 
+pytestmark = pytest.mark.realtime
+
 pylsl = pytest.importorskip("pylsl")
 
 PROTOCOL = """
