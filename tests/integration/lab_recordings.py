@@ -97,7 +97,10 @@ def masked(value: Any) -> Any:
     if isinstance(value, dict):
         if "event" in value and "sample" in value:  # an input lost or live again
             value = value | {"sample": "*"}
-        return {k: "*" if k in TIMING_KEYS else masked(v) for k, v in value.items()}
+        out = {k: "*" if k in TIMING_KEYS else masked(v) for k, v in value.items()}
+        if isinstance(out.get("input_events"), list):  # pages' events arrive in either order
+            out["input_events"] = sorted(out["input_events"], key=lambda e: str(e.get("label")))
+        return out
     if isinstance(value, list):
         return [masked(v) for v in value]
     return value
