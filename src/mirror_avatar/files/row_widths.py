@@ -2,9 +2,10 @@
 
 A CSV or TSV reader that picks columns by position (pandas' ``usecols``) fills a short row's
 missing cells with NaN and drops a long row's extra cells, so a ragged file reads as if whole.
-`ragged_line` finds the first line whose number of cells differs from the expected width, in
-blocks of `BLOCK_BYTES`, so memory stays constant whatever the file's size: the separators of
-each line are counted with numpy (`numpy.add.reduceat` over the line's bytes).
+`ragged_line` finds the first line holding more cells than expected, or fewer, in blocks of
+`BLOCK_BYTES`, so memory stays constant whatever the file's size: only the positions of the
+separators and line ends are kept, and each line's separators are counted between its ends
+(`numpy.searchsorted`).
 
 Blank lines (nothing but spaces and carriage returns) are skipped, as the readers skip them. A
 last line without its line end (a recording cut off, e.g. by a crash) may be short: its missing
