@@ -68,10 +68,11 @@ def ragged_line(
         for lines, complete in _blocks_of_lines(file):
             if np.any(lines == QUOTE):
                 return _ragged_quoted(path, sep, span, max_bytes)
-            found = _ragged_in(lines, ord(sep), span, complete)
+            ends = np.flatnonzero(lines == NEWLINE)
+            found = _ragged_in(lines, ends, ord(sep), span, complete)
             if found is not None:
                 return number + 1 + found[0], found[1]
-            number += int(np.count_nonzero(lines == NEWLINE))
+            number += ends.size
     return None
 
 
@@ -89,14 +90,18 @@ def _blocks_of_lines(file: IO[bytes]) -> Iterator[tuple[NDArray[np.uint8], bool]
 
 
 def _ragged_in(
-    lines: NDArray[np.uint8], sep: int, span: tuple[int, int], complete: bool
+    lines: NDArray[np.uint8],
+    ends: NDArray[np.intp],
+    sep: int,
+    span: tuple[int, int],
+    complete: bool,
 ) -> tuple[int, int] | None:
     """Return a block's first line outside ``span`` cells (index from 0, cells), or None.
 
-    Only the positions of separators, line ends, spaces and carriage returns are kept (a few
-    per line), so the block's bytes are not widened.
+    ``ends`` are the positions of the block's line ends. Only the positions of separators,
+    line ends, spaces and carriage returns are kept (a few per line), so the block's bytes
+    are not widened.
     """
-    ends = np.flatnonzero(lines == NEWLINE)
     if not complete:
         ends = np.append(ends, lines.size)
     starts = np.concatenate(([0], ends[:-1] + 1))
