@@ -150,6 +150,16 @@ def wait_trial_listed(console: Any, n: int, timeout: float = 30_000) -> str:
     return console.locator("#trial-list tbody tr").nth(n - 1).inner_text()
 
 
+def stop_trial(console: Any) -> None:
+    """Stop the running trial from the console; fail with its listed end if it ended first."""
+    state = console.text_content("#state")
+    if state != "running":
+        rows = console.locator("#trial-list tbody tr")
+        listed = rows.last.inner_text() if rows.count() else console.text_content("#events")
+        raise AssertionError(f"the trial was {state} before the test stopped it: {listed}")
+    console.click("#stop")
+
+
 def screenshot(page: Any, name: str) -> None:
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=SCREENSHOTS / f"{name}.png", full_page=True)
@@ -443,7 +453,7 @@ def test_group_of_four_on_a_ring_two_people_two_avatars(chromium, lab, tmp_path)
 
     driven = drive(pages, {"P1": 0.0, "P2": 0.1}, 7.5, shoot)
     assert 0.0 <= float(group_sync[0]) <= 1.0
-    console.click("#stop")
+    stop_trial(console)
     row = wait_trial_listed(console, 1, timeout=60_000)
     assert "stopped by the researcher" in row and "ρg" in row, row
     slots = console.locator("#slots").inner_text()
@@ -491,7 +501,7 @@ def test_killing_a_participants_browser_marks_them_dropped(playwright, chromium,
         timeout=60_000,
     )
     screenshot(console, "lab-console-dropped")
-    console.click("#stop")
+    stop_trial(console)
     row = wait_trial_listed(console, 1, timeout=60_000)
     assert "P2 dropped at" in row and "stopped by the researcher" in row, row
     sidecar = session_dir(tmp_path) / "trial-01_session.json"
@@ -563,7 +573,7 @@ def test_a_dyad_over_https_with_the_servers_own_certificate(chromium, tmp_path):
         start_when_joined(console, 2)
         pages["P2"].wait_for_function("window.mirrorLab.others.size === 1", timeout=60_000)
         driven = drive(pages, {"P1": 0.0, "P2": 0.25}, 3.0)
-        console.click("#stop")
+        stop_trial(console)
         row = wait_trial_listed(console, 1, timeout=60_000)
         assert "stopped by the researcher" in row, row
         for page in (console, *pages.values()):  # the browser closes its TLS connections first
