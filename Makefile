@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 OUT ?= output/demo
 
-.PHONY: demo check test test-all extras bench lint docs docs-tables clean clean-cache
+.PHONY: demo check test test-long test-all extras bench lint docs docs-tables clean clean-cache
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -31,6 +31,10 @@ docs-tables: $(STAMP)
 	$(BIN)/python docs/keys.py
 
 # The tests print their 15 slowest; `check` is the inner loop (lint and the unit tests).
+# Three tiers: `make test` (about 10 minutes on two cores) leaves out the tests marked `long`
+# (end-to-end runs of seconds to a minute each: avatar builds, pilots, reproduce, the cluster, the
+# longer browser flows), which `make test-long` runs and CI runs after it, and `slow` (minutes of
+# work each), which only `make test-all` runs.
 # WORKERS: one test process per core; a worker that runs out of tests takes half of another's
 # queue (worksteal), so no worker is left with a backlog at the end. The tests whose trials run
 # on the wall clock (browser, realtime) run after the others, one at a time: beside a worker's
@@ -40,16 +44,24 @@ PYTEST := $(BIN)/pytest -p no:cacheprovider --durations=15
 PARALLEL := $(PYTEST) -n $(WORKERS) --dist worksteal
 ON_THE_CLOCK := browser or realtime
 
+# The tests of a tier ($(1): a marker expression), the ones on the wall clock last, one at a time.
+define tier
+	$(PARALLEL) -m "($(1)) and not ($(ON_THE_CLOCK))"
+	$(PYTEST) -m "($(1)) and ($(ON_THE_CLOCK))"
+endef
+
 check: lint
-	$(PARALLEL) -m "not slow" tests/unit
+	$(PARALLEL) -m "not slow and not long" tests/unit
 
 test: lint docs
-	$(PARALLEL) -m "not slow and not ($(ON_THE_CLOCK))"
-	$(PYTEST) -m "not slow and ($(ON_THE_CLOCK))"
+	$(call tier,not slow and not long)
+
+test-long: $(STAMP)
+	$(call tier,long and not slow)
 
 test-all: lint docs
-	$(PARALLEL) -m "not ($(ON_THE_CLOCK))"
-	$(PYTEST) -m "$(ON_THE_CLOCK)"
+	$(call tier,not slow and not long)
+	$(call tier,long or slow)
 
 # Each optional extra on a fresh virtual environment, with the commands it serves (minutes of
 # installing from the registries, so not part of `test`; .ci/run runs it after `make test`).

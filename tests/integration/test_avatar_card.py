@@ -39,6 +39,7 @@ def card(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+@pytest.mark.long
 def test_the_card_flags_a_follower_far_from_its_person(card: Path) -> None:
     held = load_avatar(card).summary["proof"]["held_out"]
     assert held["folds"] == [["slow-1"], ["slow-2"], ["slow-3"]]

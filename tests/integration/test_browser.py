@@ -267,6 +267,7 @@ def test_token_protected_server_refuses_pages_without_it(chromium, tmp_path):
         page.close()
 
 
+@pytest.mark.long
 def test_record_solo_trials_build_your_avatar_and_play_with_it(chromium, avatar_factory, tmp_path):
     """The whole personal-avatar loop on one page: three solo trials, "Build my avatar" (with
     its stages shown, then its verdict and card), then a trial with the avatar just built

@@ -17,6 +17,7 @@ from mirror_avatar.testing import ServerThread
 pytestmark = pytest.mark.browser
 
 
+@pytest.mark.long
 def test_adaptive_partner_follows_the_driven_mouse(chromium, tmp_path: Path) -> None:
     factory = make_avatar_factory("adaptive")
     warm = factory("avatar_follows")  # compile its kernels before the trial, as play does

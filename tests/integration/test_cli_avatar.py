@@ -57,6 +57,7 @@ def rewrite_avatar(path: Path, arrays: dict, metadata: dict) -> Path:
     return save_model(path, "mirror-avatar/avatar", 1, arrays, metadata)
 
 
+@pytest.mark.long
 def test_the_avatar_file_holds_both_roles_and_its_card(built: Path) -> None:
     avatar = load_avatar(built)
     assert avatar.name == "P01" and set(avatar.players) == {"follower", "leader"}
@@ -127,6 +128,7 @@ def test_live_play_takes_the_avatar_in_every_mode(built: Path) -> None:
     assert isinstance(factory("joint"), VirtualTrainer)
 
 
+@pytest.mark.long
 def test_a_deep_avatar_is_built_saved_and_played(built: Path, tmp_path: Path) -> None:
     folder = built.parent
     out = tmp_path / "P01-deep.npz"
@@ -211,6 +213,7 @@ def test_the_card_checks_the_avatar_against_each_trial_held_out(built: Path) -> 
     assert "P01 against the avatar (positions)" in card
 
 
+@pytest.mark.long
 def test_the_avatar_replays_the_persons_partner(proved: tuple[Path, Path]) -> None:
     """The person's CV, RMS and lag are the recorded session's; the avatar meets the same track."""
     from mirror_avatar.experiments.avatar_proof import find_person, replay_partner
@@ -311,6 +314,7 @@ def test_each_call_gives_a_player_of_its_own(built: Path) -> None:
     assert avatar.players["follower"].label != first.label  # the file's player is untouched
 
 
+@pytest.mark.long
 def test_an_avatar_without_held_out_trials_says_it_is_not_checked(built: Path) -> None:
     folder = built.parent
     out = folder / "P01-unchecked.npz"

@@ -243,6 +243,7 @@ run()
 ignores SIGXFSZ)."""
 
 
+@pytest.mark.long
 def test_a_report_that_cannot_be_written_leaves_no_other_output(tmp_path):
     pair, out = tmp_path / "pair.csv", tmp_path / "out"
     write_pair(pair, 50.0, 30.0)

@@ -98,6 +98,7 @@ def test_the_seed_fixes_the_p_values_and_options_reach_the_measures(tmp_path, rn
     assert segments[0].keys() == {"start", "end", "dv", "dt"}
 
 
+@pytest.mark.long
 def test_pseudo_pairs_need_other_sessions(tmp_path, rng, capsys):
     for name in ("a.csv", "b.csv", "c.csv"):
         write_pair(tmp_path / name, rng, delay=5)

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from mirror_avatar.cli import main
 
 
+@pytest.mark.long
 def test_fit_reports_the_battery_on_held_out_trials(tmp_path, capsys):
     model = tmp_path / "slow.npz"
     args = [

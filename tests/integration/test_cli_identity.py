@@ -50,6 +50,7 @@ def signature_of(root: Path, folders: list[str], out: Path) -> dict:
     return json.loads((out / "signature.json").read_text())
 
 
+@pytest.mark.long
 def test_same_file_names_in_seven_folders_give_the_unique_names_results(
     zhai_trials, tmp_path, capsys
 ) -> None:
@@ -66,6 +67,7 @@ def test_same_file_names_in_seven_folders_give_the_unique_names_results(
     assert "group 'person7': 3 trial(s) (p7/trial_00, p7/trial_01, p7/trial_02)" in printed
 
 
+@pytest.mark.long
 def test_the_generator_validation_of_seven_people_ignores_file_names(zhai_trials, tmp_path):
     """Each person's within-person EMD and identification, as with unique names (no warning)."""
     results = []
@@ -97,6 +99,7 @@ def test_convert_keeps_seven_people_apart(zhai_trials, tmp_path, capsys) -> None
     assert manifest["trials"][3]["source"] == str(tmp_path / "data" / "p2" / "trial_00.csv")
 
 
+@pytest.mark.long
 def test_a_map_takes_paths_relative_to_itself_or_as_given(
     zhai_trials, tmp_path, capsys, monkeypatch
 ) -> None:

@@ -53,6 +53,7 @@ def lab_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return folder
 
 
+@pytest.mark.long
 def test_export_then_evaluate_and_signature_read_it(lab_session, tmp_path, capsys):
     bids = tmp_path / "bids"
     assert main(["lab", "export", str(lab_session), "--out", str(bids)]) == 0

@@ -94,6 +94,7 @@ def test_too_many_trials_for_generator_fit_are_refused_before_expansion(tmp_path
     assert not (tmp_path / "model.npz").exists()
 
 
+@pytest.mark.long
 def test_vt_on_a_file_of_several_trials_is_refused_from_the_header(tmp_path: Path) -> None:
     samples = 12_000_000
     path = struct_file(tmp_path / "trials.mat", 2, samples)

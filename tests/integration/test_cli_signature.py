@@ -77,6 +77,7 @@ def test_bad_input_is_one_line_exit_2(tmp_path, capsys, arguments):
     assert not out.exists()
 
 
+@pytest.mark.long
 @pytest.mark.parametrize(
     ("group_by", "expected"), [("none", {"all"}), ("file", {"fast/fast-1", "slow/slow-9"})]
 )

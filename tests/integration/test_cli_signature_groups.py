@@ -22,6 +22,7 @@ def write_map(path, groups, header="trial,group", separator=","):
     return path
 
 
+@pytest.mark.long
 def test_fast_and_slow_people_are_told_apart(tmp_path, capsys):
     table = write_map(tmp_path / "groups.tsv", [lab.split("-")[0] for lab in LABELS],
                       "trial\tgroup", "\t")  # fmt: skip

@@ -164,6 +164,7 @@ def test_simulate_draws_the_session(tmp_path: Path) -> None:
         assert (out / name).read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.long
 def test_evaluate_a_folder_of_sessions(
     tmp_path: Path, zhai_trials: list[Trial], capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -67,6 +67,7 @@ def test_an_unreachable_scheduler_is_refused_before_the_trials_are_read(
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.long
 def test_avatar_create_on_the_cluster_gives_the_local_file(
     cluster: Cluster, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -68,6 +68,7 @@ def _chunks_played(cluster: Cluster, credentials: Credentials) -> int:
         return int(client.run_on_scheduler(count))
 
 
+@pytest.mark.long
 def test_train_on_the_tls_cluster_with_the_guides_credentials(
     cluster: Cluster, credentials: Credentials, tmp_path: Path
 ) -> None:

@@ -57,6 +57,7 @@ def test_quick_validation_runs_end_to_end(zhai_trials: list[Trial], tmp_path) ->
     json.loads((tmp_path / "metrics.json").read_text())
 
 
+@pytest.mark.long
 def test_the_deep_agent_runs_the_same_validation(zhai_trials: list[Trial]) -> None:
     section = run(zhai_trials, quick=True, seed=2, n_sessions=6, n_validation=2, agent="dqn")
     assert section.metrics["agent"] == "dqn" and section.metrics["training_sessions"] == 6

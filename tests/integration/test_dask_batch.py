@@ -13,6 +13,7 @@ from mirror_avatar.players import VirtualTrainer
 distributed = pytest.importorskip("distributed")
 
 
+@pytest.mark.long
 def test_dask_and_local_runs_are_identical(zhai_trials_100hz: list) -> None:
     model = IMSGenerator(n_symbols=32, random_state=0).fit(zhai_trials_100hz[9:12])
     pairs = [(VirtualTrainer(LEADER, model), VirtualTrainer(FOLLOWER, model))]

@@ -19,6 +19,7 @@ WIDTH = 1280
 SESSIONS = Path(__file__).parents[1] / "fixtures" / "evaluate_before" / "sessions"
 
 
+@pytest.mark.long
 def test_the_evaluate_report_leads_with_its_verdict_in_words_at_1280_px(
     chromium: Any, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

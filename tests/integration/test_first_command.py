@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from mirror_avatar.files.trial_io import write_csv_trial
 from mirror_avatar.files.trials import Trial
 from mirror_avatar.warm_up import warm_up
@@ -51,6 +53,7 @@ def compilations(command: list[str]) -> str:
     return done.stdout.splitlines()[-1]
 
 
+@pytest.mark.long
 def test_a_first_generator_fit_compiles_no_kernel(zhai_trials: list[Trial], tmp_path: Path) -> None:
     warm_up()
     folder = tmp_path / "person"
@@ -71,6 +74,7 @@ def test_a_first_generator_fit_compiles_no_kernel(zhai_trials: list[Trial], tmp_
     assert compilations(command) == "compiled: []"
 
 
+@pytest.mark.long
 def test_model_partners_in_a_fresh_process_compile_no_kernel(tmp_path: Path) -> None:
     """The models' shared integrator, given each model's rates, is loaded from the cache too."""
     warm_up()

@@ -16,6 +16,7 @@ def section(zhai_trials) -> Section:
     return run(zhai_trials, quick=True, seed=0)
 
 
+@pytest.mark.long
 def test_generated_motion_passes_every_check(section: Section) -> None:
     _check(section, seed=0)
 

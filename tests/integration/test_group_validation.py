@@ -21,6 +21,7 @@ def section(zhai_trials: list[Trial]) -> Section:
     return run(zhai_trials, quick=True, seed=1, n_sessions=60)
 
 
+@pytest.mark.long
 def test_quick_group_validation_runs_end_to_end(section: Section) -> None:
     assert section.key == "group" and len(section.figures) == 5
     metrics = section.metrics

@@ -12,6 +12,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import httpx
+import pytest
 from test_lab_server import BEARER, TOKEN
 
 from mirror_avatar.files.bids.tables import read_tsv
@@ -77,6 +78,7 @@ def test_exports_from_threads_into_one_dataset_keep_every_subject(tmp_path):
         assert subjects_missing(bids) == set()
 
 
+@pytest.mark.long
 def test_exports_from_processes_into_one_dataset_keep_every_subject(tmp_path):
     sessions = [record(tmp_path / f"20261127T0100{k}0-00{k}", dyad(p, trials=12))
                 for k, p in enumerate("DE")]  # fmt: skip

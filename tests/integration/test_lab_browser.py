@@ -382,6 +382,7 @@ def test_two_pages_behind_an_emulated_internet_are_timed_on_the_server_clock(
         assert STALL[1] / 2 <= stall["length_s"] <= STALL[1] + 0.15
 
 
+@pytest.mark.long
 def test_a_participant_following_an_avatar_sees_the_measures_listed(chromium, lab, tmp_path):
     """The participant's mouse copies the avatar it sees 0.3 s late; the console's trial list
     and the end screen say who led and give the co-confidence, as the trial's record has them.
@@ -423,6 +424,7 @@ def test_a_participant_following_an_avatar_sees_the_measures_listed(chromium, la
     screenshot(page, "lab-participant-end-measures")
 
 
+@pytest.mark.long
 def test_group_of_four_on_a_ring_two_people_two_avatars(chromium, lab, tmp_path):
     """Two people and two avatars on a ring: the console shows ρ_g while the trial runs, and
     the record holds the ring's graph, the people's moves and the group's measures.
@@ -470,6 +472,7 @@ def test_group_of_four_on_a_ring_two_people_two_avatars(chromium, lab, tmp_path)
     assert links_shown == [] or all(width > 0 for width in links_shown)
 
 
+@pytest.mark.long
 def test_killing_a_participants_browser_marks_them_dropped(playwright, chromium, lab, tmp_path):
     """P2's browser is killed mid-trial: the console shows them dropped while the trial goes on,
     the researcher stops it, and the record holds the drop and P2's position held since.
@@ -513,6 +516,7 @@ def test_killing_a_participants_browser_marks_them_dropped(playwright, chromium,
     assert record["held"]["P2"] >= session.n_samples - record["dropped"]["P2"] - 10
 
 
+@pytest.mark.long
 def test_a_phone_plays_by_touch(chromium, lab, tmp_path):
     """A participant on a phone (touch screen, small viewport) opens the link from the QR code
     and moves by tapping; the taps are recorded where they landed."""

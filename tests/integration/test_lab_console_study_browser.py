@@ -124,6 +124,7 @@ def play_to_the_end(chromium: Any, lab: ServerThread, console: Any, sid: str) ->
     return pages
 
 
+@pytest.mark.long
 def test_the_console_lists_each_trials_condition_partners_and_answers(chromium, lab, tmp_path):
     console = chromium.new_context(viewport={"width": 1280, "height": 1000}).new_page()
     console.goto(f"{lab.url}/console?token={TOKEN}")
@@ -198,6 +199,7 @@ def test_a_run_created_while_a_listing_is_on_its_way_stays_shown(chromium, lab):
     console.context.close()
 
 
+@pytest.mark.long
 def test_a_double_blind_console_never_shows_the_hidden_kind(chromium, tmp_path):
     with serve(tmp_path, BLIND) as lab:
         console = chromium.new_context(viewport={"width": 1280, "height": 1000}).new_page()

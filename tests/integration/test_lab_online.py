@@ -190,6 +190,7 @@ def test_the_pages_before_the_game_and_a_participant_who_does_not_agree(lab, tmp
     assert status(lab, sid)["state"] == "waiting" and not (folder / "trial-01_session.csv").exists()
 
 
+@pytest.mark.long
 def test_a_pilot_s_stand_ins_agree_to_the_consent_page_as_participants_do(tmp_path):
     protocol = tmp_path / "online.toml"
     protocol.write_text(PROTOCOL)

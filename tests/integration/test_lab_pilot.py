@@ -91,6 +91,7 @@ def piloted(
     return out, result
 
 
+@pytest.mark.long
 def test_a_pilot_records_every_participant_as_a_study_does(piloted):
     out, result = piloted
     assert result.returncode == 0, result.stderr
@@ -138,6 +139,7 @@ def test_the_server_s_log_ends_as_finished_after_a_normal_pilot(piloted):
     assert "Finished server process" in log.strip().splitlines()[-1], log
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=lambda s: s.name)
 def test_an_interrupted_pilot_ends_with_its_one_line(signum, tmp_path):
     protocol = tmp_path / "delay.toml"
@@ -166,6 +168,7 @@ def test_an_interrupted_pilot_ends_with_its_one_line(signum, tmp_path):
     assert "aborted" in (out / "pilot-server.log").read_text().strip().splitlines()[-1]
 
 
+@pytest.mark.long
 def test_a_resumed_pilot_refuses_a_trial_whose_recording_was_deleted(piloted, tmp_path):
     """Participant 0's second recording deleted, its sidecar kept: resuming their run names the
     recording in one line, never counts the trial as played, and plays nothing."""
@@ -264,6 +267,7 @@ HOSTILE_STAND_INS = {
 }
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("kind", HOSTILE_STAND_INS)
 def test_a_stand_in_that_cannot_play_is_refused_before_anything_starts(kind, tmp_path):
     make, problem = HOSTILE_STAND_INS[kind]

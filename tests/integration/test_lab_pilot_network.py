@@ -9,6 +9,7 @@ import sys
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from mirror_avatar.cli import main
 
@@ -30,6 +31,7 @@ pause = 0
 """
 
 
+@pytest.mark.long
 def test_a_pilot_under_an_emulated_internet_writes_its_truth_beside_the_runs(tmp_path):
     protocol = tmp_path / "net.toml"
     protocol.write_text(PROTOCOL, encoding="utf-8")

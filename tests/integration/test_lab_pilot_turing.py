@@ -42,6 +42,7 @@ def reported(tmp_path_factory: pytest.TempPathFactory) -> tuple[pd.DataFrame, di
     return table, scores["identification"], (report / "report.html").read_text(encoding="utf-8")
 
 
+@pytest.mark.long
 def test_the_table_names_the_recording_a_person_s_motion(reported):
     table, _, _ = reported
     people = table[table["player_kind"] == "person"]

@@ -50,6 +50,7 @@ def assert_recorded_as_pinned(recorded: dict[str, Any], pinned: dict[str, Any]) 
         assert_pages_saw_the_same(recorded[kind]["pages"], pinned[kind]["pages"])
 
 
+@pytest.mark.long
 def test_a_lab_session_and_a_study_participant_record_what_they_recorded_before(tmp_path):
     recorded = json.loads(json.dumps(record(tmp_path), sort_keys=True))  # as the file holds them
     assert_recorded_as_pinned(recorded, read_snapshot(RECORDED))

@@ -77,6 +77,7 @@ def button(question: str, value: str) -> str:
     return f'fieldset[data-question="{question}"] button[data-value="{value}"]'
 
 
+@pytest.mark.long
 def test_two_pages_answer_by_mouse_and_by_touch(chromium, lab, tmp_path):
     console = chromium.new_context(viewport={"width": 1280, "height": 900}).new_page()
     console.goto(f"{lab.url}/console?token={TOKEN}")

@@ -167,6 +167,7 @@ def answer(page: Any, n: int, touch: bool) -> dict[str, Any]:
     return given
 
 
+@pytest.mark.long
 def test_three_pages_run_a_counterbalanced_protocol_with_an_avatar(chromium, tmp_path):
     path = tmp_path / "study.toml"
     path.write_text(PROTOCOL)

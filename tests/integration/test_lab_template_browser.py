@@ -37,6 +37,7 @@ def run_command(*arguments: str) -> None:
     assert result.returncode == 0, result.stderr
 
 
+@pytest.mark.long
 def test_a_templated_study_runs_from_the_console_to_its_report(chromium, tmp_path):
     protocol = load_protocol(rehearsal(TEMPLATE, tmp_path))
     out = tmp_path / "out"

@@ -31,6 +31,7 @@ def test_trials_of_one_style_are_indistinguishable(styles: dict[str, list], styl
     assert likeness.verdict().startswith("indistinguishable at this data size")
 
 
+@pytest.mark.long
 def test_fast_and_slow_are_told_apart(styles: dict[str, list]) -> None:
     likeness = compare_motion(styles["fast"], styles["slow"], seed=0)
     assert likeness.classifier.auc > 0.95

@@ -492,6 +492,7 @@ def deaf_client(port: int) -> socket.socket:
     return sock
 
 
+@pytest.mark.long
 def test_a_client_that_stops_reading_is_dropped(live):
     """Its replies cannot be delivered: the server resets it and its place is free again."""
     server = live.serve(max_sessions=1, max_message_rate=1e6, send_timeout=0.5)

@@ -77,6 +77,7 @@ def human_folder(tmp_path: Path, zhai_trials: list[Trial], rng: np.random.Genera
     return folder
 
 
+@pytest.mark.long
 def test_adaptive_player_keeps_the_published_bounds_on_slow_real_leaders(
     zhai_trials_100hz: list[Trial],
 ) -> None:
@@ -116,6 +117,7 @@ def test_relative_position_error_follows_zhai_et_al_by_hand() -> None:
     assert rpe == pytest.approx(0.2 / np.pi, rel=0.02)
 
 
+@pytest.mark.long
 def test_the_humans_are_scored_on_their_own_leaders_and_rank_the_followers(
     tmp_path: Path, human_folder: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -221,6 +223,7 @@ def avatar(tmp_path_factory: pytest.TempPathFactory, zhai_trials: list[Trial]) -
     return out
 
 
+@pytest.mark.long
 def test_a_personal_avatar_follows_as_its_follower_player(
     tmp_path: Path, avatar: Path, zhai_trials: list[Trial], capsys: pytest.CaptureFixture[str]
 ) -> None:

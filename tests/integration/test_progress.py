@@ -37,6 +37,7 @@ def test_drift_is_measured_from_the_first_session(sessions: list[Path]) -> None:
     assert table["CV"].between(0, 1).all() and (table["RMS"] > 0).all()
 
 
+@pytest.mark.long
 def test_evaluate_reports_progress(sessions: list[Path], tmp_path: Path, capsys) -> None:
     out = tmp_path / "report"
     assert main(["evaluate", *map(str, sessions), "--progress", "--out", str(out)]) == 0
@@ -50,6 +51,7 @@ def test_evaluate_reports_progress(sessions: list[Path], tmp_path: Path, capsys)
         assert f"session-{k}/session.parquet: positions" in page
 
 
+@pytest.mark.long
 def test_sessions_without_a_start_time_keep_the_order_given_and_say_so(
     sessions: list[Path], capsys
 ) -> None:

@@ -60,6 +60,7 @@ def on_a_terminal(arguments: list[str]) -> tuple[int, str]:
     return os.waitstatus_to_exitcode(status), output.decode(errors="replace")
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("name", list(COMMANDS))
 def test_a_long_command_shows_progress_on_a_terminal(name: str, tmp_path: Path) -> None:
     arguments, label, last = COMMANDS[name]
@@ -71,6 +72,7 @@ def test_a_long_command_shows_progress_on_a_terminal(name: str, tmp_path: Path) 
     assert any(TIME_LEFT.search(bar) for bar in bars)
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("name", list(COMMANDS))
 def test_off_a_terminal_plain_lines_say_the_progress(name: str, tmp_path: Path) -> None:
     """Standard error to a file: a plain line at each tenth of the work, no bar drawn in place."""

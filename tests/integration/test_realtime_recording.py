@@ -104,6 +104,7 @@ def slow_network(path: Path) -> str:
     return str(player.save(path))
 
 
+@pytest.mark.long
 def test_a_lab_session_whose_avatars_cannot_step_in_time_is_refused_at_creation(tmp_path):
     """As many of the largest legal DQN avatars as need, on this machine, three times the control
     period per step (measured here first): the plan is refused when the session is created."""

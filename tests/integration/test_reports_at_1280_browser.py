@@ -68,6 +68,7 @@ def assert_fits(page: Any) -> None:
         assert box is not None and box["x"] + box["width"] <= WIDTH
 
 
+@pytest.mark.long
 def test_the_demo_report_fits_1280_px_and_leads_with_its_verdicts(
     chromium: Any, demo_report: Path, tmp_path: Path
 ) -> None:

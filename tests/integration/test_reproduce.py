@@ -1,8 +1,11 @@
 import json
 
+import pytest
+
 from mirror_avatar.cli import main
 
 
+@pytest.mark.long
 def test_reproduce_quick_writes_report(tmp_path, capsys):
     out = tmp_path / "report"
     assert main(["reproduce", "--out", str(out), "--quick", "--seed", "3"]) == 0
@@ -54,6 +57,7 @@ def test_signature_experiment_without_a_second_style(zhai_trials):
     assert metrics["mean_between_emd"] > metrics["mean_within_emd"]
 
 
+@pytest.mark.long
 def test_reproduce_on_three_people_casts_them_by_name(tmp_path, zhai_trials):
     """Folders of three people: each becomes a virtual trainer and the report names them."""
     from mirror_avatar.files.trial_io import write_csv_trial

@@ -31,6 +31,7 @@ def summary(section: Section) -> pd.DataFrame:
     return table
 
 
+@pytest.mark.long
 def test_vt_follows_slow_people_closely(summary: pd.DataFrame) -> None:
     own = summary.loc["follows (slow people)"]
     assert own["sessions"] == 9

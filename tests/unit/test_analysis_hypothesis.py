@@ -96,6 +96,7 @@ def test_a_true_effect_is_found_in_at_least_18_of_20_seeds() -> None:
     assert sum(found) >= 18
 
 
+@pytest.mark.long
 def test_with_no_effect_the_false_positive_rate_is_at_most_a_tenth() -> None:
     tests = [confirm(persons(seed, 0.0), declared())[0] for seed in range(100)]
     assert sum(t.significant for t in tests) <= 10

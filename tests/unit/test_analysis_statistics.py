@@ -108,6 +108,7 @@ def test_mixed_model_equals_statsmodels_formula() -> None:
     assert contrast.standardised == pytest.approx(direct.fe_params[name] / total, rel=1e-3)
 
 
+@pytest.mark.long
 def test_mixed_model_recovers_known_condition_and_order_effects() -> None:
     """Over 20 seeds: unbiased estimates, 95 % intervals holding the truth about 95 % of times."""
     differences, slopes, covered = [], [], 0
@@ -187,6 +188,7 @@ def test_one_condition_gives_no_model() -> None:
     assert fit_contrasts(rows[rows["condition"] == NO_DELAY], "rms", CONDITIONS, NO_DELAY) is None
 
 
+@pytest.mark.long
 def test_identical_conditions_are_not_found_different_in_18_of_20_seeds() -> None:
     """Issue 37: with both conditions identical, p >= 0.05 in at least 18 of 20 seeds."""
     for measure in ("rms", "phase_locking"):
@@ -198,6 +200,7 @@ def test_identical_conditions_are_not_found_different_in_18_of_20_seeds() -> Non
         assert sum(p >= 0.05 for p in p_values) >= 18, (measure, p_values)
 
 
+@pytest.mark.long
 def test_the_delays_effect_is_found_with_its_sign_in_every_seed() -> None:
     """Issue 37: a delay that raises RMS and lowers phase locking is found, right sign."""
     effects = {"rms": 0.03, "phase_locking": -0.05}

@@ -261,6 +261,7 @@ def test_two_persons_of_a_participant_count_once_and_answer_each(tmp_path: Path)
     assert "p000/P2" in pair.identification.per_person.index
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("with_dictionary", [True, False])
 def test_ratings_are_compared_like_measures(tmp_path: Path, with_dictionary: bool) -> None:
     """A numeric answer (a 1-7 rating, one point lower with the delay) is an outcome; the
@@ -345,6 +346,7 @@ def contents(folder: Path) -> dict[str, bytes]:
     return {path.name: path.read_bytes() for path in sorted(folder.iterdir())}
 
 
+@pytest.mark.long
 def test_a_table_without_room_for_its_dictionary_writes_no_file(tmp_path: Path) -> None:
     """Under a file-size limit that study.csv and study.parquet fit in and the dictionary does
     not, no file is written, and a table written before stays whole."""
@@ -361,6 +363,7 @@ def test_a_table_without_room_for_its_dictionary_writes_no_file(tmp_path: Path) 
     assert contents(kept) == before
 
 
+@pytest.mark.long
 def test_a_report_without_room_for_its_page_writes_no_file(table_dir: Path, tmp_path: Path) -> None:
     """Under a file-size limit that results.json and the CSVs fit in and report.html does not,
     the command fails in one line naming the page, and a report written before stays whole."""

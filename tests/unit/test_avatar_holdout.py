@@ -69,6 +69,7 @@ def folds_with(person: list, velocities: dict[str, list]) -> list[Fold]:
     ]
 
 
+@pytest.mark.long
 def test_a_follower_four_times_further_than_its_person_is_flagged(slow_person: list) -> None:
     """Leader and group member move as other trials of the slow style; the follower, wrong on
     purpose, as those trials 1.4 times faster: its median EMD to the person's trials is 4.4 x

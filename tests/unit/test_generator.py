@@ -127,6 +127,7 @@ def test_too_few_frames_and_unfitted() -> None:
         IMSGenerator().fit([])
 
 
+@pytest.mark.long
 def test_generated_motion_has_its_person_signature(zhai_trials_100hz: list) -> None:
     """Bundled data, 2/3 of each style for training: the must-show numbers of the generator."""
     rng = np.random.default_rng(0)

@@ -41,6 +41,7 @@ def peak_bytes(session: Session, n_surrogates: int) -> int:
     return peak
 
 
+@pytest.mark.long
 def test_the_memory_of_surrogates_does_not_grow_with_their_number(rng):
     session = pair(rng)
     one_surrogate = 2 * session.positions.nbytes  # its positions and velocities
