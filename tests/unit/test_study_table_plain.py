@@ -105,6 +105,24 @@ def test_paths_that_hold_no_study_are_one_line(tmp_path, capsys):
         assert error.count("\n") == 1 and path.name in error
 
 
+def test_two_recordings_under_one_name_are_refused_not_one_of_them_dropped(
+    ring_session, tmp_path, capsys
+):
+    """Two labs' folders whose runs share a name (two pilots of the same participants)."""
+    other = tmp_path / "other" / ring_session.name
+    shutil.copytree(ring_session, other)
+    sidecar = other / "trial-02_session.json"
+    text = sidecar.read_text()
+    started = json.loads(text)["metadata"]["started_utc"]
+    sidecar.write_text(text.replace(started, "2026-11-28T00:00:00+00:00"))
+    paths = [ring_session.parent, other.parent]
+    assert main(["study", "table", *map(str, paths), "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "trial 2 of " in error and "lab pilot --first" in error
+    shutil.copy(ring_session / "trial-02_session.json", sidecar)  # the same recording twice
+    assert len(table(paths, tmp_path / "twice")) == len(table([ring_session], tmp_path / "once"))
+
+
 def answer(question: str, text: str, kind: str, value: object) -> AnswerRecord:
     return AnswerRecord("P1", question, text, kind, value, "trial", None)
 
