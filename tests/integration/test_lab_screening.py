@@ -106,6 +106,9 @@ def test_a_page_at_300_ms_is_refused_at_entry_with_both_numbers(lab, tmp_path):
     assert rows.loc["p000", "refusals"] == 1 and rows.loc["p000", "refusal"] == refused["message"]
     assert pd.isna(rows.loc["p000", "trial"]) and rows.loc["p001", "refusals"] == 0
     assert pd.isna(rows.loc["p001", "refusal"]) and rows.loc["p001", "trial"] == 1
+    assert main(["study", "report", str(table), "--out", str(tmp_path / "report")]) == 0
+    notes = json.loads((tmp_path / "report" / "results.json").read_text())["notes"]
+    assert "1 rows of persons screened out before their first trial left out" in notes
 
 
 def test_a_page_within_the_bound_is_admitted_and_not_judged_again(lab):
