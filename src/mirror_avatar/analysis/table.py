@@ -122,7 +122,7 @@ def _refused_before_playing(
     played = {(row["participant"], row["session"], row["person"]) for row in rows}
     return [
         {"participant": participant, "session": session, "person": label,
-         "player_kind": "person", "perturbations": 0, "complete": False}
+         "player_kind": "person", "complete": False}
         | _run(run, label, outcomes)
         for (participant, session), run in outcomes.items()
         for label in run.refusals
