@@ -244,7 +244,7 @@ def _ordered(table: pd.DataFrame) -> pd.DataFrame:
         return pd.DataFrame(columns=design)
     panels = sorted(c for c in table.columns if c.startswith(PANEL_PREFIX))
     runs = [c for c in RUN_COLUMNS if c in table.columns]
-    table = table[design + panels + runs + pages + measured + answers + guesses]
+    table = table.reindex(columns=design + panels + runs + pages + measured + answers + guesses)
     table = table.sort_values(["participant", "session", "trial"], kind="stable")
     types = {"block": "int64", "trial": "int64", "position": "int64", "perturbations": "int64",
              "delay_s": "float64", "occluded": "bool", "complete": "bool"}  # fmt: skip

@@ -65,16 +65,16 @@ def table(paths: tuple[Path, ...], out_dir: Path, trim: float, surrogates: int) 
         raise InputError("--trim", "must be 0 or more seconds")
     check_output_dir(out_dir, files=TABLE_FILES)
     trials = read_study_trials(paths)
-    if not trials:
+    outcomes = read_study_outcomes(paths)
+    if not trials and not outcomes:
         raise InputError(paths[0], "no lab trial in it (run folders or a lab's BIDS export)")
-    if all(measurable(trial.session, trim) is None for trial in trials):
+    if trials and all(measurable(trial.session, trim) is None for trial in trials):
         longest = max(trial.session.duration for trial in trials)
         raise InputError(
             "--trim",
             f"{trim:g} s leaves no trial enough samples to measure (the longest lasts "
             f"{longest:.3g} s): give a shorter trim",
         )
-    outcomes = read_study_outcomes(paths)
     rows = study_table(trials, trim=trim, surrogates=surrogates, outcomes=outcomes)
     write_study_table(rows, table_dictionary(rows, question_texts(trials)), out_dir)
     participants = rows["participant"].nunique()
