@@ -67,6 +67,24 @@ def test_a_pilot_under_an_emulated_internet_writes_its_truth_beside_the_runs(tmp
     assert rtt["n"] > 20 and proxied - 10.0 <= rtt["median"] <= proxied + 20.0, (rtt, proxied)
 
 
+def test_a_stand_in_screened_out_under_the_network_ends_the_pilot_in_one_line(tmp_path):
+    protocol = tmp_path / "screened.toml"
+    screening = "[online]\nscreen_round_trip_p95_ms = 150\n\n[[blocks]]"
+    protocol.write_text(PROTOCOL.replace("[[blocks]]", screening, 1), encoding="utf-8")
+    result = subprocess.run(
+        [
+            sys.executable, "-c", "from mirror_avatar.console import run; run()", "lab", "pilot",
+            "--protocol", str(protocol), "--participants", "1", "--seed", "3",
+            "--network", "150+-10", "--out", str(tmp_path / "out"),
+        ],
+        capture_output=True, text=True, check=False, timeout=600,
+    )  # fmt: skip
+    assert result.returncode == 2, result.stderr
+    error = result.stderr.strip()
+    assert error.count("\n") == 0 and "--stand-in P1: screened out" in error, error
+    assert "is above the study's 150 ms" in error and "--network" in error
+
+
 def test_a_pilot_refuses_a_bad_network_before_anything_starts(tmp_path, capsys):
     out = tmp_path / "out"
     protocol = tmp_path / "net.toml"

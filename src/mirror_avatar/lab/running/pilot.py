@@ -210,6 +210,11 @@ async def play_page(url: str, stand_in: StandIn) -> str:
     -------
     str
         The session's last state (``finished`` or ``aborted``), or ``closed``.
+
+    Raises
+    ------
+    InputError
+        The stand-in was screened out (its page sent ``refused``).
     """
     async with connect(url, proxy=None, open_timeout=30, max_queue=None) as ws:
         clock = asyncio.create_task(_exchange_clocks(ws))
@@ -219,6 +224,12 @@ async def play_page(url: str, stand_in: StandIn) -> str:
                 kind = message["type"]
                 if kind == "welcome":
                     await asyncio.to_thread(stand_in.welcome, message)
+                if kind == "refused":
+                    raise InputError(
+                        f"--stand-in {stand_in.label}",
+                        f"screened out by the protocol's [online] screening: {message['message']} "
+                        "(pilot under a --network within it, or loosen the screening)",
+                    )
                 for reply in _answer(stand_in, message):
                     await ws.send(reply)
                 if kind == "state" and message["state"] in ("finished", "aborted"):
