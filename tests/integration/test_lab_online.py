@@ -13,6 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
+import pandas as pd
 import pytest
 import websockets
 from test_cli_lab import bids_validated
@@ -118,9 +119,19 @@ def test_panel_identifiers_are_recorded_and_the_end_gives_the_completion_code(la
     with (bids / "participants.tsv").open(encoding="utf-8") as table:
         (row,) = csv.DictReader(table, delimiter="\t")
     assert row["PROLIFIC_PID"] == "5f1a2b3c4d5e6f7a8b9c0d1e" and row["STUDY_ID"] == "s-42"
+    assert row["completion_code"] == "C1A2B3C4"
     described = json.loads((bids / "participants.json").read_text())
     assert "recruitment panel" in described["PROLIFIC_PID"]["Description"]
+    assert "end page showed" in described["completion_code"]["Description"]
+    ended = json.loads((bids / "sourcedata" / created["id"] / "ended.json").read_text())
+    assert ended["shown"] == ["P1"] and ended["completion"]["code"] == "C1A2B3C4"
     bids_validated(bids)
+    for source in (folder, bids):  # the run folder and its export give the table the same cells
+        out = tmp_path / f"table-{source.name}"
+        assert main(["study", "table", str(source), "--out", str(out), "--surrogates", "0"]) == 0
+        (cells,) = pd.read_csv(out / "study.csv", dtype=str).itertuples()
+        assert cells.panel_PROLIFIC_PID == "5f1a2b3c4d5e6f7a8b9c0d1e"
+        assert cells.panel_STUDY_ID == "s-42" and cells.completion_code == "C1A2B3C4"
 
 
 def test_a_person_screened_out_sees_the_refusal_code_now_and_on_return(lab):

@@ -2,7 +2,8 @@
 certificate the test made, the console hands out links at the public address, two participants'
 pages open them with their panel identifiers, read the instructions and agree to the consent
 page, play the trial and are shown the completion code and the link back; the console exports the
-run with the identifiers; a participant who does not agree is shown the refusal code."""
+run with the identifiers and the completion code each was shown; a participant who does not
+agree is shown the refusal code."""
 
 from __future__ import annotations
 
@@ -130,6 +131,7 @@ def test_panel_participants_consent_play_and_get_the_completion_code_over_https(
         rows = {row["label"]: row for row in csv.DictReader(table, delimiter="\t")}
     assert rows["P1"]["PROLIFIC_PID"] == "5f1a2b3c4d5e6f7a8b9c0d1e"
     assert rows["P2"]["SESSION_ID"] == "s-02"
+    assert rows["P1"]["completion_code"] == rows["P2"]["completion_code"] == "C1A2B3C4"
 
     declining = open_intro(trusting, f"{create_run(console, 1)['P1']}?{PANEL['P1']}")
     declining.click("#decline")

@@ -1,5 +1,6 @@
 """`mirror-avatar lab pilot --network`: the virtual participants' pages behind an emulated
-internet, its truth log in the pilot's folder."""
+internet, its truth log in the pilot's folder, the round trips their clock exchanges recorded
+those it drew."""
 
 from __future__ import annotations
 
@@ -59,7 +60,31 @@ def test_a_pilot_under_an_emulated_internet_writes_its_truth_beside_the_runs(tmp
         assert abs(drawn.mean() - 60.0) < 4 * 10.0 / np.sqrt(len(drawn)), direction
         took = carried[carried.direction == direction].eval("delivered_s - received_s")
         assert np.all(took >= drawn / 1000 - 1e-6), direction
-    assert (out / "net-p000" / "trial-01_session.csv").exists()
+    # the stand-in's page keeps its clock as a browser's does: its round trips are the proxy's
+    # (each chunk held as long as it was: its drawn delay, or longer behind the one before it)
+    sidecar = json.loads((out / "net-p000" / "trial-01_session.json").read_text())["metadata"]
+    rtt = sidecar["pages"]["P1"]["rtt_ms"]
+    held = carried.eval("delivered_s - received_s").groupby(carried.direction).median()
+    proxied = 1000.0 * held.sum()
+    assert rtt["n"] > 20 and proxied - 10.0 <= rtt["median"] <= proxied + 20.0, (rtt, proxied)
+
+
+def test_a_stand_in_screened_out_under_the_network_ends_the_pilot_in_one_line(tmp_path):
+    protocol = tmp_path / "screened.toml"
+    screening = "[online]\nscreen_round_trip_p95_ms = 150\n\n[[blocks]]"
+    protocol.write_text(PROTOCOL.replace("[[blocks]]", screening, 1), encoding="utf-8")
+    result = subprocess.run(
+        [
+            sys.executable, "-c", "from mirror_avatar.console import run; run()", "lab", "pilot",
+            "--protocol", str(protocol), "--participants", "1", "--seed", "3",
+            "--network", "150+-10", "--out", str(tmp_path / "out"),
+        ],
+        capture_output=True, text=True, check=False, timeout=600,
+    )  # fmt: skip
+    assert result.returncode == 2, result.stderr
+    error = result.stderr.strip()
+    assert error.count("\n") == 0 and "--stand-in P1: screened out" in error, error
+    assert "is above the study's 150 ms" in error and "--network" in error
 
 
 def test_a_pilot_refuses_a_bad_network_before_anything_starts(tmp_path, capsys):

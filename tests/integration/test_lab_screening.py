@@ -11,12 +11,14 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
 import pytest
 import websockets
 from test_lab_online import opened, solo_protocol
 from test_lab_server import BEARER, TOKEN, Page, socket_url, status
 from test_lab_study import create_participant, play_to_the_end
 
+from mirror_avatar.cli import main
 from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.screening import BACK_NOTICE, ENTRY_EXCHANGES, HIDDEN_REFUSAL
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
@@ -96,6 +98,17 @@ def test_a_page_at_300_ms_is_refused_at_entry_with_both_numbers(lab, tmp_path):
     assert len(record["rtt_ms"]) == 100 and round(record["rtt_p95_ms"]) == p95
     assert any("P1 screened out: Your connection's" in e for e in status(lab, sid)["events"])
     assert asyncio.run(opened(link)) == ([refused], CLOSE_REFUSED)
+    admitted = create_participant(lab.url, 1, BEARER)
+    play_to_the_end(lab, admitted["id"], [Page(admitted["links"]["P1"])])
+    table = tmp_path / "table"
+    assert main(["study", "table", str(tmp_path / "out"), "--out", str(table)]) == 0
+    rows = pd.read_csv(table / "study.csv").set_index("participant")
+    assert rows.loc["p000", "refusals"] == 1 and rows.loc["p000", "refusal"] == refused["message"]
+    assert pd.isna(rows.loc["p000", "trial"]) and rows.loc["p001", "refusals"] == 0
+    assert pd.isna(rows.loc["p001", "refusal"]) and rows.loc["p001", "trial"] == 1
+    assert main(["study", "report", str(table), "--out", str(tmp_path / "report")]) == 0
+    notes = json.loads((tmp_path / "report" / "results.json").read_text())["notes"]
+    assert "1 rows of persons screened out before their first trial left out" in notes
 
 
 def test_a_page_within_the_bound_is_admitted_and_not_judged_again(lab):

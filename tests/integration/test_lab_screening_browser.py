@@ -1,7 +1,7 @@
 """Screening declared in the protocol, in real browsers: a page behind an emulated internet at
 150 ms one way (300 ms round trip) refused at entry, the reason and the refusal code on its page
-and in the run's folder; a page whose tab is hidden mid-trial told when it comes back, the
-interruption in the trial's sidecar and counted in the study table.
+and in the run's folder, and counted in the study table; a page whose tab is hidden mid-trial
+told when it comes back, the interruption in the trial's sidecar and counted in the study table.
 
 Hiding the tab: headless Chromium never hides a page (another page of the context brought to the
 front leaves ``document.visibilityState`` at ``visible`` and fires no event, nor does the
@@ -78,6 +78,10 @@ def test_a_page_at_300_ms_round_trip_is_refused_at_entry(chromium, lab, tmp_path
     assert httpx.get(f"{link}/intro").json()["refused"]["code"] == "NOFIT123"  # and on return
     record = json.loads((tmp_path / "out" / "study-p000" / "refusal-P1.json").read_text())
     assert record["reason"] == message and record["rtt_p95_ms"] >= 300
+    assert main(["study", "table", str(tmp_path / "out"), "--out", str(tmp_path / "table")]) == 0
+    (row,) = pd.read_csv(tmp_path / "table" / "study.csv").itertuples()
+    assert (row.participant, row.refusals, row.refusal) == ("p000", 1, message)
+    assert pd.isna(row.trial)  # refused before their first trial
 
 
 def test_a_tab_hidden_mid_trial_is_told_recorded_and_counted(chromium, lab, tmp_path):

@@ -19,6 +19,7 @@ from mirror_avatar.cli import main
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.files.trial_record import AnswerRecord, read_trial_record
 from mirror_avatar.lab.design.plan import parse_plan
+from mirror_avatar.lab.export.run_outcomes import RunOutcomes
 from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.realtime.inputs import BrowserInput
 
@@ -103,6 +104,32 @@ def test_paths_that_hold_no_study_are_one_line(tmp_path, capsys):
         assert main(["study", "table", str(path), "--out", str(tmp_path / "out")]) == 2
         error = capsys.readouterr().err
         assert error.count("\n") == 1 and path.name in error
+
+
+def test_two_recordings_under_one_name_are_refused_not_one_of_them_dropped(
+    ring_session, tmp_path, capsys
+):
+    """Two labs' folders whose runs share a name (two pilots of the same participants)."""
+    other = tmp_path / "other" / ring_session.name
+    shutil.copytree(ring_session, other)
+    sidecar = other / "trial-02_session.json"
+    text = sidecar.read_text()
+    started = json.loads(text)["metadata"]["started_utc"]
+    sidecar.write_text(text.replace(started, "2026-11-28T00:00:00+00:00"))
+    paths = [ring_session.parent, other.parent]
+    assert main(["study", "table", *map(str, paths), "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "trial 2 of " in error and "lab pilot --first" in error
+    shutil.copy(ring_session / "trial-02_session.json", sidecar)  # the same recording twice
+    assert len(table(paths, tmp_path / "twice")) == len(table([ring_session], tmp_path / "once"))
+
+
+def test_a_run_whose_only_person_was_refused_has_their_row_and_no_trial():
+    refused = {("p000", "study-p000"): RunOutcomes(refusals={"P1": "Your connection is slow."})}
+    (row,) = study_table([], outcomes=refused).itertuples()
+    assert (row.participant, row.session, row.person) == ("p000", "study-p000", "P1")
+    assert (row.refusals, row.refusal, row.complete) == (1, "Your connection is slow.", False)
+    assert pd.isna(row.trial) and pd.isna(row.condition) and pd.isna(row.perturbations)
 
 
 def answer(question: str, text: str, kind: str, value: object) -> AnswerRecord:

@@ -92,6 +92,30 @@ PAGE_COLUMNS: dict[str, dict[str, Any]] = {
 """The quality columns of a person's page (`mirror_avatar.files.trial_record.PageRecord.cells`),
 in table order; empty on the rows of avatars, devices and trials recorded before them."""
 
+RUN_COLUMNS: dict[str, dict[str, Any]] = {
+    "completion_code": {"Description": "The completion code the person's end page showed when "
+                        "their run ended (the link back when the protocol gives only a link; "
+                        "empty: not shown)", "Role": "quality"},
+    "refusals": {"Description": "Times the person was screened out in the participant's run "
+                 "(METHODS section 9; a person screened out stays out: 0 or 1)",
+                 "Role": "quality"},
+    "refusal": {"Description": "Why the person was screened out, as their page said it "
+                "(empty: not screened out)", "Role": "quality"},
+}  # fmt: skip
+"""The columns of a run's outcomes (`mirror_avatar.analysis.outcomes`), on each of its persons'
+rows; a person screened out before their first trial has one row of their own, its trial empty."""
+
+PANEL_PREFIX = "panel_"
+"""What a panel identifier's column is named after: ``panel_PROLIFIC_PID``."""
+
+
+def panel_info(column: str) -> dict[str, Any]:
+    """Describe a panel identifier's column (``panel_<name>``)."""
+    name = column.removeprefix(PANEL_PREFIX)
+    return {"Description": f"The person's {name} on their recruitment panel, from their join "
+            "link's query (empty: the link had none)", "Role": "identifier"}  # fmt: skip
+
+
 MEASURE_COLUMNS = registry.TABLE_COLUMNS
 """The measure columns of the study table, in order (`mirror_avatar.metrics.registry`)."""
 

@@ -20,6 +20,8 @@ from mirror_avatar.analysis.dictionary import (
     DESIGN_COLUMNS,
     GUESS_COLUMNS,
     PAGE_COLUMNS,
+    PANEL_PREFIX,
+    RUN_COLUMNS,
     column_label,
 )
 from mirror_avatar.common.errors import InputError
@@ -32,12 +34,14 @@ TABLE_NAMES = ("study.csv", "study.parquet")
 
 TEXT_COLUMNS = (
     "participant", "person", "player_kind", "condition", "partners", "partner_kind", "guess_kind",
+    "completion_code", "refusal",
 )  # fmt: skip
-"""Columns read as text whatever they hold (a participant "001" stays "001")."""
+"""Columns read as text whatever they hold (a participant "001" stays "001"), with every panel
+identifier's (``panel_<name>``)."""
 
-NOT_MEASURES = (*DESIGN_COLUMNS, *PAGE_COLUMNS, *GUESS_COLUMNS)
-"""The columns that are never a measure: the study table's identifiers, design, pages and guesses
-(`mirror_avatar.analysis.dictionary`)."""
+NOT_MEASURES = (*DESIGN_COLUMNS, *RUN_COLUMNS, *PAGE_COLUMNS, *GUESS_COLUMNS)
+"""The columns that are never a measure: the study table's identifiers, design, runs' outcomes,
+pages and guesses (`mirror_avatar.analysis.dictionary`), besides the panel identifiers."""
 
 REQUIRED_COLUMNS = ("participant", "condition", "position")
 """The columns the statistics cannot do without."""
@@ -71,7 +75,7 @@ class StudyTable:
             name
             for name in self.rows.columns
             if name not in NOT_MEASURES
-            and not name.startswith("answer_")
+            and not name.startswith(("answer_", PANEL_PREFIX))
             and not name.endswith("_p_value")
             and self._numeric(name)
             and not pd.api.types.is_bool_dtype(self.rows[name])
@@ -180,7 +184,8 @@ def _read_rows(file: Path) -> pd.DataFrame:
     if file.suffix.lower() == ".parquet":
         return pd.read_parquet(file)
     header = pd.read_csv(file, nrows=0).columns
-    return csv_cells(pd.read_csv(file, dtype={c: str for c in TEXT_COLUMNS if c in header}))
+    text = [c for c in header if c in TEXT_COLUMNS or c.startswith(PANEL_PREFIX)]
+    return csv_cells(pd.read_csv(file, dtype=dict.fromkeys(text, str)))
 
 
 def _read_dictionary(file: Path) -> dict[str, dict[str, Any]]:

@@ -272,7 +272,8 @@ def few_participants_note(participants: int) -> list[str]:
 def analysed_rows(table: StudyTable) -> tuple[pd.DataFrame, list[str], int | None]:
     """Return the rows every statistic uses, what was left out in words, and the incomplete rows.
 
-    The persons' rows (avatars are not participants) of complete trials, every infinite value
+    The persons' rows (avatars are not participants) of complete trials (a person screened out
+    before their first trial has a row without one), every infinite value
     of an outcome made missing; the count of incomplete rows left out is None when the table
     has no ``complete`` column.
 
@@ -282,8 +283,9 @@ def analysed_rows(table: StudyTable) -> tuple[pd.DataFrame, list[str], int | Non
         Every row is of an incomplete trial.
     """
     rows, notes = _participants_rows(table.rows)
+    rows, refused = _played_rows(rows)
     rows, incomplete = _complete_rows(rows, table.source)
-    notes += _incomplete_note(incomplete)
+    notes += refused + _incomplete_note(incomplete)
     rows, left_out = _finite(rows, table.outcomes)
     return rows, notes + left_out, incomplete
 
@@ -378,6 +380,17 @@ def _participants_rows(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     left = len(rows) - len(persons)
     return persons, [
         f"{left} rows of avatars left out: only persons are participants"
+    ] if left else []
+
+
+def _played_rows(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
+    """Leave out the rows of persons screened out before their first trial (no trial)."""
+    if "trial" not in rows:
+        return rows, []
+    played = rows[rows["trial"].notna()]
+    left = len(rows) - len(played)
+    return played, [
+        f"{left} rows of persons screened out before their first trial left out"
     ] if left else []
 
 

@@ -7,7 +7,9 @@ stands in the participant's run (``block`` and ``position``: 1-based order of th
 the condition in the run, counted from the trials as played; ``trial``), what the protocol set
 (``condition``, ``partners``, ``partner_kind``, ``delay_s``, ``occluded``, ``perturbations``),
 whether the trial ran to its end (``complete``, its record's: an aborted trial's rows are kept,
-saying so), the measures of the player's trial (`mirror_avatar.metrics.session_metrics` and
+saying so), a person's panel identifiers (``panel_<name>``) and their run's outcomes (the
+completion code shown, refusals: `mirror_avatar.analysis.dictionary.RUN_COLUMNS`), the measures
+of the player's trial (`mirror_avatar.metrics.session_metrics` and
 `mirror_avatar.metrics.measures.session_measures`, measured as ``evaluate`` and the lab measure
 a trial: `mirror_avatar.metrics.measuring.measure_trial`, with ``surrogates`` circular-shift
 surrogates seeded by the trial's own seed: a pair's measures on both players' rows, a player's
@@ -20,7 +22,7 @@ then each answer (``answer_<question id>``) and, for a person-or-computer questi
 from __future__ import annotations
 
 import io
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,11 +34,15 @@ from mirror_avatar.analysis.dictionary import (
     GUESS_COLUMNS,
     MEASURES,
     PAGE_COLUMNS,
+    PANEL_PREFIX,
     PER_PLAYER,
+    RUN_COLUMNS,
     measure_info,
     p_value_column,
+    panel_info,
 )
 from mirror_avatar.analysis.guesses import MOTION_OF, guess
+from mirror_avatar.analysis.outcomes import RunKey
 from mirror_avatar.analysis.trials import StudyTrial
 from mirror_avatar.files.atomic import (
     csv_text,
@@ -44,6 +50,7 @@ from mirror_avatar.files.atomic import (
     write_atomic_files,
 )
 from mirror_avatar.files.trial_record import KIND_NAMES, SlotRecord, partner_kind
+from mirror_avatar.lab.export.run_outcomes import RunOutcomes
 from mirror_avatar.metrics import TRIM, registry
 from mirror_avatar.metrics.measuring import TRIAL_SURROGATES, measure_trial
 from mirror_avatar.specs import replays_recording
@@ -61,19 +68,66 @@ _PER_PLAYER = tuple(f"{column}_player_" for column in PER_PLAYER)
 
 
 def study_table(
-    trials: Sequence[StudyTrial], trim: float = TRIM, surrogates: int = SURROGATES
+    trials: Sequence[StudyTrial],
+    trim: float = TRIM,
+    surrogates: int = SURROGATES,
+    outcomes: Mapping[RunKey, RunOutcomes] | None = None,
 ) -> pd.DataFrame:
-    """Make the study table of ``trials`` (module docstring); rows by participant, trial, player."""
+    """Make the study table of ``trials`` (module docstring); rows by participant, trial, player.
+
+    ``outcomes`` are the runs' (`mirror_avatar.analysis.outcomes.read_study_outcomes`): their
+    `RUN_COLUMNS` on each person's rows, and a row for each person screened out before their
+    first trial.
+    """
+    outcomes = outcomes or {}
     rows: list[dict[str, Any]] = []
     for trial in trials:
         measures = trial_measures(trial, trim, surrogates)
+        run = outcomes.get((trial.participant, trial.record.session_id))
         for k, slot in enumerate(trial.record.slots):
             row = _design(trial, slot) | {"block": trial.block, "position": trial.position}
+            row |= _panel(trial, slot) | _run(run, slot.label, outcomes)
             row |= _page(trial, slot)
             row |= _player_measures(measures, k, trial)
             row |= _answers(trial, slot)
             rows.append(row)
+    rows += _refused_before_playing(rows, outcomes)
     return _ordered(pd.DataFrame(rows))
+
+
+def _panel(trial: StudyTrial, slot: SlotRecord) -> dict[str, str]:
+    """Return the person's panel identifiers (``panel_<name>``), as their join link gave them."""
+    study = trial.record.study
+    ids = {} if study is None else study.panel.get(slot.label, {})
+    return {f"{PANEL_PREFIX}{name}": value for name, value in ids.items()}
+
+
+def _run(
+    run: RunOutcomes | None, label: str, outcomes: Mapping[RunKey, RunOutcomes]
+) -> dict[str, Any]:
+    """Return a person's `RUN_COLUMNS`: the completion shown, the refusals and why."""
+    row: dict[str, Any] = {}
+    if any(o.completion for o in outcomes.values()):
+        row["completion_code"] = None if run is None else run.completion.get(label)
+    if any(o.refusals for o in outcomes.values()):
+        reason = None if run is None else run.refusals.get(label)
+        row |= {"refusals": int(reason is not None), "refusal": reason}
+    return row
+
+
+def _refused_before_playing(
+    rows: list[dict[str, Any]], outcomes: Mapping[RunKey, RunOutcomes]
+) -> list[dict[str, Any]]:
+    """Return a row for each person refused in a run who has no row: they played no trial."""
+    played = {(row["participant"], row["session"], row["person"]) for row in rows}
+    return [
+        {"participant": participant, "session": session, "person": label,
+         "player_kind": "person", "complete": False}
+        | _run(run, label, outcomes)
+        for (participant, session), run in outcomes.items()
+        for label in run.refusals
+        if (participant, session, label) not in played
+    ]  # fmt: skip
 
 
 def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str, Any]:
@@ -188,11 +242,15 @@ def _ordered(table: pd.DataFrame) -> pd.DataFrame:
     pages = [c for c in PAGE_COLUMNS if c in table.columns]
     if table.empty:
         return pd.DataFrame(columns=design)
-    table = table[design + pages + measured + answers + guesses]
+    panels = sorted(c for c in table.columns if c.startswith(PANEL_PREFIX))
+    runs = [c for c in RUN_COLUMNS if c in table.columns]
+    table = table.reindex(columns=design + panels + runs + pages + measured + answers + guesses)
     table = table.sort_values(["participant", "session", "trial"], kind="stable")
     types = {"block": "int64", "trial": "int64", "position": "int64", "perturbations": "int64",
              "delay_s": "float64", "occluded": "bool", "complete": "bool"}  # fmt: skip
-    table = table.astype(types)
+    if "refusals" in table:
+        types["refusals"] = "int64"
+    table = table.astype(types | _nullable(table, types))
     for column in [*pages, *measured, "guess_confidence"]:
         if column in table and column != "leader":
             table[column] = pd.to_numeric(table[column], errors="coerce").astype("float64")
@@ -201,6 +259,14 @@ def _ordered(table: pd.DataFrame) -> pd.DataFrame:
     if "guess_correct" in table:
         table["guess_correct"] = table["guess_correct"].astype("boolean")
     return table.reset_index(drop=True)
+
+
+def _nullable(table: pd.DataFrame, types: dict[str, str]) -> dict[str, str]:
+    """Return the nullable types of the columns with empty cells (a refused person's row)."""
+    nullable = {"int64": "Int64", "bool": "boolean"}
+    return {
+        c: nullable[kind] for c, kind in types.items() if kind in nullable and table[c].isna().any()
+    }
 
 
 def _is_number(value: object) -> bool:
@@ -221,6 +287,10 @@ def table_dictionary(table: pd.DataFrame, questions: dict[str, str]) -> dict[str
             info[column] = dict(GUESS_COLUMNS[column])
         elif column in PAGE_COLUMNS:
             info[column] = dict(PAGE_COLUMNS[column])
+        elif column in RUN_COLUMNS:
+            info[column] = dict(RUN_COLUMNS[column])
+        elif column.startswith(PANEL_PREFIX):
+            info[column] = panel_info(column)
         elif column.startswith("answer_"):
             qid = column.removeprefix("answer_")
             info[column] = {"Description": f"The answer to {qid}: {questions.get(qid, qid)}",

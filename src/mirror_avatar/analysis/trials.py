@@ -78,11 +78,14 @@ class StudyTrial:
 def read_study_trials(paths: Sequence[Path]) -> list[StudyTrial]:
     """Read every trial under ``paths`` (see the module docstring), by participant and trial.
 
+    A trial read twice (a run folder and its export, a folder named twice) is kept once.
+
     Raises
     ------
     InputError
         A path that is neither a run folder, a folder of them, a BIDS dataset nor a subject
-        folder of one; a file of a trial that cannot be read.
+        folder of one; a file of a trial that cannot be read; two recordings of one trial of
+        one participant's session (two labs' ``--out`` folders whose runs share names).
     """
     found: list[StudyTrial] = []
     for path in paths:
@@ -101,8 +104,24 @@ def read_study_trials(paths: Sequence[Path]) -> list[StudyTrial]:
                     path, "no run folder (plan.json or study.json) and not a BIDS dataset in it"
                 )
             found += [trial for run in runs for trial in read_run_folder(run)]
-    unique = {(t.participant, t.record.session_id, t.record.trial): t for t in found}
+    unique: dict[tuple[str, str, int], StudyTrial] = {}
+    for trial in found:
+        key = (trial.participant, trial.record.session_id, trial.record.trial)
+        kept = unique.setdefault(key, trial)
+        if not _same_recording(kept, trial):
+            raise InputError(
+                trial.source,
+                f"trial {key[2]} of {key[1]} is also {kept.source}, recorded at another time: "
+                "give the folders of one lab --out (pilot the other with other participant "
+                "numbers, lab pilot --first, to read both)",
+            )
     return [unique[key] for key in sorted(unique)]
+
+
+def _same_recording(one: StudyTrial, other: StudyTrial) -> bool:
+    """Whether two trials read under one name are one recording (its run folder, its export)."""
+    times = ("created_utc", "started_utc")
+    return all(getattr(one.record, t) == getattr(other.record, t) for t in times)
 
 
 def participant_name(study: StudyRun | None, session_id: str) -> str:

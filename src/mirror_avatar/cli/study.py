@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from mirror_avatar.analysis.outcomes import read_study_outcomes
 from mirror_avatar.analysis.table import (
     SURROGATES,
     TABLE_FILES,
@@ -55,29 +56,34 @@ def table(paths: tuple[Path, ...], out_dir: Path, trim: float, surrogates: int) 
     player, the block, condition and trial, the condition's position in the participant's
     order, the partners and their true kind, the delay, occlusion and perturbations, every
     measure of the player's trial, and each answer with, for a person-or-computer question,
-    the guess, whether it was right and its confidence. The data dictionary study.json gives
+    the guess, whether it was right and its confidence; in an online study, the person's panel
+    identifiers, the completion code their end page showed and their refusal (a person screened
+    out before their first trial has a row of their own). The data dictionary study.json gives
     each column's description, units, levels and role (identifier, design, measure, answer).
     """
     if not trim >= 0:
         raise InputError("--trim", "must be 0 or more seconds")
     check_output_dir(out_dir, files=TABLE_FILES)
     trials = read_study_trials(paths)
-    if not trials:
+    outcomes = read_study_outcomes(paths)
+    if not trials and not outcomes:
         raise InputError(paths[0], "no lab trial in it (run folders or a lab's BIDS export)")
-    if all(measurable(trial.session, trim) is None for trial in trials):
+    if trials and all(measurable(trial.session, trim) is None for trial in trials):
         longest = max(trial.session.duration for trial in trials)
         raise InputError(
             "--trim",
             f"{trim:g} s leaves no trial enough samples to measure (the longest lasts "
             f"{longest:.3g} s): give a shorter trim",
         )
-    rows = study_table(trials, trim=trim, surrogates=surrogates)
+    rows = study_table(trials, trim=trim, surrogates=surrogates, outcomes=outcomes)
     write_study_table(rows, table_dictionary(rows, question_texts(trials)), out_dir)
     participants = rows["participant"].nunique()
     incomplete = sum(not trial.record.complete for trial in trials)
+    refused = sum(len(run.refusals) for run in outcomes.values())
+    screened = f", {refused} screened out" if refused else ""
     click.echo(
         f"wrote {out_dir.resolve()}: {len(rows)} rows ({len(trials)} trials, {incomplete} of "
-        f"them incomplete, {participants} participant{'s' * (participants != 1)})"
+        f"them incomplete, {participants} participant{'s' * (participants != 1)}{screened})"
     )
 
 

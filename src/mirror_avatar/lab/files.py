@@ -3,8 +3,9 @@
 A session's folder holds ``plan.json`` (the plan as created), ``study.json`` in a study
 session (`mirror_avatar.lab.running.study`) and, for trial n, ``trial-NN_session.csv`` with its
 ``.json`` sidecar, ``trial-NN_inputs.csv`` (`mirror_avatar.realtime.trial.TickLog`) and, after
-questions, ``trial-NN_answers.json``. The server, the study runner and the BIDS export all name
-them here.
+questions, ``trial-NN_answers.json``; a study run also holds ``ended.json`` once its last trial
+is played and ``refusal-<label>.json`` for each person screened out. The server, the study
+runner and the BIDS export all name them here.
 """
 
 from __future__ import annotations
@@ -16,6 +17,12 @@ PLAN_FILE = "plan.json"
 
 STUDY_FILE = "study.json"
 """A study session's schedule: the protocol's seed and source, the participant, the order run."""
+
+ENDED_FILE = "ended.json"
+"""A study run's end: when, the completion code or link, and whose pages were shown it."""
+
+REFUSAL_PATTERN = "refusal-*.json"
+"""Glob of the refusals of a study run's people, one file each (`refusal_file`)."""
 
 SESSION_SUFFIX = "_session.csv"
 """How a trial's recording is named after its stem."""
@@ -42,6 +49,11 @@ def trial_file(directory: Path, n: int, suffix: str) -> Path:
     """Path of trial n's file named with ``suffix``: ``directory/trial-NN<suffix>``."""
     stem = trial_stem(directory, n)
     return stem.with_name(stem.name + suffix)
+
+
+def refusal_file(directory: Path, label: str) -> Path:
+    """Path of the refusal of the person labelled ``label``: ``directory/refusal-<label>.json``."""
+    return directory / REFUSAL_PATTERN.replace("*", label)
 
 
 def companion(session_csv: Path, suffix: str) -> Path:

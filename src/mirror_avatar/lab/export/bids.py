@@ -18,7 +18,7 @@ whole trial as that participant played it, and the answers they gave after it::
     <out>/sub-<sub>/motion/sub-<sub>_task-mirrorgame_tracksys-<device>_acq-<acq>_run-<n>_events.tsv
     <out>/sub-<sub>/beh/sub-<sub>_task-mirrorgame_acq-<acq>_run-<n>_beh.tsv
     <out>/sourcedata/<session id>/ the trial files (session, sidecar, inputs, answers),
-                                   plan.json or study.json
+                                   plan.json or study.json, ended.json, refusal-<label>.json
 
 Entities follow the order of the specification (sub, task, tracksys, acq, run). ``<sub>`` is the
 slot's label, in a study session after ``p`` and the participant's number (``p003P1``: the
@@ -95,10 +95,13 @@ from mirror_avatar.lab.export.bids_trial import (
     read_lab_trial,
     trial_files,
 )
+from mirror_avatar.lab.export.run_outcomes import read_outcomes
 from mirror_avatar.lab.files import (
     ANSWERS_SUFFIX,
+    ENDED_FILE,
     INPUTS_SUFFIX,
     PLAN_FILE,
+    REFUSAL_PATTERN,
     STUDY_FILE,
     companion,
 )
@@ -120,6 +123,9 @@ PARTICIPANT_COLUMNS = ("participant_id", "label", "device")
 """Columns `export_bids` fills in ``participants.tsv``, with the study's
 (`mirror_avatar.lab.export.bids_study.STUDY_COLUMNS`) when it exports a study session (others
 already there are kept)."""
+
+COMPLETION = "completion_code"
+"""The column of ``participants.tsv`` holding what a study participant's end page showed."""
 
 CONDITIONS = {
     "solo": "one player moves alone",
@@ -150,13 +156,15 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     session id. An incomplete trial (a crash) is exported as far as it was recorded,
     ``complete`` being false in its ``MirrorGame`` key. ``participants.tsv`` gains the session's
     participants (one row each, with the study's participant number and protocol in a study, and
-    the panel identifiers their join links gave; existing rows kept);
+    the panel identifiers their join links gave and, once the run ended, the completion code
+    their end page showed: `COMPLETION`; existing rows kept);
     ``dataset_description.json`` and ``README`` are written only when absent; each subject's
     ``_scans.tsv`` gains their files with their acquisition times (existing rows kept); a
     trial's answers become each participant's ``_beh.tsv``; ``sourcedata/<session id>/``
-    receives copies of the trial files (with their inputs and answers) and ``plan.json`` or
-    ``study.json``, a file they name by its base name only (`shared_json`), as in each
-    ``MirrorGame`` key. Every file is written atomically, and nothing
+    receives copies of the trial files (with their inputs and answers), ``plan.json`` or
+    ``study.json``, and a study run's end and refusals (`mirror_avatar.lab.export.run_outcomes`),
+    a file they name by its base name only (`shared_json`), as in each ``MirrorGame`` key.
+    Every file is written atomically, and nothing
     is written before every trial (and every table merged into) has been read. Exports into one
     ``out_dir`` take turns (`mirror_avatar.lab.export.bids_lock.dataset_lock`, across threads and
     processes), so that none loses the rows another adds to the tables.
@@ -198,6 +206,8 @@ def export_bids(session_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
             _add_participants(participants, trial, out_dir / "participants.tsv")
         panel = _panel_ids(trials)
         columns += [name for name in panel if name not in columns]
+        if _add_completion(participants, session_dir, study) and COMPLETION not in columns:
+            columns.append(COMPLETION)
         described = _read_column_info(out_dir / "participants.json") | panel_info(panel)
         subjects = {_subject(trial, k) for trial in trials for k in trial.humans()}
         for subject in sorted(subjects):  # a damaged table is refused before anything is written
@@ -294,6 +304,23 @@ def _add_participants(rows: dict[str, dict[str, str]], trial: LabTrial, path: Pa
         devices = set(row.get("device", MISSING).split(",")) - {MISSING, ""}
         row |= person | {"device": ",".join(sorted(devices | {device}))}
         row |= {} if trial.record.study is None else trial.record.study.panel.get(label, {})
+
+
+def _add_completion(
+    rows: dict[str, dict[str, str]], session_dir: Path, study: StudyRun | None
+) -> bool:
+    """Give each person of a study run shown the completion its `COMPLETION` cell.
+
+    Returns whether anyone was (`mirror_avatar.lab.export.run_outcomes`: the run's end).
+    """
+    if study is None:
+        return False
+    completion = read_outcomes(session_dir).completion
+    for label, code in completion.items():
+        subject = f"sub-{subject_label(label, study, session_dir)}"
+        if subject in rows:
+            rows[subject][COMPLETION] = code
+    return bool(completion)
 
 
 def _panel_ids(trials: list[LabTrial]) -> list[str]:
@@ -498,7 +525,8 @@ def _source_copies(session_dir: Path, files: list[Path]) -> dict[str, bytes]:
             f, f.with_suffix(".json"), companion(f, INPUTS_SUFFIX), companion(f, ANSWERS_SUFFIX)
         )
     ]  # fmt: skip
-    sources += [session_dir / PLAN_FILE, session_dir / STUDY_FILE]
+    sources += [session_dir / PLAN_FILE, session_dir / STUDY_FILE, session_dir / ENDED_FILE]
+    sources += sorted(session_dir.glob(REFUSAL_PATTERN))
     return {source.name: _shared_copy(source) for source in sources if source.is_file()}
 
 
@@ -555,6 +583,11 @@ _COLUMN_INFO = {
     },
     "protocol": {
         "Description": "The study protocol: its file name without extension (n/a: not a study)"
+    },
+    COMPLETION: {
+        "Description": "The completion code the participant's end page showed when their run "
+        "ended (the link back when the protocol gives only a link; n/a: not shown, the run did "
+        "not end or their page was not connected then)"
     },
     "device": {
         "Description": "Input device(s) the participant used, separated by commas: pointer (the "

@@ -10,7 +10,9 @@ A stand-in sees exactly what a person's page is sent: each ``frame`` holds its o
 its visible partners' (delayed and hidden as the condition says; a hidden partner is not seen).
 It is any player SPEC (`mirror_avatar.specs.load_player`) in the role its page is told, stepped
 once per frame received: the partners shown are its observation, and the position it returns is
-sent as the pointer's. Questions are answered by an `AnswerRule` per question.
+sent as the pointer's. Questions are answered by an `AnswerRule` per question. Its page keeps its
+clock against the server's as a browser's does (`_exchange_clocks`), so its round trips and
+offset are recorded in each trial's sidecar and it is screened at entry as a person is.
 
 The stand-ins are checked as a protocol's avatars are (`check_stand_ins`: each built and dry-run
 in every role its person plays, by `mirror_avatar.lab.design.avatars.load_avatar`) before the
@@ -26,6 +28,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import itertools
 import json
 import os
 import queue
@@ -54,6 +57,7 @@ from mirror_avatar.files.importing import excerpt
 from mirror_avatar.lab.design.avatars import load_avatar
 from mirror_avatar.lab.design.plan import MAX_SPEC_CHARS, SessionPlan
 from mirror_avatar.lab.design.protocol import Protocol, load_protocol
+from mirror_avatar.lab.running.screening import ENTRY_EXCHANGES
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.remote.network import Network
 from mirror_avatar.remote.proxy import ProxyThread
@@ -206,21 +210,63 @@ async def play_page(url: str, stand_in: StandIn) -> str:
     -------
     str
         The session's last state (``finished`` or ``aborted``), or ``closed``.
+
+    Raises
+    ------
+    InputError
+        The stand-in was screened out (its page sent ``refused``).
     """
     async with connect(url, proxy=None, open_timeout=30, max_queue=None) as ws:
+        clock = asyncio.create_task(_exchange_clocks(ws))
         try:
             async for text in ws:
                 message = json.loads(text)
                 kind = message["type"]
                 if kind == "welcome":
                     await asyncio.to_thread(stand_in.welcome, message)
+                if kind == "refused":
+                    raise InputError(
+                        f"--stand-in {stand_in.label}",
+                        f"screened out by the protocol's [online] screening: {message['message']} "
+                        "(pilot under a --network within it, or loosen the screening)",
+                    )
                 for reply in _answer(stand_in, message):
                     await ws.send(reply)
                 if kind == "state" and message["state"] in ("finished", "aborted"):
                     return str(message["state"])
         except ConnectionClosed:
             pass
+        finally:
+            clock.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await clock
     return "closed"
+
+
+CLOCK_BURST_S = 0.02
+"""Seconds between a page's first `ENTRY_EXCHANGES` clock exchanges (``BURST_MS`` in
+``clock.js``)."""
+
+CLOCK_EVERY_S = 0.1
+"""Seconds between a page's clock exchanges after them (``REQUEST_MS`` in ``clock.js``)."""
+
+
+def page_ms() -> float:
+    """Return a stand-in page's clock (ms): the wall clock, as a browser's page time is."""
+    return time.time() * 1000.0
+
+
+async def _exchange_clocks(ws: Any) -> None:
+    """Ask the server's time as a participant's page does (``clock.js``), until the socket closes.
+
+    The first `ENTRY_EXCHANGES` are `CLOCK_BURST_S` apart (the protocol's screening judges the
+    stand-in on them, as a person), then one every `CLOCK_EVERY_S`; the server's answers are
+    reported by `_answer`, and the round trips and offset go into each trial's sidecar.
+    """
+    with contextlib.suppress(ConnectionClosed):
+        for n in itertools.count(1):
+            await ws.send(json.dumps({"type": "clock", "id": n, "t0": page_ms()}))
+            await asyncio.sleep(CLOCK_BURST_S if n < ENTRY_EXCHANGES else CLOCK_EVERY_S)
 
 
 def _answer(stand_in: StandIn, message: Mapping[str, Any]) -> list[str]:
@@ -228,6 +274,8 @@ def _answer(stand_in: StandIn, message: Mapping[str, Any]) -> list[str]:
     kind = message["type"]
     if kind == "ping":
         return [json.dumps({"type": "pong", "id": message["id"], "late_frames": 0})]
+    if kind == "clock":
+        return [json.dumps({"type": "clocked", "id": message["id"], "t3": page_ms()})]
     if kind == "go":
         return [m for m in (stand_in.start(int(message["trial"])),) if m is not None]
     if kind == "frame":

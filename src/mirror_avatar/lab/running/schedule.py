@@ -123,7 +123,7 @@ class Schedule(Protocol):
         ...
 
     async def after_trial(self, n: int, log: Callable[[str], None]) -> None:
-        """Do what follows trial n before the pause (a study asks its questions)."""
+        """Do what follows trial n before the pause (a study asks its questions; ends its run)."""
         ...
 
     def answer(self, participant: Participant, answer: Any) -> str | None:

@@ -9,7 +9,8 @@ hidden or a window out of focus during a trial is recorded in the trial's sideca
 with ``screen_hidden_tab = "refuse"`` a tab hidden during a trial refuses the person instead
 (`HIDDEN_REFUSAL`; a window out of focus alone never does: a click on the browser's own bar
 takes the focus). Every refusal is written to ``refusal-<label>.json`` in the run's folder
-(`record_refusal`) and the session's log.
+(`record_refusal`) and the session's log, read back by
+`mirror_avatar.lab.export.run_outcomes`.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from mirror_avatar.files.atomic import write_atomic_json
+from mirror_avatar.lab.files import refusal_file
 
 ENTRY_EXCHANGES = 100
 """Clock exchanges a page's entry is judged on: the burst it sends as it connects
@@ -56,12 +58,7 @@ def entry_refusal(delays_ms: Sequence[float], bound_ms: float) -> str | None:
     return f"Your connection's round trip (p95 {p95:.0f} ms) is above the study's {bound_ms:g} ms."
 
 
-def refusal_path(directory: Path, label: str) -> Path:
-    """Return the file of a person's refusal in a run's folder."""
-    return directory / f"refusal-{label}.json"
-
-
 def record_refusal(directory: Path, label: str, reason: str, measured: dict[str, Any]) -> None:
     """Write the person's refusal (why, when in UTC, what was measured) to their file (blocking)."""
     record = {"label": label, "reason": reason, "utc": datetime.now(UTC).isoformat()}
-    write_atomic_json(refusal_path(directory, label), record | measured)
+    write_atomic_json(refusal_file(directory, label), record | measured)

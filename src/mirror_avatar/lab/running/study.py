@@ -11,7 +11,8 @@ label or a kind.
 
 The folder is named after the protocol and the participant (``<protocol>-p003``) and holds
 ``study.json``: the protocol's seed and source, the participant's number and the order of the
-conditions as run, with each condition's trial numbers and partners. Creating the same
+conditions as run, with each condition's trial numbers and partners; once the last trial is
+played, ``ended.json`` (`mirror_avatar.lab.export.run_outcomes`). Creating the same
 participant's session again (after a crash, a server restart) resumes it: ``study.json`` must
 match the protocol (same seed, same order), and play continues at the first trial whose files
 are not on disk; the trial a crash interrupted keeps what it recorded, and a trial whose
@@ -41,6 +42,7 @@ from mirror_avatar.files.user_files import parse_json
 from mirror_avatar.lab.design.perturbation import Perturbation
 from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.lab.design.protocol import Condition, Protocol, Question
+from mirror_avatar.lab.export.run_outcomes import write_ended
 from mirror_avatar.lab.files import (
     ANSWERS_SUFFIX,
     SESSION_SUFFIX,
@@ -393,7 +395,26 @@ class ParticipantRun:
         return next_in(self.plan, n, self.total_trials, complete)
 
     async def after_trial(self, n: int, log: Callable[[str], None]) -> None:
-        """Ask the trial's (and the block's) questions and wait for every answer."""
+        """Ask the trial's (and the block's) questions and wait for every answer.
+
+        After the run's last trial, its end is recorded (`mirror_avatar.lab.export.run_outcomes.
+        write_ended`) with the completion and the people whose pages show it: those connected
+        and not refused.
+        """
+        await self._ask(n, log)
+        if n != self.total_trials:
+            return
+        ending = self.protocol.online.completion
+        shown = [p.label for p in self.people if p.outbox is not None and p.refused is None]
+        try:
+            await asyncio.to_thread(
+                write_ended, self.directory, ending.to_json() if ending else None, shown
+            )
+        except OSError as error:
+            log(f"the run's end was not written: {error}")
+
+    async def _ask(self, n: int, log: Callable[[str], None]) -> None:
+        """Ask the questions after trial n and wait for every answer."""
         after = self.questions_after(n)
         ids = list(dict.fromkeys(after["trial"] + after["block"]))
         people = [p.label for p in self.playing.values()]
