@@ -1,0 +1,72 @@
+"""Equalising and predicting a partner's view: the arithmetic against hand-computed values."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mirror_avatar.realtime.partner_view import (
+    dead_reckon,
+    displayed_delays_ms,
+    displayed_errors,
+    due_page_ms,
+    one_way_ms,
+    view_summary,
+)
+
+BOUNDS = (-0.5, 0.5)
+
+
+def test_one_way_is_half_the_median_round_trip():
+    assert one_way_ms([40.0, 300.0, 42.0, 41.0, 44.0]) == 21.0  # median 42
+    assert one_way_ms([]) is None
+
+
+def test_a_sample_is_due_its_lag_after_its_time_on_the_page_clock():
+    # sample at server 12.5 s, lag 150 ms, page clock 2000 ms behind: 12650 - 2000 ms
+    assert due_page_ms(12.5, 150.0, 2000.0) == 10_650.0
+    assert due_page_ms(12.5, 150.0, -500.0) == 13_150.0
+
+
+def test_dead_reckoning_fits_the_slope_of_the_last_four_samples():
+    # x = t^2 at t = 0, 1, 2, 3 (period 1): least-squares slope 15 / 5 = 3 (see the comment
+    # below); 9 + 3 * 0.5 = 10.5, scaled by 1/100 to lie in the playing range
+    history = np.array([[0.0], [1.0], [4.0], [9.0]]) / 100.0
+    # sum (t - 1.5)(x - 3.5) = 5.25 + 1.25 + 0.25 + 8.25 = 15; sum (t - 1.5)^2 = 5
+    assert dead_reckon(history, 1.0, 0.5, BOUNDS) == pytest.approx([0.105])
+
+
+def test_dead_reckoning_uses_only_the_last_samples_and_the_period():
+    # an old jump, then a ramp of 0.01 a sample at 0.03 s: v = 1/3 unit/s; 0.15 s ahead: +0.05
+    history = np.array([[0.4, 0.0], [-0.2, 0.0], [-0.1, 0.0], [-0.09, 0.0], [-0.08, 0.0],
+                        [-0.07, 0.0]])  # fmt: skip
+    assert dead_reckon(history, 0.03, 0.15, BOUNDS) == pytest.approx([-0.02, 0.0])
+
+
+def test_dead_reckoning_stays_in_range_and_holds_a_single_sample():
+    ramp = np.array([[0.40], [0.44], [0.48]])
+    assert dead_reckon(ramp, 0.03, 1.0, BOUNDS) == pytest.approx([0.5])
+    assert dead_reckon(np.array([[0.2]]), 0.03, 1.0, BOUNDS) == pytest.approx([0.2])
+
+
+def test_delays_and_errors_against_the_recording():
+    shown_s = np.array([1.17, 1.20])
+    sample_s = np.array([1.02, 1.05])
+    assert displayed_delays_ms(shown_s, sample_s) == pytest.approx([150.0, 150.0])
+    times = np.array([1.14, 1.17, 1.20, 1.23])
+    truth = np.array([0.0, 0.03, 0.06, 0.09])
+    # drawn 0.01 and 0.075 at 1.17 and 1.20 s: the recording had 0.03 and 0.06 there
+    errors = displayed_errors(shown_s, np.array([0.01, 0.075]), times, truth)
+    assert errors == pytest.approx([-0.02, 0.015])
+    # between samples: at 1.185 s the recording is 0.045
+    between = displayed_errors(np.array([1.185]), np.array([0.045]), times, truth)
+    assert between == pytest.approx([0.0])
+
+
+def test_the_summary_gives_mean_p95_and_rms():
+    summary = view_summary(np.arange(1.0, 21.0), np.array([0.03, -0.04]))
+    assert summary["frames"] == 20
+    assert summary["delay_ms"]["mean"] == 10.5
+    assert summary["delay_ms"]["p95"] == pytest.approx(19.05)  # 1 + 0.95 * 19
+    assert summary["error_rms"] == pytest.approx(np.sqrt((0.0009 + 0.0016) / 2))
+    assert view_summary(np.array([]), None)["error_rms"] is None
