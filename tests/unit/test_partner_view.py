@@ -1,10 +1,17 @@
-"""Equalising and predicting a partner's view: the arithmetic against hand-computed values."""
+"""Equalising and predicting a partner's view: the arithmetic against hand-computed values, and
+what the view file records of a page's draws."""
 
 from __future__ import annotations
+
+import json
+import re
 
 import numpy as np
 import pytest
 
+from mirror_avatar.lab.running.messages import Shown, parse_participant_message
+from mirror_avatar.lab.running.views import SentFrame, ViewLog
+from mirror_avatar.realtime.messages import ProtocolError
 from mirror_avatar.realtime.partner_view import (
     dead_reckon,
     displayed_delays_ms,
@@ -70,3 +77,38 @@ def test_the_summary_gives_mean_p95_and_rms():
     assert summary["delay_ms"]["p95"] == pytest.approx(19.05)  # 1 + 0.95 * 19
     assert summary["error_rms"] == pytest.approx(np.sqrt((0.0009 + 0.0016) / 2))
     assert view_summary(np.array([]), None)["error_rms"] is None
+
+
+def test_the_view_log_writes_and_judges_what_a_page_drew(tmp_path):
+    log = ViewLog(tmp_path / "trial-01_view.csv", ["P1", "P2"])
+    log.sent("P1", 5, SentFrame((1,), 1.02, (0.01,)))
+    log.sent("P1", 6, SentFrame((1,), 1.05, (None,)))  # hidden: not drawn
+    log.shown("P1", [(5, 900.0, 1.17), (6, 930.0, 1.20), (7, 960.0, 1.23)])  # 7: never sent
+    log.shown("P1", [(5, 990.0, 1.26)])  # reported twice: kept once
+    log(np.zeros(3))
+    log.close()
+    rows = (tmp_path / "trial-01_view.csv").read_text().splitlines()
+    assert rows == ["label,partner,k,sample_s,page_ms,shown_s,x",
+                    "P1,P2,5,1.020000,900.000,1.170000,0.01"]  # fmt: skip
+    times = np.array([1.14, 1.17, 1.20])
+    positions = np.array([[0.0, 0.0, 0.0], [0.0, 0.03, 0.06]])
+    summary = log.summary("P1", times, positions)
+    assert summary["frames"] == 1 and summary["delay_ms"]["mean"] == pytest.approx(150.0)
+    assert summary["error_rms"] == pytest.approx(0.02)  # drew 0.01 where P2 was at 0.03
+    assert log.summary("P2", times, positions) is None
+
+
+@pytest.mark.parametrize(
+    ("message", "problem"),
+    [
+        ({"k": [1, 2], "t": [3.0]}, "shown: 'k' and 't' must be lists of the same length"),
+        ({"k": [], "t": []}, "shown: 1 to 20 frames per message"),
+        ({"k": [-1], "t": [3.0]}, "shown: 'k' must be a non-negative integer"),
+        ({"k": [1], "t": ["soon"]}, "shown: 't' must be a number"),
+    ],
+)
+def test_a_bad_shown_message_is_refused(message, problem):
+    with pytest.raises(ProtocolError, match=re.escape(problem)):
+        parse_participant_message(json.dumps({"type": "shown"} | message))
+    parsed = parse_participant_message('{"type": "shown", "k": [4, 5], "t": [10.5, 27.1]}')
+    assert parsed == Shown([4, 5], [10.5, 27.1])

@@ -88,6 +88,14 @@ PAGE_COLUMNS: dict[str, dict[str, Any]] = {
                   "Role": "quality"},
     "page_blur_s": {"Description": "How long the page's window was out of focus during the "
                     "trial", "Units": "s", "Role": "quality"},
+    "page_view_delay_ms": {"Description": "Mean delay from a partner's sample to the page "
+                           "drawing it, on the server's clock (METHODS section 19)", "Units": "ms",
+                           "Role": "quality"},
+    "page_view_delay_p95_ms": {"Description": "95th percentile of the delay from a partner's "
+                               "sample to the page drawing it", "Units": "ms", "Role": "quality"},
+    "page_view_error_rms": {"Description": "RMS of the partner's drawn position minus its "
+                            "recorded position at the time of drawing",
+                            "Units": "playing range units", "Role": "quality"},
 }  # fmt: skip
 """The quality columns of a person's page (`mirror_avatar.files.trial_record.PageRecord.cells`),
 in table order; empty on the rows of avatars, devices and trials recorded before them."""
