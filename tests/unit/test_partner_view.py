@@ -24,8 +24,10 @@ from mirror_avatar.realtime.partner_view import (
 BOUNDS = (-0.5, 0.5)
 
 
-def test_one_way_is_half_the_median_round_trip():
+def test_one_way_is_half_a_quantile_of_the_round_trips():
     assert one_way_ms([40.0, 300.0, 42.0, 41.0, 44.0]) == 21.0  # median 42
+    # p95 of 1..21 (linear): 1 + 0.95 * 20 = 20; halved
+    assert one_way_ms([float(v) for v in range(1, 22)], 0.95) == 10.0
     assert one_way_ms([]) is None
 
 

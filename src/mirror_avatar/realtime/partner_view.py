@@ -6,7 +6,7 @@ samples), reaches a page one downlink later. Three handlings (METHODS section 19
 - ``as_arrives``: drawn on the first animation frame after it arrives;
 - ``equalised`` (local lag, Mauve et al. 2004): held by the page until ``t_k + L`` (its clock
   mapped onto the server's, `due_page_ms`), ``L`` a declared lag or the slowest page's one-way
-  delay (`one_way_ms`), so that every page draws sample k at the same time;
+  delay (`one_way_ms` at `LAG_QUANTILE`), so that every page draws sample k at the same time;
 - ``predicted`` (first-order dead reckoning): drawn as it arrives, at the position extrapolated
   ``h`` ahead from the partner's last `FIT_SAMPLES` samples (`dead_reckon`).
 
@@ -31,18 +31,23 @@ FIT_SAMPLES = 4
 """Samples a partner's velocity is fitted on (**choice**: at the 30 ms control period, the last
 90 ms: long enough to average a pointer's quantisation, short enough to follow a reversal)."""
 
+LAG_QUANTILE = 0.95
+"""Quantile of the slowest page's round trips whose half is a measured lag (**choice**: a frame
+that arrives after its due time is drawn late, so the lag covers nearly every frame's delay, as
+local lag must to avoid showing the pages different moments; Mauve et al. 2004)."""
+
 Array = NDArray[np.float64]
 
 
-def one_way_ms(round_trips_ms: Sequence[float]) -> float | None:
-    """Return a link's one-way delay (ms): half the median of its round trips (None if none).
+def one_way_ms(round_trips_ms: Sequence[float], quantile: float = 0.5) -> float | None:
+    """Return a link's one-way delay (ms): half a quantile of its round trips (None if none).
 
     Half the round trip takes the two directions as equal, as the page clock's offset does
-    (`mirror_avatar.realtime.page_clock`).
+    (`mirror_avatar.realtime.page_clock`); the default quantile is the median.
     """
     if not len(round_trips_ms):
         return None
-    return float(np.median(np.asarray(round_trips_ms, dtype=np.float64))) / 2.0
+    return float(np.quantile(np.asarray(round_trips_ms, dtype=np.float64), quantile)) / 2.0
 
 
 def due_page_ms(sample_s: float, lag_ms: float, offset_ms: float) -> float:

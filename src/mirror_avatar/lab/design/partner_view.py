@@ -6,7 +6,8 @@ A condition declares it with three keys (`mirror_avatar.lab.design.protocol_keys
     view_lag = 0.2               # equalised: every page draws a sample 0.2 s after it was taken
     view_horizon = 0.15          # predicted: partners drawn 0.15 s ahead of their last sample
 
-``view_lag`` left out: the slowest page's one-way delay, measured while the trial runs;
+``view_lag`` left out: the slowest page's one-way delay (half the 95th percentile of its round
+trips), measured while the trial runs;
 ``view_horizon`` left out: each page's own one-way delay. What each handling does is
 `mirror_avatar.realtime.partner_view`'s (METHODS section 19); a lag or a horizon given to
 another handling is refused, as is any handling but ``as_arrives`` for a condition whose

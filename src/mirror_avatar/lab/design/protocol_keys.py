@@ -182,7 +182,7 @@ CONDITION_SETTINGS = (
             "last samples (dead reckoning)", Options(HANDLINGS), "as_arrives"),
     Setting("view_lag", "equalised: the lag after a sample's time at which every page draws it",
             Interval(float, 0.0, MAX_DELAY, unit="s"), None,
-            default_shown="the slowest page's one-way delay (half its median round trip)"),
+            default_shown="the slowest page's one-way delay (half its round trips' p95)"),
     Setting("view_horizon", "predicted: how far ahead of a partner's last sample it is drawn",
             Interval(float, 0.0, MAX_HORIZON, unit="s"), None,
             default_shown="each page's own one-way delay"),

@@ -7,12 +7,13 @@ view says (`mirror_avatar.lab.design.partner_view.PartnerView`, METHODS section 
 - ``as_arrives``: the positions, drawn as they arrive;
 - ``equalised``: the positions and ``due``, the page time at which every page draws them:
   their sample's time plus the declared lag, or the slowest connected page's one-way delay
-  (half the median round trip of its clock's window), on the page's clock
+  (half the 95th percentile of the round trips of its clock's window:
+  `mirror_avatar.realtime.partner_view.LAG_QUANTILE`), on the page's clock
   (`mirror_avatar.realtime.partner_view.due_page_ms`); a page whose clock is not known yet
   draws them as they arrive;
 - ``predicted``: each partner extrapolated from its last samples
   (`mirror_avatar.realtime.partner_view.dead_reckon`) over the declared horizon, or the page's
-  own one-way delay (none before its clock is known).
+  own one-way delay (half its median round trip; none before its clock is known).
 
 The recording keeps the true positions; what each page was sent is remembered for the view
 file (`mirror_avatar.lab.running.views.ViewLog`).
@@ -34,7 +35,13 @@ from mirror_avatar.lab.running.trial import LabTrial
 from mirror_avatar.lab.running.views import SentFrame
 from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.realtime.page_clock import PageClock
-from mirror_avatar.realtime.partner_view import FIT_SAMPLES, dead_reckon, due_page_ms, one_way_ms
+from mirror_avatar.realtime.partner_view import (
+    FIT_SAMPLES,
+    LAG_QUANTILE,
+    dead_reckon,
+    due_page_ms,
+    one_way_ms,
+)
 
 AS_ARRIVES = PartnerView()
 """The partners drawn as they arrive."""
@@ -47,9 +54,12 @@ def page_clock(participant: Participant) -> PageClock | None:
 
 
 def slowest_one_way_ms(people: Iterable[Participant]) -> float:
-    """Return the largest one-way delay (ms) of the connected pages' clocks (0 with none)."""
+    """Return the largest one-way delay (ms) of the connected pages' clocks (0 with none).
+
+    Each page's is half the `LAG_QUANTILE` of its clock window's round trips.
+    """
     delays = [
-        one_way_ms(clock.recent_delays())
+        one_way_ms(clock.recent_delays(), LAG_QUANTILE)
         for person in people
         if person.outbox is not None and (clock := page_clock(person)) is not None
     ]
