@@ -49,6 +49,14 @@ DESIGN_COLUMNS: dict[str, dict[str, Any]] = {
                      "Role": "design"},
     "delay_s": {"Description": "Visual delay of the partners on the persons' pages",
                 "Units": "s", "Role": "design"},
+    "partner_view": {"Description": "How the pages drew the partners when the people's links "
+                     "differed (METHODS section 19)",
+                     "Levels": {"as_arrives": "as each frame arrived",
+                                "equalised": "each sample drawn the same lag after it was taken "
+                                             "on every page (local lag)",
+                                "predicted": "extrapolated from the partner's last samples "
+                                             "(dead reckoning)"},
+                     "Role": "design"},
     "occluded": {"Description": "Whether the partners were hidden during part of the trial",
                  "Role": "design"},
     "perturbations": {"Description": "Changes of an avatar during the trial",

@@ -87,6 +87,9 @@ class StudyRecord:
     label and true kind (`KINDS`), ``panel`` each person's identifiers on their recruitment
     panel by label (as their join link gave them), ``consented`` when each person agreed on the
     consent page (UTC, ISO 8601) by label; those two are written only when there are any.
+    ``partner_view`` is how the pages drew the partners, as the condition declared it
+    (``handling``, ``lag_s``, ``horizon_s``: `mirror_avatar.lab.design.partner_view`), None in
+    the records written before it.
     """
 
     protocol: str
@@ -99,6 +102,7 @@ class StudyRecord:
     partners: dict[str, str]
     panel: dict[str, dict[str, str]] = field(default_factory=dict)
     consented: dict[str, str] = field(default_factory=dict)
+    partner_view: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """Return the study's keys of the ``lab`` object, in the order the lab writes them."""
@@ -117,6 +121,7 @@ class StudyRecord:
             }
             | (panel if self.panel else {})
             | (consented if self.consented else {})
+            | ({} if self.partner_view is None else {"partner_view": dict(self.partner_view)})
         )
 
 
@@ -529,7 +534,16 @@ def _study(keys: _Keys, lab: dict[str, Any]) -> StudyRecord:
         partners={str(label): str(kind) for label, kind in partners.items()},
         panel=_panel(keys, lab.get("panel", {})),
         consented=_texts(keys, lab.get("consented", {}), "consented"),
+        partner_view=None if lab.get("partner_view") is None else _partner_view(keys, lab),
     )
+
+
+def _partner_view(keys: _Keys, lab: dict[str, Any]) -> dict[str, Any]:
+    view = keys.object(lab["partner_view"], "partner_view")
+    at = keys.within("partner_view")
+    return {"handling": at.text(view, "handling")} | {
+        key: _optional_number(at, view, key) for key in ("lag_s", "horizon_s")
+    }
 
 
 def _panel(keys: _Keys, value: object) -> dict[str, dict[str, str]]:

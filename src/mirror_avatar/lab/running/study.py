@@ -348,6 +348,7 @@ class ParticipantRun:
             partners={slot.label: slot.kind for slot in self.plan.slots},
             panel={p.label: dict(p.panel) for p in self.people if p.panel},
             consented={p.label: p.consented for p in self.people if p.consented is not None},
+            partner_view=condition.view.to_json(),
         )
         lab = {"session_id": session_id, "condition": self.plan.condition}
         return lab | study.to_json()
