@@ -31,16 +31,13 @@ import numpy as np
 import pandas as pd
 import pytest
 from test_lab_browser import join
-from test_lab_server import BEARER, TOKEN, command, status
-from test_lab_study import create_participant
+from test_lab_server import BEARER, command, status
+from test_lab_study import create_participant, protocol_lab
 
 from mirror_avatar.cli import main
-from mirror_avatar.lab.design.protocol import load_protocol
-from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.remote.network import parse_network
 from mirror_avatar.remote.proxy import ProxyThread
 from mirror_avatar.sessions.loading import load_session
-from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 
 pytestmark = [pytest.mark.browser, pytest.mark.realtime]
@@ -82,13 +79,7 @@ SWAYING = """([t0, phase]) => {
 
 def test_equalised_views_are_drawn_equally_late_and_predicted_ones_nearer(chromium, tmp_path):
     (tmp_path / "study.toml").write_text(protocol())
-    settings = LabSettings(
-        out_dir=tmp_path / "out",
-        token=TOKEN,
-        countdown=1,
-        protocol=load_protocol(tmp_path / "study.toml"),
-    )
-    with ServerThread(create_lab_app(settings)) as lab:
+    with protocol_lab(tmp_path / "study.toml") as lab:
         created = create_participant(lab.url, 0, BEARER)
         pages: dict[str, Any] = {}
         target = ("127.0.0.1", lab.port)

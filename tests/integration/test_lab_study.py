@@ -103,11 +103,19 @@ def protocol_file(tmp_path: Path) -> Path:
     return path
 
 
-@pytest.fixture
-def lab(tmp_path: Path, protocol_file: Path) -> Iterator[ServerThread]:
+@contextlib.contextmanager
+def protocol_lab(protocol_file: Path) -> Iterator[ServerThread]:
+    """A lab server running the protocol file, its folders under ``out`` beside it."""
     protocol = load_protocol(protocol_file)
-    settings = LabSettings(out_dir=tmp_path / "out", token=TOKEN, countdown=1, protocol=protocol)
+    out = protocol_file.parent / "out"
+    settings = LabSettings(out_dir=out, token=TOKEN, countdown=1, protocol=protocol)
     with ServerThread(create_lab_app(settings)) as running:
+        yield running
+
+
+@pytest.fixture
+def lab(protocol_file: Path) -> Iterator[ServerThread]:
+    with protocol_lab(protocol_file) as running:
         yield running
 
 
@@ -410,10 +418,7 @@ occlude = [[1.5, 2.1]]
 def test_the_partner_is_drawn_late_and_hidden_as_the_condition_says(tmp_path):
     path = tmp_path / "delayed.toml"
     path.write_text(DELAYED)
-    settings = LabSettings(
-        out_dir=tmp_path / "out", token=TOKEN, countdown=1, protocol=load_protocol(path)
-    )
-    with ServerThread(create_lab_app(settings)) as lab:
+    with protocol_lab(path) as lab:
         created = create_participant(lab.url, 0, BEARER)
         sid = created["id"]
         page = Page(created["links"]["P1"])

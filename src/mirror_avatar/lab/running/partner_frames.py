@@ -103,7 +103,8 @@ class PartnerFrames:
             self._history = collections.deque(maxlen=delay + FIT_SAMPLES)
         positions = trial.positions()
         self._history.append((trial.tick_log.last_stamp, positions))
-        past = list(self._history)[: len(self._history) - delay] if not hidden else []
+        kept = max(0, len(self._history) - delay)  # the samples at least `delay` old
+        past = list(self._history)[:kept] if not hidden else []
         lag_ms = None
         if view.handling == "equalised":
             lag_ms = (
