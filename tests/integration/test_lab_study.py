@@ -16,8 +16,9 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+import numpy as np
 import pytest
-from test_lab_server import BEARER, TOKEN, Page, status, welcomed
+from test_lab_server import BEARER, TOKEN, Page, command, status, welcomed
 
 from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
@@ -453,3 +454,43 @@ def test_the_partner_is_drawn_late_and_hidden_as_the_condition_says(tmp_path):
             assert partner == trial.positions[1, k - lag]  # exactly 10 samples late
             shown += 1
     assert hidden > 5 and shown > 20
+
+
+JITTERED = DELAYED.replace(
+    "occlude = [[1.5, 2.1]]", 'delay_jitter = 0.06\njitter_distribution = "exponential"'
+).replace("duration = 3", "duration = 6")
+"""A partner drawn 0.3 s late on average, the delay jittered (SD 0.06 s, skewed to long)."""
+
+
+def test_the_partner_delay_is_jittered_in_order_as_the_condition_says(tmp_path):
+    path = tmp_path / "jittered.toml"
+    path.write_text(JITTERED)
+    with protocol_lab(path) as lab:
+        created = create_participant(lab.url, 0, BEARER)
+        sid = created["id"]
+        page = Page(created["links"]["P1"])
+
+        async def scenario() -> None:
+            task = asyncio.create_task(page.play(30.0))
+            await welcomed([page])
+            await asyncio.to_thread(command, lab, sid, "start")
+            await asyncio.to_thread(wait_for, lambda: status(lab, sid)["state"] == "finished")
+            await task
+
+        asyncio.run(scenario())
+    trial = load_session(tmp_path / "out" / sid / "trial-01_session.csv")
+    view = trial.metadata["lab"]["partner_view"]
+    assert (view["jitter_s"], view["jitter_distribution"]) == (0.06, "exponential")
+    drawn = []  # (k, the sample drawn) of each frame after the first second, found by value
+    for frame in page.of_type("frame"):
+        k, partner = frame["k"], frame["x"][1]
+        if k >= 34 and partner is not None:
+            drawn.append((k, int(np.flatnonzero(trial.positions[1, : k + 1] == partner)[-1])))
+    ks, samples = np.array(drawn).T
+    ages = ks - samples
+    assert len(ages) > 100
+    assert ages.min() >= 0 and ages.max() <= 10 + 8  # 4 SDs: 8 samples past the 10 of 0.3 s
+    assert (np.diff(samples) >= 0).all()  # in order: never an older sample than the one before
+    # jittered around 10 samples (an SD of 2), longer where a late sample holds those behind it
+    print(f"ages: mean {ages.mean():.2f}, SD {ages.std():.2f}, median {np.median(ages)}")
+    assert 1.0 < ages.std() < 3.0 and 10.0 <= ages.mean() <= 13.0

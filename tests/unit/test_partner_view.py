@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from mirror_avatar.lab.running.messages import Shown, parse_participant_message
+from mirror_avatar.lab.running.partner_frames import JitteredLink
 from mirror_avatar.lab.running.views import SentFrame, ViewLog
 from mirror_avatar.realtime.messages import ProtocolError
 from mirror_avatar.realtime.partner_view import (
@@ -17,6 +18,8 @@ from mirror_avatar.realtime.partner_view import (
     displayed_delays_ms,
     displayed_errors,
     due_page_ms,
+    jitter_draw,
+    jittered_delay_s,
     one_way_ms,
     view_summary,
 )
@@ -114,3 +117,30 @@ def test_a_bad_shown_message_is_refused(message, problem):
         parse_participant_message(json.dumps({"type": "shown"} | message))
     parsed = parse_participant_message('{"type": "shown", "k": [4, 5], "t": [10.5, 27.1]}')
     assert parsed == Shown([4, 5], [10.5, 27.1])
+
+
+@pytest.mark.parametrize("distribution", ["normal", "uniform", "exponential"])
+def test_a_jitter_has_a_zero_mean_and_its_declared_sd(distribution):
+    rng = np.random.default_rng(49)
+    draws = np.array([jitter_draw(rng, distribution, 0.05) for _ in range(40_000)])
+    # the mean within 4 standard errors of 0; the SD within 2 % of the declared
+    assert abs(draws.mean()) < 4 * 0.05 / np.sqrt(draws.size)
+    assert draws.std() == pytest.approx(0.05, rel=0.02)
+    skew = np.mean((draws - draws.mean()) ** 3) / draws.std() ** 3
+    assert skew == pytest.approx({"normal": 0.0, "uniform": 0.0, "exponential": 2.0}[distribution],
+                                 abs=0.15)  # fmt: skip
+
+
+def test_a_jittered_delay_stays_within_none_and_four_sds():
+    assert jittered_delay_s(0.3, 0.05, 0.02) == pytest.approx(0.35)
+    assert jittered_delay_s(0.03, -0.2, 0.02) == 0.0
+    assert jittered_delay_s(0.3, 0.5, 0.02) == pytest.approx(0.38)  # 0.3 + 4 * 0.02
+
+
+def test_a_jittered_link_delivers_in_order_the_newest_sample_due():
+    # at T = 0.03 s: sample 0 delayed 0.09 s holds 1 and 2 (due at once, at 0.09 s, behind it);
+    # sample 3 delayed 0.12 s (due 0.21 s) holds 4 to 6, shown together with 7 at 0.21 s
+    link = JitteredLink(np.random.default_rng(0))
+    delays = [0.09, 0.0, 0.0, 0.12, 0.0, 0.0, 0.0, 0.0, 0.03]
+    shown = [link.deliver(k, delay) for k, delay in enumerate(delays)]
+    assert shown == [None, None, None, 2, 2, 2, 2, 7, 7]

@@ -6,9 +6,10 @@ one long `pandas.DataFrame` (columns in `mirror_avatar.analysis.dictionary`): wh
 stands in the participant's run (``block`` and ``position``: 1-based order of the block and of
 the condition in the run, counted from the trials as played; ``trial``), what the protocol set
 (``condition``, ``partners``, ``partner_kind``, ``delay_s``, ``partner_view``, ``occluded``,
-``perturbations``), whether the trial ran to its end (``complete``, its record's: an aborted trial's rows are kept,
-saying so), the measures of the player's trial (`mirror_avatar.metrics.session_metrics` and
-`mirror_avatar.metrics.measures.session_measures`, measured as ``evaluate`` and the lab measure
+``perturbations``), whether the trial ran to its end (``complete``, its record's: an aborted
+trial's rows are kept, saying so), the measures of the player's trial
+(`mirror_avatar.metrics.session_metrics` and `mirror_avatar.metrics.measures.session_measures`,
+measured as ``evaluate`` and the lab measure
 a trial: `mirror_avatar.metrics.measuring.measure_trial`, with ``surrogates`` circular-shift
 surrogates seeded by the trial's own seed: a pair's measures on both players' rows, a player's
 own - jitter index, influence, a group member's measures against its neighbours - on its row),

@@ -88,8 +88,8 @@ class StudyRecord:
     panel by label (as their join link gave them), ``consented`` when each person agreed on the
     consent page (UTC, ISO 8601) by label; those two are written only when there are any.
     ``partner_view`` is how the pages drew the partners, as the condition declared it
-    (``handling``, ``lag_s``, ``horizon_s``: `mirror_avatar.lab.design.partner_view`), None in
-    the records written before it.
+    (``handling``, ``lag_s``, ``horizon_s``, ``jitter_s``, ``jitter_distribution``:
+    `mirror_avatar.lab.design.partner_view`), None in the records written before it.
     """
 
     protocol: str
@@ -541,9 +541,15 @@ def _study(keys: _Keys, lab: dict[str, Any]) -> StudyRecord:
 def _partner_view(keys: _Keys, lab: dict[str, Any]) -> dict[str, Any]:
     view = keys.object(lab["partner_view"], "partner_view")
     at = keys.within("partner_view")
-    return {"handling": at.text(view, "handling")} | {
-        key: _optional_number(at, view, key) for key in ("lag_s", "horizon_s")
+    jitter = {} if "jitter_s" not in view else {
+        "jitter_s": at.number(view, "jitter_s"),
+        "jitter_distribution": at.text(view, "jitter_distribution"),
     }
+    return (
+        {"handling": at.text(view, "handling")}
+        | {key: _optional_number(at, view, key) for key in ("lag_s", "horizon_s")}
+        | jitter
+    )
 
 
 def _panel(keys: _Keys, value: object) -> dict[str, dict[str, str]]:

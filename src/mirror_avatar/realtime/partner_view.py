@@ -10,6 +10,10 @@ samples), reaches a page one downlink later. Three handlings (METHODS section 19
 - ``predicted`` (first-order dead reckoning): drawn as it arrives, at the position extrapolated
   ``h`` ahead from the partner's last `FIT_SAMPLES` samples (`dead_reckon`).
 
+A condition's fixed delay of the partners may vary from sample to sample: a zero-mean jitter of
+a declared distribution and SD is added to each sample's (`jitter_draw`), never below none nor
+beyond `JITTER_SPAN` SDs (`jittered_delay_s`).
+
 What a page drew is judged against the recording (`displayed_delays_ms`, `displayed_errors`):
 the delay is the draw's time on the server's clock minus ``t_k``, the error the drawn position
 minus the partner's recorded position at the draw's time (linear between samples).
@@ -17,6 +21,7 @@ minus the partner's recorded position at the draw's time (linear between samples
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -30,6 +35,14 @@ HANDLINGS = ("as_arrives", "equalised", "predicted")
 FIT_SAMPLES = 4
 """Samples a partner's velocity is fitted on (**choice**: at the 30 ms control period, the last
 90 ms: long enough to average a pointer's quantisation, short enough to follow a reversal)."""
+
+JITTERS = ("normal", "uniform", "exponential")
+"""Distributions of a delay's jitter: normal; uniform; exponential, shifted to a zero mean
+(skewed to long delays, as a queue's)."""
+
+JITTER_SPAN = 4.0
+"""SDs of jitter a delay may exceed its declared one by (**choice**: a normal draw goes beyond
+it once in 30 000, an exponential one once in 150)."""
 
 LAG_QUANTILE = 0.95
 """Quantile of the slowest page's round trips whose half is a measured lag (**choice**: a frame
@@ -48,6 +61,28 @@ def one_way_ms(round_trips_ms: Sequence[float], quantile: float = 0.5) -> float 
     if not len(round_trips_ms):
         return None
     return float(np.quantile(np.asarray(round_trips_ms, dtype=np.float64), quantile)) / 2.0
+
+
+def jitter_draw(rng: np.random.Generator, distribution: str, sd_s: float) -> float:
+    """Return one draw (s) of a zero-mean jitter of SD ``sd_s`` (s) from ``distribution``.
+
+    ``normal``: N(0, sd); ``uniform``: U(-sqrt(3) sd, sqrt(3) sd); ``exponential``:
+    Exp(mean sd) - sd.
+    """
+    if distribution == "normal":
+        return float(rng.normal(0.0, sd_s))
+    if distribution == "uniform":
+        half = math.sqrt(3.0) * sd_s
+        return float(rng.uniform(-half, half))
+    return float(rng.exponential(sd_s)) - sd_s
+
+
+def jittered_delay_s(delay_s: float, jitter_s: float, sd_s: float) -> float:
+    """Return a sample's delay (s): ``delay_s`` plus its jitter, within 0 and `JITTER_SPAN` SDs.
+
+    ``jitter_s`` is the sample's draw (s, `jitter_draw`), ``sd_s`` the jitter's SD (s).
+    """
+    return min(max(delay_s + jitter_s, 0.0), delay_s + JITTER_SPAN * sd_s)
 
 
 def due_page_ms(sample_s: float, lag_ms: float, offset_ms: float) -> float:

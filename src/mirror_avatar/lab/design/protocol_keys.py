@@ -16,7 +16,7 @@ from mirror_avatar.common.constraints import Flag, Interval, Options, Setting, s
 from mirror_avatar.lab.design.order import ORDERS
 from mirror_avatar.lab.design.plan import CONDITIONS, MAX_PLAYERS, RUNS, SEED_LIMIT, TRIAL_SETTINGS
 from mirror_avatar.metrics.registry import TABLE_COLUMNS
-from mirror_avatar.realtime.partner_view import HANDLINGS
+from mirror_avatar.realtime.partner_view import HANDLINGS, JITTERS
 
 PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
 """What a protocol's player slot holds."""
@@ -32,6 +32,10 @@ MAX_BLOCKS, MAX_CONDITIONS, MAX_QUESTIONS, MAX_OPTIONS = 20, 20, 50, 20
 
 MAX_DELAY = 1.0
 """Longest visual delay of the partners (s; Stepp 2009 delayed up to 1 s)."""
+
+MAX_JITTER = 0.25
+"""Largest SD of a partner delay's jitter (s; several times a network's, which Rinott et al.
+2025 emulated for remote synchrony)."""
 
 MAX_HORIZON = 0.5
 """Longest horizon a partner's position is predicted over (s; dead reckoning's straight line
@@ -176,6 +180,11 @@ CONDITION_SETTINGS = (
             allowed="question ids"),
     Setting("delay", "the partners drawn this late on the people's pages (whole control "
             "periods)", Interval(float, 0.0, MAX_DELAY, unit="s"), 0.0),
+    Setting("delay_jitter", "the partners' delay varied from sample to sample around `delay` "
+            "(whole control periods, in order): the SD of the jitter",
+            Interval(float, 0.0, MAX_JITTER, unit="s"), 0.0),
+    Setting("jitter_distribution", "the jitter's distribution, zero-mean (exponential: skewed "
+            "to long delays, as a network's queues)", Options(JITTERS), "normal"),
     Setting("partner_view", "how the people's pages draw the partners when their links differ: "
             "as_arrives: as each frame arrives; equalised: each sample held until the same "
             "lag after it was taken (local lag); predicted: extrapolated from the partner's "

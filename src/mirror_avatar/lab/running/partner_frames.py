@@ -1,8 +1,10 @@
 """Each page's frame of a sample: its own position, and its partners' as the condition shows them.
 
 A page's own position is the one just recorded. Its partners' are those recorded ``delay``
-samples earlier (none before that: not drawn), none while occluded, and drawn as the condition's
-view says (`mirror_avatar.lab.design.partner_view.PartnerView`, METHODS section 19):
+samples earlier (none before that: not drawn), or, when the condition jitters that delay, the
+newest sample delivered to the page as over a network (`JitteredLink`), none while occluded,
+and drawn as the condition's view says (`mirror_avatar.lab.design.partner_view.PartnerView`,
+METHODS section 19):
 
 - ``as_arrives``: the positions, drawn as they arrive;
 - ``equalised``: the positions and ``due``, the page time at which every page draws them:
@@ -27,6 +29,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from mirror_avatar.common.seeds import spawn_seeds
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.files.trials import PLAYING_RANGE
 from mirror_avatar.lab.design.partner_view import PartnerView
@@ -37,14 +40,22 @@ from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.realtime.page_clock import PageClock
 from mirror_avatar.realtime.partner_view import (
     FIT_SAMPLES,
+    JITTER_SPAN,
     LAG_QUANTILE,
     dead_reckon,
     due_page_ms,
+    jitter_draw,
+    jittered_delay_s,
     one_way_ms,
 )
+from mirror_avatar.remote.network import due_time
 
 AS_ARRIVES = PartnerView()
 """The partners drawn as they arrive."""
+
+DUE_TOLERANCE_S = 1e-9
+"""A sample due within this of a tick's time (s) is due at it (its time and delay summed in
+floating point)."""
 
 
 def page_clock(participant: Participant) -> PageClock | None:
@@ -69,12 +80,14 @@ def slowest_one_way_ms(people: Iterable[Participant]) -> float:
 class PartnerFrames:
     """Sends each page its frame of each sample (see the module docstring).
 
-    Remembers the samples a delay and a prediction need: ``(time, positions)`` of the last
-    ``delay + FIT_SAMPLES``, from the trial's first sample.
+    Remembers the samples a delay, its jitter and a prediction need: ``(time, positions)`` of
+    the last ``delay + FIT_SAMPLES`` and the jitter's `JITTER_SPAN` SDs, from the trial's first
+    sample; with a jitter, each page's `JitteredLink`.
     """
 
     def __init__(self) -> None:
         self._history: collections.deque[tuple[float, list[float]]] = collections.deque(maxlen=1)
+        self._links: dict[int, JitteredLink] = {}
 
     def send(
         self,
@@ -93,18 +106,18 @@ class PartnerFrames:
         playing
             The people playing, by player index.
         delay
-            How many samples late the partners are drawn.
+            How many samples late the partners are drawn (jittered as ``view`` says).
         hidden
             Whether the partners are hidden at this sample.
         view
             How the pages draw them.
         """
-        if trial.k == 1 or self._history.maxlen != delay + FIT_SAMPLES:
-            self._history = collections.deque(maxlen=delay + FIT_SAMPLES)
+        span = math.ceil(JITTER_SPAN * view.jitter_s / CONTROL_PERIOD)
+        if trial.k == 1 or self._history.maxlen != delay + span + FIT_SAMPLES:
+            self._history = collections.deque(maxlen=delay + span + FIT_SAMPLES)
+            self._links = {}
         positions = trial.positions()
         self._history.append((trial.tick_log.last_stamp, positions))
-        kept = max(0, len(self._history) - delay)  # the samples at least `delay` old
-        past = list(self._history)[:kept] if not hidden else []
         lag_ms = None
         if view.handling == "equalised":
             lag_ms = (
@@ -112,6 +125,9 @@ class PartnerFrames:
             )
         k = trial.k - 1
         for participant in playing.values():
+            age = self._age(trial, participant.index, delay, view)
+            kept = 0 if age is None else max(0, len(self._history) - age)  # those `age` old
+            past = list(self._history)[:kept] if not hidden else []
             if participant.outbox is None:
                 continue
             own, *others = participant.visible
@@ -124,6 +140,52 @@ class PartnerFrames:
                 frame["due"] = round(due_page_ms(sent.sample_s, lag_ms, offset), 1)
             trial.views.sent(participant.label, k, sent)
             participant.outbox.put_frame(frame)
+
+    def _age(self, trial: LabTrial, index: int, delay: int, view: PartnerView) -> int | None:
+        """Return how many samples old person ``index``'s partners are drawn now (None: none).
+
+        With a jitter, the sample just taken is sent down the person's `JitteredLink` (seeded
+        by the trial's seed and the person's index), its delay drawn.
+        """
+        if not view.jitter_s:
+            return delay
+        link = self._links.get(index)
+        if link is None:
+            seed = spawn_seeds([trial.seed, index], 1)[0]
+            link = self._links[index] = JitteredLink(np.random.default_rng(seed))
+        jitter = jitter_draw(link.rng, view.jitter_distribution, view.jitter_s)
+        k = trial.k - 1
+        shown = link.deliver(k, jittered_delay_s(delay * CONTROL_PERIOD, jitter, view.jitter_s))
+        return None if shown is None else k - shown
+
+
+class JitteredLink:
+    """A partner's samples delivered to one page as over a network: in order, each delayed.
+
+    Sample k, taken at ``k T``, is due its delay later but never before the sample before it
+    (TCP's order: the emulated internet's rule, `mirror_avatar.remote.network.due_time`); at
+    each sample the page is sent the newest sample due by then.
+
+    Parameters
+    ----------
+    rng
+        Draws the person's jitter.
+    """
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self.rng = rng
+        self._due: collections.deque[tuple[int, float]] = collections.deque()
+        self._last = -math.inf
+        self._shown: int | None = None
+
+    def deliver(self, k: int, delay_s: float) -> int | None:
+        """Send sample k delayed ``delay_s`` (s); return the newest sample due at ``k T``."""
+        self._last, _ = due_time(k * CONTROL_PERIOD, delay_s * 1000.0, self._last, ())
+        self._due.append((k, self._last))
+        now = k * CONTROL_PERIOD + DUE_TOLERANCE_S
+        while self._due and self._due[0][1] <= now:
+            self._shown = self._due.popleft()[0]
+        return self._shown
 
 
 def _partners(
