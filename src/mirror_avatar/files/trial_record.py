@@ -541,10 +541,14 @@ def _study(keys: _Keys, lab: dict[str, Any]) -> StudyRecord:
 def _partner_view(keys: _Keys, lab: dict[str, Any]) -> dict[str, Any]:
     view = keys.object(lab["partner_view"], "partner_view")
     at = keys.within("partner_view")
-    jitter = {} if "jitter_s" not in view else {
-        "jitter_s": at.number(view, "jitter_s"),
-        "jitter_distribution": at.text(view, "jitter_distribution"),
-    }
+    jitter = (
+        {}
+        if "jitter_s" not in view
+        else {
+            "jitter_s": at.number(view, "jitter_s"),
+            "jitter_distribution": at.text(view, "jitter_distribution"),
+        }
+    )
     return (
         {"handling": at.text(view, "handling")}
         | {key: _optional_number(at, view, key) for key in ("lag_s", "horizon_s")}
