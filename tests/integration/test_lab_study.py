@@ -23,6 +23,7 @@ from test_lab_server import BEARER, TOKEN, Page, command, status, welcomed
 from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.sessions.loading import load_session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 
@@ -416,26 +417,28 @@ occlude = [[1.5, 2.1]]
 """
 
 
-def test_the_partner_is_drawn_late_and_hidden_as_the_condition_says(tmp_path):
-    path = tmp_path / "delayed.toml"
-    path.write_text(DELAYED)
-    with protocol_lab(path) as lab:
+def played_alone(protocol_file: Path) -> tuple[Session, Page]:
+    """Play participant 0's run of a one-person protocol with one page: its first trial, page."""
+    with protocol_lab(protocol_file) as lab:
         created = create_participant(lab.url, 0, BEARER)
         sid = created["id"]
         page = Page(created["links"]["P1"])
 
-        def start() -> None:
-            httpx.post(f"{lab.url}/api/sessions/{sid}/start", json={}, headers=BEARER)
-
         async def scenario() -> None:
             task = asyncio.create_task(page.play(30.0))
             await welcomed([page])
-            await asyncio.to_thread(start)
+            await asyncio.to_thread(command, lab, sid, "start")
             await asyncio.to_thread(wait_for, lambda: status(lab, sid)["state"] == "finished")
             await task
 
         asyncio.run(scenario())
-    trial = load_session(tmp_path / "out" / sid / "trial-01_session.csv")
+    return load_session(protocol_file.parent / "out" / sid / "trial-01_session.csv"), page
+
+
+def test_the_partner_is_drawn_late_and_hidden_as_the_condition_says(tmp_path):
+    path = tmp_path / "delayed.toml"
+    path.write_text(DELAYED)
+    trial, page = played_alone(path)
     lab_meta = trial.metadata["lab"]
     assert lab_meta["partner_delay_s"] == pytest.approx(0.3)
     assert lab_meta["occluded_s"] == [[1.5, 2.1]]
@@ -465,20 +468,7 @@ JITTERED = DELAYED.replace(
 def test_the_partner_delay_is_jittered_in_order_as_the_condition_says(tmp_path):
     path = tmp_path / "jittered.toml"
     path.write_text(JITTERED)
-    with protocol_lab(path) as lab:
-        created = create_participant(lab.url, 0, BEARER)
-        sid = created["id"]
-        page = Page(created["links"]["P1"])
-
-        async def scenario() -> None:
-            task = asyncio.create_task(page.play(30.0))
-            await welcomed([page])
-            await asyncio.to_thread(command, lab, sid, "start")
-            await asyncio.to_thread(wait_for, lambda: status(lab, sid)["state"] == "finished")
-            await task
-
-        asyncio.run(scenario())
-    trial = load_session(tmp_path / "out" / sid / "trial-01_session.csv")
+    trial, page = played_alone(path)
     view = trial.metadata["lab"]["partner_view"]
     assert (view["jitter_s"], view["jitter_distribution"]) == (0.06, "exponential")
     drawn = []  # (k, the sample drawn) of each frame after the first second, found by value
