@@ -187,8 +187,12 @@ REFUSALS = [
     ),
     ((*C0, "view_lag"), 0.2, "blocks[1].conditions[0].view_lag: belongs to partner_view = 'equa"),
     ((*C0, "view_horizon"), 0.1, "blocks[1].conditions[0].view_horizon: belongs to partner_view"),
-    ((*C0, "jitter_distribution"), "uniform", "blocks[1].conditions[0].jitter_distribution: is "
-     "the distribution of a jitter this condition does not have"),
+    (
+        (*C0, "jitter_distribution"),
+        "uniform",
+        "blocks[1].conditions[0].jitter_distribution: is "
+        "the distribution of a jitter this condition does not have",
+    ),
     ((*C0, "occlude"), "half", "blocks[1].conditions[0].occlude: must be a list of [start, end]"),
     ((*C0, "occlude"), [[3, 2]], "blocks[1].conditions[0].occlude[0]: must be [start, end] with"),
     ((*C0, "occlude"), [[1, 2, 3]], "blocks[1].conditions[0].occlude[0]: must be [start, end]"),
