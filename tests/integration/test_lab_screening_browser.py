@@ -22,13 +22,11 @@ import pandas as pd
 import pytest
 from test_lab_browser import join, screenshot
 from test_lab_online import solo_protocol
-from test_lab_server import BEARER, TOKEN, command, status
-from test_lab_study import create_participant
+from test_lab_server import BEARER, command, status
+from test_lab_study import create_participant, protocol_lab
 
 from mirror_avatar.cli import main
-from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.screening import BACK_NOTICE
-from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.remote.network import parse_network
 from mirror_avatar.remote.proxy import ProxyThread
 from mirror_avatar.testing import ServerThread
@@ -52,13 +50,7 @@ SET_VISIBILITY = """state => {
 @pytest.fixture
 def lab(tmp_path: Path) -> Iterator[ServerThread]:
     (tmp_path / "study.toml").write_text(PROTOCOL)
-    settings = LabSettings(
-        out_dir=tmp_path / "out",
-        token=TOKEN,
-        countdown=1,
-        protocol=load_protocol(tmp_path / "study.toml"),
-    )
-    with ServerThread(create_lab_app(settings)) as running:
+    with protocol_lab(tmp_path / "study.toml") as running:
         yield running
 
 

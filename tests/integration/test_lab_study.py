@@ -16,12 +16,14 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+import numpy as np
 import pytest
-from test_lab_server import BEARER, TOKEN, Page, status, welcomed
+from test_lab_server import BEARER, TOKEN, Page, command, status, welcomed
 
 from mirror_avatar.lab.design.protocol import load_protocol
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.sessions.loading import load_session
+from mirror_avatar.sessions.session import Session
 from mirror_avatar.testing import ServerThread
 from waiting import wait_for
 
@@ -103,11 +105,19 @@ def protocol_file(tmp_path: Path) -> Path:
     return path
 
 
-@pytest.fixture
-def lab(tmp_path: Path, protocol_file: Path) -> Iterator[ServerThread]:
+@contextlib.contextmanager
+def protocol_lab(protocol_file: Path) -> Iterator[ServerThread]:
+    """A lab server running the protocol file, its folders under ``out`` beside it."""
     protocol = load_protocol(protocol_file)
-    settings = LabSettings(out_dir=tmp_path / "out", token=TOKEN, countdown=1, protocol=protocol)
+    out = protocol_file.parent / "out"
+    settings = LabSettings(out_dir=out, token=TOKEN, countdown=1, protocol=protocol)
     with ServerThread(create_lab_app(settings)) as running:
+        yield running
+
+
+@pytest.fixture
+def lab(protocol_file: Path) -> Iterator[ServerThread]:
+    with protocol_lab(protocol_file) as running:
         yield running
 
 
@@ -407,29 +417,28 @@ occlude = [[1.5, 2.1]]
 """
 
 
-def test_the_partner_is_drawn_late_and_hidden_as_the_condition_says(tmp_path):
-    path = tmp_path / "delayed.toml"
-    path.write_text(DELAYED)
-    settings = LabSettings(
-        out_dir=tmp_path / "out", token=TOKEN, countdown=1, protocol=load_protocol(path)
-    )
-    with ServerThread(create_lab_app(settings)) as lab:
+def played_alone(protocol_file: Path) -> tuple[Session, Page]:
+    """Play participant 0's run of a one-person protocol with one page: its first trial, page."""
+    with protocol_lab(protocol_file) as lab:
         created = create_participant(lab.url, 0, BEARER)
         sid = created["id"]
         page = Page(created["links"]["P1"])
 
-        def start() -> None:
-            httpx.post(f"{lab.url}/api/sessions/{sid}/start", json={}, headers=BEARER)
-
         async def scenario() -> None:
             task = asyncio.create_task(page.play(30.0))
             await welcomed([page])
-            await asyncio.to_thread(start)
+            await asyncio.to_thread(command, lab, sid, "start")
             await asyncio.to_thread(wait_for, lambda: status(lab, sid)["state"] == "finished")
             await task
 
         asyncio.run(scenario())
-    trial = load_session(tmp_path / "out" / sid / "trial-01_session.csv")
+    return load_session(protocol_file.parent / "out" / sid / "trial-01_session.csv"), page
+
+
+def test_the_partner_is_drawn_late_and_hidden_as_the_condition_says(tmp_path):
+    path = tmp_path / "delayed.toml"
+    path.write_text(DELAYED)
+    trial, page = played_alone(path)
     lab_meta = trial.metadata["lab"]
     assert lab_meta["partner_delay_s"] == pytest.approx(0.3)
     assert lab_meta["occluded_s"] == [[1.5, 2.1]]
@@ -448,3 +457,30 @@ def test_the_partner_is_drawn_late_and_hidden_as_the_condition_says(tmp_path):
             assert partner == trial.positions[1, k - lag]  # exactly 10 samples late
             shown += 1
     assert hidden > 5 and shown > 20
+
+
+JITTERED = DELAYED.replace(
+    "occlude = [[1.5, 2.1]]", 'delay_jitter = 0.06\njitter_distribution = "exponential"'
+).replace("duration = 3", "duration = 6")
+"""A partner drawn 0.3 s late on average, the delay jittered (SD 0.06 s, skewed to long)."""
+
+
+def test_the_partner_delay_is_jittered_in_order_as_the_condition_says(tmp_path):
+    path = tmp_path / "jittered.toml"
+    path.write_text(JITTERED)
+    trial, page = played_alone(path)
+    view = trial.metadata["lab"]["partner_view"]
+    assert (view["jitter_s"], view["jitter_distribution"]) == (0.06, "exponential")
+    drawn = []  # (k, the sample drawn) of each frame after the first second, found by value
+    for frame in page.of_type("frame"):
+        k, partner = frame["k"], frame["x"][1]
+        if k >= 34 and partner is not None:
+            drawn.append((k, int(np.flatnonzero(trial.positions[1, : k + 1] == partner)[-1])))
+    ks, samples = np.array(drawn).T
+    ages = ks - samples
+    assert len(ages) > 100
+    assert ages.min() >= 0 and ages.max() <= 10 + 8  # 4 SDs: 8 samples past the 10 of 0.3 s
+    assert (np.diff(samples) >= 0).all()  # in order: never an older sample than the one before
+    # jittered around 10 samples (an SD of 2), longer where a late sample holds those behind it
+    print(f"ages: mean {ages.mean():.2f}, SD {ages.std():.2f}, median {np.median(ages)}")
+    assert 1.0 < ages.std() < 3.0 and 10.0 <= ages.mean() <= 13.0

@@ -24,7 +24,8 @@ from mirror_avatar.testing import ServerThread
 
 DESIGN = [
     "participant", "session", "person", "player_kind", "block", "condition", "trial",
-    "position", "partners", "partner_kind", "delay_s", "occluded", "perturbations", "complete",
+    "position", "partners", "partner_kind", "delay_s", "partner_view", "occluded", "perturbations",
+    "complete",
 ]  # fmt: skip
 
 
@@ -61,6 +62,7 @@ def test_a_row_per_trial_and_player_with_design_measures_and_answers(study, tmp_
     assert list(first["partners"]) == ["A1", "P1", "P2", "P1"]
     assert list(first["partner_kind"]) == ["avatar", "person", "person", "person"]
     assert first["delay_s"].tolist() == pytest.approx([0, 0, 0.3, 0.3])
+    assert list(first["partner_view"]) == ["as_arrives"] * 4
     assert list(first["occluded"]) == [False, False, True, True]
     assert list(first["perturbations"]) == [0, 0, 0, 0]
     assert list(first["complete"]) == [True] * 4

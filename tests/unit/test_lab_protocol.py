@@ -179,6 +179,20 @@ REFUSALS = [
     ((*C0, "trials"), 1.5, "blocks[1].conditions[0].trials: 1.5 is not allowed (give a whole"),
     ((*C0, "pause"), "long", "blocks[1].conditions[0].pause: 'long' is not allowed (give a num"),
     ((*C0, "delay"), True, "blocks[1].conditions[0].delay: True is not allowed (give a number"),
+    (
+        (*C0, "partner_view"),
+        "equalized",
+        "blocks[1].conditions[0].partner_view: 'equalized' is "
+        "not allowed (give one of as_arrives, equalised, predicted)",
+    ),
+    ((*C0, "view_lag"), 0.2, "blocks[1].conditions[0].view_lag: belongs to partner_view = 'equa"),
+    ((*C0, "view_horizon"), 0.1, "blocks[1].conditions[0].view_horizon: belongs to partner_view"),
+    (
+        (*C0, "jitter_distribution"),
+        "uniform",
+        "blocks[1].conditions[0].jitter_distribution: is "
+        "the distribution of a jitter this condition does not have",
+    ),
     ((*C0, "occlude"), "half", "blocks[1].conditions[0].occlude: must be a list of [start, end]"),
     ((*C0, "occlude"), [[3, 2]], "blocks[1].conditions[0].occlude[0]: must be [start, end] with"),
     ((*C0, "occlude"), [[1, 2, 3]], "blocks[1].conditions[0].occlude[0]: must be [start, end]"),

@@ -71,7 +71,10 @@ def test_a_perturbation_of_an_avatar_in_the_browser_is_refused(tmp_path):
     assert ".perturb: condition 'follow': A1 runs in the browser" in text
 
 
-@pytest.mark.parametrize("more", ["delay = 0.2", "occlude = [[1, 2]]"])
+@pytest.mark.parametrize(
+    "more",
+    ["delay = 0.2", "occlude = [[1, 2]]", 'partner_view = "predicted"', "delay_jitter = 0.05"],
+)
 def test_a_partner_delayed_or_hidden_is_refused_beside_an_avatar_in_the_browser(tmp_path, more):
     key = more.split()[0]
     text = refusal(protocol(tmp_path, more=more))

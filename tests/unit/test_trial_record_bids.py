@@ -56,6 +56,7 @@ RECORD = TrialRecord(
         partners={"P1": "human", "A1": "avatar", "P2": "human"},
         panel={"P1": {"PROLIFIC_PID": "5f1a2b3c4d5e6f7a8b9c0d1e", "STUDY_ID": "s-42"}},
         consented={"P1": "2025-03-01T09:58:00+00:00", "P2": "2025-03-01T09:59:30+00:00"},
+        partner_view={"handling": "equalised", "lag_s": 0.2, "horizon_s": None},
     ),
     seed=17,
     created_utc="2025-03-01T10:00:00+00:00",
@@ -77,6 +78,11 @@ RECORD = TrialRecord(
             sample_rate_hz=240.5,
             frame_rate_hz=59.8,
             stalls=({"start_s": 12.25, "length_s": 2.0},),
+            view={
+                "frames": 512,
+                "delay_ms": {"n": 512, "mean": 203.5, "median": 201.0, "p95": 219.0, "max": 260.0},
+                "error_rms": 0.041,
+            },
         )
     },
 )

@@ -49,6 +49,14 @@ DESIGN_COLUMNS: dict[str, dict[str, Any]] = {
                      "Role": "design"},
     "delay_s": {"Description": "Visual delay of the partners on the persons' pages",
                 "Units": "s", "Role": "design"},
+    "partner_view": {"Description": "How the pages drew the partners when the people's links "
+                     "differed (METHODS section 19)",
+                     "Levels": {"as_arrives": "as each frame arrived",
+                                "equalised": "each sample drawn the same lag after it was taken "
+                                             "on every page (local lag)",
+                                "predicted": "extrapolated from the partner's last samples "
+                                             "(dead reckoning)"},
+                     "Role": "design"},
     "occluded": {"Description": "Whether the partners were hidden during part of the trial",
                  "Role": "design"},
     "perturbations": {"Description": "Changes of an avatar during the trial",
@@ -88,6 +96,14 @@ PAGE_COLUMNS: dict[str, dict[str, Any]] = {
                   "Role": "quality"},
     "page_blur_s": {"Description": "How long the page's window was out of focus during the "
                     "trial", "Units": "s", "Role": "quality"},
+    "page_view_delay_ms": {"Description": "Mean delay from a partner's sample to the page "
+                           "drawing it, on the server's clock (METHODS section 19)", "Units": "ms",
+                           "Role": "quality"},
+    "page_view_delay_p95_ms": {"Description": "95th percentile of the delay from a partner's "
+                               "sample to the page drawing it", "Units": "ms", "Role": "quality"},
+    "page_view_error_rms": {"Description": "RMS of the partner's drawn position minus its "
+                            "recorded position at the time of drawing",
+                            "Units": "playing range units", "Role": "quality"},
 }  # fmt: skip
 """The quality columns of a person's page (`mirror_avatar.files.trial_record.PageRecord.cells`),
 in table order; empty on the rows of avatars, devices and trials recorded before them."""

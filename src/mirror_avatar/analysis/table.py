@@ -5,12 +5,13 @@ one long `pandas.DataFrame` (columns in `mirror_avatar.analysis.dictionary`): wh
 (``participant``, ``session``, ``person``, ``player_kind``: `slot_kind`), where the trial
 stands in the participant's run (``block`` and ``position``: 1-based order of the block and of
 the condition in the run, counted from the trials as played; ``trial``), what the protocol set
-(``condition``, ``partners``, ``partner_kind``, ``delay_s``, ``occluded``, ``perturbations``),
-whether the trial ran to its end (``complete``, its record's: an aborted trial's rows are kept,
-saying so), a person's panel identifiers (``panel_<name>``) and their run's outcomes (the
-completion code shown, refusals: `mirror_avatar.analysis.dictionary.RUN_COLUMNS`), the measures
-of the player's trial (`mirror_avatar.metrics.session_metrics` and
-`mirror_avatar.metrics.measures.session_measures`, measured as ``evaluate`` and the lab measure
+(``condition``, ``partners``, ``partner_kind``, ``delay_s``, ``partner_view``, ``occluded``,
+``perturbations``), whether the trial ran to its end (``complete``, its record's: an aborted
+trial's rows are kept, saying so), a person's panel identifiers (``panel_<name>``) and their
+run's outcomes (the completion code shown, refusals:
+`mirror_avatar.analysis.dictionary.RUN_COLUMNS`), the measures of the player's trial
+(`mirror_avatar.metrics.session_metrics` and `mirror_avatar.metrics.measures.session_measures`,
+measured as ``evaluate`` and the lab measure
 a trial: `mirror_avatar.metrics.measuring.measure_trial`, with ``surrogates`` circular-shift
 surrogates seeded by the trial's own seed: a pair's measures on both players' rows, a player's
 own - jitter index, influence, a group member's measures against its neighbours - on its row),
@@ -165,6 +166,9 @@ def _design(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:
         "partners": "+".join(p.label for p in partners),
         "partner_kind": partner_kind(slot_kind(p) for p in partners),
         "delay_s": 0.0 if study is None else float(study.delay_s),
+        "partner_view": "as_arrives"
+        if study is None or study.partner_view is None
+        else study.partner_view["handling"],
         "occluded": study is not None and bool(study.occluded_s),
         "perturbations": len(record.perturbations),
         "complete": record.complete,

@@ -87,6 +87,9 @@ class StudyRecord:
     label and true kind (`KINDS`), ``panel`` each person's identifiers on their recruitment
     panel by label (as their join link gave them), ``consented`` when each person agreed on the
     consent page (UTC, ISO 8601) by label; those two are written only when there are any.
+    ``partner_view`` is how the pages drew the partners, as the condition declared it
+    (``handling``, ``lag_s``, ``horizon_s``, ``jitter_s``, ``jitter_distribution``:
+    `mirror_avatar.lab.design.partner_view`), None in the records written before it.
     """
 
     protocol: str
@@ -99,6 +102,7 @@ class StudyRecord:
     partners: dict[str, str]
     panel: dict[str, dict[str, str]] = field(default_factory=dict)
     consented: dict[str, str] = field(default_factory=dict)
+    partner_view: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """Return the study's keys of the ``lab`` object, in the order the lab writes them."""
@@ -117,6 +121,7 @@ class StudyRecord:
             }
             | (panel if self.panel else {})
             | (consented if self.consented else {})
+            | ({} if self.partner_view is None else {"partner_view": dict(self.partner_view)})
         )
 
 
@@ -170,7 +175,11 @@ class PageRecord:
     ``length_s``) and ``interruptions`` (each time the page's tab was hidden or its window out
     of focus: ``kind``, one of `INTERRUPTION_KINDS`, ``start_s`` and ``end_s`` on the server's
     clock, cut to the trial; ``open`` when it had not ended by the trial's end; the key absent
-    when there were none, as in the records written before it).
+    when there were none, as in the records written before it) and ``view`` (its partners'
+    draws: ``frames``, ``delay_ms`` from each sample's time to its draw's, n, mean, median, p95,
+    max, and ``error_rms``, the drawn positions' RMS error against the recording, units;
+    `mirror_avatar.lab.running.views.ViewLog.summary`; absent when it drew none, as in the
+    records written before it).
     """
 
     exchanges: int
@@ -181,6 +190,7 @@ class PageRecord:
     frame_rate_hz: float | None
     stalls: tuple[dict[str, float], ...] = ()
     interruptions: tuple[dict[str, Any], ...] = ()
+    view: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """Return the page as the sidecar's ``pages`` holds it."""
@@ -192,23 +202,39 @@ class PageRecord:
             "sample_rate_hz": self.sample_rate_hz,
             "frame_rate_hz": self.frame_rate_hz,
             "stalls": [dict(stall) for stall in self.stalls],
-        } | ({"interruptions": [dict(s) for s in self.interruptions]} if self.interruptions else {})
+        } | (
+            ({"interruptions": [dict(s) for s in self.interruptions]} if self.interruptions else {})
+            | ({"view": self.view} if self.view is not None else {})
+        )
 
     def cells(self) -> dict[str, float | int | None]:
         """Return its cells in the study table (`mirror_avatar.analysis.dictionary`)."""
+        return (
+            {
+                "page_rtt_median_ms": self.rtt_ms.get("median"),
+                "page_rtt_p95_ms": self.rtt_ms.get("p95"),
+                "page_rtt_max_ms": self.rtt_ms.get("max"),
+                "page_offset_ms": None if self.offset_ms is None else self.offset_ms["median"],
+                "page_uncertainty_ms": None
+                if self.uncertainty_ms is None
+                else self.uncertainty_ms["median"],
+                "page_sample_rate_hz": self.sample_rate_hz,
+                "page_frame_rate_hz": self.frame_rate_hz,
+                "page_stalls": len(self.stalls),
+                "page_stalled_s": sum(stall["length_s"] for stall in self.stalls),
+            }
+            | self._interruption_cells()
+            | self._view_cells()
+        )
+
+    def _view_cells(self) -> dict[str, float | None]:
+        """Return the partners' drawn delay (mean, p95; ms) and RMS error (units), or Nones."""
+        view = self.view or {"delay_ms": {}}
         return {
-            "page_rtt_median_ms": self.rtt_ms.get("median"),
-            "page_rtt_p95_ms": self.rtt_ms.get("p95"),
-            "page_rtt_max_ms": self.rtt_ms.get("max"),
-            "page_offset_ms": None if self.offset_ms is None else self.offset_ms["median"],
-            "page_uncertainty_ms": None
-            if self.uncertainty_ms is None
-            else self.uncertainty_ms["median"],
-            "page_sample_rate_hz": self.sample_rate_hz,
-            "page_frame_rate_hz": self.frame_rate_hz,
-            "page_stalls": len(self.stalls),
-            "page_stalled_s": sum(stall["length_s"] for stall in self.stalls),
-        } | self._interruption_cells()
+            "page_view_delay_ms": view["delay_ms"].get("mean"),
+            "page_view_delay_p95_ms": view["delay_ms"].get("p95"),
+            "page_view_error_rms": view.get("error_rms"),
+        }
 
     def _interruption_cells(self) -> dict[str, float | int]:
         """Count each kind of interruption and sum its length (s)."""
@@ -433,7 +459,19 @@ def _page(keys: _Keys, value: object) -> PageRecord:
             _interruption(keys.within(f"interruptions[{k}]"), span)
             for k, span in enumerate(interruptions)
         ),
+        view=None if page.get("view") is None else _view(keys.within("view"), page["view"]),
     )
+
+
+def _view(keys: _Keys, value: object) -> dict[str, Any]:
+    view = keys.object(value)
+    delay = keys.object(view.get("delay_ms"), "delay_ms")
+    return {
+        "frames": keys.count(view, "frames"),
+        "delay_ms": delay
+        | {key: _optional_number(keys.within("delay_ms"), delay, key) for key in ("mean", "p95")},
+        "error_rms": _optional_number(keys, view, "error_rms"),
+    }
 
 
 def _interruption(keys: _Keys, value: object) -> dict[str, Any]:
@@ -496,6 +534,25 @@ def _study(keys: _Keys, lab: dict[str, Any]) -> StudyRecord:
         partners={str(label): str(kind) for label, kind in partners.items()},
         panel=_panel(keys, lab.get("panel", {})),
         consented=_texts(keys, lab.get("consented", {}), "consented"),
+        partner_view=None if lab.get("partner_view") is None else _partner_view(keys, lab),
+    )
+
+
+def _partner_view(keys: _Keys, lab: dict[str, Any]) -> dict[str, Any]:
+    view = keys.object(lab["partner_view"], "partner_view")
+    at = keys.within("partner_view")
+    jitter = (
+        {}
+        if "jitter_s" not in view
+        else {
+            "jitter_s": at.number(view, "jitter_s"),
+            "jitter_distribution": at.text(view, "jitter_distribution"),
+        }
+    )
+    return (
+        {"handling": at.text(view, "handling")}
+        | {key: _optional_number(at, view, key) for key in ("lag_s", "horizon_s")}
+        | jitter
     )
 
 

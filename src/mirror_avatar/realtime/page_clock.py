@@ -130,6 +130,15 @@ class PageClock:
         self.estimates.append(Estimate(exchange.t2 / 1000.0, offset, uncertainty))
         return exchange
 
+    @property
+    def offset_ms(self) -> float:
+        """The latest estimate's offset, server time minus page time (ms); NaN before any."""
+        return self.estimates[-1].offset_ms if self.estimates else math.nan
+
+    def recent_delays(self) -> list[float]:
+        """Return the round trips (ms) of the exchanges the latest estimate was made from."""
+        return [exchange.delay for exchange in self._recent]
+
     def to_server(self, page_ms: float) -> float:
         """Map a page time (ms) onto the server's clock (s); NaN before the first exchange."""
         if not self.estimates:

@@ -38,6 +38,7 @@ from mirror_avatar.lab.design.order import (
     first_meets_person,
     meets_person,
 )
+from mirror_avatar.lab.design.partner_view import PartnerView, parse_partner_view
 from mirror_avatar.lab.design.perturbation import Perturbation, parse_perturbations
 from mirror_avatar.lab.design.plan import (
     MAX_SPEC_CHARS,
@@ -173,6 +174,9 @@ class Condition:
         How late the partners are drawn on the people's pages (s).
     occlude
         Intervals of each trial (s from its start) during which the partners are hidden.
+    view
+        How the people's pages draw the partners when their links differ
+        (`mirror_avatar.lab.design.partner_view`).
     perturb
         Changes of its avatars at given times of each trial
         (`mirror_avatar.lab.design.perturbation`), in order of time.
@@ -186,6 +190,7 @@ class Condition:
     after_trial: tuple[str, ...]
     delay: float = 0.0
     occlude: tuple[tuple[float, float], ...] = ()
+    view: PartnerView = PartnerView()
     perturb: tuple[Perturbation, ...] = ()
 
     @property
@@ -566,11 +571,12 @@ def _condition(
         settings["graph"] = data["graph"]
     after = check.refs(data.get("after_trial", []), f"{where}.after_trial", questions)
     occlude = _intervals(check, data.get("occlude", []), f"{where}.occlude")
+    in_page = [player.label for player in players if player.runs == "browser"]
+    view = parse_partner_view(check, data, where, in_page[0] if in_page else None)
     condition = Condition(
-        name, str(game), players, tuple(leaders), settings, after, float(delay), occlude
+        name, str(game), players, tuple(leaders), settings, after, float(delay), occlude, view
     )
     _check_plan(check, condition, where)
-    in_page = [player.label for player in players if player.runs == "browser"]
     for key in ("delay", "occlude"):
         if in_page and key in data:
             raise check.error(

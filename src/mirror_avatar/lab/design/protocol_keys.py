@@ -16,6 +16,7 @@ from mirror_avatar.common.constraints import Flag, Interval, Options, Setting, s
 from mirror_avatar.lab.design.order import ORDERS
 from mirror_avatar.lab.design.plan import CONDITIONS, MAX_PLAYERS, RUNS, SEED_LIMIT, TRIAL_SETTINGS
 from mirror_avatar.metrics.registry import TABLE_COLUMNS
+from mirror_avatar.realtime.partner_view import HANDLINGS, JITTERS
 
 PLAYER_KINDS = ("person", "avatar", "person-or-avatar")
 """What a protocol's player slot holds."""
@@ -31,6 +32,14 @@ MAX_BLOCKS, MAX_CONDITIONS, MAX_QUESTIONS, MAX_OPTIONS = 20, 20, 50, 20
 
 MAX_DELAY = 1.0
 """Longest visual delay of the partners (s; Stepp 2009 delayed up to 1 s)."""
+
+MAX_JITTER = 0.25
+"""Largest SD of a partner delay's jitter (s; several times a network's, which Rinott et al.
+2025 emulated for remote synchrony)."""
+
+MAX_HORIZON = 0.5
+"""Longest horizon a partner's position is predicted over (s; dead reckoning's straight line
+drifts from a mirror-game movement's curve over a few hundred ms)."""
 
 MAX_ANSWER_CHARS = 120
 """Longest free-text answer (characters; one answer travels in one page message)."""
@@ -171,6 +180,21 @@ CONDITION_SETTINGS = (
             allowed="question ids"),
     Setting("delay", "the partners drawn this late on the people's pages (whole control "
             "periods)", Interval(float, 0.0, MAX_DELAY, unit="s"), 0.0),
+    Setting("delay_jitter", "the partners' delay varied from sample to sample around `delay` "
+            "(whole control periods, in order): the SD of the jitter",
+            Interval(float, 0.0, MAX_JITTER, unit="s"), 0.0),
+    Setting("jitter_distribution", "the jitter's distribution, zero-mean (exponential: skewed "
+            "to long delays, as a network's queues)", Options(JITTERS), "normal"),
+    Setting("partner_view", "how the people's pages draw the partners when their links differ: "
+            "as_arrives: as each frame arrives; equalised: each sample held until the same "
+            "lag after it was taken (local lag); predicted: extrapolated from the partner's "
+            "last samples (dead reckoning)", Options(HANDLINGS), "as_arrives"),
+    Setting("view_lag", "equalised: the lag after a sample's time at which every page draws it",
+            Interval(float, 0.0, MAX_DELAY, unit="s"), None,
+            default_shown="the slowest page's one-way delay (half its round trips' p95)"),
+    Setting("view_horizon", "predicted: how far ahead of a partner's last sample it is drawn",
+            Interval(float, 0.0, MAX_HORIZON, unit="s"), None,
+            default_shown="each page's own one-way delay"),
     Setting("occlude", "when the partners are hidden", default=None,
             allowed=f'[[start, end], ...] s within 0..{MAX_OCCLUSION_END:g}, or "whole"'),
     Setting("perturb", "changes of an avatar mid-trial", default=None,

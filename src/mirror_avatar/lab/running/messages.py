@@ -24,14 +24,19 @@ The page sends JSON text messages (at most `mirror_avatar.realtime.messages.MAX_
   (``e``: ``hidden``, ``visible``) or its window lost or regained the focus (``blur``,
   ``focus``) at ``t`` (ms, the page's clock) (`mirror_avatar.realtime.interruptions`);
 - ``{"type": "answer", "trial": n, "question": id, "value": v}``: the participant's answer to
-  a question asked after trial ``n`` (a study protocol's ``questions`` message).
+  a question asked after trial ``n`` (a study protocol's ``questions`` message);
+- ``{"type": "shown", "k": [k, ...], "t": [t, ...]}``: the frames the page drew (each frame's
+  sample ``k``) and when (``t``: the animation frame's time, ms, the page's clock), at most
+  `MAX_BATCH` (`mirror_avatar.lab.running.views`).
 
 The server sends ``welcome`` (the participant's slot, the players it sees and their colours),
 ``ping``, ``countdown``, ``avatar`` (the player index and message of the avatar the page
 steps, `mirror_avatar.browser.browser_arrays`), ``go``, ``frame`` (once per tick: the sample
-``k``, the visible players' positions and the trial's progress), ``end`` (the trial's metrics
-when the researcher shows them), ``state`` (waiting, paused, ended), ``notice`` (one line to
-show the participant: `mirror_avatar.lab.running.screening`), ``refused`` and ``error``. A
+``k``, the visible players' positions, the trial's progress and, for an equalised view, the
+page time ``due`` at which to draw it: `mirror_avatar.lab.running.partner_frames`), ``end``
+(the trial's metrics when the researcher shows them), ``state`` (waiting, paused, ended),
+``notice`` (one line to show the participant: `mirror_avatar.lab.running.screening`),
+``refused`` and ``error``. A
 participant cannot control the session: no message it sends does more than move its own point
 (and the avatar its page steps).
 """
@@ -128,6 +133,14 @@ class FocusChange:
     t_ms: float
 
 
+@dataclass(frozen=True)
+class Shown:
+    """Frames the page drew: each frame's sample ``k`` and its draw's time ``t_ms`` (ms, page)."""
+
+    k: list[int]
+    t_ms: list[float]
+
+
 ParticipantMessage = (
     PositionUpdate
     | AvatarPosition
@@ -137,6 +150,7 @@ ParticipantMessage = (
     | ClockRequest
     | ClockReport
     | FocusChange
+    | Shown
 )
 
 
@@ -164,6 +178,8 @@ def parse_participant_message(text: str | bytes | None) -> ParticipantMessage:
         if event not in EVENTS:
             raise ProtocolError(f"focus: 'event' must be one of {', '.join(EVENTS)}")
         return FocusChange(str(event), number_field(data, "t", "focus"))
+    if kind == "shown":
+        return _shown(data)
     if kind == "pong":
         return Pong(_count(data, "id"), _count(data, "late_frames"))
     if kind == "answer":
@@ -190,6 +206,17 @@ def _pointer(data: dict[str, object]) -> PointerBatch:
             raise ProtocolError(f"pointer: ago = {age:g} ms is outside [0, {MAX_AGO_MS:g}]")
         samples.append((sent - age, position))
     return PointerBatch(_count(data, "seq"), sent, samples)
+
+
+def _shown(data: dict[str, object]) -> Shown:
+    """Validate a ``shown`` message: as many times as samples, 1 to `MAX_BATCH`."""
+    ks, ts = data.get("k"), data.get("t")
+    if not isinstance(ks, list) or not isinstance(ts, list) or len(ks) != len(ts):
+        raise ProtocolError("shown: 'k' and 't' must be lists of the same length")
+    if not 1 <= len(ks) <= MAX_BATCH:
+        raise ProtocolError(f"shown: 1 to {MAX_BATCH} frames per message")
+    samples = [_count({"type": "shown", "k": k}, "k") for k in ks]
+    return Shown(samples, [number_field({"t": t}, "t", "shown") for t in ts])
 
 
 def _count(data: dict[str, object], key: str) -> int:

@@ -27,6 +27,7 @@ from mirror_avatar.lab.running.messages import (
     ParticipantMessage,
     PointerBatch,
     Pong,
+    Shown,
     parse_participant_message,
 )
 from mirror_avatar.lab.running.participant import Participant
@@ -142,6 +143,11 @@ class ParticipantPage:
             problem = self.session.answer(participant, message)
             if problem is not None:
                 self.outbox.put({"type": "error", "message": problem})
+        elif isinstance(message, Shown):
+            if isinstance(source, BrowserInput):
+                pairs = zip(message.k, message.t_ms, strict=True)
+                drawn = [(k, t, source.clock.to_server(t)) for k, t in pairs]
+                self.session.shown(participant, drawn)
         elif isinstance(message, Pong):
             self.pings.answer(message.id)
             participant.late_frames = message.late_frames

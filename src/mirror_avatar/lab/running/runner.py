@@ -373,6 +373,12 @@ class LabSession:
             for avatar in trial.page_avatars.values():
                 avatar.put(step)
 
+    def shown(self, participant: Participant, drawn: list[tuple[int, float, float]]) -> None:
+        """Take the frames a person's page drew: (sample k, page ms, server s) each."""
+        trial = self.trial
+        if trial is not None and participant in self.participants.values():
+            trial.views.shown(participant.label, drawn)
+
     def _new_trial(self, n: int) -> LabTrial:
         inputs = {k: p.source for k, p in self.participants.items() if p.source is not None}
         lab = self.schedule.record(self.id, n)

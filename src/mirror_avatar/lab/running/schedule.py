@@ -18,6 +18,7 @@ from mirror_avatar.lab.design.perturbation import Perturbation
 from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.lab.files import PLAN_FILE
 from mirror_avatar.lab.running.participant import COLOURS, Participant
+from mirror_avatar.lab.running.partner_frames import PartnerFrames
 from mirror_avatar.lab.running.trial import LabTrial
 from mirror_avatar.realtime.trial import Array
 
@@ -155,23 +156,6 @@ def welcome(plan: SessionPlan, participant: Participant, state: str) -> dict[str
     }
 
 
-def send_frames(trial: LabTrial, playing: dict[int, Participant]) -> None:
-    """Send each connected page the positions of the players it sees at the sample just taken."""
-    positions = trial.positions()
-    progress = trial.progress
-    for participant in playing.values():
-        if participant.outbox is None:
-            continue
-        participant.outbox.put_frame(
-            {
-                "type": "frame",
-                "k": trial.k - 1,
-                "x": [positions[j] for j in participant.visible],
-                "progress": progress,
-            }
-        )
-
-
 def next_in(plan: SessionPlan, n: int, total: int, complete: bool) -> float | None:
     """Return the plan's pause (s) after a complete trial n of ``total``, or None after the last."""
     return plan.pause if complete and n < total else None
@@ -193,6 +177,7 @@ class OnePlan:
                            [k, *plan.neighbours(k)])
             for k in plan.humans
         }  # fmt: skip
+        self.frames = PartnerFrames()
 
     @property
     def people(self) -> list[Participant]:
@@ -224,8 +209,8 @@ class OnePlan:
         return []
 
     def send_frames(self, trial: LabTrial) -> None:
-        """Send each page the positions of the players it sees."""
-        send_frames(trial, self.playing)
+        """Send each page the positions of the players it sees, as they arrive."""
+        self.frames.send(trial, self.playing)
 
     def publisher(self, outlet: Publisher | None) -> Callable[[Array, float], None] | None:
         """Publish each sample's positions on the outlet as they are."""

@@ -22,7 +22,6 @@ recording is missing beside its other files is refused (`first_unrecorded`).
 from __future__ import annotations
 
 import asyncio
-import collections
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -52,12 +51,12 @@ from mirror_avatar.lab.files import (
 )
 from mirror_avatar.lab.running.messages import Answer
 from mirror_avatar.lab.running.participant import COLOURS, Participant
+from mirror_avatar.lab.running.partner_frames import PartnerFrames
 from mirror_avatar.lab.running.schedule import (
     Entered,
     Opening,
     Publisher,
     next_in,
-    send_frames,
     welcome,
 )
 from mirror_avatar.lab.running.trial import LabTrial
@@ -111,7 +110,7 @@ class ParticipantRun:
         self.directory = Path()  # the session's folder, once opened
         self.asking: Asking | None = None
         self.answered: dict[int, dict[str, dict[str, object]]] = {}
-        self._shown: collections.deque[list[float]] = collections.deque(maxlen=1)
+        self.frames = PartnerFrames()
         self.step = 0
         self.plan: SessionPlan = self.plans[0]
         self.playing: dict[int, Participant] = {}
@@ -310,31 +309,15 @@ class ParticipantRun:
         return round(self.condition().delay / CONTROL_PERIOD)
 
     def send_frames(self, trial: LabTrial) -> None:
-        """Send each page its frame, the partners delayed and hidden as the condition says.
+        """Send each page its frame, the partners delayed, hidden and drawn as the condition says.
 
-        A page's own position is the one just recorded; each partner's is the one recorded
-        `delay_samples` earlier (none before that: not drawn), and none while occluded. The
-        recording keeps the true positions.
+        `mirror_avatar.lab.running.partner_frames.PartnerFrames.send`; the recording keeps the
+        true positions.
         """
         condition = self.condition()
-        if not condition.delay and not condition.occlude:
-            send_frames(trial, self.playing)
-            return
-        lag = self.delay_samples()
-        if trial.k == 1 or self._shown.maxlen != lag + 1:
-            self._shown = collections.deque(maxlen=lag + 1)
-        positions = trial.positions()
-        self._shown.append(positions)
         k = trial.k - 1
         hidden = any(start <= k * CONTROL_PERIOD < end for start, end in condition.occlude)
-        past = self._shown[0] if len(self._shown) > lag and not hidden else None
-        for participant in self.playing.values():
-            if participant.outbox is None:
-                continue
-            own, *others = participant.visible
-            shown = [positions[own], *(None if past is None else past[j] for j in others)]
-            frame = {"type": "frame", "k": k, "x": shown, "progress": trial.progress}
-            participant.outbox.put_frame(frame)
+        self.frames.send(trial, self.playing, self.delay_samples(), hidden, condition.view)
 
     def perturbations(self) -> list[tuple[int, Perturbation]]:
         """Return the condition's changes of the avatars playing now (a person is not changed)."""
@@ -367,6 +350,7 @@ class ParticipantRun:
             partners={slot.label: slot.kind for slot in self.plan.slots},
             panel={p.label: dict(p.panel) for p in self.people if p.panel},
             consented={p.label: p.consented for p in self.people if p.consented is not None},
+            partner_view=condition.view.to_json(),
         )
         lab = {"session_id": session_id, "condition": self.plan.condition}
         return lab | study.to_json()

@@ -20,6 +20,9 @@ Files, in the session's folder, flushed line by line (METHODS section 9):
 - ``trial-NN_pointer.csv`` (`PointerLog`, when a person plays with a page's pointer): every
   pointer sample a page sent, with its time on the page's clock and on the server's (METHODS
   section 18), written at the tick that first could use it;
+- ``trial-NN_view.csv`` (`mirror_avatar.lab.running.views.ViewLog`): every partner position a
+  page drew, with the time of its sample and of the draw on the server's clock (METHODS
+  section 19), written at the tick after the page reported it;
 - ``trial-NN_inputs.csv`` (`mirror_avatar.realtime.trial.TickLog`): per sample, the clock time at
   which it was taken (``clock_s``: the LSL clock when pylsl is installed, so the samples line up
   with EEG recorded through LSL; otherwise the monotonic clock), how late its tick was, and per
@@ -27,8 +30,9 @@ Files, in the session's folder, flushed line by line (METHODS section 9):
   new sample since the previous tick: the last position is kept, never extrapolated) and whether
   the input was live.
 
-When a trial ends, its sidecar records each page's clock and rates (``pages``: `page_record`)
-and  the session's metrics (``metrics``) and the field's
+When a trial ends, its sidecar records each page's clock and rates (``pages``: `page_record`;
+``view``: its partners' draws, `mirror_avatar.lab.running.views.ViewLog.summary`) and the
+session's metrics (``metrics``) and the field's
 measures (``measures``), as ``evaluate`` and ``study table`` compute them
 (`mirror_avatar.metrics.measuring.measure_trial`: the first second left out,
 `mirror_avatar.metrics.measuring.TRIAL_SURROGATES` circular-shift surrogates seeded by the
@@ -64,6 +68,7 @@ from mirror_avatar.lab.design.perturbation import Perturbation
 from mirror_avatar.lab.design.plan import SessionPlan
 from mirror_avatar.lab.files import trial_file, trial_stem
 from mirror_avatar.lab.running.page_avatar import PageAvatar
+from mirror_avatar.lab.running.views import ViewLog
 from mirror_avatar.metrics import compute_phase
 from mirror_avatar.metrics.group import compute_cluster_phase
 from mirror_avatar.metrics.measuring import measure_trial
@@ -195,6 +200,8 @@ class LabTrial(ClockedTrial):
         ``{"sample", "time_s", "player", "change"}``.
     page_avatars
         The avatars stepped in their person's page, by player index.
+    views
+        What each page was sent of its partners and drew (`mirror_avatar.lab.running.views`).
     """
 
     def __init__(
@@ -234,6 +241,9 @@ class LabTrial(ClockedTrial):
             if isinstance(source := self.inputs.get(k), BrowserInput)
         }
         self.pointer_log = PointerLog(trial_file(directory, n, "_pointer.csv"), self.pages)
+        labels = [slot.label for slot in plan.slots]
+        self.views = ViewLog(trial_file(directory, n, "_view.csv"), labels)
+        self._stamps: list[float] = []
         for source in self.pages.values():
             source.unread()  # what came before the trial is not its
         super().__init__(
@@ -246,7 +256,7 @@ class LabTrial(ClockedTrial):
             trial_stem(directory, n),
             self._metadata(lab, period),
             clock,
-            [self._remember, self.pointer_log],
+            [self._remember, self.pointer_log, self.views],
         )
         players_now = {
             "player_seeds": self.engine.player_seeds,
@@ -295,6 +305,7 @@ class LabTrial(ClockedTrial):
         lab = lab | {"trial": self.n, "slots": [slot.to_json() for slot in slots]}
         files = {"page": self.page_path.name} if self.page_avatars else {}
         files["pointer"] = self.pointer_log.path.name
+        files["view"] = self.views.path.name
         return {
             "lab": trial_record({"lab": lab}).lab_json(),
             "files": files,
@@ -315,6 +326,7 @@ class LabTrial(ClockedTrial):
 
     def _remember(self, row: Array) -> None:
         self._taken = row_positions(row).copy()
+        self._stamps.append(self.tick_log.last_stamp)
         if self.publish is not None:
             self.publish(self._taken, self.tick_log.last_stamp)
 
@@ -350,6 +362,7 @@ class LabTrial(ClockedTrial):
         """Let the drops' sidecar writes end, close the files, write the page's avatar's steps."""
         self._sidecar_writes.shutdown(wait=True)
         self.pointer_log.close()
+        self.views.close()
         super().close_files()
         for avatar in self.page_avatars.values():
             try:
@@ -390,6 +403,11 @@ class LabTrial(ClockedTrial):
                 slot["input"] = device
         span = (self.tick_log.first_stamp, self.tick_log.last_stamp)
         pages = {label: page_record(source, *span) for label, source in self.pages.items()}
+        stamps = np.asarray(self._stamps, dtype=np.float64)
+        for label, page in pages.items():
+            view = self.views.summary(label, stamps, session.positions)
+            if view is not None:
+                page["view"] = view
         counts: dict[str, Any] = {"dropped": dict(self.dropped), "pages": pages}
         if self.page_avatars:
             counts["missing"] = {p.slot: p.missing for p in self.page_avatars.values()}

@@ -2,13 +2,16 @@
 // the points of the players they are coupled to come from the server's clock, one frame per tick,
 // but for an avatar the page steps itself (runs = "browser"): built from the server's message
 // (avatars.js), stepped on each frame from the person's position as the page shows it, its state
-// sent with that position (mirror_avatar.lab.running.page_avatar).
+// sent with that position (mirror_avatar.lab.running.page_avatar). A frame is drawn on the first
+// animation frame after it arrives, or after its `due` time (an equalised view); the page reports
+// each frame it drew and the animation frame's time (mirror_avatar.lab.running.views).
 (() => {
   "use strict";
   const RANGE = 0.5;            // positions lie in [-RANGE, RANGE] (playing range units)
   const KEY_SPEED = 0.6;        // units per second while an arrow key is held
   const LATE_FRAME_MS = 50;     // an animation frame drawn later than this counts as late
   const ENDED_CODES = new Set([4001, 4002, 4003, 4004, 1008]);
+  const SHOWN_BATCH = 10;       // frames drawn reported per message
   const canvas = document.getElementById("field");
   const ctx = canvas.getContext("2d");
   const ui = {
@@ -26,6 +29,8 @@
   let welcome = null;
   let others = new Map();      // player index -> latest position from the server
   let pageAvatar = null;       // the avatar this page steps: index, player, tick, seen, state
+  let pending = [];            // frames received, not drawn yet, oldest first
+  let shown = { k: [], t: [] };  // frames drawn and when (ms, the page's clock), not reported yet
   let ended = false;
   let refused = false;         // screened out: the page shows why and the refusal code, only
   let lastNumbers = [];        // the last trial's numbers, each with its words
@@ -89,7 +94,27 @@
     });
   }
 
+  // Take the frames due by page time `t` (ms): the newest one's partners are drawn now.
+  function takeFrames(t) {
+    let newest = null;
+    while (pending.length && !(pending[0].due > t)) newest = pending.shift();
+    if (newest === null) return;
+    welcome.visible.forEach((player, i) => {
+      if (i > 0 && !(pageAvatar && player.index === pageAvatar.index)) others.set(player.index, newest.x[i]);
+    });
+    if (!newest.x.slice(1).some((x) => x !== null)) return;
+    shown.k.push(newest.k);
+    shown.t.push(Math.round(t * 10) / 10);
+    if (shown.k.length >= SHOWN_BATCH) reportShown();
+  }
+
+  function reportShown() {
+    if (shown.k.length) send({ type: "shown", k: shown.k, t: shown.t });
+    shown = { k: [], t: [] };
+  }
+
   function animate(now) {
+    if (welcome && !ended) takeFrames(performance.timeOrigin + now);
     if (me.lastFrame !== null) {
       const dt = (now - me.lastFrame) / 1000;
       if (dt * 1000 > LATE_FRAME_MS) me.lateFrames += 1;
@@ -241,15 +266,15 @@
       case "countdown":
         ui.trial.textContent = `Trial ${message.trial} of ${welcome ? welcome.trials : "?"}`;
         others = new Map();
+        pending = [];
+        shown = { k: [], t: [] };
         pageAvatar = null;
         say(String(message.remaining));
         break;
       case "avatar": buildAvatar(message); break;
       case "go": say(""); notify(""); ui.bar.style.width = "0%"; break;
       case "frame":
-        welcome.visible.forEach((player, i) => {
-          if (i > 0 && !(pageAvatar && player.index === pageAvatar.index)) others.set(player.index, message.x[i]);
-        });
+        pending.push(message);
         if (pageAvatar) stepAvatar(message.k);
         ui.bar.style.width = `${(100 * message.progress).toFixed(1)}%`;
         break;
