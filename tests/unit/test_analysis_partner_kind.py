@@ -48,10 +48,10 @@ def test_balanced_kinds_equal_least_squares_with_a_dummy_per_participant() -> No
     condition, kind = "C(condition, Sum)[S.delay 0.5 s]", "C(partner_kind, Sum)[S.avatar]"
     (contrast,) = model.contrasts
     kind_test, interaction_test = model.factors
-    assert (kind_test.term, kind_test.compared) == (KIND_TERM, "avatar against person")
-    assert (interaction_test.term, interaction_test.compared) == (
-        INTERACTION_TERM, f"{DELAY} x avatar"
+    assert (kind_test.term, kind_test.condition, kind_test.kind, kind_test.reference_kind) == (
+        KIND_TERM, "", "avatar", "person"
     )  # fmt: skip
+    assert (interaction_test.term, interaction_test.condition) == (INTERACTION_TERM, DELAY)
     # Sum coding's +-1 codes: a difference is twice its coefficient, the interaction four times.
     for found, name, scale in [(contrast.difference, condition, 2), (kind_test.estimate, kind, 2),
                                (interaction_test.estimate, f"{condition}:{kind}", 4)]:  # fmt: skip

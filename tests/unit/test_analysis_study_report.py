@@ -207,6 +207,17 @@ def test_report_leads_with_its_verdict_and_results_hold_every_number(
     assert len(results["identification"]["per_person"]) == 12
     contrasts = pd.read_csv(html.parent / "contrasts.csv")
     assert list(contrasts["measure"]) == ["rms", "phase_locking"]
+    # The partners alternate between persons and avatars: kind and condition x kind are tested.
+    assert model["fixed_effects"] == (
+        "measure ~ condition + position + partner kind + condition x partner kind"
+    )
+    assert [f["term"] for f in model["factors"]] == ["partner kind", "condition x partner kind"]
+    assert "Partner kind: rms was" in page and "Condition x partner kind: delay 0.5 s" in page
+    methods = results["methods"]
+    assert (
+        "(fitted: measure ~ condition + position + partner kind + condition x partner kind "
+        "for rms and CV (phase locking, 0-1))" in methods
+    )
     conditions = pd.read_csv(html.parent / "conditions.csv")
     assert np.all(conditions["ci_low"] < conditions["ci_high"])
 
@@ -246,7 +257,7 @@ def test_two_persons_of_a_participant_count_once_and_answer_each(tmp_path: Path)
     """A two-person protocol: P1 and P2 of one participant share the pair's measures; the
     participant is the unit of the statistics, and each person's answers are scored apart."""
     one = make_study_rows(2, effects=EFFECTS)
-    one = one[one["player_kind"] == "person"]
+    one = with_answers(one[one["player_kind"] == "person"], seed=4)
     two = pd.concat([one, one.assign(person="P2", partners="P1")], ignore_index=True)
     two = with_answers(two, seed=4)
     alone = analyse_study(read_study_table(write_study_table(one, tmp_path / "one")))

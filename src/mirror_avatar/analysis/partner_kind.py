@@ -41,14 +41,15 @@ class KindTerms:
     reference
         The reference kind; "" when the trials have one kind.
     columns
-        Each added column -> (term, what it compares in words), in design order.
+        Each added column -> (term, condition, kind), in design order: the condition "" for
+        a kind's own column.
     notes
         What was left out and why, in plain words.
     """
 
     design: pd.DataFrame
     reference: str
-    columns: dict[str, tuple[str, str]]
+    columns: dict[str, tuple[str, str, str]]
     notes: list[str]
 
 
@@ -101,9 +102,8 @@ def kind_terms(
                                    - float((conditions == c).mean())) * centred[k]
         for c in others for k in tested
     }, index=design.index)  # fmt: skip
-    words = {kind_column(k): (KIND_TERM, f"{k} against {reference}") for k in tested}
-    words |= {interaction_column(c, k): (INTERACTION_TERM, f"{c} x {k}")
-              for c in others for k in tested}  # fmt: skip
+    words = {kind_column(k): (KIND_TERM, "", k) for k in tested}
+    words |= {interaction_column(c, k): (INTERACTION_TERM, c, k) for c in others for k in tested}
     full = pd.concat([design, main, products], axis=1)
     if _full_rank(full):
         return KindTerms(full, reference, words, [])

@@ -263,8 +263,9 @@ class FactorTest:
     measure, term
         The measure; the term (`mirror_avatar.analysis.partner_kind.KIND_TERM` or
         ``INTERACTION_TERM``).
-    compared
-        What the coefficient compares, in words ("avatar against person", "delay x avatar").
+    condition, kind, reference_kind
+        What the coefficient compares: ``kind`` against ``reference_kind``, and for an
+        interaction the non-reference ``condition``'s effect ("" for the kind's own term).
     estimate
         The coefficient, in the measure's units: a kind's mean minus the reference kind's,
         averaged over the conditions; an interaction, the condition's effect with the kind
@@ -272,17 +273,23 @@ class FactorTest:
     ci_low, ci_high, df, p
         Its t interval, Satterthwaite's degrees of freedom and two-sided p-value; ``p_holm``
         Holm-corrected over the term's coefficients in the measure.
+    q
+        ``p`` adjusted by Benjamini-Hochberg across the study's tests of kind and condition x
+        kind (`mirror_avatar.analysis.study_report`); NaN until then.
     """
 
     measure: str
     term: str
-    compared: str
+    condition: str
+    kind: str
+    reference_kind: str
     estimate: float
     ci_low: float
     ci_high: float
     df: float
     p: float
     p_holm: float
+    q: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -456,7 +463,7 @@ def fixed_effects_words(position: bool, terms: KindTerms) -> str:
     ``position``: whether the order covariate is in the model; ``terms`` the kind's
     (`kind_terms`).
     """
-    said = {term for term, _ in terms.columns.values()}
+    said = {term for term, _, _ in terms.columns.values()}
     words = ["condition"] + ["position"] * position
     words += [t for t in (KIND_TERM, INTERACTION_TERM) if t in said]
     return "measure ~ " + " + ".join(words)
@@ -472,12 +479,14 @@ def _factor_tests(
     """Test each kind and condition x kind coefficient, Holm-corrected within its term."""
     found = []
     for term in (KIND_TERM, INTERACTION_TERM):
-        columns = [c for c, (t, _) in terms.columns.items() if t == term]
+        columns = [c for c, (t, _, _) in terms.columns.items() if t == term]
         adjusted = holm([tests[c].p for c in columns])
         for column, p_holm in zip(columns, adjusted, strict=True):
             estimate = _scaled(tests[column], sd, confidence)
+            _, condition, kind = terms.columns[column]
             found.append(FactorTest(
-                measure=measure, term=term, compared=terms.columns[column][1],
+                measure=measure, term=term, condition=condition, kind=kind,
+                reference_kind=terms.reference,
                 estimate=estimate.value, ci_low=estimate.low, ci_high=estimate.high,
                 df=estimate.df, p=estimate.p, p_holm=float(p_holm),
             ))  # fmt: skip

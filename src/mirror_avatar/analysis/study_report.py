@@ -34,6 +34,7 @@ from mirror_avatar.analysis.statistics import (
     CONFIDENCE,
     MIXED_MODEL,
     Contrast,
+    FactorTest,
     MeasureModel,
     condition_summaries,
     fit_contrasts,
@@ -45,6 +46,7 @@ from mirror_avatar.analysis.study_text import (
     NO_UNITS,
     comparison_sentence,
     confirmatory_sentence,
+    factor_sentence,
     format_p,
     identification_sentence,
     methods_paragraph,
@@ -120,6 +122,11 @@ class StudyAnalysis:
         return [c for model in self.models for c in model.contrasts]
 
     @property
+    def factors(self) -> list[FactorTest]:
+        """Every model's tests of the partner's kind and condition x kind, measure by measure."""
+        return [f for model in self.models for f in model.factors]
+
+    @property
     def exploratory(self) -> list[Contrast]:
         """Every contrast but the declared hypothesis's."""
         return [c for c in self.contrasts if c.exploratory]
@@ -138,6 +145,13 @@ class StudyAnalysis:
         return [
             comparison_sentence(c, table.label(c.measure), table.units(c.measure))
             for c in self.exploratory
+        ]
+
+    def factor_sentences(self) -> list[str]:
+        """Say each test of the partner's kind and of condition x kind in a line."""
+        table = self.table
+        return [
+            factor_sentence(f, table.label(f.measure), table.units(f.measure)) for f in self.factors
         ]
 
     def verdict(self) -> str:
@@ -224,7 +238,7 @@ def analyse_study(
         else:
             models.append(model)
             notes += [f"{measure}: {note}" for note in model.notes]
-    models = _with_q_values(models, hypothesis)
+    models = _with_factor_q_values(_with_q_values(models, hypothesis))
     notes += few_participants_note(int(rows["participant"].nunique()))
     if untested:
         notes.append(
@@ -240,6 +254,8 @@ def analyse_study(
         "model": MIXED_MODEL, "confirmatory_model": CONFIRMATORY_MODEL,
         "random_effects": {table.label(m.measure): m.random_effects for m in models
                            if m.random_effects},
+        "fixed_effects": {table.label(m.measure): m.fixed_effects for m in models
+                          if m.fixed_effects},
         "exploratory": EXPLORATORY_MODEL,
         "protocol": None if protocol is None else Path(protocol.source).name,
         "plan": None if plan is None else {"file": plan.source.name, "sha256": plan.sha256},
@@ -327,6 +343,12 @@ def _with_q_values(models: list[MeasureModel], hypothesis: Analysis | None) -> l
             for c in model.contrasts
         ]) for model in models
     ]  # fmt: skip
+
+
+def _with_factor_q_values(models: list[MeasureModel]) -> list[MeasureModel]:
+    """Give every test of kind and condition x kind its Benjamini-Hochberg q across the study's."""
+    q = iter(benjamini_hochberg([f.p for m in models for f in m.factors]))
+    return [replace(m, factors=[replace(f, q=float(next(q))) for f in m.factors]) for m in models]
 
 
 def _is_confirmatory(contrast: Contrast, hypothesis: Analysis | None) -> bool:
@@ -471,6 +493,18 @@ def _contrast_displays(analysis: StudyAnalysis) -> dict[str, pd.DataFrame]:
     }
 
 
+def _factor_table(analysis: StudyAnalysis) -> pd.DataFrame:
+    """Show the tests of the partner's kind and of condition x kind, a row each."""
+    return pd.DataFrame([{
+        "measure": _heading(analysis.table, f.measure), "term": f.term,
+        "compared": f"{f.kind} against {f.reference_kind}"
+                    + (f", {f.condition}'s effect" if f.condition else ""),
+        "estimate": f.estimate, "95 % CI": f"{f.ci_low:.4g} to {f.ci_high:.4g}",
+        "df": round(f.df, 1), "p": _p_cell(f.p), "p Holm": _p_cell(f.p_holm),
+        "q (BH)": _p_cell(f.q),
+    } for f in analysis.factors]).set_index("measure")  # fmt: skip
+
+
 def _p_cell(p: float) -> str:
     return format_p(p).removeprefix("p = ").removeprefix("p ")
 
@@ -542,7 +576,8 @@ def _sections(analysis: StudyAnalysis) -> list[Section]:
     sections = [
         _hypothesis_section(analysis),
         Section("comparisons", "Exploratory comparisons",
-                text=[exploratory, *analysis.sentences(), *analysis.notes]),
+                text=[exploratory, *analysis.sentences(), *analysis.factor_sentences(),
+                      *analysis.notes]),
         Section("conditions", "Each condition: mean over participants and its CI",
                 tables={"Mean, bootstrap CI and SD of the participants' means": summaries},
                 figures=figures),
@@ -550,6 +585,11 @@ def _sections(analysis: StudyAnalysis) -> list[Section]:
             **_contrast_displays(analysis),
             "Each measure's random effects, order (position in the participant's order) and "
             "variances": _model_table(analysis),
+            **({"Partner kind: each kind's difference from the reference kind over the "
+                "conditions, and each condition's effect with the kind minus with the reference "
+                "kind (measure units), Satterthwaite t tests; p Holm-corrected within the "
+                "measure's term, q across every test of kind": _factor_table(analysis)}
+               if analysis.factors else {}),
         } if analysis.models else {}),
     ]  # fmt: skip
     if analysis.identification is not None:

@@ -17,8 +17,9 @@ from typing import Any
 
 from mirror_avatar.analysis.hypothesis import ConfirmatoryTest
 from mirror_avatar.analysis.identification import CHANCE, Identification
+from mirror_avatar.analysis.partner_kind import KIND_TERM
 from mirror_avatar.analysis.random_effects import CROSSED_PARTNERS, SELECTION_ALPHA
-from mirror_avatar.analysis.statistics import Contrast
+from mirror_avatar.analysis.statistics import Contrast, FactorTest
 
 ALPHA = 0.05
 """The significance level, and the false discovery rate, of the exploratory sentences
@@ -74,6 +75,26 @@ def comparison_sentence(contrast: Contrast, label: str, units: str) -> str:
         f"{c.condition} did not change {label} detectably from {c.reference}: "
         f"{number(c.reference_mean)} and {with_unit(c.condition_mean, units)} {evidence}."
     )
+
+
+def factor_sentence(test: FactorTest, label: str, units: str) -> str:
+    """Say one test of the partner's kind, or of condition x kind, in a line.
+
+    ``label`` and ``units`` name the measure; the evidence is the q-value (Benjamini-Hochberg
+    across the study's tests of kind), the model's p and interval.
+    """
+    t = test
+    evidence = (f"(exploratory: {format_p(t.q, 'q')}, {format_p(t.p)}, 95 % CI "
+                f"{number(t.ci_low)} to {number(t.ci_high)}, {number(t.df)} df)")  # fmt: skip
+    if t.term == KIND_TERM:
+        said = (f"{label} was {with_unit(abs(t.estimate), units)} "
+                f"{'higher' if t.estimate > 0 else 'lower'} with {t.kind} partners than with "
+                f"{t.reference_kind} partners, over the conditions")  # fmt: skip
+        return f"Partner kind: {said} {evidence}."
+    said = (f"{t.condition} changed {label} by {with_unit(abs(t.estimate), units)} "
+            f"{'more' if t.estimate > 0 else 'less'} with {t.kind} partners than with "
+            f"{t.reference_kind} partners")  # fmt: skip
+    return f"Condition x partner kind: {said} {evidence}."
 
 
 def confirmatory_sentence(test: ConfirmatoryTest, label: str, units: str) -> str:
@@ -186,7 +207,11 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         f"confidence interval ({parameters['bootstrap_resamples']} resamples of the "
         f"participants' means, scipy.stats.bootstrap, random seed {parameters['seed']}; Efron "
         "& Tibshirani 1993). Conditions were compared within participants by a linear mixed "
-        "model per measure, measure ~ condition + position with random effects per "
+        "model per measure, measure ~ condition + position, and + partner kind + condition x "
+        "partner kind where the trials had partners of several kinds (weighted-effects "
+        "coding: each kind's indicator and the conditions' centred, so that a condition's "
+        "effect is averaged over the kinds)"
+        f"{_fitted_models(parameters.get('fixed_effects', {}))}, with random effects per "
         "participant (statsmodels MixedLM, REML): a random intercept and correlated random "
         "slopes for condition (Barr, Levy, Scheepers & Tily 2013) where the data supported "
         "them (participants with every condition outnumbering the conditions, repeated trials, "
