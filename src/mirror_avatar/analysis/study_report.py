@@ -157,7 +157,9 @@ class StudyAnalysis:
     def verdict(self) -> str:
         """Return the report's first line."""
         labels = {measure: self.table.label(measure) for measure in self.table.outcomes}
-        return verdict(self.exploratory, self.identification, self.confirmatory, labels)
+        unconverged = [m.measure for m in self.models if m.random_effects and not m.converged]
+        return verdict(self.exploratory, self.identification, self.confirmatory, labels,
+                       unconverged)  # fmt: skip
 
     def results(self) -> dict[str, Any]:
         """Every number, for ``results.json``."""
@@ -260,8 +262,11 @@ def analyse_study(
         "protocol": None if protocol is None else Path(protocol.source).name,
         "plan": None if plan is None else {"file": plan.source.name, "sha256": plan.sha256},
         "hypothesis": None if hypothesis is None else asdict(hypothesis),
-        "identification": "exact binomial against 0.5; d' and c with log-linear correction "
-                          "when a rate is 0 or 1; Mann-Whitney U for confidence",
+        "identification": "persons' rates against 0.5 by a one-sample t-test over persons "
+                          "(the verdict's; the pooled exact binomial when fewer than two "
+                          "persons' rates differ); exact binomial of every answer against "
+                          "0.5; d' and c with log-linear correction when a rate is 0 or 1; "
+                          "Mann-Whitney U for confidence",
         "versions": _versions(),
     }  # fmt: skip
     return StudyAnalysis(

@@ -12,7 +12,7 @@ is below `ALPHA`.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from mirror_avatar.analysis.hypothesis import ConfirmatoryTest
@@ -143,6 +143,11 @@ def identification_sentence(found: Identification) -> str:
     if d.corrected:
         text += ", log-linear corrected for a rate of 0 or 1"
     text += "."
+    if found.over_persons:
+        text += (f" Over the {found.persons} persons, a mean rate of {found.person_rate_mean:.0%} "
+                 f"right (one-sample t-test against {CHANCE:.0%}, "
+                 f"{format_p(found.person_rate_p)}; each person's rate a unit, as the binomial "
+                 "test above takes every answer as independent).")  # fmt: skip
     if found.confidence_right_n and found.confidence_wrong_n:
         text += (f" Confidence was {number(found.confidence_right)} in right answers and "
                  f"{number(found.confidence_wrong)} in wrong ones (Mann-Whitney "
@@ -157,13 +162,17 @@ def verdict(
     identification: Identification | None,
     confirmatory: list[ConfirmatoryTest] | None = None,
     labels: Mapping[str, str] | None = None,
+    unconverged: Sequence[str] = (),
 ) -> str:
     """Write the report's first line: the hypothesis, the exploratory changes, the identification.
 
     ``confirmatory`` None: no hypothesis was declared, and every comparison is exploratory.
-    ``labels`` names the measures in words (their keys otherwise).
+    ``labels`` names the measures in words (their keys otherwise). ``unconverged``: the
+    measures whose mixed model did not converge; their contrasts are left out of the count and
+    named. The identification is said by `Identification.chance_test`: over persons when it can.
     """
     named = dict(labels or {})
+    contrasts = [c for c in contrasts if c.measure not in unconverged]
     line = _hypothesis_line(confirmatory, named)
     changed = [f"{c.condition} on {named.get(c.measure, c.measure)}"
                for c in contrasts if is_change(c)]  # fmt: skip
@@ -175,10 +184,15 @@ def verdict(
     else:
         line += (f"Exploratory: none of {len(contrasts)} comparisons changed a measure "
                  f"(q < {ALPHA} in none).")  # fmt: skip
+    if unconverged:
+        line += (f" Not counted, their fit did not converge: "
+                 f"{', '.join(named.get(m, m) for m in unconverged)}.")  # fmt: skip
     if identification is not None:
         said = _against_chance(identification)
-        line += (f" Partners identified {said}: {identification.rate:.0%} right "
-                 f"({format_p(identification.binomial_p)}).")  # fmt: skip
+        rate, p = identification.chance_test
+        test = (f"t-test over {identification.persons} persons" if identification.over_persons
+                else f"exact binomial over {identification.answers} answers")  # fmt: skip
+        line += f" Partners identified {said}: {rate:.0%} right ({test}, {format_p(p)})."
     return line
 
 
@@ -241,8 +255,11 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         'c = -(z(H) + z(F))/2 with "person" as the signal (hit: "person" said of a '
         'person; false alarm: "person" said of an avatar; Macmillan & Creelman 2005), '
         "log-linear corrected (0.5 added to hits and false alarms, 1 to each kind's count; "
-        "Hautus 1995) when a rate is 0 or 1; each person's own d' tested against 0 by a "
-        "one-sample t-test; confidence in right and in wrong answers compared by a two-sided "
+        "Hautus 1995) when a rate is 0 or 1; each person's own d' tested against 0, and each "
+        f"person's rate of right answers against {CHANCE:g}, by one-sample t-tests over the "
+        "persons (the persons the unit, a person's answers not being independent; the "
+        "verdict's test, the pooled binomial when fewer than two persons' rates differ); "
+        "confidence in right and in wrong answers compared by a two-sided "
         f"Mann-Whitney U test. Significance level and false discovery rate {ALPHA}."
         + _hypothesis_methods(parameters.get("hypothesis"), parameters.get("protocol"))
     )
@@ -310,10 +327,11 @@ def _capitalised(sentence: str) -> str:
 
 
 def _against_chance(found: Identification) -> str:
-    """Say "above chance", "below chance" (both at `ALPHA`) or "at chance"."""
-    if found.binomial_p >= ALPHA:
+    """Say "above chance", "below chance" (both at `ALPHA`) or "at chance", by `chance_test`."""
+    rate, p = found.chance_test
+    if p >= ALPHA:
         return "at chance"
-    return "above chance" if found.rate > CHANCE else "below chance"
+    return "above chance" if rate > CHANCE else "below chance"
 
 
 def _bias(criterion: float) -> str:
