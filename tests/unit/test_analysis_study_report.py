@@ -11,6 +11,7 @@ import json
 import re
 import subprocess
 import sys
+from dataclasses import replace
 from html import escape as html_escape
 from pathlib import Path
 
@@ -213,6 +214,10 @@ def test_report_leads_with_its_verdict_and_results_hold_every_number(
     )
     assert [f["term"] for f in model["factors"]] == ["partner kind", "condition x partner kind"]
     assert "Partner kind: rms was" in page and "Condition x partner kind: delay 0.5 s" in page
+    stuck = replace(analysis, models=[replace(analysis.models[0], converged=False),
+                                      analysis.models[1]])  # fmt: skip
+    assert "of 1 comparisons" in stuck.verdict()
+    assert "Not counted, their fit did not converge: rms." in stuck.verdict()
     methods = results["methods"]
     assert (
         "(fitted: measure ~ condition + position + partner kind + condition x partner kind "
