@@ -28,6 +28,7 @@ from mirror_avatar.analysis.study_report import (
     analyse_study,
     write_study_report,
 )
+from mirror_avatar.analysis.study_text import methods_paragraph
 from mirror_avatar.analysis.table import table_dictionary
 from mirror_avatar.analysis.table import write_study_table as write_table_files
 from mirror_avatar.cli.study_report import report
@@ -413,3 +414,31 @@ def test_values_that_are_not_finite_are_left_out_and_counted(tmp_path: Path) -> 
     pd.testing.assert_frame_equal(analysis.summaries, expected.summaries)
     assert np.isfinite(analysis.summaries[["mean", "ci_low", "ci_high", "sd"]].to_numpy()).all()
     assert "rms: 3 of 96 values left out, not finite (infinite)" in analysis.notes
+
+
+def test_an_angle_measure_is_averaged_and_compared_on_the_circle(tmp_path: Path) -> None:
+    """Mean relative phase near pi, 0.5 rad later with the delay (wrapping past pi): the report
+    gives circular means near pi and a difference near 0.5, where arithmetic gives neither."""
+    rows = make_study_rows(6).drop(columns=["rms", "phase_locking"])
+    rng = np.random.default_rng(6)
+    own = {p: np.pi + rng.normal(0, 0.3) for p in rows["participant"].unique()}
+    phase = [own[p] + 0.5 * (c == DELAY) + rng.vonmises(0.0, 8.0)
+             for p, c in zip(rows["participant"], rows["condition"], strict=True)]  # fmt: skip
+    rows["mean_relative_phase"] = np.angle(np.exp(1j * np.array(phase)))
+    analysis = analyse_study(read_study_table(write_study_table(rows, tmp_path / "t", False)))
+    summaries = analysis.summaries.set_index("condition")
+    assert abs(summaries.loc[NO_DELAY, "mean"]) > 2.8
+    assert summaries.loc[NO_DELAY, "resultant_length"] > 0.8
+    assert summaries.loc[NO_DELAY, "rayleigh_p"] < 0.001
+    (contrast,) = analysis.contrasts
+    assert contrast.difference == pytest.approx(0.5, abs=0.15) and contrast.p < 0.01
+    (model,) = analysis.models
+    assert model.fixed_effects.startswith("circular: sign-flip randomisation test")
+    methods = methods_paragraph(analysis.parameters)
+    assert "circular: sign-flip randomisation test" in methods
+    assert "Mean relative phase (player 0 - player 1), angles, were averaged as unit vectors" in (
+        methods
+    )
+    html = write_study_report(analysis, tmp_path / "out")
+    conditions = pd.read_csv(html.parent / "conditions.csv")
+    assert conditions["resultant_length"].notna().all()

@@ -124,8 +124,8 @@ def paired_direction_test(
     Each participant's difference d = condition - reference (rad, wrapped). With no effect of
     the condition, and the conditions' order counterbalanced, d and -d are equally likely, so
     the statistic |sum of sin d| is compared with its values under every flip of the
-    differences' signs (a randomisation test, as Fisher 1993 recommends for small circular
-    samples; Good 2005, *Permutation, Parametric and Bootstrap Tests of Hypotheses*, on the
+    differences' signs (a randomisation test, as Fisher 1993 gives for circular samples; Good
+    2005, *Permutation, Parametric and Bootstrap Tests of Hypotheses*, on the
     paired case): p is the share of flips at least as large, every flip counted up to
     `EXACT_PARTICIPANTS` participants, else the observed one and `RANDOM_FLIPS` drawn from a
     generator seeded by ``seed`` ((1 + count) / (1 + draws)). NaN for fewer than two pairs.

@@ -20,6 +20,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from mirror_avatar.analysis.circular import (
+    circular_contrasts,
+    circular_summaries,
+    participant_directions,
+)
+from mirror_avatar.analysis.dictionary import is_angle
 from mirror_avatar.analysis.hypothesis import (
     CONFIRMATORY_MODEL,
     EXPLORATORY_MODEL,
@@ -231,10 +237,11 @@ def analyse_study(
     rows, notes, incomplete = analysed_rows(table)
     if table.skipped_measures:
         notes.append(f"not numbers, so not averaged: {', '.join(table.skipped_measures)}")
-    summaries = condition_summaries(rows, table.outcomes, conditions, seed, resamples, confidence)
+    summaries = _summaries(rows, table.outcomes, conditions, seed, resamples, confidence)
     models, untested = [], []
     for measure in table.outcomes:
-        model = fit_contrasts(rows, measure, conditions, reference, confidence)
+        model = (circular_contrasts(rows, measure, conditions, reference, seed) if is_angle(measure)
+                 else fit_contrasts(rows, measure, conditions, reference, confidence))  # fmt: skip
         if model is None:
             untested.append(measure)
         else:
@@ -258,6 +265,7 @@ def analyse_study(
                            if m.random_effects},
         "fixed_effects": {table.label(m.measure): m.fixed_effects for m in models
                           if m.fixed_effects},
+        "angles": [table.label(m) for m in table.outcomes if is_angle(m)],
         "exploratory": EXPLORATORY_MODEL,
         "protocol": None if protocol is None else Path(protocol.source).name,
         "plan": None if plan is None else {"file": plan.source.name, "sha256": plan.sha256},
@@ -275,6 +283,32 @@ def analyse_study(
         notes=notes, confirmatory=None if hypothesis is None else confirm(rows, hypothesis),
         deviations=None if plan is None else plan_deviations(plan, hypothesis),
     )  # fmt: skip
+
+
+def _summaries(
+    rows: pd.DataFrame,
+    outcomes: list[str],
+    conditions: list[str],
+    seed: int,
+    resamples: int,
+    confidence: float,
+) -> pd.DataFrame:
+    """Summarise each outcome per condition: angles by circular statistics, the rest linearly.
+
+    The columns of `condition_summaries`, then ``resultant_length`` and ``rayleigh_p``
+    (`circular_summaries`; NaN for a measure that is not an angle), in the outcomes' order.
+    """
+    linear = [m for m in outcomes if not is_angle(m)]
+    parts = [condition_summaries(rows, linear, conditions, seed, resamples, confidence)]
+    parts += [pd.DataFrame(circular_summaries(rows, m, conditions))
+              for m in outcomes if is_angle(m)]  # fmt: skip
+    columns = ["measure", "condition", "participants", "mean", "ci_low", "ci_high", "sd",
+               "resultant_length", "rayleigh_p"]  # fmt: skip
+    joined = pd.concat([p.reindex(columns=columns) for p in parts if len(p)], ignore_index=True)
+    order = {m: i for i, m in enumerate(outcomes)}
+    return joined.sort_values("measure", key=lambda m: m.map(order), kind="stable").reset_index(
+        drop=True
+    )
 
 
 def few_participants_note(participants: int) -> list[str]:
@@ -568,7 +602,9 @@ def _sections(analysis: StudyAnalysis) -> list[Section]:
         f"{table.label(measure)}: each participant's mean per condition (grey lines), the mean "
         f"over participants with its {analysis.parameters['confidence']:.0%} bootstrap CI": (
             plot_participants(
-                participant_means(analysis.rows, measure, analysis.conditions),
+                (participant_directions if is_angle(measure) else participant_means)(
+                    analysis.rows, measure, analysis.conditions
+                ),
                 analysis.summaries[analysis.summaries["measure"] == measure],
                 _heading(table, measure),
             )

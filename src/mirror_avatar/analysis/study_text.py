@@ -261,7 +261,21 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         "verdict's test, the pooled binomial when fewer than two persons' rates differ); "
         "confidence in right and in wrong answers compared by a two-sided "
         f"Mann-Whitney U test. Significance level and false discovery rate {ALPHA}."
+        + _angles_methods(parameters.get("angles", []))
         + _hypothesis_methods(parameters.get("hypothesis"), parameters.get("protocol"))
+    )
+
+
+def _angles_methods(angles: list[str]) -> str:
+    """Say how angle measures (their labels) were averaged and compared; "" without any."""
+    if not angles:
+        return ""
+    return (
+        f" {_capitalised(_listed(angles))}, angles, were averaged as unit vectors (each "
+        "participant's circular mean per condition, the conditions' circular means of the "
+        "participants', with the mean resultant length, the circular SD and Rayleigh's test; "
+        "Fisher 1993; Zar 1999) and compared by a sign-flip randomisation test of each "
+        "participant's difference of directions, not by the mixed model."
     )
 
 
