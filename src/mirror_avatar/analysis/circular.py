@@ -23,7 +23,7 @@ import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
 from mirror_avatar.analysis.multiple_tests import holm
-from mirror_avatar.analysis.statistics import Contrast, MeasureModel
+from mirror_avatar.analysis.statistics import Contrast, MeasureModel, participant_means
 
 EXACT_PARTICIPANTS = 14
 """Up to this many participants, `paired_direction_test` enumerates every sign flip (2^14 =
@@ -154,22 +154,6 @@ def paired_direction_test(
     )
 
 
-def participant_directions(
-    rows: pd.DataFrame, measure: str, conditions: Sequence[str]
-) -> pd.DataFrame:
-    """Each participant's circular mean of ``measure`` in each condition over their rows (rad).
-
-    Returns
-    -------
-    pandas.DataFrame
-        Index the participants (sorted), columns ``conditions`` in their order; NaN where a
-        participant has no value in a condition.
-    """
-    valid = rows.dropna(subset=[measure])
-    means = valid.groupby(["participant", "condition"])[measure].agg(circular_mean)
-    return means.unstack("condition").reindex(columns=list(conditions)).sort_index()
-
-
 def circular_summaries(
     rows: pd.DataFrame, measure: str, conditions: Sequence[str]
 ) -> list[dict[str, object]]:
@@ -182,7 +166,7 @@ def circular_summaries(
         ``ci_low, ci_high`` (NaN: no interval is computed for a direction), ``sd`` (the
         circular SD, rad), ``resultant_length`` and ``rayleigh_p``.
     """
-    directions = participant_directions(rows, measure, conditions)
+    directions = participant_means(rows, measure, conditions, circular_mean)
     found = []
     for condition in conditions:
         values = directions[condition].dropna().to_numpy()
@@ -212,7 +196,7 @@ def circular_contrasts(
     MeasureModel or None
         None when fewer than two conditions or two participants have values of ``measure``.
     """
-    directions = participant_directions(rows, measure, conditions)
+    directions = participant_means(rows, measure, conditions, circular_mean)
     present = [c for c in conditions if directions[c].notna().any()]
     if reference not in present or len(present) < 2 or len(directions) < 2:
         return None

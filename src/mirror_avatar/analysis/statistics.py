@@ -13,7 +13,7 @@ their trials first.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
@@ -118,8 +118,16 @@ def trial_labels(rows: pd.DataFrame, column: str) -> pd.Series | None:
     return joined.reset_index(drop=True)
 
 
-def participant_means(rows: pd.DataFrame, measure: str, conditions: Sequence[str]) -> pd.DataFrame:
+def participant_means(
+    rows: pd.DataFrame,
+    measure: str,
+    conditions: Sequence[str],
+    average: str | Callable[[pd.Series], float] = "mean",
+) -> pd.DataFrame:
     """Each participant's mean of ``measure`` in each condition over their trials.
+
+    ``average`` takes the mean: the arithmetic by default, any aggregation pandas accepts
+    (`mirror_avatar.analysis.circular.circular_mean` for an angle).
 
     Returns
     -------
@@ -128,7 +136,7 @@ def participant_means(rows: pd.DataFrame, measure: str, conditions: Sequence[str
         participant has no value in a condition.
     """
     valid = rows.dropna(subset=[measure])
-    means = valid.groupby(["participant", "condition"])[measure].mean().unstack("condition")
+    means = valid.groupby(["participant", "condition"])[measure].agg(average).unstack("condition")
     return means.reindex(columns=list(conditions)).sort_index()
 
 

@@ -22,8 +22,8 @@ import pandas as pd
 
 from mirror_avatar.analysis.circular import (
     circular_contrasts,
+    circular_mean,
     circular_summaries,
-    participant_directions,
 )
 from mirror_avatar.analysis.dictionary import is_angle
 from mirror_avatar.analysis.hypothesis import (
@@ -602,9 +602,12 @@ def _sections(analysis: StudyAnalysis) -> list[Section]:
         f"{table.label(measure)}: each participant's mean per condition (grey lines), the mean "
         f"over participants with its {analysis.parameters['confidence']:.0%} bootstrap CI": (
             plot_participants(
-                (participant_directions if is_angle(measure) else participant_means)(
-                    analysis.rows, measure, analysis.conditions
-                ),
+                participant_means(
+                    analysis.rows,
+                    measure,
+                    analysis.conditions,
+                    circular_mean if is_angle(measure) else "mean",
+                ),  # fmt: skip
                 analysis.summaries[analysis.summaries["measure"] == measure],
                 _heading(table, measure),
             )
