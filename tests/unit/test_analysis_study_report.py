@@ -20,6 +20,7 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 from study_tables import CONDITIONS, make_study_rows, with_answers, write_study_table
+from test_analysis_hypothesis import protocol_text
 
 from mirror_avatar.analysis.statistics import participant_means
 from mirror_avatar.analysis.study_file import read_study_table
@@ -33,6 +34,7 @@ from mirror_avatar.analysis.table import table_dictionary
 from mirror_avatar.analysis.table import write_study_table as write_table_files
 from mirror_avatar.cli.study_report import report
 from mirror_avatar.common.errors import InputError
+from mirror_avatar.lab.design.protocol import Analysis, protocol_from_text
 
 NO_DELAY, DELAY = CONDITIONS
 EFFECTS = {"rms": 0.05, "phase_locking": -0.1}
@@ -442,3 +444,7 @@ def test_an_angle_measure_is_averaged_and_compared_on_the_circle(tmp_path: Path)
     html = write_study_report(analysis, tmp_path / "out")
     conditions = pd.read_csv(html.parent / "conditions.csv")
     assert conditions["resultant_length"].notna().all()
+    declared = Analysis(("mean_relative_phase",), "higher", DELAY, NO_DELAY, 0.1, 0.05)
+    protocol = replace(protocol_from_text(protocol_text(""), "delay.toml"), analysis=declared)
+    confirmed = analyse_study(read_study_table(tmp_path / "t"), protocol=protocol)
+    assert any("mean_relative_phase, an angle, is the paired t-test" in n for n in confirmed.notes)

@@ -249,6 +249,11 @@ def analyse_study(
             notes += [f"{measure}: {note}" for note in model.notes]
     models = _with_factor_q_values(_with_q_values(models, hypothesis))
     notes += few_participants_note(int(rows["participant"].nunique()))
+    angles = [] if hypothesis is None else [m for m in hypothesis.primary if is_angle(m)]
+    if angles:
+        notes.append(f"the confirmatory test of {', '.join(angles)}, an angle, is the paired "
+                     "t-test of its values as numbers: right only away from +-pi, where the "
+                     "angles do not wrap (its exploratory comparison is circular)")  # fmt: skip
     if untested:
         notes.append(
             f"no comparison (fewer than two conditions or participants): {', '.join(untested)}"
