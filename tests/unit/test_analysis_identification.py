@@ -118,6 +118,52 @@ def test_per_person_scores_and_their_d_prime_test() -> None:
     assert found.person_d_prime_p == pytest.approx(stats.ttest_1samp(d_primes, 0).pvalue)
 
 
+def test_the_persons_rates_are_tested_against_chance_as_computed_by_hand() -> None:
+    """40 answers, answer i person i mod 3's, right at i = 18, 19, 38, 39: rates 2/14, 1/13 and
+    1/13; t = (mean - 0.5) / (SD / sqrt(3)) on 2 df."""
+    truth = ["person"] * 20 + ["avatar"] * 20
+    guesses = ["avatar"] * 18 + ["person"] * 2 + ["person"] * 18 + ["avatar"] * 2
+    answers = scripted_answers(truth, guesses, [np.nan] * 40)
+    rates = [2 / 14, 1 / 13, 1 / 13]
+    mean = sum(rates) / 3
+    sd = math.sqrt(sum((r - mean) ** 2 for r in rates) / 2)
+    t = (mean - 0.5) / (sd / math.sqrt(3))
+    found = identify(answers)
+    assert found is not None and found.over_persons
+    assert found.person_rate_mean == pytest.approx(mean, rel=1e-12)
+    # The two-sided p of t on 2 df in closed form: 1 - |t| / sqrt(t^2 + 2).
+    assert found.person_rate_p == pytest.approx(1 - abs(t) / math.sqrt(t * t + 2), rel=1e-9)
+    assert found.chance_test == (found.person_rate_mean, found.person_rate_p)
+
+
+def persons_at_chance(seed: int, persons: int = 10, answers: int = 40) -> pd.DataFrame:
+    """Persons each right at their own rate, drawn 0.2 or 0.8: at chance in the population."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i in range(persons):
+        own = rng.choice([0.2, 0.8])
+        truth = rng.choice(["person", "avatar"], answers)
+        right = rng.random(answers) < own
+        guess = np.where(right, truth, np.where(truth == "person", "avatar", "person"))
+        rows.append(pd.DataFrame({"participant": f"p{i:03d}", "person": "P1",
+                                  "player_kind": "person", "condition": "c",
+                                  "partner_kind": truth, "guess_kind": guess}))  # fmt: skip
+    return pd.concat(rows, ignore_index=True)
+
+
+def test_persons_at_chance_on_average_are_not_found_above_it_as_pooled_answers_are() -> None:
+    """Persons whose own rates differ: the pooled binomial takes 400 answers as independent and
+    rejects chance in 40 of 100 seeds or more; the t-test over the 10 persons in at most 10."""
+    pooled, over_persons = 0, 0
+    for seed in range(100):
+        found = identify(persons_at_chance(seed))
+        assert found is not None and found.over_persons
+        pooled += found.binomial_p < 0.05
+        over_persons += found.person_rate_p < 0.05
+    assert over_persons <= 10
+    assert pooled >= 40
+
+
 def test_answers_about_mixed_partners_and_rows_without_answers_are_not_scored() -> None:
     answers = forty_eight_answers()
     mixed = answers.iloc[:2].assign(partner_kind="mixed")

@@ -23,7 +23,7 @@ from mirror_avatar.analysis.statistics import (
     fit_contrasts,
     paired_effect,
     participant_means,
-    trial_partners,
+    trial_labels,
     trial_values,
 )
 
@@ -256,15 +256,15 @@ def test_a_measure_with_noise_below_its_scale_is_still_fitted() -> None:
     assert contrast.difference == pytest.approx(0.05, rel=0.02) and contrast.p < 1e-6
 
 
-def test_trial_partners_name_each_trials_partners_once_in_trial_values_order() -> None:
+def test_trial_labels_name_each_trials_partners_once_in_trial_values_order() -> None:
     """A pair's two persons name each other: the trial's partners are both, once."""
     rows = pd.DataFrame({
         "participant": ["a", "a", "a", "a", "b"], "condition": "x", "position": 1,
         "trial": [1, 1, 2, 2, 1], "partners": ["P2", "P1", "P2", "P1", "A3"],
         "rms": [0.1, 0.1, 0.2, 0.2, 0.3],
     })  # fmt: skip
-    partners = trial_partners(rows)
+    partners = trial_labels(rows, "partners")
     assert partners is not None
     assert list(partners) == ["P1+P2", "P1+P2", "A3"]
     assert list(partners.index) == list(trial_values(rows, "rms").index)
-    assert trial_partners(rows.drop(columns="partners")) is None
+    assert trial_labels(rows.drop(columns="partners"), "partners") is None

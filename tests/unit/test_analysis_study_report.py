@@ -11,6 +11,7 @@ import json
 import re
 import subprocess
 import sys
+from dataclasses import replace
 from html import escape as html_escape
 from pathlib import Path
 
@@ -19,6 +20,7 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 from study_tables import CONDITIONS, make_study_rows, with_answers, write_study_table
+from test_analysis_hypothesis import protocol_text
 
 from mirror_avatar.analysis.statistics import participant_means
 from mirror_avatar.analysis.study_file import read_study_table
@@ -27,10 +29,12 @@ from mirror_avatar.analysis.study_report import (
     analyse_study,
     write_study_report,
 )
+from mirror_avatar.analysis.study_text import methods_paragraph
 from mirror_avatar.analysis.table import table_dictionary
 from mirror_avatar.analysis.table import write_study_table as write_table_files
 from mirror_avatar.cli.study_report import report
 from mirror_avatar.common.errors import InputError
+from mirror_avatar.lab.design.protocol import Analysis, protocol_from_text
 
 NO_DELAY, DELAY = CONDITIONS
 EFFECTS = {"rms": 0.05, "phase_locking": -0.1}
@@ -207,6 +211,21 @@ def test_report_leads_with_its_verdict_and_results_hold_every_number(
     assert len(results["identification"]["per_person"]) == 12
     contrasts = pd.read_csv(html.parent / "contrasts.csv")
     assert list(contrasts["measure"]) == ["rms", "phase_locking"]
+    # The partners alternate between persons and avatars: kind and condition x kind are tested.
+    assert model["fixed_effects"] == (
+        "measure ~ condition + position + partner kind + condition x partner kind"
+    )
+    assert [f["term"] for f in model["factors"]] == ["partner kind", "condition x partner kind"]
+    assert "Partner kind: rms was" in page and "Condition x partner kind: delay 0.5 s" in page
+    stuck = replace(analysis, models=[replace(analysis.models[0], converged=False),
+                                      analysis.models[1]])  # fmt: skip
+    assert "of 1 comparisons" in stuck.verdict()
+    assert "Not counted, their fit did not converge: rms." in stuck.verdict()
+    methods = results["methods"]
+    assert (
+        "(fitted: measure ~ condition + position + partner kind + condition x partner kind "
+        "for rms and CV (phase locking, 0-1))" in methods
+    )
     conditions = pd.read_csv(html.parent / "conditions.csv")
     assert np.all(conditions["ci_low"] < conditions["ci_high"])
 
@@ -246,7 +265,7 @@ def test_two_persons_of_a_participant_count_once_and_answer_each(tmp_path: Path)
     """A two-person protocol: P1 and P2 of one participant share the pair's measures; the
     participant is the unit of the statistics, and each person's answers are scored apart."""
     one = make_study_rows(2, effects=EFFECTS)
-    one = one[one["player_kind"] == "person"]
+    one = with_answers(one[one["player_kind"] == "person"], seed=4)
     two = pd.concat([one, one.assign(person="P2", partners="P1")], ignore_index=True)
     two = with_answers(two, seed=4)
     alone = analyse_study(read_study_table(write_study_table(one, tmp_path / "one")))
@@ -400,3 +419,35 @@ def test_values_that_are_not_finite_are_left_out_and_counted(tmp_path: Path) -> 
     pd.testing.assert_frame_equal(analysis.summaries, expected.summaries)
     assert np.isfinite(analysis.summaries[["mean", "ci_low", "ci_high", "sd"]].to_numpy()).all()
     assert "rms: 3 of 96 values left out, not finite (infinite)" in analysis.notes
+
+
+def test_an_angle_measure_is_averaged_and_compared_on_the_circle(tmp_path: Path) -> None:
+    """Mean relative phase near pi, 0.5 rad later with the delay (wrapping past pi): the report
+    gives circular means near pi and a difference near 0.5, where arithmetic gives neither."""
+    rows = make_study_rows(6).drop(columns=["rms", "phase_locking"])
+    rng = np.random.default_rng(6)
+    own = {p: np.pi + rng.normal(0, 0.3) for p in rows["participant"].unique()}
+    phase = [own[p] + 0.5 * (c == DELAY) + rng.vonmises(0.0, 8.0)
+             for p, c in zip(rows["participant"], rows["condition"], strict=True)]  # fmt: skip
+    rows["mean_relative_phase"] = np.angle(np.exp(1j * np.array(phase)))
+    analysis = analyse_study(read_study_table(write_study_table(rows, tmp_path / "t", False)))
+    summaries = analysis.summaries.set_index("condition")
+    assert abs(summaries.loc[NO_DELAY, "mean"]) > 2.8
+    assert summaries.loc[NO_DELAY, "resultant_length"] > 0.8
+    assert summaries.loc[NO_DELAY, "rayleigh_p"] < 0.001
+    (contrast,) = analysis.contrasts
+    assert contrast.difference == pytest.approx(0.5, abs=0.15) and contrast.p < 0.01
+    (model,) = analysis.models
+    assert model.fixed_effects.startswith("circular: sign-flip randomisation test")
+    methods = methods_paragraph(analysis.parameters)
+    assert "circular: sign-flip randomisation test" in methods
+    assert "Mean relative phase (player 0 - player 1), angles, were averaged as unit vectors" in (
+        methods
+    )
+    html = write_study_report(analysis, tmp_path / "out")
+    conditions = pd.read_csv(html.parent / "conditions.csv")
+    assert conditions["resultant_length"].notna().all()
+    declared = Analysis(("mean_relative_phase",), "higher", DELAY, NO_DELAY, 0.1, 0.05)
+    protocol = replace(protocol_from_text(protocol_text(""), "delay.toml"), analysis=declared)
+    confirmed = analyse_study(read_study_table(tmp_path / "t"), protocol=protocol)
+    assert any("mean_relative_phase, an angle, is the paired t-test" in n for n in confirmed.notes)

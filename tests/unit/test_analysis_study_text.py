@@ -58,6 +58,8 @@ def test_p_values_in_words() -> None:
 
 
 def test_verdict_says_above_below_or_at_chance() -> None:
+    """Over the persons' rates (scripted_answers: answer i is person i mod 3's), by hand: below,
+    rates 2/14, 1/13, 1/13, t = -18.4 on 2 df; six of ten, rates 2/4, 2/3, 2/3, t = 2.0."""
     truth = ["person"] * 20 + ["avatar"] * 20
     wrong = ["avatar"] * 18 + ["person"] * 2 + ["person"] * 18 + ["avatar"] * 2
     below = identify(scripted_answers(truth, wrong, [np.nan] * 40))
@@ -65,14 +67,30 @@ def test_verdict_says_above_below_or_at_chance() -> None:
     assert verdict([CONTRAST], below, labels={"rms": "RMS"}) == (
         "No hypothesis declared: every comparison is exploratory. Exploratory: 1 of 1 "
         "comparisons changed a measure (q < 0.05, Benjamini-Hochberg): delay 0.5 s on RMS. "
-        "Partners identified below chance: 10% right (p < 0.001)."
+        "Partners identified below chance: 10% right (t-test over 3 persons, p = 0.003)."
     )
     guesses = ["person"] * 6 + ["avatar"] * 4
     six_of_ten = identify(scripted_answers(["person"] * 10, guesses, [0.5] * 10))
     assert six_of_ten is not None
     assert verdict([], six_of_ten) == (
         "No hypothesis declared: every comparison is exploratory. No conditions to compare. "
-        "Partners identified at chance: 60% right (p = 0.754)."
+        "Partners identified at chance: 61% right (t-test over 3 persons, p = 0.184)."
+    )
+    one_person = identify(scripted_answers(["person"] * 10, guesses, [0.5] * 10).assign(
+        participant="p000"
+    ))  # fmt: skip
+    assert one_person is not None
+    assert verdict([], one_person).endswith(
+        "Partners identified at chance: 60% right (exact binomial over 10 answers, p = 0.754)."
+    )
+
+
+def test_contrasts_of_a_fit_that_did_not_converge_are_left_out_of_the_verdict_and_named() -> None:
+    other = replace(CONTRAST, measure="phase_locking", q=0.5)
+    assert verdict([CONTRAST, other], None, labels={"rms": "RMS"}, unconverged=["rms"]) == (
+        "No hypothesis declared: every comparison is exploratory. Exploratory: none of 1 "
+        "comparisons changed a measure (q < 0.05 in none). Not counted, their fit did not "
+        "converge: RMS."
     )
 
 

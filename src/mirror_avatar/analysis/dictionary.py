@@ -164,6 +164,11 @@ def column_label(column: str) -> str:
     return re.sub(r" (of )?player 0", "", label) if column in PER_PLAYER else label
 
 
+def is_angle(column: str) -> bool:
+    """Whether a column is a measure whose values are angles (`registry.Measure.angle`)."""
+    return column in MEASURES and registry.measure(_registry_key(column)).angle
+
+
 def p_value_column(measure: str) -> str:
     """Return the column of a tested measure's p-value against surrogates."""
     return registry.p_value_key(measure) if registry.find(measure) else f"{measure}_p_value"

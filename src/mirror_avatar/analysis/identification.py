@@ -4,7 +4,10 @@ An answer is a row with a guess (``guess_kind``, "person" or "avatar") about a p
 true kind (``partner_kind``) is "person", "recording" (a person's recorded trial replayed: a
 person's motion, `mirror_avatar.analysis.guesses.MOTION_OF`) or "avatar"; rows whose partners
 were mixed are left out. Scored as signal detection with the person as the signal: a hit is
-"person" said of a person's motion, a false alarm "person" said of an avatar.
+"person" said of a person's motion, a false alarm "person" said of an avatar. Across persons,
+each person's rate of right answers is a unit (`Identification.chance_test`): a person's answers
+are not independent of each other, as the pooled binomial test takes them (docs/METHODS.md,
+section 15.6).
 """
 
 from __future__ import annotations
@@ -100,6 +103,10 @@ class Identification:
         ``person_d_prime_mean`` the mean of their own d' (each corrected as `signal_detection`
         says) and ``person_d_prime_p`` its one-sample t-test against 0 (persons as the unit;
         NaN for fewer than two).
+    person_rate_mean, person_rate_p
+        The mean of the persons' own rates of right answers, and its two-sided one-sample
+        t-test against `CHANCE` (persons as the unit; NaN for fewer than two persons or rates
+        all equal).
     confidence_right, confidence_wrong
         Mean confidence of right and of wrong answers (NaN without confidence ratings), over
         ``confidence_right_n`` and ``confidence_wrong_n`` answers; ``confidence_p`` the
@@ -126,6 +133,8 @@ class Identification:
     persons: int
     person_d_prime_mean: float
     person_d_prime_p: float
+    person_rate_mean: float
+    person_rate_p: float
     confidence_right: float
     confidence_wrong: float
     confidence_right_n: int
@@ -134,6 +143,23 @@ class Identification:
     per_person: pd.DataFrame
     per_condition: pd.DataFrame
     left_out: int
+
+    @property
+    def over_persons(self) -> bool:
+        """Whether `chance_test` is the persons' t-test (else the pooled binomial)."""
+        return not np.isnan(self.person_rate_p)
+
+    @property
+    def chance_test(self) -> tuple[float, float]:
+        """Return the rate and the p-value that say whether answers beat chance.
+
+        The persons' mean rate and its t-test over persons when there are two persons or more
+        whose rates differ; else (one person, or every person's rate the same) the pooled rate
+        and the exact binomial test of every answer.
+        """
+        if self.over_persons:
+            return self.person_rate_mean, self.person_rate_p
+        return self.rate, self.binomial_p
 
     def to_dict(self) -> dict[str, Any]:
         """Return every number, each table as a list of records."""
@@ -185,6 +211,7 @@ def identify(rows: pd.DataFrame, confidence: float = CONFIDENCE) -> Identificati
         {c: _condition_row(group) for c, group in answers.groupby("condition", sort=False)}
     ).T.rename_axis("condition")
     d_primes = per_person["d_prime"].astype(np.float64).dropna()
+    rates = per_person["rate"].astype(np.float64)
     rated = answers.dropna(subset=["confidence"])
     right, wrong = rated.loc[rated["right"], "confidence"], rated.loc[~rated["right"], "confidence"]
     return Identification(
@@ -193,6 +220,7 @@ def identify(rows: pd.DataFrame, confidence: float = CONFIDENCE) -> Identificati
         binomial_p=float(tested.pvalue), detection=_detection(answers),
         persons=len(per_person), person_d_prime_mean=_mean(d_primes),
         person_d_prime_p=_one_sample_p(d_primes.to_numpy()),
+        person_rate_mean=_mean(rates), person_rate_p=_one_sample_p(rates.to_numpy() - CHANCE),
         confidence_right=_mean(right), confidence_wrong=_mean(wrong),
         confidence_right_n=len(right), confidence_wrong_n=len(wrong),
         confidence_p=_mann_whitney_p(right.to_numpy(), wrong.to_numpy()),

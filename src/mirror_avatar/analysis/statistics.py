@@ -13,7 +13,7 @@ their trials first.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
@@ -23,6 +23,12 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 
 from mirror_avatar.analysis.multiple_tests import holm
+from mirror_avatar.analysis.partner_kind import (
+    INTERACTION_TERM,
+    KIND_TERM,
+    KindTerms,
+    kind_terms,
+)
 from mirror_avatar.analysis.random_effects import (
     CROSSED,
     INTERCEPT,
@@ -43,7 +49,8 @@ CONFIDENCE = 0.95
 """Confidence level of every interval."""
 
 MIXED_MODEL = (
-    f"measure ~ C(condition, reference) + position, {SLOPES} where the data support them, "
+    f"measure ~ C(condition, reference) + position (+ partner kind + condition x partner kind "
+    f"where the trials have partners of several kinds), {SLOPES} where the data support them, "
     f"else {INTERCEPT}; {CROSSED} where several partners are met by several participants; "
     "REML, t tests with Satterthwaite degrees of freedom, Holm over a measure's contrasts"
 )
@@ -92,25 +99,35 @@ def trial_values(rows: pd.DataFrame, measure: str) -> pd.DataFrame:
     return grouped.reset_index()
 
 
-def trial_partners(rows: pd.DataFrame) -> pd.Series | None:
-    """Each trial's partner identity, in `trial_values`'s order and index; None without one.
+def trial_labels(rows: pd.DataFrame, column: str) -> pd.Series | None:
+    """Each trial's labels in ``column``, in `trial_values`'s order and index; None without it.
 
-    The ``partners`` labels of the trial's rows (its persons'), each once, sorted and joined by
-    +: a person playing with avatar A2 has A2; the two persons of a pair, P1+P2.
+    The labels of the trial's rows (its persons'), each once, sorted and joined by +: for
+    ``partners``, a person playing with avatar A2 has A2 and the two persons of a pair P1+P2;
+    for ``partner_kind``, a trial whose persons met partners of two kinds has both
+    (avatar+person).
     """
-    if "partners" not in rows:
+    if column not in rows:
         return None
     keys = [key for key in TRIAL_KEYS if key in rows]
     if "trial" not in keys:
-        return rows["partners"].astype(str)
-    joined = rows.groupby(keys, sort=False, dropna=False)["partners"].agg(
+        return rows[column].astype(str)
+    joined = rows.groupby(keys, sort=False, dropna=False)[column].agg(
         lambda labels: "+".join(sorted({str(label) for label in labels}))
     )
     return joined.reset_index(drop=True)
 
 
-def participant_means(rows: pd.DataFrame, measure: str, conditions: Sequence[str]) -> pd.DataFrame:
+def participant_means(
+    rows: pd.DataFrame,
+    measure: str,
+    conditions: Sequence[str],
+    average: str | Callable[[pd.Series], float] = "mean",
+) -> pd.DataFrame:
     """Each participant's mean of ``measure`` in each condition over their trials.
+
+    ``average`` takes the mean: the arithmetic by default, any aggregation pandas accepts
+    (`mirror_avatar.analysis.circular.circular_mean` for an angle).
 
     Returns
     -------
@@ -119,7 +136,7 @@ def participant_means(rows: pd.DataFrame, measure: str, conditions: Sequence[str
         participant has no value in a condition.
     """
     valid = rows.dropna(subset=[measure])
-    means = valid.groupby(["participant", "condition"])[measure].mean().unstack("condition")
+    means = valid.groupby(["participant", "condition"])[measure].agg(average).unstack("condition")
     return means.reindex(columns=list(conditions)).sort_index()
 
 
@@ -246,6 +263,44 @@ class Contrast:
 
 
 @dataclass(frozen=True)
+class FactorTest:
+    """A coefficient of the partner's kind, or of condition x kind, in a measure's model.
+
+    Parameters
+    ----------
+    measure, term
+        The measure; the term (`mirror_avatar.analysis.partner_kind.KIND_TERM` or
+        ``INTERACTION_TERM``).
+    condition, kind, reference_kind
+        What the coefficient compares: ``kind`` against ``reference_kind``, and for an
+        interaction the non-reference ``condition``'s effect ("" for the kind's own term).
+    estimate
+        The coefficient, in the measure's units: a kind's mean minus the reference kind's,
+        averaged over the conditions; an interaction, the condition's effect with the kind
+        minus its effect with the reference kind.
+    ci_low, ci_high, df, p
+        Its t interval, Satterthwaite's degrees of freedom and two-sided p-value; ``p_holm``
+        Holm-corrected over the term's coefficients in the measure.
+    q
+        ``p`` adjusted by Benjamini-Hochberg across the study's tests of kind and condition x
+        kind (`mirror_avatar.analysis.study_report`); NaN until then.
+    """
+
+    measure: str
+    term: str
+    condition: str
+    kind: str
+    reference_kind: str
+    estimate: float
+    ci_low: float
+    ci_high: float
+    df: float
+    p: float
+    p_holm: float
+    q: float = float("nan")
+
+
+@dataclass(frozen=True)
 class MeasureModel:
     """The mixed model of one measure and its contrasts.
 
@@ -274,6 +329,14 @@ class MeasureModel:
     partner_variance
         The variance of partner identity as a crossed random factor (units squared); NaN when
         it is not in the model.
+    fixed_effects
+        The fixed effects fitted, in words (`fixed_effects_words`); empty when no model was
+        fitted.
+    factors
+        The tests of the partner's kind and of condition x kind, when they were in the model.
+    converged
+        Whether the fit converged (False also when no model was fitted); a verdict leaves out
+        the contrasts of a fit that did not.
     """
 
     measure: str
@@ -288,6 +351,9 @@ class MeasureModel:
     notes: list[str] = field(default_factory=list)
     random_effects: str = ""
     partner_variance: float = float("nan")
+    fixed_effects: str = ""
+    factors: list[FactorTest] = field(default_factory=list)
+    converged: bool = False
 
 
 class Estimate(NamedTuple):
@@ -309,7 +375,10 @@ def fit_contrasts(
 ) -> MeasureModel | None:
     """Fit ``measure ~ C(condition) + position`` with random effects per participant.
 
-    The observations are the participant's trials (`trial_values`).
+    The observations are the participant's trials (`trial_values`). When the trials have
+    partners of several kinds (``partner_kind``), the kind and condition x kind are fixed
+    effects too (`mirror_avatar.analysis.partner_kind.kind_terms`, docs/METHODS.md, section
+    15.5), each coefficient tested as the conditions are.
 
     statsmodels' `MixedLM` fitted by REML; the reference condition is the treatment coding's
     baseline. The random effects are a random intercept, with random slopes for condition
@@ -333,13 +402,19 @@ def fit_contrasts(
     """
     valid = rows.dropna(subset=[measure, "position"])
     data = trial_values(valid, measure)
-    partners = trial_partners(valid)
+    partners = trial_labels(valid, "partners")
+    kinds = trial_labels(valid, "partner_kind")
     data = data[data["condition"].isin(conditions)]
     present = [c for c in conditions if c in set(data["condition"])]
     if reference not in present or len(present) < 2 or data["participant"].nunique() < 2:
         return None
     others = [c for c in present if c != reference]
     design, notes = _design(data, others)
+    terms = kind_terms(
+        design, pd.Series("", index=data.index) if kinds is None else kinds.loc[data.index],
+        data["condition"], others,
+    )  # fmt: skip
+    design, notes = terms.design, notes + terms.notes
     values = data[measure].to_numpy(np.float64)
     means = participant_means(data, measure, present)
     if not has_spread(values):
@@ -370,6 +445,7 @@ def fit_contrasts(
         for condition, p_holm in zip(others, adjusted, strict=True)
     ]  # fmt: skip
     position = tests.get("position")
+    factors = _factor_tests(measure, terms, tests, sd, confidence)
     return MeasureModel(
         measure=measure,
         rows=len(data),
@@ -383,7 +459,46 @@ def fit_contrasts(
         notes=notes,
         random_effects=fitted.structure,
         partner_variance=fitted.partner_variance * sd**2,
+        fixed_effects=fixed_effects_words(position is not None, terms),
+        factors=factors,
+        converged=bool(result.converged),
     )
+
+
+def fixed_effects_words(position: bool, terms: KindTerms) -> str:
+    """Say a measure's fixed effects as a formula in words.
+
+    ``position``: whether the order covariate is in the model; ``terms`` the kind's
+    (`kind_terms`).
+    """
+    said = {term for term, _, _ in terms.columns.values()}
+    words = ["condition"] + ["position"] * position
+    words += [t for t in (KIND_TERM, INTERACTION_TERM) if t in said]
+    return "measure ~ " + " + ".join(words)
+
+
+def _factor_tests(
+    measure: str,
+    terms: KindTerms,
+    tests: dict[str, SmallSampleTest],
+    sd: float,
+    confidence: float,
+) -> list[FactorTest]:
+    """Test each kind and condition x kind coefficient, Holm-corrected within its term."""
+    found = []
+    for term in (KIND_TERM, INTERACTION_TERM):
+        columns = [c for c, (t, _, _) in terms.columns.items() if t == term]
+        adjusted = holm([tests[c].p for c in columns])
+        for column, p_holm in zip(columns, adjusted, strict=True):
+            estimate = _scaled(tests[column], sd, confidence)
+            _, condition, kind = terms.columns[column]
+            found.append(FactorTest(
+                measure=measure, term=term, condition=condition, kind=kind,
+                reference_kind=terms.reference,
+                estimate=estimate.value, ci_low=estimate.low, ci_high=estimate.high,
+                df=estimate.df, p=estimate.p, p_holm=float(p_holm),
+            ))  # fmt: skip
+    return found
 
 
 def paired_effect(

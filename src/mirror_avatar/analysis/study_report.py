@@ -20,6 +20,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from mirror_avatar.analysis.circular import (
+    circular_contrasts,
+    circular_mean,
+    circular_summaries,
+)
+from mirror_avatar.analysis.dictionary import is_angle
 from mirror_avatar.analysis.hypothesis import (
     CONFIRMATORY_MODEL,
     EXPLORATORY_MODEL,
@@ -34,6 +40,7 @@ from mirror_avatar.analysis.statistics import (
     CONFIDENCE,
     MIXED_MODEL,
     Contrast,
+    FactorTest,
     MeasureModel,
     condition_summaries,
     fit_contrasts,
@@ -45,6 +52,7 @@ from mirror_avatar.analysis.study_text import (
     NO_UNITS,
     comparison_sentence,
     confirmatory_sentence,
+    factor_sentence,
     format_p,
     identification_sentence,
     methods_paragraph,
@@ -120,6 +128,11 @@ class StudyAnalysis:
         return [c for model in self.models for c in model.contrasts]
 
     @property
+    def factors(self) -> list[FactorTest]:
+        """Every model's tests of the partner's kind and condition x kind, measure by measure."""
+        return [f for model in self.models for f in model.factors]
+
+    @property
     def exploratory(self) -> list[Contrast]:
         """Every contrast but the declared hypothesis's."""
         return [c for c in self.contrasts if c.exploratory]
@@ -140,10 +153,19 @@ class StudyAnalysis:
             for c in self.exploratory
         ]
 
+    def factor_sentences(self) -> list[str]:
+        """Say each test of the partner's kind and of condition x kind in a line."""
+        table = self.table
+        return [
+            factor_sentence(f, table.label(f.measure), table.units(f.measure)) for f in self.factors
+        ]
+
     def verdict(self) -> str:
         """Return the report's first line."""
         labels = {measure: self.table.label(measure) for measure in self.table.outcomes}
-        return verdict(self.exploratory, self.identification, self.confirmatory, labels)
+        unconverged = [m.measure for m in self.models if m.random_effects and not m.converged]
+        return verdict(self.exploratory, self.identification, self.confirmatory, labels,
+                       unconverged)  # fmt: skip
 
     def results(self) -> dict[str, Any]:
         """Every number, for ``results.json``."""
@@ -215,17 +237,23 @@ def analyse_study(
     rows, notes, incomplete = analysed_rows(table)
     if table.skipped_measures:
         notes.append(f"not numbers, so not averaged: {', '.join(table.skipped_measures)}")
-    summaries = condition_summaries(rows, table.outcomes, conditions, seed, resamples, confidence)
+    summaries = _summaries(rows, table.outcomes, conditions, seed, resamples, confidence)
     models, untested = [], []
     for measure in table.outcomes:
-        model = fit_contrasts(rows, measure, conditions, reference, confidence)
+        model = (circular_contrasts(rows, measure, conditions, reference, seed) if is_angle(measure)
+                 else fit_contrasts(rows, measure, conditions, reference, confidence))  # fmt: skip
         if model is None:
             untested.append(measure)
         else:
             models.append(model)
             notes += [f"{measure}: {note}" for note in model.notes]
-    models = _with_q_values(models, hypothesis)
+    models = _with_factor_q_values(_with_q_values(models, hypothesis))
     notes += few_participants_note(int(rows["participant"].nunique()))
+    angles = [] if hypothesis is None else [m for m in hypothesis.primary if is_angle(m)]
+    if angles:
+        notes.append(f"the confirmatory test of {', '.join(angles)}, an angle, is the paired "
+                     "t-test of its values as numbers: right only away from +-pi, where the "
+                     "angles do not wrap (its exploratory comparison is circular)")  # fmt: skip
     if untested:
         notes.append(
             f"no comparison (fewer than two conditions or participants): {', '.join(untested)}"
@@ -240,12 +268,18 @@ def analyse_study(
         "model": MIXED_MODEL, "confirmatory_model": CONFIRMATORY_MODEL,
         "random_effects": {table.label(m.measure): m.random_effects for m in models
                            if m.random_effects},
+        "fixed_effects": {table.label(m.measure): m.fixed_effects for m in models
+                          if m.fixed_effects},
+        "angles": [table.label(m) for m in table.outcomes if is_angle(m)],
         "exploratory": EXPLORATORY_MODEL,
         "protocol": None if protocol is None else Path(protocol.source).name,
         "plan": None if plan is None else {"file": plan.source.name, "sha256": plan.sha256},
         "hypothesis": None if hypothesis is None else asdict(hypothesis),
-        "identification": "exact binomial against 0.5; d' and c with log-linear correction "
-                          "when a rate is 0 or 1; Mann-Whitney U for confidence",
+        "identification": "persons' rates against 0.5 by a one-sample t-test over persons "
+                          "(the verdict's; the pooled exact binomial when fewer than two "
+                          "persons' rates differ); exact binomial of every answer against "
+                          "0.5; d' and c with log-linear correction when a rate is 0 or 1; "
+                          "Mann-Whitney U for confidence",
         "versions": _versions(),
     }  # fmt: skip
     return StudyAnalysis(
@@ -254,6 +288,32 @@ def analyse_study(
         notes=notes, confirmatory=None if hypothesis is None else confirm(rows, hypothesis),
         deviations=None if plan is None else plan_deviations(plan, hypothesis),
     )  # fmt: skip
+
+
+def _summaries(
+    rows: pd.DataFrame,
+    outcomes: list[str],
+    conditions: list[str],
+    seed: int,
+    resamples: int,
+    confidence: float,
+) -> pd.DataFrame:
+    """Summarise each outcome per condition: angles by circular statistics, the rest linearly.
+
+    The columns of `condition_summaries`, then ``resultant_length`` and ``rayleigh_p``
+    (`circular_summaries`; NaN for a measure that is not an angle), in the outcomes' order.
+    """
+    linear = [m for m in outcomes if not is_angle(m)]
+    parts = [condition_summaries(rows, linear, conditions, seed, resamples, confidence)]
+    parts += [pd.DataFrame(circular_summaries(rows, m, conditions))
+              for m in outcomes if is_angle(m)]  # fmt: skip
+    columns = ["measure", "condition", "participants", "mean", "ci_low", "ci_high", "sd",
+               "resultant_length", "rayleigh_p"]  # fmt: skip
+    joined = pd.concat([p.reindex(columns=columns) for p in parts if len(p)], ignore_index=True)
+    order = {m: i for i, m in enumerate(outcomes)}
+    return joined.sort_values("measure", key=lambda m: m.map(order), kind="stable").reset_index(
+        drop=True
+    )
 
 
 def few_participants_note(participants: int) -> list[str]:
@@ -329,6 +389,12 @@ def _with_q_values(models: list[MeasureModel], hypothesis: Analysis | None) -> l
             for c in model.contrasts
         ]) for model in models
     ]  # fmt: skip
+
+
+def _with_factor_q_values(models: list[MeasureModel]) -> list[MeasureModel]:
+    """Give every test of kind and condition x kind its Benjamini-Hochberg q across the study's."""
+    q = iter(benjamini_hochberg([f.p for m in models for f in m.factors]))
+    return [replace(m, factors=[replace(f, q=float(next(q))) for f in m.factors]) for m in models]
 
 
 def _is_confirmatory(contrast: Contrast, hypothesis: Analysis | None) -> bool:
@@ -484,6 +550,18 @@ def _contrast_displays(analysis: StudyAnalysis) -> dict[str, pd.DataFrame]:
     }
 
 
+def _factor_table(analysis: StudyAnalysis) -> pd.DataFrame:
+    """Show the tests of the partner's kind and of condition x kind, a row each."""
+    return pd.DataFrame([{
+        "measure": _heading(analysis.table, f.measure), "term": f.term,
+        "compared": f"{f.kind} against {f.reference_kind}"
+                    + (f", {f.condition}'s effect" if f.condition else ""),
+        "estimate": f.estimate, "95 % CI": f"{f.ci_low:.4g} to {f.ci_high:.4g}",
+        "df": round(f.df, 1), "p": _p_cell(f.p), "p Holm": _p_cell(f.p_holm),
+        "q (BH)": _p_cell(f.q),
+    } for f in analysis.factors]).set_index("measure")  # fmt: skip
+
+
 def _p_cell(p: float) -> str:
     return format_p(p).removeprefix("p = ").removeprefix("p ")
 
@@ -542,7 +620,12 @@ def _sections(analysis: StudyAnalysis) -> list[Section]:
         f"{table.label(measure)}: each participant's mean per condition (grey lines), the mean "
         f"over participants with its {analysis.parameters['confidence']:.0%} bootstrap CI": (
             plot_participants(
-                participant_means(analysis.rows, measure, analysis.conditions),
+                participant_means(
+                    analysis.rows,
+                    measure,
+                    analysis.conditions,
+                    circular_mean if is_angle(measure) else "mean",
+                ),  # fmt: skip
                 analysis.summaries[analysis.summaries["measure"] == measure],
                 _heading(table, measure),
             )
@@ -555,7 +638,8 @@ def _sections(analysis: StudyAnalysis) -> list[Section]:
     sections = [
         _hypothesis_section(analysis),
         Section("comparisons", "Exploratory comparisons",
-                text=[exploratory, *analysis.sentences(), *analysis.notes]),
+                text=[exploratory, *analysis.sentences(), *analysis.factor_sentences(),
+                      *analysis.notes]),
         Section("conditions", "Each condition: mean over participants and its CI",
                 tables={"Mean, bootstrap CI and SD of the participants' means": summaries},
                 figures=figures),
@@ -563,6 +647,11 @@ def _sections(analysis: StudyAnalysis) -> list[Section]:
             **_contrast_displays(analysis),
             "Each measure's random effects, order (position in the participant's order) and "
             "variances": _model_table(analysis),
+            **({"Partner kind: each kind's difference from the reference kind over the "
+                "conditions, and each condition's effect with the kind minus with the reference "
+                "kind (measure units), Satterthwaite t tests; p Holm-corrected within the "
+                "measure's term, q across every test of kind": _factor_table(analysis)}
+               if analysis.factors else {}),
         } if analysis.models else {}),
     ]  # fmt: skip
     if analysis.identification is not None:

@@ -12,13 +12,14 @@ is below `ALPHA`.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from mirror_avatar.analysis.hypothesis import ConfirmatoryTest
 from mirror_avatar.analysis.identification import CHANCE, Identification
+from mirror_avatar.analysis.partner_kind import KIND_TERM
 from mirror_avatar.analysis.random_effects import CROSSED_PARTNERS, SELECTION_ALPHA
-from mirror_avatar.analysis.statistics import Contrast
+from mirror_avatar.analysis.statistics import Contrast, FactorTest
 
 ALPHA = 0.05
 """The significance level, and the false discovery rate, of the exploratory sentences
@@ -76,6 +77,26 @@ def comparison_sentence(contrast: Contrast, label: str, units: str) -> str:
     )
 
 
+def factor_sentence(test: FactorTest, label: str, units: str) -> str:
+    """Say one test of the partner's kind, or of condition x kind, in a line.
+
+    ``label`` and ``units`` name the measure; the evidence is the q-value (Benjamini-Hochberg
+    across the study's tests of kind), the model's p and interval.
+    """
+    t = test
+    evidence = (f"(exploratory: {format_p(t.q, 'q')}, {format_p(t.p)}, 95 % CI "
+                f"{number(t.ci_low)} to {number(t.ci_high)}, {number(t.df)} df)")  # fmt: skip
+    if t.term == KIND_TERM:
+        said = (f"{label} was {with_unit(abs(t.estimate), units)} "
+                f"{'higher' if t.estimate > 0 else 'lower'} with {t.kind} partners than with "
+                f"{t.reference_kind} partners, over the conditions")  # fmt: skip
+        return f"Partner kind: {said} {evidence}."
+    said = (f"{t.condition} changed {label} by {with_unit(abs(t.estimate), units)} "
+            f"{'more' if t.estimate > 0 else 'less'} with {t.kind} partners than with "
+            f"{t.reference_kind} partners")  # fmt: skip
+    return f"Condition x partner kind: {said} {evidence}."
+
+
 def confirmatory_sentence(test: ConfirmatoryTest, label: str, units: str) -> str:
     """Say the declared test's result: the estimate, its interval, p, the smallest effect."""
     t = test
@@ -122,6 +143,11 @@ def identification_sentence(found: Identification) -> str:
     if d.corrected:
         text += ", log-linear corrected for a rate of 0 or 1"
     text += "."
+    if found.over_persons:
+        text += (f" Over the {found.persons} persons, a mean rate of {found.person_rate_mean:.0%} "
+                 f"right (one-sample t-test against {CHANCE:.0%}, "
+                 f"{format_p(found.person_rate_p)}; each person's rate a unit, as the binomial "
+                 "test above takes every answer as independent).")  # fmt: skip
     if found.confidence_right_n and found.confidence_wrong_n:
         text += (f" Confidence was {number(found.confidence_right)} in right answers and "
                  f"{number(found.confidence_wrong)} in wrong ones (Mann-Whitney "
@@ -136,13 +162,17 @@ def verdict(
     identification: Identification | None,
     confirmatory: list[ConfirmatoryTest] | None = None,
     labels: Mapping[str, str] | None = None,
+    unconverged: Sequence[str] = (),
 ) -> str:
     """Write the report's first line: the hypothesis, the exploratory changes, the identification.
 
     ``confirmatory`` None: no hypothesis was declared, and every comparison is exploratory.
-    ``labels`` names the measures in words (their keys otherwise).
+    ``labels`` names the measures in words (their keys otherwise). ``unconverged``: the
+    measures whose mixed model did not converge; their contrasts are left out of the count and
+    named. The identification is said by `Identification.chance_test`: over persons when it can.
     """
     named = dict(labels or {})
+    contrasts = [c for c in contrasts if c.measure not in unconverged]
     line = _hypothesis_line(confirmatory, named)
     changed = [f"{c.condition} on {named.get(c.measure, c.measure)}"
                for c in contrasts if is_change(c)]  # fmt: skip
@@ -154,10 +184,15 @@ def verdict(
     else:
         line += (f"Exploratory: none of {len(contrasts)} comparisons changed a measure "
                  f"(q < {ALPHA} in none).")  # fmt: skip
+    if unconverged:
+        line += (f" Not counted, their fit did not converge: "
+                 f"{', '.join(named.get(m, m) for m in unconverged)}.")  # fmt: skip
     if identification is not None:
         said = _against_chance(identification)
-        line += (f" Partners identified {said}: {identification.rate:.0%} right "
-                 f"({format_p(identification.binomial_p)}).")  # fmt: skip
+        rate, p = identification.chance_test
+        test = (f"t-test over {identification.persons} persons" if identification.over_persons
+                else f"exact binomial over {identification.answers} answers")  # fmt: skip
+        line += f" Partners identified {said}: {rate:.0%} right ({test}, {format_p(p)})."
     return line
 
 
@@ -186,7 +221,11 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         f"confidence interval ({parameters['bootstrap_resamples']} resamples of the "
         f"participants' means, scipy.stats.bootstrap, random seed {parameters['seed']}; Efron "
         "& Tibshirani 1993). Conditions were compared within participants by a linear mixed "
-        "model per measure, measure ~ condition + position with random effects per "
+        "model per measure, measure ~ condition + position, and + partner kind + condition x "
+        "partner kind where the trials had partners of several kinds (weighted-effects "
+        "coding: each kind's indicator and the conditions' centred, so that a condition's "
+        "effect is averaged over the kinds)"
+        f"{_fitted_models(parameters.get('fixed_effects', {}))}, with random effects per "
         "participant (statsmodels MixedLM, REML): a random intercept and correlated random "
         "slopes for condition (Barr, Levy, Scheepers & Tily 2013) where the data supported "
         "them (participants with every condition outnumbering the conditions, repeated trials, "
@@ -216,10 +255,27 @@ def methods_paragraph(parameters: Mapping[str, Any]) -> str:
         'c = -(z(H) + z(F))/2 with "person" as the signal (hit: "person" said of a '
         'person; false alarm: "person" said of an avatar; Macmillan & Creelman 2005), '
         "log-linear corrected (0.5 added to hits and false alarms, 1 to each kind's count; "
-        "Hautus 1995) when a rate is 0 or 1; each person's own d' tested against 0 by a "
-        "one-sample t-test; confidence in right and in wrong answers compared by a two-sided "
+        "Hautus 1995) when a rate is 0 or 1; each person's own d' tested against 0, and each "
+        f"person's rate of right answers against {CHANCE:g}, by one-sample t-tests over the "
+        "persons (the persons the unit, a person's answers not being independent; the "
+        "verdict's test, the pooled binomial when fewer than two persons' rates differ); "
+        "confidence in right and in wrong answers compared by a two-sided "
         f"Mann-Whitney U test. Significance level and false discovery rate {ALPHA}."
+        + _angles_methods(parameters.get("angles", []))
         + _hypothesis_methods(parameters.get("hypothesis"), parameters.get("protocol"))
+    )
+
+
+def _angles_methods(angles: list[str]) -> str:
+    """Say how angle measures (their labels) were averaged and compared; "" without any."""
+    if not angles:
+        return ""
+    return (
+        f" {_capitalised(_listed(angles))}, angles, were averaged as unit vectors (each "
+        "participant's circular mean per condition, the conditions' circular means of the "
+        "participants', with the mean resultant length, the circular SD and Rayleigh's test; "
+        "Fisher 1993; Zar 1999) and compared by a sign-flip randomisation test of each "
+        "participant's difference of directions, not by the mixed model."
     )
 
 
@@ -285,10 +341,11 @@ def _capitalised(sentence: str) -> str:
 
 
 def _against_chance(found: Identification) -> str:
-    """Say "above chance", "below chance" (both at `ALPHA`) or "at chance"."""
-    if found.binomial_p >= ALPHA:
+    """Say "above chance", "below chance" (both at `ALPHA`) or "at chance", by `chance_test`."""
+    rate, p = found.chance_test
+    if p >= ALPHA:
         return "at chance"
-    return "above chance" if found.rate > CHANCE else "below chance"
+    return "above chance" if rate > CHANCE else "below chance"
 
 
 def _bias(criterion: float) -> str:

@@ -74,6 +74,9 @@ class Measure:
     metric
         Whether `mirror_avatar.metrics.summary.session_metrics` computes it (the others are
         `mirror_avatar.metrics.measures.session_measures`'s).
+    angle
+        Whether its values are directions on the circle (a mean phase, not a spread in
+        radians): a study averages and compares them by circular statistics.
     """
 
     key: str
@@ -91,6 +94,7 @@ class Measure:
     group_player: bool = False
     end_screen: bool = False
     metric: bool = False
+    angle: bool = False
 
     def p_value_key(self, **indices: int) -> str:
         """Return the key of its p-value against surrogates (players' indices as ``i``, ``j``)."""
@@ -110,7 +114,7 @@ MEASURES: tuple[Measure, ...] = (
             group_player=True, end_screen=True, metric=True),
     Measure("mean_relative_phase", "mean relative phase (player 0 - player 1)", "rad",
             "Circular mean of the relative phase, player 0 minus player 1", headline=True,
-            figure="relative phase", metric=True),
+            figure="relative phase", metric=True, angle=True),
     Measure("sd_relative_phase", "circular SD of relative phase", "rad",
             "Circular SD of the relative phase", figure="relative phase", metric=True),
     Measure("time_lag", "time lag (player 0 ahead > 0)", "s",
@@ -173,7 +177,7 @@ MEASURES: tuple[Measure, ...] = (
             group_player=True, end_screen=True, metric=True),
     Measure("relative_phase_to_group", "mean phase relative to the group", "rad",
             "The player's mean phase relative to the group", symbol="phase",
-            group_player=True, metric=True),
+            group_player=True, metric=True, angle=True),
     Measure("mean_phase_locking", "mean CV to the neighbours", "",
             "Mean over the players of their phase locking to their neighbours", headline=True,
             metric=True),
