@@ -4,14 +4,15 @@ One chunk of ``mirror-avatar train`` (follower, target VT5, partners VT1..VT4, s
 sessions, `mirror_avatar.engine.batch.run_chunk` as `mirror_avatar.training.imitation.imitate`
 streams it) is generated and then learnt from, each stage timed on its own in this thread
 (``time.thread_time``: CPU, so time the shared machine's other jobs take from this process is
-not counted), the least of ``--repeats`` repetitions. The stages:
+not counted), the median of ``--repeats`` rounds. The stages:
 
 - generation: the whole chunk (`run_chunk`); of it, the players' plans, references and packing
   (`mirror_avatar.engine.compiled.pack_session`), and the compiled loop (`run_plans` less
   the packing); the rest (plans, graphs, `Session` objects) is the chunk less `run_plans`;
-- learning: each session's `mirror_avatar.learning.training.ImitationTask`, exploration draws
+- learning: a fresh cyber player's `QLearner.fit` over the chunk, made for the paper's run;
+  of it, each session's `mirror_avatar.learning.training.ImitationTask`, exploration draws
   (`draw_exploration`), Q-learning kernel (`learn_session`) and target histogram
-  (`count_velocities`), and the learner's whole step (`QLearner.partial_fit` over the chunk).
+  (`count_velocities`); the rest is the learner's Python.
 
 ``python benchmarks/training_stages.py [--chunk 50] [--repeats 5]`` prints a Markdown table.
 """
@@ -47,18 +48,20 @@ PAPER_SESSIONS = 24_000
 TARGET_PLAYER = 1
 
 
-def least_cpu(work: Callable[[], Any], repeats: int) -> tuple[float, Any]:
-    """Return the least thread CPU (s) of ``repeats`` calls of ``work``, and its last result."""
-    best, result = np.inf, None
-    for _ in range(repeats):
-        began = time.thread_time()
-        result = work()
-        best = min(best, time.thread_time() - began)
-    return best, result
+def cpu_of(work: Callable[[], Any]) -> tuple[float, Any]:
+    """Return the thread CPU (s) of one call of ``work``, and its result."""
+    began = time.thread_time()
+    result = work()
+    return time.thread_time() - began, result
 
 
 def measure(chunk: int, repeats: int) -> list[tuple[str, float]]:
-    """Thread CPU (s) of each stage of one chunk of ``chunk`` sessions, in table order."""
+    """Thread CPU (s) of each stage of one chunk of ``chunk`` sessions, in table order.
+
+    Every stage is timed once in each of ``repeats`` rounds; a stage's figure is its median
+    over the rounds, and a part found by difference is the median of the differences within
+    each round.
+    """
     trainers = make_virtual_trainers(load_zhai2017())
     target = trainers[TARGET].generator
     lineups = make_pairs(target, [trainers[i].generator for i in SEEN_PARTNERS], "follower")
@@ -66,17 +69,27 @@ def measure(chunk: int, repeats: int) -> list[tuple[str, float]]:
     seeds = spawn_seeds(session_seed, chunk, bits=64)
     n_samples = count_samples(DURATION, lineups[0][0].period)
     run_chunk(lineups, seeds[:2], 0, n_samples)  # numba loads its cache before the clock
-    whole, sessions = least_cpu(lambda: run_chunk(lineups, seeds, 0, n_samples), repeats)
     plans, graph = chunk_plans(lineups, seeds, n_samples)
-    packing, _ = least_cpu(lambda: pack_session(plans, graph, n_samples - 1), repeats)
-    compiled, _ = least_cpu(lambda: run_plans(plans, graph, n_samples), repeats)
-    stages = [
-        ("generation: the chunk (`run_chunk`)", whole),
-        ("  plans' references and packing (`pack_session`)", packing),
-        ("  compiled loop (`run_plans` less packing)", compiled - packing),
-        ("  plans, graphs, `Session` objects (the rest)", whole - compiled),
+    rounds = []
+    for _ in range(repeats):
+        whole, sessions = cpu_of(lambda: run_chunk(lineups, seeds, 0, n_samples))
+        packing, _ = cpu_of(lambda: pack_session(plans, graph, n_samples - 1))
+        compiled, _ = cpu_of(lambda: run_plans(plans, graph, n_samples))
+        generation = [whole, packing, compiled - packing, whole - compiled]
+        rounds.append(generation + learning(sessions, target, learner_seed))
+    names = [
+        "generation: the chunk (`run_chunk`)",
+        "  plans' references and packing (`pack_session`)",
+        "  compiled loop (`run_plans` less packing)",
+        "  plans, graphs, `Session` objects (the rest)",
+        "learning: the chunk (`QLearner.fit`)",
+        "  `ImitationTask.from_session`",
+        "  exploration draws (`draw_exploration`)",
+        "  Q-learning kernel (`learn_session`)",
+        "  target histogram (`count_velocities`)",
+        "  the learner's Python (the rest)",
     ]
-    return stages + learning(sessions, target, learner_seed, repeats)
+    return list(zip(names, np.median(rounds, axis=0).tolist(), strict=True))
 
 
 def chunk_plans(
@@ -92,20 +105,24 @@ def chunk_plans(
     return plans, np.kron(np.eye(len(seeds), dtype=np.int8), pair)
 
 
-def learning(sessions: list[Any], target: Any, seed: int, repeats: int) -> list[tuple[str, float]]:
-    """Thread CPU (s) of the learner's stages over ``sessions``, in table order."""
+def learning(sessions: list[Any], target: Any, seed: int) -> list[float]:
+    """Thread CPU (s) of the learner over ``sessions`` and of its parts, in table order.
+
+    A fresh cyber player learns from the sessions; its parts are then timed on its Q-table.
+    """
     player = make_cyber_player("follower", target)
-    learner = make_learner(player, PAPER_SESSIONS, seed, progress=False)
-    whole, _ = least_cpu(lambda: learner.fit(sessions), repeats)
+    whole, _ = cpu_of(
+        lambda: make_learner(player, PAPER_SESSIONS, seed, progress=False).fit(sessions)
+    )
     policy = policy_arguments(player)
     period = player.period
-    tasks_cpu, tasks = least_cpu(
-        lambda: [ImitationTask.from_session(s, TARGET_PLAYER, period) for s in sessions], repeats
+    tasks_cpu, tasks = cpu_of(
+        lambda: [ImitationTask.from_session(s, TARGET_PLAYER, period) for s in sessions]
     )
     rng = np.random.default_rng(seed)
     n_actions = policy.actions.size
-    draws_cpu, draws = least_cpu(
-        lambda: [draw_exploration(rng, t.target_x.size - 1, n_actions) for t in tasks], repeats
+    draws_cpu, draws = cpu_of(
+        lambda: [draw_exploration(rng, t.target_x.size - 1, n_actions) for t in tasks]
     )
 
     def kernel() -> None:
@@ -116,21 +133,12 @@ def learning(sessions: list[Any], target: Any, seed: int, repeats: int) -> list[
                 policy.record, policy.n_substeps, 0.1, 0.95, 0.1, uniform, actions,
             )  # fmt: skip
 
-    kernel_cpu, _ = least_cpu(kernel, repeats)
-    counts_cpu, _ = least_cpu(
-        lambda: [count_velocities(s.velocities[TARGET_PLAYER]) for s in sessions], repeats
+    kernel_cpu, _ = cpu_of(kernel)
+    counts_cpu, _ = cpu_of(
+        lambda: [count_velocities(s.velocities[TARGET_PLAYER]) for s in sessions]
     )
-    return [
-        ("learning: the chunk (`QLearner.fit`)", whole),
-        ("  `ImitationTask.from_session`", tasks_cpu),
-        ("  exploration draws (`draw_exploration`)", draws_cpu),
-        ("  Q-learning kernel (`learn_session`)", kernel_cpu),
-        ("  target histogram (`count_velocities`)", counts_cpu),
-        (
-            "  the learner's Python (the rest)",
-            whole - tasks_cpu - draws_cpu - kernel_cpu - counts_cpu,
-        ),
-    ]
+    rest = whole - tasks_cpu - draws_cpu - kernel_cpu - counts_cpu
+    return [whole, tasks_cpu, draws_cpu, kernel_cpu, counts_cpu, rest]
 
 
 def table(stages: list[tuple[str, float]], chunk: int) -> str:
