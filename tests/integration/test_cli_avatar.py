@@ -73,6 +73,7 @@ def test_the_avatar_file_holds_both_roles_and_its_card(built: Path) -> None:
     assert f"stroke generator was fitted on 3 trials ({strokes} strokes)" in card
 
 
+@pytest.mark.long
 def test_the_session_role_picks_the_player(built: Path) -> None:
     follower, leader = load_player(str(built), "follower"), load_player(str(built), "leader")
     assert isinstance(follower, CyberPlayer) and follower.training_["role"] == "follower"
@@ -80,6 +81,7 @@ def test_the_session_role_picks_the_player(built: Path) -> None:
     assert isinstance(load_player(str(built), "joint"), VirtualTrainer)
 
 
+@pytest.mark.long
 def test_the_avatar_plays_in_simulate(built: Path, tmp_path: Path) -> None:
     out = tmp_path / "session"
     status = main(["simulate", "--leader", "bundled:fast", "--follower", str(built),
@@ -90,6 +92,7 @@ def test_the_avatar_plays_in_simulate(built: Path, tmp_path: Path) -> None:
     assert np.isfinite(result["metrics"]["emd_target_1"])
 
 
+@pytest.mark.long
 def test_a_damaged_avatar_is_refused_in_one_line(built: Path, tmp_path: Path) -> None:
     """Its follower swapped for its leader: each part is checked as its own file would be."""
     arrays, metadata = load_model(built, "mirror-avatar/avatar", 1, ())
@@ -121,6 +124,7 @@ def test_bad_options_are_one_line_before_any_work(tmp_path, capsys, extra, messa
     assert not (tmp_path / "a.npz").exists()
 
 
+@pytest.mark.long
 def test_live_play_takes_the_avatar_in_every_mode(built: Path) -> None:
     factory = make_avatar_factory(str(built))
     assert factory("avatar_follows").training_["role"] == "follower"  # type: ignore[attr-defined]
@@ -187,6 +191,7 @@ def ims_emd(a: np.ndarray, b: np.ndarray) -> float:
     return wasserstein_distance(centres, centres, compute_ims(a), compute_ims(b)) / span
 
 
+@pytest.mark.long
 def test_the_card_checks_the_avatar_against_each_trial_held_out(built: Path) -> None:
     """Three trials: the avatar is fitted on all, and each is held out in turn from an avatar
     built without it, in every role."""
@@ -243,6 +248,7 @@ def test_the_avatar_replays_the_persons_partner(proved: tuple[Path, Path]) -> No
     assert "against their partner&#39;s recorded track" in card
 
 
+@pytest.mark.long
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
@@ -267,6 +273,7 @@ def test_bad_proof_options_are_one_line(built: Path, tmp_path, capsys, extra, me
     assert not (tmp_path / "a.npz").exists()
 
 
+@pytest.mark.long
 @pytest.mark.parametrize(
     ("leaders", "plays", "kind"),
     [([], "avatar P01 (follower policy)", "CyberPlayer"),
@@ -295,6 +302,7 @@ def test_an_avatar_in_a_group_plays_its_policy_and_says_so(
     np.testing.assert_array_equal(player.q_table_, policy.q_table_)
 
 
+@pytest.mark.long
 def test_joint_improvisation_plays_the_virtual_trainer_and_says_so(
     built: Path, tmp_path: Path
 ) -> None:
@@ -307,6 +315,7 @@ def test_joint_improvisation_plays_the_virtual_trainer_and_says_so(
     assert sidecar["metadata"]["players"][1]["class"] == "VirtualTrainer"
 
 
+@pytest.mark.long
 def test_each_call_gives_a_player_of_its_own(built: Path) -> None:
     avatar = load_avatar(built)
     first, second = avatar.player("group"), avatar.player("group")

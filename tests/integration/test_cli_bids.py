@@ -67,6 +67,7 @@ def test_convert_keeps_every_run_of_every_session(dataset, zhai_trials, tmp_path
     assert [t["trial"] for t in manifest["trials"]] == stems
 
 
+@pytest.mark.long
 def test_signature_labels_carry_the_entities(dataset, tmp_path, capsys) -> None:
     root, stems = dataset
     out = tmp_path / "s"

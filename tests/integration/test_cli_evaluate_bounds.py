@@ -78,6 +78,7 @@ def evaluate(capsys: pytest.CaptureFixture[str], *arguments: str) -> tuple[int, 
     return status, captured.out, captured.err
 
 
+@pytest.mark.long
 def test_every_option_declares_its_range_in_its_help():
     help_text = subprocess.run(
         [sys.executable, "-c", "from mirror_avatar.console import run; run()", "evaluate", "-h"],

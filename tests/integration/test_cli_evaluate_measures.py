@@ -56,6 +56,7 @@ def evaluate(capsys: pytest.CaptureFixture[str], *arguments: str) -> tuple[int, 
     return status, captured.out, captured.err
 
 
+@pytest.mark.long
 def test_an_imported_pair_with_a_known_leader(tmp_path, rng, capsys):
     pair = tmp_path / "pair.csv"
     write_pair(pair, rng, delay=10)

@@ -34,6 +34,7 @@ def simulate(out: Path, *players: str, extra: tuple[str, ...] = ()) -> int:
     return main(arguments + [a for p in players for a in ("--player", p)] + list(extra))
 
 
+@pytest.mark.long
 def test_group_simulate_writes_the_session_and_group_metrics(tmp_path, models, capsys) -> None:
     fast, slow = models
     out = tmp_path / "sim"
@@ -81,6 +82,7 @@ def test_bad_groups_are_one_line(tmp_path, models, capsys, players, extra, probl
     assert problem in error and error.count("\n") == 1
 
 
+@pytest.mark.long
 def test_group_train_writes_a_policy_that_plays_anywhere(tmp_path, models, capsys) -> None:
     fast, slow = models
     policy = tmp_path / "member.npz"

@@ -106,6 +106,7 @@ def write_bids_subject(root: Path, subject: str, trials: list[Trial]) -> None:
     )
 
 
+@pytest.mark.long
 def test_a_bids_dataset_of_two_subjects(zhai_trials, tmp_path, capsys) -> None:
     root = tmp_path / "bids"
     write_bids_subject(root, "01", zhai_trials[0:2])

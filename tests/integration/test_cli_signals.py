@@ -79,6 +79,7 @@ def test_a_signal_at_the_first_instant_is_an_abort(tmp_path: Path) -> None:
     assert "Traceback" not in error
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
 def test_the_signal_that_stopped_a_command_is_named(signum: int, tmp_path: Path) -> None:
     out = tmp_path / "p.npz"
@@ -94,6 +95,7 @@ def test_the_signal_that_stopped_a_command_is_named(signum: int, tmp_path: Path)
     assert "Traceback" not in error
 
 
+@pytest.mark.long
 def test_nohup_keeps_a_command_running_past_a_hangup(tmp_path: Path) -> None:
     """SIGHUP ignored at the start (nohup) is still ignored; SIGTERM still stops the command."""
     out = tmp_path / "p.npz"

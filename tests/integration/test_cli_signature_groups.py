@@ -44,6 +44,7 @@ def test_fast_and_slow_people_are_told_apart(tmp_path, capsys):
     assert "Groups: fast (9 people) and slow (9 people): different" in lead
 
 
+@pytest.mark.long
 def test_shuffled_labels_are_at_chance(tmp_path):
     """Labels shuffled within each style, so that neither group holds more of one style."""
     rng = np.random.default_rng(7)

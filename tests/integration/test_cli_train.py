@@ -124,6 +124,7 @@ def test_bad_input_is_one_line(
     assert status == 2 and message in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.long
 def test_cyber_player_model_is_not_a_training_partner(tmp_path: Path, models: list[Path]) -> None:
     policy = tmp_path / "p.npz"
     assert _train(policy, models[0], str(models[1])) == 0

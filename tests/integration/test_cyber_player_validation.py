@@ -18,6 +18,7 @@ from mirror_avatar.sessions.session import Session
 from mirror_avatar.training.imitation import make_cyber_player
 
 
+@pytest.mark.long
 def test_quick_validation_runs_end_to_end(zhai_trials: list[Trial], tmp_path) -> None:
     section = run(zhai_trials, quick=True, seed=2, n_sessions=60, n_validation=3)
     assert ("cyber_player", run) in EXPERIMENTS

@@ -47,6 +47,7 @@ def _check(section: Section, seed: int) -> None:
     assert len(section.figures) == 3 and len(section.tables) == 5
 
 
+@pytest.mark.long
 def test_split_is_reproducible_and_disjoint(zhai_trials, section: Section) -> None:
     again = split_and_generate(zhai_trials, seed=0)
     everything = [t for sp in again.values() for t in sp.train + sp.held_out + sp.generated]

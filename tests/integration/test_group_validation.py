@@ -45,6 +45,7 @@ def test_virtual_trainers_synchronise_and_the_ends_of_a_path_less(section: Secti
     assert max(path["player 0"], path["player 3"]) < min(path["player 1"], path["player 2"])
 
 
+@pytest.mark.long
 def test_paired_sessions_share_the_graph_and_the_partners(zhai_trials: list[Trial]) -> None:
     """Replacing the target changes nothing else: the first sample of every partner agrees."""
     from mirror_avatar.experiments.group import compare
@@ -63,6 +64,7 @@ def test_paired_sessions_share_the_graph_and_the_partners(zhai_trials: list[Tria
     np.testing.assert_array_equal(with_vt.positions[:-1, :2], with_cyber.positions[:-1, :2])
 
 
+@pytest.mark.long
 def test_members_of_the_bundled_cast_and_of_three_people(zhai_trials: list[Trial]) -> None:
     """Bundled: VT1 (fast), VT4, VT6, then the target VT5; three people: all, the target last."""
     from mirror_avatar.training.cast import cast_virtual_trainers

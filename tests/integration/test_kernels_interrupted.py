@@ -42,6 +42,7 @@ def pester(process: subprocess.Popen[str]) -> None:
         time.sleep(0.0002)
 
 
+@pytest.mark.long
 @pytest.mark.parametrize(
     ("kind", "handler"), [("tabular", "default"), ("deep", "default"), ("dynamical", "console")]
 )

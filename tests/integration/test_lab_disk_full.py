@@ -51,6 +51,7 @@ def fill(folder: Path, leave: int) -> Path:
     return filler
 
 
+@pytest.mark.long
 def test_a_full_disk_ends_the_trial_cleanly_and_the_next_starts_with_new_files(small_disk):
     out = small_disk / "out"
     settings = LabSettings(out_dir=out, token=TOKEN, countdown=1)

@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 import httpx
+import pytest
 from test_lab_bids_concurrent import CLI, dyad, record
 
 LIMIT_BYTES = 6 * 1024
@@ -85,6 +86,7 @@ print(json.dumps(trial.finish(complete, reason)))
 prints the trial's summary."""
 
 
+@pytest.mark.long
 def test_a_trial_on_the_clock_under_a_file_size_limit_names_the_file(tmp_path):
     played = subprocess.run([sys.executable, "-c", TRIAL, str(tmp_path), "16384"], text=True,
                             capture_output=True, timeout=300, check=True)  # fmt: skip

@@ -77,6 +77,7 @@ SWAYING = """([t0, phase]) => {
 """A page's pointer swaying at 0.4 Hz, 0.3 units, moved by the page itself."""
 
 
+@pytest.mark.long
 def test_equalised_views_are_drawn_equally_late_and_predicted_ones_nearer(chromium, tmp_path):
     (tmp_path / "study.toml").write_text(protocol())
     with protocol_lab(tmp_path / "study.toml") as lab:

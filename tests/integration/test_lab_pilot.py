@@ -110,6 +110,7 @@ def test_a_pilot_records_every_participant_as_a_study_does(piloted):
         assert delays["delayed"] == pytest.approx(0.51)
 
 
+@pytest.mark.long
 def test_the_stand_in_moves_the_person_s_point_from_its_page(piloted):
     out, _ = piloted
     for csv in sorted(out.glob("delay-p00*/trial-*_session.csv")):
@@ -121,6 +122,7 @@ def test_the_stand_in_moves_the_person_s_point_from_its_page(piloted):
         assert live > len(inputs) / 2, f"{csv}: most samples held the same pointer position"
 
 
+@pytest.mark.long
 def test_the_virtual_participants_answer_by_their_rules(piloted):
     out, _ = piloted
     answered = sorted(out.glob("delay-p00*/trial-*_answers.json"))
@@ -131,6 +133,7 @@ def test_the_virtual_participants_answer_by_their_rules(piloted):
         assert answers["sure"]["value"] in range(1, 6)
 
 
+@pytest.mark.long
 def test_the_server_s_log_ends_as_finished_after_a_normal_pilot(piloted):
     out, result = piloted
     assert result.returncode == 0, result.stderr

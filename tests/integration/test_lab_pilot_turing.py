@@ -56,6 +56,7 @@ def test_the_table_names_the_recording_a_person_s_motion(reported):
     assert people["guess_confidence"].between(1, 7).all()
 
 
+@pytest.mark.long
 def test_the_report_scores_every_answer_against_chance(reported):
     table, found, html = reported
     people = table[table["player_kind"] == "person"]

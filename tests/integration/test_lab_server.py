@@ -389,6 +389,7 @@ def test_api_requests_are_rate_limited(tmp_path):
         assert client.get(f"{lab.url}/api/sessions").text.startswith("too many requests")
 
 
+@pytest.mark.long
 def test_killing_the_server_leaves_every_sample_on_disk(tmp_path):
     server = subprocess.Popen(
         [

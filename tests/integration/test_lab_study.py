@@ -167,6 +167,7 @@ def person_plays_together(protocol_file: Path, participant: int) -> bool:
     return next(step.persons["P2"] for step in steps if step.name == "together")
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("participant", [0, 1])
 def test_a_participant_plays_the_protocol_in_their_order_blinded(
     lab, tmp_path, protocol_file, participant
@@ -282,6 +283,7 @@ def test_the_cli_refuses_a_bad_protocol_in_one_line(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.long
 def test_a_protocol_without_a_seed_is_served_with_a_warning_naming_the_drawn_seed(tmp_path):
     unseeded = tmp_path / "unseeded.toml"
     unseeded.write_text(PROTOCOL.replace("seed = 7\n", ""))

@@ -20,6 +20,7 @@ def styles() -> dict[str, list]:
     return by_style
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("style", ["fast", "slow"])
 def test_trials_of_one_style_are_indistinguishable(styles: dict[str, list], style: str) -> None:
     trials = styles[style]

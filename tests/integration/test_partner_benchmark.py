@@ -187,6 +187,7 @@ def test_published_values_stand_apart_in_their_own_definitions(
     assert "circularVariance.m" in theirs and "1 - R" in theirs
 
 
+@pytest.mark.long
 def test_humans_in_a_table_of_named_columns_rank_by_the_measures_chosen(
     tmp_path: Path, zhai_trials: list[Trial], rng: np.random.Generator
 ) -> None:

@@ -10,6 +10,8 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 LOADED_BY_THE_CHECK = """
 import sys
 
@@ -63,6 +65,7 @@ for kernel, signature in sorted(loaded() - played):
 four, then checks each; it prints every compiled signature the check used and play did not."""
 
 
+@pytest.mark.long
 def test_checking_a_player_uses_the_layouts_play_uses() -> None:
     done = subprocess.run(
         [sys.executable, "-c", LOADED_BY_THE_CHECK],

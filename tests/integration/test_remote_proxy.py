@@ -181,6 +181,7 @@ def test_lab_proxy_refuses_bad_input_in_one_line(arguments, says, capsys):
     assert says in error and "\n" not in error
 
 
+@pytest.mark.long
 def test_lab_proxy_prints_the_address_and_logs_until_interrupted(echo, tmp_path):
     log = tmp_path / "net.csv"
     command = [

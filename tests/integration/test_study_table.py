@@ -87,6 +87,7 @@ def test_a_row_per_trial_and_player_with_design_measures_and_answers(study, tmp_
     assert "a person or a computer?" in dictionary["answer_partner"]["Description"]
 
 
+@pytest.mark.long
 def test_the_table_from_the_runs_equals_the_table_from_their_bids_export(study, tmp_path, capsys):
     bids = tmp_path / "bids"
     for folder in (study.folder, study.second):

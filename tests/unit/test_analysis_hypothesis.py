@@ -130,6 +130,7 @@ def test_several_primary_measures_are_holm_corrected() -> None:
     assert [t.p_holm for t in tests] == pytest.approx(list(expected))
 
 
+@pytest.mark.long
 def test_the_report_leads_with_the_hypothesis(protocol: Protocol, tmp_path: Path) -> None:
     rows = make_study_rows(0, effects={"phase_locking": -0.1, "rms": 0.05})
     table = read_study_table(write_study_table(rows, tmp_path / "table"))

@@ -68,6 +68,7 @@ def test_participants_own_effects_get_slopes_and_the_participants_df() -> None:
     assert sum(c.ci_low < 0.03 < c.ci_high for c in contrasts) >= 8
 
 
+@pytest.mark.long
 def test_varying_effects_around_none_are_rarely_found() -> None:
     """The slopes keep the false positives near alpha, where a random intercept does not."""
     p = [model(seed, 0.0, 0.03).contrasts[0].p for seed in SEEDS]
@@ -75,6 +76,7 @@ def test_varying_effects_around_none_are_rarely_found() -> None:
     assert sum(intercept_only_p(seed) < 0.05 for seed in SEEDS) >= 3
 
 
+@pytest.mark.long
 def test_without_participants_own_effects_the_intercept_is_kept_and_said() -> None:
     models = [model(seed, 0.03, None) for seed in SEEDS]
     kept = [m for m in models if m.random_effects == INTERCEPT]

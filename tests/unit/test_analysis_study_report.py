@@ -401,6 +401,7 @@ def test_a_report_without_room_for_its_page_writes_no_file(table_dir: Path, tmp_
     assert contents(out) == before
 
 
+@pytest.mark.long
 def test_values_that_are_not_finite_are_left_out_and_counted(tmp_path: Path) -> None:
     """An infinite value (a measure divided by a zero spread) would make its condition's mean
     infinite beside a finite interval, with numpy's warnings on stderr (errors here): it is left

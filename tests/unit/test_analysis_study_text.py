@@ -102,6 +102,7 @@ def test_identification_without_avatars_says_why_there_is_no_d_prime(tmp_path: P
     assert "d&#39; and c need answers about both kinds of partner" in page
 
 
+@pytest.mark.long
 def test_measures_without_numbers_or_values_are_said_not_averaged(tmp_path: Path) -> None:
     rows = make_study_rows(0).assign(
         cv=np.nan, leader=lambda r: np.where(r["trial"] > 2, "0", "none")

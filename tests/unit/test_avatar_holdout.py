@@ -113,6 +113,7 @@ def test_a_follower_four_times_further_than_its_person_is_flagged(slow_person: l
     assert "p-value (permutations by trial)" in likeness.columns
 
 
+@pytest.mark.long
 def test_a_flagged_role_ends_with_the_next_step_a_person_can_take(slow_person: list) -> None:
     """A leader and a follower 1.4 x faster than the person, their virtual trainer not: the
     leader asks for more solo trials, the follower (further than the trainer) for training."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.experiments.avatar_holdout import Fold, RoleMotion, prove_held_out
 from mirror_avatar.experiments.avatar_proof import Proof
@@ -10,6 +12,7 @@ from mirror_avatar.signatures.likeness import trial_velocity
 RATE = 1 / 0.03  # the avatar's control rate
 
 
+@pytest.mark.long
 def test_an_avatar_moving_as_another_style_is_distinguishable() -> None:
     trials = {t.label: t for t in load_zhai2017()}
     person = [trials[f"fast-{k}"] for k in (1, 2, 3, 4)]

@@ -85,6 +85,7 @@ def test_a_shared_model_averages_each_stroke_over_a_group_of_its_direction(fitte
     )
 
 
+@pytest.mark.long
 def test_the_training_trials_cannot_be_rebuilt_from_a_shared_model(slow, fitted) -> None:
     """The fitted model rebuilds every training stroke exactly; the shared one rebuilds them no
     better than the held-out trials' strokes (median error at least 0.75 x; measured 0.90 on

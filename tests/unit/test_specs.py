@@ -35,6 +35,7 @@ def _run(player: Player, seed: int, n_steps: int = 100) -> np.ndarray:
     return np.asarray(states)
 
 
+@pytest.mark.long
 def test_bundled_spec_is_a_virtual_trainer_of_that_style(zhai_trials_100hz: list[Trial]):
     player = load_player("bundled:fast", "leader")
     assert isinstance(player, VirtualTrainer)

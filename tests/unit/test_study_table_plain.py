@@ -212,6 +212,7 @@ def test_an_input_that_never_delivers_is_recorded_lost_and_its_record_reads_back
     assert lost[0].seq is None
 
 
+@pytest.mark.long
 def test_an_aborted_trial_is_marked_incomplete_and_left_out_of_the_report_saying_so(
     ring_session, tmp_path, capsys
 ):
