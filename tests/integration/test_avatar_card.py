@@ -62,6 +62,7 @@ def test_the_card_flags_a_follower_far_from_its_person(card: Path) -> None:
     assert "EMD P5" not in page and "EMD P95" not in page
 
 
+@pytest.mark.long
 @pytest.mark.browser
 def test_the_card_reads_whole_at_1280_px(chromium: Any, card: Path, tmp_path: Path) -> None:
     page = chromium.new_page(viewport={"width": WIDTH, "height": 900})

@@ -324,6 +324,7 @@ def one_way_ms(truth: pd.DataFrame, socket: int, way: str, span: tuple[float, fl
     return float((mine.delivered_s - mine.received_s).median() * 1000.0)
 
 
+@pytest.mark.long
 def test_two_pages_behind_an_emulated_internet_are_timed_on_the_server_clock(
     chromium, lab, tmp_path
 ):
@@ -551,6 +552,7 @@ class TrustingBrowser:
         return self.browser.new_context(ignore_https_errors=True, **options)
 
 
+@pytest.mark.long
 def test_a_dyad_over_https_with_the_servers_own_certificate(chromium, tmp_path):
     """The server serves HTTPS with a certificate the test made; the console at 127.0.0.1 hands
     out links at the public address (localhost); both pages play over secure WebSockets.

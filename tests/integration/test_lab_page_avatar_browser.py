@@ -213,6 +213,7 @@ def wander(seconds: float, rate: float = 100.0) -> Callable[[float], float]:
     return lambda t: float(np.interp(t, np.arange(x.size) / rate, x))
 
 
+@pytest.mark.long
 def test_the_avatar_s_lag_behind_the_person_in_the_page_and_on_the_server(
     chromium, lab, tmp_path, follower
 ):

@@ -69,6 +69,7 @@ def test_a_pilot_under_an_emulated_internet_writes_its_truth_beside_the_runs(tmp
     assert rtt["n"] > 20 and proxied - 10.0 <= rtt["median"] <= proxied + 20.0, (rtt, proxied)
 
 
+@pytest.mark.long
 def test_a_stand_in_screened_out_under_the_network_ends_the_pilot_in_one_line(tmp_path):
     protocol = tmp_path / "screened.toml"
     screening = "[online]\nscreen_round_trip_p95_ms = 150\n\n[[blocks]]"

@@ -329,6 +329,7 @@ def kill(server: subprocess.Popen[str]) -> None:
     server.stdout.close()  # type: ignore[union-attr]
 
 
+@pytest.mark.long
 def test_a_server_killed_mid_protocol_resumes_at_the_next_trial(tmp_path, protocol_file):
     out = tmp_path / "out"
     server, url, token = start_server(out, protocol_file)

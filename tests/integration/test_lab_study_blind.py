@@ -91,6 +91,7 @@ def assert_blinded(run: dict[str, Any]) -> None:
     assert set(run["study"]["pages"]) == {"P1", "P2"}
 
 
+@pytest.mark.long
 def test_a_double_blind_run_hides_the_partner_kinds_until_export(lab, tmp_path, protocol_file):
     draws = {p: person_plays_together(protocol_file, p) for p in range(4)}
     meets_person = next(p for p, person in draws.items() if person)

@@ -108,6 +108,7 @@ def pair_p_values(x: np.ndarray, options: MeasureOptions, seed: int) -> dict[str
     }
 
 
+@pytest.mark.long
 @pytest.mark.parametrize(
     ("n_pairs", "most"),
     [(30, 5), pytest.param(100, 10, marks=pytest.mark.slow)],
