@@ -83,6 +83,7 @@ class ViewLog:
         self._lock = threading.Lock()
         self._sent: dict[str, dict[int, SentFrame]] = {}
         self._unwritten: list[tuple[str, Draw]] = []
+        self._closed = False
         self.draws: dict[str, list[Draw]] = {}
 
     def sent(self, label: str, k: int, frame: SentFrame) -> None:
@@ -95,10 +96,13 @@ class ViewLog:
     def shown(self, label: str, drawn: Sequence[tuple[int, float, float]]) -> None:
         """Take the frames ``label``'s page drew: (sample k, page ms, server s) each.
 
-        A frame not sent in this trial (or forgotten), or drawn before the page's clock was
-        known (NaN server time), is left out; each drawn partner is kept once.
+        A frame not sent in this trial (or forgotten), drawn before the page's clock was known
+        (NaN server time), or reported after the file was closed is left out; each drawn
+        partner is kept once.
         """
         with self._lock:
+            if self._closed:
+                return
             frames = self._sent.get(label, {})
             for k, page_ms, shown_s in drawn:
                 frame = frames.pop(k, None)
@@ -119,7 +123,13 @@ class ViewLog:
             self._file.write(f"{label},{self.labels[d.partner]},{d.k},{times},{d.x!r}")
 
     def close(self) -> None:
-        """Close the file."""
+        """Write the draws reported since the last tick, then close the file.
+
+        Reports arriving later are left out, so the file and `summary` hold the same draws.
+        """
+        self(np.empty(0))
+        with self._lock:
+            self._closed = True
         self._file.close()
 
     def summary(self, label: str, times_s: Array, positions: Array) -> dict[str, Any] | None:
