@@ -24,12 +24,17 @@ SCREENSHOTS = Path(__file__).parents[2] / "output" / "screenshots"
 def chromium_mains() -> set[int]:
     """Process ids of the running Chromium browsers this test process started (no helpers).
 
-    Browsers that already exited but are not reaped yet (zombies) are left out.
+    Browsers that already exited but are not reaped yet (zombies) are left out, and so are a
+    browser's children caught between fork and exec (still named and invoked as their parent):
+    a browser's parent is not Chromium.
     """
     mains = set()
     for child in psutil.Process().children(recursive=True):
         try:
-            if CHROMIUM.name in child.name() and "--type=" not in " ".join(child.cmdline()):
+            parent = child.parent()
+            forked = parent is not None and CHROMIUM.name in parent.name()
+            main = CHROMIUM.name in child.name() and "--type=" not in " ".join(child.cmdline())
+            if main and not forked:
                 mains.add(child.pid)
         except (psutil.ZombieProcess, psutil.NoSuchProcess):
             continue
