@@ -124,10 +124,11 @@ class PartnerFrames:
                 slowest_one_way_ms(playing.values()) if view.lag_s is None else view.lag_s * 1000.0
             )
         k = trial.k - 1
+        history = [] if hidden else list(self._history)
         for participant in playing.values():
             age = self._age(trial, participant.index, delay, view)
             kept = 0 if age is None else max(0, len(self._history) - age)  # those `age` old
-            past = list(self._history)[:kept] if not hidden else []
+            past = history[:kept]
             if participant.outbox is None:
                 continue
             own, *others = participant.visible

@@ -116,6 +116,9 @@ class ViewLog:
 
     def __call__(self, row: Array) -> None:
         """Write the draws reported since the previous tick."""
+        self._write_unwritten()
+
+    def _write_unwritten(self) -> None:
         with self._lock:
             rows, self._unwritten = self._unwritten, []
         for label, d in rows:
@@ -127,9 +130,9 @@ class ViewLog:
 
         Reports arriving later are left out, so the file and `summary` hold the same draws.
         """
-        self(np.empty(0))
         with self._lock:
             self._closed = True
+        self._write_unwritten()
         self._file.close()
 
     def summary(self, label: str, times_s: Array, positions: Array) -> dict[str, Any] | None:
