@@ -1,21 +1,24 @@
 """Screening declared in the protocol, through the real lab server: a page whose round trips at
 entry are above the bound refused with both numbers, the refusal in its file and the log; a tab
-hidden during a trial recorded in the sidecar and the person told on return, or refused."""
+hidden during a trial recorded in the sidecar and the person told on return, or refused; no run
+started until every connected page's entry is judged."""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
 import json
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import httpx
 import pandas as pd
 import pytest
 import websockets
 from test_lab_online import opened, solo_protocol
-from test_lab_server import BEARER, TOKEN, Page, socket_url, status
+from test_lab_server import BEARER, TOKEN, Page, command, socket_url, status
 from test_lab_study import create_participant, play_to_the_end
 
 from mirror_avatar.cli import main
@@ -24,6 +27,7 @@ from mirror_avatar.lab.running.screening import BACK_NOTICE, ENTRY_EXCHANGES, HI
 from mirror_avatar.lab.running.server import LabSettings, create_lab_app
 from mirror_avatar.lab.running.sessions import CLOSE_REFUSED
 from mirror_avatar.testing import ServerThread
+from waiting import wait_for
 
 
 def protocol(hidden_tab: str) -> str:
@@ -99,7 +103,7 @@ def test_a_page_at_300_ms_is_refused_at_entry_with_both_numbers(lab, tmp_path):
     assert any("P1 screened out: Your connection's" in e for e in status(lab, sid)["events"])
     assert asyncio.run(opened(link)) == ([refused], CLOSE_REFUSED)
     admitted = create_participant(lab.url, 1, BEARER)
-    play_to_the_end(lab, admitted["id"], [Page(admitted["links"]["P1"])])
+    play_to_the_end(lab, admitted["id"], [ClockedPage(admitted["links"]["P1"])], judged=True)
     table = tmp_path / "table"
     assert main(["study", "table", str(tmp_path / "out"), "--out", str(table)]) == 0
     rows = pd.read_csv(table / "study.csv").set_index("participant")
@@ -122,7 +126,65 @@ def test_a_page_within_the_bound_is_admitted_and_not_judged_again(lab):
     assert len(admitted) == 1 and "P1 admitted: round trip p95 " in admitted[0]
 
 
-class HidingPage(Page):
+def test_a_run_does_not_start_until_every_page_s_entry_is_judged(lab):
+    created = create_participant(lab.url, 3, BEARER)
+    sid, link = created["id"], created["links"]["P1"]
+
+    async def scenario() -> tuple[httpx.Response, httpx.Response]:
+        async with websockets.connect(socket_url(link)) as page:
+            await page.recv()  # welcome: connected, no clock exchanged yet
+            early = await asyncio.to_thread(command, lab, sid, "start")
+            await judged_entry(page)
+            await asyncio.to_thread(
+                wait_for, lambda: status(lab, sid)["slots"][0]["entry_rtt_p95_ms"] is not None,
+                30.0, "the entry judged",
+            )  # fmt: skip
+            return early, await asyncio.to_thread(command, lab, sid, "start")
+
+    early, started = asyncio.run(scenario())
+    assert early.status_code == 409
+    assert early.json()["error"] == (
+        f"still being screened: P1 (their page's first {ENTRY_EXCHANGES} round trips, about 2 s "
+        "after joining; start anyway with force)"
+    )
+    assert started.status_code == 200, started.text
+
+
+async def judged_entry(page: Any) -> None:
+    """Make a page's `ENTRY_EXCHANGES` clock exchanges on its socket ``page``, one at a time."""
+    for n in range(1, ENTRY_EXCHANGES + 1):
+        await page.send(clock_request(n))
+        while (message := json.loads(await page.recv()))["type"] != "clock":
+            pass
+        await page.send(clock_report(message))
+
+
+def clock_request(n: int) -> str:
+    """A page's request ``n`` for the server's time, on its own clock (ms) as ``clock.js``'s."""
+    return json.dumps({"type": "clock", "id": n, "t0": time.time() * 1000.0})
+
+
+def clock_report(answer: dict[str, Any]) -> str:
+    """A page's report of when the server's ``answer`` arrived, on its own clock (ms)."""
+    return json.dumps({"type": "clocked", "id": answer["id"], "t3": time.time() * 1000.0})
+
+
+class ClockedPage(Page):
+    """A page that makes its entry's clock exchanges as it connects, 20 ms apart, then plays."""
+
+    async def _send(self, socket: Any) -> None:
+        for n in range(1, ENTRY_EXCHANGES + 1):
+            await socket.send(clock_request(n))
+            await asyncio.sleep(0.02)
+        await super()._send(socket)
+
+    async def on_message(self, socket: Any, message: dict[str, Any]) -> None:
+        await super().on_message(socket, message)
+        if message["type"] == "clock":
+            await socket.send(clock_report(message))
+
+
+class HidingPage(ClockedPage):
     """A page whose tab is hidden for ``hidden_s`` seconds once the trial starts."""
 
     hidden_s = 0.6
@@ -133,21 +195,26 @@ class HidingPage(Page):
             asyncio.get_running_loop().create_task(self._hide(socket))
 
     async def _hide(self, socket: Any) -> None:
-        await socket.send(json.dumps({"type": "focus", "event": "hidden", "t": 0.0}))
+        await socket.send(focus("hidden"))
         await asyncio.sleep(self.hidden_s)
-        await socket.send(json.dumps({"type": "focus", "event": "visible", "t": 1.0}))
+        await socket.send(focus("visible"))
+
+
+def focus(event: str) -> str:
+    """A page's report of its tab hidden or shown, on its own clock (ms)."""
+    return json.dumps({"type": "focus", "event": event, "t": time.time() * 1000.0})
 
 
 def test_a_tab_hidden_during_a_trial_is_recorded_and_the_person_told(lab, tmp_path):
     created = create_participant(lab.url, 2, BEARER)
     sid, link = created["id"], created["links"]["P1"]
     page = HidingPage(link)
-    play_to_the_end(lab, sid, [page])
+    play_to_the_end(lab, sid, [page], judged=True)
     assert page.of_type("notice") == [{"type": "notice", "message": BACK_NOTICE}]
     sidecar = json.loads((tmp_path / "out" / sid / "trial-01_session.json").read_text())
     (hidden,) = sidecar["metadata"]["pages"]["P1"]["interruptions"]
-    # this page never exchanged clocks: its events are timed on their receipt
-    assert hidden["kind"] == "hidden" and 0.5 <= hidden["end_s"] - hidden["start_s"] <= 3.0
+    # timed by the page's clock, mapped onto the server's by its exchanges
+    assert hidden["kind"] == "hidden" and 0.6 <= hidden["end_s"] - hidden["start_s"] <= 3.0
     events = status(lab, sid)["events"]
     assert any("P1: hidden during trial 1" in e for e in events)
     assert any("P1: back after" in e for e in events)

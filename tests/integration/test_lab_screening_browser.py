@@ -30,6 +30,7 @@ from mirror_avatar.lab.running.screening import BACK_NOTICE
 from mirror_avatar.remote.network import parse_network
 from mirror_avatar.remote.proxy import ProxyThread
 from mirror_avatar.testing import ServerThread
+from waiting import wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -79,7 +80,10 @@ def test_a_page_at_300_ms_round_trip_is_refused_at_entry(chromium, lab, tmp_path
 def test_a_tab_hidden_mid_trial_is_told_recorded_and_counted(chromium, lab, tmp_path):
     created = create_participant(lab.url, 1, BEARER)
     page: Any = join(chromium, created["links"]["P1"])
-    page.wait_for_timeout(3000)  # the page's entry judged on its first 100 exchanges (2 s)
+    wait_for(
+        lambda: status(lab, created["id"])["slots"][0]["entry_rtt_p95_ms"] is not None,
+        30.0, "the page's entry judged on its first 100 exchanges",
+    )  # fmt: skip
     assert command(lab, created["id"], "start").status_code == 200
     page.wait_for_function("parseFloat(document.getElementById('progress-bar').style.width) > 10")
     page.evaluate(SET_VISIBILITY, "hidden")

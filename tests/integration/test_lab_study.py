@@ -135,16 +135,20 @@ def play_to_the_end(
     force: bool = False,
     seen: set[str] | None = None,
     timeout: float = 120.0,
+    judged: bool = False,
 ) -> None:
     """Start a participant's run with its pages playing and wait until it has finished.
 
     ``seen`` collects where in the protocol the console said the run was, poll by poll;
-    ``timeout`` (s) is the deadline of the wait.
+    ``timeout`` (s) is the deadline of the wait; with ``judged`` the run is started once the
+    server has judged every page's entry (a protocol screening round trips).
     """
 
     async def scenario() -> None:
         tasks = [asyncio.create_task(page.play(seconds)) for page in pages]
         await welcomed(pages)
+        if judged:
+            await asyncio.to_thread(wait_for, entries_judged, 60.0, "every entry judged")
         body = {"force": True} if force else {}
         started = await asyncio.to_thread(
             httpx.post, f"{lab.url}/api/sessions/{sid}/start", json=body, headers=BEARER
@@ -152,6 +156,10 @@ def play_to_the_end(
         assert started.status_code == 200, started.text
         await asyncio.to_thread(wait_for, finished, timeout, f"the run {sid} to finish")
         await asyncio.gather(*tasks)
+
+    def entries_judged() -> bool:
+        slots = status(lab, sid)["slots"]
+        return all(slot["entry_rtt_p95_ms"] is not None for slot in slots if "joined" in slot)
 
     def finished() -> bool:
         now = status(lab, sid)

@@ -30,6 +30,7 @@ from mirror_avatar.lab.files import is_session_folder
 from mirror_avatar.lab.running.blinding import console_status, hidden_of, unjoined
 from mirror_avatar.lab.running.public import base_address
 from mirror_avatar.lab.running.runner import LabSession
+from mirror_avatar.lab.running.screening import still_screened
 from mirror_avatar.lab.running.sessions import Lab
 from mirror_avatar.lab.running.study import ParticipantRun
 from mirror_avatar.lab.running.trial import build_avatars
@@ -174,7 +175,7 @@ class LabApi:
         data = await read_body(request, allow_empty=True)
         if action == "start":
             force = bool(isinstance(data, dict) and data.get("force"))
-            problem = unjoined(session) if hidden_of(session) and not force else None
+            problem = None if force else not_ready(session)
             problem = problem or session.start(force=force)
             if problem is not None:
                 return json_answer({"error": problem}, 409)
@@ -286,6 +287,15 @@ class LabApi:
         """Return a session's status and links, blinded for a double-blind protocol's run."""
         links = {} if session.ended else join_links(session, self._base(request))
         return console_status(session, session.status() | {"links": links})
+
+
+def not_ready(session: LabSession) -> str | None:
+    """Say why a session should not start yet unless forced, or None.
+
+    A double-blind run's pages not all joined (`unjoined`), or a person's entry still being
+    screened (`mirror_avatar.lab.running.screening.still_screened`).
+    """
+    return (unjoined(session) if hidden_of(session) else None) or still_screened(session)
 
 
 def protocol_summary(protocol: Protocol) -> dict[str, Any]:

@@ -29,24 +29,17 @@ from starlette.responses import Response
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.atomic import write_atomic_json
 from mirror_avatar.files.user_files import read_json
-from mirror_avatar.lab.design.online import Online
 from mirror_avatar.lab.running.api import ApiError, json_answer, read_body, unwritable
 from mirror_avatar.lab.running.participant import Participant
 from mirror_avatar.lab.running.runner import LabSession
+from mirror_avatar.lab.running.screening import online_of
 from mirror_avatar.lab.running.sessions import Lab, refusal
-from mirror_avatar.lab.running.study import ParticipantRun
 
 DECLINED = "You chose not to take part. Thank you for your time."
 """What a participant who does not agree is told (with the refusal code or link)."""
 
 MAX_CONSENT_FILE_BYTES = 64 * 1024
 """Largest ``consent-<label>.json`` read back to add an answer (bytes)."""
-
-
-def online_of(session: LabSession) -> Online:
-    """Return the ``[online]`` table of a participant's run (empty for a plan's session)."""
-    schedule = session.schedule
-    return schedule.protocol.online if isinstance(schedule, ParticipantRun) else Online()
 
 
 def needs_consent(session: LabSession, participant: Participant) -> bool:

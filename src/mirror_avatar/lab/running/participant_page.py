@@ -17,7 +17,7 @@ import time
 
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from mirror_avatar.lab.running.consent import needs_consent, online_of
+from mirror_avatar.lab.running.consent import needs_consent
 from mirror_avatar.lab.running.messages import (
     Answer,
     AvatarPosition,
@@ -37,6 +37,7 @@ from mirror_avatar.lab.running.screening import (
     ENTRY_EXCHANGES,
     HIDDEN_REFUSAL,
     entry_refusal,
+    online_of,
     round_trip_p95,
 )
 from mirror_avatar.lab.running.sessions import CLOSE_REFUSED, Lab, refusal

@@ -395,11 +395,13 @@ async def pilot_participant(
     stand_ins: Mapping[str, StandIn],
     planned_s: float,
     join_base: str | None = None,
+    screened: bool = False,
 ) -> dict[str, Any]:
     """Play participant ``number``'s run with the stand-ins; return its final status.
 
     ``join_base`` is the base URL the stand-ins' pages join at (default: the server's own, as its
-    join links give it; an emulated internet's to join through it).
+    join links give it; an emulated internet's to join through it). With ``screened`` (the
+    protocol screens round trips at entry), the run starts once every stand-in is judged.
 
     Raises
     ------
@@ -421,7 +423,7 @@ async def pilot_participant(
         for label, link in status["links"].items()
     ]
     try:
-        await _wait_joined(api, status["id"])
+        await _wait_ready(api, status["id"], pages, screened)
         started = await api.post(f"/api/sessions/{status['id']}/start", json={})
         if not started.is_success:
             raise InputError(f"participant {number}", _refusal(started))
@@ -467,14 +469,39 @@ def _socket_url(link: str, join_base: str | None = None) -> str:
     return urlunsplit(("ws", parts.netloc, parts.path.replace("/join/", "/ws/join/"), "", ""))
 
 
-async def _wait_joined(api: httpx.AsyncClient, sid: str, timeout: float = 60.0) -> None:
+async def _wait_ready(
+    api: httpx.AsyncClient,
+    sid: str,
+    pages: list[asyncio.Task[str]],
+    screened: bool,
+    timeout: float = 60.0,
+) -> None:
+    """Wait until every stand-in's page is connected and, when ``screened``, judged at entry.
+
+    Raises
+    ------
+    InputError
+        A stand-in was screened out (its page's refusal), or the pages were not ready within
+        ``timeout`` (s).
+    """
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        status = (await api.get(f"/api/sessions/{sid}")).json()
-        if all(slot.get("joined", True) for slot in status["slots"]):
+        for page in pages:
+            if page.done():
+                page.result()
+        slots = (await api.get(f"/api/sessions/{sid}")).json()["slots"]
+        if all(_ready(slot, screened) for slot in slots):
             return
         await asyncio.sleep(0.1)
     raise InputError(f"session {sid}", f"the stand-ins did not join within {timeout:.0f} s")
+
+
+def _ready(slot: Mapping[str, Any], screened: bool) -> bool:
+    """Whether a slot of a session's status is ready to start (an avatar's or a hidden one is)."""
+    if "joined" not in slot:
+        return True
+    judged = not screened or slot["entry_rtt_p95_ms"] is not None
+    return bool(slot["connected"]) and judged
 
 
 COUNTDOWN_S = 3.0
@@ -625,6 +652,7 @@ async def _pilot_all(
 ) -> list[dict[str, Any]]:
     headers = {"Authorization": f"Bearer {token}"}
     results = []
+    screened = protocol.online.screening.round_trip_p95_ms is not None
     async with httpx.AsyncClient(base_url=base, headers=headers, timeout=30.0) as api:
         for number in participants:
             seeds = spawn_seeds([seed, number], len(protocol.people))
@@ -633,7 +661,7 @@ async def _pilot_all(
                 for j, label in enumerate(protocol.people)
                 if label in stand_ins
             }
-            status = await pilot_participant(api, number, people, planned, join_base)
+            status = await pilot_participant(api, number, people, planned, join_base, screened)
             if on_done is not None:
                 on_done(number, status)
             results.append(status)

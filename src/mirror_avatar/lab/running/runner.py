@@ -468,6 +468,7 @@ class LabSession:
             participant = self.participants.get(k)
             if participant is not None:
                 row |= {"joined": participant.joined, "connected": participant.connected}
+                row |= {"entry_rtt_p95_ms": participant.entry_rtt_p95_ms}
                 row |= participant.quality()
                 if trial is not None:
                     row["held"] = held.get(slot.label, 0)

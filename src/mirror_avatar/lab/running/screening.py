@@ -3,7 +3,9 @@
 As docs/METHODS.md, section 9 (*Screening*), describes. A protocol's ``[online]`` table
 (`mirror_avatar.lab.design.online.Screening`) may bound the 95th percentile of a page's round
 trips over its first `ENTRY_EXCHANGES` clock exchanges (the burst the page sends as it connects,
-``clock.js``): a page above it is refused (`entry_refusal`, one line naming both numbers). A tab
+``clock.js``): a page above it is refused (`entry_refusal`, one line naming both numbers). Until
+every connected person's entry is judged, the run does not start unless forced
+(`still_screened`): a person refused during a trial would leave it half played. A tab
 hidden or a window out of focus during a trial is recorded in the trial's sidecar
 (`mirror_avatar.realtime.interruptions`) and the person told `BACK_NOTICE` when they come back;
 with ``screen_hidden_tab = "refuse"`` a tab hidden during a trial refuses the person instead
@@ -23,7 +25,10 @@ from typing import Any
 import numpy as np
 
 from mirror_avatar.files.atomic import write_atomic_json
+from mirror_avatar.lab.design.online import Online
 from mirror_avatar.lab.files import refusal_file
+from mirror_avatar.lab.running.runner import LabSession
+from mirror_avatar.lab.running.study import ParticipantRun
 
 ENTRY_EXCHANGES = 100
 """Clock exchanges a page's entry is judged on: the burst it sends as it connects
@@ -35,6 +40,33 @@ BACK_NOTICE = "The study needs this tab visible during trials."
 HIDDEN_REFUSAL = "Your tab was hidden during a trial; the study needs it visible throughout."
 """Why a person is refused whose tab was hidden during a trial (``screen_hidden_tab =
 "refuse"``)."""
+
+
+def online_of(session: LabSession) -> Online:
+    """Return the ``[online]`` table of a participant's run (empty for a plan's session)."""
+    schedule = session.schedule
+    return schedule.protocol.online if isinstance(schedule, ParticipantRun) else Online()
+
+
+def still_screened(session: LabSession) -> str | None:
+    """Say whose entry is still being judged, or None when no connected person's is.
+
+    A person is judged on their page's first `ENTRY_EXCHANGES` round trips (about 2 s after it
+    connects) when the protocol bounds them; one refused is no longer connected.
+    """
+    if online_of(session).screening.round_trip_p95_ms is None:
+        return None
+    judged = [
+        person.label
+        for person in session.everyone()
+        if person.connected and person.device == "pointer" and person.entry_rtt_p95_ms is None
+    ]
+    if not judged:
+        return None
+    return (
+        f"still being screened: {', '.join(judged)} (their page's first {ENTRY_EXCHANGES} round "
+        "trips, about 2 s after joining; start anyway with force)"
+    )
 
 
 def round_trip_p95(delays_ms: Sequence[float]) -> float:

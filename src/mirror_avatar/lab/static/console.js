@@ -172,6 +172,7 @@
         state = slot.connected ? "connected" : slot.joined ? "disconnected" : "not joined";
         if (slot.dropped_at !== null && slot.dropped_at !== undefined) state += ` · dropped at sample ${slot.dropped_at}`;
         if (slot.input_live === false) state += " · input lost";
+        if (slot.connected && slot.entry_rtt_p95_ms !== null && slot.entry_rtt_p95_ms !== undefined) state += ` · entry p95 ${fmt(slot.entry_rtt_p95_ms, 0)} ms`;
       }
       cell(row, state).className = `state ${state.split(" ")[0]}`;
       const waiting = slot.rtt_waiting_ms > 1000 ? ` (no answer for ${fmt(slot.rtt_waiting_ms, 0)})` : "";
