@@ -20,6 +20,7 @@ from mirror_avatar.analysis.circular import (
     paired_direction_test,
     rayleigh_test,
     resultant_length,
+    sign_flip_p,
     wrapped,
 )
 
@@ -64,16 +65,38 @@ def test_rayleigh_p_is_the_tail_of_uniform_angles_by_simulation() -> None:
     assert math.isnan(rayleigh_test([1.0]).p)
 
 
-def slow_sign_flip_p(differences: np.ndarray) -> float:
+def slow_sign_flip_p(differences: np.ndarray, alternative: str = "two-sided") -> float:
     """Every sign flip enumerated one by one, by the bits of its number."""
+    statistic = {"two-sided": abs, "greater": lambda s: s, "less": lambda s: -s}[alternative]
     n = differences.size
-    observed = abs(sum(math.sin(d) for d in differences))
+    observed = statistic(sum(math.sin(d) for d in differences))
     count = 0
     for number in range(2**n):
         flipped = sum(math.sin(d) * (-1 if number >> i & 1 else 1) for i, d in
                       enumerate(differences))  # fmt: skip
-        count += abs(flipped) >= observed - 1e-12
+        count += statistic(flipped) >= observed - 1e-12
     return count / 2**n
+
+
+def test_one_sided_sign_flips_of_three_later_directions() -> None:
+    # three differences all later in the cycle: of the 8 flips only the observed one reaches
+    # its sum (1/8); either sign of it, two of 8 (2/8); none is earlier, all 8 reach (8/8)
+    sines = np.sin(np.array([[0.2, 0.5, 0.9]]))
+    rng = np.random.default_rng(0)
+    assert sign_flip_p(sines, "greater", rng)[0] == pytest.approx(1 / 8)
+    assert sign_flip_p(sines, "two-sided", rng)[0] == pytest.approx(2 / 8)
+    assert sign_flip_p(sines, "less", rng)[0] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("alternative", ["greater", "less", "two-sided"])
+def test_sign_flip_p_of_many_samples_equals_each_enumerated(alternative: str) -> None:
+    rng = np.random.default_rng(4)
+    differences = wrapped(rng.normal(0.2, 0.8, size=(3, 5, 8)))
+    found = sign_flip_p(np.sin(differences), alternative, rng)
+    assert found.shape == (3, 5)
+    for index in np.ndindex(3, 5):
+        expected = slow_sign_flip_p(differences[index], alternative)
+        assert found[index] == pytest.approx(expected, abs=1e-12)
 
 
 def test_sign_flip_p_equals_a_slow_enumeration_and_draws_come_close() -> None:

@@ -222,3 +222,55 @@ def test_study_power_refuses_bad_input(
     error = capsys.readouterr().err.strip()
     assert problem in error and "\n" not in error
     assert not (tmp_path / "o" / "power.csv").exists()
+
+
+ANGLE_SPREAD = Spread(("mean_relative_phase",), np.array([[0.04]]), 10, np.zeros(1),
+                      np.array([[0.0]]), 0.5, angles=(True,))  # fmt: skip
+"""Participants' differences of direction with SD 0.2 rad: concentrated, far from wrapping."""
+
+
+@pytest.mark.parametrize("direction", ["higher", "two-sided"])
+def test_an_angles_power_is_the_sign_flip_tests_near_the_noncentral_t_power(
+    direction: str,
+) -> None:
+    # Differences of SD 0.2 rad barely wrap and sin d is nearly d: the sign-flip test, a
+    # permutation version of the t-test, has nearly its power (n = 30 draws its flips)
+    analysis = hypothesis(direction, 0.1, ("mean_relative_phase",))
+    for n in (10, 16, 30):
+        found = simulate_power(ANGLE_SPREAD, analysis, n, 4000, seed=2)
+        expected = TTestPower().power(effect_size=0.5, nobs=n, alpha=0.05,
+                                      alternative=STATSMODELS[direction])  # fmt: skip
+        assert found.power == pytest.approx(expected, abs=0.04), n
+
+
+def test_an_angle_simulated_is_tested_as_the_reports_confirm_tests_it() -> None:
+    analysis = hypothesis("higher", 0.3, ("mean_relative_phase",))
+    differences = simulate_differences(np.array([[0.25]]), 0.3, "higher", 7, 30,
+                                       np.random.default_rng(3))  # fmt: skip
+    rejected = rejections(differences, analysis, np.array([True]))
+    for study, expected in zip(differences, rejected, strict=True):
+        rows = study_rows(study, analysis)
+        rows["mean_relative_phase"] = np.angle(np.exp(1j * (rows["mean_relative_phase"] + 3.0)))
+        found = [test.significant for test in confirm(rows, analysis)]
+        assert found == list(expected)
+    assert 0 < rejected.sum() < rejected.size
+
+
+def test_a_pilots_angles_near_pi_give_the_spread_they_give_near_0(tmp_path: Path) -> None:
+    rows = make_study_rows(seed=7, participants=10)
+    rng = np.random.default_rng(7)
+    phase = 0.3 * rng.standard_normal(len(rows)) + 0.2 * (rows["condition"] == DELAY)
+    spreads = []
+    for centre in (0.0, np.pi):
+        rows["mean_relative_phase"] = np.angle(np.exp(1j * (phase + centre)))
+        table = read_study_table(write_study_table(rows, tmp_path / f"at{centre:.0f}", False))
+        analysis = hypothesis("higher", 0.1, ("mean_relative_phase",))
+        spreads.append(pilot_spread(table, analysis, "p.toml"))
+    near_zero, near_pi = spreads
+    assert near_pi.angles == (True,)
+    assert near_pi.covariance[0, 0] == pytest.approx(near_zero.covariance[0, 0], rel=1e-9)
+    assert near_pi.trial_covariance[0, 0] == pytest.approx(
+        near_zero.trial_covariance[0, 0], rel=1e-9
+    )
+    assert near_pi.pilot_differences[0] == pytest.approx(near_zero.pilot_differences[0], abs=1e-9)
+    assert 0.1 < near_pi.pilot_differences[0] < 0.3

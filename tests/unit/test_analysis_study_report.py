@@ -22,6 +22,7 @@ from click.testing import CliRunner
 from study_tables import CONDITIONS, make_study_rows, with_answers, write_study_table
 from test_analysis_hypothesis import protocol_text
 
+from mirror_avatar.analysis.hypothesis import ANGLE_TEST
 from mirror_avatar.analysis.statistics import participant_means
 from mirror_avatar.analysis.study_file import read_study_table
 from mirror_avatar.analysis.study_report import (
@@ -451,4 +452,14 @@ def test_an_angle_measure_is_averaged_and_compared_on_the_circle(tmp_path: Path)
     declared = Analysis(("mean_relative_phase",), "higher", DELAY, NO_DELAY, 0.1, 0.05)
     protocol = replace(protocol_from_text(protocol_text(""), "delay.toml"), analysis=declared)
     confirmed = analyse_study(read_study_table(tmp_path / "t"), protocol=protocol)
-    assert any("mean_relative_phase, an angle, is the paired t-test" in n for n in confirmed.notes)
+    # the confirmatory test on the circle too: the phases sit at +-pi, where a linear mean fails
+    (test,) = confirmed.confirmatory
+    assert test.test == ANGLE_TEST and test.estimate == pytest.approx(0.5, abs=0.15)
+    assert abs(test.reference_mean) > 2.8 and test.p < 0.01 and test.supported
+    assert np.isnan(test.t) and np.isnan(test.ci_low)
+    (sentence,) = confirmed.hypothesis_sentences()
+    assert "(one-sided sign-flip test of the participants' differences of circular means p" in (
+        sentence
+    )
+    assert "CI" not in sentence
+    assert ANGLE_TEST in confirmed.parameters["confirmatory_model"]

@@ -32,6 +32,9 @@ EXACT_PARTICIPANTS = 14
 RANDOM_FLIPS = 9999
 """Sign flips drawn above `EXACT_PARTICIPANTS` (**choice**: as the bootstrap's resamples)."""
 
+FLIP_CHUNK = 4_000_000
+"""Flipped sums computed at once, at most (32 MB): `sign_flip_p` goes through samples in chunks."""
+
 DIRECTION_TEST = (
     "circular: sign-flip randomisation test of each participant's difference of directions"
 )
@@ -117,21 +120,21 @@ class DirectionTest(NamedTuple):
 
 
 def paired_direction_test(
-    reference: ArrayLike, condition: ArrayLike, seed: int = 0
+    reference: ArrayLike, condition: ArrayLike, seed: int = 0, alternative: str = "two-sided"
 ) -> DirectionTest:
     """Test whether a condition shifts the participants' directions from the reference.
 
     Each participant's difference d = condition - reference (rad, wrapped). With no effect of
     the condition, and the conditions' order counterbalanced, d and -d are equally likely, so
-    the statistic |sum of sin d| is compared with its values under every flip of the
-    differences' signs (a randomisation test, as Fisher 1993 gives for circular samples; Good
-    2005, *Permutation, Parametric and Bootstrap Tests of Hypotheses*, on the
-    paired case): p is the share of flips at least as large, every flip counted up to
-    `EXACT_PARTICIPANTS` participants, else the observed one and `RANDOM_FLIPS` drawn from a
-    generator seeded by ``seed`` ((1 + count) / (1 + draws)). NaN for fewer than two pairs.
+    the statistic sum sin d is compared with its values under every flip of the differences'
+    signs (a randomisation test, as Fisher 1993 gives for circular samples; Good 2005,
+    *Permutation, Parametric and Bootstrap Tests of Hypotheses*, on the paired case;
+    `sign_flip_p`). NaN for fewer than two pairs.
 
     sum sin d measures a shift of direction (positive: the condition later in the cycle); a
     change of concentration alone, at an unchanged direction, is not what it tests.
+    ``alternative``: ``"two-sided"`` (|sum sin d|), ``"greater"`` (the condition later) or
+    ``"less"`` (earlier), as scipy names them.
     """
     before = np.asarray(reference, dtype=np.float64)
     after = np.asarray(condition, dtype=np.float64)
@@ -141,17 +144,56 @@ def paired_direction_test(
     if n < 2:
         nan = float("nan")
         return DirectionTest(nan, nan, nan, False)
-    sines = np.sin(differences)
-    observed = abs(float(sines.sum())) * (1.0 - 1e-12)
-    if n <= EXACT_PARTICIPANTS:
-        signs = np.array(list(itertools.product((1.0, -1.0), repeat=n)))
-        p = float(np.mean(np.abs(signs @ sines) >= observed))
-    else:
-        signs = np.random.default_rng(seed).choice((1.0, -1.0), size=(RANDOM_FLIPS, n))
-        p = float((1 + np.sum(np.abs(signs @ sines) >= observed)) / (1 + RANDOM_FLIPS))
+    p = float(sign_flip_p(np.sin(differences), alternative, np.random.default_rng(seed)))
     return DirectionTest(
         circular_mean(differences), resultant_length(differences), p, n <= EXACT_PARTICIPANTS
     )
+
+
+FLIP_STATISTICS = {"two-sided": np.abs, "greater": np.positive, "less": np.negative}
+"""The sign-flip test's statistic of a sum of sines under each alternative."""
+
+
+def sign_flip_p(
+    sines: NDArray[np.float64], alternative: str, rng: np.random.Generator
+) -> NDArray[np.float64]:
+    """Return the sign-flip test's p-value of each sample of sines of differences.
+
+    Parameters
+    ----------
+    sines
+        Shape (..., n): each sample's sin d, n of them.
+    alternative
+        A key of `FLIP_STATISTICS`: the statistic is the sum's absolute value, itself or its
+        negative.
+    rng
+        Draws the flips above `EXACT_PARTICIPANTS` (one set of `RANDOM_FLIPS` flips shared by
+        every sample); unused up to it.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (...): the share of flips whose statistic is at least the observed one (every
+        flip of n up to `EXACT_PARTICIPANTS`, the observed among them); above it,
+        (1 + count) / (1 + `RANDOM_FLIPS`) over the drawn flips. A statistic within 1e-12 of
+        the sum of |sin d| below the observed one counts as equal (rounding).
+    """
+    n = sines.shape[-1]
+    statistic = FLIP_STATISTICS[alternative]
+    exact = n <= EXACT_PARTICIPANTS
+    if exact:
+        signs = np.array(list(itertools.product((1.0, -1.0), repeat=n)))
+    else:
+        signs = rng.choice((1.0, -1.0), size=(RANDOM_FLIPS, n))
+    samples = sines.reshape(-1, n)
+    counts = np.empty(len(samples))
+    step = max(1, FLIP_CHUNK // len(signs))
+    for start in range(0, len(samples), step):
+        part = samples[start : start + step]
+        observed = statistic(part.sum(axis=1)) - 1e-12 * np.abs(part).sum(axis=1)
+        counts[start : start + step] = np.sum(statistic(part @ signs.T) >= observed[:, None], 1)
+    p = counts / len(signs) if exact else (1.0 + counts) / (1.0 + RANDOM_FLIPS)
+    return p.reshape(sines.shape[:-1])
 
 
 def circular_summaries(

@@ -4,7 +4,11 @@ The confirmatory test (`confirm`) is the one a protocol's ``[analysis]`` declare
 (`mirror_avatar.lab.design.protocol.Analysis`): per primary measure, a paired t-test of the
 participants' means in the tested condition against the reference, one-sided when the
 hypothesis names a direction, its interval at the matching level, the primary measures
-Holm-corrected together, and the estimate set against the smallest effect of interest. Every
+Holm-corrected together, and the estimate set against the smallest effect of interest. An angle
+(`mirror_avatar.analysis.dictionary.is_angle`) is tested on the circle instead: the participants'
+circular means, the sign-flip test of their differences of direction
+(`mirror_avatar.analysis.circular.sign_flip_p`, one-sided as declared: "higher" is later in
+the cycle), the estimate the differences' circular mean (rad) and no interval. Every
 other comparison is exploratory: its p-values adjusted across measures by Benjamini and
 Hochberg's step-up procedure
 (`mirror_avatar.analysis.multiple_tests.benjamini_hochberg`). docs/METHODS.md, section 15.
@@ -20,6 +24,8 @@ import pandas as pd
 from numpy.typing import NDArray
 from scipy import stats
 
+from mirror_avatar.analysis.circular import circular_mean, sign_flip_p, wrapped
+from mirror_avatar.analysis.dictionary import is_angle
 from mirror_avatar.analysis.multiple_tests import holm
 from mirror_avatar.analysis.statistics import has_spread, participant_means
 from mirror_avatar.lab.design.protocol import Analysis
@@ -31,7 +37,14 @@ CONFIRMATORY_MODEL = (
     "paired t-test of the participants' means, condition minus reference, one-sided as "
     "declared, Holm over the primary measures"
 )
-"""The declared hypothesis's test in words, as the report and the registered plan name it."""
+"""The declared hypothesis's test in words, as the report and the registered plan name it
+(`confirmatory_model`: with the words of `ANGLE_TEST` when a primary measure is an angle)."""
+
+ANGLE_TEST = "sign-flip test of the participants' differences of circular means"
+"""The declared test of an angle, in words."""
+
+PAIRED_T = "paired t-test"
+"""The declared test of any other measure, in words."""
 
 EXPLORATORY_MODEL = "Benjamini-Hochberg q-values over every exploratory contrast"
 """How every other comparison is corrected, in words."""
@@ -60,6 +73,9 @@ class ConfirmatoryTest:
         ``p`` Holm-corrected over the primary measures (``p`` with one).
     smallest_effect, alpha
         As declared.
+    test
+        The test run, in words: `PAIRED_T`, or `ANGLE_TEST` for an angle (whose means and
+        estimate are circular, in rad, and whose ``t`` and interval are NaN).
     """
 
     measure: str
@@ -78,6 +94,7 @@ class ConfirmatoryTest:
     p_holm: float
     smallest_effect: float
     alpha: float
+    test: str = PAIRED_T
 
     @property
     def tested(self) -> bool:
@@ -101,6 +118,14 @@ class ConfirmatoryTest:
         return self.significant and self.exceeds_smallest
 
 
+def confirmatory_model(primary: tuple[str, ...]) -> str:
+    """Return the declared test in words, naming the angles' test when ``primary`` has one."""
+    angles = [measure for measure in primary if is_angle(measure)]
+    if not angles:
+        return CONFIRMATORY_MODEL
+    return f"{CONFIRMATORY_MODEL}; for {', '.join(angles)}, an angle, the {ANGLE_TEST}"
+
+
 def confirm(rows: pd.DataFrame, analysis: Analysis) -> list[ConfirmatoryTest]:
     """Run the declared test of each primary measure on the participants' rows.
 
@@ -108,7 +133,10 @@ def confirm(rows: pd.DataFrame, analysis: Analysis) -> list[ConfirmatoryTest]:
     with a column per primary measure.
     """
     pairs = [_pairs(rows, measure, analysis) for measure in analysis.primary]
-    tests = [_paired_test(pair, analysis) for pair in pairs]
+    tests = [
+        _paired_test(pair, analysis, is_angle(measure))
+        for measure, pair in zip(analysis.primary, pairs, strict=True)
+    ]
     adjusted = holm([test[1] for test in tests])
     return [
         _result(measure, pair, test, float(p_holm), analysis)
@@ -120,22 +148,31 @@ def confirm(rows: pd.DataFrame, analysis: Analysis) -> list[ConfirmatoryTest]:
 
 def _pairs(rows: pd.DataFrame, measure: str, analysis: Analysis) -> pd.DataFrame:
     """Each participant's means in the reference and the tested condition, both present."""
-    means = participant_means(rows, measure, [analysis.reference, analysis.condition])
-    return means.dropna()
+    average = circular_mean if is_angle(measure) else "mean"
+    conditions = [analysis.reference, analysis.condition]
+    return participant_means(rows, measure, conditions, average).dropna()
 
 
 def _paired_test(
-    pairs: pd.DataFrame, analysis: Analysis
+    pairs: pd.DataFrame, analysis: Analysis, angle: bool
 ) -> tuple[float, float, tuple[float, float], float]:
-    """Return the paired t-test's statistic, p (as declared), interval and its level."""
+    """Return the paired test's statistic, p (as declared), interval and its level.
+
+    An angle's statistic and interval are NaN: its p is the sign-flip test's.
+    """
     one_sided = analysis.direction != "two-sided"
     confidence = 1.0 - analysis.alpha * (2.0 if one_sided else 1.0)
     after = pairs[analysis.condition].to_numpy(np.float64)
     before = pairs[analysis.reference].to_numpy(np.float64)
     nan = float("nan")
-    if after.size < 2 or not has_spread(after - before):
+    differences = wrapped(after - before) if angle else after - before
+    if after.size < 2 or not has_spread(differences):
         return nan, nan, (nan, nan), confidence
-    t, p = declared_test(after - before, analysis.direction)
+    if angle:
+        alternative = ALTERNATIVES[analysis.direction]
+        p = sign_flip_p(np.sin(differences), alternative, np.random.default_rng(0))
+        return nan, float(p), (nan, nan), confidence
+    t, p = declared_test(differences, analysis.direction)
     interval = stats.ttest_rel(after, before).confidence_interval(confidence)
     limits = (float(interval.low), float(interval.high))
     return float(t), float(p), limits, confidence
@@ -172,11 +209,15 @@ def _result(
 ) -> ConfirmatoryTest:
     t, p, (low, high), confidence = test
     before, after = pairs[analysis.reference], pairs[analysis.condition]
+    angle = is_angle(measure)
+    average = circular_mean if angle else np.mean
+    difference = wrapped(after - before) if angle else after - before
     return ConfirmatoryTest(
         measure=measure, condition=analysis.condition, reference=analysis.reference,
         direction=analysis.direction, participants=len(pairs),
-        reference_mean=float(before.mean()), condition_mean=float(after.mean()),
-        estimate=float((after - before).mean()),
+        reference_mean=float(average(before)), condition_mean=float(average(after)),
+        estimate=float(average(difference)),
         ci_low=low, ci_high=high, confidence=confidence, t=t, p=p, p_holm=p_holm,
         smallest_effect=analysis.smallest_effect, alpha=analysis.alpha,
+        test=ANGLE_TEST if angle else PAIRED_T,
     )  # fmt: skip

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from mirror_avatar.analysis.dictionary import MEASURES, column_label
-from mirror_avatar.analysis.hypothesis import CONFIRMATORY_MODEL, EXPLORATORY_MODEL
+from mirror_avatar.analysis.hypothesis import EXPLORATORY_MODEL, confirmatory_model
 from mirror_avatar.analysis.statistics import MIXED_MODEL
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.atomic import json_text, write_atomic_files
@@ -34,11 +34,13 @@ EXCLUSIONS = (
 )
 """What the study report leaves out (`mirror_avatar.analysis.study_report.analysed_rows`)."""
 
-MODELS = {
-    "confirmatory": CONFIRMATORY_MODEL, "mixed_model": MIXED_MODEL,
-    "exploratory": EXPLORATORY_MODEL,
-}  # fmt: skip
-"""The models a study report runs, as the plan registers them."""
+
+def registered_models(analysis: Analysis) -> dict[str, str]:
+    """Return the models a study report runs for ``analysis``, as the plan registers them."""
+    return {
+        "confirmatory": confirmatory_model(analysis.primary), "mixed_model": MIXED_MODEL,
+        "exploratory": EXPLORATORY_MODEL,
+    }  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -89,7 +91,7 @@ def registered_plan(protocol: Protocol, power: dict[str, Any] | None) -> dict[st
                       "units": MEASURES.get(m, ("", ""))[1]} for m in analysis.primary],
         "exploratory": "every other measure of the study table and every rating, each condition "
                        "against the reference",
-        "exclusions": list(EXCLUSIONS), "models": MODELS,
+        "exclusions": list(EXCLUSIONS), "models": registered_models(analysis),
         "sample_size": _sample_size(power),
     }  # fmt: skip
 
@@ -188,7 +190,7 @@ def plan_deviations(plan: RegisteredPlan, analysis: Analysis | None) -> list[str
     models = plan.content.get("models", {})
     found += [
         f"{key} model: registered {models.get(key)!r}, run {value!r}"
-        for key, value in MODELS.items()
+        for key, value in registered_models(analysis).items()
         if models.get(key) != value
     ]
     return found

@@ -8,7 +8,11 @@ from a normal distribution with that covariance, centred on the planned effect i
 direction, and runs the declared test on them (`mirror_avatar.analysis.hypothesis.declared_test`,
 Holm over the primary measures as `confirm` does). The power is the share of studies in which
 every primary measure is significant, with its binomial Monte Carlo standard error and a Wilson
-interval. docs/METHODS.md, section 15.
+interval. An angle among the primary measures (`mirror_avatar.analysis.dictionary.is_angle`)
+is simulated and tested on the circle: the pilot's participants' circular means, their
+differences and trial residuals wrapped to [-pi, pi) about their circular means; a simulated
+study's differences are the normal draws wrapped (a wrapped normal), tested by the declared
+sign-flip test (`mirror_avatar.analysis.circular.sign_flip_p`). docs/METHODS.md, section 15.
 """
 
 from __future__ import annotations
@@ -21,7 +25,9 @@ import pandas as pd
 from numpy.typing import NDArray
 from scipy import stats
 
-from mirror_avatar.analysis.hypothesis import declared_test
+from mirror_avatar.analysis.circular import circular_mean, sign_flip_p, wrapped
+from mirror_avatar.analysis.dictionary import is_angle
+from mirror_avatar.analysis.hypothesis import ALTERNATIVES, declared_test
 from mirror_avatar.analysis.multiple_tests import holm
 from mirror_avatar.analysis.statistics import TRIAL_KEYS, participant_means, trial_values
 from mirror_avatar.analysis.study_file import StudyTable
@@ -61,6 +67,8 @@ class Spread:
         The pilot's mean over participants of 1/k_reference + 1/k_condition (k: their trials
         in the condition): the trial noise's share of a difference's variance is
         ``trial_factor * trial_covariance``.
+    angles
+        Shape (m,): whether each measure is an angle (rad; simulated and tested on the circle).
     """
 
     measures: tuple[str, ...]
@@ -69,6 +77,11 @@ class Spread:
     pilot_differences: NDArray[np.float64]
     trial_covariance: NDArray[np.float64]
     trial_factor: float
+    angles: tuple[bool, ...] = ()
+
+    def is_angle(self) -> NDArray[np.bool_]:
+        """Shape (m,): whether each measure is an angle (none when `angles` is not given)."""
+        return np.array(self.angles or (False,) * len(self.measures), dtype=bool)
 
     def with_trials(self, trials: int) -> NDArray[np.float64]:
         """Return the differences' covariance with ``trials`` trials per condition.
@@ -145,45 +158,64 @@ def pilot_spread(table: StudyTable, analysis: Analysis, protocol: str) -> Spread
     """
     check_hypothesis(table, analysis, table.conditions(), protocol)
     rows, _, _ = analysed_rows(table)
-    conditions = [analysis.reference, analysis.condition]
     differences = pd.concat(
-        {
-            measure: participant_means(rows, measure, conditions).pipe(
-                lambda means: means[analysis.condition] - means[analysis.reference]
-            )
-            for measure in analysis.primary
-        },
-        axis=1,
+        {measure: _differences(rows, measure, analysis) for measure in analysis.primary}, axis=1
     ).dropna()
     if len(differences) < 2:
         raise InputError(table.source, f"{len(differences)} participant(s) with both "
                          f"{analysis.reference!r} and {analysis.condition!r}: the spread needs "
                          "two or more")  # fmt: skip
+    angles = tuple(is_angle(measure) for measure in analysis.primary)
     values = differences.to_numpy(np.float64)
+    centres = np.array([_average(v, angle) for v, angle in zip(values.T, angles, strict=True)])
+    deviations = np.where(angles, wrapped(values - centres), values - centres)
+    conditions = [analysis.reference, analysis.condition]
     kept = rows[rows["participant"].isin(differences.index) & rows["condition"].isin(conditions)]
     noise, factor = _trial_noise(kept, analysis)
     return Spread(
         measures=analysis.primary,
-        covariance=np.atleast_2d(np.cov(values, rowvar=False, ddof=1)),
+        covariance=np.atleast_2d(np.cov(deviations, rowvar=False, ddof=1)),
         participants=len(differences),
-        pilot_differences=values.mean(axis=0),
+        pilot_differences=centres,
         trial_covariance=noise,
         trial_factor=factor,
+        angles=angles,
     )
+
+
+def _average(values: NDArray[np.float64], angle: bool) -> float:
+    """Return the mean of ``values``: circular for an angle (rad)."""
+    return circular_mean(values) if angle else float(np.mean(values))
+
+
+def _differences(rows: pd.DataFrame, measure: str, analysis: Analysis) -> pd.Series:
+    """Each participant's difference of means, condition minus reference (wrapped: an angle)."""
+    angle = is_angle(measure)
+    conditions = [analysis.reference, analysis.condition]
+    means = participant_means(rows, measure, conditions, circular_mean if angle else "mean")
+    difference = means[analysis.condition] - means[analysis.reference]
+    return pd.Series(wrapped(difference), difference.index) if angle else difference
 
 
 def _trial_noise(rows: pd.DataFrame, analysis: Analysis) -> tuple[NDArray[np.float64], float]:
     """Return the pooled within-cell covariance of the trials' values, and `Spread.trial_factor`.
 
     A cell is a participant in a condition; its trials' values (`trial_values`) about their
-    mean, pooled with the cells' degrees of freedom (trials less cells).
+    mean (an angle's wrapped about its circular mean), pooled with the cells' degrees of
+    freedom (trials less cells).
     """
     keys = [key for key in TRIAL_KEYS if key in rows]
     trials = pd.concat(
         [trial_values(rows, m).set_index(keys)[m] for m in analysis.primary], axis=1
     ).dropna()
     cells = trials.groupby(level=["participant", "condition"])
-    residuals = (trials - cells.transform("mean")).to_numpy(np.float64)
+    angles = np.array([is_angle(measure) for measure in analysis.primary])
+    centres = pd.concat(
+        [cells[m].transform(circular_mean if angle else "mean")
+         for m, angle in zip(analysis.primary, angles, strict=True)], axis=1,
+    )  # fmt: skip
+    offsets = (trials - centres).to_numpy(np.float64)
+    residuals = np.where(angles, wrapped(offsets), offsets)
     freedom = max(len(trials) - cells.ngroups, 1)
     counts = cells.size().unstack("condition")
     factor = float((1.0 / counts).sum(axis=1).mean())
@@ -223,7 +255,12 @@ def simulate_differences(
     return np.moveaxis(drawn, 1, 2)
 
 
-def rejections(differences: NDArray[np.float64], analysis: Analysis) -> NDArray[np.bool_]:
+def rejections(
+    differences: NDArray[np.float64],
+    analysis: Analysis,
+    angles: NDArray[np.bool_] | None = None,
+    rng: np.random.Generator | None = None,
+) -> NDArray[np.bool_]:
     """Whether each simulated study rejects each primary measure's null hypothesis.
 
     Parameters
@@ -232,6 +269,12 @@ def rejections(differences: NDArray[np.float64], analysis: Analysis) -> NDArray[
         Shape (simulations, m, n), from `simulate_differences`.
     analysis
         The declared hypothesis: direction and alpha.
+    angles
+        Shape (m,): the measures that are angles (default none): their differences are wrapped
+        to [-pi, pi) and tested by the sign-flip test, as
+        `mirror_avatar.analysis.hypothesis.confirm` tests them.
+    rng
+        Draws the sign-flip test's flips above its exact size (default: seeded 0).
 
     Returns
     -------
@@ -239,6 +282,10 @@ def rejections(differences: NDArray[np.float64], analysis: Analysis) -> NDArray[
         Shape (simulations, m): the Holm-corrected p below alpha.
     """
     _, p = declared_test(differences, analysis.direction)
+    if angles is not None and angles.any():
+        sines = np.sin(wrapped(differences[:, angles, :]))
+        flips = rng if rng is not None else np.random.default_rng(0)
+        p[:, angles] = sign_flip_p(sines, ALTERNATIVES[analysis.direction], flips)
     corrected = np.array([holm(study) for study in p])
     return corrected < analysis.alpha
 
@@ -266,7 +313,8 @@ def simulate_power(
     chunk = max(1, CHUNK_VALUES // (participants * len(covariance)))
     rejected = np.concatenate([
         rejections(simulate_differences(covariance, planned, analysis.direction, participants,
-                                        min(chunk, simulations - start), rng), analysis)
+                                        min(chunk, simulations - start), rng),
+                   analysis, spread.is_angle(), rng)
         for start in range(0, simulations, chunk)
     ])  # fmt: skip
     return PowerPoint(

@@ -31,6 +31,7 @@ from mirror_avatar.analysis.hypothesis import (
     EXPLORATORY_MODEL,
     ConfirmatoryTest,
     confirm,
+    confirmatory_model,
 )
 from mirror_avatar.analysis.identification import Identification, identify
 from mirror_avatar.analysis.multiple_tests import benjamini_hochberg
@@ -249,11 +250,6 @@ def analyse_study(
             notes += [f"{measure}: {note}" for note in model.notes]
     models = _with_factor_q_values(_with_q_values(models, hypothesis))
     notes += few_participants_note(int(rows["participant"].nunique()))
-    angles = [] if hypothesis is None else [m for m in hypothesis.primary if is_angle(m)]
-    if angles:
-        notes.append(f"the confirmatory test of {', '.join(angles)}, an angle, is the paired "
-                     "t-test of its values as numbers: right only away from +-pi, where the "
-                     "angles do not wrap (its exploratory comparison is circular)")  # fmt: skip
     if untested:
         notes.append(
             f"no comparison (fewer than two conditions or participants): {', '.join(untested)}"
@@ -265,7 +261,9 @@ def analyse_study(
         "measures": table.measures, "rated_answers": table.rated_answers, "seed": seed,
         "bootstrap_resamples": resamples,
         "bootstrap_method": "BCa", "confidence": confidence,
-        "model": MIXED_MODEL, "confirmatory_model": CONFIRMATORY_MODEL,
+        "model": MIXED_MODEL, "confirmatory_model": (
+            CONFIRMATORY_MODEL if hypothesis is None else confirmatory_model(hypothesis.primary)
+        ),
         "random_effects": {table.label(m.measure): m.random_effects for m in models
                            if m.random_effects},
         "fixed_effects": {table.label(m.measure): m.fixed_effects for m in models
@@ -598,7 +596,7 @@ def _hypothesis_section(analysis: StudyAnalysis) -> Section:
         "reference": t.reference, "direction": t.direction, "n": t.participants,
         "difference": number(t.estimate),
         f"{t.confidence:.0%} CI": f"{number(t.ci_low)} to {number(t.ci_high)}",
-        "p": _p_cell(t.p), "p Holm": _p_cell(t.p_holm), "alpha": f"{t.alpha:g}",
+        "test": t.test, "p": _p_cell(t.p), "p Holm": _p_cell(t.p_holm), "alpha": f"{t.alpha:g}",
         "smallest effect": f"{t.smallest_effect:g}",
         "reaches it": "yes" if t.exceeds_smallest else "no",
         "supported": "yes" if t.supported else "no",
@@ -607,8 +605,8 @@ def _hypothesis_section(analysis: StudyAnalysis) -> Section:
         tests = tests.drop(columns="p Holm")  # one primary measure: nothing to correct
     return Section("hypothesis", "Confirmatory test: the declared hypothesis",
                    text=[*analysis.hypothesis_sentences(), *plan],
-                   tables={"The declared test (paired t-test of the participants' means, "
-                           "condition minus reference)": tests})  # fmt: skip
+                   tables={"The declared test of the participants' means, condition minus "
+                           "reference": tests})  # fmt: skip
 
 
 def _sections(analysis: StudyAnalysis) -> list[Section]:

@@ -108,11 +108,15 @@ def confirmatory_sentence(test: ConfirmatoryTest, label: str, units: str) -> str
             "conditions; two or more whose differences differ are needed)."
         )
     p = format_p(t.p) if t.p == t.p_holm else f"{format_p(t.p_holm)} Holm-corrected"
+    interval = (
+        ""
+        if math.isnan(t.ci_low)
+        else f"{t.confidence:.0%} CI {number(t.ci_low)} to {number(t.ci_high)}; "
+    )
     found = (
         f"{label} {number(t.reference_mean)} ({t.reference}) and "
         f"{with_unit(t.condition_mean, units)} ({t.condition}), a difference of "
-        f"{with_unit(t.estimate, units)} ({t.confidence:.0%} CI {number(t.ci_low)} to "
-        f"{number(t.ci_high)}; {sided} paired t-test {p}, n = {t.participants})"
+        f"{with_unit(t.estimate, units)} ({interval}{sided} {t.test} {p}, n = {t.participants})"
     )
     smallest = f"the smallest effect of interest, {with_unit(t.smallest_effect, units)}"
     if t.supported:
