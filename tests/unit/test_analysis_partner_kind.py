@@ -3,7 +3,10 @@
 Checked against ordinary least squares with a dummy per participant (statsmodels), which a
 balanced design with a random intercept equals for effects within participants (as for the
 conditions, docs/METHODS.md section 15.3), against the cell means computed by hand, and on
-simulated studies with and without a known effect of the partner's kind.
+simulated studies with and without a known effect of the partner's kind. Where each participant
+has their own kind effect, random slopes for the kind are chosen and the kind is then tested as
+the paired t-test of the participants' differences between the kinds (scipy), which a balanced
+design with such slopes equals.
 """
 
 from __future__ import annotations
@@ -12,10 +15,11 @@ import numpy as np
 import pandas as pd
 import pytest
 import statsmodels.formula.api as smf
+from scipy import stats
 from study_tables import CONDITIONS, make_study_rows
 
 from mirror_avatar.analysis.partner_kind import INTERACTION_TERM, KIND_TERM
-from mirror_avatar.analysis.random_effects import INTERCEPT
+from mirror_avatar.analysis.random_effects import INTERCEPT, KIND_SLOPES
 from mirror_avatar.analysis.statistics import fit_contrasts
 
 NO_DELAY, DELAY = CONDITIONS
@@ -33,6 +37,44 @@ def kinds_study(seed: int, kind_effect: float = 0.0, interaction: float = 0.0) -
     rows["partner_kind"] = np.where(avatar, "avatar", "person")
     rows["rms"] += avatar * (kind_effect + interaction * (rows["condition"] == DELAY))
     return rows
+
+
+def own_kinds_study(seed: int, kind_effect: float, kind_sd: float) -> pd.DataFrame:
+    """`kinds_study` with each participant's own kind effect, drawn with SD ``kind_sd``."""
+    rows = kinds_study(seed, kind_effect=kind_effect)
+    rng = np.random.default_rng(1000 + seed)
+    own = {p: rng.normal(0.0, kind_sd) for p in rows["participant"].unique()}
+    rows["rms"] += (rows["partner_kind"] == "avatar") * rows["participant"].map(own)
+    return rows
+
+
+def test_participants_own_kind_effects_get_slopes_and_the_paired_t_test() -> None:
+    for seed in range(4):
+        rows = own_kinds_study(seed, 0.03, 0.03)
+        model = fit_contrasts(rows, "rms", CONDITIONS, NO_DELAY)
+        assert model is not None and model.random_effects == KIND_SLOPES, model.notes
+        kind = model.factors[0]
+        means = rows.groupby(["participant", "partner_kind"])["rms"].mean().unstack()
+        differences = means["avatar"] - means["person"]
+        paired = stats.ttest_1samp(differences, 0.0)
+        assert kind.estimate == pytest.approx(differences.mean(), rel=1e-4)
+        assert kind.df == pytest.approx(len(differences) - 1, abs=0.1)
+        assert kind.p == pytest.approx(paired.pvalue, rel=1e-3)
+
+
+def test_without_own_kind_effects_no_kind_slopes_and_said() -> None:
+    for seed in range(4):
+        model = fit_contrasts(own_kinds_study(seed, 0.03, 0.0), "rms", CONDITIONS, NO_DELAY)
+        assert model is not None and "partner kind" not in model.random_effects
+        assert any(n.startswith("no random slopes for partner kind: ") for n in model.notes)
+
+
+@pytest.mark.long
+def test_own_kind_effects_around_none_are_rarely_found() -> None:
+    """With kind slopes, p < 0.05 in at most 2 of 10 seeds of own effects around none."""
+    p = [fit_contrasts(own_kinds_study(seed, 0.0, 0.03), "rms", CONDITIONS,
+                       NO_DELAY).factors[0].p for seed in range(10)]  # fmt: skip
+    assert sum(value < 0.05 for value in p) <= 2, p
 
 
 def test_balanced_kinds_equal_least_squares_with_a_dummy_per_participant() -> None:
@@ -69,6 +111,7 @@ def test_balanced_kinds_equal_least_squares_with_a_dummy_per_participant() -> No
     assert kind_test.estimate == pytest.approx(kinds["avatar"] - kinds["person"], rel=1e-4)
 
 
+@pytest.mark.long
 def test_a_kind_effect_is_found_in_every_seed_and_none_seldom() -> None:
     """Avatar 0.03 higher (1.5 trial SDs): found with its sign in 10 of 10 seeds; none: p >=
     0.05 for the kind in at least 8 of 10 seeds, and for condition x kind likewise."""

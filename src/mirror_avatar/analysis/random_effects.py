@@ -6,9 +6,11 @@ trials' noise, and a handful of participants with many trials each gives tiny p-
 that the data do not support costs power instead (Matuschek, Kliegl, Vasishth, Baayen & Bates
 2017), so `fit_random_effects` keeps the slopes only when the data can estimate them and a
 likelihood-ratio test against the random intercept alone supports them; otherwise it fits the
-random intercept and says why. When several partners (the table's ``partners``) are each met
-by several participants, partner identity is a second random factor, crossed with the
-participants, kept on the same terms. docs/METHODS.md, section 15.4.
+random intercept and says why. A study whose participants meet partners of several kinds
+(`mirror_avatar.analysis.partner_kind`) gets random slopes for the kind on the same terms,
+tested against the model chosen without them. When several partners (the table's
+``partners``) are each met by several participants, partner identity is a second random factor,
+crossed with the participants, kept on the same terms. docs/METHODS.md, section 15.4.
 """
 
 from __future__ import annotations
@@ -36,6 +38,10 @@ power)."""
 
 INTERCEPT = "random intercept per participant"
 SLOPES = "random intercept and correlated random slopes for condition per participant"
+KIND_SLOPES = "random intercept and correlated random slopes for partner kind per participant"
+BOTH_SLOPES = (
+    "random intercept and correlated random slopes for condition and partner kind per participant"
+)
 CROSSED = "a random intercept per partner, crossed with the participants"
 """The random-effects structures, in words (the slopes uncorrelated with the intercept when
 crossed with partners)."""
@@ -66,17 +72,25 @@ class RandomEffects:
     partners
         Whether partner identity is a crossed random factor: then ``result`` is one group of
         variance components (participants, each slope, partners).
+    kind_slopes
+        The design's partner-kind columns that are random slopes too (none: no such slopes).
     """
 
     result: MixedLMResults
     slopes: bool
     notes: list[str]
     partners: bool = False
+    kind_slopes: tuple[str, ...] = ()
 
     @property
     def structure(self) -> str:
-        """Say the random effects in words (`INTERCEPT` or `SLOPES`, and `CROSSED`)."""
-        words = SLOPES if self.slopes else INTERCEPT
+        """Say the random effects in words (`INTERCEPT`, `SLOPES`, `KIND_SLOPES`, `BOTH_SLOPES`).
+
+        With partners, `CROSSED` is added and the slopes are uncorrelated.
+        """
+        words = [[INTERCEPT, KIND_SLOPES], [SLOPES, BOTH_SLOPES]][self.slopes][
+            bool(self.kind_slopes)
+        ]
         if not self.partners:
             return words
         return f"{words.replace('correlated', 'uncorrelated')}, and {CROSSED}"
@@ -100,6 +114,8 @@ def fit_random_effects(
     participants: pd.Series,
     conditions: pd.Series,
     partners: pd.Series | None = None,
+    kinds: pd.Series | None = None,
+    kind_columns: tuple[str, ...] = (),
 ) -> RandomEffects:
     """Fit ``values`` on ``design`` with slopes for condition if supported, else without.
 
@@ -114,6 +130,9 @@ def fit_random_effects(
         Each trial's participant and condition (N).
     partners
         Each trial's partner identity (N); None, or one partner, for none.
+    kinds, kind_columns
+        Each trial's partner kind (N), and the design's columns of the kinds (their centred
+        indicators); slopes for the kind are tried with them (`fit_kind_slopes`).
 
     The slopes are the non-reference conditions' dummies as random effects with the intercept,
     their covariance unstructured. They are tried when every condition's values can vary by
@@ -123,7 +142,8 @@ def fit_random_effects(
     (its smallest principal component holds `DEGENERATE_SHARE` of the variance or more) and the
     REML likelihood-ratio test against the intercept alone has p < `SELECTION_ALPHA`
     (chi-square on the added covariance parameters; both fits have the same fixed effects, so
-    their REML likelihoods compare). Partners are then tried (`fit_partners`).
+    their REML likelihoods compare). The kinds' slopes are then tried (`fit_kind_slopes`), then
+    partners (`fit_partners`).
 
     Raises
     ------
@@ -131,6 +151,10 @@ def fit_random_effects(
         The random intercept's fit failed (statsmodels' errors).
     """
     chosen = _participant_effects(values, design, participants, conditions)
+    if kinds is not None and kind_columns:
+        chosen = fit_kind_slopes(
+            chosen, values, design, participants, conditions, kinds, kind_columns
+        )
     if partners is None or partners.nunique() < 2:
         return chosen
     return fit_partners(chosen, values, design, participants, conditions, partners)
@@ -158,6 +182,39 @@ def _participant_effects(
     return RandomEffects(intercept, False, [*fit_notes(caught, intercept), fallback])
 
 
+def fit_kind_slopes(
+    chosen: RandomEffects,
+    values: pd.Series,
+    design: pd.DataFrame,
+    participants: pd.Series,
+    conditions: pd.Series,
+    kinds: pd.Series,
+    kind_columns: tuple[str, ...],
+) -> RandomEffects:
+    """Add random slopes for the partner's kind to ``chosen``'s, if supported.
+
+    The slopes are the kind's columns of the design, correlated with the intercept and with
+    ``chosen``'s slopes for condition if it has them. They are tried when the data can
+    estimate them (`unsupported` on the kinds, the covariance's size counting every slope) and
+    kept on `_rejected`'s terms, the likelihood-ratio test against ``chosen``'s fit.
+    Otherwise ``chosen`` is returned with a note why.
+    """
+    slopes = [*(_effects(design, conditions) if chosen.slopes else []), *kind_columns]
+    why = unsupported(participants, kinds, len(slopes) + 1)
+    if why is None:
+        try:
+            fitted, caught = _fit(values, design, participants, design[["Intercept", *slopes]])
+        except (np.linalg.LinAlgError, ValueError) as error:
+            why = f"their fit failed ({' '.join(str(error).split())})"
+        else:
+            why = _rejected(fitted, chosen.result)
+            if why is None:
+                notes = fit_notes(caught, fitted)
+                return RandomEffects(fitted, chosen.slopes, notes, kind_slopes=kind_columns)
+    note = f"no random slopes for partner kind: {why}"
+    return replace(chosen, notes=[*chosen.notes, note])
+
+
 def fit_partners(
     chosen: RandomEffects,
     values: pd.Series,
@@ -183,7 +240,7 @@ def fit_partners(
         why = (f"{crossed} partners met by two participants or more, fewer than "
                f"{CROSSED_PARTNERS}")  # fmt: skip
     else:
-        slopes = _effects(design, conditions) if chosen.slopes else []
+        slopes = [*(_effects(design, conditions) if chosen.slopes else []), *chosen.kind_slopes]
         try:
             with_partners, caught = _fit_crossed(values, design, participants, slopes, partners)
             without, _ = _fit_crossed(values, design, participants, slopes, None)
@@ -193,26 +250,29 @@ def fit_partners(
             why = _partners_rejected(with_partners, without)
             if why is None:
                 notes = fit_notes(caught, with_partners)
-                return RandomEffects(with_partners, chosen.slopes, notes, partners=True)
+                return replace(chosen, result=with_partners, notes=notes, partners=True)
     return replace(chosen, notes=[*chosen.notes, f"no random effect of partner identity: {why}"])
 
 
-def unsupported(participants: pd.Series, conditions: pd.Series) -> str | None:
-    """Say why the data cannot estimate slopes for condition, or None when they can.
+def unsupported(participants: pd.Series, levels: pd.Series, size: int | None = None) -> str | None:
+    """Say why the data cannot estimate slopes for a factor, or None when they can.
 
-    The slopes' covariance has c (c + 1) / 2 parameters (c conditions), estimated from each
-    participant's c condition means; a covariance of c-vectors needs at least c + 1 of them, so
-    c + 1 participants with values in every condition. A slope is told apart from the trials'
-    noise only by repeated trials: more trials than participant-condition cells.
+    ``levels``: each trial's condition (or partner kind). The slopes' covariance has
+    q (q + 1) / 2 parameters (q = ``size``, by default the c levels: the intercept and c - 1
+    slopes), estimated from each participant's means; a covariance of q-vectors needs at least
+    q + 1 of them, so q + 1 participants with values at every level. A slope is told apart
+    from the trials' noise only by repeated trials: more trials than participant-level cells.
     """
-    cells = pd.crosstab(participants, conditions)
-    count = cells.shape[1]
+    cells = pd.crosstab(participants, levels)
+    count = cells.shape[1] if size is None else size
+    factor = "condition" if levels.name in (None, "condition") else str(levels.name)
+    factor = factor.replace("_", " ")
     complete = int((cells > 0).all(axis=1).sum())
     if complete < count + 1:
-        return (f"{complete} participants with every condition, fewer than the {count + 1} "
+        return (f"{complete} participants with every {factor}, fewer than the {count + 1} "
                 f"that the slopes' covariance needs")  # fmt: skip
     if len(participants) <= int((cells > 0).sum().sum()):
-        return "one trial per participant and condition, so a slope is not apart from the noise"
+        return f"one trial per participant and {factor}, so a slope is not apart from the noise"
     return None
 
 
@@ -296,7 +356,10 @@ def _not_supported(larger: MixedLMResults, smaller: MixedLMResults, added: int) 
 
 
 def _rejected(slopes: MixedLMResults, intercept: MixedLMResults) -> str | None:
-    """Say why the fit with slopes is not kept, or None when it is."""
+    """Say why the fit with slopes is not kept, or None when it is.
+
+    ``intercept`` is the fit with fewer random effects, nested in ``slopes``'s.
+    """
     if not slopes.converged:
         return "their fit did not converge"
     covariance = np.asarray(slopes.cov_re, dtype=np.float64) / float(slopes.scale)
@@ -310,5 +373,6 @@ def _rejected(slopes: MixedLMResults, intercept: MixedLMResults) -> str | None:
     if shares[0] < DEGENERATE_SHARE:
         return (f"their covariance is degenerate (its smallest principal component holds "
                 f"{shares[0]:.1%} of the random effects' variance)")  # fmt: skip
-    added = covariance.shape[0] * (covariance.shape[0] + 1) // 2 - 1
+    size, before = covariance.shape[0], np.asarray(intercept.cov_re).shape[0]
+    added = size * (size + 1) // 2 - before * (before + 1) // 2
     return _not_supported(slopes, intercept, added)

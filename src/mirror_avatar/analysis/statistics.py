@@ -3,8 +3,9 @@
 Per condition and measure, the mean over participants with a bootstrap confidence interval
 (`condition_summaries`); per measure, each condition against the reference condition in a
 linear mixed model with the condition's position in the participant's order as a covariate
-and random effects per participant (slopes for condition and crossed partners where the data
-support them: `mirror_avatar.analysis.random_effects`), its fixed effects tested by t tests
+and random effects per participant (slopes for condition and partner kind, and crossed
+partners, where the data support them: `mirror_avatar.analysis.random_effects`), its fixed
+effects tested by t tests
 with Satterthwaite's degrees of freedom (`mirror_avatar.analysis.small_sample`), with effect
 sizes and paired tests of the participants' means as a cross-check (`fit_contrasts`). Rows are
 a participant's trials (one per trial and player); every participant's mean is taken over
@@ -382,7 +383,8 @@ def fit_contrasts(
 
     statsmodels' `MixedLM` fitted by REML; the reference condition is the treatment coding's
     baseline. The random effects are a random intercept, with random slopes for condition
-    where the data support them (`fit_random_effects`; docs/METHODS.md, section 15.4). The
+    and for the partner's kind where the data support them (`fit_random_effects`;
+    docs/METHODS.md, section 15.4). The
     fixed effects are tested by t tests with Satterthwaite's degrees of freedom, with t
     intervals (`satterthwaite_tests`; section 15.3). The model is fitted to the measure
     centred and divided by its SD, and its estimates scaled back (REML is equivariant, so
@@ -427,6 +429,8 @@ def fit_contrasts(
         fitted = fit_random_effects(
             pd.Series(scaled, index=data.index), design, data["participant"], data["condition"],
             None if partners is None else partners.loc[data.index],
+            None if kinds is None else kinds.loc[data.index].rename("partner_kind"),
+            tuple(c for c, (term, _, _) in terms.columns.items() if term == KIND_TERM),
         )  # fmt: skip
     except (np.linalg.LinAlgError, ValueError) as error:
         failed = f"the mixed model could not be fitted ({' '.join(str(error).split())})"
