@@ -18,15 +18,8 @@ of each feature's SD, drawn with probability proportional to 1/rank (Lall & Shar
 Its length and displacement are then multiplied by ``exp(h z)`` with ``z`` standard normal, ``h``
 being ``jitter`` times Silverman's rule-of-thumb bandwidth of the training strokes' log lengths
 (log sizes), `silverman_bandwidth` (**choice**, a smoothed bootstrap: a generated stroke is not
-any training stroke, and a person whose strokes are regular gets little jitter). The drawn
-stroke started at ``s`` and the generated one starts at ``x``: it ends where the drawn one ended
-moved by ``b (x - s)``, ``b`` the least-squares slope of the training strokes' end positions on
-their start positions (per direction, `end_slopes`), so its displacement is the jittered one plus
-``(b - 1)(x - s)`` (the conditional mean and resampled residual of Prairie et al. 2006's modified
-nearest-neighbour bootstrap, with a line fitted to all strokes where they fit a local polynomial):
-an oscillation whose ends mirror each other about a centre (``b`` near -1) keeps its centre, a
-wander (``b`` near 1) moves on as before. The displacement is kept at least ``min_reversal`` and
-at most the room ahead, and the profile stretched to the new length. Strokes
+any training stroke, and a person whose strokes are regular gets little jitter), the
+displacement capped at the room ahead, and its profile stretched to the new length. Strokes
 meet at reversals, where the velocity passes through zero, so no seam adds motion the person
 never made (the IMS generator's overlap-add of frames from different trials does, METHODS
 section 4b). A generated trial starts at a random point of a random stroke.
@@ -316,7 +309,6 @@ class StrokeGenerator:
         self._rank_cdfs: dict[int, Array] = {}
         self._grids: dict[int, Array] = {}
         self._other_way = {d: self._directions != d for d in (-1.0, 1.0)}
-        self._slopes = end_slopes(self.starts_, self.displacements_)
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "lengths_"):
@@ -340,8 +332,8 @@ class StrokeGenerator:
             length = self.lengths_[stroke] * math.exp(self.bandwidth_[0] * rng.standard_normal())
             size = abs(self.displacements_[stroke]) * math.exp(
                 self.bandwidth_[1] * rng.standard_normal()
-            ) + direction * (self._slopes[direction] - 1.0) * (position - self.starts_[stroke])
-            size = min(max(size, self.min_reversal), _room_ahead(position, direction))
+            )
+            size = min(size, _room_ahead(position, direction))
             filled = self._draw_stroke(
                 positions, filled, time, length, position, direction * size, stroke
             )
@@ -618,26 +610,6 @@ def _profile(positions: Array, displacement: float) -> Array:
     if displacement == 0:
         return np.linspace(0.0, 1.0, positions.size)
     return (positions - positions[0]) / displacement
-
-
-def end_slopes(starts: Array, displacements: Array) -> dict[float, float]:
-    """Return the least-squares slope of strokes' end positions on their start positions.
-
-    One slope per direction (keys -1.0 and 1.0), over the strokes of that direction
-    (``starts`` and ``displacements`` in units, shape (m,)); 1 (the end moves with the start)
-    where fewer than two strokes, or their starts do not vary.
-    """
-    slopes = {}
-    for direction in (-1.0, 1.0):
-        mine = np.sign(displacements) == direction
-        start, end = starts[mine], starts[mine] + displacements[mine]
-        spread = float(np.sum((start - start.mean()) ** 2)) if start.size > 1 else 0.0
-        slopes[direction] = (
-            float(np.sum((start - start.mean()) * (end - end.mean())) / spread)
-            if spread > 0
-            else 1.0
-        )
-    return slopes
 
 
 def silverman_bandwidth(samples: Array) -> Array:
