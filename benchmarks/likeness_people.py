@@ -11,7 +11,9 @@ Protocol (issue 47; docs/METHODS.md sections 3 and 4b):
   out for the next round of choices.
 - **Split**: a person's first `FITTED` trials fit the generator (timed: wall clock of ``fit``);
   the others are held out. The generator makes one trial per held-out trial, as long as it
-  (seeds 1, 2, ...).
+  (seeds 1, 2, ...; ``--sets N`` makes N sets of generated trials, set s with seeds
+  ``1 + SET_SEEDS * s``, ... , and prints each person's mean AUC over the sets: one set moves a
+  person's AUC by up to 0.1).
 - **Battery** (`compare_motion`, seed 0, `PERMUTATIONS` permutations): generated against held-out
   trials, the person's own variability from all their trials; the classifier's AUC and p, and the
   ratio of each distance (velocity IMS EMD, amplitude, spectrum) to the person's own.
@@ -73,6 +75,9 @@ PERMUTATIONS = 199
 
 RATE = 100.0
 
+SET_SEEDS = 1000
+"""Seed offset between sets of generated trials (``--sets``)."""
+
 
 def people(which: str) -> dict[str, list[Trial]]:
     """Each person's trials, bundled styles first (``development``, ``test`` or ``all``)."""
@@ -109,12 +114,13 @@ def rebuild_ratio(model: MotionModel, fitted: Sequence[Trial], held: Sequence[Tr
 
 
 def measure(
-    name: str, trials: Sequence[Trial], kind: str, settings: dict[str, Any]
+    name: str, trials: Sequence[Trial], kind: str, settings: dict[str, Any], first_seed: int = 1
 ) -> tuple[dict[str, Any], list]:
     """Measure the battery, data-copying test and fit time of one person and one generator kind.
 
     Kind ``person`` takes the fitted trials themselves as the generated ones (each cut to its
-    held-out trial's length): what a perfect copy of the training trials would score.
+    held-out trial's length): what a perfect copy of the training trials would score. The
+    generated trials have seeds ``first_seed``, ``first_seed + 1``, ...
     """
     fitted, held = list(trials[:FITTED]), list(trials[FITTED:])
     start = time.perf_counter()
@@ -128,7 +134,7 @@ def measure(
         model = fit(kind, fitted, settings)
         generated = [
             model.sample_velocity(round(t.duration * RATE) + 1, seed)
-            for seed, t in enumerate(held, start=1)
+            for seed, t in enumerate(held, start=first_seed)
         ]
     fit_seconds = time.perf_counter() - start
     if kind != "person":
@@ -230,6 +236,27 @@ def table(rows: Sequence[dict[str, Any]]) -> str:
     return "\n".join([head, *lines])
 
 
+def other_sets(
+    rows: Sequence[dict[str, Any]],
+    everyone: dict[str, list[Trial]],
+    settings: dict[str, Any],
+    sets: int,
+) -> None:
+    """Add each row's AUC over ``sets`` sets of generated trials (``set_aucs``, the row's first)."""
+    for row in rows:
+        row["set_aucs"] = [row["auc"]] + [
+            measure(
+                row["person"], everyone[row["person"]], row["kind"], settings, 1 + SET_SEEDS * s
+            )[0]["auc"]
+            for s in range(1, sets)
+        ]
+        print(
+            f"{row['person']} {row['kind']}: mean AUC {np.mean(row['set_aucs']):.3f} over "
+            f"{sets} sets ({', '.join(f'{a:.2f}' for a in row['set_aucs'])})",
+            flush=True,
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -238,6 +265,9 @@ def main() -> None:
     parser.add_argument("--kinds", nargs="+", choices=KINDS, default=["strokes"])
     parser.add_argument(
         "--set", nargs="*", default=[], help="generator settings KEY=VALUE (numbers)"
+    )
+    parser.add_argument(
+        "--sets", type=int, default=1, help="sets of generated trials (seeds 1000 apart)"
     )
     parser.add_argument("--json", type=Path, help="also write the rows to this file")
     parser.add_argument(
@@ -260,6 +290,10 @@ def main() -> None:
         for row in kind_rows:
             row["identified"] = rates[row["person"]]
             row["identification_ceiling"] = ceiling
+        if args.sets > 1 and kind != "person":
+            other_sets(
+                kind_rows, everyone, settings if kind in ("strokes", "shared") else {}, args.sets
+            )
         rows += kind_rows
     print(table(rows))
     print(f"identification ceiling (held-out trials among held-out trials): {ceiling:.0%}")
