@@ -274,3 +274,36 @@ def test_a_pilots_angles_near_pi_give_the_spread_they_give_near_0(tmp_path: Path
     )
     assert near_pi.pilot_differences[0] == pytest.approx(near_zero.pilot_differences[0], abs=1e-9)
     assert 0.1 < near_pi.pilot_differences[0] < 0.3
+
+
+@pytest.mark.long
+def test_power_from_a_pilot_equals_a_slow_simulation_of_whole_trial_level_studies(
+    tmp_path: Path,
+) -> None:
+    """Trial-level studies (a random intercept and a random slope for condition per
+    participant, trial noise; `make_study_rows`) simulated one by one and tested by `confirm`,
+    against `simulate_power` from a large pilot's spread with two trials, planned at four.
+
+    Truth: RMS effect 0.015, participants' own effects SD 0.02, trial SD `TRIAL_SD`; 600 slow
+    studies (Monte Carlo SE at most 0.021), tolerance 0.065 (about 3 SE).
+    """
+    effect, slope_sd, n, trials = 0.015, 0.02, 10, 4
+    analysis = hypothesis("higher", effect)
+    pilot_rows = make_study_rows(seed=99, participants=300, trials=2, effects={"rms": effect},
+                                 slope_sd={"rms": slope_sd})  # fmt: skip
+    spread = pilot_spread(read_study_table(write_study_table(pilot_rows, tmp_path / "pilot")),
+                          analysis, "p.toml")  # fmt: skip
+    planned = spread.with_trials(trials)[0, 0]
+    true_variance = slope_sd**2 + 2 * TRIAL_SD["rms"] ** 2 / trials
+    assert planned == pytest.approx(true_variance, rel=0.2)
+    fast = simulate_power(spread, analysis, n, 20_000, seed=4, trials=trials).power
+    slow = np.mean([
+        confirm(make_study_rows(seed=1000 + s, participants=n, trials=trials,
+                                effects={"rms": effect}, slope_sd={"rms": slope_sd}),
+                analysis)[0].significant
+        for s in range(600)
+    ])  # fmt: skip
+    assert fast == pytest.approx(slow, abs=0.065)
+    theory = TTestPower().power(effect_size=effect / np.sqrt(true_variance), nobs=n, alpha=0.05,
+                                alternative="larger")  # fmt: skip
+    assert slow == pytest.approx(theory, abs=0.065)
