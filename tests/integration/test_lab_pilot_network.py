@@ -97,3 +97,14 @@ def test_a_pilot_refuses_a_bad_network_before_anything_starts(tmp_path, capsys):
     error = capsys.readouterr().err.strip()
     assert "--network: stall='3' is not START:SECONDS" in error and "\n" not in error
     assert not out.exists()
+
+
+def test_a_pilot_refuses_a_protocol_screening_frame_rates_before_anything_starts(tmp_path, capsys):
+    out = tmp_path / "out"
+    protocol = tmp_path / "framed.toml"
+    protocol.write_text(PROTOCOL.replace("[[blocks]]", "[online]\nscreen_frame_rate_hz = 30\n\n"
+                                         "[[blocks]]", 1), encoding="utf-8")  # fmt: skip
+    assert main(["lab", "pilot", "--protocol", str(protocol), "--out", str(out)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert "\n" not in error and f"{protocol}: online.screen_frame_rate_hz: a stand-in's " in error
+    assert "(pilot a copy of the protocol without it)" in error and not out.exists()

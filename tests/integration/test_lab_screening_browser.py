@@ -37,7 +37,8 @@ pytestmark = pytest.mark.browser
 PROTOCOL = solo_protocol(
     "screened online study",
     9,
-    '[online]\nrefusal_code = "NOFIT123"\nscreen_round_trip_p95_ms = 150',
+    '[online]\nrefusal_code = "NOFIT123"\nscreen_round_trip_p95_ms = 150\n'
+    "screen_frame_rate_hz = 20\nscreen_window_width_px = 800",
     8,
 )
 
@@ -75,6 +76,27 @@ def test_a_page_at_300_ms_round_trip_is_refused_at_entry(chromium, lab, tmp_path
     (row,) = pd.read_csv(tmp_path / "table" / "study.csv").itertuples()
     assert (row.participant, row.refusals, row.refusal) == ("p000", 1, message)
     assert pd.isna(row.trial)  # refused before their first trial
+
+
+def test_a_window_too_narrow_is_refused_at_entry_and_a_wide_one_admitted(chromium, lab):
+    narrow = create_participant(lab.url, 2, BEARER)["links"]["P1"]
+    page = chromium.new_context(viewport={"width": 600, "height": 500}).new_page()
+    page.goto(narrow)
+    page.wait_for_selector("#ending:not([hidden]) #ending-code", timeout=60_000)
+    message = page.locator("#message").inner_text()
+    page.context.close()
+    assert message == "Your window is 600 px wide, narrower than the study's 800 px."
+    created = create_participant(lab.url, 3, BEARER)
+    page = join(chromium, created["links"]["P1"])  # 900 x 500
+    wait_for(
+        lambda: status(lab, created["id"])["slots"][0]["entry_rtt_p95_ms"] is not None,
+        30.0, "the page's entry judged",
+    )  # fmt: skip
+    page.context.close()
+    (admitted,) = [e for e in status(lab, created["id"])["events"] if "admitted" in e]
+    # Chromium draws at the display's rate (60 a second; fewer when the machine is busy)
+    rate = float(admitted.split(" ms, ")[1].split(" frames/s")[0])
+    assert rate >= 20 and admitted.endswith("frames/s, window 900x500 px"), admitted
 
 
 def test_a_tab_hidden_mid_trial_is_told_recorded_and_counted(chromium, lab, tmp_path):

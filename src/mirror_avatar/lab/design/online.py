@@ -16,7 +16,7 @@ not agree is not played and is shown the refusal (`mirror_avatar.lab.running.con
 
 The protocol may screen its participants (`Screening`, applied by
 `mirror_avatar.lab.running.screening`): on the round trips of a page's first clock exchanges,
-and on a tab hidden during a trial.
+its frame rate and its window size as it connects, and on a tab hidden during a trial.
 """
 
 from __future__ import annotations
@@ -92,10 +92,23 @@ class Screening:
     hidden_tab
         ``"record"`` (a tab hidden during a trial is recorded and the person told) or
         ``"refuse"`` (the person is refused).
+    frame_rate_hz
+        The fewest animation frames a second (Hz) a page may draw at connect, or None.
+    window_width_px, window_height_px
+        The smallest window (CSS pixels) a page may have at connect, or None.
     """
 
     round_trip_p95_ms: float | None = None
     hidden_tab: str = "record"
+    frame_rate_hz: float | None = None
+    window_width_px: int | None = None
+    window_height_px: int | None = None
+
+    @property
+    def at_entry(self) -> bool:
+        """Whether a page is judged as it connects (any bound of its entry declared)."""
+        bounds = (self.round_trip_p95_ms, self.frame_rate_hz)
+        return any(b is not None for b in (*bounds, self.window_width_px, self.window_height_px))
 
 
 @dataclass(frozen=True)
@@ -149,9 +162,17 @@ def parse_online(check: Checker, value: object, folder: Path) -> Online:
         _page_text(check, data, "instructions", folder),
         _page_text(check, data, "consent", folder),
         Screening(
-            check.setting(data, "online", SCREENING["screen_round_trip_p95_ms"]),
-            check.setting(data, "online", SCREENING["screen_hidden_tab"]),
-        ),
+            *(
+                check.setting(data, "online", SCREENING[f"screen_{key}"])
+                for key in (
+                    "round_trip_p95_ms",
+                    "hidden_tab",
+                    "frame_rate_hz",
+                    "window_width_px",
+                    "window_height_px",
+                )
+            )
+        ),  # fmt: skip
     )
 
 

@@ -104,6 +104,15 @@ ONLINE_SETTINGS = (
     Setting("screen_round_trip_p95_ms", "a page whose connect-time round trips' 95th "
             "percentile is above it is refused at entry",
             Interval(float, 1.0, 10_000.0, unit="ms"), None, default_shown="no screening"),
+    Setting("screen_frame_rate_hz", "a page drawing fewer animation frames a second than "
+            "this over its connect-time exchanges is refused at entry",
+            Interval(float, 1.0, 1000.0, unit="Hz"), None, default_shown="no screening"),
+    Setting("screen_window_width_px", "a page whose window is narrower than this at entry is "
+            "refused", Interval(int, 100, 100_000, unit="px"), None,
+            default_shown="no screening"),
+    Setting("screen_window_height_px", "a page whose window is lower than this at entry is "
+            "refused", Interval(int, 100, 100_000, unit="px"), None,
+            default_shown="no screening"),
     Setting("screen_hidden_tab", "a tab hidden during a trial: record: recorded and the "
             "person told; refuse: the person is refused", Options(HIDDEN_TAB_RULES), "record"),
 )  # fmt: skip

@@ -23,6 +23,9 @@ The page sends JSON text messages (at most `mirror_avatar.realtime.messages.MAX_
 - ``{"type": "focus", "event": e, "t": t}``: the page's tab was hidden or shown again
   (``e``: ``hidden``, ``visible``) or its window lost or regained the focus (``blur``,
   ``focus``) at ``t`` (ms, the page's clock) (`mirror_avatar.realtime.interruptions`);
+- ``{"type": "window", "width": w, "height": h}``: the page's window (its viewport, CSS
+  pixels) as it connects and after each resize (`WindowSize`; screened at entry:
+  `mirror_avatar.lab.running.screening`);
 - ``{"type": "answer", "trial": n, "question": id, "value": v}``: the participant's answer to
   a question asked after trial ``n`` (a study protocol's ``questions`` message);
 - ``{"type": "shown", "k": [k, ...], "t": [t, ...]}``: the frames the page drew (each frame's
@@ -134,6 +137,18 @@ class FocusChange:
 
 
 @dataclass(frozen=True)
+class WindowSize:
+    """The page's viewport: ``width`` and ``height`` in CSS pixels."""
+
+    width: int
+    height: int
+
+
+MAX_WINDOW_PX = 100_000
+"""Largest window side a page may report (CSS pixels)."""
+
+
+@dataclass(frozen=True)
 class Shown:
     """Frames the page drew: each frame's sample ``k`` and its draw's time ``t_ms`` (ms, page)."""
 
@@ -150,6 +165,7 @@ ParticipantMessage = (
     | ClockRequest
     | ClockReport
     | FocusChange
+    | WindowSize
     | Shown
 )
 
@@ -180,6 +196,11 @@ def parse_participant_message(text: str | bytes | None) -> ParticipantMessage:
         return FocusChange(str(event), number_field(data, "t", "focus"))
     if kind == "shown":
         return _shown(data)
+    if kind == "window":
+        width, height = _count(data, "width"), _count(data, "height")
+        if not (0 < width <= MAX_WINDOW_PX and 0 < height <= MAX_WINDOW_PX):
+            raise ProtocolError(f"window: 'width' and 'height' must be 1 to {MAX_WINDOW_PX} px")
+        return WindowSize(width, height)
     if kind == "pong":
         return Pong(_count(data, "id"), _count(data, "late_frames"))
     if kind == "answer":

@@ -14,6 +14,7 @@ import asyncio
 import contextlib
 import math
 import time
+from dataclasses import asdict
 
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
@@ -28,6 +29,7 @@ from mirror_avatar.lab.running.messages import (
     PointerBatch,
     Pong,
     Shown,
+    WindowSize,
     parse_participant_message,
 )
 from mirror_avatar.lab.running.participant import Participant
@@ -36,6 +38,7 @@ from mirror_avatar.lab.running.screening import (
     BACK_NOTICE,
     ENTRY_EXCHANGES,
     HIDDEN_REFUSAL,
+    Entry,
     entry_refusal,
     online_of,
     round_trip_p95,
@@ -79,8 +82,9 @@ class ParticipantPage:
     """One participant page's connection: receive positions and pongs, ping, send frames.
 
     ``entry_delays`` holds the round trips (ms) of the connection's clock exchanges until the
-    person's entry is judged; ``interrupted`` the kinds of interruption that began during a trial
-    and have not ended.
+    person's entry is judged, ``entry_start_s`` when the first's request arrived (s, the
+    server's clock) and ``window_px`` the page's window as it last said it; ``interrupted`` the
+    kinds of interruption that began during a trial and have not ended.
     """
 
     def __init__(
@@ -91,6 +95,8 @@ class ParticipantPage:
         self.settings = settings
         self.screening = online_of(session).screening
         self.entry_delays: list[float] = []
+        self.entry_start_s = math.inf
+        self.window_px: tuple[int, int] | None = None
         self.interrupted: set[str] = set()
         self.session = session
         self.participant = participant
@@ -140,6 +146,8 @@ class ParticipantPage:
         elif isinstance(message, FocusChange):
             if isinstance(source, BrowserInput):
                 self._focus(source, message, received_ms)
+        elif isinstance(message, WindowSize):
+            self.window_px = (message.width, message.height)
         elif isinstance(message, Answer):
             problem = self.session.answer(participant, message)
             if problem is not None:
@@ -171,7 +179,7 @@ class ParticipantPage:
         elif isinstance(message, ClockReport):
             exchange = source.clock.complete(message.id, message.t3)
             if exchange is not None:
-                self._screen_entry(exchange.delay)
+                self._screen_entry(source, exchange.delay, exchange.t1 / 1000.0)
         else:
             source.put_batch(message.seq, message.sent_ms, message.samples, received_ms / 1000.0)
 
@@ -184,28 +192,32 @@ class ParticipantPage:
         times = {"t0": request.t0, "t1": received_ms, "t2": sent_ms}
         return {"type": "clock", "id": request.id} | times
 
-    def _screen_entry(self, delay_ms: float) -> None:
-        """Judge the person's entry on their page's first `ENTRY_EXCHANGES` round trips (ms).
+    def _screen_entry(self, source: BrowserInput, delay_ms: float, received_s: float) -> None:
+        """Judge the person's entry on their page's first `ENTRY_EXCHANGES` clock exchanges.
 
+        ``delay_ms`` is an exchange's round trip (ms), ``received_s`` when its request arrived
+        (s, the server's clock): the frame rate is counted from the first's to the last's.
         Judged once a person: a page that reconnects is not judged again.
         """
-        participant, bound = self.participant, self.screening.round_trip_p95_ms
-        if bound is None or participant.entry_rtt_p95_ms is not None:
+        participant = self.participant
+        if not self.screening.at_entry or participant.entry_rtt_p95_ms is not None:
             return
         self.entry_delays.append(delay_ms)
+        self.entry_start_s = min(self.entry_start_s, received_s)
         if len(self.entry_delays) < ENTRY_EXCHANGES:
             return
-        p95 = participant.entry_rtt_p95_ms = round_trip_p95(self.entry_delays)
-        reason = entry_refusal(self.entry_delays, bound)
+        rate = source.rates(self.entry_start_s, received_s)["frame_rate_hz"]
+        frames = float(rate) if isinstance(rate, int | float) else None
+        entry = Entry(self.entry_delays, frames, self.window_px)
+        p95 = participant.entry_rtt_p95_ms = round_trip_p95(entry.delays_ms)
+        reason = entry_refusal(entry, self.screening)
         if reason is None:
-            self.session.log(f"{participant.label} admitted: round trip p95 {p95:.0f} ms")
+            said = f"round trip p95 {p95:.0f} ms, {entry.frame_rate_hz or 0:.0f} frames/s"
+            window = "" if entry.window_px is None else ", window {}x{} px".format(*entry.window_px)
+            self.session.log(f"{participant.label} admitted: {said}{window}")
             return
-        measured = {
-            "rtt_p95_ms": p95,
-            "bound_ms": bound,
-            "rtt_ms": [round(delay, 3) for delay in self.entry_delays],
-        }
-        self.lab.refuse(participant.key, reason, measured)
+        bounds = {k: v for k, v in asdict(self.screening).items() if k != "hidden_tab"}
+        self.lab.refuse(participant.key, reason, entry.measured() | {"bounds": bounds})
 
     def _focus(self, source: BrowserInput, change: FocusChange, received_ms: float) -> None:
         """Record the page's tab hidden or shown, its window blurred or focused.

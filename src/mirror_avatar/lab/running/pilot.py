@@ -217,6 +217,7 @@ async def play_page(url: str, stand_in: StandIn) -> str:
         The stand-in was screened out (its page sent ``refused``).
     """
     async with connect(url, proxy=None, open_timeout=30, max_queue=None) as ws:
+        await ws.send(json.dumps({"type": "window", "width": WINDOW_PX[0], "height": WINDOW_PX[1]}))
         clock = asyncio.create_task(_exchange_clocks(ws))
         try:
             async for text in ws:
@@ -242,6 +243,9 @@ async def play_page(url: str, stand_in: StandIn) -> str:
                 await clock
     return "closed"
 
+
+WINDOW_PX = (1280, 720)
+"""The window (CSS pixels) a stand-in's page says it has as it connects: a laptop's browser."""
 
 CLOCK_BURST_S = 0.02
 """Seconds between a page's first `ENTRY_EXCHANGES` clock exchanges (``BURST_MS`` in
@@ -546,6 +550,12 @@ def check_stand_ins(protocol: Protocol, stand_ins: Mapping[str, str]) -> None:
         protocol, a spec longer than `MAX_SPEC_CHARS`, or one that cannot be read, built or
         dry-run (a device, a FIFO, a file too large, a parameter out of its range, ...).
     """
+    if protocol.online.screening.frame_rate_hz is not None:
+        raise InputError(
+            protocol.source,
+            "online.screen_frame_rate_hz: a stand-in's page draws no animation frames, so every "
+            "stand-in would be refused (pilot a copy of the protocol without it)",
+        )
     unknown = sorted(set(stand_ins) - set(protocol.people))
     if unknown:
         raise InputError(
@@ -611,7 +621,8 @@ def run_pilot(
     Raises
     ------
     InputError
-        A stand-in refused (`check_stand_ins`), before the server starts; a run that cannot
+        A stand-in refused, or a protocol screening frame rates (`check_stand_ins`), before
+        the server starts; a run that cannot
         start or end (`pilot_participant`).
     """
     protocol = load_protocol(protocol_file)
@@ -652,7 +663,7 @@ async def _pilot_all(
 ) -> list[dict[str, Any]]:
     headers = {"Authorization": f"Bearer {token}"}
     results = []
-    screened = protocol.online.screening.round_trip_p95_ms is not None
+    screened = protocol.online.screening.at_entry
     async with httpx.AsyncClient(base_url=base, headers=headers, timeout=30.0) as api:
         for number in participants:
             seeds = spawn_seeds([seed, number], len(protocol.people))

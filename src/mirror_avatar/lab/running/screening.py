@@ -1,9 +1,11 @@
 """Screening a participant as the protocol declares it: round trips at entry, a hidden tab.
 
 As docs/METHODS.md, section 9 (*Screening*), describes. A protocol's ``[online]`` table
-(`mirror_avatar.lab.design.online.Screening`) may bound the 95th percentile of a page's round
-trips over its first `ENTRY_EXCHANGES` clock exchanges (the burst the page sends as it connects,
-``clock.js``): a page above it is refused (`entry_refusal`, one line naming both numbers). Until
+(`mirror_avatar.lab.design.online.Screening`) may bound what a page shows over its first
+`ENTRY_EXCHANGES` clock exchanges (the burst the page sends as it connects, ``clock.js``): the
+95th percentile of their round trips, the page's animation frames a second meanwhile, and its
+window's size (`Entry`): a page outside a bound is refused (`entry_refusal`, one line naming
+each number and its bound). Until
 every connected person's entry is judged, the run does not start unless forced
 (`still_screened`): a person refused during a trial would leave it half played. A tab
 hidden or a window out of focus during a trial is recorded in the trial's sidecar
@@ -18,6 +20,7 @@ takes the focus). Every refusal is written to ``refusal-<label>.json`` in the ru
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -25,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from mirror_avatar.files.atomic import write_atomic_json
-from mirror_avatar.lab.design.online import Online
+from mirror_avatar.lab.design.online import Online, Screening
 from mirror_avatar.lab.files import refusal_file
 from mirror_avatar.lab.running.runner import LabSession
 from mirror_avatar.lab.running.study import ParticipantRun
@@ -51,10 +54,10 @@ def online_of(session: LabSession) -> Online:
 def still_screened(session: LabSession) -> str | None:
     """Say whose entry is still being judged, or None when no connected person's is.
 
-    A person is judged on their page's first `ENTRY_EXCHANGES` round trips (about 2 s after it
-    connects) when the protocol bounds them; one refused is no longer connected.
+    A person is judged on their page's first `ENTRY_EXCHANGES` clock exchanges (about 2 s after
+    it connects) when the protocol bounds their entry; one refused is no longer connected.
     """
-    if online_of(session).screening.round_trip_p95_ms is None:
+    if not online_of(session).screening.at_entry:
         return None
     judged = [
         person.label
@@ -74,20 +77,60 @@ def round_trip_p95(delays_ms: Sequence[float]) -> float:
     return float(np.percentile(np.asarray(delays_ms, dtype=float), 95))
 
 
-def entry_refusal(delays_ms: Sequence[float], bound_ms: float) -> str | None:
-    """Return why a page is refused at entry, or None when it is admitted.
+@dataclass(frozen=True)
+class Entry:
+    """What a page showed over its first `ENTRY_EXCHANGES` clock exchanges.
 
-    Parameters
+    Attributes
     ----------
     delays_ms
-        The round trips (ms) of the page's first clock exchanges.
-    bound_ms
-        The protocol's ``screen_round_trip_p95_ms`` (ms): a 95th percentile above it refuses.
+        Their round trips (ms).
+    frame_rate_hz
+        The page's animation frames a second meanwhile (one pointer batch each), or None when
+        the span was empty.
+    window_px
+        The page's window (width, height; CSS pixels) as it last reported it, or None.
     """
-    p95 = round_trip_p95(delays_ms)
-    if p95 <= bound_ms:
-        return None
-    return f"Your connection's round trip (p95 {p95:.0f} ms) is above the study's {bound_ms:g} ms."
+
+    delays_ms: Sequence[float]
+    frame_rate_hz: float | None = None
+    window_px: tuple[int, int] | None = None
+
+    def measured(self) -> dict[str, Any]:
+        """Return what a refusal's file records of the entry."""
+        return {
+            "rtt_p95_ms": round_trip_p95(self.delays_ms),
+            "rtt_ms": [round(delay, 3) for delay in self.delays_ms],
+            "frame_rate_hz": self.frame_rate_hz,
+            "window_px": None if self.window_px is None else list(self.window_px),
+        }
+
+
+def entry_refusal(entry: Entry, screening: Screening) -> str | None:
+    """Return why a page is refused at entry, one sentence per bound it misses, or None.
+
+    The bounds are the protocol's (`Screening`): a round trip's 95th percentile above
+    ``round_trip_p95_ms``; fewer animation frames a second than ``frame_rate_hz`` (none
+    measured counts as 0: a hidden tab draws none); a window narrower or lower than
+    ``window_width_px`` or ``window_height_px`` (a page that never said its window misses both).
+    """
+    reasons = []
+    p95, bound = round_trip_p95(entry.delays_ms), screening.round_trip_p95_ms
+    if bound is not None and p95 > bound:
+        reasons.append(f"Your connection's round trip (p95 {p95:.0f} ms) is above the study's "
+                       f"{bound:g} ms.")  # fmt: skip
+    rate, fewest = entry.frame_rate_hz or 0.0, screening.frame_rate_hz
+    if fewest is not None and rate < fewest:
+        reasons.append(f"Your browser drew {rate:.3g} frames a second, fewer than the study's "
+                       f"{fewest:g}.")  # fmt: skip
+    width, height = entry.window_px or (0, 0)
+    if screening.window_width_px is not None and width < screening.window_width_px:
+        reasons.append(f"Your window is {width} px wide, narrower than the study's "
+                       f"{screening.window_width_px} px.")  # fmt: skip
+    if screening.window_height_px is not None and height < screening.window_height_px:
+        reasons.append(f"Your window is {height} px high, lower than the study's "
+                       f"{screening.window_height_px} px.")  # fmt: skip
+    return " ".join(reasons) or None
 
 
 def record_refusal(directory: Path, label: str, reason: str, measured: dict[str, Any]) -> None:

@@ -40,6 +40,12 @@
     const ratio = window.devicePixelRatio || 1;
     canvas.width = canvas.clientWidth * ratio;
     canvas.height = canvas.clientHeight * ratio;
+    sayWindow();
+  }
+
+  // The window's size (CSS pixels), as the server screens it at entry.
+  function sayWindow() {
+    send({ type: "window", width: Math.max(1, window.innerWidth), height: Math.max(1, window.innerHeight) });
   }
 
   function toPixels(x) { return ((x + RANGE) / (2 * RANGE)) * canvas.width * 0.9 + canvas.width * 0.05; }
@@ -353,7 +359,7 @@
     const scheme = location.protocol === "https:" ? "wss" : "ws";
     socket = new WebSocket(`${scheme}://${location.host}/ws/join/${key}`);
     me.seq = 0;
-    socket.addEventListener("open", () => mirrorClock.start(send));
+    socket.addEventListener("open", () => { sayWindow(); mirrorClock.start(send); });
     socket.addEventListener("message", onMessage);
     socket.addEventListener("close", (event) => {
       mirrorClock.stop();
