@@ -96,21 +96,20 @@ def conditions(pilot: Path) -> list[str]:
 def contrasts(pilot: Path) -> list[str]:
     """Tabulate each handling against as_arrives (the report's contrasts.csv)."""
     table = pd.read_csv(pilot / "report" / "contrasts.csv")
-    lines = ["| measure | condition - as_arrives | difference | 95 % CI | p |",
-             "|---|---|---|---|---|"]  # fmt: skip
-    for _, r in table[table.measure.isin(MEASURES)].iterrows():
-        lines.append(f"| {r.measure} | {r.condition} | {r.difference:+.3g} | "
-                     f"{r.ci_low:.3g} to {r.ci_high:.3g} | {r.p:.3g} |")  # fmt: skip
-    return lines
+    rows = table[table.measure.isin(MEASURES)].itertuples()
+    return ["| measure | condition - as_arrives | difference | 95 % CI | p |",
+            "|---|---|---|---|---|",
+            *(f"| {r.measure} | {r.condition} | {r.difference:+.3g} | "
+              f"{r.ci_low:.3g} to {r.ci_high:.3g} | {r.p:.3g} |" for r in rows)]  # fmt: skip
 
 
 def main() -> None:
+    """Print every table of the pilot folder named on the command line."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("pilot", type=Path, help="the pilot's folder (its table/ and report/)")
-    args = parser.parse_args()
-    for part in (views, predicted_draws, conditions, contrasts):
-        print("\n".join(part(args.pilot)), end="\n\n")
-    print("\n".join(truth(args.pilot)))
+    pilot = parser.parse_args().pilot
+    parts = (views, predicted_draws, conditions, contrasts, truth)
+    print("\n\n".join("\n".join(part(pilot)) for part in parts))
 
 
 if __name__ == "__main__":
