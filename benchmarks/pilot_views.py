@@ -29,6 +29,9 @@ from pilot_network import MEASURES, truth
 VIEW = ("page_view_delay_ms", "page_view_delay_p95_ms", "page_view_error_rms", "page_rtt_median_ms")
 """The page columns read per handling and person."""
 
+COMPARED = (*MEASURES, "emd_players")
+"""The measures compared (columns of the study table)."""
+
 PLAYERS = ("P1", "P2")
 """The protocol's players, in slot order (the recording's ``position_0``, ``position_1``)."""
 
@@ -83,7 +86,7 @@ def conditions(pilot: Path) -> list[str]:
     """Tabulate each measure and handling's mean [95 % CI] (the report's conditions.csv)."""
     table = pd.read_csv(pilot / "report" / "conditions.csv").set_index(["measure", "condition"])
     lines = ["| measure | as_arrives | equalised | predicted |", "|---|---|---|---|"]
-    for measure in MEASURES:
+    for measure in COMPARED:
         if measure not in table.index.get_level_values(0):
             continue
         cells = [f"{r['mean']:.3g} [{r.ci_low:.3g}, {r.ci_high:.3g}]"
@@ -94,13 +97,24 @@ def conditions(pilot: Path) -> list[str]:
 
 
 def contrasts(pilot: Path) -> list[str]:
-    """Tabulate each handling against as_arrives (the report's contrasts.csv)."""
+    """Tabulate each handling against as_arrives: the mixed model's and the paired tests'.
+
+    The difference, its CI and p are the mixed model's (``contrasts.csv``); ``converged`` says
+    whether its fit converged (``results.json``: else its p is not reliable); ``t_p`` and
+    ``wilcoxon_p`` are the paired t-test's and Wilcoxon's on the participants' means.
+    """
     table = pd.read_csv(pilot / "report" / "contrasts.csv")
-    rows = table[table.measure.isin(MEASURES)].itertuples()
-    return ["| measure | condition - as_arrives | difference | 95 % CI | p |",
-            "|---|---|---|---|---|",
-            *(f"| {r.measure} | {r.condition} | {r.difference:+.3g} | "
-              f"{r.ci_low:.3g} to {r.ci_high:.3g} | {r.p:.3g} |" for r in rows)]  # fmt: skip
+    models = json.loads((pilot / "report" / "results.json").read_text())["models"]
+    converged = {m["measure"]: m["converged"] for m in models}
+    rows = table[table.measure.isin(COMPARED)].itertuples()
+    header = (
+        "| measure | condition | difference | 95 % CI | p (converged) | paired t p | Wilcoxon p |"
+    )
+    return [header,
+            "|---|---|---|---|---|---|---|",
+            *(f"| {r.measure} | {r.condition} | {r.difference:+.3g} | {r.ci_low:.3g} to "
+              f"{r.ci_high:.3g} | {r.p:.3g} ({'yes' if converged[r.measure] else 'no'}) | "
+              f"{r.t_p:.3g} | {r.wilcoxon_p:.3g} |" for r in rows)]  # fmt: skip
 
 
 def main() -> None:
