@@ -9,8 +9,9 @@ Protocol (docs/lab.md, *Partners across links of different delays*):
   ``mirror-avatar study report PILOT/table --protocol examples/protocols/delay_handling.toml
   --out PILOT/report``.
 - **Read here**: what each person's page drew under each handling (the table's ``page_view_*``
-  and ``page_rtt_median_ms``, persons' rows: mean of the participants' means), each predicted
-  draw against the sample it was predicted from (the view files, draw by draw), the report's
+  and ``page_rtt_median_ms``, persons' rows of the complete trials: mean of the participants'
+  means), each predicted draw against the sample it was predicted from (the view files of the
+  complete trials, draw by draw), the report's
   ``conditions.csv`` and ``contrasts.csv``, and the proxy's truth (`pilot_network.truth`).
 
 Run: ``python benchmarks/pilot_views.py PILOT`` after the three commands; prints Markdown.
@@ -39,7 +40,7 @@ PLAYERS = ("P1", "P2")
 def views(pilot: Path) -> list[str]:
     """Tabulate each handling and person's view: delays (ms), error (units), round trip (ms)."""
     rows = pd.read_csv(pilot / "table" / "study.csv")
-    people = rows[rows.player_kind == "person"]
+    people = rows[(rows.player_kind == "person") & rows.complete]
     per_participant = people.groupby(["partner_view", "person", "participant"])[list(VIEW)].mean()
     means = per_participant.groupby(["partner_view", "person"]).mean()
     lines = ["| handling | person | " + " | ".join(VIEW) + " |", "|---" * (2 + len(VIEW)) + "|"]
@@ -58,8 +59,8 @@ def predicted_draws(pilot: Path) -> list[str]:
     """
     errors: dict[str, list[tuple[float, float]]] = {}
     for sidecar in sorted(pilot.glob("*-p*/trial-*_session.json")):
-        lab = json.loads(sidecar.read_text())["metadata"]["lab"]
-        if lab["partner_view"]["handling"] != "predicted":
+        metadata = json.loads(sidecar.read_text())["metadata"]
+        if metadata["lab"]["partner_view"]["handling"] != "predicted" or not metadata["complete"]:
             continue
         stem = sidecar.name.removesuffix("_session.json")
         clock = pd.read_csv(sidecar.with_name(f"{stem}_inputs.csv")).clock_s.to_numpy()
