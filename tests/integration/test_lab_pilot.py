@@ -225,7 +225,7 @@ def rehearsal(template: Path, folder: Path) -> Path:
 
 def test_the_field_s_designs_are_templates():
     assert [t.stem for t in TEMPLATES] == [
-        "brezis2017", "llobera2022", "online", "slowinski2017", "turing"
+        "brezis2017", "delay_handling", "llobera2022", "online", "slowinski2017", "turing"
     ]  # fmt: skip
 
 

@@ -6,13 +6,20 @@ participant's run through the researcher's API, joins every person's slot with a
 a virtual participant's page over a WebSocket -, starts the run and waits for its end. The
 server records everything as it does for people, so the folders are those of a real study.
 
-A stand-in sees exactly what a person's page is sent: each ``frame`` holds its own position and
-its visible partners' (delayed and hidden as the condition says; a hidden partner is not seen).
-It is any player SPEC (`mirror_avatar.specs.load_player`) in the role its page is told, stepped
-once per frame received: the partners shown are its observation, and the position it returns is
-sent as the pointer's. Questions are answered by an `AnswerRule` per question. Its page keeps its
-clock against the server's as a browser's does (`_exchange_clocks`), so its round trips and
-offset are recorded in each trial's sidecar and it is screened at entry as a person is.
+A stand-in's page does what a browser's does (`StandIn.animate`, on animation frames 60 times a
+second of its own clock, `_animate`): each ``frame`` the server sends holds its own position and
+its visible partners' (delayed, hidden, held to a due time or predicted as the condition's
+partner view says, by the server: `mirror_avatar.lab.running.partner_frames`); the page draws
+the newest due on each animation frame and reports what it drew
+(`mirror_avatar.lab.running.stand_in_page.PageDisplay`; a hidden partner is not drawn). The
+stand-in is any player SPEC (`mirror_avatar.specs.load_player`) in the role its page is told,
+stepped once per control period of the page's clock from the trial's ``go``: the partners drawn
+at that moment are its observation, and the positions it reaches are sent as the pointer's, each
+with the page time it was reached at (`mirror_avatar.lab.running.stand_in_page.pointer_batches`).
+Questions are answered by an `AnswerRule` per question. Its page keeps its clock against the
+server's as a browser's does (`_exchange_clocks`), so its round trips and offset are recorded in
+each trial's sidecar, its draws are placed on the server's clock (each trial's
+``trial-NN_view.csv``) and it is screened at entry as a person is.
 
 The stand-ins are checked as a protocol's avatars are (`check_stand_ins`: each built and dry-run
 in every role its person plays, by `mirror_avatar.lab.design.avatars.load_avatar`) before the
@@ -58,6 +65,7 @@ from mirror_avatar.lab.design.avatars import load_avatar
 from mirror_avatar.lab.design.plan import MAX_SPEC_CHARS, SessionPlan
 from mirror_avatar.lab.design.protocol import Protocol, load_protocol
 from mirror_avatar.lab.running.screening import ENTRY_EXCHANGES
+from mirror_avatar.lab.running.stand_in_page import PageDisplay, next_frame_ms, pointer_batches
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.remote.network import Network
 from mirror_avatar.remote.proxy import ProxyThread
@@ -113,7 +121,7 @@ class AnswerRule:
 
 @dataclass
 class StandIn:
-    """A virtual participant's page: a player SPEC stepping on the frames the page receives.
+    """A virtual participant's page: a player SPEC stepping on the partners the page draws.
 
     Parameters
     ----------
@@ -134,8 +142,12 @@ class StandIn:
     answers: Mapping[str, AnswerRule] = field(default_factory=dict)
     role: str = "waiting"
     player: Player | None = None
+    display: PageDisplay = field(default_factory=PageDisplay)
     _players: dict[str, Player] = field(default_factory=dict)
     _seen: dict[int, float] = field(default_factory=dict)
+    _x: float = 0.0
+    _steps: int = 0
+    _next_step_ms: float | None = None
     _sent: int = 0
     _rng: np.random.Generator = field(init=False)
 
@@ -153,31 +165,57 @@ class StandIn:
             self._players[role] = _warmed(load_avatar(self.spec, role))
         self.player = self._players[role]
 
-    def start(self, trial: int) -> str | None:
-        """Reset the player for trial ``trial``; return its first position message, if it plays."""
-        if self.player is None:
-            return None
-        self._seen.clear()
-        position, _ = self.player.reset(seed=int(spawn_seeds(self.seed, trial)[trial - 1]))
-        return self._position(position)
+    def countdown(self) -> None:
+        """Start the next trial's drawing afresh, as a page does at its countdown."""
+        self.display.clear()
 
-    def frame(self, message: Mapping[str, Any]) -> str | None:
-        """Step on a frame; return the position message to send, if the stand-in plays."""
+    def start(self, trial: int, t_ms: float) -> None:
+        """Reset the player for trial ``trial`` at page time ``t_ms`` (ms), if the stand-in plays.
+
+        Its steps are then due every control period after ``t_ms``, on the page's clock.
+        """
         if self.player is None:
-            return None
-        partners = {j: x for j, x in enumerate(message["x"][1:]) if x is not None}
+            return
+        self._seen.clear()
+        self._x, _ = self.player.reset(seed=int(spawn_seeds(self.seed, trial)[trial - 1]))
+        self._steps = 0
+        self._next_step_ms = t_ms + CONTROL_PERIOD * 1000.0
+
+    def stop(self) -> None:
+        """Stop stepping at a trial's end (the point stays where it is)."""
+        self._next_step_ms = None
+
+    def animate(self, t_ms: float) -> list[str]:
+        """Do a page's animation frame at page time ``t_ms`` (ms); return the messages to send.
+
+        The display draws the frames due; the player takes each step due by ``t_ms`` on the
+        partners drawn now; the positions reached are sent as the pointer's, read at their
+        steps' times (the position now when none was, as a page sends its pointer's when it
+        did not move), and the frames drawn are reported.
+        """
+        self.display.draw(t_ms)
+        if self.player is None:
+            return self.display.reports()
+        read = []
+        while self._next_step_ms is not None and self._next_step_ms <= t_ms:
+            self._x = self._step()
+            read.append((self._next_step_ms, self._x))
+            self._next_step_ms += CONTROL_PERIOD * 1000.0
+        batches = pointer_batches(read or [(t_ms, self._x)], t_ms, self._sent)
+        self._sent += len(batches)
+        return [*map(json.dumps, batches), *self.display.reports()]
+
+    def _step(self) -> float:
+        """Step the player on the partners drawn now; return its position (units)."""
+        assert self.player is not None
+        partners = dict(self.display.partners)
         positions = np.array(list(partners.values()), dtype=float)
         previous = np.array([self._seen.get(j, x) for j, x in partners.items()], dtype=float)
         velocities = (positions - previous) / CONTROL_PERIOD
         self._seen = partners
-        k = int(message["k"])
-        position, _ = self.player.step(Observation(k, positions, velocities, previous))
-        return self._position(position)
-
-    def _position(self, x: float) -> str:
-        """Return the pointer's position message, numbered across the page's connection."""
-        self._sent += 1
-        return json.dumps({"type": "position", "seq": self._sent - 1, "x": float(x)})
+        self._steps += 1
+        observation = Observation(self._steps - 1, positions, velocities, previous)
+        return float(self.player.step(observation)[0])
 
     def reply(self, message: Mapping[str, Any]) -> list[str]:
         """Return the answer messages to a ``questions`` message."""
@@ -219,6 +257,7 @@ async def play_page(url: str, stand_in: StandIn) -> str:
     async with connect(url, proxy=None, open_timeout=30, max_queue=None) as ws:
         await ws.send(json.dumps({"type": "window", "width": WINDOW_PX[0], "height": WINDOW_PX[1]}))
         clock = asyncio.create_task(_exchange_clocks(ws))
+        animation = asyncio.create_task(_animate(ws, stand_in))
         try:
             async for text in ws:
                 message = json.loads(text)
@@ -238,9 +277,10 @@ async def play_page(url: str, stand_in: StandIn) -> str:
         except ConnectionClosed:
             pass
         finally:
-            clock.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await clock
+            for task in (clock, animation):
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await task
     return "closed"
 
 
@@ -273,6 +313,22 @@ async def _exchange_clocks(ws: Any) -> None:
             await asyncio.sleep(CLOCK_BURST_S if n < ENTRY_EXCHANGES else CLOCK_EVERY_S)
 
 
+async def _animate(ws: Any, stand_in: StandIn) -> None:
+    """Run the page's animation frames until the socket closes.
+
+    Each animation frame (`mirror_avatar.lab.running.stand_in_page.next_frame_ms`, on the
+    page's clock from the moment it connected) runs `StandIn.animate` at the page time it
+    actually runs at, and sends its messages.
+    """
+    start = page_ms()
+    with contextlib.suppress(ConnectionClosed):
+        while True:
+            now = page_ms()
+            await asyncio.sleep((next_frame_ms(start, now) - now) / 1000.0)
+            for message in stand_in.animate(page_ms()):
+                await ws.send(message)
+
+
 def _answer(stand_in: StandIn, message: Mapping[str, Any]) -> list[str]:
     """Return what a page sends back to one server message."""
     kind = message["type"]
@@ -280,10 +336,14 @@ def _answer(stand_in: StandIn, message: Mapping[str, Any]) -> list[str]:
         return [json.dumps({"type": "pong", "id": message["id"], "late_frames": 0})]
     if kind == "clock":
         return [json.dumps({"type": "clocked", "id": message["id"], "t3": page_ms()})]
+    if kind == "countdown":
+        stand_in.countdown()
     if kind == "go":
-        return [m for m in (stand_in.start(int(message["trial"])),) if m is not None]
+        stand_in.start(int(message["trial"]), page_ms())
+    if kind == "end":
+        stand_in.stop()
     if kind == "frame":
-        return [m for m in (stand_in.frame(message),) if m is not None]
+        stand_in.display.receive(message)
     if kind == "questions":
         return stand_in.reply(message)
     return []
