@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 from mirror_avatar.cli import main
+from mirror_avatar.lab.running.pilot import run_pilot
 
 PROTOCOL = """
 title = "Network pilot"
@@ -99,12 +100,14 @@ def test_a_pilot_refuses_a_bad_network_before_anything_starts(tmp_path, capsys):
     assert not out.exists()
 
 
-def test_a_pilot_refuses_a_protocol_screening_frame_rates_before_anything_starts(tmp_path, capsys):
-    out = tmp_path / "out"
+@pytest.mark.long
+def test_a_stand_in_draws_and_sizes_its_page_as_a_browser_and_is_admitted(tmp_path):
     protocol = tmp_path / "framed.toml"
-    protocol.write_text(PROTOCOL.replace("[[blocks]]", "[online]\nscreen_frame_rate_hz = 30\n\n"
-                                         "[[blocks]]", 1), encoding="utf-8")  # fmt: skip
-    assert main(["lab", "pilot", "--protocol", str(protocol), "--out", str(out)]) == 2
-    error = capsys.readouterr().err.strip()
-    assert "\n" not in error and f"{protocol}: online.screen_frame_rate_hz: a stand-in's " in error
-    assert "(pilot a copy of the protocol without it)" in error and not out.exists()
+    screening = "[online]\nscreen_frame_rate_hz = 30\nscreen_window_width_px = 800\n\n[[blocks]]"
+    protocol.write_text(PROTOCOL.replace("[[blocks]]", screening, 1), encoding="utf-8")
+    (status,) = run_pilot(protocol, tmp_path / "out", range(1), {"P1": "bundled:slow"}, seed=3)
+    assert status["state"] == "finished"
+    (admitted,) = [event for event in status["events"] if "P1 admitted" in event]
+    assert admitted.endswith("frames/s, window 1280x720 px"), admitted
+    # a stand-in draws on 60 Hz animation frames of its own clock, fewer on a busy machine
+    assert float(admitted.split(" ms, ")[1].split(" frames/s")[0]) >= 30, admitted

@@ -610,12 +610,6 @@ def check_stand_ins(protocol: Protocol, stand_ins: Mapping[str, str]) -> None:
         protocol, a spec longer than `MAX_SPEC_CHARS`, or one that cannot be read, built or
         dry-run (a device, a FIFO, a file too large, a parameter out of its range, ...).
     """
-    if protocol.online.screening.frame_rate_hz is not None:
-        raise InputError(
-            protocol.source,
-            "online.screen_frame_rate_hz: a stand-in's page draws no animation frames, so every "
-            "stand-in would be refused (pilot a copy of the protocol without it)",
-        )
     unknown = sorted(set(stand_ins) - set(protocol.people))
     if unknown:
         raise InputError(
@@ -681,8 +675,7 @@ def run_pilot(
     Raises
     ------
     InputError
-        A stand-in refused, or a protocol screening frame rates (`check_stand_ins`), before
-        the server starts; a run that cannot
+        A stand-in refused (`check_stand_ins`), before the server starts; a run that cannot
         start or end (`pilot_participant`).
     """
     protocol = load_protocol(protocol_file)
