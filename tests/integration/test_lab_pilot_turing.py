@@ -2,8 +2,10 @@
 
 Two virtual participants follow, blinded, either a person's recorded trial replayed or that
 person's avatar (`examples/protocols/turing.toml`, trials shortened) and answer "person or
-computer?" at random; `study table` must call a recording a person's motion and `study report`
-score every answer against chance with that truth.
+computer?" with a detection rate of 1 (``--answer partner=detect:1``: the stand-ins' truth, from
+the protocol's schedule, must agree with the table's, from the recorded slots); `study table`
+must call a recording a person's motion and `study report` score every answer against chance
+with that truth.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ def reported(tmp_path_factory: pytest.TempPathFactory) -> tuple[pd.DataFrame, di
     # The answers' scores need neither surrogates nor many bootstrap resamples.
     for arguments in (
         ("lab", "pilot", "--protocol", str(rehearsal(TEMPLATE, folder)), "--participants", "2",
-         "--seed", "11", "--out", str(out)),
+         "--seed", "11", "--answer", "partner=detect:1", "--out", str(out)),
         ("study", "table", str(out), "--surrogates", "0", "--out", str(results)),
         ("study", "report", str(results), "--resamples", "100", "--out", str(report)),
     ):  # fmt: skip
@@ -53,6 +55,7 @@ def test_the_table_names_the_recording_a_person_s_motion(reported):
     assert people["guess_kind"].isin(["person", "avatar"]).all()
     right = people["guess_kind"] == people["partner_kind"].map(RIGHT)
     assert people["guess_correct"].astype(bool).tolist() == right.tolist()
+    assert right.all()  # detect:1 names the true kind every time
     assert people["guess_confidence"].between(1, 7).all()
 
 

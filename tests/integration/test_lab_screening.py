@@ -257,8 +257,12 @@ def test_a_page_drawing_too_few_frames_or_too_narrow_is_refused_at_entry(tmp_pat
     assert "frames/s, window 1280x600 px" in admitted
 
 
-class HidingPage(ClockedPage):
-    """A page whose tab is hidden for ``hidden_s`` seconds once the trial starts."""
+class HidingPage(Page):
+    """A page whose tab is hidden for ``hidden_s`` seconds once the trial starts.
+
+    It exchanges no clocks, so its entry is never judged (its run is started by force) and its
+    events are timed on their receipt.
+    """
 
     hidden_s = 0.6
 
@@ -278,10 +282,15 @@ def focus(event: str) -> str:
     return json.dumps({"type": "focus", "event": event, "t": time.time() * 1000.0})
 
 
+class ClockedHidingPage(ClockedPage, HidingPage):
+    """A `HidingPage` that makes its entry's clock exchanges, so its entry is judged and its
+    events timed by its own clock."""
+
+
 def test_a_tab_hidden_during_a_trial_is_recorded_and_the_person_told(lab, tmp_path):
     created = create_participant(lab.url, 2, BEARER)
     sid, link = created["id"], created["links"]["P1"]
-    page = HidingPage(link)
+    page = ClockedHidingPage(link)
     play_to_the_end(lab, sid, [page], judged=True)
     assert page.of_type("notice") == [{"type": "notice", "message": BACK_NOTICE}]
     sidecar = json.loads((tmp_path / "out" / sid / "trial-01_session.json").read_text())

@@ -12,12 +12,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from mirror_avatar.analysis.guesses import guess, guess_of, is_identification
 from mirror_avatar.analysis.table import study_table, table_dictionary
 from mirror_avatar.analysis.trials import read_study_trials
 from mirror_avatar.cli import main
 from mirror_avatar.dynamics import CONTROL_PERIOD
 from mirror_avatar.files.trial_record import AnswerRecord, read_trial_record
+from mirror_avatar.lab.design.guesses import guess, guess_of, is_identification
 from mirror_avatar.lab.design.plan import parse_plan
 from mirror_avatar.lab.export.run_outcomes import RunOutcomes
 from mirror_avatar.lab.running.trial import LabTrial, build_avatars

@@ -2,7 +2,7 @@
 
 An answer is a row with a guess (``guess_kind``, "person" or "avatar") about a partner whose
 true kind (``partner_kind``) is "person", "recording" (a person's recorded trial replayed: a
-person's motion, `mirror_avatar.analysis.guesses.MOTION_OF`) or "avatar"; rows whose partners
+person's motion, `mirror_avatar.lab.design.guesses.MOTION_OF`) or "avatar"; rows whose partners
 were mixed are left out. Scored as signal detection with the person as the signal: a hit is
 "person" said of a person's motion, a false alarm "person" said of an avatar. Across persons,
 each person's rate of right answers is a unit (`Identification.chance_test`): a person's answers
@@ -19,8 +19,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from mirror_avatar.analysis.guesses import MOTION_OF
 from mirror_avatar.analysis.statistics import CONFIDENCE, has_spread
+from mirror_avatar.lab.design.guesses import MOTION_OF
 
 CHANCE = 0.5
 """The rate of right answers by guessing between two kinds."""

@@ -16,7 +16,7 @@ a trial: `mirror_avatar.metrics.measuring.measure_trial`, with ``surrogates`` ci
 surrogates seeded by the trial's own seed: a pair's measures on both players' rows, a player's
 own - jitter index, influence, a group member's measures against its neighbours - on its row),
 then each answer (``answer_<question id>``) and, for a person-or-computer question, the guess
-(`mirror_avatar.analysis.guesses`).
+(`mirror_avatar.lab.design.guesses`).
 `write_study_table` writes ``study.csv``, ``study.parquet`` and the dictionary ``study.json``.
 """
 
@@ -42,7 +42,6 @@ from mirror_avatar.analysis.dictionary import (
     p_value_column,
     panel_info,
 )
-from mirror_avatar.analysis.guesses import MOTION_OF, guess
 from mirror_avatar.analysis.outcomes import RunKey
 from mirror_avatar.analysis.trials import StudyTrial
 from mirror_avatar.files.atomic import (
@@ -50,11 +49,11 @@ from mirror_avatar.files.atomic import (
     json_text,
     write_atomic_files,
 )
-from mirror_avatar.files.trial_record import KIND_NAMES, SlotRecord, partner_kind
+from mirror_avatar.files.trial_record import SlotRecord, partner_kind
+from mirror_avatar.lab.design.guesses import MOTION_OF, guess, motion_kind
 from mirror_avatar.lab.export.run_outcomes import RunOutcomes
 from mirror_avatar.metrics import TRIM, registry
 from mirror_avatar.metrics.measuring import TRIAL_SURROGATES, measure_trial
-from mirror_avatar.specs import replays_recording
 
 TABLE_FILES = ("study.csv", "study.parquet", "study.json")
 """The files `write_study_table` writes."""
@@ -142,15 +141,8 @@ def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str,
 
 
 def slot_kind(slot: SlotRecord) -> str:
-    """Name a slot's kind as the study's tables do: ``person``, ``avatar`` or ``recording``.
-
-    **Choice**: an avatar slot that replays a recorded trial file (`replays_recording`) is a
-    ``recording``, a person's motion that nobody plays live; a person-or-computer guess about it
-    is right when it says a person (`mirror_avatar.analysis.guesses.MOTION_OF`).
-    """
-    if slot.spec is not None and slot.kind == "avatar" and replays_recording(slot.spec):
-        return "recording"
-    return KIND_NAMES[slot.kind]
+    """Name a slot's kind: ``person``, ``avatar`` or ``recording`` (`motion_kind`)."""
+    return motion_kind(slot.kind, slot.spec)
 
 
 def _design(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:

@@ -62,7 +62,8 @@ def _pairs(values: tuple[str, ...], option: str) -> dict[str, str]:
     multiple=True,
     metavar="QUESTION=RULE",
     help="How the virtual participants answer a question: random (default), first, "
-    "or value:TEXT (repeatable).",
+    "value:TEXT, or detect:P for a person-or-computer question (the partners' true kind named "
+    "with probability P) (repeatable).",
 )
 @click.option(
     "--seed",
@@ -107,7 +108,8 @@ def pilot(
     at home would (see `mirror-avatar lab proxy`).
     """
     from mirror_avatar.lab.design.protocol import load_protocol
-    from mirror_avatar.lab.running.pilot import NETWORK_LOG, AnswerRule, run_pilot
+    from mirror_avatar.lab.running.pilot import NETWORK_LOG, run_pilot
+    from mirror_avatar.lab.running.stand_in_answers import AnswerRule
     from mirror_avatar.remote.network import parse_network
     from mirror_avatar.remote.truth import companion
 

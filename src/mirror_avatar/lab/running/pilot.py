@@ -65,6 +65,7 @@ from mirror_avatar.lab.design.avatars import load_avatar
 from mirror_avatar.lab.design.plan import MAX_SPEC_CHARS, SessionPlan
 from mirror_avatar.lab.design.protocol import Protocol, load_protocol
 from mirror_avatar.lab.running.screening import ENTRY_EXCHANGES
+from mirror_avatar.lab.running.stand_in_answers import AnswerRule, check_rules, right_guesses
 from mirror_avatar.lab.running.stand_in_page import PageDisplay, next_frame_ms, pointer_batches
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.remote.network import Network
@@ -84,41 +85,6 @@ NETWORK_LOG = "pilot-network.csv"
 the network, the seed, the clock's anchor)."""
 
 
-@dataclass(frozen=True)
-class AnswerRule:
-    """How a virtual participant answers a question.
-
-    ``kind`` is ``random`` (an option, a point or ``"pilot"``, drawn from the stand-in's seed),
-    ``first`` (the first option, point 1, ``"pilot"``) or ``value`` (``value`` itself, which must
-    answer the question: an option's text, a point's number or a text).
-    """
-
-    kind: str = "random"
-    value: str = ""
-
-    @classmethod
-    def parse(cls, text: str) -> AnswerRule:
-        """Read ``random``, ``first`` or ``value:TEXT``."""
-        kind, _, value = text.partition(":")
-        if kind not in ("random", "first", "value") or (kind == "value") != bool(value):
-            raise InputError(
-                "--answer", f"{text!r} is not a rule: give random, first or value:TEXT"
-            )
-        return cls(kind, value)
-
-    def answer(self, question: Mapping[str, Any], rng: np.random.Generator) -> str | int:
-        """Return the answer to ``question`` (as a page shows it: kind, options, points)."""
-        kind = question["kind"]
-        if self.kind == "value":
-            return int(self.value) if kind == "likert" and self.value.isdigit() else self.value
-        if kind == "choice":
-            options = list(question["options"])
-            return options[0] if self.kind == "first" else options[rng.integers(len(options))]
-        if kind == "likert":
-            return 1 if self.kind == "first" else int(rng.integers(1, int(question["points"]) + 1))
-        return "pilot"
-
-
 @dataclass
 class StandIn:
     """A virtual participant's page: a player SPEC stepping on the partners the page draws.
@@ -134,12 +100,16 @@ class StandIn:
         random answers drawn from it.
     answers
         The rule for each question id; `AnswerRule()` (random) for the others.
+    right
+        The right person-or-computer guess about the person's partners in each trial
+        (`mirror_avatar.lab.running.stand_in_answers.right_guesses`), for a ``detect`` rule.
     """
 
     label: str
     spec: str
     seed: int
     answers: Mapping[str, AnswerRule] = field(default_factory=dict)
+    right: Mapping[int, str | None] = field(default_factory=dict)
     role: str = "waiting"
     player: Player | None = None
     display: PageDisplay = field(default_factory=PageDisplay)
@@ -226,7 +196,7 @@ class StandIn:
                     "trial": message["trial"],
                     "question": question["id"],
                     "value": self.answers.get(question["id"], AnswerRule()).answer(
-                        question, self._rng
+                        question, self._rng, self.right.get(int(message["trial"]))
                     ),
                 }
             )
@@ -680,6 +650,7 @@ def run_pilot(
     """
     protocol = load_protocol(protocol_file)
     check_stand_ins(protocol, stand_ins)
+    check_rules(protocol, answers or {})
     out_dir.mkdir(parents=True, exist_ok=True)
     planned = planned_seconds(protocol)
     with (
@@ -721,7 +692,13 @@ async def _pilot_all(
         for number in participants:
             seeds = spawn_seeds([seed, number], len(protocol.people))
             people = {
-                label: StandIn(label, stand_ins[label], int(seeds[j]), answers)
+                label: StandIn(
+                    label,
+                    stand_ins[label],
+                    int(seeds[j]),
+                    answers,
+                    right_guesses(protocol, number, label),
+                )
                 for j, label in enumerate(protocol.people)
                 if label in stand_ins
             }

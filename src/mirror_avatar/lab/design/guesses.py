@@ -15,7 +15,8 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable
 
-from mirror_avatar.files.trial_record import AnswerRecord
+from mirror_avatar.files.trial_record import KIND_NAMES, AnswerRecord
+from mirror_avatar.specs import replays_recording
 
 PERSON_WORDS = frozenset({"person", "human", "people", "someone", "somebody", "participant"})
 """Words of an answer or a question naming a person."""
@@ -26,7 +27,7 @@ MACHINE_WORDS = frozenset(
 """Words of an answer or a question naming a computer player."""
 
 MOTION_OF = {"person": "person", "recording": "person", "avatar": "avatar"}
-"""The right guess about partners of each kind (`mirror_avatar.analysis.table.slot_kind`).
+"""The right guess about partners of each kind (`motion_kind`).
 
 **Choice**: a recording replayed is a person's motion, so "a person" is right about it, as in a
 Turing test of motion; the lab cannot tell a recording of a person from one of a computer
@@ -38,10 +39,28 @@ def _words(text: str) -> set[str]:
     return set(re.findall(r"[a-z]+", text.lower()))
 
 
+def asks_identification(text: str, kind: str) -> bool:
+    """Whether a question of ``text`` and ``kind`` asks person or computer (module docstring)."""
+    words = _words(text)
+    return kind == "choice" and bool(words & PERSON_WORDS) and bool(words & MACHINE_WORDS)
+
+
 def is_identification(answer: AnswerRecord) -> bool:
-    """Whether ``answer`` answers a person-or-computer question (see the module docstring)."""
-    words = _words(answer.text)
-    return answer.kind == "choice" and bool(words & PERSON_WORDS) and bool(words & MACHINE_WORDS)
+    """Whether ``answer`` answers a person-or-computer question (`asks_identification`)."""
+    return asks_identification(answer.text, answer.kind)
+
+
+def motion_kind(kind: str, spec: str | None) -> str:
+    """Name a slot's kind as the study's tables do: ``person``, ``avatar`` or ``recording``.
+
+    ``kind``: the slot's (``human`` or ``avatar``); ``spec``: its avatar's SPEC. **Choice**: an
+    avatar slot that replays a recorded trial file (`mirror_avatar.specs.replays_recording`) is
+    a ``recording``, a person's motion that nobody plays live; a person-or-computer guess about
+    it is right when it says a person (`MOTION_OF`).
+    """
+    if spec is not None and kind == "avatar" and replays_recording(spec):
+        return "recording"
+    return KIND_NAMES[kind]
 
 
 def guess_of(value: object) -> str | None:
