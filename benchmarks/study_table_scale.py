@@ -23,9 +23,10 @@ The study:
   first `BASELINE_PARTICIPANTS` participants' runs (the baseline, same run) and on all of
   them, then ``mirror-avatar study report`` on the table of all, each in a fresh child process
   (interpreter start and imports included). Wall time; peak memory = the largest sum of the
-  resident memory of the child and all its descendants, sampled every `SAMPLE_S` s with psutil
-  (worker processes count); ``ru_maxrss`` of the largest single process from
-  ``/usr/bin/time -v`` beside it. Ratio = the whole study's time / the baseline's.
+  resident memory (RSS) of the child and all its descendants, and the largest sum of their
+  proportional memory (PSS: a page shared by forked workers counted once), sampled every
+  `SAMPLE_S` s with psutil (worker processes count); ``ru_maxrss`` of the largest single
+  process from ``/usr/bin/time -v`` beside it. Ratio = each table's time / the first's.
 
 Run: ``PYTHONPATH=src python benchmarks/study_table_scale.py [--participants 500]
 [--source OTHER/src]`` (``--source`` times another checkout's package on the same study, e.g.
@@ -62,7 +63,7 @@ TRIALS = 20
 BASELINE_PARTICIPANTS = 50
 """Participants of the baseline table."""
 
-SAMPLE_S = 0.05
+SAMPLE_S = 0.1
 """How often the children's resident memory is sampled (s)."""
 
 ENTRY = "from mirror_avatar.console import run; run()"
@@ -173,37 +174,50 @@ def timed(command: list[str], source: Path) -> dict[str, float]:
     full = ["/usr/bin/time", "-v", sys.executable, "-c", ENTRY, *command]
     started = time.monotonic()
     child = psutil.Popen(full, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    peak = 0
+    peak, peak_pss = 0, 0
     while child.poll() is None:
-        peak = max(peak, _tree_rss(child))
+        rss, pss = _tree_memory(child)
+        peak, peak_pss = max(peak, rss), max(peak_pss, pss)
         time.sleep(SAMPLE_S)
     wall = time.monotonic() - started
     out, err = child.communicate()
     if child.returncode != 0:
         raise SystemExit(f"{' '.join(command)} failed ({child.returncode}):\n{out}\n{err}")
     largest = re.search(r"Maximum resident set size \(kbytes\): (\d+)", err)
-    return {"wall_s": wall, "peak_mb": peak / 1e6,
+    return {"wall_s": wall, "peak_mb": peak / 1e6, "peak_pss_mb": peak_pss / 1e6,
             "largest_mb": int(largest.group(1)) / 1e3 if largest else float("nan")}  # fmt: skip
 
 
-def _tree_rss(process: psutil.Process) -> int:
-    """Return the resident memory of ``process`` and its descendants (bytes; 0 once gone)."""
-    total = 0
+def _tree_memory(process: psutil.Process) -> tuple[int, int]:
+    """Return the resident and proportional memory of ``process`` and its descendants (bytes).
+
+    The proportional set size (PSS) counts a page shared by k processes (a forked worker's
+    copy of the package) as 1/k in each, so its sum counts it once; 0 once the process is gone.
+    """
+    rss = pss = 0
     try:
         for each in [process, *process.children(recursive=True)]:
-            total += each.memory_info().rss
+            memory = each.memory_full_info()
+            rss, pss = rss + memory.rss, pss + memory.pss
     except psutil.NoSuchProcess:
         pass
-    return total
+    return rss, pss
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--participants", type=int, default=500)
+    parser.add_argument("--sizes", type=int, nargs="+", help="participants of each table timed "
+                        f"(default {BASELINE_PARTICIPANTS} and --participants)")  # fmt: skip
+    parser.add_argument("--jobs", type=int, default=1, help="study table --jobs")
+    parser.add_argument("--no-report", action="store_true", help="time the tables only")
     parser.add_argument("--source", type=Path, default=Path(__file__).parents[1] / "src")
     parser.add_argument("--recorded", type=Path, help="a folder record() wrote, to reuse")
     parser.add_argument("--keep", type=Path, help="write the study here and keep it")
     args = parser.parse_args()
+    sizes = args.sizes or [BASELINE_PARTICIPANTS, args.participants]
+    jobs = [] if args.jobs == 1 else ["--jobs", str(args.jobs)]
+    rows: dict[str, dict[str, float]] = {}
     with tempfile.TemporaryDirectory() as scratch:
         work = args.keep or Path(scratch)
         recorded = args.recorded or work / "recorded"
@@ -211,30 +225,33 @@ def main() -> None:
         study = work / "study"
         if not study.is_dir():
             started = time.monotonic()
-            expand(templates, study, args.participants)
-            print(f"wrote {args.participants} x {TRIALS} trials in "
-                  f"{time.monotonic() - started:.0f} s")  # fmt: skip
-        baseline = work / "baseline"
-        if not baseline.is_dir():
-            baseline.mkdir()
-            for run in sorted(study.iterdir())[:BASELINE_PARTICIPANTS]:
-                os.symlink(run.resolve(), baseline / run.name)
+            expand(templates, study, max(sizes))
+            print(f"wrote {max(sizes)} x {TRIALS} trials in {time.monotonic() - started:.0f} s")
         load = os.getloadavg()
-        rows = {
-            f"table, {BASELINE_PARTICIPANTS} x {TRIALS}": timed(
-                ["study", "table", str(baseline), "--out", str(work / "t50")], args.source),
-            f"table, {args.participants} x {TRIALS}": timed(
-                ["study", "table", str(study), "--out", str(work / "t")], args.source),
-            f"report, {args.participants} x {TRIALS}": timed(
-                ["study", "report", str(work / "t"), "--out", str(work / "r")], args.source),
-        }  # fmt: skip
+        for size in sizes:
+            runs = work / f"first-{size}"
+            if not runs.is_dir():
+                runs.mkdir()
+                for run in sorted(study.iterdir())[:size]:
+                    os.symlink(run.resolve(), runs / run.name)
+            out = Path(scratch) / f"table-{size}"
+            rows[f"table, {size} x {TRIALS}{' '.join(['', *jobs])}"] = timed(
+                ["study", "table", str(runs), "--out", str(out), *jobs], args.source
+            )
+            print(rows, flush=True)
+        if not args.no_report:
+            rows[f"report, {max(sizes)} x {TRIALS}"] = timed(
+                ["study", "report", str(out), "--out", str(Path(scratch) / "report")], args.source
+            )
         load_after = os.getloadavg()
     base = next(iter(rows.values()))["wall_s"]
-    print("| command | wall (s) | ratio to the baseline | peak memory, all processes (MB) | "
-          "largest process (MB) |\n|---|---|---|---|---|")  # fmt: skip
+    print("| command | wall (s) | ratio to the first | peak RSS, all processes (MB) | "
+          "peak PSS, all processes (MB) | largest process (MB) |")  # fmt: skip
+    print("|---|---|---|---|---|---|")
     for name, row in rows.items():
         print(f"| {name} | {row['wall_s']:.1f} | {row['wall_s'] / base:.1f} | "
-              f"{row['peak_mb']:.0f} | {row['largest_mb']:.0f} |")  # fmt: skip
+              f"{row['peak_mb']:.0f} | {row['peak_pss_mb']:.0f} | "
+              f"{row['largest_mb']:.0f} |")  # fmt: skip
     print(f"load (1, 5, 15 min) before {load}, after {load_after}; {os.cpu_count()} cores")
 
 

@@ -84,7 +84,7 @@ def study_table(
     rows = [
         row
         for trial in trials
-        for row in trial_rows(trial, trial_measures(trial, trim, surrogates), outcomes)
+        for row in trial_rows(trial, trial_measures(trial, trim, surrogates) or {}, outcomes)
     ]
     return table_of_rows(rows, outcomes)
 
@@ -151,14 +151,14 @@ def _refused_before_playing(
     ]  # fmt: skip
 
 
-def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str, Any]:
+def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str, Any] | None:
     """Compute a trial's metrics and measures (`mirror_avatar.metrics.measuring.measure_trial`).
 
     A trial with fewer than `mirror_avatar.files.trials.MIN_SAMPLES` samples after the trim (a run
-    stopped at once) has none: its rows keep their design and answers.
+    stopped at once) has none (None): its rows keep their design and answers.
     """
     measured = measure_trial(trial.session, surrogates, trim)
-    return {} if measured is None else measured.metrics | measured.measures.values
+    return None if measured is None else measured.metrics | measured.measures.values
 
 
 def slot_kind(slot: SlotRecord) -> str:
