@@ -22,7 +22,9 @@ The study:
 - **Timed**: ``mirror-avatar study table DIR --out OUT`` (default trim and surrogates) on the
   first `BASELINE_PARTICIPANTS` participants' runs (the baseline, same run) and on all of
   them, then ``mirror-avatar study report`` on the table of all, each in a fresh child process
-  (interpreter start and imports included). Wall time; peak memory = the largest sum of the
+  (interpreter start and imports included). Wall time; CPU time (user + system, of the child
+  and the workers it waited for, from ``/usr/bin/time -v``: on a shared machine the measure
+  that does not depend on the load); peak memory = the largest sum of the
   resident memory (RSS) of the child and all its descendants, and the largest sum of their
   proportional memory (PSS: a page shared by forked workers counted once), sampled every
   `SAMPLE_S` s with psutil (worker processes count); ``ru_maxrss`` of the largest single
@@ -184,7 +186,8 @@ def timed(command: list[str], source: Path) -> dict[str, float]:
     if child.returncode != 0:
         raise SystemExit(f"{' '.join(command)} failed ({child.returncode}):\n{out}\n{err}")
     largest = re.search(r"Maximum resident set size \(kbytes\): (\d+)", err)
-    return {"wall_s": wall, "peak_mb": peak / 1e6, "peak_pss_mb": peak_pss / 1e6,
+    cpu = sum(float(t) for t in re.findall(r"(?:User|System) time \(seconds\): ([\d.]+)", err))
+    return {"wall_s": wall, "cpu_s": cpu, "peak_mb": peak / 1e6, "peak_pss_mb": peak_pss / 1e6,
             "largest_mb": int(largest.group(1)) / 1e3 if largest else float("nan")}  # fmt: skip
 
 
@@ -210,13 +213,16 @@ def main() -> None:
     parser.add_argument("--sizes", type=int, nargs="+", help="participants of each table timed "
                         f"(default {BASELINE_PARTICIPANTS} and --participants)")  # fmt: skip
     parser.add_argument("--jobs", type=int, default=1, help="study table --jobs")
+    parser.add_argument("--surrogates", type=int, help="study table --surrogates (its default)")
     parser.add_argument("--no-report", action="store_true", help="time the tables only")
     parser.add_argument("--source", type=Path, default=Path(__file__).parents[1] / "src")
     parser.add_argument("--recorded", type=Path, help="a folder record() wrote, to reuse")
     parser.add_argument("--keep", type=Path, help="write the study here and keep it")
     args = parser.parse_args()
     sizes = args.sizes or [BASELINE_PARTICIPANTS, args.participants]
-    jobs = [] if args.jobs == 1 else ["--jobs", str(args.jobs)]
+    options = [] if args.jobs == 1 else ["--jobs", str(args.jobs)]
+    if args.surrogates is not None:
+        options += ["--surrogates", str(args.surrogates)]
     rows: dict[str, dict[str, float]] = {}
     with tempfile.TemporaryDirectory() as scratch:
         work = args.keep or Path(scratch)
@@ -235,8 +241,8 @@ def main() -> None:
                 for run in sorted(study.iterdir())[:size]:
                     os.symlink(run.resolve(), runs / run.name)
             out = Path(scratch) / f"table-{size}"
-            rows[f"table, {size} x {TRIALS}{' '.join(['', *jobs])}"] = timed(
-                ["study", "table", str(runs), "--out", str(out), *jobs], args.source
+            rows[f"table, {size} x {TRIALS}{' '.join(['', *options])}"] = timed(
+                ["study", "table", str(runs), "--out", str(out), *options], args.source
             )
             print(rows, flush=True)
         if not args.no_report:
@@ -245,11 +251,11 @@ def main() -> None:
             )
         load_after = os.getloadavg()
     base = next(iter(rows.values()))["wall_s"]
-    print("| command | wall (s) | ratio to the first | peak RSS, all processes (MB) | "
-          "peak PSS, all processes (MB) | largest process (MB) |")  # fmt: skip
-    print("|---|---|---|---|---|---|")
+    print("| command | wall (s) | ratio to the first | CPU, user + system (s) | peak RSS, all "
+          "processes (MB) | peak PSS, all processes (MB) | largest process (MB) |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|")
     for name, row in rows.items():
-        print(f"| {name} | {row['wall_s']:.1f} | {row['wall_s'] / base:.1f} | "
+        print(f"| {name} | {row['wall_s']:.1f} | {row['wall_s'] / base:.1f} | {row['cpu_s']:.0f} | "
               f"{row['peak_mb']:.0f} | {row['peak_pss_mb']:.0f} | "
               f"{row['largest_mb']:.0f} |")  # fmt: skip
     print(f"load (1, 5, 15 min) before {load}, after {load_after}; {os.cpu_count()} cores")
