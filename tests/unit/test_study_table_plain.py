@@ -124,6 +124,47 @@ def test_two_recordings_under_one_name_are_refused_not_one_of_them_dropped(
     assert len(table(paths, tmp_path / "twice")) == len(table([ring_session], tmp_path / "once"))
 
 
+@pytest.fixture(scope="module")
+def lab_out(ring_session: Path) -> Path:
+    """A lab's --out of three plain sessions: the ring's and two more, recorded alike."""
+    out = ring_session.parent / "out"
+    shutil.copytree(ring_session, out / ring_session.name)
+    for name in ("20261127T020304-002", "20261127T030405-003"):
+        (out / name).mkdir()
+        (out / name / "plan.json").write_text(json.dumps({"session_id": name}))
+        record_trial(out / name, 1)
+        record_trial(out / name, 2, seconds=0.6)
+    return out
+
+
+def test_worker_processes_write_the_table_byte_for_byte_as_one_process(lab_out, tmp_path):
+    """The run folders shared among forked workers, a folder given twice read once: the same
+    three files as one process writes, and the rows `study_table` makes of the trials read at
+    once."""
+    one, two = tmp_path / "one", tmp_path / "two"
+    paths = [str(lab_out), str(lab_out / "20261127T020304-002")]
+    assert main(["study", "table", *paths, "--out", str(one), "--surrogates", "3"]) == 0
+    assert main(["study", "table", *paths, "--out", str(two), "--surrogates", "3",
+                 "--jobs", "2"]) == 0  # fmt: skip
+    for name in ("study.csv", "study.parquet", "study.json"):
+        assert (one / name).read_bytes() == (two / name).read_bytes()
+    rows = pd.read_parquet(two / "study.parquet")
+    assert len(set(rows["participant"])) == 3 and len(rows) == 3 * 2 * 3
+    whole = study_table(read_study_trials([lab_out]), surrogates=3)
+    pd.testing.assert_frame_equal(rows, whole, check_dtype=False)
+
+
+def test_a_bad_trial_file_in_a_worker_is_one_line(lab_out, tmp_path, capsys):
+    """An `InputError` raised in a worker process reaches the command as it was raised."""
+    out = tmp_path / "lab"
+    shutil.copytree(lab_out, out)
+    broken = out / "20261127T030405-003" / "trial-01_session.csv"
+    broken.write_text("time,position_0\nnot,a number\n")
+    code = main(["study", "table", str(out), "--out", str(tmp_path / "t"), "--jobs", "2"])
+    error = capsys.readouterr().err
+    assert code == 2 and error.count("\n") == 1 and str(broken) in error
+
+
 def test_a_run_whose_only_person_was_refused_has_their_row_and_no_trial():
     refused = {("p000", "study-p000"): RunOutcomes(refusals={"P1": "Your connection is slow."})}
     (row,) = study_table([], outcomes=refused).itertuples()

@@ -80,19 +80,39 @@ def study_table(
     first trial.
     """
     outcomes = outcomes or {}
-    rows: list[dict[str, Any]] = []
-    for trial in trials:
-        measures = trial_measures(trial, trim, surrogates)
-        run = outcomes.get((trial.participant, trial.record.session_id))
-        for k, slot in enumerate(trial.record.slots):
-            row = _design(trial, slot) | {"block": trial.block, "position": trial.position}
-            row |= _panel(trial, slot) | _run(run, slot.label, outcomes)
-            row |= _page(trial, slot)
-            row |= _player_measures(measures, k, trial)
-            row |= _answers(trial, slot)
-            rows.append(row)
+    rows = [
+        row
+        for trial in trials
+        for row in trial_rows(trial, trial_measures(trial, trim, surrogates) or {}, outcomes)
+    ]
+    return table_of_rows(rows, outcomes)
+
+
+def table_of_rows(
+    rows: list[dict[str, Any]], outcomes: Mapping[RunKey, RunOutcomes]
+) -> pd.DataFrame:
+    """Make the study table of its trials' rows (`trial_rows`, in trial order).
+
+    The runs' ``outcomes`` add a row for each person screened out before their first trial.
+    """
     rows += _refused_before_playing(rows, outcomes)
     return _ordered(pd.DataFrame(rows))
+
+
+def trial_rows(
+    trial: StudyTrial, measures: dict[str, Any], outcomes: Mapping[RunKey, RunOutcomes]
+) -> list[dict[str, Any]]:
+    """Return a trial's rows, one per player, given its ``measures`` (`trial_measures`)."""
+    run = outcomes.get((trial.participant, trial.record.session_id))
+    rows = []
+    for k, slot in enumerate(trial.record.slots):
+        row = _design(trial, slot) | {"block": trial.block, "position": trial.position}
+        row |= _panel(trial, slot) | _run(run, slot.label, outcomes)
+        row |= _page(trial, slot)
+        row |= _player_measures(measures, k, trial)
+        row |= _answers(trial, slot)
+        rows.append(row)
+    return rows
 
 
 def _panel(trial: StudyTrial, slot: SlotRecord) -> dict[str, str]:
@@ -130,14 +150,14 @@ def _refused_before_playing(
     ]  # fmt: skip
 
 
-def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str, Any]:
+def trial_measures(trial: StudyTrial, trim: float, surrogates: int) -> dict[str, Any] | None:
     """Compute a trial's metrics and measures (`mirror_avatar.metrics.measuring.measure_trial`).
 
     A trial with fewer than `mirror_avatar.files.trials.MIN_SAMPLES` samples after the trim (a run
-    stopped at once) has none: its rows keep their design and answers.
+    stopped at once) has none (None): its rows keep their design and answers.
     """
     measured = measure_trial(trial.session, surrogates, trim)
-    return {} if measured is None else measured.metrics | measured.measures.values
+    return None if measured is None else measured.metrics | measured.measures.values
 
 
 def slot_kind(slot: SlotRecord) -> str:
@@ -197,8 +217,11 @@ def _pairwise(key: str, n_players: int) -> bool:
     return n_players > 2 and key.startswith("transfer_entropy_")
 
 
+_KNOWN = frozenset(MEASURES) | {p_value_column(m) for m in MEASURES}
+
+
 def _known(key: str) -> bool:
-    return key in MEASURES or any(key == p_value_column(m) for m in MEASURES)
+    return key in _KNOWN
 
 
 def _answers(trial: StudyTrial, slot: SlotRecord) -> dict[str, Any]:

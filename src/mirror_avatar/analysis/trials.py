@@ -14,9 +14,10 @@ participant's number and each ``_beh.tsv`` the answers.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import NamedTuple, TypeVar
 
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.files.bids.names import MISSING, bids_label, entities
@@ -40,6 +41,8 @@ from mirror_avatar.lab.files import (
 )
 from mirror_avatar.sessions.loading import load_session
 from mirror_avatar.sessions.session import Session
+
+T = TypeVar("T")
 
 DATASET_FILE = "dataset_description.json"
 """The file that makes a folder a BIDS dataset's root."""
@@ -87,41 +90,96 @@ def read_study_trials(paths: Sequence[Path]) -> list[StudyTrial]:
         folder of one; a file of a trial that cannot be read; two recordings of one trial of
         one participant's session (two labs' ``--out`` folders whose runs share names).
     """
-    found: list[StudyTrial] = []
+    found = [trial for source in study_sources(paths) for trial in read_source(source)]
+    return unique_trials(found, trial_identity)
+
+
+def study_sources(paths: Sequence[Path]) -> list[Path]:
+    """Return the sources of ``paths``' trials, in order: run folders, BIDS datasets or subjects.
+
+    Raises
+    ------
+    InputError
+        A path that is neither a run folder, a folder of them, a BIDS dataset nor a subject
+        folder of one.
+    """
+    sources: list[Path] = []
     for path in paths:
         if not path.is_dir():
             raise InputError(
                 path, "no such folder (give run folders, the lab's --out or a BIDS dataset)"
             )
-        if is_session_folder(path):
-            found += read_run_folder(path)
-        elif (path / DATASET_FILE).is_file() or path.name.startswith("sub-"):
-            found += read_bids_trials(path)
+        if is_session_folder(path) or _is_bids(path):
+            sources.append(path)
         else:
             runs = sorted(p for p in path.iterdir() if p.is_dir() and is_session_folder(p))
             if not runs:
                 raise InputError(
                     path, "no run folder (plan.json or study.json) and not a BIDS dataset in it"
                 )
-            found += [trial for run in runs for trial in read_run_folder(run)]
-    unique: dict[tuple[str, str, int], StudyTrial] = {}
-    for trial in found:
-        key = (trial.participant, trial.record.session_id, trial.record.trial)
-        kept = unique.setdefault(key, trial)
-        if not _same_recording(kept, trial):
+            sources += runs
+    return sources
+
+
+def read_source(source: Path) -> list[StudyTrial]:
+    """Read the trials of one source `study_sources` returns: a run folder or a BIDS dataset."""
+    return read_run_folder(source) if is_session_folder(source) else read_bids_trials(source)
+
+
+def _is_bids(path: Path) -> bool:
+    return (path / DATASET_FILE).is_file() or path.name.startswith("sub-")
+
+
+class TrialIdentity(NamedTuple):
+    """What tells a trial from another, and one recording of it from another.
+
+    Attributes
+    ----------
+    key
+        The participant, the session id and the trial number.
+    recorded
+        When it was created and started (UTC, as its record says).
+    source
+        The file it was read from.
+    """
+
+    key: tuple[str, str, int]
+    recorded: tuple[str | None, str | None]
+    source: Path
+
+
+def trial_identity(trial: StudyTrial) -> TrialIdentity:
+    """Return a trial's `TrialIdentity`."""
+    record = trial.record
+    return TrialIdentity(
+        (trial.participant, record.session_id, record.trial),
+        (record.created_utc, record.started_utc),
+        trial.source,
+    )
+
+
+def unique_trials(found: Iterable[T], identity: Callable[[T], TrialIdentity]) -> list[T]:
+    """Keep one of each trial (`read_study_trials`), the first read, ordered by trial.
+
+    ``identity`` gives the `TrialIdentity` of each item of ``found``.
+
+    Raises
+    ------
+    InputError
+        Two recordings of one trial of one participant's session.
+    """
+    unique: dict[tuple[str, str, int], T] = {}
+    for item in found:
+        found_id = identity(item)
+        kept = identity(unique.setdefault(found_id.key, item))
+        if kept.recorded != found_id.recorded:
             raise InputError(
-                trial.source,
-                f"trial {key[2]} of {key[1]} is also {kept.source}, recorded at another time: "
-                "give the folders of one lab --out (pilot the other with other participant "
-                "numbers, lab pilot --first, to read both)",
+                found_id.source,
+                f"trial {found_id.key[2]} of {found_id.key[1]} is also {kept.source}, recorded "
+                "at another time: give the folders of one lab --out (pilot the other with other "
+                "participant numbers, lab pilot --first, to read both)",
             )
     return [unique[key] for key in sorted(unique)]
-
-
-def _same_recording(one: StudyTrial, other: StudyTrial) -> bool:
-    """Whether two trials read under one name are one recording (its run folder, its export)."""
-    times = ("created_utc", "started_utc")
-    return all(getattr(one.record, t) == getattr(other.record, t) for t in times)
 
 
 def participant_name(study: StudyRun | None, session_id: str) -> str:

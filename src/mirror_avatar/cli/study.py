@@ -10,13 +10,12 @@ from mirror_avatar.analysis.outcomes import read_study_outcomes
 from mirror_avatar.analysis.table import (
     SURROGATES,
     TABLE_FILES,
-    question_texts,
-    study_table,
     table_dictionary,
     write_study_table,
 )
-from mirror_avatar.analysis.trials import read_study_trials
-from mirror_avatar.cli.constrained import TRIM_RANGE, ranged
+from mirror_avatar.analysis.table_sources import study_rows
+from mirror_avatar.analysis.trials import study_sources
+from mirror_avatar.cli.constrained import JOBS, TRIM_RANGE, ranged
 from mirror_avatar.cli.outputs import check_output_dir
 from mirror_avatar.cli.study_plan import plan
 from mirror_avatar.cli.study_power import power
@@ -24,7 +23,6 @@ from mirror_avatar.cli.study_report import report
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.metrics import TRIM
 from mirror_avatar.metrics.measures import CONSTRAINTS as MEASURE_CONSTRAINTS
-from mirror_avatar.metrics.measuring import measurable
 
 
 @click.group()
@@ -47,7 +45,12 @@ def study() -> None:
     **ranged("Circular-shift surrogates per trial for the measures' p-values (0: none), drawn "
              "from each trial's recorded seed.", MEASURE_CONSTRAINTS["n_surrogates"]),
 )  # fmt: skip
-def table(paths: tuple[Path, ...], out_dir: Path, trim: float, surrogates: int) -> None:
+@click.option(
+    "--jobs", default=1, show_default=True,
+    **ranged("Worker processes measuring the run folders (each its own copy of the package in "
+             "memory); the table is the same whatever their number.", JOBS),
+)  # fmt: skip
+def table(paths: tuple[Path, ...], out_dir: Path, trim: float, surrogates: int, jobs: int) -> None:
     """Write one long table of a study: a row per trial and player.
 
     PATHS are the lab's run folders (a study participant's OUT/<protocol>-pNNN/, a plain
@@ -64,26 +67,26 @@ def table(paths: tuple[Path, ...], out_dir: Path, trim: float, surrogates: int) 
     if not trim >= 0:
         raise InputError("--trim", "must be 0 or more seconds")
     check_output_dir(out_dir, files=TABLE_FILES)
-    trials = read_study_trials(paths)
+    sources = study_sources(paths)
     outcomes = read_study_outcomes(paths)
-    if not trials and not outcomes:
+    found = study_rows(sources, trim, surrogates, outcomes, jobs)
+    if not found.trials and not outcomes:
         raise InputError(paths[0], "no lab trial in it (run folders or a lab's BIDS export)")
-    if trials and all(measurable(trial.session, trim) is None for trial in trials):
-        longest = max(trial.session.duration for trial in trials)
+    if found.trials and not found.measured:
         raise InputError(
             "--trim",
             f"{trim:g} s leaves no trial enough samples to measure (the longest lasts "
-            f"{longest:.3g} s): give a shorter trim",
+            f"{found.longest:.3g} s): give a shorter trim",
         )
-    rows = study_table(trials, trim=trim, surrogates=surrogates, outcomes=outcomes)
-    write_study_table(rows, table_dictionary(rows, question_texts(trials)), out_dir)
+    rows = found.table
+    write_study_table(rows, table_dictionary(rows, found.questions), out_dir)
     participants = rows["participant"].nunique()
-    incomplete = sum(not trial.record.complete for trial in trials)
     refused = sum(len(run.refusals) for run in outcomes.values())
     screened = f", {refused} screened out" if refused else ""
     click.echo(
-        f"wrote {out_dir.resolve()}: {len(rows)} rows ({len(trials)} trials, {incomplete} of "
-        f"them incomplete, {participants} participant{'s' * (participants != 1)}{screened})"
+        f"wrote {out_dir.resolve()}: {len(rows)} rows ({found.trials} trials, "
+        f"{found.incomplete} of them incomplete, {participants} "
+        f"participant{'s' * (participants != 1)}{screened})"
     )
 
 

@@ -24,3 +24,7 @@ class InputError(ValueError):
         self.problem = problem
         text = problem if self.source is None else f"{self.source}: {problem}"
         super().__init__(" ".join(text.split()))
+
+    def __reduce__(self) -> tuple[type[InputError], tuple[str | None, str]]:
+        """Pickle as an `InputError` of its source and problem (a worker process raises it)."""
+        return InputError, (self.source, self.problem)
