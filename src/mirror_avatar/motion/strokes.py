@@ -131,6 +131,9 @@ class StrokeGenerator:
     continuation
         Probability that the next stroke is the last drawn stroke's successor in its training
         trial (when that one is drawable) rather than a nearest neighbour's draw; 0: the chain.
+    successor_jitter
+        Factor (at least 1) on the jitter of a stroke taken as a successor: its length and
+        displacement factors are log-normal with ``successor_jitter`` times the bandwidth.
     min_reversal
         How far (units) the position must move back from a turning point for it to count as a
         reversal (`reversals`).
@@ -178,6 +181,7 @@ class StrokeGenerator:
         neighbours: int | str = "auto",
         jitter: float = 0.5,
         continuation: float = 0.0,
+        successor_jitter: float = 1.0,
         min_reversal: float = 0.01,
         rate: float = 100.0,
         random_state: int | None = None,
@@ -185,6 +189,7 @@ class StrokeGenerator:
         self.neighbours = neighbours
         self.jitter = jitter
         self.continuation = continuation
+        self.successor_jitter = successor_jitter
         self.min_reversal = min_reversal
         self.rate = rate
         self.random_state = random_state
@@ -341,10 +346,13 @@ class StrokeGenerator:
         direction = float(np.sign(self.displacements_[stroke])) or 1.0
         time = -rng.random() * self.lengths_[stroke]
         filled = 0
+        spread = 1.0
         while filled < n_samples:
-            length = self.lengths_[stroke] * math.exp(self.bandwidth_[0] * rng.standard_normal())
+            length = self.lengths_[stroke] * math.exp(
+                spread * self.bandwidth_[0] * rng.standard_normal()
+            )
             size = abs(self.displacements_[stroke]) * math.exp(
-                self.bandwidth_[1] * rng.standard_normal()
+                spread * self.bandwidth_[1] * rng.standard_normal()
             )
             size = min(size, _room_ahead(position, direction))
             filled = self._draw_stroke(
@@ -352,7 +360,7 @@ class StrokeGenerator:
             )
             position += direction * size
             time += length
-            stroke = self._following(stroke, length, size, position, -direction, rng)
+            stroke, spread = self._following(stroke, length, size, position, -direction, rng)
             direction = -direction
         low, high = PLAYING_RANGE
         return np.clip(positions, low, high)
@@ -403,13 +411,17 @@ class StrokeGenerator:
         position: float,
         direction: float,
         rng: np.random.Generator,
-    ) -> int:
-        """Draw the stroke after ``stroke``: with probability `continuation` its successor."""
+    ) -> tuple[int, float]:
+        """Draw the stroke after ``stroke`` and the factor on its jitter.
+
+        With probability `continuation` it is ``stroke``'s successor, jittered
+        `successor_jitter` times as wide; else a nearest neighbour's draw, jittered as usual.
+        """
         if self.continuation > 0 and rng.random() < self.continuation:
             successor = int(self.successors_[stroke])
             if successor >= 0:
-                return successor
-        return self._next_stroke(length, size, position, direction, rng)
+                return successor, self.successor_jitter
+        return self._next_stroke(length, size, position, direction, rng), 1.0
 
     def _next_stroke(
         self,
@@ -468,6 +480,7 @@ class StrokeGenerator:
             "neighbours": self.neighbours,
             "jitter": float(self.jitter),
             "continuation": float(self.continuation),
+            "successor_jitter": float(self.successor_jitter),
             "min_reversal": float(self.min_reversal),
             "rate": float(self.rate),
             "random_state": self.random_state,
