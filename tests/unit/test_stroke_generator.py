@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -251,83 +250,3 @@ def test_arrays_that_link_each_stroke_to_the_one_before_are_read_as_the_fit_keep
     arrays["previous"][3] = 3
     with pytest.raises(InputError, match="earlier stroke"):
         StrokeGenerator.from_arrays(arrays, metadata, "avatar.npz")
-
-
-def strokes_trial(lengths: np.ndarray, size: float = 0.3):
-    """A trial of half-cosine strokes of ``lengths`` (samples) between -size/2 and size/2."""
-    pieces = [np.array([-size / 2])]
-    for number, length in enumerate(lengths):
-        phase = np.arange(1, length + 1) / length
-        sign = 1.0 if number % 2 == 0 else -1.0
-        pieces.append(sign * size / 2 * -np.cos(np.pi * phase))
-    positions = np.concatenate(pieces)
-    return make_trial(np.arange(positions.size) / RATE, positions, label="s", group="s")
-
-
-def successor_share(continuation: float, cycle: np.ndarray, seeds: range) -> tuple[float, int]:
-    """Share of generated strokes that are the training successor of the stroke before them.
-
-    The training trial repeats ``cycle``, stroke lengths 5 samples apart, three times, so a
-    stroke's length (cut as the fit cuts, within 2 samples of its drawn length without jitter)
-    names its place in the cycle and its successor's; returns the share and the number of
-    consecutive pairs.
-    """
-    model = StrokeGenerator(jitter=0.0, continuation=continuation, random_state=0)
-    model.fit([strokes_trial(np.tile(cycle, 3))])
-    place = {int(length): number for number, length in enumerate(cycle)}
-    follows, pairs = 0, 0
-    for seed in seeds:
-        edges = reversals(model.sample_positions(20_000, seed), model.min_reversal)[1:-1]
-        drawn = [place[int(5 * round(n / 5))] for n in np.diff(edges)]
-        follows += sum(
-            b == (a + 1) % cycle.size for a, b in zip(drawn[:-1], drawn[1:], strict=True)
-        )
-        pairs += len(drawn) - 1
-    return follows / pairs, pairs
-
-
-def test_continuation_takes_the_training_successor_with_its_probability() -> None:
-    """P(successor) = c + (1 - c) p0, p0 the chain's own share (c = 0), within 4 binomial SEs.
-
-    Drawn this way each stroke, the runs of successors are geometric blocks of mean
-    1 / (1 - P) (the stationary bootstrap's block lengths).
-    """
-    cycle = np.random.default_rng(0).permutation(np.arange(40, 240, 5))
-    chain, _ = successor_share(0.0, cycle, range(4))
-    assert chain < 0.8
-    for continuation in (0.5, 0.95):
-        share, pairs = successor_share(continuation, cycle, range(4))
-        expected = continuation + (1 - continuation) * chain
-        assert share == pytest.approx(
-            expected, abs=4 * math.sqrt(expected * (1 - expected) / pairs)
-        )
-
-
-def log_length_spread(continuation: float, successor_jitter: float) -> float:
-    """SD of the log lengths of strokes generated from 40 training strokes of 100 samples.
-
-    Every training stroke is alike, so a generated stroke's log length is log 100 plus its
-    jitter: the bandwidth set to 0.1 for a drawn stroke, ``successor_jitter`` times it for a
-    successor (lengths measured between reversals, to the sample).
-    """
-    model = StrokeGenerator(
-        continuation=continuation, successor_jitter=successor_jitter, random_state=0
-    ).fit([strokes_trial(np.full(40, 100))])
-    model.bandwidth_ = np.array([0.1, 0.0])
-    logs = [
-        np.log(np.diff(reversals(model.sample_positions(40_000, seed), model.min_reversal)[1:-1]))
-        for seed in range(4)
-    ]
-    return float(np.concatenate(logs).std())
-
-
-def test_a_successor_jitter_widens_successor_strokes_by_its_factor() -> None:
-    """Drawn strokes spread by the bandwidth; successors (c = 0.999) by 2.5 times it, within 10 %.
-
-    About 1600 strokes each: the SD's standard error is about 2 %; measuring lengths to the
-    sample adds about 0.004 to the SD of 0.1.
-    """
-    drawn = log_length_spread(0.0, 2.5)
-    assert drawn == pytest.approx(0.1, rel=0.1)
-    assert log_length_spread(0.999, 2.5) == pytest.approx(2.5 * drawn, rel=0.1)
-    assert log_length_spread(0.999, 1.0) == pytest.approx(drawn, rel=0.1)

@@ -66,10 +66,6 @@ STROKE_SETTINGS = (
             "auto"),
     Setting("jitter", "multiple of Silverman's bandwidth of the log-normal factors on a "
             "generated stroke's length and size", Interval(float, 0.0, 10.0), 0.5),
-    Setting("continuation", "probability that the next stroke is the drawn stroke's own "
-            "successor in its training trial", Interval(float, 0.0, 1.0, closed="left"), 0.0),
-    Setting("successor_jitter", "factor on the jitter of a successor stroke's length and size",
-            Interval(float, 1.0, 10.0), 1.0),
     Setting("min_reversal", "how far the position must come back from a turning point for it "
             "to count as a reversal (units)", Interval(float, 0.0, 1.0), 0.01),
     Setting("rate", "sampling rate of the model; trials are resampled to it",

@@ -167,7 +167,6 @@ def _averaged(
         [np.exp(log_length(model.before_lengths_[g]).mean()) for g in groups]
     )
     shared.before_sizes_ = np.array([_mean_size(model.before_sizes_[g]) for g in groups])
-    shared.successors_ = np.full(len(groups), -1, dtype=np.int64)
     shared.profiles_ = np.concatenate(profiles)
     shared.bandwidth_ = _restored_bandwidth(model, shared, groups)
     summary = model.training_summary_

@@ -128,12 +128,6 @@ class StrokeGenerator:
     jitter
         Multiple of Silverman's bandwidth (`silverman_bandwidth`) of the log-normal factors on
         each generated stroke's length and displacement.
-    continuation
-        Probability that the next stroke is the last drawn stroke's successor in its training
-        trial (when that one is drawable) rather than a nearest neighbour's draw; 0: the chain.
-    successor_jitter
-        Factor (at least 1) on the jitter of a stroke taken as a successor: its length and
-        displacement factors are log-normal with ``successor_jitter`` times the bandwidth.
     min_reversal
         How far (units) the position must move back from a turning point for it to count as a
         reversal (`reversals`).
@@ -154,8 +148,6 @@ class StrokeGenerator:
         The length of the stroke before each one in its trial (samples).
     before_sizes_ : ndarray, shape (m,)
         The size (absolute displacement, units) of the stroke before each one.
-    successors_ : ndarray of int, shape (m,)
-        The index of the stroke after each one in its trial, -1 when that one is not drawable.
     profiles_ : ndarray, shape (sum(lengths_) + m,)
         The strokes' profiles, one after another (stroke i's has ``lengths_[i] + 1`` values).
     bandwidth_ : ndarray, shape (2,)
@@ -171,7 +163,6 @@ class StrokeGenerator:
     starts_: Array
     before_lengths_: Array
     before_sizes_: Array
-    successors_: NDArray[np.int64]
     profiles_: Array
     bandwidth_: Array
     training_summary_: dict[str, Any]
@@ -180,16 +171,12 @@ class StrokeGenerator:
         self,
         neighbours: int | str = "auto",
         jitter: float = 0.5,
-        continuation: float = 0.0,
-        successor_jitter: float = 1.0,
         min_reversal: float = 0.01,
         rate: float = 100.0,
         random_state: int | None = None,
     ) -> None:
         self.neighbours = neighbours
         self.jitter = jitter
-        self.continuation = continuation
-        self.successor_jitter = successor_jitter
         self.min_reversal = min_reversal
         self.rate = rate
         self.random_state = random_state
@@ -293,11 +280,6 @@ class StrokeGenerator:
         self.starts_ = starts[drawable]
         self.before_lengths_ = lengths[previous[drawable]]
         self.before_sizes_ = np.abs(displacements[previous[drawable]])
-        after = np.full(lengths.size, -1, dtype=np.int64)
-        after[previous[previous >= 0]] = np.flatnonzero(previous >= 0)
-        kept = np.full(lengths.size, -1, dtype=np.int64)
-        kept[drawable] = np.arange(drawable.size)
-        self.successors_ = kept[after[drawable]]
         self.profiles_ = np.concatenate([profiles[firsts[i] : ends[i]] for i in drawable])
         self.bandwidth_ = self.jitter * silverman_bandwidth(
             np.column_stack([log_length(self.lengths_), log_size(self.displacements_)])
@@ -346,13 +328,10 @@ class StrokeGenerator:
         direction = float(np.sign(self.displacements_[stroke])) or 1.0
         time = -rng.random() * self.lengths_[stroke]
         filled = 0
-        spread = 1.0
         while filled < n_samples:
-            length = self.lengths_[stroke] * math.exp(
-                spread * self.bandwidth_[0] * rng.standard_normal()
-            )
+            length = self.lengths_[stroke] * math.exp(self.bandwidth_[0] * rng.standard_normal())
             size = abs(self.displacements_[stroke]) * math.exp(
-                spread * self.bandwidth_[1] * rng.standard_normal()
+                self.bandwidth_[1] * rng.standard_normal()
             )
             size = min(size, _room_ahead(position, direction))
             filled = self._draw_stroke(
@@ -360,7 +339,7 @@ class StrokeGenerator:
             )
             position += direction * size
             time += length
-            stroke, spread = self._following(stroke, length, size, position, -direction, rng)
+            stroke = self._next_stroke(length, size, position, -direction, rng)
             direction = -direction
         low, high = PLAYING_RANGE
         return np.clip(positions, low, high)
@@ -402,26 +381,6 @@ class StrokeGenerator:
         if n not in self._grids:
             self._grids[n] = np.linspace(0.0, 1.0, n)
         return self._grids[n]
-
-    def _following(
-        self,
-        stroke: int,
-        length: float,
-        size: float,
-        position: float,
-        direction: float,
-        rng: np.random.Generator,
-    ) -> tuple[int, float]:
-        """Draw the stroke after ``stroke`` and the factor on its jitter.
-
-        With probability `continuation` it is ``stroke``'s successor, jittered
-        `successor_jitter` times as wide; else a nearest neighbour's draw, jittered as usual.
-        """
-        if self.continuation > 0 and rng.random() < self.continuation:
-            successor = int(self.successors_[stroke])
-            if successor >= 0:
-                return successor, self.successor_jitter
-        return self._next_stroke(length, size, position, direction, rng), 1.0
 
     def _next_stroke(
         self,
@@ -479,8 +438,6 @@ class StrokeGenerator:
         return {
             "neighbours": self.neighbours,
             "jitter": float(self.jitter),
-            "continuation": float(self.continuation),
-            "successor_jitter": float(self.successor_jitter),
             "min_reversal": float(self.min_reversal),
             "rate": float(self.rate),
             "random_state": self.random_state,
@@ -490,8 +447,7 @@ class StrokeGenerator:
         """Return the fitted model's arrays and metadata, as `save` writes them.
 
         Arrays ``lengths``, ``displacements``, ``starts``, ``before_lengths``,
-        ``before_sizes``, ``successors``, ``profiles``, ``bandwidth``; metadata ``parameters``
-        and ``training``.
+        ``before_sizes``, ``profiles``, ``bandwidth``; metadata ``parameters`` and ``training``.
         """
         self._check_fitted()
         arrays: dict[str, NDArray[Any]] = {
@@ -500,7 +456,6 @@ class StrokeGenerator:
             "starts": self.starts_,
             "before_lengths": self.before_lengths_,
             "before_sizes": self.before_sizes_,
-            "successors": self.successors_,
             "profiles": self.profiles_,
             "bandwidth": self.bandwidth_,
         }
@@ -520,8 +475,7 @@ class StrokeGenerator:
         finite and within ±`MAX_ABS_POSITION`, and at least `MIN_STROKES` strokes. Arrays
         written before the predecessors' features were kept (each stroke's ``previous``
         stroke instead, every training stroke, no ``bandwidth``) are read as the fit would
-        have kept them; arrays written before the successors were kept link no stroke to the
-        next (`continuation` then never applies).
+        have kept them.
 
         Raises
         ------
@@ -587,10 +541,6 @@ class StrokeGenerator:
         self.bandwidth_ = check_array(
             source, "bandwidth", arrays["bandwidth"], "float", (2,), 0, 10
         ).astype(np.float64)
-        successors = arrays.get("successors", np.full(count, -1))
-        self.successors_ = check_array(
-            source, "successors", successors, "integer", (count,), -1, count - 1
-        ).astype(np.int64)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the fitted model to ``path`` (``.npz`` + JSON metadata), atomically."""
