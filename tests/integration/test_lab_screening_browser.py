@@ -38,7 +38,7 @@ PROTOCOL = solo_protocol(
     "screened online study",
     9,
     '[online]\nrefusal_code = "NOFIT123"\nscreen_round_trip_p95_ms = 150\n'
-    "screen_frame_rate_hz = 20\nscreen_window_width_px = 800",
+    "screen_frame_rate_hz = 2\nscreen_window_width_px = 800",
     8,
 )
 
@@ -94,9 +94,10 @@ def test_a_window_too_narrow_is_refused_at_entry_and_a_wide_one_admitted(chromiu
     )  # fmt: skip
     page.context.close()
     (admitted,) = [e for e in status(lab, created["id"])["events"] if "admitted" in e]
-    # Chromium draws at the display's rate (60 a second; fewer when the machine is busy)
+    # Chromium draws at the display's rate (60 a second idle, under 20 beside two busy loops):
+    # the bound of 2 a second refuses only a page that draws next to nothing
     rate = float(admitted.split(" ms, ")[1].split(" frames/s")[0])
-    assert rate >= 20 and admitted.endswith("frames/s, window 900x500 px"), admitted
+    assert rate >= 2 and admitted.endswith("frames/s, window 900x500 px"), admitted
 
 
 def test_a_tab_hidden_mid_trial_is_told_recorded_and_counted(chromium, lab, tmp_path):
