@@ -42,6 +42,12 @@ KIND_SLOPES = "random intercept and correlated random slopes for partner kind pe
 BOTH_SLOPES = (
     "random intercept and correlated random slopes for condition and partner kind per participant"
 )
+STRUCTURES = {
+    (False, False): INTERCEPT, (True, False): SLOPES,
+    (False, True): KIND_SLOPES, (True, True): BOTH_SLOPES,
+}  # fmt: skip
+"""The participants' structure by (slopes for condition, slopes for partner kind)."""
+
 CROSSED = "a random intercept per partner, crossed with the participants"
 """The random-effects structures, in words (the slopes uncorrelated with the intercept when
 crossed with partners)."""
@@ -88,9 +94,7 @@ class RandomEffects:
 
         With partners, `CROSSED` is added and the slopes are uncorrelated.
         """
-        words = [[INTERCEPT, KIND_SLOPES], [SLOPES, BOTH_SLOPES]][self.slopes][
-            bool(self.kind_slopes)
-        ]
+        words = STRUCTURES[self.slopes, bool(self.kind_slopes)]
         if not self.partners:
             return words
         return f"{words.replace('correlated', 'uncorrelated')}, and {CROSSED}"
@@ -200,7 +204,7 @@ def fit_kind_slopes(
     Otherwise ``chosen`` is returned with a note why.
     """
     slopes = [*(_effects(design, conditions) if chosen.slopes else []), *kind_columns]
-    why = unsupported(participants, kinds, len(slopes) + 1)
+    why = unsupported(participants, kinds, len(slopes) + 1, "partner kind")
     if why is None:
         try:
             fitted, caught = _fit(values, design, participants, design[["Intercept", *slopes]])
@@ -254,10 +258,13 @@ def fit_partners(
     return replace(chosen, notes=[*chosen.notes, f"no random effect of partner identity: {why}"])
 
 
-def unsupported(participants: pd.Series, levels: pd.Series, size: int | None = None) -> str | None:
+def unsupported(
+    participants: pd.Series, levels: pd.Series, size: int | None = None, factor: str = "condition"
+) -> str | None:
     """Say why the data cannot estimate slopes for a factor, or None when they can.
 
-    ``levels``: each trial's condition (or partner kind). The slopes' covariance has
+    ``levels``: each trial's level of ``factor`` (a condition or a partner kind). The slopes'
+    covariance has
     q (q + 1) / 2 parameters (q = ``size``, by default the c levels: the intercept and c - 1
     slopes), estimated from each participant's means; a covariance of q-vectors needs at least
     q + 1 of them, so q + 1 participants with values at every level. A slope is told apart
@@ -265,8 +272,6 @@ def unsupported(participants: pd.Series, levels: pd.Series, size: int | None = N
     """
     cells = pd.crosstab(participants, levels)
     count = cells.shape[1] if size is None else size
-    factor = "condition" if levels.name in (None, "condition") else str(levels.name)
-    factor = factor.replace("_", " ")
     complete = int((cells > 0).all(axis=1).sum())
     if complete < count + 1:
         return (f"{complete} participants with every {factor}, fewer than the {count + 1} "

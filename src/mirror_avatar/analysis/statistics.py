@@ -429,7 +429,7 @@ def fit_contrasts(
         fitted = fit_random_effects(
             pd.Series(scaled, index=data.index), design, data["participant"], data["condition"],
             None if partners is None else partners.loc[data.index],
-            None if kinds is None else kinds.loc[data.index].rename("partner_kind"),
+            None if kinds is None else kinds.loc[data.index],
             tuple(c for c, (term, _, _) in terms.columns.items() if term == KIND_TERM),
         )  # fmt: skip
     except (np.linalg.LinAlgError, ValueError) as error:

@@ -467,8 +467,8 @@ class LabSession:
                 row["plays"] = self.avatars[k].label  # which policy or virtual trainer
             participant = self.participants.get(k)
             if participant is not None:
-                row |= {"joined": participant.joined, "connected": participant.connected}
-                row |= {"entry_rtt_p95_ms": participant.entry_rtt_p95_ms}
+                row |= {"joined": participant.joined, "connected": participant.connected,
+                        "entry_rtt_p95_ms": participant.entry_rtt_p95_ms}  # fmt: skip
                 row |= participant.quality()
                 if trial is not None:
                     row["held"] = held.get(slot.label, 0)
