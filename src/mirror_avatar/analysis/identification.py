@@ -7,7 +7,7 @@ were mixed are left out. Scored as signal detection with the person as the signa
 "person" said of a person's motion, a false alarm "person" said of an avatar. Across persons,
 each person's rate of right answers is a unit (`Identification.chance_test`): a person's answers
 are not independent of each other, as the pooled binomial test takes them (docs/METHODS.md,
-section 15.6).
+section 15.6); `chance_tests` runs the same test on many simulated studies at once (section 15.1.1).
 """
 
 from __future__ import annotations
@@ -17,9 +17,10 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from numpy.typing import NDArray
 from scipy import stats
 
-from mirror_avatar.analysis.statistics import CONFIDENCE, has_spread
+from mirror_avatar.analysis.statistics import CONFIDENCE, has_spreads
 from mirror_avatar.lab.design.guesses import MOTION_OF
 
 CHANCE = 0.5
@@ -219,8 +220,8 @@ def identify(rows: pd.DataFrame, confidence: float = CONFIDENCE) -> Identificati
         rate_ci_low=float(interval.low), rate_ci_high=float(interval.high),
         binomial_p=float(tested.pvalue), detection=_detection(answers),
         persons=len(per_person), person_d_prime_mean=_mean(d_primes),
-        person_d_prime_p=_one_sample_p(d_primes.to_numpy()),
-        person_rate_mean=_mean(rates), person_rate_p=_one_sample_p(rates.to_numpy() - CHANCE),
+        person_d_prime_p=float(one_sample_p(d_primes.to_numpy())),
+        person_rate_mean=_mean(rates), person_rate_p=float(one_sample_p(rates.to_numpy() - CHANCE)),
         confidence_right=_mean(right), confidence_wrong=_mean(wrong),
         confidence_right_n=len(right), confidence_wrong_n=len(wrong),
         confidence_p=_mann_whitney_p(right.to_numpy(), wrong.to_numpy()),
@@ -259,7 +260,7 @@ def _condition_row(answers: pd.DataFrame) -> dict[str, Any]:
     return {
         "answers": len(answers), "partners": ", ".join(sorted(set(answers["partner"]))),
         "correct": correct, "rate": correct / len(answers),
-        "binomial_p": float(stats.binomtest(correct, len(answers), CHANCE).pvalue),
+        "binomial_p": pooled_p(correct, len(answers)),
         "said_person": float((answers["guess"] == "person").mean()),
     }  # fmt: skip
 
@@ -268,10 +269,49 @@ def _mean(values: pd.Series) -> float:
     return float(values.mean()) if len(values) else float("nan")
 
 
-def _one_sample_p(values: np.ndarray) -> float:
-    if values.size < 2 or not has_spread(values):
-        return float("nan")
-    return float(stats.ttest_1samp(values, 0.0).pvalue)
+def one_sample_p(values: NDArray[np.floating[Any]]) -> NDArray[np.float64]:
+    """Two-sided one-sample t-test of each row (last axis) against 0: its p-value.
+
+    Shape ``values.shape[:-1]``; NaN for a row of fewer than two values or values all equal
+    (`mirror_avatar.analysis.statistics.has_spreads`).
+    """
+    p = np.full(values.shape[:-1], np.nan)
+    tested = has_spreads(values) & (values.shape[-1] >= 2)
+    if tested.any():
+        p[tested] = stats.ttest_1samp(values[tested], 0.0, axis=-1).pvalue
+    return p
+
+
+def pooled_p(correct: int, answers: int) -> float:
+    """Two-sided exact binomial test of ``correct`` right of ``answers`` against `CHANCE`."""
+    return float(stats.binomtest(correct, answers, CHANCE).pvalue)
+
+
+def chance_tests(
+    correct: NDArray[np.int64], answers: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return `Identification.chance_test`'s rate and p for each set of persons' counts.
+
+    Parameters
+    ----------
+    correct, answers
+        Shape (studies, persons): each person's right answers and answers (answers > 0).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        Shape (studies,) each: the persons' mean rate and its t-test's p (`one_sample_p` of
+        the rates less `CHANCE`), or, for a study with fewer than two persons or every rate the
+        same, the pooled rate and `pooled_p` of every answer.
+    """
+    rates = correct / answers
+    rate, p = rates.mean(axis=-1), one_sample_p(rates - CHANCE)
+    pooled = np.isnan(p)
+    right, total = correct[pooled].sum(axis=-1), answers[pooled].sum(axis=-1)
+    rate[pooled] = right / total
+    counts, which = np.unique(np.stack([right, total], axis=-1), axis=0, return_inverse=True)
+    p[pooled] = np.array([pooled_p(int(k), int(n)) for k, n in counts])[which.ravel()]
+    return rate, p
 
 
 def _mann_whitney_p(right: np.ndarray, wrong: np.ndarray) -> float:

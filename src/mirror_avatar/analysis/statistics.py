@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -72,9 +72,15 @@ NOISELESS = (
 
 def has_spread(values: NDArray[np.float64]) -> bool:
     """Whether ``values`` differ by more than rounding (relative 1e-12): a spread to scale by."""
-    if values.size == 0:
-        return False
-    return bool(np.ptp(values) > 1e-12 * max(1.0, float(np.max(np.abs(values)))))
+    return bool(has_spreads(np.ravel(values)))
+
+
+def has_spreads(values: NDArray[np.floating[Any]]) -> NDArray[np.bool_]:
+    """Shape ``values.shape[:-1]``: `has_spread` of each row along the last axis."""
+    if values.shape[-1] == 0:
+        return np.zeros(values.shape[:-1], dtype=bool)
+    scale = np.maximum(1.0, np.max(np.abs(values), axis=-1))
+    return np.asarray(np.ptp(values, axis=-1) > 1e-12 * scale)
 
 
 TRIAL_KEYS = ("participant", "condition", "position", "block", "trial")
