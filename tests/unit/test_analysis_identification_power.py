@@ -20,7 +20,7 @@ import pandas as pd
 import pytest
 from scipy import integrate, special, stats
 from study_tables import make_study_rows, with_answers, write_study_table
-from test_analysis_hypothesis import CONDITION
+from test_analysis_hypothesis import ANALYSIS, CONDITION
 
 from mirror_avatar.analysis.identification import CHANCE, chance_tests, identify
 from mirror_avatar.analysis.identification_power import (
@@ -157,11 +157,11 @@ def _answers(rng: np.random.Generator, persons: int, rates: np.ndarray) -> pd.Da
     return pd.concat(rows, ignore_index=True)
 
 
-def protocol_text(trials: int = 4, asked: bool = True) -> str:
+def protocol_text(trials: int = 4, asked: bool = True, analysis: str = "") -> str:
     after = '\nafter_trial = ["partner"]\n' if asked else "\n"
     conditions = "".join(CONDITION.format(name=name) + f"trials = {trials}{after}"
                          for name in ("no delay", "delay 0.5 s"))  # fmt: skip
-    return f'seed = 1\n{QUESTION}\n[[blocks]]\norder = "latin"\n{conditions}'
+    return f'seed = 1\n{QUESTION}\n[[blocks]]\norder = "latin"\n{conditions}{analysis}'
 
 
 def test_answers_per_person_are_the_protocols_trials_asked_about() -> None:
@@ -213,6 +213,11 @@ def test_study_power_of_the_identification_test(pilot: tuple[Path, Path], tmp_pa
     assert main([*arguments[:-1], str(more), "--trials", "40"]) == 0
     assert json.loads((more / "power.json").read_text())["answers_per_person"] == 40
     assert (pd.read_csv(more / "power.csv")["power"] >= found["power"] - 0.1).all()
+    declared = tmp_path / "declared.toml"
+    declared.write_text(protocol_text(analysis=ANALYSIS))
+    plan = ["study", "plan", "--protocol", str(declared), "--power", str(tmp_path), "--out",
+            str(tmp_path / "plan")]  # fmt: skip
+    assert main(plan) == 2
 
 
 @pytest.mark.parametrize(
@@ -237,3 +242,24 @@ def test_study_power_refuses_options_of_the_other_test(
     error = capsys.readouterr().err.strip()
     assert problem in error and "\n" not in error
     assert not (tmp_path / "o" / "power.csv").exists()
+
+
+@pytest.mark.slow
+def test_power_equals_a_slow_simulation_of_whole_studies_scored_by_the_report() -> None:
+    # persons right with probability expit(0.85 + 1.0 z) (mean rate 0.67), 12 answers each, 8
+    # persons a study: 400 studies as answer rows, each scored by the report's `identify`
+    rng = np.random.default_rng(8)
+    said = 0
+    for _ in range(400):
+        found = identify(_answers(rng, 8, special.expit(0.85 + rng.standard_normal(8))))
+        assert found is not None
+        rate, p = found.chance_test
+        said += p < ALPHA and rate > CHANCE
+    fast = simulate_identification(RateSpread(0.85, 1.0, 8, 96, 0.67), 8, 12, 20_000, seed=9)
+    # the slow share's Monte Carlo SE is at most 0.025
+    assert fast.power == pytest.approx(said / 400, abs=0.06)
+    pilot = identify(_answers(rng, 300, special.expit(0.85 + rng.standard_normal(300))))
+    assert pilot is not None
+    counts = pilot.per_person[["correct", "answers"]].to_numpy(np.int64)
+    logit_mean, logit_sd = fit_rates(counts[:, 0], counts[:, 1])
+    assert (logit_mean, logit_sd) == pytest.approx((0.85, 1.0), abs=0.15)

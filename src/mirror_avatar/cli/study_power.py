@@ -155,7 +155,8 @@ def _identification(
     trials: int | None, rate: float | None, target: float,
 ) -> IdentificationPower:  # fmt: skip
     """Simulate the identification test's power at each number of persons."""
-    answers = answers_per_person(load_protocol(protocol_file)) if trials is None else trials
+    protocol = load_protocol(protocol_file)
+    answers = answers_per_person(protocol) if trials is None else trials
     spread = pilot_rates(study)
     planned = spread.mean_rate if rate is None else rate
     points = [_said(simulate_identification(spread, n, answers, simulations, seed, planned))
