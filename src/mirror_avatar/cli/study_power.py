@@ -55,7 +55,8 @@ TESTS = ("declared", "identification")
 @click.command()
 @click.argument("table", type=click.Path(path_type=Path))
 @click.option("--protocol", "protocol_file", type=click.Path(path_type=Path), required=True,
-              help="The study's protocol: its [analysis] declares the test.")  # fmt: skip
+              help="The study's protocol: its [analysis] declares the test (with --test "
+                   "identification, its questions after trials give the answers).")  # fmt: skip
 @click.option("--test", "test", type=click.Choice(TESTS), default="declared", show_default=True,
               help="The protocol's declared hypothesis, or the identification test: the persons' "
                    "rates of right answers to \"person or computer?\" against chance.")  # fmt: skip
