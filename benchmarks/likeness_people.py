@@ -54,7 +54,6 @@ from mirror_avatar.datasets.synthetic import (
 )
 from mirror_avatar.files.trials import Trial
 from mirror_avatar.motion.models import MODEL_KINDS, MotionModel
-from mirror_avatar.motion.oscillation import choose_kind
 from mirror_avatar.motion.sharing import DEFAULT_GROUP_SIZE, rebuild_errors, shareable
 from mirror_avatar.motion.strokes import StrokeGenerator
 from mirror_avatar.signatures.copying import copying_test
@@ -95,7 +94,7 @@ def people(which: str) -> dict[str, list[Trial]]:
     return chosen
 
 
-KINDS = (*MODEL_KINDS, "shared", "person", "chosen")
+KINDS = (*MODEL_KINDS, "shared", "person")
 """What plays the generated trials: a generator kind, its shareable stroke model, the person."""
 
 
@@ -103,10 +102,6 @@ def fit(kind: str, trials: Sequence[Trial], settings: dict[str, Any]) -> MotionM
     """Return a generator of ``kind`` (``shared``: strokes, then made shareable) fitted, seed 0."""
     if kind == "shared":
         return shareable(fit("strokes", trials, settings), DEFAULT_GROUP_SIZE)
-    if kind == "chosen":
-        chosen = choose_kind(trials, settings)
-        print(f"chosen by leave-one-trial-out among the fitted trials: {chosen}", flush=True)
-        return fit(chosen, trials, settings)
     return MODEL_KINDS[kind](random_state=0, **settings).fit(trials)
 
 
@@ -286,7 +281,7 @@ def main() -> None:
         signals, kind_rows = {}, []
         for name, trials in everyone.items():
             row, signals[name] = measure(
-                name, trials, kind, settings if kind not in ("ims", "person") else {}
+                name, trials, kind, settings if kind in ("strokes", "shared") else {}
             )
             kind_rows.append(row)
             print(f"{name} {kind}: {row['verdict']}", flush=True)
@@ -297,7 +292,7 @@ def main() -> None:
             row["identification_ceiling"] = ceiling
         if args.sets > 1 and kind != "person":
             other_sets(
-                kind_rows, everyone, settings if kind not in ("ims", "person") else {}, args.sets
+                kind_rows, everyone, settings if kind in ("strokes", "shared") else {}, args.sets
             )
         rows += kind_rows
     print(table(rows))

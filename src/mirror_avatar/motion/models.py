@@ -19,7 +19,6 @@ from mirror_avatar.files.importing import excerpt
 from mirror_avatar.files.model_files import read_archive
 from mirror_avatar.motion import generator, strokes
 from mirror_avatar.motion.generator import IMSGenerator
-from mirror_avatar.motion.oscillation import LatentChainGenerator, OscillationGenerator
 from mirror_avatar.motion.strokes import StrokeGenerator
 
 MotionModel = StrokeGenerator | IMSGenerator
@@ -28,8 +27,6 @@ MotionModel = StrokeGenerator | IMSGenerator
 MODEL_KINDS: dict[str, type[StrokeGenerator] | type[IMSGenerator]] = {
     "strokes": StrokeGenerator,
     "ims": IMSGenerator,
-    "oscillation": OscillationGenerator,
-    "latent-chain": LatentChainGenerator,
 }
 """Kind -> class; the first is the default."""
 
