@@ -270,14 +270,15 @@ ROOT = Path(__file__).parents[2]
 TEMPLATES = sorted((ROOT / "examples" / "protocols").glob("*.toml"))
 
 
-def rehearsal(template: Path, folder: Path) -> Path:
-    """Copy a template with every trial shortened to 2 s, one per condition, and no pauses.
+def rehearsal(template: Path, folder: Path, duration: float = 2.0) -> Path:
+    """Copy a template with every trial shortened to ``duration`` (s), one per condition, and no
+    pauses.
 
     Its specs' paths, relative to the repository's root where the lab runs from, are made
     absolute, so that the copy runs from any folder.
     """
     text = template.read_text(encoding="utf-8")
-    for key, value in (("duration", "2"), ("trials", "1"), ("pause", "0")):
+    for key, value in (("duration", f"{duration:g}"), ("trials", "1"), ("pause", "0")):
         text = re.sub(rf"^{key} = .*$", f"{key} = {value}", text, flags=re.MULTILINE)
     text = text.replace('spec = "examples/', f'spec = "{ROOT.as_posix()}/examples/')
     copy = folder / template.name

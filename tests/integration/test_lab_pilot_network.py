@@ -6,7 +6,6 @@ handling drawing both persons' partners equally late although their links differ
 from __future__ import annotations
 
 import json
-import re
 import subprocess
 import sys
 from pathlib import Path
@@ -14,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from test_lab_pilot import run_command
+from test_lab_pilot import ROOT, rehearsal, run_command
 
 from mirror_avatar.cli import main
 from mirror_avatar.lab.running.pilot import run_pilot
@@ -117,7 +116,6 @@ def test_a_stand_in_draws_and_sizes_its_page_as_a_browser_and_is_admitted(tmp_pa
     assert float(admitted.split(" ms, ")[1].split(" frames/s")[0]) >= 30, admitted
 
 
-ROOT = Path(__file__).parents[2]
 ONE_WAY_MS = {"P1": 20.0, "P2": 150.0}
 """Each person's link in the per-person pilot (mean one-way delay, ms; SD 5 and 10 ms, so that
 nearly every chunk is held its own delay, seldom behind the one before)."""
@@ -139,11 +137,7 @@ drawn with an SD of 7 and 14 ms."""
 def per_person(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, pd.DataFrame]:
     """The delay-handling template, one 5 s trial per handling, P1 at 20 and P2 at 150 ms."""
     folder = tmp_path_factory.mktemp("people")
-    text = (ROOT / "examples" / "protocols" / "delay_handling.toml").read_text(encoding="utf-8")
-    for key, value in (("trials", "1"), ("duration", "5"), ("pause", "0")):
-        text = re.sub(rf"^{key} = .*$", f"{key} = {value}", text, flags=re.MULTILINE)
-    protocol = folder / "delay_handling.toml"
-    protocol.write_text(text, encoding="utf-8")
+    protocol = rehearsal(ROOT / "examples" / "protocols" / "delay_handling.toml", folder, 5.0)
     out = folder / "out"
     result = run_command(
         "lab", "pilot", "--protocol", str(protocol), "--participants", "1", "--seed", "4",
