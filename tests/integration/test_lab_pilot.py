@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -192,6 +193,67 @@ def test_a_resumed_pilot_refuses_a_trial_whose_recording_was_deleted(piloted, tm
     assert not (copy / "delay-p000" / "trial-02_session.csv").exists()
 
 
+def played(out: Path) -> dict[str, dict[str, Any]]:
+    """Return each run folder's trials: their conditions and the answers given, by trial file."""
+    return {
+        run.name: {
+            sidecar.name: (
+                json.loads(sidecar.read_text())["metadata"]["lab"]["protocol_condition"],
+                answer_values(sidecar.with_name(sidecar.name.replace("_session", "_answers"))),
+            )
+            for sidecar in sorted(run.glob("trial-*_session.json"))
+        }
+        for run in sorted(out.glob("delay-p*"))
+    }
+
+
+def answer_values(path: Path) -> dict[str, dict[str, Any]] | None:
+    """Return a trial's answers by person and question (their values, not their times)."""
+    if not path.exists():
+        return None
+    answers = json.loads(path.read_text())["answers"]
+    return {person: {q: a["value"] for q, a in given.items()} for person, given in answers.items()}
+
+
+def session_events(log: Path) -> list[tuple[str, str]]:
+    """Return the sessions' events in a pilot's server log, in order: (run, event)."""
+    return re.findall(r"session (\S+): (.+)$", log.read_text(), flags=re.MULTILINE)
+
+
+@pytest.mark.long
+def test_participants_piloted_at_once_play_what_they_play_in_turn(tmp_path):
+    protocol = tmp_path / "delay.toml"
+    protocol.write_text(PROTOCOL.replace("duration = 3", "duration = 2"), encoding="utf-8")
+    runs = {}
+    for at_once in (1, 2):
+        out = tmp_path / f"at-once-{at_once}"
+        result = run_command(
+            "lab", "pilot", "--protocol", str(protocol), "--participants", "4", "--seed", "8",
+            "--at-once", str(at_once), "--out", str(out),
+        )  # fmt: skip
+        assert result.returncode == 0, result.stderr
+        assert result.stdout.count(": finished, 2 of 2 trial(s) complete") == 4, result.stdout
+        runs[at_once] = played(out)
+        events = session_events(out / "pilot-server.log")
+        ended = [run for run, event in events if event == "all trials played"]
+        assert sorted(ended) == [f"delay-p00{n}" for n in range(4)], events
+        # a run plays from its first trial's start to the end of its last: at most N at once,
+        # and N at some moment
+        playing: set[str] = set()
+        most = 0
+        for run, event in events:
+            if event == "trial 1 started":
+                playing.add(run)
+                most = max(most, len(playing))
+            elif event == "all trials played":
+                playing.discard(run)
+        assert most == at_once, events
+    # the same runs, trials, conditions in the same order and answers (each stand-in's seed is
+    # its participant's, whoever plays beside it)
+    assert runs[2] == runs[1]
+    assert all(len(trials) == 2 for trials in runs[1].values()), runs[1]
+
+
 def test_a_stand_in_for_nobody_is_refused_in_one_line(tmp_path):
     protocol = tmp_path / "delay.toml"
     protocol.write_text(PROTOCOL, encoding="utf-8")
@@ -208,14 +270,15 @@ ROOT = Path(__file__).parents[2]
 TEMPLATES = sorted((ROOT / "examples" / "protocols").glob("*.toml"))
 
 
-def rehearsal(template: Path, folder: Path) -> Path:
-    """Copy a template with every trial shortened to 2 s, one per condition, and no pauses.
+def rehearsal(template: Path, folder: Path, duration: float = 2.0) -> Path:
+    """Copy a template with every trial shortened to ``duration`` (s), one per condition, and no
+    pauses.
 
     Its specs' paths, relative to the repository's root where the lab runs from, are made
     absolute, so that the copy runs from any folder.
     """
     text = template.read_text(encoding="utf-8")
-    for key, value in (("duration", "2"), ("trials", "1"), ("pause", "0")):
+    for key, value in (("duration", f"{duration:g}"), ("trials", "1"), ("pause", "0")):
         text = re.sub(rf"^{key} = .*$", f"{key} = {value}", text, flags=re.MULTILINE)
     text = text.replace('spec = "examples/', f'spec = "{ROOT.as_posix()}/examples/')
     copy = folder / template.name

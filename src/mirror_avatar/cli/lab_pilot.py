@@ -40,7 +40,16 @@ def _pairs(values: tuple[str, ...], option: str) -> dict[str, str]:
     type=click.IntRange(1, 1000),
     default=2,
     show_default=True,
-    help="How many participants' runs to play, in turn.",
+    help="How many participants' runs to play.",
+)
+@click.option(
+    "--at-once",
+    type=click.IntRange(1, 16),
+    default=1,
+    show_default=True,
+    help="How many participants' runs play at the same time against the one server, each "
+    "starting as one ends (1: in turn). Each participant's stand-ins and seeds are the same "
+    "however many play at once; only the timing differs.",
 )
 @click.option(
     "--first",
@@ -74,11 +83,13 @@ def _pairs(values: tuple[str, ...], option: str) -> dict[str, str]:
 @click.option(
     "--network",
     "network_spec",
-    default=None,
-    metavar="SPEC",
+    multiple=True,
+    metavar="[LABEL=]SPEC",
     help="Put an emulated internet between the virtual participants' pages and the server: "
     "one-way delay in ms and stalls, such as 80+-25 or 120+-40,stall=5:1 (its truth in "
-    "OUT/pilot-network.csv).",
+    "OUT/pilot-network.csv). LABEL=SPEC puts person LABEL's page behind one of its own "
+    "(its truth in OUT/pilot-network-LABEL.csv), such as --network P1=20+-5 --network "
+    "P2=150+-40; repeatable, once per person.",
 )
 @click.option(
     "--out",
@@ -90,42 +101,43 @@ def _pairs(values: tuple[str, ...], option: str) -> dict[str, str]:
 def pilot(
     protocol_file: Path,
     participants: int,
+    at_once: int,
     first: int,
     stand_in: tuple[str, ...],
     answer: tuple[str, ...],
     seed: int | None,
-    network_spec: str | None,
+    network_spec: tuple[str, ...],
     out_dir: Path,
 ) -> None:
     """Play a protocol with virtual participants through the real lab server.
 
     Starts `mirror-avatar lab --protocol` on loopback and plays each participant's run in
-    turn, in real time: every person's slot is joined by a virtual participant's page that sees
-    what a person's page sees (partners delayed and hidden as the condition says) and moves a
-    player SPEC on it, and answers the questions by rule. The folders are a real study's, so
-    `mirror-avatar study table` and `study report` run on them before the first person comes.
+    turn (or --at-once N at a time), in real time: every person's slot is joined by a virtual
+    participant's page that sees what a person's page sees (partners delayed and hidden as the
+    condition says) and moves a player SPEC on it, and answers the questions by rule. The
+    folders are a real study's, so `mirror-avatar study table` and `study report` run on them
+    before the first person comes.
     With --network, the pages reach the server through an emulated internet, as participants
-    at home would (see `mirror-avatar lab proxy`).
+    at home would (see `mirror-avatar lab proxy`), one for all or one per person.
     """
     from mirror_avatar.lab.design.protocol import load_protocol
-    from mirror_avatar.lab.running.pilot import NETWORK_LOG, run_pilot
+    from mirror_avatar.lab.running.pilot import run_pilot
+    from mirror_avatar.lab.running.pilot_network import describe, network_files, parse_networks
     from mirror_avatar.lab.running.stand_in_answers import AnswerRule
-    from mirror_avatar.remote.network import parse_network
-    from mirror_avatar.remote.truth import companion
 
     protocol = load_protocol(protocol_file)
     given = _pairs(stand_in, "--stand-in")
     stand_ins = {label: given.get(label, DEFAULT_STAND_IN) for label in protocol.people} | given
     rules = {q: AnswerRule.parse(rule) for q, rule in _pairs(answer, "--answer").items()}
-    network = None if network_spec is None else parse_network(network_spec)
-    logs: list[str | Path] = [] if network is None else [NETWORK_LOG, companion(Path(NETWORK_LOG))]
-    check_output_dir(out_dir, files=logs)
+    networks = parse_networks(network_spec, protocol.people)
+    check_output_dir(out_dir, files=network_files(networks))
     seed = entropy_of(seed)
     people = ", ".join(f"{label}={spec}" for label, spec in stand_ins.items())
     click.echo(
         f"pilot of {protocol_file}: participants {first}-{first + participants - 1}, "
         f"stand-ins {people}, seed {seed}"
-        + ("" if network is None else f"; network {network}, its truth in {NETWORK_LOG}")
+        + (f", {at_once} at once" if at_once > 1 else "")
+        + (f"; {describe(networks)}" if networks else "")
     )
     started = time.monotonic()
 
@@ -146,7 +158,8 @@ def pilot(
         seed,
         rules,
         done,
-        network,
+        networks,
+        at_once,
     )
     click.echo(
         f"recorded in {out_dir.resolve()}; next: mirror-avatar study table {out_dir} --out RESULTS"

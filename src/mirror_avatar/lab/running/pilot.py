@@ -26,9 +26,15 @@ in every role its person plays, by `mirror_avatar.lab.design.avatars.load_avatar
 server starts, so that a spec naming a device, a FIFO, a huge file or a diverging partner is
 refused in one line naming the stand-in, and nothing is started or written.
 
-Under a declared network (`mirror_avatar.remote.network`) the stand-ins' pages reach the server
-through an emulated internet (`mirror_avatar.remote.proxy`), as participants at home would; the
-researcher's API does not. Its truth log is `NETWORK_LOG` in the output folder.
+Under declared networks (`mirror_avatar.lab.running.pilot_network`: one for every person, or
+one per person) the stand-ins' pages reach the server through emulated internets, as
+participants at home would; the researcher's API does not. Their truth logs are in the output
+folder.
+
+Participants' runs are played in turn, or several at once (``at_once``) against the one
+server, as a lab runs several sessions: each participant's stand-ins, seeds and answers are
+the same however many play beside them, so only the timing (the machine's load, the network's
+draws) differs.
 """
 
 from __future__ import annotations
@@ -45,7 +51,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Awaitable, Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -64,12 +70,12 @@ from mirror_avatar.files.importing import excerpt
 from mirror_avatar.lab.design.avatars import load_avatar
 from mirror_avatar.lab.design.plan import MAX_SPEC_CHARS, SessionPlan
 from mirror_avatar.lab.design.protocol import Protocol, load_protocol
+from mirror_avatar.lab.running.pilot_network import emulated_internets
 from mirror_avatar.lab.running.screening import ENTRY_EXCHANGES
 from mirror_avatar.lab.running.stand_in_answers import AnswerRule, check_rules, right_guesses
 from mirror_avatar.lab.running.stand_in_page import PageDisplay, next_frame_ms, pointer_batches
 from mirror_avatar.players.base import Observation, Player
 from mirror_avatar.remote.network import Network
-from mirror_avatar.remote.proxy import ProxyThread
 
 PLAYER_ROLES = {"solo": "leader"}
 """The role preset a stand-in plays for a page's role where they differ (alone: it leads)."""
@@ -79,10 +85,6 @@ START_TIMEOUT = 120.0
 
 SLACK = 60.0
 """Seconds a participant's run may take beyond its planned time before the pilot gives up."""
-
-NETWORK_LOG = "pilot-network.csv"
-"""The emulated internet's truth log in a pilot's output folder (its JSON companion beside it:
-the network, the seed, the clock's anchor)."""
 
 
 @dataclass
@@ -320,13 +322,18 @@ def _answer(stand_in: StandIn, message: Mapping[str, Any]) -> list[str]:
 
 
 SERVER_ENTRY = (
-    "import signal; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
+    "import logging, signal; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
+    "logging.basicConfig(format='%(asctime)s %(levelname)s %(name)s: %(message)s'); "
+    "logging.getLogger('mirror_avatar.lab').setLevel(logging.INFO); "
     "from mirror_avatar.console import run; run()"
 )
 """How the pilot starts its lab server: the console script with SIGTERM ignored, which is the
 pilot's normal stop (uvicorn shuts down on it and then leaves the ignored signal be, so the
 server finishes with exit code 0); SIGINT is its stop when the pilot is interrupted or fails (the
-server's log then ends ``aborted (SIGINT)``)."""
+server's log then ends ``aborted (SIGINT)``). The sessions' events (a page joined, a trial
+started or ended, all trials played: `mirror_avatar.lab.running.runner.LabSession.log`) go to
+its log, each with its time, beside uvicorn's lines, so that the log says when each
+participant's run played."""
 
 STOP_TIMEOUT = 30.0
 """Seconds the lab server may take to shut down before it is killed."""
@@ -368,22 +375,6 @@ def lab_server(protocol_file: Path, out_dir: Path, log: Path) -> Iterator[tuple[
         _stop(process, signal.SIGINT)
         raise
     _stop(process, signal.SIGTERM)
-
-
-@contextlib.contextmanager
-def emulated_internet(network: Network | None, base: str, log: Path, seed: int) -> Iterator[str]:
-    """Yield the base URL pages join at, for as long as the block runs.
-
-    That is the server's ``base``, or under ``network`` the address of an emulated internet to
-    it (`mirror_avatar.remote.proxy.ProxyThread`, its truth in ``log``).
-    """
-    if network is None:
-        yield base
-        return
-    server = urlsplit(base)
-    assert server.hostname is not None and server.port is not None
-    with ProxyThread(network, (server.hostname, server.port), log, seed) as internet:
-        yield internet.url
 
 
 def _stop(process: subprocess.Popen[str], signum: int) -> None:
@@ -428,14 +419,15 @@ async def pilot_participant(
     number: int,
     stand_ins: Mapping[str, StandIn],
     planned_s: float,
-    join_base: str | None = None,
+    join_at: Mapping[str, str] | None = None,
     screened: bool = False,
 ) -> dict[str, Any]:
     """Play participant ``number``'s run with the stand-ins; return its final status.
 
-    ``join_base`` is the base URL the stand-ins' pages join at (default: the server's own, as its
-    join links give it; an emulated internet's to join through it). With ``screened`` (the
-    protocol screens round trips at entry), the run starts once every stand-in is judged.
+    ``join_at`` is the base URL each person's stand-in page joins at (default: the server's
+    own, as its join links give it; an emulated internet's to join through it). With
+    ``screened`` (the protocol screens round trips at entry), the run starts once every
+    stand-in is judged.
 
     Raises
     ------
@@ -453,7 +445,9 @@ async def pilot_participant(
     for link in status["links"].values():
         await _agree(api, link)
     pages = [
-        asyncio.create_task(play_page(_socket_url(link, join_base), stand_ins[label]))
+        asyncio.create_task(
+            play_page(_socket_url(link, (join_at or {}).get(label)), stand_ins[label])
+        )
         for label, link in status["links"].items()
     ]
     try:
@@ -611,9 +605,10 @@ def run_pilot(
     seed: int,
     answers: Mapping[str, AnswerRule] | None = None,
     on_done: Callable[[int, dict[str, Any]], None] | None = None,
-    network: Network | None = None,
+    networks: Mapping[str, Network] | None = None,
+    at_once: int = 1,
 ) -> list[dict[str, Any]]:
-    """Play ``participants``' runs of a protocol with virtual participants, in turn.
+    """Play ``participants``' runs of a protocol with virtual participants.
 
     Parameters
     ----------
@@ -633,20 +628,25 @@ def run_pilot(
         The rule for each question id (default: random answers).
     on_done
         Called with each participant's number and final status as their run ends.
-    network
-        The emulated internet between the stand-ins' pages and the server (seeded with
-        ``seed``; its truth in ``OUT/`` `NETWORK_LOG`), or None for none.
+    networks
+        The emulated internets between the stand-ins' pages and the server, by person
+        (`mirror_avatar.lab.running.pilot_network.parse_networks`: seeded from ``seed``, their
+        truth in ``OUT/``), or None for none.
+    at_once
+        How many participants' runs play at the same time, each starting as one ends, in the
+        order of their numbers (1: in turn).
 
     Returns
     -------
     list of dict
-        Each participant's final status (as ``GET /api/sessions/ID`` answers).
+        Each participant's final status (as ``GET /api/sessions/ID`` answers), in the order of
+        ``participants``.
 
     Raises
     ------
     InputError
         A stand-in refused (`check_stand_ins`), before the server starts; a run that cannot
-        start or end (`pilot_participant`).
+        start or end (`pilot_participant`), which ends the runs playing beside it.
     """
     protocol = load_protocol(protocol_file)
     check_stand_ins(protocol, stand_ins)
@@ -655,55 +655,73 @@ def run_pilot(
     planned = planned_seconds(protocol)
     with (
         lab_server(protocol_file, out_dir, out_dir / "pilot-server.log") as (base, token),
-        emulated_internet(network, base, out_dir / NETWORK_LOG, seed) as join_base,
+        emulated_internets(networks or {}, base, out_dir, seed, protocol.people) as join_at,
     ):
-        return run_interruptible(
-            _pilot_all(
-                base,
-                join_base,
-                token,
-                protocol,
-                participants,
-                stand_ins,
-                seed,
-                answers or {},
-                planned,
-                on_done,
+        pilot = Pilot(protocol, stand_ins, seed, answers or {}, planned, join_at)
+        return run_interruptible(pilot.play_all(base, token, participants, at_once, on_done))
+
+
+@dataclass(frozen=True)
+class Pilot:
+    """What every participant's run of a pilot shares (`run_pilot` says what each is)."""
+
+    protocol: Protocol
+    stand_ins: Mapping[str, str]
+    seed: int
+    answers: Mapping[str, AnswerRule]
+    planned: float
+    join_at: Mapping[str, str]
+
+    def people(self, number: int) -> dict[str, StandIn]:
+        """Return participant ``number``'s stand-ins by label, seeded as `run_pilot` says."""
+        seeds = spawn_seeds([self.seed, number], len(self.protocol.people))
+        return {
+            label: StandIn(
+                label,
+                self.stand_ins[label],
+                int(seeds[j]),
+                self.answers,
+                right_guesses(self.protocol, number, label),
             )
-        )
+            for j, label in enumerate(self.protocol.people)
+            if label in self.stand_ins
+        }
 
+    async def play_all(
+        self,
+        base: str,
+        token: str,
+        participants: Iterable[int],
+        at_once: int,
+        on_done: Callable[[int, dict[str, Any]], None] | None,
+    ) -> list[dict[str, Any]]:
+        """Play the participants' runs through the server at ``base``, ``at_once`` at a time."""
+        headers = {"Authorization": f"Bearer {token}"}
+        screened = self.protocol.online.screening.at_entry
+        turns = asyncio.Semaphore(at_once)
 
-async def _pilot_all(
-    base: str,
-    join_base: str,
-    token: str,
-    protocol: Protocol,
-    participants: range,
-    stand_ins: Mapping[str, str],
-    seed: int,
-    answers: Mapping[str, AnswerRule],
-    planned: float,
-    on_done: Callable[[int, dict[str, Any]], None] | None,
-) -> list[dict[str, Any]]:
-    headers = {"Authorization": f"Bearer {token}"}
-    results = []
-    screened = protocol.online.screening.at_entry
-    async with httpx.AsyncClient(base_url=base, headers=headers, timeout=30.0) as api:
-        for number in participants:
-            seeds = spawn_seeds([seed, number], len(protocol.people))
-            people = {
-                label: StandIn(
-                    label,
-                    stand_ins[label],
-                    int(seeds[j]),
-                    answers,
-                    right_guesses(protocol, number, label),
+        async def play(api: httpx.AsyncClient, number: int) -> dict[str, Any]:
+            async with turns:
+                status = await pilot_participant(
+                    api, number, self.people(number), self.planned, self.join_at, screened
                 )
-                for j, label in enumerate(protocol.people)
-                if label in stand_ins
-            }
-            status = await pilot_participant(api, number, people, planned, join_base, screened)
             if on_done is not None:
                 on_done(number, status)
-            results.append(status)
-    return results
+            return status
+
+        async with httpx.AsyncClient(base_url=base, headers=headers, timeout=30.0) as api:
+            return await all_or_none([play(api, number) for number in participants])
+
+
+async def all_or_none(runs: Iterable[Awaitable[dict[str, Any]]]) -> list[dict[str, Any]]:
+    """Await ``runs`` together; return their results in order.
+
+    The first to fail cancels the others, and its exception is raised once they have ended.
+    """
+    tasks = [asyncio.ensure_future(run) for run in runs]
+    try:
+        return list(await asyncio.gather(*tasks))
+    finally:
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
