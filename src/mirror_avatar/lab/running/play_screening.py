@@ -9,10 +9,11 @@ the window the page last said are judged against the bounds
 (`mirror_avatar.lab.running.screening.bound_misses`). A page that misses one during a trial
 starts a ``below_bounds`` interruption (`mirror_avatar.realtime.interruptions`: recorded in the
 trial's sidecar with its reason and counted in the study table), is logged and told the reason
-in one line, and with ``"refuse"`` is refused; the interruption ends at the first frame whose
-window meets the bounds again, during a trial or after it. A hidden tab draws no frames, and
-is an interruption of its own: it ends a ``below_bounds`` one and empties the window, which is
-judged again once it spans `PLAY_WINDOW_S` of frames drawn since.
+in one line (again in each later trial while still below them: the page clears the line as
+a trial starts), and with ``"refuse"`` is refused; the interruption ends at the first frame
+whose window meets the bounds again, during a trial or after it. A hidden tab draws no
+frames, and is an interruption of its own: it ends a ``below_bounds`` one and empties the
+window, which is judged again once it spans `PLAY_WINDOW_S` of frames drawn since.
 """
 
 from __future__ import annotations
@@ -90,6 +91,14 @@ class PlayScreen:
         The page's person.
     outbox
         The page's messages out (to tell the person).
+
+    Attributes
+    ----------
+    window
+        The page's frames over the last `PLAY_WINDOW_S` seconds (`FrameWindow`).
+    told_in
+        The trial whose person this page told of being below the bounds, until back within
+        them (None).
     """
 
     def __init__(
@@ -101,6 +110,7 @@ class PlayScreen:
         self.outbox = outbox
         self.screening = online_of(session).screening
         self.window = FrameWindow()
+        self.told_in: int | None = None
 
     def frame(
         self,
@@ -126,10 +136,13 @@ class PlayScreen:
         reason = " ".join(bound_misses(rate, window_px, self.screening)) or None
         label, trial = self.participant.label, self.session.playing_in(self.participant)
         if reason is None:
+            self.told_in = None
             ended = source.interruptions.end(BELOW_BOUNDS, at_s)
             if ended is not None:
                 self.session.log(f"{label}: within bounds again after {at_s - ended[1]:.1f} s")
-        elif trial is not None and source.interruptions.begin(BELOW_BOUNDS, at_s, reason):
+        elif trial is not None and self.told_in != trial.n:
+            self.told_in = trial.n
+            source.interruptions.begin(BELOW_BOUNDS, at_s, reason)
             self.session.log(f"{label}: below bounds during trial {trial.n}: {reason}")
             self.outbox.put({"type": "notice", "message": reason})
             if self.screening.during_play == "refuse":
@@ -145,6 +158,7 @@ class PlayScreen:
         """
         source.interruptions.end(BELOW_BOUNDS, at_s)
         self.window.clear()
+        self.told_in = None
 
     def _bounds(self) -> dict[str, float | int | None]:
         """Return the bounds held during play, as a refusal's file records them."""
