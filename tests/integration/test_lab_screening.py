@@ -43,10 +43,14 @@ screen_hidden_tab = "{hidden_tab}"
 
 
 def serve(tmp_path: Path, hidden_tab: str) -> ServerThread:
-    path = tmp_path / f"screened-{hidden_tab}.toml"
-    path.write_text(protocol(hidden_tab))
+    return serve_protocol(tmp_path / f"screened-{hidden_tab}.toml", protocol(hidden_tab))
+
+
+def serve_protocol(path: Path, text: str) -> ServerThread:
+    """A lab server of the protocol ``text``, written to ``path``, its runs in ``out`` beside."""
+    path.write_text(text)
     settings = LabSettings(
-        out_dir=tmp_path / "out", token=TOKEN, countdown=1, protocol=load_protocol(path)
+        out_dir=path.parent / "out", token=TOKEN, countdown=1, protocol=load_protocol(path)
     )
     return ServerThread(create_lab_app(settings))
 
@@ -233,12 +237,7 @@ async def entered(link: str, frames_hz: float, width: int) -> list[dict[str, Any
 
 
 def test_a_page_drawing_too_few_frames_or_too_narrow_is_refused_at_entry(tmp_path):
-    path = tmp_path / "sized.toml"
-    path.write_text(solo_protocol("sized study", 5, SIZED, 3))
-    settings = LabSettings(
-        out_dir=tmp_path / "out", token=TOKEN, countdown=1, protocol=load_protocol(path)
-    )
-    with ServerThread(create_lab_app(settings)) as lab:
+    with serve_protocol(tmp_path / "sized.toml", solo_protocol("sized study", 5, SIZED, 3)) as lab:
         pages = {n: create_participant(lab.url, n, BEARER) for n in range(3)}
         slow = asyncio.run(entered(pages[0]["links"]["P1"], 10.0, 1280))
         narrow = asyncio.run(entered(pages[1]["links"]["P1"], 60.0, 640))

@@ -1,6 +1,6 @@
 """Screening decisions: a page's round trips, frame rate and window at entry against the
-protocol's bounds, a page's interruptions paired and cut to a trial, recorded in the sidecar and
-counted in the table."""
+protocol's bounds, its frame rate during play over a sliding window, a page's interruptions
+paired and cut to a trial, recorded in the sidecar and counted in the table."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ from mirror_avatar.lab.running.messages import (
     WindowSize,
     parse_participant_message,
 )
+from mirror_avatar.lab.running.play_screening import PLAY_WINDOW_S, FrameWindow
 from mirror_avatar.lab.running.screening import Entry, entry_refusal, round_trip_p95
 from mirror_avatar.realtime.interruptions import Interruptions
 from mirror_avatar.realtime.messages import ProtocolError
@@ -142,3 +143,49 @@ def test_the_table_counts_each_kind_of_interruption_and_its_length():
     assert page.to_json()["interruptions"] == list(interruptions)
     record = TrialRecord("s", 1, "solo", (SlotRecord("P1", "human", "solo"),), pages={"P1": page})
     assert trial_record(json.loads(json.dumps(record.metadata_json()))) == record
+
+
+def test_the_frame_rate_during_play_is_counted_over_the_last_two_seconds():
+    window = FrameWindow(PLAY_WINDOW_S)
+    for sent_ms in range(0, 1981, 20):  # 50 Hz from 0 to 1980 ms: not yet a whole window
+        window.add(float(sent_ms))
+    assert window.rate_hz() is None
+    window.add(2000.0)  # (0, 2000] holds the frames at 20, 40, ..., 2000 ms: 100 in 2 s
+    assert window.rate_hz() == pytest.approx(50.0)
+    window.add(2000.0)  # a second batch of the same frame
+    assert window.rate_hz() == pytest.approx(50.0)
+    for sent_ms in range(2100, 3001, 100):  # then 10 Hz: 2100, 2200, ..., 3000 ms
+        window.add(float(sent_ms))
+    # (1000, 3000] holds 50 frames at 50 Hz (1020 to 2000 ms) and 10 at 10 Hz: 60 in 2 s
+    assert window.rate_hz() == pytest.approx(30.0)
+    window.clear()
+    window.add(5000.0)
+    assert window.rate_hz() is None
+
+
+def test_a_page_below_its_bounds_is_an_interruption_with_its_reason():
+    spans = Interruptions()
+    reason = "Your browser drew 12 frames a second, fewer than the study's 30."
+    assert spans.begin("below_bounds", 2.0, reason)
+    assert not spans.begin("below_bounds", 2.5, "another")  # already below: the first kept
+    assert spans.between(1.0, 3.0) == [
+        {"kind": "below_bounds", "start_s": 2.0, "end_s": 3.0, "reason": reason, "open": True}
+    ]
+    assert spans.end("below_bounds", 4.0) == ("below_bounds", 2.0, 4.0)
+    assert spans.end("below_bounds", 5.0) is None
+    (span,) = spans.between(1.0, 6.0)
+    page = PageRecord(0, {}, None, None, None, None, (), (span,))
+    assert (page.cells()["page_below_bounds"], page.cells()["page_below_bounds_s"]) == (1, 2.0)
+    record = TrialRecord("s", 1, "solo", (SlotRecord("P1", "human", "solo"),), pages={"P1": page})
+    assert trial_record(json.loads(json.dumps(record.metadata_json()))) == record
+
+
+def test_the_protocol_holds_its_bounds_during_play_only_when_asked():
+    check, here = Checker("study.toml"), Path(".")
+    sized = {"screen_frame_rate_hz": 30}
+    assert parse_online(check, sized, here).screening.during_play == "off"
+    assert not parse_online(check, sized, here).screening.in_play
+    played = parse_online(check, sized | {"screen_during_play": "record"}, here).screening
+    assert played.in_play and played.during_play == "record"
+    with pytest.raises(InputError, match=r"online.screen_during_play: 'refuse' has no bound"):
+        parse_online(check, {"screen_round_trip_p95_ms": 150, "screen_during_play": "refuse"}, here)

@@ -96,6 +96,11 @@ PAGE_COLUMNS: dict[str, dict[str, Any]] = {
                   "Role": "quality"},
     "page_blur_s": {"Description": "How long the page's window was out of focus during the "
                     "trial", "Units": "s", "Role": "quality"},
+    "page_below_bounds": {"Description": "Times the page's frame rate (over its last 2 s) or "
+                          "window fell below the protocol's bounds during the trial "
+                          "(screen_during_play, METHODS section 9)", "Role": "quality"},
+    "page_below_bounds_s": {"Description": "How long the page was below the protocol's bounds "
+                            "during the trial", "Units": "s", "Role": "quality"},
     "page_view_delay_ms": {"Description": "Mean delay from a partner's sample to the page "
                            "drawing it, on the server's clock (METHODS section 19)", "Units": "ms",
                            "Role": "quality"},

@@ -158,8 +158,16 @@ class InputEventRecord:
         return {"sample": self.sample, "label": self.label, "event": self.event, "seq": self.seq}
 
 
-INTERRUPTION_KINDS = ("hidden", "blur")
-"""A page's interruptions: its tab hidden, its window out of focus."""
+PAGE_INTERRUPTIONS = ("hidden", "blur")
+"""The interruptions a page reports: its tab hidden, its window out of focus."""
+
+BELOW_BOUNDS = "below_bounds"
+"""The interruption of a page whose frame rate or window is below the protocol's bounds during
+play (`mirror_avatar.lab.running.play_screening`)."""
+
+INTERRUPTION_KINDS = (*PAGE_INTERRUPTIONS, BELOW_BOUNDS)
+"""A page's interruptions: those it reports (`PAGE_INTERRUPTIONS`) and its frame rate or window
+below the protocol's bounds during play."""
 
 
 @dataclass(frozen=True)
@@ -172,14 +180,15 @@ class PageRecord:
     estimates, server minus page: first, median, min, max; ms; None without an exchange),
     ``sample_rate_hz`` and ``frame_rate_hz`` (pointer samples and animation frames received per
     second), ``stalls`` (each gap in the page's samples: ``start_s`` on the server's clock and
-    ``length_s``) and ``interruptions`` (each time the page's tab was hidden or its window out
-    of focus: ``kind``, one of `INTERRUPTION_KINDS`, ``start_s`` and ``end_s`` on the server's
-    clock, cut to the trial; ``open`` when it had not ended by the trial's end; the key absent
-    when there were none, as in the records written before it) and ``view`` (its partners'
-    draws: ``frames``, ``delay_ms`` from each sample's time to its draw's, n, mean, median, p95,
-    max, and ``error_rms``, the drawn positions' RMS error against the recording, units;
-    `mirror_avatar.lab.running.views.ViewLog.summary`; absent when it drew none, as in the
-    records written before it).
+    ``length_s``) and ``interruptions`` (each time the page's tab was hidden, its window out
+    of focus or its frame rate or window below the protocol's bounds: ``kind``, one of
+    `INTERRUPTION_KINDS`, ``start_s`` and ``end_s`` on the server's clock, cut to the trial;
+    ``reason`` when the server gave one; ``open`` when it had not ended by the trial's end; the
+    key absent when there were none, as in the records written before it) and ``view`` (its
+    partners' draws: ``frames``, ``delay_ms`` from each sample's time to its draw's, n, mean,
+    median, p95, max, and ``error_rms``, the drawn positions' RMS error against the recording,
+    units; `mirror_avatar.lab.running.views.ViewLog.summary`; absent when it drew none, as in
+    the records written before it).
     """
 
     exchanges: int
@@ -482,8 +491,11 @@ def _interruption(keys: _Keys, value: object) -> dict[str, Any]:
     start, end = keys.number(span, "start_s"), keys.number(span, "end_s")
     if end < start:
         raise keys.error("end_s", "is before start_s")
-    return {"kind": kind, "start_s": start, "end_s": end} | (
-        {"open": True} if span.get("open") is True else {}
+    reason = span.get("reason")
+    return (
+        {"kind": kind, "start_s": start, "end_s": end}
+        | ({"reason": keys.text(span, "reason")} if reason is not None else {})
+        | ({"open": True} if span.get("open") is True else {})
     )
 
 

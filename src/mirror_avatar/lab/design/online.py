@@ -16,7 +16,8 @@ not agree is not played and is shown the refusal (`mirror_avatar.lab.running.con
 
 The protocol may screen its participants (`Screening`, applied by
 `mirror_avatar.lab.running.screening`): on the round trips of a page's first clock exchanges,
-its frame rate and its window size as it connects, and on a tab hidden during a trial.
+its frame rate and its window size as it connects and, with ``screen_during_play``, during each
+trial, and on a tab hidden during a trial.
 """
 
 from __future__ import annotations
@@ -96,6 +97,9 @@ class Screening:
         The fewest animation frames a second (Hz) a page may draw at connect, or None.
     window_width_px, window_height_px
         The smallest window (CSS pixels) a page may have at connect, or None.
+    during_play
+        ``"off"``, or what a page below the frame rate and window bounds during a trial does:
+        ``"record"`` (recorded and the person told) or ``"refuse"`` (the person is refused).
     """
 
     round_trip_p95_ms: float | None = None
@@ -103,6 +107,7 @@ class Screening:
     frame_rate_hz: float | None = None
     window_width_px: int | None = None
     window_height_px: int | None = None
+    during_play: str = "off"
 
     @property
     def at_entry(self) -> bool:
@@ -110,6 +115,12 @@ class Screening:
         bounds = (self.round_trip_p95_ms, self.frame_rate_hz, self.window_width_px,
                   self.window_height_px)  # fmt: skip
         return any(bound is not None for bound in bounds)
+
+    @property
+    def in_play(self) -> bool:
+        """Whether a page is judged during trials (``during_play`` and a frame or window bound)."""
+        bounds = (self.frame_rate_hz, self.window_width_px, self.window_height_px)
+        return self.during_play != "off" and any(bound is not None for bound in bounds)
 
 
 @dataclass(frozen=True)
@@ -162,19 +173,22 @@ def parse_online(check: Checker, value: object, folder: Path) -> Online:
         _ending(check, data, "refusal"),
         _page_text(check, data, "instructions", folder),
         _page_text(check, data, "consent", folder),
-        Screening(
-            *(
-                check.setting(data, "online", SCREENING[f"screen_{key}"])
-                for key in (
-                    "round_trip_p95_ms",
-                    "hidden_tab",
-                    "frame_rate_hz",
-                    "window_width_px",
-                    "window_height_px",
-                )
-            )
-        ),  # fmt: skip
+        _screening(check, data),
     )
+
+
+def _screening(check: Checker, data: dict[str, Any]) -> Screening:
+    """Read the ``screen_`` keys; ``screen_during_play`` needs a frame rate or window bound."""
+    keys = ("round_trip_p95_ms", "hidden_tab", "frame_rate_hz", "window_width_px",
+            "window_height_px", "during_play")  # fmt: skip
+    screening = Screening(*(check.setting(data, "online", SCREENING[f"screen_{k}"]) for k in keys))
+    if screening.during_play != "off" and not screening.in_play:
+        raise check.error(
+            "online.screen_during_play",
+            f"{screening.during_play!r} has no bound to hold during play",
+            "declare screen_frame_rate_hz, screen_window_width_px or screen_window_height_px",
+        )
+    return screening
 
 
 def _page_text(check: Checker, data: dict[str, Any], page: str, folder: Path) -> str | None:

@@ -81,6 +81,10 @@ MAX_PAGE_CHARS = 10_000
 HIDDEN_TAB_RULES = ("record", "refuse")
 """What a hidden tab during a trial does: recorded and the person told, or the person refused."""
 
+PLAY_RULES = ("off", "record", "refuse")
+"""What a page below the frame rate and window bounds during a trial does: nothing, recorded and
+the person told, or the person refused."""
+
 ONLINE_SETTINGS = (
     Setting("panel_ids", "the join link's query parameters recorded for its participant",
             default=None, allowed=f"up to {MAX_PANEL_IDS} names (letters, digits, _)",
@@ -115,6 +119,9 @@ ONLINE_SETTINGS = (
             default_shown="no screening"),
     Setting("screen_hidden_tab", "a tab hidden during a trial: record: recorded and the "
             "person told; refuse: the person is refused", Options(HIDDEN_TAB_RULES), "record"),
+    Setting("screen_during_play", "the frame rate and window bounds held during each trial "
+            "too, over the page's last 2 s: off; record: recorded and the person told; refuse: "
+            "the person is refused", Options(PLAY_RULES), "off"),
 )  # fmt: skip
 """The keys of a protocol's ``[online]`` table (`mirror_avatar.lab.design.online`)."""
 

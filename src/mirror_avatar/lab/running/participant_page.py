@@ -5,7 +5,8 @@ A join link holds the secret key of one person's slot in one session; its page's
 valid or its session has ended. Messages are those of `mirror_avatar.lab.running.messages`, rate
 limited per connection (`mirror_avatar.realtime.inbox.Inbox`). The page's person is screened as
 the protocol declares (`mirror_avatar.lab.running.screening`): on the round trips of their first
-page's first clock exchanges, and on their tab hidden during a trial.
+page's first clock exchanges, on its frame rate and window during play
+(`mirror_avatar.lab.running.play_screening`), and on their tab hidden during a trial.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from mirror_avatar.lab.running.messages import (
     parse_participant_message,
 )
 from mirror_avatar.lab.running.participant import Participant
+from mirror_avatar.lab.running.play_screening import PlayScreen
 from mirror_avatar.lab.running.runner import LabSession
 from mirror_avatar.lab.running.screening import (
     BACK_NOTICE,
@@ -103,6 +105,7 @@ class ParticipantPage:
         self.websocket = websocket
         self.pings = Pings()
         self.outbox = Outbox(Peer(websocket, settings.send_timeout, participant.label))
+        self.play = PlayScreen(lab, session, participant, self.outbox)
         self.inbox = Inbox(
             websocket,
             parse_participant_message,
@@ -182,6 +185,7 @@ class ParticipantPage:
                 self._screen_entry(source, exchange.delay, exchange.t1 / 1000.0)
         else:
             source.put_batch(message.seq, message.sent_ms, message.samples, received_ms / 1000.0)
+            self.play.frame(source, message.sent_ms, received_ms / 1000.0, self.window_px)
 
     def _clock_reply(
         self, source: BrowserInput, request: ClockRequest, received_ms: float
@@ -216,7 +220,8 @@ class ParticipantPage:
             window = "" if entry.window_px is None else ", window {}x{} px".format(*entry.window_px)
             self.session.log(f"{participant.label} admitted: {said}{window}")
             return
-        bounds = {k: v for k, v in asdict(self.screening).items() if k != "hidden_tab"}
+        rules = ("hidden_tab", "during_play")
+        bounds = {k: v for k, v in asdict(self.screening).items() if k not in rules}
         self.lab.refuse(participant.key, reason, entry.measured() | {"bounds": bounds})
 
     def _focus(self, source: BrowserInput, change: FocusChange, received_ms: float) -> None:
@@ -230,6 +235,8 @@ class ParticipantPage:
         at_s = source.clock.to_server(change.t_ms)
         at_s = received_ms / 1000.0 if math.isnan(at_s) else at_s
         ended = source.interruptions.event(change.event, at_s)
+        if change.event == "hidden":
+            self.play.hidden(source, at_s)
         participant, trial = self.participant, self.session.playing_in(self.participant)
         if change.event in KINDS and trial is not None and change.event not in self.interrupted:
             self.interrupted.add(change.event)

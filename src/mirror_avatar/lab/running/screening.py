@@ -5,7 +5,8 @@ As docs/METHODS.md, section 9 (*Screening*), describes. A protocol's ``[online]`
 `ENTRY_EXCHANGES` clock exchanges (the burst the page sends as it connects, ``clock.js``): the
 95th percentile of their round trips, the page's animation frames a second meanwhile, and its
 window's size (`Entry`): a page outside a bound is refused (`entry_refusal`, one line naming
-each number and its bound). Until
+each number and its bound; the frame rate and window bounds may hold during play too:
+`mirror_avatar.lab.running.play_screening`). Until
 every connected person's entry is judged, the run does not start unless forced
 (`still_screened`): a person refused during a trial would leave it half played. A tab
 hidden or a window out of focus during a trial is recorded in the trial's sidecar
@@ -110,27 +111,40 @@ def entry_refusal(entry: Entry, screening: Screening) -> str | None:
     """Return why a page is refused at entry, one sentence per bound it misses, or None.
 
     The bounds are the protocol's (`Screening`): a round trip's 95th percentile above
-    ``round_trip_p95_ms``; fewer animation frames a second than ``frame_rate_hz`` (none
-    measured counts as 0: a hidden tab draws none); a window narrower or lower than
-    ``window_width_px`` or ``window_height_px`` (a page that never said its window misses both).
+    ``round_trip_p95_ms``, and those of `bound_misses` (none measured counts as 0 frames a
+    second: a hidden tab draws none).
     """
     reasons = []
     p95, bound = round_trip_p95(entry.delays_ms), screening.round_trip_p95_ms
     if bound is not None and p95 > bound:
         reasons.append(f"Your connection's round trip (p95 {p95:.0f} ms) is above the study's "
                        f"{bound:g} ms.")  # fmt: skip
-    rate, fewest = entry.frame_rate_hz or 0.0, screening.frame_rate_hz
-    if fewest is not None and rate < fewest:
-        reasons.append(f"Your browser drew {rate:.3g} frames a second, fewer than the study's "
-                       f"{fewest:g}.")  # fmt: skip
-    width, height = entry.window_px or (0, 0)
+    reasons += bound_misses(entry.frame_rate_hz or 0.0, entry.window_px, screening)
+    return " ".join(reasons) or None
+
+
+def bound_misses(
+    frame_rate_hz: float, window_px: tuple[int, int] | None, screening: Screening
+) -> list[str]:
+    """Return one sentence per frame or window bound of ``screening`` a page misses.
+
+    Fewer animation frames a second (``frame_rate_hz``, Hz) than ``frame_rate_hz``; a window
+    (``window_px``: width, height; CSS pixels) narrower or lower than ``window_width_px`` or
+    ``window_height_px`` (a page that never said its window misses both).
+    """
+    reasons = []
+    fewest = screening.frame_rate_hz
+    if fewest is not None and frame_rate_hz < fewest:
+        reasons.append(f"Your browser drew {frame_rate_hz:.3g} frames a second, fewer than the "
+                       f"study's {fewest:g}.")  # fmt: skip
+    width, height = window_px or (0, 0)
     if screening.window_width_px is not None and width < screening.window_width_px:
         reasons.append(f"Your window is {width} px wide, narrower than the study's "
                        f"{screening.window_width_px} px.")  # fmt: skip
     if screening.window_height_px is not None and height < screening.window_height_px:
         reasons.append(f"Your window is {height} px high, lower than the study's "
                        f"{screening.window_height_px} px.")  # fmt: skip
-    return " ".join(reasons) or None
+    return reasons
 
 
 def record_refusal(directory: Path, label: str, reason: str, measured: dict[str, Any]) -> None:

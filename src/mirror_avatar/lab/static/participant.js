@@ -206,8 +206,9 @@
     }
   }
 
-  // One line the server tells the participant (their tab came back during a trial), kept until
-  // the next trial starts.
+  // One line the server tells the participant (their tab came back during a trial, or their page
+  // drew fewer frames or its window was smaller than the study needs), kept until the next trial
+  // starts.
   function notify(text) {
     ui.notice.textContent = text;
     ui.notice.hidden = !text;
