@@ -4,10 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import settings
 
 from mirror_avatar.datasets import load_zhai2017
 from mirror_avatar.files.trials import Trial
 from mirror_avatar.warm_up import warm_up
+
+# Property tests without a time limit per example (a busy machine is not a failure), with examples
+# drawn from each test's name (every run tries the same ones) and no example database between runs.
+settings.register_profile("any_machine", deadline=None, derandomize=True, database=None)
+settings.load_profile("any_machine")
 
 
 def pytest_configure(config: pytest.Config) -> None:
