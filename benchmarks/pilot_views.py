@@ -13,8 +13,9 @@ Protocol (docs/lab.md, *Partners across links of different delays*):
   means), each predicted draw against the sample it was predicted from and replayed with the
   partner's samples fitted at their read times (the server's fit) and at the control ticks that
   recorded them (the view, pointer and inputs files of the complete trials, draw by draw), the
-  share of ticks that held a person's previous position, the report's
-  ``conditions.csv`` and ``contrasts.csv``, and the proxy's truth (`pilot_network.truth`).
+  share of ticks that held a person's previous position, how predictable each person's reads
+  are without a network (`on_reads`), the report's ``conditions.csv`` and ``contrasts.csv``,
+  and the proxy's truth (`pilot_network.truth`).
 
 Run: ``python benchmarks/pilot_views.py PILOT`` after the three commands; prints Markdown.
 """
@@ -124,6 +125,42 @@ def predicted_draws(pilot: Path) -> list[str]:
     return lines
 
 
+HORIZONS_S = (0.05, 0.1, 0.15, 0.2, 0.3)
+"""Horizons (s) a person's own reads are predicted over in `on_reads`."""
+
+
+def on_reads(pilot: Path) -> list[str]:
+    """Tabulate how predictable each person's motion is: RMS error (units) per horizon.
+
+    From every third pointer sample of the complete trials (after the first ten): the position
+    read a horizon later (linear between reads) against the sample held and against the sample
+    extrapolated along the fit of the reads before it (`dead_reckon`): prediction without a
+    network.
+    """
+    errors: dict[tuple[str, float], list[tuple[float, float]]] = {}
+    for sidecar in sorted(pilot.glob("*-p*/trial-*_session.json")):
+        if not json.loads(sidecar.read_text())["metadata"]["complete"]:
+            continue
+        stem = sidecar.name.removesuffix("_session.json")
+        pointer = pd.read_csv(sidecar.with_name(f"{stem}_pointer.csv")).dropna()
+        for person, reads in pointer.groupby("label"):
+            t, x = reads.server_s.to_numpy(), reads.x.to_numpy()
+            at = range(10, int(np.searchsorted(t, t[-1] - max(HORIZONS_S))), 3)
+            for horizon in HORIZONS_S:
+                later = np.interp(t[list(at)] + horizon, t, x)
+                ahead = [dead_reckon(t[: i + 1], x[: i + 1], t[i] + horizon, PLAYING_RANGE)
+                         for i in at]  # fmt: skip
+                errors.setdefault((str(person), horizon), []).append(
+                    (float(np.sqrt(np.mean((x[list(at)] - later) ** 2))),
+                     float(np.sqrt(np.mean((np.array(ahead) - later) ** 2))))
+                )  # fmt: skip
+    lines = ["| person | horizon (s) | held | extrapolated |", "|---|---|---|---|"]
+    for (person, horizon), pairs in sorted(errors.items()):
+        held, ahead = np.array(pairs).mean(axis=0)
+        lines.append(f"| {person} | {horizon} | {held:.4f} | {ahead:.4f} |")
+    return lines
+
+
 def conditions(pilot: Path) -> list[str]:
     """Tabulate each measure and handling's mean [95 % CI] (the report's conditions.csv)."""
     table = pd.read_csv(pilot / "report" / "conditions.csv").set_index(["measure", "condition"])
@@ -164,7 +201,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("pilot", type=Path, help="the pilot's folder (its table/ and report/)")
     pilot = parser.parse_args().pilot
-    parts = (views, predicted_draws, conditions, contrasts, truth)
+    parts = (views, predicted_draws, on_reads, conditions, contrasts, truth)
     print("\n\n".join("\n".join(part(pilot)) for part in parts))
 
 
