@@ -60,29 +60,31 @@ def views(pilot: Path) -> list[str]:
 
 def replay(
     clock: np.ndarray, partner: np.ndarray, reads: pd.DataFrame, ks: np.ndarray, horizon: float
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, float]:
     """Return a partner's draws at samples ``ks`` predicted from its reads and from its ticks.
 
     ``clock`` (s) and ``partner`` (units) are the recording's ticks, ``reads`` the partner's
     pointer samples, ``horizon`` (s) the page's one-way delay. From the reads: those that
     arrived within the `FIT_TICKS` ticks up to each sample, at their read times (the server's
     fit). From the ticks: the positions of the ticks within `FIT_WINDOW_S` of it, at the
-    ticks' times (the server's fit before it read the pointer samples' times).
+    ticks' times (the server's fit before it read the pointer samples' times). Also how far
+    (s) the reads were extrapolated past the newest, on average.
     """
     read, x, arrived = (reads[c].to_numpy() for c in ("server_s", "x", "received_s"))
     back = round(FIT_WINDOW_S / CONTROL_PERIOD)
-    from_reads, from_ticks = [], []
+    from_reads, from_ticks, ahead = [], [], []
     for k in ks:
         known = (arrived <= clock[k]) & (arrived > clock[max(0, k - FIT_TICKS)])
         if known.any():
             to_s = recorded_read_s(clock[k] + horizon, read[known], arrived[known])
             from_reads.append(dead_reckon(read[known], x[known], to_s, PLAYING_RANGE))
+            ahead.append(to_s - read[known][-1])
         else:
             from_reads.append(partner[k])
         ticks = slice(max(0, k - back), k + 1)
         from_ticks.append(dead_reckon(clock[ticks], partner[ticks], clock[k] + horizon,
                                       PLAYING_RANGE))  # fmt: skip
-    return np.array(from_reads), np.array(from_ticks)
+    return np.array(from_reads), np.array(from_ticks), float(np.mean(ahead))
 
 
 def predicted_draws(pilot: Path) -> list[str]:
@@ -92,7 +94,7 @@ def predicted_draws(pilot: Path) -> list[str]:
     as drawn, as `replay` predicts it from the partner's reads and from its ticks over half the
     page's median round trip, and as the sample it was predicted from would have been (linear
     between the recorded samples); with the share of the partner's ticks that held its previous
-    position.
+    position, the horizon (s) and how far the reads were extrapolated (s; `replay`).
     """
     errors: dict[str, list[tuple[float, ...]]] = {}
     for sidecar in sorted(pilot.glob("*-p*/trial-*_session.json")):
@@ -110,18 +112,20 @@ def predicted_draws(pilot: Path) -> list[str]:
             now = np.interp(seen.shown_s, clock, partner)
             horizon = metadata["pages"][person]["rtt_ms"]["median"] / 2000.0
             reads = pointer[pointer.label == other]
-            replayed = replay(clock, partner, reads, seen.k.to_numpy(), horizon)
+            *replayed, ahead = replay(clock, partner, reads, seen.k.to_numpy(), horizon)
             drawn = (seen.x.to_numpy(), *replayed, np.interp(seen.sample_s, clock, partner))
             rms = [float(np.sqrt(np.mean((x - now) ** 2))) for x in drawn]
-            errors.setdefault(str(person), []).append((*rms, inputs[f"held_{other}"].mean()))
+            held = inputs[f"held_{other}"].mean()
+            errors.setdefault(str(person), []).append((*rms, held, horizon, ahead))
     lines = ["| person | trials | predicted (drawn) | replayed: reads | replayed: ticks | "
-             "as sampled | trials nearer predicted | partner's ticks held |",
-             "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+             "as sampled | trials nearer predicted | partner's ticks held | horizon (s) | "
+             "reads extrapolated (s) |", "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for person, rows in sorted(errors.items()):
-        drawn, reads, ticks, sampled, held = np.array(rows).T
+        drawn, reads, ticks, sampled, held, horizon, ahead = np.array(rows).T
         lines.append(f"| {person} | {len(rows)} | {drawn.mean():.4f} | {reads.mean():.4f} | "
                      f"{ticks.mean():.4f} | {sampled.mean():.4f} | "
-                     f"{int(np.sum(drawn < sampled))} | {held.mean():.2f} |")  # fmt: skip
+                     f"{int(np.sum(drawn < sampled))} | {held.mean():.2f} | "
+                     f"{horizon.mean():.3f} | {ahead.mean():.3f} |")  # fmt: skip
     return lines
 
 

@@ -7,11 +7,12 @@ samples), reaches a page one downlink later. Three handlings (METHODS section 19
 - ``equalised`` (local lag, Mauve et al. 2004): held by the page until ``t_k + L`` (its clock
   mapped onto the server's, `due_page_ms`), ``L`` a declared lag or the slowest page's one-way
   delay (`one_way_ms` at `LAG_QUANTILE`), so that every page draws sample k at the same time;
-- ``predicted`` (first-order dead reckoning): drawn as it arrives, at the position extrapolated
-  ``h`` ahead (`dead_reckon`) along the line fitted on the partner's samples read within the
-  last `FIT_WINDOW_S`, each at the time it was read (a page's pointer sample: its read time on
-  the server's clock; an avatar's: its sample's), not at the control ticks that recorded it,
-  and to the read time the recording shows ``h`` after the sample (`recorded_read_s`).
+- ``predicted`` (first-order dead reckoning): drawn as it arrives, at the position the
+  recording is expected to show ``h`` after ``t_k``: the partner's newest sample extrapolated
+  (`dead_reckon`) to the read time the recording shows then (`recorded_read_s`), along the line
+  fitted on its samples read within `FIT_WINDOW_S`, each at the time it was read (a page's
+  pointer sample: its read time on the server's clock; an avatar's: its sample's time), not at
+  the control ticks that recorded it.
 
 A condition's fixed delay of the partners may vary from sample to sample: a zero-mean jitter of
 a declared distribution and SD is added to each sample's (`jitter_draw`), never below none nor
