@@ -21,6 +21,7 @@ from mirror_avatar.realtime.partner_view import (
     jitter_draw,
     jittered_delay_s,
     one_way_ms,
+    recorded_read_s,
     view_summary,
 )
 
@@ -40,25 +41,70 @@ def test_a_sample_is_due_its_lag_after_its_time_on_the_page_clock():
     assert due_page_ms(12.5, 150.0, -500.0) == 13_150.0
 
 
-def test_dead_reckoning_fits_the_slope_of_the_last_four_samples():
-    # x = t^2 at t = 0, 1, 2, 3 (period 1): least-squares slope 15 / 5 = 3 (see the comment
-    # below); 9 + 3 * 0.5 = 10.5, scaled by 1/100 to lie in the playing range
-    history = np.array([[0.0], [1.0], [4.0], [9.0]]) / 100.0
+def test_dead_reckoning_fits_the_slope_of_the_samples_read_within_its_window():
+    # x = (t / 0.03)^2 / 100 read at t = 0, 0.03, 0.06, 0.09 s: in steps of 0.03 s the
+    # least-squares slope is 15 / 5 = 3 (see the comment below), 1 unit/s after scaling;
+    # 0.015 s past the newest: 0.09 + 0.015 = 0.105
+    read = np.array([0.0, 0.03, 0.06, 0.09])
+    x = np.array([0.0, 1.0, 4.0, 9.0]) / 100.0
     # sum (t - 1.5)(x - 3.5) = 5.25 + 1.25 + 0.25 + 8.25 = 15; sum (t - 1.5)^2 = 5
-    assert dead_reckon(history, 1.0, 0.5, BOUNDS) == pytest.approx([0.105])
+    assert dead_reckon(read, x, 0.105, BOUNDS) == pytest.approx(0.105)
 
 
-def test_dead_reckoning_uses_only_the_last_samples_and_the_period():
-    # an old jump, then a ramp of 0.01 a sample at 0.03 s: v = 1/3 unit/s; 0.15 s ahead: +0.05
-    history = np.array([[0.4, 0.0], [-0.2, 0.0], [-0.1, 0.0], [-0.09, 0.0], [-0.08, 0.0],
-                        [-0.07, 0.0]])  # fmt: skip
-    assert dead_reckon(history, 0.03, 0.15, BOUNDS) == pytest.approx([-0.02, 0.0])
+def test_dead_reckoning_uses_only_the_samples_read_within_its_window():
+    # an old jump 0.1 s before the newest, then a ramp of 0.01 per 0.03 s: 1/3 unit/s; 0.15 s
+    # past the newest: -0.07 + 0.05
+    read = np.array([0.0, 0.11, 0.14, 0.17, 0.20])
+    x = np.array([0.4, -0.1, -0.09, -0.08, -0.07])
+    assert dead_reckon(read, x, 0.35, BOUNDS) == pytest.approx(-0.02)
 
 
 def test_dead_reckoning_stays_in_range_and_holds_a_single_sample():
-    ramp = np.array([[0.40], [0.44], [0.48]])
-    assert dead_reckon(ramp, 0.03, 1.0, BOUNDS) == pytest.approx([0.5])
-    assert dead_reckon(np.array([[0.2]]), 0.03, 1.0, BOUNDS) == pytest.approx([0.2])
+    ramp = np.array([0.40, 0.44, 0.48])
+    assert dead_reckon(np.array([0.0, 0.03, 0.06]), ramp, 1.06, BOUNDS) == pytest.approx(0.5)
+    assert dead_reckon(np.array([0.0]), np.array([0.2]), 1.0, BOUNDS) == pytest.approx(0.2)
+
+
+def test_the_recording_shows_a_position_one_median_uplink_old():
+    # uplinks 0.5 (read 0.1 s before the newest: outside the window), 0.10, 0.20, 0.15, 0.12
+    read = np.array([0.0, 0.1, 0.13, 0.16, 0.19])
+    arrived = read + np.array([0.5, 0.10, 0.20, 0.15, 0.12])
+    assert recorded_read_s(10.0, read, arrived) == pytest.approx(10.0 - 0.135)
+    ticks = np.array([1.0, 1.03])
+    assert recorded_read_s(1.2, ticks, ticks) == 1.2
+
+
+def test_linear_motion_read_at_jittered_times_is_predicted_exactly_unlike_from_held_ticks():
+    """A page reads x = 0.1 + 0.8 t every 30 ms +- 10 ms, sends each read over a link of
+    120 +- 40 ms that keeps the order, and the server records at each 30 ms tick the newest
+    arrived (held when none arrived). Fitted at the reads' times, the prediction is the motion
+    itself; fitted on the ticks, as the recording holds the reads, it is not."""
+
+    def motion(t):
+        return 0.1 + 0.8 * t
+
+    rng = np.random.default_rng(49)
+    read = np.arange(0.0, 3.0, 0.03) + rng.uniform(-0.01, 0.01, 100)
+    arrived = np.maximum.accumulate(read + np.clip(rng.normal(0.12, 0.04, 100), 0.0, None))
+    ticks = np.arange(0.3, 3.0, 0.03)
+    newest = np.searchsorted(arrived, ticks, side="right") - 1
+    held = np.mean(newest[1:] == newest[:-1])
+    assert held > 0.1  # the recording holds a read at some ticks
+    horizon = 0.15
+    exact, from_ticks = [], []
+    for k in range(10, len(ticks)):
+        known = slice(0, newest[k] + 1)
+        to_s = recorded_read_s(ticks[k] + horizon, read[known], arrived[known])
+        exact.append(
+            dead_reckon(read[known], motion(read[known]), to_s, (-5.0, 5.0)) - motion(to_s)
+        )
+        recorded = motion(read[newest[k - 3 : k + 1]])
+        from_ticks.append(
+            dead_reckon(ticks[k - 3 : k + 1], recorded, ticks[k] + horizon, (-5.0, 5.0))
+            - motion(to_s)
+        )
+    assert np.abs(exact).max() < 1e-12
+    assert np.sqrt(np.mean(np.square(from_ticks))) > 0.02
 
 
 def test_delays_and_errors_against_the_recording():

@@ -7,8 +7,12 @@ samples), reaches a page one downlink later. Three handlings (METHODS section 19
 - ``equalised`` (local lag, Mauve et al. 2004): held by the page until ``t_k + L`` (its clock
   mapped onto the server's, `due_page_ms`), ``L`` a declared lag or the slowest page's one-way
   delay (`one_way_ms` at `LAG_QUANTILE`), so that every page draws sample k at the same time;
-- ``predicted`` (first-order dead reckoning): drawn as it arrives, at the position extrapolated
-  ``h`` ahead from the partner's last `FIT_SAMPLES` samples (`dead_reckon`).
+- ``predicted`` (first-order dead reckoning): drawn as it arrives, at the position the
+  recording is expected to show ``h`` after ``t_k``: the partner's newest sample extrapolated
+  (`dead_reckon`) to the read time the recording shows then (`recorded_read_s`), along the line
+  fitted on its samples read within `FIT_WINDOW_S`, each at the time it was read (a page's
+  pointer sample: its read time on the server's clock; an avatar's: its sample's time), not at
+  the control ticks that recorded it.
 
 A condition's fixed delay of the partners may vary from sample to sample: a zero-mean jitter of
 a declared distribution and SD is added to each sample's (`jitter_draw`), never below none nor
@@ -32,9 +36,11 @@ from mirror_avatar.realtime.latency import summarise
 HANDLINGS = ("as_arrives", "equalised", "predicted")
 """How a page draws its partners (see the module docstring)."""
 
-FIT_SAMPLES = 4
-"""Samples a partner's velocity is fitted on (**choice**: at the 30 ms control period, the last
-90 ms: long enough to average a pointer's quantisation, short enough to follow a reversal)."""
+FIT_WINDOW_S = 0.09
+"""Time (s) before a partner's newest sample within which its samples are read that its velocity
+is fitted on (**choice**: three 30 ms control periods, four samples of a page that reads its
+pointer once a period, five or six at 60 Hz: long enough to average a pointer's quantisation,
+short enough to follow a reversal)."""
 
 JITTERS = ("normal", "uniform", "exponential")
 """Distributions of a delay's jitter: normal; uniform; exponential, shifted to a zero mean
@@ -100,34 +106,43 @@ def due_page_ms(sample_s: float, lag_ms: float, offset_ms: float) -> float:
     return sample_s * 1000.0 + lag_ms - offset_ms
 
 
-def dead_reckon(
-    history: Array, period: float, horizon_s: float, bounds: tuple[float, float]
-) -> Array:
-    """Return each player's position extrapolated ``horizon_s`` beyond its last sample.
+def dead_reckon(read_s: Array, x: Array, to_s: float, bounds: tuple[float, float]) -> float:
+    """Return a partner's position extrapolated from its newest sample to the read time ``to_s``.
 
-    ``x_k + v h``, with ``v`` the slope of the least-squares line through the last
-    `FIT_SAMPLES` samples (fewer at a trial's start; none moving with one), clipped to
-    ``bounds``.
+    ``x_n + v (to_s - t_n)``, with ``(t_n, x_n)`` the newest sample and ``v`` the slope of the
+    least-squares line through the samples read within `FIT_WINDOW_S` of it (none moving with
+    one), clipped to ``bounds``. Each sample is fitted at its own read time: samples read at
+    uneven times, and a tick that recorded no new sample, do not bend the slope.
 
     Parameters
     ----------
-    history
-        Positions (units), shape (n_samples, n_players), oldest first, ``period`` (s) apart.
-    period
-        Time between samples (s).
-    horizon_s
-        How far ahead (s).
+    read_s
+        When each sample was read (s, increasing), shape (n,).
+    x
+        Its position (units), shape (n,).
+    to_s
+        The read time to extrapolate to (s).
     bounds
         The playing range (units).
     """
-    recent = history[-FIT_SAMPLES:]
-    last = recent[-1]
-    if len(recent) < 2:
-        return np.clip(last, *bounds)
-    t = np.arange(len(recent), dtype=np.float64) * period
+    recent = read_s >= read_s[-1] - FIT_WINDOW_S
+    t, y = read_s[recent], x[recent]
     centred = t - t.mean()
-    slope = centred @ (recent - recent.mean(axis=0)) / (centred @ centred)
-    return np.clip(last + slope * horizon_s, *bounds)
+    spread = float(centred @ centred)
+    slope = float(centred @ (y - y.mean())) / spread if spread > 0.0 else 0.0
+    return float(np.clip(x[-1] + slope * (to_s - read_s[-1]), *bounds))
+
+
+def recorded_read_s(display_s: float, read_s: Array, arrived_s: Array) -> float:
+    """Return the read time (s) of the partner's position the recording shows at ``display_s``.
+
+    The recording holds a partner's newest sample from its arrival at the server, so at
+    ``display_s`` (s, the server's clock) it shows the position read one uplink earlier: the
+    median of ``arrived_s - read_s`` (s) over the samples read within `FIT_WINDOW_S` of the
+    newest (none for a partner sampled on the server's own ticks).
+    """
+    recent = read_s >= read_s[-1] - FIT_WINDOW_S
+    return display_s - float(np.median(arrived_s[recent] - read_s[recent]))
 
 
 def displayed_delays_ms(shown_s: Array, sample_s: Array) -> Array:

@@ -13,9 +13,13 @@ METHODS section 19):
   `mirror_avatar.realtime.partner_view.LAG_QUANTILE`), on the page's clock
   (`mirror_avatar.realtime.partner_view.due_page_ms`); a page whose clock is not known yet
   draws them as they arrive;
-- ``predicted``: each partner extrapolated from its last samples
-  (`mirror_avatar.realtime.partner_view.dead_reckon`) over the declared horizon, or the page's
-  own one-way delay (half its median round trip; none before its clock is known).
+- ``predicted``: each partner extrapolated (`mirror_avatar.realtime.partner_view.dead_reckon`)
+  to where the recording shows it the declared horizon, or the page's own one-way delay (half
+  its median round trip; none before its clock is known), after the sample sent
+  (`mirror_avatar.realtime.partner_view.recorded_read_s`), fitted on the partner's samples as
+  they were read: a page's pointer samples at their read times on the server's clock, those
+  that arrived by the sample sent (the ticks' samples of a partner without them: an avatar, a
+  device, a page before its clock is known).
 
 The recording keeps the true positions; what each page was sent is remembered for the view
 file (`mirror_avatar.lab.running.views.ViewLog`).
@@ -26,6 +30,7 @@ from __future__ import annotations
 import collections
 import math
 from collections.abc import Iterable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -36,17 +41,18 @@ from mirror_avatar.lab.design.partner_view import PartnerView
 from mirror_avatar.lab.running.participant import Participant
 from mirror_avatar.lab.running.trial import LabTrial
 from mirror_avatar.lab.running.views import SentFrame
-from mirror_avatar.realtime.inputs import BrowserInput
+from mirror_avatar.realtime.inputs import BrowserInput, PointerSample
 from mirror_avatar.realtime.page_clock import PageClock
 from mirror_avatar.realtime.partner_view import (
-    FIT_SAMPLES,
     JITTER_SPAN,
     LAG_QUANTILE,
+    Array,
     dead_reckon,
     due_page_ms,
     jitter_draw,
     jittered_delay_s,
     one_way_ms,
+    recorded_read_s,
 )
 from mirror_avatar.remote.network import due_time
 
@@ -56,6 +62,28 @@ AS_ARRIVES = PartnerView()
 DUE_TOLERANCE_S = 1e-9
 """A sample due within this of a tick's time (s) is due at it (its time and delay summed in
 floating point)."""
+
+FIT_SPAN_S = 0.3
+"""Time (s) back from the sample sent whose arrivals a prediction looks through for the samples
+it fits (**choice**: the samples read within
+`mirror_avatar.realtime.partner_view.FIT_WINDOW_S` arrive spread by the uplink's jitter and
+held behind late ones, TCP's order; 0.3 s covers 0.09 s and a hold of over 0.2 s)."""
+
+FIT_TICKS = math.ceil(FIT_SPAN_S / CONTROL_PERIOD)
+"""Samples back whose arrivals a prediction looks through (`FIT_SPAN_S`)."""
+
+
+class Taken(NamedTuple):
+    """A sample as the partners' frames need it.
+
+    Its time (``stamp``: s, the server's clock), every player's position (``positions``:
+    units) and the pointer samples received by then since the sample before (``reads``: by
+    player index, oldest first, those with a server time).
+    """
+
+    stamp: float
+    positions: list[float]
+    reads: dict[int, list[PointerSample]]
 
 
 def page_clock(participant: Participant) -> PageClock | None:
@@ -80,13 +108,13 @@ def slowest_one_way_ms(people: Iterable[Participant]) -> float:
 class PartnerFrames:
     """Sends each page its frame of each sample (see the module docstring).
 
-    Remembers the samples a delay, its jitter and a prediction need: ``(time, positions)`` of
-    the last ``delay + FIT_SAMPLES`` and the jitter's `JITTER_SPAN` SDs, from the trial's first
-    sample; with a jitter, each page's `JitteredLink`.
+    Remembers the samples a delay, its jitter and a prediction need (`Taken`): the last
+    ``delay + FIT_TICKS`` and the jitter's `JITTER_SPAN` SDs, from the trial's first sample;
+    with a jitter, each page's `JitteredLink`.
     """
 
     def __init__(self) -> None:
-        self._history: collections.deque[tuple[float, list[float]]] = collections.deque(maxlen=1)
+        self._history: collections.deque[Taken] = collections.deque(maxlen=1)
         self._links: dict[int, JitteredLink] = {}
 
     def send(
@@ -113,11 +141,11 @@ class PartnerFrames:
             How the pages draw them.
         """
         span = math.ceil(JITTER_SPAN * view.jitter_s / CONTROL_PERIOD)
-        if trial.k == 1 or self._history.maxlen != delay + span + FIT_SAMPLES:
-            self._history = collections.deque(maxlen=delay + span + FIT_SAMPLES)
+        if trial.k == 1 or self._history.maxlen != delay + span + FIT_TICKS:
+            self._history = collections.deque(maxlen=delay + span + FIT_TICKS)
             self._links = {}
         positions = trial.positions()
-        self._history.append((trial.tick_log.last_stamp, positions))
+        self._history.append(Taken(trial.tick_log.last_stamp, positions, _reads(trial)))
         lag_ms = None
         if view.handling == "equalised":
             lag_ms = (
@@ -189,8 +217,17 @@ class JitteredLink:
         return self._shown
 
 
+def _reads(trial: LabTrial) -> dict[int, list[PointerSample]]:
+    """Return the pointer samples received at the trial's latest tick with a server time."""
+    index = {slot.label: k for k, slot in enumerate(trial.plan.slots)}
+    return {
+        index[label]: [s for s in samples if not math.isnan(s.server_s)]
+        for label, samples in trial.pointer_log.received.items()
+    }
+
+
 def _partners(
-    past: list[tuple[float, list[float]]],
+    past: list[Taken],
     others: list[int],
     view: PartnerView,
     clock: PageClock | None,
@@ -198,13 +235,32 @@ def _partners(
     """Return what a page is sent of its partners ``others`` from the samples ``past``."""
     if not past:
         return SentFrame(tuple(others), math.nan, tuple(None for _ in others))
-    stamp, positions = past[-1]
+    stamp, positions, _ = past[-1]
     if view.handling != "predicted":
         return SentFrame(tuple(others), stamp, tuple(positions[j] for j in others))
     horizon = view.horizon_s
     if horizon is None:
         measured = None if clock is None else one_way_ms(clock.recent_delays())
         horizon = 0.0 if measured is None else measured / 1000.0
-    history = np.array([x for _, x in past[-FIT_SAMPLES:]], dtype=np.float64)
-    ahead = dead_reckon(history, CONTROL_PERIOD, horizon, PLAYING_RANGE)
-    return SentFrame(tuple(others), stamp, tuple(float(ahead[j]) for j in others))
+    ahead = []
+    for j in others:
+        read, x, arrived = _as_read(past[-FIT_TICKS:], j)
+        to_s = recorded_read_s(stamp + horizon, read, arrived)
+        ahead.append(dead_reckon(read, x, to_s, PLAYING_RANGE))
+    return SentFrame(tuple(others), stamp, tuple(ahead))
+
+
+def _as_read(recent: list[Taken], j: int) -> tuple[Array, Array, Array]:
+    """Return player j's samples known at the newest of ``recent``, as they were read.
+
+    Their read times (s), positions (units) and arrivals (s; all the server's clock): its
+    pointer samples that arrived by the newest's time, or else the samples' own (read and
+    arrived at their time).
+    """
+    stamp = recent[-1].stamp
+    pointer = [s for taken in recent for s in taken.reads.get(j, ()) if s.received_s <= stamp]
+    if pointer:
+        read, x, arrived = zip(*((s.server_s, s.x, s.received_s) for s in pointer), strict=True)
+        return np.array(read), np.array(x), np.array(arrived)
+    times = np.array([taken.stamp for taken in recent])
+    return times, np.array([taken.positions[j] for taken in recent]), times

@@ -74,7 +74,7 @@ from mirror_avatar.metrics.group import compute_cluster_phase
 from mirror_avatar.metrics.measuring import measure_trial
 from mirror_avatar.players.base import Player
 from mirror_avatar.realtime.clock import time_players
-from mirror_avatar.realtime.inputs import BrowserInput, HumanPlayer, InputSource
+from mirror_avatar.realtime.inputs import BrowserInput, HumanPlayer, InputSource, PointerSample
 from mirror_avatar.realtime.trial import Array, Clock, ClockedTrial
 from mirror_avatar.sessions.session import Session
 
@@ -135,17 +135,24 @@ class PointerLog:
         The file; it must not exist yet.
     pages
         Each pointer's label and input.
+
+    Attributes
+    ----------
+    received
+        The samples written at the latest tick, by label, oldest first.
     """
 
     def __init__(self, path: Path, pages: Mapping[str, BrowserInput]) -> None:
         self.pages = dict(pages)
         self.path = path
+        self.received: dict[str, list[PointerSample]] = {}
         self._file = LineFile(path, ",".join(POINTER_COLUMNS))
 
     def __call__(self, row: Array) -> None:
         """Write the samples received since the previous tick."""
-        for label, source in self.pages.items():
-            for s in source.unread():
+        self.received = {label: source.unread() for label, source in self.pages.items()}
+        for label, samples in self.received.items():
+            for s in samples:
                 times = f"{s.page_ms:.3f},{s.server_s:.6f},{s.received_s:.6f}"
                 self._file.write(f"{label},{s.seq},{times},{s.x!r}")
 
