@@ -257,13 +257,6 @@ def other_sets(
         )
 
 
-def setting_value(text: str) -> int | float | bool:
-    """Read a ``--set`` value: ``true`` or ``false``, a whole number or a number."""
-    if text in ("true", "false"):
-        return text == "true"
-    return int(text) if text.isdigit() else float(text)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -271,7 +264,7 @@ def main() -> None:
     )
     parser.add_argument("--kinds", nargs="+", choices=KINDS, default=["strokes"])
     parser.add_argument(
-        "--set", nargs="*", default=[], help="generator settings KEY=VALUE (numbers, true, false)"
+        "--set", nargs="*", default=[], help="generator settings KEY=VALUE (numbers)"
     )
     parser.add_argument(
         "--sets", type=int, default=1, help="sets of generated trials (seeds 1000 apart)"
@@ -281,7 +274,7 @@ def main() -> None:
         "--figure", type=Path, help="also draw each person's velocity spectra (PNG) to this file"
     )
     args = parser.parse_args()
-    settings = {k: setting_value(v) for k, v in (i.split("=") for i in args.set)}
+    settings = {k: int(v) if v.isdigit() else float(v) for k, v in (i.split("=") for i in args.set)}
     everyone = people(args.people)
     rows, spectra = [], {}
     for kind in args.kinds:

@@ -20,15 +20,7 @@ import numbers
 from collections.abc import Iterable
 from typing import Any
 
-from mirror_avatar.common.constraints import (
-    Constraint,
-    Either,
-    Flag,
-    Interval,
-    Options,
-    Setting,
-    check,
-)
+from mirror_avatar.common.constraints import Constraint, Either, Interval, Options, Setting, check
 from mirror_avatar.files.trials import MAX_RATE, MIN_RATE
 
 EMISSIONS = ("exemplar", "centroid")
@@ -76,8 +68,6 @@ STROKE_SETTINGS = (
             "generated stroke's length and size", Interval(float, 0.0, 10.0), 0.5),
     Setting("min_reversal", "how far the position must come back from a turning point for it "
             "to count as a reversal (units)", Interval(float, 0.0, 1.0), 0.01),
-    Setting("subsample", "cut strokes at reversal times between samples (the vertex of a "
-            "parabola through the turn) and resample them from there", Flag(), False),
     Setting("rate", "sampling rate of the model; trials are resampled to it",
             Interval(float, MIN_RATE, MAX_RATE, unit="Hz"), 100.0),
     Setting("random_state", "seed of sampling when given none", KMEANS_SEEDS, None,

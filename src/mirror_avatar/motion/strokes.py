@@ -39,7 +39,6 @@ from typing import Any, Self
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.interpolate import CubicSpline
 
 from mirror_avatar.common.constraints import ConstraintError
 from mirror_avatar.common.errors import InputError
@@ -103,23 +102,6 @@ def reversals(positions: Array, min_reversal: float = 0.0) -> NDArray[np.int64]:
     return np.array(edges, dtype=np.int64)
 
 
-def subsample_reversals(positions: Array, edges: NDArray[np.int64]) -> Array:
-    """Return the times (samples) of a trial's reversals between samples, shape like ``edges``.
-
-    Each turning point's time is the vertex of the parabola through the sample there and its
-    two neighbours, at most half a sample from it; the first and last samples and a turn of no
-    curvature (a straight run of three samples) keep their sample's time.
-    """
-    times = edges.astype(np.float64)
-    inner = (edges > 0) & (edges < positions.size - 1)
-    before, at, after = (positions[edges[inner] + k] for k in (-1, 0, 1))
-    curvature = before - 2.0 * at + after
-    with np.errstate(divide="ignore", invalid="ignore"):
-        offset = np.where(curvature != 0, 0.5 * (before - after) / curvature, 0.0)
-    times[inner] += np.clip(offset, -0.5, 0.5)
-    return times
-
-
 def room_ahead(position: Array | float, direction: Array | float) -> Array:
     """Distance (units) from ``position`` to the edge of the playing range it moves towards."""
     low, high = PLAYING_RANGE
@@ -149,11 +131,6 @@ class StrokeGenerator:
     min_reversal
         How far (units) the position must move back from a turning point for it to count as a
         reversal (`reversals`).
-    subsample
-        Cut strokes at reversal times between samples (`subsample_reversals`) and take each
-        stroke's positions at evenly spaced times from its start to its end, as near one sample
-        apart as its length allows, from a cubic spline through the trial's samples; else cut
-        at the turning samples.
     rate
         Sampling rate of the model (Hz); training trials are resampled to it.
     random_state
@@ -195,14 +172,12 @@ class StrokeGenerator:
         neighbours: int | str = "auto",
         jitter: float = 0.5,
         min_reversal: float = 0.01,
-        subsample: bool = False,
         rate: float = 100.0,
         random_state: int | None = None,
     ) -> None:
         self.neighbours = neighbours
         self.jitter = jitter
         self.min_reversal = min_reversal
-        self.subsample = subsample
         self.rate = rate
         self.random_state = random_state
 
@@ -226,13 +201,17 @@ class StrokeGenerator:
         previous: list[int] = []
         profiles: list[Array] = []
         for trial in trials:
-            for number, (length, stroke) in enumerate(self._strokes(self.signal(trial))):
-                displacement = stroke[-1] - stroke[0]
-                profiles.append(_profile(stroke, displacement))
+            positions = self.signal(trial)
+            edges = reversals(positions, self.min_reversal)
+            for number, (first, last) in enumerate(zip(edges[:-1], edges[1:], strict=True)):
+                if last == first:  # a trial of one sample
+                    continue
+                displacement = positions[last] - positions[first]
+                profiles.append(_profile(positions[first : last + 1], displacement))
                 previous.append(len(lengths) - 1 if number else -1)
-                lengths.append(length)
+                lengths.append(float(last - first))
                 displacements.append(float(displacement))
-                starts.append(float(stroke[0]))
+                starts.append(float(positions[first]))
         self._keep_drawable(
             np.array(lengths), np.array(displacements), np.array(starts),
             np.array(previous, dtype=np.int64), np.concatenate(profiles), "trials",
@@ -247,29 +226,6 @@ class StrokeGenerator:
             "random_state": self.random_state,
         }
         return self
-
-    def _strokes(self, positions: Array) -> list[tuple[float, Array]]:
-        """Cut a trial's positions (units) at its reversals into strokes.
-
-        Each stroke is its length (samples) and its positions from its start to its end
-        inclusive: the samples between its turning samples, or with `subsample` its positions
-        on a cubic spline through the trial's samples at `profile_sizes` evenly spaced times
-        between its reversal times. A trial of one sample has none.
-        """
-        edges = reversals(positions, self.min_reversal)
-        if positions.size < 2:
-            return []
-        if not self.subsample:
-            return [
-                (float(b - a), positions[a : b + 1])
-                for a, b in zip(edges[:-1], edges[1:], strict=True)
-            ]
-        times = subsample_reversals(positions, edges)
-        spline = CubicSpline(np.arange(positions.size), positions)
-        return [
-            (b - a, spline(np.linspace(a, b, int(profile_sizes(np.array([b - a]))[0]))))
-            for a, b in zip(times[:-1].tolist(), times[1:].tolist(), strict=True)
-        ]
 
     def unfitted(self, random_state: int | None) -> StrokeGenerator:
         """Return an unfitted generator with these settings and a seed."""
@@ -317,8 +273,8 @@ class StrokeGenerator:
                 f"{drawable.size} strokes follow another in their trial; the stroke generator "
                 f"needs {MIN_STROKES}: give longer trials or more of them",
             )
-        ends = np.cumsum(profile_sizes(lengths))
-        firsts = ends - profile_sizes(lengths)
+        ends = np.cumsum(lengths + 1.0).astype(np.int64)
+        firsts = ends - (lengths + 1).astype(np.int64)
         self.lengths_ = lengths[drawable]
         self.displacements_ = displacements[drawable]
         self.starts_ = starts[drawable]
@@ -340,9 +296,8 @@ class StrokeGenerator:
             ]
         )
         self._scale = np.maximum(self._features.std(axis=0), 1e-9)
-        sizes = profile_sizes(self.lengths_)
-        ends = np.cumsum(sizes)
-        self._profile_bounds = np.column_stack([ends - sizes, ends])
+        ends = np.cumsum(self.lengths_ + 1.0).astype(np.int64)
+        self._profile_bounds = np.column_stack([ends - (self.lengths_ + 1).astype(np.int64), ends])
         count = self.lengths_.size
         self._k = (
             max(1, round(math.sqrt(count)))
@@ -484,7 +439,6 @@ class StrokeGenerator:
             "neighbours": self.neighbours,
             "jitter": float(self.jitter),
             "min_reversal": float(self.min_reversal),
-            "subsample": bool(self.subsample),
             "rate": float(self.rate),
             "random_state": self.random_state,
         }
@@ -646,14 +600,6 @@ def _checked_strokes(
         "starts": starts.astype(np.float64),
         "profiles": profiles.astype(np.float64),
     }
-
-
-def profile_sizes(lengths: Array) -> NDArray[np.int64]:
-    """Return how many profile values strokes of ``lengths`` (samples) keep: one a sample.
-
-    ``lengths + 1`` for whole lengths; a length between samples is rounded, to at least 1.
-    """
-    return np.maximum(np.rint(lengths), 1).astype(np.int64) + 1
 
 
 def _profile(positions: Array, displacement: float) -> Array:
