@@ -5,6 +5,7 @@ table, or refused when the protocol says so; a page that keeps its rate not flag
 from __future__ import annotations
 
 import asyncio
+import itertools
 import json
 import math
 import time
@@ -135,3 +136,63 @@ def test_a_page_whose_frame_rate_drops_mid_trial_is_refused_when_the_protocol_sa
     record = json.loads((tmp_path / "out" / sid / "refusal-P1.json").read_text())
     assert record["reason"] == refused["message"] and record["trial"] == 1
     assert record["frame_rate_hz"] < BOUND_HZ and record["bounds"]["frame_rate_hz"] == BOUND_HZ
+
+
+LAG_MS = 300.0
+"""How late a lagging page's clock reports arrive (ms) from one second into the first trial on."""
+
+ROUND_TRIP_BOUND_MS = 150
+
+
+class LaggingPage(FramedPage):
+    """A page drawing 60 frames a second and exchanging clocks as ``clock.js`` does (its entry's
+    exchanges 20 ms apart, then one every 100 ms); with ``lagging`` its reports say the server's
+    answers arrived `LAG_MS` later from one second into the first trial on."""
+
+    def __init__(self, link: str, lagging: bool) -> None:
+        super().__init__(link)
+        self.lagging = lagging
+
+    async def on_message(self, socket: Any, message: dict[str, Any]) -> None:
+        late = self.lagging and time.monotonic() > self.go_at + 1.0
+        if message["type"] == "clock" and late:
+            report = {"type": "clocked", "id": message["id"], "t3": time.time() * 1000.0 + LAG_MS}
+            await socket.send(json.dumps(report))
+            return
+        await super().on_message(socket, message)
+
+    async def _exchange(self, socket: Any) -> None:
+        for n in itertools.count(1):
+            await socket.send(clock_request(n))
+            await asyncio.sleep(0.02 if n < ENTRY_EXCHANGES else 0.1)
+
+
+def test_a_page_whose_round_trip_grows_mid_trial_is_recorded_and_told(tmp_path):
+    online = f"""[online]
+screen_round_trip_p95_ms = {ROUND_TRIP_BOUND_MS}
+screen_during_play = "record"
+"""
+    text = solo_protocol("round trip in play", 5, online, 5).replace("trials = 1", "trials = 2")
+    with serve_protocol(tmp_path / "round-trip.toml", text) as lab:
+        runs = [create_participant(lab.url, n, BEARER) for n in range(2)]
+        steady = LaggingPage(runs[0]["links"]["P1"], lagging=False)
+        play_to_the_end(lab, runs[0]["id"], [steady], judged=True)
+        lagging = LaggingPage(runs[1]["links"]["P1"], lagging=True)
+        play_to_the_end(lab, runs[1]["id"], [lagging], judged=True)
+        events = status(lab, runs[1]["id"])["events"]
+    assert steady.of_type("notice") == []
+    told = [notice["message"] for notice in lagging.of_type("notice")]
+    assert len(told) == 2, told
+    for n, said in enumerate(told, 1):
+        assert said.startswith("Your connection's round trip (p95 ")
+        assert said.endswith(f" ms) is above the study's {ROUND_TRIP_BOUND_MS} ms.")
+        assert ROUND_TRIP_BOUND_MS < int(said.split("p95 ")[1].split(" ms")[0]) <= 2 * LAG_MS
+        assert any(f"P1: below bounds during trial {n}: {said}" in e for e in events)
+    out = tmp_path / "out"
+    (below,) = sidecar_page(out / runs[1]["id"], 1)["interruptions"]
+    assert below["kind"] == "below_bounds" and below["reason"] == told[0]
+    assert "interruptions" not in sidecar_page(out / runs[0]["id"], 1)
+    table = tmp_path / "table"
+    assert main(["study", "table", str(out), "--out", str(table)]) == 0
+    counted = pd.read_csv(table / "study.csv").groupby("participant")["page_below_bounds"].sum()
+    assert counted.to_dict() == {"p000": 0, "p001": 2}

@@ -187,5 +187,7 @@ def test_the_protocol_holds_its_bounds_during_play_only_when_asked():
     assert not parse_online(check, sized, here).screening.in_play
     played = parse_online(check, sized | {"screen_during_play": "record"}, here).screening
     assert played.in_play and played.during_play == "record"
+    timed = {"screen_round_trip_p95_ms": 150, "screen_during_play": "refuse"}
+    assert parse_online(check, timed, here).screening.in_play
     with pytest.raises(InputError, match=r"online.screen_during_play: 'refuse' has no bound"):
-        parse_online(check, {"screen_round_trip_p95_ms": 150, "screen_during_play": "refuse"}, here)
+        parse_online(check, {"screen_during_play": "refuse"}, here)

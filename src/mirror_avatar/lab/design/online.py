@@ -98,8 +98,9 @@ class Screening:
     window_width_px, window_height_px
         The smallest window (CSS pixels) a page may have at connect, or None.
     during_play
-        ``"off"``, or what a page below the frame rate and window bounds during a trial does:
-        ``"record"`` (recorded and the person told) or ``"refuse"`` (the person is refused).
+        ``"off"``, or what a page outside the round-trip, frame rate and window bounds during a
+        trial does: ``"record"`` (recorded and the person told) or ``"refuse"`` (the person is
+        refused).
     """
 
     round_trip_p95_ms: float | None = None
@@ -118,9 +119,8 @@ class Screening:
 
     @property
     def in_play(self) -> bool:
-        """Whether a page is judged during trials (``during_play`` and a frame or window bound)."""
-        bounds = (self.frame_rate_hz, self.window_width_px, self.window_height_px)
-        return self.during_play != "off" and any(bound is not None for bound in bounds)
+        """Whether a page is judged during trials (``during_play`` and a bound of its entry)."""
+        return self.during_play != "off" and self.at_entry
 
 
 @dataclass(frozen=True)
@@ -178,7 +178,7 @@ def parse_online(check: Checker, value: object, folder: Path) -> Online:
 
 
 def _screening(check: Checker, data: dict[str, Any]) -> Screening:
-    """Read the ``screen_`` keys; ``screen_during_play`` needs a frame rate or window bound."""
+    """Read the ``screen_`` keys; ``screen_during_play`` needs a bound of the entry's."""
     keys = ("round_trip_p95_ms", "hidden_tab", "frame_rate_hz", "window_width_px",
             "window_height_px", "during_play")  # fmt: skip
     screening = Screening(*(check.setting(data, "online", SCREENING[f"screen_{k}"]) for k in keys))

@@ -119,9 +119,10 @@ ONLINE_SETTINGS = (
             default_shown="no screening"),
     Setting("screen_hidden_tab", "a tab hidden during a trial: record: recorded and the "
             "person told; refuse: the person is refused", Options(HIDDEN_TAB_RULES), "record"),
-    Setting("screen_during_play", "the frame rate and window bounds held during each trial "
-            "too, over the page's last 2 s: off; record: recorded and the person told; refuse: "
-            "the person is refused", Options(PLAY_RULES), "off"),
+    Setting("screen_during_play", "the entry's bounds held during each trial too, the round "
+            "trip over the page's last 50 clock exchanges, frame rate and window over its last "
+            "2 s: off; record: recorded and the person told; refuse: the person is refused",
+            Options(PLAY_RULES), "off"),
 )  # fmt: skip
 """The keys of a protocol's ``[online]`` table (`mirror_avatar.lab.design.online`)."""
 

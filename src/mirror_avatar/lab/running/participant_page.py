@@ -183,6 +183,7 @@ class ParticipantPage:
             exchange = source.clock.complete(message.id, message.t3)
             if exchange is not None:
                 self._screen_entry(source, exchange.delay, exchange.t1 / 1000.0)
+                self.play.exchange(exchange.delay)
         else:
             source.put_batch(message.seq, message.sent_ms, message.samples, received_ms / 1000.0)
             self.play.frame(source, message.sent_ms, received_ms / 1000.0, self.window_px)

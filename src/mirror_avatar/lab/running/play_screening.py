@@ -1,12 +1,14 @@
-"""Screening a page during play: its frame rate over a sliding window, and its window size.
+"""Screening a page during play: its round trips and frame rate over sliding windows, its window.
 
 As docs/METHODS.md, section 9 (*Screening during play*), describes. With ``screen_during_play``
-(``"record"`` or ``"refuse"``) the protocol's frame rate and window bounds
+(``"record"`` or ``"refuse"``) the protocol's round-trip, frame rate and window bounds
 (`mirror_avatar.lab.design.online.Screening`) hold during each trial too. A page's animation
 frames (one pointer batch each, distinct by their send time on the page's own clock) are
-counted over the last `PLAY_WINDOW_S` seconds (`FrameWindow`), and at each frame the rate and
-the window the page last said are judged against the bounds
-(`mirror_avatar.lab.running.screening.bound_misses`). A page that misses one during a trial
+counted over the last `PLAY_WINDOW_S` seconds (`FrameWindow`), its last `PLAY_EXCHANGES` clock
+exchanges kept, and at each frame their round trips' 95th percentile, the frame rate and the
+window the page last said are judged against the bounds
+(`mirror_avatar.lab.running.screening.round_trip_misses`, `bound_misses`). A page that misses
+one during a trial
 starts a ``below_bounds`` interruption (`mirror_avatar.realtime.interruptions`: recorded in the
 trial's sidecar with its reason and counted in the study table), is logged and told the reason
 in one line (again in each later trial while still below them: the page clears the line as
@@ -24,7 +26,7 @@ from collections import deque
 from mirror_avatar.files.trial_record import BELOW_BOUNDS
 from mirror_avatar.lab.running.participant import Participant
 from mirror_avatar.lab.running.runner import LabSession
-from mirror_avatar.lab.running.screening import bound_misses, online_of
+from mirror_avatar.lab.running.screening import bound_misses, online_of, round_trip_misses
 from mirror_avatar.lab.running.sessions import Lab
 from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.realtime.outbox import Outbox
@@ -33,6 +35,11 @@ PLAY_WINDOW_S = 2.0
 """Length (s, the page's clock) of the window a page's frame rate is judged over during play
 (**choice**: the span of the entry's clock exchanges; a collection's pause of 100 ms loses 5 %
 of a 60 Hz page's 120 frames, while a page slowed for good is seen within 2 s)."""
+
+PLAY_EXCHANGES = 50
+"""Clock exchanges whose round trips are judged during play (**choice**: 5 s of ``clock.js``'s
+one exchange every 100 ms; half the entry's 100, so a link slowed for good is seen within about
+half a second, when 3 of the 50 exceed the bound, and a single late exchange is not)."""
 
 
 class FrameWindow:
@@ -96,6 +103,8 @@ class PlayScreen:
     ----------
     window
         The page's frames over the last `PLAY_WINDOW_S` seconds (`FrameWindow`).
+    round_trips
+        The round trips (ms) of the page's last `PLAY_EXCHANGES` clock exchanges.
     told_in
         The trial whose person this page told of being below the bounds, until back within
         them (None).
@@ -110,7 +119,12 @@ class PlayScreen:
         self.outbox = outbox
         self.screening = online_of(session).screening
         self.window = FrameWindow()
+        self.round_trips: deque[float] = deque(maxlen=PLAY_EXCHANGES)
         self.told_in: int | None = None
+
+    def exchange(self, delay_ms: float) -> None:
+        """Keep the round trip (ms) of the page's newest clock exchange."""
+        self.round_trips.append(delay_ms)
 
     def frame(
         self,
@@ -133,7 +147,8 @@ class PlayScreen:
             return
         at_s = source.clock.to_server(sent_ms)
         at_s = received_s if math.isnan(at_s) else at_s
-        reason = " ".join(bound_misses(rate, window_px, self.screening)) or None
+        reasons = round_trip_misses(self._judged_round_trips(), self.screening)
+        reason = " ".join(reasons + bound_misses(rate, window_px, self.screening)) or None
         label, trial = self.participant.label, self.session.playing_in(self.participant)
         if reason is None:
             self.told_in = None
@@ -147,7 +162,8 @@ class PlayScreen:
             self.outbox.put({"type": "notice", "message": reason})
             if self.screening.during_play == "refuse":
                 window = None if window_px is None else list(window_px)
-                measured = {"trial": trial.n, "frame_rate_hz": rate, "window_px": window,
+                measured = {"trial": trial.n, "rtt_ms": list(self.round_trips),
+                            "frame_rate_hz": rate, "window_px": window,
                             "bounds": self._bounds()}  # fmt: skip
                 self.lab.refuse(self.participant.key, reason, measured)
 
@@ -160,9 +176,14 @@ class PlayScreen:
         self.window.clear()
         self.told_in = None
 
+    def _judged_round_trips(self) -> list[float]:
+        """Return the round trips (ms) to judge: the last `PLAY_EXCHANGES`, or none until then."""
+        return list(self.round_trips) if len(self.round_trips) == PLAY_EXCHANGES else []
+
     def _bounds(self) -> dict[str, float | int | None]:
         """Return the bounds held during play, as a refusal's file records them."""
         screening = self.screening
-        return {"frame_rate_hz": screening.frame_rate_hz,
+        return {"round_trip_p95_ms": screening.round_trip_p95_ms,
+                "frame_rate_hz": screening.frame_rate_hz,
                 "window_width_px": screening.window_width_px,
                 "window_height_px": screening.window_height_px}  # fmt: skip

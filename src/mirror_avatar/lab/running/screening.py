@@ -114,13 +114,23 @@ def entry_refusal(entry: Entry, screening: Screening) -> str | None:
     ``round_trip_p95_ms``, and those of `bound_misses` (none measured counts as 0 frames a
     second: a hidden tab draws none).
     """
-    reasons = []
-    p95, bound = round_trip_p95(entry.delays_ms), screening.round_trip_p95_ms
-    if bound is not None and p95 > bound:
-        reasons.append(f"Your connection's round trip (p95 {p95:.0f} ms) is above the study's "
-                       f"{bound:g} ms.")  # fmt: skip
+    reasons = round_trip_misses(entry.delays_ms, screening)
     reasons += bound_misses(entry.frame_rate_hz or 0.0, entry.window_px, screening)
     return " ".join(reasons) or None
+
+
+def round_trip_misses(delays_ms: Sequence[float], screening: Screening) -> list[str]:
+    """Return the sentence of a page whose round trips ``delays_ms`` (ms) miss the bound, or [].
+
+    Missed when their 95th percentile (`round_trip_p95`) is above ``round_trip_p95_ms``.
+    """
+    bound = screening.round_trip_p95_ms
+    if bound is None or not len(delays_ms):
+        return []
+    p95 = round_trip_p95(delays_ms)
+    if p95 <= bound:
+        return []
+    return [f"Your connection's round trip (p95 {p95:.0f} ms) is above the study's {bound:g} ms."]
 
 
 def bound_misses(
