@@ -146,7 +146,7 @@ def pilot(
         cut = [f"trial {t['n']}: {t['end_reason']}" for t in trials if not t["complete"]]
         click.echo(
             f"participant {number}: {status['state']}, {len(trials) - len(cut)} of "
-            f"{len(trials)} trial(s) complete ({time.monotonic() - started:.0f} s)"
+            f"{len(trials)} trial(s) complete ({time.monotonic() - started:.0f} s into the pilot)"
             + (f"; {'; '.join(cut)}" if cut else "")
         )
 
