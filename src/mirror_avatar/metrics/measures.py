@@ -54,7 +54,8 @@ N_SURROGATES = 99
 
 MAX_SURROGATES = 9999
 """Most surrogates per session (p-values down to 1e-4); each is drawn, measured and dropped in
-turn, so memory does not grow with their number, but time does."""
+turn (a pair's circular shifts a few at a time, `SHIFT_SAMPLES`), so memory does not grow with
+their number, but time does."""
 
 SHIFT_SAMPLES = 2**15
 """Most samples of a pair's shifted player 1 measured together (`_shift_statistics`): 49
