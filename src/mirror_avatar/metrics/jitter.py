@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
 from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.trials import zero_phase_filter
 from mirror_avatar.metrics.runs import find_runs
 
 Array = NDArray[np.float64]
@@ -46,13 +47,42 @@ def _check_velocity(velocity: ArrayLike, rate: float, band: tuple[float, float])
 
 
 @lru_cache(maxsize=32)
-def _design(order: int, band: tuple[float, float], rate: float) -> Array:
-    return np.asarray(signal.butter(order, band, btype="bandpass", fs=rate, output="sos"))
+def _design(order: int, band: tuple[float, float], rate: float) -> tuple[Array, Array]:
+    return _with_initial(signal.butter(order, band, btype="bandpass", fs=rate, output="sos"))
 
 
 @lru_cache(maxsize=32)
-def _low_pass_design(order: int, cutoff: float, rate: float) -> Array:
-    return np.asarray(signal.butter(order, cutoff, fs=rate, output="sos"))
+def _low_pass_design(order: int, cutoff: float, rate: float) -> tuple[Array, Array]:
+    return _with_initial(signal.butter(order, cutoff, fs=rate, output="sos"))
+
+
+def _with_initial(sos: Array) -> tuple[Array, Array]:
+    """Return second-order sections and their initial state for a unit step (`sosfilt_zi`)."""
+    sos = np.asarray(sos, dtype=np.float64)
+    return sos, np.asarray(signal.sosfilt_zi(sos), dtype=np.float64)
+
+
+def _zero_phase(design: tuple[Array, Array], v: Array) -> Array:
+    """Filter each series along the last axis forward and backward, as `signal.sosfiltfilt`.
+
+    Its odd extension of 3 (2 n_sections + 1) samples at each end, less the sections' zero
+    coefficients, as scipy counts them; the initial state is the design's, solved once
+    (`mirror_avatar.files.trials.zero_phase_filter`), where `signal.sosfiltfilt` solves it anew
+    on every call.
+
+    Raises
+    ------
+    InputError
+        Series no longer than the extension.
+    """
+    sos, initial = design
+    zeros = min(int(np.sum(sos[:, 2] == 0)), int(np.sum(sos[:, 5] == 0)))
+    padlen = 3 * (2 * len(sos) + 1 - zeros)
+    n = v.shape[-1]
+    if n <= padlen:
+        raise InputError("velocity", f"{n} samples are too few for the filter: need over {padlen}")
+    columns = zero_phase_filter(sos, initial, np.moveaxis(v, -1, 0).reshape(n, -1), padlen)
+    return np.ascontiguousarray(columns.T).reshape(v.shape)
 
 
 def smooth_part(
@@ -66,8 +96,7 @@ def smooth_part(
     Parameters and shapes as in `band_pass`: each series along the last axis.
     """
     v = _check_velocity(velocity, rate, band)
-    sos = _low_pass_design(order, band[0], rate)
-    return np.asarray(signal.sosfiltfilt(sos, v), dtype=np.float64)
+    return _zero_phase(_low_pass_design(order, band[0], rate), v)
 
 
 def band_pass(
@@ -91,7 +120,7 @@ def band_pass(
         Butterworth order of each pass (the forward-backward filter has twice the order).
     """
     v = _check_velocity(velocity, rate, band)
-    return np.asarray(signal.sosfiltfilt(_design(order, band, rate), v), dtype=np.float64)
+    return _zero_phase(_design(order, band, rate), v)
 
 
 def jitter_index(
