@@ -9,21 +9,16 @@ direct cross-correlation against scipy's.
 
 from __future__ import annotations
 
-import json
-import math
-import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 from scipy import signal
+from test_study_table_plain import record_session
 
 from mirror_avatar.analysis.table import study_table, table_of_rows, trial_rows
 from mirror_avatar.analysis.trials import StudyTrial, read_study_trials
-from mirror_avatar.dynamics import CONTROL_PERIOD
-from mirror_avatar.lab.design.plan import parse_plan
-from mirror_avatar.lab.running.trial import LabTrial, build_avatars
 from mirror_avatar.metrics.coordination import compute_cross_correlation_peak
 from mirror_avatar.metrics.measures import (
     SHIFT_SAMPLES,
@@ -35,7 +30,6 @@ from mirror_avatar.metrics.measuring import TRIAL_SURROGATES, measure_trial, sur
 from mirror_avatar.metrics.quantities import Quantities
 from mirror_avatar.metrics.registry import measures_tested, p_value_key
 from mirror_avatar.metrics.surrogates import p_value, shift_offsets, shifted
-from mirror_avatar.realtime.inputs import BrowserInput
 from mirror_avatar.sessions.session import Session
 from mirror_avatar.testing import smooth_motion
 
@@ -108,22 +102,7 @@ DYAD = {
 @pytest.fixture(scope="module")
 def dyad_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Three 8 s trials of two people, recorded as the lab records them."""
-    folder = tmp_path_factory.mktemp("lab") / "20261130T010203-001"
-    folder.mkdir()
-    (folder / "plan.json").write_text(json.dumps({"session_id": folder.name}))
-    plan = parse_plan(DYAD)
-    for n in (1, 2, 3):
-        inputs = {k: BrowserInput() for k in plan.humans}
-        lab = {"session_id": folder.name, "condition": plan.condition}
-        trial = LabTrial(plan, n, folder, inputs, build_avatars(plan), time.monotonic, lab)
-        while trial.k < trial.n_ticks and not trial.finished:
-            t = trial.k * CONTROL_PERIOD
-            for i, source in enumerate(inputs.values()):
-                frequency = 0.3 + 0.1 * n + 0.05 * i
-                source.put(0.3 * math.sin(2 * math.pi * frequency * t + i), trial.k)
-            trial.tick()
-        trial.finish(True, "completed")
-    return folder
+    return record_session(tmp_path_factory.mktemp("lab") / "20261130T010203-001", DYAD, 3)
 
 
 def reference_measures(trial: StudyTrial) -> dict[str, object]:

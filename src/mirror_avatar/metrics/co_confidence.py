@@ -200,17 +200,10 @@ def find_co_confidence(
 
 
 def co_confidence_masks(
-    v0: ArrayLike,
-    v1: ArrayLike,
-    rate: float,
-    min_duration: float = MIN_DURATION,
-    jitter_threshold: float = JITTER_THRESHOLD,
-    dv_threshold: float = DV_THRESHOLD,
-    dv_window: float = DV_WINDOW,
-    rest_fraction: float = REST_FRACTION,
-    band: tuple[float, float] = JITTER_BAND,
-    order: int = FILTER_ORDER,
-) -> tuple[NDArray[np.bool_], Array, Array]:
+    v0: ArrayLike, v1: ArrayLike, rate: float, min_duration: float, jitter_threshold: float,
+    dv_threshold: float, dv_window: float, rest_fraction: float, band: tuple[float, float],
+    order: int,
+) -> tuple[NDArray[np.bool_], Array, Array]:  # fmt: skip
     """Find the CC samples of player 0 with each of several player 1 series (module docstring).
 
     Player 0's smooth part is computed once and the series of player 1 are filtered together,

@@ -281,7 +281,7 @@ def _shift_statistics(
     relative = wrap_phase(q.phases[0] - compute_phase(x1))
     masks = co_confidence.co_confidence_masks(
         v[0], v1, rate, o.min_duration, o.jitter_threshold, o.dv_threshold, o.dv_window,
-        o.rest_fraction, o.jitter_band,
+        o.rest_fraction, o.jitter_band, jitter.FILTER_ORDER,
     )[0]  # fmt: skip
     out = {
         "phase_locking": np.abs(np.mean(np.exp(1j * relative), axis=-1)),
