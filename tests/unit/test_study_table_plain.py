@@ -8,6 +8,7 @@ import math
 import shutil
 import time
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 import pytest
@@ -36,17 +37,23 @@ RING = {
 @pytest.fixture(scope="module")
 def ring_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Two trials of a ring of two people and an avatar, recorded as the lab records them."""
-    folder = tmp_path_factory.mktemp("lab") / "20261127T010203-001"
+    return record_session(tmp_path_factory.mktemp("lab") / "20261127T010203-001", RING, 2)
+
+
+def record_session(folder: Path, design: dict[str, Any], trials: int) -> Path:
+    """Record ``trials`` whole trials of ``design`` in a new run folder ``folder``; return it."""
     folder.mkdir()
     (folder / "plan.json").write_text(json.dumps({"session_id": folder.name}))
-    for n in (1, 2):
-        record_trial(folder, n)
+    for n in range(1, trials + 1):
+        record_trial(folder, n, design=design)
     return folder
 
 
-def record_trial(folder: Path, n: int, seconds: float | None = None) -> None:
-    """Record trial n of `RING` in ``folder``: whole, or aborted after ``seconds``."""
-    plan = parse_plan(RING)
+def record_trial(
+    folder: Path, n: int, seconds: float | None = None, design: dict[str, Any] = RING
+) -> None:
+    """Record trial n of ``design`` in ``folder``: whole, or aborted after ``seconds``."""
+    plan = parse_plan(design)
     inputs = {k: BrowserInput() for k in plan.humans}
     lab = {"session_id": folder.name, "condition": plan.condition}
     trial = LabTrial(plan, n, folder, inputs, build_avatars(plan), time.monotonic, lab)

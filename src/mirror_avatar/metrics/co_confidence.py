@@ -109,9 +109,10 @@ class CoConfidence:
 
 
 def relative_velocity_difference(v0: Array, v1: Array, rate: float, window: float) -> Array:
-    """Windowed ``dV(t) = mean|v0 - v1| / mean((|v0| + |v1|) / 2)``, shape (n,).
+    """Windowed ``dV(t) = mean|v0 - v1| / mean((|v0| + |v1|) / 2)``, shape (..., n).
 
-    Means over a centred window of ``window`` seconds (edges: nearest value repeated); inf where
+    Series along the last axis (``v0`` and ``v1`` broadcast together); means over a centred
+    window of ``window`` seconds (edges: nearest value repeated); inf where
     neither player moves over the window.
     """
     size = max(1, round(window * rate))
@@ -178,22 +179,13 @@ def find_co_confidence(
     CoConfidence
         The CC samples and segments; times in seconds from the first sample.
     """
-    a, b = np.asarray(v0, dtype=float), np.asarray(v1, dtype=float)
-    if a.shape != b.shape:
-        raise InputError("velocities", f"need two series of equal length, got {a.shape}, {b.shape}")
-    if min_duration <= 0 or dv_window <= 0 or jitter_threshold <= 0 or dv_threshold <= 0:
-        raise InputError(
-            "co-confidence",
-            "--cc-min-duration, --dv-window, --jitter-threshold and --dv-threshold must be > 0",
-        )
-    pair_rms = float(np.sqrt(np.mean((a**2 + b**2) / 2.0)))
-    smooth = ~jitter_episodes(jitter_index(a - b, rate, band, order, pair_rms), jitter_threshold)
-    a, b = smooth_part(a, rate, band, order), smooth_part(b, rate, band, order)
-    together = relative_velocity_difference(a, b, rate, dv_window) < dv_threshold
-    size = max(1, round(dv_window * rate))
-    speed = uniform_filter1d((np.abs(a) + np.abs(b)) / 2.0, size, mode="nearest")
-    moving = speed >= rest_fraction * pair_rms
-    mask = keep_long_runs(smooth & together & moving, max(1, round(min_duration * rate)))
+    b = np.asarray(v1, dtype=float)
+    if b.ndim != 1:
+        raise InputError("velocities", f"need two series of equal length, got {b.shape}")
+    mask, a, b = co_confidence_masks(
+        v0, b, rate, min_duration, jitter_threshold, dv_threshold, dv_window, rest_fraction,
+        band, order,
+    )  # fmt: skip
     events0, events1 = zero_velocity_times(a, rate), zero_velocity_times(b, rate)
     segments = []
     for start, stop in find_runs(mask):
@@ -205,3 +197,47 @@ def find_co_confidence(
             CCSegment(float(t0), float(t1), float(dv), timing_gap(events0, events1, t0, t1))
         )
     return CoConfidence(mask=mask, segments=tuple(segments))
+
+
+def co_confidence_masks(
+    v0: ArrayLike, v1: ArrayLike, rate: float, min_duration: float, jitter_threshold: float,
+    dv_threshold: float, dv_window: float, rest_fraction: float, band: tuple[float, float],
+    order: int,
+) -> tuple[NDArray[np.bool_], Array, Array]:  # fmt: skip
+    """Find the CC samples of player 0 with each of several player 1 series (module docstring).
+
+    Player 0's smooth part is computed once and the series of player 1 are filtered together,
+    so that circular-shift surrogates of a pair (player 1 rolled) cost one pass each.
+
+    Parameters
+    ----------
+    v0
+        Velocity of player 0, shape (n,), units/s, uniform at ``rate`` (Hz).
+    v1
+        Velocities of player 1, shape (n,) or (..., n): each series along the last axis.
+    rate, min_duration, jitter_threshold, dv_threshold, dv_window, rest_fraction, band, order
+        As in `find_co_confidence`.
+
+    Returns
+    -------
+    mask, smooth0, smooth1
+        The CC samples, shape of ``v1``; the smooth parts (units/s) of ``v0`` (shape (n,)) and
+        ``v1`` (shape of ``v1``).
+    """
+    a, b = np.asarray(v0, dtype=float), np.asarray(v1, dtype=float)
+    if a.ndim != 1 or b.shape[-1:] != a.shape:
+        raise InputError("velocities", f"need two series of equal length, got {a.shape}, {b.shape}")
+    if min_duration <= 0 or dv_window <= 0 or jitter_threshold <= 0 or dv_threshold <= 0:
+        raise InputError(
+            "co-confidence",
+            "--cc-min-duration, --dv-window, --jitter-threshold and --dv-threshold must be > 0",
+        )
+    pair_rms = np.sqrt(np.mean((a**2 + b**2) / 2.0, axis=-1))
+    smooth = ~jitter_episodes(jitter_index(a - b, rate, band, order, pair_rms), jitter_threshold)
+    a, b = smooth_part(a, rate, band, order), smooth_part(b, rate, band, order)
+    together = relative_velocity_difference(a, b, rate, dv_window) < dv_threshold
+    size = max(1, round(dv_window * rate))
+    speed = uniform_filter1d((np.abs(a) + np.abs(b)) / 2.0, size, mode="nearest")
+    moving = speed >= rest_fraction * pair_rms[..., None]
+    mask = keep_long_runs(smooth & together & moving, max(1, round(min_duration * rate)))
+    return mask, a, b

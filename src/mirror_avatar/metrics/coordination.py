@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal, stats
 
@@ -39,16 +40,16 @@ def compute_rmse(x1: ArrayLike, x2: ArrayLike) -> float:
 
 
 def _protophase(x: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.unwrap(np.angle(signal.hilbert(x - x.mean())))
+    return np.unwrap(np.angle(signal.hilbert(x - x.mean(axis=-1, keepdims=True))), axis=-1)
 
 
 def compute_phase(x: ArrayLike, method: str = "hilbert", n_terms: int = 10) -> NDArray[np.float64]:
-    """Unwrapped phase of one position series, shape (n,), radians.
+    """Unwrapped phase of one position series, shape (n,), or of each of several, radians.
 
     Parameters
     ----------
     x
-        Positions, shape (n,), n >= 2.
+        Positions, shape (n,), n >= 2, or (..., n): each series along the last axis.
     method
         ``"hilbert"``: phase of the analytic signal of the mean-removed position (METHODS 6).
         ``"kralemann"``: that protophase refined to a phase by the Fourier-series transform of
@@ -57,8 +58,8 @@ def compute_phase(x: ArrayLike, method: str = "hilbert", n_terms: int = 10) -> N
         Number of Fourier terms of the Kralemann transform (**choice**, default 10).
     """
     a = np.asarray(x, dtype=float)
-    if a.ndim != 1 or a.size < 2 or not np.all(np.isfinite(a)):
-        raise InputError("positions", f"need a finite 1-D series of length >= 2, got {a.shape}")
+    if a.ndim < 1 or a.shape[-1] < 2 or not np.all(np.isfinite(a)):
+        raise InputError("positions", f"need finite series of length >= 2, got {a.shape}")
     if method not in PHASE_METHODS:
         raise InputError("method", f"unknown phase method {method!r}; use one of {PHASE_METHODS}")
     theta = _protophase(a)
@@ -73,7 +74,7 @@ def _kralemann_phase(theta: NDArray[np.float64], n_terms: int) -> NDArray[np.flo
     """
     phi = theta.astype(float).copy()
     for n in range(1, n_terms + 1):
-        s_n = np.mean(np.exp(-1j * n * theta))
+        s_n = np.mean(np.exp(-1j * n * theta), axis=-1, keepdims=True)
         term = s_n / (1j * n) * (np.exp(1j * n * theta) - 1.0)
         phi += 2.0 * term.real
     return phi
@@ -155,15 +156,45 @@ def compute_cross_correlation_peak(
     a, b = _check_pair(x1, x2)
     if not (np.isfinite(rate) and rate > 0 and np.isfinite(max_lag) and max_lag >= 0):
         raise InputError("rate/max_lag", f"need rate > 0 and max_lag >= 0, got {rate}, {max_lag}")
-    a, b = a - a.mean(), b - b.mean()
-    norm = np.sqrt(np.sum(a**2) * np.sum(b**2))
-    if norm == 0:
+    lags, values = cross_correlation_peaks(a, b, rate, max_lag)
+    if np.isnan(values):
         raise InputError("positions", "a constant series has no cross-correlation")
-    corr = signal.correlate(b, a, mode="full") / norm
-    lags = signal.correlation_lags(b.size, a.size, mode="full")
-    keep = np.abs(lags) <= round(max_lag * rate)
-    best = int(np.argmax(corr[keep]))
-    return float(lags[keep][best] / rate), float(corr[keep][best])
+    return float(lags), float(values)
+
+
+def cross_correlation_peaks(
+    x1: NDArray[np.float64], x2: NDArray[np.float64], rate: float, max_lag: float = MAX_LAG
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """`compute_cross_correlation_peak` of ``x1`` with each of several series at once.
+
+    Each lag's correlation is summed directly over the samples the two series share (no
+    transform), for the lags within +-``max_lag`` only.
+
+    Parameters
+    ----------
+    x1
+        Positions, shape (n,), finite.
+    x2
+        Positions, shape (n,) or (..., n): each series along the last axis, finite.
+    rate, max_lag
+        Sampling rate (Hz, > 0) and largest lag (s, >= 0).
+
+    Returns
+    -------
+    lags, values
+        Lag (s) and value of each series' peak, shape (...,); the value is NaN when either
+        series is constant (no correlation).
+    """
+    a = x1 - x1.mean()
+    b = x2 - x2.mean(axis=-1, keepdims=True)
+    norm = np.sqrt(np.sum(a**2) * np.sum(b**2, axis=-1))
+    m = min(round(max_lag * rate), a.size - 1)
+    padded = np.concatenate((np.zeros((*b.shape[:-1], m)), b, np.zeros((*b.shape[:-1], m))), -1)
+    corr = np.einsum("...lt,t->...l", sliding_window_view(padded, a.size, axis=-1), a)
+    best = np.argmax(corr, axis=-1)
+    with np.errstate(invalid="ignore"):
+        peak = np.take_along_axis(corr, best[..., None], axis=-1)[..., 0] / norm
+    return (best - m) / rate, peak
 
 
 @dataclass(frozen=True)

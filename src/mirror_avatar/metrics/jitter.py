@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
 from mirror_avatar.common.errors import InputError
+from mirror_avatar.files.trials import zero_phase_filter
 from mirror_avatar.metrics.runs import find_runs
 
 Array = NDArray[np.float64]
@@ -35,8 +36,8 @@ def shortest_series(order: int = FILTER_ORDER) -> int:
 
 def _check_velocity(velocity: ArrayLike, rate: float, band: tuple[float, float]) -> Array:
     v = np.asarray(velocity, dtype=float)
-    if v.ndim != 1 or v.size < 2 or not np.all(np.isfinite(v)):
-        raise InputError("velocity", f"need a finite 1-D series of length >= 2, got {v.shape}")
+    if v.ndim < 1 or v.shape[-1] < 2 or not np.all(np.isfinite(v)):
+        raise InputError("velocity", f"need finite series of length >= 2, got {v.shape}")
     low, high = band
     if not (np.isfinite(rate) and 0 < low < high < rate / 2):
         raise InputError(
@@ -46,13 +47,42 @@ def _check_velocity(velocity: ArrayLike, rate: float, band: tuple[float, float])
 
 
 @lru_cache(maxsize=32)
-def _design(order: int, band: tuple[float, float], rate: float) -> Array:
-    return np.asarray(signal.butter(order, band, btype="bandpass", fs=rate, output="sos"))
+def _design(order: int, band: tuple[float, float], rate: float) -> tuple[Array, Array]:
+    return _with_initial(signal.butter(order, band, btype="bandpass", fs=rate, output="sos"))
 
 
 @lru_cache(maxsize=32)
-def _low_pass_design(order: int, cutoff: float, rate: float) -> Array:
-    return np.asarray(signal.butter(order, cutoff, fs=rate, output="sos"))
+def _low_pass_design(order: int, cutoff: float, rate: float) -> tuple[Array, Array]:
+    return _with_initial(signal.butter(order, cutoff, fs=rate, output="sos"))
+
+
+def _with_initial(sos: Array) -> tuple[Array, Array]:
+    """Return second-order sections and their initial state for a unit step (`sosfilt_zi`)."""
+    sos = np.asarray(sos, dtype=np.float64)
+    return sos, np.asarray(signal.sosfilt_zi(sos), dtype=np.float64)
+
+
+def _zero_phase(design: tuple[Array, Array], v: Array) -> Array:
+    """Filter each series along the last axis forward and backward, as `signal.sosfiltfilt`.
+
+    Its odd extension of 3 (2 n_sections + 1) samples at each end, less the sections' zero
+    coefficients, as scipy counts them; the initial state is the design's, solved once
+    (`mirror_avatar.files.trials.zero_phase_filter`), where `signal.sosfiltfilt` solves it anew
+    on every call.
+
+    Raises
+    ------
+    InputError
+        Series no longer than the extension.
+    """
+    sos, initial = design
+    zeros = min(int(np.sum(sos[:, 2] == 0)), int(np.sum(sos[:, 5] == 0)))
+    padlen = 3 * (2 * len(sos) + 1 - zeros)
+    n = v.shape[-1]
+    if n <= padlen:
+        raise InputError("velocity", f"{n} samples are too few for the filter: need over {padlen}")
+    columns = zero_phase_filter(sos, initial, np.moveaxis(v, -1, 0).reshape(n, -1), padlen)
+    return np.ascontiguousarray(columns.T).reshape(v.shape)
 
 
 def smooth_part(
@@ -63,11 +93,10 @@ def smooth_part(
 ) -> Array:
     """Remove the jitter: zero-phase Butterworth low-pass at the band's low edge (units/s).
 
-    Parameters and shapes as in `band_pass`.
+    Parameters and shapes as in `band_pass`: each series along the last axis.
     """
     v = _check_velocity(velocity, rate, band)
-    sos = _low_pass_design(order, band[0], rate)
-    return np.asarray(signal.sosfiltfilt(sos, v), dtype=np.float64)
+    return _zero_phase(_low_pass_design(order, band[0], rate), v)
 
 
 def band_pass(
@@ -76,12 +105,13 @@ def band_pass(
     band: tuple[float, float] = JITTER_BAND,
     order: int = FILTER_ORDER,
 ) -> Array:
-    """Zero-phase band-pass of a velocity series (units/s), shape (n,).
+    """Zero-phase band-pass of velocity series (units/s), shape (..., n).
 
     Parameters
     ----------
     velocity
-        Velocity, shape (n,), units/s, sampled uniformly at ``rate`` (Hz).
+        Velocity, shape (n,) or (..., n): each series along the last axis, units/s, sampled
+        uniformly at ``rate`` (Hz).
     rate
         Sampling rate (Hz).
     band
@@ -90,7 +120,7 @@ def band_pass(
         Butterworth order of each pass (the forward-backward filter has twice the order).
     """
     v = _check_velocity(velocity, rate, band)
-    return np.asarray(signal.sosfiltfilt(_design(order, band, rate), v), dtype=np.float64)
+    return _zero_phase(_design(order, band, rate), v)
 
 
 def jitter_index(
@@ -98,9 +128,9 @@ def jitter_index(
     rate: float,
     band: tuple[float, float] = JITTER_BAND,
     order: int = FILTER_ORDER,
-    scale: float | None = None,
+    scale: float | Array | None = None,
 ) -> Array:
-    """Time-resolved jitter of one player, shape (n,), dimensionless (>= 0).
+    """Time-resolved jitter of one player (or of each series along the last axis), shape (..., n).
 
     ``j(t) = |H(b)(t)| / (sqrt(2) RMS(v))`` with ``b`` the band-passed velocity (`band_pass`),
     ``H`` the analytic signal and RMS over the whole series; the sqrt(2) makes the RMS of
@@ -112,13 +142,20 @@ def jitter_index(
     velocity, rate, band, order
         As in `band_pass`.
     scale
-        The RMS velocity (units/s) the index is relative to; default the series' own.
+        The RMS velocity (units/s) the index is relative to, one per series (shape (...,));
+        default each series' own.
     """
     b = band_pass(velocity, rate, band, order)
-    rms = np.sqrt(np.mean(np.asarray(velocity, dtype=float) ** 2)) if scale is None else scale
-    if rms == 0:
-        return np.zeros_like(b)
-    return np.asarray(np.abs(signal.hilbert(b)) / (np.sqrt(2.0) * rms), dtype=np.float64)
+    v = np.asarray(velocity, dtype=float)
+    rms = (
+        np.sqrt(np.mean(v**2, axis=-1, keepdims=True))
+        if scale is None
+        else np.asarray(scale, dtype=float)[..., None]
+    )
+    amplitude = np.abs(signal.hilbert(b))
+    scaled = np.sqrt(2.0) * rms
+    out = np.zeros_like(amplitude)
+    return np.divide(amplitude, scaled, out=out, where=np.broadcast_to(rms > 0, out.shape))
 
 
 def jitter_value(
@@ -138,7 +175,7 @@ def jitter_value(
 
 
 def jitter_episodes(index: ArrayLike, threshold: float) -> NDArray[np.bool_]:
-    """Mark the samples in jitter episodes of a time-resolved jitter index, shape (n,).
+    """Mark the samples in jitter episodes of a time-resolved jitter index, shape (..., n).
 
     An episode is found where the index exceeds ``threshold`` and spans the samples around
     its peak where the index is at least half that peak (**choice**: a zero-phase band-pass
@@ -149,16 +186,19 @@ def jitter_episodes(index: ArrayLike, threshold: float) -> NDArray[np.bool_]:
     Parameters
     ----------
     index
-        Jitter index (`jitter_index`), shape (n,).
+        Jitter index (`jitter_index`), shape (n,) or (..., n): each series along the last axis.
     threshold
         Smallest index that makes an episode (dimensionless).
     """
     j = np.asarray(index, dtype=float)
+    if j.ndim > 1:
+        return np.array([jitter_episodes(row, threshold) for row in j]).reshape(j.shape)
     out = np.zeros(j.shape, dtype=bool)
     for start, stop in find_runs(j > threshold):
         peak = start + int(np.argmax(j[start:stop]))
-        half = j >= j[peak] / 2.0
-        runs = find_runs(half)
-        first, last = runs[(runs[:, 0] <= peak) & (runs[:, 1] > peak)][0]
+        below = np.flatnonzero(~(j >= j[peak] / 2.0))
+        after = int(np.searchsorted(below, peak))
+        first = below[after - 1] + 1 if after > 0 else 0
+        last = below[after] if after < below.size else j.size
         out[first:last] = True
     return out

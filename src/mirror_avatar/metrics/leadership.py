@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import ArrayLike, NDArray
 
 from mirror_avatar.common.errors import InputError
@@ -101,8 +102,11 @@ def windowed_cross_correlation(
 
     Parameters
     ----------
-    s0, s1
-        The two series, shape (n,), uniform at ``rate`` (Hz).
+    s0
+        The first series, shape (n,), uniform at ``rate`` (Hz).
+    s1
+        The second, shape (n,), or several, shape (..., n), each along the last axis: player 0's
+        standardised windows are computed once for all of them.
     rate
         Sampling rate (Hz).
     window, step, max_lag
@@ -111,7 +115,7 @@ def windowed_cross_correlation(
     Returns
     -------
     times, lags, correlations
-        Window centres (s), shape (w,); lags (s), shape (m,); correlations, shape (w, m):
+        Window centres (s), shape (w,); lags (s), shape (m,); correlations, shape (..., w, m):
         ``corr(s0[i : i + W], s1[i + L : i + L + W])`` for window start ``i`` and lag ``L``
         samples, positive ``L`` when player 0 leads. Windows start from ``max_lag`` so that
         every lag fits; a constant segment correlates as 0.
@@ -127,23 +131,22 @@ def windowed_cross_correlation(
             f"{value:g} s is under {fewest} sample(s) at {rate:g} Hz; give at least "
             f"{fewest / rate:g} s",
         )
-    if a.ndim != 1 or a.shape != b.shape or a.size < w + 2 * m:
+    if a.ndim != 1 or b.shape[-1:] != a.shape or a.size < w + 2 * m:
         raise InputError(
             "leadership",
-            f"need two equal series longer than --lead-window + 2 --lead-max-lag, got {a.shape}",
+            f"need two equal series longer than --lead-window + 2 --lead-max-lag, got {b.shape}",
         )
     starts = np.arange(m, a.size - w - m + 1, h)
-    sd_b = _window_sd(b, w)[starts[:, None] + np.arange(-m, m + 1)[None, :]]
-    dot = (
-        np.array(
-            [
-                np.correlate(b[i - m : i + m + w], _standardised(a[i : i + w]), mode="valid")
-                for i in starts
-            ]
-        )  # fmt: skip
-        / w
-    )
-    corr = np.divide(dot, sd_b, out=np.zeros_like(dot), where=sd_b > 1e-12 * (1 + np.abs(b).max()))
+    sd_b = _window_sd(b, w)[..., starts[:, None] + np.arange(-m, m + 1)[None, :]]
+    own = _standardised(sliding_window_view(a, w)[starts])
+    lagged = sliding_window_view(b, w, axis=-1)
+    dot = np.stack(
+        [np.einsum("...lt,t->...l", lagged[..., i - m : i + m + 1, :], own[k])
+         for k, i in enumerate(starts)],
+        axis=-2,
+    ) / w  # fmt: skip
+    floor = 1e-12 * (1 + np.abs(b).max(axis=-1))[..., None, None]
+    corr = np.divide(dot, sd_b, out=np.zeros_like(dot), where=sd_b > floor)
     times = np.asarray((starts + w / 2) / rate, dtype=np.float64)
     return times, np.arange(-m, m + 1) / rate, np.asarray(corr, dtype=np.float64)
 
@@ -155,12 +158,13 @@ def _standardised(windows: Array) -> Array:
 
 
 def _window_sd(x: Array, w: int) -> Array:
-    """SD of every window of ``w`` samples, shape (n - w + 1,), from running sums."""
-    centred = x - x.mean()
-    c1 = np.concatenate(([0.0], np.cumsum(centred)))
-    c2 = np.concatenate(([0.0], np.cumsum(centred**2)))
-    mean = (c1[w:] - c1[:-w]) / w
-    return np.sqrt(np.maximum((c2[w:] - c2[:-w]) / w - mean**2, 0.0))
+    """SD of every window of ``w`` samples along the last axis, shape (..., n - w + 1)."""
+    centred = x - x.mean(axis=-1, keepdims=True)
+    zero = np.zeros((*x.shape[:-1], 1))
+    c1 = np.concatenate((zero, np.cumsum(centred, axis=-1)), axis=-1)
+    c2 = np.concatenate((zero, np.cumsum(centred**2, axis=-1)), axis=-1)
+    mean = (c1[..., w:] - c1[..., :-w]) / w
+    return np.sqrt(np.maximum((c2[..., w:] - c2[..., :-w]) / w - mean**2, 0.0))
 
 
 def pick_peaks(lags: Array, correlations: Array, min_peak: float = MIN_PEAK) -> tuple[Array, Array]:

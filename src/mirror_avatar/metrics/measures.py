@@ -34,6 +34,7 @@ from mirror_avatar.common.constraints import Constraint, Interval, Options, chec
 from mirror_avatar.common.errors import InputError
 from mirror_avatar.metrics import co_confidence, jitter, leadership, registry, synchrony_episodes
 from mirror_avatar.metrics import transfer_entropy as te
+from mirror_avatar.metrics.coordination import compute_phase, cross_correlation_peaks, wrap_phase
 from mirror_avatar.metrics.quantities import Quantities
 from mirror_avatar.metrics.surrogates import (
     MIN_SHIFT,
@@ -53,7 +54,13 @@ N_SURROGATES = 99
 
 MAX_SURROGATES = 9999
 """Most surrogates per session (p-values down to 1e-4); each is drawn, measured and dropped in
-turn, so memory does not grow with their number, but time does."""
+turn (a pair's circular shifts a few at a time, `SHIFT_SAMPLES`), so memory does not grow with
+their number, but time does."""
+
+SHIFT_SAMPLES = 2**15
+"""Most samples of a pair's shifted player 1 measured together (`_shift_statistics`): 49
+surrogates of a 20 s trial at 33 Hz at once, one of a 20 minute trial, so that memory stays
+within a few MB whatever the number of surrogates."""
 
 MAX_SECONDS = 600.0
 """Longest window, step, lag, segment or shift (s) of the measures: ten minutes, beyond any
@@ -231,30 +238,97 @@ def _statistics(q: Quantities, o: MeasureOptions, pair: _Pair | None = None) -> 
                     out[f"transfer_entropy_{i}_to_{j}"] = _te(v, i, j, rate, o)
         return out
     pair = pair or _pair(q, o)
-    lead = pair.leadership
-    nan = float("nan")
+    strength, share = _leading(pair.leadership, rate, o)
     return {
         "phase_locking": q.phase_locking,
         "rmse": q.rmse,
         "max_cross_correlation": q.cross_correlation_peak[1],
         "co_confidence_rate": pair.co_confidence.rate,
-        "leadership_strength": nan
-        if lead is None
-        else float(np.nan_to_num(lead.peak_values).mean()),
-        "leader_share": nan if lead is None else lead.leader(rate, o.leader_share)[1],
+        "leadership_strength": strength,
+        "leader_share": share,
         "transfer_entropy_0_to_1": _te(v, 0, 1, rate, o),
         "transfer_entropy_1_to_0": _te(v, 1, 0, rate, o),
     }
 
 
-def _surrogate_sessions(
-    x: Array, v: Array, rate: float, o: MeasureOptions, partners: Sequence[Session]
-) -> Iterator[tuple[Array, Array]]:
-    """Yield the surrogate (positions, velocities) of a session one at a time, as ``o`` asks.
+def _leading(
+    lead: leadership.Leadership | None, rate: float, o: MeasureOptions
+) -> tuple[float, float]:
+    """Return the tested leadership measures: the strength and the leader's share (NaN: none)."""
+    if lead is None:
+        return float("nan"), float("nan")
+    return float(np.nan_to_num(lead.peak_values).mean()), lead.leader(rate, o.leader_share)[1]
 
-    Only the offsets (or the picks of partners) are drawn at once, so memory does not grow
-    with the number of surrogates.
+
+def _shift_statistics(
+    q: Quantities, shifts: NDArray[np.int64], o: MeasureOptions
+) -> dict[str, Array]:
+    """Compute the tested measures of a pair's circular-shift surrogates, all at once.
+
+    Equal to `coordination_statistics` of each surrogate (player 1 rolled by each of ``shifts``,
+    samples, shape (S,)) up to rounding: player 0's phase, standardised windows and states are
+    the session's, and player 1's shifted series are filtered and correlated together.
+
+    Returns
+    -------
+    dict
+        Each measure of `mirror_avatar.metrics.registry.measures_tested` (two players): its value
+        for each surrogate, shape (S,).
     """
+    x, v, rate = q.positions, q.velocities, q.rate
+    index = (np.arange(x.shape[1])[None, :] - shifts[:, None]) % x.shape[1]
+    x1, v1 = x[1][index], v[1][index]
+    relative = wrap_phase(q.phases[0] - compute_phase(x1))
+    masks = co_confidence.co_confidence_masks(
+        v[0], v1, rate, o.min_duration, o.jitter_threshold, o.dv_threshold, o.dv_window,
+        o.rest_fraction, o.jitter_band, jitter.FILTER_ORDER,
+    )[0]  # fmt: skip
+    out = {
+        "phase_locking": np.abs(np.mean(np.exp(1j * relative), axis=-1)),
+        "rmse": np.sqrt(np.mean((x[0] - x1) ** 2, axis=-1)),
+        "max_cross_correlation": cross_correlation_peaks(x[0], x1, rate)[1],
+        "co_confidence_rate": masks.mean(axis=-1),
+    }
+    leading = [_leading(lead, rate, o) for lead in _shift_leadership(x, v, x1, v1, rate, o)]
+    out["leadership_strength"], out["leader_share"] = np.array(leading).reshape(-1, 2).T
+    stride = max(1, round(o.te_step * rate))
+    states = [te.discretise(row, o.te_bins) for row in v]
+    te_pairs = [(states[0], np.roll(states[1], k)) for k in shifts]
+    out["transfer_entropy_0_to_1"] = np.array(
+        [te.states_transfer_entropy(a, b, stride, o.te_history) for a, b in te_pairs]
+    )
+    out["transfer_entropy_1_to_0"] = np.array(
+        [te.states_transfer_entropy(b, a, stride, o.te_history) for a, b in te_pairs]
+    )
+    return out
+
+
+def _shift_leadership(
+    x: Array, v: Array, x1: Array, v1: Array, rate: float, o: MeasureOptions
+) -> list[leadership.Leadership | None]:
+    """Leadership of player 0 with each shifted player 1 (``x1``, ``v1``: shape (S, n))."""
+    if x.shape[1] < round(o.lead_window * rate) + 2 * round(o.lead_max_lag * rate):
+        return [None] * x1.shape[0]
+    s0, s1 = (v[0], v1) if o.lead_signal == "velocity" else (x[0], x1)
+    times, lags, corr = leadership.windowed_cross_correlation(
+        s0, s1, rate, o.lead_window, o.lead_step, o.lead_max_lag
+    )
+    peaks = (leadership.pick_peaks(lags, each, o.lead_min_peak) for each in corr)
+    return [leadership.Leadership(times, lags, c, *p) for c, p in zip(corr, peaks, strict=True)]
+
+
+def _surrogate_draws(
+    q: Quantities, o: MeasureOptions, partners: Sequence[Session]
+) -> Iterator[dict[str, Array]]:
+    """Yield the tested measures of a session's surrogates, a few at a time, as ``o`` asks.
+
+    Each item holds every tested measure of some surrogates, in the surrogates' order. A pair's
+    circular shifts come `SHIFT_SAMPLES` samples of player 1 at a time (`_shift_statistics`);
+    any other surrogate comes alone, its session drawn and measured in turn
+    (`coordination_statistics`). Only the offsets (or the picks of partners) are drawn at once,
+    so memory does not grow with the number of surrogates.
+    """
+    x, v, rate = q.positions, q.velocities, q.rate
     if o.surrogates == "pseudo":
         others = [p for p in partners if p.n_players == x.shape[0]]
         if not others:
@@ -262,13 +336,26 @@ def _surrogate_sessions(
                 "--surrogates pseudo", "needs other sessions with as many players (or use shift)"
             )
         picks = np.random.default_rng(o.seed).permutation(len(others))[: o.n_surrogates]
-        for k in picks:
-            yield pseudo_session(x, others[k].positions), pseudo_session(v, others[k].velocities)
+        sessions = (
+            (pseudo_session(x, others[k].positions), pseudo_session(v, others[k].velocities))
+            for k in picks
+        )
+        yield from (_one(coordination_statistics(xs, vs, rate, o)) for xs, vs in sessions)
         return
     rng = np.random.default_rng(o.seed)
     offsets = shift_offsets(x.shape[1], x.shape[0], o.n_surrogates, round(o.min_shift * rate), rng)
+    if x.shape[0] == 2:
+        chunk = max(1, SHIFT_SAMPLES // x.shape[1])
+        for first in range(0, len(offsets), chunk):
+            yield _shift_statistics(q, offsets[first : first + chunk, 1], o)
+        return
     for k in offsets:
-        yield shifted(x, k), shifted(v, k)
+        yield _one(coordination_statistics(shifted(x, k), shifted(v, k), rate, o))
+
+
+def _one(draw: dict[str, float]) -> dict[str, Array]:
+    """One surrogate's measures as `_surrogate_draws` yields them."""
+    return {name: np.array([value]) for name, value in draw.items()}
 
 
 def session_measures(
@@ -294,7 +381,7 @@ def session_measures(
     o = options or MeasureOptions()
     kept = session.trimmed(trim) if trim > 0 else session
     q = quantities or Quantities.of(kept)
-    x, v, rate = q.positions, q.velocities, q.rate
+    v, rate = q.velocities, q.rate
     out = Measures(details={"start": float(kept.times[0])})
     if kept.n_samples < jitter.shortest_series():
         return out
@@ -317,7 +404,7 @@ def session_measures(
     else:
         _add_influence(out.values, kept.n_players)
     if o.n_surrogates > 0:
-        _add_p_values(out, observed, x, v, rate, o, partners)
+        _add_p_values(out, observed, q, o, partners)
     return out
 
 
@@ -362,9 +449,10 @@ def _add_influence(values: dict[str, Any], n_players: int) -> None:
 
 
 def _add_p_values(
-    out: Measures, observed: dict[str, float], x: Array, v: Array, rate: float,
-    o: MeasureOptions, partners: Sequence[Session],
+    out: Measures, observed: dict[str, float], q: Quantities, o: MeasureOptions,
+    partners: Sequence[Session],
 ) -> None:  # fmt: skip
+    x, rate = q.positions, q.rate
     if o.surrogates == "shift" and x.shape[1] - 2 * round(o.min_shift * rate) < 1:
         out.values["surrogates"] = {"kind": o.surrogates, "n": 0, "min_shift": o.min_shift,
                                     "seed": o.seed, "note": "too short for the shifts"}  # fmt: skip
@@ -374,13 +462,10 @@ def _add_p_values(
         )
         return
     directions = registry.measures_tested(x.shape[0])
-    draws: dict[str, list[float]] = {name: [] for name in directions}
-    for xs, vs in _surrogate_sessions(x, v, rate, o, partners):
-        draw = coordination_statistics(xs, vs, rate, o)
-        for name in directions:
-            draws[name].append(draw[name])
+    chunks = list(_surrogate_draws(q, o, partners))
+    draws = {name: np.concatenate([[], *(chunk[name] for chunk in chunks)]) for name in directions}
     for name, greater in directions.items():
-        null = np.array(draws[name], dtype=np.float64)
+        null = np.asarray(draws[name], dtype=np.float64)
         out.null[name] = null
         out.values[registry.p_value_key(name)] = p_value(observed[name], null, greater)
     n = len(next(iter(draws.values())))

@@ -27,8 +27,14 @@ def find_runs(mask: ArrayLike) -> NDArray[np.int64]:
 
 
 def keep_long_runs(mask: ArrayLike, min_samples: int) -> NDArray[np.bool_]:
-    """``mask`` with every run of True shorter than ``min_samples`` samples set to False."""
-    m = np.asarray(mask, dtype=bool).ravel()
+    """``mask`` with every run of True shorter than ``min_samples`` samples set to False.
+
+    A mask of shape (..., n) is taken as series along its last axis, each on its own.
+    """
+    m = np.asarray(mask, dtype=bool)
+    if m.ndim > 1:
+        return np.array([keep_long_runs(row, min_samples) for row in m]).reshape(m.shape)
+    m = m.ravel()
     out = np.zeros_like(m)
     for start, stop in find_runs(m):
         if stop - start >= min_samples:

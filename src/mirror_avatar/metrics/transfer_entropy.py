@@ -76,5 +76,16 @@ def transfer_entropy(
         raise InputError(
             "transfer entropy", f"need --te-bins >= 2 and --te-history >= 1, got {bins}, {history}"
         )
-    sx, sy = phases(discretise(x, bins), stride), phases(discretise(y, bins), stride)
+    return states_transfer_entropy(discretise(x, bins), discretise(y, bins), stride, history)
+
+
+def states_transfer_entropy(
+    source: NDArray[np.int32], target: NDArray[np.int32], stride: int, history: int = HISTORY
+) -> float:
+    """Transfer entropy (bits) between two discretised series (`discretise`), read every ``stride``.
+
+    `transfer_entropy` once its series are cut into states: a series' states computed once serve
+    every partner (a circular shift of a series has its states shifted alike).
+    """
+    sx, sy = phases(source, stride), phases(target, stride)
     return float(pyinform.transfer_entropy(sx, sy, k=history))
