@@ -112,6 +112,7 @@ after_trial = ["partner", "confidence"]
 
 def record(folder: Path) -> list[Path]:
     """Play participants 0 and 1 through the lab server; return their run folders."""
+    folder.mkdir(parents=True, exist_ok=True)
     protocol = folder / "dyads.toml"
     protocol.write_text(PROTOCOL)
     run_pilot(protocol, folder / "runs", range(2), {"P1": "bundled:slow", "P2": "bundled:fast"},

@@ -9,7 +9,7 @@ from mirror_avatar.common.errors import InputError
 from mirror_avatar.files import row_widths
 from mirror_avatar.files.bids.reading import read_bids_motion
 from mirror_avatar.files.row_widths import ragged_line
-from mirror_avatar.files.trial_io import read_csv_trial
+from mirror_avatar.files.trial_io import _first_row, _first_width, read_csv_trial
 
 LIMIT = 2**20
 
@@ -91,3 +91,23 @@ def test_a_ragged_motion_tsv_is_refused_naming_the_line(tmp_path):
     (tmp_path / "sub-01_task-mirror_motion.json").write_text('{"SamplingFrequency": 60}')
     with pytest.raises(InputError, match="line 11 holds 2 values where the first row holds 1"):
         read_bids_motion(path)
+
+
+@pytest.mark.parametrize(
+    ("text", "sep"),
+    [
+        ("t,x,y\n1,2,3\n", ","),
+        (" t , x \r\n1,2\r\n", ","),
+        ("t,x,\n1,2,\n", ","),
+        ("\ufefft,x\n1,2\n", ","),
+        ("t\tx\ty\n1\t2\t3\n", "\t"),
+        ("t;x\n", ","),
+        ('"t,x",y\n1,2\n', ","),
+        ("\n  \nt,x,y\n", ","),
+        ("t,x\ry,z\r", ","),
+    ],
+)
+def test_the_first_rows_width_is_the_number_of_cells_pandas_reads(tmp_path, text, sep):
+    path = tmp_path / "table.csv"
+    path.write_text(text, newline="")
+    assert _first_width(path, sep) == len(_first_row(path, sep))

@@ -214,6 +214,23 @@ def _first_row(path: Path, sep: str) -> list[str]:
     return [str(cell).strip() for cell in frame.iloc[0]]
 
 
+def _first_width(path: Path, sep: str) -> int:
+    """Return the number of cells of a CSV or TSV file's first non-blank row (`_first_row`).
+
+    A first line of UTF-8 text without double quotes or lone carriage returns is counted by its
+    separators; any other is read by `_first_row`.
+    """
+    with open_regular(path, MAX_FILE_BYTES) as file:
+        line = file.readline()
+    try:
+        body = line.decode("utf-8-sig").rstrip("\r\n")
+    except UnicodeDecodeError:
+        body = ""
+    if body.strip() and '"' not in body and "\r" not in body:
+        return body.count(sep) + 1
+    return len(_first_row(path, sep))
+
+
 def _read_numbers(
     path: Path, columns: Sequence[int], labels: Sequence[str], sep: str, first_row: int
 ) -> list[Array]:
@@ -271,7 +288,7 @@ def refuse_ragged(path: Path, sep: str, fewest: int | None = None) -> None:
     Too many: more than the first row holds; too few: fewer than ``fewest`` (the first row's
     number when None). `mirror_avatar.files.row_widths.ragged_line` finds the line.
     """
-    width = len(_first_row(path, sep))
+    width = _first_width(path, sep)
     with _reading(path, "CSV" if sep == "," else "TSV"):
         found = ragged_line(path, sep, width, MAX_FILE_BYTES, fewest)
     if found is None:

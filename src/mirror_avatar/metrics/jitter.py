@@ -145,7 +145,11 @@ def jitter_index(
         The RMS velocity (units/s) the index is relative to, one per series (shape (...,));
         default each series' own.
     """
-    b = band_pass(velocity, rate, band, order)
+    return _index(band_pass(velocity, rate, band, order), velocity, scale)
+
+
+def _index(b: Array, velocity: ArrayLike, scale: float | Array | None) -> Array:
+    """`jitter_index` of the band-passed velocity ``b`` (units/s), shape (..., n)."""
     v = np.asarray(velocity, dtype=float)
     rms = (
         np.sqrt(np.mean(v**2, axis=-1, keepdims=True))
@@ -169,9 +173,27 @@ def jitter_value(
     The share of the velocity's RMS that lies in the jitter band (``b`` = `band_pass`); its
     square is the share of the velocity's power in the band.
     """
-    b = band_pass(velocity, rate, band, order)
+    return _share(band_pass(velocity, rate, band, order), velocity)
+
+
+def _share(b: Array, velocity: ArrayLike) -> float:
+    """`jitter_value` of the band-passed velocity ``b`` (units/s), shape (n,)."""
     power = float(np.mean(np.asarray(velocity, dtype=float) ** 2))
     return float(np.sqrt(np.mean(b**2) / power)) if power > 0 else 0.0
+
+
+def player_jitter(
+    velocity: ArrayLike,
+    rate: float,
+    band: tuple[float, float] = JITTER_BAND,
+    order: int = FILTER_ORDER,
+) -> tuple[Array, float]:
+    """One player's `jitter_index` (shape (n,)) and `jitter_value`, from one band-pass.
+
+    Parameters as in `band_pass`, ``velocity`` of shape (n,).
+    """
+    b = band_pass(velocity, rate, band, order)
+    return _index(b, velocity, None), _share(b, velocity)
 
 
 def jitter_episodes(index: ArrayLike, threshold: float) -> NDArray[np.bool_]:

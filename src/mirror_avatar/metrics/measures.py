@@ -385,10 +385,10 @@ def session_measures(
     out = Measures(details={"start": float(kept.times[0])})
     if kept.n_samples < jitter.shortest_series():
         return out
-    index = [jitter.jitter_index(row, rate, o.jitter_band) for row in v]
-    out.details["jitter"] = np.array(index)
-    for k, row in enumerate(v):
-        out.values[f"jitter_index_player_{k}"] = jitter.jitter_value(row, rate, o.jitter_band)
+    players = [jitter.player_jitter(row, rate, o.jitter_band) for row in v]
+    out.details["jitter"] = np.array([index for index, _ in players])
+    for k, (_, value) in enumerate(players):
+        out.values[f"jitter_index_player_{k}"] = value
     if kept.n_players < 2 or not q.moving:
         return out
     pair = _pair(q, o) if kept.n_players == 2 else None

@@ -311,9 +311,10 @@ def _read_columns(path: Path) -> dict[str, Array]:
                 path, f"not a readable Parquet file ({type(error).__name__})"
             ) from None
     try:
-        return {str(name): frame[name].to_numpy(dtype=np.float64) for name in frame.columns}
+        values = np.ascontiguousarray(frame.to_numpy(dtype=np.float64).T)
     except (ValueError, TypeError):
         raise InputError(path, "session columns must be numeric") from None
+    return {str(name): column for name, column in zip(frame.columns, values, strict=True)}
 
 
 def _read_sidecar(path: Path) -> dict[str, Any]:
