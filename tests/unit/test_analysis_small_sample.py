@@ -170,3 +170,54 @@ def lmertest(result: MixedLMResults, contrast: NDArray[np.float64]) -> tuple[flo
     variance = contrast_variance(sds)
     return (float(contrast @ beta) / np.sqrt(variance),
             2.0 * variance**2 / float(gradient @ spread @ gradient))  # fmt: skip
+
+
+@pytest.mark.parametrize("slopes", [False, True])
+def test_summed_over_participants_it_is_the_dense_computation(slopes: bool) -> None:
+    """The groups' sums give the df of the formulas on the whole N x N covariance, to rounding.
+
+    The reference builds V and its derivatives densely from the rows (same participant: Z G Z';
+    every row: the residual variance) and takes the Hessian and C's derivatives as written in
+    docs/METHODS.md, section 15.3.
+    """
+    data = two_conditions(5, participants=9, trials=4, slope_sd=0.5 if slopes else 0.0)
+    data = data.drop(index=np.random.default_rng(1).choice(len(data), 11, replace=False))
+    result = fit(data, slopes=slopes)
+    (test,) = satterthwaite_tests(result, [[0.0, 1.0]])
+    t, df = dense_satterthwaite(result, np.array([0.0, 1.0]))
+    assert test.t == pytest.approx(t, rel=1e-10)
+    assert test.df == pytest.approx(df, rel=1e-10)
+
+
+def dense_satterthwaite(
+    result: MixedLMResults, contrast: NDArray[np.float64]
+) -> tuple[float, float]:
+    """t and Satterthwaite's df of ``contrast`` from N x N matrices, in the variances."""
+    model = result.model
+    design = np.vstack(model.exog_li)
+    outcome = np.concatenate(model.endog_li)
+    effects = np.vstack(model.exog_re_li)
+    members = np.repeat(np.arange(model.n_groups), [len(y) for y in model.endog_li])
+    same = members[:, None] == members[None, :]
+    random = np.atleast_2d(np.asarray(result.cov_re))
+    parts, estimates = [], []
+    for a in range(random.shape[0]):
+        for b in range(a + 1):
+            outer = np.outer(effects[:, a], effects[:, b])
+            parts.append(same * (outer if a == b else outer + outer.T))
+            estimates.append(random[a, b])
+    parts.append(np.eye(len(outcome)))
+    estimates.append(float(result.scale))
+    inverse = np.linalg.inv(sum(e * p for e, p in zip(estimates, parts, strict=True)))
+    fixed = np.linalg.inv(design.T @ inverse @ design)
+    projection = inverse - inverse @ design @ fixed @ design.T @ inverse
+    hessian = np.array([[
+        -0.5 * np.trace(projection @ pj @ projection @ pk)
+        + outcome @ projection @ pj @ projection @ pk @ projection @ outcome
+        for pk in parts] for pj in parts])  # fmt: skip
+    gradient = np.array([contrast @ fixed @ design.T @ inverse @ p @ inverse @ design @ fixed
+                         @ contrast for p in parts])  # fmt: skip
+    variance = float(contrast @ fixed @ contrast)
+    beta = fixed @ design.T @ inverse @ outcome
+    df = 2.0 * variance**2 / float(gradient @ np.linalg.pinv(hessian) @ gradient)
+    return float(contrast @ beta) / np.sqrt(variance), df

@@ -23,7 +23,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats
-from scipy.linalg import block_diag
 from statsmodels.regression.mixed_linear_model import MixedLMResults
 
 BOUNDARY = 1e-4
@@ -70,18 +69,22 @@ class SmallSampleTest:
 class _Covariance:
     """The covariance of the observations as a linear function of the variance parameters.
 
-    ``parts[j]`` is the derivative of the covariance (N x N, rows in the model's group order) by
-    parameter j; ``estimates[j]`` the parameter's REML estimate; ``free[j]`` whether it is a
-    parameter of the df (not on the boundary).
+    The covariance is block-diagonal, a block per group of the model (statsmodels' groups, in
+    its order). ``parts[j][i]`` is the derivative of group i's block (n_i x n_i) by parameter
+    j; ``estimates[j]`` the parameter's REML estimate; ``free[j]`` whether it is a parameter of
+    the df (not on the boundary).
     """
 
-    parts: list[NDArray[np.float64]]
+    parts: list[list[NDArray[np.float64]]]
     estimates: NDArray[np.float64]
     free: NDArray[np.bool_]
 
-    def matrix(self) -> NDArray[np.float64]:
-        """Return the covariance at the estimates (N x N)."""
-        return np.einsum("j,jmn->mn", self.estimates, np.asarray(self.parts))
+    def blocks(self) -> list[NDArray[np.float64]]:
+        """Return each group's block of the covariance at the estimates (n_i x n_i)."""
+        return [
+            np.einsum("j,jmn->mn", self.estimates, np.asarray([part[i] for part in self.parts]))
+            for i in range(len(self.parts[0]))
+        ]
 
 
 def satterthwaite_tests(result: MixedLMResults, contrasts: ArrayLike) -> list[SmallSampleTest]:
@@ -91,7 +94,9 @@ def satterthwaite_tests(result: MixedLMResults, contrasts: ArrayLike) -> list[Sm
     variance components (``exog_vc``) and a residual variance. Its variance parameters are taken
     as they are; beta and C = (X' V^-1 X)^-1 are those of generalised least squares at them (as
     lme4's, and statsmodels' estimates; statsmodels' standard errors come from the inverse of its
-    observed Hessian instead, and differ slightly on an unbalanced design).
+    observed Hessian instead, and differ slightly on an unbalanced design). Every quantity is
+    summed over the groups' blocks of V (`_reml_pieces`), so memory grows with the largest
+    group's trials squared, not with all the trials squared.
 
     Returns
     -------
@@ -100,10 +105,8 @@ def satterthwaite_tests(result: MixedLMResults, contrasts: ArrayLike) -> list[Sm
     """
     weights = np.atleast_2d(np.asarray(contrasts, dtype=np.float64))
     model = result.model
-    design = np.vstack(model.exog_li)
-    outcome = np.concatenate(model.endog_li)
     covariance = _covariance(result)
-    beta, fixed, jacobian, hessian = _reml_pieces(design, outcome, covariance)
+    beta, fixed, jacobian, hessian = _reml_pieces(model.exog_li, model.endog_li, covariance)
     spread = _inverse_positive(hessian)
     tests = []
     for row in weights:
@@ -130,16 +133,15 @@ def _covariance(result: MixedLMResults) -> _Covariance:
     parts, estimates, free = [], [], []
     for a in range(random.shape[0]):
         for b in range(a + 1):
-            blocks = [_pair(model.exog_re_li[i], a, b) for i in groups]
-            parts.append(block_diag(*blocks))
+            parts.append([_pair(model.exog_re_li[i], a, b) for i in groups])
             estimates.append(random[a, b])
             free.append(min(random[a, a], random[b, b]) > BOUNDARY * scale)
     for j, variance in enumerate(np.asarray(result.vcomp, dtype=np.float64)):
         mats = model.exog_vc.mats[j]
-        parts.append(block_diag(*[mats[i] @ mats[i].T for i in groups]))
+        parts.append([mats[i] @ mats[i].T for i in groups])
         estimates.append(variance)
         free.append(variance > BOUNDARY * scale)
-    parts.append(np.eye(sum(len(y) for y in model.endog_li)))
+    parts.append([np.eye(len(y)) for y in model.endog_li])
     estimates.append(scale)
     free.append(True)
     return _Covariance(parts, np.array(estimates), np.array(free))
@@ -152,14 +154,20 @@ def _pair(columns: NDArray[np.float64], a: int, b: int) -> NDArray[np.float64]:
 
 
 def _reml_pieces(
-    design: NDArray[np.float64], outcome: NDArray[np.float64], covariance: _Covariance
+    designs: list[NDArray[np.float64]],
+    outcomes: list[NDArray[np.float64]],
+    covariance: _Covariance,
 ) -> tuple[
     NDArray[np.float64], NDArray[np.float64], list[NDArray[np.float64]], NDArray[np.float64]
 ]:
     """Return beta, C, C's derivatives and the Hessian of the negative REML log-likelihood.
 
-    With W = V^-1, C = (X' W X)^-1 and P = W - W X C X' W: dC/dtau_j = C X' W V_j W X C, and
-    -d2l/dtau_j dtau_k = -tr(P V_j P V_k) / 2 + y' P V_j P V_k P y (V linear in tau).
+    With W = V^-1, A = W X, C = (X' W X)^-1 and P = W - A C A': dC/dtau_j = C M_j C with
+    M_j = A' V_j A, and -d2l/dtau_j dtau_k = -tr(P V_j P V_k) / 2 + y' P V_j P V_k P y
+    (V linear in tau). As W and each V_j are block-diagonal (``designs[i]``, ``outcomes[i]``
+    and the blocks of group i), tr(P V_j P V_k) = tr(W V_j W V_k) - 2 tr(C A' V_j W V_k A)
+    + tr(C M_j C M_k), and with r = P y = W (y - X beta), y' P V_j P V_k P y =
+    r' V_j W V_k r - (A' V_j r)' C (A' V_k r): every term a sum over the groups.
 
     Returns
     -------
@@ -167,21 +175,64 @@ def _reml_pieces(
         Beta (p), C (p x p), the derivatives (each p x p) and the Hessian (k x k), k the free
         parameters.
     """
-    inverse = np.linalg.inv(covariance.matrix())
-    weighted = inverse @ design
-    fixed = np.asarray(np.linalg.inv(design.T @ weighted), dtype=np.float64)
-    projection = inverse - weighted @ fixed @ weighted.T
+    inverses = [np.asarray(np.linalg.inv(b), dtype=np.float64) for b in covariance.blocks()]
+    weighted = [w @ x for w, x in zip(inverses, designs, strict=True)]
+    fixed = np.asarray(np.linalg.inv(sum(x.T @ a for x, a in zip(designs, weighted, strict=True))),
+                       dtype=np.float64)  # fmt: skip
+    beta = fixed @ sum(a.T @ y for a, y in zip(weighted, outcomes, strict=True))
     parts = [p for p, free in zip(covariance.parts, covariance.free, strict=True) if free]
-    jacobian: list[NDArray[np.float64]] = [fixed @ weighted.T @ p @ weighted @ fixed for p in parts]
-    projected = [projection @ part for part in parts]
-    residual = projection @ outcome
-    moved = [part @ residual for part in parts]
-    pairs = list(zip(projected, moved, strict=True))
-    hessian = np.array([
-        [-0.5 * np.sum(pj * pk.T) + float(mj @ projection @ mk) for pk, mk in pairs]
-        for pj, mj in pairs
-    ], dtype=np.float64)  # fmt: skip
-    return fixed @ weighted.T @ outcome, fixed, jacobian, hessian
+    sums = _GroupSums.of(len(parts), fixed.shape[0])
+    for i, (w, x, y, a) in enumerate(zip(inverses, designs, outcomes, weighted, strict=True)):
+        sums.add(w, a, w @ (y - x @ beta), np.asarray([part[i] for part in parts]))
+    return beta, fixed, [fixed @ m @ fixed for m in sums.weighted], sums.hessian(fixed)
+
+
+@dataclass
+class _GroupSums:
+    """The sums over groups that `_reml_pieces`'s Hessian and derivatives are made of.
+
+    With k free parameters and p fixed effects: ``traces[j, l]`` = tr(W V_j W V_l) (k x k);
+    ``crossed[j, l]`` = A' V_j W V_l A (k x k x p x p); ``weighted[j]`` = M_j = A' V_j A
+    (k x p x p); ``moved[j, l]`` = r' V_j W V_l r (k x k); ``residual[j]`` = A' V_j r (k x p).
+    """
+
+    traces: NDArray[np.float64]
+    crossed: NDArray[np.float64]
+    weighted: NDArray[np.float64]
+    moved: NDArray[np.float64]
+    residual: NDArray[np.float64]
+
+    @classmethod
+    def of(cls, parameters: int, effects: int) -> _GroupSums:
+        """Return the sums over no group: zeros for ``parameters`` k and ``effects`` p."""
+        k, p = parameters, effects
+        return cls(np.zeros((k, k)), np.zeros((k, k, p, p)), np.zeros((k, p, p)),
+                   np.zeros((k, k)), np.zeros((k, p)))  # fmt: skip
+
+    def add(
+        self,
+        inverse: NDArray[np.float64],
+        weighted: NDArray[np.float64],
+        residual: NDArray[np.float64],
+        parts: NDArray[np.float64],
+    ) -> None:
+        """Add one group: its W (n x n), A (n x p), r (n) and each free V_j's block (k x n x n)."""
+        scaled = inverse @ parts  # W V_j, k x n x n
+        applied = parts @ weighted  # V_j A, k x n x p
+        moved = parts @ residual  # V_j r, k x n
+        self.traces += np.einsum("jab,lba->jl", scaled, scaled)
+        self.crossed += np.einsum("jai,lap->jlip", applied, inverse @ applied)
+        self.weighted += np.einsum("ai,jap->jip", weighted, applied)
+        self.moved += moved @ inverse @ moved.T
+        self.residual += moved @ weighted
+
+    def hessian(self, fixed: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return the Hessian of the negative REML log-likelihood (k x k), C ``fixed``."""
+        products = np.einsum("pq,jqr->jpr", fixed, self.weighted)  # C M_j
+        traces = (self.traces - 2.0 * np.einsum("pq,jlqp->jl", fixed, self.crossed)
+                  + np.einsum("jpq,lqp->jl", products, products))  # fmt: skip
+        quadratic = self.moved - self.residual @ fixed @ self.residual.T
+        return np.asarray(-0.5 * traces + quadratic, dtype=np.float64)
 
 
 def _inverse_positive(hessian: NDArray[np.float64]) -> NDArray[np.float64]:
