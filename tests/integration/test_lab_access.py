@@ -100,7 +100,20 @@ def test_lsl_streams_are_published_only_when_asked(tmp_path, options, said):
     )  # fmt: skip
     try:
         first = server.stdout.readline()  # type: ignore[union-attr]
+        lines = [server.stdout.readline() for _ in range(2)]  # type: ignore[union-attr]
+        console = lines[-1].split()[1]
+        # stopped once it serves: its Ctrl+C handling is then uvicorn's
+        wait_for(lambda: _answers(console), 60.0, "the lab serving")
     finally:
         server.send_signal(signal.SIGINT)
         server.communicate(timeout=20)
     assert first.startswith("mirror-avatar lab: recording to") and first.endswith(f"; {said}\n")
+    assert lines[0].startswith("researcher's token: ") and lines[1].startswith("console: ")
+
+
+def _answers(url: str) -> bool:
+    """Whether a server answers at ``url``."""
+    try:
+        return httpx.get(url, timeout=2.0).status_code < 500
+    except httpx.TransportError:
+        return False
