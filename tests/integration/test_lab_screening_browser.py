@@ -34,13 +34,24 @@ from waiting import wait_for
 
 pytestmark = pytest.mark.browser
 
-PROTOCOL = solo_protocol(
-    "screened online study",
-    9,
-    '[online]\nrefusal_code = "NOFIT123"\nscreen_round_trip_p95_ms = 150\n'
-    "screen_frame_rate_hz = 2\nscreen_window_width_px = 800",
-    8,
-)
+
+def screened_protocol(round_trip_p95_ms: int) -> str:
+    """A solo online study screening round trips at ``round_trip_p95_ms``, frames and width."""
+    return solo_protocol(
+        "screened online study",
+        9,
+        f'[online]\nrefusal_code = "NOFIT123"\nscreen_round_trip_p95_ms = {round_trip_p95_ms}\n'
+        "screen_frame_rate_hz = 2\nscreen_window_width_px = 800",
+        8,
+    )
+
+
+PROTOCOL = screened_protocol(150)
+"""Refuses the page behind 150 ms each way (300 ms round trips)."""
+
+LENIENT = screened_protocol(1000)
+"""Admits a page on loopback: in a fresh clone's idle test run a Chromium page on loopback was
+refused at 150 ms (p95 261 ms: one pause of the page of about 360 ms held 18 exchanges)."""
 
 SET_VISIBILITY = """state => {
   Object.defineProperty(document, "visibilityState", { configurable: true, get: () => state });
@@ -52,6 +63,13 @@ SET_VISIBILITY = """state => {
 @pytest.fixture
 def lab(tmp_path: Path) -> Iterator[ServerThread]:
     (tmp_path / "study.toml").write_text(PROTOCOL)
+    with protocol_lab(tmp_path / "study.toml") as running:
+        yield running
+
+
+@pytest.fixture
+def lenient_lab(tmp_path: Path) -> Iterator[ServerThread]:
+    (tmp_path / "study.toml").write_text(LENIENT)
     with protocol_lab(tmp_path / "study.toml") as running:
         yield running
 
@@ -78,49 +96,49 @@ def test_a_page_at_300_ms_round_trip_is_refused_at_entry(chromium, lab, tmp_path
     assert pd.isna(row.trial)  # refused before their first trial
 
 
-def test_a_window_too_narrow_is_refused_at_entry_and_a_wide_one_admitted(chromium, lab):
-    narrow = create_participant(lab.url, 2, BEARER)["links"]["P1"]
+def test_a_window_too_narrow_is_refused_at_entry_and_a_wide_one_admitted(chromium, lenient_lab):
+    narrow = create_participant(lenient_lab.url, 2, BEARER)["links"]["P1"]
     page = chromium.new_context(viewport={"width": 600, "height": 500}).new_page()
     page.goto(narrow)
     page.wait_for_selector("#ending:not([hidden]) #ending-code", timeout=60_000)
     message = page.locator("#message").inner_text()
     page.context.close()
     assert message == "Your window is 600 px wide, narrower than the study's 800 px."
-    created = create_participant(lab.url, 3, BEARER)
+    created = create_participant(lenient_lab.url, 3, BEARER)
     page = join(chromium, created["links"]["P1"])  # 900 x 500
     wait_for(
-        lambda: status(lab, created["id"])["slots"][0]["entry_rtt_p95_ms"] is not None,
+        lambda: status(lenient_lab, created["id"])["slots"][0]["entry_rtt_p95_ms"] is not None,
         30.0, "the page's entry judged",
     )  # fmt: skip
     page.context.close()
-    (admitted,) = [e for e in status(lab, created["id"])["events"] if "admitted" in e]
+    (admitted,) = [e for e in status(lenient_lab, created["id"])["events"] if "admitted" in e]
     # Chromium draws at the display's rate (60 a second idle, under 20 beside two busy loops):
     # the bound of 2 a second refuses only a page that draws next to nothing
     rate = float(admitted.split(" ms, ")[1].split(" frames/s")[0])
     assert rate >= 2 and admitted.endswith("frames/s, window 900x500 px"), admitted
 
 
-def test_a_tab_hidden_mid_trial_is_told_recorded_and_counted(chromium, lab, tmp_path):
-    created = create_participant(lab.url, 1, BEARER)
+def test_a_tab_hidden_mid_trial_is_told_recorded_and_counted(chromium, lenient_lab, tmp_path):
+    created = create_participant(lenient_lab.url, 1, BEARER)
     page: Any = join(chromium, created["links"]["P1"])
     wait_for(
-        lambda: status(lab, created["id"])["slots"][0]["entry_rtt_p95_ms"] is not None,
+        lambda: status(lenient_lab, created["id"])["slots"][0]["entry_rtt_p95_ms"] is not None,
         30.0, "the page's entry judged on its first 100 exchanges",
     )  # fmt: skip
-    assert command(lab, created["id"], "start").status_code == 200
+    assert command(lenient_lab, created["id"], "start").status_code == 200
     page.wait_for_function("parseFloat(document.getElementById('progress-bar').style.width) > 10")
     page.evaluate(SET_VISIBILITY, "hidden")
     page.wait_for_timeout(1000)
     page.evaluate(SET_VISIBILITY, "visible")
     page.wait_for_selector("#notice:not([hidden])")
     assert page.locator("#notice").inner_text() == BACK_NOTICE
-    screenshot(page, "lab-hidden-tab-notice")
+    screenshot(page, "lenient_lab-hidden-tab-notice")
     page.wait_for_function(
         "document.getElementById('message').textContent.startsWith('The session has ended')",
         timeout=60_000,
     )
     page.context.close()
-    events = status(lab, created["id"])["events"]
+    events = status(lenient_lab, created["id"])["events"]
     assert any("P1 admitted: round trip p95 " in event for event in events)
     out = tmp_path / "out" / "study-p001"
     sidecar = json.loads((out / "trial-01_session.json").read_text())["metadata"]
