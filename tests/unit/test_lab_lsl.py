@@ -186,17 +186,19 @@ def sample_ticks(device: LslInput, sender: threading.Thread) -> np.ndarray:
     """Read the device every control period while the sender runs, as the session's clock does.
 
     Returns rows (tick LSL time, x, seq, last_timestamp, time_correction), keeping only ticks whose
-    reads were not interleaved with a new sample.
+    reads were not interleaved with a new sample: the sample read before the tick's time is taken
+    is the one read after it.
     """
     ticks = []
     next_tick = time.monotonic()
     while sender.is_alive():
         next_tick += T
         time.sleep(max(0.0, next_tick - time.monotonic()))
+        before = device.latest()
         tick = pylsl.local_clock()
         first = device.latest()
         stamp, correction = device.last_timestamp, device.time_correction
-        if first is not None and device.latest() is first:
+        if first is not None and first is before and device.latest() is first:
             ticks.append((tick, first.x, first.seq, stamp, correction))
     return np.asarray(ticks)
 
