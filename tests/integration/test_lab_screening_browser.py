@@ -50,8 +50,8 @@ PROTOCOL = screened_protocol(150)
 """Refuses the page behind 150 ms each way (300 ms round trips)."""
 
 LENIENT = screened_protocol(1000)
-"""Admits a page on loopback: in a fresh clone's idle test run a Chromium page on loopback was
-refused at 150 ms (p95 261 ms: one pause of the page of about 360 ms held 18 exchanges)."""
+"""Admits a page on loopback: one pause of a Chromium page as it loads delays every entry
+exchange made meanwhile, and can take a loopback page's p95 above 150 ms."""
 
 SET_VISIBILITY = """state => {
   Object.defineProperty(document, "visibilityState", { configurable: true, get: () => state });
